@@ -1,0 +1,14 @@
+#![no_std]
+#![forbid(unsafe_code)]
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic))]
+#![doc = include_str!("../README.md")]
+
+#[cfg(test)]
+#[macro_use]
+extern crate std;
+
+pub mod discretize;
+pub mod filter;
+pub mod frames;
+pub mod num;
+pub mod svpwm;

@@ -1,0 +1,146 @@
+//! Numeric policy.
+//!
+//! * **Design in f64, run in `T`.** Every coefficient is computed once, at construction, in
+//!   `f64` (see [`crate::discretize`]) and then rounded to the run-time type `T: Scalar`.
+//! * **f32 is the reference** run-time type (single-precision FPU of the Cortex-M4F).
+//! * **[`Q32`]** (signed 64-bit fixed point, 32 integer and 32 fractional bits, *saturating*
+//!   arithmetic) is the configuration for FPU-less cores. Its formats come from the precision
+//!   analysis in the tests of [`crate::filter`]: the δ-form lag section of the ICAD controller
+//!   has per-step state increments of order 1e-4 of the signal, so the state needs ≳ 30
+//!   fractional bits to keep the increment's quantisation below 1e-5 relative; coefficients
+//!   as small as 1.06e-4 need ≥ 30 fractional bits to keep 1e-5 relative precision. A 16.16
+//!   format fails both (see `q16_16_is_too_coarse_for_the_lag_section`).
+//! * Saturation, not wrap-around, everywhere a physical quantity is represented; the only
+//!   wrapping quantity is the electrical angle (see [`crate::frames::wrap_angle`]).
+//! * Arithmetic in `T` never panics: f32 arithmetic cannot, and `Q32` saturates.
+
+use core::fmt::Debug;
+use core::ops::{Add, Mul, Neg, Sub};
+use fixed::types::I32F32;
+
+/// A run-time scalar for the control loops: f32, f64 or [`Q32`].
+pub trait Scalar:
+    Copy + Debug + PartialOrd + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Neg<Output = Self>
+{
+    /// Zero.
+    const ZERO: Self;
+    /// Round a design-time `f64` to this type (saturating for fixed point, NaN → 0).
+    fn from_f64(x: f64) -> Self;
+    /// Widen to `f64` (exact for f32 and `Q32`).
+    fn to_f64(self) -> f64;
+
+    /// `self` limited to `[lo, hi]`. Unlike `f32::clamp` this never panics (for `lo > hi`
+    /// the result is `hi`); a NaN `self` is returned unchanged so that the supervisor sees it.
+    #[inline]
+    fn limit(self, lo: Self, hi: Self) -> Self {
+        let x = if self < lo { lo } else { self };
+        if x > hi { hi } else { x }
+    }
+}
+
+impl Scalar for f32 {
+    const ZERO: Self = 0.0;
+    #[inline]
+    fn from_f64(x: f64) -> Self {
+        // Rounding to nearest: the one intended narrowing of design values.
+        x as f32
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+impl Scalar for f64 {
+    const ZERO: Self = 0.0;
+    #[inline]
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+}
+
+/// Saturating 32.32 fixed point (a [`fixed::types::I32F32`] whose `+ − × −x` saturate
+/// instead of panicking or wrapping). Range ±2.1e9, resolution 2.3e-10.
+#[derive(Clone, Copy, Debug, Default, PartialEq, PartialOrd)]
+pub struct Q32(pub I32F32);
+
+impl Q32 {
+    /// Convert from f32 (saturating, NaN → 0).
+    #[inline]
+    pub fn from_f32(x: f32) -> Self {
+        Q32(I32F32::saturating_from_num(if x.is_nan() { 0.0 } else { x }))
+    }
+    /// Convert to f32 (rounds to nearest).
+    #[inline]
+    pub fn to_f32(self) -> f32 {
+        self.0.to_num::<f32>()
+    }
+}
+
+impl Add for Q32 {
+    type Output = Self;
+    #[inline]
+    fn add(self, o: Self) -> Self {
+        Q32(self.0.saturating_add(o.0))
+    }
+}
+impl Sub for Q32 {
+    type Output = Self;
+    #[inline]
+    fn sub(self, o: Self) -> Self {
+        Q32(self.0.saturating_sub(o.0))
+    }
+}
+impl Mul for Q32 {
+    type Output = Self;
+    #[inline]
+    fn mul(self, o: Self) -> Self {
+        Q32(self.0.saturating_mul(o.0))
+    }
+}
+impl Neg for Q32 {
+    type Output = Self;
+    #[inline]
+    fn neg(self) -> Self {
+        Q32(self.0.saturating_neg())
+    }
+}
+
+impl Scalar for Q32 {
+    const ZERO: Self = Q32(I32F32::ZERO);
+    #[inline]
+    fn from_f64(x: f64) -> Self {
+        Q32(I32F32::saturating_from_num(if x.is_nan() { 0.0 } else { x }))
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self.0.to_num::<f64>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn q32_saturates_instead_of_overflowing() {
+        let big = Q32::from_f64(2.0e9);
+        assert_eq!((big + big).0, I32F32::MAX);
+        assert_eq!((big * big).0, I32F32::MAX);
+        assert_eq!((-big - big).0, I32F32::MIN);
+        assert_eq!(Q32::from_f64(f64::NAN), Q32::ZERO);
+        assert_eq!(Q32::from_f64(f64::INFINITY).0, I32F32::MAX);
+    }
+
+    #[test]
+    fn limit_never_panics_and_keeps_nan() {
+        assert_eq!(5.0f32.limit(-1.0, 1.0), 1.0);
+        assert_eq!((-5.0f32).limit(-1.0, 1.0), -1.0);
+        assert_eq!(0.5f32.limit(1.0, -1.0), -1.0);
+        assert!(f32::NAN.limit(-1.0, 1.0).is_nan());
+    }
+}

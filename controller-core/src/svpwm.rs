@@ -1,0 +1,149 @@
+//! Space-vector modulation by min–max zero-sequence injection.
+//!
+//! For a requested stationary-frame voltage `v` and measured DC-bus voltage `V_dc`, the phase
+//! references `v_abc = inverse_clarke(v)` receive the common-mode offset
+//! `v_0 = −(max(v_abc) + min(v_abc))/2`, and each phase duty is
+//! `d_x = 1/2 + (v_x + v_0)/V_dc` (duty = fraction of the period the upper switch conducts,
+//! average phase-to-midpoint voltage `(d_x − 1/2)·V_dc`). This is equivalent to classical
+//! SVPWM with equal zero-vector sharing.
+//!
+//! **Linear-range limit.** Duties stay in `[0, 1]` exactly when the phase-reference span
+//! `max(v_abc) − min(v_abc)` is ≤ `V_dc`, i.e. inside the voltage hexagon (radius `V_dc/√3`
+//! on its inscribed circle, `2V_dc/3` at its vertices). A request outside the hexagon is
+//! scaled down by `V_dc/span` — the **voltage angle is preserved** and the result lies on the
+//! hexagon boundary. The returned [`Modulation::saturated`] flag reports it. A non-positive or
+//! non-finite bus voltage, or a non-finite request, yields 50 % duty on all phases
+//! (zero voltage); the drive supervisor trips on such inputs before they get here.
+
+use crate::frames::{Abc, AlphaBeta};
+
+/// Result of one modulation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Modulation {
+    /// Duty cycles of phases a, b, c, each in `[0, 1]`.
+    pub duty: Abc,
+    /// Stationary-frame voltage actually applied (after the hexagon limit), in V.
+    pub v_applied: AlphaBeta,
+    /// The request was outside the hexagon and has been scaled down.
+    pub saturated: bool,
+}
+
+/// Radius of the circle inscribed in the hexagon: the largest sinusoidal phase-voltage peak
+/// in the linear range, `V_dc/√3`.
+#[inline]
+pub fn linear_limit_v(vdc_v: f32) -> f32 {
+    vdc_v * 0.577_350_26
+}
+
+/// Duty cycles for voltage `v` on a bus of `vdc_v` volts (see the module docs).
+#[inline]
+pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
+    let zero =
+        Modulation { duty: Abc { a: 0.5, b: 0.5, c: 0.5 }, v_applied: AlphaBeta::default(), saturated: true };
+    if !(vdc_v > 0.0 && vdc_v.is_finite()) {
+        return zero;
+    }
+    let abc = v.inverse_clarke();
+    let max = abc.a.max(abc.b).max(abc.c);
+    let min = abc.a.min(abc.b).min(abc.c);
+    let span = max - min;
+    if !span.is_finite() {
+        return zero;
+    }
+    let (scale, saturated) = if span > vdc_v { (vdc_v / span, true) } else { (1.0, false) };
+    let v0 = -0.5 * (max + min);
+    let k = scale / vdc_v;
+    let duty = |x: f32| (0.5 + (x + v0) * k).clamp(0.0, 1.0);
+    Modulation {
+        duty: Abc { a: duty(abc.a), b: duty(abc.b), c: duty(abc.c) },
+        v_applied: v.scale(scale),
+        saturated,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frames::SinCos;
+    use core::f32::consts::{PI, TAU};
+    use proptest::prelude::*;
+
+    /// Average phase-to-midpoint voltages reconstructed from duties, back to αβ.
+    fn applied(m: &Modulation, vdc: f32) -> AlphaBeta {
+        Abc { a: (m.duty.a - 0.5) * vdc, b: (m.duty.b - 0.5) * vdc, c: (m.duty.c - 0.5) * vdc }.clarke()
+    }
+
+    #[test]
+    fn zero_request_is_half_duty() {
+        let m = modulate(AlphaBeta::default(), 300.0);
+        assert_eq!(m.duty, Abc { a: 0.5, b: 0.5, c: 0.5 });
+        assert!(!m.saturated);
+    }
+
+    #[test]
+    fn inscribed_circle_is_linear_and_reaches_duty_limits() {
+        let vdc = 310.0;
+        let r = linear_limit_v(vdc);
+        for k in 0..360 {
+            let th = k as f32 * TAU / 360.0;
+            let sc = SinCos::new(th);
+            let v = AlphaBeta { alpha: r * 0.9999 * sc.cos, beta: r * 0.9999 * sc.sin };
+            let m = modulate(v, vdc);
+            assert!(!m.saturated, "inside the circle at {th}");
+            let back = applied(&m, vdc);
+            assert!((back.alpha - v.alpha).abs() < 1e-3 && (back.beta - v.beta).abs() < 1e-3);
+        }
+        // On the circle at a sector middle (30°), the span equals V_dc: duties touch 0 and 1.
+        let v = AlphaBeta { alpha: r * libm::cosf(PI / 6.0), beta: r * libm::sinf(PI / 6.0) };
+        let m = modulate(v, vdc);
+        let dmax = m.duty.a.max(m.duty.b).max(m.duty.c);
+        let dmin = m.duty.a.min(m.duty.b).min(m.duty.c);
+        assert!((dmax - 1.0).abs() < 1e-5 && dmin.abs() < 1e-5);
+    }
+
+    #[test]
+    fn hexagon_vertex_reaches_two_thirds_vdc() {
+        let vdc = 100.0;
+        let m = modulate(AlphaBeta { alpha: 2.0 * vdc / 3.0, beta: 0.0 }, vdc);
+        assert!(!m.saturated);
+        assert!((m.duty.a - 1.0).abs() < 1e-6 && m.duty.b.abs() < 1e-6 && m.duty.c.abs() < 1e-6);
+    }
+
+    #[test]
+    fn beyond_the_hexagon_the_angle_is_preserved() {
+        let vdc = 100.0;
+        let req = AlphaBeta { alpha: 300.0, beta: 120.0 };
+        let m = modulate(req, vdc);
+        assert!(m.saturated);
+        let back = applied(&m, vdc);
+        let ang_req = libm::atan2f(req.beta, req.alpha);
+        let ang_out = libm::atan2f(back.beta, back.alpha);
+        assert!((ang_req - ang_out).abs() < 1e-5);
+        // On the hexagon boundary: the duty span is exactly 1.
+        let dmax = m.duty.a.max(m.duty.b).max(m.duty.c);
+        let dmin = m.duty.a.min(m.duty.b).min(m.duty.c);
+        assert!((dmax - dmin - 1.0).abs() < 1e-5);
+        assert!((back.alpha - m.v_applied.alpha).abs() < 1e-3);
+    }
+
+    #[test]
+    fn bad_bus_gives_zero_voltage() {
+        for vdc in [0.0, -5.0, f32::NAN, f32::INFINITY] {
+            let m = modulate(AlphaBeta { alpha: 10.0, beta: 0.0 }, vdc);
+            assert_eq!(m.duty, Abc { a: 0.5, b: 0.5, c: 0.5 });
+        }
+        let m = modulate(AlphaBeta { alpha: f32::NAN, beta: 0.0 }, 300.0);
+        assert_eq!(m.duty, Abc { a: 0.5, b: 0.5, c: 0.5 });
+    }
+
+    proptest! {
+        #[test]
+        fn duties_always_in_unit_interval(alpha in -1e6f32..1e6, beta in -1e6f32..1e6,
+                                          vdc in 1e-3f32..1e4) {
+            let m = modulate(AlphaBeta { alpha, beta }, vdc);
+            for d in [m.duty.a, m.duty.b, m.duty.c] {
+                prop_assert!((0.0..=1.0).contains(&d));
+            }
+        }
+    }
+}
