@@ -7,8 +7,10 @@
 #[macro_use]
 extern crate std;
 
+pub mod current;
 pub mod discretize;
 pub mod filter;
 pub mod frames;
 pub mod num;
+pub mod pi;
 pub mod svpwm;
