@@ -1,0 +1,216 @@
+//! Indirect field-oriented control (seed 000 eqs. (6)–(9), seed 002 Fig. 12).
+//!
+//! With the d axis on the rotor flux (`ψ_qr = 0`, `ψ_dr = ψ_r`, eq. (6)):
+//!
+//! * flux reference → `i_ds* = ψ_r*/L_m` (eq. (9), steady state of eq. (8));
+//! * rotor-flux model, eq. (8) `ψ_r = L_m/(1 + s·T_r)·i_ds*`, discretised exactly (ZOH):
+//!   `ψ̂[k+1] = ψ̂[k] + (1 − e^{−T/T_r})·(L_m·i_ds* − ψ̂[k])`;
+//! * torque → `i_qs* = T*/((3/2)·p·(L_m/L_r)·ψ̂)` (from eq. (5) with `ψ_qr = 0`);
+//! * slip, eq. (7): `ω_sl = L_m·R_r/(L_r·ψ̂)·i_qs*`;
+//! * field angle `θ_e[k+1] = wrap(θ_e[k] + (p·ω_m + ω_sl)·T)`, in `[-π, π)`;
+//! * current references returned in αβ (inverse Park at θ_e) for the stationary-frame loops.
+//!
+//! **Guard while the flux builds up:** ψ̂ is floored at `psi_min_wb` in the torque and slip
+//! divisions, so neither can blow up at start; `i_qs*` is further limited so that the current
+//! reference vector stays within `i_max_a`.
+
+use crate::frames::{AlphaBeta, Dq, SinCos, wrap_angle};
+use crate::motor::MotorParams;
+use crate::num::Scalar;
+
+/// Torque-producing command from the speed loop.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TorqueCommand {
+    /// Electromagnetic torque reference, N·m (converted with the flux estimate).
+    TorqueNm(f32),
+    /// q-axis current reference, A (e.g. seed 000 PI2, whose output is i_qs*).
+    IqA(f32),
+}
+
+/// Why an IFOC configuration was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IfocError {
+    /// Sample period not finite and positive.
+    SamplePeriod,
+    /// Flux floor not finite and positive.
+    FluxFloor,
+    /// Current limit not finite and positive.
+    CurrentLimit,
+}
+
+/// IFOC configuration (derived from the motor at construction).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IfocConfig {
+    inv_lm: f32,
+    lm_h: f32,
+    slip_gain: f32,
+    torque_factor: f32,
+    pole_pairs: f32,
+    flux_model_gain: f32,
+    psi_min_wb: f32,
+    i_max_a: f32,
+    ts_s: f32,
+}
+
+/// IFOC state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct IfocState {
+    /// Field (rotor-flux) angle θ_e, rad, in `[-π, π)`.
+    pub theta_e_rad: f32,
+    /// Rotor-flux model estimate ψ̂_r, Wb.
+    pub psi_r_wb: f32,
+}
+
+/// Result of one IFOC step.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct IfocOutput {
+    /// Current references in the field frame, A.
+    pub i_ref_dq: Dq,
+    /// Current references in the stationary frame, A.
+    pub i_ref_ab: AlphaBeta,
+    /// Field angle used for this step, rad.
+    pub theta_e_rad: f32,
+    /// Slip speed, electrical rad/s.
+    pub omega_sl_rad_s: f32,
+}
+
+impl IfocConfig {
+    /// Build for `motor`, step `ts_s`, flux floor `psi_min_wb` and current limit `i_max_a`.
+    pub fn new(motor: &MotorParams, ts_s: f64, psi_min_wb: f64, i_max_a: f64) -> Result<Self, IfocError> {
+        if !(ts_s.is_finite() && ts_s > 0.0) {
+            return Err(IfocError::SamplePeriod);
+        }
+        if !(psi_min_wb.is_finite() && psi_min_wb > 0.0) {
+            return Err(IfocError::FluxFloor);
+        }
+        if !(i_max_a.is_finite() && i_max_a > 0.0) {
+            return Err(IfocError::CurrentLimit);
+        }
+        let f = f32::from_f64;
+        Ok(Self {
+            inv_lm: f(1.0 / motor.lm_h()),
+            lm_h: f(motor.lm_h()),
+            slip_gain: f(motor.lm_h() * motor.rr_ohm() / motor.lr_h()),
+            torque_factor: f(motor.torque_factor()),
+            pole_pairs: f32::from(motor.pole_pairs()),
+            flux_model_gain: f(1.0 - libm::exp(-ts_s / motor.tr_s())),
+            psi_min_wb: f(psi_min_wb),
+            i_max_a: f(i_max_a),
+            ts_s: f(ts_s),
+        })
+    }
+
+    /// The current-reference limit, A.
+    pub fn i_max_a(&self) -> f32 {
+        self.i_max_a
+    }
+
+    /// One step: flux reference (Wb), torque command and mechanical speed (rad/s) → current
+    /// references at the present field angle; then the angle and flux model advance by one
+    /// sample.
+    #[inline]
+    pub fn update(
+        &self,
+        s: &mut IfocState,
+        psi_ref_wb: f32,
+        cmd: TorqueCommand,
+        omega_m_rad_s: f32,
+    ) -> IfocOutput {
+        let i_d = (psi_ref_wb * self.inv_lm).limit(-self.i_max_a, self.i_max_a);
+        let psi = s.psi_r_wb.max(self.psi_min_wb);
+        let i_q_wanted = match cmd {
+            TorqueCommand::TorqueNm(t) => t / (self.torque_factor * psi),
+            TorqueCommand::IqA(i) => i,
+        };
+        let i_q_max = libm::sqrtf((self.i_max_a * self.i_max_a - i_d * i_d).max(0.0));
+        let i_q = i_q_wanted.limit(-i_q_max, i_q_max);
+        let omega_sl = self.slip_gain * i_q / psi;
+        let theta = s.theta_e_rad;
+        let i_ref_dq = Dq { d: i_d, q: i_q };
+        let i_ref_ab = i_ref_dq.inverse_park(SinCos::new(theta));
+        s.theta_e_rad = wrap_angle(theta + (self.pole_pairs * omega_m_rad_s + omega_sl) * self.ts_s);
+        s.psi_r_wb += self.flux_model_gain * (self.lm_h * i_d - s.psi_r_wb);
+        IfocOutput { i_ref_dq, i_ref_ab, theta_e_rad: theta, omega_sl_rad_s: omega_sl }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> IfocConfig {
+        let m = MotorParams::delorenzo_dl10115a1().unwrap();
+        IfocConfig::new(&m, 5e-5, 0.05, 10.0).unwrap()
+    }
+
+    /// Hand-computed operating point, DeLorenzo motor, ψr* = 1 Wb, T* = 1 N·m:
+    /// i_ds* = 1/1.42 = 0.704225 A; i_qs* = 1·1.5/(1.5·1·1.42·1) = 0.704225 A;
+    /// ω_sl = 1.42·23.2/(1.5·1)·0.704225 = 15.4667 rad/s
+    /// (cross-check: ω_sl = i_qs/(T_r·i_ds) = 23.2/1.5 = 15.4667).
+    #[test]
+    fn steady_state_operating_point() {
+        let c = cfg();
+        let mut s = IfocState::default();
+        let mut out = IfocOutput::default();
+        // Flux builds with T_r = 64.7 ms; 1 s is > 15 T_r.
+        for _ in 0..20_000 {
+            out = c.update(&mut s, 1.0, TorqueCommand::TorqueNm(1.0), 0.0);
+        }
+        assert!((s.psi_r_wb - 1.0).abs() < 1e-4, "flux {}", s.psi_r_wb);
+        assert!((out.i_ref_dq.d - 0.704_225).abs() < 1e-5);
+        assert!((out.i_ref_dq.q - 0.704_225).abs() < 1e-4);
+        assert!((out.omega_sl_rad_s - 15.466_67).abs() < 2e-3, "{}", out.omega_sl_rad_s);
+        // The αβ reference has the dq magnitude.
+        assert!((out.i_ref_ab.magnitude() - libm::hypotf(0.704_225, 0.704_225)).abs() < 1e-4);
+    }
+
+    #[test]
+    fn flux_model_is_first_order_with_tr() {
+        let c = cfg();
+        let mut s = IfocState::default();
+        let tr = 1.5f64 / 23.2;
+        let n = (tr / 5e-5).round() as usize;
+        for _ in 0..n {
+            c.update(&mut s, 1.0, TorqueCommand::TorqueNm(0.0), 0.0);
+        }
+        let expected = 1.0 - libm::exp(-(n as f64) * 5e-5 / tr);
+        assert!((f64::from(s.psi_r_wb) - expected).abs() < 1e-4);
+    }
+
+    #[test]
+    fn field_angle_advances_at_synchronous_speed_and_wraps() {
+        let c = cfg();
+        let mut s = IfocState { theta_e_rad: 0.0, psi_r_wb: 1.0 };
+        // p = 1, ω_m = 100 rad/s, no torque: θ advances 100·T per step.
+        let mut prev = 0.0f32;
+        let mut wraps = 0;
+        for _ in 0..20_000 {
+            let out = c.update(&mut s, 1.0, TorqueCommand::IqA(0.0), 100.0);
+            assert!((-core::f32::consts::PI..core::f32::consts::PI).contains(&out.theta_e_rad));
+            if out.theta_e_rad < prev {
+                wraps += 1;
+            }
+            prev = out.theta_e_rad;
+        }
+        // 1 s at 100 rad/s = 15.9 turns.
+        assert_eq!(wraps, 16);
+    }
+
+    #[test]
+    fn guard_bounds_slip_and_current_while_flux_is_zero() {
+        let c = cfg();
+        let mut s = IfocState::default();
+        let out = c.update(&mut s, 1.0, TorqueCommand::TorqueNm(1e6), 0.0);
+        assert!(libm::hypotf(out.i_ref_dq.d, out.i_ref_dq.q) <= 10.0 + 1e-4);
+        // ω_sl ≤ slip_gain·i_max/ψ_min = 21.96·10/0.05
+        assert!(out.omega_sl_rad_s.is_finite() && out.omega_sl_rad_s <= 21.97 * 10.0 / 0.05);
+    }
+
+    #[test]
+    fn rejects_bad_config() {
+        let m = MotorParams::delorenzo_dl10115a1().unwrap();
+        assert_eq!(IfocConfig::new(&m, 0.0, 0.05, 10.0), Err(IfocError::SamplePeriod));
+        assert_eq!(IfocConfig::new(&m, 5e-5, 0.0, 10.0), Err(IfocError::FluxFloor));
+        assert_eq!(IfocConfig::new(&m, 5e-5, 0.05, f64::NAN), Err(IfocError::CurrentLimit));
+    }
+}
