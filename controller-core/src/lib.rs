@@ -9,6 +9,7 @@ extern crate std;
 
 pub mod current;
 pub mod discretize;
+pub mod drive;
 pub mod filter;
 pub mod frames;
 pub mod ifoc;

@@ -1,0 +1,673 @@
+//! Drive composition: supervisor, state machine, fast and slow steps.
+//!
+//! ```text
+//!            enable()               ψ̂_r ≥ magnetized_fraction·ψ_r*
+//!   Idle ───────────────▶ Magnetizing ─────────────────────────────▶ Running
+//!    ▲  ◀──── disable() ───────┴──────────────── disable() ────────────┘
+//!    │                 any mode ── supervisor trip ──▶ Fault(f)  (latched, phases off)
+//!    └──────────────────── clear_fault() ──────────────────┘
+//! ```
+//!
+//! **Fast step** (every PWM period, [`Drive::fast_step`]): supervisor → Clarke of the measured
+//! phase currents → IFOC (field angle, current references in αβ) → α/β current controllers
+//! with the voltage limit `V_dc/√3` → SVPWM duties.
+//! **Slow step** (every N-th period, [`Drive::slow_step`]): position loop (if a position
+//! reference is active) → speed loop → torque command held for the fast steps.
+//! [`Drive::step`] runs the slow step on every N-th call, then the fast step — what the
+//! firmware's control interrupt and the simulators call.
+//!
+//! **Supervisor** (first thing in the fast step, any mode): any non-finite measurement,
+//! a phase current beyond `i_trip_a`, a bus voltage above `vdc_max_v`, or — when the
+//! bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases off in the
+//! same step. A non-finite controller output (impossible for finite inputs, checked anyway)
+//! trips too. The fast step performs no indexing, no division by unchecked values that could
+//! panic, and no `unwrap`: it cannot panic for any input (property-tested).
+
+use crate::current::{CurrentControllerConfig, CurrentError, CurrentLaw, CurrentState};
+use crate::discretize::Discretization;
+use crate::frames::{Abc, AlphaBeta};
+use crate::ifoc::{IfocConfig, IfocError, IfocState, TorqueCommand};
+use crate::motor::MotorParams;
+use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
+use crate::svpwm;
+
+/// Protection thresholds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Protection {
+    /// Phase-current trip level (absolute instantaneous value), A.
+    pub i_trip_a: f64,
+    /// DC-bus undervoltage trip (checked while the bridge is active), V.
+    pub vdc_min_v: f64,
+    /// DC-bus overvoltage trip, V.
+    pub vdc_max_v: f64,
+}
+
+/// Position loop parameters (P law with speed saturation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PositionLaw {
+    /// Speed reference per rad of position error, 1/s.
+    pub k_per_s: f64,
+    /// Speed-reference limit, mechanical rad/s.
+    pub omega_max_rad_s: f64,
+}
+
+/// Everything a drive needs, in design units (f64). [`DriveConfig::new`] validates it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveSpec {
+    /// Motor.
+    pub motor: MotorParams,
+    /// Fast-loop (PWM) frequency, Hz.
+    pub pwm_frequency_hz: f64,
+    /// The slow loop runs every `slow_divider`-th fast step (≥ 1).
+    pub slow_divider: u16,
+    /// Current law (ICAD or PI).
+    pub current_law: CurrentLaw,
+    /// Discretisation of the current law.
+    pub discretization: Discretization,
+    /// Speed law.
+    pub speed_law: SpeedLaw,
+    /// Position loop.
+    pub position: PositionLaw,
+    /// Rotor-flux reference ψ_r*, Wb.
+    pub flux_ref_wb: f64,
+    /// Flux floor of the IFOC guard, Wb.
+    pub flux_floor_wb: f64,
+    /// Magnitude limit of the current reference vector, A.
+    pub i_ref_max_a: f64,
+    /// Magnetizing → Running when ψ̂_r ≥ this fraction of ψ_r* (in (0, 1)).
+    pub magnetized_fraction: f64,
+    /// Trip thresholds.
+    pub protection: Protection,
+}
+
+/// Why a drive specification was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriveError {
+    /// PWM frequency not finite and positive.
+    PwmFrequency,
+    /// `slow_divider` is 0.
+    SlowDivider,
+    /// Current law rejected.
+    Current(CurrentError),
+    /// Speed law rejected.
+    Speed(SpeedError),
+    /// Position law rejected.
+    Position(SpeedError),
+    /// IFOC parameters rejected.
+    Ifoc(IfocError),
+    /// Flux reference not finite and positive, or `flux_floor_wb` not below it.
+    FluxReference,
+    /// `magnetized_fraction` not in (0, 1).
+    MagnetizedFraction,
+    /// Protection thresholds inconsistent: need 0 ≤ vdc_min < vdc_max and
+    /// i_trip > i_ref_max > 0.
+    Protection,
+}
+
+/// Validated, discretised drive configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveConfig {
+    current: CurrentControllerConfig<f32>,
+    ifoc: IfocConfig,
+    speed: SpeedControllerConfig,
+    position: PositionConfig,
+    flux_ref_wb: f32,
+    psi_running_wb: f32,
+    slow_divider: u16,
+    i_trip_a: f32,
+    vdc_min_v: f32,
+    vdc_max_v: f32,
+}
+
+impl DriveConfig {
+    /// Validate and discretise.
+    pub fn new(spec: &DriveSpec) -> Result<Self, DriveError> {
+        let f = spec.pwm_frequency_hz;
+        if !(f.is_finite() && f > 0.0) {
+            return Err(DriveError::PwmFrequency);
+        }
+        if spec.slow_divider == 0 {
+            return Err(DriveError::SlowDivider);
+        }
+        let ts = 1.0 / f;
+        let p = &spec.protection;
+        let finite = [p.i_trip_a, p.vdc_min_v, p.vdc_max_v, spec.i_ref_max_a].iter().all(|x| x.is_finite());
+        if !(finite
+            && p.vdc_min_v >= 0.0
+            && p.vdc_min_v < p.vdc_max_v
+            && spec.i_ref_max_a > 0.0
+            && p.i_trip_a > spec.i_ref_max_a)
+        {
+            return Err(DriveError::Protection);
+        }
+        if !(spec.flux_ref_wb.is_finite() && spec.flux_ref_wb > 0.0 && spec.flux_floor_wb < spec.flux_ref_wb)
+        {
+            return Err(DriveError::FluxReference);
+        }
+        let mf = spec.magnetized_fraction;
+        if !(mf > 0.0 && mf < 1.0) {
+            return Err(DriveError::MagnetizedFraction);
+        }
+        // Static limit of the current controllers: the largest bus voltage we run on.
+        let current = CurrentControllerConfig::new(
+            &spec.current_law,
+            ts,
+            spec.discretization,
+            svpwm::linear_limit_v(p.vdc_max_v as f32) as f64,
+        )
+        .map_err(DriveError::Current)?;
+        let ifoc = IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a)
+            .map_err(DriveError::Ifoc)?;
+        let speed = SpeedControllerConfig::new(&spec.speed_law, ts * f64::from(spec.slow_divider))
+            .map_err(DriveError::Speed)?;
+        let position = PositionConfig::new(spec.position.k_per_s, spec.position.omega_max_rad_s)
+            .map_err(DriveError::Position)?;
+        Ok(Self {
+            current,
+            ifoc,
+            speed,
+            position,
+            flux_ref_wb: spec.flux_ref_wb as f32,
+            psi_running_wb: (spec.flux_ref_wb * mf) as f32,
+            slow_divider: spec.slow_divider,
+            i_trip_a: p.i_trip_a as f32,
+            vdc_min_v: p.vdc_min_v as f32,
+            vdc_max_v: p.vdc_max_v as f32,
+        })
+    }
+}
+
+/// Latched fault causes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// A phase current exceeded `i_trip_a`.
+    Overcurrent,
+    /// DC bus above `vdc_max_v`.
+    DcBusOvervoltage,
+    /// DC bus below `vdc_min_v` while the bridge was active.
+    DcBusUndervoltage,
+    /// A measurement was NaN or infinite.
+    NonFiniteInput,
+    /// A controller output was not finite.
+    NonFiniteOutput,
+}
+
+/// Drive state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Bridge off, waiting for `enable`.
+    Idle,
+    /// Building rotor flux with zero torque.
+    Magnetizing,
+    /// Speed/position/torque control.
+    Running,
+    /// Latched fault, bridge off.
+    Fault(Fault),
+}
+
+/// Outer-loop reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Reference {
+    /// Mechanical speed, rad/s.
+    Speed(f32),
+    /// Mechanical position, rad (not wrapped).
+    Position(f32),
+    /// Electromagnetic torque, N·m (speed loop bypassed).
+    Torque(f32),
+}
+
+/// Commands that are refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommandError {
+    /// A fault is latched: clear it first.
+    Faulted,
+    /// The reference value is NaN or infinite.
+    NonFinite,
+}
+
+/// Sampled inputs of one PWM period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Measurements {
+    /// Phase currents, A.
+    pub i_abc_a: Abc,
+    /// DC-bus voltage, V.
+    pub vdc_v: f32,
+    /// Mechanical speed, rad/s.
+    pub omega_m_rad_s: f32,
+    /// Mechanical position, rad (not wrapped).
+    pub theta_m_rad: f32,
+}
+
+impl Measurements {
+    fn is_finite(&self) -> bool {
+        self.i_abc_a.is_finite()
+            && self.vdc_v.is_finite()
+            && self.omega_m_rad_s.is_finite()
+            && self.theta_m_rad.is_finite()
+    }
+}
+
+/// What the bridge should do for the next PWM period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PhaseCommand {
+    /// All six switches off.
+    Off,
+    /// Upper-switch duty cycles in [0, 1].
+    Duty(Abc),
+}
+
+/// Signals of one fast step, for logs and traces.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Telemetry {
+    /// Measured stator current, A.
+    pub i_ab_a: AlphaBeta,
+    /// Stator current reference, A.
+    pub i_ref_ab_a: AlphaBeta,
+    /// Applied stator voltage (after the hexagon limit), V.
+    pub v_ab_v: AlphaBeta,
+    /// Field angle, rad.
+    pub theta_e_rad: f32,
+    /// Slip speed, electrical rad/s.
+    pub omega_sl_rad_s: f32,
+    /// Rotor-flux model estimate, Wb.
+    pub psi_r_wb: f32,
+    /// q-axis current reference, A.
+    pub i_q_ref_a: f32,
+    /// Speed reference of the speed loop, mechanical rad/s.
+    pub omega_ref_rad_s: f32,
+}
+
+/// Output of one fast step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FastOutput {
+    /// Bridge command.
+    pub phases: PhaseCommand,
+    /// Mode after this step.
+    pub mode: Mode,
+    /// Signals.
+    pub telemetry: Telemetry,
+}
+
+/// A drive: configuration plus all loop states.
+#[derive(Clone, Copy, Debug)]
+pub struct Drive {
+    cfg: DriveConfig,
+    mode: Mode,
+    reference: Reference,
+    torque_cmd: TorqueCommand,
+    omega_ref_rad_s: f32,
+    slow_count: u16,
+    current: CurrentState<f32>,
+    ifoc: IfocState,
+    speed: SpeedState,
+}
+
+impl Drive {
+    /// A drive in `Idle` with a zero speed reference.
+    pub fn new(cfg: DriveConfig) -> Self {
+        Self {
+            cfg,
+            mode: Mode::Idle,
+            reference: Reference::Speed(0.0),
+            torque_cmd: TorqueCommand::TorqueNm(0.0),
+            omega_ref_rad_s: 0.0,
+            slow_count: 0,
+            current: CurrentState::default(),
+            ifoc: IfocState::default(),
+            speed: SpeedState::default(),
+        }
+    }
+
+    /// Present mode.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DriveConfig {
+        &self.cfg
+    }
+
+    /// Idle → Magnetizing with fresh loop states. No effect when already active.
+    pub fn enable(&mut self) -> Result<(), CommandError> {
+        match self.mode {
+            Mode::Fault(_) => Err(CommandError::Faulted),
+            Mode::Idle => {
+                self.current = CurrentState::default();
+                self.ifoc = IfocState::default();
+                self.speed = SpeedState::default();
+                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
+                self.slow_count = 0;
+                self.mode = Mode::Magnetizing;
+                Ok(())
+            }
+            Mode::Magnetizing | Mode::Running => Ok(()),
+        }
+    }
+
+    /// Back to Idle (phases off). A latched fault stays latched.
+    pub fn disable(&mut self) {
+        if !matches!(self.mode, Mode::Fault(_)) {
+            self.mode = Mode::Idle;
+        }
+    }
+
+    /// Fault → Idle.
+    pub fn clear_fault(&mut self) {
+        if matches!(self.mode, Mode::Fault(_)) {
+            self.mode = Mode::Idle;
+        }
+    }
+
+    /// Set the outer-loop reference (takes effect at the next slow step).
+    pub fn set_reference(&mut self, r: Reference) -> Result<(), CommandError> {
+        let v = match r {
+            Reference::Speed(x) | Reference::Position(x) | Reference::Torque(x) => x,
+        };
+        if !v.is_finite() {
+            return Err(CommandError::NonFinite);
+        }
+        self.reference = r;
+        Ok(())
+    }
+
+    /// One PWM period: the slow step on every N-th call, then the fast step.
+    #[inline]
+    pub fn step(&mut self, m: &Measurements) -> FastOutput {
+        if self.slow_count == 0 {
+            self.slow_step(m);
+        }
+        self.slow_count = if self.slow_count + 1 >= self.cfg.slow_divider { 0 } else { self.slow_count + 1 };
+        self.fast_step(m)
+    }
+
+    /// Speed/position loop. Holds a zero torque command unless Running; ignores non-finite
+    /// measurements (the fast step trips on them).
+    pub fn slow_step(&mut self, m: &Measurements) {
+        if self.mode != Mode::Running || !m.is_finite() {
+            self.torque_cmd = TorqueCommand::TorqueNm(0.0);
+            return;
+        }
+        self.torque_cmd = match self.reference {
+            Reference::Torque(t) => TorqueCommand::TorqueNm(t),
+            Reference::Speed(w) => {
+                self.omega_ref_rad_s = w;
+                self.cfg.speed.update(&mut self.speed, w, m.omega_m_rad_s)
+            }
+            Reference::Position(th) => {
+                let w = self.cfg.position.update(th, m.theta_m_rad);
+                self.omega_ref_rad_s = w;
+                self.cfg.speed.update(&mut self.speed, w, m.omega_m_rad_s)
+            }
+        };
+    }
+
+    fn supervise(&self, m: &Measurements) -> Option<Fault> {
+        if !m.is_finite() {
+            return Some(Fault::NonFiniteInput);
+        }
+        let i = m.i_abc_a;
+        let i_peak = i.a.abs().max(i.b.abs()).max(i.c.abs());
+        if i_peak > self.cfg.i_trip_a {
+            return Some(Fault::Overcurrent);
+        }
+        if m.vdc_v > self.cfg.vdc_max_v {
+            return Some(Fault::DcBusOvervoltage);
+        }
+        let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
+        if active && m.vdc_v < self.cfg.vdc_min_v {
+            return Some(Fault::DcBusUndervoltage);
+        }
+        None
+    }
+
+    fn trip(&mut self, f: Fault) {
+        if !matches!(self.mode, Mode::Fault(_)) {
+            self.mode = Mode::Fault(f);
+        }
+    }
+
+    /// Current loop. See the module docs for the signal flow.
+    #[inline]
+    pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
+        if let Some(f) = self.supervise(m) {
+            self.trip(f);
+        }
+        let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, telemetry: Telemetry::default() };
+        let running = match self.mode {
+            Mode::Idle | Mode::Fault(_) => return off(self.mode),
+            Mode::Magnetizing => false,
+            Mode::Running => true,
+        };
+        let cfg = &self.cfg;
+        let i_ab = m.i_abc_a.clarke();
+        let cmd = if running { self.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
+        let field = cfg.ifoc.update(&mut self.ifoc, cfg.flux_ref_wb, cmd, m.omega_m_rad_s);
+        let v_limit = svpwm::linear_limit_v(m.vdc_v);
+        let v_ab = cfg.current.update(&mut self.current, field.i_ref_ab, i_ab, v_limit);
+        if !(v_ab.alpha.is_finite() && v_ab.beta.is_finite()) {
+            self.trip(Fault::NonFiniteOutput);
+            return off(self.mode);
+        }
+        let modulation = svpwm::modulate(v_ab, m.vdc_v);
+        if !running && self.ifoc.psi_r_wb >= cfg.psi_running_wb {
+            self.mode = Mode::Running;
+            self.speed = SpeedState::default();
+        }
+        FastOutput {
+            phases: PhaseCommand::Duty(modulation.duty),
+            mode: self.mode,
+            telemetry: Telemetry {
+                i_ab_a: i_ab,
+                i_ref_ab_a: field.i_ref_ab,
+                v_ab_v: modulation.v_applied,
+                theta_e_rad: field.theta_e_rad,
+                omega_sl_rad_s: field.omega_sl_rad_s,
+                psi_r_wb: self.ifoc.psi_r_wb,
+                i_q_ref_a: field.i_ref_dq.q,
+                omega_ref_rad_s: self.omega_ref_rad_s,
+            },
+        }
+    }
+}
+
+/// A complete example specification: DeLorenzo DL10115A1 (seed 002) on a 310 V bus at
+/// 20 kHz with the ICAD current controller eq. (20), the saturated-P speed loop eq. (21)
+/// at 2 kHz, ψ_r* = 0.9 Wb. Used by tests, benchmarks and examples.
+pub fn example_spec() -> Result<DriveSpec, crate::motor::MotorError> {
+    Ok(DriveSpec {
+        motor: MotorParams::delorenzo_dl10115a1()?,
+        pwm_frequency_hz: 20_000.0,
+        slow_divider: 10,
+        current_law: CurrentLaw::ICAD_EQ20,
+        discretization: Discretization::Tustin,
+        speed_law: SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 2.0 },
+        position: PositionLaw { k_per_s: 10.0, omega_max_rad_s: 150.0 },
+        flux_ref_wb: 0.9,
+        flux_floor_wb: 0.05,
+        i_ref_max_a: 4.0,
+        magnetized_fraction: 0.95,
+        protection: Protection { i_trip_a: 8.0, vdc_min_v: 200.0, vdc_max_v: 400.0 },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn drive() -> Drive {
+        Drive::new(DriveConfig::new(&example_spec().unwrap()).unwrap())
+    }
+
+    fn meas(vdc: f32) -> Measurements {
+        Measurements { vdc_v: vdc, ..Default::default() }
+    }
+
+    /// Per-phase R-L load standing in for a locked-rotor machine (seen from the stator at
+    /// high frequency: R_s and σL_s). Returns the current after applying `duty` for one
+    /// period on `vdc` (exact ZOH of di/dt = (v − R i)/L per phase, star point floating:
+    /// the common-mode voltage is removed).
+    fn rl_step(i: Abc, duty: Abc, vdc: f32, r: f32, l: f32, ts: f32) -> Abc {
+        let v = Abc { a: (duty.a - 0.5) * vdc, b: (duty.b - 0.5) * vdc, c: (duty.c - 0.5) * vdc };
+        let v0 = (v.a + v.b + v.c) / 3.0;
+        let a = libm::expf(-r / l * ts);
+        let step = |i: f32, v: f32| a * i + (1.0 - a) * (v - v0) / r;
+        Abc { a: step(i.a, v.a), b: step(i.b, v.b), c: step(i.c, v.c) }
+    }
+
+    #[test]
+    fn rejects_inconsistent_specs() {
+        let ok = example_spec().unwrap();
+        let bad = |f: &dyn Fn(&mut DriveSpec)| {
+            let mut s = ok;
+            f(&mut s);
+            DriveConfig::new(&s).err()
+        };
+        assert_eq!(bad(&|s| s.pwm_frequency_hz = 0.0), Some(DriveError::PwmFrequency));
+        assert_eq!(bad(&|s| s.slow_divider = 0), Some(DriveError::SlowDivider));
+        assert_eq!(bad(&|s| s.protection.i_trip_a = 3.0), Some(DriveError::Protection));
+        assert_eq!(bad(&|s| s.protection.vdc_min_v = 500.0), Some(DriveError::Protection));
+        assert_eq!(bad(&|s| s.flux_ref_wb = f64::NAN), Some(DriveError::FluxReference));
+        assert_eq!(bad(&|s| s.magnetized_fraction = 1.0), Some(DriveError::MagnetizedFraction));
+        assert_eq!(
+            bad(&|s| s.speed_law = SpeedLaw::SaturatedP { kp: 1.0, tau_max_nm: -1.0 }),
+            Some(DriveError::Speed(SpeedError::Limit))
+        );
+        assert!(bad(&|_| ()).is_none());
+    }
+
+    #[test]
+    fn state_machine_and_fault_latching() {
+        let mut d = drive();
+        assert_eq!(d.fast_step(&meas(310.0)).phases, PhaseCommand::Off);
+        d.enable().unwrap();
+        assert_eq!(d.mode(), Mode::Magnetizing);
+        assert!(matches!(d.fast_step(&meas(310.0)).phases, PhaseCommand::Duty(_)));
+        // Undervoltage while active trips; phases off in the same step.
+        let out = d.fast_step(&meas(100.0));
+        assert_eq!(out.mode, Mode::Fault(Fault::DcBusUndervoltage));
+        assert_eq!(out.phases, PhaseCommand::Off);
+        // Latched: enable refused, a later overcurrent does not overwrite the first cause.
+        assert_eq!(d.enable(), Err(CommandError::Faulted));
+        let over = Measurements { i_abc_a: Abc { a: 9.0, b: -4.5, c: -4.5 }, ..meas(310.0) };
+        assert_eq!(d.fast_step(&over).mode, Mode::Fault(Fault::DcBusUndervoltage));
+        d.disable();
+        assert!(matches!(d.mode(), Mode::Fault(_)));
+        d.clear_fault();
+        assert_eq!(d.mode(), Mode::Idle);
+        // Undervoltage is not a fault while idle (bus not yet charged); overvoltage is.
+        assert_eq!(d.fast_step(&meas(0.0)).mode, Mode::Idle);
+        assert_eq!(d.fast_step(&meas(450.0)).mode, Mode::Fault(Fault::DcBusOvervoltage));
+        assert_eq!(d.set_reference(Reference::Speed(f32::NAN)), Err(CommandError::NonFinite));
+    }
+
+    /// A drive brought to Running on the R-L load (computed once, then copied).
+    fn running_drive() -> Drive {
+        static RUNNING: std::sync::OnceLock<Drive> = std::sync::OnceLock::new();
+        *RUNNING.get_or_init(|| {
+            let mut d = drive();
+            d.enable().unwrap();
+            let mut i = Abc::default();
+            while d.mode() != Mode::Running {
+                if let PhaseCommand::Duty(duty) =
+                    d.step(&Measurements { i_abc_a: i, vdc_v: 310.0, ..Default::default() }).phases
+                {
+                    i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+                }
+            }
+            d
+        })
+    }
+
+    /// Wiring check of the whole fast path (Clarke → IFOC → ICAD → SVPWM → duty → volts):
+    /// on an R-L load the d-current settles at ψ_r*/L_m, the flux model reaches the running
+    /// threshold, and the drive moves to Running by itself.
+    #[test]
+    fn magnetizes_an_rl_load_and_enters_running() {
+        let mut d = drive();
+        d.enable().unwrap();
+        let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
+        let mut i = Abc::default();
+        let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+        for _ in 0..20_000 {
+            if let PhaseCommand::Duty(duty) = out.phases {
+                i = rl_step(i, duty, vdc, r, l, ts);
+            }
+            out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+        }
+        assert_eq!(d.mode(), Mode::Running);
+        // i_ds* = 0.9/1.42 = 0.6338 A; at standstill with zero torque, θ_e stays 0, so the
+        // reference is on α: i_α → 0.6338 A, i_β → 0.
+        let t = out.telemetry;
+        assert!((t.i_ref_ab_a.alpha - 0.9 / 1.42).abs() < 1e-4);
+        assert!((t.i_ab_a.alpha - t.i_ref_ab_a.alpha).abs() < 1e-3, "{:?}", t);
+        assert!(t.i_ab_a.beta.abs() < 1e-3);
+    }
+
+    fn finite_meas() -> impl Strategy<Value = Measurements> {
+        (-20.0f32..20.0, -20.0f32..20.0, -20.0f32..20.0, 0.0f32..600.0, -1e4f32..1e4, -1e6f32..1e6).prop_map(
+            |(a, b, c, vdc_v, w, th)| Measurements {
+                i_abc_a: Abc { a, b, c },
+                vdc_v,
+                omega_m_rad_s: w,
+                theta_m_rad: th,
+            },
+        )
+    }
+
+    fn non_finite() -> impl Strategy<Value = f32> {
+        prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(f32::NEG_INFINITY)]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+
+        /// Any finite inputs: outputs finite and inside their limits, whatever the mode.
+        #[test]
+        fn finite_inputs_give_bounded_outputs(seq in proptest::collection::vec(finite_meas(), 1..200),
+                                              r in -1e3f32..1e3, which in 0u8..3, start_running: bool) {
+            let mut d = if start_running { running_drive() } else { drive() };
+            let reference = match which { 0 => Reference::Speed(r), 1 => Reference::Position(r), _ => Reference::Torque(r) };
+            d.set_reference(reference).unwrap();
+            d.enable().unwrap();
+            for m in &seq {
+                let out = d.step(m);
+                match out.phases {
+                    PhaseCommand::Off => prop_assert!(!matches!(out.mode, Mode::Magnetizing | Mode::Running)),
+                    PhaseCommand::Duty(duty) => {
+                        for x in [duty.a, duty.b, duty.c] {
+                            prop_assert!((0.0..=1.0).contains(&x));
+                        }
+                        let t = out.telemetry;
+                        let lim = svpwm::linear_limit_v(m.vdc_v) * 2.0 / 1.732_050_8 + 1e-3;
+                        prop_assert!(t.v_ab_v.magnitude() <= lim);
+                        prop_assert!(t.i_ref_ab_a.magnitude() <= 4.0 + 1e-3);
+                        prop_assert!(t.theta_e_rad.is_finite() && t.psi_r_wb.is_finite());
+                    }
+                }
+            }
+        }
+
+        /// Any NaN/inf in any input field: Fault within one fast step, phases off.
+        #[test]
+        fn non_finite_input_trips_in_one_step(warm in proptest::collection::vec(finite_meas(), 0..50),
+                                              mut bad in finite_meas(), field in 0u8..6, x in non_finite()) {
+            let mut d = running_drive();
+            for m in &warm {
+                d.step(m);
+            }
+            match field {
+                0 => bad.i_abc_a.a = x,
+                1 => bad.i_abc_a.b = x,
+                2 => bad.i_abc_a.c = x,
+                3 => bad.vdc_v = x,
+                4 => bad.omega_m_rad_s = x,
+                _ => bad.theta_m_rad = x,
+            }
+            let out = d.step(&bad);
+            prop_assert_eq!(out.phases, PhaseCommand::Off);
+            prop_assert!(matches!(out.mode, Mode::Fault(_)));
+        }
+    }
+}
