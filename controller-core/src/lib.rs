@@ -16,5 +16,6 @@ pub mod ifoc;
 pub mod motor;
 pub mod num;
 pub mod pi;
+pub mod scaling;
 pub mod speed;
 pub mod svpwm;

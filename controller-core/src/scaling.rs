@@ -1,0 +1,167 @@
+//! Converter scaling: ADC counts → physical units, duty cycle → PWM compare counts.
+//!
+//! Two paths with the same configuration:
+//! * f32 (reference, Cortex-M4F),
+//! * fixed point with the [`fixed`] crate for FPU-less cores: currents as `I16F16`
+//!   (±32 768 A, 15 µA resolution — far below one ADC count of any practical shunt
+//!   front end) and duties as `U1F15` (0 … 1.99997, so 100 % is exact; 1/32 768 resolution,
+//!   finer than one compare count for periods up to 32 768 counts).
+//!
+//! Saturation, never wrap-around: a compare value is always in `[0, period]`, whatever the
+//! duty (NaN → 0, i.e. the low switch on; the supervisor turns the bridge off first).
+
+use fixed::types::{I16F16, U1F15};
+
+/// Raw ADC conversion result.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct AdcCode(pub u16);
+
+/// Why a scaling was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScalingError {
+    /// Gain not finite or zero, or not representable in the fixed-point format.
+    Gain,
+    /// Offset above the ADC full scale.
+    Offset,
+    /// PWM period of zero counts.
+    Period,
+}
+
+/// Linear ADC channel: `x = (code − offset)·gain`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdcScaling {
+    offset_counts: i32,
+    gain_f32: f32,
+    gain_fixed: I16F16,
+}
+
+impl AdcScaling {
+    /// `gain` in physical units per count (e.g. A/count, may be negative for an inverting
+    /// amplifier), `offset_counts` the code at zero (≤ `full_scale_counts`).
+    pub fn new(gain: f64, offset_counts: u16, full_scale_counts: u16) -> Result<Self, ScalingError> {
+        if !(gain.is_finite() && gain != 0.0 && gain.abs() < 32_767.0) {
+            return Err(ScalingError::Gain);
+        }
+        if offset_counts > full_scale_counts {
+            return Err(ScalingError::Offset);
+        }
+        let gain_fixed = I16F16::from_num(gain);
+        if gain_fixed == I16F16::ZERO {
+            return Err(ScalingError::Gain);
+        }
+        Ok(Self { offset_counts: i32::from(offset_counts), gain_f32: gain as f32, gain_fixed })
+    }
+
+    /// Physical value in f32.
+    #[inline]
+    pub fn to_f32(&self, code: AdcCode) -> f32 {
+        // |code − offset| ≤ 65 535: exact in f32.
+        (i32::from(code.0) - self.offset_counts) as f32 * self.gain_f32
+    }
+
+    /// Physical value in `I16F16` (saturating).
+    #[inline]
+    pub fn to_fixed(&self, code: AdcCode) -> I16F16 {
+        self.gain_fixed.saturating_mul_int(i32::from(code.0) - self.offset_counts)
+    }
+}
+
+/// Centre-aligned PWM compare scaling: compare = duty·period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PwmScaling {
+    period_counts: u16,
+}
+
+impl PwmScaling {
+    /// `period_counts` = the auto-reload value (compare = period → 100 % duty).
+    pub fn new(period_counts: u16) -> Result<Self, ScalingError> {
+        if period_counts == 0 { Err(ScalingError::Period) } else { Ok(Self { period_counts }) }
+    }
+
+    /// Compare value for an f32 duty, rounded to nearest, saturated to `[0, period]`.
+    #[inline]
+    pub fn compare(&self, duty: f32) -> u16 {
+        // `as u16` saturates and maps NaN to 0: the intended behaviour here.
+        let c = (duty * f32::from(self.period_counts) + 0.5) as u16;
+        c.min(self.period_counts)
+    }
+
+    /// Compare value for a fixed-point duty, rounded to nearest, saturated to `[0, period]`.
+    #[inline]
+    pub fn compare_fixed(&self, duty: U1F15) -> u16 {
+        let c = (u32::from(duty.to_bits()) * u32::from(self.period_counts) + (1 << 14)) >> 15;
+        // ≤ period·65 535/32 768 < 2^17; the min brings it into u16 range.
+        c.min(u32::from(self.period_counts)) as u16
+    }
+
+    /// f32 duty → `U1F15` (saturating; NaN → 0).
+    #[inline]
+    pub fn duty_to_fixed(duty: f32) -> U1F15 {
+        U1F15::saturating_from_num(if duty.is_nan() { 0.0 } else { duty })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// NUCLEO-style front end: 12-bit ADC at 3.3 V, 0.01 Ω shunt, gain 10 amplifier with
+    /// mid-scale offset: 3.3/4096/(0.01·10) = 8.057e-3 A/count.
+    fn shunt() -> AdcScaling {
+        AdcScaling::new(3.3 / 4096.0 / 0.1, 2048, 4095).unwrap()
+    }
+
+    #[test]
+    fn adc_known_codes() {
+        let s = shunt();
+        assert_eq!(s.to_f32(AdcCode(2048)), 0.0);
+        assert!((s.to_f32(AdcCode(4095)) - 2047.0 * 3.3 / 409.6).abs() < 1e-4);
+        assert!((s.to_f32(AdcCode(0)) + 2048.0 * 3.3 / 409.6).abs() < 1e-4);
+    }
+
+    #[test]
+    fn rejects_bad_scalings() {
+        assert_eq!(AdcScaling::new(0.0, 0, 4095), Err(ScalingError::Gain));
+        assert_eq!(AdcScaling::new(f64::NAN, 0, 4095), Err(ScalingError::Gain));
+        assert_eq!(AdcScaling::new(1e-7, 0, 4095), Err(ScalingError::Gain)); // below I16F16 resolution
+        assert_eq!(AdcScaling::new(1.0, 5000, 4095), Err(ScalingError::Offset));
+        assert_eq!(PwmScaling::new(0), Err(ScalingError::Period));
+    }
+
+    #[test]
+    fn compare_limits_and_rounding() {
+        let p = PwmScaling::new(4250).unwrap(); // 170 MHz, 20 kHz centre-aligned
+        assert_eq!(p.compare(0.0), 0);
+        assert_eq!(p.compare(1.0), 4250);
+        assert_eq!(p.compare(0.5), 2125);
+        assert_eq!(p.compare(2.0), 4250);
+        assert_eq!(p.compare(-1.0), 0);
+        assert_eq!(p.compare(f32::NAN), 0);
+        assert_eq!(p.compare_fixed(U1F15::ONE), 4250);
+        assert_eq!(p.compare_fixed(U1F15::MAX), 4250);
+    }
+
+    proptest! {
+        /// Fixed and f32 ADC paths agree within one I16F16 LSB plus gain rounding:
+        /// |Δ| ≤ 2^-16 · (1 + |code − offset|).
+        #[test]
+        fn adc_fixed_agrees_with_f32(code in 0u16..4096) {
+            let s = shunt();
+            let f = s.to_f32(AdcCode(code));
+            let q = s.to_fixed(AdcCode(code)).to_num::<f32>();
+            let bound = (1.0 + (f32::from(code) - 2048.0).abs()) / 65536.0;
+            prop_assert!((f - q).abs() <= bound, "{} vs {}", f, q);
+        }
+
+        /// Fixed and f32 compare values differ by at most one count.
+        #[test]
+        fn compare_fixed_agrees_with_f32(duty in 0.0f32..=1.0, period in 1u16..=u16::MAX) {
+            let p = PwmScaling::new(period).unwrap();
+            let a = p.compare(duty);
+            let b = p.compare_fixed(PwmScaling::duty_to_fixed(duty));
+            prop_assert!(a.abs_diff(b) <= 1 + period / 32768, "{} vs {}", a, b);
+            prop_assert!(a <= period && b <= period);
+        }
+    }
+}

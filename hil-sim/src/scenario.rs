@@ -1,0 +1,46 @@
+//! Built-in scenarios (the TOML scenario files of issue 3 will extend this list).
+
+use crate::sim::{Event, Scenario};
+use controller_core::drive::{DriveSpec, Reference, example_spec};
+use controller_core::motor::MotorError;
+
+/// A named, runnable scenario with its drive.
+#[derive(Clone, Debug)]
+pub struct Builtin {
+    /// Name used on the command line.
+    pub name: &'static str,
+    /// One-line description.
+    pub about: &'static str,
+    /// Drive specification.
+    pub spec: DriveSpec,
+    /// Events and timing.
+    pub scenario: Scenario,
+}
+
+/// IFOC speed step to 150 rad/s with the ICAD current loop (seed 002 eq. (20)) and the
+/// saturated-P speed loop (eq. (21)) on the DeLorenzo motor; 1 N·m load from 1.5 s to
+/// 2.5 s (after seed 002 Fig. 13).
+pub fn speed_step() -> Result<Builtin, MotorError> {
+    Ok(Builtin {
+        name: "speed-step",
+        about: "IFOC + ICAD, speed step to 150 rad/s, 1 N·m load applied at 1.5 s and removed at 2.5 s",
+        spec: example_spec()?,
+        scenario: Scenario {
+            events: vec![
+                (0.0, Event::Enable),
+                (0.3, Event::Reference(Reference::Speed(150.0))),
+                (1.5, Event::LoadNm(1.0)),
+                (2.5, Event::LoadNm(0.0)),
+            ],
+            duration_s: 3.5,
+            vdc_v: 310.0,
+            substeps: 4,
+            trace_every: 20,
+        },
+    })
+}
+
+/// All built-in scenarios.
+pub fn all() -> Result<Vec<Builtin>, MotorError> {
+    Ok(vec![speed_step()?])
+}
