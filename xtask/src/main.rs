@@ -42,6 +42,59 @@ fn run(step: &Step) -> bool {
     }
 }
 
+/// Flash and static-RAM use of an ELF32 little-endian image, like `size`: flash = every
+/// allocated section with file contents (vector table, text, rodata, data's load image),
+/// RAM = every allocated writable section (data, bss, uninit). The stack is not included.
+fn elf_size(path: &std::path::Path) -> Result<(u64, u64), String> {
+    let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let u16_at =
+        |o: usize| b.get(o..o + 2).and_then(|s| s.try_into().ok()).map(|a| u16::from_le_bytes(a) as usize);
+    let u32_at =
+        |o: usize| b.get(o..o + 4).and_then(|s| s.try_into().ok()).map(|a| u64::from(u32::from_le_bytes(a)));
+    if b.get(0..5) != Some(b"\x7fELF\x01".as_slice()) {
+        return Err(format!("{} is not an ELF32 file", path.display()));
+    }
+    let bad = || format!("{}: truncated ELF header", path.display());
+    let shoff = u32_at(0x20).ok_or_else(bad)? as usize;
+    let (shentsize, shnum) = (u16_at(0x2E).ok_or_else(bad)?, u16_at(0x30).ok_or_else(bad)?);
+    let (mut flash, mut ram) = (0u64, 0u64);
+    for i in 0..shnum {
+        let h = shoff + i * shentsize;
+        let (ty, flags, size) =
+            (u32_at(h + 4).ok_or_else(bad)?, u32_at(h + 8).ok_or_else(bad)?, u32_at(h + 20).ok_or_else(bad)?);
+        const ALLOC: u64 = 0x2;
+        const WRITE: u64 = 0x1;
+        const NOBITS: u64 = 8;
+        if flags & ALLOC != 0 {
+            if ty != NOBITS {
+                flash += size;
+            }
+            if flags & WRITE != 0 {
+                ram += size;
+            }
+        }
+    }
+    Ok((flash, ram))
+}
+
+fn report_firmware_size() -> bool {
+    let elf = std::path::Path::new("target").join(THUMB).join("release").join("firmware");
+    match elf_size(&elf) {
+        Ok((flash, ram)) => {
+            println!(
+                "firmware size: flash {flash} B ({:.1} KiB), static RAM {ram} B ({:.1} KiB)",
+                flash as f64 / 1024.0,
+                ram as f64 / 1024.0
+            );
+            true
+        }
+        Err(e) => {
+            eprintln!("xtask: firmware size: {e}");
+            false
+        }
+    }
+}
+
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
@@ -55,7 +108,10 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let failed: Vec<&str> = steps.iter().filter(|s| !run(s)).map(|s| s.name).collect();
+    let mut failed: Vec<&str> = steps.iter().filter(|s| !run(s)).map(|s| s.name).collect();
+    if steps.iter().any(|s| s.name == FW.name) && !failed.contains(&FW.name) && !report_firmware_size() {
+        failed.push("firmware-size");
+    }
     if failed.is_empty() {
         eprintln!("\nxtask {task}: all {} steps passed", steps.len());
         ExitCode::SUCCESS
