@@ -328,6 +328,21 @@ impl Drive {
         &self.cfg
     }
 
+    /// Current-loop states (their PI `p_term`/`i_term` are telemetry).
+    pub fn current_state(&self) -> &CurrentState<f32> {
+        &self.current
+    }
+
+    /// Speed-loop state (PI `p_term`/`i_term` when a PI law is configured).
+    pub fn speed_state(&self) -> &SpeedState {
+        &self.speed
+    }
+
+    /// IFOC state: field angle and rotor-flux estimate.
+    pub fn ifoc_state(&self) -> &IfocState {
+        &self.ifoc
+    }
+
     /// Idle → Magnetizing with fresh loop states. No effect when already active.
     pub fn enable(&mut self) -> Result<(), CommandError> {
         match self.mode {
@@ -603,6 +618,10 @@ mod tests {
         assert!((t.i_ref_ab_a.alpha - 0.9 / 1.42).abs() < 1e-4);
         assert!((t.i_ab_a.alpha - t.i_ref_ab_a.alpha).abs() < 1e-3, "{:?}", t);
         assert!(t.i_ab_a.beta.abs() < 1e-3);
+        // In steady state the α voltage R·i comes from the integrator, not the P term.
+        let pi = d.current_state().alpha.pi;
+        assert!((pi.i_term - 16.2 * t.i_ab_a.alpha).abs() < 0.05, "{pi:?}");
+        assert!(pi.p_term.abs() < 0.5);
     }
 
     fn finite_meas() -> impl Strategy<Value = Measurements> {

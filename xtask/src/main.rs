@@ -26,6 +26,62 @@ const CORE_M4: Step = Step {
 const FW: Step =
     Step { name: "build-fw", args: &["build", "--package", "firmware", "--target", THUMB, "--release"] };
 
+/// Test totals summed over every `test result:` line cargo printed.
+#[derive(Default)]
+struct Totals {
+    passed: u64,
+    failed: u64,
+}
+
+impl Totals {
+    /// Parse `test result: ok. 58 passed; 0 failed; …`.
+    fn add_line(&mut self, line: &str) {
+        let Some(rest) = line.strip_prefix("test result: ") else { return };
+        let count = |word: &str| {
+            rest.split(';')
+                .find_map(|part| {
+                    part.trim().trim_start_matches("ok. ").trim_start_matches("FAILED. ").strip_suffix(word)
+                })
+                .and_then(|n| n.trim().parse::<u64>().ok())
+                .unwrap_or(0)
+        };
+        self.passed += count(" passed");
+        self.failed += count(" failed");
+    }
+}
+
+/// Run a step, echoing its stdout line by line and counting test results.
+fn run_counting(step: &Step, totals: &mut Totals) -> bool {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    eprintln!("\n=== xtask: {} (cargo {}) ===", step.name, step.args.join(" "));
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut child = match Command::new(cargo).args(step.args).stdout(Stdio::piped()).spawn() {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("xtask: cannot start cargo for `{}`: {e}", step.name);
+            return false;
+        }
+    };
+    if let Some(out) = child.stdout.take() {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            println!("{line}");
+            totals.add_line(&line);
+        }
+    }
+    match child.wait() {
+        Ok(s) if s.success() => true,
+        Ok(s) => {
+            eprintln!("xtask: step `{}` failed with {s}", step.name);
+            false
+        }
+        Err(e) => {
+            eprintln!("xtask: waiting for `{}`: {e}", step.name);
+            false
+        }
+    }
+}
+
 fn run(step: &Step) -> bool {
     eprintln!("\n=== xtask: {} (cargo {}) ===", step.name, step.args.join(" "));
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
@@ -108,15 +164,26 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let mut failed: Vec<&str> = steps.iter().filter(|s| !run(s)).map(|s| s.name).collect();
+    let mut totals = Totals::default();
+    let mut failed: Vec<&str> = steps
+        .iter()
+        .filter(|s| !if s.name == TEST.name { run_counting(s, &mut totals) } else { run(s) })
+        .map(|s| s.name)
+        .collect();
     if steps.iter().any(|s| s.name == FW.name) && !failed.contains(&FW.name) && !report_firmware_size() {
         failed.push("firmware-size");
     }
-    if failed.is_empty() {
+    let code = if failed.is_empty() {
         eprintln!("\nxtask {task}: all {} steps passed", steps.len());
         ExitCode::SUCCESS
     } else {
         eprintln!("\nxtask {task}: FAILED steps: {}", failed.join(", "));
         ExitCode::FAILURE
+    };
+    if steps.iter().any(|s| s.name == TEST.name) {
+        use std::io::Write;
+        let _ = std::io::stderr().flush();
+        println!("tests: {} passed, {} failed", totals.passed, totals.failed);
     }
+    code
 }
