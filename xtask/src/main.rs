@@ -50,7 +50,7 @@ impl Totals {
     }
 }
 
-/// Run a step, echoing its stdout line by line and counting test results.
+/// Run a step, echoing its stdout line by line and counting any test results in it.
 fn run_counting(step: &Step, totals: &mut Totals) -> bool {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
@@ -77,22 +77,6 @@ fn run_counting(step: &Step, totals: &mut Totals) -> bool {
         }
         Err(e) => {
             eprintln!("xtask: waiting for `{}`: {e}", step.name);
-            false
-        }
-    }
-}
-
-fn run(step: &Step) -> bool {
-    eprintln!("\n=== xtask: {} (cargo {}) ===", step.name, step.args.join(" "));
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    match Command::new(cargo).args(step.args).status() {
-        Ok(s) if s.success() => true,
-        Ok(s) => {
-            eprintln!("xtask: step `{}` failed with {s}", step.name);
-            false
-        }
-        Err(e) => {
-            eprintln!("xtask: cannot start cargo for `{}`: {e}", step.name);
             false
         }
     }
@@ -165,11 +149,8 @@ fn main() -> ExitCode {
         }
     };
     let mut totals = Totals::default();
-    let mut failed: Vec<&str> = steps
-        .iter()
-        .filter(|s| !if s.name == TEST.name { run_counting(s, &mut totals) } else { run(s) })
-        .map(|s| s.name)
-        .collect();
+    let mut failed: Vec<&str> =
+        steps.iter().filter(|s| !run_counting(s, &mut totals)).map(|s| s.name).collect();
     if steps.iter().any(|s| s.name == FW.name) && !failed.contains(&FW.name) && !report_firmware_size() {
         failed.push("firmware-size");
     }
