@@ -9,6 +9,7 @@
 #![allow(clippy::indexing_slicing)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod config;
 pub mod plant;
 pub mod scenario;
 pub mod sim;

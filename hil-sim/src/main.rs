@@ -1,9 +1,12 @@
 //! `hil-sim` command line.
 //!
 //! ```text
-//! hil-sim list                      built-in scenarios
-//! hil-sim run <name> [--out DIR]    run one; writes DIR/trace.csv and prints a summary
+//! hil-sim list                                   built-in scenarios
+//! hil-sim run <scenario.toml | builtin> [--out DIR]
 //! ```
+//! `run` writes `DIR/trace.csv` and `DIR/summary.json` (default `DIR` = `out/<name>`). A file
+//! that fails to parse or validate is reported with file, key and reason, and nothing is
+//! written; outputs appear only complete (written to a temporary name, then renamed).
 
 use controller_core::drive::{Drive, DriveConfig};
 use hil_sim::plant::Machine;
@@ -13,45 +16,57 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
+const BASE_HEADER: &str =
+    "t_s,i_alpha_a,i_beta_a,psi_alpha_wb,psi_beta_wb,omega_m_rad_s,theta_m_rad,torque_nm,v_alpha_v,v_beta_v";
+const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm";
+
 fn usage() -> ExitCode {
-    eprintln!("usage: hil-sim list | hil-sim run <scenario> [--out DIR]");
+    eprintln!("usage: hil-sim list | hil-sim run <scenario.toml | builtin> [--out DIR]");
     ExitCode::from(2)
 }
 
-fn write_trace(dir: &Path, rows: &[Row]) -> std::io::Result<PathBuf> {
-    std::fs::create_dir_all(dir)?;
-    let path = dir.join("trace.csv");
-    let tmp = dir.join(".trace.csv.partial");
+/// Write `path` atomically: a temporary sibling, synced, then renamed.
+fn write_atomic(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let tmp = path.with_extension("partial");
     let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
-    writeln!(
-        f,
-        "t_s,i_alpha_a,i_beta_a,psi_alpha_wb,psi_beta_wb,omega_m_rad_s,theta_m_rad,torque_nm,v_alpha_v,v_beta_v,i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm"
-    )?;
-    for r in rows {
-        let x = &r.x;
-        writeln!(
-            f,
-            "{:.6},{:.6},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.4},{:.4},{:.6},{:.6},{:.4},{:.4}",
-            r.t_s,
-            x.i_alpha_a,
-            x.i_beta_a,
-            x.psi_alpha_wb,
-            x.psi_beta_wb,
-            x.omega_m_rad_s,
-            x.theta_m_rad,
-            r.torque_nm,
-            r.v_ab_v[0],
-            r.v_ab_v[1],
-            r.i_ref_ab_a[0],
-            r.i_ref_ab_a[1],
-            r.omega_ref_rad_s,
-            r.load_nm
-        )?;
-    }
+    fill(&mut f)?;
     f.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-    // Nothing half-written: the trace appears only when complete.
-    std::fs::rename(&tmp, &path)?;
-    Ok(path)
+    std::fs::rename(&tmp, path)
+}
+
+fn write_trace(path: &Path, rows: &[Row], closed_loop: bool) -> std::io::Result<()> {
+    write_atomic(path, |f| {
+        writeln!(f, "{BASE_HEADER}{}", if closed_loop { CLOSED_LOOP_HEADER } else { "" })?;
+        for r in rows {
+            let x = &r.x;
+            write!(
+                f,
+                "{:.7},{:.6},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.4},{:.4}",
+                r.t_s,
+                x.i_alpha_a,
+                x.i_beta_a,
+                x.psi_alpha_wb,
+                x.psi_beta_wb,
+                x.omega_m_rad_s,
+                x.theta_m_rad,
+                r.torque_nm,
+                r.v_ab_v[0],
+                r.v_ab_v[1]
+            )?;
+            if closed_loop {
+                write!(
+                    f,
+                    ",{:.6},{:.6},{:.4},{:.4}",
+                    r.i_ref_ab_a[0], r.i_ref_ab_a[1], r.omega_ref_rad_s, r.load_nm
+                )?;
+            }
+            writeln!(f)?;
+        }
+        Ok(())
+    })
 }
 
 fn progress_bar(fraction: f64) {
@@ -67,7 +82,24 @@ fn progress_bar(fraction: f64) {
     }
 }
 
-fn run(b: &Builtin, out: &Path) -> Result<(), String> {
+fn peak_current(rows: &[Row]) -> f64 {
+    rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max)
+}
+
+fn finish(out: &Path, rows: &[Row], closed_loop: bool, summary: serde_json::Value) -> Result<(), String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let trace = out.join("trace.csv");
+    write_trace(&trace, rows, closed_loop).map_err(|e| format!("cannot write {}: {e}", trace.display()))?;
+    let path = out.join("summary.json");
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    write_atomic(&path, |f| writeln!(f, "{text}"))
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    println!("{text}");
+    eprintln!("hil-sim: wrote {} and {}", trace.display(), path.display());
+    Ok(())
+}
+
+fn run_builtin(b: &Builtin, out: &Path) -> Result<(), String> {
     let cfg = DriveConfig::new(&b.spec).map_err(|e| format!("invalid drive specification: {e:?}"))?;
     let mut drive = Drive::new(cfg);
     let machine = Machine::new(&b.spec.motor);
@@ -75,22 +107,40 @@ fn run(b: &Builtin, out: &Path) -> Result<(), String> {
     let wall = std::time::Instant::now();
     let rows = sim::run(&mut drive, &machine, b.spec.pwm_frequency_hz, &b.scenario, progress_bar);
     let secs = wall.elapsed().as_secs_f64();
-    let path =
-        write_trace(out, &rows).map_err(|e| format!("cannot write trace to {}: {e}", out.display()))?;
     let last = rows.last().ok_or("empty run")?;
-    let peak_i = rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
-    println!("trace            {}", path.display());
-    println!(
-        "simulated        {:.3} s in {:.1} ms wall ({:.0}x real time, {} RK4 sub-steps per PWM period)",
-        b.scenario.duration_s,
-        secs * 1e3,
-        b.scenario.duration_s / secs,
-        b.scenario.substeps
-    );
-    println!("final speed      {:.3} rad/s (reference {:.1})", last.x.omega_m_rad_s, last.omega_ref_rad_s);
-    println!("peak |i_s|       {peak_i:.3} A");
-    println!("drive mode       {:?}", drive.mode());
-    Ok(())
+    let summary = serde_json::json!({
+        "scenario": b.name,
+        "kind": "closed_loop",
+        "duration_s": b.scenario.duration_s,
+        "final_omega_m_rad_s": last.x.omega_m_rad_s,
+        "final_omega_ref_rad_s": last.omega_ref_rad_s,
+        "peak_stator_current_a": peak_current(&rows),
+        "drive_mode": format!("{:?}", drive.mode()),
+        "rk4_substeps_per_pwm_period": b.scenario.substeps,
+        "wall_time_s": secs,
+        "real_time_factor": b.scenario.duration_s / secs,
+    });
+    finish(out, &rows, true, summary)
+}
+
+fn run_file(path: &Path, out: &Path) -> Result<(), String> {
+    let sc = hil_sim::config::load(path).map_err(|e| e.to_string())?;
+    eprintln!("hil-sim: open-loop run of {}", path.display());
+    let wall = std::time::Instant::now();
+    let rows = sim::run_open_loop(&sc, sim::OPEN_LOOP_MAX_STEP_S, progress_bar);
+    let secs = wall.elapsed().as_secs_f64();
+    let last = rows.last().ok_or("empty run")?;
+    let summary = serde_json::json!({
+        "scenario": path.display().to_string(),
+        "kind": "open_loop",
+        "duration_s": sc.duration_s,
+        "final_omega_m_rad_s": last.x.omega_m_rad_s,
+        "final_torque_nm": last.torque_nm,
+        "peak_stator_current_a": peak_current(&rows),
+        "rk4_max_step_s": sim::OPEN_LOOP_MAX_STEP_S,
+        "wall_time_s": secs,
+    });
+    finish(out, &rows, false, summary)
 }
 
 fn main() -> ExitCode {
@@ -111,16 +161,21 @@ fn main() -> ExitCode {
         }
         Some("run") => {
             let Some(name) = args.get(1) else { return usage() };
-            let out = match (args.get(2).map(String::as_str), args.get(3)) {
-                (None, _) => PathBuf::from("out").join(name),
-                (Some("--out"), Some(d)) => PathBuf::from(d),
+            let stem =
+                Path::new(name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+            let out = match (args.get(2).map(String::as_str), args.get(3), args.get(4)) {
+                (None, _, _) => PathBuf::from("out").join(stem),
+                (Some("--out"), Some(d), None) => PathBuf::from(d),
                 _ => return usage(),
             };
-            let Some(b) = builtins.iter().find(|b| b.name == name) else {
-                eprintln!("hil-sim: unknown scenario `{name}`; `hil-sim list` shows the built-in ones");
-                return ExitCode::from(2);
+            let result = if let Some(b) = builtins.iter().find(|b| b.name == name) {
+                run_builtin(b, &out)
+            } else if name.ends_with(".toml") || Path::new(name).exists() {
+                run_file(Path::new(name), &out)
+            } else {
+                Err(format!("`{name}` is neither a scenario file nor a built-in scenario (`hil-sim list`)"))
             };
-            match run(b, &out) {
+            match result {
                 Ok(()) => ExitCode::SUCCESS,
                 Err(e) => {
                     eprintln!("hil-sim: {e}");

@@ -101,14 +101,29 @@ impl Machine {
         ]
     }
 
-    /// One RK4 step of `h_s` seconds with stator voltage `v_ab_v` and load torque held.
+    /// One RK4 step of `h_s` seconds with stator voltage `v_ab_v` and load torque held
+    /// (an inverter output is constant over a PWM period in the average model).
     pub fn rk4(&self, x: &MachineState, v_ab_v: [f64; 2], load_nm: f64, h_s: f64) -> MachineState {
+        self.rk4_source(x, 0.0, h_s, |_| v_ab_v, load_nm)
+    }
+
+    /// One RK4 step from time `t_s` with a time-varying stator voltage `v(t)` (an ideal
+    /// source, evaluated at the RK4 nodes t, t + h/2, t + h).
+    pub fn rk4_source(
+        &self,
+        x: &MachineState,
+        t_s: f64,
+        h_s: f64,
+        v: impl Fn(f64) -> [f64; 2],
+        load_nm: f64,
+    ) -> MachineState {
         let x0 = x.to_array();
         let add = |x: [f64; 6], k: [f64; 6], s: f64| std::array::from_fn(|n| x[n] + s * k[n]);
-        let k1 = self.derivative(x0, v_ab_v, load_nm);
-        let k2 = self.derivative(add(x0, k1, h_s / 2.0), v_ab_v, load_nm);
-        let k3 = self.derivative(add(x0, k2, h_s / 2.0), v_ab_v, load_nm);
-        let k4 = self.derivative(add(x0, k3, h_s), v_ab_v, load_nm);
+        let v_mid = v(t_s + h_s / 2.0);
+        let k1 = self.derivative(x0, v(t_s), load_nm);
+        let k2 = self.derivative(add(x0, k1, h_s / 2.0), v_mid, load_nm);
+        let k3 = self.derivative(add(x0, k2, h_s / 2.0), v_mid, load_nm);
+        let k4 = self.derivative(add(x0, k3, h_s), v(t_s + h_s), load_nm);
         MachineState::from_array(std::array::from_fn(|n| {
             x0[n] + h_s / 6.0 * (k1[n] + 2.0 * k2[n] + 2.0 * k3[n] + k4[n])
         }))
