@@ -11,5 +11,6 @@
 
 pub mod config;
 pub mod plant;
+pub mod plot;
 pub mod scenario;
 pub mod sim;

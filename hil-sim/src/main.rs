@@ -4,7 +4,8 @@
 //! hil-sim list                                   built-in scenarios
 //! hil-sim run <scenario.toml | builtin> [--out DIR]
 //! ```
-//! `run` writes `DIR/trace.csv` and `DIR/summary.json` (default `DIR` = `out/<name>`). A file
+//! `run` writes `DIR/trace.csv`, `DIR/summary.json` and the plots `speed.svg`,
+//! `currents.svg`, `torque.svg` (default `DIR` = `out/<name>`). A file
 //! that fails to parse or validate is reported with file, key and reason, and nothing is
 //! written; outputs appear only complete (written to a temporary name, then renamed).
 
@@ -86,16 +87,53 @@ fn peak_current(rows: &[Row]) -> f64 {
     rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max)
 }
 
+/// The main signals as SVG plots: speed, stator currents (with references in closed loop),
+/// torque. Rows are thinned to at most ~4000 points per curve.
+fn write_plots(out: &Path, rows: &[Row], closed_loop: bool) -> Result<Vec<PathBuf>, String> {
+    use hil_sim::plot::{Series, line_plot};
+    let every = (rows.len() / 4000).max(1);
+    let pts = |f: &dyn Fn(&Row) -> f64| rows.iter().step_by(every).map(|r| (r.t_s, f(r))).collect::<Vec<_>>();
+    let mut speed = vec![Series { label: "ω_m (rad/s)", points: pts(&|r| r.x.omega_m_rad_s) }];
+    let mut currents = vec![
+        Series { label: "i_α (A)", points: pts(&|r| r.x.i_alpha_a) },
+        Series { label: "i_β (A)", points: pts(&|r| r.x.i_beta_a) },
+    ];
+    let mut torque = vec![Series { label: "T_e (N·m)", points: pts(&|r| r.torque_nm) }];
+    if closed_loop {
+        speed.push(Series { label: "ω_ref (rad/s)", points: pts(&|r| r.omega_ref_rad_s) });
+        currents.push(Series { label: "i_α ref (A)", points: pts(&|r| r.i_ref_ab_a[0]) });
+        currents.push(Series { label: "i_β ref (A)", points: pts(&|r| r.i_ref_ab_a[1]) });
+        torque.push(Series { label: "T_L (N·m)", points: pts(&|r| r.load_nm) });
+    }
+    let mut written = Vec::new();
+    for (name, title, series) in [
+        ("speed.svg", "Rotor speed", speed),
+        ("currents.svg", "Stator currents", currents),
+        ("torque.svg", "Torque", torque),
+    ] {
+        let path = out.join(name);
+        let svg = line_plot(title, "t (s)", &series);
+        write_atomic(&path, |f| f.write_all(svg.as_bytes()))
+            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
 fn finish(out: &Path, rows: &[Row], closed_loop: bool, summary: serde_json::Value) -> Result<(), String> {
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let trace = out.join("trace.csv");
     write_trace(&trace, rows, closed_loop).map_err(|e| format!("cannot write {}: {e}", trace.display()))?;
+    write_plots(out, rows, closed_loop)?;
     let path = out.join("summary.json");
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     write_atomic(&path, |f| writeln!(f, "{text}"))
         .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
     println!("{text}");
-    eprintln!("hil-sim: wrote {} and {}", trace.display(), path.display());
+    eprintln!(
+        "hil-sim: wrote trace.csv, summary.json, speed.svg, currents.svg, torque.svg in {}",
+        out.display()
+    );
     Ok(())
 }
 

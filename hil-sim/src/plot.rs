@@ -1,0 +1,171 @@
+//! Minimal SVG line plots (no dependencies): one panel, shared x axis, several series,
+//! "nice" ticks, legend. Enough to look at a trace without a notebook.
+
+use std::fmt::Write;
+
+/// One named curve.
+#[derive(Debug, Clone)]
+pub struct Series<'a> {
+    /// Legend label (with unit).
+    pub label: &'a str,
+    /// Points `(x, y)`.
+    pub points: Vec<(f64, f64)>,
+}
+
+const W: f64 = 800.0;
+const H: f64 = 360.0;
+const LEFT: f64 = 70.0;
+const RIGHT: f64 = 20.0;
+const TOP: f64 = 40.0;
+const BOTTOM: f64 = 50.0;
+const COLORS: [&str; 6] = ["#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"];
+
+/// Round step of about `span/5`: 1, 2 or 5 times a power of ten.
+fn nice_step(span: f64) -> f64 {
+    let raw = (span / 5.0).max(f64::MIN_POSITIVE);
+    let mag = 10f64.powf(raw.log10().floor());
+    let f = raw / mag;
+    mag * if f < 1.5 {
+        1.0
+    } else if f < 3.5 {
+        2.0
+    } else if f < 7.5 {
+        5.0
+    } else {
+        10.0
+    }
+}
+
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        (0.0, 1.0)
+    } else if hi - lo < 1e-12 {
+        (lo - 1.0, hi + 1.0)
+    } else {
+        (lo, hi)
+    }
+}
+
+/// Render an SVG document.
+pub fn line_plot(title: &str, x_label: &str, series: &[Series<'_>]) -> String {
+    let (x0, x1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
+    let (y0, y1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
+    let pad = 0.05 * (y1 - y0);
+    let (y0, y1) = (y0 - pad, y1 + pad);
+    let px = |x: f64| LEFT + (x - x0) / (x1 - x0) * (W - LEFT - RIGHT);
+    let py = |y: f64| H - BOTTOM - (y - y0) / (y1 - y0) * (H - TOP - BOTTOM);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" font-size="12">"#
+    );
+    let _ = writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#);
+    let _ = writeln!(
+        s,
+        r#"<text x="{}" y="22" text-anchor="middle" font-size="15">{}</text>"#,
+        W / 2.0,
+        escape(title)
+    );
+    // grid and ticks
+    for (lo, hi, vertical) in [(x0, x1, true), (y0, y1, false)] {
+        let step = nice_step(hi - lo);
+        let mut v = (lo / step).ceil() * step;
+        while v <= hi + 1e-9 * step {
+            // `+ 0.0` turns −0 into 0.
+            let label = format!("{}", (v / step).round() * step + 0.0);
+            if vertical {
+                let x = px(v);
+                let _ = writeln!(
+                    s,
+                    r##"<line x1="{x:.1}" y1="{TOP}" x2="{x:.1}" y2="{:.1}" stroke="#ddd"/>"##,
+                    H - BOTTOM
+                );
+                let _ = writeln!(
+                    s,
+                    r#"<text x="{x:.1}" y="{:.1}" text-anchor="middle">{label}</text>"#,
+                    H - BOTTOM + 16.0
+                );
+            } else {
+                let y = py(v);
+                let _ = writeln!(
+                    s,
+                    r##"<line x1="{LEFT}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}" stroke="#ddd"/>"##,
+                    W - RIGHT
+                );
+                let _ = writeln!(
+                    s,
+                    r#"<text x="{:.1}" y="{:.1}" text-anchor="end">{label}</text>"#,
+                    LEFT - 6.0,
+                    y + 4.0
+                );
+            }
+            v += step;
+        }
+    }
+    let _ = writeln!(
+        s,
+        r##"<rect x="{LEFT}" y="{TOP}" width="{:.1}" height="{:.1}" fill="none" stroke="#444"/>"##,
+        W - LEFT - RIGHT,
+        H - TOP - BOTTOM
+    );
+    let _ = writeln!(
+        s,
+        r#"<text x="{:.1}" y="{:.1}" text-anchor="middle">{}</text>"#,
+        W / 2.0,
+        H - 12.0,
+        escape(x_label)
+    );
+    for (k, ser) in series.iter().enumerate() {
+        let color = COLORS.get(k % COLORS.len()).copied().unwrap_or("black");
+        let mut d = String::new();
+        for (n, &(x, y)) in ser.points.iter().filter(|p| p.0.is_finite() && p.1.is_finite()).enumerate() {
+            let _ = write!(d, "{}{:.1},{:.1} ", if n == 0 { "M" } else { "L" }, px(x), py(y));
+        }
+        let _ = writeln!(s, r#"<path d="{d}" fill="none" stroke="{color}" stroke-width="1.2"/>"#);
+        let ly = TOP + 14.0 + 16.0 * k as f64;
+        let _ = writeln!(
+            s,
+            r#"<line x1="{:.1}" y1="{ly:.1}" x2="{:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="2"/>"#,
+            LEFT + 10.0,
+            LEFT + 30.0
+        );
+        let _ =
+            writeln!(s, r#"<text x="{:.1}" y="{:.1}">{}</text>"#, LEFT + 36.0, ly + 4.0, escape(ser.label));
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn escape(t: &str) -> String {
+    t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nice_steps() {
+        assert_eq!(nice_step(10.0), 2.0);
+        assert_eq!(nice_step(3.5), 0.5);
+        assert_eq!(nice_step(150.0), 20.0);
+    }
+
+    #[test]
+    fn renders_every_series_and_survives_degenerate_data() {
+        let svg = line_plot(
+            "t<1>",
+            "t (s)",
+            &[
+                Series { label: "a", points: vec![(0.0, 1.0), (1.0, 2.0)] },
+                Series { label: "flat", points: vec![(0.0, 3.0), (1.0, 3.0), (2.0, f64::NAN)] },
+                Series { label: "empty", points: vec![] },
+            ],
+        );
+        assert_eq!(svg.matches("<path").count(), 3);
+        assert!(svg.contains("t&lt;1&gt;") && svg.ends_with("</svg>\n"));
+    }
+}
