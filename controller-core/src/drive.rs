@@ -120,6 +120,11 @@ pub struct DriveConfig {
 }
 
 impl DriveConfig {
+    /// The slow loop runs every `slow_divider()`-th fast step.
+    pub fn slow_divider(&self) -> u16 {
+        self.slow_divider
+    }
+
     /// Validate and discretise.
     pub fn new(spec: &DriveSpec) -> Result<Self, DriveError> {
         let f = spec.pwm_frequency_hz;

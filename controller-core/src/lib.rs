@@ -10,6 +10,7 @@ extern crate std;
 pub mod current;
 pub mod discretize;
 pub mod drive;
+pub mod encoder;
 pub mod filter;
 pub mod frames;
 pub mod ifoc;

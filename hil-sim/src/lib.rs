@@ -13,4 +13,5 @@ pub mod config;
 pub mod plant;
 pub mod plot;
 pub mod scenario;
+pub mod sensors;
 pub mod sim;

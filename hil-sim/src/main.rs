@@ -143,7 +143,7 @@ fn run_builtin(b: &Builtin, out: &Path) -> Result<(), String> {
     let machine = Machine::new(&b.spec.motor);
     eprintln!("hil-sim: {} — {}", b.name, b.about);
     let wall = std::time::Instant::now();
-    let rows = sim::run(&mut drive, &machine, b.spec.pwm_frequency_hz, &b.scenario, progress_bar);
+    let rows = sim::run(&mut drive, &machine, b.spec.pwm_frequency_hz, &b.scenario, progress_bar)?;
     let secs = wall.elapsed().as_secs_f64();
     let last = rows.last().ok_or("empty run")?;
     let summary = serde_json::json!({
@@ -193,7 +193,7 @@ fn main() -> ExitCode {
     match args.first().map(String::as_str) {
         Some("list") => {
             for b in &builtins {
-                println!("{:<14} {}", b.name, b.about);
+                println!("{:<20} {}", b.name, b.about);
             }
             ExitCode::SUCCESS
         }

@@ -93,6 +93,12 @@ impl Machine {
         Self { inv_j: 0.0, b_nms: 0.0, ..*self }
     }
 
+    /// The same machine with an extra viscous load `k_nm_s_rad` (an eddy-current brake,
+    /// T_L = k·ω_m).
+    pub fn with_eddy_brake(&self, k_nm_s_rad: f64) -> Self {
+        Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }
+    }
+
     fn derivative(&self, x: [f64; 6], v: [f64; 2], load_nm: f64) -> [f64; 6] {
         let [ia, ib, pa, pb, w, _] = x;
         let wr = self.p * w;

@@ -1,6 +1,7 @@
 //! Built-in scenarios (the TOML scenario files of issue 3 will extend this list).
 
-use crate::sim::{Event, Scenario};
+use crate::sensors::SensorModel;
+use crate::sim::{Event, LoadModel, Scenario};
 use controller_core::drive::{DriveSpec, Reference, example_spec};
 use controller_core::motor::MotorError;
 
@@ -36,11 +37,26 @@ pub fn speed_step() -> Result<Builtin, MotorError> {
             vdc_v: 310.0,
             substeps: 4,
             trace_every: 20,
+            sensors: SensorModel::default(),
+            load: LoadModel::Torque,
         },
     })
 }
 
+/// [`speed_step`] with realistic sensors ([`SensorModel::realistic`]: 12-bit current ADC
+/// with offset, gain error and noise; 1024-line encoder) and an eddy-current brake of
+/// 0.002 N·m·s/rad instead of the load steps.
+pub fn speed_step_sensors() -> Result<Builtin, MotorError> {
+    let mut b = speed_step()?;
+    b.name = "speed-step-sensors";
+    b.about = "speed-step with 12-bit ADC (offset, gain error, noise), 1024-line encoder, eddy-current brake";
+    b.scenario.events.retain(|(_, e)| !matches!(e, Event::LoadNm(_)));
+    b.scenario.sensors = SensorModel::realistic(7);
+    b.scenario.load = LoadModel::EddyBrake { k_nm_s_rad: 0.002 };
+    Ok(b)
+}
+
 /// All built-in scenarios.
 pub fn all() -> Result<Vec<Builtin>, MotorError> {
-    Ok(vec![speed_step()?])
+    Ok(vec![speed_step()?, speed_step_sensors()?])
 }

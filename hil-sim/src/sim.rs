@@ -4,9 +4,11 @@
 //! drive computes duties, and those duties are applied during period k+1 (one period of
 //! computation delay). Inverter: average-value model — phase-to-midpoint voltage
 //! `(d − 1/2)·V_dc`, common mode removed by the Clarke transform (floating star point).
-//! Sensors are ideal in this first version (no quantisation, exact speed and angle).
+//! Sensors: [`SensorModel`] (ideal by default). Loads: a piecewise-constant torque set by
+//! events, plus the [`LoadModel`] (eddy-current brake or locked rotor).
 
 use crate::plant::{Machine, MachineState};
+use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, Measurements, PhaseCommand, Reference};
 use controller_core::frames::Abc;
 
@@ -19,6 +21,21 @@ pub enum Event {
     Reference(Reference),
     /// New load torque, N·m.
     LoadNm(f64),
+}
+
+/// Load beyond the event-driven constant torque.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum LoadModel {
+    /// Only the constant torque set by [`Event::LoadNm`].
+    #[default]
+    Torque,
+    /// Eddy-current brake: T_L = k·ω_m (plus the event torque).
+    EddyBrake {
+        /// N·m per rad/s.
+        k_nm_s_rad: f64,
+    },
+    /// Rotor held at standstill.
+    LockedRotor,
 }
 
 /// A closed-loop run.
@@ -34,6 +51,10 @@ pub struct Scenario {
     pub substeps: u32,
     /// Trace decimation: one row every `trace_every` PWM periods.
     pub trace_every: u32,
+    /// Sensor non-idealities.
+    pub sensors: SensorModel,
+    /// Load model.
+    pub load: LoadModel,
 }
 
 /// One trace row.
@@ -63,8 +84,16 @@ pub fn run(
     pwm_hz: f64,
     sc: &Scenario,
     mut progress: impl FnMut(f64),
-) -> Vec<Row> {
+) -> Result<Vec<Row>, String> {
     let ts = 1.0 / pwm_hz;
+    let divider = u64::from(drive.config().slow_divider());
+    let mut sensors =
+        Sensors::new(sc.sensors, ts * divider as f64).map_err(|e| format!("encoder model: {e:?}"))?;
+    let machine = &match sc.load {
+        LoadModel::Torque => *machine,
+        LoadModel::EddyBrake { k_nm_s_rad } => machine.with_eddy_brake(k_nm_s_rad),
+        LoadModel::LockedRotor => machine.speed_locked(),
+    };
     let h = ts / f64::from(sc.substeps.max(1));
     let n = (sc.duration_s / ts).round() as u64;
     let mut x = MachineState::default();
@@ -85,13 +114,20 @@ pub fn run(
                 Event::LoadNm(l) => load = l,
             }
         }
-        let i_abc = controller_core::frames::AlphaBeta { alpha: x.i_alpha_a as f32, beta: x.i_beta_a as f32 }
-            .inverse_clarke();
+        // True phase currents (amplitude-invariant inverse Clarke, in f64).
+        let (ia, ib) = (x.i_alpha_a, x.i_beta_a);
+        let s3 = 3f64.sqrt() / 2.0;
+        let i_abc = sensors.currents([ia, -0.5 * ia + s3 * ib, -0.5 * ia - s3 * ib]);
+        let enc = if k % divider == 0 {
+            sensors.encoder_read(x.theta_m_rad, x.omega_m_rad_s)
+        } else {
+            sensors.encoder_held()
+        };
         let m = Measurements {
             i_abc_a: i_abc,
-            vdc_v: sc.vdc_v as f32,
-            omega_m_rad_s: x.omega_m_rad_s as f32,
-            theta_m_rad: x.theta_m_rad as f32,
+            vdc_v: sensors.vdc(sc.vdc_v),
+            omega_m_rad_s: enc.omega_m_rad_s,
+            theta_m_rad: enc.theta_m_rad,
         };
         let out = drive.step(&m);
         if k % u64::from(sc.trace_every.max(1)) == 0 {
@@ -129,7 +165,7 @@ pub fn run(
         }
     }
     progress(1.0);
-    rows
+    Ok(rows)
 }
 
 /// Largest RK4 step used for open-loop runs, s. The step-size study
