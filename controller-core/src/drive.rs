@@ -25,9 +25,10 @@
 
 use crate::current::{CurrentControllerConfig, CurrentError, CurrentLaw, CurrentState};
 use crate::discretize::Discretization;
-use crate::frames::{Abc, AlphaBeta};
-use crate::ifoc::{IfocConfig, IfocError, IfocState, TorqueCommand};
+use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
+use crate::ifoc::{IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
+use crate::num::Scalar;
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
 use crate::svpwm;
 
@@ -113,6 +114,7 @@ pub struct DriveConfig {
     position: PositionConfig,
     flux_ref_wb: f32,
     psi_running_wb: f32,
+    ts_s: f32,
     slow_divider: u16,
     i_trip_a: f32,
     vdc_min_v: f32,
@@ -173,6 +175,7 @@ impl DriveConfig {
             speed,
             position,
             flux_ref_wb: spec.flux_ref_wb as f32,
+            ts_s: ts as f32,
             psi_running_wb: (spec.flux_ref_wb * mf) as f32,
             slow_divider: spec.slow_divider,
             i_trip_a: p.i_trip_a as f32,
@@ -219,6 +222,16 @@ pub enum Reference {
     Position(f32),
     /// Electromagnetic torque, N·m (speed loop bypassed).
     Torque(f32),
+    /// Current-loop test (commissioning; seed 002 Fig. 11/23): IFOC and the outer loops are
+    /// bypassed and the stator current reference is the rotating vector
+    /// `A·(cos θ, sin θ)`, `θ += ω·T` — a sinusoid of `omega_rad_s` on each axis, β lagging
+    /// α by 90°. The amplitude is limited to `i_ref_max_a`.
+    RotatingCurrent {
+        /// Amplitude A, A.
+        amplitude_a: f32,
+        /// Electrical frequency ω, rad/s.
+        omega_rad_s: f32,
+    },
 }
 
 /// Commands that are refused.
@@ -305,6 +318,7 @@ pub struct Drive {
     current: CurrentState<f32>,
     ifoc: IfocState,
     speed: SpeedState,
+    test_angle_rad: f32,
 }
 
 impl Drive {
@@ -320,6 +334,7 @@ impl Drive {
             current: CurrentState::default(),
             ifoc: IfocState::default(),
             speed: SpeedState::default(),
+            test_angle_rad: 0.0,
         }
     }
 
@@ -358,6 +373,7 @@ impl Drive {
                 self.speed = SpeedState::default();
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
                 self.slow_count = 0;
+                self.test_angle_rad = 0.0;
                 self.mode = Mode::Magnetizing;
                 Ok(())
             }
@@ -381,10 +397,13 @@ impl Drive {
 
     /// Set the outer-loop reference (takes effect at the next slow step).
     pub fn set_reference(&mut self, r: Reference) -> Result<(), CommandError> {
-        let v = match r {
-            Reference::Speed(x) | Reference::Position(x) | Reference::Torque(x) => x,
+        let finite = match r {
+            Reference::Speed(x) | Reference::Position(x) | Reference::Torque(x) => x.is_finite(),
+            Reference::RotatingCurrent { amplitude_a, omega_rad_s } => {
+                amplitude_a.is_finite() && omega_rad_s.is_finite()
+            }
         };
-        if !v.is_finite() {
+        if !finite {
             return Err(CommandError::NonFinite);
         }
         self.reference = r;
@@ -410,6 +429,7 @@ impl Drive {
         }
         self.torque_cmd = match self.reference {
             Reference::Torque(t) => TorqueCommand::TorqueNm(t),
+            Reference::RotatingCurrent { .. } => TorqueCommand::TorqueNm(0.0),
             Reference::Speed(w) => {
                 self.omega_ref_rad_s = w;
                 self.cfg.speed.update(&mut self.speed, w, m.omega_m_rad_s)
@@ -462,7 +482,21 @@ impl Drive {
         let cfg = &self.cfg;
         let i_ab = m.i_abc_a.clarke();
         let cmd = if running { self.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
-        let field = cfg.ifoc.update(&mut self.ifoc, cfg.flux_ref_wb, cmd, m.omega_m_rad_s);
+        let field = match self.reference {
+            Reference::RotatingCurrent { amplitude_a, omega_rad_s } if running => {
+                let a = amplitude_a.limit(0.0, cfg.ifoc.i_max_a());
+                let th = self.test_angle_rad;
+                self.test_angle_rad = wrap_angle(th + omega_rad_s * cfg.ts_s);
+                let sc = SinCos::new(th);
+                IfocOutput {
+                    i_ref_dq: Dq { d: a, q: 0.0 },
+                    i_ref_ab: AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin },
+                    theta_e_rad: th,
+                    omega_sl_rad_s: 0.0,
+                }
+            }
+            _ => cfg.ifoc.update(&mut self.ifoc, cfg.flux_ref_wb, cmd, m.omega_m_rad_s),
+        };
         let v_limit = svpwm::linear_limit_v(m.vdc_v);
         let v_ab = cfg.current.update(&mut self.current, field.i_ref_ab, i_ab, v_limit);
         if !(v_ab.alpha.is_finite() && v_ab.beta.is_finite()) {
@@ -629,6 +663,29 @@ mod tests {
         assert!(pi.p_term.abs() < 0.5);
     }
 
+    #[test]
+    fn rotating_current_reference() {
+        let mut d = running_drive();
+        d.set_reference(Reference::RotatingCurrent { amplitude_a: 100.0, omega_rad_s: 300.0 }).unwrap();
+        let mut refs = std::vec::Vec::new();
+        for _ in 0..2000 {
+            refs.push(d.step(&meas(310.0)).telemetry.i_ref_ab_a);
+        }
+        // Amplitude limited to i_ref_max = 4 A; β lags α by 90°: α = 4 cos θ, β = 4 sin θ.
+        for r in &refs {
+            assert!((r.magnitude() - 4.0).abs() < 1e-4);
+        }
+        // 2000 steps at 300 rad/s · 50 µs: the angle advanced by 30 rad.
+        let (a, b) = (refs.first().unwrap(), refs.last().unwrap());
+        let turned = libm::atan2f(b.beta, b.alpha) - libm::atan2f(a.beta, a.alpha);
+        let expected = crate::frames::wrap_angle(1999.0 * 300.0 * 5e-5);
+        assert!((crate::frames::wrap_angle(turned - expected)).abs() < 1e-3);
+        assert_eq!(
+            d.set_reference(Reference::RotatingCurrent { amplitude_a: 1.0, omega_rad_s: f32::INFINITY }),
+            Err(CommandError::NonFinite)
+        );
+    }
+
     fn finite_meas() -> impl Strategy<Value = Measurements> {
         (-20.0f32..20.0, -20.0f32..20.0, -20.0f32..20.0, 0.0f32..600.0, -1e4f32..1e4, -1e6f32..1e6).prop_map(
             |(a, b, c, vdc_v, w, th)| Measurements {
@@ -650,9 +707,14 @@ mod tests {
         /// Any finite inputs: outputs finite and inside their limits, whatever the mode.
         #[test]
         fn finite_inputs_give_bounded_outputs(seq in proptest::collection::vec(finite_meas(), 1..200),
-                                              r in -1e3f32..1e3, which in 0u8..3, start_running: bool) {
+                                              r in -1e3f32..1e3, which in 0u8..4, start_running: bool) {
             let mut d = if start_running { running_drive() } else { drive() };
-            let reference = match which { 0 => Reference::Speed(r), 1 => Reference::Position(r), _ => Reference::Torque(r) };
+            let reference = match which {
+                0 => Reference::Speed(r),
+                1 => Reference::Position(r),
+                2 => Reference::Torque(r),
+                _ => Reference::RotatingCurrent { amplitude_a: r, omega_rad_s: r },
+            };
             d.set_reference(reference).unwrap();
             d.enable().unwrap();
             for m in &seq {

@@ -56,7 +56,23 @@ pub fn speed_step_sensors() -> Result<Builtin, MotorError> {
     Ok(b)
 }
 
+/// Seed 002 Fig. 11: locked rotor, α/β current references of 1 A at 300 rad/s, ICAD
+/// controller eq. (20) at 20 kHz (after the flux build-up, from 0.3 s).
+pub fn fig11_locked_rotor() -> Result<Builtin, MotorError> {
+    let mut b = speed_step()?;
+    b.name = "fig11-locked-rotor";
+    b.about = "seed 002 Fig. 11: locked rotor, 1 A α/β current references at 300 rad/s, ICAD eq. (20)";
+    b.scenario.events = vec![
+        (0.0, Event::Enable),
+        (0.3, Event::Reference(Reference::RotatingCurrent { amplitude_a: 1.0, omega_rad_s: 300.0 })),
+    ];
+    b.scenario.duration_s = 1.3;
+    b.scenario.trace_every = 1;
+    b.scenario.load = LoadModel::LockedRotor;
+    Ok(b)
+}
+
 /// All built-in scenarios.
 pub fn all() -> Result<Vec<Builtin>, MotorError> {
-    Ok(vec![speed_step()?, speed_step_sensors()?])
+    Ok(vec![speed_step()?, speed_step_sensors()?, fig11_locked_rotor()?])
 }
