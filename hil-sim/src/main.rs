@@ -9,8 +9,6 @@
 //! that fails to parse or validate is reported with file, key and reason, and nothing is
 //! written; outputs appear only complete (written to a temporary name, then renamed).
 
-use controller_core::drive::{Drive, DriveConfig};
-use hil_sim::plant::Machine;
 use hil_sim::scenario::{self, Builtin};
 use hil_sim::sim::{self, Row};
 use std::io::Write;
@@ -138,12 +136,9 @@ fn finish(out: &Path, rows: &[Row], closed_loop: bool, summary: serde_json::Valu
 }
 
 fn run_builtin(b: &Builtin, out: &Path) -> Result<(), String> {
-    let cfg = DriveConfig::new(&b.spec).map_err(|e| format!("invalid drive specification: {e:?}"))?;
-    let mut drive = Drive::new(cfg);
-    let machine = Machine::new(&b.spec.motor);
     eprintln!("hil-sim: {} — {}", b.name, b.about);
     let wall = std::time::Instant::now();
-    let rows = sim::run(&mut drive, &machine, b.spec.pwm_frequency_hz, &b.scenario, progress_bar)?;
+    let (rows, mode) = b.run(progress_bar)?;
     let secs = wall.elapsed().as_secs_f64();
     let last = rows.last().ok_or("empty run")?;
     let summary = serde_json::json!({
@@ -153,7 +148,7 @@ fn run_builtin(b: &Builtin, out: &Path) -> Result<(), String> {
         "final_omega_m_rad_s": last.x.omega_m_rad_s,
         "final_omega_ref_rad_s": last.omega_ref_rad_s,
         "peak_stator_current_a": peak_current(&rows),
-        "drive_mode": format!("{:?}", drive.mode()),
+        "drive_mode": format!("{mode:?}"),
         "rk4_substeps_per_pwm_period": b.scenario.substeps,
         "wall_time_s": secs,
         "real_time_factor": b.scenario.duration_s / secs,

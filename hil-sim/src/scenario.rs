@@ -1,9 +1,10 @@
 //! Built-in scenarios (the TOML scenario files of issue 3 will extend this list).
 
+use crate::plant::Machine;
 use crate::sensors::SensorModel;
-use crate::sim::{Event, LoadModel, Scenario};
-use controller_core::drive::{DriveSpec, Reference, example_spec};
-use controller_core::motor::MotorError;
+use crate::sim::{self, Event, LoadModel, Row, Scenario};
+use controller_core::drive::{Drive, DriveConfig, DriveSpec, Mode, Reference, example_spec};
+use controller_core::motor::{MotorError, MotorParams};
 
 /// A named, runnable scenario with its drive.
 #[derive(Clone, Debug)]
@@ -12,20 +13,56 @@ pub struct Builtin {
     pub name: &'static str,
     /// One-line description.
     pub about: &'static str,
-    /// Drive specification.
+    /// Drive specification (what the controller believes about the motor).
     pub spec: DriveSpec,
+    /// The simulated machine (differs from `spec.motor` in perturbed-plant scenarios).
+    pub plant: MotorParams,
     /// Events and timing.
     pub scenario: Scenario,
+}
+
+impl Builtin {
+    /// Run the scenario: returns the trace and the drive's final mode.
+    pub fn run(&self, progress: impl FnMut(f64)) -> Result<(Vec<Row>, Mode), String> {
+        let cfg = DriveConfig::new(&self.spec).map_err(|e| format!("invalid drive specification: {e:?}"))?;
+        let mut drive = Drive::new(cfg);
+        let rows = sim::run(
+            &mut drive,
+            &Machine::new(&self.plant),
+            self.spec.pwm_frequency_hz,
+            &self.scenario,
+            progress,
+        )?;
+        Ok((rows, drive.mode()))
+    }
+}
+
+/// The perturbed DeLorenzo motor of seed 002 Sec. VIII ("≈ 100 % perturbation"):
+/// R_s, R_r × 2; L_s, L_r × 0.6; L_m × 0.59.
+pub fn delorenzo_perturbed() -> Result<MotorParams, MotorError> {
+    let n = MotorParams::delorenzo_dl10115a1()?;
+    MotorParams::new(
+        2.0 * n.rs_ohm(),
+        2.0 * n.rr_ohm(),
+        0.6 * n.ls_h(),
+        0.6 * n.lr_h(),
+        0.59 * n.lm_h(),
+        n.pole_pairs(),
+        n.j_kgm2(),
+        n.b_nms(),
+    )
 }
 
 /// IFOC speed step to 150 rad/s with the ICAD current loop (seed 002 eq. (20)) and the
 /// saturated-P speed loop (eq. (21)) on the DeLorenzo motor; 1 N·m load from 1.5 s to
 /// 2.5 s (after seed 002 Fig. 13).
 pub fn speed_step() -> Result<Builtin, MotorError> {
+    let spec = example_spec()?;
     Ok(Builtin {
         name: "speed-step",
         about: "IFOC + ICAD, speed step to 150 rad/s, 1 N·m load applied at 1.5 s and removed at 2.5 s",
-        spec: example_spec()?,
+        plant: spec.motor,
+        spec,
         scenario: Scenario {
             events: vec![
                 (0.0, Event::Enable),
@@ -72,7 +109,17 @@ pub fn fig11_locked_rotor() -> Result<Builtin, MotorError> {
     Ok(b)
 }
 
+/// Seed 002 Fig. 23: Fig. 11's test on the perturbed plant of Sec. VIII (controller and its
+/// IFOC configured for the nominal motor).
+pub fn fig23_perturbed() -> Result<Builtin, MotorError> {
+    let mut b = fig11_locked_rotor()?;
+    b.name = "fig23-perturbed";
+    b.about = "seed 002 Fig. 23: perturbed plant (Rs, Rr ×2; Ls, Lr ×0.6; Lm ×0.59), 1 A at 300 rad/s, ICAD";
+    b.plant = delorenzo_perturbed()?;
+    Ok(b)
+}
+
 /// All built-in scenarios.
 pub fn all() -> Result<Vec<Builtin>, MotorError> {
-    Ok(vec![speed_step()?, speed_step_sensors()?, fig11_locked_rotor()?])
+    Ok(vec![speed_step()?, speed_step_sensors()?, fig11_locked_rotor()?, fig23_perturbed()?])
 }

@@ -5,18 +5,14 @@
 //! N·m·s/rad): it checks that IFOC produces the commanded torque.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
-use controller_core::drive::{Drive, DriveConfig, Mode};
-use hil_sim::plant::Machine;
+use controller_core::drive::Mode;
 use hil_sim::scenario::{speed_step, speed_step_sensors};
-use hil_sim::sim;
 
 #[test]
 fn speed_step_reaches_the_eq21_steady_states() {
     let b = speed_step().unwrap();
-    let mut drive = Drive::new(DriveConfig::new(&b.spec).unwrap());
-    let machine = Machine::new(&b.spec.motor);
-    let rows = sim::run(&mut drive, &machine, b.spec.pwm_frequency_hz, &b.scenario, |_| {}).unwrap();
-    assert_eq!(drive.mode(), Mode::Running);
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    assert_eq!(mode, Mode::Running);
     let (kp, bf) = (0.05, b.spec.motor.b_nms());
     let at = |t: f64| rows.iter().find(|r| r.t_s >= t).unwrap().x.omega_m_rad_s;
     let no_load = (kp * 150.0) / (kp + bf);
@@ -46,12 +42,7 @@ fn speed_step_reaches_the_eq21_steady_states() {
 #[test]
 fn realistic_sensors_and_eddy_brake() {
     let b = speed_step_sensors().unwrap();
-    let run_with = |b: &hil_sim::scenario::Builtin| {
-        let mut drive = Drive::new(DriveConfig::new(&b.spec).unwrap());
-        let machine = Machine::new(&b.spec.motor);
-        let rows = sim::run(&mut drive, &machine, b.spec.pwm_frequency_hz, &b.scenario, |_| {}).unwrap();
-        (rows, drive.mode())
-    };
+    let run_with = |b: &hil_sim::scenario::Builtin| b.run(|_| {}).unwrap();
     let (rows, mode) = run_with(&b);
     assert_eq!(mode, Mode::Running);
     let expected = 0.05 * 150.0 / (0.05 + b.spec.motor.b_nms() + 0.002);
