@@ -3,8 +3,10 @@
 use crate::plant::Machine;
 use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
+use controller_core::current::CurrentLaw;
 use controller_core::drive::{Drive, DriveConfig, DriveSpec, Mode, Reference, example_spec};
 use controller_core::motor::{MotorError, MotorParams};
+use controller_core::speed::SpeedLaw;
 
 /// A named, runnable scenario with its drive.
 #[derive(Clone, Debug)]
@@ -119,7 +121,54 @@ pub fn fig23_perturbed() -> Result<Builtin, MotorError> {
     Ok(b)
 }
 
+/// Seed 002 Fig. 16: saturated-P speed loop eq. (21) (k_p = 0.05 N·m·s/rad,
+/// τ_max = 0.4 N·m) to 376 rad/s with the current law `law`.
+///
+/// Voltage headroom decides the operating point: at 310 V the linear limit is
+/// V_dc/√3 = 179 V, and with this machine's short T_r = 65 ms the slip ω_sl = i_q/(T_r·i_d)
+/// is large, so ω_e = p·ω_m + ω_sl exceeds 376 rad/s. Steady-state dq voltages
+/// v_d = R_s i_d − ω_e σL_s i_q, v_q = R_s i_q + ω_e L_s i_d at the top of the ramp give
+/// |v| ≈ 167 V for ψ* = 0.35 Wb and τ_max = 0.4 N·m (i_d = 0.246 A, i_q = 0.805 A,
+/// ω_sl = 50 rad/s). With ψ* = 0.4 Wb and τ_max = 1 N·m the voltage limit is reached near
+/// 230 rad/s and the stationary ICAD loop loses control (documented in the README).
+pub fn fig16(law: CurrentLaw, name: &'static str, about: &'static str) -> Result<Builtin, MotorError> {
+    let mut b = speed_step()?;
+    b.name = name;
+    b.about = about;
+    b.spec.current_law = law;
+    b.spec.flux_ref_wb = 0.35;
+    b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
+    b.scenario.events = vec![(0.0, Event::Enable), (0.3, Event::Reference(Reference::Speed(376.0)))];
+    b.scenario.duration_s = 6.5;
+    Ok(b)
+}
+
+/// Fig. 16 with the ICAD controller eq. (20).
+pub fn fig16_icad() -> Result<Builtin, MotorError> {
+    fig16(
+        CurrentLaw::ICAD_EQ20,
+        "fig16-icad",
+        "seed 002 Fig. 16: eq. (21) speed loop to 376 rad/s, ICAD current loops",
+    )
+}
+
+/// Fig. 16 with the stationary PI of Sec. VI-D (Kp = 360, Ki = 9000).
+pub fn fig16_pi() -> Result<Builtin, MotorError> {
+    fig16(
+        CurrentLaw::PI_SEED002,
+        "fig16-pi",
+        "seed 002 Fig. 16: eq. (21) speed loop to 376 rad/s, PI 360/9000 current loops",
+    )
+}
+
 /// All built-in scenarios.
 pub fn all() -> Result<Vec<Builtin>, MotorError> {
-    Ok(vec![speed_step()?, speed_step_sensors()?, fig11_locked_rotor()?, fig23_perturbed()?])
+    Ok(vec![
+        speed_step()?,
+        speed_step_sensors()?,
+        fig11_locked_rotor()?,
+        fig16_icad()?,
+        fig16_pi()?,
+        fig23_perturbed()?,
+    ])
 }
