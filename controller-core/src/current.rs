@@ -1,6 +1,8 @@
 //! Stationary-frame stator current controllers, one per α/β axis.
 //!
-//! Two laws behind one interface ([`CurrentControllerConfig`]), chosen by configuration:
+//! Two laws behind one interface ([`CurrentControllerConfig`]), chosen by configuration,
+//! run on the α/β axes (stationary frame, seed 002) or on d/q (synchronous frame, seed 000's
+//! PI1/PI3; [`CurrentControllerConfig::update_dq`]):
 //!
 //! * **ICAD lag-compensated controller**, seed 002 eq. (20), implemented in the factored
 //!   form of eq. (22):
@@ -19,7 +21,7 @@
 
 use crate::discretize::{ContinuousSection, DesignError, Discretization};
 use crate::filter::{Biquad, BiquadState};
-use crate::frames::AlphaBeta;
+use crate::frames::{AlphaBeta, Dq};
 use crate::num::Scalar;
 use crate::pi::{PiConfig, PiError, PiState};
 
@@ -82,13 +84,13 @@ pub struct CurrentAxisState<T> {
     pub pi: PiState<T>,
 }
 
-/// State of both axes.
+/// State of both axes: α/β in the stationary frame, d/q in the synchronous frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CurrentState<T> {
-    /// α axis.
-    pub alpha: CurrentAxisState<T>,
-    /// β axis.
-    pub beta: CurrentAxisState<T>,
+    /// α (stationary) or d (synchronous) axis.
+    pub axis1: CurrentAxisState<T>,
+    /// β (stationary) or q (synchronous) axis.
+    pub axis2: CurrentAxisState<T>,
 }
 
 impl<T: Scalar> CurrentControllerConfig<T> {
@@ -143,8 +145,18 @@ impl CurrentControllerConfig<f32> {
     ) -> AlphaBeta {
         let e = i_ref - i_meas;
         AlphaBeta {
-            alpha: self.update_axis(&mut s.alpha, e.alpha, v_limit_v),
-            beta: self.update_axis(&mut s.beta, e.beta, v_limit_v),
+            alpha: self.update_axis(&mut s.axis1, e.alpha, v_limit_v),
+            beta: self.update_axis(&mut s.axis2, e.beta, v_limit_v),
+        }
+    }
+
+    /// Both axes in the synchronous frame (seed 000's PI1/PI3 on i_ds, i_qs): dq reference
+    /// and measured currents (A) → dq voltage (V), each axis limited to `±v_limit_v`.
+    #[inline]
+    pub fn update_dq(&self, s: &mut CurrentState<f32>, i_ref: Dq, i_meas: Dq, v_limit_v: f32) -> Dq {
+        Dq {
+            d: self.update_axis(&mut s.axis1, i_ref.d - i_meas.d, v_limit_v),
+            q: self.update_axis(&mut s.axis2, i_ref.q - i_meas.q, v_limit_v),
         }
     }
 

@@ -10,7 +10,8 @@
 //!
 //! **Fast step** (every PWM period, [`Drive::fast_step`]): supervisor → Clarke of the measured
 //! phase currents → IFOC (field angle, current references in αβ) → α/β current controllers
-//! with the voltage limit `V_dc/√3` → SVPWM duties.
+//! (or d/q controllers between Park and inverse Park, [`CurrentFrame::Synchronous`]) with the
+//! voltage limit `V_dc/√3` → SVPWM duties.
 //! **Slow step** (every N-th period, [`Drive::slow_step`]): position loop (if a position
 //! reference is active) → speed loop → torque command held for the fast steps.
 //! [`Drive::step`] runs the slow step on every N-th call, then the fast step — what the
@@ -52,6 +53,17 @@ pub struct PositionLaw {
     pub omega_max_rad_s: f64,
 }
 
+/// Reference frame of the current loops.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CurrentFrame {
+    /// α/β loops on sinusoidal references (seed 002; ICAD eq. (20)).
+    #[default]
+    Stationary,
+    /// d/q loops on the field-oriented frame (seed 000 PI1/PI3): Park of the measured
+    /// currents at θ_e, the controllers on d and q errors, inverse Park of the voltage.
+    Synchronous,
+}
+
 /// Everything a drive needs, in design units (f64). [`DriveConfig::new`] validates it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveSpec {
@@ -65,6 +77,8 @@ pub struct DriveSpec {
     pub current_law: CurrentLaw,
     /// Discretisation of the current law.
     pub discretization: Discretization,
+    /// Frame of the current loops.
+    pub current_frame: CurrentFrame,
     /// Speed law.
     pub speed_law: SpeedLaw,
     /// Position loop.
@@ -109,6 +123,7 @@ pub enum DriveError {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveConfig {
     current: CurrentControllerConfig<f32>,
+    current_frame: CurrentFrame,
     ifoc: IfocConfig,
     speed: SpeedControllerConfig,
     position: PositionConfig,
@@ -171,6 +186,7 @@ impl DriveConfig {
             .map_err(DriveError::Position)?;
         Ok(Self {
             current,
+            current_frame: spec.current_frame,
             ifoc,
             speed,
             position,
@@ -498,7 +514,15 @@ impl Drive {
             _ => cfg.ifoc.update(&mut self.ifoc, cfg.flux_ref_wb, cmd, m.omega_m_rad_s),
         };
         let v_limit = svpwm::linear_limit_v(m.vdc_v);
-        let v_ab = cfg.current.update(&mut self.current, field.i_ref_ab, i_ab, v_limit);
+        let v_ab = match cfg.current_frame {
+            CurrentFrame::Stationary => cfg.current.update(&mut self.current, field.i_ref_ab, i_ab, v_limit),
+            CurrentFrame::Synchronous => {
+                let sc = SinCos::new(field.theta_e_rad);
+                cfg.current
+                    .update_dq(&mut self.current, field.i_ref_dq, i_ab.park(sc), v_limit)
+                    .inverse_park(sc)
+            }
+        };
         if !(v_ab.alpha.is_finite() && v_ab.beta.is_finite()) {
             self.trip(Fault::NonFiniteOutput);
             return off(self.mode);
@@ -535,6 +559,7 @@ pub fn example_spec() -> Result<DriveSpec, crate::motor::MotorError> {
         slow_divider: 10,
         current_law: CurrentLaw::ICAD_EQ20,
         discretization: Discretization::Tustin,
+        current_frame: CurrentFrame::Stationary,
         speed_law: SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 2.0 },
         position: PositionLaw { k_per_s: 10.0, omega_max_rad_s: 150.0 },
         flux_ref_wb: 0.9,
@@ -634,33 +659,37 @@ mod tests {
         })
     }
 
-    /// Wiring check of the whole fast path (Clarke → IFOC → ICAD → SVPWM → duty → volts):
-    /// on an R-L load the d-current settles at ψ_r*/L_m, the flux model reaches the running
-    /// threshold, and the drive moves to Running by itself.
+    /// Wiring check of the whole fast path (Clarke → IFOC → current loops → SVPWM → duty →
+    /// volts), in both current-loop frames: on an R-L load the d-current settles at
+    /// ψ_r*/L_m, the flux model reaches the running threshold, and the drive moves to
+    /// Running by itself.
     #[test]
     fn magnetizes_an_rl_load_and_enters_running() {
-        let mut d = drive();
-        d.enable().unwrap();
-        let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
-        let mut i = Abc::default();
-        let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
-        for _ in 0..20_000 {
-            if let PhaseCommand::Duty(duty) = out.phases {
-                i = rl_step(i, duty, vdc, r, l, ts);
+        for frame in [CurrentFrame::Stationary, CurrentFrame::Synchronous] {
+            let spec = DriveSpec { current_frame: frame, ..example_spec().unwrap() };
+            let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+            d.enable().unwrap();
+            let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
+            let mut i = Abc::default();
+            let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+            for _ in 0..20_000 {
+                if let PhaseCommand::Duty(duty) = out.phases {
+                    i = rl_step(i, duty, vdc, r, l, ts);
+                }
+                out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
             }
-            out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+            assert_eq!(d.mode(), Mode::Running, "{frame:?}");
+            // i_ds* = 0.9/1.42 = 0.6338 A; at standstill with zero torque, θ_e stays 0, so the
+            // reference is on α: i_α → 0.6338 A, i_β → 0.
+            let t = out.telemetry;
+            assert!((t.i_ref_ab_a.alpha - 0.9 / 1.42).abs() < 1e-4);
+            assert!((t.i_ab_a.alpha - t.i_ref_ab_a.alpha).abs() < 1e-3, "{frame:?} {t:?}");
+            assert!(t.i_ab_a.beta.abs() < 1e-3);
+            // In steady state the d (= α here) voltage R·i comes from the integrator.
+            let pi = d.current_state().axis1.pi;
+            assert!((pi.i_term - 16.2 * t.i_ab_a.alpha).abs() < 0.05, "{frame:?} {pi:?}");
+            assert!(pi.p_term.abs() < 0.5);
         }
-        assert_eq!(d.mode(), Mode::Running);
-        // i_ds* = 0.9/1.42 = 0.6338 A; at standstill with zero torque, θ_e stays 0, so the
-        // reference is on α: i_α → 0.6338 A, i_β → 0.
-        let t = out.telemetry;
-        assert!((t.i_ref_ab_a.alpha - 0.9 / 1.42).abs() < 1e-4);
-        assert!((t.i_ab_a.alpha - t.i_ref_ab_a.alpha).abs() < 1e-3, "{:?}", t);
-        assert!(t.i_ab_a.beta.abs() < 1e-3);
-        // In steady state the α voltage R·i comes from the integrator, not the P term.
-        let pi = d.current_state().alpha.pi;
-        assert!((pi.i_term - 16.2 * t.i_ab_a.alpha).abs() < 0.05, "{pi:?}");
-        assert!(pi.p_term.abs() < 0.5);
     }
 
     #[test]

@@ -181,7 +181,7 @@ fn main() -> ExitCode {
     let builtins = match scenario::all() {
         Ok(b) => b,
         Err(e) => {
-            eprintln!("hil-sim: built-in motor parameters rejected: {e:?}");
+            eprintln!("hil-sim: built-in scenarios: {e}");
             return ExitCode::FAILURE;
         }
     };

@@ -4,9 +4,44 @@ use crate::plant::Machine;
 use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
 use controller_core::current::CurrentLaw;
-use controller_core::drive::{Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference, example_spec};
+use controller_core::drive::{
+    CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Protection, Reference, example_spec,
+};
 use controller_core::motor::{MotorError, MotorParams};
 use controller_core::speed::SpeedLaw;
+
+/// Why a built-in scenario could not be assembled (a bug in the shipped data, reported
+/// rather than hidden).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ScenarioError {
+    /// Motor parameters rejected.
+    Motor(MotorError),
+    /// A shipped motor file failed to parse or validate.
+    MotorFile(crate::config::ConfigError),
+}
+
+impl std::fmt::Display for ScenarioError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ScenarioError::Motor(e) => write!(f, "motor parameters rejected: {e:?}"),
+            ScenarioError::MotorFile(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for ScenarioError {}
+
+impl From<MotorError> for ScenarioError {
+    fn from(e: MotorError) -> Self {
+        ScenarioError::Motor(e)
+    }
+}
+
+impl From<crate::config::ConfigError> for ScenarioError {
+    fn from(e: crate::config::ConfigError) -> Self {
+        ScenarioError::MotorFile(e)
+    }
+}
 
 /// A named, runnable scenario with its drive.
 #[derive(Clone, Debug)]
@@ -58,7 +93,7 @@ pub fn delorenzo_perturbed() -> Result<MotorParams, MotorError> {
 /// IFOC speed step to 150 rad/s with the ICAD current loop (seed 002 eq. (20)) and the
 /// saturated-P speed loop (eq. (21)) on the DeLorenzo motor; 1 N·m load from 1.5 s to
 /// 2.5 s (after seed 002 Fig. 13).
-pub fn speed_step() -> Result<Builtin, MotorError> {
+pub fn speed_step() -> Result<Builtin, ScenarioError> {
     let spec = example_spec()?;
     Ok(Builtin {
         name: "speed-step",
@@ -85,7 +120,7 @@ pub fn speed_step() -> Result<Builtin, MotorError> {
 /// [`speed_step`] with realistic sensors ([`SensorModel::realistic`]: 12-bit current ADC
 /// with offset, gain error and noise; 1024-line encoder) and an eddy-current brake of
 /// 0.002 N·m·s/rad instead of the load steps.
-pub fn speed_step_sensors() -> Result<Builtin, MotorError> {
+pub fn speed_step_sensors() -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
     b.name = "speed-step-sensors";
     b.about = "speed-step with 12-bit ADC (offset, gain error, noise), 1024-line encoder, eddy-current brake";
@@ -97,7 +132,7 @@ pub fn speed_step_sensors() -> Result<Builtin, MotorError> {
 
 /// Seed 002 Fig. 11: locked rotor, α/β current references of 1 A at 300 rad/s, ICAD
 /// controller eq. (20) at 20 kHz (after the flux build-up, from 0.3 s).
-pub fn fig11_locked_rotor() -> Result<Builtin, MotorError> {
+pub fn fig11_locked_rotor() -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
     b.name = "fig11-locked-rotor";
     b.about = "seed 002 Fig. 11: locked rotor, 1 A α/β current references at 300 rad/s, ICAD eq. (20)";
@@ -113,7 +148,7 @@ pub fn fig11_locked_rotor() -> Result<Builtin, MotorError> {
 
 /// Seed 002 Fig. 23: Fig. 11's test on the perturbed plant of Sec. VIII (controller and its
 /// IFOC configured for the nominal motor).
-pub fn fig23_perturbed() -> Result<Builtin, MotorError> {
+pub fn fig23_perturbed() -> Result<Builtin, ScenarioError> {
     let mut b = fig11_locked_rotor()?;
     b.name = "fig23-perturbed";
     b.about = "seed 002 Fig. 23: perturbed plant (Rs, Rr ×2; Ls, Lr ×0.6; Lm ×0.59), 1 A at 300 rad/s, ICAD";
@@ -128,7 +163,7 @@ pub fn fig23_perturbed() -> Result<Builtin, MotorError> {
 /// these are ours, crossover ≈ k_p/J = 20 rad/s above the 4 1/s position loop).
 // The paper's step is 6.28 rad as printed, not 2π.
 #[allow(clippy::approx_constant)]
-pub fn fig14_position() -> Result<Builtin, MotorError> {
+pub fn fig14_position() -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
     b.name = "fig14-position";
     b.about =
@@ -154,7 +189,7 @@ pub fn fig14_position() -> Result<Builtin, MotorError> {
 /// |v| ≈ 167 V for ψ* = 0.35 Wb and τ_max = 0.4 N·m (i_d = 0.246 A, i_q = 0.805 A,
 /// ω_sl = 50 rad/s). With ψ* = 0.4 Wb and τ_max = 1 N·m the voltage limit is reached near
 /// 230 rad/s and the stationary ICAD loop loses control (documented in the README).
-pub fn fig16(law: CurrentLaw, name: &'static str, about: &'static str) -> Result<Builtin, MotorError> {
+pub fn fig16(law: CurrentLaw, name: &'static str, about: &'static str) -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
     b.name = name;
     b.about = about;
@@ -167,7 +202,7 @@ pub fn fig16(law: CurrentLaw, name: &'static str, about: &'static str) -> Result
 }
 
 /// Fig. 16 with the ICAD controller eq. (20).
-pub fn fig16_icad() -> Result<Builtin, MotorError> {
+pub fn fig16_icad() -> Result<Builtin, ScenarioError> {
     fig16(
         CurrentLaw::ICAD_EQ20,
         "fig16-icad",
@@ -176,7 +211,7 @@ pub fn fig16_icad() -> Result<Builtin, MotorError> {
 }
 
 /// Fig. 16 with the stationary PI of Sec. VI-D (Kp = 360, Ki = 9000).
-pub fn fig16_pi() -> Result<Builtin, MotorError> {
+pub fn fig16_pi() -> Result<Builtin, ScenarioError> {
     fig16(
         CurrentLaw::PI_SEED002,
         "fig16-pi",
@@ -184,8 +219,53 @@ pub fn fig16_pi() -> Result<Builtin, MotorError> {
     )
 }
 
+/// Seed 000 Fig. 11: the 2300 V machine of Table 2 (as read in
+/// `motors/krause-2300v-500hp.toml`) on a 3300 V bus at 20 kHz; synchronous-frame current
+/// loops PI1 = PI3 = (30s + 50)/s (eq. (34)); speed loop PI2 = (50s + 250)/s → i_qs*
+/// (eq. (35)), limited to 250 A; ψ_r* = 4.5 Wb (i_ds* = 31.5 A). The speed reference of
+/// 100 rad/s is applied once the rotor is magnetized (T_r = 0.78 s, ≈ 2.3 s).
+pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
+    let motor = crate::motors::load("krause-2300v-500hp")?;
+    let mut b = speed_step()?;
+    b.name = "seed000-fig11";
+    b.about = "seed 000 Fig. 11: 2300 V machine, speed step to 100 rad/s, dq PI1/PI3 (30s+50)/s, speed PI2 (50s+250)/s";
+    b.spec.motor = motor;
+    b.plant = motor;
+    b.spec.current_law = CurrentLaw::PI1_SEED000;
+    b.spec.current_frame = CurrentFrame::Synchronous;
+    b.spec.speed_law = SpeedLaw::pi2_seed000(250.0);
+    b.spec.flux_ref_wb = 4.5;
+    b.spec.flux_floor_wb = 0.2;
+    b.spec.i_ref_max_a = 260.0;
+    b.spec.protection = Protection { i_trip_a: 400.0, vdc_min_v: 2500.0, vdc_max_v: 3800.0 };
+    b.scenario.vdc_v = 3300.0;
+    b.scenario.events = vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Speed(100.0)))];
+    b.scenario.duration_s = 5.0;
+    Ok(b)
+}
+
+/// Seed 000 Fig. 12: [`seed000_fig11`] with the plant's R_r +100 % and R_s +50 % (the
+/// controller and its IFOC slip gain keep the nominal values).
+pub fn seed000_fig12() -> Result<Builtin, ScenarioError> {
+    let mut b = seed000_fig11()?;
+    b.name = "seed000-fig12";
+    b.about = "seed 000 Fig. 12: as seed000-fig11 with the plant's Rr +100 % and Rs +50 %";
+    let n = b.plant;
+    b.plant = MotorParams::new(
+        1.5 * n.rs_ohm(),
+        2.0 * n.rr_ohm(),
+        n.ls_h(),
+        n.lr_h(),
+        n.lm_h(),
+        n.pole_pairs(),
+        n.j_kgm2(),
+        n.b_nms(),
+    )?;
+    Ok(b)
+}
+
 /// All built-in scenarios.
-pub fn all() -> Result<Vec<Builtin>, MotorError> {
+pub fn all() -> Result<Vec<Builtin>, ScenarioError> {
     Ok(vec![
         speed_step()?,
         speed_step_sensors()?,
@@ -194,5 +274,7 @@ pub fn all() -> Result<Vec<Builtin>, MotorError> {
         fig16_icad()?,
         fig16_pi()?,
         fig23_perturbed()?,
+        seed000_fig11()?,
+        seed000_fig12()?,
     ])
 }
