@@ -109,7 +109,8 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
             ],
             duration_s: 3.5,
             vdc_v: 310.0,
-            substeps: 4,
+            // One RK4 step per PWM period is converged (tests/substeps.rs).
+            substeps: 1,
             trace_every: 20,
             sensors: SensorModel::default(),
             load: LoadModel::Torque,
