@@ -26,7 +26,9 @@
 //! torque_nm = 0.0
 //! ```
 //!
-//! Unknown keys and bad values are errors naming the file, the key and the reason.
+//! Closed-loop files (with a `[controller]` table) are described in
+//! [`crate::closed_loop_file`]. Unknown keys and bad values are errors naming the file, the key
+//! and the reason.
 
 use controller_core::motor::{MotorError, MotorField, MotorParams};
 use serde::Deserialize;
@@ -224,14 +226,27 @@ pub fn parse(file: &Path, text: &str) -> Result<OpenLoop, ConfigError> {
     })
 }
 
-/// Read, parse and validate a scenario file.
-pub fn load(file: &Path) -> Result<OpenLoop, ConfigError> {
+/// A scenario file of either kind.
+#[derive(Debug, Clone)]
+pub enum ScenarioFileKind {
+    /// Plant fed by an ideal source (`[source]`).
+    OpenLoop(OpenLoop),
+    /// Drive against the plant (`[controller]`, see [`crate::closed_loop_file`]).
+    ClosedLoop(Box<crate::scenario::Builtin>),
+}
+
+/// Read, parse and validate a scenario file of either kind.
+pub fn load(file: &Path) -> Result<ScenarioFileKind, ConfigError> {
     let text = std::fs::read_to_string(file).map_err(|e| ConfigError {
         file: file.to_path_buf(),
         key: None,
         reason: format!("cannot read: {e}"),
     })?;
-    parse(file, &text)
+    if crate::closed_loop_file::is_closed_loop(&text) {
+        crate::closed_loop_file::parse(file, &text).map(|b| ScenarioFileKind::ClosedLoop(Box::new(b)))
+    } else {
+        parse(file, &text).map(ScenarioFileKind::OpenLoop)
+    }
 }
 
 #[cfg(test)]

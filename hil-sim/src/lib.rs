@@ -9,6 +9,7 @@
 #![allow(clippy::indexing_slicing)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod closed_loop_file;
 pub mod config;
 pub mod motors;
 pub mod plant;

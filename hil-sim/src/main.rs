@@ -157,7 +157,10 @@ fn run_builtin(b: &Builtin, out: &Path) -> Result<(), String> {
 }
 
 fn run_file(path: &Path, out: &Path) -> Result<(), String> {
-    let sc = hil_sim::config::load(path).map_err(|e| e.to_string())?;
+    let sc = match hil_sim::config::load(path).map_err(|e| e.to_string())? {
+        hil_sim::config::ScenarioFileKind::OpenLoop(sc) => sc,
+        hil_sim::config::ScenarioFileKind::ClosedLoop(b) => return run_builtin(&b, out),
+    };
     eprintln!("hil-sim: open-loop run of {}", path.display());
     let wall = std::time::Instant::now();
     let rows = sim::run_open_loop(&sc, sim::OPEN_LOOP_MAX_STEP_S, progress_bar);
@@ -201,7 +204,7 @@ fn main() -> ExitCode {
                 (Some("--out"), Some(d), None) => PathBuf::from(d),
                 _ => return usage(),
             };
-            let result = if let Some(b) = builtins.iter().find(|b| b.name == name) {
+            let result = if let Some(b) = builtins.iter().find(|b| &b.name == name) {
                 run_builtin(b, &out)
             } else if name.ends_with(".toml") || Path::new(name).exists() {
                 run_file(Path::new(name), &out)

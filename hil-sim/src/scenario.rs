@@ -47,9 +47,9 @@ impl From<crate::config::ConfigError> for ScenarioError {
 #[derive(Clone, Debug)]
 pub struct Builtin {
     /// Name used on the command line.
-    pub name: &'static str,
+    pub name: String,
     /// One-line description.
-    pub about: &'static str,
+    pub about: String,
     /// Drive specification (what the controller believes about the motor).
     pub spec: DriveSpec,
     /// The simulated machine (differs from `spec.motor` in perturbed-plant scenarios).
@@ -96,8 +96,9 @@ pub fn delorenzo_perturbed() -> Result<MotorParams, MotorError> {
 pub fn speed_step() -> Result<Builtin, ScenarioError> {
     let spec = example_spec()?;
     Ok(Builtin {
-        name: "speed-step",
-        about: "IFOC + ICAD, speed step to 150 rad/s, 1 N·m load applied at 1.5 s and removed at 2.5 s",
+        name: "speed-step".into(),
+        about: "IFOC + ICAD, speed step to 150 rad/s, 1 N·m load applied at 1.5 s and removed at 2.5 s"
+            .into(),
         plant: spec.motor,
         spec,
         scenario: Scenario {
@@ -123,8 +124,9 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
 /// 0.002 N·m·s/rad instead of the load steps.
 pub fn speed_step_sensors() -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
-    b.name = "speed-step-sensors";
-    b.about = "speed-step with 12-bit ADC (offset, gain error, noise), 1024-line encoder, eddy-current brake";
+    b.name = "speed-step-sensors".into();
+    b.about = "speed-step with 12-bit ADC (offset, gain error, noise), 1024-line encoder, eddy-current brake"
+        .into();
     b.scenario.events.retain(|(_, e)| !matches!(e, Event::LoadNm(_)));
     b.scenario.sensors = SensorModel::realistic(7);
     b.scenario.load = LoadModel::EddyBrake { k_nm_s_rad: 0.002 };
@@ -135,8 +137,8 @@ pub fn speed_step_sensors() -> Result<Builtin, ScenarioError> {
 /// controller eq. (20) at 20 kHz (after the flux build-up, from 0.3 s).
 pub fn fig11_locked_rotor() -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
-    b.name = "fig11-locked-rotor";
-    b.about = "seed 002 Fig. 11: locked rotor, 1 A α/β current references at 300 rad/s, ICAD eq. (20)";
+    b.name = "fig11-locked-rotor".into();
+    b.about = "seed 002 Fig. 11: locked rotor, 1 A α/β current references at 300 rad/s, ICAD eq. (20)".into();
     b.scenario.events = vec![
         (0.0, Event::Enable),
         (0.3, Event::Reference(Reference::RotatingCurrent { amplitude_a: 1.0, omega_rad_s: 300.0 })),
@@ -151,8 +153,9 @@ pub fn fig11_locked_rotor() -> Result<Builtin, ScenarioError> {
 /// IFOC configured for the nominal motor).
 pub fn fig23_perturbed() -> Result<Builtin, ScenarioError> {
     let mut b = fig11_locked_rotor()?;
-    b.name = "fig23-perturbed";
-    b.about = "seed 002 Fig. 23: perturbed plant (Rs, Rr ×2; Ls, Lr ×0.6; Lm ×0.59), 1 A at 300 rad/s, ICAD";
+    b.name = "fig23-perturbed".into();
+    b.about =
+        "seed 002 Fig. 23: perturbed plant (Rs, Rr ×2; Ls, Lr ×0.6; Lm ×0.59), 1 A at 300 rad/s, ICAD".into();
     b.plant = delorenzo_perturbed()?;
     Ok(b)
 }
@@ -166,9 +169,10 @@ pub fn fig23_perturbed() -> Result<Builtin, ScenarioError> {
 #[allow(clippy::approx_constant)]
 pub fn fig14_position() -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
-    b.name = "fig14-position";
+    b.name = "fig14-position".into();
     b.about =
-        "seed 002 Fig. 14: position step 6.28 rad, 0.5 N·m load from 2.5 s, ICAD + speed PI + position P";
+        "seed 002 Fig. 14: position step 6.28 rad, 0.5 N·m load from 2.5 s, ICAD + speed PI + position P"
+            .into();
     b.spec.speed_law = SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0 };
     b.spec.position = PositionLaw { k_per_s: 4.0, omega_max_rad_s: 50.0 };
     b.scenario.events = vec![
@@ -190,10 +194,10 @@ pub fn fig14_position() -> Result<Builtin, ScenarioError> {
 /// |v| ≈ 167 V for ψ* = 0.35 Wb and τ_max = 0.4 N·m (i_d = 0.246 A, i_q = 0.805 A,
 /// ω_sl = 50 rad/s). With ψ* = 0.4 Wb and τ_max = 1 N·m the voltage limit is reached near
 /// 230 rad/s and the stationary ICAD loop loses control (documented in the README).
-pub fn fig16(law: CurrentLaw, name: &'static str, about: &'static str) -> Result<Builtin, ScenarioError> {
+pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
-    b.name = name;
-    b.about = about;
+    b.name = name.into();
+    b.about = about.into();
     b.spec.current_law = law;
     b.spec.flux_ref_wb = 0.35;
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
@@ -228,8 +232,8 @@ pub fn fig16_pi() -> Result<Builtin, ScenarioError> {
 pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     let motor = crate::motors::load("krause-2300v-500hp")?;
     let mut b = speed_step()?;
-    b.name = "seed000-fig11";
-    b.about = "seed 000 Fig. 11: 2300 V machine, speed step to 100 rad/s, dq PI1/PI3 (30s+50)/s, speed PI2 (50s+250)/s";
+    b.name = "seed000-fig11".into();
+    b.about = "seed 000 Fig. 11: 2300 V machine, speed step to 100 rad/s, dq PI1/PI3 (30s+50)/s, speed PI2 (50s+250)/s".into();
     b.spec.motor = motor;
     b.plant = motor;
     b.spec.current_law = CurrentLaw::PI1_SEED000;
@@ -249,8 +253,8 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
 /// controller and its IFOC slip gain keep the nominal values).
 pub fn seed000_fig12() -> Result<Builtin, ScenarioError> {
     let mut b = seed000_fig11()?;
-    b.name = "seed000-fig12";
-    b.about = "seed 000 Fig. 12: as seed000-fig11 with the plant's Rr +100 % and Rs +50 %";
+    b.name = "seed000-fig12".into();
+    b.about = "seed 000 Fig. 12: as seed000-fig11 with the plant's Rr +100 % and Rs +50 %".into();
     let n = b.plant;
     b.plant = MotorParams::new(
         1.5 * n.rs_ohm(),

@@ -39,7 +39,7 @@ pub enum LoadModel {
 }
 
 /// A closed-loop run.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Scenario {
     /// Events `(t_s, event)`, in time order.
     pub events: Vec<(f64, Event)>,
