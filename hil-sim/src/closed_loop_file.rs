@@ -33,6 +33,10 @@
 //! kind = "eddy_brake"              # "eddy_brake" with k_nm_s_rad, or "locked_rotor"
 //! k_nm_s_rad = 0.002
 //!
+//! [inverter]                       # optional: "average" (default) or
+//! kind = "switching"               # carrier comparison with dead time
+//! dead_time_s = 1e-6
+//!
 //! [sensors]                        # optional, every key defaults to ideal
 //! current_lsb_a = 0.00806
 //! encoder_lines = 1024
@@ -47,6 +51,7 @@
 //! ```
 
 use crate::config::{ConfigError, MotorFile};
+use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, LoadModel, Scenario};
@@ -76,6 +81,7 @@ struct File {
     controller: ControllerFile,
     protection: ProtectionFile,
     load: Option<LoadFile>,
+    inverter: Option<InverterFile>,
     #[serde(default)]
     sensors: SensorsFile,
     events: Vec<EventFile>,
@@ -157,6 +163,13 @@ enum LoadFile {
     Torque,
     EddyBrake { k_nm_s_rad: f64 },
     LockedRotor,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum InverterFile {
+    Average,
+    Switching { dead_time_s: f64 },
 }
 
 #[derive(Debug, Deserialize)]
@@ -359,6 +372,18 @@ pub fn parse(file: &Path, text: &str) -> Result<Builtin, ConfigError> {
         encoder_lines: s.encoder_lines,
         seed: s.seed,
     };
+    let inverter = match f.inverter {
+        None | Some(InverterFile::Average) => InverterModel::Average,
+        Some(InverterFile::Switching { dead_time_s }) => {
+            if !(dead_time_s.is_finite() && dead_time_s >= 0.0 && dead_time_s < 0.5 / f.pwm_frequency_hz) {
+                return Err(err(
+                    "inverter.dead_time_s",
+                    "must be finite, ≥ 0 and below half the PWM period".into(),
+                ));
+            }
+            InverterModel::Switching { dead_time_s }
+        }
+    };
     let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     Ok(Builtin {
         name: stem,
@@ -373,6 +398,7 @@ pub fn parse(file: &Path, text: &str) -> Result<Builtin, ConfigError> {
             trace_every: periods.round() as u32,
             sensors,
             load,
+            inverter,
         },
     })
 }

@@ -11,6 +11,7 @@
 
 pub mod closed_loop_file;
 pub mod config;
+pub mod inverter;
 pub mod motors;
 pub mod plant;
 pub mod plot;

@@ -1,5 +1,6 @@
 //! Built-in scenarios (the TOML scenario files of issue 3 will extend this list).
 
+use crate::inverter::InverterModel;
 use crate::plant::Machine;
 use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
@@ -115,6 +116,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
             trace_every: 20,
             sensors: SensorModel::default(),
             load: LoadModel::Torque,
+            inverter: InverterModel::Average,
         },
     })
 }
@@ -130,6 +132,16 @@ pub fn speed_step_sensors() -> Result<Builtin, ScenarioError> {
     b.scenario.events.retain(|(_, e)| !matches!(e, Event::LoadNm(_)));
     b.scenario.sensors = SensorModel::realistic(7);
     b.scenario.load = LoadModel::EddyBrake { k_nm_s_rad: 0.002 };
+    Ok(b)
+}
+
+/// [`speed_step`] with the switching inverter model: centre-aligned carrier comparison at
+/// 20 kHz and 1 µs dead time (the plant sees the switched voltage, not its average).
+pub fn speed_step_switching() -> Result<Builtin, ScenarioError> {
+    let mut b = speed_step()?;
+    b.name = "speed-step-switching".into();
+    b.about = "speed-step with a switching inverter (carrier comparison, 1 µs dead time)".into();
+    b.scenario.inverter = InverterModel::Switching { dead_time_s: 1e-6 };
     Ok(b)
 }
 
@@ -274,6 +286,7 @@ pub fn all() -> Result<Vec<Builtin>, ScenarioError> {
     Ok(vec![
         speed_step()?,
         speed_step_sensors()?,
+        speed_step_switching()?,
         fig11_locked_rotor()?,
         fig14_position()?,
         fig16_icad()?,

@@ -2,15 +2,15 @@
 //!
 //! Timing, as on the board: at the start of PWM period k the currents are sampled, the
 //! drive computes duties, and those duties are applied during period k+1 (one period of
-//! computation delay). Inverter: average-value model — phase-to-midpoint voltage
-//! `(d − 1/2)·V_dc`, common mode removed by the Clarke transform (floating star point).
+//! computation delay). Inverter: [`InverterModel`] — average-value (default) or switching
+//! with dead time; the plant integrates the resulting piecewise-constant voltage exactly.
 //! Sensors: [`SensorModel`] (ideal by default). Loads: a piecewise-constant torque set by
 //! events, plus the [`LoadModel`] (eddy-current brake or locked rotor).
 
+use crate::inverter::InverterModel;
 use crate::plant::{Machine, MachineState};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, Measurements, PhaseCommand, Reference};
-use controller_core::frames::Abc;
 
 /// A time-stamped event of a scenario.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,6 +55,8 @@ pub struct Scenario {
     pub sensors: SensorModel,
     /// Load model.
     pub load: LoadModel,
+    /// Inverter model.
+    pub inverter: InverterModel,
 }
 
 /// One trace row.
@@ -98,7 +100,8 @@ pub fn run(
     let n = (sc.duration_s / ts).round() as u64;
     let mut x = MachineState::default();
     let mut load = 0.0;
-    let mut applied = [0.0f64; 2]; // voltage applied during the present period
+    // Duties applied during the present period (computed in the previous one); None = off.
+    let mut applied_duty: Option<[f64; 3]> = None;
     let mut events = sc.events.iter().peekable();
     let mut rows = Vec::with_capacity((n / u64::from(sc.trace_every.max(1)) + 1) as usize);
     for k in 0..n {
@@ -117,7 +120,13 @@ pub fn run(
         // True phase currents (amplitude-invariant inverse Clarke, in f64).
         let (ia, ib) = (x.i_alpha_a, x.i_beta_a);
         let s3 = 3f64.sqrt() / 2.0;
-        let i_abc = sensors.currents([ia, -0.5 * ia + s3 * ib, -0.5 * ia - s3 * ib]);
+        let i_true = [ia, -0.5 * ia + s3 * ib, -0.5 * ia - s3 * ib];
+        let i_abc = sensors.currents(i_true);
+        // The voltage waveform of this period, from the duties decided one period ago.
+        let segments = match applied_duty {
+            Some(d) => sc.inverter.segments(d, i_true, sc.vdc_v, ts),
+            None => InverterModel::Average.segments([0.5; 3], i_true, sc.vdc_v, ts), // bridge off ≈ 0 V
+        };
         let enc = if k % divider == 0 {
             sensors.encoder_read(x.theta_m_rad, x.omega_m_rad_s)
         } else {
@@ -135,7 +144,7 @@ pub fn run(
                 t_s: t,
                 x,
                 torque_nm: machine.torque_nm(&x),
-                v_ab_v: applied,
+                v_ab_v: segments.average(),
                 i_ref_ab_a: [
                     f64::from(out.telemetry.i_ref_ab_a.alpha),
                     f64::from(out.telemetry.i_ref_ab_a.beta),
@@ -144,21 +153,16 @@ pub fn run(
                 load_nm: load,
             });
         }
-        for _ in 0..sc.substeps.max(1) {
-            x = machine.rk4(&x, applied, load, h);
+        for &(dt, v) in segments.as_slice() {
+            let n_sub = (dt / h).ceil().max(1.0);
+            for _ in 0..n_sub as u32 {
+                x = machine.rk4(&x, v, load, dt / n_sub);
+            }
         }
         // Duties computed now act during the next period.
-        applied = match out.phases {
-            PhaseCommand::Off => [0.0, 0.0], // simplification: bridge off ≈ zero voltage
-            PhaseCommand::Duty(d) => {
-                let v = Abc {
-                    a: (d.a - 0.5) * sc.vdc_v as f32,
-                    b: (d.b - 0.5) * sc.vdc_v as f32,
-                    c: (d.c - 0.5) * sc.vdc_v as f32,
-                }
-                .clarke();
-                [f64::from(v.alpha), f64::from(v.beta)]
-            }
+        applied_duty = match out.phases {
+            PhaseCommand::Off => None,
+            PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),
         };
         if k % 2000 == 0 {
             progress(k as f64 / n as f64);
