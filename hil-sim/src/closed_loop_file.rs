@@ -229,11 +229,7 @@ pub fn is_closed_loop(text: &str) -> bool {
 pub fn parse(file: &Path, text: &str) -> Result<Builtin, ConfigError> {
     let err =
         |key: &str, reason: String| ConfigError { file: file.to_path_buf(), key: Some(key.into()), reason };
-    let f: File = toml::from_str(text).map_err(|e| ConfigError {
-        file: file.to_path_buf(),
-        key: None,
-        reason: e.to_string().trim_end().replace('\n', "\n    "),
-    })?;
+    let f: File = crate::config::from_toml(file, text)?;
     let positive = |key: &str, x: f64| {
         if x.is_finite() && x > 0.0 { Ok(()) } else { Err(err(key, "must be finite and > 0".into())) }
     };

@@ -178,6 +178,16 @@ pub struct OpenLoop {
     pub load_nm: f64,
 }
 
+/// Deserialize TOML `text` read from `file`; syntax errors, unknown keys and type errors
+/// become a [`ConfigError`] that carries toml's line/column excerpt.
+pub fn from_toml<T: serde::de::DeserializeOwned>(file: &Path, text: &str) -> Result<T, ConfigError> {
+    toml::from_str(text).map_err(|e| ConfigError {
+        file: file.to_path_buf(),
+        key: None,
+        reason: e.to_string().trim_end().replace('\n', "\n    "),
+    })
+}
+
 fn check(file: &Path, key: &str, ok: bool, reason: &str) -> Result<(), ConfigError> {
     if ok {
         Ok(())
@@ -188,11 +198,7 @@ fn check(file: &Path, key: &str, ok: bool, reason: &str) -> Result<(), ConfigErr
 
 /// Parse and validate scenario text read from `file`.
 pub fn parse(file: &Path, text: &str) -> Result<OpenLoop, ConfigError> {
-    let raw: ScenarioFile = toml::from_str(text).map_err(|e| ConfigError {
-        file: file.to_path_buf(),
-        key: None,
-        reason: e.to_string().trim_end().replace('\n', "\n    "),
-    })?;
+    let raw: ScenarioFile = from_toml(file, text)?;
     check(file, "duration_s", raw.duration_s.is_finite() && raw.duration_s > 0.0, "must be finite and > 0")?;
     check(
         file,

@@ -15,11 +15,7 @@ pub const BUILTIN: [(&str, &str); 4] = [
 
 /// Parse a motor table; errors name `file` and the key.
 pub fn parse(file: &Path, text: &str) -> Result<MotorParams, ConfigError> {
-    let raw: MotorFile = toml::from_str(text).map_err(|e| ConfigError {
-        file: file.to_path_buf(),
-        key: None,
-        reason: e.to_string().trim_end().replace('\n', "\n    "),
-    })?;
+    let raw: MotorFile = crate::config::from_toml(file, text)?;
     raw.to_params(file, "motor")
 }
 
@@ -82,6 +78,25 @@ mod tests {
         // The appendix set misses σLs by ≈ 7 %.
         let s_ls_app = app.sigma() * app.ls_h();
         assert!(((1.0 / s_ls_app) / 9.7 - 1.0 - 0.076).abs() < 0.01);
+    }
+
+    /// The hand-typed files equal their definitions: the appendix set is the core's
+    /// `MotorParams::delorenzo_dl10115a1()`, the perturbed set is Sec. VIII's factors on it.
+    #[test]
+    fn files_match_their_definitions() {
+        let app = MotorParams::delorenzo_dl10115a1().unwrap();
+        assert_eq!(load("delorenzo-appendix").unwrap(), app);
+        let p = load("delorenzo-perturbed").unwrap();
+        for (got, want) in [
+            (p.rs_ohm(), 2.0 * app.rs_ohm()),
+            (p.rr_ohm(), 2.0 * app.rr_ohm()),
+            (p.ls_h(), 0.6 * app.ls_h()),
+            (p.lr_h(), 0.6 * app.lr_h()),
+            (p.lm_h(), 0.59 * app.lm_h()),
+        ] {
+            assert!((got - want).abs() < 1e-12 * want, "{got} vs {want}");
+        }
+        assert_eq!((p.pole_pairs(), p.j_kgm2(), p.b_nms()), (app.pole_pairs(), app.j_kgm2(), app.b_nms()));
     }
 
     #[test]

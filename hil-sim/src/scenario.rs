@@ -75,22 +75,6 @@ impl Builtin {
     }
 }
 
-/// The perturbed DeLorenzo motor of seed 002 Sec. VIII ("≈ 100 % perturbation"):
-/// R_s, R_r × 2; L_s, L_r × 0.6; L_m × 0.59.
-pub fn delorenzo_perturbed() -> Result<MotorParams, MotorError> {
-    let n = MotorParams::delorenzo_dl10115a1()?;
-    MotorParams::new(
-        2.0 * n.rs_ohm(),
-        2.0 * n.rr_ohm(),
-        0.6 * n.ls_h(),
-        0.6 * n.lr_h(),
-        0.59 * n.lm_h(),
-        n.pole_pairs(),
-        n.j_kgm2(),
-        n.b_nms(),
-    )
-}
-
 /// IFOC speed step to 150 rad/s with the ICAD current loop (seed 002 eq. (20)) and the
 /// saturated-P speed loop (eq. (21)) on the DeLorenzo motor; 1 N·m load from 1.5 s to
 /// 2.5 s (after seed 002 Fig. 13).
@@ -168,7 +152,7 @@ pub fn fig23_perturbed() -> Result<Builtin, ScenarioError> {
     b.name = "fig23-perturbed".into();
     b.about =
         "seed 002 Fig. 23: perturbed plant (Rs, Rr ×2; Ls, Lr ×0.6; Lm ×0.59), 1 A at 300 rad/s, ICAD".into();
-    b.plant = delorenzo_perturbed()?;
+    b.plant = crate::motors::load("delorenzo-perturbed")?;
     Ok(b)
 }
 
