@@ -1,0 +1,252 @@
+//! Kharitonov analysis of interval polynomials and interval plants (seed 000 Sec. 5,
+//! eqs. (23)–(30)).
+//!
+//! An interval polynomial has each coefficient in `[lo, hi]`. With ascending coefficients
+//! `a_0, a_1, a_2, …` its four Kharitonov polynomials follow the patterns (period 4)
+//!
+//! ```text
+//! K1: lo lo hi hi …    K2: hi hi lo lo …    K3: lo hi hi lo …    K4: hi lo lo hi …
+//! ```
+//!
+//! and the interval polynomial is Hurwitz iff all four are (Kharitonov's theorem). For an
+//! interval plant N(s)/D(s) the 16 Kharitonov plants are N_i/D_j; a PI (indeed PID)
+//! controller stabilises the whole family iff it stabilises these 16 (the result seed 000
+//! builds on; cross-checked here by sampling plants inside the coefficient box).
+
+use crate::poly::Poly;
+
+/// A polynomial with interval coefficients, **descending** powers like [`Poly`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct IntervalPoly {
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+}
+
+/// Why an interval polynomial was rejected.
+#[derive(Clone, Debug, PartialEq)]
+pub enum IntervalError {
+    /// `lo` and `hi` have different lengths or are empty.
+    Length,
+    /// Coefficient `index` (descending) has `lo > hi` or is not finite.
+    Bounds {
+        /// Index in descending order.
+        index: usize,
+    },
+}
+
+impl IntervalPoly {
+    /// From descending lower and upper bounds.
+    pub fn new(lo: &[f64], hi: &[f64]) -> Result<Self, IntervalError> {
+        if lo.len() != hi.len() || lo.is_empty() {
+            return Err(IntervalError::Length);
+        }
+        if let Some(index) = lo.iter().zip(hi).position(|(l, h)| !(l.is_finite() && h.is_finite() && l <= h))
+        {
+            return Err(IntervalError::Bounds { index });
+        }
+        Ok(Self { lo: lo.to_vec(), hi: hi.to_vec() })
+    }
+
+    /// A fixed polynomial as a degenerate interval.
+    pub fn point(desc: &[f64]) -> Self {
+        Self { lo: desc.to_vec(), hi: desc.to_vec() }
+    }
+
+    /// Descending bounds.
+    pub fn bounds(&self) -> (&[f64], &[f64]) {
+        (&self.lo, &self.hi)
+    }
+
+    /// The four Kharitonov polynomials K1..K4.
+    pub fn kharitonov(&self) -> [Poly; 4] {
+        // Patterns on ascending powers k = 0, 1, 2, …: true = upper bound.
+        const PATTERNS: [[bool; 4]; 4] = [
+            [false, false, true, true],
+            [true, true, false, false],
+            [false, true, true, false],
+            [true, false, false, true],
+        ];
+        let n = self.lo.len();
+        PATTERNS.map(|pat| {
+            let desc: Vec<f64> = (0..n)
+                .map(|i| {
+                    let k = n - 1 - i; // power of s for descending index i
+                    if pat[k % 4] { self.hi[i] } else { self.lo[i] }
+                })
+                .collect();
+            Poly::new(&desc)
+        })
+    }
+
+    /// A member with coefficients `lo + t·(hi − lo)`, `t` in [0, 1] per coefficient.
+    pub fn member(&self, t: &[f64]) -> Poly {
+        let desc: Vec<f64> = self
+            .lo
+            .iter()
+            .zip(&self.hi)
+            .enumerate()
+            .map(|(i, (l, h))| l + t.get(i).copied().unwrap_or(0.0) * (h - l))
+            .collect();
+        Poly::new(&desc)
+    }
+}
+
+/// An interval plant N(s)/D(s).
+#[derive(Clone, Debug, PartialEq)]
+pub struct IntervalPlant {
+    /// Numerator.
+    pub num: IntervalPoly,
+    /// Denominator.
+    pub den: IntervalPoly,
+}
+
+/// Result of checking a PI controller against the 16 Kharitonov plants.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PiCheck {
+    /// All 16 closed loops Hurwitz.
+    pub robust_stable: bool,
+    /// Largest real part of any closed-loop pole over the 16 plants.
+    pub worst_pole_re: f64,
+    /// `(i, j, max real part)` per plant N_i/D_j (1-based as in the paper).
+    pub per_plant: Vec<(usize, usize, f64)>,
+}
+
+/// Closed-loop characteristic polynomial of PI `(k_p s + k_i)/s` with plant `n/d`:
+/// `s·d(s) + (k_p s + k_i)·n(s)`.
+pub fn pi_characteristic(n: &Poly, d: &Poly, kp: f64, ki: f64) -> Poly {
+    d.mul(&Poly::new(&[1.0, 0.0])).add(&n.mul(&Poly::new(&[kp, ki])))
+}
+
+impl IntervalPlant {
+    /// The 16 plants `(i, j, N_i, D_j)`.
+    pub fn kharitonov_plants(&self) -> Vec<(usize, usize, Poly, Poly)> {
+        let (ns, ds) = (self.num.kharitonov(), self.den.kharitonov());
+        let mut v = Vec::with_capacity(16);
+        for (i, n) in ns.iter().enumerate() {
+            for (j, d) in ds.iter().enumerate() {
+                v.push((i + 1, j + 1, n.clone(), d.clone()));
+            }
+        }
+        v
+    }
+
+    /// Check PI `(k_p s + k_i)/s` on the 16 plants.
+    pub fn check_pi(&self, kp: f64, ki: f64) -> PiCheck {
+        let per_plant: Vec<(usize, usize, f64)> = self
+            .kharitonov_plants()
+            .iter()
+            .map(|(i, j, n, d)| (*i, *j, pi_characteristic(n, d, kp, ki).max_real_root()))
+            .collect();
+        let worst_pole_re = per_plant.iter().map(|p| p.2).fold(f64::NEG_INFINITY, f64::max);
+        let robust_stable = self
+            .kharitonov_plants()
+            .iter()
+            .all(|(_, _, n, d)| pi_characteristic(n, d, kp, ki).is_hurwitz_routh());
+        PiCheck { robust_stable, worst_pole_re, per_plant }
+    }
+}
+
+/// Seed 000 eqs. (32)–(33): the interval q-axis current-loop plant of the 2300 V machine.
+pub fn seed000_current_plant() -> Result<IntervalPlant, IntervalError> {
+    Ok(IntervalPlant {
+        num: IntervalPoly::new(
+            &[375_660.0, 27_133_000.0, 20_911_000_000.0, 330_660_000_000.0, 373_220_000_000.0],
+            &[375_660.0, 27_133_000.0, 20_966_000_000.0, 1_499_900_000_000.0, 1_845_500_000_000.0],
+        )?,
+        den: IntervalPoly::new(
+            &[1.0, 141.9, 203_110.0, 12_366_000.0, 8_035_500_000.0, 233_990_000_000.0],
+            &[1.0, 141.9, 204_990.0, 12_500_000.0, 8_316_600_000.0, 242_110_000_000.0],
+        )?,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kharitonov_patterns() {
+        // a0 + a1 s + a2 s² + a3 s³ with a_k ∈ [k, k + 10]: K1 = (lo, lo, hi, hi) ascending.
+        let p = IntervalPoly::new(&[3.0, 2.0, 1.0, 0.0], &[13.0, 12.0, 11.0, 10.0]).unwrap();
+        let k = p.kharitonov();
+        // ascending a0 ∈ [0, 10], a1 ∈ [1, 11], a2 ∈ [2, 12], a3 ∈ [3, 13]
+        assert_eq!(k[0].coeffs(), &[13.0, 12.0, 1.0, 0.0]);
+        assert_eq!(k[1].coeffs(), &[3.0, 2.0, 11.0, 10.0]);
+        assert_eq!(k[2].coeffs(), &[3.0, 12.0, 11.0, 0.0]);
+        assert_eq!(k[3].coeffs(), &[13.0, 2.0, 1.0, 10.0]);
+    }
+
+    #[test]
+    fn rejects_bad_intervals() {
+        assert_eq!(IntervalPoly::new(&[1.0], &[1.0, 2.0]), Err(IntervalError::Length));
+        assert_eq!(IntervalPoly::new(&[1.0, 3.0], &[2.0, 2.0]), Err(IntervalError::Bounds { index: 1 }));
+    }
+
+    /// Kharitonov's theorem cross-checked on random interval cubics: the four polynomials
+    /// decide the same as 400 sampled members plus all 16 vertices (a sampled unstable
+    /// member proves "not robust"; agreement is required whenever the sampling finds one).
+    #[test]
+    fn theorem_agrees_with_sampling() {
+        let mut seed = 12345u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut robust_cases, mut fragile_cases) = (0, 0);
+        for _ in 0..300 {
+            let lo: Vec<f64> = (0..4).map(|i| if i == 0 { 1.0 } else { 0.2 + 3.0 * rnd() }).collect();
+            let hi: Vec<f64> =
+                lo.iter().enumerate().map(|(i, l)| if i == 0 { 1.0 } else { l + 1.5 * rnd() }).collect();
+            let ip = IntervalPoly::new(&lo, &hi).unwrap();
+            let kh = ip.kharitonov().iter().all(Poly::is_hurwitz_routh);
+            let mut sampled_unstable = false;
+            for v in 0..16u32 {
+                let t: Vec<f64> = (0..4).map(|b| f64::from((v >> b) & 1)).collect();
+                sampled_unstable |= !ip.member(&t).is_hurwitz_routh();
+            }
+            for _ in 0..400 {
+                let t: Vec<f64> = (0..4).map(|_| rnd()).collect();
+                sampled_unstable |= !ip.member(&t).is_hurwitz_routh();
+            }
+            if kh {
+                robust_cases += 1;
+                assert!(!sampled_unstable, "Kharitonov says robust but a member is unstable: {lo:?} {hi:?}");
+            } else {
+                fragile_cases += 1;
+            }
+        }
+        assert!(robust_cases > 20 && fragile_cases > 20, "{robust_cases} {fragile_cases}");
+    }
+
+    /// Seed 000: PI1 = (30s + 50)/s on the interval plant (32)–(33).
+    #[test]
+    fn seed000_pi1_on_the_interval_current_plant() {
+        let plant = seed000_current_plant().unwrap();
+        let r = plant.check_pi(30.0, 50.0);
+        eprintln!(
+            "seed 000 PI1 on (32)–(33): robust_stable = {}, worst pole Re = {:.4}",
+            r.robust_stable, r.worst_pole_re
+        );
+        for (i, j, re) in &r.per_plant {
+            eprintln!("  N{i}/D{j}: max Re(pole) = {re:.4}");
+        }
+        // Brute force inside the box: 2000 random members of numerator and denominator.
+        let mut seed = 99u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut worst_sampled = f64::NEG_INFINITY;
+        for _ in 0..2000 {
+            let tn: Vec<f64> = (0..5).map(|_| rnd()).collect();
+            let td: Vec<f64> = (0..6).map(|_| rnd()).collect();
+            let p = pi_characteristic(&plant.num.member(&tn), &plant.den.member(&td), 30.0, 50.0);
+            worst_sampled = worst_sampled.max(p.max_real_root());
+        }
+        eprintln!("  2000 sampled members: worst pole Re = {worst_sampled:.4}");
+        assert_eq!(r.robust_stable, r.worst_pole_re < 0.0);
+        if r.robust_stable {
+            assert!(worst_sampled < 0.0);
+        }
+    }
+}
