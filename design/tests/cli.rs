@@ -1,0 +1,38 @@
+//! CLI contract of `design kharitonov`.
+#![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+use std::process::Command;
+
+const PLANT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/plants/seed000-current.toml");
+
+fn run(args: &[&str]) -> (Option<i32>, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_design")).args(args).output().unwrap();
+    (o.status.code(), String::from_utf8_lossy(&o.stdout).into(), String::from_utf8_lossy(&o.stderr).into())
+}
+
+#[test]
+fn seed000_pi1_json() {
+    let (code, out, _) = run(&["kharitonov", "--plant", PLANT, "--pi", "30,50", "--json"]);
+    assert_eq!(code, Some(0));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["robust_stable"], true);
+    let worst = v["worst_pole_re"].as_f64().unwrap();
+    assert!(worst < 0.0 && worst > -1.0, "{worst}");
+    assert_eq!(v["plants"].as_array().unwrap().len(), 16);
+}
+
+#[test]
+fn destabilising_gain_exits_1_and_bad_input_exits_2() {
+    // A negative integral gain puts a closed-loop pole in the right half plane.
+    let (code, out, _) = run(&["kharitonov", "--plant", PLANT, "--pi", "30,-50", "--json"]);
+    assert_eq!(code, Some(1));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["robust_stable"], false);
+    assert!(v["worst_pole_re"].as_f64().unwrap() > 0.0);
+    let (code, _, err) = run(&["kharitonov", "--plant", PLANT, "--pi", "30"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("KP,KI"));
+    let (code, _, err) = run(&["kharitonov", "--plant", "/nonexistent.toml", "--pi", "1,1"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("/nonexistent.toml"));
+}
