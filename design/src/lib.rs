@@ -9,4 +9,6 @@
 #![allow(clippy::indexing_slicing)]
 
 pub mod kharitonov;
+pub mod pi_region;
 pub mod poly;
+pub mod tf;
