@@ -36,3 +36,32 @@ fn destabilising_gain_exits_1_and_bad_input_exits_2() {
     assert_eq!(code, Some(2));
     assert!(err.contains("/nonexistent.toml"));
 }
+
+#[test]
+fn plot_writes_the_region() {
+    let path = std::env::temp_dir().join(format!("design-region-{}.svg", std::process::id()));
+    let p = path.to_str().unwrap();
+    let (code, _, err) = run(&[
+        "kharitonov",
+        "--plant",
+        PLANT,
+        "--pi",
+        "30,50",
+        "--plot",
+        p,
+        "--kp-range",
+        "-5,90",
+        "--ki-range",
+        "-20,150",
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let svg = std::fs::read_to_string(&path).unwrap();
+    // 16 loci + the k_i = 0 line are paths; the robust grid and the PI point are dots.
+    assert!(svg.matches("<path").count() >= 17);
+    assert!(svg.matches("<circle").count() > 1000);
+    let _ = std::fs::remove_file(&path);
+    let (code, _, err) =
+        run(&["kharitonov", "--plant", PLANT, "--pi", "30,50", "--plot", p, "--kp-range", "5,1"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("LO < HI"));
+}

@@ -91,17 +91,17 @@ fn write_plots(out: &Path, rows: &[Row], closed_loop: bool) -> Result<Vec<PathBu
     use hil_sim::plot::{Series, line_plot};
     let every = (rows.len() / 4000).max(1);
     let pts = |f: &dyn Fn(&Row) -> f64| rows.iter().step_by(every).map(|r| (r.t_s, f(r))).collect::<Vec<_>>();
-    let mut speed = vec![Series { label: "ω_m (rad/s)", points: pts(&|r| r.x.omega_m_rad_s) }];
+    let mut speed = vec![Series::line("ω_m (rad/s)", pts(&|r| r.x.omega_m_rad_s))];
     let mut currents = vec![
-        Series { label: "i_α (A)", points: pts(&|r| r.x.i_alpha_a) },
-        Series { label: "i_β (A)", points: pts(&|r| r.x.i_beta_a) },
+        Series::line("i_α (A)", pts(&|r| r.x.i_alpha_a)),
+        Series::line("i_β (A)", pts(&|r| r.x.i_beta_a)),
     ];
-    let mut torque = vec![Series { label: "T_e (N·m)", points: pts(&|r| r.torque_nm) }];
+    let mut torque = vec![Series::line("T_e (N·m)", pts(&|r| r.torque_nm))];
     if closed_loop {
-        speed.push(Series { label: "ω_ref (rad/s)", points: pts(&|r| r.omega_ref_rad_s) });
-        currents.push(Series { label: "i_α ref (A)", points: pts(&|r| r.i_ref_ab_a[0]) });
-        currents.push(Series { label: "i_β ref (A)", points: pts(&|r| r.i_ref_ab_a[1]) });
-        torque.push(Series { label: "T_L (N·m)", points: pts(&|r| r.load_nm) });
+        speed.push(Series::line("ω_ref (rad/s)", pts(&|r| r.omega_ref_rad_s)));
+        currents.push(Series::line("i_α ref (A)", pts(&|r| r.i_ref_ab_a[0])));
+        currents.push(Series::line("i_β ref (A)", pts(&|r| r.i_ref_ab_a[1])));
+        torque.push(Series::line("T_L (N·m)", pts(&|r| r.load_nm)));
     }
     let mut written = Vec::new();
     for (name, title, series) in [

@@ -3,6 +3,15 @@
 
 use std::fmt::Write;
 
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Style {
+    /// Polyline through the points.
+    Line,
+    /// One small dot per point (e.g. a region sampled on a grid).
+    Dots,
+}
+
 /// One named curve.
 #[derive(Debug, Clone)]
 pub struct Series<'a> {
@@ -10,7 +19,33 @@ pub struct Series<'a> {
     pub label: &'a str,
     /// Points `(x, y)`.
     pub points: Vec<(f64, f64)>,
+    /// Drawing style.
+    pub style: Style,
+    /// Colour (CSS); `None` cycles through a palette.
+    pub color: Option<&'static str>,
 }
+
+impl<'a> Series<'a> {
+    /// A polyline.
+    pub fn line(label: &'a str, points: Vec<(f64, f64)>) -> Self {
+        Self { label, points, style: Style::Line, color: None }
+    }
+    /// Dots.
+    pub fn dots(label: &'a str, points: Vec<(f64, f64)>) -> Self {
+        Self { label, points, style: Style::Dots, color: None }
+    }
+}
+
+impl Series<'_> {
+    /// The same series in a fixed colour.
+    pub fn colored(mut self, color: &'static str) -> Self {
+        self.color = Some(color);
+        self
+    }
+}
+
+/// Fixed axis ranges `((x0, x1), (y0, y1))`; points outside are clipped (lines break).
+pub type Window = ((f64, f64), (f64, f64));
 
 const W: f64 = 800.0;
 const H: f64 = 360.0;
@@ -49,12 +84,18 @@ fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     }
 }
 
-/// Render an SVG document.
+/// Render an SVG document with axes fitted to the data.
 pub fn line_plot(title: &str, x_label: &str, series: &[Series<'_>]) -> String {
     let (x0, x1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.0)));
     let (y0, y1) = range(series.iter().flat_map(|s| s.points.iter().map(|p| p.1)));
     let pad = 0.05 * (y1 - y0);
-    let (y0, y1) = (y0 - pad, y1 + pad);
+    plot_in(title, x_label, series, ((x0, x1), (y0 - pad, y1 + pad)))
+}
+
+/// Render an SVG document in a fixed window.
+pub fn plot_in(title: &str, x_label: &str, series: &[Series<'_>], window: Window) -> String {
+    let ((x0, x1), (y0, y1)) = window;
+    let inside = |x: f64, y: f64| x.is_finite() && y.is_finite() && x >= x0 && x <= x1 && y >= y0 && y <= y1;
     let px = |x: f64| LEFT + (x - x0) / (x1 - x0) * (W - LEFT - RIGHT);
     let py = |y: f64| H - BOTTOM - (y - y0) / (y1 - y0) * (H - TOP - BOTTOM);
     let mut s = String::new();
@@ -118,14 +159,39 @@ pub fn line_plot(title: &str, x_label: &str, series: &[Series<'_>]) -> String {
         H - 12.0,
         escape(x_label)
     );
+    let mut legend_row = 0usize;
     for (k, ser) in series.iter().enumerate() {
-        let color = COLORS.get(k % COLORS.len()).copied().unwrap_or("black");
-        let mut d = String::new();
-        for (n, &(x, y)) in ser.points.iter().filter(|p| p.0.is_finite() && p.1.is_finite()).enumerate() {
-            let _ = write!(d, "{}{:.1},{:.1} ", if n == 0 { "M" } else { "L" }, px(x), py(y));
+        let color = ser.color.unwrap_or_else(|| COLORS.get(k % COLORS.len()).copied().unwrap_or("black"));
+        match ser.style {
+            Style::Line => {
+                let mut d = String::new();
+                let mut pen_down = false;
+                for &(x, y) in &ser.points {
+                    if inside(x, y) {
+                        let _ = write!(d, "{}{:.1},{:.1} ", if pen_down { "L" } else { "M" }, px(x), py(y));
+                        pen_down = true;
+                    } else {
+                        pen_down = false;
+                    }
+                }
+                let _ = writeln!(s, r#"<path d="{d}" fill="none" stroke="{color}" stroke-width="1.2"/>"#);
+            }
+            Style::Dots => {
+                for &(x, y) in ser.points.iter().filter(|p| inside(p.0, p.1)) {
+                    let _ = writeln!(
+                        s,
+                        r#"<circle cx="{:.1}" cy="{:.1}" r="1.6" fill="{color}"/>"#,
+                        px(x),
+                        py(y)
+                    );
+                }
+            }
         }
-        let _ = writeln!(s, r#"<path d="{d}" fill="none" stroke="{color}" stroke-width="1.2"/>"#);
-        let ly = TOP + 14.0 + 16.0 * k as f64;
+        if ser.label.is_empty() {
+            continue; // unlabeled series get no legend entry
+        }
+        let ly = TOP + 14.0 + 16.0 * legend_row as f64;
+        legend_row += 1;
         let _ = writeln!(
             s,
             r#"<line x1="{:.1}" y1="{ly:.1}" x2="{:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="2"/>"#,
@@ -160,12 +226,34 @@ mod tests {
             "t<1>",
             "t (s)",
             &[
-                Series { label: "a", points: vec![(0.0, 1.0), (1.0, 2.0)] },
-                Series { label: "flat", points: vec![(0.0, 3.0), (1.0, 3.0), (2.0, f64::NAN)] },
-                Series { label: "empty", points: vec![] },
+                Series::line("a", vec![(0.0, 1.0), (1.0, 2.0)]),
+                Series::line("flat", vec![(0.0, 3.0), (1.0, 3.0), (2.0, f64::NAN)]),
+                Series::line("empty", vec![]),
             ],
         );
         assert_eq!(svg.matches("<path").count(), 3);
         assert!(svg.contains("t&lt;1&gt;") && svg.ends_with("</svg>\n"));
+    }
+}
+
+#[cfg(test)]
+mod window_tests {
+    use super::*;
+
+    #[test]
+    fn dots_and_clipping() {
+        let svg = plot_in(
+            "w",
+            "x",
+            &[
+                Series::dots("d", vec![(0.5, 0.5), (5.0, 0.5)]),
+                Series::line("l", vec![(0.0, 0.0), (9.0, 9.0), (1.0, 1.0)]),
+            ],
+            ((0.0, 1.0), (0.0, 1.0)),
+        );
+        assert_eq!(svg.matches("<circle").count(), 1);
+        // The line leaves the window and re-enters: its path has two sub-paths ("M" moves).
+        let path = svg.split("<path d=\"").nth(1).and_then(|p| p.split('"').next()).unwrap_or("");
+        assert_eq!(path.matches('M').count(), 2, "{path}");
     }
 }
