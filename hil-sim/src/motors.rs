@@ -38,30 +38,14 @@ mod tests {
     use super::*;
     use controller_core::motor::MotorError;
 
-    /// Seed 002 eq. (19): G_M,min = Lr²Lm⁴ / (Lr²Lm⁴ + 4σLr³LsLm² + 4σ²Lr⁴Ls²).
-    fn gm_min(m: &MotorParams) -> f64 {
-        let (ls, lr, lm, s) = (m.ls_h(), m.lr_h(), m.lm_h(), m.sigma());
-        let n = lr * lr * lm.powi(4);
-        n / (n + 4.0 * s * lr.powi(3) * ls * lm * lm + 4.0 * s * s * lr.powi(4) * ls * ls)
-    }
-
+    /// Every shipped file loads; the eq. (13) set reproduces the printed matrix entries (its
+    /// G_M,min is checked in `design`, next to eq. (19)).
     #[test]
-    fn motor_files_and_gm_min() {
+    fn motor_files_load_and_eq13_entries() {
         for (name, _) in BUILTIN {
             load(name).unwrap();
         }
         let (app, eq13) = (load("delorenzo-appendix").unwrap(), load("delorenzo-eq13").unwrap());
-        let db = |x: f64| 20.0 * x.log10();
-        eprintln!(
-            "G_M,min eq. (19): appendix {:.4} ({:.2} dB), eq. (13) set {:.4} ({:.2} dB); paper ≈ 0.75 (−2.47 dB)",
-            gm_min(&app),
-            db(gm_min(&app)),
-            gm_min(&eq13),
-            db(gm_min(&eq13))
-        );
-        assert!((db(gm_min(&eq13)) + 2.47).abs() < 0.02);
-        assert!((db(gm_min(&app)) + 2.47).abs() > 0.1);
-        // The eq. (13) set reproduces the printed matrix entries.
         let s_ls = eq13.sigma() * eq13.ls_h();
         let a11 = -(eq13.lr_h().powi(2) * eq13.rs_ohm() + eq13.lm_h().powi(2) * eq13.rr_ohm())
             / (s_ls * eq13.lr_h().powi(2));
