@@ -8,8 +8,10 @@
 // Host analysis code: dense matrices are indexed within their dimensions.
 #![allow(clippy::indexing_slicing)]
 
+pub mod icad;
 pub mod im;
 pub mod kharitonov;
+pub mod margins;
 pub mod pi_region;
 pub mod poly;
 pub mod tf;
