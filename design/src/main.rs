@@ -7,6 +7,15 @@
 //! `--plot` draws the k_p–k_i plane like seed 000 Figs. 4–6: the stability boundary loci of
 //! the 16 Kharitonov plants, the robust region sampled by exact Routh tests on a 120×120
 //! grid (dots), and the PI point. Default ranges: −0.5…3 times the PI gains.
+//! design icad --motor <motor.toml | builtin> --omega-r <rad/s> --controller <icad20 | pi:KP,KI> [--json]
+//! ```
+//! `icad` runs seed 002's individual channel analysis of the stator-current loops at one
+//! electrical rotor speed (motors: `delorenzo-eq13`, `delorenzo-appendix`,
+//! `delorenzo-perturbed`, `krause-2300v-500hp` or a motor file) and sweeps ω_r (0…5000 rad/s,
+//! 5 rad/s steps) for the range where the full 2×2 loop stays stable. Exit 0 when the loop is
+//! stable at the given ω_r, 1 when not, 2 on usage/input errors.
+//!
+//! ```text
 //! `kharitonov` checks a PI controller `(KP·s + KI)/s` on the 16 Kharitonov plants of an
 //! interval plant file (`[numerator]`/`[denominator]` tables with `lo`/`hi` arrays of
 //! descending coefficients). `--json` prints `robust_stable`, `worst_pole_re` and the
@@ -138,11 +147,84 @@ fn kharitonov(args: &[String]) -> Result<bool, String> {
     Ok(r.robust_stable)
 }
 
+fn icad(args: &[String]) -> Result<bool, String> {
+    use controller_core::current::CurrentLaw;
+    let (mut motor, mut omega_r, mut law, mut json) = (None, None, None, false);
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--motor" => motor = Some(it.next().ok_or("--motor needs a file or builtin name")?.clone()),
+            "--omega-r" => {
+                let v = it.next().ok_or("--omega-r needs a value")?;
+                omega_r = Some(
+                    v.parse::<f64>()
+                        .ok()
+                        .filter(|x| x.is_finite())
+                        .ok_or(format!("--omega-r: `{v}` is not a number"))?,
+                );
+            }
+            "--controller" => {
+                let c = it.next().ok_or("--controller needs icad20 or pi:KP,KI")?;
+                law = Some(match c.as_str() {
+                    "icad20" => CurrentLaw::ICAD_EQ20,
+                    other => match other.strip_prefix("pi:") {
+                        Some(g) => {
+                            let (kp, ki) = parse_pi(g)?;
+                            CurrentLaw { kp_v_per_a: kp, ki_v_per_as: ki, lag: None }
+                        }
+                        None => {
+                            return Err(format!("--controller: `{other}` is neither icad20 nor pi:KP,KI"));
+                        }
+                    },
+                });
+            }
+            "--json" => json = true,
+            other => return Err(format!("unknown argument `{other}`")),
+        }
+    }
+    let m = hil_sim::motors::load(&motor.ok_or("--motor is required")?).map_err(|e| e.to_string())?;
+    let omega_r = omega_r.ok_or("--omega-r is required")?;
+    let law = law.ok_or("--controller is required")?;
+    let r = design::icad::analyse(&m, &law, omega_r);
+    let stable_here = design::icad::closed_loop_abscissa(&m, &law, omega_r) < 0.0;
+    let range = design::icad::stable_omega_r_max(&m, &law, 5.0, 5000.0);
+    let v = serde_json::json!({
+        "omega_r_rad_s": omega_r,
+        "crossover_rad_s": r.channel.crossover_rad_s,
+        "phase_margin_deg": r.channel.phase_margin_deg,
+        "gain_margin_increase_db": r.channel.gain_margin_increase_db,
+        "gain_margin_reduction_db": r.channel.gain_margin_reduction_db,
+        "bandwidth_rad_s": r.channel.bandwidth_rad_s,
+        "diagonal_phase_margin_deg": r.diagonal.phase_margin_deg,
+        "diagonal_gain_margin_reduction_db": r.diagonal.gain_margin_reduction_db,
+        "kg_at_omega_r_db": r.kg_at_omega_r_db,
+        "coupling_peak_db": r.coupling_peak_db,
+        "gamma_margin_db": r.gamma_margin_db,
+        "gamma_h_margin_db": r.gamma_h_margin_db,
+        "gm_min": r.gm_min,
+        "gm_min_db": 20.0 * r.gm_min.log10(),
+        "stable_at_omega_r": stable_here,
+        "stable_omega_r_max_rad_s": range,
+        "stable_omega_r_search_limit_rad_s": 5000.0,
+    });
+    if json {
+        println!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
+    } else if let Some(obj) = v.as_object() {
+        for (k, val) in obj {
+            println!("{k:<36} {val}");
+        }
+    }
+    Ok(stable_here)
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("kharitonov") => kharitonov(args.get(1..).unwrap_or(&[])),
-        _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json]".into()),
+        Some("icad") => icad(args.get(1..).unwrap_or(&[])),
+        _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE]\n       \
+                  design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]"
+            .into()),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,

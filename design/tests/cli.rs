@@ -65,3 +65,49 @@ fn plot_writes_the_region() {
     assert_eq!(code, Some(2));
     assert!(err.contains("LO < HI"));
 }
+
+#[test]
+fn icad_json_contract() {
+    let (code, out, err) =
+        run(&["icad", "--motor", "delorenzo-eq13", "--omega-r", "375", "--controller", "icad20", "--json"]);
+    assert_eq!(code, Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    for key in [
+        "crossover_rad_s",
+        "phase_margin_deg",
+        "gain_margin_reduction_db",
+        "bandwidth_rad_s",
+        "coupling_peak_db",
+        "gamma_margin_db",
+        "gamma_h_margin_db",
+        "gm_min",
+        "stable_omega_r_max_rad_s",
+    ] {
+        assert!(v[key].is_number(), "{key} missing in {out}");
+    }
+    assert!((v["crossover_rad_s"].as_f64().unwrap() - 3350.0).abs() < 70.0);
+    assert_eq!(v["stable_omega_r_max_rad_s"].as_f64().unwrap(), 645.0);
+    // Beyond the limit the loop is unstable: exit 1.
+    let (code, out, _) =
+        run(&["icad", "--motor", "delorenzo-eq13", "--omega-r", "800", "--controller", "icad20", "--json"]);
+    assert_eq!(code, Some(1));
+    assert_eq!(serde_json::from_str::<serde_json::Value>(&out).unwrap()["stable_at_omega_r"], false);
+    let (code, _, err) =
+        run(&["icad", "--motor", "delorenzo-eq13", "--omega-r", "375", "--controller", "lqr"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("lqr"));
+    let (code, out, _) = run(&[
+        "icad",
+        "--motor",
+        "delorenzo-eq13",
+        "--omega-r",
+        "375",
+        "--controller",
+        "pi:360,9000",
+        "--json",
+    ]);
+    assert_eq!(code, Some(0));
+    assert!(
+        serde_json::from_str::<serde_json::Value>(&out).unwrap()["phase_margin_deg"].as_f64().unwrap() > 45.0
+    );
+}
