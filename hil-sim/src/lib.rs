@@ -1,8 +1,11 @@
 //! Host-side plant simulator for `controller-core` (software in the loop).
 //!
-//! First version: the stationary-frame induction machine ([`plant`]) and a closed-loop
-//! runner ([`sim`]) with an average-value inverter and ideal sensors. Scenario files,
-//! sensor/inverter options and the papers' experiments come with issue 3.
+//! * [`plant`]: the stationary-frame induction machine (seed 002 eqs. (1)–(2)), RK4;
+//! * [`sim`]: the closed-loop runner (one PWM period of computation delay) and the
+//!   open-loop voltage-source runner; [`inverter`] (average or switching with dead time),
+//!   [`sensors`] (ADC, bus, encoder), loads;
+//! * [`scenario`]: the papers' experiments as built-ins; [`config`] and
+//!   [`closed_loop_file`]: scenario files; [`motors`]: shipped motor files; [`plot`]: SVG.
 #![forbid(unsafe_code)]
 // Host simulator, not the control path: fixed-size state arrays are indexed inside
 // `array::from_fn` with indices bounded by the array length.
