@@ -159,7 +159,7 @@ pub fn fig23_perturbed() -> Result<Builtin, ScenarioError> {
 /// Seed 002 Fig. 14: position step of 6.28 rad at 0.3 s, active load of 0.5 N·m from 2.5 s.
 /// Position P loop (4 1/s, speed limit 50 rad/s) around a speed PI producing torque
 /// (k_p = 0.1 N·m·s/rad, k_i = 0.5 N·m/rad, ±2 N·m): the speed loop's integral rejects the
-/// load, so the position error returns to zero (the paper's gains are in its ref. [25];
+/// load, so the position error returns to zero (the paper's gains are in its ref. \[25\];
 /// these are ours, crossover ≈ k_p/J = 20 rad/s above the 4 1/s position loop).
 // The paper's step is 6.28 rad as printed, not 2π.
 #[allow(clippy::approx_constant)]

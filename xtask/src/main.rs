@@ -1,7 +1,8 @@
 //! Project automation: `cargo xtask <task>`.
 //!
 //! * `ci` — everything CI checks, in order, reporting every failure (not only the first):
-//!   fmt check, clippy `-D warnings` (host, all targets), host tests, a thumbv7em build of
+//!   fmt check, clippy `-D warnings` (host, all targets), rustdoc with warnings as errors,
+//!   host tests, a thumbv7em build of
 //!   `controller-core` on its own (proof that it is no_std without the host's `std` feature),
 //!   and the firmware release build with its flash/RAM use.
 //! * `lint`, `test-host`, `build-core-m4`, `build-fw` — the single steps.
@@ -13,18 +14,29 @@ const THUMB: &str = "thumbv7em-none-eabihf";
 struct Step {
     name: &'static str,
     args: &'static [&'static str],
+    /// Extra environment variables.
+    env: &'static [(&'static str, &'static str)],
 }
 
-const FMT: Step = Step { name: "fmt", args: &["fmt", "--all", "--", "--check"] };
-const CLIPPY: Step =
-    Step { name: "clippy", args: &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"] };
-const TEST: Step = Step { name: "test-host", args: &["test", "--workspace"] };
+const FMT: Step = Step { name: "fmt", args: &["fmt", "--all", "--", "--check"], env: &[] };
+const CLIPPY: Step = Step {
+    name: "clippy",
+    args: &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
+    env: &[],
+};
+const DOC: Step =
+    Step { name: "doc", args: &["doc", "--workspace", "--no-deps"], env: &[("RUSTDOCFLAGS", "-D warnings")] };
+const TEST: Step = Step { name: "test-host", args: &["test", "--workspace"], env: &[] };
 const CORE_M4: Step = Step {
     name: "build-core-m4",
     args: &["build", "--package", "controller-core", "--target", THUMB, "--release"],
+    env: &[],
 };
-const FW: Step =
-    Step { name: "build-fw", args: &["build", "--package", "firmware", "--target", THUMB, "--release"] };
+const FW: Step = Step {
+    name: "build-fw",
+    args: &["build", "--package", "firmware", "--target", THUMB, "--release"],
+    env: &[],
+};
 
 /// Test totals summed over every `test result:` line cargo printed.
 #[derive(Default)]
@@ -56,7 +68,12 @@ fn run_counting(step: &Step, totals: &mut Totals) -> bool {
     use std::process::Stdio;
     eprintln!("\n=== xtask: {} (cargo {}) ===", step.name, step.args.join(" "));
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let mut child = match Command::new(cargo).args(step.args).stdout(Stdio::piped()).spawn() {
+    let mut child = match Command::new(cargo)
+        .args(step.args)
+        .envs(step.env.iter().copied())
+        .stdout(Stdio::piped())
+        .spawn()
+    {
         Ok(c) => c,
         Err(e) => {
             eprintln!("xtask: cannot start cargo for `{}`: {e}", step.name);
@@ -138,8 +155,8 @@ fn report_firmware_size() -> bool {
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
-        "ci" => vec![&FMT, &CLIPPY, &TEST, &CORE_M4, &FW],
-        "lint" => vec![&FMT, &CLIPPY],
+        "ci" => vec![&FMT, &CLIPPY, &DOC, &TEST, &CORE_M4, &FW],
+        "lint" => vec![&FMT, &CLIPPY, &DOC],
         "test-host" => vec![&TEST],
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![&FW],
