@@ -87,10 +87,12 @@ struct File {
     events: Vec<EventFile>,
 }
 
-fn default_pwm() -> f64 {
+/// Default PWM frequency, Hz.
+pub fn default_pwm() -> f64 {
     20_000.0
 }
-fn default_divider() -> u16 {
+/// Default slow-loop divider.
+pub fn default_divider() -> u16 {
     10
 }
 fn default_substeps() -> u32 {
@@ -103,9 +105,10 @@ fn default_position() -> PositionFile {
     PositionFile { k_per_s: 10.0, omega_max_rad_s: 100.0 }
 }
 
+/// `[controller]` table.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct ControllerFile {
+pub struct ControllerFile {
     current: CurrentFile,
     #[serde(default)]
     current_frame: FrameFile,
@@ -149,9 +152,10 @@ struct PositionFile {
     omega_max_rad_s: f64,
 }
 
+/// `[protection]` table.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct ProtectionFile {
+pub struct ProtectionFile {
     i_trip_a: f64,
     vdc_min_v: f64,
     vdc_max_v: f64,
@@ -220,6 +224,73 @@ struct EventFile {
     omega_rad_s: Option<f64>,
 }
 
+/// Build and validate the drive of a file from its `pwm_frequency_hz`, `slow_divider`,
+/// `[motor]`, `[controller]` and `[protection]` tables (shared with the gains file of
+/// `design certify`). Errors name the key.
+pub fn drive_spec(
+    file: &Path,
+    pwm_frequency_hz: f64,
+    slow_divider: u16,
+    motor: &MotorFile,
+    c: &ControllerFile,
+    protection: &ProtectionFile,
+) -> Result<DriveSpec, ConfigError> {
+    let err =
+        |key: &str, reason: String| ConfigError { file: file.to_path_buf(), key: Some(key.into()), reason };
+    let motor = motor.to_params(file, "motor")?;
+    let current_law = match c.current {
+        CurrentFile::Icad => CurrentLaw::ICAD_EQ20,
+        CurrentFile::Pi { kp, ki } => CurrentLaw { kp_v_per_a: kp, ki_v_per_as: ki, lag: None },
+    };
+    let speed_law = match c.speed {
+        SpeedFile::SaturatedP { kp, tau_max_nm } => SpeedLaw::SaturatedP { kp, tau_max_nm },
+        SpeedFile::PiTorque { kp, ki, limit } => SpeedLaw::PiTorque { kp, ki, limit },
+        SpeedFile::PiIq { kp, ki, limit } => SpeedLaw::PiIq { kp, ki, limit },
+    };
+    let spec = DriveSpec {
+        motor,
+        pwm_frequency_hz,
+        slow_divider,
+        current_law,
+        discretization: Discretization::Tustin,
+        current_frame: match c.current_frame {
+            FrameFile::Stationary => CurrentFrame::Stationary,
+            FrameFile::Synchronous => CurrentFrame::Synchronous,
+        },
+        speed_law,
+        position: PositionLaw { k_per_s: c.position.k_per_s, omega_max_rad_s: c.position.omega_max_rad_s },
+        flux_ref_wb: c.flux_ref_wb,
+        flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
+        i_ref_max_a: c.i_ref_max_a,
+        magnetized_fraction: c.magnetized_fraction,
+        protection: Protection {
+            i_trip_a: protection.i_trip_a,
+            vdc_min_v: protection.vdc_min_v,
+            vdc_max_v: protection.vdc_max_v,
+        },
+    };
+    DriveConfig::new(&spec).map_err(|e| {
+        let (key, reason) = match e {
+            DriveError::PwmFrequency => ("pwm_frequency_hz", "must be finite and > 0".into()),
+            DriveError::SlowDivider => ("slow_divider", "must be ≥ 1".into()),
+            DriveError::Current(e) => ("controller.current", format!("rejected: {e:?}")),
+            DriveError::Speed(e) => ("controller.speed", format!("rejected: {e:?}")),
+            DriveError::Position(e) => ("controller.position", format!("rejected: {e:?}")),
+            DriveError::Ifoc(e) => ("controller", format!("IFOC parameters rejected: {e:?}")),
+            DriveError::FluxReference => {
+                ("controller.flux_ref_wb", "must be finite, > 0 and above flux_floor_wb".into())
+            }
+            DriveError::MagnetizedFraction => ("controller.magnetized_fraction", "must lie in (0, 1)".into()),
+            DriveError::Protection => (
+                "protection",
+                "need 0 ≤ vdc_min_v < vdc_max_v and i_trip_a > controller.i_ref_max_a > 0".into(),
+            ),
+        };
+        err(key, reason)
+    })?;
+    Ok(spec)
+}
+
 /// Is `text` a closed-loop scenario (has a `[controller]` table)?
 pub fn is_closed_loop(text: &str) -> bool {
     text.parse::<toml::Table>().map(|t| t.contains_key("controller")).unwrap_or(false)
@@ -247,62 +318,11 @@ pub fn parse(file: &Path, text: &str) -> Result<Builtin, ConfigError> {
     if f.rk4_substeps == 0 {
         return Err(err("rk4_substeps", "must be ≥ 1".into()));
     }
-    let motor = f.motor.to_params(file, "motor")?;
+    let spec = drive_spec(file, f.pwm_frequency_hz, f.slow_divider, &f.motor, &f.controller, &f.protection)?;
     let plant = match &f.plant {
         Some(p) => p.to_params(file, "plant")?,
-        None => motor,
+        None => spec.motor,
     };
-    let c = &f.controller;
-    let current_law = match c.current {
-        CurrentFile::Icad => CurrentLaw::ICAD_EQ20,
-        CurrentFile::Pi { kp, ki } => CurrentLaw { kp_v_per_a: kp, ki_v_per_as: ki, lag: None },
-    };
-    let speed_law = match c.speed {
-        SpeedFile::SaturatedP { kp, tau_max_nm } => SpeedLaw::SaturatedP { kp, tau_max_nm },
-        SpeedFile::PiTorque { kp, ki, limit } => SpeedLaw::PiTorque { kp, ki, limit },
-        SpeedFile::PiIq { kp, ki, limit } => SpeedLaw::PiIq { kp, ki, limit },
-    };
-    let spec = DriveSpec {
-        motor,
-        pwm_frequency_hz: f.pwm_frequency_hz,
-        slow_divider: f.slow_divider,
-        current_law,
-        discretization: Discretization::Tustin,
-        current_frame: match c.current_frame {
-            FrameFile::Stationary => CurrentFrame::Stationary,
-            FrameFile::Synchronous => CurrentFrame::Synchronous,
-        },
-        speed_law,
-        position: PositionLaw { k_per_s: c.position.k_per_s, omega_max_rad_s: c.position.omega_max_rad_s },
-        flux_ref_wb: c.flux_ref_wb,
-        flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
-        i_ref_max_a: c.i_ref_max_a,
-        magnetized_fraction: c.magnetized_fraction,
-        protection: Protection {
-            i_trip_a: f.protection.i_trip_a,
-            vdc_min_v: f.protection.vdc_min_v,
-            vdc_max_v: f.protection.vdc_max_v,
-        },
-    };
-    DriveConfig::new(&spec).map_err(|e| {
-        let (key, reason) = match e {
-            DriveError::PwmFrequency => ("pwm_frequency_hz", "must be finite and > 0".into()),
-            DriveError::SlowDivider => ("slow_divider", "must be ≥ 1".into()),
-            DriveError::Current(e) => ("controller.current", format!("rejected: {e:?}")),
-            DriveError::Speed(e) => ("controller.speed", format!("rejected: {e:?}")),
-            DriveError::Position(e) => ("controller.position", format!("rejected: {e:?}")),
-            DriveError::Ifoc(e) => ("controller", format!("IFOC parameters rejected: {e:?}")),
-            DriveError::FluxReference => {
-                ("controller.flux_ref_wb", "must be finite, > 0 and above flux_floor_wb".into())
-            }
-            DriveError::MagnetizedFraction => ("controller.magnetized_fraction", "must lie in (0, 1)".into()),
-            DriveError::Protection => (
-                "protection",
-                "need 0 ≤ vdc_min_v < vdc_max_v and i_trip_a > controller.i_ref_max_a > 0".into(),
-            ),
-        };
-        err(key, reason)
-    })?;
     let mut events = Vec::with_capacity(f.events.len());
     for (n, e) in f.events.iter().enumerate() {
         let key = |k: &str| format!("events[{n}].{k}");
