@@ -8,6 +8,7 @@
 // Host analysis code: dense matrices are indexed within their dimensions.
 #![allow(clippy::indexing_slicing)]
 
+pub mod certify;
 pub mod icad;
 pub mod im;
 pub mod kharitonov;

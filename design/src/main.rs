@@ -15,6 +15,12 @@
 //! 5 rad/s steps) for the range where the full 2×2 loop stays stable. Exit 0 when the loop is
 //! stable at the given ω_r, 1 when not, 2 on usage/input errors.
 //!
+//! design certify <gains.toml> [--json]
+//! ```
+//! `certify` checks every controller constant of a gains file against its declared
+//! parameter intervals (see `design::certify`); exit 0 when all checks pass, 1 with the
+//! failing checks listed, 2 on input errors.
+//!
 //! ```text
 //! `kharitonov` checks a PI controller `(KP·s + KI)/s` on the 16 Kharitonov plants of an
 //! interval plant file (`[numerator]`/`[denominator]` tables with `lo`/`hi` arrays of
@@ -217,13 +223,60 @@ fn icad(args: &[String]) -> Result<bool, String> {
     Ok(stable_here)
 }
 
+fn certify(args: &[String]) -> Result<bool, String> {
+    let (mut path, mut json) = (None, false);
+    for a in args {
+        match a.as_str() {
+            "--json" => json = true,
+            p if path.is_none() && !p.starts_with("--") => path = Some(p.to_string()),
+            other => return Err(format!("unknown argument `{other}`")),
+        }
+    }
+    let path = path.ok_or("certify needs a gains file")?;
+    let (spec, c) = design::certify::load(std::path::Path::new(&path))?;
+    let checks = design::certify::certify(&spec, &c)?;
+    let ok = checks.iter().all(|c| c.pass);
+    if json {
+        let v: Vec<_> = checks
+            .iter()
+            .map(|c| serde_json::json!({"check": c.name, "corner": c.corner, "value": c.value, "limit": c.limit, "pass": c.pass}))
+            .collect();
+        let out = serde_json::json!({"file": path, "certified": ok, "checks": v});
+        println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
+    } else {
+        for ch in &checks {
+            let value = ch.value.map_or_else(|| "none".to_string(), |v| format!("{v:.3}"));
+            println!(
+                "{:<5} {:<56} {:<22} {:>10}  limit {}",
+                if ch.pass { "ok" } else { "FAIL" },
+                ch.name,
+                ch.corner,
+                value,
+                ch.limit
+            );
+        }
+        println!("{path}: {}", if ok { "certified" } else { "NOT certified" });
+    }
+    if !ok {
+        for ch in checks.iter().filter(|c| !c.pass) {
+            eprintln!(
+                "design certify: {path}: {} at {} is {:?}, limit {}",
+                ch.name, ch.corner, ch.value, ch.limit
+            );
+        }
+    }
+    Ok(ok)
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("kharitonov") => kharitonov(args.get(1..).unwrap_or(&[])),
         Some("icad") => icad(args.get(1..).unwrap_or(&[])),
+        Some("certify") => certify(args.get(1..).unwrap_or(&[])),
         _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE]\n       \
-                  design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]"
+                  design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]\n       \
+                  design certify <gains.toml> [--json]"
             .into()),
     };
     match result {

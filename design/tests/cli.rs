@@ -111,3 +111,21 @@ fn icad_json_contract() {
         serde_json::from_str::<serde_json::Value>(&out).unwrap()["phase_margin_deg"].as_f64().unwrap() > 45.0
     );
 }
+
+#[test]
+fn certify_the_shipped_gains_and_reject_a_bad_range() {
+    let gains = concat!(env!("CARGO_MANIFEST_DIR"), "/../gains.toml");
+    let (code, out, err) = run(&["certify", gains, "--json"]);
+    assert_eq!(code, Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["certified"], true);
+    let bad = std::env::temp_dir().join(format!("gains-bad-{}.toml", std::process::id()));
+    let text = std::fs::read_to_string(gains)
+        .unwrap()
+        .replace("omega_r_max_rad_s = 375.0", "omega_r_max_rad_s = 800.0");
+    std::fs::write(&bad, text).unwrap();
+    let (code, _, err) = run(&["certify", bad.to_str().unwrap()]);
+    assert_eq!(code, Some(1));
+    assert!(err.contains("closed-loop pole"), "{err}");
+    let _ = std::fs::remove_file(&bad);
+}

@@ -2,7 +2,7 @@
 //!
 //! * `ci` — everything CI checks, in order, reporting every failure (not only the first):
 //!   fmt check, clippy `-D warnings` (host, all targets), rustdoc with warnings as errors,
-//!   host tests, a thumbv7em build of
+//!   host tests, `design certify gains.toml`, a thumbv7em build of
 //!   `controller-core` on its own (proof that it is no_std without the host's `std` feature),
 //!   and the firmware release build with its flash/RAM use.
 //! * `lint`, `test-host`, `build-core-m4`, `build-fw` — the single steps.
@@ -26,6 +26,11 @@ const CLIPPY: Step = Step {
 };
 const DOC: Step =
     Step { name: "doc", args: &["doc", "--workspace", "--no-deps"], env: &[("RUSTDOCFLAGS", "-D warnings")] };
+const CERTIFY: Step = Step {
+    name: "certify",
+    args: &["run", "--quiet", "--release", "--package", "design", "--", "certify", "gains.toml"],
+    env: &[],
+};
 const TEST: Step = Step { name: "test-host", args: &["test", "--workspace"], env: &[] };
 const CORE_M4: Step = Step {
     name: "build-core-m4",
@@ -155,13 +160,14 @@ fn report_firmware_size() -> bool {
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
-        "ci" => vec![&FMT, &CLIPPY, &DOC, &TEST, &CORE_M4, &FW],
+        "ci" => vec![&FMT, &CLIPPY, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW],
         "lint" => vec![&FMT, &CLIPPY, &DOC],
         "test-host" => vec![&TEST],
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![&FW],
+        "certify" => vec![&CERTIFY],
         _ => {
-            eprintln!("usage: cargo xtask <ci | lint | test-host | build-core-m4 | build-fw>");
+            eprintln!("usage: cargo xtask <ci | lint | test-host | certify | build-core-m4 | build-fw>");
             return ExitCode::from(2);
         }
     };
