@@ -186,8 +186,9 @@ pub fn stable_omega_r_max(m: &MotorParams, law: &CurrentLaw, step: f64, limit: f
 mod tests {
     use super::*;
 
+    /// The DeLorenzo parameters solved from seed 002 eq. (13) (`hil-sim/motors/delorenzo-eq13.toml`).
     fn eq13() -> MotorParams {
-        MotorParams::new(16.26, 23.09, 1.4518, 1.4994, 1.4221, 1, 0.005, 0.0005).unwrap()
+        hil_sim::motors::load("delorenzo-eq13").unwrap()
     }
 
     #[test]
