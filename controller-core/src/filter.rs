@@ -34,13 +34,6 @@ pub struct BiquadState<T> {
     w2: T,
 }
 
-impl<T: Scalar> Default for Biquad<T> {
-    /// Identity (y = x).
-    fn default() -> Self {
-        Self { b0: T::from_f64(1.0), c1: T::ZERO, c2: T::ZERO, a1: T::ZERO, a0: T::ZERO }
-    }
-}
-
 impl<T: Scalar> Biquad<T> {
     /// Design from a continuous second-order section.
     pub fn design(

@@ -123,11 +123,6 @@ impl<T: Scalar> PiState<T> {
     pub fn retune(&mut self, old: &PiConfig<T>, new: &PiConfig<T>) {
         self.i_term = (self.i_term + (old.kp - new.kp) * self.e_prev).limit(new.u_min, new.u_max);
     }
-
-    /// Preset the integrator (e.g. to start a loop with a feed-forward value).
-    pub fn preset(&mut self, i_term: T) {
-        self.i_term = i_term;
-    }
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! The induction machine's electrical subsystem as a 2×2 plant (seed 002 eqs. (1), (3), (4)).
 //!
-//! State space (stationary frame, electrical rotor speed ω_r as a parameter):
+//! State space (stationary frame, electrical rotor speed ω_r as a parameter; the matrices
+//! come from [`hil_sim::plant::Machine::electrical_matrices`]):
 //! x = [i_sα, i_sβ, ψ_rα, ψ_rβ], u = [v_sα, v_sβ], y = [i_sα, i_sβ], with A(ω_r) and B of
 //! eq. (1). `G(jω) = C (jωI − A)⁻¹ B` is evaluated by a complex linear solve; the structure
 //! gives g₂₂ = g₁₁ and g₂₁ = −g₁₂.
@@ -39,23 +40,12 @@ impl G2 {
 }
 
 impl ImModel {
-    /// Eq. (1) for `m` at electrical rotor speed `omega_r` (rad/s; = p·ω_m).
+    /// Eq. (1) for `m` at electrical rotor speed `omega_r` (rad/s; = p·ω_m), from the
+    /// simulator's plant so that analysis and simulation share one implementation.
     pub fn new(m: &MotorParams, omega_r: f64) -> Self {
-        let (ls, lr, lm, rs, rr) = (m.ls_h(), m.lr_h(), m.lm_h(), m.rs_ohm(), m.rr_ohm());
-        let sls = m.sigma() * ls;
-        let a11 = -(lr * lr * rs + lm * lm * rr) / (sls * lr * lr);
-        let k1 = lm * rr / (sls * lr * lr);
-        let k2 = lm * omega_r / (sls * lr);
-        let k3 = lm * rr / lr;
-        let k4 = rr / lr;
-        #[rustfmt::skip]
-        let a = Matrix4::new(
-            a11, 0.0, k1, k2,
-            0.0, a11, -k2, k1,
-            k3, 0.0, -k4, -omega_r,
-            0.0, k3, omega_r, -k4,
-        );
-        let b = Matrix4x2::new(1.0 / sls, 0.0, 0.0, 1.0 / sls, 0.0, 0.0, 0.0, 0.0);
+        let (a, inv_sigma_ls) = hil_sim::plant::Machine::new(m).electrical_matrices(omega_r);
+        let a = Matrix4::from_fn(|i, j| a[i][j]);
+        let b = Matrix4x2::new(inv_sigma_ls, 0.0, 0.0, inv_sigma_ls, 0.0, 0.0, 0.0, 0.0);
         Self { a, b }
     }
 

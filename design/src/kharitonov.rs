@@ -52,11 +52,6 @@ impl IntervalPoly {
         Self { lo: desc.to_vec(), hi: desc.to_vec() }
     }
 
-    /// Descending bounds.
-    pub fn bounds(&self) -> (&[f64], &[f64]) {
-        (&self.lo, &self.hi)
-    }
-
     /// The four Kharitonov polynomials K1..K4.
     pub fn kharitonov(&self) -> [Poly; 4] {
         // Patterns on ascending powers k = 0, 1, 2, …: true = upper bound.

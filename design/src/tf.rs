@@ -23,11 +23,6 @@ impl Tf {
         let s = Complex64::new(0.0, omega_rad_s);
         self.num.eval(s) / self.den.eval(s)
     }
-
-    /// Poles.
-    pub fn poles(&self) -> Vec<Complex64> {
-        self.den.roots()
-    }
 }
 
 /// `n` log-spaced frequencies from `lo` to `hi` (rad/s), both included.

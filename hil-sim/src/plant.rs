@@ -82,6 +82,23 @@ impl Machine {
         }
     }
 
+    /// The linear electrical subsystem of eq. (1) at electrical rotor speed `omega_r`:
+    /// A(ω_r) (row-major, states i_sα, i_sβ, ψ_rα, ψ_rβ) and the input gain 1/(σL_s)
+    /// (B = diag(1/(σL_s), 1/(σL_s)) on the current rows). The same coefficients drive
+    /// [`Machine::rk4`], so the analysis in `design` and the simulation share one eq. (1).
+    pub fn electrical_matrices(&self, omega_r: f64) -> ([[f64; 4]; 4], f64) {
+        let (k1, k2) = (self.b * self.rr_lr, self.b * omega_r);
+        (
+            [
+                [self.a, 0.0, k1, k2],
+                [0.0, self.a, -k2, k1],
+                [self.lm_rr_lr, 0.0, -self.rr_lr, -omega_r],
+                [0.0, self.lm_rr_lr, omega_r, -self.rr_lr],
+            ],
+            self.inv_sigma_ls,
+        )
+    }
+
     /// Electromagnetic torque, N·m.
     pub fn torque_nm(&self, x: &MachineState) -> f64 {
         self.torque_factor * (x.psi_alpha_wb * x.i_beta_a - x.psi_beta_wb * x.i_alpha_a)
