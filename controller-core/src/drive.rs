@@ -214,6 +214,12 @@ pub enum Fault {
     NonFiniteInput,
     /// A controller output was not finite.
     NonFiniteOutput,
+    /// The position sensor stopped making sense (reported by the firmware through
+    /// [`Drive::trip`]).
+    EncoderLoss,
+    /// The inverter's hardware break input fired (the timer already turned the bridge off;
+    /// reported by the firmware through [`Drive::trip`]).
+    HardwareBreak,
 }
 
 /// Drive state.
@@ -477,7 +483,9 @@ impl Drive {
         None
     }
 
-    fn trip(&mut self, f: Fault) {
+    /// Latch fault `f` (the first fault stays latched): phases off from the next fast step
+    /// on. The supervisor calls it; the firmware calls it for faults only it can see.
+    pub fn trip(&mut self, f: Fault) {
         if !matches!(self.mode, Mode::Fault(_)) {
             self.mode = Mode::Fault(f);
         }

@@ -14,6 +14,7 @@ pub mod encoder;
 pub mod filter;
 pub mod frames;
 pub mod ifoc;
+pub mod link;
 pub mod motor;
 pub mod num;
 pub mod pi;
