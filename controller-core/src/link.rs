@@ -23,8 +23,8 @@
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
-    CurrentFrame, DriveSpec, FastOutput, Fault, Measurements, Mode, PhaseCommand, PositionLaw, Protection,
-    Reference, Telemetry,
+    CommandError, CurrentFrame, Drive, DriveConfig, DriveSpec, FastOutput, Fault, Measurements, Mode,
+    PhaseCommand, PositionLaw, Protection, Reference, Telemetry,
 };
 use crate::frames::{Abc, AlphaBeta};
 use crate::motor::MotorParams;
@@ -375,6 +375,8 @@ pub enum NackReason {
     NotIdle,
     /// The command is not supported by this endpoint.
     Unsupported,
+    /// No drive configuration yet: send `Configure` first.
+    NotConfigured,
 }
 
 /// Drive → host.
@@ -650,6 +652,7 @@ impl Reply {
                     NackReason::Configuration => 2,
                     NackReason::NotIdle => 3,
                     NackReason::Unsupported => 4,
+                    NackReason::NotConfigured => 5,
                 })?;
             }
             Reply::Output(o) => {
@@ -695,6 +698,7 @@ impl Reply {
                 2 => NackReason::Configuration,
                 3 => NackReason::NotIdle,
                 4 => NackReason::Unsupported,
+                5 => NackReason::NotConfigured,
                 _ => return Err(DecodeError::Value),
             }),
             tag::OUTPUT => {
@@ -725,6 +729,49 @@ impl Reply {
         };
         r.finish()?;
         Ok(reply)
+    }
+}
+
+/// Carry out `cmd` on `drive` and say how it went — the command handling shared by the
+/// processor-in-the-loop server and the firmware (which refuses `Step` itself: on the board
+/// the measurements come from the ADC). `Configure` replaces the drive only while it is
+/// Idle or faulted, with a configuration validated by [`DriveConfig::new`].
+pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
+    match cmd {
+        Command::Configure(spec) => {
+            if matches!(drive.mode(), Mode::Magnetizing | Mode::Running) {
+                return Reply::Nack(NackReason::NotIdle);
+            }
+            match DriveConfig::new(spec) {
+                Ok(cfg) => {
+                    *drive = Drive::new(cfg);
+                    Reply::Ack
+                }
+                Err(_) => Reply::Nack(NackReason::Configuration),
+            }
+        }
+        Command::Enable => command_result(drive.enable()),
+        Command::Disable => {
+            drive.disable();
+            Reply::Ack
+        }
+        Command::ClearFault => {
+            drive.clear_fault();
+            Reply::Ack
+        }
+        Command::SetReference(r) => command_result(drive.set_reference(*r)),
+        Command::Step(m) => Reply::Output(drive.step(m)),
+        Command::GetStatus => {
+            Reply::Status { mode: drive.mode(), frames_ok: stats.frames_ok, frame_errors: stats.errors() }
+        }
+    }
+}
+
+fn command_result(r: Result<(), CommandError>) -> Reply {
+    match r {
+        Ok(()) => Reply::Ack,
+        Err(CommandError::Faulted) => Reply::Nack(NackReason::Faulted),
+        Err(CommandError::NonFinite) => Reply::Nack(NackReason::NonFinite),
     }
 }
 

@@ -3,12 +3,19 @@
 //! ```text
 //! hil-sim list                                   built-in scenarios
 //! hil-sim run <scenario.toml | builtin> [--out DIR]
+//! hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]
 //! ```
+//! `pil` runs a closed-loop scenario with the drive on an emulated Cortex-M4F (QEMU,
+//! processor in the loop) and writes the same outputs as `run`, plus link figures in the
+//! summary; `--elf` names the target program (default: `qemu-target`'s release build),
+//! `--no-pin` leaves QEMU and the simulator unpinned (slower).
 //! `run` writes `DIR/trace.csv`, `DIR/summary.json` and the plots `speed.svg`,
 //! `currents.svg`, `torque.svg` (default `DIR` = `out/<name>`). A file
 //! that fails to parse or validate is reported with file, key and reason, and nothing is
 //! written; outputs appear only complete (written to a temporary name, then renamed).
 
+use controller_core::link::{Command, Reply};
+use hil_sim::pil::PilOptions;
 use hil_sim::scenario::{self, Builtin};
 use hil_sim::sim::{self, Row};
 use std::io::Write;
@@ -20,7 +27,10 @@ const BASE_HEADER: &str =
 const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm";
 
 fn usage() -> ExitCode {
-    eprintln!("usage: hil-sim list | hil-sim run <scenario.toml | builtin> [--out DIR]");
+    eprintln!(
+        "usage: hil-sim list\n       hil-sim run <scenario.toml | builtin> [--out DIR]\n       \
+         hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]"
+    );
     ExitCode::from(2)
 }
 
@@ -135,31 +145,58 @@ fn finish(out: &Path, rows: &[Row], closed_loop: bool, summary: serde_json::Valu
     Ok(())
 }
 
-fn run_builtin(b: &Builtin, out: &Path) -> Result<(), String> {
+fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<(), String> {
     eprintln!("hil-sim: {} — {}", b.name, b.about);
     let wall = std::time::Instant::now();
-    let (rows, mode) = b.run(progress_bar)?;
+    let (rows, mode, link) = match pil {
+        None => {
+            let (rows, mode) = b.run(progress_bar)?;
+            (rows, format!("{mode:?}"), None)
+        }
+        Some(opts) => {
+            let (rows, mut link) = b.run_pil(opts, progress_bar)?;
+            let mode = match link.transact(&Command::GetStatus)? {
+                Reply::Status { mode, .. } => format!("{mode:?}"),
+                other => return Err(format!("unexpected reply to GetStatus: {other:?}")),
+            };
+            (rows, mode, Some(link))
+        }
+    };
     let secs = wall.elapsed().as_secs_f64();
     let last = rows.last().ok_or("empty run")?;
-    let summary = serde_json::json!({
+    let mut summary = serde_json::json!({
         "scenario": b.name,
         "kind": "closed_loop",
         "duration_s": b.scenario.duration_s,
         "final_omega_m_rad_s": last.x.omega_m_rad_s,
         "final_omega_ref_rad_s": last.omega_ref_rad_s,
         "peak_stator_current_a": peak_current(&rows),
-        "drive_mode": format!("{mode:?}"),
+        "drive_mode": mode,
         "rk4_substeps_per_pwm_period": b.scenario.substeps,
         "wall_time_s": secs,
         "real_time_factor": b.scenario.duration_s / secs,
     });
+    if let (Some(link), Some(obj)) = (&link, summary.as_object_mut()) {
+        obj.insert("controller".into(), "pil: QEMU mps2-an386 (Cortex-M4F)".into());
+        obj.insert("link_round_trips".into(), link.round_trips().into());
+        obj.insert("link_round_trips_per_s".into(), (link.round_trips() as f64 / secs).into());
+        obj.insert("link_host_rx_errors".into(), link.stats().errors().into());
+        obj.insert("pinned_to_one_cpu".into(), link.pinned().into());
+    }
+    drop(link);
     finish(out, &rows, true, summary)
 }
 
-fn run_file(path: &Path, out: &Path) -> Result<(), String> {
+fn run_file(path: &Path, out: &Path, pil: Option<&PilOptions>) -> Result<(), String> {
     let sc = match hil_sim::config::load(path).map_err(|e| e.to_string())? {
+        hil_sim::config::ScenarioFileKind::ClosedLoop(b) => return run_builtin(&b, out, pil),
+        hil_sim::config::ScenarioFileKind::OpenLoop(_) if pil.is_some() => {
+            return Err(format!(
+                "{}: an open-loop scenario has no controller to put in the loop",
+                path.display()
+            ));
+        }
         hil_sim::config::ScenarioFileKind::OpenLoop(sc) => sc,
-        hil_sim::config::ScenarioFileKind::ClosedLoop(b) => return run_builtin(&b, out),
     };
     eprintln!("hil-sim: open-loop run of {}", path.display());
     let wall = std::time::Instant::now();
@@ -195,19 +232,31 @@ fn main() -> ExitCode {
             }
             ExitCode::SUCCESS
         }
-        Some("run") => {
+        Some(cmd @ ("run" | "pil")) => {
             let Some(name) = args.get(1) else { return usage() };
             let stem =
                 Path::new(name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-            let out = match (args.get(2).map(String::as_str), args.get(3), args.get(4)) {
-                (None, _, _) => PathBuf::from("out").join(stem),
-                (Some("--out"), Some(d), None) => PathBuf::from(d),
-                _ => return usage(),
-            };
+            let mut out = PathBuf::from("out").join(&stem);
+            let mut pil = (cmd == "pil").then(PilOptions::default);
+            let mut rest = args.iter().skip(2);
+            while let Some(flag) = rest.next() {
+                match (flag.as_str(), &mut pil) {
+                    ("--out", _) => match rest.next() {
+                        Some(d) => out = PathBuf::from(d),
+                        None => return usage(),
+                    },
+                    ("--elf", Some(p)) => match rest.next() {
+                        Some(e) => p.elf = PathBuf::from(e),
+                        None => return usage(),
+                    },
+                    ("--no-pin", Some(p)) => p.pin_cpu = None,
+                    _ => return usage(),
+                }
+            }
             let result = if let Some(b) = builtins.iter().find(|b| &b.name == name) {
-                run_builtin(b, &out)
+                run_builtin(b, &out, pil.as_ref())
             } else if name.ends_with(".toml") || Path::new(name).exists() {
-                run_file(Path::new(name), &out)
+                run_file(Path::new(name), &out, pil.as_ref())
             } else {
                 Err(format!("`{name}` is neither a scenario file nor a built-in scenario (`hil-sim list`)"))
             };

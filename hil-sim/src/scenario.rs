@@ -73,6 +73,23 @@ impl Builtin {
         )?;
         Ok((rows, drive.mode()))
     }
+
+    /// Run the scenario with the drive on the emulated MCU. Returns the trace and the link.
+    pub fn run_pil(
+        &self,
+        opts: &crate::pil::PilOptions,
+        progress: impl FnMut(f64),
+    ) -> Result<(Vec<Row>, crate::pil::Pil), String> {
+        let mut pil = crate::pil::Pil::start(opts, &self.spec)?;
+        let rows = sim::run(
+            &mut pil,
+            &Machine::new(&self.plant),
+            self.spec.pwm_frequency_hz,
+            &self.scenario,
+            progress,
+        )?;
+        Ok((rows, pil))
+    }
 }
 
 /// IFOC speed step to 150 rad/s with the ICAD current loop (seed 002 eq. (20)) and the

@@ -10,7 +10,41 @@
 use crate::inverter::InverterModel;
 use crate::plant::{Machine, MachineState};
 use crate::sensors::{SensorModel, Sensors};
-use controller_core::drive::{Drive, Measurements, PhaseCommand, Reference};
+use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Reference};
+
+/// The controller a run drives: the in-process [`Drive`] (software in the loop) or a drive
+/// on an emulated MCU ([`crate::pil::Pil`], processor in the loop). Errors are broken links;
+/// a drive refusing a command is not an error (the trace shows it).
+pub trait DriveUnderTest {
+    /// The slow loop runs every `slow_divider()`-th step.
+    fn slow_divider(&self) -> u16;
+    /// [`Drive::enable`].
+    fn enable(&mut self) -> Result<(), String>;
+    /// [`Drive::set_reference`].
+    fn set_reference(&mut self, r: Reference) -> Result<(), String>;
+    /// [`Drive::step`].
+    fn step(&mut self, m: &Measurements) -> Result<FastOutput, String>;
+}
+
+impl DriveUnderTest for Drive {
+    fn slow_divider(&self) -> u16 {
+        self.config().slow_divider()
+    }
+
+    fn enable(&mut self) -> Result<(), String> {
+        let _refused = Drive::enable(self);
+        Ok(())
+    }
+
+    fn set_reference(&mut self, r: Reference) -> Result<(), String> {
+        let _refused = Drive::set_reference(self, r);
+        Ok(())
+    }
+
+    fn step(&mut self, m: &Measurements) -> Result<FastOutput, String> {
+        Ok(Drive::step(self, m))
+    }
+}
 
 /// A time-stamped event of a scenario.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -81,14 +115,14 @@ pub struct Row {
 /// Run `scenario` with `drive` (already configured) on `machine`; `pwm_hz` is the drive's
 /// fast rate. Calls `progress(fraction)` now and then.
 pub fn run(
-    drive: &mut Drive,
+    drive: &mut impl DriveUnderTest,
     machine: &Machine,
     pwm_hz: f64,
     sc: &Scenario,
     mut progress: impl FnMut(f64),
 ) -> Result<Vec<Row>, String> {
     let ts = 1.0 / pwm_hz;
-    let divider = u64::from(drive.config().slow_divider());
+    let divider = u64::from(drive.slow_divider());
     let mut sensors =
         Sensors::new(sc.sensors, ts * divider as f64).map_err(|e| format!("encoder model: {e:?}"))?;
     let machine = &match sc.load {
@@ -108,12 +142,8 @@ pub fn run(
         let t = k as f64 * ts;
         while let Some((_, e)) = events.next_if(|(te, _)| *te <= t) {
             match *e {
-                Event::Enable => {
-                    let _ = drive.enable();
-                }
-                Event::Reference(r) => {
-                    let _ = drive.set_reference(r);
-                }
+                Event::Enable => drive.enable()?,
+                Event::Reference(r) => drive.set_reference(r)?,
                 Event::LoadNm(l) => load = l,
             }
         }
@@ -138,7 +168,7 @@ pub fn run(
             omega_m_rad_s: enc.omega_m_rad_s,
             theta_m_rad: enc.theta_m_rad,
         };
-        let out = drive.step(&m);
+        let out = drive.step(&m)?;
         if k % u64::from(sc.trace_every.max(1)) == 0 {
             rows.push(Row {
                 t_s: t,

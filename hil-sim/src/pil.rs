@@ -1,0 +1,349 @@
+//! Processor in the loop: the drive runs on an emulated Cortex-M4F (QEMU `mps2-an386`,
+//! program `qemu-target/src/bin/pil.rs`), the plant here; one link frame each way per PWM
+//! period, in lockstep.
+//!
+//! Channel: two FIFOs in a fresh temporary directory, `to_mcu` and `from_mcu`, which the
+//! target opens with semihosting `SYS_OPEN` (QEMU runs with that directory as its working
+//! directory). Frames are [`controller_core::link`] frames, the same as the firmware's UART
+//! link. Measurements and outputs cross as IEEE-754 bits, so with the same f32 operations
+//! and the same `libm` on both sides the trace equals the in-process SIL trace bit for bit
+//! (asserted in `tests/pil.rs`).
+//!
+//! Speed: every round trip is two semihosting calls on the target and a write and a read
+//! here, each of which wakes the other process. With QEMU and the calling thread on one CPU
+//! (the default, [`PilOptions::pin_cpu`]; via `taskset`) a wake-up is a context switch
+//! instead of a cross-CPU hand-off, several times faster.
+//!
+//! Opening a FIFO blocks until the other side opens it; the opens run on a helper thread
+//! while this one watches QEMU, so a target that dies at start-up is an error, not a hang.
+
+use crate::sim::DriveUnderTest;
+use controller_core::drive::{DriveSpec, FastOutput, Measurements, Reference};
+use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
+use std::fs::File;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command as Process, Stdio};
+use std::time::{Duration, Instant};
+
+/// Where `cargo xtask qemu` (or `cargo build --release --target thumbv7em-none-eabihf --bin
+/// pil` in `qemu-target/`, a workspace of its own) puts the target program; overridden by
+/// `--elf` or `HIL_SIM_PIL_ELF`.
+pub fn default_elf() -> PathBuf {
+    if let Some(p) = std::env::var_os("HIL_SIM_PIL_ELF") {
+        return PathBuf::from(p);
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../qemu-target/target/thumbv7em-none-eabihf/release/pil")
+}
+
+/// The QEMU executable (`QEMU_SYSTEM_ARM` overrides).
+fn qemu_binary() -> String {
+    std::env::var("QEMU_SYSTEM_ARM").unwrap_or_else(|_| "qemu-system-arm".into())
+}
+
+/// How to run the emulated MCU.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PilOptions {
+    /// The `pil` target program.
+    pub elf: PathBuf,
+    /// Pin QEMU and the calling thread to this CPU (`None`: leave scheduling alone).
+    pub pin_cpu: Option<usize>,
+}
+
+impl Default for PilOptions {
+    fn default() -> Self {
+        Self { elf: default_elf(), pin_cpu: Some(0) }
+    }
+}
+
+/// The calling thread's id and CPU list as `taskset` prints it, or None without Linux
+/// `/proc` or `taskset`.
+fn thread_affinity() -> Option<(String, String)> {
+    let link = std::fs::read_link("/proc/thread-self").ok()?;
+    let tid = link.file_name()?.to_string_lossy().into_owned();
+    let out = Process::new("taskset").args(["-p", "-c", &tid]).stderr(Stdio::null()).output().ok()?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let list = text.rsplit(": ").next()?.trim().to_string();
+    out.status.success().then_some((tid, list))
+}
+
+fn set_thread_affinity(tid: &str, list: &str) -> bool {
+    Process::new("taskset")
+        .args(["-p", "-c", list, tid])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// A drive on the emulated MCU.
+#[derive(Debug)]
+pub struct Pil {
+    /// Thread id and CPU list to restore when pinned.
+    restore_affinity: Option<(String, String)>,
+    qemu: Child,
+    dir: PathBuf,
+    to_mcu: File,
+    from_mcu: File,
+    decoder: FrameDecoder,
+    input: Vec<u8>,
+    input_pos: usize,
+    stats: LinkStats,
+    slow_divider: u16,
+    round_trips: u64,
+}
+
+impl Pil {
+    /// Start QEMU with `opts.elf` and configure its drive with `spec` (validated on the
+    /// target).
+    pub fn start(opts: &PilOptions, spec: &DriveSpec) -> Result<Self, String> {
+        let elf = &opts.elf;
+        if !elf.is_file() {
+            return Err(format!(
+                "target program {} not found: build it with `cargo xtask qemu` (or `cargo build \
+                 --release --target thumbv7em-none-eabihf --bin pil` in qemu-target/)",
+                elf.display()
+            ));
+        }
+        let dir = fresh_dir()?;
+        for name in ["to_mcu", "from_mcu"] {
+            let st = Process::new("mkfifo")
+                .arg(dir.join(name))
+                .status()
+                .map_err(|e| format!("cannot run mkfifo: {e}"))?;
+            if !st.success() {
+                return Err(format!("mkfifo {} failed", dir.join(name).display()));
+            }
+        }
+        let log = File::create(dir.join("qemu.log")).map_err(|e| format!("cannot create qemu.log: {e}"))?;
+        let log2 = log.try_clone().map_err(|e| e.to_string())?;
+        // Pin this thread first (remembering its CPUs), then start QEMU on the same CPU.
+        let pinned = opts.pin_cpu.and_then(|cpu| {
+            let (tid, list) = thread_affinity()?;
+            set_thread_affinity(&tid, &cpu.to_string()).then_some((tid, list, cpu))
+        });
+        let mut launcher = match &pinned {
+            Some((_, _, cpu)) => {
+                let mut p = Process::new("taskset");
+                p.args(["-c", &cpu.to_string(), &qemu_binary()]);
+                p
+            }
+            None => Process::new(qemu_binary()),
+        };
+        let restore_affinity = pinned.map(|(tid, list, _)| (tid, list));
+        let restore = |r: &Option<(String, String)>| {
+            if let Some((tid, list)) = r {
+                set_thread_affinity(tid, list);
+            }
+        };
+        let spawned = launcher
+            .args(["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
+            .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
+            .arg(elf)
+            .current_dir(&dir)
+            .stdin(Stdio::null())
+            .stdout(log)
+            .stderr(log2)
+            .spawn();
+        let mut qemu = match spawned {
+            Ok(c) => c,
+            Err(e) => {
+                restore(&restore_affinity);
+                return Err(format!("cannot start {}: {e} (install qemu-system-arm)", qemu_binary()));
+            }
+        };
+        let (to_mcu, from_mcu) = match open_fifos(&dir, &mut qemu) {
+            Ok(f) => f,
+            Err(e) => {
+                restore(&restore_affinity);
+                let _ = qemu.kill();
+                let _ = qemu.wait();
+                let _ = std::fs::remove_dir_all(&dir);
+                return Err(e);
+            }
+        };
+        let mut pil = Pil {
+            restore_affinity,
+            qemu,
+            dir,
+            to_mcu,
+            from_mcu,
+            decoder: FrameDecoder::new(),
+            input: vec![0; 4096],
+            input_pos: 0,
+            stats: LinkStats::default(),
+            slow_divider: spec.slow_divider,
+            round_trips: 0,
+        };
+        match pil.transact(&Command::Configure(*spec))? {
+            Reply::Ack => Ok(pil),
+            other => Err(format!("target refused the drive specification: {other:?}")),
+        }
+    }
+
+    /// Whether QEMU and the calling thread share one CPU.
+    pub fn pinned(&self) -> bool {
+        self.restore_affinity.is_some()
+    }
+
+    /// Round trips so far.
+    pub fn round_trips(&self) -> u64 {
+        self.round_trips
+    }
+
+    /// Counters of the host-side receiver.
+    pub fn stats(&self) -> LinkStats {
+        self.stats
+    }
+
+    /// Send `cmd`, wait for its reply.
+    pub fn transact(&mut self, cmd: &Command) -> Result<Reply, String> {
+        let mut frame = [0u8; MAX_FRAME];
+        let n = link::command_frame(cmd, &mut frame).map_err(|_| "command does not fit a frame")?;
+        self.to_mcu
+            .write_all(frame.get(..n).unwrap_or_default())
+            .map_err(|e| format!("link to the target broken: {e}{}", self.qemu_log()))?;
+        self.round_trips += 1;
+        loop {
+            while self.input_pos < self.input.len() {
+                let b = self.input[self.input_pos];
+                self.input_pos += 1;
+                match self.decoder.push(b) {
+                    None => {}
+                    Some(Err(e)) => self.stats.count_frame(e),
+                    Some(Ok(p)) => match Reply::decode(p) {
+                        Ok(r) => {
+                            self.stats.frames_ok += 1;
+                            return Ok(r);
+                        }
+                        Err(e) => self.stats.count_decode(e),
+                    },
+                }
+            }
+            self.input.resize(4096, 0);
+            let n = self
+                .from_mcu
+                .read(&mut self.input)
+                .map_err(|e| format!("link from the target broken: {e}{}", self.qemu_log()))?;
+            if n == 0 {
+                return Err(format!("the target closed the link{}", self.qemu_log()));
+            }
+            self.input.truncate(n);
+            self.input_pos = 0;
+        }
+    }
+
+    /// Write raw bytes to the target (for link tests: corrupt frames, noise).
+    pub fn send_raw(&mut self, bytes: &[u8]) -> Result<(), String> {
+        self.to_mcu.write_all(bytes).map_err(|e| format!("link to the target broken: {e}"))
+    }
+
+    fn qemu_log(&self) -> String {
+        match std::fs::read_to_string(self.dir.join("qemu.log")) {
+            Ok(s) if !s.trim().is_empty() => format!("; QEMU said: {}", s.trim()),
+            _ => String::new(),
+        }
+    }
+
+    fn expect_ack(&mut self, cmd: &Command) -> Result<(), String> {
+        match self.transact(cmd)? {
+            // A refusal is the drive's answer, as `Drive::enable` returning Err in the SIL.
+            Reply::Ack | Reply::Nack(_) => Ok(()),
+            other => Err(format!("unexpected reply {other:?} to {cmd:?}")),
+        }
+    }
+}
+
+impl DriveUnderTest for Pil {
+    fn slow_divider(&self) -> u16 {
+        self.slow_divider
+    }
+
+    fn enable(&mut self) -> Result<(), String> {
+        self.expect_ack(&Command::Enable)
+    }
+
+    fn set_reference(&mut self, r: Reference) -> Result<(), String> {
+        self.expect_ack(&Command::SetReference(r))
+    }
+
+    fn step(&mut self, m: &Measurements) -> Result<FastOutput, String> {
+        match self.transact(&Command::Step(*m))? {
+            Reply::Output(o) => Ok(o),
+            other => Err(format!("unexpected reply {other:?} to a step")),
+        }
+    }
+}
+
+impl Drop for Pil {
+    fn drop(&mut self) {
+        // Closing to_mcu makes the target read end-of-file and exit; kill it if it does not.
+        let deadline = Instant::now() + Duration::from_secs(2);
+        if let Ok(f) = File::open("/dev/null") {
+            self.to_mcu = f;
+        }
+        while Instant::now() < deadline {
+            if let Ok(Some(_)) = self.qemu.try_wait() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let _ = self.qemu.kill();
+        let _ = self.qemu.wait();
+        let _ = std::fs::remove_dir_all(&self.dir);
+        if let Some((tid, list)) = &self.restore_affinity {
+            set_thread_affinity(tid, list);
+        }
+    }
+}
+
+fn fresh_dir() -> Result<PathBuf, String> {
+    static COUNTER: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+    let n = COUNTER.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("hil-sim-pil-{}-{n}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    Ok(dir)
+}
+
+/// Open both FIFOs (in the target's order: to_mcu, then from_mcu) on a helper thread; fail
+/// if QEMU exits first or nothing happens within 20 s.
+fn open_fifos(dir: &Path, qemu: &mut Child) -> Result<(File, File), String> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let d = dir.to_path_buf();
+    std::thread::spawn(move || {
+        let r = (|| -> std::io::Result<(File, File)> {
+            let to = std::fs::OpenOptions::new().write(true).open(d.join("to_mcu"))?;
+            let from = File::open(d.join("from_mcu"))?;
+            Ok((to, from))
+        })();
+        let _ = tx.send(r);
+    });
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        match rx.recv_timeout(Duration::from_millis(10)) {
+            Ok(Ok(files)) => return Ok(files),
+            Ok(Err(e)) => return Err(format!("cannot open the link FIFOs: {e}")),
+            Err(_) => {}
+        }
+        let log = || std::fs::read_to_string(dir.join("qemu.log")).unwrap_or_default();
+        if let Ok(Some(st)) = qemu.try_wait() {
+            unblock(dir);
+            return Err(format!("QEMU exited ({st}) before opening the link: {}", log().trim()));
+        }
+        if Instant::now() > deadline {
+            unblock(dir);
+            return Err(format!("the target did not open the link within 20 s: {}", log().trim()));
+        }
+    }
+}
+
+/// Open the far ends so a helper thread blocked in `open` returns (and is dropped).
+fn unblock(dir: &Path) {
+    let d = dir.to_path_buf();
+    std::thread::spawn(move || {
+        let _r = File::open(d.join("to_mcu"));
+        let _w = std::fs::OpenOptions::new().write(true).open(d.join("from_mcu"));
+    });
+    std::thread::sleep(Duration::from_millis(20));
+}

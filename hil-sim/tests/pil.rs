@@ -1,0 +1,102 @@
+//! Processor in the loop (QEMU): needs `qemu-system-arm` and the `pil` target program, so
+//! these tests are `#[ignore]`d for plain `cargo test`; `cargo xtask qemu` (part of CI) builds
+//! the program and runs them with `--ignored`.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
+
+use hil_sim::pil::PilOptions;
+use hil_sim::scenario;
+use std::time::Instant;
+
+#[test]
+#[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
+fn pil_trace_equals_sil_trace_bit_for_bit_for_every_builtin() {
+    let opts = PilOptions::default();
+    for b in scenario::all().unwrap() {
+        let (sil, _) = b.run(|_| {}).unwrap();
+        let wall = Instant::now();
+        let (pil, link) = b.run_pil(&opts, |_| {}).unwrap();
+        let trips = link.round_trips();
+        drop(link);
+        let secs = wall.elapsed().as_secs_f64();
+        println!(
+            "{:<22} {:>7} rows, {:>7} round trips, {:6.0} round trips/s, {:5.2}× real time",
+            b.name,
+            pil.len(),
+            trips,
+            trips as f64 / secs,
+            b.scenario.duration_s / secs
+        );
+        assert_eq!(sil.len(), pil.len(), "{}", b.name);
+        for (i, (s, p)) in sil.iter().zip(&pil).enumerate() {
+            assert_eq!(s, p, "{}: first difference at row {i} (t = {} s)", b.name, s.t_s);
+        }
+    }
+}
+
+#[test]
+#[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
+fn target_counts_every_malformed_frame_and_keeps_serving() {
+    use controller_core::drive::{Measurements, Mode, example_spec};
+    use controller_core::link::{self, Command, MAX_FRAME, Reply};
+    let mut pil = hil_sim::pil::Pil::start(&PilOptions::default(), &example_spec().unwrap()).unwrap();
+    let good = {
+        let mut f = [0u8; MAX_FRAME];
+        let n = link::command_frame(&Command::Enable, &mut f).unwrap();
+        f[..n].to_vec()
+    };
+    // 1: bad CRC; 2: invalid COBS (a code byte pointing past the end); 3: too long;
+    // 4: too short (type byte only, no CRC); 5: unknown message type; 6: wrong length.
+    let mut bad_crc = good.clone();
+    bad_crc[1] ^= 0x40;
+    let mut noise = vec![0u8];
+    noise.extend(bad_crc);
+    noise.extend([0x05, 0x11, 0x00]);
+    noise.extend(vec![0x33; 2 * MAX_FRAME]);
+    noise.push(0);
+    noise.extend([0x02, 0x7E, 0x00]);
+    for payload in [&[0x7Eu8][..], &[0x02, 0x01]] {
+        let mut f = [0u8; MAX_FRAME];
+        let n = link::encode_frame(payload, &mut f).unwrap();
+        noise.extend(&f[..n]);
+    }
+    pil.send_raw(&noise).unwrap();
+    // No reply to any of them; the next good command is answered.
+    match pil.transact(&Command::GetStatus).unwrap() {
+        Reply::Status { mode, frames_ok, frame_errors } => {
+            assert_eq!(mode, Mode::Idle);
+            assert_eq!(frames_ok, 2, "Configure and GetStatus");
+            assert_eq!(frame_errors, 6);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(pil.transact(&Command::Enable).unwrap(), Reply::Ack);
+    let m = Measurements { vdc_v: 310.0, ..Default::default() };
+    assert!(
+        matches!(pil.transact(&Command::Step(m)).unwrap(), Reply::Output(o) if o.mode == Mode::Magnetizing)
+    );
+    assert_eq!(pil.stats().errors(), 0);
+}
+
+#[test]
+#[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
+fn cli_pil_writes_the_same_trace_as_run() {
+    let dir = std::env::temp_dir().join(format!("hil-sim-cli-pil-{}", std::process::id()));
+    let exe = env!("CARGO_BIN_EXE_hil-sim");
+    for (cmd, sub) in [("run", "sil"), ("pil", "pil")] {
+        let st = std::process::Command::new(exe)
+            .args([cmd, "fig11-locked-rotor", "--out"])
+            .arg(dir.join(sub))
+            .stdout(std::process::Stdio::null())
+            .status()
+            .unwrap();
+        assert!(st.success(), "{cmd}");
+    }
+    let sil = std::fs::read(dir.join("sil/trace.csv")).unwrap();
+    let pil = std::fs::read(dir.join("pil/trace.csv")).unwrap();
+    assert!(sil == pil, "trace.csv differs between run and pil");
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("pil/summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["link_host_rx_errors"], 0);
+    assert_eq!(summary["drive_mode"], "Running");
+    let _ = std::fs::remove_dir_all(&dir);
+}

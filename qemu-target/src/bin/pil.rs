@@ -1,0 +1,76 @@
+//! Processor-in-the-loop server: the drive on the emulated Cortex-M4F, one link frame per PWM
+//! period with `hil-sim pil` (see the crate docs). Exits with status 0 when the host closes
+//! `to_mcu`, 1 if the FIFOs cannot be opened or a reply cannot be written.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod target {
+    use controller_core::drive::{Drive, DriveConfig, example_spec};
+    use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, NackReason, Reply};
+    use cortex_m_rt::entry;
+    use qemu_target::sh;
+
+    #[entry]
+    fn main() -> ! {
+        let (Some(rx), Some(tx)) = (sh::open(c"to_mcu", false), sh::open(c"from_mcu", true)) else {
+            qemu_target::println!("pil: cannot open the FIFOs to_mcu/from_mcu");
+            sh::exit(false)
+        };
+        // Until the host sends `Configure`, only `GetStatus` and `Configure` are served.
+        let mut drive: Option<Drive> = None;
+        let mut stats = LinkStats::default();
+        let mut decoder = FrameDecoder::new();
+        let mut input = [0u8; 256];
+        let mut frame = [0u8; MAX_FRAME];
+        loop {
+            let n = rx.read(&mut input);
+            if n == 0 {
+                sh::exit(true);
+            }
+            for &byte in input.iter().take(n) {
+                let cmd = match decoder.push(byte) {
+                    None => continue,
+                    Some(Err(e)) => {
+                        stats.count_frame(e);
+                        continue;
+                    }
+                    Some(Ok(payload)) => match Command::decode(payload) {
+                        Ok(c) => c,
+                        Err(e) => {
+                            stats.count_decode(e);
+                            continue;
+                        }
+                    },
+                };
+                stats.frames_ok = stats.frames_ok.saturating_add(1);
+                let reply = match (&mut drive, &cmd) {
+                    (Some(d), c) => link::execute(d, c, &stats),
+                    (None, Command::Configure(_)) => {
+                        // Start from any valid drive so `execute` can validate and replace it.
+                        match example_spec().ok().and_then(|s| DriveConfig::new(&s).ok()) {
+                            Some(cfg) => {
+                                let mut d = Drive::new(cfg);
+                                let r = link::execute(&mut d, &cmd, &stats);
+                                if r == Reply::Ack {
+                                    drive = Some(d);
+                                }
+                                r
+                            }
+                            None => Reply::Nack(NackReason::Configuration),
+                        }
+                    }
+                    (None, _) => Reply::Nack(NackReason::NotConfigured),
+                };
+                match link::reply_frame(&reply, &mut frame) {
+                    Ok(len) if tx.write_all(frame.get(..len).unwrap_or(&[])) => {}
+                    _ => sh::exit(false),
+                }
+            }
+        }
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!("pil: a Cortex-M program; `hil-sim pil` runs it under QEMU");
+}
