@@ -59,6 +59,10 @@ pub struct IfocState {
     pub theta_e_rad: f32,
     /// Rotor-flux model estimate ψ̂_r, Wb.
     pub psi_r_wb: f32,
+    /// `(i_d, √(i_max² − i_d²))` of the last step: the square root (a software routine on
+    /// the Cortex-M, ≈ 150 instructions) is recomputed only when i_d* changes, i.e. when
+    /// the flux reference does.
+    i_q_limit: Option<(f32, f32)>,
 }
 
 /// Result of one IFOC step.
@@ -122,7 +126,14 @@ impl IfocConfig {
             TorqueCommand::TorqueNm(t) => t / (self.torque_factor * psi),
             TorqueCommand::IqA(i) => i,
         };
-        let i_q_max = libm::sqrtf((self.i_max_a * self.i_max_a - i_d * i_d).max(0.0));
+        let i_q_max = match s.i_q_limit {
+            Some((for_i_d, limit)) if for_i_d == i_d => limit,
+            _ => {
+                let limit = libm::sqrtf((self.i_max_a * self.i_max_a - i_d * i_d).max(0.0));
+                s.i_q_limit = Some((i_d, limit));
+                limit
+            }
+        };
         let i_q = i_q_wanted.limit(-i_q_max, i_q_max);
         let omega_sl = self.slip_gain * i_q / psi;
         let theta = s.theta_e_rad;
@@ -180,7 +191,7 @@ mod tests {
     #[test]
     fn field_angle_advances_at_synchronous_speed_and_wraps() {
         let c = cfg();
-        let mut s = IfocState { theta_e_rad: 0.0, psi_r_wb: 1.0 };
+        let mut s = IfocState { psi_r_wb: 1.0, ..Default::default() };
         // p = 1, ω_m = 100 rad/s, no torque: θ advances 100·T per step.
         let mut prev = 0.0f32;
         let mut wraps = 0;

@@ -19,5 +19,6 @@ pub mod motor;
 pub mod num;
 pub mod pi;
 pub mod scaling;
+pub mod selftest;
 pub mod speed;
 pub mod svpwm;

@@ -1,0 +1,174 @@
+//! Executed instructions per fast and slow step on the Cortex-M4F, measured under QEMU with
+//! `-icount shift=0` (deterministic: 1 instruction = 1 ns of virtual time; SysTick at 25 MHz
+//! → 40 instructions per tick). Each figure is the average over 4096 calls with inputs
+//! varying along a rotating current vector, minus the same loop without the call (input
+//! generation, loop and timer reads), so the resolution is 40/4096 ≈ 0.01 instruction.
+//!
+//! The fast step is the firmware's interrupt body: ADC codes → amperes and volts
+//! (`AdcScaling`) → `Drive::fast_step` (supervisor, Clarke, IFOC with the field angle's
+//! sin/cos, two ICAD channels, SVPWM) → compare values (`PwmScaling`). The components are
+//! also measured alone to show what dominates. Output: `cost <name> <instructions>` lines.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod target {
+    use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
+    use controller_core::discretize::Discretization;
+    use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, Reference, example_spec};
+    use controller_core::frames::{Abc, AlphaBeta, SinCos};
+    use controller_core::ifoc::{IfocConfig, IfocState, TorqueCommand};
+    use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
+    use controller_core::svpwm;
+    use core::hint::black_box;
+    use cortex_m_rt::entry;
+    use qemu_target::clock::{INSTRUCTIONS_PER_TICK, Ticks};
+    use qemu_target::{println, sh};
+
+    const N: u32 = 4096;
+
+    /// Instructions per call of `f` (baseline loop subtracted).
+    fn per_call(ticks: &Ticks, mut f: impl FnMut(u32)) -> f32 {
+        let run = |ticks: &Ticks, g: &mut dyn FnMut(u32)| {
+            let t0 = ticks.now();
+            for k in 0..N {
+                g(k);
+            }
+            Ticks::elapsed(t0, ticks.now())
+        };
+        let base = run(ticks, &mut |k| {
+            black_box(k);
+        });
+        let with = run(ticks, &mut f);
+        (with.saturating_sub(base) * INSTRUCTIONS_PER_TICK) as f32 / N as f32
+    }
+
+    /// A 12-bit ADC code of a phase current (±16.5 A full scale, offset 2048).
+    fn code(i_a: f32) -> AdcCode {
+        AdcCode((2048.0 + i_a * (2048.0 / 16.5)) as u16)
+    }
+
+    #[entry]
+    fn main() -> ! {
+        let Some(cp) = cortex_m::Peripherals::take() else { sh::exit(false) };
+        let ticks = Ticks::start(cp.SYST);
+        let (Ok(spec), Ok(adc_i), Ok(adc_v), Ok(pwm)) = (
+            example_spec(),
+            AdcScaling::new(16.5 / 2048.0, 2048, 4095),
+            AdcScaling::new(0.1, 0, 4095),
+            PwmScaling::new(4250),
+        ) else {
+            sh::exit(false)
+        };
+        let Ok(cfg) = DriveConfig::new(&spec) else { sh::exit(false) };
+        let ts = 1.0 / spec.pwm_frequency_hz;
+        // Inputs: a 1.5 A current vector rotating at 0.01 rad per sample.
+        let current = |k: u32| {
+            let sc = SinCos::new(k as f32 * 0.01);
+            AlphaBeta { alpha: 1.5 * sc.cos, beta: 1.5 * sc.sin }.inverse_clarke()
+        };
+        let codes: [[AdcCode; 4]; 64] = core::array::from_fn(|k| {
+            let i = current(k as u32);
+            [code(i.a), code(i.b), code(i.c), AdcCode(3100)]
+        });
+        let input = |k: u32| codes.get((k % 64) as usize).copied().unwrap_or_default();
+        let measure = |c: [AdcCode; 4], k: u32| {
+            let [a, b, cc, v] = c;
+            Measurements {
+                i_abc_a: Abc { a: adc_i.to_f32(a), b: adc_i.to_f32(b), c: adc_i.to_f32(cc) },
+                vdc_v: adc_v.to_f32(v),
+                omega_m_rad_s: 100.0,
+                theta_m_rad: k as f32 * 5e-4,
+            }
+        };
+
+        // The drive, magnetized (ideal current tracking) and Running with a speed reference.
+        let mut drive = Drive::new(cfg);
+        let _ = drive.enable();
+        let mut i_ab = AlphaBeta::default();
+        let mut guard = 0u32;
+        while drive.mode() != Mode::Running && guard < 100_000 {
+            let m = Measurements { i_abc_a: i_ab.inverse_clarke(), vdc_v: 310.0, ..Default::default() };
+            i_ab = drive.step(&m).telemetry.i_ref_ab_a;
+            guard += 1;
+        }
+        let _ = drive.set_reference(Reference::Speed(150.0));
+        drive.slow_step(&measure(input(0), 0));
+
+        let fast = per_call(&ticks, |k| {
+            let m = measure(black_box(input(k)), k);
+            let out = drive.fast_step(&m);
+            if let controller_core::drive::PhaseCommand::Duty(d) = out.phases {
+                black_box([pwm.compare(d.a), pwm.compare(d.b), pwm.compare(d.c)]);
+            }
+        });
+        let running = drive.mode() == Mode::Running;
+        let slow = per_call(&ticks, |k| drive.slow_step(&measure(black_box(input(k)), k)));
+
+        // Components alone.
+        let adc = per_call(&ticks, |k| {
+            black_box(measure(black_box(input(k)), k));
+        });
+        let clarke = per_call(&ticks, |k| {
+            black_box(black_box(current(k % 64)).clarke());
+        });
+        let sincos = per_call(&ticks, |k| {
+            black_box(SinCos::new(black_box(k as f32 * 0.01 - 3.0)));
+        });
+        let icad = match CurrentControllerConfig::<f32>::new(
+            &CurrentLaw::ICAD_EQ20,
+            ts,
+            Discretization::Tustin,
+            180.0,
+        ) {
+            Ok(c) => {
+                let mut s = CurrentState::default();
+                per_call(&ticks, |k| {
+                    let e = black_box(current(k % 64)).clarke();
+                    black_box(c.update(&mut s, e, AlphaBeta::default(), 179.0));
+                }) - per_call(&ticks, |k| {
+                    black_box(black_box(current(k % 64)).clarke());
+                })
+            }
+            Err(_) => f32::NAN,
+        };
+        let ifoc = match IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a) {
+            Ok(c) => {
+                let mut s = IfocState::default();
+                s.psi_r_wb = 0.9;
+                per_call(&ticks, |k| {
+                    black_box(c.update(
+                        &mut s,
+                        0.9,
+                        TorqueCommand::TorqueNm(black_box(0.3)),
+                        k as f32 * 1e-3,
+                    ));
+                })
+            }
+            Err(_) => f32::NAN,
+        };
+        let svm = per_call(&ticks, |k| {
+            let v = black_box(current(k % 64)).clarke().scale(60.0);
+            black_box(svpwm::modulate(v, 310.0));
+        }) - clarke;
+        let compare = per_call(&ticks, |k| {
+            let d = black_box(k as f32 * (1.0 / 4096.0));
+            black_box([pwm.compare(d), pwm.compare(d * 0.5), pwm.compare(1.0 - d)]);
+        });
+
+        println!("cost fast_step {:.1}", fast);
+        println!("cost slow_step {:.1}", slow);
+        println!("cost part:adc_scaling_4ch {:.1}", adc);
+        println!("cost part:clarke {:.1}", clarke);
+        println!("cost part:icad_two_axes {:.1}", icad);
+        println!("cost part:ifoc_incl_sincos {:.1}", ifoc);
+        println!("cost part:sincos {:.1}", sincos);
+        println!("cost part:svpwm {:.1}", svm);
+        println!("cost part:compare_3ch {:.1}", compare);
+        sh::exit(running)
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!("cost: a Cortex-M program; `cargo xtask qemu` runs it under QEMU with -icount shift=0");
+}
