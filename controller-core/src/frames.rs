@@ -75,7 +75,7 @@ impl SinCos {
         let kf = k as f32;
         let r = (theta_rad - kf * PIO2_HI) - kf * PIO2_LO;
         let z = r * r;
-        let sin_r = r + r * z * ((-1.951_529_6e-4 * z + 8.332_160_9e-3) * z - 1.666_665_5e-1);
+        let sin_r = r + r * z * ((-1.951_529_6e-4 * z + 8.332_161e-3) * z - 1.666_665_5e-1);
         let cos_r = 1.0 - 0.5 * z + z * z * ((2.443_315_7e-5 * z - 1.388_731_6e-3) * z + 4.166_664_6e-2);
         let (sin, cos) = match k & 3 {
             0 => (sin_r, cos_r),
