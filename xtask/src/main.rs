@@ -5,7 +5,14 @@
 //!   host tests, `design certify gains.toml`, a thumbv7em build of
 //!   `controller-core` on its own (proof that it is no_std without the host's `std` feature),
 //!   and the firmware release build with its flash/RAM use.
-//! * `lint`, `test-host`, `build-core-m4`, `build-fw` — the single steps.
+//!   Then the emulated-target steps (`qemu`): fmt and clippy of `qemu-target` (a workspace
+//!   of its own), its builds for the Cortex-M4F and the Cortex-M3, the control-law self-tests
+//!   on QEMU `mps2-an386` and `lm3s6965evb`, the instruction-count benchmark
+//!   (`-icount shift=0`), and the processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
+//! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu` — single steps.
+//!
+//! The closing line `tests: N passed, M failed` sums cargo's `test result:` lines and the
+//! target harness's `N passed, M failed` lines.
 
 use std::process::{Command, ExitCode};
 
@@ -13,35 +20,114 @@ const THUMB: &str = "thumbv7em-none-eabihf";
 
 struct Step {
     name: &'static str,
+    /// `cargo` (the running one) or another program.
+    program: &'static str,
+    /// Working directory (the workspace root when empty).
+    dir: &'static str,
     args: &'static [&'static str],
     /// Extra environment variables.
     env: &'static [(&'static str, &'static str)],
 }
 
-const FMT: Step = Step { name: "fmt", args: &["fmt", "--all", "--", "--check"], env: &[] };
-const CLIPPY: Step = Step {
-    name: "clippy",
-    args: &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"],
+impl Step {
+    const fn cargo(name: &'static str, args: &'static [&'static str]) -> Self {
+        Step { name, program: "cargo", dir: "", args, env: &[] }
+    }
+    const fn in_qemu_target(name: &'static str, args: &'static [&'static str]) -> Self {
+        Step { name, program: "cargo", dir: "qemu-target", args, env: &[] }
+    }
+}
+
+const FMT: Step = Step::cargo("fmt", &["fmt", "--all", "--", "--check"]);
+const CLIPPY: Step =
+    Step::cargo("clippy", &["clippy", "--workspace", "--all-targets", "--", "-D", "warnings"]);
+const DOC: Step = Step {
+    name: "doc",
+    program: "cargo",
+    dir: "",
+    args: &["doc", "--workspace", "--no-deps"],
+    env: &[("RUSTDOCFLAGS", "-D warnings")],
+};
+const CERTIFY: Step = Step::cargo(
+    "certify",
+    &["run", "--quiet", "--release", "--package", "design", "--", "certify", "gains.toml"],
+);
+const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
+const CORE_M4: Step =
+    Step::cargo("build-core-m4", &["build", "--package", "controller-core", "--target", THUMB, "--release"]);
+const FW: Step = Step::cargo("build-fw", &["build", "--package", "firmware", "--target", THUMB, "--release"]);
+
+const M3: &str = "thumbv7m-none-eabi";
+const Q_FMT: Step = Step::in_qemu_target("qemu-target fmt", &["fmt", "--", "--check"]);
+const Q_CLIPPY: Step = Step::in_qemu_target(
+    "qemu-target clippy",
+    &["clippy", "--target", THUMB, "--release", "--", "-D", "warnings"],
+);
+const Q_BUILD_M4: Step =
+    Step::in_qemu_target("qemu-target build (M4F)", &["build", "--target", THUMB, "--release", "--bins"]);
+const Q_BUILD_M3: Step = Step::in_qemu_target(
+    "qemu-target build (M3)",
+    &["build", "--target", M3, "--release", "--bin", "target-tests"],
+);
+const Q_TESTS_M4: Step = Step {
+    name: "target tests on QEMU mps2-an386 (Cortex-M4F)",
+    program: "qemu-system-arm",
+    dir: "",
+    args: &[
+        "-cpu",
+        "cortex-m4",
+        "-machine",
+        "mps2-an386",
+        "-nographic",
+        "-semihosting-config",
+        "enable=on,target=native",
+        "-kernel",
+        "qemu-target/target/thumbv7em-none-eabihf/release/target-tests",
+    ],
     env: &[],
 };
-const DOC: Step =
-    Step { name: "doc", args: &["doc", "--workspace", "--no-deps"], env: &[("RUSTDOCFLAGS", "-D warnings")] };
-const CERTIFY: Step = Step {
-    name: "certify",
-    args: &["run", "--quiet", "--release", "--package", "design", "--", "certify", "gains.toml"],
+const Q_TESTS_M3: Step = Step {
+    name: "target tests on QEMU lm3s6965evb (Cortex-M3, soft-float, Q32)",
+    program: "qemu-system-arm",
+    dir: "",
+    args: &[
+        "-cpu",
+        "cortex-m3",
+        "-machine",
+        "lm3s6965evb",
+        "-nographic",
+        "-semihosting-config",
+        "enable=on,target=native",
+        "-kernel",
+        "qemu-target/target/thumbv7m-none-eabi/release/target-tests",
+    ],
     env: &[],
 };
-const TEST: Step = Step { name: "test-host", args: &["test", "--workspace"], env: &[] };
-const CORE_M4: Step = Step {
-    name: "build-core-m4",
-    args: &["build", "--package", "controller-core", "--target", THUMB, "--release"],
+const Q_COST: Step = Step {
+    name: "instructions per step on the Cortex-M4F (QEMU -icount shift=0)",
+    program: "qemu-system-arm",
+    dir: "",
+    args: &[
+        "-cpu",
+        "cortex-m4",
+        "-machine",
+        "mps2-an386",
+        "-nographic",
+        "-semihosting-config",
+        "enable=on,target=native",
+        "-icount",
+        "shift=0",
+        "-kernel",
+        "qemu-target/target/thumbv7em-none-eabihf/release/cost",
+    ],
     env: &[],
 };
-const FW: Step = Step {
-    name: "build-fw",
-    args: &["build", "--package", "firmware", "--target", THUMB, "--release"],
-    env: &[],
-};
+const PIL: Step = Step::cargo(
+    "processor in the loop (hil-sim/tests/pil.rs)",
+    &["test", "--release", "--package", "hil-sim", "--test", "pil", "--", "--ignored", "--nocapture"],
+);
+const QEMU_STEPS: [&Step; 8] =
+    [&Q_FMT, &Q_CLIPPY, &Q_BUILD_M4, &Q_BUILD_M3, &Q_TESTS_M4, &Q_TESTS_M3, &Q_COST, &PIL];
 
 /// Test totals summed over every `test result:` line cargo printed.
 #[derive(Default)]
@@ -51,8 +137,17 @@ struct Totals {
 }
 
 impl Totals {
-    /// Parse `test result: ok. 58 passed; 0 failed; …`.
+    /// Parse `test result: ok. 58 passed; 0 failed; …` (cargo) and `9 passed, 0 failed`
+    /// (the target harness).
     fn add_line(&mut self, line: &str) {
+        if let Some((p, f)) = line.split_once(" passed, ")
+            && let (Ok(p), Some(Ok(f))) =
+                (p.trim().parse::<u64>(), f.strip_suffix(" failed").map(|f| f.trim().parse::<u64>()))
+        {
+            self.passed += p;
+            self.failed += f;
+            return;
+        }
         let Some(rest) = line.strip_prefix("test result: ") else { return };
         let count = |word: &str| {
             rest.split(';')
@@ -71,17 +166,25 @@ impl Totals {
 fn run_counting(step: &Step, totals: &mut Totals) -> bool {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
-    eprintln!("\n=== xtask: {} (cargo {}) ===", step.name, step.args.join(" "));
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let mut child = match Command::new(cargo)
+    eprintln!("\n=== xtask: {} ({} {}) ===", step.name, step.program, step.args.join(" "));
+    let program = match step.program {
+        "cargo" => std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()),
+        other => other.into(),
+    };
+    let mut cmd = Command::new(program);
+    if !step.dir.is_empty() {
+        cmd.current_dir(step.dir);
+    }
+    let mut child = match cmd
         .args(step.args)
+        .stdin(Stdio::null())
         .envs(step.env.iter().copied())
         .stdout(Stdio::piped())
         .spawn()
     {
         Ok(c) => c,
         Err(e) => {
-            eprintln!("xtask: cannot start cargo for `{}`: {e}", step.name);
+            eprintln!("xtask: cannot start {} for `{}`: {e}", step.program, step.name);
             return false;
         }
     };
@@ -160,14 +263,17 @@ fn report_firmware_size() -> bool {
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
-        "ci" => vec![&FMT, &CLIPPY, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW],
+        "ci" => [&FMT, &CLIPPY, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW].into_iter().chain(QEMU_STEPS).collect(),
+        "qemu" => QEMU_STEPS.to_vec(),
         "lint" => vec![&FMT, &CLIPPY, &DOC],
         "test-host" => vec![&TEST],
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![&FW],
         "certify" => vec![&CERTIFY],
         _ => {
-            eprintln!("usage: cargo xtask <ci | lint | test-host | certify | build-core-m4 | build-fw>");
+            eprintln!(
+                "usage: cargo xtask <ci | lint | test-host | certify | build-core-m4 | build-fw | qemu>"
+            );
             return ExitCode::from(2);
         }
     };
@@ -184,7 +290,7 @@ fn main() -> ExitCode {
         eprintln!("\nxtask {task}: FAILED steps: {}", failed.join(", "));
         ExitCode::FAILURE
     };
-    if steps.iter().any(|s| s.name == TEST.name) {
+    if steps.iter().any(|s| s.name == TEST.name || s.name == PIL.name) {
         use std::io::Write;
         let _ = std::io::stderr().flush();
         println!("tests: {} passed, {} failed", totals.passed, totals.failed);
