@@ -9,7 +9,9 @@
 //!   of its own), its builds for the Cortex-M4F and the Cortex-M3, the control-law self-tests
 //!   on QEMU `mps2-an386` and `lm3s6965evb`, the instruction-count benchmark
 //!   (`-icount shift=0`), and the processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
-//! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu` — single steps.
+//!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
+//! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu`, `fuzz` — single
+//!   steps.
 //!
 //! The closing line `tests: N passed, M failed` sums cargo's `test result:` lines and the
 //! target harness's `N passed, M failed` lines.
@@ -126,6 +128,14 @@ const PIL: Step = Step::cargo(
     "processor in the loop (hil-sim/tests/pil.rs)",
     &["test", "--release", "--package", "hil-sim", "--test", "pil", "--", "--ignored", "--nocapture"],
 );
+const FUZZ: Step = Step {
+    name: "fuzz the link decoder (60 s)",
+    program: "cargo",
+    dir: "fuzz",
+    args: &["fuzz", "run", "frame_decoder", "--", "-max_total_time=60", "-print_final_stats=1"],
+    // cargo fuzz passes nightly-only flags (sanitizer, coverage) to the stable compiler.
+    env: &[("RUSTC_BOOTSTRAP", "1")],
+};
 const QEMU_STEPS: [&Step; 8] =
     [&Q_FMT, &Q_CLIPPY, &Q_BUILD_M4, &Q_BUILD_M3, &Q_TESTS_M4, &Q_TESTS_M3, &Q_COST, &PIL];
 
@@ -263,7 +273,12 @@ fn report_firmware_size() -> bool {
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
-        "ci" => [&FMT, &CLIPPY, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW].into_iter().chain(QEMU_STEPS).collect(),
+        "ci" => [&FMT, &CLIPPY, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW]
+            .into_iter()
+            .chain(QEMU_STEPS)
+            .chain([&FUZZ])
+            .collect(),
+        "fuzz" => vec![&FUZZ],
         "qemu" => QEMU_STEPS.to_vec(),
         "lint" => vec![&FMT, &CLIPPY, &DOC],
         "test-host" => vec![&TEST],
@@ -272,7 +287,7 @@ fn main() -> ExitCode {
         "certify" => vec![&CERTIFY],
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci | lint | test-host | certify | build-core-m4 | build-fw | qemu>"
+                "usage: cargo xtask <ci | lint | test-host | certify | build-core-m4 | build-fw | qemu | fuzz>"
             );
             return ExitCode::from(2);
         }
