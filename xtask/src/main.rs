@@ -57,7 +57,12 @@ const CERTIFY: Step = Step::cargo(
 const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
 const CORE_M4: Step =
     Step::cargo("build-core-m4", &["build", "--package", "controller-core", "--target", THUMB, "--release"]);
-const FW: Step = Step::cargo("build-fw", &["build", "--package", "firmware", "--target", THUMB, "--release"]);
+const FW: Step =
+    Step::cargo("build-fw", &["build", "--package", "firmware", "--target", THUMB, "--profile", "firmware"]);
+const CLIPPY_FW: Step = Step::cargo(
+    "clippy (firmware for the board)",
+    &["clippy", "--package", "firmware", "--target", THUMB, "--profile", "firmware", "--", "-D", "warnings"],
+);
 
 const M3: &str = "thumbv7m-none-eabi";
 const Q_FMT: Step = Step::in_qemu_target("qemu-target fmt", &["fmt", "--", "--check"]);
@@ -252,16 +257,26 @@ fn elf_size(path: &std::path::Path) -> Result<(u64, u64), String> {
     Ok((flash, ram))
 }
 
+/// Budget of issue 6: flash and static RAM of the release firmware.
+const FLASH_BUDGET: u64 = 48 * 1024;
+const RAM_BUDGET: u64 = 12 * 1024;
+
 fn report_firmware_size() -> bool {
-    let elf = std::path::Path::new("target").join(THUMB).join("release").join("firmware");
+    let elf = std::path::Path::new("target").join(THUMB).join("firmware").join("firmware");
     match elf_size(&elf) {
         Ok((flash, ram)) => {
             println!(
-                "firmware size: flash {flash} B ({:.1} KiB), static RAM {ram} B ({:.1} KiB)",
+                "firmware size: flash {flash} B ({:.1} KiB of {} KiB), static RAM {ram} B ({:.1} KiB of {} KiB; stack not included)",
                 flash as f64 / 1024.0,
-                ram as f64 / 1024.0
+                FLASH_BUDGET / 1024,
+                ram as f64 / 1024.0,
+                RAM_BUDGET / 1024
             );
-            true
+            let ok = flash <= FLASH_BUDGET && ram <= RAM_BUDGET;
+            if !ok {
+                eprintln!("xtask: firmware over budget");
+            }
+            ok
         }
         Err(e) => {
             eprintln!("xtask: firmware size: {e}");
@@ -273,14 +288,14 @@ fn report_firmware_size() -> bool {
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
-        "ci" => [&FMT, &CLIPPY, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW]
+        "ci" => [&FMT, &CLIPPY, &CLIPPY_FW, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW]
             .into_iter()
             .chain(QEMU_STEPS)
             .chain([&FUZZ])
             .collect(),
         "fuzz" => vec![&FUZZ],
         "qemu" => QEMU_STEPS.to_vec(),
-        "lint" => vec![&FMT, &CLIPPY, &DOC],
+        "lint" => vec![&FMT, &CLIPPY, &CLIPPY_FW, &DOC],
         "test-host" => vec![&TEST],
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![&FW],
