@@ -4,6 +4,7 @@
 //! * [`sim`]: the closed-loop runner (one PWM period of computation delay) and the
 //!   open-loop voltage-source runner; [`inverter`] (average or switching with dead time),
 //!   [`sensors`] (ADC, bus, encoder), loads;
+//! * [`link_client`]: the host end of the command/telemetry link (PIL FIFOs, board UART);
 //! * [`pil`]: the same runs with the drive on an emulated Cortex-M4F (QEMU), lockstep;
 //! * [`scenario`]: the papers' experiments as built-ins; [`config`] and
 //!   [`closed_loop_file`]: scenario files; [`motors`]: shipped motor files; [`plot`]: SVG.
@@ -16,6 +17,7 @@
 pub mod closed_loop_file;
 pub mod config;
 pub mod inverter;
+pub mod link_client;
 pub mod motors;
 pub mod pil;
 pub mod plant;

@@ -9,6 +9,13 @@
 //! processor in the loop) and writes the same outputs as `run`, plus link figures in the
 //! summary; `--elf` names the target program (default: `qemu-target`'s release build),
 //! `--no-pin` leaves QEMU and the simulator unpinned (slower).
+//!
+//! ```text
+//! hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | telemetry [N]>
+//! ```
+//! talks to the board's command/telemetry link on a serial device (e.g. `/dev/ttyACM0`, the
+//! NUCLEO's virtual COM port; set to 115200 baud raw with `stty`, 2 s read timeout) and
+//! prints the reply, or N telemetry frames.
 //! `run` writes `DIR/trace.csv`, `DIR/summary.json` and the plots `speed.svg`,
 //! `currents.svg`, `torque.svg` (default `DIR` = `out/<name>`). A file
 //! that fails to parse or validate is reported with file, key and reason, and nothing is
@@ -29,7 +36,8 @@ const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,lo
 fn usage() -> ExitCode {
     eprintln!(
         "usage: hil-sim list\n       hil-sim run <scenario.toml | builtin> [--out DIR]\n       \
-         hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]"
+         hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]\n       \
+         hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | telemetry [N]>"
     );
     ExitCode::from(2)
 }
@@ -216,6 +224,55 @@ fn run_file(path: &Path, out: &Path, pil: Option<&PilOptions>) -> Result<(), Str
     finish(out, &rows, false, summary)
 }
 
+/// `hil-sim link DEVICE …`: one command to the board, or N telemetry frames from it.
+fn board_link(args: &[String]) -> Result<(), String> {
+    use controller_core::drive::Reference;
+    let (Some(dev), Some(what)) = (args.first(), args.get(1)) else {
+        return Err("usage: hil-sim link <DEVICE> <command> (see `hil-sim` without arguments)".into());
+    };
+    let value = |name: &str| -> Result<f32, String> {
+        let v = args.get(2).ok_or(format!("`{name}` needs a value"))?;
+        v.parse::<f32>().map_err(|_| format!("`{v}` is not a number"))
+    };
+    let cmd = match what.as_str() {
+        "enable" => Some(Command::Enable),
+        "disable" => Some(Command::Disable),
+        "clear-fault" => Some(Command::ClearFault),
+        "status" => Some(Command::GetStatus),
+        "speed" => Some(Command::SetReference(Reference::Speed(value("speed")?))),
+        "position" => Some(Command::SetReference(Reference::Position(value("position")?))),
+        "torque" => Some(Command::SetReference(Reference::Torque(value("torque")?))),
+        "telemetry" => None,
+        other => return Err(format!("unknown link command `{other}`")),
+    };
+    // 115200 baud, raw bytes, reads return after 2 s without data.
+    let st = std::process::Command::new("stty")
+        .args(["-F", dev, "115200", "raw", "-echo", "min", "0", "time", "20"])
+        .status()
+        .map_err(|e| format!("cannot run stty: {e}"))?;
+    if !st.success() {
+        return Err(format!("stty could not configure {dev}"));
+    }
+    let port =
+        std::fs::OpenOptions::new().read(true).write(true).open(dev).map_err(|e| format!("{dev}: {e}"))?;
+    let rx = port.try_clone().map_err(|e| format!("{dev}: {e}"))?;
+    let mut link = hil_sim::link_client::LinkClient::new(rx, port);
+    let no_answer = |e: String| format!("{e} (no answer from the board within 2 s?)");
+    match cmd {
+        Some(c) => println!("{:?}", link.transact(&c).map_err(no_answer)?),
+        None => {
+            let n = match args.get(2) {
+                Some(v) => v.parse::<u32>().map_err(|_| format!("`{v}` is not a count"))?,
+                None => 10,
+            };
+            for _ in 0..n {
+                println!("{:?}", link.next_reply().map_err(no_answer)?);
+            }
+        }
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let builtins = match scenario::all() {
@@ -226,6 +283,13 @@ fn main() -> ExitCode {
         }
     };
     match args.first().map(String::as_str) {
+        Some("link") => match board_link(args.get(1..).unwrap_or_default()) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("hil-sim: {e}");
+                ExitCode::FAILURE
+            }
+        },
         Some("list") => {
             for b in &builtins {
                 println!("{:<20} {}", b.name, b.about);

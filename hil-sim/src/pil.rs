@@ -17,11 +17,11 @@
 //! Opening a FIFO blocks until the other side opens it; the opens run on a helper thread
 //! while this one watches QEMU, so a target that dies at start-up is an error, not a hang.
 
+use crate::link_client::LinkClient;
 use crate::sim::DriveUnderTest;
 use controller_core::drive::{DriveSpec, FastOutput, Measurements, Reference};
-use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
+use controller_core::link::{Command, LinkStats, Reply};
 use std::fs::File;
-use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Stdio};
 use std::time::{Duration, Instant};
@@ -83,14 +83,8 @@ pub struct Pil {
     restore_affinity: Option<(String, String)>,
     qemu: Child,
     dir: PathBuf,
-    to_mcu: File,
-    from_mcu: File,
-    decoder: FrameDecoder,
-    input: Vec<u8>,
-    input_pos: usize,
-    stats: LinkStats,
+    link: LinkClient<File, File>,
     slow_divider: u16,
-    round_trips: u64,
 }
 
 impl Pil {
@@ -166,14 +160,8 @@ impl Pil {
             restore_affinity,
             qemu,
             dir,
-            to_mcu,
-            from_mcu,
-            decoder: FrameDecoder::new(),
-            input: vec![0; 4096],
-            input_pos: 0,
-            stats: LinkStats::default(),
+            link: LinkClient::new(from_mcu, to_mcu),
             slow_divider: spec.slow_divider,
-            round_trips: 0,
         };
         match pil.transact(&Command::Configure(*spec))? {
             Reply::Ack => Ok(pil),
@@ -188,54 +176,22 @@ impl Pil {
 
     /// Round trips so far.
     pub fn round_trips(&self) -> u64 {
-        self.round_trips
+        self.link.round_trips()
     }
 
     /// Counters of the host-side receiver.
     pub fn stats(&self) -> LinkStats {
-        self.stats
+        self.link.stats()
     }
 
     /// Send `cmd`, wait for its reply.
     pub fn transact(&mut self, cmd: &Command) -> Result<Reply, String> {
-        let mut frame = [0u8; MAX_FRAME];
-        let n = link::command_frame(cmd, &mut frame).map_err(|_| "command does not fit a frame")?;
-        self.to_mcu
-            .write_all(frame.get(..n).unwrap_or_default())
-            .map_err(|e| format!("link to the target broken: {e}{}", self.qemu_log()))?;
-        self.round_trips += 1;
-        loop {
-            while self.input_pos < self.input.len() {
-                let b = self.input[self.input_pos];
-                self.input_pos += 1;
-                match self.decoder.push(b) {
-                    None => {}
-                    Some(Err(e)) => self.stats.count_frame(e),
-                    Some(Ok(p)) => match Reply::decode(p) {
-                        Ok(r) => {
-                            self.stats.frames_ok += 1;
-                            return Ok(r);
-                        }
-                        Err(e) => self.stats.count_decode(e),
-                    },
-                }
-            }
-            self.input.resize(4096, 0);
-            let n = self
-                .from_mcu
-                .read(&mut self.input)
-                .map_err(|e| format!("link from the target broken: {e}{}", self.qemu_log()))?;
-            if n == 0 {
-                return Err(format!("the target closed the link{}", self.qemu_log()));
-            }
-            self.input.truncate(n);
-            self.input_pos = 0;
-        }
+        self.link.transact(cmd).map_err(|e| format!("{e}{}", self.qemu_log()))
     }
 
     /// Write raw bytes to the target (for link tests: corrupt frames, noise).
     pub fn send_raw(&mut self, bytes: &[u8]) -> Result<(), String> {
-        self.to_mcu.write_all(bytes).map_err(|e| format!("link to the target broken: {e}"))
+        self.link.send_raw(bytes).map_err(|e| format!("link to the target broken: {e}"))
     }
 
     fn qemu_log(&self) -> String {
@@ -279,8 +235,8 @@ impl Drop for Pil {
     fn drop(&mut self) {
         // Closing to_mcu makes the target read end-of-file and exit; kill it if it does not.
         let deadline = Instant::now() + Duration::from_secs(2);
-        if let Ok(f) = File::open("/dev/null") {
-            self.to_mcu = f;
+        if let (Ok(r), Ok(w)) = (File::open("/dev/null"), File::create("/dev/null")) {
+            self.link = LinkClient::new(r, w);
         }
         while Instant::now() < deadline {
             if let Ok(Some(_)) = self.qemu.try_wait() {

@@ -1,0 +1,136 @@
+//! Host side of the `controller_core::link` protocol over any byte stream: the FIFOs of the
+//! processor-in-the-loop run ([`crate::pil`]) and the board's serial port (`hil-sim link`).
+//!
+//! One command, one reply. The board also streams `Output` telemetry on its own; a reply to
+//! anything but `Step` therefore skips `Output` frames ([`LinkClient::transact`]).
+
+use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
+use std::io::{Read, Write};
+
+/// A link endpoint on a reader and a writer.
+#[derive(Debug)]
+pub struct LinkClient<R, W> {
+    rx: R,
+    tx: W,
+    decoder: FrameDecoder,
+    input: Vec<u8>,
+    input_pos: usize,
+    stats: LinkStats,
+    round_trips: u64,
+}
+
+impl<R: Read, W: Write> LinkClient<R, W> {
+    /// A client reading replies from `rx` and writing commands to `tx`.
+    pub fn new(rx: R, tx: W) -> Self {
+        Self {
+            rx,
+            tx,
+            decoder: FrameDecoder::new(),
+            input: Vec::new(),
+            input_pos: 0,
+            stats: LinkStats::default(),
+            round_trips: 0,
+        }
+    }
+
+    /// Commands sent so far.
+    pub fn round_trips(&self) -> u64 {
+        self.round_trips
+    }
+
+    /// Counters of the receiver (frames accepted and rejected by kind).
+    pub fn stats(&self) -> LinkStats {
+        self.stats
+    }
+
+    /// Write raw bytes (link tests: corrupt frames, noise).
+    pub fn send_raw(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.tx.write_all(bytes)?;
+        self.tx.flush()
+    }
+
+    /// Send `cmd` and return its reply (for anything but `Step`, streamed `Output` frames
+    /// are skipped).
+    pub fn transact(&mut self, cmd: &Command) -> Result<Reply, String> {
+        let mut frame = [0u8; MAX_FRAME];
+        let n = link::command_frame(cmd, &mut frame).map_err(|_| "command does not fit a frame")?;
+        self.send_raw(frame.get(..n).unwrap_or_default()).map_err(|e| format!("link broken (write): {e}"))?;
+        self.round_trips += 1;
+        loop {
+            let r = self.next_reply()?;
+            if matches!(cmd, Command::Step(_)) || !matches!(r, Reply::Output(_)) {
+                return Ok(r);
+            }
+        }
+    }
+
+    /// The next well-formed frame from the other side (rejected frames are counted).
+    pub fn next_reply(&mut self) -> Result<Reply, String> {
+        loop {
+            while let Some(&b) = self.input.get(self.input_pos) {
+                self.input_pos += 1;
+                match self.decoder.push(b) {
+                    None => {}
+                    Some(Err(e)) => self.stats.count_frame(e),
+                    Some(Ok(p)) => match Reply::decode(p) {
+                        Ok(r) => {
+                            self.stats.frames_ok += 1;
+                            return Ok(r);
+                        }
+                        Err(e) => self.stats.count_decode(e),
+                    },
+                }
+            }
+            self.input.resize(4096, 0);
+            let n = self.rx.read(&mut self.input).map_err(|e| format!("link broken (read): {e}"))?;
+            if n == 0 {
+                return Err("the other side closed the link".into());
+            }
+            self.input.truncate(n);
+            self.input_pos = 0;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controller_core::drive::{FastOutput, Mode, PhaseCommand, Telemetry};
+
+    fn frames(replies: &[Reply]) -> Vec<u8> {
+        let mut out = Vec::new();
+        for r in replies {
+            let mut f = [0u8; MAX_FRAME];
+            let n = link::reply_frame(r, &mut f).unwrap();
+            out.extend_from_slice(&f[..n]);
+        }
+        out
+    }
+
+    #[test]
+    fn a_command_reply_skips_streamed_telemetry_and_noise() {
+        let telemetry = Reply::Output(FastOutput {
+            phases: PhaseCommand::Off,
+            mode: Mode::Idle,
+            telemetry: Telemetry::default(),
+        });
+        let mut wire = frames(&[telemetry, telemetry]);
+        wire.extend([0x13, 0x37, 0x00]); // noise: a bad frame
+        wire.extend(frames(&[Reply::Ack, telemetry]));
+        let mut sent = Vec::new();
+        let mut c = LinkClient::new(wire.as_slice(), &mut sent);
+        assert_eq!(c.transact(&Command::Enable).unwrap(), Reply::Ack);
+        assert_eq!(c.stats().frames_ok, 3);
+        assert_eq!(c.stats().errors(), 1);
+        // A Step takes the next Output.
+        assert_eq!(c.transact(&Command::Step(Default::default())).unwrap(), telemetry);
+        // Then the stream ends.
+        assert!(c.transact(&Command::GetStatus).unwrap_err().contains("closed"));
+        drop(c);
+        // What went out decodes to the three commands.
+        let mut d = FrameDecoder::new();
+        let got: Vec<Command> =
+            sent.iter().filter_map(|&b| d.push(b).map(|p| Command::decode(p.unwrap()).unwrap())).collect();
+        assert_eq!(got, [Command::Enable, Command::Step(Default::default()), Command::GetStatus]);
+    }
+}
