@@ -235,9 +235,9 @@ mod target {
     ///
     /// Time budget: one period is 50 µs = 8 500 cycles at 170 MHz. The control step executes
     /// ≈ 673 instructions (fast step) plus ≈ 91 every 10th period (slow step), counted under
-    /// QEMU (`cargo xtask qemu`, `qemu-target/src/bin/cost.rs`); with FPU divide/sqrt
-    /// latencies and flash wait states that is of the order of 1 000–1 500 cycles, under 20 %
-    /// of the period (to be confirmed with DWT CYCCNT on the board). The compare values
+    /// QEMU (`cargo xtask qemu`, `qemu-target/src/bin/cost.rs`): 8 % of the period at one
+    /// cycle per instruction. The real cycle count (FPU divide latency, flash wait states)
+    /// is still to be measured on the board with DWT CYCCNT. The compare values
     /// written here take effect at the next update event (preload), i.e. one period after
     /// sampling — the delay the simulator models.
     #[interrupt]
