@@ -30,8 +30,8 @@
 //! vdc_max_v = 400.0
 //!
 //! [load]                           # optional: "torque" (events only, default),
-//! kind = "eddy_brake"              # "eddy_brake" with k_nm_s_rad, or "locked_rotor"
-//! k_nm_s_rad = 0.002
+//! kind = "eddy_brake"              # "eddy_brake" with k_nm_s_rad, "locked_rotor", or
+//! k_nm_s_rad = 0.002               # "coulomb_friction" with friction_nm
 //!
 //! [inverter]                       # optional: "average" (default) or
 //! kind = "switching"               # carrier comparison with dead time
@@ -167,6 +167,7 @@ enum LoadFile {
     Torque,
     EddyBrake { k_nm_s_rad: f64 },
     LockedRotor,
+    CoulombFriction { friction_nm: f64 },
 }
 
 #[derive(Debug, Deserialize)]
@@ -370,6 +371,12 @@ pub fn parse(file: &Path, text: &str) -> Result<Builtin, ConfigError> {
             LoadModel::EddyBrake { k_nm_s_rad }
         }
         Some(LoadFile::LockedRotor) => LoadModel::LockedRotor,
+        Some(LoadFile::CoulombFriction { friction_nm }) => {
+            if !(friction_nm.is_finite() && friction_nm >= 0.0) {
+                return Err(err("load.friction_nm", "must be finite and ≥ 0".into()));
+            }
+            LoadModel::CoulombFriction { friction_nm }
+        }
     };
     let s = &f.sensors;
     let finite = s.current_lsb_a.is_finite() && s.current_noise_rms_a.is_finite() && s.vdc_lsb_v.is_finite();
@@ -455,5 +462,16 @@ mod tests {
         assert!(e.to_string().contains("lqr"), "{e}");
         let e = err(&FIG16.replace("t_s = 0.3", "t_s = -1.0"));
         assert_eq!(e.key.as_deref(), Some("events[1].t_s"));
+    }
+
+    #[test]
+    fn coulomb_friction_load() {
+        let with = |load: &str| format!("{FIG16}\n[load]\n{load}\n");
+        let f = parse(Path::new("c.toml"), &with("kind = \"coulomb_friction\"\nfriction_nm = 0.05")).unwrap();
+        assert_eq!(f.scenario.load, LoadModel::CoulombFriction { friction_nm: 0.05 });
+        let e = err(&with("kind = \"coulomb_friction\"\nfriction_nm = -0.05"));
+        assert_eq!(e.key.as_deref(), Some("load.friction_nm"));
+        let e = err(&with("kind = \"coulomb_friction\""));
+        assert!(e.to_string().contains("friction_nm"), "{e}");
     }
 }

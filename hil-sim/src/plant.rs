@@ -62,6 +62,8 @@ pub struct Machine {
     p: f64,
     inv_j: f64,
     b_nms: f64,
+    /// Coulomb (dry) friction torque magnitude, N·m.
+    coulomb_nm: f64,
 }
 
 impl Machine {
@@ -79,6 +81,7 @@ impl Machine {
             p: f64::from(m.pole_pairs()),
             inv_j: 1.0 / m.j_kgm2(),
             b_nms: m.b_nms(),
+            coulomb_nm: 0.0,
         }
     }
 
@@ -107,7 +110,15 @@ impl Machine {
     /// The same machine with its speed held (infinite inertia, no friction): for
     /// locked-rotor and fixed-slip tests.
     pub fn speed_locked(&self) -> Self {
-        Self { inv_j: 0.0, b_nms: 0.0, ..*self }
+        Self { inv_j: 0.0, b_nms: 0.0, coulomb_nm: 0.0, ..*self }
+    }
+
+    /// The same machine with Coulomb friction of magnitude `t_c_nm`: −T_c·sign(ω_m) while
+    /// turning; at rest it holds up to T_c of driving torque (stiction = Coulomb level).
+    /// A step in which ω_m crosses zero ends at rest ([`Machine::rk4_source`]), so the
+    /// fixed-step integration cannot chatter around zero.
+    pub fn with_coulomb_friction(&self, t_c_nm: f64) -> Self {
+        Self { coulomb_nm: t_c_nm.abs(), ..*self }
     }
 
     /// The same machine with an extra viscous load `k_nm_s_rad` (an eddy-current brake,
@@ -116,16 +127,24 @@ impl Machine {
         Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }
     }
 
-    fn derivative(&self, x: [f64; 6], v: [f64; 2], load_nm: f64) -> [f64; 6] {
+    /// `moving`: the sign of ω_m at the start of the step (0 at rest). Kinetic friction keeps
+    /// that direction for the whole step; at rest, static friction balances up to T_c.
+    fn derivative(&self, x: [f64; 6], v: [f64; 2], load_nm: f64, moving: f64) -> [f64; 6] {
         let [ia, ib, pa, pb, w, _] = x;
         let wr = self.p * w;
         let te = self.torque_factor * (pa * ib - pb * ia);
+        let drive_nm = te - self.b_nms * w - load_nm;
+        let friction_nm = if moving != 0.0 {
+            moving * self.coulomb_nm
+        } else {
+            drive_nm.clamp(-self.coulomb_nm, self.coulomb_nm)
+        };
         [
             self.a * ia + self.b * self.rr_lr * pa + self.b * wr * pb + v[0] * self.inv_sigma_ls,
             self.a * ib - self.b * wr * pa + self.b * self.rr_lr * pb + v[1] * self.inv_sigma_ls,
             self.lm_rr_lr * ia - self.rr_lr * pa - wr * pb,
             self.lm_rr_lr * ib + wr * pa - self.rr_lr * pb,
-            (te - self.b_nms * w - load_nm) * self.inv_j,
+            (drive_nm - friction_nm) * self.inv_j,
             w,
         ]
     }
@@ -149,19 +168,69 @@ impl Machine {
         let x0 = x.to_array();
         let add = |x: [f64; 6], k: [f64; 6], s: f64| std::array::from_fn(|n| x[n] + s * k[n]);
         let v_mid = v(t_s + h_s / 2.0);
-        let k1 = self.derivative(x0, v(t_s), load_nm);
-        let k2 = self.derivative(add(x0, k1, h_s / 2.0), v_mid, load_nm);
-        let k3 = self.derivative(add(x0, k2, h_s / 2.0), v_mid, load_nm);
-        let k4 = self.derivative(add(x0, k3, h_s), v(t_s + h_s), load_nm);
-        MachineState::from_array(std::array::from_fn(|n| {
+        let moving = if x.omega_m_rad_s > 0.0 {
+            1.0
+        } else if x.omega_m_rad_s < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        let k1 = self.derivative(x0, v(t_s), load_nm, moving);
+        let k2 = self.derivative(add(x0, k1, h_s / 2.0), v_mid, load_nm, moving);
+        let k3 = self.derivative(add(x0, k2, h_s / 2.0), v_mid, load_nm, moving);
+        let k4 = self.derivative(add(x0, k3, h_s), v(t_s + h_s), load_nm, moving);
+        let mut x1 = MachineState::from_array(std::array::from_fn(|n| {
             x0[n] + h_s / 6.0 * (k1[n] + 2.0 * k2[n] + 2.0 * k3[n] + k4[n])
-        }))
+        }));
+        // Kinetic friction would reverse the rotor within this step: it stops instead.
+        if self.coulomb_nm > 0.0 && moving != 0.0 && moving * x1.omega_m_rad_s <= 0.0 {
+            x1.omega_m_rad_s = 0.0;
+        }
+        x1
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Coulomb friction T_c = 0.1 N·m, no viscous friction, J = 0.005: coast-down from
+    /// 10 rad/s with no torque stops at t = J·ω₀/T_c = 0.5 s and stays at rest (no chatter);
+    /// at rest, a load of 0.08 N·m (< T_c) does not move it, 0.15 N·m accelerates it at
+    /// (0.15 − 0.1)/J = 10 rad/s².
+    #[test]
+    fn coulomb_friction_coast_down_stiction_and_breakaway() {
+        let mp = MotorParams::new(16.2, 23.2, 1.44, 1.5, 1.42, 1, 0.005, 0.0).unwrap();
+        let m = Machine::new(&mp).with_coulomb_friction(0.1);
+        let h = 5e-5;
+        let mut x = MachineState { omega_m_rad_s: 10.0, ..Default::default() };
+        let mut t_stop = None;
+        for k in 0..20_000 {
+            x = m.rk4(&x, [0.0, 0.0], 0.0, h);
+            if t_stop.is_none() && x.omega_m_rad_s == 0.0 {
+                t_stop = Some((k + 1) as f64 * h);
+            }
+            if t_stop.is_some() {
+                assert_eq!(x.omega_m_rad_s, 0.0, "chatter at step {k}");
+            }
+        }
+        let t_stop = t_stop.expect("stops");
+        assert!((t_stop - 0.5).abs() <= h, "stopped at {t_stop} s");
+        // Stiction.
+        let rest = MachineState::default();
+        let mut y = rest;
+        for _ in 0..1000 {
+            y = m.rk4(&y, [0.0, 0.0], -0.08, h);
+        }
+        assert_eq!(y.omega_m_rad_s, 0.0);
+        // Breakaway: load −0.15 N·m drives it (the sign convention: T_L opposes T_e).
+        let mut z = rest;
+        for _ in 0..2000 {
+            z = m.rk4(&z, [0.0, 0.0], -0.15, h);
+        }
+        let a = z.omega_m_rad_s / (2000.0 * h);
+        assert!((a - 10.0).abs() < 1e-6, "acceleration {a}");
+    }
 
     fn delorenzo() -> MotorParams {
         MotorParams::delorenzo_dl10115a1().unwrap()

@@ -70,6 +70,11 @@ pub enum LoadModel {
     },
     /// Rotor held at standstill.
     LockedRotor,
+    /// Coulomb (dry) friction of magnitude `friction_nm` (plus the event torque).
+    CoulombFriction {
+        /// N·m.
+        friction_nm: f64,
+    },
 }
 
 /// A closed-loop run.
@@ -129,6 +134,7 @@ pub fn run(
         LoadModel::Torque => *machine,
         LoadModel::EddyBrake { k_nm_s_rad } => machine.with_eddy_brake(k_nm_s_rad),
         LoadModel::LockedRotor => machine.speed_locked(),
+        LoadModel::CoulombFriction { friction_nm } => machine.with_coulomb_friction(friction_nm),
     };
     let h = ts / f64::from(sc.substeps.max(1));
     let n = (sc.duration_s / ts).round() as u64;
