@@ -115,8 +115,8 @@ impl Machine {
 
     /// The same machine with Coulomb friction of magnitude `t_c_nm`: −T_c·sign(ω_m) while
     /// turning; at rest it holds up to T_c of driving torque (stiction = Coulomb level).
-    /// A step in which ω_m crosses zero ends at rest ([`Machine::rk4_source`]), so the
-    /// fixed-step integration cannot chatter around zero.
+    /// The friction torque is fixed at each RK4 step's start, and a step in which ω_m would
+    /// change sign ends at rest, so the fixed-step integration cannot chatter around zero.
     pub fn with_coulomb_friction(&self, t_c_nm: f64) -> Self {
         Self { coulomb_nm: t_c_nm.abs(), ..*self }
     }
@@ -127,26 +127,38 @@ impl Machine {
         Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }
     }
 
-    /// `moving`: the sign of ω_m at the start of the step (0 at rest). Kinetic friction keeps
-    /// that direction for the whole step; at rest, static friction balances up to T_c.
-    fn derivative(&self, x: [f64; 6], v: [f64; 2], load_nm: f64, moving: f64) -> [f64; 6] {
+    /// `friction_nm`: the Coulomb friction torque, held over the step (see
+    /// [`Machine::rk4_source`]); the inner evaluation stays branch-free.
+    #[inline(always)]
+    fn derivative(&self, x: [f64; 6], v: [f64; 2], load_nm: f64, friction_nm: f64) -> [f64; 6] {
         let [ia, ib, pa, pb, w, _] = x;
         let wr = self.p * w;
         let te = self.torque_factor * (pa * ib - pb * ia);
-        let drive_nm = te - self.b_nms * w - load_nm;
-        let friction_nm = if moving != 0.0 {
-            moving * self.coulomb_nm
-        } else {
-            drive_nm.clamp(-self.coulomb_nm, self.coulomb_nm)
-        };
         [
             self.a * ia + self.b * self.rr_lr * pa + self.b * wr * pb + v[0] * self.inv_sigma_ls,
             self.a * ib - self.b * wr * pa + self.b * self.rr_lr * pb + v[1] * self.inv_sigma_ls,
             self.lm_rr_lr * ia - self.rr_lr * pa - wr * pb,
             self.lm_rr_lr * ib + wr * pa - self.rr_lr * pb,
-            (drive_nm - friction_nm) * self.inv_j,
+            (te - self.b_nms * w - load_nm - friction_nm) * self.inv_j,
             w,
         ]
+    }
+
+    /// Coulomb friction for a step starting at `x`: kinetic (±T_c against the motion) while
+    /// turning; at rest, static friction balancing the driving torque at the step's start,
+    /// up to T_c.
+    fn coulomb_torque_nm(&self, x: &MachineState, load_nm: f64) -> f64 {
+        let w = x.omega_m_rad_s;
+        if self.coulomb_nm == 0.0 {
+            0.0
+        } else if w > 0.0 {
+            self.coulomb_nm
+        } else if w < 0.0 {
+            -self.coulomb_nm
+        } else {
+            let drive_nm = self.torque_nm(x) - load_nm;
+            drive_nm.max(-self.coulomb_nm).min(self.coulomb_nm)
+        }
     }
 
     /// One RK4 step of `h_s` seconds with stator voltage `v_ab_v` and load torque held
@@ -168,22 +180,16 @@ impl Machine {
         let x0 = x.to_array();
         let add = |x: [f64; 6], k: [f64; 6], s: f64| std::array::from_fn(|n| x[n] + s * k[n]);
         let v_mid = v(t_s + h_s / 2.0);
-        let moving = if x.omega_m_rad_s > 0.0 {
-            1.0
-        } else if x.omega_m_rad_s < 0.0 {
-            -1.0
-        } else {
-            0.0
-        };
-        let k1 = self.derivative(x0, v(t_s), load_nm, moving);
-        let k2 = self.derivative(add(x0, k1, h_s / 2.0), v_mid, load_nm, moving);
-        let k3 = self.derivative(add(x0, k2, h_s / 2.0), v_mid, load_nm, moving);
-        let k4 = self.derivative(add(x0, k3, h_s), v(t_s + h_s), load_nm, moving);
+        let friction_nm = self.coulomb_torque_nm(x, load_nm);
+        let k1 = self.derivative(x0, v(t_s), load_nm, friction_nm);
+        let k2 = self.derivative(add(x0, k1, h_s / 2.0), v_mid, load_nm, friction_nm);
+        let k3 = self.derivative(add(x0, k2, h_s / 2.0), v_mid, load_nm, friction_nm);
+        let k4 = self.derivative(add(x0, k3, h_s), v(t_s + h_s), load_nm, friction_nm);
         let mut x1 = MachineState::from_array(std::array::from_fn(|n| {
             x0[n] + h_s / 6.0 * (k1[n] + 2.0 * k2[n] + 2.0 * k3[n] + k4[n])
         }));
         // Kinetic friction would reverse the rotor within this step: it stops instead.
-        if self.coulomb_nm > 0.0 && moving != 0.0 && moving * x1.omega_m_rad_s <= 0.0 {
+        if self.coulomb_nm > 0.0 && x.omega_m_rad_s * x1.omega_m_rad_s < 0.0 {
             x1.omega_m_rad_s = 0.0;
         }
         x1
