@@ -360,6 +360,16 @@ pub enum Command {
     Step(Measurements),
     /// Ask for the drive's status and link counters; answered by `Status`.
     GetStatus,
+    /// Replace the saturated-P speed-loop gains (seed 002 eq. (21)) while Idle; the board
+    /// accepts only values inside the certified ranges of `gains.toml`.
+    WriteSpeedGains {
+        /// N·m per rad/s.
+        kp: f32,
+        /// Torque limit τ_max, N·m.
+        tau_max_nm: f32,
+    },
+    /// Ask for the speed-loop gains; answered by `SpeedGains`.
+    ReadSpeedGains,
 }
 
 /// Why a command was refused.
@@ -377,6 +387,8 @@ pub enum NackReason {
     Unsupported,
     /// No drive configuration yet: send `Configure` first.
     NotConfigured,
+    /// A gain outside the certified range.
+    OutOfCertifiedRange,
 }
 
 /// Drive → host.
@@ -388,6 +400,13 @@ pub enum Reply {
     Nack(NackReason),
     /// Result of a `Step`, or streamed telemetry of the board.
     Output(FastOutput),
+    /// The saturated-P speed-loop gains in use.
+    SpeedGains {
+        /// N·m per rad/s.
+        kp: f32,
+        /// Torque limit τ_max, N·m.
+        tau_max_nm: f32,
+    },
     /// Mode and the receiver's counters.
     Status {
         /// Drive mode.
@@ -407,10 +426,13 @@ mod tag {
     pub const SET_REFERENCE: u8 = 0x05;
     pub const STEP: u8 = 0x06;
     pub const GET_STATUS: u8 = 0x07;
+    pub const WRITE_SPEED_GAINS: u8 = 0x08;
+    pub const READ_SPEED_GAINS: u8 = 0x09;
     pub const ACK: u8 = 0x81;
     pub const NACK: u8 = 0x82;
     pub const OUTPUT: u8 = 0x83;
     pub const STATUS: u8 = 0x84;
+    pub const SPEED_GAINS: u8 = 0x85;
 }
 
 fn write_reference(w: &mut Writer<'_>, r: Reference) -> Result<(), BufferFull> {
@@ -610,6 +632,12 @@ impl Command {
                 w.f32(m.theta_m_rad)?;
             }
             Command::GetStatus => w.u8(tag::GET_STATUS)?,
+            Command::WriteSpeedGains { kp, tau_max_nm } => {
+                w.u8(tag::WRITE_SPEED_GAINS)?;
+                w.f32(*kp)?;
+                w.f32(*tau_max_nm)?;
+            }
+            Command::ReadSpeedGains => w.u8(tag::READ_SPEED_GAINS)?,
         }
         Ok(w.n)
     }
@@ -631,6 +659,8 @@ impl Command {
                 theta_m_rad: r.f32()?,
             }),
             tag::GET_STATUS => Command::GetStatus,
+            tag::WRITE_SPEED_GAINS => Command::WriteSpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
+            tag::READ_SPEED_GAINS => Command::ReadSpeedGains,
             other => return Err(DecodeError::UnknownType(other)),
         };
         r.finish()?;
@@ -653,6 +683,7 @@ impl Reply {
                     NackReason::NotIdle => 3,
                     NackReason::Unsupported => 4,
                     NackReason::NotConfigured => 5,
+                    NackReason::OutOfCertifiedRange => 6,
                 })?;
             }
             Reply::Output(o) => {
@@ -675,6 +706,11 @@ impl Reply {
                 for v in [t.theta_e_rad, t.omega_sl_rad_s, t.psi_r_wb, t.i_q_ref_a, t.omega_ref_rad_s] {
                     w.f32(v)?;
                 }
+            }
+            Reply::SpeedGains { kp, tau_max_nm } => {
+                w.u8(tag::SPEED_GAINS)?;
+                w.f32(*kp)?;
+                w.f32(*tau_max_nm)?;
             }
             Reply::Status { mode, frames_ok, frame_errors } => {
                 w.u8(tag::STATUS)?;
@@ -699,6 +735,7 @@ impl Reply {
                 3 => NackReason::NotIdle,
                 4 => NackReason::Unsupported,
                 5 => NackReason::NotConfigured,
+                6 => NackReason::OutOfCertifiedRange,
                 _ => return Err(DecodeError::Value),
             }),
             tag::OUTPUT => {
@@ -720,6 +757,7 @@ impl Reply {
                 };
                 Reply::Output(FastOutput { phases, mode, telemetry })
             }
+            tag::SPEED_GAINS => Reply::SpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
             tag::STATUS => Reply::Status {
                 mode: mode_from_code(r.u8()?)?,
                 frames_ok: u32::from_le_bytes(r.take()?),
@@ -734,7 +772,8 @@ impl Reply {
 
 /// Carry out `cmd` on `drive` and say how it went — the command handling shared by the
 /// processor-in-the-loop server and the firmware (which refuses `Step` itself: on the board
-/// the measurements come from the ADC). `Configure` replaces the drive only while it is
+/// the measurements come from the ADC, and handles the speed-gain commands, which need the
+/// specification and the certified ranges it keeps). `Configure` replaces the drive only while it is
 /// Idle or faulted, with a configuration validated by [`DriveConfig::new`].
 pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
     match cmd {
@@ -764,6 +803,8 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
         Command::GetStatus => {
             Reply::Status { mode: drive.mode(), frames_ok: stats.frames_ok, frame_errors: stats.errors() }
         }
+        // Gains live in the specification, which the board keeps (firmware `server`).
+        Command::WriteSpeedGains { .. } | Command::ReadSpeedGains => Reply::Nack(NackReason::Unsupported),
     }
 }
 
@@ -874,6 +915,8 @@ mod tests {
                 theta_m_rad: -1e-30,
             }),
             Command::GetStatus,
+            Command::WriteSpeedGains { kp: 0.05, tau_max_nm: 2.0 },
+            Command::ReadSpeedGains,
         ];
         let stream: Vec<u8> = cmds.iter().flat_map(frame_of).collect();
         let (got, stats) = decode_all(&stream);
@@ -902,6 +945,8 @@ mod tests {
                 telemetry: Telemetry::default(),
             }),
             Reply::Status { mode: Mode::Running, frames_ok: 7, frame_errors: u32::MAX },
+            Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 },
+            Reply::Nack(NackReason::OutOfCertifiedRange),
         ];
         for r in replies {
             let mut f = [0u8; MAX_FRAME];

@@ -35,6 +35,10 @@ pub struct CertifySpec {
     pub inductance_factor: [f64; 2],
     /// Multiplicative interval of J.
     pub j_factor: [f64; 2],
+    /// Saturated-P speed gain range the firmware accepts over its link, N·m per rad/s.
+    pub speed_kp_writable: [f64; 2],
+    /// τ_max range the firmware accepts over its link, N·m.
+    pub speed_tau_max_nm_writable: [f64; 2],
     /// Minimum phase margin of the individual channel, degrees.
     pub phase_margin_deg_min: f64,
     /// Minimum gain margin (increase and reduction), dB.
@@ -88,6 +92,23 @@ pub fn parse(path: &Path, text: &str) -> Result<(DriveSpec, CertifySpec), String
     }
     if !(c.omega_r_max_rad_s.is_finite() && c.omega_r_max_rad_s >= 0.0) {
         return bad("omega_r_max_rad_s", "must be finite and ≥ 0");
+    }
+    for (key, [lo, hi]) in [
+        ("speed_kp_writable", c.speed_kp_writable),
+        ("speed_tau_max_nm_writable", c.speed_tau_max_nm_writable),
+    ] {
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
+            return bad(key, "needs finite 0 < lo ≤ hi");
+        }
+    }
+    if let SpeedLaw::SaturatedP { kp, tau_max_nm } = spec.speed_law {
+        let inside = |x: f64, [lo, hi]: [f64; 2]| lo <= x && x <= hi;
+        if !inside(kp, c.speed_kp_writable) || !inside(tau_max_nm, c.speed_tau_max_nm_writable) {
+            return bad(
+                "speed_kp_writable",
+                "the configured speed gains must lie inside the writable ranges",
+            );
+        }
     }
     Ok((spec, c))
 }
@@ -176,8 +197,11 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
     let (j, b) = (m.j_kgm2(), m.b_nms());
     let (jl, jh) = (j * c.j_factor[0], j * c.j_factor[1]);
     let kt = m.torque_factor() * spec.flux_ref_wb;
+    // Saturated P: every kp the firmware accepts over its link (the writable range, which
+    // contains the configured one) — kp enters one coefficient, so the interval is exact.
+    let [kp_lo, kp_hi] = c.speed_kp_writable;
     let poly = match spec.speed_law {
-        SpeedLaw::SaturatedP { kp, .. } => IntervalPoly::new(&[jl, b + kp], &[jh, b + kp]),
+        SpeedLaw::SaturatedP { .. } => IntervalPoly::new(&[jl, b + kp_lo], &[jh, b + kp_hi]),
         SpeedLaw::PiTorque { kp, ki, .. } => IntervalPoly::new(&[jl, b + kp, ki], &[jh, b + kp, ki]),
         SpeedLaw::PiIq { kp, ki, .. } => {
             IntervalPoly::new(&[jl, b + kp * kt, ki * kt], &[jh, b + kp * kt, ki * kt])
@@ -189,7 +213,12 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
     let robust = poly.kharitonov().iter().all(crate::poly::Poly::is_hurwitz_routh);
     checks.push(Check {
         name: "speed: Kharitonov worst closed-loop pole Re (1/s)".into(),
-        corner: format!("J×[{}, {}]", c.j_factor[0], c.j_factor[1]),
+        corner: match spec.speed_law {
+            SpeedLaw::SaturatedP { .. } => {
+                format!("J×[{}, {}], kp∈[{kp_lo}, {kp_hi}]", c.j_factor[0], c.j_factor[1])
+            }
+            _ => format!("J×[{}, {}]", c.j_factor[0], c.j_factor[1]),
+        },
         value: Some(worst),
         limit: 0.0,
         pass: robust,
@@ -242,5 +271,11 @@ mod tests {
         );
         let bad = GAINS.replace("rs_factor = [1.0, 1.5]", "rs_factor = [1.5, 1.0]");
         assert!(parse(Path::new("g.toml"), &bad).unwrap_err().contains("certify.rs_factor"));
+        // The configured speed gain must lie in the range the firmware may be given.
+        let bad = GAINS.replace("speed_kp_writable = [0.02, 0.1]", "speed_kp_writable = [0.06, 0.1]");
+        assert!(parse(Path::new("g.toml"), &bad).unwrap_err().contains("writable"));
+        // A writable range reaching kp ≤ −B makes the speed loop not robustly stable.
+        let c_neg = CertifySpec { speed_kp_writable: [-0.01, 0.1], ..c };
+        assert!(certify(&spec, &c_neg).unwrap().iter().any(|ch| !ch.pass && ch.name.starts_with("speed")));
     }
 }

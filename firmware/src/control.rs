@@ -78,6 +78,8 @@ pub enum ControlError {
 /// Control loop state: the drive plus the converter scalings and the encoder estimator.
 #[derive(Clone, Debug)]
 pub struct ControlLoop {
+    spec: DriveSpec,
+    board: BoardConfig,
     drive: Drive,
     current: AdcScaling,
     vdc: AdcScaling,
@@ -108,6 +110,8 @@ impl ControlLoop {
         let encoder_cfg =
             EncoderConfig::new(board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
         Ok(Self {
+            spec: *spec,
+            board: *board,
             drive: Drive::new(cfg),
             current,
             vdc,
@@ -122,6 +126,17 @@ impl ControlLoop {
             count: 0,
             last: None,
         })
+    }
+
+    /// The specification in use.
+    pub fn spec(&self) -> &DriveSpec {
+        &self.spec
+    }
+
+    /// Rebuild everything for `spec` (validated); on error nothing changes.
+    pub fn reconfigure(&mut self, spec: &DriveSpec) -> Result<(), ControlError> {
+        *self = Self::new(spec, &self.board)?;
+        Ok(())
     }
 
     /// The drive (mode, telemetry, commands).

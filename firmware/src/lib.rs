@@ -14,3 +14,9 @@
 pub mod board;
 pub mod control;
 pub mod server;
+
+/// Gain ranges certified by `design certify gains.toml`, generated from `gains.toml` at
+/// build time: the firmware refuses gains outside them.
+pub mod certified {
+    include!(concat!(env!("OUT_DIR"), "/certified.rs"));
+}

@@ -1,19 +1,54 @@
 //! Command handling of the board's link (LPUART1, `controller_core::link` frames — the same
 //! as the processor-in-the-loop link).
 //!
-//! Accepted: `Enable`, `Disable`, `ClearFault`, `SetReference`, `GetStatus`. Refused with
-//! `Nack(Unsupported)`: `Step` (on the board the ADC provides the measurements) and
-//! `Configure` (the firmware runs the certified constants it was built with; writing gains
-//! over the link is not implemented).
+//! Accepted: `Enable`, `Disable`, `ClearFault`, `SetReference`, `GetStatus`,
+//! `ReadSpeedGains`, and `WriteSpeedGains` while Idle with both values inside the ranges
+//! certified in `gains.toml` ([`crate::certified`]; `Nack(OutOfCertifiedRange)` otherwise).
+//! Refused with `Nack(Unsupported)`: `Step` (on the board the ADC provides the
+//! measurements) and `Configure` (the rest of the constants are the certified ones the
+//! firmware was built with).
 
+use crate::certified;
 use crate::control::ControlLoop;
+use controller_core::drive::Mode;
 use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
+use controller_core::speed::SpeedLaw;
 
 /// Answer one command.
 pub fn handle(ctl: &mut ControlLoop, cmd: &Command, stats: &LinkStats) -> Reply {
     match cmd {
         Command::Step(_) | Command::Configure(_) => Reply::Nack(NackReason::Unsupported),
+        Command::ReadSpeedGains => match ctl.spec().speed_law {
+            SpeedLaw::SaturatedP { kp, tau_max_nm } => {
+                // Design values (f64) reported in the link's f32.
+                Reply::SpeedGains { kp: kp as f32, tau_max_nm: tau_max_nm as f32 }
+            }
+            _ => Reply::Nack(NackReason::Unsupported),
+        },
+        Command::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
         other => link::execute(ctl.drive_mut(), other, stats),
+    }
+}
+
+fn write_speed_gains(ctl: &mut ControlLoop, kp: f32, tau_max_nm: f32) -> Reply {
+    if !(kp.is_finite() && tau_max_nm.is_finite()) {
+        return Reply::Nack(NackReason::NonFinite);
+    }
+    let inside = |x: f32, (lo, hi): (f32, f32)| lo <= x && x <= hi;
+    if !inside(kp, certified::SPEED_KP) || !inside(tau_max_nm, certified::SPEED_TAU_MAX_NM) {
+        return Reply::Nack(NackReason::OutOfCertifiedRange);
+    }
+    if ctl.drive().mode() != Mode::Idle {
+        return Reply::Nack(NackReason::NotIdle);
+    }
+    if !matches!(ctl.spec().speed_law, SpeedLaw::SaturatedP { .. }) {
+        return Reply::Nack(NackReason::Unsupported);
+    }
+    let mut spec = *ctl.spec();
+    spec.speed_law = SpeedLaw::SaturatedP { kp: f64::from(kp), tau_max_nm: f64::from(tau_max_nm) };
+    match ctl.reconfigure(&spec) {
+        Ok(()) => Reply::Ack,
+        Err(_) => Reply::Nack(NackReason::Configuration),
     }
 }
 
@@ -21,7 +56,7 @@ pub fn handle(ctl: &mut ControlLoop, cmd: &Command, stats: &LinkStats) -> Reply 
 mod tests {
     use super::*;
     use crate::board::BOARD;
-    use controller_core::drive::{Measurements, Mode, Reference, example_spec};
+    use controller_core::drive::{Measurements, Reference, example_spec};
 
     #[test]
     fn commands_reach_the_drive_and_step_or_configure_are_refused() {
@@ -46,5 +81,30 @@ mod tests {
         );
         assert_eq!(handle(&mut c, &Command::Disable, &stats), Reply::Ack);
         assert_eq!(c.drive().mode(), Mode::Idle);
+    }
+
+    #[test]
+    fn speed_gains_are_written_only_inside_the_certified_ranges_and_while_idle() {
+        let mut c = ControlLoop::new(&example_spec().unwrap(), &BOARD).unwrap();
+        let s = LinkStats::default();
+        let read = |c: &mut ControlLoop| handle(c, &Command::ReadSpeedGains, &s);
+        assert_eq!(read(&mut c), Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 });
+        let (kp_lo, kp_hi) = certified::SPEED_KP;
+        let (tau_lo, tau_hi) = certified::SPEED_TAU_MAX_NM;
+        assert!((kp_lo, kp_hi, tau_lo, tau_hi) == (0.02, 0.1, 0.1, 2.0), "gains.toml ranges");
+        let write = |c: &mut ControlLoop, kp: f32, tau: f32| {
+            handle(c, &Command::WriteSpeedGains { kp, tau_max_nm: tau }, &s)
+        };
+        let out = Reply::Nack(NackReason::OutOfCertifiedRange);
+        assert_eq!(write(&mut c, kp_hi * 1.01, 1.0), out);
+        assert_eq!(write(&mut c, kp_lo * 0.99, 1.0), out);
+        assert_eq!(write(&mut c, 0.05, tau_hi + 0.1), out);
+        assert_eq!(write(&mut c, f32::NAN, 1.0), Reply::Nack(NackReason::NonFinite));
+        assert_eq!(read(&mut c), Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 }, "unchanged");
+        assert_eq!(write(&mut c, kp_hi, 1.5), Reply::Ack);
+        assert_eq!(read(&mut c), Reply::SpeedGains { kp: kp_hi, tau_max_nm: 1.5 });
+        // Not while the bridge is active.
+        assert_eq!(handle(&mut c, &Command::Enable, &s), Reply::Ack);
+        assert_eq!(write(&mut c, 0.05, 1.0), Reply::Nack(NackReason::NotIdle));
     }
 }

@@ -11,7 +11,7 @@
 //! `--no-pin` leaves QEMU and the simulator unpinned (slower).
 //!
 //! ```text
-//! hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | telemetry [N]>
+//! hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | gains | set-gains KP TAU | telemetry [N]>
 //! ```
 //! talks to the board's command/telemetry link on a serial device (e.g. `/dev/ttyACM0`, the
 //! NUCLEO's virtual COM port; set to 115200 baud raw with `stty`, 2 s read timeout) and
@@ -37,7 +37,7 @@ fn usage() -> ExitCode {
     eprintln!(
         "usage: hil-sim list\n       hil-sim run <scenario.toml | builtin> [--out DIR]\n       \
          hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]\n       \
-         hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | telemetry [N]>"
+         hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | gains | set-gains KP TAU | telemetry [N]>"
     );
     ExitCode::from(2)
 }
@@ -242,6 +242,13 @@ fn board_link(args: &[String]) -> Result<(), String> {
         "speed" => Some(Command::SetReference(Reference::Speed(value("speed")?))),
         "position" => Some(Command::SetReference(Reference::Position(value("position")?))),
         "torque" => Some(Command::SetReference(Reference::Torque(value("torque")?))),
+        "gains" => Some(Command::ReadSpeedGains),
+        "set-gains" => {
+            let kp = value("set-gains")?;
+            let tau = args.get(3).ok_or("`set-gains` needs KP and TAU_MAX")?;
+            let tau_max_nm = tau.parse::<f32>().map_err(|_| format!("`{tau}` is not a number"))?;
+            Some(Command::WriteSpeedGains { kp, tau_max_nm })
+        }
         "telemetry" => None,
         other => return Err(format!("unknown link command `{other}`")),
     };
