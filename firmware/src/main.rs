@@ -4,7 +4,8 @@
 //! validated ([`firmware::control::ControlLoop::new`]; an invalid one never enables the
 //! bridge) → TIM1 centre-aligned complementary PWM at 20 kHz with dead time and the break
 //! input → ADC1 injected conversions (three phase currents, bus voltage) triggered by TIM1
-//! TRGO2 at the counter's underflow (centre of the low-side conduction interval) → TIM4
+//! TRGO2 = OC4REF just before the counter's top (the centre of the low-side conduction
+//! interval, where low-side shunts carry the phase currents) → TIM4
 //! quadrature encoder → control interrupt → link and watchdog tasks.
 //!
 //! Priorities: the control interrupt `ADC1_2` (end of the injected sequence) is the only
@@ -30,6 +31,7 @@ mod target {
     use embassy_stm32::interrupt::{InterruptExt, Priority};
     use embassy_stm32::mode::Async;
     use embassy_stm32::pac;
+    use embassy_stm32::pac::timer::vals::Ocm;
     use embassy_stm32::peripherals::{
         IWDG, PA0, PA1, PA2, PA3, PA6, PA8, PA9, PA10, PB6, PB7, PB13, PB14, PB15, PC0, PC1, TIM1,
     };
@@ -173,9 +175,14 @@ mod target {
             pwm.set_duty(ch, u32::from(BOARD.pwm_period_counts / 2));
             pwm.enable(ch);
         }
-        // TRGO2 on the update event: with RCR = 1 one event per period, at the underflow.
-        pwm.set_repetition_counter(1);
-        pwm.set_mms2(Mms2::UPDATE);
+        // Sampling instant: the phases run PWM mode 1 (high side on while CNT < CCR), so the
+        // low sides conduct around the top of the count, CNT = ARR. Channel 4 (no pin) in
+        // PWM mode 2 with CCR4 = ARR − 1 raises OC4REF once per period just before the top;
+        // TRGO2 = OC4REF starts the injected conversions on that edge.
+        let arr = BOARD.pwm_period_counts;
+        pac::TIM1.ccmr_output(1).modify(|w| w.set_ocm(1, Ocm::PWM_MODE2));
+        pac::TIM1.ccr(3).modify(|w| w.set_ccr(arr - 1));
+        pwm.set_mms2(Mms2::COMPARE_OC4);
 
         // ADC1: four injected conversions per trigger, end-of-sequence interrupt.
         let adc = Adc::new(p.ADC1, Default::default());
