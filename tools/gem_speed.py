@@ -1,0 +1,72 @@
+#!/usr/bin/env python3
+"""Simulation speed, measured in one run: hil-sim's scenario 2 (`speed-step`: IFOC + ICAD
+speed step at a 20 kHz control rate, 3.5 s) against gym-electric-motor stepping the same
+motor (DeLorenzo DL10115A1, 310 V supply) at the same 50 µs step.
+
+    python3 tools/gem_speed.py [GEM_SECONDS]
+
+GEM runs its `Cont-CC-SCIM-v0` environment with an open-loop V/f voltage (20 Hz, 30 % of
+the bus) and no controller computed in Python, so its figure is an upper bound of GEM's
+speed on scenario 2 and the printed ratio a lower bound of hil-sim's advantage. hil-sim's
+figure is the median `real_time_factor` of three runs of the release binary. Needs: pip
+install gym-electric-motor.
+"""
+import json
+import math
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import gym_electric_motor as gem
+
+ROOT = Path(__file__).resolve().parent.parent
+TAU_S = 5e-5
+
+
+def hil_sim_factor() -> float:
+    subprocess.run(["cargo", "build", "-q", "--release", "-p", "hil-sim"], cwd=ROOT, check=True)
+    factors = []
+    with tempfile.TemporaryDirectory() as out:
+        for _ in range(3):
+            subprocess.run(
+                [str(ROOT / "target/release/hil-sim"), "run", "speed-step", "--out", out],
+                cwd=ROOT, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            )
+            factors.append(json.loads((Path(out) / "summary.json").read_text())["real_time_factor"])
+    return statistics.median(factors)
+
+
+def gem_factor(seconds: float) -> tuple[float, int]:
+    motor = dict(p=1, l_m=1.42, l_sigs=1.44 - 1.42, l_sigr=1.5 - 1.42, j_rotor=0.005, r_s=16.2, r_r=23.2)
+    env = gem.make("Cont-CC-SCIM-v0", tau=TAU_S, motor=dict(motor_parameter=motor), supply=dict(u_nominal=310.0))
+    env.reset(seed=1)
+    n = round(seconds / TAU_S)
+    resets = 0
+    t0 = time.perf_counter()
+    for k in range(n):
+        th = 2 * math.pi * 20.0 * k * TAU_S
+        a = 0.3 * np.array([math.cos(th), math.cos(th - 2 * math.pi / 3), math.cos(th + 2 * math.pi / 3)])
+        _, _, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            resets += 1
+            env.reset()
+    return n * TAU_S / (time.perf_counter() - t0), resets
+
+
+def main() -> int:
+    seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 1.0
+    ours = hil_sim_factor()
+    theirs, resets = gem_factor(seconds)
+    print(f"hil-sim speed-step (closed loop, 50 µs control period): {ours:8.1f}× real time (median of 3)")
+    print(f"gym-electric-motor SCIM env, same motor and step, no controller: {theirs:8.3f}× real time "
+          f"({seconds} s simulated, {resets} resets)")
+    print(f"ratio: hil-sim is {ours / theirs:.0f}× faster (a lower bound: GEM's figure has no controller)")
+    return 0 if ours > 0 and theirs > 0 else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
