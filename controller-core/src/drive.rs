@@ -29,7 +29,7 @@ use crate::discretize::Discretization;
 use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::ifoc::{IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
-use crate::num::Scalar;
+use crate::num::{Scalar, max_f32};
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
 use crate::svpwm;
 
@@ -469,7 +469,7 @@ impl Drive {
             return Some(Fault::NonFiniteInput);
         }
         let i = m.i_abc_a;
-        let i_peak = i.a.abs().max(i.b.abs()).max(i.c.abs());
+        let i_peak = max_f32(max_f32(i.a.abs(), i.b.abs()), i.c.abs()); // finite: checked above
         if i_peak > self.cfg.i_trip_a {
             return Some(Fault::Overcurrent);
         }

@@ -16,7 +16,7 @@
 
 use crate::frames::{AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::motor::MotorParams;
-use crate::num::Scalar;
+use crate::num::{Scalar, max_f32};
 
 /// Torque-producing command from the speed loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -121,7 +121,7 @@ impl IfocConfig {
         omega_m_rad_s: f32,
     ) -> IfocOutput {
         let i_d = (psi_ref_wb * self.inv_lm).limit(-self.i_max_a, self.i_max_a);
-        let psi = s.psi_r_wb.max(self.psi_min_wb);
+        let psi = max_f32(s.psi_r_wb, self.psi_min_wb);
         let i_q_wanted = match cmd {
             TorqueCommand::TorqueNm(t) => t / (self.torque_factor * psi),
             TorqueCommand::IqA(i) => i,

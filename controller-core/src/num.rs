@@ -14,6 +14,21 @@
 //!   wrapping quantity is the electrical angle (see [`crate::frames::wrap_angle`]).
 //! * Arithmetic in `T` never panics: f32 arithmetic cannot, and `Q32` saturates.
 
+/// The larger of `a` and `b` by comparison. Equal to `f32::max` for non-NaN inputs (up to
+/// the sign of a zero tie), but `f32::max` (IEEE maxNum) is a library call on the
+/// Cortex-M4F, whose FPU has no `vmaxnm`: ≈ 15 instructions against 2. For the fast path,
+/// where inputs are known finite; a NaN `b` is returned as is.
+#[inline]
+pub fn max_f32(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// The smaller of `a` and `b` by comparison (see [`max_f32`]).
+#[inline]
+pub fn min_f32(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
 use core::fmt::Debug;
 use core::ops::{Add, Mul, Neg, Sub};
 use fixed::types::I32F32;

@@ -16,6 +16,7 @@
 //! (zero voltage); the drive supervisor trips on such inputs before they get here.
 
 use crate::frames::{Abc, AlphaBeta};
+use crate::num::{max_f32, min_f32};
 
 /// Result of one modulation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,8 +45,9 @@ pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
         return zero;
     }
     let abc = v.inverse_clarke();
-    let max = abc.a.max(abc.b).max(abc.c);
-    let min = abc.a.min(abc.b).min(abc.c);
+    // Finite here (v is checked by the caller; non-finite spans return early below).
+    let max = max_f32(max_f32(abc.a, abc.b), abc.c);
+    let min = min_f32(min_f32(abc.a, abc.b), abc.c);
     let span = max - min;
     if !span.is_finite() {
         return zero;
