@@ -249,6 +249,44 @@ impl FrameDecoder {
     }
 }
 
+impl FrameDecoder {
+    /// Feed one byte; at the end of a frame that is a valid command return it. Every frame
+    /// is counted in `stats`: accepted, or by its error.
+    pub fn push_command(&mut self, byte: u8, stats: &mut LinkStats) -> Option<Command> {
+        self.push_message(byte, stats, Command::decode)
+    }
+
+    /// Feed one byte; at the end of a frame that is a valid reply return it (counted as
+    /// [`FrameDecoder::push_command`]).
+    pub fn push_reply(&mut self, byte: u8, stats: &mut LinkStats) -> Option<Reply> {
+        self.push_message(byte, stats, Reply::decode)
+    }
+
+    fn push_message<M>(
+        &mut self,
+        byte: u8,
+        stats: &mut LinkStats,
+        decode: impl FnOnce(&[u8]) -> Result<M, DecodeError>,
+    ) -> Option<M> {
+        match self.push(byte)? {
+            Err(e) => {
+                stats.count_frame(e);
+                None
+            }
+            Ok(payload) => match decode(payload) {
+                Ok(m) => {
+                    stats.frames_ok = stats.frames_ok.saturating_add(1);
+                    Some(m)
+                }
+                Err(e) => {
+                    stats.count_decode(e);
+                    None
+                }
+            },
+        }
+    }
+}
+
 /// Encode `payload` as a complete frame (CRC, COBS, delimiter) into `out`.
 pub fn encode_frame(payload: &[u8], out: &mut [u8]) -> Result<usize, BufferFull> {
     let mut raw = [0u8; MAX_PAYLOAD + 2];
@@ -848,17 +886,7 @@ mod tests {
         let mut stats = LinkStats::default();
         let mut got = Vec::new();
         for &b in bytes {
-            match d.push(b) {
-                None => {}
-                Some(Err(e)) => stats.count_frame(e),
-                Some(Ok(p)) => match Command::decode(p) {
-                    Ok(c) => {
-                        stats.frames_ok += 1;
-                        got.push(c);
-                    }
-                    Err(e) => stats.count_decode(e),
-                },
-            }
+            got.extend(d.push_command(b, &mut stats));
         }
         (got, stats)
     }

@@ -19,7 +19,7 @@
 #[cfg(target_os = "none")]
 mod target {
     use controller_core::drive::example_spec;
-    use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
+    use controller_core::link::{self, FrameDecoder, LinkStats, MAX_FRAME, Reply};
     use core::cell::RefCell;
     use core::sync::atomic::{AtomicU32, Ordering};
     use critical_section::Mutex;
@@ -309,21 +309,7 @@ mod target {
                 }
             };
             for &b in input.iter().take(n) {
-                let cmd = match decoder.push(b) {
-                    None => continue,
-                    Some(Err(e)) => {
-                        stats.count_frame(e);
-                        continue;
-                    }
-                    Some(Ok(payload)) => match Command::decode(payload) {
-                        Ok(c) => c,
-                        Err(e) => {
-                            stats.count_decode(e);
-                            continue;
-                        }
-                    },
-                };
-                stats.frames_ok = stats.frames_ok.saturating_add(1);
+                let Some(cmd) = decoder.push_command(b, &mut stats) else { continue };
                 let reply = critical_section::with(|cs| {
                     CONTROL.borrow_ref_mut(cs).as_mut().map(|c| server::handle(c, &cmd, &stats))
                 });

@@ -69,16 +69,8 @@ impl<R: Read, W: Write> LinkClient<R, W> {
         loop {
             while let Some(&b) = self.input.get(self.input_pos) {
                 self.input_pos += 1;
-                match self.decoder.push(b) {
-                    None => {}
-                    Some(Err(e)) => self.stats.count_frame(e),
-                    Some(Ok(p)) => match Reply::decode(p) {
-                        Ok(r) => {
-                            self.stats.frames_ok += 1;
-                            return Ok(r);
-                        }
-                        Err(e) => self.stats.count_decode(e),
-                    },
+                if let Some(r) = self.decoder.push_reply(b, &mut self.stats) {
+                    return Ok(r);
                 }
             }
             self.input.resize(4096, 0);

@@ -28,21 +28,7 @@ mod target {
                 sh::exit(true);
             }
             for &byte in input.iter().take(n) {
-                let cmd = match decoder.push(byte) {
-                    None => continue,
-                    Some(Err(e)) => {
-                        stats.count_frame(e);
-                        continue;
-                    }
-                    Some(Ok(payload)) => match Command::decode(payload) {
-                        Ok(c) => c,
-                        Err(e) => {
-                            stats.count_decode(e);
-                            continue;
-                        }
-                    },
-                };
-                stats.frames_ok = stats.frames_ok.saturating_add(1);
+                let Some(cmd) = decoder.push_command(byte, &mut stats) else { continue };
                 let reply = match (&mut drive, &cmd) {
                     (Some(d), c) => link::execute(d, c, &stats),
                     (None, Command::Configure(_)) => {
