@@ -10,7 +10,7 @@
 //! ```
 //!
 //! Encoder loss: a change of more than [`BoardConfig::encoder_max_counts_per_read`] counts
-//! between two reads (more than twice the top speed, or a counter that jumped) latches
+//! between two reads (far beyond the top speed: a counter that jumped) latches
 //! `Fault::EncoderLoss`.
 
 use controller_core::drive::{

@@ -64,13 +64,7 @@ impl Builtin {
     pub fn run(&self, progress: impl FnMut(f64)) -> Result<(Vec<Row>, Mode), String> {
         let cfg = DriveConfig::new(&self.spec).map_err(|e| format!("invalid drive specification: {e:?}"))?;
         let mut drive = Drive::new(cfg);
-        let rows = sim::run(
-            &mut drive,
-            &Machine::new(&self.plant),
-            self.spec.pwm_frequency_hz,
-            &self.scenario,
-            progress,
-        )?;
+        let rows = self.simulate(&mut drive, progress)?;
         Ok((rows, drive.mode()))
     }
 
@@ -81,14 +75,16 @@ impl Builtin {
         progress: impl FnMut(f64),
     ) -> Result<(Vec<Row>, crate::pil::Pil), String> {
         let mut pil = crate::pil::Pil::start(opts, &self.spec)?;
-        let rows = sim::run(
-            &mut pil,
-            &Machine::new(&self.plant),
-            self.spec.pwm_frequency_hz,
-            &self.scenario,
-            progress,
-        )?;
+        let rows = self.simulate(&mut pil, progress)?;
         Ok((rows, pil))
+    }
+
+    fn simulate(
+        &self,
+        dut: &mut impl sim::DriveUnderTest,
+        progress: impl FnMut(f64),
+    ) -> Result<Vec<Row>, String> {
+        sim::run(dut, &Machine::new(&self.plant), self.spec.pwm_frequency_hz, &self.scenario, progress)
     }
 }
 

@@ -24,6 +24,8 @@ struct Step {
     name: &'static str,
     /// `cargo` (the running one) or another program.
     program: &'static str,
+    /// Arguments before `args` (the common QEMU options).
+    pre_args: &'static [&'static str],
     /// Working directory (the workspace root when empty).
     dir: &'static str,
     args: &'static [&'static str],
@@ -33,10 +35,15 @@ struct Step {
 
 impl Step {
     const fn cargo(name: &'static str, args: &'static [&'static str]) -> Self {
-        Step { name, program: "cargo", dir: "", args, env: &[] }
+        Step { name, program: "cargo", pre_args: &[], dir: "", args, env: &[] }
     }
     const fn in_qemu_target(name: &'static str, args: &'static [&'static str]) -> Self {
-        Step { name, program: "cargo", dir: "qemu-target", args, env: &[] }
+        Step { name, program: "cargo", pre_args: &[], dir: "qemu-target", args, env: &[] }
+    }
+    /// A `qemu-target` program under QEMU with semihosting; exit status = the program's.
+    const fn qemu(name: &'static str, args: &'static [&'static str]) -> Self {
+        const COMMON: &[&str] = &["-nographic", "-semihosting-config", "enable=on,target=native"];
+        Step { name, program: "qemu-system-arm", pre_args: COMMON, dir: "", args, env: &[] }
     }
 }
 
@@ -46,6 +53,7 @@ const CLIPPY: Step =
 const DOC: Step = Step {
     name: "doc",
     program: "cargo",
+    pre_args: &[],
     dir: "",
     args: &["doc", "--workspace", "--no-deps"],
     env: &[("RUSTDOCFLAGS", "-D warnings")],
@@ -76,59 +84,41 @@ const Q_BUILD_M3: Step = Step::in_qemu_target(
     "qemu-target build (M3)",
     &["build", "--target", M3, "--release", "--bin", "target-tests"],
 );
-const Q_TESTS_M4: Step = Step {
-    name: "target tests on QEMU mps2-an386 (Cortex-M4F)",
-    program: "qemu-system-arm",
-    dir: "",
-    args: &[
+const Q_TESTS_M4: Step = Step::qemu(
+    "target tests on QEMU mps2-an386 (Cortex-M4F)",
+    &[
         "-cpu",
         "cortex-m4",
         "-machine",
         "mps2-an386",
-        "-nographic",
-        "-semihosting-config",
-        "enable=on,target=native",
         "-kernel",
         "qemu-target/target/thumbv7em-none-eabihf/release/target-tests",
     ],
-    env: &[],
-};
-const Q_TESTS_M3: Step = Step {
-    name: "target tests on QEMU lm3s6965evb (Cortex-M3, soft-float, Q32)",
-    program: "qemu-system-arm",
-    dir: "",
-    args: &[
+);
+const Q_TESTS_M3: Step = Step::qemu(
+    "target tests on QEMU lm3s6965evb (Cortex-M3, soft-float, Q32)",
+    &[
         "-cpu",
         "cortex-m3",
         "-machine",
         "lm3s6965evb",
-        "-nographic",
-        "-semihosting-config",
-        "enable=on,target=native",
         "-kernel",
         "qemu-target/target/thumbv7m-none-eabi/release/target-tests",
     ],
-    env: &[],
-};
-const Q_COST: Step = Step {
-    name: "instructions per step on the Cortex-M4F (QEMU -icount shift=0)",
-    program: "qemu-system-arm",
-    dir: "",
-    args: &[
+);
+const Q_COST: Step = Step::qemu(
+    "instructions per step on the Cortex-M4F (QEMU -icount shift=0)",
+    &[
         "-cpu",
         "cortex-m4",
         "-machine",
         "mps2-an386",
-        "-nographic",
-        "-semihosting-config",
-        "enable=on,target=native",
         "-icount",
         "shift=0",
         "-kernel",
         "qemu-target/target/thumbv7em-none-eabihf/release/cost",
     ],
-    env: &[],
-};
+);
 const PIL: Step = Step::cargo(
     "processor in the loop (hil-sim/tests/pil.rs)",
     &["test", "--release", "--package", "hil-sim", "--test", "pil", "--", "--ignored", "--nocapture"],
@@ -136,6 +126,7 @@ const PIL: Step = Step::cargo(
 const FUZZ: Step = Step {
     name: "fuzz the link decoder (60 s)",
     program: "cargo",
+    pre_args: &[],
     dir: "fuzz",
     args: &["fuzz", "run", "frame_decoder", "--", "-max_total_time=60", "-print_final_stats=1"],
     // cargo fuzz passes nightly-only flags (sanitizer, coverage) to the stable compiler.
@@ -181,7 +172,8 @@ impl Totals {
 fn run_counting(step: &Step, totals: &mut Totals) -> bool {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
-    eprintln!("\n=== xtask: {} ({} {}) ===", step.name, step.program, step.args.join(" "));
+    let all_args: Vec<&str> = step.pre_args.iter().chain(step.args).copied().collect();
+    eprintln!("\n=== xtask: {} ({} {}) ===", step.name, step.program, all_args.join(" "));
     let program = match step.program {
         "cargo" => std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()),
         other => other.into(),
@@ -191,7 +183,7 @@ fn run_counting(step: &Step, totals: &mut Totals) -> bool {
         cmd.current_dir(step.dir);
     }
     let mut child = match cmd
-        .args(step.args)
+        .args(&all_args)
         .stdin(Stdio::null())
         .envs(step.env.iter().copied())
         .stdout(Stdio::piped())
