@@ -73,6 +73,70 @@ impl IntervalPoly {
         })
     }
 
+    /// Lower bounds, descending.
+    pub fn lo(&self) -> &[f64] {
+        &self.lo
+    }
+
+    /// Upper bounds, descending.
+    pub fn hi(&self) -> &[f64] {
+        &self.hi
+    }
+
+    /// The smallest box holding both polynomials (descending, padded to the larger degree):
+    /// for a family affine in one parameter, `p0 + k·p1` with `k ∈ [k_lo, k_hi]`, the hull
+    /// of its two end members is the family's interval polynomial — each coefficient's
+    /// range comes from the loop's algebra, orientation included.
+    pub fn hull(a: &Poly, b: &Poly) -> Self {
+        let n = a.coeffs().len().max(b.coeffs().len());
+        let pad = |p: &Poly| -> Vec<f64> {
+            let mut v = vec![0.0; n - p.coeffs().len()];
+            v.extend_from_slice(p.coeffs());
+            v
+        };
+        let (pa, pb) = (pad(a), pad(b));
+        Self {
+            lo: pa.iter().zip(&pb).map(|(x, y)| x.min(*y)).collect(),
+            hi: pa.iter().zip(&pb).map(|(x, y)| x.max(*y)).collect(),
+        }
+    }
+
+    /// Kharitonov's exact test: all four Kharitonov polynomials Hurwitz (Routh).
+    pub fn is_robustly_hurwitz(&self) -> bool {
+        self.kharitonov().iter().all(Poly::is_hurwitz_routh)
+    }
+
+    /// Largest real part of any root of the four Kharitonov polynomials. Its sign decides
+    /// robust stability; the value is a continuous margin an optimiser can use. (It bounds
+    /// the family's roots only at the imaginary axis: Kharitonov's theorem is about
+    /// crossing it, not about decay rates — use [`Poly::shifted`] members for those.)
+    pub fn kharitonov_abscissa(&self) -> f64 {
+        self.kharitonov().iter().map(Poly::max_real_root).fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// Seed 001 lemmas 2.1 and 2.2 (eqs. (2), (3); Nie's conditions applied to the worst
+    /// member): with ascending bounds `x_i ≤ δ_i ≤ y_i`, all `x_i > 0` and
+    /// `factor·x_i·x_{i+1} > y_{i−1}·y_{i+2}` for `i = 1 … n−2`.
+    ///
+    /// `factor = 1` is lemma 2.1, a **necessary** condition (the member taking `x_i`,
+    /// `x_{i+1}`, `y_{i−1}`, `y_{i+2}` exists because coefficients vary independently, and
+    /// every Hurwitz polynomial satisfies `a_i a_{i+1} > a_{i−1} a_{i+2}`); the paper's
+    /// wording "is Hurwitz … if the following necessary conditions are satisfied" reads it
+    /// as sufficient, which it is not (e.g. s⁴ + s³ + 2s² + 1.9s + 0.5 passes and is not Hurwitz).
+    /// [`NIE_SUFFICIENT`] is lemma 2.2, **sufficient**. Both are cross-checked against
+    /// Kharitonov's exact test in the tests.
+    pub fn nie_conditions(&self, factor: f64) -> NieReport {
+        let n = self.lo.len() - 1;
+        // ascending access: x(i) = lo[n − i]
+        let x = |i: usize| n.checked_sub(i).and_then(|d| self.lo.get(d)).copied().unwrap_or(0.0);
+        let y = |i: usize| n.checked_sub(i).and_then(|d| self.hi.get(d)).copied().unwrap_or(0.0);
+        let min_coefficient = self.lo.iter().copied().fold(f64::INFINITY, f64::min);
+        let margins: Vec<f64> =
+            (1..n.saturating_sub(1)).map(|i| factor * x(i) * x(i + 1) - y(i - 1) * y(i + 2)).collect();
+        let holds = min_coefficient > 0.0 && margins.iter().all(|&m| m > 0.0);
+        NieReport { min_coefficient, margins, holds }
+    }
+
     /// A member with coefficients `lo + t·(hi − lo)`, `t` in [0, 1] per coefficient.
     pub fn member(&self, t: &[f64]) -> Poly {
         let desc: Vec<f64> = self
@@ -84,6 +148,20 @@ impl IntervalPoly {
             .collect();
         Poly::new(&desc)
     }
+}
+
+/// Lemma 2.2's constant (seed 001 eq. (3)).
+pub const NIE_SUFFICIENT: f64 = 0.4655;
+
+/// Outcome of [`IntervalPoly::nie_conditions`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct NieReport {
+    /// Smallest lower bound `min x_i` (must be > 0).
+    pub min_coefficient: f64,
+    /// `factor·x_i·x_{i+1} − y_{i−1}·y_{i+2}` for `i = 1 … n−2` (each must be > 0).
+    pub margins: Vec<f64>,
+    /// Every condition holds.
+    pub holds: bool,
 }
 
 /// An interval plant N(s)/D(s).
@@ -243,5 +321,57 @@ mod tests {
         if r.robust_stable {
             assert!(worst_sampled < 0.0);
         }
+    }
+    /// Lemmas 2.1/2.2 against Kharitonov's exact test on random interval quartics and
+    /// quintics: 2.2 holding must imply robust stability, robust stability must imply 2.1;
+    /// each implication is exercised (counts asserted), and the gaps between them exist.
+    #[test]
+    fn nie_lemmas_bracket_the_exact_test() {
+        let mut seed = 4242u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut suff, mut robust, mut nec, mut cases) = (0, 0, 0, 0);
+        for degree in [4usize, 5] {
+            for _ in 0..3000 {
+                let lo: Vec<f64> =
+                    (0..=degree).map(|i| if i == 0 { 1.0 } else { 0.1 + 6.0 * rnd() }).collect();
+                let hi: Vec<f64> = lo
+                    .iter()
+                    .enumerate()
+                    .map(|(i, l)| if i == 0 { 1.0 } else { l * (1.0 + 0.3 * rnd()) })
+                    .collect();
+                let ip = IntervalPoly::new(&lo, &hi).unwrap();
+                let (s22, k, s21) = (
+                    ip.nie_conditions(NIE_SUFFICIENT).holds,
+                    ip.is_robustly_hurwitz(),
+                    ip.nie_conditions(1.0).holds,
+                );
+                assert!(!s22 || k, "lemma 2.2 holds but Kharitonov fails: {lo:?} {hi:?}");
+                assert!(!k || s21, "robustly Hurwitz but lemma 2.1 fails: {lo:?} {hi:?}");
+                cases += 1;
+                suff += usize::from(s22);
+                robust += usize::from(k);
+                nec += usize::from(s21);
+            }
+        }
+        eprintln!("{cases} interval polynomials: lemma 2.2 {suff}, Kharitonov {robust}, lemma 2.1 {nec}");
+        assert!(suff > 50 && robust > suff && nec > robust, "{suff} {robust} {nec}");
+    }
+
+    #[test]
+    fn lemma_21_is_not_sufficient() {
+        // The counterexample quoted in `nie_conditions`: passes 2.1, has RHP roots.
+        let p = IntervalPoly::point(&[1.0, 1.0, 2.0, 1.9, 0.5]);
+        assert!(p.nie_conditions(1.0).holds);
+        assert!(!p.is_robustly_hurwitz());
+    }
+
+    #[test]
+    fn hull_orients_each_coefficient() {
+        let h = IntervalPoly::hull(&Poly::new(&[1.0, 3.0, -2.0]), &Poly::new(&[1.0, 1.0, 4.0]));
+        assert_eq!(h.lo(), &[1.0, 1.0, -2.0]);
+        assert_eq!(h.hi(), &[1.0, 3.0, 4.0]);
     }
 }

@@ -15,4 +15,5 @@ pub mod kharitonov;
 pub mod margins;
 pub mod pi_region;
 pub mod poly;
+pub mod recycle;
 pub mod tf;

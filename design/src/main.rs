@@ -21,12 +21,25 @@
 //! parameter intervals (see `design::certify`); exit 0 when all checks pass, 1 with the
 //! failing checks listed, 2 on input errors.
 //!
+//! design recycle [--json] [--decay RATE] [--plot-dir DIR]
+//! ```
+//! `recycle` runs seed 001's study of the recycle process (`design::recycle`): ITAE
+//! nominal PI, where it loses stability, Table I checked every way, and the NLP (18)
+//! solved under the printed constraints, lemma 2.2, Kharitonov and the exact family
+//! (the last two with roots left of −RATE, default 0.01 1/s). `--plot-dir` writes the
+//! step responses of Figs. 2–5 and the k₁–k₂ region plot. Exit 0 when every optimum but
+//! the printed one is verified robust.
+//!
 //! ```text
 //! `kharitonov` checks a PI controller `(KP·s + KI)/s` on the 16 Kharitonov plants of an
 //! interval plant file (`[numerator]`/`[denominator]` tables with `lo`/`hi` arrays of
 //! descending coefficients). `--json` prints `robust_stable`, `worst_pole_re` and the
 //! per-plant figures; otherwise a table. Exit status: 0 robustly stable, 1 not, 2 usage or
 //! input error.
+
+mod cli {
+    pub mod recycle;
+}
 
 use design::kharitonov::{IntervalPlant, IntervalPoly};
 use serde::Deserialize;
@@ -101,7 +114,7 @@ fn plot_region(
     }
     series.push(Series::dots("robustly stable (Routh, 16 plants)", inside).colored("#9be39b"));
     series.push(Series::line("k_i = 0", vec![(kp_range.0, 0.0), (kp_range.1, 0.0)]).colored("#444444"));
-    series.push(Series::dots("PI", vec![(kp, ki)]).colored("#d62728"));
+    series.push(Series::markers("PI", vec![(kp, ki)]).colored("#d62728"));
     let svg = plot_in("Robust PI stability region (k_i vs k_p)", "k_p", &series, (kp_range, ki_range));
     let tmp = format!("{path}.partial");
     std::fs::write(&tmp, svg).and_then(|()| std::fs::rename(&tmp, path)).map_err(|e| format!("{path}: {e}"))
@@ -274,9 +287,11 @@ fn main() -> ExitCode {
         Some("kharitonov") => kharitonov(args.get(1..).unwrap_or(&[])),
         Some("icad") => icad(args.get(1..).unwrap_or(&[])),
         Some("certify") => certify(args.get(1..).unwrap_or(&[])),
+        Some("recycle") => cli::recycle::run(args.get(1..).unwrap_or(&[])),
         _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE]\n       \
                   design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]\n       \
-                  design certify <gains.toml> [--json]"
+                  design certify <gains.toml> [--json]\n       \
+                  design recycle [--json] [--decay 1/s] [--plot-dir DIR]"
             .into()),
     };
     match result {

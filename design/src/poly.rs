@@ -90,6 +90,25 @@ impl Poly {
         self.roots().iter().map(|r| r.re).fold(f64::NEG_INFINITY, f64::max)
     }
 
+    /// `q(s) = p(s − σ)`: the roots move right by `σ`, so `q` is Hurwitz iff every root
+    /// of `p` has real part below `−σ` (a decay-rate test with the exact Routh/segment tools).
+    pub fn shifted(&self, sigma: f64) -> Poly {
+        // Horner in the shifted variable: q = (…(a_n·(s − σ) + a_{n−1})·(s − σ) + …) + a_0.
+        let x = Poly::new(&[1.0, -sigma]);
+        self.c.iter().fold(Poly::new(&[0.0]), |acc, &a| acc.mul(&x).add(&Poly::new(&[a])))
+    }
+
+    /// The n×n Hurwitz matrix `H[i][j] = c[2j − i]` (1-based, `c` descending, zero outside
+    /// `0..=n`). It is linear in the coefficients; all leading minors positive ⇔ Hurwitz
+    /// (for a positive leading coefficient), and `det H = a_0·det H_{n−1}`.
+    pub fn hurwitz_matrix(&self) -> DMatrix<f64> {
+        let n = self.degree();
+        DMatrix::from_fn(n, n, |i, j| {
+            let m = 2 * (j + 1) as i64 - (i + 1) as i64;
+            usize::try_from(m).ok().and_then(|m| self.c.get(m)).copied().unwrap_or(0.0)
+        })
+    }
+
     /// Hurwitz stability by the Routh array (exact for positive leading coefficient; a zero
     /// in the first column counts as not Hurwitz).
     pub fn is_hurwitz_routh(&self) -> bool {
@@ -120,6 +139,28 @@ impl Poly {
         }
         true
     }
+}
+
+/// Is every polynomial of the segment `λ·a + (1 − λ)·b`, λ ∈ [0, 1], Hurwitz?
+///
+/// Exact test (Bialas 1985): with `a`, `b` Hurwitz of the same degree and positive
+/// leading coefficients, the Hurwitz matrix of a member is `λH_a + (1 − λ)H_b`; a root can
+/// only leave the left half plane through the imaginary axis, where that matrix is
+/// singular, i.e. where `H_a⁻¹H_b` has the eigenvalue `−λ/(1 − λ)` ≤ 0. So the segment is
+/// Hurwitz iff the endpoints are and `H_a⁻¹H_b` has no real eigenvalue ≤ 0. A
+/// one-parameter family affine in its parameter (a gain `k ∈ [k_lo, k_hi]`) is exactly such
+/// a segment. Cross-checked against dense sweeps in the tests.
+pub fn segment_is_hurwitz(a: &Poly, b: &Poly) -> bool {
+    let same_degree = a.degree() == b.degree() && a.degree() > 0;
+    let positive_lead = a.c.first().is_some_and(|&x| x > 0.0) && b.c.first().is_some_and(|&x| x > 0.0);
+    if !(same_degree && positive_lead && a.is_hurwitz_routh() && b.is_hurwitz_routh()) {
+        return false;
+    }
+    let Some(m) = a.hurwitz_matrix().lu().solve(&b.hurwitz_matrix()) else {
+        return false; // a Hurwitz polynomial has a non-singular Hurwitz matrix
+    };
+    let scale = m.iter().fold(1.0_f64, |acc, x| acc.max(x.abs()));
+    !m.complex_eigenvalues().iter().any(|z| z.im.abs() <= 1e-9 * scale && z.re <= 0.0)
 }
 
 #[cfg(test)]
@@ -181,5 +222,65 @@ mod tests {
         assert_eq!(Poly::new(&[0.0]).degree(), 0);
         assert_eq!(Poly::new(&[1.0, 2.0]).add(&Poly::new(&[3.0, 4.0, 5.0])).coeffs(), &[3.0, 5.0, 7.0]);
         assert_eq!(Poly::new(&[1.0, 2.0]).scale(2.0).coeffs(), &[2.0, 4.0]);
+    }
+    #[test]
+    fn shifted_moves_roots_right() {
+        // (s + 1)(s + 3) shifted by 2 → (s − 1)(s + 1) = s² − 1
+        let q = Poly::new(&[1.0, 4.0, 3.0]).shifted(2.0);
+        assert_eq!(q.coeffs(), &[1.0, 0.0, -1.0]);
+        assert!(Poly::new(&[1.0, 4.0, 3.0]).shifted(0.9).is_hurwitz_routh());
+        assert!(!Poly::new(&[1.0, 4.0, 3.0]).shifted(1.1).is_hurwitz_routh());
+    }
+
+    #[test]
+    fn hurwitz_matrix_of_a_quartic() {
+        // a4 s⁴ + a3 s³ + a2 s² + a1 s + a0 → [[a3, a1, 0, 0], [a4, a2, a0, 0], [0, a3, a1, 0], [0, a4, a2, a0]]
+        let h = Poly::new(&[1.0, 2.0, 3.0, 4.0, 5.0]).hurwitz_matrix();
+        let want = [[2.0, 4.0, 0.0, 0.0], [1.0, 3.0, 5.0, 0.0], [0.0, 2.0, 4.0, 0.0], [0.0, 1.0, 3.0, 5.0]];
+        for (i, row) in want.iter().enumerate() {
+            for (j, w) in row.iter().enumerate() {
+                assert_eq!(h[(i, j)], *w, "({i}, {j})");
+            }
+        }
+    }
+
+    /// Bialas' segment test against a dense sweep of the segment: random quartic segments
+    /// with Hurwitz endpoints, both verdicts must occur and always agree with 2001 members.
+    #[test]
+    fn segment_test_agrees_with_dense_sweep() {
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        // Two lightly damped modes at random frequencies: mixing such endpoints often
+        // crosses the imaginary axis, so both verdicts occur.
+        let random_hurwitz = |rnd: &mut dyn FnMut() -> f64| {
+            let mode = |rnd: &mut dyn FnMut() -> f64| {
+                let (w, z) = (0.2 + 5.0 * rnd(), 0.01 + 0.4 * rnd());
+                Poly::new(&[1.0, 2.0 * z * w, w * w])
+            };
+            mode(rnd).mul(&mode(rnd))
+        };
+        let (mut robust, mut fragile) = (0, 0);
+        for _ in 0..300 {
+            let (a, b) = (random_hurwitz(&mut rnd), random_hurwitz(&mut rnd));
+            let exact = segment_is_hurwitz(&a, &b);
+            let swept = (0..=2000).all(|i| {
+                let l = f64::from(i) / 2000.0;
+                a.scale(l).add(&b.scale(1.0 - l)).is_hurwitz_routh()
+            });
+            // A sweep can miss an unstable sliver narrower than its step; never the reverse.
+            if swept != exact {
+                assert!(swept && !exact, "sweep found instability the exact test missed");
+                let fine = (0..=200_000).all(|i| {
+                    let l = f64::from(i) / 200_000.0;
+                    a.scale(l).add(&b.scale(1.0 - l)).is_hurwitz_routh()
+                });
+                assert!(!fine, "exact test says unstable, 200 001-point sweep finds nothing: {a:?} {b:?}");
+            }
+            if exact { robust += 1 } else { fragile += 1 }
+        }
+        assert!(robust > 30 && fragile > 30, "{robust} {fragile}");
     }
 }

@@ -1,4 +1,4 @@
-//! CLI contract of `design kharitonov`.
+//! CLI contracts of `design kharitonov`, `icad`, `certify` and `recycle`.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
 use std::process::Command;
@@ -128,4 +128,40 @@ fn certify_the_shipped_gains_and_reject_a_bad_range() {
     assert_eq!(code, Some(1));
     assert!(err.contains("closed-loop pole"), "{err}");
     let _ = std::fs::remove_file(&bad);
+}
+
+/// `design recycle --json`: Table I verification and the optima, with the findings the
+/// README states (printed optimum unstable, exact optima robust), and the plots.
+#[test]
+fn recycle_json_contract_and_plots() {
+    let dir = std::env::temp_dir().join(format!("design-recycle-{}", std::process::id()));
+    let (code, out, err) = run(&["recycle", "--json", "--plot-dir", dir.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!((v["itae"]["k1"].as_f64().unwrap() - 0.9041).abs() < 5e-5);
+    assert!((v["itae_recycle_loss_of_stability_k"].as_f64().unwrap() - 2.4029).abs() < 1e-3);
+    let table = v["table_i"].as_array().unwrap();
+    assert_eq!(table.len(), 5);
+    assert!(
+        table.iter().all(|t| t["verdict"]["family_stable"] == true && t["verdict"]["kharitonov"] == true)
+    );
+    let optima = v["optima"].as_array().unwrap();
+    let names: Vec<&str> = optima.iter().map(|o| o["constraints"].as_str().unwrap()).collect();
+    assert_eq!(names, ["paper-printed", "lemmas", "kharitonov", "family"]);
+    assert_eq!(optima[0]["verdict"]["family_stable"], false);
+    assert!(optima[1..].iter().all(|o| o["verdict"]["family_stable"] == true));
+    for f in [
+        "fig2-unit1-itae",
+        "fig3-recycle-itae-nominal",
+        "fig4-recycle-itae-k1-k3",
+        "fig5-recycle-set3",
+        "recycle-region",
+    ] {
+        let svg = std::fs::read_to_string(dir.join(format!("{f}.svg"))).unwrap();
+        assert!(svg.starts_with("<svg") && svg.ends_with("</svg>\n"), "{f}");
+    }
+    let (code, _, err) = run(&["recycle", "--decay", "-1"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--decay"), "{err}");
+    let _ = std::fs::remove_dir_all(dir);
 }

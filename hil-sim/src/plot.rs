@@ -10,6 +10,8 @@ pub enum Style {
     Line,
     /// One small dot per point (e.g. a region sampled on a grid).
     Dots,
+    /// A large outlined marker per point (a design point on a region plot).
+    Markers,
 }
 
 /// One named curve.
@@ -33,6 +35,10 @@ impl<'a> Series<'a> {
     /// Dots.
     pub fn dots(label: &'a str, points: Vec<(f64, f64)>) -> Self {
         Self { label, points, style: Style::Dots, color: None }
+    }
+    /// Large markers.
+    pub fn markers(label: &'a str, points: Vec<(f64, f64)>) -> Self {
+        Self { label, points, style: Style::Markers, color: None }
     }
 }
 
@@ -115,8 +121,9 @@ pub fn plot_in(title: &str, x_label: &str, series: &[Series<'_>], window: Window
         let step = nice_step(hi - lo);
         let mut v = (lo / step).ceil() * step;
         while v <= hi + 1e-9 * step {
-            // `+ 0.0` turns −0 into 0.
-            let label = format!("{}", (v / step).round() * step + 0.0);
+            // As many decimals as the step needs; `+ 0.0` turns −0 into 0.
+            let decimals = usize::try_from(-(step.log10().floor() as i64)).unwrap_or(0);
+            let label = format!("{:.*}", decimals, (v / step).round() * step + 0.0);
             if vertical {
                 let x = px(v);
                 let _ = writeln!(
@@ -176,11 +183,12 @@ pub fn plot_in(title: &str, x_label: &str, series: &[Series<'_>], window: Window
                 }
                 let _ = writeln!(s, r#"<path d="{d}" fill="none" stroke="{color}" stroke-width="1.2"/>"#);
             }
-            Style::Dots => {
+            Style::Dots | Style::Markers => {
+                let marker = if ser.style == Style::Dots { r#"r="1.6""# } else { r##"r="5" stroke="#222""## };
                 for &(x, y) in ser.points.iter().filter(|p| inside(p.0, p.1)) {
                     let _ = writeln!(
                         s,
-                        r#"<circle cx="{:.1}" cy="{:.1}" r="1.6" fill="{color}"/>"#,
+                        r#"<circle cx="{:.1}" cy="{:.1}" {marker} fill="{color}"/>"#,
                         px(x),
                         py(y)
                     );
@@ -192,6 +200,14 @@ pub fn plot_in(title: &str, x_label: &str, series: &[Series<'_>], window: Window
         }
         let ly = TOP + 14.0 + 16.0 * legend_row as f64;
         legend_row += 1;
+        // A translucent backing keeps the legend readable over dense data.
+        let _ = writeln!(
+            s,
+            r#"<rect x="{:.1}" y="{:.1}" width="{:.1}" height="16" fill="white" fill-opacity="0.8"/>"#,
+            LEFT + 6.0,
+            ly - 8.0,
+            32.0 + 7.0 * ser.label.chars().count() as f64
+        );
         let _ = writeln!(
             s,
             r#"<line x1="{:.1}" y1="{ly:.1}" x2="{:.1}" y2="{ly:.1}" stroke="{color}" stroke-width="2"/>"#,
@@ -212,6 +228,14 @@ fn escape(t: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tick_labels_are_rounded_to_the_step() {
+        let svg = plot_in("t", "x", &[], ((0.0, 3.5), (0.0, 1.2)));
+        assert!(svg.contains(">0.2</text>") && svg.contains(">0.6</text>"), "{svg}");
+        assert!(!svg.contains("0000"), "{svg}");
+        assert!(svg.contains(">0.5</text>") && svg.contains(">3.5</text>"));
+    }
 
     #[test]
     fn nice_steps() {
