@@ -13,6 +13,7 @@ pub mod icad;
 pub mod im;
 pub mod kharitonov;
 pub mod margins;
+pub mod nyquist;
 pub mod pi_region;
 pub mod poly;
 pub mod recycle;

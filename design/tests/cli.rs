@@ -165,3 +165,49 @@ fn recycle_json_contract_and_plots() {
     assert!(err.contains("--decay"), "{err}");
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// `--gpm` and `--bandwidth` (seed 000 Sec. 4): PI1 meets the paper's A = √2/2, φ = 60°,
+/// ω_B = 4 rad/s on all 16 plants; a PI far too slow for ω_B = 4 fails with exit 1; the
+/// plots are written.
+#[test]
+fn kharitonov_gpm_and_bandwidth() {
+    let dir = std::env::temp_dir().join(format!("design-gpm-{}", std::process::id()));
+    let d = dir.to_str().unwrap();
+    let (code, out, err) = run(&[
+        "kharitonov",
+        "--plant",
+        PLANT,
+        "--pi",
+        "30,50",
+        "--gpm",
+        "0.7071,60",
+        "--bandwidth",
+        "4",
+        "--json",
+        "--plot-dir",
+        d,
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["gpm"]["robust_member"], true);
+    assert_eq!(v["bandwidth"]["robust_member"], true);
+    assert!(
+        v["bandwidth"]["min_closed_loop_gain_at_omega_b"].as_f64().unwrap()
+            >= std::f64::consts::FRAC_1_SQRT_2
+    );
+    for f in ["stability", "gpm", "bandwidth"] {
+        let svg = std::fs::read_to_string(dir.join(format!("{f}.svg"))).unwrap();
+        assert!(svg.contains("<circle") && svg.ends_with("</svg>\n"), "{f}");
+    }
+    // k_p = 0.001, k_i = 0.5 lies below the bandwidth region (it starts near k_i = 1.7 on
+    // this plant: `--kp-range -0.05,0.05 --ki-range -1,10` shows it).
+    let (code, out, _) =
+        run(&["kharitonov", "--plant", PLANT, "--pi", "0.001,0.5", "--bandwidth", "4", "--json"]);
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["bandwidth"]["robust_member"], false, "{out}");
+    assert_eq!(code, Some(1));
+    let (code, _, err) = run(&["kharitonov", "--plant", PLANT, "--pi", "30,50", "--gpm", "-1,60"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--gpm"), "{err}");
+    let _ = std::fs::remove_dir_all(dir);
+}
