@@ -7,7 +7,11 @@
 //! design icad --motor <motor.toml | builtin> --omega-r <rad/s> --controller <icad20 | pi:KP,KI> [--json]
 //! design certify <gains.toml> [--json]
 //! design recycle [--json] [--decay RATE] [--plot-dir DIR]
+//! design bench
 //! ```
+//!
+//! `bench` times the ICAD ω_r sweep and a 200×200 k_p–k_i grid (JSON; `tools/control_bench.py`
+//! runs python-control on the same work and prints the ratio).
 //!
 //! `kharitonov` checks a PI `(KP·s + KI)/s` on the 16 Kharitonov plants of an interval plant
 //! file (`[numerator]`/`[denominator]` tables with `lo`/`hi` arrays of descending
@@ -33,6 +37,7 @@
 //! the printed one is verified robust.
 
 mod cli {
+    pub mod bench;
     pub mod kharitonov;
     pub mod recycle;
 }
@@ -161,6 +166,7 @@ fn main() -> ExitCode {
         Some("icad") => icad(args.get(1..).unwrap_or(&[])),
         Some("certify") => certify(args.get(1..).unwrap_or(&[])),
         Some("recycle") => cli::recycle::run(args.get(1..).unwrap_or(&[])),
+        Some("bench") => cli::bench::run(args.get(1..).unwrap_or(&[])),
         _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE]\n       \
                   design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]\n       \
                   design certify <gains.toml> [--json]\n       \
