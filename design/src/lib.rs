@@ -17,4 +17,5 @@ pub mod nyquist;
 pub mod pi_region;
 pub mod poly;
 pub mod recycle;
+pub mod startup_fit;
 pub mod tf;

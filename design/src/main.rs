@@ -7,8 +7,14 @@
 //! design icad --motor <motor.toml | builtin> --omega-r <rad/s> --controller <icad20 | pi:KP,KI> [--json]
 //! design certify <gains.toml> [--json]
 //! design recycle [--json] [--decay RATE] [--plot-dir DIR]
+//! design startup-fit [--motor M] [--segments N] [--json] [--plot-dir DIR] [--plant-out FILE.toml]
 //! design bench
 //! ```
+//!
+//! `startup-fit` (seed 000 Sec. 6, `design::startup_fit`) fits linear models to segments of
+//! a direct-on-line start of the nonlinear machine (default seed 000's 2300 V motor, 13
+//! segments) and writes their coefficient ranges as a plant file `kharitonov` reads; exit 0
+//! when every fitted model replays its segment's i_sα within 5 % RMS.
 //!
 //! `bench` times the ICAD ω_r sweep and a 200×200 k_p–k_i grid (JSON; `tools/control_bench.py`
 //! runs python-control on the same work and prints the ratio).
@@ -40,6 +46,7 @@ mod cli {
     pub mod bench;
     pub mod kharitonov;
     pub mod recycle;
+    pub mod startup_fit;
 }
 
 use std::process::ExitCode;
@@ -167,10 +174,13 @@ fn main() -> ExitCode {
         Some("certify") => certify(args.get(1..).unwrap_or(&[])),
         Some("recycle") => cli::recycle::run(args.get(1..).unwrap_or(&[])),
         Some("bench") => cli::bench::run(args.get(1..).unwrap_or(&[])),
+        Some("startup-fit") => cli::startup_fit::run(args.get(1..).unwrap_or(&[])),
         _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE]\n       \
                   design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]\n       \
                   design certify <gains.toml> [--json]\n       \
-                  design recycle [--json] [--decay 1/s] [--plot-dir DIR]"
+                  design recycle [--json] [--decay 1/s] [--plot-dir DIR]\n       \
+                  design startup-fit [--motor M] [--segments N] [--json] [--plot-dir DIR] [--plant-out FILE]\n       \
+                  design bench"
             .into()),
     };
     match result {

@@ -211,3 +211,33 @@ fn kharitonov_gpm_and_bandwidth() {
     assert!(err.contains("--gpm"), "{err}");
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// `design startup-fit` writes a plant file `design kharitonov` accepts, and the plots.
+#[test]
+fn startup_fit_writes_a_plant_kharitonov_reads() {
+    let dir = std::env::temp_dir().join(format!("design-startup-{}", std::process::id()));
+    let plant = dir.join("plant.toml");
+    let (code, out, err) = run(&[
+        "startup-fit",
+        "--json",
+        "--plot-dir",
+        dir.to_str().unwrap(),
+        "--plant-out",
+        plant.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let segs = v["segments"].as_array().unwrap();
+    assert_eq!(segs.len(), 13);
+    assert!(segs.iter().all(|s| s["replay_rel_rms"].as_f64().unwrap() < 0.025));
+    for f in ["startup-fit.svg", "startup-speed.svg"] {
+        assert!(std::fs::read_to_string(dir.join(f)).unwrap().ends_with("</svg>\n"), "{f}");
+    }
+    // The hull over 0…370 rad/s is too wide for any PI (its Kharitonov denominators are
+    // themselves unstable): the file is read, the verdict is "not robust".
+    let (code, out, _) = run(&["kharitonov", "--plant", plant.to_str().unwrap(), "--pi", "19,786", "--json"]);
+    assert_eq!(code, Some(1));
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(v["robust_stable"], false);
+    let _ = std::fs::remove_dir_all(dir);
+}
