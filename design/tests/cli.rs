@@ -19,6 +19,12 @@ fn seed000_pi1_json() {
     let worst = v["worst_pole_re"].as_f64().unwrap();
     assert!(worst < 0.0 && worst > -1.0, "{worst}");
     assert_eq!(v["plants"].as_array().unwrap().len(), 16);
+    // Margins per plant: relative degree 1 and a large high-frequency gain — crossover near
+    // 30·375 660 = 1.13e7 rad/s with 90° phase margin on every plant.
+    for p in v["plants"].as_array().unwrap() {
+        let (pm, wc) = (p["phase_margin_deg"].as_f64().unwrap(), p["crossover_rad_s"].as_f64().unwrap());
+        assert!((pm - 90.0).abs() < 0.5 && (wc / 1.127e7 - 1.0).abs() < 0.01, "{p}");
+    }
 }
 
 #[test]

@@ -191,6 +191,18 @@ pub fn run(args: &[String]) -> Result<bool, String> {
         }
         eprintln!("design: wrote the region plots to {}", dir.display());
     }
+    // Loop margins per Kharitonov plant (dense log grid, crossings interpolated).
+    let w = logspace(1e-3, 1e10, 26_000);
+    let margins: Vec<design::margins::Margins> = plant
+        .kharitonov_plants()
+        .iter()
+        .map(|(_, _, n, d)| {
+            let g = Tf { num: n.clone(), den: d.clone() };
+            let l: Vec<_> =
+                w.iter().map(|&x| num_complex::Complex64::new(kp, -ki / x) * g.response(x)).collect();
+            design::margins::margins(&w, &l)
+        })
+        .collect();
     let perf = |t: Tester, wb: f64| robust_performance(&plant, kp, ki, t, wb);
     let gpm_r = gpm.map(|t| perf(t, bandwidth.unwrap_or(1.0)));
     let bw_r = bandwidth.map(|wb| perf(gpm.unwrap_or(Tester { gain: 1.0, phase_rad: 0.0 }), wb));
@@ -201,7 +213,16 @@ pub fn run(args: &[String]) -> Result<bool, String> {
         let per: Vec<_> = r
             .per_plant
             .iter()
-            .map(|(i, j, re)| serde_json::json!({"numerator": i, "denominator": j, "max_pole_re": re}))
+            .zip(&margins)
+            .map(|((i, j, re), m)| {
+                serde_json::json!({
+                    "numerator": i, "denominator": j, "max_pole_re": re,
+                    "crossover_rad_s": m.crossover_rad_s, "phase_margin_deg": m.phase_margin_deg,
+                    "gain_margin_increase_db": m.gain_margin_increase_db,
+                    "gain_margin_reduction_db": m.gain_margin_reduction_db,
+                    "bandwidth_rad_s": m.bandwidth_rad_s,
+                })
+            })
             .collect();
         let mut v = serde_json::json!({
             "kp": kp, "ki": ki,
@@ -230,8 +251,15 @@ pub fn run(args: &[String]) -> Result<bool, String> {
         println!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
     } else {
         println!("PI ({kp}·s + {ki})/s on the 16 Kharitonov plants");
-        for (i, j, re) in &r.per_plant {
-            println!("  N{i}/D{j}: max Re(pole) = {re:.6}");
+        let opt = |x: Option<f64>| x.map_or_else(|| "none".to_string(), |v| format!("{v:.2}"));
+        for ((i, j, re), m) in r.per_plant.iter().zip(&margins) {
+            println!(
+                "  N{i}/D{j}: max Re(pole) = {re:.6}  crossover {} rad/s  PM {}°  GM +{} / −{} dB",
+                opt(m.crossover_rad_s),
+                opt(m.phase_margin_deg),
+                opt(m.gain_margin_increase_db),
+                opt(m.gain_margin_reduction_db)
+            );
         }
         println!("robust_stable = {}, worst_pole_re = {:.6}", r.robust_stable, r.worst_pole_re);
         if let (Some(t), Some(g)) = (gpm, &gpm_r) {
