@@ -83,21 +83,20 @@ impl IntervalPoly {
         &self.hi
     }
 
-    /// The smallest box holding both polynomials (descending, padded to the larger degree):
-    /// for a family affine in one parameter, `p0 + k·p1` with `k ∈ [k_lo, k_hi]`, the hull
-    /// of its two end members is the family's interval polynomial — each coefficient's
-    /// range comes from the loop's algebra, orientation included.
-    pub fn hull(a: &Poly, b: &Poly) -> Self {
-        let n = a.coeffs().len().max(b.coeffs().len());
-        let pad = |p: &Poly| -> Vec<f64> {
-            let mut v = vec![0.0; n - p.coeffs().len()];
-            v.extend_from_slice(p.coeffs());
-            v
+    /// The smallest box holding every polynomial of `polys` (descending, padded to the
+    /// largest degree; the zero polynomial for an empty set). For a family affine in one parameter,
+    /// `p0 + k·p1` with `k ∈ [k_lo, k_hi]`, the hull of its two end members is the family's
+    /// interval polynomial — each coefficient's range comes from the loop's algebra,
+    /// orientation included; for fitted models it is their coefficient ranges.
+    pub fn hull(polys: &[Poly]) -> Self {
+        let Some(n) = polys.iter().map(|p| p.coeffs().len()).max() else {
+            return Self::point(&[0.0]);
         };
-        let (pa, pb) = (pad(a), pad(b));
+        let padded: Vec<Vec<f64>> = polys.iter().map(|p| p.padded(n)).collect();
+        let fold = |i: usize, f: fn(f64, f64) -> f64, init: f64| padded.iter().map(|p| p[i]).fold(init, f);
         Self {
-            lo: pa.iter().zip(&pb).map(|(x, y)| x.min(*y)).collect(),
-            hi: pa.iter().zip(&pb).map(|(x, y)| x.max(*y)).collect(),
+            lo: (0..n).map(|i| fold(i, f64::min, f64::INFINITY)).collect(),
+            hi: (0..n).map(|i| fold(i, f64::max, f64::NEG_INFINITY)).collect(),
         }
     }
 
@@ -260,11 +259,7 @@ mod tests {
     /// member proves "not robust"; agreement is required whenever the sampling finds one).
     #[test]
     fn theorem_agrees_with_sampling() {
-        let mut seed = 12345u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::testutil::uniform(12345u64);
         let (mut robust_cases, mut fragile_cases) = (0, 0);
         for _ in 0..300 {
             let lo: Vec<f64> = (0..4).map(|i| if i == 0 { 1.0 } else { 0.2 + 3.0 * rnd() }).collect();
@@ -304,11 +299,7 @@ mod tests {
             eprintln!("  N{i}/D{j}: max Re(pole) = {re:.4}");
         }
         // Brute force inside the box: 2000 random members of numerator and denominator.
-        let mut seed = 99u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::testutil::uniform(99u64);
         let mut worst_sampled = f64::NEG_INFINITY;
         for _ in 0..2000 {
             let tn: Vec<f64> = (0..5).map(|_| rnd()).collect();
@@ -327,11 +318,7 @@ mod tests {
     /// each implication is exercised (counts asserted), and the gaps between them exist.
     #[test]
     fn nie_lemmas_bracket_the_exact_test() {
-        let mut seed = 4242u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::testutil::uniform(4242u64);
         let (mut suff, mut robust, mut nec, mut cases) = (0, 0, 0, 0);
         for degree in [4usize, 5] {
             for _ in 0..3000 {
@@ -370,8 +357,12 @@ mod tests {
 
     #[test]
     fn hull_orients_each_coefficient() {
-        let h = IntervalPoly::hull(&Poly::new(&[1.0, 3.0, -2.0]), &Poly::new(&[1.0, 1.0, 4.0]));
+        let h = IntervalPoly::hull(&[Poly::new(&[1.0, 3.0, -2.0]), Poly::new(&[1.0, 1.0, 4.0])]);
         assert_eq!(h.lo(), &[1.0, 1.0, -2.0]);
         assert_eq!(h.hi(), &[1.0, 3.0, 4.0]);
+        // Different degrees are padded; an empty set has no hull.
+        let h = IntervalPoly::hull(&[Poly::new(&[2.0]), Poly::new(&[1.0, -1.0])]);
+        assert_eq!((h.lo(), h.hi()), (&[0.0, -1.0][..], &[1.0, 2.0][..]));
+        assert_eq!(IntervalPoly::hull(&[]), IntervalPoly::point(&[0.0]));
     }
 }

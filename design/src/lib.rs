@@ -18,4 +18,6 @@ pub mod pi_region;
 pub mod poly;
 pub mod recycle;
 pub mod startup_fit;
+#[cfg(test)]
+mod testutil;
 pub mod tf;

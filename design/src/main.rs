@@ -47,6 +47,16 @@ mod cli {
     pub mod kharitonov;
     pub mod recycle;
     pub mod startup_fit;
+
+    /// Write `text` to `path` through a `.partial` file and a rename: a reader never sees a
+    /// half-written plot or plant file.
+    pub fn write_atomic(path: &std::path::Path, text: &str) -> Result<(), String> {
+        let mut tmp = path.as_os_str().to_owned();
+        tmp.push(".partial");
+        std::fs::write(&tmp, text)
+            .and_then(|()| std::fs::rename(&tmp, path))
+            .map_err(|e| format!("{}: {e}", path.display()))
+    }
 }
 
 use std::process::ExitCode;

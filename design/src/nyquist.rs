@@ -133,9 +133,9 @@ fn winding_along(
 /// and of `D`; roots within `1e-9` relative of the axis count as left).
 pub fn encirclements_by_roots(l: &Tf, point: Complex64) -> i64 {
     let rhp = |roots: &[Complex64], scale: f64| roots.iter().filter(|z| z.re > 1e-9 * scale).count() as i64;
-    let scale = l.den.roots().iter().chain(&l.num.roots()).map(|z| z.norm()).fold(1.0, f64::max);
-    let z = complex_poly_roots(&l.num, &l.den, point);
-    rhp(&z, scale) - rhp(&l.den.roots(), scale)
+    let poles = l.den.roots();
+    let scale = poles.iter().chain(&l.num.roots()).map(|z| z.norm()).fold(1.0, f64::max);
+    rhp(&complex_poly_roots(&l.num, &l.den, point), scale) - rhp(&poles, scale)
 }
 
 /// Roots of `N(s) − p·D(s)` for complex `p`: with `a = N − Re(p)·D`, `b = −Im(p)·D`, the
@@ -199,11 +199,7 @@ mod tests {
     /// lightly damped modes) and random complex points.
     #[test]
     fn winding_agrees_with_root_count() {
-        let mut seed = 31u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::testutil::uniform(31u64);
         let mut nonzero = 0;
         for case in 0..200 {
             let mut den = Poly::new(&[1.0]);

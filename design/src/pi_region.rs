@@ -31,13 +31,7 @@ pub struct LocusPoint {
 
 /// The stability boundary locus of plant `g` over `omegas`.
 pub fn stability_locus(g: &Tf, omegas: &[f64]) -> Vec<LocusPoint> {
-    omegas
-        .iter()
-        .map(|&w| {
-            let z = num_complex::Complex64::new(0.0, -w) / g.response(w);
-            LocusPoint { omega_rad_s: w, kp: z.im / w, ki: z.re }
-        })
-        .collect()
+    tester_locus(g, Tester { gain: 1.0, phase_rad: 0.0 }, omegas)
 }
 
 /// Is `(kp, ki)` stabilising for the fixed plant `n/d`?
@@ -102,11 +96,7 @@ pub fn tester_is_stable(n: &Poly, d: &Poly, kp: f64, ki: f64, tester: Tester) ->
     let sd = d.mul(&Poly::new(&[1.0, 0.0]));
     let cn = n.mul(&Poly::new(&[kp, ki]));
     let len = sd.coeffs().len().max(cn.coeffs().len());
-    let at = |p: &Poly, i: usize| {
-        let c = p.coeffs();
-        (i + c.len()).checked_sub(len).and_then(|k| c.get(k)).copied().unwrap_or(0.0)
-    };
-    let p: Vec<C> = (0..len).map(|i| C::new(at(&sd, i), 0.0) + t * at(&cn, i)).collect();
+    let p: Vec<C> = sd.padded(len).iter().zip(cn.padded(len)).map(|(a, b)| C::new(*a, 0.0) + t * b).collect();
     let mut q = vec![0.0; 2 * len - 1];
     for (i, a) in p.iter().enumerate() {
         for (j, b) in p.iter().enumerate() {

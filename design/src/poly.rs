@@ -51,15 +51,17 @@ impl Poly {
         Poly::new(&r)
     }
 
+    /// Descending coefficients left-padded with zeros to `len` (at least the own length).
+    pub fn padded(&self, len: usize) -> Vec<f64> {
+        let mut v = vec![0.0; len.saturating_sub(self.c.len())];
+        v.extend_from_slice(&self.c);
+        v
+    }
+
     /// Sum.
     pub fn add(&self, o: &Poly) -> Poly {
         let n = self.c.len().max(o.c.len());
-        let pad = |p: &Poly| -> Vec<f64> {
-            let mut v = vec![0.0; n - p.c.len()];
-            v.extend_from_slice(&p.c);
-            v
-        };
-        let (a, b) = (pad(self), pad(o));
+        let (a, b) = (self.padded(n), o.padded(n));
         Poly::new(&a.iter().zip(&b).map(|(x, y)| x + y).collect::<Vec<_>>())
     }
 
@@ -248,11 +250,7 @@ mod tests {
     /// with Hurwitz endpoints, both verdicts must occur and always agree with 2001 members.
     #[test]
     fn segment_test_agrees_with_dense_sweep() {
-        let mut seed = 7u64;
-        let mut rnd = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::testutil::uniform(7u64);
         // Two lightly damped modes at random frequencies: mixing such endpoints often
         // crosses the imaginary axis, so both verdicts occur.
         let random_hurwitz = |rnd: &mut dyn FnMut() -> f64| {

@@ -158,18 +158,19 @@ impl RecycleProcess {
     /// shifted right by `decay` (`decay = 0`: eq. (16) as it should read). Δ is affine in
     /// k, so the hull of the two end members is exact.
     pub fn interval(&self, pi: &Pi, decay: f64) -> IntervalPoly {
-        IntervalPoly::hull(
-            &self.characteristic(self.k_lo, pi).shifted(decay),
-            &self.characteristic(self.k_hi, pi).shifted(decay),
-        )
+        IntervalPoly::hull(&self.end_members(pi, decay))
     }
 
     /// Exact: every member `k ∈ [k_lo, k_hi]` has all roots left of `−decay` (Bialas).
     pub fn family_is_stable(&self, pi: &Pi, decay: f64) -> bool {
-        segment_is_hurwitz(
-            &self.characteristic(self.k_lo, pi).shifted(decay),
-            &self.characteristic(self.k_hi, pi).shifted(decay),
-        )
+        let [a, b] = self.end_members(pi, decay);
+        segment_is_hurwitz(&a, &b)
+    }
+
+    /// Δ at `k_lo` and `k_hi`, roots shifted right by `decay`: the ends of the segment the
+    /// family is.
+    fn end_members(&self, pi: &Pi, decay: f64) -> [Poly; 2] {
+        [self.k_lo, self.k_hi].map(|k| self.characteristic(k, pi).shifted(decay))
     }
 
     /// Exact for unit 1 without the recycle.
@@ -340,18 +341,21 @@ pub fn nearest_robust_pi(p: &RecycleProcess, which: Constraints, decay: f64) -> 
     let nominal = p.itae();
     let n_cons = constraint_values(p, which, decay, &nominal).len();
     let evaluations = std::cell::Cell::new(0usize);
+    let at = |x: &[f64]| Pi { k1: x.first().copied().unwrap_or(0.0), k2: x.get(1).copied().unwrap_or(0.0) };
     let objective = |x: &[f64], _: &mut ()| {
         evaluations.set(evaluations.get() + 1);
-        Pi { k1: x.first().copied().unwrap_or(0.0), k2: x.get(1).copied().unwrap_or(0.0) }.cost(&nominal)
+        at(x).cost(&nominal)
     };
-    let at = |x: &[f64]| Pi { k1: x.first().copied().unwrap_or(0.0), k2: x.get(1).copied().unwrap_or(0.0) };
-    let cons: Vec<_> = (0..n_cons)
-        .map(|i| {
-            move |x: &[f64], _: &mut ()| {
-                constraint_values(p, which, decay, &at(x)).get(i).copied().unwrap_or(f64::NEG_INFINITY)
-            }
-        })
-        .collect();
+    // COBYLA asks for the constraints one by one at the same point: compute them once per point.
+    let last: std::cell::RefCell<(Vec<f64>, Vec<f64>)> = std::cell::RefCell::default();
+    let value = |x: &[f64], i: usize| {
+        let mut cache = last.borrow_mut();
+        if cache.0 != x {
+            *cache = (x.to_vec(), constraint_values(p, which, decay, &at(x)));
+        }
+        cache.1.get(i).copied().unwrap_or(f64::NEG_INFINITY)
+    };
+    let cons: Vec<_> = (0..n_cons).map(|i| move |x: &[f64], _: &mut ()| value(x, i)).collect();
     let cons_dyn: Vec<&dyn cobyla::Func<()>> = cons.iter().map(|c| c as &dyn cobyla::Func<()>).collect();
     let stop = cobyla::StopTols { xtol_abs: vec![1e-10; 2], ftol_abs: 1e-14, ..cobyla::StopTols::default() };
     let (_, x, _) = cobyla::minimize(

@@ -23,7 +23,7 @@
 //! 5th order with the mechanics — at the segment lengths here the speed is an input-driven
 //! slow variable, not a state the current loop sees.
 
-use crate::kharitonov::{IntervalError, IntervalPlant, IntervalPoly};
+use crate::kharitonov::{IntervalPlant, IntervalPoly};
 use crate::poly::Poly;
 use crate::tf::Tf;
 use controller_core::motor::MotorParams;
@@ -271,26 +271,10 @@ pub fn fit_segments(m: &MotorParams, trace: &Trace, e: &Experiment) -> Result<Ve
 }
 
 /// Coefficient ranges of g₁₁ over the segments.
-pub fn interval_plant(segments: &[Segment]) -> Result<IntervalPlant, IntervalError> {
-    let range = |get: &dyn Fn(&Segment) -> Vec<f64>| -> Result<IntervalPoly, IntervalError> {
-        let all: Vec<Vec<f64>> = segments.iter().map(get).collect();
-        let len = all.iter().map(Vec::len).max().unwrap_or(0);
-        let pad = |v: &Vec<f64>| -> Vec<f64> {
-            let mut p = vec![0.0; len - v.len()];
-            p.extend_from_slice(v);
-            p
-        };
-        let padded: Vec<Vec<f64>> = all.iter().map(pad).collect();
-        let lo: Vec<f64> =
-            (0..len).map(|i| padded.iter().map(|v| v[i]).fold(f64::INFINITY, f64::min)).collect();
-        let hi: Vec<f64> =
-            (0..len).map(|i| padded.iter().map(|v| v[i]).fold(f64::NEG_INFINITY, f64::max)).collect();
-        IntervalPoly::new(&lo, &hi)
-    };
-    Ok(IntervalPlant {
-        num: range(&|s: &Segment| s.g11.num.coeffs().to_vec())?,
-        den: range(&|s: &Segment| s.g11.den.coeffs().to_vec())?,
-    })
+pub fn interval_plant(segments: &[Segment]) -> IntervalPlant {
+    let nums: Vec<Poly> = segments.iter().map(|s| s.g11.num.clone()).collect();
+    let dens: Vec<Poly> = segments.iter().map(|s| s.g11.den.clone()).collect();
+    IntervalPlant { num: IntervalPoly::hull(&nums), den: IntervalPoly::hull(&dens) }
 }
 
 #[cfg(test)]
@@ -324,10 +308,9 @@ mod tests {
         let e = Experiment::krause_2300v();
         let mut x = MachineState { omega_m_rad_s: 60.0, ..MachineState::default() };
         let mut tr = Trace { t_s: vec![], x: vec![], v: vec![] };
-        let mut seed = 5u64;
+        let mut rnd = crate::testutil::uniform(5);
         for k in 0..5000 {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            let u = if (seed >> 40) & 1 == 1 { 100.0 } else { -100.0 };
+            let u = if rnd() < 0.5 { 100.0 } else { -100.0 };
             let v = [u + 300.0 * (0.3 * k as f64 * e.h_s * 377.0).cos(), -u];
             tr.t_s.push(k as f64 * e.h_s);
             tr.x.push(x);
@@ -373,7 +356,7 @@ mod tests {
             assert!(s.replay_rel_rms < 0.025, "{:?}", s.t_s);
         }
         assert!(segs.windows(2).all(|w| w[1].omega_r_mean_rad_s > w[0].omega_r_mean_rad_s - 1.0));
-        let plant = interval_plant(&segs).unwrap();
+        let plant = interval_plant(&segs);
         for s in &segs {
             for (c, (lo, hi)) in s.g11.den.coeffs().iter().zip(plant.den.lo().iter().zip(plant.den.hi())) {
                 assert!(lo <= c && c <= hi);

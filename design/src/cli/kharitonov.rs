@@ -63,13 +63,6 @@ enum Region {
     Bandwidth(f64),
 }
 
-fn write_svg(path: &Path, svg: &str) -> Result<(), String> {
-    let tmp = path.with_extension("svg.partial");
-    std::fs::write(&tmp, svg)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| format!("{}: {e}", path.display()))
-}
-
 fn plot_region(
     path: &Path,
     plant: &IntervalPlant,
@@ -134,7 +127,7 @@ fn plot_region(
     series.extend(curves);
     series.push(Series::line("k_i = 0", vec![(kp_range.0, 0.0), (kp_range.1, 0.0)]).colored("#444444"));
     series.push(Series::markers("PI", vec![(kp, ki)]).colored("#d62728"));
-    write_svg(path, &plot_in(title, "k_p", &series, (kp_range, ki_range)))
+    super::write_atomic(path, &plot_in(title, "k_p", &series, (kp_range, ki_range)))
 }
 
 /// Parse and run; `Ok(true)` when every requested property holds robustly.

@@ -91,13 +91,6 @@ fn print_text(r: &Report) {
     }
 }
 
-fn write(path: &Path, svg: &str) -> Result<(), String> {
-    let tmp = path.with_extension("svg.partial");
-    std::fs::write(&tmp, svg)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| format!("{}: {e}", path.display()))
-}
-
 /// Labelled curves `(label, [(t, y)])`.
 type Curves = Vec<(String, Vec<(f64, f64)>)>;
 
@@ -109,7 +102,7 @@ fn responses(p: &RecycleProcess, pi: &Pi, recycle: bool, ks: &[f64], t_end: f64)
 
 fn plot_responses(path: &Path, title: &str, curves: &Curves) -> Result<(), String> {
     let series: Vec<Series<'_>> = curves.iter().map(|(l, pts)| Series::line(l, pts.clone())).collect();
-    write(path, &line_plot(title, "t (s)", &series))
+    super::write_atomic(path, &line_plot(title, "t (s)", &series))
 }
 
 /// Figs. 2–5 and the k₁–k₂ plane with every constraint set's region.
@@ -186,5 +179,8 @@ fn region_plot(path: &Path, p: &RecycleProcess, r: &Report) -> Result<(), String
     for ((o, c), l) in r.optima.iter().zip(colors).zip(&labels) {
         series.push(Series::markers(l, vec![(o.pi.k1, o.pi.k2)]).colored(c));
     }
-    write(path, &plot_in("Seed 001 recycle loop: robust PI regions (k2 vs k1)", "k1", &series, (k1r, k2r)))
+    super::write_atomic(
+        path,
+        &plot_in("Seed 001 recycle loop: robust PI regions (k2 vs k1)", "k1", &series, (k1r, k2r)),
+    )
 }

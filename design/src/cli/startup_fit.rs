@@ -5,13 +5,6 @@ use hil_sim::plot::{Series, line_plot};
 use std::fmt::Write as _;
 use std::path::Path;
 
-fn write_atomic(path: &Path, text: &str) -> Result<(), String> {
-    let tmp = path.with_extension("partial");
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .map_err(|e| format!("{}: {e}", path.display()))
-}
-
 /// Parse and run; `Ok(true)` when every segment's replay error is below 5 %.
 pub fn run(args: &[String]) -> Result<bool, String> {
     let (mut motor, mut json, mut plot_dir, mut plant_out) =
@@ -38,7 +31,7 @@ pub fn run(args: &[String]) -> Result<bool, String> {
     let m = hil_sim::motors::load(&motor).map_err(|er| er.to_string())?;
     let trace = simulate(&m, &e)?;
     let segs = fit_segments(&m, &trace, &e)?;
-    let plant = interval_plant(&segs).map_err(|er| format!("interval plant: {er:?}"))?;
+    let plant = interval_plant(&segs);
     if let Some(path) = &plant_out {
         if let Some(parent) = Path::new(path).parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent).map_err(|er| format!("{}: {er}", parent.display()))?;
@@ -51,7 +44,7 @@ pub fn run(args: &[String]) -> Result<bool, String> {
         let _ = writeln!(t, "# {} segments); descending coefficients, monic denominator.", segs.len());
         let _ = writeln!(t, "[numerator]\nlo = {:?}\nhi = {:?}\n", plant.num.lo(), plant.num.hi());
         let _ = writeln!(t, "[denominator]\nlo = {:?}\nhi = {:?}", plant.den.lo(), plant.den.hi());
-        write_atomic(Path::new(path), &t)?;
+        super::write_atomic(Path::new(path), &t)?;
         eprintln!("design: wrote {path}");
     }
     if let Some(dir) = &plot_dir {
@@ -79,7 +72,7 @@ pub fn run(args: &[String]) -> Result<bool, String> {
             "t (s)",
             &[Series::line("nonlinear plant", nonlinear), Series::line("fitted models (piecewise)", fitted)],
         );
-        write_atomic(&dir.join("startup-fit.svg"), &svg)?;
+        super::write_atomic(&dir.join("startup-fit.svg"), &svg)?;
         let speed: Vec<(f64, f64)> = trace
             .t_s
             .iter()
@@ -93,7 +86,7 @@ pub fn run(args: &[String]) -> Result<bool, String> {
             "t (s)",
             &[Series::line("ω_r", speed), Series::markers("segment start, mean ω_r", bounds)],
         );
-        write_atomic(&dir.join("startup-speed.svg"), &svg)?;
+        super::write_atomic(&dir.join("startup-speed.svg"), &svg)?;
         eprintln!("design: wrote the start-up plots to {}", dir.display());
     }
     let ok = segs.iter().all(|s| s.replay_rel_rms < 0.05);
