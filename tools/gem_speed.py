@@ -8,15 +8,14 @@ motor (DeLorenzo DL10115A1, 310 V supply) at the same 50 µs step.
 GEM runs its `Cont-CC-SCIM-v0` environment with an open-loop V/f voltage (20 Hz, 30 % of
 the bus) and no controller computed in Python, so its figure is an upper bound of GEM's
 speed on scenario 2 and the printed ratio a lower bound of hil-sim's advantage. hil-sim's
-figure is the median `real_time_factor` of three runs of the release binary. Needs: pip
-install gym-electric-motor.
+figure is `hil-sim bench speed-step` (release build): the median simulated-seconds-per-wall-
+second of 20 runs of the simulation loop after a warm-up run. Needs: pip install
+gym-electric-motor.
 """
 import json
 import math
-import statistics
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -27,17 +26,15 @@ ROOT = Path(__file__).resolve().parent.parent
 TAU_S = 5e-5
 
 
-def hil_sim_factor() -> float:
+def hil_sim_factor() -> tuple[float, float]:
+    """(median real-time factor, median ns per PWM period) of `hil-sim bench speed-step`."""
     subprocess.run(["cargo", "build", "-q", "--release", "-p", "hil-sim"], cwd=ROOT, check=True)
-    factors = []
-    with tempfile.TemporaryDirectory() as out:
-        for _ in range(3):
-            subprocess.run(
-                [str(ROOT / "target/release/hil-sim"), "run", "speed-step", "--out", out],
-                cwd=ROOT, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            )
-            factors.append(json.loads((Path(out) / "summary.json").read_text())["real_time_factor"])
-    return statistics.median(factors)
+    out = subprocess.run(
+        [str(ROOT / "target/release/hil-sim"), "bench", "speed-step", "--runs", "20"],
+        cwd=ROOT, check=True, capture_output=True, text=True,
+    ).stdout
+    b = json.loads(out)
+    return b["median_real_time_factor"], b["median_ns_per_pwm_period"]
 
 
 def gem_factor(seconds: float) -> tuple[float, int]:
@@ -59,9 +56,10 @@ def gem_factor(seconds: float) -> tuple[float, int]:
 
 def main() -> int:
     seconds = float(sys.argv[1]) if len(sys.argv) > 1 else 1.0
-    ours = hil_sim_factor()
+    ours, ns = hil_sim_factor()
     theirs, resets = gem_factor(seconds)
-    print(f"hil-sim speed-step (closed loop, 50 µs control period): {ours:8.1f}× real time (median of 3)")
+    print(f"hil-sim speed-step (closed loop, 50 µs control period): {ours:8.1f}× real time "
+          f"({ns:.1f} ns per period, median of 20 runs)")
     print(f"gym-electric-motor SCIM env, same motor and step, no controller: {theirs:8.3f}× real time "
           f"({seconds} s simulated, {resets} resets)")
     print(f"ratio: hil-sim is {ours / theirs:.0f}× faster (a lower bound: GEM's figure has no controller)")

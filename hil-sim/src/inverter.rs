@@ -65,13 +65,20 @@ fn clarke(v: [f64; 3]) -> [f64; 2] {
 }
 
 impl InverterModel {
+    /// The period-average αβ voltage of duties `duty` on a bus of `vdc_v` volts (the
+    /// [`InverterModel::Average`] model's one segment).
+    #[inline]
+    pub fn average_voltage(duty: [f64; 3], vdc_v: f64) -> [f64; 2] {
+        clarke(duty.map(|d| (d.clamp(0.0, 1.0) - 0.5) * vdc_v))
+    }
+
     /// Voltage segments of one period of length `ts_s` for duties `duty` (each in [0, 1]),
     /// phase currents `i_abc_a` at the start of the period and bus voltage `vdc_v`.
     pub fn segments(&self, duty: [f64; 3], i_abc_a: [f64; 3], vdc_v: f64, ts_s: f64) -> Segments {
         let mut out = Segments::default();
         match *self {
             InverterModel::Average => {
-                out.push(ts_s, clarke(duty.map(|d| (d.clamp(0.0, 1.0) - 0.5) * vdc_v)));
+                out.push(ts_s, Self::average_voltage(duty, vdc_v));
             }
             InverterModel::Switching { dead_time_s } => {
                 // High interval of each phase.

@@ -16,6 +16,14 @@
 //! talks to the board's command/telemetry link on a serial device (e.g. `/dev/ttyACM0`, the
 //! NUCLEO's virtual COM port; set to 115200 baud raw with `stty`, 2 s read timeout) and
 //! prints the reply, or N telemetry frames.
+//! ```text
+//! hil-sim bench [builtin] [--runs N]
+//! ```
+//! times the closed-loop simulation alone (no trace files): the built-in scenario
+//! (default `speed-step`, the issue's scenario 2) run N times (default 20) after one
+//! warm-up run; prints JSON with the median and best simulated-seconds-per-wall-second and
+//! nanoseconds per PWM period.
+//!
 //! `run` writes `DIR/trace.csv`, `DIR/summary.json` and the plots `speed.svg`,
 //! `currents.svg`, `torque.svg` (default `DIR` = `out/<name>`). A file
 //! that fails to parse or validate is reported with file, key and reason, and nothing is
@@ -37,6 +45,7 @@ fn usage() -> ExitCode {
     eprintln!(
         "usage: hil-sim list\n       hil-sim run <scenario.toml | builtin> [--out DIR]\n       \
          hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]\n       \
+         hil-sim bench [builtin] [--runs N]\n       \
          hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | gains | set-gains KP TAU | telemetry [N]>"
     );
     ExitCode::from(2)
@@ -224,6 +233,56 @@ fn run_file(path: &Path, out: &Path, pil: Option<&PilOptions>) -> Result<(), Str
     finish(out, &rows, false, summary)
 }
 
+/// `hil-sim bench [builtin] [--runs N]`: wall time of the simulation loop alone.
+fn bench(builtins: &[Builtin], args: &[String]) -> Result<(), String> {
+    let mut name = "speed-step";
+    let mut runs: u32 = 20;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--runs" => {
+                let v = it.next().ok_or("`--runs` needs a count")?;
+                runs = v.parse().ok().filter(|&n| n > 0).ok_or(format!("`{v}` is not a positive count"))?;
+            }
+            flag if flag.starts_with("--") => return Err(format!("unknown flag `{flag}`")),
+            n => name = n,
+        }
+    }
+    let b = builtins
+        .iter()
+        .find(|b| b.name == name)
+        .ok_or(format!("`{name}` is not a built-in scenario (`hil-sim list`)"))?;
+    let periods = (b.scenario.duration_s * b.spec.pwm_frequency_hz).round();
+    let mut secs = Vec::with_capacity(runs as usize);
+    for k in 0..=runs {
+        let wall = std::time::Instant::now();
+        let (rows, _) = b.run(|_| {})?;
+        let s = wall.elapsed().as_secs_f64();
+        std::hint::black_box(rows);
+        if k > 0 {
+            secs.push(s);
+        }
+        progress_bar(f64::from(k) / f64::from(runs));
+    }
+    secs.sort_by(f64::total_cmp);
+    let median = secs.get(secs.len() / 2).copied().ok_or("no runs")?;
+    let best = secs.first().copied().ok_or("no runs")?;
+    let summary = serde_json::json!({
+        "scenario": b.name,
+        "runs": runs,
+        "duration_s": b.scenario.duration_s,
+        "pwm_frequency_hz": b.spec.pwm_frequency_hz,
+        "rk4_substeps_per_pwm_period": b.scenario.substeps,
+        "median_wall_time_s": median,
+        "median_real_time_factor": b.scenario.duration_s / median,
+        "best_real_time_factor": b.scenario.duration_s / best,
+        "median_ns_per_pwm_period": median * 1e9 / periods,
+        "best_ns_per_pwm_period": best * 1e9 / periods,
+    });
+    println!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
+    Ok(())
+}
+
 /// `hil-sim link DEVICE …`: one command to the board, or N telemetry frames from it.
 fn board_link(args: &[String]) -> Result<(), String> {
     use controller_core::drive::Reference;
@@ -291,6 +350,13 @@ fn main() -> ExitCode {
     };
     match args.first().map(String::as_str) {
         Some("link") => match board_link(args.get(1..).unwrap_or_default()) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("hil-sim: {e}");
+                ExitCode::FAILURE
+            }
+        },
+        Some("bench") => match bench(&builtins, args.get(1..).unwrap_or_default()) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("hil-sim: {e}");

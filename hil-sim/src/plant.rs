@@ -33,20 +33,27 @@ pub struct MachineState {
     pub theta_m_rad: f64,
 }
 
-impl MachineState {
-    fn to_array(self) -> [f64; 6] {
-        [
-            self.i_alpha_a,
-            self.i_beta_a,
-            self.psi_alpha_wb,
-            self.psi_beta_wb,
-            self.omega_m_rad_s,
-            self.theta_m_rad,
-        ]
-    }
-    fn from_array(x: [f64; 6]) -> Self {
-        let [i_alpha_a, i_beta_a, psi_alpha_wb, psi_beta_wb, omega_m_rad_s, theta_m_rad] = x;
-        Self { i_alpha_a, i_beta_a, psi_alpha_wb, psi_beta_wb, omega_m_rad_s, theta_m_rad }
+/// Coefficient products of eq. (1)–(2) as the derivative uses them.
+#[derive(Clone, Copy, Debug)]
+struct Folded {
+    /// b·R_r/L_r.
+    b_rr_lr: f64,
+    /// b·p (b·ω_r = b·p·ω_m).
+    b_p: f64,
+    /// (3/2)·p·L_m/L_r / J.
+    torque_per_j: f64,
+    /// B/J.
+    b_per_j: f64,
+}
+
+impl Folded {
+    fn of(m: &Machine) -> Self {
+        Self {
+            b_rr_lr: m.b * m.rr_lr,
+            b_p: m.b * m.p,
+            torque_per_j: m.torque_factor * m.inv_j,
+            b_per_j: m.b_nms * m.inv_j,
+        }
     }
 }
 
@@ -62,6 +69,8 @@ pub struct Machine {
     p: f64,
     inv_j: f64,
     b_nms: f64,
+    /// Products of the above that [`Machine::derivative`] uses, formed once here.
+    folded: Folded,
     /// Coulomb (dry) friction torque magnitude, N·m.
     coulomb_nm: f64,
 }
@@ -72,6 +81,7 @@ impl Machine {
         let sigma_ls = m.sigma() * m.ls_h();
         let (lr, lm) = (m.lr_h(), m.lm_h());
         Self {
+            folded: Folded { b_rr_lr: 0.0, b_p: 0.0, torque_per_j: 0.0, b_per_j: 0.0 },
             a: -(lr * lr * m.rs_ohm() + lm * lm * m.rr_ohm()) / (sigma_ls * lr * lr),
             b: lm / (sigma_ls * lr),
             rr_lr: m.rr_ohm() / lr,
@@ -83,6 +93,11 @@ impl Machine {
             b_nms: m.b_nms(),
             coulomb_nm: 0.0,
         }
+        .refolded()
+    }
+
+    fn refolded(self) -> Self {
+        Self { folded: Folded::of(&self), ..self }
     }
 
     /// The linear electrical subsystem of eq. (1) at electrical rotor speed `omega_r`:
@@ -110,7 +125,7 @@ impl Machine {
     /// The same machine with its speed held (infinite inertia, no friction): for
     /// locked-rotor and fixed-slip tests.
     pub fn speed_locked(&self) -> Self {
-        Self { inv_j: 0.0, b_nms: 0.0, coulomb_nm: 0.0, ..*self }
+        Self { inv_j: 0.0, b_nms: 0.0, coulomb_nm: 0.0, ..*self }.refolded()
     }
 
     /// The same machine with Coulomb friction of magnitude `t_c_nm`: −T_c·sign(ω_m) while
@@ -124,23 +139,24 @@ impl Machine {
     /// The same machine with an extra viscous load `k_nm_s_rad` (an eddy-current brake,
     /// T_L = k·ω_m).
     pub fn with_eddy_brake(&self, k_nm_s_rad: f64) -> Self {
-        Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }
+        Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }.refolded()
     }
 
-    /// `friction_nm`: the Coulomb friction torque, held over the step (see
-    /// [`Machine::rk4_source`]); the inner evaluation stays branch-free.
+    /// Eq. (1)–(2) at `x = [i_sα, i_sβ, ψ_rα, ψ_rβ, ω_m]` (θ_m enters nothing), with the
+    /// inputs folded into `u = [v_sα/(σL_s), v_sβ/(σL_s), (T_L + T_f)/J]` (T_f: the Coulomb
+    /// friction torque, held over the step; see [`Machine::rk4_source`]). Branch-free and
+    /// short: an RK4 step is four of these in sequence, and their cost is the simulator's.
     #[inline(always)]
-    fn derivative(&self, x: [f64; 6], v: [f64; 2], load_nm: f64, friction_nm: f64) -> [f64; 6] {
-        let [ia, ib, pa, pb, w, _] = x;
-        let wr = self.p * w;
-        let te = self.torque_factor * (pa * ib - pb * ia);
+    fn derivative(&self, x: [f64; 5], u: [f64; 3]) -> [f64; 5] {
+        let [ia, ib, pa, pb, w] = x;
+        let f = &self.folded;
+        let (wr, bwr) = (self.p * w, f.b_p * w);
         [
-            self.a * ia + self.b * self.rr_lr * pa + self.b * wr * pb + v[0] * self.inv_sigma_ls,
-            self.a * ib - self.b * wr * pa + self.b * self.rr_lr * pb + v[1] * self.inv_sigma_ls,
-            self.lm_rr_lr * ia - self.rr_lr * pa - wr * pb,
-            self.lm_rr_lr * ib + wr * pa - self.rr_lr * pb,
-            (te - self.b_nms * w - load_nm - friction_nm) * self.inv_j,
-            w,
+            (self.a * ia + f.b_rr_lr * pa) + (bwr * pb + u[0]),
+            (self.a * ib + f.b_rr_lr * pb) - (bwr * pa - u[1]),
+            (self.lm_rr_lr * ia - self.rr_lr * pa) - wr * pb,
+            (self.lm_rr_lr * ib - self.rr_lr * pb) + wr * pa,
+            f.torque_per_j * (pa * ib - pb * ia) - (f.b_per_j * w + u[2]),
         ]
     }
 
@@ -177,17 +193,33 @@ impl Machine {
         v: impl Fn(f64) -> [f64; 2],
         load_nm: f64,
     ) -> MachineState {
-        let x0 = x.to_array();
-        let add = |x: [f64; 6], k: [f64; 6], s: f64| std::array::from_fn(|n| x[n] + s * k[n]);
-        let v_mid = v(t_s + h_s / 2.0);
+        let x0 = [x.i_alpha_a, x.i_beta_a, x.psi_alpha_wb, x.psi_beta_wb, x.omega_m_rad_s];
+        let add = |k: [f64; 5], s: f64| -> [f64; 5] { std::array::from_fn(|n| x0[n] + s * k[n]) };
         let friction_nm = self.coulomb_torque_nm(x, load_nm);
-        let k1 = self.derivative(x0, v(t_s), load_nm, friction_nm);
-        let k2 = self.derivative(add(x0, k1, h_s / 2.0), v_mid, load_nm, friction_nm);
-        let k3 = self.derivative(add(x0, k2, h_s / 2.0), v_mid, load_nm, friction_nm);
-        let k4 = self.derivative(add(x0, k3, h_s), v(t_s + h_s), load_nm, friction_nm);
-        let mut x1 = MachineState::from_array(std::array::from_fn(|n| {
-            x0[n] + h_s / 6.0 * (k1[n] + 2.0 * k2[n] + 2.0 * k3[n] + k4[n])
-        }));
+        let u = |t: f64| {
+            let [va, vb] = v(t);
+            [va * self.inv_sigma_ls, vb * self.inv_sigma_ls, (load_nm + friction_nm) * self.inv_j]
+        };
+        let u_mid = u(t_s + h_s / 2.0);
+        let k1 = self.derivative(x0, u(t_s));
+        let k2 = self.derivative(add(k1, h_s / 2.0), u_mid);
+        let k3 = self.derivative(add(k2, h_s / 2.0), u_mid);
+        let x4 = add(k3, h_s);
+        let k4 = self.derivative(x4, u(t_s + h_s));
+        let [ia, ib, pa, pb, w] =
+            std::array::from_fn(|n| x0[n] + h_s / 6.0 * (k1[n] + 2.0 * k2[n] + 2.0 * k3[n] + k4[n]));
+        // dθ_m/dt = ω_m, whose stage values are the ω entries of the stage states.
+        let theta = x.theta_m_rad
+            + h_s / 6.0
+                * (x0[4] + 2.0 * (x0[4] + h_s / 2.0 * k1[4]) + 2.0 * (x0[4] + h_s / 2.0 * k2[4]) + x4[4]);
+        let mut x1 = MachineState {
+            i_alpha_a: ia,
+            i_beta_a: ib,
+            psi_alpha_wb: pa,
+            psi_beta_wb: pb,
+            omega_m_rad_s: w,
+            theta_m_rad: theta,
+        };
         // Kinetic friction would reverse the rotor within this step: it stops instead.
         if self.coulomb_nm > 0.0 && x.omega_m_rad_s * x1.omega_m_rad_s < 0.0 {
             x1.omega_m_rad_s = 0.0;

@@ -92,6 +92,8 @@ pub struct Sensors {
     rng: Rng,
     encoder: Option<(EncoderConfig<ENCODER_WINDOW>, EncoderState<ENCODER_WINDOW>, u32)>,
     last: EncoderReading,
+    /// The current ADC is exact (no gain/offset error, noise or quantisation).
+    exact_currents: bool,
 }
 
 impl Sensors {
@@ -101,11 +103,28 @@ impl Sensors {
             Some(lines) => Some((EncoderConfig::new(lines, slow_period_s)?, EncoderState::default(), lines)),
             None => None,
         };
-        Ok(Self { model, rng: Rng(model.seed), encoder, last: EncoderReading::default() })
+        let ideal = SensorModel::default();
+        let exact_currents = model.current_lsb_a == 0.0
+            && model.current_offset_a == ideal.current_offset_a
+            && model.current_gain == ideal.current_gain
+            && model.current_noise_rms_a == 0.0;
+        Ok(Self { model, rng: Rng(model.seed), encoder, last: EncoderReading::default(), exact_currents })
     }
 
     /// Sampled phase currents from the true ones.
+    #[inline(always)]
     pub fn currents(&mut self, true_abc: [f64; 3]) -> Abc {
+        if self.exact_currents {
+            let [a, b, c] = true_abc.map(|i| i as f32);
+            Abc { a, b, c }
+        } else {
+            self.adc_currents(true_abc)
+        }
+    }
+
+    /// [`Sensors::currents`] through the ADC model.
+    #[inline(never)]
+    fn adc_currents(&mut self, true_abc: [f64; 3]) -> Abc {
         let m = self.model;
         let mut out = [0.0f32; 3];
         for (k, o) in out.iter_mut().enumerate() {

@@ -136,36 +136,41 @@ pub fn run(
         LoadModel::LockedRotor => machine.speed_locked(),
         LoadModel::CoulombFriction { friction_nm } => machine.with_coulomb_friction(friction_nm),
     };
-    let h = ts / f64::from(sc.substeps.max(1));
+    let substeps = sc.substeps.max(1);
+    let h = ts / f64::from(substeps);
     let n = (sc.duration_s / ts).round() as u64;
+    let trace_every = sc.trace_every.max(1);
     let mut x = MachineState::default();
     let mut load = 0.0;
     // Duties applied during the present period (computed in the previous one); None = off.
     let mut applied_duty: Option<[f64; 3]> = None;
     let mut events = sc.events.iter().peekable();
-    let mut rows = Vec::with_capacity((n / u64::from(sc.trace_every.max(1)) + 1) as usize);
+    let mut next_event_s = events.peek().map_or(f64::INFINITY, |(te, _)| *te);
+    let mut rows = Vec::with_capacity((n / u64::from(trace_every) + 1) as usize);
+    // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
+    let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
+    let s3 = 3f64.sqrt() / 2.0;
     for k in 0..n {
         let t = k as f64 * ts;
-        while let Some((_, e)) = events.next_if(|(te, _)| *te <= t) {
-            match *e {
-                Event::Enable => drive.enable()?,
-                Event::Reference(r) => drive.set_reference(r)?,
-                Event::LoadNm(l) => load = l,
+        if t >= next_event_s {
+            while let Some((_, e)) = events.next_if(|(te, _)| *te <= t) {
+                match *e {
+                    Event::Enable => drive.enable()?,
+                    Event::Reference(r) => drive.set_reference(r)?,
+                    Event::LoadNm(l) => load = l,
+                }
             }
+            next_event_s = events.peek().map_or(f64::INFINITY, |(te, _)| *te);
         }
         // True phase currents (amplitude-invariant inverse Clarke, in f64).
         let (ia, ib) = (x.i_alpha_a, x.i_beta_a);
-        let s3 = 3f64.sqrt() / 2.0;
         let i_true = [ia, -0.5 * ia + s3 * ib, -0.5 * ia - s3 * ib];
         let i_abc = sensors.currents(i_true);
-        // The voltage waveform of this period, from the duties decided one period ago.
-        let segments = match applied_duty {
-            Some(d) => sc.inverter.segments(d, i_true, sc.vdc_v, ts),
-            None => InverterModel::Average.segments([0.5; 3], i_true, sc.vdc_v, ts), // bridge off ≈ 0 V
-        };
-        let enc = if k % divider == 0 {
+        let enc = if to_slow == 0 {
+            to_slow = divider.saturating_sub(1);
             sensors.encoder_read(x.theta_m_rad, x.omega_m_rad_s)
         } else {
+            to_slow -= 1;
             sensors.encoder_held()
         };
         let m = Measurements {
@@ -175,12 +180,36 @@ pub fn run(
             theta_m_rad: enc.theta_m_rad,
         };
         let out = drive.step(&m)?;
-        if k % u64::from(sc.trace_every.max(1)) == 0 {
+        // The voltage waveform of this period, from the duties decided one period ago
+        // (bridge off: all duties ½, ≈ 0 V).
+        let duty = applied_duty.unwrap_or([0.5; 3]);
+        let x_at_start = x;
+        let v_avg = match (sc.inverter, applied_duty) {
+            (InverterModel::Switching { .. }, Some(d)) => {
+                let segments = sc.inverter.segments(d, i_true, sc.vdc_v, ts);
+                for &(dt, v) in segments.as_slice() {
+                    let n_sub = (dt / h).ceil().max(1.0);
+                    for _ in 0..n_sub as u32 {
+                        x = machine.rk4(&x, v, load, dt / n_sub);
+                    }
+                }
+                segments.average()
+            }
+            _ => {
+                let v = InverterModel::average_voltage(duty, sc.vdc_v);
+                for _ in 0..substeps {
+                    x = machine.rk4(&x, v, load, h);
+                }
+                v
+            }
+        };
+        if to_trace == 0 {
+            to_trace = trace_every - 1;
             rows.push(Row {
                 t_s: t,
-                x,
-                torque_nm: machine.torque_nm(&x),
-                v_ab_v: segments.average(),
+                x: x_at_start,
+                torque_nm: machine.torque_nm(&x_at_start),
+                v_ab_v: v_avg,
                 i_ref_ab_a: [
                     f64::from(out.telemetry.i_ref_ab_a.alpha),
                     f64::from(out.telemetry.i_ref_ab_a.beta),
@@ -188,20 +217,19 @@ pub fn run(
                 omega_ref_rad_s: f64::from(out.telemetry.omega_ref_rad_s),
                 load_nm: load,
             });
-        }
-        for &(dt, v) in segments.as_slice() {
-            let n_sub = (dt / h).ceil().max(1.0);
-            for _ in 0..n_sub as u32 {
-                x = machine.rk4(&x, v, load, dt / n_sub);
-            }
+        } else {
+            to_trace -= 1;
         }
         // Duties computed now act during the next period.
         applied_duty = match out.phases {
             PhaseCommand::Off => None,
             PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),
         };
-        if k % 2000 == 0 {
+        if to_progress == 0 {
+            to_progress = 1999;
             progress(k as f64 / n as f64);
+        } else {
+            to_progress -= 1;
         }
     }
     progress(1.0);

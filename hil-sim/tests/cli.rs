@@ -61,3 +61,25 @@ fn unknown_scenario_and_usage_errors() {
     let list = bin().arg("list").output().unwrap();
     assert!(String::from_utf8_lossy(&list.stdout).contains("speed-step"));
 }
+
+/// `bench` prints its figures as JSON, consistent with each other (factor = duration /
+/// wall time; ns per period = wall time / periods), and rejects bad arguments.
+#[test]
+fn bench_reports_consistent_figures_and_rejects_bad_arguments() {
+    let out = bin().args(["bench", "speed-step", "--runs", "1"]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let f = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} missing in {v}"));
+    let wall = f("median_wall_time_s");
+    assert!(wall > 0.0);
+    assert!((f("median_real_time_factor") - 3.5 / wall).abs() < 1e-9 * f("median_real_time_factor"));
+    assert!((f("median_ns_per_pwm_period") - wall * 1e9 / 70_000.0).abs() < 1e-6);
+    assert!(f("best_real_time_factor") >= f("median_real_time_factor"));
+    for bad in
+        [&["bench", "--runs", "0"][..], &["bench", "--runs"], &["bench", "no-such"], &["bench", "--fast"]]
+    {
+        let st = bin().args(bad).output().unwrap();
+        assert_eq!(st.status.code(), Some(1), "{bad:?}");
+        assert!(!String::from_utf8_lossy(&st.stderr).is_empty());
+    }
+}
