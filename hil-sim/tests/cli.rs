@@ -69,7 +69,7 @@ fn bench_reports_consistent_figures_and_rejects_bad_arguments() {
     let out = bin().args(["bench", "speed-step", "--runs", "1"]).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let f = |k: &str| v[k].as_f64().unwrap_or_else(|| panic!("{k} missing in {v}"));
+    let f = |k: &str| v[k].as_f64().expect(k);
     let wall = f("median_wall_time_s");
     assert!(wall > 0.0);
     assert!((f("median_real_time_factor") - 3.5 / wall).abs() < 1e-9 * f("median_real_time_factor"));
