@@ -45,6 +45,7 @@ pub struct IfocConfig {
     lm_h: f32,
     slip_gain: f32,
     torque_factor: f32,
+    inv_torque_factor: f32,
     pole_pairs: f32,
     flux_model_gain: f32,
     psi_min_wb: f32,
@@ -96,6 +97,7 @@ impl IfocConfig {
             lm_h: f(motor.lm_h()),
             slip_gain: f(motor.lm_h() * motor.rr_ohm() / motor.lr_h()),
             torque_factor: f(motor.torque_factor()),
+            inv_torque_factor: f(1.0 / motor.torque_factor()),
             pole_pairs: f32::from(motor.pole_pairs()),
             flux_model_gain: f(1.0 - libm::exp(-ts_s / motor.tr_s())),
             psi_min_wb: f(psi_min_wb),
@@ -122,8 +124,9 @@ impl IfocConfig {
     ) -> IfocOutput {
         let i_d = (psi_ref_wb * self.inv_lm).limit(-self.i_max_a, self.i_max_a);
         let psi = max_f32(s.psi_r_wb, self.psi_min_wb);
+        let inv_psi = 1.0 / psi; // one division for i_q* and ω_sl
         let i_q_wanted = match cmd {
-            TorqueCommand::TorqueNm(t) => t / (self.torque_factor * psi),
+            TorqueCommand::TorqueNm(t) => t * self.inv_torque_factor * inv_psi,
             TorqueCommand::IqA(i) => i,
         };
         let i_q_max = match s.i_q_limit {
@@ -135,7 +138,7 @@ impl IfocConfig {
             }
         };
         let i_q = i_q_wanted.limit(-i_q_max, i_q_max);
-        let omega_sl = self.slip_gain * i_q / psi;
+        let omega_sl = self.slip_gain * i_q * inv_psi;
         let theta = s.theta_e_rad;
         let i_ref_dq = Dq { d: i_d, q: i_q };
         let i_ref_ab = i_ref_dq.inverse_park(SinCos::new(theta));

@@ -41,7 +41,8 @@ pub fn linear_limit_v(vdc_v: f32) -> f32 {
 pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
     let zero =
         Modulation { duty: Abc { a: 0.5, b: 0.5, c: 0.5 }, v_applied: AlphaBeta::default(), saturated: true };
-    if !(vdc_v > 0.0 && vdc_v.is_finite()) {
+    // Positive and finite (NaN fails both comparisons).
+    if !(vdc_v > 0.0 && vdc_v < f32::INFINITY) {
         return zero;
     }
     let abc = v.inverse_clarke();

@@ -33,13 +33,73 @@ pub struct MachineState {
     pub theta_m_rad: f64,
 }
 
-/// Coefficient products of eq. (1)–(2) as the derivative uses them.
+/// Two lanes (α, β) of a space vector, combined lane by lane: eq. (1) is the same
+/// equation on both lanes up to the rotation terms, so the compiler keeps each pair in one
+/// SIMD register.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Pair(f64, f64);
+
+impl Pair {
+    #[inline(always)]
+    fn splat(x: f64) -> Self {
+        Pair(x, x)
+    }
+    /// (β, α).
+    #[inline(always)]
+    fn swap(self) -> Self {
+        Pair(self.1, self.0)
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Pair(self.0 + o.0, self.1 + o.1)
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Pair(self.0 - o.0, self.1 - o.1)
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Pair(self.0 * o.0, self.1 * o.1)
+    }
+    /// `self + s·k`.
+    #[inline(always)]
+    fn add_scaled(self, s: f64, k: Self) -> Self {
+        self.add(Pair::splat(s).mul(k))
+    }
+}
+
+/// The RK4 state: stator current and rotor flux vectors, mechanical speed (θ_m enters no
+/// derivative).
+#[derive(Clone, Copy, Debug)]
+struct Coupled {
+    i: Pair,
+    psi: Pair,
+    w: f64,
+}
+
+impl Coupled {
+    /// `self + s·k`.
+    #[inline(always)]
+    fn add_scaled(self, s: f64, k: Self) -> Self {
+        Coupled { i: self.i.add_scaled(s, k.i), psi: self.psi.add_scaled(s, k.psi), w: self.w + s * k.w }
+    }
+}
+
+/// Coefficients of eq. (1)–(2) as [`Machine::derivative`] uses them.
 #[derive(Clone, Copy, Debug)]
 struct Folded {
-    /// b·R_r/L_r.
-    b_rr_lr: f64,
-    /// b·p (b·ω_r = b·p·ω_m).
-    b_p: f64,
+    /// (a, a).
+    a: Pair,
+    /// b·R_r/L_r on both lanes.
+    b_rr_lr: Pair,
+    /// L_m·R_r/L_r on both lanes.
+    lm_rr_lr: Pair,
+    /// R_r/L_r on both lanes.
+    rr_lr: Pair,
+    /// (b·p, −b·p): the rotation term of di/dt is ω_m·(b·p·ψ_β, −b·p·ψ_α).
+    b_p_rot: Pair,
+    /// (−p, p): the rotation term of dψ/dt is ω_m·(−p·ψ_β, p·ψ_α).
+    p_rot: Pair,
     /// (3/2)·p·L_m/L_r / J.
     torque_per_j: f64,
     /// B/J.
@@ -49,8 +109,12 @@ struct Folded {
 impl Folded {
     fn of(m: &Machine) -> Self {
         Self {
-            b_rr_lr: m.b * m.rr_lr,
-            b_p: m.b * m.p,
+            a: Pair::splat(m.a),
+            b_rr_lr: Pair::splat(m.b * m.rr_lr),
+            lm_rr_lr: Pair::splat(m.lm_rr_lr),
+            rr_lr: Pair::splat(m.rr_lr),
+            b_p_rot: Pair(m.b * m.p, -m.b * m.p),
+            p_rot: Pair(-m.p, m.p),
             torque_per_j: m.torque_factor * m.inv_j,
             b_per_j: m.b_nms * m.inv_j,
         }
@@ -81,7 +145,16 @@ impl Machine {
         let sigma_ls = m.sigma() * m.ls_h();
         let (lr, lm) = (m.lr_h(), m.lm_h());
         Self {
-            folded: Folded { b_rr_lr: 0.0, b_p: 0.0, torque_per_j: 0.0, b_per_j: 0.0 },
+            folded: Folded {
+                a: Pair::default(),
+                b_rr_lr: Pair::default(),
+                lm_rr_lr: Pair::default(),
+                rr_lr: Pair::default(),
+                b_p_rot: Pair::default(),
+                p_rot: Pair::default(),
+                torque_per_j: 0.0,
+                b_per_j: 0.0,
+            },
             a: -(lr * lr * m.rs_ohm() + lm * lm * m.rr_ohm()) / (sigma_ls * lr * lr),
             b: lm / (sigma_ls * lr),
             rr_lr: m.rr_ohm() / lr,
@@ -142,22 +215,24 @@ impl Machine {
         Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }.refolded()
     }
 
-    /// Eq. (1)–(2) at `x = [i_sα, i_sβ, ψ_rα, ψ_rβ, ω_m]` (θ_m enters nothing), with the
-    /// inputs folded into `u = [v_sα/(σL_s), v_sβ/(σL_s), (T_L + T_f)/J]` (T_f: the Coulomb
-    /// friction torque, held over the step; see [`Machine::rk4_source`]). Branch-free and
-    /// short: an RK4 step is four of these in sequence, and their cost is the simulator's.
+    /// Eq. (1)–(2) at `x` (θ_m enters nothing), with the inputs folded into
+    /// `u_i = v_s/(σL_s)` and `u_w = (T_L + T_f)/J` (T_f: the Coulomb friction torque, held
+    /// over the step; see [`Machine::rk4_source`]). Branch-free and short: an RK4 step is
+    /// four of these in sequence, and their cost is the simulator's. Lane by lane:
+    /// `di/dt = a·i + b·R_r/L_r·ψ + b·p·ω_m·(ψ_β, −ψ_α) + u_i`,
+    /// `dψ/dt = L_m·R_r/L_r·i − R_r/L_r·ψ + p·ω_m·(−ψ_β, ψ_α)`,
+    /// `dω_m/dt = (3/2)·p·L_m/L_r·(ψ_α·i_β − ψ_β·i_α)/J − B·ω_m/J − u_w`.
     #[inline(always)]
-    fn derivative(&self, x: [f64; 5], u: [f64; 3]) -> [f64; 5] {
-        let [ia, ib, pa, pb, w] = x;
+    fn derivative(&self, x: Coupled, u_i: Pair, u_w: f64) -> Coupled {
         let f = &self.folded;
-        let (wr, bwr) = (self.p * w, f.b_p * w);
-        [
-            (self.a * ia + f.b_rr_lr * pa) + (bwr * pb + u[0]),
-            (self.a * ib + f.b_rr_lr * pb) - (bwr * pa - u[1]),
-            (self.lm_rr_lr * ia - self.rr_lr * pa) - wr * pb,
-            (self.lm_rr_lr * ib - self.rr_lr * pb) + wr * pa,
-            f.torque_per_j * (pa * ib - pb * ia) - (f.b_per_j * w + u[2]),
-        ]
+        let (i, psi) = (x.i, x.psi);
+        let psi_rot = psi.swap();
+        let w = Pair::splat(x.w);
+        let di = f.a.mul(i).add(f.b_rr_lr.mul(psi)).add(w.mul(f.b_p_rot).mul(psi_rot).add(u_i));
+        let dpsi = f.lm_rr_lr.mul(i).sub(f.rr_lr.mul(psi)).add(w.mul(f.p_rot).mul(psi_rot));
+        let cross = psi.mul(i.swap()); // (ψ_α·i_β, ψ_β·i_α)
+        let dw = f.torque_per_j * (cross.0 - cross.1) - (f.b_per_j * x.w + u_w);
+        Coupled { i: di, psi: dpsi, w: dw }
     }
 
     /// Coulomb friction for a step starting at `x`: kinetic (±T_c against the motion) while
@@ -193,30 +268,36 @@ impl Machine {
         v: impl Fn(f64) -> [f64; 2],
         load_nm: f64,
     ) -> MachineState {
-        let x0 = [x.i_alpha_a, x.i_beta_a, x.psi_alpha_wb, x.psi_beta_wb, x.omega_m_rad_s];
-        let add = |k: [f64; 5], s: f64| -> [f64; 5] { std::array::from_fn(|n| x0[n] + s * k[n]) };
-        let friction_nm = self.coulomb_torque_nm(x, load_nm);
-        let u = |t: f64| {
-            let [va, vb] = v(t);
-            [va * self.inv_sigma_ls, vb * self.inv_sigma_ls, (load_nm + friction_nm) * self.inv_j]
+        let x0 = Coupled {
+            i: Pair(x.i_alpha_a, x.i_beta_a),
+            psi: Pair(x.psi_alpha_wb, x.psi_beta_wb),
+            w: x.omega_m_rad_s,
         };
-        let u_mid = u(t_s + h_s / 2.0);
-        let k1 = self.derivative(x0, u(t_s));
-        let k2 = self.derivative(add(k1, h_s / 2.0), u_mid);
-        let k3 = self.derivative(add(k2, h_s / 2.0), u_mid);
-        let x4 = add(k3, h_s);
-        let k4 = self.derivative(x4, u(t_s + h_s));
-        let [ia, ib, pa, pb, w] =
-            std::array::from_fn(|n| x0[n] + h_s / 6.0 * (k1[n] + 2.0 * k2[n] + 2.0 * k3[n] + k4[n]));
-        // dθ_m/dt = ω_m, whose stage values are the ω entries of the stage states.
-        let theta = x.theta_m_rad
-            + h_s / 6.0
-                * (x0[4] + 2.0 * (x0[4] + h_s / 2.0 * k1[4]) + 2.0 * (x0[4] + h_s / 2.0 * k2[4]) + x4[4]);
+        let friction_nm = self.coulomb_torque_nm(x, load_nm);
+        let u_w = (load_nm + friction_nm) * self.inv_j;
+        let u_i = |t: f64| {
+            let [va, vb] = v(t);
+            Pair::splat(self.inv_sigma_ls).mul(Pair(va, vb))
+        };
+        let u_mid = u_i(t_s + h_s / 2.0);
+        let k1 = self.derivative(x0, u_i(t_s), u_w);
+        let x2 = x0.add_scaled(h_s / 2.0, k1);
+        let k2 = self.derivative(x2, u_mid, u_w);
+        let x3 = x0.add_scaled(h_s / 2.0, k2);
+        let k3 = self.derivative(x3, u_mid, u_w);
+        let x4 = x0.add_scaled(h_s, k3);
+        let k4 = self.derivative(x4, u_i(t_s + h_s), u_w);
+        let sum = |a: Pair, b: Pair, c: Pair, d: Pair| a.add(Pair::splat(2.0).mul(b.add(c))).add(d);
+        let i = x0.i.add_scaled(h_s / 6.0, sum(k1.i, k2.i, k3.i, k4.i));
+        let psi = x0.psi.add_scaled(h_s / 6.0, sum(k1.psi, k2.psi, k3.psi, k4.psi));
+        let w = x0.w + h_s / 6.0 * (k1.w + 2.0 * (k2.w + k3.w) + k4.w);
+        // dθ_m/dt = ω_m: its stages are the stage speeds.
+        let theta = x.theta_m_rad + h_s / 6.0 * (x0.w + 2.0 * (x2.w + x3.w) + x4.w);
         let mut x1 = MachineState {
-            i_alpha_a: ia,
-            i_beta_a: ib,
-            psi_alpha_wb: pa,
-            psi_beta_wb: pb,
+            i_alpha_a: i.0,
+            i_beta_a: i.1,
+            psi_alpha_wb: psi.0,
+            psi_beta_wb: psi.1,
             omega_m_rad_s: w,
             theta_m_rad: theta,
         };
