@@ -279,14 +279,12 @@ pub struct Measurements {
 }
 
 impl Measurements {
-    /// All six values finite, decided in one comparison: `0·x` is 0 for finite x and NaN
-    /// for ±∞ or NaN, and a NaN makes the sum NaN (≠ 0). Branch-free: the supervisor runs
-    /// it every PWM period.
     #[inline]
     fn is_finite(&self) -> bool {
-        let z = |x: f32| 0.0 * x;
-        let i = self.i_abc_a;
-        (z(i.a) + z(i.b)) + (z(i.c) + z(self.vdc_v)) + (z(self.omega_m_rad_s) + z(self.theta_m_rad)) == 0.0
+        self.i_abc_a.is_finite()
+            && self.vdc_v.is_finite()
+            && self.omega_m_rad_s.is_finite()
+            && self.theta_m_rad.is_finite()
     }
 }
 

@@ -59,9 +59,12 @@ impl Segments {
     }
 }
 
-/// Amplitude-invariant Clarke of phase voltages (common mode dropped).
+/// Amplitude-invariant Clarke of phase voltages (common mode dropped). Multiplications by
+/// the constants, not divisions: this is on the simulator's critical path.
+#[inline]
 fn clarke(v: [f64; 3]) -> [f64; 2] {
-    [(2.0 * v[0] - v[1] - v[2]) / 3.0, (v[1] - v[2]) / 3f64.sqrt()]
+    const INV_SQRT3: f64 = 0.577_350_269_189_625_8;
+    [(2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * INV_SQRT3]
 }
 
 impl InverterModel {
