@@ -179,6 +179,8 @@ pub fn run(
             omega_m_rad_s: enc.omega_m_rad_s,
             theta_m_rad: enc.theta_m_rad,
         };
+        // Drive step k; its duties act in period k + 1, so the plant's period k below does
+        // not wait for it.
         let out = drive.step(&m)?;
         // The voltage waveform of this period, from the duties decided one period ago
         // (bridge off: all duties ½, ≈ 0 V).
