@@ -85,8 +85,9 @@ impl Coupled {
     }
 }
 
-/// Coefficients of eq. (1)–(2) as [`Machine::derivative`] uses them.
-#[derive(Clone, Copy, Debug)]
+/// Coefficients of eq. (1)–(2) as [`Machine::derivative`] uses them, formed from the
+/// machine's by [`Folded::of`].
+#[derive(Clone, Copy, Debug, Default)]
 struct Folded {
     /// (a, a).
     a: Pair,
@@ -145,16 +146,7 @@ impl Machine {
         let sigma_ls = m.sigma() * m.ls_h();
         let (lr, lm) = (m.lr_h(), m.lm_h());
         Self {
-            folded: Folded {
-                a: Pair::default(),
-                b_rr_lr: Pair::default(),
-                lm_rr_lr: Pair::default(),
-                rr_lr: Pair::default(),
-                b_p_rot: Pair::default(),
-                p_rot: Pair::default(),
-                torque_per_j: 0.0,
-                b_per_j: 0.0,
-            },
+            folded: Folded::default(), // formed by `refolded` below
             a: -(lr * lr * m.rs_ohm() + lm * lm * m.rr_ohm()) / (sigma_ls * lr * lr),
             b: lm / (sigma_ls * lr),
             rr_lr: m.rr_ohm() / lr,
@@ -169,6 +161,7 @@ impl Machine {
         .refolded()
     }
 
+    /// `self` with [`Folded`] formed from its present coefficients (after any change).
     fn refolded(self) -> Self {
         Self { folded: Folded::of(&self), ..self }
     }
