@@ -279,7 +279,6 @@ pub struct Measurements {
 }
 
 impl Measurements {
-    #[inline]
     fn is_finite(&self) -> bool {
         self.i_abc_a.is_finite()
             && self.vdc_v.is_finite()

@@ -86,8 +86,8 @@ impl Coupled {
 }
 
 /// Coefficients of eq. (1)–(2) as [`Machine::derivative`] uses them, formed from the
-/// machine's by [`Folded::of`].
-#[derive(Clone, Copy, Debug, Default)]
+/// machine's once per RK4 step by [`Folded::of`].
+#[derive(Clone, Copy, Debug)]
 struct Folded {
     /// (a, a).
     a: Pair,
@@ -134,8 +134,6 @@ pub struct Machine {
     p: f64,
     inv_j: f64,
     b_nms: f64,
-    /// Products of the above that [`Machine::derivative`] uses, formed once here.
-    folded: Folded,
     /// Coulomb (dry) friction torque magnitude, N·m.
     coulomb_nm: f64,
 }
@@ -146,7 +144,6 @@ impl Machine {
         let sigma_ls = m.sigma() * m.ls_h();
         let (lr, lm) = (m.lr_h(), m.lm_h());
         Self {
-            folded: Folded::default(), // formed by `refolded` below
             a: -(lr * lr * m.rs_ohm() + lm * lm * m.rr_ohm()) / (sigma_ls * lr * lr),
             b: lm / (sigma_ls * lr),
             rr_lr: m.rr_ohm() / lr,
@@ -158,12 +155,6 @@ impl Machine {
             b_nms: m.b_nms(),
             coulomb_nm: 0.0,
         }
-        .refolded()
-    }
-
-    /// `self` with [`Folded`] formed from its present coefficients (after any change).
-    fn refolded(self) -> Self {
-        Self { folded: Folded::of(&self), ..self }
     }
 
     /// The linear electrical subsystem of eq. (1) at electrical rotor speed `omega_r`:
@@ -191,7 +182,7 @@ impl Machine {
     /// The same machine with its speed held (infinite inertia, no friction): for
     /// locked-rotor and fixed-slip tests.
     pub fn speed_locked(&self) -> Self {
-        Self { inv_j: 0.0, b_nms: 0.0, coulomb_nm: 0.0, ..*self }.refolded()
+        Self { inv_j: 0.0, b_nms: 0.0, coulomb_nm: 0.0, ..*self }
     }
 
     /// The same machine with Coulomb friction of magnitude `t_c_nm`: −T_c·sign(ω_m) while
@@ -205,7 +196,7 @@ impl Machine {
     /// The same machine with an extra viscous load `k_nm_s_rad` (an eddy-current brake,
     /// T_L = k·ω_m).
     pub fn with_eddy_brake(&self, k_nm_s_rad: f64) -> Self {
-        Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }.refolded()
+        Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }
     }
 
     /// Eq. (1)–(2) at `x` (θ_m enters nothing), with the inputs folded into
@@ -216,8 +207,7 @@ impl Machine {
     /// `dψ/dt = L_m·R_r/L_r·i − R_r/L_r·ψ + p·ω_m·(−ψ_β, ψ_α)`,
     /// `dω_m/dt = (3/2)·p·L_m/L_r·(ψ_α·i_β − ψ_β·i_α)/J − B·ω_m/J − u_w`.
     #[inline(always)]
-    fn derivative(&self, x: Coupled, u_i: Pair, u_w: f64) -> Coupled {
-        let f = &self.folded;
+    fn derivative(f: &Folded, x: Coupled, u_i: Pair, u_w: f64) -> Coupled {
         let (i, psi) = (x.i, x.psi);
         let psi_rot = psi.swap();
         let w = Pair::splat(x.w);
@@ -273,13 +263,14 @@ impl Machine {
             Pair::splat(self.inv_sigma_ls).mul(Pair(va, vb))
         };
         let u_mid = u_i(t_s + h_s / 2.0);
-        let k1 = self.derivative(x0, u_i(t_s), u_w);
+        let f = Folded::of(self);
+        let k1 = Self::derivative(&f, x0, u_i(t_s), u_w);
         let x2 = x0.add_scaled(h_s / 2.0, k1);
-        let k2 = self.derivative(x2, u_mid, u_w);
+        let k2 = Self::derivative(&f, x2, u_mid, u_w);
         let x3 = x0.add_scaled(h_s / 2.0, k2);
-        let k3 = self.derivative(x3, u_mid, u_w);
+        let k3 = Self::derivative(&f, x3, u_mid, u_w);
         let x4 = x0.add_scaled(h_s, k3);
-        let k4 = self.derivative(x4, u_i(t_s + h_s), u_w);
+        let k4 = Self::derivative(&f, x4, u_i(t_s + h_s), u_w);
         let sum = |a: Pair, b: Pair, c: Pair, d: Pair| a.add(Pair::splat(2.0).mul(b.add(c))).add(d);
         let i = x0.i.add_scaled(h_s / 6.0, sum(k1.i, k2.i, k3.i, k4.i));
         let psi = x0.psi.add_scaled(h_s / 6.0, sum(k1.psi, k2.psi, k3.psi, k4.psi));

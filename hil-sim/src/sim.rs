@@ -184,7 +184,6 @@ pub fn run(
         let out = drive.step(&m)?;
         // The voltage waveform of this period, from the duties decided one period ago
         // (bridge off: all duties ½, ≈ 0 V).
-        let duty = applied_duty.unwrap_or([0.5; 3]);
         let x_at_start = x;
         let v_avg = match (sc.inverter, applied_duty) {
             (InverterModel::Switching { .. }, Some(d)) => {
@@ -198,7 +197,7 @@ pub fn run(
                 segments.average()
             }
             _ => {
-                let v = InverterModel::average_voltage(duty, sc.vdc_v);
+                let v = InverterModel::average_voltage(applied_duty.unwrap_or([0.5; 3]), sc.vdc_v);
                 for _ in 0..substeps {
                     x = machine.rk4(&x, v, load, h);
                 }
