@@ -69,20 +69,23 @@ impl SinCos {
         // is exact for |k| ≤ 2^7.
         const PIO2_HI: f32 = 1.570_785_5;
         const PIO2_LO: f32 = 1.080_433_4e-5;
+        // Adding 1.5·2^23 rounds |y| < 2^22 to the nearest integer k (ties to even), which
+        // then sits in the low mantissa bits of the sum: k mod 4 is the quadrant. Two adds
+        // instead of a float → int → float round trip; NaN and ±∞ stay NaN through r.
+        const ROUND: f32 = 12_582_912.0;
         let y = theta_rad * FRAC_2_PI;
-        // Round to nearest; `as` saturates (and maps NaN to 0, whose r stays NaN).
-        let k = (if y >= 0.0 { y + 0.5 } else { y - 0.5 }) as i32;
-        let kf = k as f32;
+        let shifted = y + ROUND;
+        let kf = shifted - ROUND;
+        let quadrant = shifted.to_bits() & 3;
         let r = (theta_rad - kf * PIO2_HI) - kf * PIO2_LO;
         let z = r * r;
         let sin_r = r + r * z * ((-1.951_529_6e-4 * z + 8.332_161e-3) * z - 1.666_665_5e-1);
         let cos_r = 1.0 - 0.5 * z + z * z * ((2.443_315_7e-5 * z - 1.388_731_6e-3) * z + 4.166_664_6e-2);
-        let (sin, cos) = match k & 3 {
-            0 => (sin_r, cos_r),
-            1 => (cos_r, -sin_r),
-            2 => (-sin_r, -cos_r),
-            _ => (-cos_r, sin_r),
-        };
+        // Quadrant q: (sin, cos) = (sin r, cos r), (cos r, −sin r), (−sin r, −cos r),
+        // (−cos r, sin r) for q = 0..3 — swap on odd q, sign bits from q's second bit.
+        let (s, c) = if quadrant & 1 == 0 { (sin_r, cos_r) } else { (cos_r, sin_r) };
+        let sin = f32::from_bits(s.to_bits() ^ ((quadrant & 2) << 30));
+        let cos = f32::from_bits(c.to_bits() ^ (((quadrant + 1) & 2) << 30));
         Self { sin, cos }
     }
 }

@@ -2,7 +2,8 @@
 //! to `Drive::step` (`cargo bench -p controller-core --bench fast_step`). The figure quoted
 //! in the README comes from `cargo bench -p hil-sim --bench plant_step`.
 //!
-//! * `rk4_step_chained`: one RK4 step of the DeLorenzo machine at 50 µs, each step starting
+//! * `rk4_step_chained`: one RK4 step ([`hil_sim::plant::Rk4::step`], as the simulator
+//!   takes it) of the DeLorenzo machine at 50 µs, each step starting
 //!   from the previous one's result (as in a run: the step's latency).
 //! * `rk4_step_independent`: the same step from a fixed state (its throughput).
 #![allow(clippy::unwrap_used, clippy::expect_used)]
@@ -13,19 +14,17 @@ use hil_sim::plant::{Machine, MachineState};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {
-    let m = Machine::new(&MotorParams::delorenzo_dl10115a1().unwrap());
+    let m = Machine::new(&MotorParams::delorenzo_dl10115a1().unwrap()).rk4_stepper(5e-5);
     let start = MachineState { psi_alpha_wb: 0.9, omega_m_rad_s: 100.0, ..Default::default() };
     let v = [120.0, 40.0];
     let mut x = start;
     c.bench_function("rk4_step_chained", |b| {
         b.iter(|| {
-            x = m.rk4(&x, black_box(v), 0.5, 5e-5);
+            x = m.step(&x, black_box(v), 0.5);
         })
     });
     black_box(x);
-    c.bench_function("rk4_step_independent", |b| {
-        b.iter(|| m.rk4(black_box(&start), black_box(v), 0.5, 5e-5))
-    });
+    c.bench_function("rk4_step_independent", |b| b.iter(|| m.step(black_box(&start), black_box(v), 0.5)));
 }
 
 criterion_group!(benches, bench);

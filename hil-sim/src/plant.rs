@@ -61,11 +61,6 @@ impl Pair {
     fn mul(self, o: Self) -> Self {
         Pair(self.0 * o.0, self.1 * o.1)
     }
-    /// `self + s·k`.
-    #[inline(always)]
-    fn add_scaled(self, s: f64, k: Self) -> Self {
-        self.add(Pair::splat(s).mul(k))
-    }
 }
 
 /// The RK4 state: stator current and rotor flux vectors, mechanical speed (θ_m enters no
@@ -77,48 +72,158 @@ struct Coupled {
     w: f64,
 }
 
-impl Coupled {
-    /// `self + s·k`.
+/// Coefficients of eq. (1)–(2) multiplied by a step length `s` (h/2 or h for the RK4
+/// stages), so that a stage yields its increment `s·f(x)` without a further product.
+#[derive(Clone, Copy, Debug)]
+struct Scaled {
+    /// s·(a, a).
+    a: Pair,
+    /// s·b·R_r/L_r on both lanes.
+    b_rr_lr: Pair,
+    /// s·L_m·R_r/L_r on both lanes.
+    lm_rr_lr: Pair,
+    /// s·R_r/L_r on both lanes.
+    rr_lr: Pair,
+    /// s·(b·p, −b·p): the rotation term of di/dt is ω_m·(b·p·ψ_β, −b·p·ψ_α).
+    b_p_rot: Pair,
+    /// s·(−p, p): the rotation term of dψ/dt is ω_m·(−p·ψ_β, p·ψ_α).
+    p_rot: Pair,
+    /// s·(3/2)·p·L_m/L_r / J.
+    torque_per_j: f64,
+    /// s·B/J.
+    b_per_j: f64,
+    /// s/(σL_s): stator voltage → current increment.
+    inv_sigma_ls: Pair,
+    /// s/J: load torque → speed increment.
+    inv_j: f64,
+}
+
+impl Scaled {
+    fn new(m: &Machine, s: f64) -> Self {
+        Self {
+            a: Pair::splat(s * m.a),
+            b_rr_lr: Pair::splat(s * m.b * m.rr_lr),
+            lm_rr_lr: Pair::splat(s * m.lm_rr_lr),
+            rr_lr: Pair::splat(s * m.rr_lr),
+            b_p_rot: Pair(s * m.b * m.p, -s * m.b * m.p),
+            p_rot: Pair(-s * m.p, s * m.p),
+            torque_per_j: s * m.torque_factor * m.inv_j,
+            b_per_j: s * m.b_nms * m.inv_j,
+            inv_sigma_ls: Pair::splat(s * m.inv_sigma_ls),
+            inv_j: s * m.inv_j,
+        }
+    }
+
+    /// One RK4 stage at `x` from the step's start `x0`: the increment `k = s·f(x)` of
+    /// eq. (1)–(2) and the next stage's point `x0 + k`, with the stator voltage `v` and the
+    /// load (plus friction) torque `t_l` held. Lane by lane, before the factor s:
+    /// `di/dt = a·i + b·R_r/L_r·ψ + b·p·ω_m·(ψ_β, −ψ_α) + v/(σL_s)`,
+    /// `dψ/dt = L_m·R_r/L_r·i − R_r/L_r·ψ + p·ω_m·(−ψ_β, ψ_α)`,
+    /// `dω_m/dt = (3/2)·p·L_m/L_r·(ψ_α·i_β − ψ_β·i_α)/J − B·ω_m/J − T_L/J`.
+    /// Branch-free, and grouped so that the terms waiting on the longest products (the
+    /// rotation and torque terms, which need ω_m or both vectors) are added last: the
+    /// four stages run in sequence, and their chain of dependent operations is the
+    /// simulator's latency.
     #[inline(always)]
-    fn add_scaled(self, s: f64, k: Self) -> Self {
-        Coupled { i: self.i.add_scaled(s, k.i), psi: self.psi.add_scaled(s, k.psi), w: self.w + s * k.w }
+    fn stage(&self, x0: &Coupled, x: Coupled, v: Pair, t_l: f64) -> (Coupled, Coupled) {
+        let (i, psi) = (x.i, x.psi);
+        let psi_rot = psi.swap();
+        let w = Pair::splat(x.w);
+        let i_early = self.a.mul(i).add(self.inv_sigma_ls.mul(v));
+        let i_late = self.b_rr_lr.mul(psi).add(w.mul(self.b_p_rot).mul(psi_rot));
+        let psi_early = self.lm_rr_lr.mul(i).sub(self.rr_lr.mul(psi));
+        let psi_late = w.mul(self.p_rot).mul(psi_rot);
+        let cross = psi.mul(i.swap()); // (ψ_α·i_β, ψ_β·i_α)
+        let w_late = self.torque_per_j * (cross.0 - cross.1);
+        let w_early = self.b_per_j * x.w + self.inv_j * t_l;
+        let k = Coupled { i: i_early.add(i_late), psi: psi_early.add(psi_late), w: w_late - w_early };
+        let next = Coupled {
+            i: x0.i.add(i_early).add(i_late),
+            psi: x0.psi.add(psi_early).add(psi_late),
+            w: (x0.w - w_early) + w_late,
+        };
+        (k, next)
     }
 }
 
-/// Coefficients of eq. (1)–(2) as [`Machine::derivative`] uses them, formed from the
-/// machine's once per RK4 step by [`Folded::of`].
+/// Classical RK4 of eq. (1)–(2) at a fixed step, with the coefficients pre-scaled for its
+/// half and full stages ([`Machine::rk4_stepper`]). Made once per run: the closed-loop
+/// simulator takes one step per PWM period.
 #[derive(Clone, Copy, Debug)]
-struct Folded {
-    /// (a, a).
-    a: Pair,
-    /// b·R_r/L_r on both lanes.
-    b_rr_lr: Pair,
-    /// L_m·R_r/L_r on both lanes.
-    lm_rr_lr: Pair,
-    /// R_r/L_r on both lanes.
-    rr_lr: Pair,
-    /// (b·p, −b·p): the rotation term of di/dt is ω_m·(b·p·ψ_β, −b·p·ψ_α).
-    b_p_rot: Pair,
-    /// (−p, p): the rotation term of dψ/dt is ω_m·(−p·ψ_β, p·ψ_α).
-    p_rot: Pair,
-    /// (3/2)·p·L_m/L_r / J.
-    torque_per_j: f64,
-    /// B/J.
-    b_per_j: f64,
+pub struct Rk4 {
+    machine: Machine,
+    half: Scaled,
+    full: Scaled,
+    h_s: f64,
 }
 
-impl Folded {
-    fn of(m: &Machine) -> Self {
-        Self {
-            a: Pair::splat(m.a),
-            b_rr_lr: Pair::splat(m.b * m.rr_lr),
-            lm_rr_lr: Pair::splat(m.lm_rr_lr),
-            rr_lr: Pair::splat(m.rr_lr),
-            b_p_rot: Pair(m.b * m.p, -m.b * m.p),
-            p_rot: Pair(-m.p, m.p),
-            torque_per_j: m.torque_factor * m.inv_j,
-            b_per_j: m.b_nms * m.inv_j,
+impl Rk4 {
+    /// The step, s.
+    pub fn h_s(&self) -> f64 {
+        self.h_s
+    }
+
+    /// One step with stator voltage `v_ab_v` and load torque held (an inverter output is
+    /// constant over a PWM period in the average model).
+    #[inline]
+    pub fn step(&self, x: &MachineState, v_ab_v: [f64; 2], load_nm: f64) -> MachineState {
+        self.step_source(x, 0.0, |_| v_ab_v, load_nm)
+    }
+
+    /// One step from time `t_s` with a time-varying stator voltage `v(t)` (an ideal source,
+    /// evaluated at the RK4 nodes t, t + h/2, t + h).
+    ///
+    /// In increment form: `K₁ = (h/2)·f(x₀)`, `K₂ = (h/2)·f(x₀ + K₁)`, `K₃ = h·f(x₀ + K₂)`,
+    /// `K₄ = (h/2)·f(x₀ + K₃)`, `x₁ = x₀ + (K₁ + 2K₂ + K₃ + K₄)/3` — the classical
+    /// `x₀ + h/6·(f₁ + 2f₂ + 2f₃ + f₄)` with the step folded into the coefficients.
+    #[inline]
+    pub fn step_source(
+        &self,
+        x: &MachineState,
+        t_s: f64,
+        v: impl Fn(f64) -> [f64; 2],
+        load_nm: f64,
+    ) -> MachineState {
+        let h_s = self.h_s;
+        let x0 = Coupled {
+            i: Pair(x.i_alpha_a, x.i_beta_a),
+            psi: Pair(x.psi_alpha_wb, x.psi_beta_wb),
+            w: x.omega_m_rad_s,
+        };
+        let t_l = load_nm + self.machine.coulomb_torque_nm(x, load_nm);
+        let v_at = |t: f64| {
+            let [va, vb] = v(t);
+            Pair(va, vb)
+        };
+        let v_mid = v_at(t_s + h_s / 2.0);
+        let (k1, x2) = self.half.stage(&x0, x0, v_at(t_s), t_l);
+        let (k2, x3) = self.half.stage(&x0, x2, v_mid, t_l);
+        let (k3, x4) = self.full.stage(&x0, x3, v_mid, t_l);
+        // What stage 4 does not change is summed while it runs.
+        let third = Pair::splat(1.0 / 3.0);
+        let sum3 = |a: Pair, b: Pair, c: Pair| a.add(b.add(b)).add(c);
+        let i_part = x0.i.add(third.mul(sum3(k1.i, k2.i, k3.i)));
+        let psi_part = x0.psi.add(third.mul(sum3(k1.psi, k2.psi, k3.psi)));
+        let w_part = x0.w + (k1.w + 2.0 * k2.w + k3.w) * (1.0 / 3.0);
+        let (k4, _) = self.half.stage(&x0, x4, v_at(t_s + h_s), t_l);
+        let i = i_part.add(third.mul(k4.i));
+        let psi = psi_part.add(third.mul(k4.psi));
+        let w = w_part + k4.w * (1.0 / 3.0);
+        // dθ_m/dt = ω_m: its stages are the stage speeds.
+        let theta = x.theta_m_rad + h_s / 6.0 * (x0.w + 2.0 * (x2.w + x3.w) + x4.w);
+        let mut x1 = MachineState {
+            i_alpha_a: i.0,
+            i_beta_a: i.1,
+            psi_alpha_wb: psi.0,
+            psi_beta_wb: psi.1,
+            omega_m_rad_s: w,
+            theta_m_rad: theta,
+        };
+        // Kinetic friction would reverse the rotor within this step: it stops instead.
+        if self.machine.coulomb_nm > 0.0 && x.omega_m_rad_s * x1.omega_m_rad_s < 0.0 {
+            x1.omega_m_rad_s = 0.0;
         }
+        x1
     }
 }
 
@@ -199,25 +304,6 @@ impl Machine {
         Self { b_nms: self.b_nms + k_nm_s_rad, ..*self }
     }
 
-    /// Eq. (1)–(2) at `x` (θ_m enters nothing), with the inputs folded into
-    /// `u_i = v_s/(σL_s)` and `u_w = (T_L + T_f)/J` (T_f: the Coulomb friction torque, held
-    /// over the step; see [`Machine::rk4_source`]). Branch-free and short: an RK4 step is
-    /// four of these in sequence, and their cost is the simulator's. Lane by lane:
-    /// `di/dt = a·i + b·R_r/L_r·ψ + b·p·ω_m·(ψ_β, −ψ_α) + u_i`,
-    /// `dψ/dt = L_m·R_r/L_r·i − R_r/L_r·ψ + p·ω_m·(−ψ_β, ψ_α)`,
-    /// `dω_m/dt = (3/2)·p·L_m/L_r·(ψ_α·i_β − ψ_β·i_α)/J − B·ω_m/J − u_w`.
-    #[inline(always)]
-    fn derivative(f: &Folded, x: Coupled, u_i: Pair, u_w: f64) -> Coupled {
-        let (i, psi) = (x.i, x.psi);
-        let psi_rot = psi.swap();
-        let w = Pair::splat(x.w);
-        let di = f.a.mul(i).add(f.b_rr_lr.mul(psi)).add(w.mul(f.b_p_rot).mul(psi_rot).add(u_i));
-        let dpsi = f.lm_rr_lr.mul(i).sub(f.rr_lr.mul(psi)).add(w.mul(f.p_rot).mul(psi_rot));
-        let cross = psi.mul(i.swap()); // (ψ_α·i_β, ψ_β·i_α)
-        let dw = f.torque_per_j * (cross.0 - cross.1) - (f.b_per_j * x.w + u_w);
-        Coupled { i: di, psi: dpsi, w: dw }
-    }
-
     /// Coulomb friction for a step starting at `x`: kinetic (±T_c against the motion) while
     /// turning; at rest, static friction balancing the driving torque at the step's start,
     /// up to T_c.
@@ -235,14 +321,19 @@ impl Machine {
         }
     }
 
-    /// One RK4 step of `h_s` seconds with stator voltage `v_ab_v` and load torque held
-    /// (an inverter output is constant over a PWM period in the average model).
-    pub fn rk4(&self, x: &MachineState, v_ab_v: [f64; 2], load_nm: f64, h_s: f64) -> MachineState {
-        self.rk4_source(x, 0.0, h_s, |_| v_ab_v, load_nm)
+    /// RK4 at the fixed step `h_s` (coefficients scaled once; see [`Rk4`]).
+    pub fn rk4_stepper(&self, h_s: f64) -> Rk4 {
+        Rk4 { machine: *self, half: Scaled::new(self, h_s / 2.0), full: Scaled::new(self, h_s), h_s }
     }
 
-    /// One RK4 step from time `t_s` with a time-varying stator voltage `v(t)` (an ideal
-    /// source, evaluated at the RK4 nodes t, t + h/2, t + h).
+    /// One RK4 step of `h_s` seconds with stator voltage `v_ab_v` and load torque held
+    /// ([`Rk4::step`]; a run at a fixed step makes the [`Rk4`] once instead).
+    pub fn rk4(&self, x: &MachineState, v_ab_v: [f64; 2], load_nm: f64, h_s: f64) -> MachineState {
+        self.rk4_stepper(h_s).step(x, v_ab_v, load_nm)
+    }
+
+    /// One RK4 step from time `t_s` with a time-varying stator voltage `v(t)`
+    /// ([`Rk4::step_source`]).
     pub fn rk4_source(
         &self,
         x: &MachineState,
@@ -251,45 +342,7 @@ impl Machine {
         v: impl Fn(f64) -> [f64; 2],
         load_nm: f64,
     ) -> MachineState {
-        let x0 = Coupled {
-            i: Pair(x.i_alpha_a, x.i_beta_a),
-            psi: Pair(x.psi_alpha_wb, x.psi_beta_wb),
-            w: x.omega_m_rad_s,
-        };
-        let friction_nm = self.coulomb_torque_nm(x, load_nm);
-        let u_w = (load_nm + friction_nm) * self.inv_j;
-        let u_i = |t: f64| {
-            let [va, vb] = v(t);
-            Pair::splat(self.inv_sigma_ls).mul(Pair(va, vb))
-        };
-        let u_mid = u_i(t_s + h_s / 2.0);
-        let f = Folded::of(self);
-        let k1 = Self::derivative(&f, x0, u_i(t_s), u_w);
-        let x2 = x0.add_scaled(h_s / 2.0, k1);
-        let k2 = Self::derivative(&f, x2, u_mid, u_w);
-        let x3 = x0.add_scaled(h_s / 2.0, k2);
-        let k3 = Self::derivative(&f, x3, u_mid, u_w);
-        let x4 = x0.add_scaled(h_s, k3);
-        let k4 = Self::derivative(&f, x4, u_i(t_s + h_s), u_w);
-        let sum = |a: Pair, b: Pair, c: Pair, d: Pair| a.add(Pair::splat(2.0).mul(b.add(c))).add(d);
-        let i = x0.i.add_scaled(h_s / 6.0, sum(k1.i, k2.i, k3.i, k4.i));
-        let psi = x0.psi.add_scaled(h_s / 6.0, sum(k1.psi, k2.psi, k3.psi, k4.psi));
-        let w = x0.w + h_s / 6.0 * (k1.w + 2.0 * (k2.w + k3.w) + k4.w);
-        // dθ_m/dt = ω_m: its stages are the stage speeds.
-        let theta = x.theta_m_rad + h_s / 6.0 * (x0.w + 2.0 * (x2.w + x3.w) + x4.w);
-        let mut x1 = MachineState {
-            i_alpha_a: i.0,
-            i_beta_a: i.1,
-            psi_alpha_wb: psi.0,
-            psi_beta_wb: psi.1,
-            omega_m_rad_s: w,
-            theta_m_rad: theta,
-        };
-        // Kinetic friction would reverse the rotor within this step: it stops instead.
-        if self.coulomb_nm > 0.0 && x.omega_m_rad_s * x1.omega_m_rad_s < 0.0 {
-            x1.omega_m_rad_s = 0.0;
-        }
-        x1
+        self.rk4_stepper(h_s).step_source(x, t_s, v, load_nm)
     }
 }
 

@@ -138,6 +138,7 @@ pub fn run(
     };
     let substeps = sc.substeps.max(1);
     let h = ts / f64::from(substeps);
+    let rk4 = machine.rk4_stepper(h);
     let n = (sc.duration_s / ts).round() as u64;
     let trace_every = sc.trace_every.max(1);
     let mut x = MachineState::default();
@@ -199,7 +200,7 @@ pub fn run(
             _ => {
                 let v = InverterModel::average_voltage(applied_duty.unwrap_or([0.5; 3]), sc.vdc_v);
                 for _ in 0..substeps {
-                    x = machine.rk4(&x, v, load, h);
+                    x = rk4.step(&x, v, load);
                 }
                 v
             }
