@@ -516,6 +516,7 @@ impl Drive {
                     i_ref_dq: Dq { d: a, q: 0.0 },
                     i_ref_ab: AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin },
                     theta_e_rad: th,
+                    field: sc,
                     omega_sl_rad_s: 0.0,
                 }
             }
@@ -525,7 +526,7 @@ impl Drive {
         let v_ab = match cfg.current_frame {
             CurrentFrame::Stationary => cfg.current.update(&mut self.current, field.i_ref_ab, i_ab, v_limit),
             CurrentFrame::Synchronous => {
-                let sc = SinCos::new(field.theta_e_rad);
+                let sc = field.field;
                 cfg.current
                     .update_dq(&mut self.current, field.i_ref_dq, i_ab.park(sc), v_limit)
                     .inverse_park(sc)

@@ -50,6 +50,13 @@ pub struct SinCos {
     pub cos: f32,
 }
 
+impl Default for SinCos {
+    /// θ = 0.
+    fn default() -> Self {
+        Self { sin: 0.0, cos: 1.0 }
+    }
+}
+
 impl SinCos {
     /// sin and cos of `theta_rad`, in f32 arithmetic only (no f64, no table), for the
     /// control path: the field angle every PWM period.

@@ -8,7 +8,8 @@
 //! * torque → `i_qs* = T*/((3/2)·p·(L_m/L_r)·ψ̂)` (from eq. (5) with `ψ_qr = 0`);
 //! * slip, eq. (7): `ω_sl = L_m·R_r/(L_r·ψ̂)·i_qs*`;
 //! * field angle `θ_e[k+1] = wrap(θ_e[k] + (p·ω_m + ω_sl)·T)`, in `[-π, π)`;
-//! * current references returned in αβ (inverse Park at θ_e) for the stationary-frame loops.
+//! * current references returned in αβ (inverse Park at θ_e) for the stationary-frame loops;
+//!   sin/cos of θ_e[k+1] are evaluated at the end of step k, so that step k+1 starts with them.
 //!
 //! **Guard while the flux builds up:** ψ̂ is floored at `psi_min_wb` in the torque and slip
 //! divisions, so neither can blow up at start; `i_qs*` is further limited so that the current
@@ -54,16 +55,33 @@ pub struct IfocConfig {
 }
 
 /// IFOC state.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IfocState {
     /// Field (rotor-flux) angle θ_e, rad, in `[-π, π)`.
-    pub theta_e_rad: f32,
+    theta_e_rad: f32,
+    /// sin and cos of `theta_e_rad`, computed when the angle advances — one step before
+    /// they are used, so that the next step's current references do not wait for them.
+    field: SinCos,
     /// Rotor-flux model estimate ψ̂_r, Wb.
     pub psi_r_wb: f32,
     /// `(i_d, √(i_max² − i_d²))` of the last step: the square root (a software routine on
     /// the Cortex-M, ≈ 150 instructions) is recomputed only when i_d* changes, i.e. when
     /// the flux reference does.
     i_q_limit: Option<(f32, f32)>,
+}
+
+impl Default for IfocState {
+    /// θ_e = 0, no flux.
+    fn default() -> Self {
+        Self { theta_e_rad: 0.0, field: SinCos::default(), psi_r_wb: 0.0, i_q_limit: None }
+    }
+}
+
+impl IfocState {
+    /// Field (rotor-flux) angle θ_e for the next step, rad, in `[-π, π)`.
+    pub fn theta_e_rad(&self) -> f32 {
+        self.theta_e_rad
+    }
 }
 
 /// Result of one IFOC step.
@@ -75,6 +93,8 @@ pub struct IfocOutput {
     pub i_ref_ab: AlphaBeta,
     /// Field angle used for this step, rad.
     pub theta_e_rad: f32,
+    /// sin and cos of `theta_e_rad` (for Park and inverse Park in the synchronous frame).
+    pub field: SinCos,
     /// Slip speed, electrical rad/s.
     pub omega_sl_rad_s: f32,
 }
@@ -141,10 +161,12 @@ impl IfocConfig {
         let omega_sl = self.slip_gain * i_q * inv_psi;
         let theta = s.theta_e_rad;
         let i_ref_dq = Dq { d: i_d, q: i_q };
-        let i_ref_ab = i_ref_dq.inverse_park(SinCos::new(theta));
+        let s_field = s.field;
+        let i_ref_ab = i_ref_dq.inverse_park(s_field);
         s.theta_e_rad = wrap_angle(theta + (self.pole_pairs * omega_m_rad_s + omega_sl) * self.ts_s);
+        s.field = SinCos::new(s.theta_e_rad);
         s.psi_r_wb += self.flux_model_gain * (self.lm_h * i_d - s.psi_r_wb);
-        IfocOutput { i_ref_dq, i_ref_ab, theta_e_rad: theta, omega_sl_rad_s: omega_sl }
+        IfocOutput { i_ref_dq, i_ref_ab, theta_e_rad: theta, field: s_field, omega_sl_rad_s: omega_sl }
     }
 }
 
