@@ -64,12 +64,14 @@ impl Pair {
 }
 
 /// The RK4 state: stator current and rotor flux vectors, mechanical speed (θ_m enters no
-/// derivative).
+/// derivative). ω_m is carried on both lanes: it multiplies both lanes of the rotation
+/// terms, and the torque term below comes out on both lanes too, so no stage moves a value
+/// between lanes.
 #[derive(Clone, Copy, Debug)]
 struct Coupled {
     i: Pair,
     psi: Pair,
-    w: f64,
+    w: Pair,
 }
 
 /// Coefficients of eq. (1)–(2) multiplied by a step length `s` (h/2 or h for the RK4
@@ -88,14 +90,14 @@ struct Scaled {
     b_p_rot: Pair,
     /// s·(−p, p): the rotation term of dψ/dt is ω_m·(−p·ψ_β, p·ψ_α).
     p_rot: Pair,
-    /// s·(3/2)·p·L_m/L_r / J.
-    torque_per_j: f64,
-    /// s·B/J.
-    b_per_j: f64,
+    /// s·(3/2)·p·L_m/L_r / J·(1, −1): applied to (ψ_α·i_β − ψ_β·i_α, ψ_β·i_α − ψ_α·i_β).
+    torque_per_j: Pair,
+    /// s·B/J on both lanes.
+    b_per_j: Pair,
     /// s/(σL_s): stator voltage → current increment.
     inv_sigma_ls: Pair,
-    /// s/J: load torque → speed increment.
-    inv_j: f64,
+    /// s/J on both lanes: load torque → speed increment.
+    inv_j: Pair,
 }
 
 impl Scaled {
@@ -107,10 +109,10 @@ impl Scaled {
             rr_lr: Pair::splat(s * m.rr_lr),
             b_p_rot: Pair(s * m.b * m.p, -s * m.b * m.p),
             p_rot: Pair(-s * m.p, s * m.p),
-            torque_per_j: s * m.torque_factor * m.inv_j,
-            b_per_j: s * m.b_nms * m.inv_j,
+            torque_per_j: Pair(s * m.torque_factor * m.inv_j, -s * m.torque_factor * m.inv_j),
+            b_per_j: Pair::splat(s * m.b_nms * m.inv_j),
             inv_sigma_ls: Pair::splat(s * m.inv_sigma_ls),
-            inv_j: s * m.inv_j,
+            inv_j: Pair::splat(s * m.inv_j),
         }
     }
 
@@ -125,22 +127,21 @@ impl Scaled {
     /// four stages run in sequence, and their chain of dependent operations is the
     /// simulator's latency.
     #[inline(always)]
-    fn stage(&self, x0: &Coupled, x: Coupled, v: Pair, t_l: f64) -> (Coupled, Coupled) {
-        let (i, psi) = (x.i, x.psi);
+    fn stage(&self, x0: &Coupled, x: Coupled, v: Pair, t_l: Pair) -> (Coupled, Coupled) {
+        let (i, psi, w) = (x.i, x.psi, x.w);
         let psi_rot = psi.swap();
-        let w = Pair::splat(x.w);
         let i_early = self.a.mul(i).add(self.inv_sigma_ls.mul(v));
         let i_late = self.b_rr_lr.mul(psi).add(w.mul(self.b_p_rot).mul(psi_rot));
         let psi_early = self.lm_rr_lr.mul(i).sub(self.rr_lr.mul(psi));
         let psi_late = w.mul(self.p_rot).mul(psi_rot);
         let cross = psi.mul(i.swap()); // (ψ_α·i_β, ψ_β·i_α)
-        let w_late = self.torque_per_j * (cross.0 - cross.1);
-        let w_early = self.b_per_j * x.w + self.inv_j * t_l;
-        let k = Coupled { i: i_early.add(i_late), psi: psi_early.add(psi_late), w: w_late - w_early };
+        let w_late = self.torque_per_j.mul(cross.sub(cross.swap()));
+        let w_early = self.b_per_j.mul(w).add(self.inv_j.mul(t_l));
+        let k = Coupled { i: i_early.add(i_late), psi: psi_early.add(psi_late), w: w_late.sub(w_early) };
         let next = Coupled {
             i: x0.i.add(i_early).add(i_late),
             psi: x0.psi.add(psi_early).add(psi_late),
-            w: (x0.w - w_early) + w_late,
+            w: x0.w.sub(w_early).add(w_late),
         };
         (k, next)
     }
@@ -188,9 +189,9 @@ impl Rk4 {
         let x0 = Coupled {
             i: Pair(x.i_alpha_a, x.i_beta_a),
             psi: Pair(x.psi_alpha_wb, x.psi_beta_wb),
-            w: x.omega_m_rad_s,
+            w: Pair::splat(x.omega_m_rad_s),
         };
-        let t_l = load_nm + self.machine.coulomb_torque_nm(x, load_nm);
+        let t_l = Pair::splat(load_nm + self.machine.coulomb_torque_nm(x, load_nm));
         let v_at = |t: f64| {
             let [va, vb] = v(t);
             Pair(va, vb)
@@ -204,13 +205,13 @@ impl Rk4 {
         let sum3 = |a: Pair, b: Pair, c: Pair| a.add(b.add(b)).add(c);
         let i_part = x0.i.add(third.mul(sum3(k1.i, k2.i, k3.i)));
         let psi_part = x0.psi.add(third.mul(sum3(k1.psi, k2.psi, k3.psi)));
-        let w_part = x0.w + (k1.w + 2.0 * k2.w + k3.w) * (1.0 / 3.0);
+        let w_part = x0.w.add(third.mul(sum3(k1.w, k2.w, k3.w)));
         let (k4, _) = self.half.stage(&x0, x4, v_at(t_s + h_s), t_l);
         let i = i_part.add(third.mul(k4.i));
         let psi = psi_part.add(third.mul(k4.psi));
-        let w = w_part + k4.w * (1.0 / 3.0);
+        let w = w_part.add(third.mul(k4.w)).0;
         // dθ_m/dt = ω_m: its stages are the stage speeds.
-        let theta = x.theta_m_rad + h_s / 6.0 * (x0.w + 2.0 * (x2.w + x3.w) + x4.w);
+        let theta = x.theta_m_rad + h_s / 6.0 * (x0.w.0 + 2.0 * (x2.w.0 + x3.w.0) + x4.w.0);
         let mut x1 = MachineState {
             i_alpha_a: i.0,
             i_beta_a: i.1,
