@@ -120,8 +120,8 @@ pub struct Row {
 /// Run `scenario` with `drive` (already configured) on `machine`; `pwm_hz` is the drive's
 /// fast rate. Calls `progress(fraction)` now and then.
 ///
-/// Never inlined: on its own, the loop keeps its state in registers; inlined into the CLI's
-/// `main` it spilled more (`hil-sim bench`: ≈ 58 vs ≈ 61 ns per period, best of 20 runs).
+/// Never inlined: on its own, the loop keeps more of its state in registers than inlined
+/// into the CLI's `main` (measured with `hil-sim bench`).
 #[inline(never)]
 pub fn run(
     drive: &mut impl DriveUnderTest,
