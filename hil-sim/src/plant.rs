@@ -159,11 +159,6 @@ pub struct Rk4 {
 }
 
 impl Rk4 {
-    /// The step, s.
-    pub fn h_s(&self) -> f64 {
-        self.h_s
-    }
-
     /// One step with stator voltage `v_ab_v` and load torque held (an inverter output is
     /// constant over a PWM period in the average model).
     #[inline]
