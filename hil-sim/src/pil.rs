@@ -19,7 +19,7 @@
 
 use crate::link_client::LinkClient;
 use crate::sim::DriveUnderTest;
-use controller_core::drive::{DriveSpec, FastOutput, Measurements, Reference};
+use controller_core::drive::{DriveSpec, FastOutput, Measurements, Mode, PhaseCommand, Reference, Telemetry};
 use controller_core::link::{Command, LinkStats, Reply};
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -85,6 +85,8 @@ pub struct Pil {
     dir: PathBuf,
     link: LinkClient<File, File>,
     slow_divider: u16,
+    /// Error of the last step, until taken ([`DriveUnderTest::take_failure`]).
+    failure: Option<String>,
 }
 
 impl Pil {
@@ -162,6 +164,7 @@ impl Pil {
             dir,
             link: LinkClient::new(from_mcu, to_mcu),
             slow_divider: spec.slow_divider,
+            failure: None,
         };
         match pil.transact(&Command::Configure(*spec))? {
             Reply::Ack => Ok(pil),
@@ -223,11 +226,18 @@ impl DriveUnderTest for Pil {
         self.expect_ack(&Command::SetReference(r))
     }
 
-    fn step(&mut self, m: &Measurements) -> Result<FastOutput, String> {
-        match self.transact(&Command::Step(*m))? {
-            Reply::Output(o) => Ok(o),
-            other => Err(format!("unexpected reply {other:?} to a step")),
-        }
+    fn step(&mut self, m: &Measurements) -> FastOutput {
+        let failure = match self.transact(&Command::Step(*m)) {
+            Ok(Reply::Output(o)) => return o,
+            Ok(other) => format!("unexpected reply {other:?} to a step"),
+            Err(e) => e,
+        };
+        self.failure = Some(failure);
+        FastOutput { phases: PhaseCommand::Off, mode: Mode::Idle, telemetry: Telemetry::default() }
+    }
+
+    fn take_failure(&mut self) -> Option<String> {
+        self.failure.take()
     }
 }
 

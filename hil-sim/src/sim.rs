@@ -8,13 +8,19 @@
 //! events, plus the [`LoadModel`] (eddy-current brake or locked rotor).
 
 use crate::inverter::InverterModel;
-use crate::plant::{Machine, MachineState};
+use crate::plant::{Machine, MachineState, Rk4Midway};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Reference};
 
 /// The controller a run drives: the in-process [`Drive`] (software in the loop) or a drive
 /// on an emulated MCU ([`crate::pil::Pil`], processor in the loop). Errors are broken links;
 /// a drive refusing a command is not an error (the trace shows it).
+///
+/// [`DriveUnderTest::step`] returns the output itself, not a `Result`: wrapping it costs the
+/// simulator ≈ 5 ns of its ≈ 53 ns per period (`hil-sim bench`), as the output is then copied
+/// through memory on its way to the plant. A step that fails (a broken PIL link) returns
+/// phases off and leaves its error for [`DriveUnderTest::take_failure`], which the simulator
+/// asks after every step.
 pub trait DriveUnderTest {
     /// The slow loop runs every `slow_divider()`-th step.
     fn slow_divider(&self) -> u16;
@@ -22,8 +28,13 @@ pub trait DriveUnderTest {
     fn enable(&mut self) -> Result<(), String>;
     /// [`Drive::set_reference`].
     fn set_reference(&mut self, r: Reference) -> Result<(), String>;
-    /// [`Drive::step`].
-    fn step(&mut self, m: &Measurements) -> Result<FastOutput, String>;
+    /// [`Drive::step`]; phases off if the step failed (see [`DriveUnderTest::take_failure`]).
+    fn step(&mut self, m: &Measurements) -> FastOutput;
+    /// Why the last [`DriveUnderTest::step`] failed, if it did (taken: asked again, `None`).
+    /// The in-process drive cannot fail.
+    fn take_failure(&mut self) -> Option<String> {
+        None
+    }
 }
 
 impl DriveUnderTest for Drive {
@@ -41,8 +52,8 @@ impl DriveUnderTest for Drive {
         Ok(())
     }
 
-    fn step(&mut self, m: &Measurements) -> Result<FastOutput, String> {
-        Ok(Drive::step(self, m))
+    fn step(&mut self, m: &Measurements) -> FastOutput {
+        Drive::step(self, m)
     }
 }
 
@@ -117,6 +128,15 @@ pub struct Row {
     pub load_nm: f64,
 }
 
+/// The plant's side of one period in [`run`].
+#[expect(clippy::large_enum_variant, reason = "one value per loop iteration, on the stack; boxing allocates")]
+enum Period {
+    /// Average inverter: the held stator voltage and the step begun with it.
+    Average([f64; 2], Rk4Midway),
+    /// Switching inverter: the duties whose segments the plant integrates.
+    Switching([f64; 3]),
+}
+
 /// Run `scenario` with `drive` (already configured) on `machine`; `pwm_hz` is the drive's
 /// fast rate. Calls `progress(fraction)` now and then.
 ///
@@ -184,14 +204,31 @@ pub fn run(
             omega_m_rad_s: enc.omega_m_rad_s,
             theta_m_rad: enc.theta_m_rad,
         };
-        // Drive step k; its duties act in period k + 1, so the plant's period k below does
-        // not wait for it.
-        let out = drive.step(&m)?;
-        // The voltage waveform of this period, from the duties decided one period ago
-        // (bridge off: all duties ½, ≈ 0 V).
+        // The plant's period k sees the duties decided one period ago (bridge off: all ½,
+        // ≈ 0 V); the drive's step k acts in period k + 1. The two do not wait on each other,
+        // so with the average inverter the plant's first RK4 stages are issued before the
+        // drive's step: the processor then runs both dependent chains side by side.
         let x_at_start = x;
-        let v_avg = match (sc.inverter, applied_duty) {
-            (InverterModel::Switching { .. }, Some(d)) => {
+        let period = match (sc.inverter, applied_duty) {
+            (InverterModel::Switching { .. }, Some(d)) => Period::Switching(d),
+            _ => {
+                let v = InverterModel::average_voltage(applied_duty.unwrap_or([0.5; 3]), sc.vdc_v);
+                Period::Average(v, rk4.begin_step(&x, v, load))
+            }
+        };
+        let out = drive.step(&m);
+        if let Some(e) = drive.take_failure() {
+            return Err(e);
+        }
+        let v_avg = match period {
+            Period::Average(v, midway) => {
+                x = midway.finish(&rk4);
+                for _ in 1..substeps {
+                    x = rk4.step(&x, v, load);
+                }
+                v
+            }
+            Period::Switching(d) => {
                 let segments = sc.inverter.segments(d, i_true, sc.vdc_v, ts);
                 for &(dt, v) in segments.as_slice() {
                     let n_sub = (dt / h).ceil().max(1.0);
@@ -200,13 +237,6 @@ pub fn run(
                     }
                 }
                 segments.average()
-            }
-            _ => {
-                let v = InverterModel::average_voltage(applied_duty.unwrap_or([0.5; 3]), sc.vdc_v);
-                for _ in 0..substeps {
-                    x = rk4.step(&x, v, load);
-                }
-                v
             }
         };
         if to_trace == 0 {
@@ -323,5 +353,47 @@ mod tests {
         );
         assert!(max_di < 1e-8 * peak_i.max(1.0));
         assert!(max_dw < 1e-8);
+    }
+
+    /// The in-process drive, whose link breaks at its `fail_at`-th step (a PIL target dying).
+    struct Breaks {
+        drive: Drive,
+        steps: u64,
+        fail_at: u64,
+        failure: Option<String>,
+    }
+
+    impl DriveUnderTest for Breaks {
+        fn slow_divider(&self) -> u16 {
+            self.drive.slow_divider()
+        }
+        fn enable(&mut self) -> Result<(), String> {
+            DriveUnderTest::enable(&mut self.drive)
+        }
+        fn set_reference(&mut self, r: Reference) -> Result<(), String> {
+            DriveUnderTest::set_reference(&mut self.drive, r)
+        }
+        fn step(&mut self, m: &Measurements) -> FastOutput {
+            self.steps += 1;
+            let out = DriveUnderTest::step(&mut self.drive, m);
+            if self.steps == self.fail_at {
+                self.failure = Some(format!("link broken at step {}", self.steps));
+            }
+            out
+        }
+        fn take_failure(&mut self) -> Option<String> {
+            self.failure.take()
+        }
+    }
+
+    /// A failed step ends the run with its error at that step: no further step, no trace.
+    #[test]
+    fn failed_step_stops_the_run() {
+        let b = crate::scenario::speed_step().unwrap();
+        let drive = Drive::new(controller_core::drive::DriveConfig::new(&b.spec).unwrap());
+        let mut dut = Breaks { drive, steps: 0, fail_at: 1000, failure: None };
+        let r = run(&mut dut, &Machine::new(&b.plant), b.spec.pwm_frequency_hz, &b.scenario, |_| {});
+        assert_eq!(r, Err("link broken at step 1000".to_string()));
+        assert_eq!(dut.steps, 1000);
     }
 }
