@@ -212,7 +212,7 @@ impl Rk4 {
         let (k2, x3) = self.half.stage(&x0, x2, v_mid, t_l);
         let sum2 = |a: Pair, b: Pair| a.add(b.add(b));
         Rk4Midway {
-            x: *x,
+            theta0: x.theta_m_rad,
             x0,
             x3,
             t_l,
@@ -227,7 +227,8 @@ impl Rk4 {
 /// An RK4 step after its first two stages ([`Rk4::begin_step`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Rk4Midway {
-    x: MachineState,
+    /// θ_m at the step's start (ω_m, i and ψ are in `x0`).
+    theta0: f64,
     x0: Coupled,
     x3: Coupled,
     t_l: Pair,
@@ -243,7 +244,7 @@ impl Rk4Midway {
     /// Stages 3 and 4 and the step's result (`rk4` is the stepper that began it).
     #[inline]
     pub fn finish(&self, rk4: &Rk4) -> MachineState {
-        let (x, x0, x3, t_l) = (&self.x, &self.x0, self.x3, self.t_l);
+        let (x0, x3, t_l) = (&self.x0, self.x3, self.t_l);
         let (k3, x4) = rk4.full.stage(x0, x3, self.v_mid, t_l);
         // What stage 4 does not change is summed while it runs.
         let third = Pair::splat(1.0 / 3.0);
@@ -255,7 +256,7 @@ impl Rk4Midway {
         let psi = psi_part.add(third.mul(k4.psi));
         let w = w_part.add(third.mul(k4.w)).0;
         // dθ_m/dt = ω_m: its stages are the stage speeds.
-        let theta = x.theta_m_rad + rk4.h_s / 6.0 * (x0.w.0 + 2.0 * (self.w2 + x3.w.0) + x4.w.0);
+        let theta = self.theta0 + rk4.h_s / 6.0 * (x0.w.0 + 2.0 * (self.w2 + x3.w.0) + x4.w.0);
         let mut x1 = MachineState {
             i_alpha_a: i.0,
             i_beta_a: i.1,
@@ -265,7 +266,7 @@ impl Rk4Midway {
             theta_m_rad: theta,
         };
         // Kinetic friction would reverse the rotor within this step: it stops instead.
-        if rk4.machine.coulomb_nm > 0.0 && x.omega_m_rad_s * x1.omega_m_rad_s < 0.0 {
+        if rk4.machine.coulomb_nm > 0.0 && x0.w.0 * x1.omega_m_rad_s < 0.0 {
             x1.omega_m_rad_s = 0.0;
         }
         x1
