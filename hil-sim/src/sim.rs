@@ -17,10 +17,10 @@ use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Refe
 /// a drive refusing a command is not an error (the trace shows it).
 ///
 /// [`DriveUnderTest::step`] returns the output itself, not a `Result`: wrapping it costs the
-/// simulator ≈ 5 ns per period (`hil-sim bench`, ≈ 57 against ≈ 52 ns), as the output is then copied
-/// through memory on its way to the plant. A step that fails (a broken PIL link) returns
-/// phases off and leaves its error for [`DriveUnderTest::take_failure`], which the simulator
-/// asks after every step.
+/// simulator ≈ 5 ns per period (`hil-sim bench`, ≈ 57 against ≈ 52 ns), as the output is
+/// then copied through memory on its way to the plant. A step that fails (a broken PIL link)
+/// returns phases off and leaves its error for [`DriveUnderTest::take_failure`], which the
+/// simulator asks after every step.
 pub trait DriveUnderTest {
     /// The slow loop runs every `slow_divider()`-th step.
     fn slow_divider(&self) -> u16;
