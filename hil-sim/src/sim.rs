@@ -129,7 +129,6 @@ pub struct Row {
 }
 
 /// The plant's side of one period in [`run`].
-#[expect(clippy::large_enum_variant, reason = "one value per loop iteration, on the stack; boxing allocates")]
 enum Period {
     /// Average inverter: the held stator voltage and the step begun with it.
     Average([f64; 2], Rk4Midway),
