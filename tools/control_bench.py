@@ -8,13 +8,14 @@
    python-control: ss plant, tf→ss controller, append, feedback, poles.
 2. 200×200 k_p–k_i grid on seed 000's interval current plant: robustly stable when the PI
    closes all 16 Kharitonov loops stably. python-control: feedback(C·G_ij, 1).poles() for
-   each plant. At ≈ 0.8 ms per call the full grid (640 000 calls) takes ≈ 9 min, so by
-   default python-control computes every 20th k_p row (10 × 200 points) and its time is
-   scaled by 20 — `--rows 200` runs all of it.
+   each plant. The full grid (640 000 calls) takes minutes, so by default python-control
+   computes every 20th k_p row (10 × 200 points) and its time is scaled by 20 — `--rows
+   200` runs all of it.
 
 Both tools' results are compared (abscissae within 1e-6 relative, grid verdicts equal) and
-the run fails if they disagree. `design bench` (release build) provides the Rust side;
-both sweeps are best of three after a warm-up. Needs: pip install control.
+the run fails if they disagree. `design bench` (release build) provides the Rust side and
+times each of its figures as the best of three; python-control's ω_r sweep is the best of
+three after a warm-up, its grid one pass. Needs: pip install control.
 """
 import argparse
 import json
@@ -37,10 +38,14 @@ def rust_side() -> dict:
     return json.loads(out)
 
 
+# The motor file is read once, outside the timed sweep.
+MOTOR = tomllib.loads((ROOT / "hil-sim/motors/delorenzo-eq13.toml").read_text())
+
+
 def im_matrices(omega_r: float):
     """Seed 002 eq. (1), stationary frame, x = [i_α, i_β, ψ_α, ψ_β] (written out here, not
     taken from the Rust code)."""
-    m = tomllib.loads((ROOT / "hil-sim/motors/delorenzo-eq13.toml").read_text())
+    m = MOTOR
     rs, rr, ls, lr, lm = m["rs_ohm"], m["rr_ohm"], m["ls_h"], m["lr_h"], m["lm_h"]
     sigma = 1 - lm * lm / (ls * lr)
     sls, tr = sigma * ls, lr / rr

@@ -512,9 +512,8 @@ mod tests {
         for (k1, k2) in [(2.2337, 0.5), (1.0, 0.9), (3.0, 0.2), (0.8, 1.4)] {
             let pi = Pi { k1, k2 };
             let g = printed_constraints(&pi);
-            let (x0, x1, x2, x3) = (k2, k1 + k2 - 0.6, k1 + 3.0, 3.0);
+            let (x1, x2, x3) = (k1 + k2 - 0.6, k1 + 3.0, 3.0);
             let (y0, y1, y3, y4) = (3.0 * k2, 3.0 * k1 + 3.0 * k2 - 3.8, 3.0, 1.0);
-            let _ = x0;
             assert!((g[0] + (x1 * x2 - y0 * y3)).abs() < 1e-12);
             assert!((g[1] + (x2 * x3 - y1 * y4)).abs() < 1e-12);
             assert!((g[2] + (0.4655 * x1 * x2 - y0 * y3) / 0.4655).abs() < 1e-4 * (1.0 + g[2].abs()));
@@ -574,7 +573,7 @@ mod tests {
         assert!((sols[3].verdict.worst_pole_re + decay).abs() < 1e-5, "{:?}", sols[3]);
     }
 
-    /// Brute force: on a 401×401 grid no feasible point beats COBYLA's optimum by more than
+    /// Brute force: on a 201×201 grid no feasible point beats COBYLA's optimum by more than
     /// the grid's resolution allows, for the exact family constraint.
     #[test]
     fn family_optimum_against_a_grid() {

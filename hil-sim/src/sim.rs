@@ -16,11 +16,11 @@ use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Refe
 /// on an emulated MCU ([`crate::pil::Pil`], processor in the loop). Errors are broken links;
 /// a drive refusing a command is not an error (the trace shows it).
 ///
-/// [`DriveUnderTest::step`] returns the output itself, not a `Result`: wrapping it costs the
-/// simulator ≈ 5 ns per period (`hil-sim bench`, ≈ 57 against ≈ 52 ns), as the output is
-/// then copied through memory on its way to the plant. A step that fails (a broken PIL link)
-/// returns phases off and leaves its error for [`DriveUnderTest::take_failure`], which the
-/// simulator asks after every step.
+/// [`DriveUnderTest::step`] returns the output itself, not a `Result`: wrapping it cost the
+/// simulator ≈ 5 ns per period when this was changed (`hil-sim bench`: ≈ 58 against ≈ 53
+/// ns), the output being copied through memory on its way to the plant. A step that fails
+/// (a broken PIL link) returns phases off and leaves its error for
+/// [`DriveUnderTest::take_failure`], which the simulator asks after every step.
 pub trait DriveUnderTest {
     /// The slow loop runs every `slow_divider()`-th step.
     fn slow_divider(&self) -> u16;
@@ -231,8 +231,9 @@ pub fn run(
                 let segments = sc.inverter.segments(d, i_true, sc.vdc_v, ts);
                 for &(dt, v) in segments.as_slice() {
                     let n_sub = (dt / h).ceil().max(1.0);
+                    let segment_rk4 = machine.rk4_stepper(dt / n_sub);
                     for _ in 0..n_sub as u32 {
-                        x = machine.rk4(&x, v, load, dt / n_sub);
+                        x = segment_rk4.step(&x, v, load);
                     }
                 }
                 segments.average()

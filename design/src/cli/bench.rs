@@ -11,7 +11,7 @@
 
 use controller_core::current::CurrentLaw;
 use design::kharitonov::pi_characteristic;
-use design::pi_region::linspace;
+use design::pi_region::{linspace, robust_grid};
 use std::time::Instant;
 
 /// The grid's window (k_p, k_i): both verdicts occur (see `design kharitonov --plot-dir`).
@@ -46,25 +46,28 @@ pub fn run(args: &[String]) -> Result<bool, String> {
     });
     let (kps, kis) = (linspace(KP_RANGE.0, KP_RANGE.1, 200), linspace(KI_RANGE.0, KI_RANGE.1, 200));
     let plants = plant.kharitonov_plants();
-    let grid = |routh: bool| -> Vec<String> {
+    // Routh is the shipped decision (`pi_region::robust_grid`); by poles is python-control's way.
+    let by_poles_grid = || -> Vec<Vec<bool>> {
         kps.iter()
             .map(|&kp| {
                 kis.iter()
                     .map(|&ki| {
-                        let ok = plants.iter().all(|(_, _, n, d)| {
-                            let p = pi_characteristic(n, d, kp, ki);
-                            if routh { p.is_hurwitz_routh() } else { p.max_real_root() < 0.0 }
-                        });
-                        if ok { '1' } else { '0' }
+                        plants
+                            .iter()
+                            .all(|(_, _, n, d)| pi_characteristic(n, d, kp, ki).max_real_root() < 0.0)
                     })
                     .collect()
             })
             .collect()
     };
-    let mut by_poles = Vec::new();
-    let poles_s = best(&mut || by_poles = grid(false));
-    let mut by_routh = Vec::new();
-    let routh_s = best(&mut || by_routh = grid(true));
+    let rows = |g: &[Vec<bool>]| -> Vec<String> {
+        g.iter().map(|r| r.iter().map(|&ok| if ok { '1' } else { '0' }).collect()).collect()
+    };
+    let mut poles_grid = Vec::new();
+    let poles_s = best(&mut || poles_grid = by_poles_grid());
+    let mut routh_grid = Vec::new();
+    let routh_s = best(&mut || routh_grid = robust_grid(&plant, &kps, &kis));
+    let (by_poles, by_routh) = (rows(&poles_grid), rows(&routh_grid));
     let differ = by_poles
         .iter()
         .zip(&by_routh)

@@ -125,7 +125,8 @@ fn plots(dir: &Path, p: &RecycleProcess, r: &Report) -> Result<(), String> {
         "Fig. 4: with recycle, ITAE PI, k = 1 and 3 (unstable): y",
         &responses(p, &itae, true, &[1.0, 3.0], 40.0)?,
     )?;
-    let set3 = Pi { k1: 2.2337, k2: 0.5 };
+    let (_, _, k1, k2) = design::recycle::TABLE_I[2];
+    let set3 = Pi { k1, k2 };
     plot_responses(
         &dir.join("fig5-recycle-set3.svg"),
         "Fig. 5: with recycle, Table I set 3: y",
