@@ -27,7 +27,7 @@
 use crate::current::{CurrentControllerConfig, CurrentError, CurrentLaw, CurrentState};
 use crate::discretize::Discretization;
 use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
-use crate::ifoc::{IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
+use crate::ifoc::{FluxCommand, IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
 use crate::num::{Scalar, max_f32};
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
@@ -127,7 +127,7 @@ pub struct DriveConfig {
     ifoc: IfocConfig,
     speed: SpeedControllerConfig,
     position: PositionConfig,
-    flux_ref_wb: f32,
+    flux: FluxCommand,
     psi_running_wb: f32,
     ts_s: f32,
     slow_divider: u16,
@@ -190,7 +190,7 @@ impl DriveConfig {
             ifoc,
             speed,
             position,
-            flux_ref_wb: spec.flux_ref_wb as f32,
+            flux: ifoc.flux_command(spec.flux_ref_wb as f32),
             ts_s: ts as f32,
             psi_running_wb: (spec.flux_ref_wb * mf) as f32,
             slow_divider: spec.slow_divider,
@@ -336,7 +336,8 @@ pub struct Drive {
     reference: Reference,
     torque_cmd: TorqueCommand,
     omega_ref_rad_s: f32,
-    slow_count: u16,
+    /// Fast steps until the next slow step (0: this one).
+    steps_to_slow: u16,
     current: CurrentState<f32>,
     ifoc: IfocState,
     speed: SpeedState,
@@ -352,7 +353,7 @@ impl Drive {
             reference: Reference::Speed(0.0),
             torque_cmd: TorqueCommand::TorqueNm(0.0),
             omega_ref_rad_s: 0.0,
-            slow_count: 0,
+            steps_to_slow: 0,
             current: CurrentState::default(),
             ifoc: IfocState::default(),
             speed: SpeedState::default(),
@@ -394,7 +395,7 @@ impl Drive {
                 self.ifoc = IfocState::default();
                 self.speed = SpeedState::default();
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
-                self.slow_count = 0;
+                self.steps_to_slow = 0;
                 self.test_angle_rad = 0.0;
                 self.mode = Mode::Magnetizing;
                 Ok(())
@@ -435,10 +436,12 @@ impl Drive {
     /// One PWM period: the slow step on every N-th call, then the fast step.
     #[inline]
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
-        if self.slow_count == 0 {
+        if self.steps_to_slow == 0 {
             self.slow_step(m);
+            self.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
+        } else {
+            self.steps_to_slow -= 1;
         }
-        self.slow_count = if self.slow_count + 1 >= self.cfg.slow_divider { 0 } else { self.slow_count + 1 };
         self.fast_step(m)
     }
 
@@ -520,7 +523,7 @@ impl Drive {
                     omega_sl_rad_s: 0.0,
                 }
             }
-            _ => cfg.ifoc.update(&mut self.ifoc, cfg.flux_ref_wb, cmd, m.omega_m_rad_s),
+            _ => cfg.ifoc.update(&mut self.ifoc, &cfg.flux, cmd, m.omega_m_rad_s),
         };
         let v_limit = svpwm::linear_limit_v(m.vdc_v);
         let v_ab = match cfg.current_frame {

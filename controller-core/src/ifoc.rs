@@ -64,16 +64,34 @@ pub struct IfocState {
     field: SinCos,
     /// Rotor-flux model estimate ψ̂_r, Wb.
     pub psi_r_wb: f32,
-    /// `(i_d, √(i_max² − i_d²))` of the last step: the square root (a software routine on
-    /// the Cortex-M, ≈ 150 instructions) is recomputed only when i_d* changes, i.e. when
-    /// the flux reference does.
-    i_q_limit: Option<(f32, f32)>,
 }
 
 impl Default for IfocState {
     /// θ_e = 0, no flux.
     fn default() -> Self {
-        Self { theta_e_rad: 0.0, field: SinCos::default(), psi_r_wb: 0.0, i_q_limit: None }
+        Self { theta_e_rad: 0.0, field: SinCos::default(), psi_r_wb: 0.0 }
+    }
+}
+
+/// What a rotor-flux reference ψ_r* asks of the current references: `i_ds* = ψ_r*/L_m`
+/// (eq. (9)) limited to `±i_max`, and the room left for `i_qs*`, `√(i_max² − i_ds*²)`.
+/// Made by [`IfocConfig::flux_command`] when the flux reference is set, not in the fast
+/// step (the square root is a software routine of ≈ 150 instructions on the Cortex-M).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FluxCommand {
+    i_d_a: f32,
+    i_q_max_a: f32,
+}
+
+impl FluxCommand {
+    /// d-axis current reference, A.
+    pub fn i_d_a(&self) -> f32 {
+        self.i_d_a
+    }
+
+    /// Limit of |i_qs*|, A.
+    pub fn i_q_max_a(&self) -> f32 {
+        self.i_q_max_a
     }
 }
 
@@ -126,38 +144,41 @@ impl IfocConfig {
         })
     }
 
+    /// The current references that flux reference `psi_ref_wb` (Wb) asks for. A non-finite
+    /// reference gives a zero command (no flux, no torque).
+    pub fn flux_command(&self, psi_ref_wb: f32) -> FluxCommand {
+        let i_d_a = (psi_ref_wb * self.inv_lm).limit(-self.i_max_a, self.i_max_a);
+        if !i_d_a.is_finite() {
+            return FluxCommand::default();
+        }
+        let i_q_max_a = libm::sqrtf((self.i_max_a * self.i_max_a - i_d_a * i_d_a).max(0.0));
+        FluxCommand { i_d_a, i_q_max_a }
+    }
+
     /// The current-reference limit, A.
     pub fn i_max_a(&self) -> f32 {
         self.i_max_a
     }
 
-    /// One step: flux reference (Wb), torque command and mechanical speed (rad/s) → current
-    /// references at the present field angle; then the angle and flux model advance by one
-    /// sample.
+    /// One step: flux command ([`IfocConfig::flux_command`]), torque command and mechanical
+    /// speed (rad/s) → current references at the present field angle; then the angle and
+    /// flux model advance by one sample.
     #[inline]
     pub fn update(
         &self,
         s: &mut IfocState,
-        psi_ref_wb: f32,
+        flux: &FluxCommand,
         cmd: TorqueCommand,
         omega_m_rad_s: f32,
     ) -> IfocOutput {
-        let i_d = (psi_ref_wb * self.inv_lm).limit(-self.i_max_a, self.i_max_a);
+        let i_d = flux.i_d_a;
         let psi = max_f32(s.psi_r_wb, self.psi_min_wb);
         let inv_psi = 1.0 / psi; // one division for i_q* and ω_sl
         let i_q_wanted = match cmd {
             TorqueCommand::TorqueNm(t) => t * self.inv_torque_factor * inv_psi,
             TorqueCommand::IqA(i) => i,
         };
-        let i_q_max = match s.i_q_limit {
-            Some((for_i_d, limit)) if for_i_d == i_d => limit,
-            _ => {
-                let limit = libm::sqrtf((self.i_max_a * self.i_max_a - i_d * i_d).max(0.0));
-                s.i_q_limit = Some((i_d, limit));
-                limit
-            }
-        };
-        let i_q = i_q_wanted.limit(-i_q_max, i_q_max);
+        let i_q = i_q_wanted.limit(-flux.i_q_max_a, flux.i_q_max_a);
         let omega_sl = self.slip_gain * i_q * inv_psi;
         let theta = s.theta_e_rad;
         let i_ref_dq = Dq { d: i_d, q: i_q };
@@ -190,7 +211,7 @@ mod tests {
         let mut out = IfocOutput::default();
         // Flux builds with T_r = 64.7 ms; 1 s is > 15 T_r.
         for _ in 0..20_000 {
-            out = c.update(&mut s, 1.0, TorqueCommand::TorqueNm(1.0), 0.0);
+            out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(1.0), 0.0);
         }
         assert!((s.psi_r_wb - 1.0).abs() < 1e-4, "flux {}", s.psi_r_wb);
         assert!((out.i_ref_dq.d - 0.704_225).abs() < 1e-5);
@@ -207,7 +228,7 @@ mod tests {
         let tr = 1.5f64 / 23.2;
         let n = (tr / 5e-5).round() as usize;
         for _ in 0..n {
-            c.update(&mut s, 1.0, TorqueCommand::TorqueNm(0.0), 0.0);
+            c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(0.0), 0.0);
         }
         let expected = 1.0 - libm::exp(-(n as f64) * 5e-5 / tr);
         assert!((f64::from(s.psi_r_wb) - expected).abs() < 1e-4);
@@ -221,7 +242,7 @@ mod tests {
         let mut prev = 0.0f32;
         let mut wraps = 0;
         for _ in 0..20_000 {
-            let out = c.update(&mut s, 1.0, TorqueCommand::IqA(0.0), 100.0);
+            let out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::IqA(0.0), 100.0);
             assert!((-core::f32::consts::PI..core::f32::consts::PI).contains(&out.theta_e_rad));
             if out.theta_e_rad < prev {
                 wraps += 1;
@@ -236,10 +257,22 @@ mod tests {
     fn guard_bounds_slip_and_current_while_flux_is_zero() {
         let c = cfg();
         let mut s = IfocState::default();
-        let out = c.update(&mut s, 1.0, TorqueCommand::TorqueNm(1e6), 0.0);
+        let out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(1e6), 0.0);
         assert!(libm::hypotf(out.i_ref_dq.d, out.i_ref_dq.q) <= 10.0 + 1e-4);
         // ω_sl ≤ slip_gain·i_max/ψ_min = 21.96·10/0.05
         assert!(out.omega_sl_rad_s.is_finite() && out.omega_sl_rad_s <= 21.97 * 10.0 / 0.05);
+    }
+
+    #[test]
+    fn flux_command_splits_the_current_limit() {
+        let c = cfg(); // i_max = 10 A, L_m = 1.42 H
+        let f = c.flux_command(1.0);
+        assert!((f.i_d_a() - 1.0 / 1.42).abs() < 1e-6);
+        assert!((f.i_q_max_a() - libm::sqrtf(100.0 - f.i_d_a() * f.i_d_a())).abs() < 1e-5);
+        // A flux reference beyond the limit: all of it on d, nothing left for q.
+        let f = c.flux_command(100.0);
+        assert_eq!((f.i_d_a(), f.i_q_max_a()), (10.0, 0.0));
+        assert_eq!(c.flux_command(f32::NAN), FluxCommand::default());
     }
 
     #[test]

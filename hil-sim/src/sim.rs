@@ -188,17 +188,21 @@ pub fn run(
     let trace_every = sc.trace_every.max(1);
     let mut x = MachineState::default();
     let mut load = 0.0;
-    // Duties applied during the present period (computed in the previous one); None = off.
-    let mut applied_duty: Option<[f64; 3]> = None;
+    // Duties applied during the present period (computed in the previous one). A bridge
+    // that is off applies ≈ 0 V in the average model: the same as duties of ½.
+    let (mut duty_applied, mut bridge_on) = ([0.5; 3], false);
     let mut events = sc.events.iter().peekable();
-    let mut next_event_s = events.peek().map_or(f64::INFINITY, |(te, _)| *te);
+    let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
+    let mut next_event_k = first_period_of(events.peek());
     let mut rows = Vec::with_capacity((n / u64::from(trace_every) + 1) as usize);
     // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
     let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
     let s3 = 3f64.sqrt() / 2.0;
+    // The bus is stiff and its sensor noise-free: one measurement for the run.
+    let vdc_measured_v = sensors.vdc(sc.vdc_v);
     for k in 0..n {
-        let t = k as f64 * ts;
-        if t >= next_event_s {
+        if k >= next_event_k {
+            let t = k as f64 * ts;
             while let Some((_, e)) = events.next_if(|(te, _)| *te <= t) {
                 match *e {
                     Event::Enable => drive.enable()?,
@@ -206,7 +210,7 @@ pub fn run(
                     Event::LoadNm(l) => load = l,
                 }
             }
-            next_event_s = events.peek().map_or(f64::INFINITY, |(te, _)| *te);
+            next_event_k = first_period_of(events.peek());
         }
         // True phase currents (amplitude-invariant inverse Clarke, in f64).
         let (ia, ib) = (x.i_alpha_a, x.i_beta_a);
@@ -221,7 +225,7 @@ pub fn run(
         };
         let m = Measurements {
             i_abc_a: i_abc,
-            vdc_v: sensors.vdc(sc.vdc_v),
+            vdc_v: vdc_measured_v,
             omega_m_rad_s: enc.omega_m_rad_s,
             theta_m_rad: enc.theta_m_rad,
         };
@@ -230,10 +234,10 @@ pub fn run(
         // so with the average inverter the plant's first RK4 stages are issued before the
         // drive's step: the processor then runs both dependent chains side by side.
         let x_at_start = x;
-        let period = match (sc.inverter, applied_duty) {
-            (InverterModel::Switching { .. }, Some(d)) => Period::Switching(d),
+        let period = match sc.inverter {
+            InverterModel::Switching { .. } if bridge_on => Period::Switching(duty_applied),
             _ => {
-                let v = InverterModel::average_voltage(applied_duty.unwrap_or([0.5; 3]), sc.vdc_v);
+                let v = InverterModel::average_voltage(duty_applied, sc.vdc_v);
                 Period::Average(v, rk4.begin_step(&x, v, load))
             }
         };
@@ -258,7 +262,7 @@ pub fn run(
         if to_trace == 0 {
             to_trace = trace_every - 1;
             rows.push(Row {
-                t_s: t,
+                t_s: k as f64 * ts,
                 x: x_at_start,
                 torque_nm: machine.torque_nm(&x_at_start),
                 v_ab_v: v_avg,
@@ -273,9 +277,9 @@ pub fn run(
             to_trace -= 1;
         }
         // Duties computed now act during the next period.
-        applied_duty = match out.phases {
-            PhaseCommand::Off => None,
-            PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),
+        (duty_applied, bridge_on) = match out.phases {
+            PhaseCommand::Off => ([0.5; 3], false),
+            PhaseCommand::Duty(d) => ([f64::from(d.a), f64::from(d.b), f64::from(d.c)], true),
         };
         if to_progress == 0 {
             to_progress = 1999;
@@ -286,6 +290,26 @@ pub fn run(
     }
     progress(1.0);
     Ok(rows)
+}
+
+/// The first period k whose start `k·ts_s` is at or after `t_s` (the same floating-point
+/// comparison the event loop makes); `u64::MAX` when there is none in range. Lets [`run`]
+/// compare period indices instead of converting every k to a time.
+fn first_period_at(t_s: f64, ts_s: f64) -> u64 {
+    let at = |k: u64| k as f64 * ts_s;
+    let periods = t_s / ts_s;
+    if periods.is_nan() || periods >= 1e15 {
+        return u64::MAX;
+    }
+    // The quotient is within a few units of the answer; settle it with the comparison itself.
+    let mut k = periods.floor().max(0.0) as u64;
+    while k > 0 && at(k - 1) >= t_s {
+        k -= 1;
+    }
+    while at(k) < t_s {
+        k += 1;
+    }
+    k
 }
 
 /// Largest RK4 step used for open-loop runs, s. The step-size study
@@ -337,6 +361,24 @@ mod tests {
     use super::*;
     use crate::config::OpenLoop;
     use controller_core::motor::MotorParams;
+
+    /// `first_period_at` is the smallest k with `k·ts ≥ t` in floating point — checked against
+    /// that definition by search, at event times on, just beside and between period starts.
+    #[test]
+    fn first_period_at_matches_the_event_comparison() {
+        let ts = 1.0 / 20_000.0;
+        let brute = |t: f64| (0u64..).find(|&k| k as f64 * ts >= t).unwrap();
+        let mut times = vec![0.0, -1.0, 0.3, 1.5, 2.5, 3.5, 1e-9, ts, 2.0 * ts];
+        for k in [1u64, 7, 6000, 29_999, 30_000, 70_000] {
+            let t = k as f64 * ts;
+            times.extend([t, t.next_up(), t.next_down(), t + 0.5 * ts]);
+        }
+        for t in times {
+            assert_eq!(first_period_at(t, ts), brute(t), "t = {t:e}");
+        }
+        assert_eq!(first_period_at(f64::INFINITY, ts), u64::MAX);
+        assert_eq!(first_period_at(f64::NAN, ts), u64::MAX);
+    }
 
     fn dol(max_step: f64) -> Vec<Row> {
         let sc = OpenLoop {

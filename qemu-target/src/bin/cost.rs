@@ -135,10 +135,11 @@ mod target {
             Ok(c) => {
                 let mut s = IfocState::default();
                 s.psi_r_wb = 0.9;
+                let flux = c.flux_command(0.9);
                 per_call(&ticks, |k| {
                     black_box(c.update(
                         &mut s,
-                        0.9,
+                        &flux,
                         TorqueCommand::TorqueNm(black_box(0.3)),
                         k as f32 * 1e-3,
                     ));
