@@ -29,7 +29,7 @@ use crate::discretize::Discretization;
 use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::ifoc::{FluxCommand, IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
-use crate::num::{Scalar, max_f32};
+use crate::num::Scalar;
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
 use crate::svpwm;
 
@@ -131,7 +131,8 @@ pub struct DriveConfig {
     psi_running_wb: f32,
     ts_s: f32,
     slow_divider: u16,
-    i_trip_a: f32,
+    /// Bits of the phase-current trip level (finite, positive): see [`Drive::supervise`].
+    i_trip_bits: u32,
     vdc_min_v: f32,
     vdc_max_v: f32,
 }
@@ -194,7 +195,8 @@ impl DriveConfig {
             ts_s: ts as f32,
             psi_running_wb: (spec.flux_ref_wb * mf) as f32,
             slow_divider: spec.slow_divider,
-            i_trip_a: p.i_trip_a as f32,
+            // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
+            i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
             vdc_min_v: p.vdc_min_v as f32,
             vdc_max_v: p.vdc_max_v as f32,
         })
@@ -467,14 +469,19 @@ impl Drive {
         };
     }
 
+    /// The phase currents are checked on their bit patterns: with the sign bit cleared, an
+    /// IEEE 754 float orders like an unsigned integer, and ±∞ and NaN lie above every finite
+    /// value. So `|i| > i_trip` (finite i) and "i not finite" are both `abs_bits(i) >
+    /// abs_bits(i_trip)`: one integer comparison per phase in the common case, on the
+    /// integer units, while the floating-point units run the control law. The rare failing
+    /// case then tells the two faults apart. Equal to the float comparisons for every input
+    /// (`supervisor_bit_test_equals_float_test`).
     fn supervise(&self, m: &Measurements) -> Option<Fault> {
-        if !m.is_finite() {
-            return Some(Fault::NonFiniteInput);
-        }
         let i = m.i_abc_a;
-        let i_peak = max_f32(max_f32(i.a.abs(), i.b.abs()), i.c.abs()); // finite: checked above
-        if i_peak > self.cfg.i_trip_a {
-            return Some(Fault::Overcurrent);
+        let i_peak_bits = abs_bits(i.a).max(abs_bits(i.b)).max(abs_bits(i.c));
+        let rest_finite = m.vdc_v.is_finite() && m.omega_m_rad_s.is_finite() && m.theta_m_rad.is_finite();
+        if i_peak_bits > self.cfg.i_trip_bits || !rest_finite {
+            return Some(if m.is_finite() { Fault::Overcurrent } else { Fault::NonFiniteInput });
         }
         if m.vdc_v > self.cfg.vdc_max_v {
             return Some(Fault::DcBusOvervoltage);
@@ -501,11 +508,10 @@ impl Drive {
             self.trip(f);
         }
         let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, telemetry: Telemetry::default() };
-        let running = match self.mode {
-            Mode::Idle | Mode::Fault(_) => return off(self.mode),
-            Mode::Magnetizing => false,
-            Mode::Running => true,
-        };
+        let running = self.mode == Mode::Running;
+        if !running && self.mode != Mode::Magnetizing {
+            return off(self.mode); // Idle or Fault
+        }
         let cfg = &self.cfg;
         let i_ab = m.i_abc_a.clarke();
         let cmd = if running { self.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
@@ -559,6 +565,12 @@ impl Drive {
             },
         }
     }
+}
+
+/// `x`'s bits with the sign bit cleared (the bits of |x|).
+#[inline]
+fn abs_bits(x: f32) -> u32 {
+    x.to_bits() & 0x7fff_ffff
 }
 
 /// A complete example specification: DeLorenzo DL10115A1 (seed 002) on a 310 V bus at
@@ -738,6 +750,27 @@ mod tests {
         )
     }
 
+    /// Any float, weighted towards the trip levels (±8 A; 200 and 400 V) and the specials.
+    fn any_measured() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            any::<u32>().prop_map(f32::from_bits),
+            -20.0f32..20.0,
+            150.0f32..450.0,
+            proptest::sample::select(vec![
+                8.0f32,
+                -8.0,
+                200.0,
+                400.0,
+                0.0,
+                -0.0,
+                f32::MAX,
+                f32::MIN_POSITIVE
+            ]),
+            proptest::sample::select(vec![8.0f32.next_up(), (-8.0f32).next_down(), 8.0f32.next_down()]),
+            non_finite(),
+        ]
+    }
+
     fn non_finite() -> impl Strategy<Value = f32> {
         prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(f32::NEG_INFINITY)]
     }
@@ -795,6 +828,38 @@ mod tests {
             let out = d.step(&bad);
             prop_assert_eq!(out.phases, PhaseCommand::Off);
             prop_assert!(matches!(out.mode, Mode::Fault(_)));
+        }
+
+        /// `Drive::supervise` (bit patterns) decides exactly as the float comparisons it
+        /// replaced, in every mode: finite check first, then |i| > i_trip, then the bus.
+        #[test]
+        fn supervisor_bit_test_equals_float_test(x in proptest::array::uniform6(any_measured()), mode in 0u8..3) {
+            let mut d = drive();
+            match mode {
+                0 => {}
+                1 => d.enable().unwrap(),
+                _ => d = running_drive(),
+            }
+            let m = Measurements {
+                i_abc_a: Abc { a: x[0], b: x[1], c: x[2] },
+                vdc_v: x[3],
+                omega_m_rad_s: x[4],
+                theta_m_rad: x[5],
+            };
+            let spec = example_spec().unwrap();
+            let p = spec.protection;
+            let float_test = if ![x[0], x[1], x[2], x[3], x[4], x[5]].iter().all(|v| v.is_finite()) {
+                Some(Fault::NonFiniteInput)
+            } else if x[0].abs().max(x[1].abs()).max(x[2].abs()) > p.i_trip_a as f32 {
+                Some(Fault::Overcurrent)
+            } else if x[3] > p.vdc_max_v as f32 {
+                Some(Fault::DcBusOvervoltage)
+            } else if d.mode() != Mode::Idle && x[3] < p.vdc_min_v as f32 {
+                Some(Fault::DcBusUndervoltage)
+            } else {
+                None
+            };
+            prop_assert_eq!(d.supervise(&m), float_test);
         }
     }
 }
