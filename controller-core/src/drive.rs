@@ -29,7 +29,7 @@ use crate::discretize::Discretization;
 use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::ifoc::{FluxCommand, IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
-use crate::num::Scalar;
+use crate::num::{Scalar, max_f32};
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
 use crate::svpwm;
 
@@ -131,7 +131,8 @@ pub struct DriveConfig {
     psi_running_wb: f32,
     ts_s: f32,
     slow_divider: u16,
-    /// Bits of the phase-current trip level (finite, positive): see [`Drive::supervise`].
+    i_trip_a: f32,
+    /// Bits of `i_trip_a` (finite, positive): see [`Drive::measurements_ok`].
     i_trip_bits: u32,
     vdc_min_v: f32,
     vdc_max_v: f32,
@@ -195,6 +196,7 @@ impl DriveConfig {
             ts_s: ts as f32,
             psi_running_wb: (spec.flux_ref_wb * mf) as f32,
             slow_divider: spec.slow_divider,
+            i_trip_a: p.i_trip_a as f32,
             // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
             i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
             vdc_min_v: p.vdc_min_v as f32,
@@ -469,19 +471,35 @@ impl Drive {
         };
     }
 
-    /// The phase currents are checked on their bit patterns: with the sign bit cleared, an
-    /// IEEE 754 float orders like an unsigned integer, and ±∞ and NaN lie above every finite
-    /// value. So `|i| > i_trip` (finite i) and "i not finite" are both `abs_bits(i) >
-    /// abs_bits(i_trip)`: one integer comparison per phase in the common case, on the
-    /// integer units, while the floating-point units run the control law. The rare failing
-    /// case then tells the two faults apart. Equal to the float comparisons for every input
-    /// (`supervisor_bit_test_equals_float_test`).
-    fn supervise(&self, m: &Measurements) -> Option<Fault> {
+    /// All supervisor checks pass: the common case, tested without working out which check
+    /// fails. The phase currents are checked on their bit patterns: with the sign bit
+    /// cleared, an IEEE 754 float orders like an unsigned integer, and ±∞ and NaN lie above
+    /// every finite value. So `|i| > i_trip` (finite i) and "i not finite" are both
+    /// `abs_bits(i) > abs_bits(i_trip)`: one integer comparison per phase, on the integer
+    /// units, while the floating-point units run the control law. Equal to
+    /// `self.supervise(m).is_none()` for every input (`supervisor_bit_test_equals_float_test`).
+    #[inline]
+    fn measurements_ok(&self, m: &Measurements) -> bool {
         let i = m.i_abc_a;
         let i_peak_bits = abs_bits(i.a).max(abs_bits(i.b)).max(abs_bits(i.c));
         let rest_finite = m.vdc_v.is_finite() && m.omega_m_rad_s.is_finite() && m.theta_m_rad.is_finite();
-        if i_peak_bits > self.cfg.i_trip_bits || !rest_finite {
-            return Some(if m.is_finite() { Fault::Overcurrent } else { Fault::NonFiniteInput });
+        let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
+        i_peak_bits <= self.cfg.i_trip_bits
+            && rest_finite
+            && m.vdc_v <= self.cfg.vdc_max_v
+            && !(active && m.vdc_v < self.cfg.vdc_min_v)
+    }
+
+    /// Which supervisor check fails, in order of precedence: non-finite input, overcurrent,
+    /// bus overvoltage, bus undervoltage (only while the bridge is active).
+    fn supervise(&self, m: &Measurements) -> Option<Fault> {
+        if !m.is_finite() {
+            return Some(Fault::NonFiniteInput);
+        }
+        let i = m.i_abc_a;
+        let i_peak = max_f32(max_f32(i.a.abs(), i.b.abs()), i.c.abs()); // finite: checked above
+        if i_peak > self.cfg.i_trip_a {
+            return Some(Fault::Overcurrent);
         }
         if m.vdc_v > self.cfg.vdc_max_v {
             return Some(Fault::DcBusOvervoltage);
@@ -491,6 +509,16 @@ impl Drive {
             return Some(Fault::DcBusUndervoltage);
         }
         None
+    }
+
+    /// The rare path of the fast step: a supervisor check failed; latch its fault.
+    #[cold]
+    #[inline(never)]
+    fn trip_on(&mut self, m: &Measurements) {
+        // `measurements_ok` and `supervise` agree, so this is always Some.
+        if let Some(f) = self.supervise(m) {
+            self.trip(f);
+        }
     }
 
     /// Latch fault `f` (the first fault stays latched): phases off from the next fast step
@@ -504,8 +532,8 @@ impl Drive {
     /// Current loop. See the module docs for the signal flow.
     #[inline]
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
-        if let Some(f) = self.supervise(m) {
-            self.trip(f);
+        if !self.measurements_ok(m) {
+            self.trip_on(m);
         }
         let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, telemetry: Telemetry::default() };
         let running = self.mode == Mode::Running;
@@ -829,16 +857,32 @@ mod tests {
             prop_assert_eq!(out.phases, PhaseCommand::Off);
             prop_assert!(matches!(out.mode, Mode::Fault(_)));
         }
+    }
 
-        /// `Drive::supervise` (bit patterns) decides exactly as the float comparisons it
-        /// replaced, in every mode: finite check first, then |i| > i_trip, then the bus.
+    proptest! {
+        // Cheap cases; many, so that the exact trip levels come up.
+        #![proptest_config(ProptestConfig::with_cases(4096))]
+
+        /// `Drive::measurements_ok` (bit patterns) passes exactly when `Drive::supervise` and
+        /// the float comparisons written out here find no fault, in every mode.
         #[test]
-        fn supervisor_bit_test_equals_float_test(x in proptest::array::uniform6(any_measured()), mode in 0u8..3) {
+        fn supervisor_bit_test_equals_float_test(
+            base in (-8.0f32..=8.0, -8.0f32..=8.0, -8.0f32..=8.0, 200.0f32..=400.0, -1e4f32..1e4, -1e6f32..1e6),
+            changes in proptest::collection::vec((0usize..6, any_measured()), 0..3),
+            mode in 0u8..3,
+        ) {
             let mut d = drive();
             match mode {
                 0 => {}
                 1 => d.enable().unwrap(),
                 _ => d = running_drive(),
+            }
+            // A passing measurement with up to two fields replaced by anything.
+            let mut x = [base.0, base.1, base.2, base.3, base.4, base.5];
+            for (field, value) in changes {
+                if let Some(v) = x.get_mut(field) {
+                    *v = value;
+                }
             }
             let m = Measurements {
                 i_abc_a: Abc { a: x[0], b: x[1], c: x[2] },
@@ -860,6 +904,7 @@ mod tests {
                 None
             };
             prop_assert_eq!(d.supervise(&m), float_test);
+            prop_assert_eq!(d.measurements_ok(&m), float_test.is_none());
         }
     }
 }
