@@ -72,7 +72,11 @@ impl InverterModel {
     /// [`InverterModel::Average`] model's one segment).
     #[inline]
     pub fn average_voltage(duty: [f64; 3], vdc_v: f64) -> [f64; 2] {
-        clarke(duty.map(|d| (d.clamp(0.0, 1.0) - 0.5) * vdc_v))
+        // Clarke of (d − ½)·V_dc per phase: the common −½·V_dc drops out, and V_dc joins the
+        // constants (off the simulator's critical path, which runs through the duties).
+        const INV_SQRT3: f64 = 0.577_350_269_189_625_8;
+        let [a, b, c] = duty.map(|d| d.clamp(0.0, 1.0));
+        [(a + a - b - c) * (vdc_v * (1.0 / 3.0)), (b - c) * (vdc_v * INV_SQRT3)]
     }
 
     /// Voltage segments of one period of length `ts_s` for duties `duty` (each in [0, 1]),
