@@ -185,7 +185,8 @@ fn main() -> ExitCode {
         Some("recycle") => cli::recycle::run(args.get(1..).unwrap_or(&[])),
         Some("bench") => cli::bench::run(args.get(1..).unwrap_or(&[])),
         Some("startup-fit") => cli::startup_fit::run(args.get(1..).unwrap_or(&[])),
-        _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE]\n       \
+        _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE] [--plot-dir DIR]\n       \
+                  \x20                 [--kp-range LO,HI] [--ki-range LO,HI] [--gpm A,PHI_DEG] [--bandwidth RAD_S]\n       \
                   design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]\n       \
                   design certify <gains.toml> [--json]\n       \
                   design recycle [--json] [--decay 1/s] [--plot-dir DIR]\n       \
