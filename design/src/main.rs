@@ -51,11 +51,19 @@ mod cli {
     /// Write `text` to `path` through a `.partial` file and a rename: a reader never sees a
     /// half-written plot or plant file.
     pub fn write_atomic(path: &std::path::Path, text: &str) -> Result<(), String> {
+        use std::io::Write;
         let mut tmp = path.as_os_str().to_owned();
         tmp.push(".partial");
-        std::fs::write(&tmp, text)
-            .and_then(|()| std::fs::rename(&tmp, path))
-            .map_err(|e| format!("{}: {e}", path.display()))
+        let written = std::fs::File::create(&tmp)
+            .and_then(|mut f| {
+                f.write_all(text.as_bytes())?;
+                f.sync_all() // on disk before it takes the final name
+            })
+            .and_then(|()| std::fs::rename(&tmp, path));
+        if written.is_err() {
+            let _ = std::fs::remove_file(&tmp); // nothing half-written left behind
+        }
+        written.map_err(|e| format!("{}: {e}", path.display()))
     }
 }
 
