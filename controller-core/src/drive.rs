@@ -131,8 +131,8 @@ pub struct DriveConfig {
     psi_running_wb: f32,
     ts_s: f32,
     slow_divider: u16,
-    i_trip_a: f32,
-    /// Bits of `i_trip_a` (finite, positive): see [`Drive::measurements_ok`].
+    /// Bits of the phase-current trip level (finite, positive): see
+    /// [`Drive::measurements_ok`]; [`Drive::supervise`] reads the level back from them.
     i_trip_bits: u32,
     vdc_min_v: f32,
     vdc_max_v: f32,
@@ -196,7 +196,6 @@ impl DriveConfig {
             ts_s: ts as f32,
             psi_running_wb: (spec.flux_ref_wb * mf) as f32,
             slow_divider: spec.slow_divider,
-            i_trip_a: p.i_trip_a as f32,
             // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
             i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
             vdc_min_v: p.vdc_min_v as f32,
@@ -498,7 +497,7 @@ impl Drive {
         }
         let i = m.i_abc_a;
         let i_peak = max_f32(max_f32(i.a.abs(), i.b.abs()), i.c.abs()); // finite: checked above
-        if i_peak > self.cfg.i_trip_a {
+        if i_peak > f32::from_bits(self.cfg.i_trip_bits) {
             return Some(Fault::Overcurrent);
         }
         if m.vdc_v > self.cfg.vdc_max_v {
