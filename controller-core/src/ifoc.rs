@@ -206,7 +206,8 @@ impl IfocConfig {
         s.theta_e_rad = wrap_angle(theta + delta);
         // Rotated with the angle; afresh every FIELD_RESYNC_STEPS steps, and after a step
         // too large to rotate accurately (or not finite).
-        let resync = (s.steps_to_resync == 0) | !(delta.abs() <= SinCos::MAX_ROTATION_RAD);
+        let rotatable = delta.abs() <= SinCos::MAX_ROTATION_RAD; // false for NaN
+        let resync = (s.steps_to_resync == 0) | !rotatable;
         s.field = s_field.rotated(delta);
         s.steps_to_resync = s.steps_to_resync.wrapping_sub(1);
         if resync {
