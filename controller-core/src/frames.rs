@@ -59,7 +59,8 @@ impl Default for SinCos {
 
 impl SinCos {
     /// sin and cos of `theta_rad`, in f32 arithmetic only (no f64, no table), for the
-    /// control path: the field angle every PWM period.
+    /// control path: the field angle (the IFOC recomputes its field with it every 16th step and
+    /// rotates it in between, [`SinCos::rotated`]).
     ///
     /// `libm::sincosf` evaluates its kernels in f64, which a Cortex-M4F does in software:
     /// ≈ 2 800 instructions per call (measured, `qemu-target` `cost`). Here: quadrant
