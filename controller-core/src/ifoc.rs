@@ -10,7 +10,7 @@
 //! * field angle `θ_e[k+1] = wrap(θ_e[k] + (p·ω_m + ω_sl)·T)`, in `[-π, π)`;
 //! * current references returned in αβ (inverse Park at θ_e) for the stationary-frame loops;
 //!   sin/cos of θ_e[k+1] are evaluated at the end of step k, so that step k+1 starts with them:
-//!   by rotating those of θ_e[k] through the angle step ([`SinCos::rotated`]), and afresh
+//!   by rotating those of θ_e\[k\] through the angle step ([`SinCos::rotated`]), and afresh
 //!   from θ_e[k+1] ([`SinCos::new`]) every [`FIELD_RESYNC_STEPS`] steps, so that rounding
 //!   cannot accumulate (field error ≤ 2.5e-6 against sin/cos of θ_e, `field_tracks_the_angle`).
 //!
