@@ -358,7 +358,7 @@ impl Drive {
             omega_ref_rad_s: 0.0,
             steps_to_slow: 0,
             current: CurrentState::default(),
-            ifoc: IfocState::default(),
+            ifoc: cfg.ifoc.state(0.0),
             speed: SpeedState::default(),
             test_angle_rad: 0.0,
         }
@@ -395,7 +395,7 @@ impl Drive {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
                 self.current = CurrentState::default();
-                self.ifoc = IfocState::default();
+                self.ifoc = self.cfg.ifoc.state(0.0);
                 self.speed = SpeedState::default();
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
                 self.steps_to_slow = 0;
@@ -573,7 +573,7 @@ impl Drive {
             return off(self.mode);
         }
         let modulation = svpwm::modulate(v_ab, m.vdc_v);
-        if !running && self.ifoc.psi_r_wb >= cfg.psi_running_wb {
+        if !running && self.ifoc.psi_r_wb() >= cfg.psi_running_wb {
             self.mode = Mode::Running;
             self.speed = SpeedState::default();
         }
@@ -586,7 +586,7 @@ impl Drive {
                 v_ab_v: modulation.v_applied,
                 theta_e_rad: field.theta_e_rad,
                 omega_sl_rad_s: field.omega_sl_rad_s,
-                psi_r_wb: self.ifoc.psi_r_wb,
+                psi_r_wb: self.ifoc.psi_r_wb(),
                 i_q_ref_a: field.i_ref_dq.q,
                 omega_ref_rad_s: self.omega_ref_rad_s,
             },

@@ -60,7 +60,7 @@ pub struct IfocConfig {
 /// between (see the module docs).
 pub const FIELD_RESYNC_STEPS: u8 = 16;
 
-/// IFOC state.
+/// IFOC state, made by [`IfocConfig::state`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IfocState {
     /// Field (rotor-flux) angle θ_e, rad, in `[-π, π)`.
@@ -71,10 +71,24 @@ pub struct IfocState {
     /// Steps left until `field` is recomputed from `theta_e_rad` (0: at the next step).
     steps_to_resync: u8,
     /// Rotor-flux model estimate ψ̂_r, Wb.
-    pub psi_r_wb: f32,
+    psi_r_wb: f32,
+    /// 1/max(ψ̂_r, ψ_min): the one division of the step (for i_qs* and ω_sl), made when ψ̂_r
+    /// is updated, at the end of the step before — off the head of the next step's chain
+    /// of dependent operations (`hil-sim bench`: ≈ 1 ns per period).
+    inv_psi_floored: f32,
 }
 
 impl IfocState {
+    /// Field (rotor-flux) angle θ_e for the next step, rad, in `[-π, π)`.
+    pub fn theta_e_rad(&self) -> f32 {
+        self.theta_e_rad
+    }
+
+    /// Rotor-flux model estimate ψ̂_r, Wb.
+    pub fn psi_r_wb(&self) -> f32 {
+        self.psi_r_wb
+    }
+
     /// sin and cos of the field angle afresh; restarts the resync countdown. Kept out of
     /// line: inlined in [`IfocConfig::update`], the rarely taken branch slowed the fast step.
     #[cold]
@@ -82,13 +96,6 @@ impl IfocState {
     fn resync_field(&mut self) {
         self.field = SinCos::new(self.theta_e_rad);
         self.steps_to_resync = FIELD_RESYNC_STEPS - 1;
-    }
-}
-
-impl Default for IfocState {
-    /// θ_e = 0, no flux.
-    fn default() -> Self {
-        Self { theta_e_rad: 0.0, field: SinCos::default(), steps_to_resync: 0, psi_r_wb: 0.0 }
     }
 }
 
@@ -111,13 +118,6 @@ impl FluxCommand {
     /// Limit of |i_qs*|, A.
     pub fn i_q_max_a(&self) -> f32 {
         self.i_q_max_a
-    }
-}
-
-impl IfocState {
-    /// Field (rotor-flux) angle θ_e for the next step, rad, in `[-π, π)`.
-    pub fn theta_e_rad(&self) -> f32 {
-        self.theta_e_rad
     }
 }
 
@@ -173,6 +173,23 @@ impl IfocConfig {
         FluxCommand { i_d_a, i_q_max_a }
     }
 
+    /// A state with θ_e = 0 and the flux estimate `psi_r_wb` (0: an unmagnetized machine).
+    pub fn state(&self, psi_r_wb: f32) -> IfocState {
+        IfocState {
+            theta_e_rad: 0.0,
+            field: SinCos::default(),
+            steps_to_resync: 0,
+            psi_r_wb,
+            inv_psi_floored: self.inv_psi_floored(psi_r_wb),
+        }
+    }
+
+    /// 1/ψ̂_r with ψ̂_r floored at `psi_min_wb` (the guard of the module docs).
+    #[inline]
+    fn inv_psi_floored(&self, psi_r_wb: f32) -> f32 {
+        1.0 / max_f32(psi_r_wb, self.psi_min_wb)
+    }
+
     /// The current-reference limit, A.
     pub fn i_max_a(&self) -> f32 {
         self.i_max_a
@@ -190,8 +207,7 @@ impl IfocConfig {
         omega_m_rad_s: f32,
     ) -> IfocOutput {
         let i_d = flux.i_d_a;
-        let psi = max_f32(s.psi_r_wb, self.psi_min_wb);
-        let inv_psi = 1.0 / psi; // one division for i_q* and ω_sl
+        let inv_psi = s.inv_psi_floored;
         let i_q_wanted = match cmd {
             TorqueCommand::TorqueNm(t) => t * self.inv_torque_factor * inv_psi,
             TorqueCommand::IqA(i) => i,
@@ -214,6 +230,7 @@ impl IfocConfig {
             s.resync_field();
         }
         s.psi_r_wb += self.flux_model_gain * (self.lm_h * i_d - s.psi_r_wb);
+        s.inv_psi_floored = self.inv_psi_floored(s.psi_r_wb);
         IfocOutput { i_ref_dq, i_ref_ab, theta_e_rad: theta, field: s_field, omega_sl_rad_s: omega_sl }
     }
 }
@@ -234,13 +251,13 @@ mod tests {
     #[test]
     fn steady_state_operating_point() {
         let c = cfg();
-        let mut s = IfocState::default();
+        let mut s = c.state(0.0);
         let mut out = IfocOutput::default();
         // Flux builds with T_r = 64.7 ms; 1 s is > 15 T_r.
         for _ in 0..20_000 {
             out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(1.0), 0.0);
         }
-        assert!((s.psi_r_wb - 1.0).abs() < 1e-4, "flux {}", s.psi_r_wb);
+        assert!((s.psi_r_wb() - 1.0).abs() < 1e-4, "flux {}", s.psi_r_wb());
         assert!((out.i_ref_dq.d - 0.704_225).abs() < 1e-5);
         assert!((out.i_ref_dq.q - 0.704_225).abs() < 1e-4);
         assert!((out.omega_sl_rad_s - 15.466_67).abs() < 2e-3, "{}", out.omega_sl_rad_s);
@@ -251,20 +268,20 @@ mod tests {
     #[test]
     fn flux_model_is_first_order_with_tr() {
         let c = cfg();
-        let mut s = IfocState::default();
+        let mut s = c.state(0.0);
         let tr = 1.5f64 / 23.2;
         let n = (tr / 5e-5).round() as usize;
         for _ in 0..n {
             c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(0.0), 0.0);
         }
         let expected = 1.0 - libm::exp(-(n as f64) * 5e-5 / tr);
-        assert!((f64::from(s.psi_r_wb) - expected).abs() < 1e-4);
+        assert!((f64::from(s.psi_r_wb()) - expected).abs() < 1e-4);
     }
 
     #[test]
     fn field_angle_advances_at_synchronous_speed_and_wraps() {
         let c = cfg();
-        let mut s = IfocState { psi_r_wb: 1.0, ..Default::default() };
+        let mut s = c.state(1.0);
         // p = 1, ω_m = 100 rad/s, no torque: θ advances 100·T per step.
         let mut prev = 0.0f32;
         let mut wraps = 0;
@@ -294,7 +311,7 @@ mod tests {
         let c = cfg();
         let mut worst = (0.0f64, 0.0f32);
         for omega_m in [0.0f32, 37.3, 150.0, -376.0, 1_500.0, -1_900.0, 2_500.0, 8_000.0] {
-            let mut s = IfocState::default();
+            let mut s = c.state(0.0);
             for k in 0..40_000 {
                 let torque = if k < 20_000 { 1.0 } else { -3.0 };
                 let out = c.update(&mut s, &c.flux_command(0.9), TorqueCommand::TorqueNm(torque), omega_m);
@@ -312,7 +329,7 @@ mod tests {
     #[test]
     fn guard_bounds_slip_and_current_while_flux_is_zero() {
         let c = cfg();
-        let mut s = IfocState::default();
+        let mut s = c.state(0.0);
         let out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(1e6), 0.0);
         assert!(libm::hypotf(out.i_ref_dq.d, out.i_ref_dq.q) <= 10.0 + 1e-4);
         // ω_sl ≤ slip_gain·i_max/ψ_min = 21.96·10/0.05

@@ -16,7 +16,7 @@ mod target {
     use controller_core::discretize::Discretization;
     use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, Reference, example_spec};
     use controller_core::frames::{Abc, AlphaBeta, SinCos};
-    use controller_core::ifoc::{IfocConfig, IfocState, TorqueCommand};
+    use controller_core::ifoc::{IfocConfig, TorqueCommand};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
     use controller_core::svpwm;
     use core::hint::black_box;
@@ -133,8 +133,7 @@ mod target {
         };
         let ifoc = match IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a) {
             Ok(c) => {
-                let mut s = IfocState::default();
-                s.psi_r_wb = 0.9;
+                let mut s = c.state(0.9);
                 let flux = c.flux_command(0.9);
                 per_call(&ticks, |k| {
                     black_box(c.update(
