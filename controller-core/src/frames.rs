@@ -114,7 +114,7 @@ impl SinCos {
     ///
     /// Why: about 10 operations against 30 for [`SinCos::new`], and a chain of dependent
     /// operations a third as long — the field angle's chain was the longest of the fast
-    /// step (`hil-sim bench`: ≈ 50.4 → ≈ 46 ns per simulated PWM period).
+    /// step (`hil-sim bench`: ≈ 50.4 → ≈ 47.1 ns per simulated PWM period).
     #[inline]
     pub fn rotated(self, delta_rad: f32) -> Self {
         let d2 = delta_rad * delta_rad;

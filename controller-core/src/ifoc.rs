@@ -305,7 +305,8 @@ mod tests {
     /// highest speed. The bound: the angle θ_e itself is an f32 sum, rounded by up to
     /// ulp(π)/2 = 1.2e-7 at each step, which the rotated vector (turned by the unrounded
     /// steps) does not follow until the next resync: 16·1.2e-7 ≈ 1.9e-6, plus the 2.5e-7 of
-    /// one rotation. Without the resyncs the gap grows without bound (≈ 3e-5 at 256 steps).
+    /// one rotation. Without the resyncs the gap grows without bound (≈ 2e-5 with a resync every
+    /// 256 steps instead of 16, ≈ 1e-3 without the range check: both fail here).
     #[test]
     fn field_tracks_the_angle() {
         let c = cfg();
