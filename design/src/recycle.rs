@@ -533,8 +533,6 @@ mod tests {
         }
     }
 
-    /// The nominal ITAE PI loses stability inside k ∈ [1, 3] (paper: stable at 1, unstable
-    /// at 3): at k ≈ 2.4029, where a pole pair crosses the imaginary axis.
     /// The family's worst pole by sweep + golden section equals the maximum over a
     /// 20 001-point grid of k (to the grid's resolution) and is never below it, for the
     /// ITAE design and two others.
@@ -551,6 +549,8 @@ mod tests {
         }
     }
 
+    /// The nominal ITAE PI loses stability inside k ∈ [1, 3] (paper: stable at 1, unstable
+    /// at 3): at k ≈ 2.4029, where a pole pair crosses the imaginary axis.
     #[test]
     fn nominal_pi_loses_stability_at_k_2_403() {
         let pi = p().itae();
