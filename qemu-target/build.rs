@@ -1,7 +1,9 @@
 //! Memory map of the *emulated* boards (not the STM32: that one is the root `memory.x`,
 //! used by the firmware). QEMU's mps2-an386 (Cortex-M4F) has 4 MiB of code SRAM at 0 and
 //! 4 MiB of data SRAM at 0x2000_0000; lm3s6965evb (Cortex-M3) has 256 KiB flash and 64 KiB
-//! SRAM. Written to OUT_DIR for cortex-m-rt's `link.x`.
+//! SRAM. Written to OUT_DIR for cortex-m-rt's `link.x`. Also generates `drive.rs` from the
+//! workspace's `drive.toml` (the firmware's drive, `drive_file::codegen`): the drive the
+//! self-tests and the instruction count run.
 use std::{env, fs, path::PathBuf};
 
 fn main() {
@@ -16,5 +18,17 @@ fn main() {
         println!("cargo::error=cannot write memory.x: {e}");
     }
     println!("cargo::rustc-link-search={}", out.display());
+    let drive = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("drive.toml");
+    println!("cargo::rerun-if-changed={}", drive.display());
+    match drive_file::DriveFile::load(&drive) {
+        Ok(d) => {
+            if let Err(e) =
+                fs::write(out.join("drive.rs"), drive_file::codegen::spec_rs(&d.spec, "drive.toml"))
+            {
+                println!("cargo::error=cannot write drive.rs: {e}");
+            }
+        }
+        Err(e) => println!("cargo::error={e}"),
+    }
     println!("cargo::rerun-if-changed=build.rs");
 }

@@ -39,7 +39,7 @@ def rust_side() -> dict:
 
 
 # The motor file is read once, outside the timed sweep.
-MOTOR = tomllib.loads((ROOT / "hil-sim/motors/delorenzo-eq13.toml").read_text())
+MOTOR = tomllib.loads((ROOT / "motors/delorenzo-eq13.toml").read_text())["motor"]
 
 
 def im_matrices(omega_r: float):

@@ -399,7 +399,7 @@ pub enum Command {
     /// Ask for the drive's status and link counters; answered by `Status`.
     GetStatus,
     /// Replace the saturated-P speed-loop gains (seed 002 eq. (21)) while Idle; the board
-    /// accepts only values inside the certified ranges of `gains.toml`.
+    /// accepts only values inside the certified ranges of `drive.toml`.
     WriteSpeedGains {
         /// N·m per rad/s.
         kp: f32,
@@ -871,7 +871,7 @@ pub fn reply_frame(r: &Reply, out: &mut [u8]) -> Result<usize, BufferFull> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drive::example_spec;
+    use crate::drive::test_spec;
     use proptest::prelude::*;
     use std::vec::Vec;
 
@@ -926,7 +926,7 @@ mod tests {
 
     #[test]
     fn every_command_round_trips() {
-        let spec = example_spec().unwrap();
+        let spec = test_spec();
         let cmds = [
             Command::Configure(spec),
             Command::Enable,
@@ -958,8 +958,7 @@ mod tests {
 
     #[test]
     fn replies_round_trip_bit_exact() {
-        let mut drive =
-            crate::drive::Drive::new(crate::drive::DriveConfig::new(&example_spec().unwrap()).unwrap());
+        let mut drive = crate::drive::Drive::new(crate::drive::DriveConfig::new(&test_spec()).unwrap());
         drive.enable().unwrap();
         let m = Measurements { i_abc_a: Abc { a: 0.1, b: 0.2, c: -0.3 }, vdc_v: 310.0, ..Default::default() };
         let out = drive.step(&m);
@@ -1024,7 +1023,7 @@ mod tests {
         p[1] = 9; // reference tag
         assert_eq!(Command::decode(&p[..n]), Err(DecodeError::Value));
         // A motor with a negative resistance is refused at decode.
-        let n = Command::Configure(example_spec().unwrap()).encode(&mut p).unwrap();
+        let n = Command::Configure(test_spec()).encode(&mut p).unwrap();
         p[1..9].copy_from_slice(&(-1.0f64).to_le_bytes());
         assert_eq!(Command::decode(&p[..n]), Err(DecodeError::Value));
         // Oversized garbage without a delimiter, then a good frame.

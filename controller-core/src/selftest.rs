@@ -9,7 +9,7 @@
 
 use crate::current::{CurrentAxisState, CurrentControllerConfig, CurrentLaw};
 use crate::discretize::{Complex, Discretization};
-use crate::drive::{Drive, DriveConfig, Fault, Measurements, Mode, PhaseCommand, example_spec};
+use crate::drive::{Drive, DriveConfig, DriveSpec, Fault, Measurements, Mode, PhaseCommand};
 use crate::frames::{Abc, AlphaBeta, SinCos};
 use crate::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
 use crate::num::{Q32, Scalar};
@@ -34,18 +34,19 @@ impl Check {
     }
 }
 
-/// Every check, in order. `quick` shortens the long time-domain runs (for the soft-float
-/// Cortex-M3, ≈ 20× slower per f32 operation), keeping their limits.
-pub fn all(quick: bool) -> [Check; 10] {
+/// Every check, in order; the drive checks run `spec` (the caller's configuration — on a
+/// target, the one generated from its drive file). `quick` shortens the long time-domain
+/// runs (for the soft-float Cortex-M3, ≈ 20× slower per f32 operation), keeping their limits.
+pub fn all(spec: &DriveSpec, quick: bool) -> [Check; 10] {
     [
         icad_time_domain_response(quick),
         icad_lag_dc_gain(),
         pi_windup_recovery(),
         svpwm_stays_in_hexagon(),
         sincos_accuracy(),
-        drive_magnetizing_time(),
-        supervisor_trips_in_one_step(),
-        link_rejects_corruption(),
+        drive_magnetizing_time(spec),
+        supervisor_trips_in_one_step(spec),
+        link_rejects_corruption(spec),
         q32_icad_vs_f64(),
         f32_icad_vs_f64(),
     ]
@@ -211,16 +212,13 @@ pub fn sincos_accuracy() -> Check {
     Check { name: "SinCos abs. error vs f64", measured: worst, limit: 2e-7 }
 }
 
-/// The example drive with ideal current tracking (measured = reference of the previous
+/// The drive `spec` with ideal current tracking (measured = reference of the previous
 /// step): the time from `enable` to Running against the IFOC flux model's
 /// `T_r·ln(1/(1 − fraction))`, relative error. Limit 1e-3: the discrete flux model's time
 /// constant at 20 kHz is exact to ≪ 1e-4 and the count has one-sample resolution (≈ 2e-4
 /// of the ≈ 4600 samples); host measurement 5.4e-5.
-pub fn drive_magnetizing_time() -> Check {
-    let Ok(spec) = example_spec() else {
-        return Check { name: "magnetizing", measured: f64::NAN, limit: 0.0 };
-    };
-    let Ok(cfg) = DriveConfig::new(&spec) else {
+pub fn drive_magnetizing_time(spec: &DriveSpec) -> Check {
+    let Ok(cfg) = DriveConfig::new(spec) else {
         return Check { name: "magnetizing", measured: f64::NAN, limit: 0.0 };
     };
     let mut drive = Drive::new(cfg);
@@ -241,9 +239,9 @@ pub fn drive_magnetizing_time() -> Check {
 
 /// A NaN measurement, then (after clearing) a current beyond `i_trip_a`: each must latch its
 /// fault and turn the phases off in the same step. Measured: number of failures (limit 0).
-pub fn supervisor_trips_in_one_step() -> Check {
+pub fn supervisor_trips_in_one_step(spec: &DriveSpec) -> Check {
     let mut failures = 0.0;
-    let Some(cfg) = example_spec().ok().and_then(|s| DriveConfig::new(&s).ok()) else {
+    let Ok(cfg) = DriveConfig::new(spec) else {
         return Check { name: "supervisor", measured: f64::NAN, limit: 0.0 };
     };
     let mut drive = Drive::new(cfg);
@@ -268,11 +266,10 @@ pub fn supervisor_trips_in_one_step() -> Check {
 /// Link frames through the target's decoder: a configure frame and a corrupted copy of it
 /// (each single-bit flip of the body). Measured: mis-handled frames — a good frame lost or
 /// a corrupted one accepted (limit 0).
-pub fn link_rejects_corruption() -> Check {
+pub fn link_rejects_corruption(spec: &DriveSpec) -> Check {
     let mut bad = 0.0;
     let mut frame = [0u8; MAX_FRAME];
-    let spec = example_spec().ok();
-    let n = spec.and_then(|s| link::command_frame(&Command::Configure(s), &mut frame).ok()).unwrap_or(0);
+    let n = link::command_frame(&Command::Configure(*spec), &mut frame).unwrap_or(0);
     let body = frame.get(..n).unwrap_or(&[]);
     let mut decoder = FrameDecoder::new();
     let mut stats = LinkStats::default();
@@ -355,7 +352,8 @@ pub fn f32_icad_vs_f64() -> Check {
 mod tests {
     #[test]
     fn every_check_passes_on_the_host() {
-        for c in super::all(false).iter().chain(super::all(true).iter().take(1)) {
+        let spec = crate::drive::test_spec();
+        for c in super::all(&spec, false).iter().chain(super::all(&spec, true).iter().take(1)) {
             std::eprintln!("{:<50} {:.3e} (limit {:.1e})", c.name, c.measured, c.limit);
             assert!(c.passed(), "{c:?}");
         }

@@ -1,5 +1,6 @@
-//! Gain certification: the drive's constants (`gains.toml`) checked against declared
-//! parameter intervals before they reach the firmware.
+//! Gain certification: the drive's constants (a drive file's `[certify]` table, e.g. the
+//! firmware's `drive.toml`) checked against declared parameter intervals before they reach
+//! the firmware.
 //!
 //! * **Current loops** (seed 002): on every corner of the box `R_s × rs_factor`,
 //!   `R_r × rr_factor`, `(L_s, L_r, L_m) × inductance_factor`, at `omega_r_max_rad_s`:
@@ -18,99 +19,21 @@ use crate::kharitonov::IntervalPoly;
 use controller_core::drive::DriveSpec;
 use controller_core::motor::MotorParams;
 use controller_core::speed::SpeedLaw;
-use serde::Deserialize;
 use std::path::Path;
 
-/// `[certify]` table.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct CertifySpec {
-    /// Electrical rotor speed range to certify, 0 … this, rad/s.
-    pub omega_r_max_rad_s: f64,
-    /// Multiplicative interval of R_s.
-    pub rs_factor: [f64; 2],
-    /// Multiplicative interval of R_r.
-    pub rr_factor: [f64; 2],
-    /// Multiplicative interval of L_s, L_r, L_m (together).
-    pub inductance_factor: [f64; 2],
-    /// Multiplicative interval of J.
-    pub j_factor: [f64; 2],
-    /// Saturated-P speed gain range the firmware accepts over its link, N·m per rad/s.
-    pub speed_kp_writable: [f64; 2],
-    /// τ_max range the firmware accepts over its link, N·m.
-    pub speed_tau_max_nm_writable: [f64; 2],
-    /// Minimum phase margin of the individual channel, degrees.
-    pub phase_margin_deg_min: f64,
-    /// Minimum gain margin (increase and reduction), dB.
-    pub gain_margin_db_min: f64,
-    /// Minimum structural margin of γh to (1, 0), dB.
-    pub gamma_h_margin_db_min: f64,
-}
+pub use drive_file::certify::Certify as CertifySpec;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct GainsFile {
-    #[serde(default = "hil_sim::closed_loop_file::default_pwm")]
-    pwm_frequency_hz: f64,
-    #[serde(default = "hil_sim::closed_loop_file::default_divider")]
-    slow_divider: u16,
-    motor: hil_sim::config::MotorFile,
-    controller: hil_sim::closed_loop_file::ControllerFile,
-    protection: hil_sim::closed_loop_file::ProtectionFile,
-    certify: CertifySpec,
-}
-
-/// Load a gains file: the drive specification and the certification intervals.
+/// Load a drive file with a `[certify]` table: the drive and its certification intervals.
 pub fn load(path: &Path) -> Result<(DriveSpec, CertifySpec), String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+    let text = drive_file::source::read(path).map_err(|e| e.to_string())?;
     parse(path, &text)
 }
 
-/// Parse gains-file text read from `path`.
+/// Parse drive-file text read from `path`; it must have a `[certify]` table.
 pub fn parse(path: &Path, text: &str) -> Result<(DriveSpec, CertifySpec), String> {
-    let f: GainsFile = hil_sim::config::from_toml(path, text).map_err(|e| e.to_string())?;
-    let spec = hil_sim::closed_loop_file::drive_spec(
-        path,
-        f.pwm_frequency_hz,
-        f.slow_divider,
-        &f.motor,
-        &f.controller,
-        &f.protection,
-    )
-    .map_err(|e| e.to_string())?;
-    let c = f.certify;
-    let bad = |key: &str, why: &str| Err(format!("{}: key `certify.{key}`: {why}", path.display()));
-    for (key, [lo, hi]) in [
-        ("rs_factor", c.rs_factor),
-        ("rr_factor", c.rr_factor),
-        ("inductance_factor", c.inductance_factor),
-        ("j_factor", c.j_factor),
-    ] {
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
-            return bad(key, "needs finite 0 < lo ≤ hi");
-        }
-    }
-    if !(c.omega_r_max_rad_s.is_finite() && c.omega_r_max_rad_s >= 0.0) {
-        return bad("omega_r_max_rad_s", "must be finite and ≥ 0");
-    }
-    for (key, [lo, hi]) in [
-        ("speed_kp_writable", c.speed_kp_writable),
-        ("speed_tau_max_nm_writable", c.speed_tau_max_nm_writable),
-    ] {
-        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi) {
-            return bad(key, "needs finite 0 < lo ≤ hi");
-        }
-    }
-    if let SpeedLaw::SaturatedP { kp, tau_max_nm } = spec.speed_law {
-        let inside = |x: f64, [lo, hi]: [f64; 2]| lo <= x && x <= hi;
-        if !inside(kp, c.speed_kp_writable) || !inside(tau_max_nm, c.speed_tau_max_nm_writable) {
-            return bad(
-                "speed_kp_writable",
-                "the configured speed gains must lie inside the writable ranges",
-            );
-        }
-    }
-    Ok((spec, c))
+    let d = drive_file::DriveFile::parse(path, text).map_err(|e| e.to_string())?;
+    let c = d.certify.ok_or_else(|| format!("{}: no [certify] table to check against", path.display()))?;
+    Ok((d.spec, c))
 }
 
 /// One check of the certification.
@@ -230,17 +153,11 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
 mod tests {
     use super::*;
 
-    const GAINS: &str = include_str!("../../gains.toml");
-
-    #[test]
-    fn gains_file_is_what_the_firmware_builds() {
-        let (spec, _) = parse(Path::new("gains.toml"), GAINS).unwrap();
-        assert_eq!(spec, controller_core::drive::example_spec().unwrap());
-    }
+    const GAINS: &str = drive_file::SHIPPED;
 
     #[test]
     fn shipped_gains_certify() {
-        let (spec, c) = parse(Path::new("gains.toml"), GAINS).unwrap();
+        let (spec, c) = parse(Path::new("drive.toml"), GAINS).unwrap();
         let checks = certify(&spec, &c).unwrap();
         for ch in &checks {
             eprintln!(
@@ -260,7 +177,7 @@ mod tests {
     /// phase-margin demand above what (20) offers must fail: the certification can say no.
     #[test]
     fn certification_rejects_what_it_should() {
-        let (spec, c) = parse(Path::new("gains.toml"), GAINS).unwrap();
+        let (spec, c) = parse(Path::new("drive.toml"), GAINS).unwrap();
         let fast = CertifySpec { omega_r_max_rad_s: 800.0, ..c };
         assert!(
             certify(&spec, &fast).unwrap().iter().any(|ch| !ch.pass && ch.name.contains("closed-loop pole"))
@@ -269,11 +186,6 @@ mod tests {
         assert!(
             certify(&spec, &strict).unwrap().iter().any(|ch| !ch.pass && ch.name.contains("phase margin"))
         );
-        let bad = GAINS.replace("rs_factor = [1.0, 1.5]", "rs_factor = [1.5, 1.0]");
-        assert!(parse(Path::new("g.toml"), &bad).unwrap_err().contains("certify.rs_factor"));
-        // The configured speed gain must lie in the range the firmware may be given.
-        let bad = GAINS.replace("speed_kp_writable = [0.02, 0.1]", "speed_kp_writable = [0.06, 0.1]");
-        assert!(parse(Path::new("g.toml"), &bad).unwrap_err().contains("writable"));
         // A writable range reaching kp ≤ −B makes the speed loop not robustly stable.
         let c_neg = CertifySpec { speed_kp_writable: [-0.01, 0.1], ..c };
         assert!(certify(&spec, &c_neg).unwrap().iter().any(|ch| !ch.pass && ch.name.starts_with("speed")));

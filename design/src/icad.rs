@@ -186,9 +186,9 @@ pub fn stable_omega_r_max(m: &MotorParams, law: &CurrentLaw, step: f64, limit: f
 mod tests {
     use super::*;
 
-    /// The DeLorenzo parameters solved from seed 002 eq. (13) (`hil-sim/motors/delorenzo-eq13.toml`).
+    /// The DeLorenzo parameters solved from seed 002 eq. (13) (`motors/delorenzo-eq13.toml`).
     fn eq13() -> MotorParams {
-        hil_sim::motors::load("delorenzo-eq13").unwrap()
+        drive_file::motor::load("delorenzo-eq13").unwrap()
     }
 
     #[test]

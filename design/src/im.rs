@@ -74,9 +74,9 @@ pub fn gm_min(m: &MotorParams) -> f64 {
 mod tests {
     use super::*;
 
-    /// The DeLorenzo parameters solved from seed 002 eq. (13) (`hil-sim/motors/delorenzo-eq13.toml`).
+    /// The DeLorenzo parameters solved from seed 002 eq. (13) (`motors/delorenzo-eq13.toml`).
     fn eq13_set() -> MotorParams {
-        hil_sim::motors::load("delorenzo-eq13").unwrap()
+        drive_file::motor::load("delorenzo-eq13").unwrap()
     }
 
     #[test]
@@ -134,7 +134,7 @@ mod tests {
     /// (−2.47 dB), the appendix set does not (−2.31 dB).
     #[test]
     fn motor_files_gm_min() {
-        let load = |n| hil_sim::motors::load(n).unwrap();
+        let load = |n| drive_file::motor::load(n).unwrap();
         let (app, eq13) = (load("delorenzo-appendix"), load("delorenzo-eq13"));
         let db = |x: f64| 20.0 * x.log10();
         eprintln!(

@@ -5,7 +5,7 @@
 //! design kharitonov --plant <plant.toml> --pi KP,KI [--gpm A,PHI_DEG] [--bandwidth RAD_S]
 //!                   [--json] [--plot FILE.svg] [--plot-dir DIR] [--kp-range LO,HI] [--ki-range LO,HI]
 //! design icad --motor <motor.toml | builtin> --omega-r <rad/s> --controller <icad20 | pi:KP,KI> [--json]
-//! design certify <gains.toml> [--json]
+//! design certify <drive.toml> [--json]
 //! design recycle [--json] [--decay RATE] [--plot-dir DIR]
 //! design startup-fit [--motor M] [--segments N] [--json] [--plot-dir DIR] [--plant-out FILE.toml]
 //! design bench
@@ -32,7 +32,7 @@
 //! `delorenzo-perturbed`, `krause-2300v-500hp` or a motor file) and sweeps ω_r (0…5000 rad/s,
 //! 5 rad/s steps) for the range where the full 2×2 loop stays stable.
 //!
-//! `certify` checks every controller constant of a gains file against its declared
+//! `certify` checks every controller constant of a drive file against its declared
 //! parameter intervals (see `design::certify`).
 //!
 //! `recycle` runs seed 001's study of the recycle process (`design::recycle`): ITAE
@@ -104,7 +104,7 @@ fn icad(args: &[String]) -> Result<bool, String> {
             other => return Err(format!("unknown argument `{other}`")),
         }
     }
-    let m = hil_sim::motors::load(&motor.ok_or("--motor is required")?).map_err(|e| e.to_string())?;
+    let m = drive_file::motor::load(&motor.ok_or("--motor is required")?).map_err(|e| e.to_string())?;
     let omega_r = omega_r.ok_or("--omega-r is required")?;
     let law = law.ok_or("--controller is required")?;
     let r = design::icad::analyse(&m, &law, omega_r);
@@ -148,7 +148,7 @@ fn certify(args: &[String]) -> Result<bool, String> {
             other => return Err(format!("unknown argument `{other}`")),
         }
     }
-    let path = path.ok_or("certify needs a gains file")?;
+    let path = path.ok_or("certify needs a drive file")?;
     let (spec, c) = design::certify::load(std::path::Path::new(&path))?;
     let checks = design::certify::certify(&spec, &c)?;
     let ok = checks.iter().all(|c| c.pass);
@@ -196,7 +196,7 @@ fn main() -> ExitCode {
         _ => Err("usage: design kharitonov --plant <plant.toml> --pi KP,KI [--json] [--plot FILE] [--plot-dir DIR]\n       \
                   \x20                 [--kp-range LO,HI] [--ki-range LO,HI] [--gpm A,PHI_DEG] [--bandwidth RAD_S]\n       \
                   design icad --motor <toml|builtin> --omega-r <rad/s> --controller <icad20|pi:KP,KI> [--json]\n       \
-                  design certify <gains.toml> [--json]\n       \
+                  design certify <drive.toml> [--json]\n       \
                   design recycle [--json] [--decay 1/s] [--plot-dir DIR]\n       \
                   design startup-fit [--motor M] [--segments N] [--json] [--plot-dir DIR] [--plant-out FILE]\n       \
                   design bench"

@@ -282,7 +282,7 @@ mod tests {
     use super::*;
 
     fn krause() -> MotorParams {
-        hil_sim::motors::load("krause-2300v-500hp").unwrap()
+        drive_file::motor::load("krause-2300v-500hp").unwrap()
     }
 
     /// Faddeev–LeVerrier against the frequency response of the state-space model.

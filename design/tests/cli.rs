@@ -119,8 +119,8 @@ fn icad_json_contract() {
 }
 
 #[test]
-fn certify_the_shipped_gains_and_reject_a_bad_range() {
-    let gains = concat!(env!("CARGO_MANIFEST_DIR"), "/../gains.toml");
+fn certify_the_shipped_drive_and_reject_a_bad_range() {
+    let gains = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
     let (code, out, err) = run(&["certify", gains, "--json"]);
     assert_eq!(code, Some(0), "{err}");
     let v: serde_json::Value = serde_json::from_str(&out).unwrap();

@@ -13,7 +13,7 @@ use controller_core::frames::AlphaBeta;
 use hil_sim::plant::{Machine, MachineState};
 
 fn envelope_ratio(omega_m: f64) -> f64 {
-    let m = hil_sim::motors::load("delorenzo-eq13").unwrap();
+    let m = drive_file::motor::load("delorenzo-eq13").unwrap();
     let machine = Machine::new(&m).speed_locked();
     let ts = 5e-5;
     let k =
@@ -41,13 +41,13 @@ fn envelope_ratio(omega_m: f64) -> f64 {
 #[test]
 fn eigenvalue_speed_limit_is_confirmed_in_time() {
     let limit = design::icad::stable_omega_r_max(
-        &hil_sim::motors::load("delorenzo-eq13").unwrap(),
+        &drive_file::motor::load("delorenzo-eq13").unwrap(),
         &CurrentLaw::ICAD_EQ20,
         5.0,
         2000.0,
     )
     .unwrap();
-    let m = hil_sim::motors::load("delorenzo-eq13").unwrap();
+    let m = drive_file::motor::load("delorenzo-eq13").unwrap();
     for w in [limit - 100.0, limit + 100.0] {
         // envelope ratio over 0.4 s → exponential rate; compare with the eigenvalue abscissa
         let rate = envelope_ratio(w).ln() / 0.4;

@@ -202,7 +202,8 @@ impl ControlLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use controller_core::drive::{Reference, example_spec};
+    use crate::config::drive_spec;
+    use controller_core::drive::Reference;
     use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
 
     pub(crate) fn board() -> BoardConfig {
@@ -223,7 +224,7 @@ mod tests {
 
     #[test]
     fn adc_codes_to_amperes_and_duty_to_compare() {
-        let mut c = ControlLoop::new(&example_spec().unwrap(), &board()).unwrap();
+        let mut c = ControlLoop::new(&drive_spec().unwrap(), &board()).unwrap();
         // Idle: bridge off whatever the inputs.
         assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         c.drive_mut().enable().unwrap();
@@ -249,7 +250,7 @@ mod tests {
 
     #[test]
     fn hardware_break_latches_until_cleared_by_command() {
-        let mut c = ControlLoop::new(&example_spec().unwrap(), &board()).unwrap();
+        let mut c = ControlLoop::new(&drive_spec().unwrap(), &board()).unwrap();
         c.drive_mut().enable().unwrap();
         assert!(matches!(c.step(&at_rest(0)), Bridge::Compare(_)));
         let brk = Samples { hardware_break: true, ..at_rest(0) };
@@ -269,10 +270,10 @@ mod tests {
 
     #[test]
     fn encoder_jump_is_encoder_loss_and_wrap_is_not() {
-        let mut c = ControlLoop::new(&example_spec().unwrap(), &board()).unwrap();
+        let mut c = ControlLoop::new(&drive_spec().unwrap(), &board()).unwrap();
         c.drive_mut().enable().unwrap();
         c.drive_mut().set_reference(Reference::Speed(0.0)).unwrap();
-        let div = u32::from(example_spec().unwrap().slow_divider);
+        let div = u32::from(drive_spec().unwrap().slow_divider);
         // Counter running backwards through the 16-bit wrap at 500 counts per read: fine.
         let mut enc = 1000u16;
         for k in 0..(20 * div) {
@@ -290,7 +291,7 @@ mod tests {
 
     #[test]
     fn invalid_board_constants_are_rejected_at_construction() {
-        let spec = example_spec().unwrap();
+        let spec = drive_spec().unwrap();
         let bad = BoardConfig { pwm_period_counts: 0, ..board() };
         assert_eq!(ControlLoop::new(&spec, &bad).unwrap_err(), ControlError::Scaling(ScalingError::Period));
         let bad = BoardConfig { current_offset_counts: 5000, ..board() };

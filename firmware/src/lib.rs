@@ -3,20 +3,14 @@
 //! * [`control`]: the control interrupt's body — ADC codes and encoder counter in, compare
 //!   values out — around `controller_core::drive::Drive`;
 //! * [`server`]: the command/telemetry link's command handling;
-//! * [`board`]: the constants of the board (sensing front end, PWM period, encoder) — the
-//!   pin map is in `main.rs`'s `pins` module, next to the peripherals it names.
+//! * [`config`]: the drive and board constants, generated from `drive.toml` at build time —
+//!   the pin map is in `main.rs`'s `pins` module, next to the peripherals it names.
 //!
 //! The binary (`main.rs`) wires these to embassy-stm32: TIM1 PWM, ADC1 injected
 //! conversions triggered by TIM1, TIM4 encoder, LPUART1 link, independent watchdog.
 #![no_std]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
-pub mod board;
+pub mod config;
 pub mod control;
 pub mod server;
-
-/// Gain ranges certified by `design certify gains.toml`, generated from `gains.toml` at
-/// build time: the firmware refuses gains outside them.
-pub mod certified {
-    include!(concat!(env!("OUT_DIR"), "/certified.rs"));
-}

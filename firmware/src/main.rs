@@ -18,7 +18,6 @@
 
 #[cfg(target_os = "none")]
 mod target {
-    use controller_core::drive::example_spec;
     use controller_core::link::{self, FrameDecoder, LinkStats, MAX_FRAME, Reply};
     use core::cell::RefCell;
     use core::sync::atomic::{AtomicU32, Ordering};
@@ -47,7 +46,7 @@ mod target {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
-    use firmware::board::{BOARD, DEAD_TIME_TICKS};
+    use firmware::config::{BOARD, DEAD_TIME_TICKS, drive_spec};
     use firmware::control::{Bridge, ControlError, ControlLoop, Samples};
     use firmware::server;
 
@@ -121,7 +120,7 @@ mod target {
         defmt::info!("drive firmware: 170 MHz, validating the drive configuration");
 
         // Validate at construction: with an invalid configuration nothing is enabled.
-        let control = match example_spec() {
+        let control = match drive_spec() {
             Ok(spec) => ControlLoop::new(&spec, &BOARD),
             Err(_) => {
                 defmt::error!("motor parameters rejected; bridge stays off");

@@ -3,12 +3,12 @@
 //!
 //! Accepted: `Enable`, `Disable`, `ClearFault`, `SetReference`, `GetStatus`,
 //! `ReadSpeedGains`, and `WriteSpeedGains` while Idle with both values inside the ranges
-//! certified in `gains.toml` ([`crate::certified`]; `Nack(OutOfCertifiedRange)` otherwise).
+//! certified in `drive.toml` ([`crate::config`]; `Nack(OutOfCertifiedRange)` otherwise).
 //! Refused with `Nack(Unsupported)`: `Step` (on the board the ADC provides the
 //! measurements) and `Configure` (the rest of the constants are the certified ones the
 //! firmware was built with).
 
-use crate::certified;
+use crate::config as certified;
 use crate::control::ControlLoop;
 use controller_core::drive::Mode;
 use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
@@ -55,12 +55,12 @@ fn write_speed_gains(ctl: &mut ControlLoop, kp: f32, tau_max_nm: f32) -> Reply {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::board::BOARD;
-    use controller_core::drive::{Measurements, Reference, example_spec};
+    use crate::config::{BOARD, drive_spec};
+    use controller_core::drive::{Measurements, Reference};
 
     #[test]
     fn commands_reach_the_drive_and_step_or_configure_are_refused() {
-        let spec = example_spec().unwrap();
+        let spec = drive_spec().unwrap();
         let mut c = ControlLoop::new(&spec, &BOARD).unwrap();
         let stats = LinkStats { frames_ok: 5, crc: 2, ..Default::default() };
         assert_eq!(handle(&mut c, &Command::Enable, &stats), Reply::Ack);
@@ -85,13 +85,13 @@ mod tests {
 
     #[test]
     fn speed_gains_are_written_only_inside_the_certified_ranges_and_while_idle() {
-        let mut c = ControlLoop::new(&example_spec().unwrap(), &BOARD).unwrap();
+        let mut c = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
         let s = LinkStats::default();
         let read = |c: &mut ControlLoop| handle(c, &Command::ReadSpeedGains, &s);
         assert_eq!(read(&mut c), Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 });
         let (kp_lo, kp_hi) = certified::SPEED_KP;
         let (tau_lo, tau_hi) = certified::SPEED_TAU_MAX_NM;
-        assert!((kp_lo, kp_hi, tau_lo, tau_hi) == (0.02, 0.1, 0.1, 2.0), "gains.toml ranges");
+        assert!((kp_lo, kp_hi, tau_lo, tau_hi) == (0.02, 0.1, 0.1, 2.0), "drive.toml ranges");
         let write = |c: &mut ControlLoop, kp: f32, tau: f32| {
             handle(c, &Command::WriteSpeedGains { kp, tau_max_nm: tau }, &s)
         };

@@ -1,5 +1,5 @@
 //! Host cost of one plant step (criterion), the other half of a simulated PWM period next
-//! to `Drive::step` (`cargo bench -p controller-core --bench fast_step`). The figure quoted
+//! to `Drive::step` (`cargo bench -p hil-sim --bench fast_step`). The figure quoted
 //! in the README comes from `cargo bench -p hil-sim --bench plant_step`.
 //!
 //! * `rk4_step_chained`: one RK4 step ([`hil_sim::plant::Rk4::step`], as the simulator

@@ -6,22 +6,20 @@
 //!   [`sensors`] (ADC, bus, encoder), loads;
 //! * [`link_client`]: the host end of the command/telemetry link (PIL FIFOs, board UART);
 //! * [`pil`]: the same runs with the drive on an emulated Cortex-M4F (QEMU), lockstep;
-//! * [`scenario`]: the papers' experiments as built-ins; [`config`] and
-//!   [`closed_loop_file`]: scenario files; [`motors`]: shipped motor files; [`plot`]: SVG.
+//! * [`scenario`]: the papers' experiments as built-ins, on the shipped drive file;
+//!   [`scenario_file`]: scenario files (a drive file plus a run); [`plot`]: SVG.
 #![forbid(unsafe_code)]
 // Host simulator, not the control path: fixed-size state arrays are indexed inside
 // `array::from_fn` with indices bounded by the array length.
 #![allow(clippy::indexing_slicing)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
-pub mod closed_loop_file;
-pub mod config;
 pub mod inverter;
 pub mod link_client;
-pub mod motors;
 pub mod pil;
 pub mod plant;
 pub mod plot;
 pub mod scenario;
+pub mod scenario_file;
 pub mod sensors;
 pub mod sim;

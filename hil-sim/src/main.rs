@@ -205,15 +205,16 @@ fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<(), 
 }
 
 fn run_file(path: &Path, out: &Path, pil: Option<&PilOptions>) -> Result<(), String> {
-    let sc = match hil_sim::config::load(path).map_err(|e| e.to_string())? {
-        hil_sim::config::ScenarioFileKind::ClosedLoop(b) => return run_builtin(&b, out, pil),
-        hil_sim::config::ScenarioFileKind::OpenLoop(_) if pil.is_some() => {
+    use hil_sim::scenario_file::{self, ScenarioFileKind};
+    let sc = match scenario_file::load(path).map_err(|e| e.to_string())? {
+        ScenarioFileKind::ClosedLoop(b) => return run_builtin(&b, out, pil),
+        ScenarioFileKind::OpenLoop(_) if pil.is_some() => {
             return Err(format!(
                 "{}: an open-loop scenario has no controller to put in the loop",
                 path.display()
             ));
         }
-        hil_sim::config::ScenarioFileKind::OpenLoop(sc) => sc,
+        ScenarioFileKind::OpenLoop(sc) => sc,
     };
     eprintln!("hil-sim: open-loop run of {}", path.display());
     let wall = std::time::Instant::now();

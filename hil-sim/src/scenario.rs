@@ -1,4 +1,5 @@
-//! Built-in scenarios (the TOML scenario files of issue 3 will extend this list).
+//! Built-in scenarios: the papers' experiments, each starting from the shipped drive file
+//! (`drive.toml`, [`drive_file::SHIPPED`]) and changing what the experiment changes.
 
 use crate::inverter::InverterModel;
 use crate::plant::Machine;
@@ -6,10 +7,11 @@ use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
 use controller_core::current::CurrentLaw;
 use controller_core::drive::{
-    CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Protection, Reference, example_spec,
+    CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Protection, Reference,
 };
 use controller_core::motor::{MotorError, MotorParams};
 use controller_core::speed::SpeedLaw;
+use drive_file::{DriveFile, FileError};
 
 /// Why a built-in scenario could not be assembled (a bug in the shipped data, reported
 /// rather than hidden).
@@ -17,15 +19,15 @@ use controller_core::speed::SpeedLaw;
 pub enum ScenarioError {
     /// Motor parameters rejected.
     Motor(MotorError),
-    /// A shipped motor file failed to parse or validate.
-    MotorFile(crate::config::ConfigError),
+    /// A shipped drive or motor file failed to parse or validate.
+    File(FileError),
 }
 
 impl std::fmt::Display for ScenarioError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             ScenarioError::Motor(e) => write!(f, "motor parameters rejected: {e:?}"),
-            ScenarioError::MotorFile(e) => write!(f, "{e}"),
+            ScenarioError::File(e) => write!(f, "{e}"),
         }
     }
 }
@@ -38,9 +40,9 @@ impl From<MotorError> for ScenarioError {
     }
 }
 
-impl From<crate::config::ConfigError> for ScenarioError {
-    fn from(e: crate::config::ConfigError) -> Self {
-        ScenarioError::MotorFile(e)
+impl From<FileError> for ScenarioError {
+    fn from(e: FileError) -> Self {
+        ScenarioError::File(e)
     }
 }
 
@@ -88,11 +90,11 @@ impl Builtin {
     }
 }
 
-/// IFOC speed step to 150 rad/s with the ICAD current loop (seed 002 eq. (20)) and the
-/// saturated-P speed loop (eq. (21)) on the DeLorenzo motor; 1 N·m load from 1.5 s to
-/// 2.5 s (after seed 002 Fig. 13).
+/// IFOC speed step to 150 rad/s with the shipped drive (DeLorenzo motor, ICAD current loop
+/// seed 002 eq. (20), saturated-P speed loop eq. (21)); 1 N·m load from 1.5 s to 2.5 s
+/// (after seed 002 Fig. 13).
 pub fn speed_step() -> Result<Builtin, ScenarioError> {
-    let spec = example_spec()?;
+    let spec = DriveFile::shipped()?.spec;
     Ok(Builtin {
         name: "speed-step".into(),
         about: "IFOC + ICAD, speed step to 150 rad/s, 1 N·m load applied at 1.5 s and removed at 2.5 s"
@@ -165,7 +167,7 @@ pub fn fig23_perturbed() -> Result<Builtin, ScenarioError> {
     b.name = "fig23-perturbed".into();
     b.about =
         "seed 002 Fig. 23: perturbed plant (Rs, Rr ×2; Ls, Lr ×0.6; Lm ×0.59), 1 A at 300 rad/s, ICAD".into();
-    b.plant = crate::motors::load("delorenzo-perturbed")?;
+    b.plant = drive_file::motor::load("delorenzo-perturbed")?;
     Ok(b)
 }
 
@@ -239,7 +241,7 @@ pub fn fig16_pi() -> Result<Builtin, ScenarioError> {
 /// (eq. (35)), limited to 250 A; ψ_r* = 4.5 Wb (i_ds* = 31.5 A). The speed reference of
 /// 100 rad/s is applied once the rotor is magnetized (T_r = 0.78 s, ≈ 2.3 s).
 pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
-    let motor = crate::motors::load("krause-2300v-500hp")?;
+    let motor = drive_file::motor::load("krause-2300v-500hp")?;
     let mut b = speed_step()?;
     b.name = "seed000-fig11".into();
     b.about = "seed 000 Fig. 11: 2300 V machine, speed step to 100 rad/s, dq PI1/PI3 (30s+50)/s, speed PI2 (50s+250)/s".into();

@@ -320,7 +320,7 @@ pub const OPEN_LOOP_MAX_STEP_S: f64 = 1e-5;
 /// plant alone. One row per `sample_period_s`; the RK4 step divides the sample period
 /// into ⌈sample_period_s / max_step_s⌉ equal steps.
 pub fn run_open_loop(
-    sc: &crate::config::OpenLoop,
+    sc: &crate::scenario_file::OpenLoop,
     max_step_s: f64,
     mut progress: impl FnMut(f64),
 ) -> Vec<Row> {
@@ -359,7 +359,7 @@ pub fn run_open_loop(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::OpenLoop;
+    use crate::scenario_file::OpenLoop;
     use controller_core::motor::MotorParams;
 
     /// `first_period_at` is the smallest k with `k·ts ≥ t` in floating point — checked against

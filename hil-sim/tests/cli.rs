@@ -47,7 +47,7 @@ fn bad_file_is_reported_and_nothing_is_written() {
     let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
-    assert!(err.contains("bad.toml") && err.contains("motor.lr_h") && err.contains("> 0"), "{err}");
+    assert!(err.contains("bad.toml:") && err.contains("motor.lr_h: is -1.5; must lie in"), "{err}");
     assert!(!out.exists());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -36,9 +36,11 @@ fn pil_trace_equals_sil_trace_bit_for_bit_for_every_builtin() {
 #[test]
 #[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
 fn target_counts_every_malformed_frame_and_keeps_serving() {
-    use controller_core::drive::{Measurements, Mode, example_spec};
+    use controller_core::drive::{Measurements, Mode};
     use controller_core::link::{self, Command, MAX_FRAME, Reply};
-    let mut pil = hil_sim::pil::Pil::start(&PilOptions::default(), &example_spec().unwrap()).unwrap();
+    let mut pil =
+        hil_sim::pil::Pil::start(&PilOptions::default(), &drive_file::DriveFile::shipped().unwrap().spec)
+            .unwrap();
     let good = {
         let mut f = [0u8; MAX_FRAME];
         let n = link::command_frame(&Command::Enable, &mut f).unwrap();

@@ -18,6 +18,12 @@
 //! status, the panic handler. It is empty on the host.
 #![no_std]
 
+/// The firmware's drive (`drive.toml`), generated at build time: what `target-tests` and
+/// `cost` run.
+pub mod drive {
+    include!(concat!(env!("OUT_DIR"), "/drive.rs"));
+}
+
 #[cfg(target_os = "none")]
 pub mod sh {
     //! Semihosting: host files, console, exit.

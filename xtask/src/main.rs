@@ -2,7 +2,7 @@
 //!
 //! * `ci` — everything CI checks, in order, reporting every failure (not only the first):
 //!   fmt check, clippy `-D warnings` (host, all targets), rustdoc with warnings as errors,
-//!   host tests, `design certify gains.toml`, a thumbv7em build of
+//!   host tests, `design certify drive.toml`, a thumbv7em build of
 //!   `controller-core` on its own (proof that it is no_std without the host's `std` feature),
 //!   and the firmware release build with its flash/RAM use.
 //!   Then the emulated-target steps (`qemu`): fmt and clippy of `qemu-target` (a workspace
@@ -60,7 +60,7 @@ const DOC: Step = Step {
 };
 const CERTIFY: Step = Step::cargo(
     "certify",
-    &["run", "--quiet", "--release", "--package", "design", "--", "certify", "gains.toml"],
+    &["run", "--quiet", "--release", "--package", "design", "--", "certify", "drive.toml"],
 );
 const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
 const CORE_M4: Step =

@@ -24,7 +24,7 @@ pub fn run(args: &[String]) -> Result<bool, String> {
     if let Some(a) = args.first() {
         return Err(format!("bench takes no arguments, got `{a}`"));
     }
-    let motor = hil_sim::motors::load("delorenzo-eq13").map_err(|e| e.to_string())?;
+    let motor = drive_file::motor::load("delorenzo-eq13").map_err(|e| e.to_string())?;
     let plant = design::kharitonov::seed000_current_plant().map_err(|e| format!("{e:?}"))?;
     let speeds: Vec<f64> = (0..=1000).map(|i| 5.0 * f64::from(i)).collect();
     // Best of three runs for each figure (the first also warms caches).

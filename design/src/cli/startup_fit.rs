@@ -28,7 +28,7 @@ pub fn run(args: &[String]) -> Result<bool, String> {
             other => return Err(format!("unknown argument `{other}`")),
         }
     }
-    let m = hil_sim::motors::load(&motor).map_err(|er| er.to_string())?;
+    let m = drive_file::motor::load(&motor).map_err(|er| er.to_string())?;
     let trace = simulate(&m, &e)?;
     let segs = fit_segments(&m, &trace, &e)?;
     let plant = interval_plant(&segs);

@@ -14,7 +14,7 @@
 mod target {
     use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
     use controller_core::discretize::Discretization;
-    use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, Reference, example_spec};
+    use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, Reference};
     use controller_core::frames::{Abc, AlphaBeta, SinCos};
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
@@ -52,7 +52,7 @@ mod target {
         let Some(cp) = cortex_m::Peripherals::take() else { sh::exit(false) };
         let ticks = Ticks::start(cp.SYST);
         let (Ok(spec), Ok(adc_i), Ok(adc_v), Ok(pwm)) = (
-            example_spec(),
+            qemu_target::drive::drive_spec(),
             AdcScaling::new(16.5 / 2048.0, 2048, 4095),
             AdcScaling::new(0.1, 0, 4095),
             PwmScaling::new(4250),

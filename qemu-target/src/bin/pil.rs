@@ -5,7 +5,7 @@
 
 #[cfg(target_os = "none")]
 mod target {
-    use controller_core::drive::{Drive, DriveConfig, example_spec};
+    use controller_core::drive::{Drive, DriveConfig};
     use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, NackReason, Reply};
     use cortex_m_rt::entry;
     use qemu_target::sh;
@@ -31,20 +31,13 @@ mod target {
                 let Some(cmd) = decoder.push_command(byte, &mut stats) else { continue };
                 let reply = match (&mut drive, &cmd) {
                     (Some(d), c) => link::execute(d, c, &stats),
-                    (None, Command::Configure(_)) => {
-                        // Start from any valid drive so `execute` can validate and replace it.
-                        match example_spec().ok().and_then(|s| DriveConfig::new(&s).ok()) {
-                            Some(cfg) => {
-                                let mut d = Drive::new(cfg);
-                                let r = link::execute(&mut d, &cmd, &stats);
-                                if r == Reply::Ack {
-                                    drive = Some(d);
-                                }
-                                r
-                            }
-                            None => Reply::Nack(NackReason::Configuration),
+                    (None, Command::Configure(spec)) => match DriveConfig::new(spec) {
+                        Ok(cfg) => {
+                            drive = Some(Drive::new(cfg));
+                            Reply::Ack
                         }
-                    }
+                        Err(_) => Reply::Nack(NackReason::Configuration),
+                    },
                     (None, _) => Reply::Nack(NackReason::NotConfigured),
                 };
                 match link::reply_frame(&reply, &mut frame) {

@@ -16,7 +16,11 @@ mod target {
         let core = if quick { "Cortex-M3, soft-float" } else { "Cortex-M4F, FPU" };
         println!("controller-core self-tests on {}", core);
         let (mut passed, mut failed) = (0u32, 0u32);
-        for c in selftest::all(quick) {
+        let Ok(spec) = qemu_target::drive::drive_spec() else {
+            println!("the generated drive specification is invalid");
+            sh::exit(false)
+        };
+        for c in selftest::all(&spec, quick) {
             let verdict = if c.passed() { "ok" } else { "FAILED" };
             println!("test {} ... {} (measured {:e}, limit {:e})", c.name, verdict, c.measured, c.limit);
             if c.passed() {

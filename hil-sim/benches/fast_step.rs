@@ -1,5 +1,5 @@
 //! Host cost of one drive step (criterion). The figure quoted in the README comes from
-//! `cargo bench -p controller-core --bench fast_step`.
+//! `cargo bench -p hil-sim --bench fast_step`.
 //!
 //! * `drive_step_running`: `Drive::step` in Running (supervisor, Clarke, IFOC with
 //!   sincos, two ICAD channels, SVPWM; the slow step every 10th call).
@@ -8,13 +8,13 @@
 
 use controller_core::current::{CurrentAxisState, CurrentControllerConfig, CurrentLaw};
 use controller_core::discretize::Discretization;
-use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, PhaseCommand, Reference, example_spec};
+use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, PhaseCommand, Reference};
 use controller_core::frames::Abc;
 use criterion::{Criterion, criterion_group, criterion_main};
 use std::hint::black_box;
 
 fn running_drive() -> Drive {
-    let mut d = Drive::new(DriveConfig::new(&example_spec().unwrap()).unwrap());
+    let mut d = Drive::new(DriveConfig::new(&drive_file::DriveFile::shipped().unwrap().spec).unwrap());
     d.set_reference(Reference::Speed(100.0)).unwrap();
     d.enable().unwrap();
     // R-L load until the flux model says magnetized.

@@ -1,0 +1,83 @@
+//! `[board]`: the power board's sensing scale factors, the PWM timer and the encoder — what
+//! the firmware needs beyond the drive. The pin map stays in the firmware's `main.rs`.
+
+use crate::source::{FileError, Source};
+use controller_core::drive::DriveSpec;
+use serde::Deserialize;
+
+/// `[board]` as written.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BoardTable {
+    /// Clock of the PWM timer, Hz.
+    pub tim_clock_hz: u32,
+    /// Dead time between complementary switches, s.
+    pub dead_time_s: f64,
+    /// ADC full-scale code (4095 for 12 bits).
+    pub adc_full_scale: u16,
+    /// Amperes per ADC count of the phase-current channels.
+    pub current_a_per_count: f64,
+    /// Current-channel code at zero current.
+    pub current_offset_counts: u16,
+    /// Volts per ADC count of the bus channel.
+    pub vdc_v_per_count: f64,
+    /// Encoder lines per revolution.
+    pub encoder_lines: u32,
+    /// Largest plausible encoder-counter change between two slow-loop reads.
+    pub encoder_max_counts_per_read: u16,
+}
+
+/// Validated board data, with the timer values derived from the drive's PWM frequency.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Board {
+    /// `[board]` as written (validated).
+    pub table: BoardTable,
+    /// Centre-aligned PWM: ARR = f_tim/(2·f_pwm) − 1.
+    pub pwm_period_counts: u16,
+    /// Dead time in timer ticks.
+    pub dead_time_ticks: u16,
+}
+
+impl BoardTable {
+    /// Validate against the drive; errors point at the value.
+    pub fn validate(&self, src: &Source<'_>, spec: &DriveSpec) -> Result<Board, FileError> {
+        src.check(self.tim_clock_hz > 0, "board.tim_clock_hz", "must be > 0")?;
+        let f_tim = f64::from(self.tim_clock_hz);
+        let arr = f_tim / (2.0 * spec.pwm_frequency_hz) - 1.0;
+        src.check(
+            (arr - arr.round()).abs() < 1e-9 && (100.0..=65_535.0).contains(&arr),
+            "pwm.frequency_hz",
+            &format!(
+                "board.tim_clock_hz/(2·f_pwm) − 1 = {arr} must be a whole number of timer ticks in 100…65535"
+            ),
+        )?;
+        let ticks = self.dead_time_s * f_tim;
+        src.check(
+            self.dead_time_s.is_finite() && ticks >= 0.0 && ticks <= 0.05 * (arr + 1.0) && ticks <= 1008.0,
+            "board.dead_time_s",
+            "must be ≥ 0, at most 1008 timer ticks and 5 % of the PWM half-period",
+        )?;
+        for (key, x) in
+            [("current_a_per_count", self.current_a_per_count), ("vdc_v_per_count", self.vdc_v_per_count)]
+        {
+            src.check(x.is_finite() && x > 0.0, &format!("board.{key}"), "must be finite and > 0")?;
+        }
+        src.check(self.adc_full_scale > 0, "board.adc_full_scale", "must be > 0")?;
+        src.check(
+            self.current_offset_counts <= self.adc_full_scale,
+            "board.current_offset_counts",
+            "must lie within the ADC range",
+        )?;
+        src.check(self.encoder_lines > 0, "board.encoder_lines", "must be ≥ 1")?;
+        src.check(
+            (1..32_768).contains(&self.encoder_max_counts_per_read),
+            "board.encoder_max_counts_per_read",
+            "must lie in 1…32767 (below the 16-bit counter's half range)",
+        )?;
+        Ok(Board {
+            table: *self,
+            pwm_period_counts: arr.round() as u16,
+            dead_time_ticks: ticks.round() as u16,
+        })
+    }
+}

@@ -1,0 +1,314 @@
+//! The drive tables: `[pwm]`, `[motor]`, `[controller]`, `[protection]`, and the optional
+//! `[certify]` and `[board]`. Format and defaults are described in the crate docs.
+
+use crate::motor::MotorTable;
+use crate::source::{FileError, Source, num};
+use crate::values::exact_opt;
+use controller_core::current::CurrentLaw;
+use controller_core::discretize::{ContinuousSection, Discretization};
+use controller_core::drive::{CurrentFrame, DriveConfig, DriveError, DriveSpec, PositionLaw, Protection};
+use controller_core::speed::SpeedLaw;
+use serde::Deserialize;
+
+/// `[pwm]`: the fast loop runs once per PWM period, the slow loops every `slow_divider`-th.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields, default)]
+pub struct PwmTable {
+    /// PWM (and fast-loop) frequency, Hz. Default 20 kHz.
+    pub frequency_hz: f64,
+    /// Speed/position loops every this many PWM periods. Default 10.
+    pub slow_divider: u16,
+}
+
+impl Default for PwmTable {
+    fn default() -> Self {
+        Self { frequency_hz: 20_000.0, slow_divider: 10 }
+    }
+}
+
+/// Accepted PWM frequencies, Hz: wide on purpose — whether a rate *works* is the
+/// certificate's question, not the file's.
+pub const PWM_FREQUENCY_HZ: (f64, f64) = (1.0, 1e6);
+/// Largest slow-loop divider.
+pub const SLOW_DIVIDER_MAX: u16 = 1000;
+
+/// `[controller]` table.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerTable {
+    /// Current law.
+    pub current: CurrentTable,
+    /// Frame of the current loops (default stationary).
+    #[serde(default)]
+    pub current_frame: FrameTable,
+    /// Speed law.
+    pub speed: SpeedTable,
+    /// Position loop (default 10 1/s, 100 rad/s).
+    #[serde(default)]
+    pub position: PositionTable,
+    /// Rotor-flux reference ψ_r*, Wb.
+    pub flux_ref_wb: f64,
+    /// IFOC flux floor, Wb (default 5 % of `flux_ref_wb`).
+    pub flux_floor_wb: Option<f64>,
+    /// Current-reference magnitude limit, A.
+    pub i_ref_max_a: f64,
+    /// Magnetizing → Running at this fraction of ψ_r* (default 0.95).
+    #[serde(default = "default_magnetized")]
+    pub magnetized_fraction: f64,
+}
+
+fn default_magnetized() -> f64 {
+    0.95
+}
+
+/// `controller.current`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum CurrentTable {
+    /// PI × second-order lag (seed 002). Without keys: eq. (20); otherwise all four of
+    /// `kp`, `ki`, `lag_num`, `lag_den` (descending powers of s).
+    Icad {
+        /// V/A.
+        kp: Option<f64>,
+        /// V/(A·s).
+        ki: Option<f64>,
+        /// Lag numerator `[n2, n1, n0]`.
+        #[serde(default, deserialize_with = "exact_opt")]
+        lag_num: Option<[f64; 3]>,
+        /// Lag denominator `[d2, d1, d0]`.
+        #[serde(default, deserialize_with = "exact_opt")]
+        lag_den: Option<[f64; 3]>,
+    },
+    /// PI `kp + ki/s`.
+    Pi {
+        /// V/A.
+        kp: f64,
+        /// V/(A·s).
+        ki: f64,
+    },
+}
+
+/// `controller.current_frame`.
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+pub enum FrameTable {
+    /// α/β loops.
+    #[default]
+    Stationary,
+    /// d/q loops.
+    Synchronous,
+}
+
+/// `controller.speed`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SpeedTable {
+    /// Seed 002 eq. (21).
+    SaturatedP {
+        /// N·m per rad/s.
+        kp: f64,
+        /// N·m.
+        tau_max_nm: f64,
+    },
+    /// PI → torque.
+    PiTorque {
+        /// N·m per rad/s.
+        kp: f64,
+        /// N·m per rad.
+        ki: f64,
+        /// N·m.
+        limit: f64,
+    },
+    /// PI → i_q* (seed 000 PI2).
+    PiIq {
+        /// A per rad/s.
+        kp: f64,
+        /// A per rad.
+        ki: f64,
+        /// A.
+        limit: f64,
+    },
+}
+
+/// `controller.position`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PositionTable {
+    /// 1/s.
+    pub k_per_s: f64,
+    /// Mechanical rad/s.
+    pub omega_max_rad_s: f64,
+}
+
+impl Default for PositionTable {
+    fn default() -> Self {
+        Self { k_per_s: 10.0, omega_max_rad_s: 100.0 }
+    }
+}
+
+/// `[protection]` table.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ProtectionTable {
+    /// Phase-current trip level, A.
+    pub i_trip_a: f64,
+    /// Bus under-voltage trip, V.
+    pub vdc_min_v: f64,
+    /// Bus over-voltage trip, V.
+    pub vdc_max_v: f64,
+}
+
+/// The tables that make a drive, as written.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DriveTables {
+    /// `[pwm]` (optional: defaults).
+    #[serde(default)]
+    pub pwm: PwmTable,
+    /// `[motor]`.
+    pub motor: MotorTable,
+    /// `[controller]`.
+    pub controller: ControllerTable,
+    /// `[protection]`.
+    pub protection: ProtectionTable,
+    /// `[certify]`.
+    pub certify: Option<crate::certify::CertifyTable>,
+    /// `[board]`.
+    pub board: Option<crate::board::BoardTable>,
+}
+
+/// A validated drive file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveFile {
+    /// The drive (what `controller-core` builds its configuration from).
+    pub spec: DriveSpec,
+    /// Certification intervals and requirements, if the file has them.
+    pub certify: Option<crate::certify::Certify>,
+    /// Board scaling, if the file has it.
+    pub board: Option<crate::board::Board>,
+}
+
+impl DriveTables {
+    /// Validate everything; errors point at the offending value in `src`.
+    pub fn validate(&self, src: &Source<'_>) -> Result<DriveFile, FileError> {
+        let spec = drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection)?;
+        let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
+        let board = self.board.as_ref().map(|b| b.validate(src, &spec)).transpose()?;
+        Ok(DriveFile { spec, certify, board })
+    }
+}
+
+fn finite(src: &Source<'_>, key: &str, x: f64) -> Result<(), FileError> {
+    src.check(x.is_finite(), key, &format!("is {x}; must be a finite number"))
+}
+
+/// Build and validate a [`DriveSpec`] from its tables (a drive file's, or those a scenario
+/// file embeds). Errors point at the value.
+pub fn drive_spec(
+    src: &Source<'_>,
+    pwm: &PwmTable,
+    motor: &MotorTable,
+    c: &ControllerTable,
+    protection: &ProtectionTable,
+) -> Result<DriveSpec, FileError> {
+    let (lo, hi) = PWM_FREQUENCY_HZ;
+    src.check(
+        pwm.frequency_hz.is_finite() && (lo..=hi).contains(&pwm.frequency_hz),
+        "pwm.frequency_hz",
+        &format!("is {}; must lie in [{lo}, {hi:e}] Hz", num(pwm.frequency_hz)),
+    )?;
+    src.check(
+        (1..=SLOW_DIVIDER_MAX).contains(&pwm.slow_divider),
+        "pwm.slow_divider",
+        &format!("must lie in 1…{SLOW_DIVIDER_MAX}"),
+    )?;
+    let motor = motor.validate(src, "motor")?;
+    let current_law = match c.current {
+        CurrentTable::Icad { kp: None, ki: None, lag_num: None, lag_den: None } => CurrentLaw::ICAD_EQ20,
+        CurrentTable::Icad { kp: Some(kp), ki: Some(ki), lag_num: Some(n), lag_den: Some(d) } => {
+            for (i, x) in n.iter().chain(&d).enumerate() {
+                let key = if i < 3 { "controller.current.lag_num" } else { "controller.current.lag_den" };
+                finite(src, key, *x)?;
+            }
+            CurrentLaw { kp_v_per_a: kp, ki_v_per_as: ki, lag: Some(ContinuousSection::biquad(n, d)) }
+        }
+        CurrentTable::Icad { .. } => {
+            return Err(src.error(
+                "controller.current",
+                "`icad` takes either no gains (eq. (20)) or all of kp, ki, lag_num, lag_den",
+            ));
+        }
+        CurrentTable::Pi { kp, ki } => CurrentLaw { kp_v_per_a: kp, ki_v_per_as: ki, lag: None },
+    };
+    finite(src, "controller.current.kp", current_law.kp_v_per_a)?;
+    finite(src, "controller.current.ki", current_law.ki_v_per_as)?;
+    let speed_law = match c.speed {
+        SpeedTable::SaturatedP { kp, tau_max_nm } => SpeedLaw::SaturatedP { kp, tau_max_nm },
+        SpeedTable::PiTorque { kp, ki, limit } => SpeedLaw::PiTorque { kp, ki, limit },
+        SpeedTable::PiIq { kp, ki, limit } => SpeedLaw::PiIq { kp, ki, limit },
+    };
+    for (key, x) in [
+        ("controller.flux_ref_wb", c.flux_ref_wb),
+        ("controller.i_ref_max_a", c.i_ref_max_a),
+        ("controller.magnetized_fraction", c.magnetized_fraction),
+        ("controller.position.k_per_s", c.position.k_per_s),
+        ("controller.position.omega_max_rad_s", c.position.omega_max_rad_s),
+        ("protection.i_trip_a", protection.i_trip_a),
+        ("protection.vdc_min_v", protection.vdc_min_v),
+        ("protection.vdc_max_v", protection.vdc_max_v),
+    ] {
+        finite(src, key, x)?;
+    }
+    if let Some(f) = c.flux_floor_wb {
+        finite(src, "controller.flux_floor_wb", f)?;
+        src.check(f > 0.0, "controller.flux_floor_wb", "must be > 0")?;
+    }
+    let spec = DriveSpec {
+        motor,
+        pwm_frequency_hz: pwm.frequency_hz,
+        slow_divider: pwm.slow_divider,
+        current_law,
+        discretization: Discretization::Tustin,
+        current_frame: match c.current_frame {
+            FrameTable::Stationary => CurrentFrame::Stationary,
+            FrameTable::Synchronous => CurrentFrame::Synchronous,
+        },
+        speed_law,
+        position: PositionLaw { k_per_s: c.position.k_per_s, omega_max_rad_s: c.position.omega_max_rad_s },
+        flux_ref_wb: c.flux_ref_wb,
+        flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
+        i_ref_max_a: c.i_ref_max_a,
+        magnetized_fraction: c.magnetized_fraction,
+        protection: Protection {
+            i_trip_a: protection.i_trip_a,
+            vdc_min_v: protection.vdc_min_v,
+            vdc_max_v: protection.vdc_max_v,
+        },
+    };
+    DriveConfig::new(&spec).map_err(|e| match e {
+        DriveError::PwmFrequency => src.error("pwm.frequency_hz", "must be finite and > 0"),
+        DriveError::SlowDivider => src.error("pwm.slow_divider", "must be ≥ 1"),
+        DriveError::Current(e) => src.error("controller.current", format!("rejected: {e:?}")),
+        DriveError::Speed(e) => src.error("controller.speed", format!("rejected: {e:?}")),
+        DriveError::Position(e) => src.error("controller.position", format!("rejected: {e:?}")),
+        DriveError::Ifoc(e) => src.error("controller", format!("IFOC parameters rejected: {e:?}")),
+        DriveError::FluxReference => {
+            src.error("controller.flux_ref_wb", "must be > 0 and above controller.flux_floor_wb")
+        }
+        DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
+        DriveError::Protection => {
+            let p = protection;
+            if !(p.vdc_min_v >= 0.0 && p.vdc_min_v < p.vdc_max_v) {
+                src.error("protection.vdc_min_v", "need 0 ≤ vdc_min_v < vdc_max_v")
+            } else if c.i_ref_max_a <= 0.0 {
+                src.error("controller.i_ref_max_a", "must be > 0")
+            } else {
+                src.error(
+                    "protection.i_trip_a",
+                    format!("must be above controller.i_ref_max_a = {} A", c.i_ref_max_a),
+                )
+            }
+        }
+    })?;
+    Ok(spec)
+}

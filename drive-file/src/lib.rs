@@ -1,0 +1,197 @@
+//! The drive file: one TOML format for everything that configures a drive, read by the
+//! simulator (`hil-sim`), the design toolkit (`design`) and the firmware's build script
+//! (`firmware/build.rs`, through [`codegen`]).
+//!
+//! ```toml
+//! [pwm]                       # optional; these are the defaults
+//! frequency_hz = 20000.0      # fast loop = PWM rate
+//! slow_divider = 10           # speed/position loops every 10th period
+//!
+//! [motor]                     # T-equivalent circuit referred to the stator (motor::RANGES)
+//! rs_ohm = 16.2
+//! rr_ohm = 23.2
+//! ls_h = 1.44                 # self-inductances; need lm_h < ls_h, lr_h
+//! lr_h = 1.5
+//! lm_h = 1.42
+//! pole_pairs = 1
+//! j_kgm2 = 0.005
+//! b_nms = 0.0005
+//!
+//! [controller]
+//! current = { kind = "icad" }            # eq. (20); or { kind = "icad", kp, ki, lag_num, lag_den }
+//!                                        # or { kind = "pi", kp = 360.0, ki = 9000.0 }
+//! current_frame = "stationary"           # or "synchronous" (d/q loops)
+//! speed = { kind = "saturated_p", kp = 0.05, tau_max_nm = 2.0 }
+//! #  or { kind = "pi_torque", kp, ki, limit }  |  { kind = "pi_iq", kp, ki, limit }
+//! position = { k_per_s = 10.0, omega_max_rad_s = 150.0 }   # default 10 1/s, 100 rad/s
+//! flux_ref_wb = 0.9
+//! flux_floor_wb = 0.05                   # default 5 % of flux_ref_wb
+//! i_ref_max_a = 4.0
+//! magnetized_fraction = 0.95             # default
+//!
+//! [protection]
+//! i_trip_a = 8.0
+//! vdc_min_v = 200.0
+//! vdc_max_v = 400.0
+//!
+//! [certify]                   # optional: what `design certify` checks (certify::CertifyTable)
+//! [board]                     # optional: the firmware's board scaling (board::BoardTable)
+//! ```
+//!
+//! A *motor file* is any file with a `[motor]` table ([`motor::load`]); scenario files
+//! (`hil-sim`) embed the drive tables or name a drive file with `drive = "path"` (relative to
+//! the scenario file). Every error is reported as `file:line:column: key: reason`
+//! ([`FileError`]), range errors included.
+#![forbid(unsafe_code)]
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
+
+pub mod board;
+pub mod certify;
+pub mod codegen;
+pub mod drive;
+pub mod motor;
+pub mod source;
+pub mod values;
+pub mod write;
+
+pub use drive::{DriveFile, DriveTables};
+pub use source::{FileError, Source};
+
+use std::path::{Path, PathBuf};
+
+/// The firmware's drive file, shipped at the workspace root: the DeLorenzo DL10115A1 on
+/// the NUCLEO-G474RE power board, certified by CI.
+pub const SHIPPED: &str = include_str!("../../drive.toml");
+
+/// `reference` (as written in `from`) relative to `from`'s directory.
+pub fn relative_to(from: &Path, reference: &str) -> PathBuf {
+    let r = Path::new(reference);
+    if r.is_absolute() {
+        r.to_path_buf()
+    } else {
+        from.parent().map_or_else(|| r.to_path_buf(), |d| d.join(r))
+    }
+}
+
+impl DriveFile {
+    /// Parse and validate drive-file text read from `path`.
+    pub fn parse(path: &Path, text: &str) -> Result<Self, FileError> {
+        let src = Source::parse(path, text)?;
+        src.deserialize::<DriveTables>()?.validate(&src)
+    }
+
+    /// Read, parse and validate a drive file.
+    pub fn load(path: &Path) -> Result<Self, FileError> {
+        let text = source::read(path)?;
+        Self::parse(path, &text)
+    }
+
+    /// The shipped drive file ([`SHIPPED`]).
+    pub fn shipped() -> Result<Self, FileError> {
+        Self::parse(Path::new("<builtin drive.toml>"), SHIPPED)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn err(text: &str) -> FileError {
+        DriveFile::parse(Path::new("d.toml"), text).unwrap_err()
+    }
+
+    /// `line:column` of the first occurrence of `needle` in the shipped file.
+    fn pos(text: &str, needle: &str) -> (usize, usize) {
+        let off = text.find(needle).unwrap();
+        let line = text[..off].matches('\n').count() + 1;
+        let col = text[..off].rsplit('\n').next().unwrap().chars().count() + 1;
+        (line, col)
+    }
+
+    #[test]
+    fn shipped_file_is_complete() {
+        let d = DriveFile::shipped().unwrap();
+        assert!(d.certify.is_some() && d.board.is_some());
+        let b = d.board.unwrap();
+        assert_eq!((b.pwm_period_counts, b.dead_time_ticks), (4249, 85));
+    }
+
+    /// Issue 16, item 2: each value found by trying is an input error that points at it.
+    #[test]
+    fn bad_values_point_at_file_line_column_and_key() {
+        let s = SHIPPED;
+        let replace = |from: &str, to: &str| {
+            assert!(s.contains(from), "{from}");
+            s.replacen(from, to, 1)
+        };
+        // A three-element interval (was silently read as its first two).
+        let e = err(&replace("rs_factor = [1.0, 1.5]", "rs_factor = [1.0, 1.2, 1.5]"));
+        assert_eq!(e.key.as_deref(), Some("certify.rs_factor"), "{e}");
+        assert!(e.reason.contains("exactly 2"), "{e}");
+        let (line, _) = pos(s, "rs_factor");
+        assert_eq!(e.at.map(|a| a.0), Some(line), "{e}");
+        // A NaN requirement (was "limit NaN" failures at run time).
+        let e = err(&replace("phase_margin_deg_min = 45.0", "phase_margin_deg_min = nan"));
+        let (line, col) = pos(s, "phase_margin_deg_min");
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "d.toml:{line}:{}: certify.phase_margin_deg_min: is NaN; must be a finite number",
+                col + 23
+            )
+        );
+        // A speed range the sweep could not finish (was a hang).
+        let e = err(&replace("omega_r_max_rad_s = 375.0", "omega_r_max_rad_s = 1e9"));
+        assert_eq!(e.key.as_deref(), Some("certify.omega_r_max_rad_s"), "{e}");
+        // Reversed interval.
+        let e = err(&replace("rr_factor = [1.0, 2.0]", "rr_factor = [2.0, 1.0]"));
+        assert_eq!(e.key.as_deref(), Some("certify.rr_factor"), "{e}");
+        // Configured gain outside the writable range.
+        let e = err(&replace("speed_kp_writable = [0.02, 0.1]", "speed_kp_writable = [0.06, 0.1]"));
+        assert_eq!(e.key.as_deref(), Some("certify.speed_kp_writable"), "{e}");
+        // Trip level below the current limit.
+        let e = err(&replace("i_trip_a = 8.0", "i_trip_a = 3.0"));
+        assert_eq!((e.key.as_deref(), e.at), (Some("protection.i_trip_a"), Some(pos(s, "8.0"))), "{e}");
+        // Negative resistance, in the motor table.
+        let e = err(&replace("rs_ohm = 16.2", "rs_ohm = -16.2"));
+        assert_eq!(e.key.as_deref(), Some("motor.rs_ohm"), "{e}");
+        // Unknown key and wrong kind.
+        let e = err(&replace("flux_ref_wb = 0.9", "flux_ref_wb = 0.9\nflux_gain = 2"));
+        assert!(e.reason.contains("flux_gain") && e.at.is_some(), "{e}");
+        let e = err(&replace("kind = \"icad\"", "kind = \"lqr\""));
+        assert!(e.reason.contains("lqr") && e.key.as_deref() == Some("controller.current.kind"), "{e}");
+        // A PWM rate of zero, a NaN gain.
+        let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 0.0"));
+        assert_eq!(e.key.as_deref(), Some("pwm.frequency_hz"), "{e}");
+        let e = err(&replace("kp = 0.05", "kp = nan"));
+        assert!(
+            e.key.as_deref().is_some_and(|k| k.starts_with("controller.speed") || k.starts_with("certify")),
+            "{e}"
+        );
+        // A half-given ICAD law.
+        let e = err(&replace("current = { kind = \"icad\" }", "current = { kind = \"icad\", kp = 300.0 }"));
+        assert_eq!(e.key.as_deref(), Some("controller.current"), "{e}");
+        // A timer that cannot make the PWM rate.
+        let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 19999.0"));
+        assert_eq!(e.key.as_deref(), Some("pwm.frequency_hz"), "{e}");
+    }
+
+    #[test]
+    fn icad_with_explicit_gains_equals_eq20() {
+        let t = SHIPPED.replace(
+            "current = { kind = \"icad\" }",
+            "current = { kind = \"icad\", kp = 326.5, ki = 326500.0, lag_num = [1.0, 800.0, 160000.0], lag_den = [1.0, 100.0, 42500.0] }",
+        );
+        let a = DriveFile::parse(Path::new("d.toml"), &t).unwrap();
+        assert_eq!(a.spec, DriveFile::shipped().unwrap().spec);
+        let e = err(&t.replace("lag_den = [1.0, 100.0, 42500.0]", "lag_den = [1.0, 100.0]"));
+        assert!(e.key.as_deref() == Some("controller.current") && e.reason.contains("exactly 3"), "{e}");
+    }
+
+    #[test]
+    fn relative_references() {
+        assert_eq!(relative_to(Path::new("a/b/s.toml"), "../d.toml"), PathBuf::from("a/b/../d.toml"));
+        assert_eq!(relative_to(Path::new("s.toml"), "d.toml"), PathBuf::from("d.toml"));
+        assert_eq!(relative_to(Path::new("a/s.toml"), "/x/d.toml"), PathBuf::from("/x/d.toml"));
+    }
+}

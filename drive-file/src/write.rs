@@ -1,0 +1,56 @@
+//! Output files appear complete or not at all.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The temporary sibling a file is written to before it takes its name.
+pub fn partial_path(path: &Path) -> PathBuf {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".partial");
+    PathBuf::from(tmp)
+}
+
+/// Write `path` through `path.partial`: filled by `fill`, synced, then renamed. On any
+/// error the partial file is removed, so a reader never sees a half-written file.
+pub fn write_atomic(
+    path: &Path,
+    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), String> {
+    let tmp = partial_path(path);
+    let written = std::fs::File::create(&tmp).and_then(|f| {
+        let mut w = std::io::BufWriter::new(f);
+        fill(&mut w)?;
+        w.into_inner().map_err(|e| e.into_error())?.sync_all()?;
+        std::fs::rename(&tmp, path)
+    });
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written.map_err(|e| format!("cannot write {}: {e}", path.display()))
+}
+
+/// [`write_atomic`] of a string.
+pub fn write_text(path: &Path, text: &str) -> Result<(), String> {
+    write_atomic(path, |w| w.write_all(text.as_bytes()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn failed_fill_leaves_nothing() {
+        let dir = std::env::temp_dir().join(format!("drive-file-write-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("x.txt");
+        let e = write_atomic(&p, |w| {
+            w.write_all(b"half")?;
+            Err(std::io::Error::other("stop"))
+        });
+        assert!(e.is_err() && !p.exists() && !partial_path(&p).exists());
+        write_text(&p, "whole").unwrap();
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "whole");
+        assert!(write_text(&dir.join("no/such/dir/x"), "x").unwrap_err().contains("no/such/dir"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

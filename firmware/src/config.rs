@@ -1,0 +1,54 @@
+//! The firmware's configuration, generated at build time from the workspace's `drive.toml`
+//! (`build.rs`, `drive_file::codegen`): the drive specification ([`drive_spec`]), the
+//! board's constants ([`BOARD`], [`TIM_CLOCK_HZ`], [`PWM_PERIOD_COUNTS`],
+//! [`DEAD_TIME_TICKS`]) and the gain ranges `design certify drive.toml` certified
+//! ([`SPEED_KP`], [`SPEED_TAU_MAX_NM`]), which the firmware enforces on gains written over
+//! its link. Another motor or board is a change of `drive.toml` (and of the pin map in
+//! `main.rs`).
+
+use crate::control::BoardConfig;
+
+include!(concat!(env!("OUT_DIR"), "/config.rs"));
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+
+    /// The generated constants are the drive file's values, bit for bit.
+    #[test]
+    fn generated_configuration_equals_the_drive_file() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+        let d = drive_file::DriveFile::load(std::path::Path::new(path)).unwrap();
+        assert_eq!(drive_spec().unwrap(), d.spec);
+        let (b, c) = (d.board.unwrap(), d.certify.unwrap());
+        assert_eq!(BOARD.current_a_per_count, b.table.current_a_per_count);
+        assert_eq!(BOARD.vdc_v_per_count, b.table.vdc_v_per_count);
+        assert_eq!(BOARD.current_offset_counts, b.table.current_offset_counts);
+        assert_eq!(BOARD.encoder_lines, b.table.encoder_lines);
+        assert_eq!(BOARD.encoder_max_counts_per_read, b.table.encoder_max_counts_per_read);
+        assert_eq!(
+            (PWM_PERIOD_COUNTS, DEAD_TIME_TICKS, TIM_CLOCK_HZ),
+            (b.pwm_period_counts, b.dead_time_ticks, b.table.tim_clock_hz)
+        );
+        assert_eq!(SPEED_KP, (c.speed_kp_writable[0] as f32, c.speed_kp_writable[1] as f32));
+        assert_eq!(
+            SPEED_TAU_MAX_NM,
+            (c.speed_tau_max_nm_writable[0] as f32, c.speed_tau_max_nm_writable[1] as f32)
+        );
+    }
+
+    #[test]
+    fn pwm_period_gives_the_drive_frequency() {
+        let spec = drive_spec().unwrap();
+        // Centre-aligned: one period = 2·(ARR + 1) timer ticks.
+        let f = f64::from(TIM_CLOCK_HZ) / (2.0 * (f64::from(PWM_PERIOD_COUNTS) + 1.0));
+        assert!((f - spec.pwm_frequency_hz).abs() < 1e-9, "{f}");
+        // Encoder plausibility limit: counts per slow-loop read → rad/s, above twice the
+        // 376 rad/s top speed (seed 002 Fig. 16) and below the 16-bit wrap.
+        let read_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+        let counts_per_rad = 4.0 * f64::from(BOARD.encoder_lines) / core::f64::consts::TAU;
+        let limit_rad_s = f64::from(BOARD.encoder_max_counts_per_read) / counts_per_rad / read_s;
+        assert!(limit_rad_s > 2.0 * 376.0 && BOARD.encoder_max_counts_per_read < 32_768, "{limit_rad_s}");
+    }
+}

@@ -1,0 +1,584 @@
+//! Scenario files (TOML): a drive plus a run.
+//!
+//! **Closed loop** — the drive's tables (`[pwm]`, `[motor]`, `[controller]`,
+//! `[protection]`, the drive-file format of `drive_file`) embedded, or a drive file named
+//! by `drive = "path"` (relative to the scenario file); then the run:
+//!
+//! ```toml
+//! drive = "../../drive.toml"      # or embed [pwm], [motor], [controller], [protection]
+//! duration_s = 3.5                # ≤ MAX_DURATION_S
+//! sample_period_s = 1e-3          # trace sample period (a multiple of the PWM period)
+//! vdc_v = 310.0
+//! rk4_substeps = 1                # default 1 (see tests/substeps.rs)
+//!
+//! # [plant]                        # optional: the simulated machine, if not [motor]
+//!
+//! [load]                           # optional: "torque" (events only, default),
+//! kind = "eddy_brake"              # "eddy_brake" with k_nm_s_rad, "locked_rotor", or
+//! k_nm_s_rad = 0.002               # "coulomb_friction" with friction_nm
+//!
+//! [inverter]                       # optional: "average" (default) or
+//! kind = "switching"               # carrier comparison with dead time
+//! dead_time_s = 1e-6
+//!
+//! [sensors]                        # optional, every key defaults to ideal
+//! current_lsb_a = 0.00806
+//! current_offset_a = [0.0, 0.0, 0.0]
+//! encoder_lines = 1024
+//!
+//! [[events]]
+//! t_s = 0.0
+//! kind = "enable"
+//! [[events]]
+//! t_s = 0.3
+//! kind = "speed"                   # speed (rad/s), position (rad), torque (N·m), load (N·m)
+//! value = 150.0                    # or kind = "rotating_current", amplitude_a, omega_rad_s
+//! ```
+//!
+//! **Open loop** (plant alone, validation) — a `[motor]` table (or `drive = "path"` for
+//! its motor) and an ideal source:
+//!
+//! ```toml
+//! duration_s = 1.0
+//! sample_period_s = 1e-4
+//! [motor]
+//! # …
+//! [source]
+//! kind = "sine"
+//! amplitude_v = 180.0   # phase peak
+//! frequency_hz = 50.0
+//! [load]
+//! kind = "constant"
+//! torque_nm = 0.0
+//! ```
+//!
+//! A file is closed-loop when it has a `[controller]` table or a `drive` key. Every bad
+//! value is an error `file:line:column: key: reason`.
+
+use crate::inverter::InverterModel;
+use crate::scenario::Builtin;
+use crate::sensors::SensorModel;
+use crate::sim::{Event, LoadModel, Scenario};
+use controller_core::drive::{DriveSpec, Reference};
+use controller_core::motor::MotorParams;
+use drive_file::board::BoardTable;
+use drive_file::certify::CertifyTable;
+use drive_file::drive::{ControllerTable, ProtectionTable, PwmTable};
+use drive_file::motor::MotorTable;
+use drive_file::source::num;
+use drive_file::values::exact;
+use drive_file::{DriveFile, FileError, Source};
+use serde::Deserialize;
+use std::path::Path;
+
+/// Longest simulated time a scenario may ask for, s (an hour of motor time: 72 million
+/// PWM periods at 20 kHz).
+pub const MAX_DURATION_S: f64 = 3600.0;
+/// Most trace rows a run may write (≈ 0.7 GB of CSV).
+pub const MAX_TRACE_ROWS: f64 = 5e6;
+/// Largest magnitude of an event value (speed in rad/s, position in rad, torque or load in
+/// N·m, current in A): far beyond any machine, and finite in the drive's f32.
+pub const MAX_EVENT_VALUE: f64 = 1e6;
+
+/// A validated open-loop scenario.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OpenLoop {
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Trace sample period, s.
+    pub sample_period_s: f64,
+    /// Motor.
+    pub motor: MotorParams,
+    /// Phase peak voltage, V.
+    pub amplitude_v: f64,
+    /// Source frequency, Hz.
+    pub frequency_hz: f64,
+    /// Load torque, N·m.
+    pub load_nm: f64,
+}
+
+/// A scenario file of either kind.
+#[derive(Debug, Clone)]
+pub enum ScenarioFileKind {
+    /// Plant fed by an ideal source (`[source]`).
+    OpenLoop(OpenLoop),
+    /// Drive against the plant.
+    ClosedLoop(Box<Builtin>),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OpenLoopFile {
+    duration_s: f64,
+    sample_period_s: f64,
+    drive: Option<String>,
+    motor: Option<MotorTable>,
+    source: SourceTable,
+    load: Option<ConstantLoad>,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum SourceTable {
+    /// v_α = A cos 2πft, v_β = A sin 2πft (A = phase peak).
+    Sine { amplitude_v: f64, frequency_hz: f64 },
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum ConstantLoad {
+    Constant { torque_nm: f64 },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClosedLoopFile {
+    duration_s: f64,
+    sample_period_s: f64,
+    vdc_v: f64,
+    #[serde(default = "one")]
+    rk4_substeps: u32,
+    drive: Option<String>,
+    pwm: Option<PwmTable>,
+    motor: Option<MotorTable>,
+    controller: Option<ControllerTable>,
+    protection: Option<ProtectionTable>,
+    certify: Option<CertifyTable>,
+    board: Option<BoardTable>,
+    plant: Option<MotorTable>,
+    load: Option<LoadTable>,
+    inverter: Option<InverterTable>,
+    #[serde(default)]
+    sensors: SensorsTable,
+    events: Vec<EventTable>,
+}
+
+fn one() -> u32 {
+    1
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum LoadTable {
+    Torque,
+    EddyBrake { k_nm_s_rad: f64 },
+    LockedRotor,
+    CoulombFriction { friction_nm: f64 },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+enum InverterTable {
+    Average,
+    Switching { dead_time_s: f64 },
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+struct SensorsTable {
+    current_lsb_a: f64,
+    #[serde(deserialize_with = "exact")]
+    current_offset_a: [f64; 3],
+    #[serde(deserialize_with = "exact")]
+    current_gain: [f64; 3],
+    current_noise_rms_a: f64,
+    vdc_lsb_v: f64,
+    encoder_lines: Option<u32>,
+    seed: u64,
+}
+
+impl Default for SensorsTable {
+    fn default() -> Self {
+        let m = SensorModel::default();
+        Self {
+            current_lsb_a: m.current_lsb_a,
+            current_offset_a: m.current_offset_a,
+            current_gain: m.current_gain,
+            current_noise_rms_a: m.current_noise_rms_a,
+            vdc_lsb_v: m.vdc_lsb_v,
+            encoder_lines: m.encoder_lines,
+            seed: m.seed,
+        }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum EventKind {
+    Enable,
+    Speed,
+    Position,
+    Torque,
+    Load,
+    RotatingCurrent,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EventTable {
+    t_s: f64,
+    kind: EventKind,
+    value: Option<f64>,
+    amplitude_a: Option<f64>,
+    omega_rad_s: Option<f64>,
+}
+
+/// `duration_s` and `sample_period_s` within their stated maxima; returns the row count.
+fn check_timing(src: &Source<'_>, duration_s: f64, sample_period_s: f64) -> Result<f64, FileError> {
+    src.check(
+        duration_s.is_finite() && duration_s > 0.0 && duration_s <= MAX_DURATION_S,
+        "duration_s",
+        &format!("is {}; must lie in (0, {MAX_DURATION_S}] s", num(duration_s)),
+    )?;
+    src.check(
+        sample_period_s.is_finite() && sample_period_s > 0.0 && sample_period_s <= duration_s,
+        "sample_period_s",
+        "must be finite, > 0 and ≤ duration_s",
+    )?;
+    let rows = duration_s / sample_period_s;
+    src.check(
+        rows <= MAX_TRACE_ROWS,
+        "sample_period_s",
+        &format!("gives {rows:.3e} trace rows; at most {MAX_TRACE_ROWS:e}"),
+    )?;
+    Ok(rows)
+}
+
+/// The drive a closed-loop file names or embeds.
+fn drive_of(src: &Source<'_>, f: &ClosedLoopFile) -> Result<DriveSpec, FileError> {
+    if let Some(reference) = &f.drive {
+        let embedded = [
+            ("pwm", f.pwm.is_some()),
+            ("motor", f.motor.is_some()),
+            ("controller", f.controller.is_some()),
+            ("protection", f.protection.is_some()),
+            ("certify", f.certify.is_some()),
+            ("board", f.board.is_some()),
+        ];
+        if let Some((table, _)) = embedded.iter().find(|(_, given)| *given) {
+            return Err(
+                src.error(table, format!("`drive = \"{reference}\"` and a [{table}] table: give one"))
+            );
+        }
+        let path = drive_file::relative_to(src.path(), reference);
+        return DriveFile::load(&path)
+            .map(|d| d.spec)
+            .map_err(|e| if e.at.is_none() { src.error("drive", e.to_string()) } else { e });
+    }
+    let missing =
+        |t: &str| src.error(t, format!("a closed-loop scenario needs `drive = \"file\"` or a [{t}] table"));
+    let tables = drive_file::DriveTables {
+        pwm: f.pwm.unwrap_or_default(),
+        motor: f.motor.ok_or_else(|| missing("motor"))?,
+        controller: f.controller.ok_or_else(|| missing("controller"))?,
+        protection: f.protection.ok_or_else(|| missing("protection"))?,
+        certify: f.certify,
+        board: f.board,
+    };
+    Ok(tables.validate(src)?.spec)
+}
+
+/// Parse and validate a closed-loop scenario read from `file`.
+pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> {
+    let src = Source::parse(file, text)?;
+    let f: ClosedLoopFile = src.deserialize()?;
+    check_timing(&src, f.duration_s, f.sample_period_s)?;
+    src.check(f.vdc_v.is_finite() && f.vdc_v > 0.0, "vdc_v", "must be finite and > 0")?;
+    let spec = drive_of(&src, &f)?;
+    let periods = f.sample_period_s * spec.pwm_frequency_hz;
+    src.check(
+        periods >= 0.999 && (periods - periods.round()).abs() <= 1e-6 * periods,
+        "sample_period_s",
+        &format!("must be a whole number of PWM periods (is {periods:.4})"),
+    )?;
+    src.check((1..=1000).contains(&f.rk4_substeps), "rk4_substeps", "must lie in 1…1000")?;
+    let plant = match &f.plant {
+        Some(p) => p.validate(&src, "plant")?,
+        None => spec.motor,
+    };
+    let mut events = Vec::with_capacity(f.events.len());
+    for (n, e) in f.events.iter().enumerate() {
+        let key = |k: &str| format!("events[{n}].{k}");
+        src.check(
+            e.t_s.is_finite() && e.t_s >= 0.0 && e.t_s <= f.duration_s,
+            &key("t_s"),
+            "must lie in [0, duration_s]",
+        )?;
+        let bounded = |name: &str, v: Option<f64>| -> Result<f32, FileError> {
+            match v {
+                Some(x) if x.is_finite() && x.abs() <= MAX_EVENT_VALUE => Ok(x as f32),
+                Some(x) => Err(src
+                    .error(&key(name), format!("is {}; must be finite, |x| ≤ {MAX_EVENT_VALUE:e}", num(x)))),
+                None => {
+                    Err(src.error(&key(name), format!("event `{:?}` needs `{name}`", e.kind).to_lowercase()))
+                }
+            }
+        };
+        let ev = match e.kind {
+            EventKind::Enable => Event::Enable,
+            EventKind::Speed => Event::Reference(Reference::Speed(bounded("value", e.value)?)),
+            EventKind::Position => Event::Reference(Reference::Position(bounded("value", e.value)?)),
+            EventKind::Torque => Event::Reference(Reference::Torque(bounded("value", e.value)?)),
+            EventKind::Load => Event::LoadNm(f64::from(bounded("value", e.value)?)),
+            EventKind::RotatingCurrent => Event::Reference(Reference::RotatingCurrent {
+                amplitude_a: bounded("amplitude_a", e.amplitude_a)?,
+                omega_rad_s: bounded("omega_rad_s", e.omega_rad_s)?,
+            }),
+        };
+        events.push((e.t_s, ev));
+    }
+    if let Some(n) = events.windows(2).position(|w| w.first().map(|a| a.0) > w.get(1).map(|b| b.0)) {
+        return Err(src.error(&format!("events[{}].t_s", n + 1), "events must be in time order"));
+    }
+    let nonneg = |key: &str, x: f64| src.check(x.is_finite() && x >= 0.0, key, "must be finite and ≥ 0");
+    let load = match f.load {
+        None | Some(LoadTable::Torque) => LoadModel::Torque,
+        Some(LoadTable::EddyBrake { k_nm_s_rad }) => {
+            nonneg("load.k_nm_s_rad", k_nm_s_rad)?;
+            LoadModel::EddyBrake { k_nm_s_rad }
+        }
+        Some(LoadTable::LockedRotor) => LoadModel::LockedRotor,
+        Some(LoadTable::CoulombFriction { friction_nm }) => {
+            nonneg("load.friction_nm", friction_nm)?;
+            LoadModel::CoulombFriction { friction_nm }
+        }
+    };
+    let s = &f.sensors;
+    nonneg("sensors.current_lsb_a", s.current_lsb_a)?;
+    nonneg("sensors.current_noise_rms_a", s.current_noise_rms_a)?;
+    nonneg("sensors.vdc_lsb_v", s.vdc_lsb_v)?;
+    for x in s.current_offset_a {
+        src.check(x.is_finite(), "sensors.current_offset_a", "must be finite")?;
+    }
+    for x in s.current_gain {
+        src.check(x.is_finite(), "sensors.current_gain", "must be finite")?;
+    }
+    src.check(s.encoder_lines != Some(0), "sensors.encoder_lines", "must be ≥ 1")?;
+    let sensors = SensorModel {
+        current_lsb_a: s.current_lsb_a,
+        current_offset_a: s.current_offset_a,
+        current_gain: s.current_gain,
+        current_noise_rms_a: s.current_noise_rms_a,
+        vdc_lsb_v: s.vdc_lsb_v,
+        encoder_lines: s.encoder_lines,
+        seed: s.seed,
+    };
+    let inverter = match f.inverter {
+        None | Some(InverterTable::Average) => InverterModel::Average,
+        Some(InverterTable::Switching { dead_time_s }) => {
+            src.check(
+                dead_time_s.is_finite() && dead_time_s >= 0.0 && dead_time_s < 0.5 / spec.pwm_frequency_hz,
+                "inverter.dead_time_s",
+                "must be finite, ≥ 0 and below half the PWM period",
+            )?;
+            InverterModel::Switching { dead_time_s }
+        }
+    };
+    let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    Ok(Builtin {
+        name: stem,
+        about: format!("closed-loop scenario file {}", file.display()),
+        spec,
+        plant,
+        scenario: Scenario {
+            events,
+            duration_s: f.duration_s,
+            vdc_v: f.vdc_v,
+            substeps: f.rk4_substeps,
+            trace_every: periods.round() as u32,
+            sensors,
+            load,
+            inverter,
+        },
+    })
+}
+
+/// Parse and validate an open-loop scenario read from `file`.
+pub fn parse_open_loop(file: &Path, text: &str) -> Result<OpenLoop, FileError> {
+    let src = Source::parse(file, text)?;
+    let raw: OpenLoopFile = src.deserialize()?;
+    check_timing(&src, raw.duration_s, raw.sample_period_s)?;
+    let motor = match (&raw.motor, &raw.drive) {
+        (Some(m), None) => m.validate(&src, "motor")?,
+        (None, Some(d)) => drive_file::motor::load(&drive_file::relative_to(file, d).to_string_lossy())?,
+        (Some(_), Some(_)) => return Err(src.error("motor", "`drive = …` and a [motor] table: give one")),
+        (None, None) => return Err(src.error("motor", "needs a [motor] table or `drive = \"file\"`")),
+    };
+    let SourceTable::Sine { amplitude_v, frequency_hz } = raw.source;
+    src.check(
+        amplitude_v.is_finite() && (0.0..=1e6).contains(&amplitude_v),
+        "source.amplitude_v",
+        "must lie in [0, 1e6] V",
+    )?;
+    src.check(
+        frequency_hz.is_finite() && frequency_hz.abs() <= 1e5,
+        "source.frequency_hz",
+        "must be finite, |f| ≤ 1e5 Hz",
+    )?;
+    let load_nm = match raw.load {
+        Some(ConstantLoad::Constant { torque_nm }) => {
+            src.check(torque_nm.is_finite(), "load.torque_nm", "must be finite")?;
+            torque_nm
+        }
+        None => 0.0,
+    };
+    Ok(OpenLoop {
+        duration_s: raw.duration_s,
+        sample_period_s: raw.sample_period_s,
+        motor,
+        amplitude_v,
+        frequency_hz,
+        load_nm,
+    })
+}
+
+/// Read, parse and validate a scenario file of either kind.
+pub fn load(file: &Path) -> Result<ScenarioFileKind, FileError> {
+    let text = drive_file::source::read(file)?;
+    let src = Source::parse(file, &text)?;
+    if src.has("controller") || (src.has("drive") && !src.has("source")) {
+        parse_closed_loop(file, &text).map(|b| ScenarioFileKind::ClosedLoop(Box::new(b)))
+    } else {
+        parse_open_loop(file, &text).map(ScenarioFileKind::OpenLoop)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FIG16: &str = include_str!("../scenarios/fig16-icad.toml");
+    const OPEN: &str = r#"
+duration_s = 0.5
+sample_period_s = 1e-3
+[motor]
+rs_ohm = 16.2
+rr_ohm = 23.2
+ls_h = 1.44
+lr_h = 1.5
+lm_h = 1.42
+pole_pairs = 1
+j_kgm2 = 0.005
+b_nms = 0.0005
+[source]
+kind = "sine"
+amplitude_v = 180.0
+frequency_hz = 50.0
+[load]
+kind = "constant"
+torque_nm = 0.5
+"#;
+
+    fn err(text: &str) -> FileError {
+        parse_closed_loop(Path::new("c.toml"), text).unwrap_err()
+    }
+    fn open_err(text: &str) -> FileError {
+        parse_open_loop(Path::new("s.toml"), text).unwrap_err()
+    }
+    fn replace(text: &str, from: &str, to: &str) -> String {
+        assert!(text.contains(from), "{from}");
+        text.replacen(from, to, 1)
+    }
+
+    #[test]
+    fn shipped_file_equals_builtin() {
+        let f = parse_closed_loop(Path::new("fig16-icad.toml"), FIG16).unwrap();
+        let b = crate::scenario::fig16_icad().unwrap();
+        assert_eq!(f.spec, b.spec);
+        assert_eq!(f.plant, b.plant);
+        assert_eq!(f.scenario, b.scenario);
+    }
+
+    #[test]
+    fn a_scenario_may_name_its_drive_file() {
+        let dir = std::env::temp_dir().join(format!("hil-sim-drive-ref-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("sub")).unwrap();
+        std::fs::write(dir.join("drive.toml"), drive_file::SHIPPED).unwrap();
+        let run = "drive = \"../drive.toml\"\nduration_s = 1.0\nsample_period_s = 1e-3\nvdc_v = 310.0\n\
+                   [[events]]\nt_s = 0.0\nkind = \"enable\"\n";
+        let path = dir.join("sub/s.toml");
+        std::fs::write(&path, run).unwrap();
+        let ScenarioFileKind::ClosedLoop(b) = load(&path).unwrap() else { panic!("closed loop") };
+        assert_eq!(b.spec, DriveFile::shipped().unwrap().spec);
+        // Both a reference and a table: refused, pointing at the table.
+        let e = parse_closed_loop(
+            &path,
+            &format!("{run}[protection]\ni_trip_a = 8.0\nvdc_min_v = 1.0\nvdc_max_v = 2.0\n"),
+        )
+        .unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("protection"), "{e}");
+        // A missing drive file is named.
+        let e = parse_closed_loop(&path, &run.replace("../drive.toml", "../nope.toml")).unwrap_err();
+        assert!(e.to_string().contains("nope.toml") && e.key.as_deref() == Some("drive"), "{e}");
+        // The open-loop runner takes the drive's motor.
+        let open = OPEN.replace("[motor]", "drive = \"../drive.toml\"\n[unused]");
+        let open = open.replace("[unused]\nrs_ohm = 16.2\nrr_ohm = 23.2\nls_h = 1.44\nlr_h = 1.5\nlm_h = 1.42\npole_pairs = 1\nj_kgm2 = 0.005\nb_nms = 0.0005\n", "");
+        let o = parse_open_loop(&path, &open).unwrap();
+        assert_eq!(o.motor, DriveFile::shipped().unwrap().spec.motor);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Issue 16, item 2: the inputs found by trying are errors that point at the value.
+    #[test]
+    fn bad_values_are_located_errors() {
+        // Durations past the stated maximum (1e300 panicked, 1e9 aborted on allocation).
+        for d in ["1e300", "1e9", "inf", "-1.0"] {
+            let e = err(&replace(FIG16, "duration_s = 6.5", &format!("duration_s = {d}")));
+            assert_eq!((e.key.as_deref(), e.at), (Some("duration_s"), Some((4, 14))), "{e}");
+            let e = open_err(&replace(OPEN, "duration_s = 0.5", &format!("duration_s = {d}")));
+            assert_eq!(e.key.as_deref(), Some("duration_s"), "{e}");
+        }
+        // Too many trace rows.
+        let e = err(&replace(FIG16, "duration_s = 6.5", "duration_s = 3600.0")
+            .replace("sample_period_s = 1e-3", "sample_period_s = 5e-5"));
+        assert!(e.key.as_deref() == Some("sample_period_s") && e.reason.contains("rows"), "{e}");
+        // An event value beyond f32 (was silently dropped as +∞).
+        let e = err(&replace(FIG16, "value = 376.0", "value = 1e300"));
+        assert_eq!(e.key.as_deref(), Some("events[1].value"), "{e}");
+        assert!(e.at.is_some_and(|(l, _)| l > 30), "{e}");
+        // A 4-element offset (its last element was lost).
+        let e = err(&format!("{FIG16}\n[sensors]\ncurrent_offset_a = [0.0, 0.0, 0.0, 0.1]\n"));
+        assert!(
+            e.key.as_deref() == Some("sensors.current_offset_a") && e.reason.contains("exactly 3"),
+            "{e}"
+        );
+        let e = err(&replace(FIG16, "tau_max_nm = 0.4", "tau_max_nm = -0.4"));
+        assert_eq!(e.key.as_deref(), Some("controller.speed"), "{e}");
+        let e = err(&replace(FIG16, "t_s = 0.3", "t_s = -1.0"));
+        assert_eq!(e.key.as_deref(), Some("events[1].t_s"), "{e}");
+        let e = err(&replace(FIG16, "kind = \"speed\"\nvalue = 376.0", "kind = \"speed\""));
+        assert_eq!(e.key.as_deref(), Some("events[1].value"), "{e}");
+        let e = err(&replace(FIG16, "sample_period_s = 1e-3", "sample_period_s = 1.23e-4"));
+        assert_eq!(e.key.as_deref(), Some("sample_period_s"), "{e}");
+        let e = err(&replace(FIG16, "flux_ref_wb = 0.35", "flux_ref_wb = 0.35\nflux_gain = 2"));
+        assert!(e.to_string().starts_with("c.toml:") && e.to_string().contains("flux_gain"), "{e}");
+        let e = err(&replace(FIG16, "i_trip_a = 8.0", "i_trip_a = 3.0"));
+        assert_eq!(e.key.as_deref(), Some("protection.i_trip_a"), "{e}");
+        let e = open_err(&replace(OPEN, "torque_nm = 0.5", "torque_nm = nan"));
+        assert_eq!(e.key.as_deref(), Some("load.torque_nm"), "{e}");
+        let e = open_err(&replace(OPEN, "rr_ohm = 23.2", "rr_ohm = -1.0"));
+        assert_eq!(e.key.as_deref(), Some("motor.rr_ohm"), "{e}");
+        let e = open_err(&replace(OPEN, "kind = \"sine\"", "kind = \"square\""));
+        assert!(e.to_string().contains("square"), "{e}");
+    }
+
+    #[test]
+    fn coulomb_friction_load() {
+        let with = |load: &str| format!("{FIG16}\n[load]\n{load}\n");
+        let f =
+            parse_closed_loop(Path::new("c.toml"), &with("kind = \"coulomb_friction\"\nfriction_nm = 0.05"))
+                .unwrap();
+        assert_eq!(f.scenario.load, LoadModel::CoulombFriction { friction_nm: 0.05 });
+        let e = err(&with("kind = \"coulomb_friction\"\nfriction_nm = -0.05"));
+        assert_eq!(e.key.as_deref(), Some("load.friction_nm"));
+        let e = err(&with("kind = \"coulomb_friction\""));
+        assert!(e.to_string().contains("friction_nm"), "{e}");
+    }
+
+    #[test]
+    fn open_loop_file_parses() {
+        let s = parse_open_loop(Path::new("s.toml"), OPEN).unwrap();
+        assert_eq!(s.load_nm, 0.5);
+        assert_eq!(s.motor.pole_pairs(), 1);
+    }
+}
