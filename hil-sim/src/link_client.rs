@@ -6,6 +6,7 @@
 
 use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
 use std::io::{Read, Write};
+use std::time::{Duration, Instant};
 
 /// A link endpoint on a reader and a writer.
 #[derive(Debug)]
@@ -17,6 +18,7 @@ pub struct LinkClient<R, W> {
     input_pos: usize,
     stats: LinkStats,
     round_trips: u64,
+    reply_timeout: Option<Duration>,
 }
 
 impl<R: Read, W: Write> LinkClient<R, W> {
@@ -30,7 +32,17 @@ impl<R: Read, W: Write> LinkClient<R, W> {
             input_pos: 0,
             stats: LinkStats::default(),
             round_trips: 0,
+            reply_timeout: None,
         }
+    }
+
+    /// Give up on a reply after `timeout`, whatever arrives meanwhile: a line that streams
+    /// noise fails like a silent one. (The lockstep PIL link has no timeout: a slow emulator
+    /// is not an error.) Reads that time out on their own (a serial port's) keep waiting
+    /// until then.
+    pub fn with_reply_timeout(mut self, timeout: Duration) -> Self {
+        self.reply_timeout = Some(timeout);
+        self
     }
 
     /// Commands sent so far.
@@ -66,6 +78,7 @@ impl<R: Read, W: Write> LinkClient<R, W> {
 
     /// The next well-formed frame from the other side (rejected frames are counted).
     pub fn next_reply(&mut self) -> Result<Reply, String> {
+        let deadline = self.reply_timeout.map(|t| (t, Instant::now() + t));
         loop {
             while let Some(&b) = self.input.get(self.input_pos) {
                 self.input_pos += 1;
@@ -73,8 +86,24 @@ impl<R: Read, W: Write> LinkClient<R, W> {
                     return Ok(r);
                 }
             }
+            if let Some((t, at)) = deadline
+                && Instant::now() >= at
+            {
+                return Err(format!(
+                    "no well-formed reply within {t:?} ({} malformed frames meanwhile)",
+                    self.stats.errors()
+                ));
+            }
             self.input.resize(4096, 0);
-            let n = self.rx.read(&mut self.input).map_err(|e| format!("link broken (read): {e}"))?;
+            let n = match self.rx.read(&mut self.input) {
+                Ok(n) => n,
+                Err(e) if deadline.is_some() && e.kind() == std::io::ErrorKind::TimedOut => {
+                    self.input.clear();
+                    self.input_pos = 0;
+                    continue;
+                }
+                Err(e) => return Err(format!("link broken (read): {e}")),
+            };
             if n == 0 {
                 return Err("the other side closed the link".into());
             }
@@ -124,5 +153,35 @@ mod tests {
         let got: Vec<Command> =
             sent.iter().filter_map(|&b| d.push(b).map(|p| Command::decode(p.unwrap()).unwrap())).collect();
         assert_eq!(got, [Command::Enable, Command::Step(Default::default()), Command::GetStatus]);
+    }
+
+    /// Issue 16: `hil-sim link` on a line that streams noise never returned.
+    #[test]
+    fn noise_times_out_like_silence() {
+        struct Noise(u8);
+        impl Read for Noise {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                for b in buf.iter_mut() {
+                    self.0 = self.0.wrapping_mul(73).wrapping_add(41);
+                    *b = self.0;
+                }
+                Ok(buf.len())
+            }
+        }
+        struct Silence;
+        impl Read for Silence {
+            fn read(&mut self, _: &mut [u8]) -> std::io::Result<usize> {
+                std::thread::sleep(Duration::from_millis(5));
+                Err(std::io::ErrorKind::TimedOut.into())
+            }
+        }
+        let t = Duration::from_millis(50);
+        let started = Instant::now();
+        let mut c = LinkClient::new(Noise(1), std::io::sink()).with_reply_timeout(t);
+        let e = c.transact(&Command::GetStatus).unwrap_err();
+        assert!(e.contains("no well-formed reply") && e.contains("malformed"), "{e}");
+        let mut c = LinkClient::new(Silence, std::io::sink()).with_reply_timeout(t);
+        assert!(c.transact(&Command::GetStatus).unwrap_err().contains("no well-formed reply"));
+        assert!(started.elapsed() < Duration::from_secs(2));
     }
 }

@@ -1,72 +1,188 @@
-//! `hil-sim` command line.
+//! `hil-sim` command line (`hil-sim --help`, `hil-sim <command> --help`; the help text is
+//! the doc comments below). Exit status: 0 done, 1 the run or the link failed, 2 usage error.
 //!
-//! ```text
-//! hil-sim list                                   built-in scenarios
-//! hil-sim run <scenario.toml | builtin> [--out DIR]
-//! hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]
-//! ```
-//! `pil` runs a closed-loop scenario with the drive on an emulated Cortex-M4F (QEMU,
-//! processor in the loop) and writes the same outputs as `run`, plus link figures in the
-//! summary; `--elf` names the target program (default: `qemu-target`'s release build),
-//! `--no-pin` leaves QEMU and the simulator unpinned (slower).
-//!
-//! ```text
-//! hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | gains | set-gains KP TAU | telemetry [N]>
-//! ```
-//! talks to the board's command/telemetry link on a serial device (e.g. `/dev/ttyACM0`, the
-//! NUCLEO's virtual COM port; set to 115200 baud raw with `stty`, 2 s read timeout) and
-//! prints the reply, or N telemetry frames.
-//! ```text
-//! hil-sim bench [builtin] [--runs N]
-//! ```
-//! times the closed-loop simulation alone (no trace files): the built-in scenario
-//! (default `speed-step`, the issue's scenario 2) run N times (default 20) after one
-//! warm-up run; prints JSON with the median and best simulated-seconds-per-wall-second and
-//! nanoseconds per PWM period.
-//!
-//! `run` writes `DIR/trace.csv`, `DIR/summary.json` and the plots `speed.svg`,
-//! `currents.svg`, `torque.svg` (default `DIR` = `out/<name>`). A file
-//! that fails to parse or validate is reported with file, key and reason, and nothing is
-//! written; outputs appear only complete (written to a temporary name, then renamed).
+//! `run` and `pil` write `DIR/trace.csv` (streamed to disk as the run goes), `summary.json`
+//! and the plots `speed.svg`, `currents.svg`, `torque.svg`. Every output appears complete or
+//! not at all (written under a `.partial` name, then renamed); a failed or interrupted
+//! (Ctrl-C) run leaves none behind.
 
+use clap::{Args, Parser, Subcommand};
 use controller_core::link::{Command, Reply};
+use drive_file::write::{partial_path, write_text};
 use hil_sim::pil::PilOptions;
 use hil_sim::scenario::{self, Builtin};
 use hil_sim::sim::{self, Row};
-use std::io::Write;
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+/// Induction-motor drive simulator: `controller-core` against a nonlinear machine model
+/// (software in the loop), on an emulated Cortex-M4F (processor in the loop), or talking to
+/// the board.
+#[derive(Parser, Debug)]
+#[command(name = "hil-sim", version, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Cmd,
+}
+
+#[derive(Subcommand, Debug)]
+enum Cmd {
+    /// List the built-in scenarios (the papers' experiments).
+    List,
+    /// Run a scenario with the drive in this process (software in the loop).
+    Run(RunArgs),
+    /// Run a closed-loop scenario with the drive on an emulated Cortex-M4F (QEMU mps2-an386,
+    /// processor in the loop); writes the same outputs as `run`, plus link figures.
+    Pil {
+        #[command(flatten)]
+        run: RunArgs,
+        /// The `pil` target program [default: qemu-target's release build, or
+        /// $HIL_SIM_PIL_ELF]. Build it with `cargo xtask qemu`.
+        #[arg(long)]
+        elf: Option<PathBuf>,
+        /// Leave QEMU and the simulator unpinned (slower).
+        #[arg(long)]
+        no_pin: bool,
+    },
+    /// Time the closed-loop simulation alone (no trace files); prints JSON with the median
+    /// and best real-time factor and nanoseconds per PWM period.
+    Bench {
+        /// A built-in scenario.
+        #[arg(default_value = "speed-step")]
+        scenario: String,
+        /// Timed runs (after one warm-up run).
+        #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+        runs: u32,
+    },
+    /// Talk to the board's command/telemetry link on a serial port (115200 baud).
+    Link(LinkArgs),
+}
+
+#[derive(Args, Debug)]
+struct RunArgs {
+    /// A built-in scenario (`hil-sim list`) or a scenario file (`.toml`).
+    scenario: String,
+    /// Output directory [default: out/<scenario name>].
+    #[arg(long, value_parser = non_empty_path)]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+struct LinkArgs {
+    /// Serial device (e.g. /dev/ttyACM0, the NUCLEO's virtual COM port); `list` shows the
+    /// ports found.
+    device: String,
+    #[command(subcommand)]
+    command: Option<LinkCmd>,
+    /// Give up on a reply after this many seconds (noise counts as silence).
+    #[arg(long, default_value_t = 2.0, value_parser = positive_seconds)]
+    timeout_s: f64,
+}
+
+#[derive(Subcommand, Debug, Clone, Copy)]
+enum LinkCmd {
+    /// Enable the bridge (Idle → Magnetizing → Running).
+    Enable,
+    /// Disable the bridge.
+    Disable,
+    /// Clear a latched fault.
+    ClearFault,
+    /// Mode and link counters.
+    Status,
+    /// Speed reference, rad/s.
+    Speed { value: f32 },
+    /// Position reference, rad.
+    Position { value: f32 },
+    /// Torque reference, N·m.
+    Torque { value: f32 },
+    /// Read the speed-loop gains.
+    Gains,
+    /// Write the saturated-P speed gains (only while Idle, only inside the certified ranges).
+    SetGains { kp: f32, tau_max_nm: f32 },
+    /// Print N telemetry frames.
+    Telemetry {
+        #[arg(default_value_t = 10)]
+        n: u32,
+    },
+}
+
+fn non_empty_path(s: &str) -> Result<PathBuf, String> {
+    if s.trim().is_empty() { Err("must not be empty".into()) } else { Ok(PathBuf::from(s)) }
+}
+
+fn positive_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 && x <= 3600.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a number of seconds in (0, 3600]")),
+    }
+}
+
+/// Set by Ctrl-C: a run in progress stops at its next trace row and cleans up.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+fn interrupted() -> Result<(), String> {
+    if INTERRUPTED.load(Ordering::Relaxed) { Err("interrupted".into()) } else { Ok(()) }
+}
 
 const BASE_HEADER: &str =
     "t_s,i_alpha_a,i_beta_a,psi_alpha_wb,psi_beta_wb,omega_m_rad_s,theta_m_rad,torque_nm,v_alpha_v,v_beta_v";
 const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm";
 
-fn usage() -> ExitCode {
-    eprintln!(
-        "usage: hil-sim list\n       hil-sim run <scenario.toml | builtin> [--out DIR]\n       \
-         hil-sim pil <scenario.toml | builtin> [--out DIR] [--elf PATH] [--no-pin]\n       \
-         hil-sim bench [builtin] [--runs N]\n       \
-         hil-sim link <DEVICE> <enable | disable | clear-fault | status | speed W | position TH | torque T | gains | set-gains KP TAU | telemetry [N]>"
-    );
-    ExitCode::from(2)
+/// Most points per plotted curve.
+const PLOT_POINTS: f64 = 4000.0;
+
+/// The trace, streamed to `trace.csv.partial` and renamed when complete; keeps the peak
+/// current, the last row and a thinned copy for the plots. Dropped unfinished (an error, an
+/// interrupt), it removes its partial file.
+struct TraceWriter {
+    path: PathBuf,
+    tmp: PathBuf,
+    file: Option<BufWriter<File>>,
+    closed_loop: bool,
+    plot_every: u64,
+    count: u64,
+    peak_a: f64,
+    last: Option<Row>,
+    plot: Vec<Row>,
 }
 
-/// Write `path` atomically: a temporary sibling, synced, then renamed.
-fn write_atomic(
-    path: &Path,
-    fill: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
-) -> std::io::Result<()> {
-    let tmp = path.with_extension("partial");
-    let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
-    fill(&mut f)?;
-    f.into_inner().map_err(|e| e.into_error())?.sync_all()?;
-    std::fs::rename(&tmp, path)
-}
+impl TraceWriter {
+    fn create(dir: &Path, closed_loop: bool, expected_rows: f64) -> Result<Self, String> {
+        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        let path = dir.join("trace.csv");
+        let tmp = partial_path(&path);
+        let f = File::create(&tmp).map_err(|e| format!("cannot write in {}: {e}", dir.display()))?;
+        let mut w = Self {
+            path,
+            tmp,
+            file: Some(BufWriter::new(f)),
+            closed_loop,
+            plot_every: (expected_rows / PLOT_POINTS).ceil().max(1.0) as u64,
+            count: 0,
+            peak_a: 0.0,
+            last: None,
+            plot: Vec::new(),
+        };
+        let header = format!("{BASE_HEADER}{}", if closed_loop { CLOSED_LOOP_HEADER } else { "" });
+        w.io(|f| writeln!(f, "{header}"))?;
+        Ok(w)
+    }
 
-fn write_trace(path: &Path, rows: &[Row], closed_loop: bool) -> std::io::Result<()> {
-    write_atomic(path, |f| {
-        writeln!(f, "{BASE_HEADER}{}", if closed_loop { CLOSED_LOOP_HEADER } else { "" })?;
-        for r in rows {
+    fn io(&mut self, op: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>) -> Result<(), String> {
+        match self.file.as_mut() {
+            Some(f) => op(f).map_err(|e| format!("cannot write {}: {e}", self.tmp.display())),
+            None => Err("trace already finished".into()),
+        }
+    }
+
+    fn push(&mut self, r: &Row) -> Result<(), String> {
+        interrupted()?;
+        let closed_loop = self.closed_loop;
+        self.io(|f| {
             let x = &r.x;
             write!(
                 f,
@@ -89,10 +205,35 @@ fn write_trace(path: &Path, rows: &[Row], closed_loop: bool) -> std::io::Result<
                     r.i_ref_ab_a[0], r.i_ref_ab_a[1], r.omega_ref_rad_s, r.load_nm
                 )?;
             }
-            writeln!(f)?;
+            writeln!(f)
+        })?;
+        self.peak_a = self.peak_a.max(r.x.i_alpha_a.hypot(r.x.i_beta_a));
+        if self.count.is_multiple_of(self.plot_every) {
+            self.plot.push(*r);
         }
+        self.count += 1;
+        self.last = Some(*r);
         Ok(())
-    })
+    }
+
+    /// Sync and rename: the trace takes its name complete.
+    fn finish(&mut self) -> Result<(), String> {
+        let f = self.file.take().ok_or("trace already finished")?;
+        let done = f
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .and_then(|f| f.sync_all())
+            .and_then(|()| std::fs::rename(&self.tmp, &self.path));
+        done.map_err(|e| format!("cannot write {}: {e}", self.path.display()))
+    }
+}
+
+impl Drop for TraceWriter {
+    fn drop(&mut self) {
+        if self.file.take().is_some() {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
 }
 
 fn progress_bar(fraction: f64) {
@@ -108,16 +249,11 @@ fn progress_bar(fraction: f64) {
     }
 }
 
-fn peak_current(rows: &[Row]) -> f64 {
-    rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max)
-}
-
 /// The main signals as SVG plots: speed, stator currents (with references in closed loop),
-/// torque. Rows are thinned to at most ~4000 points per curve.
-fn write_plots(out: &Path, rows: &[Row], closed_loop: bool) -> Result<Vec<PathBuf>, String> {
+/// torque.
+fn write_plots(out: &Path, rows: &[Row], closed_loop: bool) -> Result<(), String> {
     use hil_sim::plot::{Series, line_plot};
-    let every = (rows.len() / 4000).max(1);
-    let pts = |f: &dyn Fn(&Row) -> f64| rows.iter().step_by(every).map(|r| (r.t_s, f(r))).collect::<Vec<_>>();
+    let pts = |f: &dyn Fn(&Row) -> f64| rows.iter().map(|r| (r.t_s, f(r))).collect::<Vec<_>>();
     let mut speed = vec![Series::line("ω_m (rad/s)", pts(&|r| r.x.omega_m_rad_s))];
     let mut currents = vec![
         Series::line("i_α (A)", pts(&|r| r.x.i_alpha_a)),
@@ -130,30 +266,28 @@ fn write_plots(out: &Path, rows: &[Row], closed_loop: bool) -> Result<Vec<PathBu
         currents.push(Series::line("i_β ref (A)", pts(&|r| r.i_ref_ab_a[1])));
         torque.push(Series::line("T_L (N·m)", pts(&|r| r.load_nm)));
     }
-    let mut written = Vec::new();
     for (name, title, series) in [
         ("speed.svg", "Rotor speed", speed),
         ("currents.svg", "Stator currents", currents),
         ("torque.svg", "Torque", torque),
     ] {
-        let path = out.join(name);
-        let svg = line_plot(title, "t (s)", &series);
-        write_atomic(&path, |f| f.write_all(svg.as_bytes()))
-            .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
-        written.push(path);
+        write_text(&out.join(name), &line_plot(title, "t (s)", &series))?;
     }
-    Ok(written)
+    Ok(())
 }
 
-fn finish(out: &Path, rows: &[Row], closed_loop: bool, summary: serde_json::Value) -> Result<(), String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let trace = out.join("trace.csv");
-    write_trace(&trace, rows, closed_loop).map_err(|e| format!("cannot write {}: {e}", trace.display()))?;
-    write_plots(out, rows, closed_loop)?;
-    let path = out.join("summary.json");
+/// Rename the trace, write the plots and the summary (given the trace's figures).
+fn finish(
+    out: &Path,
+    mut trace: TraceWriter,
+    summary: impl FnOnce(&Row, f64) -> serde_json::Value,
+) -> Result<(), String> {
+    let last = trace.last.ok_or("empty run")?;
+    let summary = summary(&last, trace.peak_a);
+    trace.finish()?;
+    write_plots(out, &trace.plot, trace.closed_loop)?;
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
-    write_atomic(&path, |f| writeln!(f, "{text}"))
-        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    write_text(&out.join("summary.json"), &format!("{text}\n"))?;
     println!("{text}");
     eprintln!(
         "hil-sim: wrote trace.csv, summary.json, speed.svg, currents.svg, torque.svg in {}",
@@ -163,45 +297,45 @@ fn finish(out: &Path, rows: &[Row], closed_loop: bool, summary: serde_json::Valu
 }
 
 fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<(), String> {
+    let rows = b.scenario.duration_s * b.spec.pwm_frequency_hz / f64::from(b.scenario.trace_every.max(1));
+    let mut trace = TraceWriter::create(out, true, rows)?;
     eprintln!("hil-sim: {} — {}", b.name, b.about);
     let wall = std::time::Instant::now();
-    let (rows, mode, link) = match pil {
-        None => {
-            let (rows, mode) = b.run(progress_bar)?;
-            (rows, format!("{mode:?}"), None)
-        }
+    let sink = |r: &Row| trace.push(r);
+    let (mode, link) = match pil {
+        None => (format!("{:?}", b.run_into(progress_bar, sink)?), None),
         Some(opts) => {
-            let (rows, mut link) = b.run_pil(opts, progress_bar)?;
+            let mut link = b.run_pil_into(opts, progress_bar, sink)?;
             let mode = match link.transact(&Command::GetStatus)? {
                 Reply::Status { mode, .. } => format!("{mode:?}"),
                 other => return Err(format!("unexpected reply to GetStatus: {other:?}")),
             };
-            (rows, mode, Some(link))
+            (mode, Some(link))
         }
     };
     let secs = wall.elapsed().as_secs_f64();
-    let last = rows.last().ok_or("empty run")?;
-    let mut summary = serde_json::json!({
-        "scenario": b.name,
-        "kind": "closed_loop",
-        "duration_s": b.scenario.duration_s,
-        "final_omega_m_rad_s": last.x.omega_m_rad_s,
-        "final_omega_ref_rad_s": last.omega_ref_rad_s,
-        "peak_stator_current_a": peak_current(&rows),
-        "drive_mode": mode,
-        "rk4_substeps_per_pwm_period": b.scenario.substeps,
-        "wall_time_s": secs,
-        "real_time_factor": b.scenario.duration_s / secs,
-    });
-    if let (Some(link), Some(obj)) = (&link, summary.as_object_mut()) {
-        obj.insert("controller".into(), "pil: QEMU mps2-an386 (Cortex-M4F)".into());
-        obj.insert("link_round_trips".into(), link.round_trips().into());
-        obj.insert("link_round_trips_per_s".into(), (link.round_trips() as f64 / secs).into());
-        obj.insert("link_host_rx_errors".into(), link.stats().errors().into());
-        obj.insert("pinned_to_one_cpu".into(), link.pinned().into());
-    }
-    drop(link);
-    finish(out, &rows, true, summary)
+    finish(out, trace, |last, peak| {
+        let mut summary = serde_json::json!({
+            "scenario": b.name,
+            "kind": "closed_loop",
+            "duration_s": b.scenario.duration_s,
+            "final_omega_m_rad_s": last.x.omega_m_rad_s,
+            "final_omega_ref_rad_s": last.omega_ref_rad_s,
+            "peak_stator_current_a": peak,
+            "drive_mode": mode,
+            "rk4_substeps_per_pwm_period": b.scenario.substeps,
+            "wall_time_s": secs,
+            "real_time_factor": b.scenario.duration_s / secs,
+        });
+        if let (Some(link), Some(obj)) = (&link, summary.as_object_mut()) {
+            obj.insert("controller".into(), "pil: QEMU mps2-an386 (Cortex-M4F)".into());
+            obj.insert("link_round_trips".into(), link.round_trips().into());
+            obj.insert("link_round_trips_per_s".into(), (link.round_trips() as f64 / secs).into());
+            obj.insert("link_host_rx_errors".into(), link.stats().errors().into());
+            obj.insert("pinned_to_one_cpu".into(), link.pinned().into());
+        }
+        summary
+    })
 }
 
 fn run_file(path: &Path, out: &Path, pil: Option<&PilOptions>) -> Result<(), String> {
@@ -216,39 +350,40 @@ fn run_file(path: &Path, out: &Path, pil: Option<&PilOptions>) -> Result<(), Str
         }
         ScenarioFileKind::OpenLoop(sc) => sc,
     };
+    let mut trace = TraceWriter::create(out, false, sc.duration_s / sc.sample_period_s)?;
     eprintln!("hil-sim: open-loop run of {}", path.display());
     let wall = std::time::Instant::now();
-    let rows = sim::run_open_loop(&sc, sim::OPEN_LOOP_MAX_STEP_S, progress_bar);
+    sim::run_open_loop(&sc, sim::OPEN_LOOP_MAX_STEP_S, progress_bar, |r| trace.push(r))?;
     let secs = wall.elapsed().as_secs_f64();
-    let last = rows.last().ok_or("empty run")?;
-    let summary = serde_json::json!({
-        "scenario": path.display().to_string(),
-        "kind": "open_loop",
-        "duration_s": sc.duration_s,
-        "final_omega_m_rad_s": last.x.omega_m_rad_s,
-        "final_torque_nm": last.torque_nm,
-        "peak_stator_current_a": peak_current(&rows),
-        "rk4_max_step_s": sim::OPEN_LOOP_MAX_STEP_S,
-        "wall_time_s": secs,
-    });
-    finish(out, &rows, false, summary)
+    finish(out, trace, |last, peak| {
+        serde_json::json!({
+            "scenario": path.display().to_string(),
+            "kind": "open_loop",
+            "duration_s": sc.duration_s,
+            "final_omega_m_rad_s": last.x.omega_m_rad_s,
+            "final_torque_nm": last.torque_nm,
+            "peak_stator_current_a": peak,
+            "rk4_max_step_s": sim::OPEN_LOOP_MAX_STEP_S,
+            "wall_time_s": secs,
+        })
+    })
 }
 
-/// `hil-sim bench [builtin] [--runs N]`: wall time of the simulation loop alone.
-fn bench(builtins: &[Builtin], args: &[String]) -> Result<(), String> {
-    let mut name = "speed-step";
-    let mut runs: u32 = 20;
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--runs" => {
-                let v = it.next().ok_or("`--runs` needs a count")?;
-                runs = v.parse().ok().filter(|&n| n > 0).ok_or(format!("`{v}` is not a positive count"))?;
-            }
-            flag if flag.starts_with("--") => return Err(format!("unknown flag `{flag}`")),
-            n => name = n,
-        }
+fn run_or_pil(builtins: &[Builtin], args: &RunArgs, pil: Option<PilOptions>) -> Result<(), String> {
+    let name = &args.scenario;
+    let stem = Path::new(name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let out = args.out.clone().unwrap_or_else(|| PathBuf::from("out").join(&stem));
+    if let Some(b) = builtins.iter().find(|b| &b.name == name) {
+        run_builtin(b, &out, pil.as_ref())
+    } else if name.ends_with(".toml") || Path::new(name).exists() {
+        run_file(Path::new(name), &out, pil.as_ref())
+    } else {
+        Err(format!("`{name}` is neither a scenario file nor a built-in scenario (`hil-sim list`)"))
     }
+}
+
+/// `hil-sim bench`: wall time of the simulation loop alone.
+fn bench(builtins: &[Builtin], name: &str, runs: u32) -> Result<(), String> {
     let b = builtins
         .iter()
         .find(|b| b.name == name)
@@ -260,6 +395,7 @@ fn bench(builtins: &[Builtin], args: &[String]) -> Result<(), String> {
         let (rows, _) = b.run(|_| {})?;
         let s = wall.elapsed().as_secs_f64();
         std::hint::black_box(rows);
+        interrupted()?;
         if k > 0 {
             secs.push(s);
         }
@@ -285,127 +421,96 @@ fn bench(builtins: &[Builtin], args: &[String]) -> Result<(), String> {
 }
 
 /// `hil-sim link DEVICE …`: one command to the board, or N telemetry frames from it.
-fn board_link(args: &[String]) -> Result<(), String> {
+fn board_link(a: &LinkArgs) -> Result<(), String> {
     use controller_core::drive::Reference;
-    let (Some(dev), Some(what)) = (args.first(), args.get(1)) else {
-        return Err("usage: hil-sim link <DEVICE> <command> (see `hil-sim` without arguments)".into());
-    };
-    let value = |name: &str| -> Result<f32, String> {
-        let v = args.get(2).ok_or(format!("`{name}` needs a value"))?;
-        v.parse::<f32>().map_err(|_| format!("`{v}` is not a number"))
-    };
-    let cmd = match what.as_str() {
-        "enable" => Some(Command::Enable),
-        "disable" => Some(Command::Disable),
-        "clear-fault" => Some(Command::ClearFault),
-        "status" => Some(Command::GetStatus),
-        "speed" => Some(Command::SetReference(Reference::Speed(value("speed")?))),
-        "position" => Some(Command::SetReference(Reference::Position(value("position")?))),
-        "torque" => Some(Command::SetReference(Reference::Torque(value("torque")?))),
-        "gains" => Some(Command::ReadSpeedGains),
-        "set-gains" => {
-            let kp = value("set-gains")?;
-            let tau = args.get(3).ok_or("`set-gains` needs KP and TAU_MAX")?;
-            let tau_max_nm = tau.parse::<f32>().map_err(|_| format!("`{tau}` is not a number"))?;
-            Some(Command::WriteSpeedGains { kp, tau_max_nm })
+    if a.device == "list" {
+        let ports = serialport::available_ports().map_err(|e| format!("cannot list serial ports: {e}"))?;
+        if ports.is_empty() {
+            eprintln!("hil-sim: no serial ports found");
         }
-        "telemetry" => None,
-        other => return Err(format!("unknown link command `{other}`")),
-    };
-    // 115200 baud, raw bytes, reads return after 2 s without data.
-    let st = std::process::Command::new("stty")
-        .args(["-F", dev, "115200", "raw", "-echo", "min", "0", "time", "20"])
-        .status()
-        .map_err(|e| format!("cannot run stty: {e}"))?;
-    if !st.success() {
-        return Err(format!("stty could not configure {dev}"));
+        for p in ports {
+            println!("{}", p.port_name);
+        }
+        return Ok(());
     }
-    let port =
-        std::fs::OpenOptions::new().read(true).write(true).open(dev).map_err(|e| format!("{dev}: {e}"))?;
-    let rx = port.try_clone().map_err(|e| format!("{dev}: {e}"))?;
-    let mut link = hil_sim::link_client::LinkClient::new(rx, port);
-    let no_answer = |e: String| format!("{e} (no answer from the board within 2 s?)");
-    match cmd {
-        Some(c) => println!("{:?}", link.transact(&c).map_err(no_answer)?),
-        None => {
-            let n = match args.get(2) {
-                Some(v) => v.parse::<u32>().map_err(|_| format!("`{v}` is not a count"))?,
-                None => 10,
-            };
+    let Some(command) = a.command else {
+        return Err("which command? (`hil-sim link --help`)".into());
+    };
+    let cmd = match command {
+        LinkCmd::Enable => Some(Command::Enable),
+        LinkCmd::Disable => Some(Command::Disable),
+        LinkCmd::ClearFault => Some(Command::ClearFault),
+        LinkCmd::Status => Some(Command::GetStatus),
+        LinkCmd::Speed { value } => Some(Command::SetReference(Reference::Speed(value))),
+        LinkCmd::Position { value } => Some(Command::SetReference(Reference::Position(value))),
+        LinkCmd::Torque { value } => Some(Command::SetReference(Reference::Torque(value))),
+        LinkCmd::Gains => Some(Command::ReadSpeedGains),
+        LinkCmd::SetGains { kp, tau_max_nm } => Some(Command::WriteSpeedGains { kp, tau_max_nm }),
+        LinkCmd::Telemetry { .. } => None,
+    };
+    let timeout = Duration::from_secs_f64(a.timeout_s);
+    // Raw 8N1 at 115200 baud; reads return after 100 ms without data (the client's own
+    // deadline decides when to give up).
+    let port = serialport::new(&a.device, 115_200)
+        .timeout(Duration::from_millis(100))
+        .open()
+        .map_err(|e| format!("{}: {e}", a.device))?;
+    let rx = port.try_clone().map_err(|e| format!("{}: {e}", a.device))?;
+    let mut link = hil_sim::link_client::LinkClient::new(rx, port).with_reply_timeout(timeout);
+    match (cmd, command) {
+        (Some(c), _) => println!("{:?}", link.transact(&c)?),
+        (None, LinkCmd::Telemetry { n }) => {
             for _ in 0..n {
-                println!("{:?}", link.next_reply().map_err(no_answer)?);
+                println!("{:?}", link.next_reply()?);
             }
         }
+        (None, _) => {}
     }
     Ok(())
 }
 
 fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let builtins = match scenario::all() {
-        Ok(b) => b,
-        Err(e) => {
-            eprintln!("hil-sim: built-in scenarios: {e}");
-            return ExitCode::FAILURE;
-        }
+    let cli = Cli::parse();
+    let builtins = || scenario::all().map_err(|e| format!("built-in scenarios: {e}"));
+    let stop_on_ctrl_c = || {
+        // A second Ctrl-C while the run winds down is ignored; the run stops within one
+        // trace row.
+        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::Relaxed));
     };
-    match args.first().map(String::as_str) {
-        Some("link") => match board_link(args.get(1..).unwrap_or_default()) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("hil-sim: {e}");
-                ExitCode::FAILURE
-            }
-        },
-        Some("bench") => match bench(&builtins, args.get(1..).unwrap_or_default()) {
-            Ok(()) => ExitCode::SUCCESS,
-            Err(e) => {
-                eprintln!("hil-sim: {e}");
-                ExitCode::FAILURE
-            }
-        },
-        Some("list") => {
-            for b in &builtins {
+    let result = match &cli.command {
+        Cmd::List => builtins().map(|bs| {
+            for b in &bs {
                 println!("{:<20} {}", b.name, b.about);
             }
-            ExitCode::SUCCESS
-        }
-        Some(cmd @ ("run" | "pil")) => {
-            let Some(name) = args.get(1) else { return usage() };
-            let stem =
-                Path::new(name).file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-            let mut out = PathBuf::from("out").join(&stem);
-            let mut pil = (cmd == "pil").then(PilOptions::default);
-            let mut rest = args.iter().skip(2);
-            while let Some(flag) = rest.next() {
-                match (flag.as_str(), &mut pil) {
-                    ("--out", _) => match rest.next() {
-                        Some(d) => out = PathBuf::from(d),
-                        None => return usage(),
-                    },
-                    ("--elf", Some(p)) => match rest.next() {
-                        Some(e) => p.elf = PathBuf::from(e),
-                        None => return usage(),
-                    },
-                    ("--no-pin", Some(p)) => p.pin_cpu = None,
-                    _ => return usage(),
-                }
+        }),
+        Cmd::Run(args) => builtins().and_then(|bs| {
+            stop_on_ctrl_c();
+            run_or_pil(&bs, args, None)
+        }),
+        Cmd::Pil { run, elf, no_pin } => builtins().and_then(|bs| {
+            let mut opts = PilOptions::default();
+            if let Some(e) = elf {
+                // QEMU runs in a temporary directory: a relative path must not be taken
+                // relative to it.
+                opts.elf = std::path::absolute(e).map_err(|er| format!("--elf {}: {er}", e.display()))?;
             }
-            let result = if let Some(b) = builtins.iter().find(|b| &b.name == name) {
-                run_builtin(b, &out, pil.as_ref())
-            } else if name.ends_with(".toml") || Path::new(name).exists() {
-                run_file(Path::new(name), &out, pil.as_ref())
-            } else {
-                Err(format!("`{name}` is neither a scenario file nor a built-in scenario (`hil-sim list`)"))
-            };
-            match result {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("hil-sim: {e}");
-                    ExitCode::FAILURE
-                }
+            if *no_pin {
+                opts.pin_cpu = None;
             }
+            stop_on_ctrl_c();
+            run_or_pil(&bs, run, Some(opts))
+        }),
+        Cmd::Bench { scenario, runs } => builtins().and_then(|bs| {
+            stop_on_ctrl_c();
+            bench(&bs, scenario, *runs)
+        }),
+        Cmd::Link(a) => board_link(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("hil-sim: {e}");
+            ExitCode::FAILURE
         }
-        _ => usage(),
     }
 }

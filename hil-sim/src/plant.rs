@@ -33,6 +33,19 @@ pub struct MachineState {
     pub theta_m_rad: f64,
 }
 
+impl MachineState {
+    /// Every component finite (a diverged run is not).
+    pub fn is_finite(&self) -> bool {
+        (self.i_alpha_a
+            + self.i_beta_a
+            + self.psi_alpha_wb
+            + self.psi_beta_wb
+            + self.omega_m_rad_s
+            + self.theta_m_rad)
+            .is_finite()
+    }
+}
+
 /// Two lanes (α, β) of a space vector, combined lane by lane: eq. (1) is the same
 /// equation on both lanes up to the rotation terms, so the compiler keeps each pair in one
 /// SIMD register.

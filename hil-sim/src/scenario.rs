@@ -64,10 +64,25 @@ pub struct Builtin {
 impl Builtin {
     /// Run the scenario: returns the trace and the drive's final mode.
     pub fn run(&self, progress: impl FnMut(f64)) -> Result<(Vec<Row>, Mode), String> {
+        let mut rows = Vec::new();
+        let mode = self.run_into(progress, |r| {
+            rows.push(*r);
+            Ok(())
+        })?;
+        Ok((rows, mode))
+    }
+
+    /// Run the scenario, each trace row to `sink` as it is made ([`sim::run`]); returns the
+    /// drive's final mode.
+    pub fn run_into(
+        &self,
+        progress: impl FnMut(f64),
+        sink: impl FnMut(&Row) -> Result<(), String>,
+    ) -> Result<Mode, String> {
         let cfg = DriveConfig::new(&self.spec).map_err(|e| format!("invalid drive specification: {e:?}"))?;
         let mut drive = Drive::new(cfg);
-        let rows = self.simulate(&mut drive, progress)?;
-        Ok((rows, drive.mode()))
+        self.simulate(&mut drive, progress, sink)?;
+        Ok(drive.mode())
     }
 
     /// Run the scenario with the drive on the emulated MCU. Returns the trace and the link.
@@ -76,17 +91,33 @@ impl Builtin {
         opts: &crate::pil::PilOptions,
         progress: impl FnMut(f64),
     ) -> Result<(Vec<Row>, crate::pil::Pil), String> {
-        let mut pil = crate::pil::Pil::start(opts, &self.spec)?;
-        let rows = self.simulate(&mut pil, progress)?;
+        let mut rows = Vec::new();
+        let pil = self.run_pil_into(opts, progress, |r| {
+            rows.push(*r);
+            Ok(())
+        })?;
         Ok((rows, pil))
+    }
+
+    /// [`Builtin::run_into`] with the drive on the emulated MCU; returns the link.
+    pub fn run_pil_into(
+        &self,
+        opts: &crate::pil::PilOptions,
+        progress: impl FnMut(f64),
+        sink: impl FnMut(&Row) -> Result<(), String>,
+    ) -> Result<crate::pil::Pil, String> {
+        let mut pil = crate::pil::Pil::start(opts, &self.spec)?;
+        self.simulate(&mut pil, progress, sink)?;
+        Ok(pil)
     }
 
     fn simulate(
         &self,
         dut: &mut impl sim::DriveUnderTest,
         progress: impl FnMut(f64),
-    ) -> Result<Vec<Row>, String> {
-        sim::run(dut, &Machine::new(&self.plant), self.spec.pwm_frequency_hz, &self.scenario, progress)
+        sink: impl FnMut(&Row) -> Result<(), String>,
+    ) -> Result<u64, String> {
+        sim::run(dut, &Machine::new(&self.plant), self.spec.pwm_frequency_hz, &self.scenario, progress, sink)
     }
 }
 

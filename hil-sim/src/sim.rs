@@ -159,7 +159,11 @@ fn integrate_segments(
 }
 
 /// Run `scenario` with `drive` (already configured) on `machine`; `pwm_hz` is the drive's
-/// fast rate. Calls `progress(fraction)` now and then.
+/// fast rate. Each trace row goes to `sink` as it is made (a long run streams to disk; an
+/// error from the sink — a full disk, an interrupt — stops the run with that error). Calls
+/// `progress(fraction)` now and then. A plant state that is no longer finite (a diverging
+/// run) stops the run with an error at the first trace row that shows it. Returns the
+/// number of rows.
 ///
 /// Never inlined: on its own, the loop keeps more of its state in registers than inlined
 /// into the CLI's `main` (measured with `hil-sim bench`).
@@ -170,7 +174,8 @@ pub fn run(
     pwm_hz: f64,
     sc: &Scenario,
     mut progress: impl FnMut(f64),
-) -> Result<Vec<Row>, String> {
+    mut sink: impl FnMut(&Row) -> Result<(), String>,
+) -> Result<u64, String> {
     let ts = 1.0 / pwm_hz;
     let divider = u64::from(drive.slow_divider());
     let mut sensors =
@@ -194,7 +199,7 @@ pub fn run(
     let mut events = sc.events.iter().peekable();
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
     let mut next_event_k = first_period_of(events.peek());
-    let mut rows = Vec::with_capacity((n / u64::from(trace_every) + 1) as usize);
+    let mut rows = 0u64;
     // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
     let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
     let s3 = 3f64.sqrt() / 2.0;
@@ -261,7 +266,11 @@ pub fn run(
         };
         if to_trace == 0 {
             to_trace = trace_every - 1;
-            rows.push(Row {
+            if !x_at_start.is_finite() {
+                return Err(non_finite(k as f64 * ts));
+            }
+            rows += 1;
+            sink(&Row {
                 t_s: k as f64 * ts,
                 x: x_at_start,
                 torque_nm: machine.torque_nm(&x_at_start),
@@ -272,7 +281,7 @@ pub fn run(
                 ],
                 omega_ref_rad_s: f64::from(out.telemetry.omega_ref_rad_s),
                 load_nm: load,
-            });
+            })?;
         } else {
             to_trace -= 1;
         }
@@ -289,6 +298,26 @@ pub fn run(
         }
     }
     progress(1.0);
+    Ok(rows)
+}
+
+fn non_finite(t_s: f64) -> String {
+    format!("the simulated machine's state is no longer finite at t = {t_s} s (the run diverged)")
+}
+
+/// [`run`] keeping every row in memory (tests, short runs).
+pub fn run_collect(
+    drive: &mut impl DriveUnderTest,
+    machine: &Machine,
+    pwm_hz: f64,
+    sc: &Scenario,
+    progress: impl FnMut(f64),
+) -> Result<Vec<Row>, String> {
+    let mut rows = Vec::new();
+    run(drive, machine, pwm_hz, sc, progress, |r| {
+        rows.push(*r);
+        Ok(())
+    })?;
     Ok(rows)
 }
 
@@ -317,13 +346,15 @@ fn first_period_at(t_s: f64, ts_s: f64) -> u64 {
 pub const OPEN_LOOP_MAX_STEP_S: f64 = 1e-5;
 
 /// Open-loop run: the machine fed by an ideal balanced sine source, for validating the
-/// plant alone. One row per `sample_period_s`; the RK4 step divides the sample period
-/// into ⌈sample_period_s / max_step_s⌉ equal steps.
+/// plant alone. One row per `sample_period_s` to `sink` (as in [`run`]); the RK4 step
+/// divides the sample period into ⌈sample_period_s / max_step_s⌉ equal steps. Returns the
+/// number of rows.
 pub fn run_open_loop(
     sc: &crate::scenario_file::OpenLoop,
     max_step_s: f64,
     mut progress: impl FnMut(f64),
-) -> Vec<Row> {
+    mut sink: impl FnMut(&Row) -> Result<(), String>,
+) -> Result<u64, String> {
     let machine = Machine::new(&sc.motor);
     let w = 2.0 * std::f64::consts::PI * sc.frequency_hz;
     let amp = sc.amplitude_v;
@@ -332,7 +363,6 @@ pub fn run_open_loop(
     let h = sc.sample_period_s / substeps;
     let n = (sc.duration_s / sc.sample_period_s).round() as u64;
     let mut x = MachineState::default();
-    let mut rows = Vec::with_capacity(n as usize + 1);
     let row = |t: f64, x: MachineState| Row {
         t_s: t,
         x,
@@ -341,9 +371,15 @@ pub fn run_open_loop(
         load_nm: sc.load_nm,
         ..Row::default()
     };
-    for k in 0..n {
+    for k in 0..=n {
         let t0 = k as f64 * sc.sample_period_s;
-        rows.push(row(t0, x));
+        if !x.is_finite() {
+            return Err(non_finite(t0));
+        }
+        sink(&row(t0, x))?;
+        if k == n {
+            break;
+        }
         for j in 0..substeps as u64 {
             x = machine.rk4_source(&x, t0 + j as f64 * h, h, source, sc.load_nm);
         }
@@ -351,9 +387,8 @@ pub fn run_open_loop(
             progress(k as f64 / n as f64);
         }
     }
-    rows.push(row(n as f64 * sc.sample_period_s, x));
     progress(1.0);
-    rows
+    Ok(n + 1)
 }
 
 #[cfg(test)]
@@ -389,7 +424,18 @@ mod tests {
             frequency_hz: 50.0,
             load_nm: 0.2,
         };
-        run_open_loop(&sc, max_step, |_| {})
+        let mut rows = Vec::new();
+        run_open_loop(
+            &sc,
+            max_step,
+            |_| {},
+            |r| {
+                rows.push(*r);
+                Ok(())
+            },
+        )
+        .unwrap();
+        rows
     }
 
     /// Step-size study of the chosen open-loop step (10 µs) against a 16× finer step
@@ -450,7 +496,7 @@ mod tests {
         let b = crate::scenario::speed_step().unwrap();
         let drive = Drive::new(controller_core::drive::DriveConfig::new(&b.spec).unwrap());
         let mut dut = Breaks { drive, steps: 0, fail_at: 1000, failure: None };
-        let r = run(&mut dut, &Machine::new(&b.plant), b.spec.pwm_frequency_hz, &b.scenario, |_| {});
+        let r = run_collect(&mut dut, &Machine::new(&b.plant), b.spec.pwm_frequency_hz, &b.scenario, |_| {});
         assert_eq!(r, Err("link broken at step 1000".to_string()));
         assert_eq!(dut.steps, 1000);
     }

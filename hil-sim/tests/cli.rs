@@ -1,5 +1,6 @@
 //! CLI contracts: outputs and their header; a bad file names file, key and reason and
-//! writes nothing.
+//! writes nothing; usage errors exit 2, failed runs 1; an interrupted or diverged run
+//! leaves no partial file.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing)]
 
 use std::path::PathBuf;
@@ -60,6 +61,108 @@ fn unknown_scenario_and_usage_errors() {
     assert_eq!(bin().output().unwrap().status.code(), Some(2));
     let list = bin().arg("list").output().unwrap();
     assert!(String::from_utf8_lossy(&list.stdout).contains("speed-step"));
+    // `--out ""` wrote into the working directory: now a usage error naming the argument.
+    let st = bin().args(["run", "speed-step", "--out", ""]).output().unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("--out"), "{}", String::from_utf8_lossy(&st.stderr));
+}
+
+/// `--help` on every subcommand, `--version`, and an unknown argument is named.
+#[test]
+fn help_on_every_subcommand() {
+    for sub in [&[][..], &["list"], &["run"], &["pil"], &["bench"], &["link"], &["link", "x", "set-gains"]] {
+        let st = bin().args(sub).arg("--help").output().unwrap();
+        assert!(st.status.success(), "{sub:?}");
+        assert!(String::from_utf8_lossy(&st.stdout).contains("Usage:"), "{sub:?}");
+    }
+    let v = bin().arg("--version").output().unwrap();
+    assert!(String::from_utf8_lossy(&v.stdout).starts_with("hil-sim "));
+    let st = bin().args(["run", "speed-step", "--outt", "x"]).output().unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("--outt"));
+}
+
+/// The output directory is checked before the run, not after it.
+#[test]
+fn unusable_output_directory_fails_before_the_run() {
+    let dir = tmp("outfile");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let started = std::time::Instant::now();
+    let st = bin().args(["run", SCENARIO, "--out"]).arg(file.join("sub")).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("cannot create") && !err.contains("open-loop run"), "{err}");
+    assert!(started.elapsed().as_secs_f64() < 5.0);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A run whose states go non-finite exited 0 with `peak_stator_current_a: 0.0`: now it
+/// fails, names the time, and leaves no trace behind. (A motor with a 0.2 ns stator time
+/// constant under a 10 µs RK4 step: numerically unstable.)
+#[test]
+fn diverged_run_fails_and_writes_nothing() {
+    let dir = tmp("diverge");
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(SCENARIO).unwrap();
+    let mut bad = text.clone();
+    for (from, to) in [
+        ("rs_ohm = 16.2", "rs_ohm = 1e4"),
+        ("ls_h = 1.44", "ls_h = 2e-6"),
+        ("lr_h = 1.5", "lr_h = 2e-6"),
+        ("lm_h = 1.42", "lm_h = 1e-6"),
+    ] {
+        assert!(bad.contains(from), "{from}");
+        bad = bad.replacen(from, to, 1);
+    }
+    let file = dir.join("diverge.toml");
+    std::fs::write(&file, bad).unwrap();
+    let out = dir.join("out");
+    let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("no longer finite at t ="), "{err}");
+    assert!(!out.join("trace.csv").exists() && !out.join("trace.csv.partial").exists());
+    assert!(!out.join("summary.json").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Ctrl-C left `trace.csv.partial` (up to hundreds of MB) behind: now the run stops, says
+/// so, exits 1 and removes it.
+#[test]
+fn interrupted_run_cleans_up() {
+    let dir = tmp("sigint");
+    std::fs::create_dir_all(&dir).unwrap();
+    let long =
+        std::fs::read_to_string(SCENARIO).unwrap().replacen("duration_s = 1.0", "duration_s = 400.0", 1);
+    assert!(long.contains("duration_s = 400.0"));
+    let file = dir.join("long.toml");
+    std::fs::write(&file, long).unwrap();
+    let out = dir.join("out");
+    let child = bin()
+        .args(["run"])
+        .arg(&file)
+        .arg("--out")
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until the trace is being written, then interrupt.
+    let partial = out.join("trace.csv.partial");
+    let t0 = std::time::Instant::now();
+    while !partial.exists() && t0.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    let st = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(st.success());
+    let done = child.wait_with_output().unwrap();
+    assert_eq!(done.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"));
+    assert!(!partial.exists() && !out.join("trace.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// `bench` prints its figures as JSON, consistent with each other (factor = duration /
@@ -75,11 +178,14 @@ fn bench_reports_consistent_figures_and_rejects_bad_arguments() {
     assert!((f("median_real_time_factor") - 3.5 / wall).abs() < 1e-9 * f("median_real_time_factor"));
     assert!((f("median_ns_per_pwm_period") - wall * 1e9 / 70_000.0).abs() < 1e-6);
     assert!(f("best_real_time_factor") >= f("median_real_time_factor"));
-    for bad in
-        [&["bench", "--runs", "0"][..], &["bench", "--runs"], &["bench", "no-such"], &["bench", "--fast"]]
-    {
+    for (bad, code) in [
+        (&["bench", "--runs", "0"][..], 2),
+        (&["bench", "--runs"], 2),
+        (&["bench", "--fast"], 2),
+        (&["bench", "no-such"], 1),
+    ] {
         let st = bin().args(bad).output().unwrap();
-        assert_eq!(st.status.code(), Some(1), "{bad:?}");
+        assert_eq!(st.status.code(), Some(code), "{bad:?}");
         assert!(!String::from_utf8_lossy(&st.stderr).is_empty());
     }
 }
