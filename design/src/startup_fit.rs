@@ -119,6 +119,15 @@ pub fn simulate(m: &MotorParams, e: &Experiment) -> Result<Trace, String> {
             e.v_peak_v * ((w * t).cos() + e.excitation * prbs[0]),
             e.v_peak_v * ((w * t).sin() + e.excitation * prbs[1]),
         ];
+        if !x.is_finite() {
+            // RK4 is unstable when the machine's fastest time constant is well below the
+            // step; without this a NaN trace sent the least-squares SVD into an endless loop.
+            return Err(format!(
+                "the start-up diverged at t = {t} s: the machine's electrical time constants are too short \
+                 for the {} µs integration step",
+                e.h_s * 1e6
+            ));
+        }
         t_s.push(t);
         xs.push(x);
         vs.push(v);
@@ -166,6 +175,9 @@ fn fit(trace: &Trace, lo: usize, hi: usize, h: f64) -> Result<(Matrix4<f64>, Mat
         }
         phi[(r, 4)] = trace.v[k][0];
         phi[(r, 5)] = trace.v[k][1];
+    }
+    if !(phi.iter().all(|v| v.is_finite()) && y.iter().all(|v| v.is_finite())) {
+        return Err("non-finite samples in the segment: cannot fit".into());
     }
     // Column scaling keeps the SVD well conditioned (currents ~100 A, fluxes ~1 Wb, volts ~1e3).
     let scale: Vec<f64> = (0..6).map(|j| phi.column(j).amax().max(1e-300)).collect();
@@ -283,6 +295,26 @@ mod tests {
 
     fn krause() -> MotorParams {
         drive_file::motor::load("krause-2300v-500hp").unwrap()
+    }
+
+    /// Issue 16: a motor with R_s = 1e4 Ω (inside the accepted range) made `startup-fit`
+    /// hang in the SVD of a NaN trace; the diverging start-up is now an error.
+    #[test]
+    fn diverging_start_up_is_an_error_not_a_hang() {
+        let k = krause();
+        let m = MotorParams::new(
+            1e4,
+            k.rr_ohm(),
+            k.ls_h(),
+            k.lr_h(),
+            k.lm_h(),
+            k.pole_pairs(),
+            k.j_kgm2(),
+            k.b_nms(),
+        )
+        .unwrap();
+        let e = simulate(&m, &Experiment::krause_2300v()).unwrap_err();
+        assert!(e.contains("diverged"), "{e}");
     }
 
     /// Faddeev–LeVerrier against the frequency response of the state-space model.

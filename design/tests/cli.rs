@@ -247,3 +247,69 @@ fn startup_fit_writes_a_plant_kharitonov_reads() {
     assert_eq!(v["robust_stable"], false);
     let _ = std::fs::remove_dir_all(dir);
 }
+
+/// `--help` on every subcommand, `--version`, and an unknown argument is named.
+#[test]
+fn help_on_every_subcommand() {
+    for sub in [&[][..], &["kharitonov"], &["icad"], &["certify"], &["recycle"], &["startup-fit"], &["bench"]]
+    {
+        let o = Command::new(env!("CARGO_BIN_EXE_design")).args(sub).arg("--help").output().unwrap();
+        assert!(o.status.success(), "{sub:?}");
+        assert!(String::from_utf8_lossy(&o.stdout).contains("Usage:"), "{sub:?}");
+    }
+    let (code, out, _) = run(&["--version"]);
+    assert!(code == Some(0) && out.starts_with("design "));
+    let (code, _, err) =
+        run(&["icad", "--motor", "delorenzo-eq13", "--omega-r", "375", "--controler", "icad20"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--controler"), "{err}");
+}
+
+fn temp_file(name: &str, text: &str) -> std::path::PathBuf {
+    let p = std::env::temp_dir().join(format!("design-cli-{}-{name}", std::process::id()));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Issue 16, item 2: inputs found by trying that hung or gave a wrong answer are input errors
+/// (exit 2) that point at the value.
+#[test]
+fn bad_inputs_are_located_errors_not_hangs() {
+    // A plant whose denominator is [0, 0] was reported robustly stable.
+    let plant = temp_file(
+        "zero-den.toml",
+        "[numerator]\nlo = [1.0]\nhi = [1.0]\n[denominator]\nlo = [0.0, 0.0]\nhi = [0.0, 0.0]\n",
+    );
+    let (code, _, err) = run(&["kharitonov", "--plant", plant.to_str().unwrap(), "--pi", "1,1"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains(":5:") && err.contains("denominator.lo") && err.contains("contains 0"), "{err}");
+    let _ = std::fs::remove_file(&plant);
+    // startup-fit with R_s = 1e300 hung.
+    let motor =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../motors/krause-2300v-500hp.toml"))
+            .unwrap()
+            .replace("rs_ohm = 0.262", "rs_ohm = 1e300");
+    let m = temp_file("huge-rs.toml", &motor);
+    let started = std::time::Instant::now();
+    let (code, _, err) = run(&["startup-fit", "--motor", m.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("motor.rs_ohm: is 1e300"), "{err}");
+    assert!(started.elapsed().as_secs() < 10);
+    let _ = std::fs::remove_file(&m);
+    // certify with ω_r,max = 1e9 hung; a NaN requirement gave "limit NaN" failures.
+    let drive = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml")).unwrap();
+    for (from, to, key) in [
+        ("omega_r_max_rad_s = 375.0", "omega_r_max_rad_s = 1e9", "certify.omega_r_max_rad_s"),
+        ("phase_margin_deg_min = 45.0", "phase_margin_deg_min = nan", "certify.phase_margin_deg_min"),
+        ("rs_factor = [1.0, 1.5]", "rs_factor = [1.0, 1.2, 1.5]", "certify.rs_factor"),
+    ] {
+        assert!(drive.contains(from), "{from}");
+        let f = temp_file("drive.toml", &drive.replacen(from, to, 1));
+        let started = std::time::Instant::now();
+        let (code, _, err) = run(&["certify", f.to_str().unwrap()]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(key) && err.contains("drive.toml:"), "{err}");
+        assert!(started.elapsed().as_secs() < 10);
+        let _ = std::fs::remove_file(&f);
+    }
+}

@@ -20,10 +20,7 @@ pub const KP_RANGE: (f64, f64) = (-0.05, 0.1);
 pub const KI_RANGE: (f64, f64) = (-1.0, 10.0);
 
 /// Run the benchmark; always `Ok(true)` unless an input is missing.
-pub fn run(args: &[String]) -> Result<bool, String> {
-    if let Some(a) = args.first() {
-        return Err(format!("bench takes no arguments, got `{a}`"));
-    }
+pub fn run() -> Result<bool, String> {
     let motor = drive_file::motor::load("delorenzo-eq13").map_err(|e| e.to_string())?;
     let plant = design::kharitonov::seed000_current_plant().map_err(|e| format!("{e:?}"))?;
     let speeds: Vec<f64> = (0..=1000).map(|i| 5.0 * f64::from(i)).collect();

@@ -26,14 +26,35 @@ struct PlantFile {
     denominator: Bounds,
 }
 
+/// Read an interval plant file. Besides the shape (equal lengths, finite `lo ≤ hi`), the
+/// denominator's leading coefficient must keep one sign over its interval — a degree that
+/// can drop is not a plant of that order (a denominator `[0, 0]` was once "robustly
+/// stable") — and the plant must be proper.
 fn load_plant(path: &str) -> Result<IntervalPlant, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: cannot read: {e}"))?;
-    let f: PlantFile = toml::from_str(&text).map_err(|e| format!("{path}: {e}"))?;
+    let file = Path::new(path);
+    let text = drive_file::source::read(file).map_err(|e| e.to_string())?;
+    let src = drive_file::Source::parse(file, &text).map_err(|e| e.to_string())?;
+    let f: PlantFile = src.deserialize().map_err(|e| e.to_string())?;
     let poly = |key: &str, b: &Bounds| {
-        IntervalPoly::new(&b.lo, &b.hi)
-            .map_err(|e| format!("{path}: key `{key}`: {e:?} (need equal lengths and finite lo ≤ hi)"))
+        IntervalPoly::new(&b.lo, &b.hi).map_err(|e| {
+            src.error(key, format!("{e:?}: need lo and hi of equal, non-zero length, finite, lo ≤ hi"))
+                .to_string()
+        })
     };
-    Ok(IntervalPlant { num: poly("numerator", &f.numerator)?, den: poly("denominator", &f.denominator)? })
+    let (num, den) = (poly("numerator", &f.numerator)?, poly("denominator", &f.denominator)?);
+    let lead = |b: &Bounds| (b.lo.first().copied().unwrap_or(0.0), b.hi.first().copied().unwrap_or(0.0));
+    let (dl, dh) = lead(&f.denominator);
+    if !(dl > 0.0 || dh < 0.0) {
+        return Err(src
+            .error("denominator.lo", format!("the leading coefficient's interval [{dl}, {dh}] contains 0"))
+            .to_string());
+    }
+    if f.numerator.lo.len() > f.denominator.lo.len() {
+        return Err(src
+            .error("numerator", "more coefficients than the denominator: not a proper plant")
+            .to_string());
+    }
+    Ok(IntervalPlant { num, den })
 }
 
 fn two_numbers(flag: &str, s: &str) -> Result<(f64, f64), String> {
@@ -46,14 +67,14 @@ fn two_numbers(flag: &str, s: &str) -> Result<(f64, f64), String> {
 
 /// `KP,KI`.
 pub fn parse_pi(s: &str) -> Result<(f64, f64), String> {
-    two_numbers("--pi", s).map_err(|_| format!("--pi expects KP,KI (two numbers), got `{s}`"))
+    two_numbers("--pi", s).map_err(|_| format!("expects KP,KI (two numbers), got `{s}`"))
 }
 
-fn parse_range(flag: &str, s: &str) -> Result<(f64, f64), String> {
-    two_numbers(flag, s)
+fn parse_range(s: &str) -> Result<(f64, f64), String> {
+    two_numbers("range", s)
         .ok()
         .filter(|(a, b)| a < b)
-        .ok_or_else(|| format!("{flag} expects LO,HI with LO < HI, got `{s}`"))
+        .ok_or_else(|| format!("expects LO,HI with LO < HI, got `{s}`"))
 }
 
 /// What to draw besides the plane.
@@ -130,41 +151,61 @@ fn plot_region(
     super::write_atomic(path, &plot_in(title, "k_p", &series, (kp_range, ki_range)))
 }
 
-/// Parse and run; `Ok(true)` when every requested property holds robustly.
-pub fn run(args: &[String]) -> Result<bool, String> {
-    let (mut plant, mut pi, mut json, mut plot, mut plot_dir) = (None, None, false, None, None);
-    let (mut kp_range, mut ki_range, mut gpm, mut bandwidth) = (None, None, None, None);
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--plant" => plant = Some(it.next().ok_or("--plant needs a file")?.clone()),
-            "--pi" => pi = Some(parse_pi(it.next().ok_or("--pi needs KP,KI")?)?),
-            "--json" => json = true,
-            "--plot" => plot = Some(it.next().ok_or("--plot needs a file")?.clone()),
-            "--plot-dir" => plot_dir = Some(it.next().ok_or("--plot-dir needs a directory")?.clone()),
-            "--kp-range" => kp_range = Some(parse_range(a, it.next().ok_or("--kp-range needs LO,HI")?)?),
-            "--ki-range" => ki_range = Some(parse_range(a, it.next().ok_or("--ki-range needs LO,HI")?)?),
-            "--gpm" => {
-                let (g, phi) = two_numbers(a, it.next().ok_or("--gpm needs A,PHI_DEG")?)?;
-                if g <= 0.0 {
-                    return Err(format!("--gpm: the gain A must be positive, got {g}"));
-                }
-                gpm = Some(Tester { gain: g, phase_rad: phi.to_radians() });
-            }
-            "--bandwidth" => {
-                let v = it.next().ok_or("--bandwidth needs ω_B in rad/s")?;
-                bandwidth = Some(
-                    v.parse::<f64>()
-                        .ok()
-                        .filter(|x| x.is_finite() && *x > 0.0)
-                        .ok_or(format!("--bandwidth: `{v}` is not a positive number"))?,
-                );
-            }
-            other => return Err(format!("unknown argument `{other}`")),
-        }
-    }
-    let plant = load_plant(&plant.ok_or("--plant <file> is required")?)?;
-    let (kp, ki) = pi.ok_or("--pi KP,KI is required")?;
+/// Robust stability of a PI `(KP·s + KI)/s` on the 16 Kharitonov plants of an interval plant
+/// file; with `--gpm` the gain–phase-margin tester `A·e^{−jφ}`, with `--bandwidth` the
+/// closed-loop `|T(jω_B)| ≥ 1/√2` condition (seed 000 Secs. 3–5). Exit 0 when every requested
+/// property holds robustly, 1 when one does not.
+#[derive(clap::Args, Debug)]
+pub struct KharitonovArgs {
+    /// Interval plant file: `[numerator]`/`[denominator]` tables with `lo`/`hi` arrays of
+    /// descending coefficients (e.g. design/plants/seed000-current.toml).
+    #[arg(long)]
+    plant: String,
+    /// The PI gains KP,KI.
+    #[arg(long, allow_hyphen_values = true, value_name = "KP,KI", value_parser = parse_pi)]
+    pi: (f64, f64),
+    /// Gain–phase margin tester A,PHI_DEG (A > 0).
+    #[arg(long, allow_hyphen_values = true, value_name = "A,PHI_DEG", value_parser = parse_gpm)]
+    gpm: Option<(f64, f64)>,
+    /// Closed-loop bandwidth requirement ω_B, rad/s.
+    #[arg(long, value_name = "RAD_S", value_parser = positive)]
+    bandwidth: Option<f64>,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+    /// Draw the stability plane (Figs. 4/8) to this SVG file.
+    #[arg(long)]
+    plot: Option<String>,
+    /// Write stability.svg, and gpm.svg / bandwidth.svg when asked for (Figs. 5–6, 9–10).
+    #[arg(long)]
+    plot_dir: Option<String>,
+    /// k_p window of the plots [default: −0.5…3 times the PI gain].
+    #[arg(long, allow_hyphen_values = true, value_name = "LO,HI", value_parser = parse_range)]
+    kp_range: Option<(f64, f64)>,
+    /// k_i window of the plots [default: −0.5…3 times the PI gain].
+    #[arg(long, allow_hyphen_values = true, value_name = "LO,HI", value_parser = parse_range)]
+    ki_range: Option<(f64, f64)>,
+}
+
+fn parse_gpm(s: &str) -> Result<(f64, f64), String> {
+    let (g, phi) = two_numbers("--gpm", s)?;
+    if g > 0.0 { Ok((g, phi)) } else { Err(format!("the gain A must be positive, got {g}")) }
+}
+
+fn positive(s: &str) -> Result<f64, String> {
+    s.parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .ok_or(format!("`{s}` is not a positive number"))
+}
+
+/// Run; `Ok(true)` when every requested property holds robustly.
+pub fn run(a: &KharitonovArgs) -> Result<bool, String> {
+    let (json, plot, plot_dir, kp_range, ki_range, bandwidth) =
+        (a.json, a.plot.clone(), a.plot_dir.clone(), a.kp_range, a.ki_range, a.bandwidth);
+    let gpm = a.gpm.map(|(g, phi)| Tester { gain: g, phase_rad: phi.to_radians() });
+    let plant = load_plant(&a.plant)?;
+    let (kp, ki) = a.pi;
     let r = plant.check_pi(kp, ki);
     let around = |x: f64| (-0.5 * x.abs() - 1.0, 3.0 * x.abs() + 1.0);
     let window = (kp_range.unwrap_or(around(kp)), ki_range.unwrap_or(around(ki)));

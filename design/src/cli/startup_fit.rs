@@ -5,28 +5,36 @@ use hil_sim::plot::{Series, line_plot};
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// Parse and run; `Ok(true)` when every segment's replay error is below 5 %.
-pub fn run(args: &[String]) -> Result<bool, String> {
-    let (mut motor, mut json, mut plot_dir, mut plant_out) =
-        ("krause-2300v-500hp".to_string(), false, None, None);
+/// Seed 000 Sec. 6: fit linear models to segments of a direct-on-line start of the
+/// nonlinear machine and write their coefficient ranges as an interval plant file
+/// (`design kharitonov --plant`). Exit 0 when every fitted model replays its segment's i_sα
+/// within 5 % RMS.
+#[derive(clap::Args, Debug)]
+pub struct StartupFitArgs {
+    /// A shipped motor name or any file with a [motor] table.
+    #[arg(long, default_value = "krause-2300v-500hp")]
+    motor: String,
+    /// Number of segments.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=200))]
+    segments: Option<u32>,
+    /// Print JSON.
+    #[arg(long)]
+    json: bool,
+    /// Write the start-up and fitted-model plots here.
+    #[arg(long)]
+    plot_dir: Option<String>,
+    /// Write the interval plant file here.
+    #[arg(long)]
+    plant_out: Option<String>,
+}
+
+/// Run; `Ok(true)` when every segment's replay error is below 5 %.
+pub fn run(a: &StartupFitArgs) -> Result<bool, String> {
+    let (motor, json, plot_dir, plant_out) =
+        (a.motor.clone(), a.json, a.plot_dir.clone(), a.plant_out.clone());
     let mut e = Experiment::krause_2300v();
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--motor" => motor = it.next().ok_or("--motor needs a file or builtin name")?.clone(),
-            "--segments" => {
-                let v = it.next().ok_or("--segments needs a count")?;
-                e.segments = v
-                    .parse()
-                    .ok()
-                    .filter(|n| *n >= 1)
-                    .ok_or(format!("--segments: `{v}` is not a count ≥ 1"))?;
-            }
-            "--json" => json = true,
-            "--plot-dir" => plot_dir = Some(it.next().ok_or("--plot-dir needs a directory")?.clone()),
-            "--plant-out" => plant_out = Some(it.next().ok_or("--plant-out needs a file")?.clone()),
-            other => return Err(format!("unknown argument `{other}`")),
-        }
+    if let Some(n) = a.segments {
+        e.segments = n as usize;
     }
     let m = drive_file::motor::load(&motor).map_err(|er| er.to_string())?;
     let trace = simulate(&m, &e)?;
