@@ -1,7 +1,7 @@
 //! The induction machine's electrical subsystem as a 2×2 plant (seed 002 eqs. (1), (3), (4)).
 //!
 //! State space (stationary frame, electrical rotor speed ω_r as a parameter; the matrices
-//! come from [`hil_sim::plant::Machine::electrical_matrices`]):
+//! come from [`plant::Machine::electrical_matrices`]):
 //! x = [i_sα, i_sβ, ψ_rα, ψ_rβ], u = [v_sα, v_sβ], y = [i_sα, i_sβ], with A(ω_r) and B of
 //! eq. (1). `G(jω) = C (jωI − A)⁻¹ B` is evaluated by a complex linear solve; the structure
 //! gives g₂₂ = g₁₁ and g₂₁ = −g₁₂.
@@ -43,7 +43,7 @@ impl ImModel {
     /// Eq. (1) for `m` at electrical rotor speed `omega_r` (rad/s; = p·ω_m), from the
     /// simulator's plant so that analysis and simulation share one implementation.
     pub fn new(m: &MotorParams, omega_r: f64) -> Self {
-        let (a, inv_sigma_ls) = hil_sim::plant::Machine::new(m).electrical_matrices(omega_r);
+        let (a, inv_sigma_ls) = plant::Machine::new(m).electrical_matrices(omega_r);
         let a = Matrix4::from_fn(|i, j| a[i][j]);
         let b = Matrix4x2::new(inv_sigma_ls, 0.0, 0.0, inv_sigma_ls, 0.0, 0.0, 0.0, 0.0);
         Self { a, b }

@@ -1,8 +1,9 @@
 //! Robust design toolkit (host): polynomials and transfer functions, Kharitonov
 //! robust-stability analysis of PI loops (seed 000), interval-polynomial conditions
-//! (seed 001) and ICAD analysis (seed 002). Kept apart from `hil-sim` because it needs
-//! linear algebra and optimisation the simulator does not, and the firmware's gains are
-//! certified by it.
+//! (seed 001) and ICAD analysis (seed 002), and the certification of a drive file. It
+//! shares the machine model (`plant`), the drive file (`drive-file`) and the output writers
+//! (`report`) with the simulator, not the simulator itself: it needs linear algebra and
+//! optimisation the simulator does not.
 #![forbid(unsafe_code)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 // Host analysis code: dense matrices are indexed within their dimensions.

@@ -8,7 +8,7 @@ mod cli {
     pub mod recycle;
     pub mod startup_fit;
 
-    pub use drive_file::write::write_text as write_atomic;
+    pub use report::write::write_text as write_atomic;
 }
 
 use clap::{Args, Parser, Subcommand};

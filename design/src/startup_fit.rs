@@ -3,7 +3,7 @@
 //! The paper splits a free-acceleration start into 13 parts, fits a linear model to each and
 //! combines the models' coefficients into an interval transfer function. Here:
 //!
-//! 1. **Experiment** (hil-sim's plant, RK4 at `h`): direct-on-line start from rest with the
+//! 1. **Experiment** (the `plant` crate's machine, RK4 at `h`): direct-on-line start from rest with the
 //!    rated sine voltage plus a seeded ±`excitation` pseudo-random binary component on each
 //!    axis (without it every signal is a sinusoid of one frequency and the regression is
 //!    rank-deficient).
@@ -27,8 +27,8 @@ use crate::kharitonov::{IntervalPlant, IntervalPoly};
 use crate::poly::Poly;
 use crate::tf::Tf;
 use controller_core::motor::MotorParams;
-use hil_sim::plant::{Machine, MachineState};
 use nalgebra::{DMatrix, Matrix4, Matrix4x2};
+use plant::{Machine, MachineState};
 
 /// The start-up experiment.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]

@@ -10,7 +10,7 @@
 use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
 use controller_core::discretize::Discretization;
 use controller_core::frames::AlphaBeta;
-use hil_sim::plant::{Machine, MachineState};
+use plant::{Machine, MachineState};
 
 fn envelope_ratio(omega_m: f64) -> f64 {
     let m = drive_file::motor::load("delorenzo-eq13").unwrap();

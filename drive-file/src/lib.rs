@@ -52,7 +52,6 @@ pub mod drive;
 pub mod motor;
 pub mod source;
 pub mod values;
-pub mod write;
 
 pub use drive::{DriveFile, DriveTables};
 pub use source::{FileError, Source};

@@ -1,13 +1,15 @@
 //! Host-side plant simulator for `controller-core` (software in the loop).
 //!
-//! * [`plant`]: the stationary-frame induction machine (seed 002 eqs. (1)–(2)), RK4;
+//! * the plant: the `plant` crate (the stationary-frame induction machine, seed 002
+//!   eqs. (1)–(2), RK4), shared with `design`;
 //! * [`sim`]: the closed-loop runner (one PWM period of computation delay) and the
 //!   open-loop voltage-source runner; [`inverter`] (average or switching with dead time),
 //!   [`sensors`] (ADC, bus, encoder), loads;
 //! * [`link_client`]: the host end of the command/telemetry link (PIL FIFOs, board UART);
 //! * [`pil`]: the same runs with the drive on an emulated Cortex-M4F (QEMU), lockstep;
 //! * [`scenario`]: the papers' experiments as built-ins, on the shipped drive file;
-//!   [`scenario_file`]: scenario files (a drive file plus a run); [`plot`]: SVG.
+//!   [`scenario_file`]: scenario files (a drive file plus a run); plots and
+//!   file writing: the `report` crate.
 #![forbid(unsafe_code)]
 // Host simulator, not the control path: fixed-size state arrays are indexed inside
 // `array::from_fn` with indices bounded by the array length.
@@ -17,8 +19,6 @@
 pub mod inverter;
 pub mod link_client;
 pub mod pil;
-pub mod plant;
-pub mod plot;
 pub mod scenario;
 pub mod scenario_file;
 pub mod sensors;

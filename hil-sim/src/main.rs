@@ -8,10 +8,10 @@
 
 use clap::{Args, Parser, Subcommand};
 use controller_core::link::{Command, Reply};
-use drive_file::write::{partial_path, write_text};
 use hil_sim::pil::PilOptions;
 use hil_sim::scenario::{self, Builtin};
 use hil_sim::sim::{self, Row};
+use report::write::{partial_path, write_text};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -252,7 +252,7 @@ fn progress_bar(fraction: f64) {
 /// The main signals as SVG plots: speed, stator currents (with references in closed loop),
 /// torque.
 fn write_plots(out: &Path, rows: &[Row], closed_loop: bool) -> Result<(), String> {
-    use hil_sim::plot::{Series, line_plot};
+    use report::plot::{Series, line_plot};
     let pts = |f: &dyn Fn(&Row) -> f64| rows.iter().map(|r| (r.t_s, f(r))).collect::<Vec<_>>();
     let mut speed = vec![Series::line("ω_m (rad/s)", pts(&|r| r.x.omega_m_rad_s))];
     let mut currents = vec![

@@ -2,7 +2,6 @@
 //! (`drive.toml`, [`drive_file::SHIPPED`]) and changing what the experiment changes.
 
 use crate::inverter::InverterModel;
-use crate::plant::Machine;
 use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
 use controller_core::current::CurrentLaw;
@@ -12,6 +11,7 @@ use controller_core::drive::{
 use controller_core::motor::{MotorError, MotorParams};
 use controller_core::speed::SpeedLaw;
 use drive_file::{DriveFile, FileError};
+use plant::Machine;
 
 /// Why a built-in scenario could not be assembled (a bug in the shipped data, reported
 /// rather than hidden).

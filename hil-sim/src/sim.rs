@@ -8,9 +8,9 @@
 //! events, plus the [`LoadModel`] (eddy-current brake or locked rotor).
 
 use crate::inverter::{InverterModel, Segments};
-use crate::plant::{Machine, MachineState, Rk4Midway};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Reference};
+use plant::{Machine, MachineState, Rk4Midway};
 
 /// The controller a run drives: the in-process [`Drive`] (software in the loop) or a drive
 /// on an emulated MCU ([`crate::pil::Pil`], processor in the loop). Errors are broken links;

@@ -8,7 +8,7 @@ use design::pi_region::{
 };
 use design::poly::Poly;
 use design::tf::{Tf, logspace};
-use hil_sim::plot::{Series, plot_in};
+use report::plot::{Series, plot_in};
 use serde::Deserialize;
 use std::path::Path;
 

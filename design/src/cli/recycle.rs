@@ -2,7 +2,7 @@
 //! plots like the paper's Figs. 2–5).
 
 use design::recycle::{Constraints, Pi, RecycleProcess, Report, constraint_values, report};
-use hil_sim::plot::{Series, line_plot, plot_in};
+use report::plot::{Series, line_plot, plot_in};
 use std::path::Path;
 
 /// Seed 001's recycle-process study: ITAE nominal PI, where it loses stability, Table I

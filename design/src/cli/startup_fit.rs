@@ -1,7 +1,7 @@
 //! `design startup-fit`: seed 000 Sec. 6 — an interval plant fitted to a nonlinear start-up.
 
 use design::startup_fit::{Experiment, fit_segments, interval_plant, replay, simulate};
-use hil_sim::plot::{Series, line_plot};
+use report::plot::{Series, line_plot};
 use std::fmt::Write as _;
 use std::path::Path;
 

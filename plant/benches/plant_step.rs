@@ -2,7 +2,7 @@
 //! to `Drive::step` (`cargo bench -p hil-sim --bench fast_step`). The figure quoted
 //! in the README comes from `cargo bench -p hil-sim --bench plant_step`.
 //!
-//! * `rk4_step_chained`: one RK4 step ([`hil_sim::plant::Rk4::step`], as the simulator
+//! * `rk4_step_chained`: one RK4 step ([`plant::Rk4::step`], as the simulator
 //!   takes it) of the DeLorenzo machine at 50 µs, each step starting
 //!   from the previous one's result (as in a run: the step's latency).
 //! * `rk4_step_independent`: the same step from a fixed state (its throughput).
@@ -10,7 +10,7 @@
 
 use controller_core::motor::MotorParams;
 use criterion::{Criterion, criterion_group, criterion_main};
-use hil_sim::plant::{Machine, MachineState};
+use plant::{Machine, MachineState};
 use std::hint::black_box;
 
 fn bench(c: &mut Criterion) {

@@ -14,6 +14,12 @@
 //! with `a = −(L_r²R_s + L_m²R_r)/(σL_sL_r²)`, `b = L_m/(σL_sL_r)`. Integrated with classical
 //! RK4 at a fixed step (voltage and load held constant over the step).
 
+#![forbid(unsafe_code)]
+// Fixed-size state arrays are indexed inside `array::from_fn` with indices bounded by the
+// array length.
+#![allow(clippy::indexing_slicing)]
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
 use controller_core::motor::MotorParams;
 
 /// Plant state.

@@ -1,0 +1,7 @@
+//! Outputs of the host tools (`hil-sim`, `design`): [`plot`] draws SVG line plots,
+//! [`write`](mod@write) writes files that appear complete or not at all.
+#![forbid(unsafe_code)]
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
+
+pub mod plot;
+pub mod write;
