@@ -58,9 +58,8 @@
 use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
-use crate::sim::{Event, LoadModel, Scenario};
+use crate::sim::{Event, LoadModel, OpenLoop, Scenario};
 use controller_core::drive::{DriveSpec, Reference};
-use controller_core::motor::MotorParams;
 use drive_file::board::BoardTable;
 use drive_file::certify::CertifyTable;
 use drive_file::drive::{ControllerTable, ProtectionTable, PwmTable};
@@ -79,23 +78,6 @@ pub const MAX_TRACE_ROWS: f64 = 5e6;
 /// Largest magnitude of an event value (speed in rad/s, position in rad, torque or load in
 /// N·m, current in A): far beyond any machine, and finite in the drive's f32.
 pub const MAX_EVENT_VALUE: f64 = 1e6;
-
-/// A validated open-loop scenario.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OpenLoop {
-    /// Simulated time, s.
-    pub duration_s: f64,
-    /// Trace sample period, s.
-    pub sample_period_s: f64,
-    /// Motor.
-    pub motor: MotorParams,
-    /// Phase peak voltage, V.
-    pub amplitude_v: f64,
-    /// Source frequency, Hz.
-    pub frequency_hz: f64,
-    /// Load torque, N·m.
-    pub load_nm: f64,
-}
 
 /// A scenario file of either kind.
 #[derive(Debug, Clone)]

@@ -10,6 +10,7 @@
 use crate::inverter::{InverterModel, Segments};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Reference};
+use controller_core::motor::MotorParams;
 use plant::{Machine, MachineState, Rk4Midway};
 
 /// The controller a run drives: the in-process [`Drive`] (software in the loop) or a drive
@@ -107,6 +108,23 @@ pub struct Scenario {
     pub load: LoadModel,
     /// Inverter model.
     pub inverter: InverterModel,
+}
+
+/// A validated open-loop scenario.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OpenLoop {
+    /// Simulated time, s.
+    pub duration_s: f64,
+    /// Trace sample period, s.
+    pub sample_period_s: f64,
+    /// Motor.
+    pub motor: MotorParams,
+    /// Phase peak voltage, V.
+    pub amplitude_v: f64,
+    /// Source frequency, Hz.
+    pub frequency_hz: f64,
+    /// Load torque, N·m.
+    pub load_nm: f64,
 }
 
 /// One trace row.
@@ -350,7 +368,7 @@ pub const OPEN_LOOP_MAX_STEP_S: f64 = 1e-5;
 /// divides the sample period into ⌈sample_period_s / max_step_s⌉ equal steps. Returns the
 /// number of rows.
 pub fn run_open_loop(
-    sc: &crate::scenario_file::OpenLoop,
+    sc: &OpenLoop,
     max_step_s: f64,
     mut progress: impl FnMut(f64),
     mut sink: impl FnMut(&Row) -> Result<(), String>,
@@ -394,7 +412,7 @@ pub fn run_open_loop(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenario_file::OpenLoop;
+    use OpenLoop;
     use controller_core::motor::MotorParams;
 
     /// `first_period_at` is the smallest k with `k·ts ≥ t` in floating point — checked against

@@ -11,7 +11,8 @@
 //!   (`-icount shift=0`), and the processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu`, `fuzz` — single
-//!   steps.
+//!   steps; `modules` — no import cycle between the top-level modules of any crate (part of
+//!   `ci` and `lint`; see [`module_cycles`]).
 //!
 //! The closing line `tests: N passed, M failed` sums cargo's `test result:` lines and the
 //! target harness's `N passed, M failed` lines.
@@ -277,6 +278,124 @@ fn report_firmware_size() -> bool {
     }
 }
 
+/// The crates whose module graphs are checked.
+const CRATES: [&str; 9] = [
+    "controller-core",
+    "drive-file",
+    "plant",
+    "report",
+    "hil-sim",
+    "design",
+    "firmware",
+    "qemu-target",
+    "xtask",
+];
+
+/// Top-level module of a source file (`src/a.rs`, `src/a/b.rs`, `src/a/mod.rs` → `a`; the
+/// crate roots and `src/bin/*` → `None`).
+fn top_module(rel: &std::path::Path) -> Option<String> {
+    let mut parts = rel.iter().map(|p| p.to_string_lossy().into_owned());
+    let first = parts.next()?;
+    let name = first.strip_suffix(".rs").unwrap_or(&first).to_string();
+    (!matches!(name.as_str(), "lib" | "main" | "bin")).then_some(name)
+}
+
+/// `crate::NAME` references in the non-test code of `text` (comments and `#[cfg(test)]`
+/// modules do not count: a doc link or a test helper is not a dependency of the module).
+fn crate_references(text: &str) -> std::collections::BTreeSet<String> {
+    let mut out = std::collections::BTreeSet::new();
+    for line in text.lines() {
+        if line.trim_start().starts_with("#[cfg(test)]") {
+            break;
+        }
+        let code = line.split("//").next().unwrap_or("");
+        for (i, _) in code.match_indices("crate::") {
+            let rest = code.get(i + 7..).unwrap_or("");
+            let name: String = rest.chars().take_while(|c| c.is_alphanumeric() || *c == '_').collect();
+            let before = code.get(..i).and_then(|b| b.chars().last());
+            if !name.is_empty() && !before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == '$') {
+                out.insert(name);
+            }
+        }
+    }
+    out
+}
+
+/// A cycle in the graph `edges` (module → modules it uses), if any, as the modules on it.
+fn find_cycle(
+    edges: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>,
+) -> Option<Vec<String>> {
+    fn visit(
+        n: &str,
+        edges: &std::collections::BTreeMap<String, std::collections::BTreeSet<String>>,
+        state: &mut std::collections::BTreeMap<String, u8>,
+        stack: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        state.insert(n.to_string(), 1);
+        stack.push(n.to_string());
+        for m in edges.get(n).into_iter().flatten() {
+            match state.get(m.as_str()) {
+                Some(1) => {
+                    let at = stack.iter().position(|s| s == m).unwrap_or(0);
+                    let mut cycle = stack.get(at..).unwrap_or_default().to_vec();
+                    cycle.push(m.clone());
+                    return Some(cycle);
+                }
+                Some(_) => {}
+                None => {
+                    if let Some(c) = visit(m, edges, state, stack) {
+                        return Some(c);
+                    }
+                }
+            }
+        }
+        stack.pop();
+        state.insert(n.to_string(), 2);
+        None
+    }
+    let mut state = std::collections::BTreeMap::new();
+    for n in edges.keys() {
+        if !state.contains_key(n.as_str())
+            && let Some(c) = visit(n, edges, &mut state, &mut Vec::new())
+        {
+            return Some(c);
+        }
+    }
+    None
+}
+
+/// No import cycle between the top-level modules of any crate: every `crate::x` reference
+/// in a module's non-test code is an edge to `x`; a cycle fails the check, printed.
+fn module_cycles() -> bool {
+    let mut ok = true;
+    for krate in CRATES {
+        let src = std::path::Path::new(krate).join("src");
+        let mut edges: std::collections::BTreeMap<String, std::collections::BTreeSet<String>> =
+            std::collections::BTreeMap::new();
+        let mut files = vec![src.clone()];
+        while let Some(p) = files.pop() {
+            if p.is_dir() {
+                if let Ok(rd) = std::fs::read_dir(&p) {
+                    files.extend(rd.filter_map(Result::ok).map(|e| e.path()));
+                }
+                continue;
+            }
+            let Some(module) = p.strip_prefix(&src).ok().and_then(top_module) else { continue };
+            let text = std::fs::read_to_string(&p).unwrap_or_default();
+            let refs: Vec<String> = crate_references(&text).into_iter().filter(|m| *m != module).collect();
+            edges.entry(module).or_default().extend(refs);
+        }
+        match find_cycle(&edges) {
+            Some(c) => {
+                eprintln!("xtask: module cycle in {krate}: {}", c.join(" → "));
+                ok = false;
+            }
+            None => println!("modules: {krate}: {} top-level modules, no cycle", edges.len()),
+        }
+    }
+    ok
+}
+
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
@@ -288,13 +407,14 @@ fn main() -> ExitCode {
         "fuzz" => vec![&FUZZ],
         "qemu" => QEMU_STEPS.to_vec(),
         "lint" => vec![&FMT, &CLIPPY, &CLIPPY_FW, &DOC],
+        "modules" => vec![],
         "test-host" => vec![&TEST],
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![&FW],
         "certify" => vec![&CERTIFY],
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci | lint | test-host | certify | build-core-m4 | build-fw | qemu | fuzz>"
+                "usage: cargo xtask <ci | lint | modules | test-host | certify | build-core-m4 | build-fw | qemu | fuzz>"
             );
             return ExitCode::from(2);
         }
@@ -305,8 +425,11 @@ fn main() -> ExitCode {
     if steps.iter().any(|s| s.name == FW.name) && !failed.contains(&FW.name) && !report_firmware_size() {
         failed.push("firmware-size");
     }
+    if matches!(task.as_str(), "ci" | "lint" | "modules") && !module_cycles() {
+        failed.push("modules");
+    }
     let code = if failed.is_empty() {
-        eprintln!("\nxtask {task}: all {} steps passed", steps.len());
+        eprintln!("\nxtask {task}: all steps passed");
         ExitCode::SUCCESS
     } else {
         eprintln!("\nxtask {task}: FAILED steps: {}", failed.join(", "));
@@ -318,4 +441,32 @@ fn main() -> ExitCode {
         println!("tests: {} passed, {} failed", totals.passed, totals.failed);
     }
     code
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn references_and_cycles() {
+        let refs = crate_references(
+            "use crate::a::X;\n// crate::b\nfn f() { crate::c::g(); my_crate::d(); }\n#[cfg(test)]\nmod tests { use crate::e; }",
+        );
+        assert_eq!(refs.into_iter().collect::<Vec<_>>(), ["a", "c"]);
+        let graph = |pairs: &[(&str, &str)]| {
+            let mut g: std::collections::BTreeMap<String, std::collections::BTreeSet<String>> =
+                Default::default();
+            for (a, b) in pairs {
+                g.entry((*a).into()).or_default().insert((*b).into());
+                g.entry((*b).into()).or_default();
+            }
+            g
+        };
+        assert_eq!(find_cycle(&graph(&[("a", "b"), ("b", "c"), ("a", "c")])), None);
+        assert_eq!(find_cycle(&graph(&[("a", "b"), ("b", "c"), ("c", "a")])).unwrap(), ["a", "b", "c", "a"]);
+        assert_eq!(top_module(std::path::Path::new("x/mod.rs")).as_deref(), Some("x"));
+        assert_eq!(top_module(std::path::Path::new("bin/pil.rs")), None);
+        assert_eq!(top_module(std::path::Path::new("sim.rs")).as_deref(), Some("sim"));
+    }
 }
