@@ -1,0 +1,52 @@
+//! Command execution: what a drive does with a [`Command`] — the policy shared by the
+//! processor-in-the-loop server and the firmware.
+
+use super::receive::LinkStats;
+use super::schema::{Command, NackReason, Reply};
+use crate::drive::{CommandError, Drive, DriveConfig, Mode};
+
+/// Carry out `cmd` on `drive` and say how it went — the command handling shared by the
+/// processor-in-the-loop server and the firmware (which refuses `Step` itself: on the board
+/// the measurements come from the ADC, and handles the speed-gain commands, which need the
+/// specification and the certified ranges it keeps). `Configure` replaces the drive only while it is
+/// Idle or faulted, with a configuration validated by [`DriveConfig::new`].
+pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
+    match cmd {
+        Command::Configure(spec) => {
+            if matches!(drive.mode(), Mode::Magnetizing | Mode::Running) {
+                return Reply::Nack(NackReason::NotIdle);
+            }
+            match DriveConfig::new(spec) {
+                Ok(cfg) => {
+                    *drive = Drive::new(cfg);
+                    Reply::Ack
+                }
+                Err(_) => Reply::Nack(NackReason::Configuration),
+            }
+        }
+        Command::Enable => command_result(drive.enable()),
+        Command::Disable => {
+            drive.disable();
+            Reply::Ack
+        }
+        Command::ClearFault => {
+            drive.clear_fault();
+            Reply::Ack
+        }
+        Command::SetReference(r) => command_result(drive.set_reference(*r)),
+        Command::Step(m) => Reply::Output(drive.step(m)),
+        Command::GetStatus => {
+            Reply::Status { mode: drive.mode(), frames_ok: stats.frames_ok, frame_errors: stats.errors() }
+        }
+        // Gains live in the specification, which the board keeps (firmware `server`).
+        Command::WriteSpeedGains { .. } | Command::ReadSpeedGains => Reply::Nack(NackReason::Unsupported),
+    }
+}
+
+fn command_result(r: Result<(), CommandError>) -> Reply {
+    match r {
+        Ok(()) => Reply::Ack,
+        Err(CommandError::Faulted) => Reply::Nack(NackReason::Faulted),
+        Err(CommandError::NonFinite) => Reply::Nack(NackReason::NonFinite),
+    }
+}

@@ -1,0 +1,547 @@
+//! Message schema: host → drive [`Command`]s and drive → host [`Reply`]s, each a type byte
+//! and its fields in a fixed little-endian layout (`f32`/`f64` as IEEE-754 bits).
+
+use super::framing::{BufferFull, MAX_PAYLOAD, encode_frame};
+use crate::current::CurrentLaw;
+use crate::discretize::{ContinuousSection, Discretization};
+use crate::drive::{
+    CurrentFrame, DriveSpec, FastOutput, Fault, Measurements, Mode, PhaseCommand, PositionLaw, Protection,
+    Reference, Telemetry,
+};
+use crate::frames::{Abc, AlphaBeta};
+use crate::motor::MotorParams;
+use crate::speed::SpeedLaw;
+
+/// Message-level errors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DecodeError {
+    /// Unknown message type byte.
+    UnknownType(u8),
+    /// Payload shorter or longer than the type requires.
+    Length,
+    /// An enum tag or value out of range (e.g. a motor parameter that is not positive).
+    Value,
+}
+
+/// Little-endian field writer.
+#[derive(Debug)]
+struct Writer<'a> {
+    buf: &'a mut [u8],
+    n: usize,
+}
+
+impl<'a> Writer<'a> {
+    fn new(buf: &'a mut [u8]) -> Self {
+        Self { buf, n: 0 }
+    }
+    fn bytes(&mut self, b: &[u8]) -> Result<(), BufferFull> {
+        let end = self.n + b.len();
+        self.buf.get_mut(self.n..end).ok_or(BufferFull)?.copy_from_slice(b);
+        self.n = end;
+        Ok(())
+    }
+    fn u8(&mut self, v: u8) -> Result<(), BufferFull> {
+        self.bytes(&[v])
+    }
+    fn u16(&mut self, v: u16) -> Result<(), BufferFull> {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn f32(&mut self, v: f32) -> Result<(), BufferFull> {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn f64(&mut self, v: f64) -> Result<(), BufferFull> {
+        self.bytes(&v.to_le_bytes())
+    }
+    fn abc(&mut self, v: Abc) -> Result<(), BufferFull> {
+        self.f32(v.a)?;
+        self.f32(v.b)?;
+        self.f32(v.c)
+    }
+    fn ab(&mut self, v: AlphaBeta) -> Result<(), BufferFull> {
+        self.f32(v.alpha)?;
+        self.f32(v.beta)
+    }
+}
+
+/// Little-endian field reader.
+#[derive(Debug)]
+struct Reader<'a> {
+    rest: &'a [u8],
+}
+
+impl<'a> Reader<'a> {
+    fn take<const N: usize>(&mut self) -> Result<[u8; N], DecodeError> {
+        let (head, tail) = self.rest.split_first_chunk::<N>().ok_or(DecodeError::Length)?;
+        self.rest = tail;
+        Ok(*head)
+    }
+    fn u8(&mut self) -> Result<u8, DecodeError> {
+        Ok(u8::from_le_bytes(self.take()?))
+    }
+    fn u16(&mut self) -> Result<u16, DecodeError> {
+        Ok(u16::from_le_bytes(self.take()?))
+    }
+    fn f32(&mut self) -> Result<f32, DecodeError> {
+        Ok(f32::from_le_bytes(self.take()?))
+    }
+    fn f64(&mut self) -> Result<f64, DecodeError> {
+        Ok(f64::from_le_bytes(self.take()?))
+    }
+    fn abc(&mut self) -> Result<Abc, DecodeError> {
+        Ok(Abc { a: self.f32()?, b: self.f32()?, c: self.f32()? })
+    }
+    fn ab(&mut self) -> Result<AlphaBeta, DecodeError> {
+        Ok(AlphaBeta { alpha: self.f32()?, beta: self.f32()? })
+    }
+    fn f64x3(&mut self) -> Result<[f64; 3], DecodeError> {
+        Ok([self.f64()?, self.f64()?, self.f64()?])
+    }
+    fn finish(self) -> Result<(), DecodeError> {
+        if self.rest.is_empty() { Ok(()) } else { Err(DecodeError::Length) }
+    }
+}
+
+/// Host → drive.
+// `Configure` is ~200 bytes, the others ≤ 25; no heap to box it in, and a command lives only
+// between decoding and handling.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Command {
+    /// Replace the drive configuration (only while Idle); answered by `Ack` or
+    /// `Nack(Configuration)`.
+    Configure(DriveSpec),
+    /// [`crate::drive::Drive::enable`].
+    Enable,
+    /// [`crate::drive::Drive::disable`].
+    Disable,
+    /// [`crate::drive::Drive::clear_fault`].
+    ClearFault,
+    /// [`crate::drive::Drive::set_reference`].
+    SetReference(Reference),
+    /// One PWM period's measurements (processor in the loop); answered by `Output`.
+    Step(Measurements),
+    /// Ask for the drive's status and link counters; answered by `Status`.
+    GetStatus,
+    /// Replace the saturated-P speed-loop gains (seed 002 eq. (21)) while Idle; the board
+    /// accepts only values inside the certified ranges of `drive.toml`.
+    WriteSpeedGains {
+        /// N·m per rad/s.
+        kp: f32,
+        /// Torque limit τ_max, N·m.
+        tau_max_nm: f32,
+    },
+    /// Ask for the speed-loop gains; answered by `SpeedGains`.
+    ReadSpeedGains,
+}
+
+/// Why a command was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NackReason {
+    /// A fault is latched.
+    Faulted,
+    /// A value was not finite.
+    NonFinite,
+    /// The drive specification was rejected by `DriveConfig::new`.
+    Configuration,
+    /// The command needs the drive Idle.
+    NotIdle,
+    /// The command is not supported by this endpoint.
+    Unsupported,
+    /// No drive configuration yet: send `Configure` first.
+    NotConfigured,
+    /// A gain outside the certified range.
+    OutOfCertifiedRange,
+}
+
+/// Drive → host.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Reply {
+    /// Command accepted.
+    Ack,
+    /// Command refused.
+    Nack(NackReason),
+    /// Result of a `Step`, or streamed telemetry of the board.
+    Output(FastOutput),
+    /// The saturated-P speed-loop gains in use.
+    SpeedGains {
+        /// N·m per rad/s.
+        kp: f32,
+        /// Torque limit τ_max, N·m.
+        tau_max_nm: f32,
+    },
+    /// Mode and the receiver's counters.
+    Status {
+        /// Drive mode.
+        mode: Mode,
+        /// Frames accepted by the drive.
+        frames_ok: u32,
+        /// Frames the drive rejected.
+        frame_errors: u32,
+    },
+}
+
+pub(crate) mod tag {
+    pub const CONFIGURE: u8 = 0x01;
+    pub const ENABLE: u8 = 0x02;
+    pub const DISABLE: u8 = 0x03;
+    pub const CLEAR_FAULT: u8 = 0x04;
+    pub const SET_REFERENCE: u8 = 0x05;
+    pub const STEP: u8 = 0x06;
+    pub const GET_STATUS: u8 = 0x07;
+    pub const WRITE_SPEED_GAINS: u8 = 0x08;
+    pub const READ_SPEED_GAINS: u8 = 0x09;
+    pub const ACK: u8 = 0x81;
+    pub const NACK: u8 = 0x82;
+    pub const OUTPUT: u8 = 0x83;
+    pub const STATUS: u8 = 0x84;
+    pub const SPEED_GAINS: u8 = 0x85;
+}
+
+fn write_reference(w: &mut Writer<'_>, r: Reference) -> Result<(), BufferFull> {
+    match r {
+        Reference::Speed(x) => {
+            w.u8(0)?;
+            w.f32(x)?;
+            w.f32(0.0)
+        }
+        Reference::Position(x) => {
+            w.u8(1)?;
+            w.f32(x)?;
+            w.f32(0.0)
+        }
+        Reference::Torque(x) => {
+            w.u8(2)?;
+            w.f32(x)?;
+            w.f32(0.0)
+        }
+        Reference::RotatingCurrent { amplitude_a, omega_rad_s } => {
+            w.u8(3)?;
+            w.f32(amplitude_a)?;
+            w.f32(omega_rad_s)
+        }
+    }
+}
+
+fn read_reference(r: &mut Reader<'_>) -> Result<Reference, DecodeError> {
+    let (t, x, y) = (r.u8()?, r.f32()?, r.f32()?);
+    Ok(match t {
+        0 => Reference::Speed(x),
+        1 => Reference::Position(x),
+        2 => Reference::Torque(x),
+        3 => Reference::RotatingCurrent { amplitude_a: x, omega_rad_s: y },
+        _ => return Err(DecodeError::Value),
+    })
+}
+
+fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
+    let m = &s.motor;
+    for v in [m.rs_ohm(), m.rr_ohm(), m.ls_h(), m.lr_h(), m.lm_h()] {
+        w.f64(v)?;
+    }
+    w.u8(m.pole_pairs())?;
+    w.f64(m.j_kgm2())?;
+    w.f64(m.b_nms())?;
+    w.f64(s.pwm_frequency_hz)?;
+    w.u16(s.slow_divider)?;
+    w.f64(s.current_law.kp_v_per_a)?;
+    w.f64(s.current_law.ki_v_per_as)?;
+    match s.current_law.lag {
+        None => w.u8(0)?,
+        Some(sec) => {
+            w.u8(1)?;
+            for v in sec.num.iter().chain(sec.den.iter()) {
+                w.f64(*v)?;
+            }
+        }
+    }
+    match s.discretization {
+        Discretization::Tustin => {
+            w.u8(0)?;
+            w.f64(0.0)?;
+        }
+        Discretization::TustinPrewarped { omega_rad_s } => {
+            w.u8(1)?;
+            w.f64(omega_rad_s)?;
+        }
+    }
+    w.u8(match s.current_frame {
+        CurrentFrame::Stationary => 0,
+        CurrentFrame::Synchronous => 1,
+    })?;
+    let (t, a, b, c) = match s.speed_law {
+        SpeedLaw::PiTorque { kp, ki, limit } => (0, kp, ki, limit),
+        SpeedLaw::PiIq { kp, ki, limit } => (1, kp, ki, limit),
+        SpeedLaw::SaturatedP { kp, tau_max_nm } => (2, kp, tau_max_nm, 0.0),
+    };
+    w.u8(t)?;
+    for v in [a, b, c, s.position.k_per_s, s.position.omega_max_rad_s] {
+        w.f64(v)?;
+    }
+    for v in [s.flux_ref_wb, s.flux_floor_wb, s.i_ref_max_a, s.magnetized_fraction] {
+        w.f64(v)?;
+    }
+    let p = &s.protection;
+    for v in [p.i_trip_a, p.vdc_min_v, p.vdc_max_v] {
+        w.f64(v)?;
+    }
+    Ok(())
+}
+
+fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
+    let (rs, rr, ls, lr, lm) = (r.f64()?, r.f64()?, r.f64()?, r.f64()?, r.f64()?);
+    let pole_pairs = r.u8()?;
+    let (j, b) = (r.f64()?, r.f64()?);
+    let motor = MotorParams::new(rs, rr, ls, lr, lm, pole_pairs, j, b).map_err(|_| DecodeError::Value)?;
+    let pwm_frequency_hz = r.f64()?;
+    let slow_divider = r.u16()?;
+    let (kp_v_per_a, ki_v_per_as) = (r.f64()?, r.f64()?);
+    let lag = match r.u8()? {
+        0 => None,
+        1 => Some(ContinuousSection { num: r.f64x3()?, den: r.f64x3()? }),
+        _ => return Err(DecodeError::Value),
+    };
+    let discretization = match (r.u8()?, r.f64()?) {
+        (0, _) => Discretization::Tustin,
+        (1, omega_rad_s) => Discretization::TustinPrewarped { omega_rad_s },
+        _ => return Err(DecodeError::Value),
+    };
+    let current_frame = match r.u8()? {
+        0 => CurrentFrame::Stationary,
+        1 => CurrentFrame::Synchronous,
+        _ => return Err(DecodeError::Value),
+    };
+    let t = r.u8()?;
+    let (a, b2, c) = (r.f64()?, r.f64()?, r.f64()?);
+    let speed_law = match t {
+        0 => SpeedLaw::PiTorque { kp: a, ki: b2, limit: c },
+        1 => SpeedLaw::PiIq { kp: a, ki: b2, limit: c },
+        2 => SpeedLaw::SaturatedP { kp: a, tau_max_nm: b2 },
+        _ => return Err(DecodeError::Value),
+    };
+    let position = PositionLaw { k_per_s: r.f64()?, omega_max_rad_s: r.f64()? };
+    let (flux_ref_wb, flux_floor_wb, i_ref_max_a, magnetized_fraction) =
+        (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
+    let protection = Protection { i_trip_a: r.f64()?, vdc_min_v: r.f64()?, vdc_max_v: r.f64()? };
+    Ok(DriveSpec {
+        motor,
+        pwm_frequency_hz,
+        slow_divider,
+        current_law: CurrentLaw { kp_v_per_a, ki_v_per_as, lag },
+        discretization,
+        current_frame,
+        speed_law,
+        position,
+        flux_ref_wb,
+        flux_floor_wb,
+        i_ref_max_a,
+        magnetized_fraction,
+        protection,
+    })
+}
+
+fn mode_code(m: Mode) -> u8 {
+    match m {
+        Mode::Idle => 0,
+        Mode::Magnetizing => 1,
+        Mode::Running => 2,
+        Mode::Fault(Fault::Overcurrent) => 10,
+        Mode::Fault(Fault::DcBusOvervoltage) => 11,
+        Mode::Fault(Fault::DcBusUndervoltage) => 12,
+        Mode::Fault(Fault::NonFiniteInput) => 13,
+        Mode::Fault(Fault::NonFiniteOutput) => 14,
+        Mode::Fault(Fault::EncoderLoss) => 15,
+        Mode::Fault(Fault::HardwareBreak) => 16,
+    }
+}
+
+fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
+    Ok(match c {
+        0 => Mode::Idle,
+        1 => Mode::Magnetizing,
+        2 => Mode::Running,
+        10 => Mode::Fault(Fault::Overcurrent),
+        11 => Mode::Fault(Fault::DcBusOvervoltage),
+        12 => Mode::Fault(Fault::DcBusUndervoltage),
+        13 => Mode::Fault(Fault::NonFiniteInput),
+        14 => Mode::Fault(Fault::NonFiniteOutput),
+        15 => Mode::Fault(Fault::EncoderLoss),
+        16 => Mode::Fault(Fault::HardwareBreak),
+        _ => return Err(DecodeError::Value),
+    })
+}
+
+impl Command {
+    /// Serialise into `buf` (at most [`MAX_PAYLOAD`] bytes). Returns the payload length.
+    pub fn encode(&self, buf: &mut [u8]) -> Result<usize, BufferFull> {
+        let mut w = Writer::new(buf);
+        match self {
+            Command::Configure(s) => {
+                w.u8(tag::CONFIGURE)?;
+                write_spec(&mut w, s)?;
+            }
+            Command::Enable => w.u8(tag::ENABLE)?,
+            Command::Disable => w.u8(tag::DISABLE)?,
+            Command::ClearFault => w.u8(tag::CLEAR_FAULT)?,
+            Command::SetReference(r) => {
+                w.u8(tag::SET_REFERENCE)?;
+                write_reference(&mut w, *r)?;
+            }
+            Command::Step(m) => {
+                w.u8(tag::STEP)?;
+                w.abc(m.i_abc_a)?;
+                w.f32(m.vdc_v)?;
+                w.f32(m.omega_m_rad_s)?;
+                w.f32(m.theta_m_rad)?;
+            }
+            Command::GetStatus => w.u8(tag::GET_STATUS)?,
+            Command::WriteSpeedGains { kp, tau_max_nm } => {
+                w.u8(tag::WRITE_SPEED_GAINS)?;
+                w.f32(*kp)?;
+                w.f32(*tau_max_nm)?;
+            }
+            Command::ReadSpeedGains => w.u8(tag::READ_SPEED_GAINS)?,
+        }
+        Ok(w.n)
+    }
+
+    /// Parse a payload.
+    pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
+        let (&t, rest) = payload.split_first().ok_or(DecodeError::Length)?;
+        let mut r = Reader { rest };
+        let c = match t {
+            tag::CONFIGURE => Command::Configure(read_spec(&mut r)?),
+            tag::ENABLE => Command::Enable,
+            tag::DISABLE => Command::Disable,
+            tag::CLEAR_FAULT => Command::ClearFault,
+            tag::SET_REFERENCE => Command::SetReference(read_reference(&mut r)?),
+            tag::STEP => Command::Step(Measurements {
+                i_abc_a: r.abc()?,
+                vdc_v: r.f32()?,
+                omega_m_rad_s: r.f32()?,
+                theta_m_rad: r.f32()?,
+            }),
+            tag::GET_STATUS => Command::GetStatus,
+            tag::WRITE_SPEED_GAINS => Command::WriteSpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
+            tag::READ_SPEED_GAINS => Command::ReadSpeedGains,
+            other => return Err(DecodeError::UnknownType(other)),
+        };
+        r.finish()?;
+        Ok(c)
+    }
+}
+
+impl Reply {
+    /// Serialise into `buf`. Returns the payload length.
+    pub fn encode(&self, buf: &mut [u8]) -> Result<usize, BufferFull> {
+        let mut w = Writer::new(buf);
+        match self {
+            Reply::Ack => w.u8(tag::ACK)?,
+            Reply::Nack(r) => {
+                w.u8(tag::NACK)?;
+                w.u8(match r {
+                    NackReason::Faulted => 0,
+                    NackReason::NonFinite => 1,
+                    NackReason::Configuration => 2,
+                    NackReason::NotIdle => 3,
+                    NackReason::Unsupported => 4,
+                    NackReason::NotConfigured => 5,
+                    NackReason::OutOfCertifiedRange => 6,
+                })?;
+            }
+            Reply::Output(o) => {
+                w.u8(tag::OUTPUT)?;
+                w.u8(mode_code(o.mode))?;
+                match o.phases {
+                    PhaseCommand::Off => {
+                        w.u8(0)?;
+                        w.abc(Abc::default())?;
+                    }
+                    PhaseCommand::Duty(d) => {
+                        w.u8(1)?;
+                        w.abc(d)?;
+                    }
+                }
+                let t = &o.telemetry;
+                w.ab(t.i_ab_a)?;
+                w.ab(t.i_ref_ab_a)?;
+                w.ab(t.v_ab_v)?;
+                for v in [t.theta_e_rad, t.omega_sl_rad_s, t.psi_r_wb, t.i_q_ref_a, t.omega_ref_rad_s] {
+                    w.f32(v)?;
+                }
+            }
+            Reply::SpeedGains { kp, tau_max_nm } => {
+                w.u8(tag::SPEED_GAINS)?;
+                w.f32(*kp)?;
+                w.f32(*tau_max_nm)?;
+            }
+            Reply::Status { mode, frames_ok, frame_errors } => {
+                w.u8(tag::STATUS)?;
+                w.u8(mode_code(*mode))?;
+                w.bytes(&frames_ok.to_le_bytes())?;
+                w.bytes(&frame_errors.to_le_bytes())?;
+            }
+        }
+        Ok(w.n)
+    }
+
+    /// Parse a payload.
+    pub fn decode(payload: &[u8]) -> Result<Self, DecodeError> {
+        let (&t, rest) = payload.split_first().ok_or(DecodeError::Length)?;
+        let mut r = Reader { rest };
+        let reply = match t {
+            tag::ACK => Reply::Ack,
+            tag::NACK => Reply::Nack(match r.u8()? {
+                0 => NackReason::Faulted,
+                1 => NackReason::NonFinite,
+                2 => NackReason::Configuration,
+                3 => NackReason::NotIdle,
+                4 => NackReason::Unsupported,
+                5 => NackReason::NotConfigured,
+                6 => NackReason::OutOfCertifiedRange,
+                _ => return Err(DecodeError::Value),
+            }),
+            tag::OUTPUT => {
+                let mode = mode_from_code(r.u8()?)?;
+                let phases = match (r.u8()?, r.abc()?) {
+                    (0, _) => PhaseCommand::Off,
+                    (1, d) => PhaseCommand::Duty(d),
+                    _ => return Err(DecodeError::Value),
+                };
+                let telemetry = Telemetry {
+                    i_ab_a: r.ab()?,
+                    i_ref_ab_a: r.ab()?,
+                    v_ab_v: r.ab()?,
+                    theta_e_rad: r.f32()?,
+                    omega_sl_rad_s: r.f32()?,
+                    psi_r_wb: r.f32()?,
+                    i_q_ref_a: r.f32()?,
+                    omega_ref_rad_s: r.f32()?,
+                };
+                Reply::Output(FastOutput { phases, mode, telemetry })
+            }
+            tag::SPEED_GAINS => Reply::SpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
+            tag::STATUS => Reply::Status {
+                mode: mode_from_code(r.u8()?)?,
+                frames_ok: u32::from_le_bytes(r.take()?),
+                frame_errors: u32::from_le_bytes(r.take()?),
+            },
+            other => return Err(DecodeError::UnknownType(other)),
+        };
+        r.finish()?;
+        Ok(reply)
+    }
+}
+
+/// Encode a command as a complete frame into `out`.
+pub fn command_frame(c: &Command, out: &mut [u8]) -> Result<usize, BufferFull> {
+    let mut p = [0u8; MAX_PAYLOAD];
+    let n = c.encode(&mut p)?;
+    encode_frame(p.get(..n).ok_or(BufferFull)?, out)
+}
+
+/// Encode a reply as a complete frame into `out`.
+pub fn reply_frame(r: &Reply, out: &mut [u8]) -> Result<usize, BufferFull> {
+    let mut p = [0u8; MAX_PAYLOAD];
+    let n = r.encode(&mut p)?;
+    encode_frame(p.get(..n).ok_or(BufferFull)?, out)
+}

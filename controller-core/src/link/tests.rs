@@ -1,0 +1,196 @@
+//! Link tests: known vectors, round trips, corruption (property-tested).
+
+use super::schema::tag;
+use super::*;
+use crate::drive::test_spec;
+use crate::drive::{FastOutput, Fault, Measurements, Mode, PhaseCommand, Reference, Telemetry};
+use crate::frames::Abc;
+use proptest::prelude::*;
+use std::vec::Vec;
+
+fn frame_of(c: &Command) -> Vec<u8> {
+    let mut out = [0u8; MAX_FRAME];
+    let n = command_frame(c, &mut out).unwrap();
+    out[..n].to_vec()
+}
+
+fn decode_all(bytes: &[u8]) -> (Vec<Command>, LinkStats) {
+    let mut d = FrameDecoder::new();
+    let mut stats = LinkStats::default();
+    let mut got = Vec::new();
+    for &b in bytes {
+        got.extend(d.push_command(b, &mut stats));
+    }
+    (got, stats)
+}
+
+#[test]
+fn crc_check_value() {
+    assert_eq!(crc16(b"123456789"), 0x29B1);
+}
+
+#[test]
+fn cobs_known_vectors() {
+    // Vectors from the COBS paper / Wikipedia table.
+    let cases: [(&[u8], &[u8]); 4] = [
+        (&[0x00], &[0x01, 0x01]),
+        (&[0x00, 0x00], &[0x01, 0x01, 0x01]),
+        (&[0x11, 0x22, 0x00, 0x33], &[0x03, 0x11, 0x22, 0x02, 0x33]),
+        (&[0x11, 0x00, 0x00, 0x00], &[0x02, 0x11, 0x01, 0x01, 0x01]),
+    ];
+    for (raw, enc) in cases {
+        let mut out = [0u8; 16];
+        let n = cobs_encode(raw, &mut out).unwrap();
+        assert_eq!(&out[..n], enc);
+        let mut b = enc.to_vec();
+        let m = cobs_decode_in_place(&mut b).unwrap();
+        assert_eq!(&b[..m], raw);
+    }
+    // 254 non-zero bytes: one 0xFF block.
+    let raw: Vec<u8> = (1..=254).collect();
+    let mut out = [0u8; 300];
+    let n = cobs_encode(&raw, &mut out).unwrap();
+    assert_eq!(n, 255);
+    assert_eq!(out[0], 0xFF);
+    let mut b = out[..n].to_vec();
+    let m = cobs_decode_in_place(&mut b).unwrap();
+    assert_eq!(&b[..m], &raw[..]);
+}
+
+#[test]
+fn every_command_round_trips() {
+    let spec = test_spec();
+    let cmds = [
+        Command::Configure(spec),
+        Command::Enable,
+        Command::Disable,
+        Command::ClearFault,
+        Command::SetReference(Reference::Speed(150.0)),
+        Command::SetReference(Reference::Position(-3.5)),
+        Command::SetReference(Reference::Torque(-0.3)),
+        Command::SetReference(Reference::RotatingCurrent { amplitude_a: 1.0, omega_rad_s: 300.0 }),
+        Command::Step(Measurements {
+            i_abc_a: Abc { a: 1.0, b: -0.5, c: -0.5 },
+            vdc_v: 310.0,
+            omega_m_rad_s: f32::MIN_POSITIVE,
+            theta_m_rad: -1e-30,
+        }),
+        Command::GetStatus,
+        Command::WriteSpeedGains { kp: 0.05, tau_max_nm: 2.0 },
+        Command::ReadSpeedGains,
+    ];
+    let stream: Vec<u8> = cmds.iter().flat_map(frame_of).collect();
+    let (got, stats) = decode_all(&stream);
+    assert_eq!(got, cmds);
+    assert_eq!(stats.errors(), 0);
+    let mut p = [0u8; MAX_PAYLOAD];
+    let n = Command::Configure(spec).encode(&mut p).unwrap();
+    assert!(n <= MAX_PAYLOAD);
+    assert!(frame_of(&Command::Configure(spec)).len() <= MAX_FRAME);
+}
+
+#[test]
+fn replies_round_trip_bit_exact() {
+    let mut drive = crate::drive::Drive::new(crate::drive::DriveConfig::new(&test_spec()).unwrap());
+    drive.enable().unwrap();
+    let m = Measurements { i_abc_a: Abc { a: 0.1, b: 0.2, c: -0.3 }, vdc_v: 310.0, ..Default::default() };
+    let out = drive.step(&m);
+    let replies = [
+        Reply::Ack,
+        Reply::Nack(NackReason::Configuration),
+        Reply::Output(out),
+        Reply::Output(FastOutput {
+            phases: PhaseCommand::Off,
+            mode: Mode::Fault(Fault::Overcurrent),
+            telemetry: Telemetry::default(),
+        }),
+        Reply::Status { mode: Mode::Running, frames_ok: 7, frame_errors: u32::MAX },
+        Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 },
+        Reply::Nack(NackReason::OutOfCertifiedRange),
+    ];
+    for r in replies {
+        let mut f = [0u8; MAX_FRAME];
+        let n = reply_frame(&r, &mut f).unwrap();
+        let mut d = FrameDecoder::new();
+        let mut got = None;
+        for &b in &f[..n] {
+            if let Some(p) = d.push(b) {
+                got = Some(Reply::decode(p.unwrap()).unwrap());
+            }
+        }
+        assert_eq!(got, Some(r));
+    }
+}
+
+#[test]
+fn corrupted_frames_are_counted_and_the_next_frame_survives() {
+    let good = frame_of(&Command::SetReference(Reference::Speed(1.0)));
+    // Flip one bit in the body: a CRC (or COBS) error, then the good frame again.
+    for i in 0..good.len() - 1 {
+        for bit in 0..8 {
+            let mut bad = good.clone();
+            bad[i] ^= 1 << bit;
+            let stream: Vec<u8> = bad.iter().chain(good.iter()).copied().collect();
+            let (got, stats) = decode_all(&stream);
+            assert_eq!(got.last(), Some(&Command::SetReference(Reference::Speed(1.0))), "byte {i} bit {bit}");
+            // A flipped byte may become 0x00 (splitting the frame in two): every piece is
+            // rejected, none accepted.
+            assert!(stats.errors() >= 1, "byte {i} bit {bit}: {stats:?}");
+            assert_eq!(stats.frames_ok, 1);
+        }
+    }
+}
+
+#[test]
+fn malformed_payloads_are_rejected_with_their_reason() {
+    assert_eq!(Command::decode(&[]), Err(DecodeError::Length));
+    assert_eq!(Command::decode(&[0x7E]), Err(DecodeError::UnknownType(0x7E)));
+    assert_eq!(Command::decode(&[tag::ENABLE, 0]), Err(DecodeError::Length));
+    assert_eq!(Command::decode(&[tag::STEP, 1, 2, 3]), Err(DecodeError::Length));
+    let mut p = [0u8; MAX_PAYLOAD];
+    let n = Command::SetReference(Reference::Speed(1.0)).encode(&mut p).unwrap();
+    p[1] = 9; // reference tag
+    assert_eq!(Command::decode(&p[..n]), Err(DecodeError::Value));
+    // A motor with a negative resistance is refused at decode.
+    let n = Command::Configure(test_spec()).encode(&mut p).unwrap();
+    p[1..9].copy_from_slice(&(-1.0f64).to_le_bytes());
+    assert_eq!(Command::decode(&p[..n]), Err(DecodeError::Value));
+    // Oversized garbage without a delimiter, then a good frame.
+    let mut stream = vec![0x55u8; 3 * MAX_FRAME];
+    stream.push(0);
+    stream.extend(frame_of(&Command::Enable));
+    let (got, stats) = decode_all(&stream);
+    assert_eq!(got, [Command::Enable]);
+    assert_eq!(stats.too_long, 1);
+}
+
+proptest! {
+    #[test]
+    fn cobs_round_trips_and_never_emits_zero(raw in proptest::collection::vec(prop_oneof![Just(0u8), any::<u8>()], 0..700)) {
+        let mut enc = vec![0u8; raw.len() + raw.len() / 254 + 2];
+        let n = cobs_encode(&raw, &mut enc).unwrap();
+        prop_assert!(n <= raw.len() + raw.len() / 254 + 1);
+        prop_assert!(enc[..n].iter().all(|&b| b != 0));
+        let m = cobs_decode_in_place(&mut enc[..n]).unwrap();
+        prop_assert_eq!(&enc[..m], &raw[..]);
+    }
+
+    #[test]
+    fn arbitrary_bytes_never_panic_and_resync(bytes in proptest::collection::vec(any::<u8>(), 0..600)) {
+        let mut stream = bytes.clone();
+        stream.push(0);
+        stream.extend(frame_of(&Command::GetStatus));
+        let (got, _) = decode_all(&stream);
+        prop_assert_eq!(got.last(), Some(&Command::GetStatus));
+    }
+
+    #[test]
+    fn step_round_trips_any_bits(bits in proptest::array::uniform6(any::<u32>())) {
+        let f = |i: usize| f32::from_bits(bits[i]);
+        let m = Measurements { i_abc_a: Abc { a: f(0), b: f(1), c: f(2) }, vdc_v: f(3), omega_m_rad_s: f(4), theta_m_rad: f(5) };
+        let (got, _) = decode_all(&frame_of(&Command::Step(m)));
+        let Some(Command::Step(back)) = got.first().copied() else { panic!("no frame") };
+        let out = [back.i_abc_a.a, back.i_abc_a.b, back.i_abc_a.c, back.vdc_v, back.omega_m_rad_s, back.theta_m_rad];
+        for (i, v) in out.iter().enumerate() { prop_assert_eq!(v.to_bits(), bits[i]); }
+    }
+}
