@@ -7,78 +7,28 @@ pub const MAX_PAYLOAD: usize = 240;
 /// 254 bytes (plus one), and the 0x00.
 pub const MAX_FRAME: usize = MAX_PAYLOAD + 2 + (MAX_PAYLOAD + 2) / 254 + 1 + 1;
 
+/// CRC-16/CCITT-FALSE (the `crc` crate's CRC-16/IBM-3740: poly 0x1021, init 0xFFFF, no
+/// reflection), bitwise: no 512-byte table in flash for a few hundred bytes per frame.
+const CRC16: crc::Crc<u16, crc::NoTable> = crc::Crc::<u16, crc::NoTable>::new(&crc::CRC_16_IBM_3740);
+
 /// CRC-16/CCITT-FALSE of `data`.
 pub fn crc16(data: &[u8]) -> u16 {
-    let mut crc: u16 = 0xFFFF;
-    for &b in data {
-        crc ^= u16::from(b) << 8;
-        for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 { (crc << 1) ^ 0x1021 } else { crc << 1 };
-        }
-    }
-    crc
+    CRC16.checksum(data)
 }
 
 /// Why a buffer was too small for an encoded message or frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct BufferFull;
 
-/// COBS-encode `src` into `dst` (no delimiter). Returns the encoded length.
+/// COBS-encode `src` into `dst` (no delimiter; the `cobs` crate). Returns the encoded length.
 pub fn cobs_encode(src: &[u8], dst: &mut [u8]) -> Result<usize, BufferFull> {
-    // `code_at` is the index of the pending code byte, `n` the bytes written so far.
-    let mut code_at = 0usize;
-    let mut n = 1usize;
-    let mut code: u8 = 1;
-    let mut bytes = src.iter().peekable();
-    while let Some(&b) = bytes.next() {
-        if b != 0 {
-            *dst.get_mut(n).ok_or(BufferFull)? = b;
-            n += 1;
-            code += 1;
-        }
-        // A zero, or a full block of 254 data bytes, closes the block; a new code byte is
-        // opened only if input remains (the standard encoding of 254 bytes is 255 bytes).
-        if b == 0 || code == 0xFF {
-            *dst.get_mut(code_at).ok_or(BufferFull)? = code;
-            code = 1;
-            if b == 0 || bytes.peek().is_some() {
-                code_at = n;
-                n += 1;
-            } else {
-                return Ok(n);
-            }
-        }
-    }
-    *dst.get_mut(code_at).ok_or(BufferFull)? = code;
-    Ok(n)
+    cobs::try_encode(src, dst).map_err(|_| BufferFull)
 }
 
-/// COBS-decode `buf` in place (no delimiter inside). Returns the decoded length, or `None` if
-/// `buf` is not valid COBS (a zero byte, or a code running past the end).
+/// COBS-decode `buf` in place (no delimiter inside; the `cobs` crate). Returns the decoded
+/// length, or `None` if `buf` is not valid COBS (a code running past the end).
 pub fn cobs_decode_in_place(buf: &mut [u8]) -> Option<usize> {
-    let mut read = 0usize;
-    let mut write = 0usize;
-    while read < buf.len() {
-        let code = *buf.get(read)?;
-        if code == 0 {
-            return None;
-        }
-        read += 1;
-        for _ in 1..code {
-            let b = *buf.get(read)?;
-            if b == 0 {
-                return None;
-            }
-            *buf.get_mut(write)? = b;
-            read += 1;
-            write += 1;
-        }
-        if code != 0xFF && read < buf.len() {
-            *buf.get_mut(write)? = 0;
-            write += 1;
-        }
-    }
-    Some(write)
+    cobs::decode_in_place(buf).ok()
 }
 
 /// Frame-level errors (reported at the delimiter that ends the bad frame).
