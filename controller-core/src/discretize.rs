@@ -162,61 +162,9 @@ pub fn delta_at(omega_rad_s: f64, ts_s: f64) -> Complex {
     Complex::new(-2.0 * s * s, 2.0 * s * c)
 }
 
-/// Minimal complex number for design-time frequency responses (no_std, f64).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Complex {
-    /// Real part.
-    pub re: f64,
-    /// Imaginary part.
-    pub im: f64,
-}
-
-impl Complex {
-    /// `re + j·im`.
-    pub const fn new(re: f64, im: f64) -> Self {
-        Self { re, im }
-    }
-    /// Magnitude.
-    pub fn abs(self) -> f64 {
-        libm::hypot(self.re, self.im)
-    }
-    /// Phase in rad.
-    pub fn arg(self) -> f64 {
-        libm::atan2(self.im, self.re)
-    }
-}
-
-impl core::ops::Add for Complex {
-    type Output = Self;
-    fn add(self, o: Self) -> Self {
-        Complex::new(self.re + o.re, self.im + o.im)
-    }
-}
-impl core::ops::Sub for Complex {
-    type Output = Self;
-    fn sub(self, o: Self) -> Self {
-        Complex::new(self.re - o.re, self.im - o.im)
-    }
-}
-impl core::ops::Mul for Complex {
-    type Output = Self;
-    fn mul(self, o: Self) -> Self {
-        Complex::new(self.re * o.re - self.im * o.im, self.re * o.im + self.im * o.re)
-    }
-}
-impl core::ops::Mul<f64> for Complex {
-    type Output = Self;
-    fn mul(self, k: f64) -> Self {
-        Complex::new(self.re * k, self.im * k)
-    }
-}
-impl core::ops::Div for Complex {
-    type Output = Self;
-    fn div(self, o: Self) -> Self {
-        let d = o.re * o.re + o.im * o.im;
-        Complex::new((self.re * o.re + self.im * o.im) / d, (self.im * o.re - self.re * o.im) / d)
-    }
-}
+/// Complex number of the frequency responses: `num_complex::Complex64` (no_std, `libm`), the
+/// same type the design toolkit computes with.
+pub type Complex = num_complex::Complex64;
 
 #[cfg(test)]
 mod tests {
@@ -234,8 +182,8 @@ mod tests {
         let s = Complex::new(-50.0, 200.0);
         let k = Complex::new(2.0 / TS, 0.0);
         let zp = (k + s) / (k - s);
-        assert!((libm::sqrt(a[2]) - zp.abs()).abs() < 1e-12);
-        assert!((zp.abs() - 0.9975).abs() < 1e-4);
+        assert!((libm::sqrt(a[2]) - zp.norm()).abs() < 1e-12);
+        assert!((zp.norm() - 0.9975).abs() < 1e-4);
         // α0 = 1 + a1 + a2 computed analytically equals the z-form sum.
         assert!((d.den[2] - (1.0 + a[1] + a[2])).abs() < 1e-15);
     }
@@ -247,7 +195,7 @@ mod tests {
         assert!((dc.re - 160_000.0 / 42_500.0).abs() < 1e-9);
         let w0 = 3000.0;
         let p = LAG.to_delta(TS, Discretization::TustinPrewarped { omega_rad_s: w0 }).unwrap();
-        let err = (p.response(w0, TS) - LAG.response(w0)).abs() / LAG.response(w0).abs();
+        let err = (p.response(w0, TS) - LAG.response(w0)).norm() / LAG.response(w0).norm();
         assert!(err < 1e-12, "prewarped error at ω0: {err}");
     }
 

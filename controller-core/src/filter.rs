@@ -182,7 +182,7 @@ pub(crate) mod tests {
         let delta_err = (bq.coefficients().response(1e-6, TS).re - ideal).abs() / ideal;
         let (b, a) = d.to_z();
         let r = |x: [f64; 3]| x.map(|c| f64::from(c as f32));
-        let df_err = (df_response(r(b), r(a), 1e-6).abs() - ideal).abs() / ideal;
+        let df_err = (df_response(r(b), r(a), 1e-6).norm() - ideal).abs() / ideal;
         eprintln!("DC gain error with f32 coefficients: δ-form {delta_err:.2e}, direct form {df_err:.2e}");
         assert!(delta_err < 1e-6);
         assert!(df_err > 1e-4, "direct-form rounding error unexpectedly small: {df_err}");
@@ -233,7 +233,7 @@ pub(crate) mod tests {
         let q16 = |c: f64| (c * 65536.0).round() / 65536.0;
         let rounded = DeltaCoefficients { second_order: true, num: d.num.map(q16), den: d.den.map(q16) };
         let ideal = 160_000.0 / 42_500.0;
-        let err = (rounded.response(1e-6, TS).abs() - ideal).abs() / ideal;
+        let err = (rounded.response(1e-6, TS).norm() - ideal).abs() / ideal;
         eprintln!("DC gain error with 16 fractional bits: {err:.2e}");
         assert!(err > 1e-2);
     }

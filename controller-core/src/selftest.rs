@@ -112,7 +112,7 @@ pub fn icad_time_domain_response(quick: bool) -> Check {
                 }
             }
             let expected = CurrentLaw::ICAD_EQ20.response(w);
-            worst = worst.max((fit.phasor() - expected).abs() / expected.abs());
+            worst = worst.max((fit.phasor() - expected).norm() / expected.norm());
         }
     }
     Check { name: "ICAD eq. (20) sine response vs k(jw), rel. error", measured: worst, limit: 3e-3 }

@@ -81,7 +81,6 @@ pub fn analyse(m: &MotorParams, law: &CurrentLaw, omega_r: f64) -> IcadReport {
     for &x in &w {
         let g = model.response(x);
         let k = law.response(x);
-        let k = Complex64::new(k.re, k.im);
         let gamma = g.gamma();
         let h2 = k * g.g22 / (one + k * g.g22);
         let c1 = k * g.g11 * (one - gamma * h2);
@@ -95,7 +94,7 @@ pub fn analyse(m: &MotorParams, law: &CurrentLaw, omega_r: f64) -> IcadReport {
     let kg_wr = {
         let g = model.response(omega_r.abs().max(1e-3));
         let k = law.response(omega_r.abs().max(1e-3));
-        20.0 * (Complex64::new(k.re, k.im) * g.g11).norm().log10()
+        20.0 * (k * g.g11).norm().log10()
     };
     IcadReport {
         omega_r_rad_s: omega_r,

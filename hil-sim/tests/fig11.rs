@@ -49,7 +49,7 @@ fn simulated_and_predicted(b: &hil_sim::scenario::Builtin) -> (f64, f64) {
         CurrentControllerConfig::<f32>::new(&CurrentLaw::ICAD_EQ20, ts, Discretization::Tustin, 1e3).unwrap();
     let delay = Complex::new((-1.5 * w * ts).cos(), (-1.5 * w * ts).sin());
     let l = k.response(w, ts) * plant(&b.plant, w) * delay;
-    let predicted = (Complex::new(1.0, 0.0) / (Complex::new(1.0, 0.0) + l)).abs() * 1.0;
+    let predicted = (Complex::new(1.0, 0.0) / (Complex::new(1.0, 0.0) + l)).norm() * 1.0;
     eprintln!(
         "{}, 300 rad/s, A = 1 A: simulated error amplitude {:.5} A ({:.2} %), linear prediction {:.5} A",
         b.name,
