@@ -137,7 +137,7 @@ fn certify_the_shipped_drive_and_reject_a_bad_range() {
 }
 
 /// `design recycle --json`: Table I verification and the optima, with the findings the
-/// README states (printed optimum unstable, exact optima robust), and the plots.
+/// docs (docs/design-toolkit.md) state (printed optimum unstable, exact optima robust), and the plots.
 #[test]
 fn recycle_json_contract_and_plots() {
     let dir = std::env::temp_dir().join(format!("design-recycle-{}", std::process::id()));

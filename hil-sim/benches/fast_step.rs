@@ -1,4 +1,4 @@
-//! Host cost of one drive step (criterion). The figure quoted in the README comes from
+//! Host cost of one drive step (criterion). The figure quoted in docs/performance.md comes from
 //! `cargo bench -p hil-sim --bench fast_step`.
 //!
 //! * `drive_step_running`: `Drive::step` in Running (supervisor, Clarke, IFOC with

@@ -235,7 +235,7 @@ pub fn fig14_position() -> Result<Builtin, ScenarioError> {
 /// v_d = R_s i_d − ω_e σL_s i_q, v_q = R_s i_q + ω_e L_s i_d at the top of the ramp give
 /// |v| ≈ 167 V for ψ* = 0.35 Wb and τ_max = 0.4 N·m (i_d = 0.246 A, i_q = 0.805 A,
 /// ω_sl = 50 rad/s). With ψ* = 0.4 Wb and τ_max = 1 N·m the voltage limit is reached near
-/// 230 rad/s and the stationary ICAD loop loses control (documented in the README).
+/// 230 rad/s and the stationary ICAD loop loses control (docs/verification.md).
 pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, ScenarioError> {
     let mut b = speed_step()?;
     b.name = name.into();

@@ -1,6 +1,6 @@
 //! Host cost of one plant step (criterion), the other half of a simulated PWM period next
 //! to `Drive::step` (`cargo bench -p hil-sim --bench fast_step`). The figure quoted
-//! in the README comes from `cargo bench -p hil-sim --bench plant_step`.
+//! in docs/performance.md comes from `cargo bench -p plant --bench plant_step`.
 //!
 //! * `rk4_step_chained`: one RK4 step ([`plant::Rk4::step`], as the simulator
 //!   takes it) of the DeLorenzo machine at 50 µs, each step starting
