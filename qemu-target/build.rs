@@ -18,6 +18,10 @@ fn main() {
         println!("cargo::error=cannot write memory.x: {e}");
     }
     println!("cargo::rustc-link-search={}", out.display());
+    // The on-target tests log through defmt (tests/selftest.rs).
+    if target.starts_with("thumb") {
+        println!("cargo::rustc-link-arg-tests=-Tdefmt.x");
+    }
     let drive = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("drive.toml");
     println!("cargo::rerun-if-changed={}", drive.display());
     match drive_file::DriveFile::load(&drive) {

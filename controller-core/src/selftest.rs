@@ -1,5 +1,5 @@
 //! Control-law checks that run anywhere: on the host (unit test below), on an emulated
-//! Cortex-M4F and Cortex-M3 (`qemu-target`'s `target-tests`), and on a board as a
+//! Cortex-M4F and Cortex-M3 (`qemu-target/tests/selftest.rs`, defmt-test), and on a board as a
 //! commissioning self-test. Each check measures one quantity and compares it with a limit
 //! justified in its doc comment; none allocates.
 //!

@@ -2,6 +2,8 @@
 //!
 //! * [`control`]: the control interrupt's body — ADC codes and encoder counter in, compare
 //!   values out — around `controller_core::drive::Drive`;
+//! * [`output`]: the output stage — MOE, the break flag and the compare registers behind a
+//!   trait, host-tested against a model of the timer's break logic;
 //! * [`server`]: the command/telemetry link's command handling;
 //! * [`config`]: the drive and board constants, generated from `drive.toml` at build time —
 //!   the pin map is in `main.rs`'s `pins` module, next to the peripherals it names.
@@ -13,4 +15,5 @@
 
 pub mod config;
 pub mod control;
+pub mod output;
 pub mod server;

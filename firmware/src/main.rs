@@ -47,7 +47,8 @@ mod target {
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
     use firmware::config::{BOARD, DEAD_TIME_TICKS, drive_spec};
-    use firmware::control::{Bridge, ControlError, ControlLoop, Samples};
+    use firmware::control::{ControlError, ControlLoop, Samples};
+    use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
 
     bind_interrupts!(struct Irqs {
@@ -58,8 +59,46 @@ mod target {
 
     /// The control loop, shared by the control interrupt and the link task.
     static CONTROL: Mutex<RefCell<Option<ControlLoop>>> = Mutex::new(RefCell::new(None));
+    /// The output stage's state (whether the firmware enabled MOE), the control interrupt's.
+    static OUTPUTS: Mutex<core::cell::Cell<Outputs>> = Mutex::new(core::cell::Cell::new(Outputs::new()));
     /// Control interrupts served; the watchdog task is fed only while this advances.
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
+
+    /// TIM1 as the control interrupt's output stage (`firmware::output`, host-tested
+    /// against a model of this logic).
+    struct Tim1;
+
+    /// TIM1_SR's `rc_w0` flags (RM0440 §28.6.5): UIF, CC1IF–CC4IF, COMIF, TIF (bits 0–6),
+    /// B2IF, CC1OF–CC4OF, SBIF (8–13), CC5IF, CC6IF (16, 17), IDXF, DIRF, IERRF, TERRF
+    /// (20–23). Writing 1 leaves a flag alone, 0 clears it.
+    const SR_RC_W0_FLAGS: u32 = 0x00F3_3F7F | (1 << 7);
+    /// BIF, bit 7.
+    const SR_BIF: u32 = 1 << 7;
+
+    impl OutputStage for Tim1 {
+        fn break_flag(&mut self) -> bool {
+            pac::TIM1.sr().read().bif(0)
+        }
+        fn clear_break_flag(&mut self) {
+            // A mask, not read-modify-write: flags set meanwhile are kept.
+            pac::TIM1.sr().write_value(pac::timer::regs::SrAdv(SR_RC_W0_FLAGS & !SR_BIF));
+        }
+        fn outputs_enabled(&mut self) -> bool {
+            pac::TIM1.bdtr().read().moe()
+        }
+        fn set_compare(&mut self, [a, b, c]: [u16; 3]) {
+            let tim = pac::TIM1;
+            tim.ccr(0).write(|w| w.set_ccr(a));
+            tim.ccr(1).write(|w| w.set_ccr(b));
+            tim.ccr(2).write(|w| w.set_ccr(c));
+        }
+        fn enable_outputs(&mut self) {
+            pac::TIM1.bdtr().modify(|w| w.set_moe(true));
+        }
+        fn disable_outputs(&mut self) {
+            pac::TIM1.bdtr().modify(|w| w.set_moe(false));
+        }
+    }
 
     fn clocks() -> Config {
         use embassy_stm32::rcc::{
@@ -107,6 +146,12 @@ mod target {
     #[embassy_executor::main]
     async fn main(spawner: Spawner) {
         let p = embassy_stm32::init(clocks());
+        // A breakpoint stops TIM1 (outputs frozen in their idle state by the break logic's
+        // OSSI) and the independent watchdog with the core, instead of leaving the PWM running.
+        pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
+        pac::DBGMCU.apb1lfzr().modify(|w| w.set_iwdg(true));
+        // A core lockup (e.g. a fault inside the HardFault handler) is a TIM1 break input.
+        pac::SYSCFG.cfgr2().modify(|w| w.set_cll(true));
         let pins = Pins {
             pwm_high: (p.PA8, p.PA9, p.PA10),
             pwm_low: (p.PB13, p.PB14, p.PB15),
@@ -174,6 +219,9 @@ mod target {
             pwm.set_duty(ch, u32::from(BOARD.pwm_period_counts / 2));
             pwm.enable(ch);
         }
+        // Lock level 1: dead time, idle states and the break configuration (BKE, BKP, AOE)
+        // can no longer be written until reset. MOE stays writable.
+        pac::TIM1.bdtr().modify(|w| w.set_lock(pac::timer::vals::Lock::LEVEL1));
         // Sampling instant: the phases run PWM mode 1 (high side on while CNT < CCR), so the
         // low sides conduct around the top of the count, CNT = ARR. Channel 4 (no pin) in
         // PWM mode 2 with CCR4 = ARR − 1 raises OC4REF once per period just before the top;
@@ -252,34 +300,27 @@ mod target {
         if !adc.isr().read().jeos() {
             return;
         }
-        // Samples in: currents, bus, encoder, break flag.
-        let tim = pac::TIM1;
-        let hardware_break = tim.sr().read().bif(0);
-        if hardware_break {
-            tim.sr().modify(|w| w.set_bif(0, false));
-        }
+        // Samples in: currents, bus, encoder (the break flag is the output stage's).
         let samples = Samples {
             i_abc: [adc.jdr(0).read().jdata(), adc.jdr(1).read().jdata(), adc.jdr(2).read().jdata()],
             vdc: adc.jdr(3).read().jdata(),
             encoder: pac::TIM4.cnt().read().cnt(),
-            hardware_break,
+            hardware_break: false,
         };
         adc.isr().write(|w| w.set_jeos(true));
-        // Control step.
-        let bridge =
-            critical_section::with(|cs| CONTROL.borrow_ref_mut(cs).as_mut().map(|c| c.step(&samples)));
-        // Compare values out (preloaded: they take effect at the next update).
-        match bridge {
-            Some(Bridge::Compare([a, b, c])) => {
-                tim.ccr(0).write(|w| w.set_ccr(a));
-                tim.ccr(1).write(|w| w.set_ccr(b));
-                tim.ccr(2).write(|w| w.set_ccr(c));
-                if !tim.bdtr().read().moe() {
-                    tim.bdtr().modify(|w| w.set_moe(true));
+        // Break detection → control step → compare values (preloaded: they take effect at
+        // the next update) and MOE, set only on an explicit enable.
+        critical_section::with(|cs| {
+            let outputs = OUTPUTS.borrow(cs);
+            match CONTROL.borrow_ref_mut(cs).as_mut() {
+                Some(ctl) => {
+                    let mut o = outputs.get();
+                    o.period(&mut Tim1, ctl, samples);
+                    outputs.set(o);
                 }
+                None => Tim1.disable_outputs(),
             }
-            Some(Bridge::Off) | None => tim.bdtr().modify(|w| w.set_moe(false)),
-        }
+        });
         ISR_COUNT.fetch_add(1, Ordering::Relaxed);
     }
 
@@ -337,23 +378,40 @@ mod target {
         }
     }
 
-    /// Bridge off (MOE = 0), then wait for the watchdog or the debugger.
+    /// Interrupts masked, bridge off (MOE = 0) for good, then wait for the watchdog or the
+    /// debugger.
     fn halt_safe() -> ! {
-        pac::TIM1.bdtr().modify(|w| w.set_moe(false));
+        stop_for_good(cortex_m::interrupt::disable, &mut Tim1);
         loop {
             cortex_m::asm::wfi();
         }
     }
 
-    /// A panic turns the bridge off first, logs, and waits for the watchdog reset.
+    /// A panic masks every interrupt (no control interrupt can set MOE again), turns the
+    /// bridge off, logs, and waits for the watchdog reset. `cargo xtask build-fw` checks in
+    /// the disassembly that `cpsid` comes before the handler's first store.
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
-        pac::TIM1.bdtr().modify(|w| w.set_moe(false));
-        // File and line only: formatting the message would link core::fmt (≈ 10 KiB).
+        stop_for_good(cortex_m::interrupt::disable, &mut Tim1);
+        // File and line only: formatting the message would link core::fmt (≈ 10 KiB). With
+        // interrupts masked, defmt-rtt does not wait for the probe.
         match info.location() {
             Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
             None => defmt::error!("panic"),
         }
+        loop {
+            cortex_m::asm::nop();
+        }
+    }
+
+    /// A HardFault (flip-link turns a stack overflow into one) masks every interrupt and
+    /// turns the bridge off for good, instead of the default `b .` that left the PWM running
+    /// with frozen duties; the watchdog then resets the MCU.
+    #[cortex_m_rt::exception]
+    // SAFETY: (of the attribute's contract) the handler never returns and touches only TIM1's
+    // BDTR through the PAC, after masking interrupts.
+    unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+        stop_for_good(cortex_m::interrupt::disable, &mut Tim1);
         loop {
             cortex_m::asm::nop();
         }

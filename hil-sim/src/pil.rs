@@ -11,7 +11,7 @@
 //!
 //! Speed: every round trip is two semihosting calls on the target and a write and a read
 //! here, each of which wakes the other process. With QEMU and the calling thread on one CPU
-//! (the default, [`PilOptions::pin_cpu`]; via `taskset`) a wake-up is a context switch
+//! (the default, [`PilOptions::pin_cpu`]; `sched_setaffinity` through `nix`) a wake-up is a context switch
 //! instead of a cross-CPU hand-off, several times faster.
 //!
 //! Opening a FIFO blocks until the other side opens it; the opens run on a helper thread
@@ -21,6 +21,9 @@ use crate::link_client::LinkClient;
 use crate::sim::DriveUnderTest;
 use controller_core::drive::{DriveSpec, FastOutput, Measurements, Mode, PhaseCommand, Reference, Telemetry};
 use controller_core::link::{Command, LinkStats, Reply};
+use nix::sched::{CpuSet, sched_getaffinity, sched_setaffinity};
+use nix::sys::stat::Mode as FileMode;
+use nix::unistd::{Pid, mkfifo};
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Stdio};
@@ -56,31 +59,26 @@ impl Default for PilOptions {
     }
 }
 
-/// The calling thread's id and CPU list as `taskset` prints it, or None without Linux
-/// `/proc` or `taskset`.
-fn thread_affinity() -> Option<(String, String)> {
-    let link = std::fs::read_link("/proc/thread-self").ok()?;
-    let tid = link.file_name()?.to_string_lossy().into_owned();
-    let out = Process::new("taskset").args(["-p", "-c", &tid]).stderr(Stdio::null()).output().ok()?;
-    let text = String::from_utf8_lossy(&out.stdout);
-    let list = text.rsplit(": ").next()?.trim().to_string();
-    out.status.success().then_some((tid, list))
+/// Pin the calling thread to `cpu`; returns its previous CPU set to restore. A process
+/// spawned from this thread inherits the pinning (`sched_setaffinity(2)`).
+fn pin_thread(cpu: usize) -> Option<CpuSet> {
+    let this = Pid::from_raw(0);
+    let before = sched_getaffinity(this).ok()?;
+    let mut one = CpuSet::new();
+    one.set(cpu).ok()?;
+    sched_setaffinity(this, &one).ok()?;
+    Some(before)
 }
 
-fn set_thread_affinity(tid: &str, list: &str) -> bool {
-    Process::new("taskset")
-        .args(["-p", "-c", list, tid])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
+fn restore_thread(cpus: &CpuSet) {
+    let _ = sched_setaffinity(Pid::from_raw(0), cpus);
 }
 
 /// A drive on the emulated MCU.
 #[derive(Debug)]
 pub struct Pil {
-    /// Thread id and CPU list to restore when pinned.
-    restore_affinity: Option<(String, String)>,
+    /// The calling thread's CPU set before it was pinned, to restore.
+    restore_affinity: Option<CpuSet>,
     qemu: Child,
     dir: PathBuf,
     link: LinkClient<File, File>,
@@ -103,35 +101,22 @@ impl Pil {
         }
         let dir = fresh_dir()?;
         for name in ["to_mcu", "from_mcu"] {
-            let st = Process::new("mkfifo")
-                .arg(dir.join(name))
-                .status()
-                .map_err(|e| format!("cannot run mkfifo: {e}"))?;
-            if !st.success() {
-                return Err(format!("mkfifo {} failed", dir.join(name).display()));
+            if let Err(e) = mkfifo(&dir.join(name), FileMode::S_IRUSR | FileMode::S_IWUSR) {
+                let _ = std::fs::remove_dir_all(&dir);
+                return Err(format!("cannot make the FIFO {}: {e}", dir.join(name).display()));
             }
         }
         let log = File::create(dir.join("qemu.log")).map_err(|e| format!("cannot create qemu.log: {e}"))?;
         let log2 = log.try_clone().map_err(|e| e.to_string())?;
-        // Pin this thread first (remembering its CPUs), then start QEMU on the same CPU.
-        let pinned = opts.pin_cpu.and_then(|cpu| {
-            let (tid, list) = thread_affinity()?;
-            set_thread_affinity(&tid, &cpu.to_string()).then_some((tid, list, cpu))
-        });
-        let mut launcher = match &pinned {
-            Some((_, _, cpu)) => {
-                let mut p = Process::new("taskset");
-                p.args(["-c", &cpu.to_string(), &qemu_binary()]);
-                p
-            }
-            None => Process::new(qemu_binary()),
-        };
-        let restore_affinity = pinned.map(|(tid, list, _)| (tid, list));
-        let restore = |r: &Option<(String, String)>| {
-            if let Some((tid, list)) = r {
-                set_thread_affinity(tid, list);
+        // Pin this thread first (remembering its CPUs): QEMU, spawned from it, inherits the
+        // pinning and runs on the same CPU.
+        let restore_affinity = opts.pin_cpu.and_then(pin_thread);
+        let restore = |r: &Option<CpuSet>| {
+            if let Some(cpus) = r {
+                restore_thread(cpus);
             }
         };
+        let mut launcher = Process::new(qemu_binary());
         let spawned = launcher
             .args(["-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
@@ -257,8 +242,8 @@ impl Drop for Pil {
         let _ = self.qemu.kill();
         let _ = self.qemu.wait();
         let _ = std::fs::remove_dir_all(&self.dir);
-        if let Some((tid, list)) = &self.restore_affinity {
-            set_thread_affinity(tid, list);
+        if let Some(cpus) = &self.restore_affinity {
+            restore_thread(cpus);
         }
     }
 }

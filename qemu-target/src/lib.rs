@@ -1,11 +1,12 @@
 //! controller-core on an emulated Cortex-M, with no board.
 //!
-//! Three programs, all run by QEMU with semihosting (`cargo xtask qemu` builds and runs them;
-//! `hil-sim pil` starts the second):
-//! - `target-tests` — the control laws exercised on the target: prints one line per test
-//!   and a closing `N passed, M failed`, exits 0/1. On `mps2-an386` (Cortex-M4F, f32 on
-//!   the FPU) and on `lm3s6965evb` (Cortex-M3, thumbv7m, no FPU: f32 in software, plus the
-//!   `Q32` fixed-point current controller compared with the f32 one).
+//! On-target tests and two programs, all run by QEMU with semihosting (`cargo xtask qemu`
+//! builds and runs them; `hil-sim pil` starts the first program):
+//! - `tests/selftest.rs` — the control laws exercised on the target as `defmt-test` tests:
+//!   `cargo test --target thumbv7em-none-eabihf --release` runs them on `mps2-an386`
+//!   (Cortex-M4F, f32 on the FPU), `--target thumbv7m-none-eabi` on `lm3s6965evb`
+//!   (Cortex-M3, no FPU: f32 in software, plus the `Q32` fixed-point current controller
+//!   compared with the f32 one); the runner (`run-qemu.sh`) is in `.cargo/config.toml`.
 //! - `pil` — processor in the loop: reads link frames ([`controller_core::link`]) from the
 //!   host file `to_mcu`, runs the drive exactly as the firmware's control interrupt does
 //!   (`Drive::step` per `Step` frame) and writes replies to `from_mcu`. Both files are FIFOs
@@ -14,11 +15,11 @@
 //! - `cost` — executed instructions per fast and slow step, measured with SysTick under
 //!   `-icount shift=0` (1 instruction = 1 ns of virtual time, SysTick at 25 MHz on mps2).
 //!
-//! This library holds what the three share: semihosting file I/O, console output, exit
+//! This library holds what they share: semihosting file I/O, console output, exit
 //! status, the panic handler. It is empty on the host.
 #![no_std]
 
-/// The firmware's drive (`drive.toml`), generated at build time: what `target-tests` and
+/// The firmware's drive (`drive.toml`), generated at build time: what the self-tests and
 /// `cost` run.
 pub mod drive {
     include!(concat!(env!("OUT_DIR"), "/drive.rs"));

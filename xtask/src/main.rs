@@ -6,8 +6,9 @@
 //!   `controller-core` on its own (proof that it is no_std without the host's `std` feature),
 //!   and the firmware release build with its flash/RAM use.
 //!   Then the emulated-target steps (`qemu`): fmt and clippy of `qemu-target` (a workspace
-//!   of its own), its builds for the Cortex-M4F and the Cortex-M3, the control-law self-tests
-//!   on QEMU `mps2-an386` and `lm3s6965evb`, the instruction-count benchmark
+//!   of its own), its build for the Cortex-M4F, the control-law self-tests as `defmt-test`
+//!   tests on QEMU `mps2-an386` and `lm3s6965evb` (`cargo test --target …` in `qemu-target`,
+//!   runner in `qemu-target/.cargo/config.toml`), the instruction-count benchmark
 //!   (`-icount shift=0`), and the processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu`, `fuzz` — single
@@ -15,7 +16,7 @@
 //!   `ci` and `lint`; see [`module_cycles`]).
 //!
 //! The closing line `tests: N passed, M failed` sums cargo's `test result:` lines and the
-//! target harness's `N passed, M failed` lines.
+//! defmt-test runs' (`(k/N) running …`, `all tests passed!`, decoded by `defmt-print`).
 
 use std::process::{Command, ExitCode};
 
@@ -77,35 +78,17 @@ const M3: &str = "thumbv7m-none-eabi";
 const Q_FMT: Step = Step::in_qemu_target("qemu-target fmt", &["fmt", "--", "--check"]);
 const Q_CLIPPY: Step = Step::in_qemu_target(
     "qemu-target clippy",
-    &["clippy", "--target", THUMB, "--release", "--", "-D", "warnings"],
+    &["clippy", "--target", THUMB, "--release", "--bins", "--test", "selftest", "--", "-D", "warnings"],
 );
 const Q_BUILD_M4: Step =
     Step::in_qemu_target("qemu-target build (M4F)", &["build", "--target", THUMB, "--release", "--bins"]);
-const Q_BUILD_M3: Step = Step::in_qemu_target(
-    "qemu-target build (M3)",
-    &["build", "--target", M3, "--release", "--bin", "target-tests"],
+const Q_TESTS_M4: Step = Step::in_qemu_target(
+    "target tests on QEMU mps2-an386 (Cortex-M4F; defmt-test, qemu-target/tests/selftest.rs)",
+    &["test", "--target", THUMB, "--release", "--test", "selftest"],
 );
-const Q_TESTS_M4: Step = Step::qemu(
-    "target tests on QEMU mps2-an386 (Cortex-M4F)",
-    &[
-        "-cpu",
-        "cortex-m4",
-        "-machine",
-        "mps2-an386",
-        "-kernel",
-        "qemu-target/target/thumbv7em-none-eabihf/release/target-tests",
-    ],
-);
-const Q_TESTS_M3: Step = Step::qemu(
-    "target tests on QEMU lm3s6965evb (Cortex-M3, soft-float, Q32)",
-    &[
-        "-cpu",
-        "cortex-m3",
-        "-machine",
-        "lm3s6965evb",
-        "-kernel",
-        "qemu-target/target/thumbv7m-none-eabi/release/target-tests",
-    ],
+const Q_TESTS_M3: Step = Step::in_qemu_target(
+    "target tests on QEMU lm3s6965evb (Cortex-M3, soft-float, Q32; defmt-test)",
+    &["test", "--target", M3, "--release", "--test", "selftest"],
 );
 const Q_COST: Step = Step::qemu(
     "instructions per step on the Cortex-M4F (QEMU -icount shift=0)",
@@ -133,20 +116,38 @@ const FUZZ: Step = Step {
     // cargo fuzz passes nightly-only flags (sanitizer, coverage) to the stable compiler.
     env: &[("RUSTC_BOOTSTRAP", "1")],
 };
-const QEMU_STEPS: [&Step; 8] =
-    [&Q_FMT, &Q_CLIPPY, &Q_BUILD_M4, &Q_BUILD_M3, &Q_TESTS_M4, &Q_TESTS_M3, &Q_COST, &PIL];
+const QEMU_STEPS: [&Step; 7] = [&Q_FMT, &Q_CLIPPY, &Q_BUILD_M4, &Q_TESTS_M4, &Q_TESTS_M3, &Q_COST, &PIL];
 
 /// Test totals summed over every `test result:` line cargo printed.
 #[derive(Default)]
 struct Totals {
     passed: u64,
     failed: u64,
+    /// The last `(k/N) running` line of a defmt-test run in the current step.
+    target_run: Option<(u64, u64)>,
 }
 
 impl Totals {
     /// Parse `test result: ok. 58 passed; 0 failed; …` (cargo) and `9 passed, 0 failed`
     /// (the target harness).
     fn add_line(&mut self, line: &str) {
+        // defmt-test on QEMU (decoded by defmt-print): `(3/10) running `name`...`, then
+        // `all tests passed!`.
+        if let Some((_, rest)) = line.split_once('(')
+            && let Some((kn, tail)) = rest.split_once(')')
+            && tail.trim_start().starts_with("running")
+            && let Some((k, n)) = kn.split_once('/')
+            && let (Ok(k), Ok(n)) = (k.parse::<u64>(), n.parse::<u64>())
+        {
+            self.target_run = Some((k, n));
+            return;
+        }
+        if line.contains("all tests passed!")
+            && let Some((_, n)) = self.target_run.take()
+        {
+            self.passed += n;
+            return;
+        }
         if let Some((p, f)) = line.split_once(" passed, ")
             && let (Ok(p), Some(Ok(f))) =
                 (p.trim().parse::<u64>(), f.strip_suffix(" failed").map(|f| f.trim().parse::<u64>()))
@@ -166,6 +167,14 @@ impl Totals {
         };
         self.passed += count(" passed");
         self.failed += count(" failed");
+    }
+
+    /// End of a step: a defmt-test run that stopped at test k of N passed k − 1 and failed one.
+    fn finish_step(&mut self) {
+        if let Some((k, _)) = self.target_run.take() {
+            self.passed += k.saturating_sub(1);
+            self.failed += 1;
+        }
     }
 }
 
@@ -202,7 +211,9 @@ fn run_counting(step: &Step, totals: &mut Totals) -> bool {
             totals.add_line(&line);
         }
     }
-    match child.wait() {
+    let status = child.wait();
+    totals.finish_step();
+    match status {
         Ok(s) if s.success() => true,
         Ok(s) => {
             eprintln!("xtask: step `{}` failed with {s}", step.name);
@@ -276,6 +287,89 @@ fn report_firmware_size() -> bool {
             false
         }
     }
+}
+
+/// `llvm-objdump` of the `llvm-tools` rustup component (`.ci/run` installs it).
+fn llvm_objdump() -> Result<std::path::PathBuf, String> {
+    let out = |args: &[&str]| -> Result<String, String> {
+        let o = Command::new("rustc").args(args).output().map_err(|e| format!("rustc: {e}"))?;
+        Ok(String::from_utf8_lossy(&o.stdout).into_owned())
+    };
+    let sysroot = out(&["--print", "sysroot"])?;
+    let host = out(&["-vV"])?
+        .lines()
+        .find_map(|l| l.strip_prefix("host: ").map(str::to_string))
+        .ok_or("rustc -vV names no host")?;
+    let p =
+        std::path::Path::new(sysroot.trim()).join("lib/rustlib").join(host.trim()).join("bin/llvm-objdump");
+    if p.is_file() {
+        Ok(p)
+    } else {
+        Err(format!("{} missing: `rustup component add llvm-tools`", p.display()))
+    }
+}
+
+/// In the disassembly `dis`, the first of {`cpsid`, a store that is not a push, a call} in
+/// the function whose label ends with `name_suffix`; `None` if the function is not found.
+fn first_effect(dis: &str, name_suffix: &str) -> Option<String> {
+    let mut lines = dis.lines().skip_while(|l| !(l.ends_with(">:") && l.contains(name_suffix)));
+    lines.next()?;
+    for l in lines {
+        if l.trim().is_empty() {
+            break;
+        }
+        let Some(mnemonic) = l.split('\t').nth(1).map(str::trim) else { continue };
+        if mnemonic.starts_with("cpsid")
+            || mnemonic.starts_with("str")
+            || mnemonic.starts_with("stm")
+            || mnemonic == "bl"
+            || mnemonic == "blx"
+        {
+            return Some(l.trim().to_string());
+        }
+    }
+    Some(String::from("(none)"))
+}
+
+/// Issue 19: the panic and HardFault handlers of the shipped firmware mask interrupts
+/// (`cpsid i`) before their first store or call — before they touch TIM1 — so that no
+/// control interrupt can run again and set MOE.
+fn check_fault_handlers() -> bool {
+    let elf = std::path::Path::new("target").join(THUMB).join("firmware").join("firmware");
+    let dis = llvm_objdump().and_then(|od| {
+        let o = Command::new(od)
+            .args(["-d", "--no-show-raw-insn"])
+            .arg(&elf)
+            .output()
+            .map_err(|e| format!("llvm-objdump: {e}"))?;
+        Ok(String::from_utf8_lossy(&o.stdout).into_owned())
+    });
+    let dis = match dis {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("xtask: fault handlers: {e}");
+            return false;
+        }
+    };
+    let mut ok = true;
+    for (what, suffix) in
+        [("panic handler", "rust_begin_unwind>:"), ("HardFault handler", "__cortex_m_rt_HardFault")]
+    {
+        match first_effect(&dis, suffix) {
+            Some(first) if first.contains("cpsid") => {
+                println!("fault handlers: {what} masks interrupts first ({first})")
+            }
+            Some(first) => {
+                eprintln!("xtask: {what}: first store or call is not `cpsid`: {first}");
+                ok = false;
+            }
+            None => {
+                eprintln!("xtask: {what} not found in {}", elf.display());
+                ok = false;
+            }
+        }
+    }
+    ok
 }
 
 /// The crates whose module graphs are checked.
@@ -422,8 +516,13 @@ fn main() -> ExitCode {
     let mut totals = Totals::default();
     let mut failed: Vec<&str> =
         steps.iter().filter(|s| !run_counting(s, &mut totals)).map(|s| s.name).collect();
-    if steps.iter().any(|s| s.name == FW.name) && !failed.contains(&FW.name) && !report_firmware_size() {
-        failed.push("firmware-size");
+    if steps.iter().any(|s| s.name == FW.name) && !failed.contains(&FW.name) {
+        if !report_firmware_size() {
+            failed.push("firmware-size");
+        }
+        if !check_fault_handlers() {
+            failed.push("fault-handlers");
+        }
     }
     if matches!(task.as_str(), "ci" | "lint" | "modules") && !module_cycles() {
         failed.push("modules");
@@ -468,5 +567,14 @@ mod tests {
         assert_eq!(top_module(std::path::Path::new("x/mod.rs")).as_deref(), Some("x"));
         assert_eq!(top_module(std::path::Path::new("bin/pil.rs")), None);
         assert_eq!(top_module(std::path::Path::new("sim.rs")).as_deref(), Some("sim"));
+    }
+
+    #[test]
+    fn fault_handler_disassembly_check() {
+        let good = "08000c58 <x_rust_begin_unwind>:\n 8000c58:\tpush\t{r7, lr}\n 8000c5c:\tldr\tr1, [pc, #0x28]\n 8000c5e:\tcpsid i\n 8000c66:\tstr\tr2, [r1]\n\n";
+        let bad = good.replace("\tcpsid i\n", "\tnop\n");
+        assert!(first_effect(good, "rust_begin_unwind>:").unwrap().contains("cpsid"));
+        assert!(first_effect(&bad, "rust_begin_unwind>:").unwrap().contains("str"));
+        assert_eq!(first_effect(good, "HardFault"), None);
     }
 }

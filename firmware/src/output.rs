@@ -1,0 +1,256 @@
+//! The bridge's output stage: what the control interrupt does with TIM1's main output enable
+//! (MOE), its break flag (BIF) and the compare registers, behind the [`OutputStage`] trait so
+//! that the sequence is tested on the host against a model of the timer and its break input
+//! ([`tests`]). `main.rs` implements the trait on the registers.
+//!
+//! Rules (each a defect once — see docs/firmware.md):
+//! - MOE is set only on an explicit enable (the drive asking for the bridge after it was
+//!   off), never "whenever it reads 0": a comparator pulse that ended inside a step must not
+//!   be undone by the next write.
+//! - MOE found at 0 while the firmware expects it at 1 is a hardware break, whether or not
+//!   the flag was seen.
+//! - BIF is cleared by writing a mask (the status bits are `rc_w0`: a read-modify-write would
+//!   clear flags set between the read and the write).
+//! - After the explicit enable the flag is read once more: a break that fell between the
+//!   first read and the write of MOE is in BIF, and the outputs go off again at once.
+
+use crate::control::{Bridge, ControlLoop, Samples};
+
+/// The control interrupt's register actions on the PWM timer.
+pub trait OutputStage {
+    /// The break flag: the hardware comparator fired since it was last cleared.
+    fn break_flag(&mut self) -> bool;
+    /// Clear the break flag (and only it).
+    fn clear_break_flag(&mut self);
+    /// The main output enable as the hardware has it now.
+    fn outputs_enabled(&mut self) -> bool;
+    /// Compare values for the next period.
+    fn set_compare(&mut self, ccr: [u16; 3]);
+    /// Set MOE.
+    fn enable_outputs(&mut self);
+    /// Clear MOE.
+    fn disable_outputs(&mut self);
+}
+
+/// Whether the firmware has enabled the outputs (and so expects MOE = 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Outputs {
+    armed: bool,
+}
+
+impl Outputs {
+    /// Outputs off, as after reset.
+    pub const fn new() -> Self {
+        Self { armed: false }
+    }
+
+    /// One control period: break detection, the control step, the output stage.
+    pub fn period(
+        &mut self,
+        hw: &mut impl OutputStage,
+        ctl: &mut ControlLoop,
+        mut samples: Samples,
+    ) -> Bridge {
+        let flagged = hw.break_flag();
+        let lost = self.armed && !hw.outputs_enabled();
+        if flagged {
+            hw.clear_break_flag();
+        }
+        samples.hardware_break |= flagged || lost;
+        let bridge = ctl.step(&samples);
+        match bridge {
+            Bridge::Compare(ccr) => {
+                hw.set_compare(ccr);
+                if !self.armed {
+                    hw.enable_outputs();
+                    self.armed = true;
+                    if hw.break_flag() {
+                        // The break fell between the first read and the enable: off again.
+                        // The next period finds MOE = 0 while armed and latches the fault.
+                        hw.disable_outputs();
+                    }
+                }
+            }
+            Bridge::Off => {
+                hw.disable_outputs();
+                self.armed = false;
+            }
+        }
+        bridge
+    }
+}
+
+/// What the panic and HardFault handlers do, in this order: mask every interrupt (so no
+/// control interrupt can run again and touch MOE), then clear MOE. Nothing re-enables the
+/// outputs afterwards; the watchdog resets the MCU.
+pub fn stop_for_good(mask_interrupts: impl FnOnce(), hw: &mut impl OutputStage) {
+    mask_interrupts();
+    hw.disable_outputs();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{BOARD, drive_spec};
+    use controller_core::drive::{Fault, Mode};
+
+    /// TIM1's main output and break logic: a break pulse clears MOE and sets BIF in hardware;
+    /// MOE cannot be set while the break input is active. `pulse_at` injects a one-operation
+    /// break pulse before the register operation with that index.
+    #[derive(Debug, Default)]
+    struct ModelTimer {
+        moe: bool,
+        bif: bool,
+        ops: usize,
+        pulse_at: Option<usize>,
+        fired: bool,
+        interrupts_masked: bool,
+    }
+
+    impl ModelTimer {
+        fn op(&mut self) {
+            if self.pulse_at == Some(self.ops) {
+                self.moe = false;
+                self.bif = true;
+                self.fired = true;
+            }
+            self.ops += 1;
+        }
+    }
+
+    impl OutputStage for ModelTimer {
+        fn break_flag(&mut self) -> bool {
+            self.op();
+            self.bif
+        }
+        fn clear_break_flag(&mut self) {
+            self.op();
+            self.bif = false;
+        }
+        fn outputs_enabled(&mut self) -> bool {
+            self.op();
+            self.moe
+        }
+        fn set_compare(&mut self, _: [u16; 3]) {
+            self.op();
+        }
+        fn enable_outputs(&mut self) {
+            self.op();
+            self.moe = true;
+        }
+        fn disable_outputs(&mut self) {
+            self.op();
+            self.moe = false;
+        }
+    }
+
+    fn at_rest() -> Samples {
+        Samples { i_abc: [2048; 3], vdc: 3100, encoder: 0, hardware_break: false }
+    }
+
+    /// Issue 19: a break injected before any register operation of any of the first periods
+    /// after enable never leaves MOE at 1 when that period ends, nor in any period after it,
+    /// and the drive latches `HardwareBreak` by the end of the next period.
+    #[test]
+    fn a_break_at_any_point_of_a_step_never_ends_with_moe_set() {
+        let mut cases = 0;
+        // The first four periods after enable take ≤ 4 operations each: 16 injection points.
+        for pulse_op in 0..16 {
+            let mut ctl = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
+            ctl.drive_mut().enable().unwrap();
+            let (mut out, mut hw) =
+                (Outputs::new(), ModelTimer { pulse_at: Some(pulse_op), ..Default::default() });
+            let mut fired_in = None;
+            for k in 0..8 {
+                out.period(&mut hw, &mut ctl, at_rest());
+                if hw.fired && fired_in.is_none() {
+                    fired_in = Some(k);
+                }
+                if let Some(f) = fired_in {
+                    assert!(!hw.moe, "break at op {pulse_op} (period {f}): MOE = 1 after period {k}");
+                    if k > f {
+                        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak), "op {pulse_op}");
+                    }
+                }
+            }
+            if fired_in.is_some() {
+                cases += 1;
+            }
+        }
+        assert_eq!(cases, 16);
+    }
+
+    /// The outputs are enabled once, on the drive's request, and not re-written while on.
+    #[test]
+    fn moe_is_written_only_on_an_explicit_enable() {
+        #[derive(Default)]
+        struct Count(ModelTimer, usize);
+        impl OutputStage for Count {
+            fn break_flag(&mut self) -> bool {
+                self.0.break_flag()
+            }
+            fn clear_break_flag(&mut self) {
+                self.0.clear_break_flag()
+            }
+            fn outputs_enabled(&mut self) -> bool {
+                self.0.outputs_enabled()
+            }
+            fn set_compare(&mut self, c: [u16; 3]) {
+                self.0.set_compare(c)
+            }
+            fn enable_outputs(&mut self) {
+                self.1 += 1;
+                self.0.enable_outputs()
+            }
+            fn disable_outputs(&mut self) {
+                self.0.disable_outputs()
+            }
+        }
+        let mut ctl = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
+        let (mut out, mut hw) = (Outputs::new(), Count::default());
+        for _ in 0..10 {
+            assert_eq!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Off);
+        }
+        ctl.drive_mut().enable().unwrap();
+        for _ in 0..100 {
+            assert!(matches!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Compare(_)));
+        }
+        assert_eq!(hw.1, 1);
+        assert!(hw.0.moe);
+        // MOE cleared behind the firmware's back (a break whose flag was lost): a fault.
+        hw.0.moe = false;
+        assert_eq!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Off);
+        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak));
+        assert_eq!(hw.1, 1);
+    }
+
+    /// Issue 19: after a panic or a HardFault the control interrupt never runs again, so MOE
+    /// stays 0 for as long as one looks (here 1 000 periods of a scheduler that runs the
+    /// interrupt only while interrupts are not masked).
+    #[test]
+    fn after_stop_for_good_moe_stays_off() {
+        let mut ctl = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
+        ctl.drive_mut().enable().unwrap();
+        let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
+        for _ in 0..10 {
+            out.period(&mut hw, &mut ctl, at_rest());
+        }
+        assert!(hw.moe);
+        let mut masked = false;
+        stop_for_good(|| masked = true, &mut hw);
+        hw.interrupts_masked = masked;
+        for _ in 0..1000 {
+            if !hw.interrupts_masked {
+                out.period(&mut hw, &mut ctl, at_rest());
+            }
+            assert!(!hw.moe);
+        }
+        // Had the mask been forgotten, the next period would have re-enabled the bridge only
+        // through an explicit enable: the drive is still Running, so `armed` finds MOE = 0
+        // and latches a fault instead — the defence in depth the rules above give.
+        hw.interrupts_masked = false;
+        out.period(&mut hw, &mut ctl, at_rest());
+        assert!(!hw.moe);
+        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak));
+    }
+}
