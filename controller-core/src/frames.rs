@@ -1,4 +1,5 @@
-//! Reference frames and their transforms (f32).
+//! Reference frames and their transforms (f32 on the control path; the Clarke pair is
+//! generic over [`Scalar`], so the simulator's f64 plant side uses the same transform).
 //!
 //! * [`Abc`] — phase quantities.
 //! * [`AlphaBeta`] — stationary two-axis frame, **amplitude-invariant** Clarke transform: a
@@ -7,29 +8,33 @@
 //!
 //! Angle policy: electrical angles wrap into `[-π, π)` ([`wrap_angle`]); nothing else wraps.
 
+use crate::num::Scalar;
 use core::f32::consts::{PI, TAU};
 
-const INV_SQRT3: f32 = 0.577_350_26;
-const SQRT3_2: f32 = 0.866_025_4;
+/// 1/√3 (rounds to 0.577_350_26 in f32).
+const INV_SQRT3: f64 = 0.577_350_269_189_625_8;
+/// √3/2 (rounds to 0.866_025_4 in f32).
+const SQRT3_2: f64 = 0.866_025_403_784_438_6;
 
-/// Three phase quantities (currents in A, voltages in V, or duty cycles).
+/// Three phase quantities (currents in A, voltages in V, or duty cycles); f32 unless the
+/// simulator's f64.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Abc {
+pub struct Abc<T = f32> {
     /// Phase a.
-    pub a: f32,
+    pub a: T,
     /// Phase b.
-    pub b: f32,
+    pub b: T,
     /// Phase c.
-    pub c: f32,
+    pub c: T,
 }
 
 /// Stationary-frame vector.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct AlphaBeta {
+pub struct AlphaBeta<T = f32> {
     /// α component (aligned with phase a).
-    pub alpha: f32,
+    pub alpha: T,
     /// β component (leads α by 90°).
-    pub beta: f32,
+    pub beta: T,
 }
 
 /// Rotating-frame vector.
@@ -131,29 +136,39 @@ impl Abc {
     pub fn is_finite(&self) -> bool {
         self.a.is_finite() && self.b.is_finite() && self.c.is_finite()
     }
+}
 
+impl<T: Scalar> Abc<T> {
     /// Amplitude-invariant Clarke transform using all three phases:
     /// α = (2a − b − c)/3, β = (b − c)/√3. A zero-sequence component is discarded.
     #[inline]
-    pub fn clarke(self) -> AlphaBeta {
+    pub fn clarke(self) -> AlphaBeta<T> {
+        // k = 1 folds away: the same operations as the transform written out.
+        self.clarke_scaled(T::from_f64(1.0))
+    }
+
+    /// [`Abc::clarke`] of `k`·(a, b, c), with `k` joining the constants: α = (2a − b − c)·(k/3),
+    /// β = (b − c)·(k/√3). Multiplications, not divisions; the simulator's inverter takes
+    /// `k = V_dc` for duties, one operation fewer on its critical path than scaling after.
+    #[inline]
+    pub fn clarke_scaled(self, k: T) -> AlphaBeta<T> {
         AlphaBeta {
-            alpha: (2.0 * self.a - self.b - self.c) * (1.0 / 3.0),
-            beta: (self.b - self.c) * INV_SQRT3,
+            alpha: (T::from_f64(2.0) * self.a - self.b - self.c) * (k * T::from_f64(1.0 / 3.0)),
+            beta: (self.b - self.c) * (k * T::from_f64(INV_SQRT3)),
         }
     }
 }
 
-impl AlphaBeta {
+impl<T: Scalar> AlphaBeta<T> {
     /// Inverse amplitude-invariant Clarke: a = α, b = −α/2 + (√3/2)β, c = −α/2 − (√3/2)β.
     #[inline]
-    pub fn inverse_clarke(self) -> Abc {
-        Abc {
-            a: self.alpha,
-            b: -0.5 * self.alpha + SQRT3_2 * self.beta,
-            c: -0.5 * self.alpha - SQRT3_2 * self.beta,
-        }
+    pub fn inverse_clarke(self) -> Abc<T> {
+        let (half, s) = (T::from_f64(-0.5), T::from_f64(SQRT3_2));
+        Abc { a: self.alpha, b: half * self.alpha + s * self.beta, c: half * self.alpha - s * self.beta }
     }
+}
 
+impl AlphaBeta {
     /// Park transform into the frame at angle θ: d = α cos θ + β sin θ, q = −α sin θ + β cos θ.
     #[inline]
     pub fn park(self, sc: SinCos) -> Dq {

@@ -14,6 +14,8 @@
 //! Phase voltages are `±V_dc/2` against the DC midpoint; the floating star point removes the
 //! common mode, which the amplitude-invariant Clarke transform discards.
 
+use controller_core::frames::Abc;
+
 /// Inverter model of a scenario.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum InverterModel {
@@ -59,27 +61,26 @@ impl Segments {
     }
 }
 
-/// Amplitude-invariant Clarke of phase voltages (common mode dropped). Multiplications by
-/// the constants, not divisions: this is on the simulator's critical path.
+/// Amplitude-invariant Clarke of phase voltages (common mode dropped): controller-core's
+/// transform, in f64.
 #[inline]
-fn clarke(v: [f64; 3]) -> [f64; 2] {
-    [(2.0 * v[0] - v[1] - v[2]) * (1.0 / 3.0), (v[1] - v[2]) * INV_SQRT3]
+fn clarke([a, b, c]: [f64; 3]) -> [f64; 2] {
+    let v = Abc { a, b, c }.clarke();
+    [v.alpha, v.beta]
 }
-
-/// 1/√3.
-const INV_SQRT3: f64 = 0.577_350_269_189_625_8;
 
 impl InverterModel {
     /// The period-average αβ voltage of duties `duty` on a bus of `vdc_v` volts (the
     /// [`InverterModel::Average`] model's one segment).
     #[inline]
     pub fn average_voltage(duty: [f64; 3], vdc_v: f64) -> [f64; 2] {
-        // Clarke of (d − ½)·V_dc per phase: the common −½·V_dc drops out, and V_dc joins
-        // `clarke`'s constants instead of multiplying its result — one operation fewer on the
-        // simulator's critical path, which runs through the duties (`clarke` then × V_dc:
+        // Clarke of (d − ½)·V_dc per phase: the common −½·V_dc drops out, and V_dc joins the
+        // transform's constants instead of multiplying its result — one operation fewer on
+        // the simulator's critical path, which runs through the duties (`clarke` then × V_dc:
         // ≈ 0.3 ns per period slower in `hil-sim bench`).
         let [a, b, c] = duty.map(|d| d.clamp(0.0, 1.0));
-        [(a + a - b - c) * (vdc_v * (1.0 / 3.0)), (b - c) * (vdc_v * INV_SQRT3)]
+        let v = Abc { a, b, c }.clarke_scaled(vdc_v);
+        [v.alpha, v.beta]
     }
 
     /// Voltage segments of one period of length `ts_s` for duties `duty` (each in [0, 1]),

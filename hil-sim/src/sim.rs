@@ -10,6 +10,7 @@
 use crate::inverter::{InverterModel, Segments};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Reference};
+use controller_core::frames::AlphaBeta;
 use controller_core::motor::MotorParams;
 use plant::{Machine, MachineState, Rk4Midway};
 
@@ -220,7 +221,6 @@ pub fn run(
     let mut rows = 0u64;
     // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
     let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
-    let s3 = 3f64.sqrt() / 2.0;
     // The bus is stiff and its sensor noise-free: one measurement for the run.
     let vdc_measured_v = sensors.vdc(sc.vdc_v);
     for k in 0..n {
@@ -235,9 +235,9 @@ pub fn run(
             }
             next_event_k = first_period_of(events.peek());
         }
-        // True phase currents (amplitude-invariant inverse Clarke, in f64).
-        let (ia, ib) = (x.i_alpha_a, x.i_beta_a);
-        let i_true = [ia, -0.5 * ia + s3 * ib, -0.5 * ia - s3 * ib];
+        // True phase currents (controller-core's inverse Clarke, in f64).
+        let i = AlphaBeta { alpha: x.i_alpha_a, beta: x.i_beta_a }.inverse_clarke();
+        let i_true = [i.a, i.b, i.c];
         let i_abc = sensors.currents(i_true);
         let enc = if to_slow == 0 {
             to_slow = divider.saturating_sub(1);
