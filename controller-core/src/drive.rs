@@ -18,9 +18,13 @@
 //! firmware's control interrupt and the simulators call.
 //!
 //! **Supervisor** (first thing in the fast step, any mode): any non-finite measurement,
-//! a phase current beyond `i_trip_a`, a bus voltage above `vdc_max_v`, or — when the
-//! bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases off in the
-//! same step. A non-finite controller output (impossible for finite inputs, checked anyway)
+//! a phase current beyond `i_trip_a`, three phase currents that do not sum to zero within
+//! `current_sum_max_a` (a dead or drifting sensor), a bus voltage above `vdc_max_v`, or —
+//! when the bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases
+//! off in the same step. In the slow step: overspeed (|ω_m| above `overspeed_rad_s` while
+//! active) and stall (the speed loop's output at its limit with the rotor below 1 % of the
+//! overspeed level for `stall_time_s`). Magnetizing → Running also needs the measured
+//! d-axis current to have followed its reference ([`Fault::NoMotorCurrent`] otherwise). A non-finite controller output (impossible for finite inputs, checked anyway)
 //! trips too. The fast step performs no indexing, no division by unchecked values that could
 //! panic, and no `unwrap`: it cannot panic for any input (property-tested).
 
@@ -33,7 +37,8 @@ use crate::num::{Scalar, max_f32};
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
 use crate::svpwm;
 
-/// Protection thresholds.
+/// Protection thresholds. The drive file derives defaults for the last three from the motor
+/// and the other limits (`drive_file::drive`, where the reasoning is written down).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Protection {
     /// Phase-current trip level (absolute instantaneous value), A.
@@ -42,7 +47,22 @@ pub struct Protection {
     pub vdc_min_v: f64,
     /// DC-bus overvoltage trip, V.
     pub vdc_max_v: f64,
+    /// Overspeed trip: |ω_m| above this while the bridge is active, mechanical rad/s.
+    pub overspeed_rad_s: f64,
+    /// Stall trip: the speed loop's output at its limit while |ω_m| stays below
+    /// [`STALL_SPEED_FRACTION`] of `overspeed_rad_s` for this long, s.
+    pub stall_time_s: f64,
+    /// Current-sensor plausibility: |i_a + i_b + i_c| of the three measured phase currents
+    /// (zero for any star-connected motor) above this trips, A.
+    pub current_sum_max_a: f64,
 }
+
+/// "Not moving" for the stall check: below this fraction of the overspeed level.
+pub const STALL_SPEED_FRACTION: f64 = 0.01;
+
+/// Magnetizing → Running needs the measured d-axis current to reach this fraction of its
+/// reference: a motor that is not there (open leads, dead current sensors) never does.
+pub const MAGNETIZING_CURRENT_FRACTION: f32 = 0.5;
 
 /// Position loop parameters (P law with speed saturation).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -114,8 +134,8 @@ pub enum DriveError {
     FluxReference,
     /// `magnetized_fraction` not in (0, 1).
     MagnetizedFraction,
-    /// Protection thresholds inconsistent: need 0 ≤ vdc_min < vdc_max and
-    /// i_trip > i_ref_max > 0.
+    /// Protection thresholds inconsistent: need 0 ≤ vdc_min < vdc_max,
+    /// i_trip > i_ref_max > 0, and positive finite overspeed, stall time and current sum.
     Protection,
 }
 
@@ -134,8 +154,16 @@ pub struct DriveConfig {
     /// Bits of the phase-current trip level (finite, positive): see
     /// [`Drive::measurements_ok`]; [`Drive::supervise`] reads the level back from them.
     i_trip_bits: u32,
+    /// Bits of `current_sum_max_a` (compared like `i_trip_bits`).
+    i_sum_bits: u32,
     vdc_min_v: f32,
     vdc_max_v: f32,
+    overspeed_rad_s: f32,
+    stall_speed_rad_s: f32,
+    /// Slow steps of stall before the trip.
+    stall_slow_steps: u32,
+    /// The speed loop's output limit (saturation test of the stall check).
+    speed_limit: f32,
 }
 
 impl DriveConfig {
@@ -155,12 +183,25 @@ impl DriveConfig {
         }
         let ts = 1.0 / f;
         let p = &spec.protection;
-        let finite = [p.i_trip_a, p.vdc_min_v, p.vdc_max_v, spec.i_ref_max_a].iter().all(|x| x.is_finite());
+        let finite = [
+            p.i_trip_a,
+            p.vdc_min_v,
+            p.vdc_max_v,
+            spec.i_ref_max_a,
+            p.overspeed_rad_s,
+            p.stall_time_s,
+            p.current_sum_max_a,
+        ]
+        .iter()
+        .all(|x| x.is_finite());
         if !(finite
             && p.vdc_min_v >= 0.0
             && p.vdc_min_v < p.vdc_max_v
             && spec.i_ref_max_a > 0.0
-            && p.i_trip_a > spec.i_ref_max_a)
+            && p.i_trip_a > spec.i_ref_max_a
+            && p.overspeed_rad_s > 0.0
+            && p.stall_time_s > 0.0
+            && p.current_sum_max_a > 0.0)
         {
             return Err(DriveError::Protection);
         }
@@ -198,8 +239,15 @@ impl DriveConfig {
             slow_divider: spec.slow_divider,
             // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
             i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
+            i_sum_bits: abs_bits((p.current_sum_max_a as f32).min(f32::MAX)),
             vdc_min_v: p.vdc_min_v as f32,
             vdc_max_v: p.vdc_max_v as f32,
+            overspeed_rad_s: p.overspeed_rad_s as f32,
+            stall_speed_rad_s: (STALL_SPEED_FRACTION * p.overspeed_rad_s) as f32,
+            // At least one slow step; saturating for absurdly long times.
+            stall_slow_steps: libm::ceil(p.stall_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
+                as u32,
+            speed_limit: speed.output_limit(),
         })
     }
 }
@@ -223,6 +271,19 @@ pub enum Fault {
     /// The inverter's hardware break input fired (the timer already turned the bridge off;
     /// reported by the firmware through [`Drive::trip`]).
     HardwareBreak,
+    /// |ω_m| above `overspeed_rad_s` (a runaway: the load overpowers the drive, or the
+    /// speed loop lost control).
+    Overspeed,
+    /// The speed loop's output at its limit while the rotor does not turn, for
+    /// `stall_time_s` (a locked rotor under a speed or position command).
+    Stall,
+    /// The three measured phase currents do not sum to zero (a dead, stuck or drifting
+    /// current sensor).
+    CurrentSensor,
+    /// At the end of magnetizing the measured d-axis current is below
+    /// [`MAGNETIZING_CURRENT_FRACTION`] of its reference: no motor current flows (open
+    /// leads, a motor that is not there, dead current sensors).
+    NoMotorCurrent,
 }
 
 /// Drive state.
@@ -345,6 +406,8 @@ pub struct Drive {
     ifoc: IfocState,
     speed: SpeedState,
     test_angle_rad: f32,
+    /// Consecutive slow steps with the stall condition.
+    stall_steps: u32,
 }
 
 impl Drive {
@@ -361,6 +424,7 @@ impl Drive {
             ifoc: cfg.ifoc.state(0.0),
             speed: SpeedState::default(),
             test_angle_rad: 0.0,
+            stall_steps: 0,
         }
     }
 
@@ -400,6 +464,7 @@ impl Drive {
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
                 self.steps_to_slow = 0;
                 self.test_angle_rad = 0.0;
+                self.stall_steps = 0;
                 self.mode = Mode::Magnetizing;
                 Ok(())
             }
@@ -448,9 +513,14 @@ impl Drive {
         self.fast_step(m)
     }
 
-    /// Speed/position loop. Holds a zero torque command unless Running; ignores non-finite
-    /// measurements (the fast step trips on them).
+    /// Speed/position loop, and the slow supervisor: overspeed (while the bridge is active)
+    /// and stall (while Running under a speed or position reference). Holds a zero torque
+    /// command unless Running; ignores non-finite measurements (the fast step trips on them).
     pub fn slow_step(&mut self, m: &Measurements) {
+        let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
+        if active && m.omega_m_rad_s.abs() > self.cfg.overspeed_rad_s {
+            self.trip(Fault::Overspeed);
+        }
         if self.mode != Mode::Running || !m.is_finite() {
             self.torque_cmd = TorqueCommand::TorqueNm(0.0);
             return;
@@ -468,6 +538,18 @@ impl Drive {
                 self.cfg.speed.update(&mut self.speed, w, m.omega_m_rad_s)
             }
         };
+        let commanding_motion = matches!(self.reference, Reference::Speed(_) | Reference::Position(_));
+        let (TorqueCommand::TorqueNm(u) | TorqueCommand::IqA(u)) = self.torque_cmd;
+        let saturated = u.abs() >= 0.999 * self.cfg.speed_limit;
+        if commanding_motion && saturated && m.omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
+            self.stall_steps = self.stall_steps.saturating_add(1);
+            if self.stall_steps >= self.cfg.stall_slow_steps {
+                self.trip(Fault::Stall);
+                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
+            }
+        } else {
+            self.stall_steps = 0;
+        }
     }
 
     /// All supervisor checks pass: the common case, tested without working out which check
@@ -484,13 +566,15 @@ impl Drive {
         let rest_finite = m.vdc_v.is_finite() && m.omega_m_rad_s.is_finite() && m.theta_m_rad.is_finite();
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         i_peak_bits <= self.cfg.i_trip_bits
+            && abs_bits(i.a + i.b + i.c) <= self.cfg.i_sum_bits
             && rest_finite
             && m.vdc_v <= self.cfg.vdc_max_v
             && !(active && m.vdc_v < self.cfg.vdc_min_v)
     }
 
     /// Which supervisor check fails, in order of precedence: non-finite input, overcurrent,
-    /// bus overvoltage, bus undervoltage (only while the bridge is active).
+    /// current-sensor plausibility, bus overvoltage, bus undervoltage (only while the bridge
+    /// is active).
     fn supervise(&self, m: &Measurements) -> Option<Fault> {
         if !m.is_finite() {
             return Some(Fault::NonFiniteInput);
@@ -499,6 +583,9 @@ impl Drive {
         let i_peak = max_f32(max_f32(i.a.abs(), i.b.abs()), i.c.abs()); // finite: checked above
         if i_peak > f32::from_bits(self.cfg.i_trip_bits) {
             return Some(Fault::Overcurrent);
+        }
+        if (i.a + i.b + i.c).abs() > f32::from_bits(self.cfg.i_sum_bits) {
+            return Some(Fault::CurrentSensor);
         }
         if m.vdc_v > self.cfg.vdc_max_v {
             return Some(Fault::DcBusOvervoltage);
@@ -574,8 +661,17 @@ impl Drive {
         }
         let modulation = svpwm::modulate(v_ab, m.vdc_v);
         if !running && self.ifoc.psi_r_wb() >= cfg.psi_running_wb {
-            self.mode = Mode::Running;
-            self.speed = SpeedState::default();
+            // The flux model says magnetized; the motor must agree: the measured d-axis
+            // current has followed its reference (the model runs on the reference).
+            let i_d = i_ab.park(field.field).d;
+            if i_d >= MAGNETIZING_CURRENT_FRACTION * field.i_ref_dq.d {
+                self.mode = Mode::Running;
+                self.speed = SpeedState::default();
+                self.stall_steps = 0;
+            } else {
+                self.trip(Fault::NoMotorCurrent);
+                return off(self.mode);
+            }
         }
         FastOutput {
             phases: PhaseCommand::Duty(modulation.duty),
@@ -618,7 +714,14 @@ pub(crate) fn test_spec() -> DriveSpec {
         flux_floor_wb: 0.05,
         i_ref_max_a: 4.0,
         magnetized_fraction: 0.95,
-        protection: Protection { i_trip_a: 8.0, vdc_min_v: 200.0, vdc_max_v: 400.0 },
+        protection: Protection {
+            i_trip_a: 8.0,
+            vdc_min_v: 200.0,
+            vdc_max_v: 400.0,
+            overspeed_rad_s: 450.0,
+            stall_time_s: 0.3,
+            current_sum_max_a: 0.4,
+        },
     }
 }
 
@@ -694,6 +797,41 @@ mod tests {
     }
 
     /// A drive brought to Running on the R-L load (computed once, then copied).
+    /// Overspeed trips while the bridge is active (in the slow step), never while Idle.
+    #[test]
+    fn overspeed_trips_only_while_active() {
+        let limit = test_spec().protection.overspeed_rad_s as f32;
+        let fast = Measurements { vdc_v: 310.0, omega_m_rad_s: 1.01 * limit, ..Default::default() };
+        let mut d = drive();
+        d.step(&fast);
+        assert_eq!(d.mode(), Mode::Idle);
+        let mut d = running_drive();
+        let ok = Measurements { omega_m_rad_s: 0.99 * limit, ..fast };
+        for _ in 0..20 {
+            d.step(&ok);
+        }
+        assert_eq!(d.mode(), Mode::Running);
+        let mut d = running_drive();
+        d.slow_step(&Measurements { omega_m_rad_s: -1.01 * limit, ..fast });
+        assert_eq!(d.mode(), Mode::Fault(Fault::Overspeed));
+    }
+
+    /// With no measured current the flux model alone cannot take the drive to Running.
+    #[test]
+    fn magnetizing_without_current_is_no_motor_current() {
+        let mut d = drive();
+        d.enable().unwrap();
+        let m = Measurements { vdc_v: 310.0, ..Default::default() };
+        let mut k = 0;
+        while d.mode() == Mode::Magnetizing && k < 100_000 {
+            d.step(&m);
+            k += 1;
+        }
+        assert_eq!(d.mode(), Mode::Fault(Fault::NoMotorCurrent));
+        // T_r·ln(1/(1 − 0.95)) = 0.194 s: the check happens where Running would have begun.
+        assert!((k as f64 / 20_000.0 - 0.194).abs() < 0.01, "{k}");
+    }
+
     fn running_drive() -> Drive {
         static RUNNING: std::sync::OnceLock<Drive> = std::sync::OnceLock::new();
         *RUNNING.get_or_init(|| {
@@ -867,7 +1005,7 @@ mod tests {
         /// the float comparisons written out here find no fault, in every mode.
         #[test]
         fn supervisor_bit_test_equals_float_test(
-            base in (-8.0f32..=8.0, -8.0f32..=8.0, -8.0f32..=8.0, 200.0f32..=400.0, -1e4f32..1e4, -1e6f32..1e6),
+            base in (-4.0f32..=4.0, -4.0f32..=4.0, -0.6f32..=0.6, 200.0f32..=400.0, -1e4f32..1e4, -1e6f32..1e6),
             changes in proptest::collection::vec((0usize..6, any_measured()), 0..3),
             mode in 0u8..3,
         ) {
@@ -877,8 +1015,10 @@ mod tests {
                 1 => d.enable().unwrap(),
                 _ => d = running_drive(),
             }
-            // A passing measurement with up to two fields replaced by anything.
-            let mut x = [base.0, base.1, base.2, base.3, base.4, base.5];
+            // A measurement whose currents sum to about zero (the third phase closes the sum to
+            // within ±0.6 A, across the 0.4 A plausibility level), with up to two fields
+            // replaced by anything.
+            let mut x = [base.0, base.1, -(base.0 + base.1) + base.2, base.3, base.4, base.5];
             for (field, value) in changes {
                 if let Some(v) = x.get_mut(field) {
                     *v = value;
@@ -896,6 +1036,8 @@ mod tests {
                 Some(Fault::NonFiniteInput)
             } else if x[0].abs().max(x[1].abs()).max(x[2].abs()) > p.i_trip_a as f32 {
                 Some(Fault::Overcurrent)
+            } else if (x[0] + x[1] + x[2]).abs() > p.current_sum_max_a as f32 {
+                Some(Fault::CurrentSensor)
             } else if x[3] > p.vdc_max_v as f32 {
                 Some(Fault::DcBusOvervoltage)
             } else if d.mode() != Mode::Idle && x[3] < p.vdc_min_v as f32 {

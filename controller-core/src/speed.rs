@@ -108,6 +108,14 @@ impl SpeedControllerConfig {
         Ok(Self { law })
     }
 
+    /// Magnitude limit of the output (N·m for torque laws, A for the i_q law).
+    pub fn output_limit(&self) -> f32 {
+        match &self.law {
+            Law::Pi { pi, .. } => pi.limits().1,
+            Law::SaturatedP { tau_max, .. } => *tau_max,
+        }
+    }
+
     /// One slow step: speed reference and measurement (mechanical rad/s) → torque command.
     #[inline]
     pub fn update(&self, s: &mut SpeedState, omega_ref_rad_s: f32, omega_m_rad_s: f32) -> TorqueCommand {

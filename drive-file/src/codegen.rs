@@ -71,7 +71,8 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       flux_floor_wb: {:?},\n\
          \x20       i_ref_max_a: {:?},\n\
          \x20       magnetized_fraction: {:?},\n\
-         \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?} }},\n\
+         \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
+         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?} }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -95,6 +96,9 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         p.i_trip_a,
         p.vdc_min_v,
         p.vdc_max_v,
+        p.overspeed_rad_s,
+        p.stall_time_s,
+        p.current_sum_max_a,
     )
 }
 

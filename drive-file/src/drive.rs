@@ -146,7 +146,8 @@ impl Default for PositionTable {
     }
 }
 
-/// `[protection]` table.
+/// `[protection]` table. The last three keys default to values derived from the drive
+/// ([`default_overspeed_rad_s`], [`DEFAULT_STALL_TIME_S`], [`DEFAULT_CURRENT_SUM_FRACTION`]).
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ProtectionTable {
@@ -156,7 +157,40 @@ pub struct ProtectionTable {
     pub vdc_min_v: f64,
     /// Bus over-voltage trip, V.
     pub vdc_max_v: f64,
+    /// Overspeed trip, mechanical rad/s.
+    pub overspeed_rad_s: Option<f64>,
+    /// Stall trip time, s.
+    pub stall_time_s: Option<f64>,
+    /// Current-sum plausibility limit, A.
+    pub current_sum_max_a: Option<f64>,
 }
+
+/// Default overspeed trip: 1.2 × the speed at which the motor's no-load back-EMF at the
+/// flux reference reaches the largest voltage the bridge can apply on the highest bus the
+/// drive accepts, `ω_m = (V_dc,max/√3) / (ψ_r*·L_s/L_m) / p` (stator flux ≈ ψ_r*·L_s/L_m at
+/// no load; V_dc/√3 is the SVPWM's linear limit). Without field weakening the drive cannot
+/// hold a speed above that under its own torque, so beyond it by 20 % the load is driving
+/// the motor (or the speed loop lost control).
+pub fn default_overspeed_rad_s(
+    motor: &controller_core::motor::MotorParams,
+    flux_ref_wb: f64,
+    vdc_max_v: f64,
+) -> f64 {
+    let psi_s_wb = flux_ref_wb * motor.ls_h() / motor.lm_h();
+    1.2 * (vdc_max_v / 3f64.sqrt()) / psi_s_wb / f64::from(motor.pole_pairs())
+}
+
+/// Default stall time, s: a locked rotor under a speed command is caught within this. A
+/// start at the torque limit must leave the "not moving" band (1 % of the overspeed level,
+/// `controller_core::drive::STALL_SPEED_FRACTION`) well before it: J·ω_band/τ_limit ≪ this
+/// (the shipped motor at twice its inertia and 2 N·m: 0.015 s; at seed 002 Fig. 16's 0.4 N·m:
+/// 0.1 s). Set it explicitly for a drive with a large inertia and a small torque limit.
+pub const DEFAULT_STALL_TIME_S: f64 = 0.3;
+
+/// Default current-sum limit as a fraction of `i_trip_a`: far above the noise of three
+/// 12-bit channels and their gain errors at working currents, below the sum a dead phase
+/// sensor leaves at the magnetizing current.
+pub const DEFAULT_CURRENT_SUM_FRACTION: f64 = 0.05;
 
 /// The tables that make a drive, as written.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
@@ -263,6 +297,15 @@ pub fn drive_spec(
         finite(src, "controller.flux_floor_wb", f)?;
         src.check(f > 0.0, "controller.flux_floor_wb", "must be > 0")?;
     }
+    for (key, x) in [
+        ("protection.overspeed_rad_s", protection.overspeed_rad_s),
+        ("protection.stall_time_s", protection.stall_time_s),
+        ("protection.current_sum_max_a", protection.current_sum_max_a),
+    ] {
+        if let Some(x) = x {
+            src.check(x.is_finite() && x > 0.0, key, &format!("is {}; must be finite and > 0", num(x)))?;
+        }
+    }
     let spec = DriveSpec {
         motor,
         pwm_frequency_hz: pwm.frequency_hz,
@@ -283,6 +326,13 @@ pub fn drive_spec(
             i_trip_a: protection.i_trip_a,
             vdc_min_v: protection.vdc_min_v,
             vdc_max_v: protection.vdc_max_v,
+            overspeed_rad_s: protection
+                .overspeed_rad_s
+                .unwrap_or_else(|| default_overspeed_rad_s(&motor, c.flux_ref_wb, protection.vdc_max_v)),
+            stall_time_s: protection.stall_time_s.unwrap_or(DEFAULT_STALL_TIME_S),
+            current_sum_max_a: protection
+                .current_sum_max_a
+                .unwrap_or(DEFAULT_CURRENT_SUM_FRACTION * protection.i_trip_a),
         },
     };
     DriveConfig::new(&spec).map_err(|e| match e {

@@ -33,6 +33,7 @@
 //! i_trip_a = 8.0
 //! vdc_min_v = 200.0
 //! vdc_max_v = 400.0
+//! # overspeed_rad_s, stall_time_s, current_sum_max_a: derived defaults (drive::ProtectionTable)
 //!
 //! [certify]                   # optional: what `design certify` checks (certify::CertifyTable)
 //! [board]                     # optional: the firmware's board scaling (board::BoardTable)
@@ -173,6 +174,27 @@ mod tests {
         // A timer that cannot make the PWM rate.
         let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 19999.0"));
         assert_eq!(e.key.as_deref(), Some("pwm.frequency_hz"), "{e}");
+    }
+
+    /// The derived protection defaults of the shipped drive, and the stall time's condition
+    /// (a start at the torque limit leaves the "not moving" band well before it, at the
+    /// largest certified inertia).
+    #[test]
+    fn derived_protection_defaults() {
+        let d = DriveFile::shipped().unwrap();
+        let p = d.spec.protection;
+        // 1.2 · (400 V/√3) / (0.9 Wb · 1.44/1.42) / 1.
+        assert!((p.overspeed_rad_s - 303.643).abs() < 1e-3, "{}", p.overspeed_rad_s);
+        assert_eq!((p.stall_time_s, p.current_sum_max_a), (0.3, 0.4));
+        let j_max = d.spec.motor.j_kgm2() * d.certify.unwrap().j_factor[1];
+        let band = controller_core::drive::STALL_SPEED_FRACTION * p.overspeed_rad_s;
+        let leave_s = j_max * band / 2.0; // τ_max = 2 N·m
+        assert!(leave_s < 0.1 * p.stall_time_s, "{leave_s}");
+        // Explicit values win; a bad one points at its key.
+        let t = SHIPPED.replace("vdc_max_v = 400.0", "vdc_max_v = 400.0\noverspeed_rad_s = 500.0");
+        assert_eq!(DriveFile::parse(Path::new("d.toml"), &t).unwrap().spec.protection.overspeed_rad_s, 500.0);
+        let e = err(&SHIPPED.replace("vdc_max_v = 400.0", "vdc_max_v = 400.0\nstall_time_s = -1.0"));
+        assert_eq!(e.key.as_deref(), Some("protection.stall_time_s"), "{e}");
     }
 
     #[test]

@@ -274,11 +274,12 @@ mod tests {
         c.drive_mut().enable().unwrap();
         c.drive_mut().set_reference(Reference::Speed(0.0)).unwrap();
         let div = u32::from(drive_spec().unwrap().slow_divider);
-        // Counter running backwards through the 16-bit wrap at 500 counts per read: fine.
-        let mut enc = 1000u16;
+        // Counter running backwards through the 16-bit wrap at 40 counts per read (≈ 123 rad/s,
+        // below the overspeed level): fine.
+        let mut enc = 200u16;
         for k in 0..(20 * div) {
             if k % div == 0 {
-                enc = enc.wrapping_sub(500);
+                enc = enc.wrapping_sub(40);
             }
             assert!(matches!(c.step(&at_rest(enc)), Bridge::Compare(_)), "step {k}");
         }

@@ -1,7 +1,7 @@
 //! The bridge's output stage: what the control interrupt does with TIM1's main output enable
 //! (MOE), its break flag (BIF) and the compare registers, behind the [`OutputStage`] trait so
 //! that the sequence is tested on the host against a model of the timer and its break input
-//! ([`tests`]). `main.rs` implements the trait on the registers.
+//! (its unit tests). `main.rs` implements the trait on the registers.
 //!
 //! Rules (each a defect once — see docs/firmware.md):
 //! - MOE is set only on an explicit enable (the drive asking for the bridge after it was

@@ -242,6 +242,9 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     b.about = about.into();
     b.spec.current_law = law;
     b.spec.flux_ref_wb = 0.35;
+    // The overspeed level follows the flux reference (drive_file's default rule).
+    b.spec.protection.overspeed_rad_s =
+        drive_file::drive::default_overspeed_rad_s(&b.spec.motor, 0.35, b.spec.protection.vdc_max_v);
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
     b.scenario.events = vec![(0.0, Event::Enable), (0.3, Event::Reference(Reference::Speed(376.0)))];
     b.scenario.duration_s = 6.5;
@@ -284,7 +287,14 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     b.spec.flux_ref_wb = 4.5;
     b.spec.flux_floor_wb = 0.2;
     b.spec.i_ref_max_a = 260.0;
-    b.spec.protection = Protection { i_trip_a: 400.0, vdc_min_v: 2500.0, vdc_max_v: 3800.0 };
+    b.spec.protection = Protection {
+        i_trip_a: 400.0,
+        vdc_min_v: 2500.0,
+        vdc_max_v: 3800.0,
+        overspeed_rad_s: drive_file::drive::default_overspeed_rad_s(&motor, 4.5, 3800.0),
+        stall_time_s: drive_file::drive::DEFAULT_STALL_TIME_S,
+        current_sum_max_a: drive_file::drive::DEFAULT_CURRENT_SUM_FRACTION * 400.0,
+    };
     b.scenario.vdc_v = 3300.0;
     b.scenario.events = vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Speed(100.0)))];
     b.scenario.duration_s = 5.0;

@@ -281,7 +281,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         w.f64(v)?;
     }
     let p = &s.protection;
-    for v in [p.i_trip_a, p.vdc_min_v, p.vdc_max_v] {
+    for v in [p.i_trip_a, p.vdc_min_v, p.vdc_max_v, p.overspeed_rad_s, p.stall_time_s, p.current_sum_max_a] {
         w.f64(v)?;
     }
     Ok(())
@@ -321,7 +321,14 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
     let position = PositionLaw { k_per_s: r.f64()?, omega_max_rad_s: r.f64()? };
     let (flux_ref_wb, flux_floor_wb, i_ref_max_a, magnetized_fraction) =
         (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
-    let protection = Protection { i_trip_a: r.f64()?, vdc_min_v: r.f64()?, vdc_max_v: r.f64()? };
+    let protection = Protection {
+        i_trip_a: r.f64()?,
+        vdc_min_v: r.f64()?,
+        vdc_max_v: r.f64()?,
+        overspeed_rad_s: r.f64()?,
+        stall_time_s: r.f64()?,
+        current_sum_max_a: r.f64()?,
+    };
     Ok(DriveSpec {
         motor,
         pwm_frequency_hz,
@@ -351,6 +358,10 @@ fn mode_code(m: Mode) -> u8 {
         Mode::Fault(Fault::NonFiniteOutput) => 14,
         Mode::Fault(Fault::EncoderLoss) => 15,
         Mode::Fault(Fault::HardwareBreak) => 16,
+        Mode::Fault(Fault::Overspeed) => 17,
+        Mode::Fault(Fault::Stall) => 18,
+        Mode::Fault(Fault::CurrentSensor) => 19,
+        Mode::Fault(Fault::NoMotorCurrent) => 20,
     }
 }
 
@@ -366,6 +377,10 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
         14 => Mode::Fault(Fault::NonFiniteOutput),
         15 => Mode::Fault(Fault::EncoderLoss),
         16 => Mode::Fault(Fault::HardwareBreak),
+        17 => Mode::Fault(Fault::Overspeed),
+        18 => Mode::Fault(Fault::Stall),
+        19 => Mode::Fault(Fault::CurrentSensor),
+        20 => Mode::Fault(Fault::NoMotorCurrent),
         _ => return Err(DecodeError::Value),
     })
 }
