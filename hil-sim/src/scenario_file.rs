@@ -33,6 +33,13 @@
 //! t_s = 0.3
 //! kind = "speed"                   # speed (rad/s), position (rad), torque (N·m), load (N·m)
 //! value = 150.0                    # or kind = "rotating_current", amplitude_a, omega_rad_s
+//! [[events]]                       # a fault injected into the simulated hardware:
+//! t_s = 1.0
+//! kind = "fault"
+//! fault = "current_sensor"         # phase = "a"|"b"|"c", gain, offset_a (dead: 0, 0)
+//! phase = "b"                      # or "encoder_stuck", "bus_voltage" (vdc_v), "load_seizure"
+//! gain = 0.0
+//! offset_a = 0.0
 //! ```
 //!
 //! **Open loop** (plant alone, validation) — a `[motor]` table (or `drive = "path"` for
@@ -58,7 +65,7 @@
 use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
-use crate::sim::{Event, LoadModel, OpenLoop, Scenario};
+use crate::sim::{Event, Injection, LoadModel, OpenLoop, Scenario};
 use controller_core::drive::{DriveSpec, Reference};
 use drive_file::board::BoardTable;
 use drive_file::certify::CertifyTable;
@@ -193,6 +200,16 @@ enum EventKind {
     Torque,
     Load,
     RotatingCurrent,
+    Fault,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(rename_all = "snake_case")]
+enum FaultKind {
+    CurrentSensor,
+    EncoderStuck,
+    BusVoltage,
+    LoadSeizure,
 }
 
 #[derive(Debug, Deserialize)]
@@ -203,6 +220,11 @@ struct EventTable {
     value: Option<f64>,
     amplitude_a: Option<f64>,
     omega_rad_s: Option<f64>,
+    fault: Option<FaultKind>,
+    phase: Option<String>,
+    gain: Option<f64>,
+    offset_a: Option<f64>,
+    vdc_v: Option<f64>,
 }
 
 /// `duration_s` and `sample_period_s` within their stated maxima; returns the row count.
@@ -286,9 +308,11 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             &key("t_s"),
             "must lie in [0, duration_s]",
         )?;
-        let bounded = |name: &str, v: Option<f64>| -> Result<f32, FileError> {
+        // Bounded, so that the drive's f32 references are finite (the narrowing is then exact
+        // up to rounding); the plant-side values stay f64.
+        let bounded = |name: &str, v: Option<f64>| -> Result<f64, FileError> {
             match v {
-                Some(x) if x.is_finite() && x.abs() <= MAX_EVENT_VALUE => Ok(x as f32),
+                Some(x) if x.is_finite() && x.abs() <= MAX_EVENT_VALUE => Ok(x),
                 Some(x) => Err(src
                     .error(&key(name), format!("is {}; must be finite, |x| ≤ {MAX_EVENT_VALUE:e}", num(x)))),
                 None => {
@@ -298,13 +322,37 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         };
         let ev = match e.kind {
             EventKind::Enable => Event::Enable,
-            EventKind::Speed => Event::Reference(Reference::Speed(bounded("value", e.value)?)),
-            EventKind::Position => Event::Reference(Reference::Position(bounded("value", e.value)?)),
-            EventKind::Torque => Event::Reference(Reference::Torque(bounded("value", e.value)?)),
-            EventKind::Load => Event::LoadNm(f64::from(bounded("value", e.value)?)),
+            EventKind::Speed => Event::Reference(Reference::Speed(bounded("value", e.value)? as f32)),
+            EventKind::Position => Event::Reference(Reference::Position(bounded("value", e.value)? as f32)),
+            EventKind::Torque => Event::Reference(Reference::Torque(bounded("value", e.value)? as f32)),
+            // The load is the plant's: f64, as written (it was rounded to f32 before).
+            EventKind::Load => Event::LoadNm(bounded("value", e.value)?),
             EventKind::RotatingCurrent => Event::Reference(Reference::RotatingCurrent {
-                amplitude_a: bounded("amplitude_a", e.amplitude_a)?,
-                omega_rad_s: bounded("omega_rad_s", e.omega_rad_s)?,
+                amplitude_a: bounded("amplitude_a", e.amplitude_a)? as f32,
+                omega_rad_s: bounded("omega_rad_s", e.omega_rad_s)? as f32,
+            }),
+            EventKind::Fault => Event::Fault(match e.fault {
+                None => return Err(src.error(&key("kind"), "a `fault` event needs `fault = \"…\"`")),
+                Some(FaultKind::CurrentSensor) => {
+                    let phase = match e.phase.as_deref() {
+                        Some("a") => 0,
+                        Some("b") => 1,
+                        Some("c") => 2,
+                        _ => return Err(src.error(&key("phase"), "needs phase = \"a\", \"b\" or \"c\"")),
+                    };
+                    Injection::CurrentSensor {
+                        phase,
+                        gain: bounded("gain", e.gain)?,
+                        offset_a: bounded("offset_a", e.offset_a)?,
+                    }
+                }
+                Some(FaultKind::EncoderStuck) => Injection::EncoderStuck,
+                Some(FaultKind::BusVoltage) => {
+                    let v = bounded("vdc_v", e.vdc_v)?;
+                    src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
+                    Injection::BusVoltage { vdc_v: v }
+                }
+                Some(FaultKind::LoadSeizure) => Injection::LoadSeizure,
             }),
         };
         events.push((e.t_s, ev));
@@ -542,6 +590,32 @@ torque_nm = 0.5
         assert_eq!(e.key.as_deref(), Some("motor.rr_ohm"), "{e}");
         let e = open_err(&replace(OPEN, "kind = \"sine\"", "kind = \"square\""));
         assert!(e.to_string().contains("square"), "{e}");
+    }
+
+    #[test]
+    fn fault_events() {
+        let with = |ev: &str| format!("{FIG16}\n[[events]]\nt_s = 1.0\nkind = \"fault\"\n{ev}\n");
+        let f = parse_closed_loop(
+            Path::new("c.toml"),
+            &with("fault = \"current_sensor\"\nphase = \"c\"\ngain = 0.0\noffset_a = 0.2"),
+        )
+        .unwrap();
+        assert_eq!(
+            f.scenario.events.last(),
+            Some(&(1.0, Event::Fault(Injection::CurrentSensor { phase: 2, gain: 0.0, offset_a: 0.2 })))
+        );
+        let f =
+            parse_closed_loop(Path::new("c.toml"), &with("fault = \"bus_voltage\"\nvdc_v = 150.0")).unwrap();
+        assert_eq!(
+            f.scenario.events.last(),
+            Some(&(1.0, Event::Fault(Injection::BusVoltage { vdc_v: 150.0 })))
+        );
+        let e = err(&with("fault = \"current_sensor\"\ngain = 0.0\noffset_a = 0.0"));
+        assert_eq!(e.key.as_deref(), Some("events[2].phase"), "{e}");
+        let e = err(&with("fault = \"bus_voltage\""));
+        assert_eq!(e.key.as_deref(), Some("events[2].vdc_v"), "{e}");
+        let e = err(&with("fault = \"meteor\""));
+        assert!(e.reason.contains("meteor"), "{e}");
     }
 
     #[test]

@@ -94,6 +94,9 @@ pub struct Sensors {
     last: EncoderReading,
     /// The current ADC is exact (no gain/offset error, noise or quantisation).
     exact_currents: bool,
+    /// The last 16-bit count read, and the count a frozen encoder keeps reporting.
+    last_count: u16,
+    frozen_count: Option<u16>,
 }
 
 impl Sensors {
@@ -108,7 +111,15 @@ impl Sensors {
             && model.current_offset_a == ideal.current_offset_a
             && model.current_gain == ideal.current_gain
             && model.current_noise_rms_a == 0.0;
-        Ok(Self { model, rng: Rng(model.seed), encoder, last: EncoderReading::default(), exact_currents })
+        Ok(Self {
+            model,
+            rng: Rng(model.seed),
+            encoder,
+            last: EncoderReading::default(),
+            exact_currents,
+            last_count: 0,
+            frozen_count: None,
+        })
     }
 
     /// Sampled phase currents from the true ones.
@@ -141,19 +152,43 @@ impl Sensors {
         Abc { a, b, c }
     }
 
+    /// From now on the current sensor of `phase` reads `gain·i + offset_a` (a fault).
+    pub fn fail_current_channel(&mut self, phase: usize, gain: f64, offset_a: f64) {
+        if let (Some(g), Some(o)) =
+            (self.model.current_gain.get_mut(phase), self.model.current_offset_a.get_mut(phase))
+        {
+            *g = gain;
+            *o = offset_a;
+            self.exact_currents = false;
+        }
+    }
+
+    /// From now on the encoder counter does not move (a lost or stuck encoder): the
+    /// estimator sees a constant count.
+    pub fn freeze_encoder(&mut self) {
+        self.frozen_count = Some(self.last_count);
+    }
+
     /// Measured bus voltage.
     pub fn vdc(&self, vdc_v: f64) -> f32 {
         quantize(vdc_v, self.model.vdc_lsb_v) as f32
     }
 
     /// Encoder read (call once per slow period): counts of a 16-bit quadrature counter.
-    /// Without an encoder model, the exact values are returned.
+    /// Without an encoder model, the exact values are returned (and a frozen encoder
+    /// reports the angle and zero speed of the moment it froze).
     pub fn encoder_read(&mut self, theta_m_rad: f64, omega_m_rad_s: f64) -> EncoderReading {
+        let frozen = self.frozen_count;
         self.last = match &mut self.encoder {
             Some((cfg, st, lines)) => {
                 let counts = (theta_m_rad * 4.0 * f64::from(*lines) / std::f64::consts::TAU).floor() as i64;
                 // The hardware counter keeps only the low 16 bits.
-                cfg.update(st, counts.rem_euclid(65_536) as u16)
+                let count = frozen.unwrap_or(counts.rem_euclid(65_536) as u16);
+                self.last_count = count;
+                cfg.update(st, count)
+            }
+            None if frozen.is_some() => {
+                EncoderReading { theta_m_rad: self.last.theta_m_rad, omega_m_rad_s: 0.0 }
             }
             None => EncoderReading { theta_m_rad: theta_m_rad as f32, omega_m_rad_s: omega_m_rad_s as f32 },
         };

@@ -68,6 +68,33 @@ pub enum Event {
     Reference(Reference),
     /// New load torque, N·m.
     LoadNm(f64),
+    /// A fault of the plant, inverter or sensors from this time on.
+    Fault(Injection),
+}
+
+/// A fault injected into the simulated hardware (issue 18's campaign): what the drive must
+/// detect.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Injection {
+    /// Current sensor of `phase` (0 = a, 1 = b, 2 = c) reads `gain·i + offset_a` from now on:
+    /// dead (0, 0), stuck at x (0, x), a gain error (g, 0), an offset drift (1, x).
+    CurrentSensor {
+        /// Phase index 0…2.
+        phase: usize,
+        /// New gain.
+        gain: f64,
+        /// New offset, A.
+        offset_a: f64,
+    },
+    /// The encoder counter stops counting (a lost or stuck encoder).
+    EncoderStuck,
+    /// The DC bus becomes `vdc_v` (a sag or a surge).
+    BusVoltage {
+        /// New bus voltage, V.
+        vdc_v: f64,
+    },
+    /// The load seizes: the rotor is held at standstill from now on.
+    LoadSeizure,
 }
 
 /// Load beyond the event-driven constant torque.
@@ -199,15 +226,18 @@ pub fn run(
     let divider = u64::from(drive.slow_divider());
     let mut sensors =
         Sensors::new(sc.sensors, ts * divider as f64).map_err(|e| format!("encoder model: {e:?}"))?;
-    let machine = &match sc.load {
+    let loaded = match sc.load {
         LoadModel::Torque => *machine,
         LoadModel::EddyBrake { k_nm_s_rad } => machine.with_eddy_brake(k_nm_s_rad),
         LoadModel::LockedRotor => machine.speed_locked(),
         LoadModel::CoulombFriction { friction_nm } => machine.with_coulomb_friction(friction_nm),
     };
+    let mut machine = &loaded;
+    // The machine after a load seizure (built only if one is injected).
+    let mut seized: Option<Machine> = None;
     let substeps = sc.substeps.max(1);
     let h = ts / f64::from(substeps);
-    let rk4 = machine.rk4_stepper(h);
+    let mut rk4 = machine.rk4_stepper(h);
     let n = (sc.duration_s / ts).round() as u64;
     let trace_every = sc.trace_every.max(1);
     let mut x = MachineState::default();
@@ -221,8 +251,9 @@ pub fn run(
     let mut rows = 0u64;
     // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
     let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
-    // The bus is stiff and its sensor noise-free: one measurement for the run.
-    let vdc_measured_v = sensors.vdc(sc.vdc_v);
+    // The bus is stiff and its sensor noise-free: one measurement until a bus fault.
+    let mut vdc_v = sc.vdc_v;
+    let mut vdc_measured_v = sensors.vdc(vdc_v);
     for k in 0..n {
         if k >= next_event_k {
             let t = k as f64 * ts;
@@ -231,6 +262,19 @@ pub fn run(
                     Event::Enable => drive.enable()?,
                     Event::Reference(r) => drive.set_reference(r)?,
                     Event::LoadNm(l) => load = l,
+                    Event::Fault(Injection::CurrentSensor { phase, gain, offset_a }) => {
+                        sensors.fail_current_channel(phase, gain, offset_a);
+                    }
+                    Event::Fault(Injection::EncoderStuck) => sensors.freeze_encoder(),
+                    Event::Fault(Injection::BusVoltage { vdc_v: v }) => {
+                        vdc_v = v;
+                        vdc_measured_v = sensors.vdc(v);
+                    }
+                    Event::Fault(Injection::LoadSeizure) => {
+                        x.omega_m_rad_s = 0.0;
+                        machine = seized.insert(loaded.speed_locked());
+                        rk4 = machine.rk4_stepper(h);
+                    }
                 }
             }
             next_event_k = first_period_of(events.peek());
@@ -260,7 +304,7 @@ pub fn run(
         let period = match sc.inverter {
             InverterModel::Switching { .. } if bridge_on => Period::Switching(duty_applied),
             _ => {
-                let v = InverterModel::average_voltage(duty_applied, sc.vdc_v);
+                let v = InverterModel::average_voltage(duty_applied, vdc_v);
                 Period::Average(v, rk4.begin_step(&x, v, load))
             }
         };
@@ -277,7 +321,7 @@ pub fn run(
                 v
             }
             Period::Switching(d) => {
-                let segments = sc.inverter.segments(d, i_true, sc.vdc_v, ts);
+                let segments = sc.inverter.segments(d, i_true, vdc_v, ts);
                 x = integrate_segments(machine, &x, &segments, h, load);
                 segments.average()
             }

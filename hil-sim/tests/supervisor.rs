@@ -8,7 +8,7 @@
 
 use controller_core::drive::{Fault, Mode};
 use hil_sim::scenario::{Builtin, speed_step};
-use hil_sim::sim::{Event, LoadModel};
+use hil_sim::sim::{Event, Injection, LoadModel};
 
 fn mode_after(b: &Builtin, duration_s: f64) -> (Mode, f64) {
     let mut b = b.clone();
@@ -74,4 +74,44 @@ fn a_dead_phase_sensor_is_a_current_sensor_fault() {
     assert_eq!(mode_after(&b, 0.01).0, Mode::Fault(Fault::CurrentSensor));
     // And not with healthy sensors, noise and errors included (speed-step-sensors runs the
     // whole scenario Running: tests/speed_step.rs).
+}
+
+/// `speed_step` with `injection` at 1.0 s (steady 148.5 rad/s, no load yet).
+fn injected(injection: Injection) -> Builtin {
+    let mut b = speed_step().unwrap();
+    b.scenario.events.push((1.0, Event::Fault(injection)));
+    b.scenario.events.sort_by(|x, y| x.0.total_cmp(&y.0));
+    b
+}
+
+/// A phase-b current sensor that dies while running: `CurrentSensor` within 10 ms (the
+/// sum −i_b passes the 0.4 A level within ≈ 4.4 ms of any instant for a 0.65 A phase
+/// current).
+#[test]
+fn a_sensor_dying_mid_run_is_caught_within_10_ms() {
+    let b = injected(Injection::CurrentSensor { phase: 1, gain: 0.0, offset_a: 0.0 });
+    assert_eq!(mode_after(&b, 0.999).0, Mode::Running);
+    assert_eq!(mode_after(&b, 1.010).0, Mode::Fault(Fault::CurrentSensor));
+    // An offset drift of 0.5 A: at once.
+    let b = injected(Injection::CurrentSensor { phase: 0, gain: 1.0, offset_a: 0.5 });
+    assert_eq!(mode_after(&b, 1.001).0, Mode::Fault(Fault::CurrentSensor));
+}
+
+/// Bus sag below `vdc_min_v` and surge above `vdc_max_v`: tripped in the next PWM period.
+#[test]
+fn bus_sag_and_surge() {
+    let b = injected(Injection::BusVoltage { vdc_v: 150.0 });
+    assert_eq!(mode_after(&b, 0.999).0, Mode::Running);
+    assert_eq!(mode_after(&b, 1.0002).0, Mode::Fault(Fault::DcBusUndervoltage));
+    let b = injected(Injection::BusVoltage { vdc_v: 450.0 });
+    assert_eq!(mode_after(&b, 1.0002).0, Mode::Fault(Fault::DcBusOvervoltage));
+}
+
+/// The load seizes at speed: the speed loop saturates at once and the rotor stands still,
+/// so `Stall` after the stall time (0.3 s), not before.
+#[test]
+fn load_seizure_is_a_stall() {
+    let b = injected(Injection::LoadSeizure);
+    assert_eq!(mode_after(&b, 1.25).0, Mode::Running);
+    assert_eq!(mode_after(&b, 1.35).0, Mode::Fault(Fault::Stall));
 }
