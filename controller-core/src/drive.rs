@@ -23,7 +23,8 @@
 //! when the bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases
 //! off in the same step. In the slow step: overspeed (|ω_m| above `overspeed_rad_s` while
 //! active) and stall (the speed loop's output at its limit with the rotor below 1 % of the
-//! overspeed level for `stall_time_s`). Magnetizing → Running also needs the measured
+//! overspeed level for `stall_time_s`); after the modulator, loss of control (the current
+//! loops at their voltage limit for `saturation_time_s`). Magnetizing → Running also needs the measured
 //! d-axis current to have followed its reference ([`Fault::NoMotorCurrent`] otherwise). A non-finite controller output (impossible for finite inputs, checked anyway)
 //! trips too. The fast step performs no indexing, no division by unchecked values that could
 //! panic, and no `unwrap`: it cannot panic for any input (property-tested).
@@ -55,6 +56,9 @@ pub struct Protection {
     /// Current-sensor plausibility: |i_a + i_b + i_c| of the three measured phase currents
     /// (zero for any star-connected motor) above this trips, A.
     pub current_sum_max_a: f64,
+    /// Loss of control: the current loops at their voltage limit (an axis clamped, or the
+    /// request outside the bridge's hexagon) for this long without a break, s.
+    pub saturation_time_s: f64,
 }
 
 /// "Not moving" for the stall check: below this fraction of the overspeed level.
@@ -164,6 +168,8 @@ pub struct DriveConfig {
     stall_slow_steps: u32,
     /// The speed loop's output limit (saturation test of the stall check).
     speed_limit: f32,
+    /// Fast steps with the voltage request outside the hexagon before the trip.
+    saturation_steps: u32,
 }
 
 impl DriveConfig {
@@ -191,6 +197,7 @@ impl DriveConfig {
             p.overspeed_rad_s,
             p.stall_time_s,
             p.current_sum_max_a,
+            p.saturation_time_s,
         ]
         .iter()
         .all(|x| x.is_finite());
@@ -201,7 +208,8 @@ impl DriveConfig {
             && p.i_trip_a > spec.i_ref_max_a
             && p.overspeed_rad_s > 0.0
             && p.stall_time_s > 0.0
-            && p.current_sum_max_a > 0.0)
+            && p.current_sum_max_a > 0.0
+            && p.saturation_time_s > 0.0)
         {
             return Err(DriveError::Protection);
         }
@@ -248,6 +256,7 @@ impl DriveConfig {
             stall_slow_steps: libm::ceil(p.stall_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
             speed_limit: speed.output_limit(),
+            saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
         })
     }
 }
@@ -277,6 +286,10 @@ pub enum Fault {
     /// The speed loop's output at its limit while the rotor does not turn, for
     /// `stall_time_s` (a locked rotor under a speed or position command).
     Stall,
+    /// The current loops asked for more voltage than the bridge has for
+    /// `saturation_time_s`: they no longer control the current (dead sensors, a voltage
+    /// limit reached at speed, an open phase).
+    LossOfControl,
     /// The three measured phase currents do not sum to zero (a dead, stuck or drifting
     /// current sensor).
     CurrentSensor,
@@ -408,6 +421,8 @@ pub struct Drive {
     test_angle_rad: f32,
     /// Consecutive slow steps with the stall condition.
     stall_steps: u32,
+    /// Consecutive fast steps with the voltage request outside the hexagon.
+    saturated_steps: u32,
 }
 
 impl Drive {
@@ -425,6 +440,7 @@ impl Drive {
             speed: SpeedState::default(),
             test_angle_rad: 0.0,
             stall_steps: 0,
+            saturated_steps: 0,
         }
     }
 
@@ -465,6 +481,7 @@ impl Drive {
                 self.steps_to_slow = 0;
                 self.test_angle_rad = 0.0;
                 self.stall_steps = 0;
+                self.saturated_steps = 0;
                 self.mode = Mode::Magnetizing;
                 Ok(())
             }
@@ -646,13 +663,17 @@ impl Drive {
             _ => cfg.ifoc.update(&mut self.ifoc, &cfg.flux, cmd, m.omega_m_rad_s),
         };
         let v_limit = svpwm::linear_limit_v(m.vdc_v);
-        let v_ab = match cfg.current_frame {
-            CurrentFrame::Stationary => cfg.current.update(&mut self.current, field.i_ref_ab, i_ab, v_limit),
+        // The loops' outputs, and whether either axis sits on its limit (the loop no longer
+        // controls that axis's current).
+        let (v_ab, clamped) = match cfg.current_frame {
+            CurrentFrame::Stationary => {
+                let v = cfg.current.update(&mut self.current, field.i_ref_ab, i_ab, v_limit);
+                (v, max_f32(v.alpha.abs(), v.beta.abs()) >= v_limit)
+            }
             CurrentFrame::Synchronous => {
                 let sc = field.field;
-                cfg.current
-                    .update_dq(&mut self.current, field.i_ref_dq, i_ab.park(sc), v_limit)
-                    .inverse_park(sc)
+                let v = cfg.current.update_dq(&mut self.current, field.i_ref_dq, i_ab.park(sc), v_limit);
+                (v.inverse_park(sc), max_f32(v.d.abs(), v.q.abs()) >= v_limit)
             }
         };
         if !(v_ab.alpha.is_finite() && v_ab.beta.is_finite()) {
@@ -660,6 +681,15 @@ impl Drive {
             return off(self.mode);
         }
         let modulation = svpwm::modulate(v_ab, m.vdc_v);
+        if clamped || modulation.saturated {
+            self.saturated_steps = self.saturated_steps.saturating_add(1);
+            if self.saturated_steps >= cfg.saturation_steps {
+                self.trip(Fault::LossOfControl);
+                return off(self.mode);
+            }
+        } else {
+            self.saturated_steps = 0;
+        }
         if !running && self.ifoc.psi_r_wb() >= cfg.psi_running_wb {
             // The flux model says magnetized; the motor must agree: the measured d-axis
             // current has followed its reference (the model runs on the reference).
@@ -721,6 +751,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             overspeed_rad_s: 450.0,
             stall_time_s: 0.3,
             current_sum_max_a: 0.4,
+            saturation_time_s: 0.02,
         },
     }
 }
@@ -816,10 +847,14 @@ mod tests {
         assert_eq!(d.mode(), Mode::Fault(Fault::Overspeed));
     }
 
-    /// With no measured current the flux model alone cannot take the drive to Running.
+    /// With no measured current the flux model alone cannot take the drive to Running (the
+    /// second line of defence: with the default saturation time, `LossOfControl` comes
+    /// first, so it is set long here).
     #[test]
     fn magnetizing_without_current_is_no_motor_current() {
-        let mut d = drive();
+        let mut spec = test_spec();
+        spec.protection.saturation_time_s = 10.0;
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
         d.enable().unwrap();
         let m = Measurements { vdc_v: 310.0, ..Default::default() };
         let mut k = 0;
@@ -887,8 +922,13 @@ mod tests {
         let mut d = running_drive();
         d.set_reference(Reference::RotatingCurrent { amplitude_a: 100.0, omega_rad_s: 300.0 }).unwrap();
         let mut refs = std::vec::Vec::new();
+        // Ideal current tracking (the measured current is the previous reference): with no
+        // current at all the loops would sit at their limit and trip `LossOfControl`.
+        let mut i = AlphaBeta::default();
         for _ in 0..2000 {
-            refs.push(d.step(&meas(310.0)).telemetry.i_ref_ab_a);
+            let m = Measurements { i_abc_a: i.inverse_clarke(), ..meas(310.0) };
+            i = d.step(&m).telemetry.i_ref_ab_a;
+            refs.push(i);
         }
         // Amplitude limited to i_ref_max = 4 A; β lags α by 90°: α = 4 cos θ, β = 4 sin θ.
         for r in &refs {

@@ -146,8 +146,9 @@ impl Default for PositionTable {
     }
 }
 
-/// `[protection]` table. The last three keys default to values derived from the drive
-/// ([`default_overspeed_rad_s`], [`DEFAULT_STALL_TIME_S`], [`DEFAULT_CURRENT_SUM_FRACTION`]).
+/// `[protection]` table. The last four keys default to values derived from the drive
+/// ([`default_overspeed_rad_s`], [`DEFAULT_STALL_TIME_S`], [`DEFAULT_CURRENT_SUM_FRACTION`],
+/// [`DEFAULT_SATURATION_TIME_S`]).
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ProtectionTable {
@@ -163,6 +164,8 @@ pub struct ProtectionTable {
     pub stall_time_s: Option<f64>,
     /// Current-sum plausibility limit, A.
     pub current_sum_max_a: Option<f64>,
+    /// Loss-of-control time, s.
+    pub saturation_time_s: Option<f64>,
 }
 
 /// Default overspeed trip: 1.2 × the speed at which the motor's no-load back-EMF at the
@@ -186,6 +189,12 @@ pub fn default_overspeed_rad_s(
 /// (the shipped motor at twice its inertia and 2 N·m: 0.015 s; at seed 002 Fig. 16's 0.4 N·m:
 /// 0.1 s). Set it explicitly for a drive with a large inertia and a small torque limit.
 pub const DEFAULT_STALL_TIME_S: f64 = 0.3;
+
+/// Default loss-of-control time, s: twenty times the current loops' settling (≈ 1 ms for
+/// ICAD eq. (20) and the shipped PIs), so a transient at the voltage limit (a large current
+/// step at speed) passes and a loop that has lost its current (dead sensors, a voltage limit
+/// it cannot leave) trips quickly.
+pub const DEFAULT_SATURATION_TIME_S: f64 = 0.02;
 
 /// Default current-sum limit as a fraction of `i_trip_a`: far above the noise of three
 /// 12-bit channels and their gain errors at working currents, below the sum a dead phase
@@ -301,6 +310,7 @@ pub fn drive_spec(
         ("protection.overspeed_rad_s", protection.overspeed_rad_s),
         ("protection.stall_time_s", protection.stall_time_s),
         ("protection.current_sum_max_a", protection.current_sum_max_a),
+        ("protection.saturation_time_s", protection.saturation_time_s),
     ] {
         if let Some(x) = x {
             src.check(x.is_finite() && x > 0.0, key, &format!("is {}; must be finite and > 0", num(x)))?;
@@ -333,6 +343,7 @@ pub fn drive_spec(
             current_sum_max_a: protection
                 .current_sum_max_a
                 .unwrap_or(DEFAULT_CURRENT_SUM_FRACTION * protection.i_trip_a),
+            saturation_time_s: protection.saturation_time_s.unwrap_or(DEFAULT_SATURATION_TIME_S),
         },
     };
     DriveConfig::new(&spec).map_err(|e| match e {

@@ -33,7 +33,7 @@
 //! i_trip_a = 8.0
 //! vdc_min_v = 200.0
 //! vdc_max_v = 400.0
-//! # overspeed_rad_s, stall_time_s, current_sum_max_a: derived defaults (drive::ProtectionTable)
+//! # overspeed_rad_s, stall_time_s, current_sum_max_a, saturation_time_s: derived defaults
 //!
 //! [certify]                   # optional: what `design certify` checks (certify::CertifyTable)
 //! [board]                     # optional: the firmware's board scaling (board::BoardTable)

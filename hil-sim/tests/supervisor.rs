@@ -53,15 +53,17 @@ fn a_load_the_drive_cannot_hold_ends_in_overspeed() {
     assert_eq!(mode_after(&b, cross + 5e-4 + 1e-4).0, Mode::Fault(Fault::Overspeed));
 }
 
-/// All three current sensors reading zero (gain 0): the true current flows but nothing is
-/// measured. The flux model would declare the motor magnetized after ≈ 0.19 s; the measured
-/// d-axis current does not agree, so it is `NoMotorCurrent` instead of Running.
+/// All three current sensors reading zero (gain 0) from the start: the true current flows
+/// but nothing is measured. The flux model would declare the motor magnetized after
+/// ≈ 0.19 s; instead the current loops, seeing no current, sit at their voltage limit and the
+/// drive stops with `LossOfControl` after the 20 ms saturation time (the magnetizing check,
+/// `NoMotorCurrent`, is the second line: controller-core's unit tests).
 #[test]
 fn dead_current_sensors_never_reach_running() {
     let mut b = speed_step().unwrap();
     b.scenario.sensors.current_gain = [0.0; 3];
-    assert_eq!(mode_after(&b, 0.1).0, Mode::Magnetizing);
-    assert_eq!(mode_after(&b, 0.3).0, Mode::Fault(Fault::NoMotorCurrent));
+    assert_eq!(mode_after(&b, 0.015).0, Mode::Magnetizing);
+    assert_eq!(mode_after(&b, 0.3).0, Mode::Fault(Fault::LossOfControl));
 }
 
 /// A dead phase-a sensor: the three measured currents no longer sum to zero. At standstill
@@ -114,4 +116,58 @@ fn load_seizure_is_a_stall() {
     let b = injected(Injection::LoadSeizure);
     assert_eq!(mode_after(&b, 1.25).0, Mode::Running);
     assert_eq!(mode_after(&b, 1.35).0, Mode::Fault(Fault::Stall));
+}
+
+/// All three current sensors stuck at zero while running (the sum stays zero, so the
+/// current-sum check cannot see it): the current loops wind up to the voltage limit and
+/// stay there — `LossOfControl` within the 20 ms saturation time plus the ≈ 1 ms the
+/// integrators take to reach the limit.
+#[test]
+fn all_sensors_stuck_at_zero_is_loss_of_control() {
+    let mut b = speed_step().unwrap();
+    for phase in 0..3 {
+        b.scenario
+            .events
+            .push((1.0, Event::Fault(Injection::CurrentSensor { phase, gain: 0.0, offset_a: 0.0 })));
+    }
+    b.scenario.events.sort_by(|x, y| x.0.total_cmp(&y.0));
+    assert_eq!(mode_after(&b, 1.015).0, Mode::Running);
+    assert_eq!(mode_after(&b, 1.025).0, Mode::Fault(Fault::LossOfControl));
+}
+
+/// Issue 17's first finding: seed 002 Fig. 16's run with the shipped drive's own constants
+/// (ψ_r* = 0.9 Wb, τ_max = 2 N·m) on 310 V cannot reach 376 rad/s; it hung at ≈ 226 rad/s
+/// on the voltage limit while reporting Running. Now it is a named fault.
+#[test]
+fn the_voltage_limit_without_field_weakening_is_loss_of_control() {
+    let mut b = hil_sim::scenario::fig16_icad().unwrap();
+    let shipped = drive_file::DriveFile::shipped().unwrap().spec;
+    b.spec.flux_ref_wb = shipped.flux_ref_wb;
+    b.spec.speed_law = shipped.speed_law;
+    b.spec.protection = shipped.protection;
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    assert_eq!(mode, Mode::Fault(Fault::LossOfControl));
+    let top = rows.iter().map(|r| r.x.omega_m_rad_s).fold(0.0, f64::max);
+    assert!(top > 100.0 && top < 376.0, "{top}");
+}
+
+/// Issue 18: no false trip in a 60 s run with realistic sensors (12-bit ADC with offset, gain
+/// error and noise, 1024-line encoder): speed steps both ways, a reversal, load steps.
+#[test]
+fn no_false_trip_in_a_minute_with_realistic_sensors() {
+    use controller_core::drive::Reference;
+    let mut b = hil_sim::scenario::speed_step_sensors().unwrap();
+    b.scenario.duration_s = 60.0;
+    b.scenario.trace_every = 2000;
+    b.scenario.events = vec![
+        (0.0, Event::Enable),
+        (0.3, Event::Reference(Reference::Speed(150.0))),
+        (10.0, Event::LoadNm(1.0)),
+        (20.0, Event::LoadNm(0.0)),
+        (25.0, Event::Reference(Reference::Speed(-150.0))),
+        (40.0, Event::Reference(Reference::Speed(20.0))),
+        (50.0, Event::Reference(Reference::Position(100.0))),
+    ];
+    let (_, mode) = b.run(|_| {}).unwrap();
+    assert_eq!(mode, Mode::Running);
 }

@@ -281,7 +281,15 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         w.f64(v)?;
     }
     let p = &s.protection;
-    for v in [p.i_trip_a, p.vdc_min_v, p.vdc_max_v, p.overspeed_rad_s, p.stall_time_s, p.current_sum_max_a] {
+    for v in [
+        p.i_trip_a,
+        p.vdc_min_v,
+        p.vdc_max_v,
+        p.overspeed_rad_s,
+        p.stall_time_s,
+        p.current_sum_max_a,
+        p.saturation_time_s,
+    ] {
         w.f64(v)?;
     }
     Ok(())
@@ -328,6 +336,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         overspeed_rad_s: r.f64()?,
         stall_time_s: r.f64()?,
         current_sum_max_a: r.f64()?,
+        saturation_time_s: r.f64()?,
     };
     Ok(DriveSpec {
         motor,
@@ -362,6 +371,7 @@ fn mode_code(m: Mode) -> u8 {
         Mode::Fault(Fault::Stall) => 18,
         Mode::Fault(Fault::CurrentSensor) => 19,
         Mode::Fault(Fault::NoMotorCurrent) => 20,
+        Mode::Fault(Fault::LossOfControl) => 21,
     }
 }
 
@@ -381,6 +391,7 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
         18 => Mode::Fault(Fault::Stall),
         19 => Mode::Fault(Fault::CurrentSensor),
         20 => Mode::Fault(Fault::NoMotorCurrent),
+        21 => Mode::Fault(Fault::LossOfControl),
         _ => return Err(DecodeError::Value),
     })
 }
