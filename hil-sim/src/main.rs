@@ -7,6 +7,7 @@
 //! (Ctrl-C) run leaves none behind.
 
 use clap::{Args, Parser, Subcommand};
+use controller_core::drive::Mode;
 use controller_core::link::{Command, Reply};
 use hil_sim::pil::PilOptions;
 use hil_sim::scenario::{self, Builtin};
@@ -130,7 +131,8 @@ fn interrupted() -> Result<(), String> {
 
 const BASE_HEADER: &str =
     "t_s,i_alpha_a,i_beta_a,psi_alpha_wb,psi_beta_wb,omega_m_rad_s,theta_m_rad,torque_nm,v_alpha_v,v_beta_v";
-const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm";
+const CLOSED_LOOP_HEADER: &str =
+    ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm,drive_mode,fault,duty_a,duty_b,duty_c,vdc_v";
 
 /// Most points per plotted curve.
 const PLOT_POINTS: f64 = 4000.0;
@@ -204,6 +206,18 @@ impl TraceWriter {
                     ",{:.6},{:.6},{:.4},{:.4}",
                     r.i_ref_ab_a[0], r.i_ref_ab_a[1], r.omega_ref_rad_s, r.load_nm
                 )?;
+                // Mode and fault as words; duties empty while the bridge is off.
+                let (mode, fault) = match r.mode {
+                    Some(Mode::Fault(which)) => ("Fault".to_string(), format!("{which:?}")),
+                    Some(m) => (format!("{m:?}"), String::new()),
+                    None => (String::new(), String::new()),
+                };
+                write!(f, ",{mode},{fault}")?;
+                match r.duty {
+                    Some([a, b, c]) => write!(f, ",{a:.6},{b:.6},{c:.6}")?,
+                    None => write!(f, ",,,")?,
+                }
+                write!(f, ",{:.2}", r.vdc_v)?;
             }
             writeln!(f)
         })?;

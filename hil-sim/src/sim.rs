@@ -9,7 +9,7 @@
 
 use crate::inverter::{InverterModel, Segments};
 use crate::sensors::{SensorModel, Sensors};
-use controller_core::drive::{Drive, FastOutput, Measurements, PhaseCommand, Reference};
+use controller_core::drive::{Drive, FastOutput, Measurements, Mode, PhaseCommand, Reference};
 use controller_core::frames::AlphaBeta;
 use controller_core::motor::MotorParams;
 use plant::{Machine, MachineState, Rk4Midway};
@@ -172,6 +172,12 @@ pub struct Row {
     pub omega_ref_rad_s: f64,
     /// Load torque, N·m.
     pub load_nm: f64,
+    /// The drive's mode after this period's step (`None` in open-loop runs).
+    pub mode: Option<Mode>,
+    /// Duties the drive decided for the next period (`None`: bridge off).
+    pub duty: Option<[f64; 3]>,
+    /// DC-bus voltage, V.
+    pub vdc_v: f64,
 }
 
 /// The plant's side of one period in [`run`].
@@ -343,6 +349,12 @@ pub fn run(
                 ],
                 omega_ref_rad_s: f64::from(out.telemetry.omega_ref_rad_s),
                 load_nm: load,
+                mode: Some(out.mode),
+                duty: match out.phases {
+                    PhaseCommand::Off => None,
+                    PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),
+                },
+                vdc_v,
             })?;
         } else {
             to_trace -= 1;

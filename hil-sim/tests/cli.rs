@@ -189,3 +189,37 @@ fn bench_reports_consistent_figures_and_rejects_bad_arguments() {
         assert!(!String::from_utf8_lossy(&st.stderr).is_empty());
     }
 }
+
+/// A closed-loop trace carries the drive's mode, the fault, the duties and the bus voltage:
+/// a bus sag injected at 0.4 s shows as `Fault,DcBusUndervoltage` with the duties empty.
+#[test]
+fn closed_loop_trace_has_mode_fault_duties_and_bus() {
+    let dir = tmp("modes");
+    std::fs::create_dir_all(&dir).unwrap();
+    let fig16 =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/fig16-icad.toml")).unwrap();
+    let text = fig16.replacen("duration_s = 6.5", "duration_s = 0.5", 1)
+        + "\n[[events]]\nt_s = 0.4\nkind = \"fault\"\nfault = \"bus_voltage\"\nvdc_v = 150.0\n";
+    let file = dir.join("sag.toml");
+    std::fs::write(&file, text).unwrap();
+    let out = dir.join("out");
+    let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    let mut lines = trace.lines();
+    assert!(lines.next().unwrap().ends_with(",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let col = |r: &Vec<&str>, k: usize| r[r.len() - 6 + k].to_string();
+    assert_eq!(col(&rows[10], 0), "Magnetizing");
+    assert_eq!(col(&rows[300], 0), "Running");
+    assert!(col(&rows[300], 2).parse::<f64>().is_ok() && col(&rows[300], 5) == "310.00");
+    let last = rows.last().unwrap();
+    assert_eq!(
+        (col(last, 0), col(last, 1), col(last, 2), col(last, 5)),
+        ("Fault".into(), "DcBusUndervoltage".into(), String::new(), "150.00".into())
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["drive_mode"], "Fault(DcBusUndervoltage)");
+    let _ = std::fs::remove_dir_all(&dir);
+}
