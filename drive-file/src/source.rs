@@ -99,7 +99,7 @@ impl<'a> Source<'a> {
         self.doc.iter().any(|(k, _)| k.get_ref().as_ref() == key)
     }
 
-    /// The string value of a top-level key, with the error to report against it.
+    /// The string value of a top-level key, if it is a string.
     pub fn string(&self, key: &str) -> Option<String> {
         self.doc.iter().find(|(k, _)| k.get_ref().as_ref() == key).and_then(|(_, v)| match v.get_ref() {
             DeValue::String(s) => Some(s.to_string()),
