@@ -24,7 +24,8 @@
 //! off in the same step. In the slow step: overspeed (|ω_m| above `overspeed_rad_s` while
 //! active) and stall (the speed loop's output at its limit with the rotor below 1 % of the
 //! overspeed level for `stall_time_s`); after the modulator, loss of control (the current
-//! loops at their voltage limit for `saturation_time_s`). Magnetizing → Running also needs the measured
+//! loops at their voltage limit for `saturation_time_s`), and once per slow period the
+//! encoder against the machine model ([`Fault::EncoderImplausible`]). Magnetizing → Running also needs the measured
 //! d-axis current to have followed its reference ([`Fault::NoMotorCurrent`] otherwise). A non-finite controller output (impossible for finite inputs, checked anyway)
 //! trips too. The fast step performs no indexing, no division by unchecked values that could
 //! panic, and no `unwrap`: it cannot panic for any input (property-tested).
@@ -59,7 +60,14 @@ pub struct Protection {
     /// Loss of control: the current loops at their voltage limit (an axis clamped, or the
     /// request outside the bridge's hexagon) for this long without a break, s.
     pub saturation_time_s: f64,
+    /// Encoder against the machine model: the applied voltage departs from the voltage the
+    /// motor needs at the encoder's speed by more than [`ENCODER_RESIDUAL_FRACTION`] of the
+    /// linear voltage limit, at every slow-step check for this long, s.
+    pub encoder_check_time_s: f64,
 }
+
+/// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
+pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
 
 /// "Not moving" for the stall check: below this fraction of the overspeed level.
 pub const STALL_SPEED_FRACTION: f64 = 0.01;
@@ -170,6 +178,21 @@ pub struct DriveConfig {
     speed_limit: f32,
     /// Fast steps with the voltage request outside the hexagon before the trip.
     saturation_steps: u32,
+    /// Slow periods of implausible encoder before the trip.
+    encoder_check_steps: u32,
+    /// Steady-state stator voltage model in the field frame (the encoder check).
+    emf: EmfModel,
+}
+
+/// Steady-state stator voltage of the induction machine in the rotor-flux frame:
+/// v_d = R_s i_d − ω_e σL_s i_q, v_q = R_s i_q + ω_e (σL_s i_d + (L_m/L_r) ψ_r), with
+/// ω_e = p ω_m + ω_sl (the standard dq model, seed 000 eqs. (1)–(4) at steady state).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct EmfModel {
+    rs_ohm: f32,
+    sigma_ls_h: f32,
+    lm_over_lr: f32,
+    pole_pairs: f32,
 }
 
 impl DriveConfig {
@@ -198,6 +221,7 @@ impl DriveConfig {
             p.stall_time_s,
             p.current_sum_max_a,
             p.saturation_time_s,
+            p.encoder_check_time_s,
         ]
         .iter()
         .all(|x| x.is_finite());
@@ -209,7 +233,8 @@ impl DriveConfig {
             && p.overspeed_rad_s > 0.0
             && p.stall_time_s > 0.0
             && p.current_sum_max_a > 0.0
-            && p.saturation_time_s > 0.0)
+            && p.saturation_time_s > 0.0
+            && p.encoder_check_time_s > 0.0)
         {
             return Err(DriveError::Protection);
         }
@@ -257,6 +282,14 @@ impl DriveConfig {
                 as u32,
             speed_limit: speed.output_limit(),
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
+            encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
+                .clamp(1.0, 4e9) as u32,
+            emf: EmfModel {
+                rs_ohm: spec.motor.rs_ohm() as f32,
+                sigma_ls_h: (spec.motor.sigma() * spec.motor.ls_h()) as f32,
+                lm_over_lr: (spec.motor.lm_h() / spec.motor.lr_h()) as f32,
+                pole_pairs: f32::from(spec.motor.pole_pairs()),
+            },
         })
     }
 }
@@ -290,6 +323,9 @@ pub enum Fault {
     /// `saturation_time_s`: they no longer control the current (dead sensors, a voltage
     /// limit reached at speed, an open phase).
     LossOfControl,
+    /// The applied voltage does not fit the motor at the encoder's speed for
+    /// `encoder_check_time_s` (a frozen or lost encoder, a wrong line count).
+    EncoderImplausible,
     /// The three measured phase currents do not sum to zero (a dead, stuck or drifting
     /// current sensor).
     CurrentSensor,
@@ -423,6 +459,8 @@ pub struct Drive {
     stall_steps: u32,
     /// Consecutive fast steps with the voltage request outside the hexagon.
     saturated_steps: u32,
+    /// Consecutive slow periods with an implausible encoder.
+    encoder_bad_steps: u32,
 }
 
 impl Drive {
@@ -441,6 +479,7 @@ impl Drive {
             test_angle_rad: 0.0,
             stall_steps: 0,
             saturated_steps: 0,
+            encoder_bad_steps: 0,
         }
     }
 
@@ -482,6 +521,7 @@ impl Drive {
                 self.test_angle_rad = 0.0;
                 self.stall_steps = 0;
                 self.saturated_steps = 0;
+                self.encoder_bad_steps = 0;
                 self.mode = Mode::Magnetizing;
                 Ok(())
             }
@@ -632,6 +672,40 @@ impl Drive {
         }
     }
 
+    /// Encoder against the machine model: the magnitude of the applied voltage against that
+    /// of the steady-state voltage [`EmfModel`] of the measured currents at the encoder's
+    /// speed. A frozen encoder at speed leaves the back-EMF in the applied voltage and takes
+    /// it out of the model.
+    #[inline(never)]
+    fn check_encoder(
+        &mut self,
+        i_ab: AlphaBeta,
+        v_ab: AlphaBeta,
+        field: &IfocOutput,
+        omega_m: f32,
+        v_limit: f32,
+    ) {
+        let e = &self.cfg.emf;
+        let (i, v) = (i_ab.park(field.field), v_ab.park(field.field));
+        let w_e = e.pole_pairs * omega_m + field.omega_sl_rad_s;
+        let vd = e.rs_ohm * i.d - w_e * e.sigma_ls_h * i.q;
+        let vq = e.rs_ohm * i.q + w_e * (e.sigma_ls_h * i.d + e.lm_over_lr * self.ifoc.psi_r_wb());
+        // Magnitudes, not vectors: a detuned field angle (rotor resistance off by the
+        // certified 2×) turns the voltage vector but hardly changes its length, while a
+        // frozen encoder at speed removes the back-EMF from the model's length.
+        let residual = (libm::hypotf(v.d, v.q) - libm::hypotf(vd, vq)).abs();
+        // Consecutive implausible checks (a leaky count accumulated the detuned corner's
+        // transients into a false trip).
+        if residual > ENCODER_RESIDUAL_FRACTION * v_limit {
+            self.encoder_bad_steps = self.encoder_bad_steps.saturating_add(1);
+            if self.encoder_bad_steps >= self.cfg.encoder_check_steps {
+                self.trip(Fault::EncoderImplausible);
+            }
+        } else {
+            self.encoder_bad_steps = 0;
+        }
+    }
+
     /// Current loop. See the module docs for the signal flow.
     #[inline]
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
@@ -690,7 +764,16 @@ impl Drive {
         } else {
             self.saturated_steps = 0;
         }
-        if !running && self.ifoc.psi_r_wb() >= cfg.psi_running_wb {
+        // Once per slow period (the fast step right after the slow step), while Running on
+        // the field-oriented references: the encoder against the machine model.
+        let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
+        if running && field_oriented && self.steps_to_slow == cfg.slow_divider.saturating_sub(1) {
+            self.check_encoder(i_ab, modulation.v_applied, &field, m.omega_m_rad_s, v_limit);
+            if self.mode != Mode::Running {
+                return off(self.mode);
+            }
+        }
+        if !running && self.ifoc.psi_r_wb() >= self.cfg.psi_running_wb {
             // The flux model says magnetized; the motor must agree: the measured d-axis
             // current has followed its reference (the model runs on the reference).
             let i_d = i_ab.park(field.field).d;
@@ -752,6 +835,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             stall_time_s: 0.3,
             current_sum_max_a: 0.4,
             saturation_time_s: 0.02,
+            encoder_check_time_s: 0.01,
         },
     }
 }

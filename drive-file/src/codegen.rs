@@ -72,7 +72,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       i_ref_max_a: {:?},\n\
          \x20       magnetized_fraction: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
-         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?} }},\n\
+         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?} }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -100,6 +100,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         p.stall_time_s,
         p.current_sum_max_a,
         p.saturation_time_s,
+        p.encoder_check_time_s,
     )
 }
 

@@ -166,6 +166,8 @@ pub struct ProtectionTable {
     pub current_sum_max_a: Option<f64>,
     /// Loss-of-control time, s.
     pub saturation_time_s: Option<f64>,
+    /// Encoder-against-model time, s.
+    pub encoder_check_time_s: Option<f64>,
 }
 
 /// Default overspeed trip: 1.2 × the speed at which the motor's no-load back-EMF at the
@@ -195,6 +197,11 @@ pub const DEFAULT_STALL_TIME_S: f64 = 0.3;
 /// step at speed) passes and a loop that has lost its current (dead sensors, a voltage limit
 /// it cannot leave) trips quickly.
 pub const DEFAULT_SATURATION_TIME_S: f64 = 0.02;
+
+/// Default encoder-check time, s: twenty slow periods at the shipped rate, several times the
+/// current loops' settling and the encoder estimator's 8-read window, so a current step (whose
+/// σL_s·di/dt the steady-state model leaves out) or a speed transient passes.
+pub const DEFAULT_ENCODER_CHECK_TIME_S: f64 = 0.01;
 
 /// Default current-sum limit as a fraction of `i_trip_a`: far above the noise of three
 /// 12-bit channels and their gain errors at working currents, below the sum a dead phase
@@ -311,6 +318,7 @@ pub fn drive_spec(
         ("protection.stall_time_s", protection.stall_time_s),
         ("protection.current_sum_max_a", protection.current_sum_max_a),
         ("protection.saturation_time_s", protection.saturation_time_s),
+        ("protection.encoder_check_time_s", protection.encoder_check_time_s),
     ] {
         if let Some(x) = x {
             src.check(x.is_finite() && x > 0.0, key, &format!("is {}; must be finite and > 0", num(x)))?;
@@ -344,6 +352,7 @@ pub fn drive_spec(
                 .current_sum_max_a
                 .unwrap_or(DEFAULT_CURRENT_SUM_FRACTION * protection.i_trip_a),
             saturation_time_s: protection.saturation_time_s.unwrap_or(DEFAULT_SATURATION_TIME_S),
+            encoder_check_time_s: protection.encoder_check_time_s.unwrap_or(DEFAULT_ENCODER_CHECK_TIME_S),
         },
     };
     DriveConfig::new(&spec).map_err(|e| match e {

@@ -288,7 +288,7 @@ mod target {
     /// The control interrupt: end of the injected ADC sequence, once per PWM period.
     ///
     /// Time budget: one period is 50 µs = 8 500 cycles at 170 MHz. The control step executes
-    /// ≈ 578 instructions (fast step) plus ≈ 115 every 10th period (slow step), counted under
+    /// ≈ 596 instructions (fast step, on average) plus ≈ 118 every 10th period (slow step), counted under
     /// QEMU (`cargo xtask qemu`, `qemu-target/src/bin/cost.rs`): 7 % of the period at one
     /// cycle per instruction. The real cycle count (FPU divide latency, flash wait states)
     /// is still to be measured on the board with DWT CYCCNT. The compare values

@@ -295,6 +295,7 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
         stall_time_s: drive_file::drive::DEFAULT_STALL_TIME_S,
         current_sum_max_a: drive_file::drive::DEFAULT_CURRENT_SUM_FRACTION * 400.0,
         saturation_time_s: drive_file::drive::DEFAULT_SATURATION_TIME_S,
+        encoder_check_time_s: drive_file::drive::DEFAULT_ENCODER_CHECK_TIME_S,
     };
     b.scenario.vdc_v = 3300.0;
     b.scenario.events = vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Speed(100.0)))];

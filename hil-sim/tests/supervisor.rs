@@ -171,3 +171,21 @@ fn no_false_trip_in_a_minute_with_realistic_sensors() {
     let (_, mode) = b.run(|_| {}).unwrap();
     assert_eq!(mode, Mode::Running);
 }
+
+/// A frozen encoder at 148 rad/s: the drive believes the rotor stopped, so the model's
+/// back-EMF vanishes while the applied voltage keeps it — `EncoderImplausible` after the
+/// 10 ms check time plus the estimator's window, with the exact encoder and with the
+/// 1024-line encoder model. (Not yet with the 1024-line encoder *and* the eddy-current brake
+/// of `speed-step-sensors`: that combination is caught only as `Stall`, after 0.3 s — open,
+/// see docs/protection.md.)
+#[test]
+fn a_frozen_encoder_is_implausible() {
+    for lines in [None, Some(1024)] {
+        let mut b = speed_step().unwrap();
+        b.scenario.sensors.encoder_lines = lines;
+        b.scenario.events.retain(|(t, _)| *t < 1.0);
+        b.scenario.events.push((1.0, Event::Fault(Injection::EncoderStuck)));
+        assert_eq!(mode_after(&b, 1.005).0, Mode::Running, "{lines:?}");
+        assert_eq!(mode_after(&b, 1.030).0, Mode::Fault(Fault::EncoderImplausible), "{lines:?}");
+    }
+}

@@ -289,6 +289,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         p.stall_time_s,
         p.current_sum_max_a,
         p.saturation_time_s,
+        p.encoder_check_time_s,
     ] {
         w.f64(v)?;
     }
@@ -337,6 +338,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         stall_time_s: r.f64()?,
         current_sum_max_a: r.f64()?,
         saturation_time_s: r.f64()?,
+        encoder_check_time_s: r.f64()?,
     };
     Ok(DriveSpec {
         motor,
@@ -372,6 +374,7 @@ fn mode_code(m: Mode) -> u8 {
         Mode::Fault(Fault::CurrentSensor) => 19,
         Mode::Fault(Fault::NoMotorCurrent) => 20,
         Mode::Fault(Fault::LossOfControl) => 21,
+        Mode::Fault(Fault::EncoderImplausible) => 22,
     }
 }
 
@@ -392,6 +395,7 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
         19 => Mode::Fault(Fault::CurrentSensor),
         20 => Mode::Fault(Fault::NoMotorCurrent),
         21 => Mode::Fault(Fault::LossOfControl),
+        22 => Mode::Fault(Fault::EncoderImplausible),
         _ => return Err(DecodeError::Value),
     })
 }
