@@ -188,20 +188,42 @@ pub fn default_overspeed_rad_s(
 /// Default stall time, s: a locked rotor under a speed command is caught within this. A
 /// start at the torque limit must leave the "not moving" band (1 % of the overspeed level,
 /// `controller_core::drive::STALL_SPEED_FRACTION`) well before it: J·ω_band/τ_limit ≪ this
-/// (the shipped motor at twice its inertia and 2 N·m: 0.015 s; at seed 002 Fig. 16's 0.4 N·m:
-/// 0.1 s). Set it explicitly for a drive with a large inertia and a small torque limit.
+/// (checked for the shipped drive at its largest certified inertia by the test
+/// `derived_protection_defaults`). Set it explicitly for a drive with a large inertia and a
+/// small torque limit.
 pub const DEFAULT_STALL_TIME_S: f64 = 0.3;
 
-/// Default loss-of-control time, s: twenty times the current loops' settling (≈ 1 ms for
-/// ICAD eq. (20) and the shipped PIs), so a transient at the voltage limit (a large current
-/// step at speed) passes and a loop that has lost its current (dead sensors, a voltage limit
-/// it cannot leave) trips quickly.
+/// Default loss-of-control time, s: long against the current loops' settling, so a transient
+/// at the voltage limit (a large current step at speed) passes, and short enough that a loop
+/// that has lost its current (dead sensors, a voltage limit it cannot leave) trips quickly
+/// (`hil-sim/tests/supervisor.rs`).
 pub const DEFAULT_SATURATION_TIME_S: f64 = 0.02;
 
 /// Default encoder-check time, s: twenty slow periods at the shipped rate, several times the
 /// current loops' settling and the encoder estimator's 8-read window, so a current step (whose
 /// σL_s·di/dt the steady-state model leaves out) or a speed transient passes.
 pub const DEFAULT_ENCODER_CHECK_TIME_S: f64 = 0.01;
+
+/// The protection of a drive with the derived defaults for every optional key (what a
+/// `[protection]` table with only its three required keys gives).
+pub fn protection_with_defaults(
+    motor: &controller_core::motor::MotorParams,
+    flux_ref_wb: f64,
+    i_trip_a: f64,
+    vdc_min_v: f64,
+    vdc_max_v: f64,
+) -> Protection {
+    Protection {
+        i_trip_a,
+        vdc_min_v,
+        vdc_max_v,
+        overspeed_rad_s: default_overspeed_rad_s(motor, flux_ref_wb, vdc_max_v),
+        stall_time_s: DEFAULT_STALL_TIME_S,
+        current_sum_max_a: DEFAULT_CURRENT_SUM_FRACTION * i_trip_a,
+        saturation_time_s: DEFAULT_SATURATION_TIME_S,
+        encoder_check_time_s: DEFAULT_ENCODER_CHECK_TIME_S,
+    }
+}
 
 /// Default current-sum limit as a fraction of `i_trip_a`: far above the noise of three
 /// 12-bit channels and their gain errors at working currents, below the sum a dead phase
@@ -340,19 +362,22 @@ pub fn drive_spec(
         flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
         i_ref_max_a: c.i_ref_max_a,
         magnetized_fraction: c.magnetized_fraction,
-        protection: Protection {
-            i_trip_a: protection.i_trip_a,
-            vdc_min_v: protection.vdc_min_v,
-            vdc_max_v: protection.vdc_max_v,
-            overspeed_rad_s: protection
-                .overspeed_rad_s
-                .unwrap_or_else(|| default_overspeed_rad_s(&motor, c.flux_ref_wb, protection.vdc_max_v)),
-            stall_time_s: protection.stall_time_s.unwrap_or(DEFAULT_STALL_TIME_S),
-            current_sum_max_a: protection
-                .current_sum_max_a
-                .unwrap_or(DEFAULT_CURRENT_SUM_FRACTION * protection.i_trip_a),
-            saturation_time_s: protection.saturation_time_s.unwrap_or(DEFAULT_SATURATION_TIME_S),
-            encoder_check_time_s: protection.encoder_check_time_s.unwrap_or(DEFAULT_ENCODER_CHECK_TIME_S),
+        protection: {
+            let d = protection_with_defaults(
+                &motor,
+                c.flux_ref_wb,
+                protection.i_trip_a,
+                protection.vdc_min_v,
+                protection.vdc_max_v,
+            );
+            Protection {
+                overspeed_rad_s: protection.overspeed_rad_s.unwrap_or(d.overspeed_rad_s),
+                stall_time_s: protection.stall_time_s.unwrap_or(d.stall_time_s),
+                current_sum_max_a: protection.current_sum_max_a.unwrap_or(d.current_sum_max_a),
+                saturation_time_s: protection.saturation_time_s.unwrap_or(d.saturation_time_s),
+                encoder_check_time_s: protection.encoder_check_time_s.unwrap_or(d.encoder_check_time_s),
+                ..d
+            }
         },
     };
     DriveConfig::new(&spec).map_err(|e| match e {

@@ -112,10 +112,13 @@ impl<'a> Source<'a> {
     pub fn deserialize<T: DeserializeOwned>(&self) -> Result<T, FileError> {
         toml::from_str(self.text).map_err(|e| {
             let span = e.span();
+            // A missing key's span is its table's, which starts where the table's first key
+            // does: naming that key would point at the wrong one.
+            let missing = e.message().starts_with("missing field");
             FileError {
                 file: self.path.to_path_buf(),
                 at: span.clone().map(|s| line_col(self.text, s.start)),
-                key: span.and_then(|s| self.key_at(&s)),
+                key: if missing { None } else { span.and_then(|s| self.key_at(&s)) },
                 reason: first_line(e.message()),
             }
         })
@@ -263,6 +266,10 @@ mod tests {
         let e = Source::parse(p, &bad).unwrap().deserialize::<T>().unwrap_err();
         assert_eq!(e.at, Some((8, 1)), "{e}");
         assert!(e.to_string().contains("list[1].w") && e.reason.contains("unknown field"), "{e}");
+        // A missing key names no other key (its span is the table's, where `a` starts).
+        let e = Source::parse(p, "a = 1.0\n").unwrap().deserialize::<T>().unwrap_err();
+        assert_eq!(e.key, None, "{e}");
+        assert!(e.reason.contains("missing field `inner`"), "{e}");
         // Syntax error.
         let e = Source::parse(p, "a = = 1").unwrap_err();
         assert_eq!(e.at, Some((1, 5)), "{e}");

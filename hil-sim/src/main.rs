@@ -12,9 +12,8 @@ use controller_core::link::{Command, Reply};
 use hil_sim::pil::PilOptions;
 use hil_sim::scenario::{self, Builtin};
 use hil_sim::sim::{self, Row};
-use report::write::{partial_path, write_text};
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use report::write::{write_atomic, write_text};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -137,13 +136,9 @@ const CLOSED_LOOP_HEADER: &str =
 /// Most points per plotted curve.
 const PLOT_POINTS: f64 = 4000.0;
 
-/// The trace, streamed to `trace.csv.partial` and renamed when complete; keeps the peak
-/// current, the last row and a thinned copy for the plots. Dropped unfinished (an error, an
-/// interrupt), it removes its partial file.
-struct TraceWriter {
-    path: PathBuf,
-    tmp: PathBuf,
-    file: Option<BufWriter<File>>,
+/// What a streamed trace leaves for the summary and the plots: the peak current, the last
+/// row and a thinned copy of the rows.
+struct TraceStats {
     closed_loop: bool,
     plot_every: u64,
     count: u64,
@@ -152,101 +147,104 @@ struct TraceWriter {
     plot: Vec<Row>,
 }
 
-impl TraceWriter {
-    fn create(dir: &Path, closed_loop: bool, expected_rows: f64) -> Result<Self, String> {
-        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-        let path = dir.join("trace.csv");
-        let tmp = partial_path(&path);
-        let f = File::create(&tmp).map_err(|e| format!("cannot write in {}: {e}", dir.display()))?;
-        let mut w = Self {
-            path,
-            tmp,
-            file: Some(BufWriter::new(f)),
+impl TraceStats {
+    fn new(closed_loop: bool, expected_rows: f64) -> Self {
+        Self {
             closed_loop,
             plot_every: (expected_rows / PLOT_POINTS).ceil().max(1.0) as u64,
             count: 0,
             peak_a: 0.0,
             last: None,
             plot: Vec::new(),
-        };
-        let header = format!("{BASE_HEADER}{}", if closed_loop { CLOSED_LOOP_HEADER } else { "" });
-        w.io(|f| writeln!(f, "{header}"))?;
-        Ok(w)
-    }
-
-    fn io(&mut self, op: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>) -> Result<(), String> {
-        match self.file.as_mut() {
-            Some(f) => op(f).map_err(|e| format!("cannot write {}: {e}", self.tmp.display())),
-            None => Err("trace already finished".into()),
         }
     }
 
-    fn push(&mut self, r: &Row) -> Result<(), String> {
-        interrupted()?;
-        let closed_loop = self.closed_loop;
-        self.io(|f| {
-            let x = &r.x;
-            write!(
-                f,
-                "{:.7},{:.6},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.4},{:.4}",
-                r.t_s,
-                x.i_alpha_a,
-                x.i_beta_a,
-                x.psi_alpha_wb,
-                x.psi_beta_wb,
-                x.omega_m_rad_s,
-                x.theta_m_rad,
-                r.torque_nm,
-                r.v_ab_v[0],
-                r.v_ab_v[1]
-            )?;
-            if closed_loop {
-                write!(
-                    f,
-                    ",{:.6},{:.6},{:.4},{:.4}",
-                    r.i_ref_ab_a[0], r.i_ref_ab_a[1], r.omega_ref_rad_s, r.load_nm
-                )?;
-                // Mode and fault as words; duties empty while the bridge is off.
-                let (mode, fault) = match r.mode {
-                    Some(Mode::Fault(which)) => ("Fault".to_string(), format!("{which:?}")),
-                    Some(m) => (format!("{m:?}"), String::new()),
-                    None => (String::new(), String::new()),
-                };
-                write!(f, ",{mode},{fault}")?;
-                match r.duty {
-                    Some([a, b, c]) => write!(f, ",{a:.6},{b:.6},{c:.6}")?,
-                    None => write!(f, ",,,")?,
-                }
-                write!(f, ",{:.2}", r.vdc_v)?;
-            }
-            writeln!(f)
-        })?;
+    fn add(&mut self, r: &Row) {
         self.peak_a = self.peak_a.max(r.x.i_alpha_a.hypot(r.x.i_beta_a));
         if self.count.is_multiple_of(self.plot_every) {
             self.plot.push(*r);
         }
         self.count += 1;
         self.last = Some(*r);
-        Ok(())
-    }
-
-    /// Sync and rename: the trace takes its name complete.
-    fn finish(&mut self) -> Result<(), String> {
-        let f = self.file.take().ok_or("trace already finished")?;
-        let done = f
-            .into_inner()
-            .map_err(|e| e.into_error())
-            .and_then(|f| f.sync_all())
-            .and_then(|()| std::fs::rename(&self.tmp, &self.path));
-        done.map_err(|e| format!("cannot write {}: {e}", self.path.display()))
     }
 }
 
-impl Drop for TraceWriter {
-    fn drop(&mut self) {
-        if self.file.take().is_some() {
-            let _ = std::fs::remove_file(&self.tmp);
+/// One CSV row of the trace.
+fn write_row(f: &mut dyn Write, r: &Row, closed_loop: bool) -> std::io::Result<()> {
+    let x = &r.x;
+    write!(
+        f,
+        "{:.7},{:.6},{:.6},{:.6},{:.6},{:.5},{:.5},{:.5},{:.4},{:.4}",
+        r.t_s,
+        x.i_alpha_a,
+        x.i_beta_a,
+        x.psi_alpha_wb,
+        x.psi_beta_wb,
+        x.omega_m_rad_s,
+        x.theta_m_rad,
+        r.torque_nm,
+        r.v_ab_v[0],
+        r.v_ab_v[1]
+    )?;
+    if closed_loop {
+        write!(
+            f,
+            ",{:.6},{:.6},{:.4},{:.4}",
+            r.i_ref_ab_a[0], r.i_ref_ab_a[1], r.omega_ref_rad_s, r.load_nm
+        )?;
+        // Mode and fault as words; duties empty while the bridge is off.
+        let (mode, fault) = match r.mode {
+            Some(Mode::Fault(which)) => ("Fault".to_string(), format!("{which:?}")),
+            Some(m) => (format!("{m:?}"), String::new()),
+            None => (String::new(), String::new()),
+        };
+        write!(f, ",{mode},{fault}")?;
+        match r.duty {
+            Some([a, b, c]) => write!(f, ",{a:.6},{b:.6},{c:.6}")?,
+            None => write!(f, ",,,")?,
         }
+        write!(f, ",{:.2}", r.vdc_v)?;
+    }
+    writeln!(f)
+}
+
+/// Stream the rows `run` makes into `out/trace.csv` through the one atomic writer
+/// (`report::write`): the file is created before the run (an unusable directory fails at
+/// once) and takes its name only complete; a failed or interrupted run leaves nothing.
+fn stream_trace<T>(
+    out: &Path,
+    closed_loop: bool,
+    expected_rows: f64,
+    run: impl FnOnce(&mut dyn FnMut(&Row) -> Result<(), String>) -> Result<T, String>,
+) -> Result<(T, TraceStats), String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let mut stats = TraceStats::new(closed_loop, expected_rows);
+    let mut outcome = None;
+    let written = write_atomic(&out.join("trace.csv"), |w| {
+        writeln!(w, "{BASE_HEADER}{}", if closed_loop { CLOSED_LOOP_HEADER } else { "" })?;
+        let mut io_error = None;
+        let result = run(&mut |row| {
+            interrupted()?;
+            if let Err(e) = write_row(w, row, closed_loop) {
+                let reason = e.to_string();
+                io_error = Some(e);
+                return Err(reason);
+            }
+            stats.add(row);
+            Ok(())
+        });
+        if let Some(e) = io_error {
+            return Err(e);
+        }
+        let failed = result.is_err();
+        outcome = Some(result);
+        if failed { Err(std::io::Error::other("the run failed")) } else { Ok(()) }
+    });
+    match (outcome, written) {
+        (Some(Err(e)), _) => Err(e),
+        (_, Err(e)) => Err(e),
+        (Some(Ok(value)), Ok(())) => Ok((value, stats)),
+        (None, Ok(())) => Err("the run did not start".into()),
     }
 }
 
@@ -290,15 +288,14 @@ fn write_plots(out: &Path, rows: &[Row], closed_loop: bool) -> Result<(), String
     Ok(())
 }
 
-/// Rename the trace, write the plots and the summary (given the trace's figures).
+/// Write the plots and the summary (given the trace's figures).
 fn finish(
     out: &Path,
-    mut trace: TraceWriter,
+    trace: TraceStats,
     summary: impl FnOnce(&Row, f64) -> serde_json::Value,
 ) -> Result<(), String> {
     let last = trace.last.ok_or("empty run")?;
     let summary = summary(&last, trace.peak_a);
-    trace.finish()?;
     write_plots(out, &trace.plot, trace.closed_loop)?;
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     write_text(&out.join("summary.json"), &format!("{text}\n"))?;
@@ -312,21 +309,20 @@ fn finish(
 
 fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<(), String> {
     let rows = b.scenario.duration_s * b.spec.pwm_frequency_hz / f64::from(b.scenario.trace_every.max(1));
-    let mut trace = TraceWriter::create(out, true, rows)?;
-    eprintln!("hil-sim: {} — {}", b.name, b.about);
     let wall = std::time::Instant::now();
-    let sink = |r: &Row| trace.push(r);
-    let (mode, link) = match pil {
-        None => (format!("{:?}", b.run_into(progress_bar, sink)?), None),
-        Some(opts) => {
-            let mut link = b.run_pil_into(opts, progress_bar, sink)?;
-            let mode = match link.transact(&Command::GetStatus)? {
-                Reply::Status { mode, .. } => format!("{mode:?}"),
-                other => return Err(format!("unexpected reply to GetStatus: {other:?}")),
-            };
-            (mode, Some(link))
+    let ((mode, link), trace) = stream_trace(out, true, rows, |sink| {
+        eprintln!("hil-sim: {} — {}", b.name, b.about);
+        match pil {
+            None => Ok((format!("{:?}", b.run_into(progress_bar, sink)?), None)),
+            Some(opts) => {
+                let mut link = b.run_pil_into(opts, progress_bar, sink)?;
+                match link.transact(&Command::GetStatus)? {
+                    Reply::Status { mode, .. } => Ok((format!("{mode:?}"), Some(link))),
+                    other => Err(format!("unexpected reply to GetStatus: {other:?}")),
+                }
+            }
         }
-    };
+    })?;
     let secs = wall.elapsed().as_secs_f64();
     finish(out, trace, |last, peak| {
         let mut summary = serde_json::json!({
@@ -364,10 +360,11 @@ fn run_file(path: &Path, out: &Path, pil: Option<&PilOptions>) -> Result<(), Str
         }
         ScenarioFileKind::OpenLoop(sc) => sc,
     };
-    let mut trace = TraceWriter::create(out, false, sc.duration_s / sc.sample_period_s)?;
-    eprintln!("hil-sim: open-loop run of {}", path.display());
     let wall = std::time::Instant::now();
-    sim::run_open_loop(&sc, sim::OPEN_LOOP_MAX_STEP_S, progress_bar, |r| trace.push(r))?;
+    let (_, trace) = stream_trace(out, false, sc.duration_s / sc.sample_period_s, |sink| {
+        eprintln!("hil-sim: open-loop run of {}", path.display());
+        sim::run_open_loop(&sc, sim::OPEN_LOOP_MAX_STEP_S, progress_bar, sink)
+    })?;
     let secs = wall.elapsed().as_secs_f64();
     finish(out, trace, |last, peak| {
         serde_json::json!({

@@ -5,9 +5,7 @@ use crate::inverter::InverterModel;
 use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
 use controller_core::current::CurrentLaw;
-use controller_core::drive::{
-    CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Protection, Reference,
-};
+use controller_core::drive::{CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference};
 use controller_core::motor::{MotorError, MotorParams};
 use controller_core::speed::SpeedLaw;
 use drive_file::{DriveFile, FileError};
@@ -287,16 +285,7 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     b.spec.flux_ref_wb = 4.5;
     b.spec.flux_floor_wb = 0.2;
     b.spec.i_ref_max_a = 260.0;
-    b.spec.protection = Protection {
-        i_trip_a: 400.0,
-        vdc_min_v: 2500.0,
-        vdc_max_v: 3800.0,
-        overspeed_rad_s: drive_file::drive::default_overspeed_rad_s(&motor, 4.5, 3800.0),
-        stall_time_s: drive_file::drive::DEFAULT_STALL_TIME_S,
-        current_sum_max_a: drive_file::drive::DEFAULT_CURRENT_SUM_FRACTION * 400.0,
-        saturation_time_s: drive_file::drive::DEFAULT_SATURATION_TIME_S,
-        encoder_check_time_s: drive_file::drive::DEFAULT_ENCODER_CHECK_TIME_S,
-    };
+    b.spec.protection = drive_file::drive::protection_with_defaults(&motor, 4.5, 400.0, 2500.0, 3800.0);
     b.scenario.vdc_v = 3300.0;
     b.scenario.events = vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Speed(100.0)))];
     b.scenario.duration_s = 5.0;
