@@ -2,7 +2,7 @@
 //!
 //! Two laws behind one interface ([`CurrentControllerConfig`]), chosen by configuration,
 //! run on the α/β axes (stationary frame, seed 002) or on d/q (synchronous frame, seed 000's
-//! PI1/PI3; [`CurrentControllerConfig::update_dq`]):
+//! PI1/PI3; the drive runs [`CurrentControllerConfig::request`] on the d/q errors):
 //!
 //! * **ICAD lag-compensated controller**, seed 002 eq. (20), implemented in the factored
 //!   form of eq. (22):
@@ -15,13 +15,15 @@
 //! Cascade order: error → lag biquad → PI → limit. Putting the only unstable mode (the
 //! integrator) next to the output limit makes the PI's conditional integration
 //! ([`crate::pi`]) an anti-windup for the *whole* cascade: the lag section is stable
-//! (|z| ≈ 0.9975 at 20 kHz) with bounded input, so its state cannot wind up. The output limit
-//! is a run-time argument, `±V_dc/√3` per axis in the drive (the SVPWM then limits the vector
-//! to the hexagon, preserving its angle).
+//! (|z| ≈ 0.9975 at 20 kHz) with bounded input, so its state cannot wind up. In the drive the
+//! two axes share **one vector limit**, the inverter's hexagon: the loops' request
+//! ([`CurrentControllerConfig::request`]) goes to the modulator, which scales a request
+//! beyond the hexagon onto it keeping its angle ([`crate::svpwm`]), and the integrators then
+//! track the voltage applied ([`CurrentControllerConfig::track`]). The single-axis
+//! [`CurrentControllerConfig::update_axis`] keeps the PI's conditional integration.
 
 use crate::discretize::{ContinuousSection, DesignError, Discretization};
 use crate::filter::{Biquad, BiquadState};
-use crate::frames::{AlphaBeta, Dq};
 use crate::num::Scalar;
 use crate::pi::{PiConfig, PiError, PiState};
 
@@ -95,7 +97,7 @@ pub struct CurrentState<T> {
 
 impl<T: Scalar> CurrentControllerConfig<T> {
     /// Discretise `law` for sample period `ts_s`. The PI section's static limits are
-    /// `±v_max_v`; [`Self::update`] takes the run-time limit.
+    /// `±v_max_v`; [`Self::update_axis`] and [`Self::request`] take the run-time limit.
     pub fn new(
         law: &CurrentLaw,
         ts_s: f64,
@@ -133,31 +135,39 @@ impl<T: Scalar> CurrentControllerConfig<T> {
 }
 
 impl CurrentControllerConfig<f32> {
-    /// Both axes: reference and measured stator currents (A) → stator voltage (V), each axis
-    /// limited to `±v_limit_v`.
+    /// One axis up to the PI's output, before the vector limit: the lag section, then
+    /// [`PiConfig::update_unlimited`].
     #[inline]
-    pub fn update(
-        &self,
-        s: &mut CurrentState<f32>,
-        i_ref: AlphaBeta,
-        i_meas: AlphaBeta,
-        v_limit_v: f32,
-    ) -> AlphaBeta {
-        let e = i_ref - i_meas;
-        AlphaBeta {
-            alpha: self.update_axis(&mut s.axis1, e.alpha, v_limit_v),
-            beta: self.update_axis(&mut s.axis2, e.beta, v_limit_v),
-        }
+    fn update_axis_unlimited(&self, s: &mut CurrentAxisState<f32>, error_a: f32, v_max_v: f32) -> f32 {
+        let e = match &self.lag {
+            Some(lag) => lag.update(&mut s.lag, error_a),
+            None => error_a,
+        };
+        self.pi.update_unlimited(&mut s.pi, e, v_max_v)
     }
 
-    /// Both axes in the synchronous frame (seed 000's PI1/PI3 on i_ds, i_qs): dq reference
-    /// and measured currents (A) → dq voltage (V), each axis limited to `±v_limit_v`.
+    /// Both axes up to the PI's outputs, **not limited**: the current errors of the two axes
+    /// (A) → the voltage request (V). Each integrator is kept within `±v_clamp_v` (in the
+    /// drive the hexagon's vertex `2V_dc/3`, the most one axis can ever get). The caller
+    /// limits the request as one vector — the inverter's hexagon in the drive — and, if it
+    /// did, calls [`Self::track`].
     #[inline]
-    pub fn update_dq(&self, s: &mut CurrentState<f32>, i_ref: Dq, i_meas: Dq, v_limit_v: f32) -> Dq {
-        Dq {
-            d: self.update_axis(&mut s.axis1, i_ref.d - i_meas.d, v_limit_v),
-            q: self.update_axis(&mut s.axis2, i_ref.q - i_meas.q, v_limit_v),
-        }
+    pub fn request(&self, s: &mut CurrentState<f32>, e1_a: f32, e2_a: f32, v_clamp_v: f32) -> [f32; 2] {
+        [
+            self.update_axis_unlimited(&mut s.axis1, e1_a, v_clamp_v),
+            self.update_axis_unlimited(&mut s.axis2, e2_a, v_clamp_v),
+        ]
+    }
+
+    /// The request was limited to `applied` (V, same frame): both integrators track the
+    /// voltage applied ([`PiConfig::track`]), so neither winds up beyond what the inverter
+    /// delivered, and the loops leave the limit as soon as their request falls inside it.
+    #[cold]
+    #[inline(never)]
+    pub fn track(&self, s: &mut CurrentState<f32>, applied: [f32; 2], v_clamp_v: f32) {
+        let [a1, a2] = applied;
+        self.pi.track(&mut s.axis1.pi, a1, v_clamp_v);
+        self.pi.track(&mut s.axis2.pi, a2, v_clamp_v);
     }
 
     /// Frequency response of the *implemented* discrete controller (coefficients as stored
@@ -175,9 +185,24 @@ impl CurrentControllerConfig<f32> {
     }
 }
 
+impl CurrentControllerConfig<f32> {
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        w.u(u32::from(self.lag.is_some()));
+        self.lag.unwrap_or(Biquad::zero()).put(w);
+        self.pi.put(w);
+    }
+
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        let has_lag = r.u() == 1;
+        let lag = Biquad::get(r);
+        Self { lag: if has_lag { Some(lag) } else { None }, pi: PiConfig::get(r) }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::frames::AlphaBeta;
     use crate::num::Q32;
 
     /// Max relative error |k_d(e^{jωT}) − k(jω)| / |k(jω)| on a log grid over [1, 3000] rad/s.
@@ -368,6 +393,79 @@ mod tests {
         // Bound on the Q32–f32 agreement: 1e-2 V = 0.007 % of the range.
         assert!(q_err < 5e-3 && f_err < 5e-3, "{q_err} {f_err}");
         assert!(max_err < 1e-2, "{max_err}");
+    }
+
+    /// One step of both axes through the drive's vector limit, the modulator's hexagon
+    /// (stationary frame): the applied voltage and whether it was limited.
+    fn step_hexagon(
+        c: &CurrentControllerConfig<f32>,
+        s: &mut CurrentState<f32>,
+        e: [f32; 2],
+        vdc: f32,
+    ) -> ([f32; 2], bool) {
+        let clamp = 2.0 * vdc / 3.0;
+        let [r1, r2] = c.request(s, e[0], e[1], clamp);
+        let m = crate::svpwm::modulate(AlphaBeta { alpha: r1, beta: r2 }, vdc);
+        let applied = [m.v_applied.alpha, m.v_applied.beta];
+        if m.saturated {
+            c.track(s, applied, clamp);
+        }
+        (applied, m.saturated)
+    }
+
+    /// The vector limit: whatever the errors (angles all round, magnitudes from inside the
+    /// hexagon to far beyond), the output stays in the hexagon; when it was limited, each
+    /// integrator is the applied voltage less its own p-term (within its clamp).
+    #[test]
+    fn integrators_track_the_applied_voltage() {
+        let ts = 1.0 / 20_000.0;
+        let c =
+            CurrentControllerConfig::<f32>::new(&CurrentLaw::ICAD_EQ20, ts, Discretization::Tustin, 400.0)
+                .unwrap();
+        let vdc = 310.0f32;
+        let clamp = 2.0 * vdc / 3.0;
+        let mut limited_steps = 0;
+        for k in 0..72 {
+            let th = k as f32 * core::f32::consts::TAU / 72.0;
+            for e_mag in [1e-3f32, 0.05, 0.5, 5.0, 500.0] {
+                let mut s = CurrentState::default();
+                let e = [e_mag * libm::cosf(th), e_mag * libm::sinf(th)];
+                for _ in 0..2_000 {
+                    let ([u1, u2], limited) = step_hexagon(&c, &mut s, e, vdc);
+                    // Inside the hexagon: |v| ≤ its vertex radius 2V_dc/3.
+                    assert!(libm::hypotf(u1, u2) <= clamp * (1.0 + 1e-6));
+                    if limited {
+                        limited_steps += 1;
+                        for (u, axis) in [(u1, &s.axis1), (u2, &s.axis2)] {
+                            let tracked = (u - axis.pi.p_term).limit(-clamp, clamp);
+                            assert!(
+                                (axis.pi.i_term - tracked).abs() <= 1e-6 * axis.pi.p_term.abs().max(clamp)
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        assert!(limited_steps > 10_000, "the test must exercise the limit: {limited_steps}");
+    }
+
+    /// Leaving the limit: after 1 s of a large error vector, the error reverses; the output
+    /// leaves the hexagon no later than the lag section's own linear response lets it (plus
+    /// 10 samples).
+    #[test]
+    fn vector_anti_windup_through_the_cascade() {
+        let ts = 1.0 / 20_000.0;
+        let c =
+            CurrentControllerConfig::<f32>::new(&CurrentLaw::ICAD_EQ20, ts, Discretization::Tustin, 400.0)
+                .unwrap();
+        let mut s = CurrentState::default();
+        for _ in 0..20_000 {
+            step_hexagon(&c, &mut s, [5.0, 5.0], 310.0);
+        }
+        let lag_zero = samples_until_lag_output_negative().unwrap();
+        let left = (0..200_000).find(|_| !step_hexagon(&c, &mut s, [-1.0, -1.0], 310.0).1).unwrap();
+        eprintln!("vector limit: left the hexagon after {left} samples (lag output < 0 after {lag_zero})");
+        assert!(left <= lag_zero + 10, "{left} vs {lag_zero}");
     }
 
     #[test]

@@ -127,6 +127,23 @@ impl<T: Scalar> FirstOrder<T> {
     }
 }
 
+impl Biquad<f32> {
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        for x in [self.b0, self.c1, self.c2, self.a1, self.a0] {
+            w.f(x);
+        }
+    }
+
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        Self { b0: r.f(), c1: r.f(), c2: r.f(), a1: r.f(), a0: r.f() }
+    }
+
+    /// All-zero coefficients (the raw form's filler for a missing section).
+    pub(crate) fn zero() -> Self {
+        Self { b0: 0.0, c1: 0.0, c2: 0.0, a1: 0.0, a0: 0.0 }
+    }
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;

@@ -175,6 +175,15 @@ impl AlphaBeta {
         Dq { d: self.alpha * sc.cos + self.beta * sc.sin, q: -self.alpha * sc.sin + self.beta * sc.cos }
     }
 
+    /// The vector turned by the angle whose sin and cos are `sc` (counter-clockwise).
+    #[inline]
+    pub fn rotate(self, sc: SinCos) -> AlphaBeta {
+        AlphaBeta {
+            alpha: self.alpha * sc.cos - self.beta * sc.sin,
+            beta: self.alpha * sc.sin + self.beta * sc.cos,
+        }
+    }
+
     /// Euclidean magnitude.
     #[inline]
     pub fn magnitude(self) -> f32 {

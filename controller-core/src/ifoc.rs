@@ -3,11 +3,17 @@
 //! With the d axis on the rotor flux (`ψ_qr = 0`, `ψ_dr = ψ_r`, eq. (6)):
 //!
 //! * flux reference → `i_ds* = ψ_r*/L_m` (eq. (9), steady state of eq. (8));
-//! * rotor-flux model, eq. (8) `ψ_r = L_m/(1 + s·T_r)·i_ds*`, discretised exactly (ZOH):
-//!   `ψ̂[k+1] = ψ̂[k] + (1 − e^{−T/T_r})·(L_m·i_ds* − ψ̂[k])`;
+//! * rotor-flux model, eq. (8) `ψ_r = L_m/(1 + s·T_r)·i_ds`, discretised exactly (ZOH), driven
+//!   by the **measured** d-axis current (Park of the measured currents at the field angle):
+//!   `ψ̂[k+1] = ψ̂[k] + (1 − e^{−T/T_r})·(L_m·i_ds − ψ̂[k])` — so the estimate cannot run ahead
+//!   of a motor that is not there, and slip and torque stay consistent while the flux
+//!   reference changes (field weakening);
 //! * torque → `i_qs* = T*/((3/2)·p·(L_m/L_r)·ψ̂)` (from eq. (5) with `ψ_qr = 0`);
 //! * slip, eq. (7): `ω_sl = L_m·R_r/(L_r·ψ̂)·i_qs*`;
-//! * field angle `θ_e[k+1] = wrap(θ_e[k] + (p·ω_m + ω_sl)·T)`, in `[-π, π)`;
+//! * field angle `θ_e = p·θ_m + θ_sl`: the slip angle `θ_sl[k+1] = wrap(θ_sl[k] + ω_sl·T)`
+//!   is integrated here; the rotor angle comes from the encoder's position at each read
+//!   ([`IfocConfig::anchor`]) and is extrapolated with `p·ω_m·T` per step between reads, so
+//!   `θ_e[k+1] = wrap(θ_e[k] + (p·ω_m + ω_sl)·T)` between reads, in `[-π, π)`;
 //! * current references returned in αβ (inverse Park at θ_e) for the stationary-frame loops;
 //!   sin/cos of θ_e[k+1] are evaluated at the end of step k, so that step k+1 starts with them:
 //!   by rotating those of θ_e\[k\] through the angle step ([`SinCos::rotated`]), and afresh
@@ -20,7 +26,7 @@
 
 use crate::frames::{AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::motor::MotorParams;
-use crate::num::{Scalar, max_f32};
+use crate::num::{Scalar, max_f32, sqrt_f32};
 
 /// Torque-producing command from the speed loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,6 +71,8 @@ pub const FIELD_RESYNC_STEPS: u8 = 16;
 pub struct IfocState {
     /// Field (rotor-flux) angle θ_e, rad, in `[-π, π)`.
     theta_e_rad: f32,
+    /// Slip angle θ_sl = ∫ω_sl dt, rad, in `[-π, π)`: θ_e less the rotor's electrical angle.
+    theta_sl_rad: f32,
     /// sin and cos of `theta_e_rad`, computed when the angle advances — one step before
     /// they are used, so that the next step's current references do not wait for them.
     field: SinCos,
@@ -87,6 +95,11 @@ impl IfocState {
     /// Rotor-flux model estimate ψ̂_r, Wb.
     pub fn psi_r_wb(&self) -> f32 {
         self.psi_r_wb
+    }
+
+    /// Slip angle θ_sl, rad, in `[-π, π)`.
+    pub fn theta_sl_rad(&self) -> f32 {
+        self.theta_sl_rad
     }
 
     /// sin and cos of the field angle afresh; restarts the resync countdown. Kept out of
@@ -165,18 +178,43 @@ impl IfocConfig {
     /// The current references that flux reference `psi_ref_wb` (Wb) asks for. A non-finite
     /// reference gives a zero command (no flux, no torque).
     pub fn flux_command(&self, psi_ref_wb: f32) -> FluxCommand {
-        let i_d_a = (psi_ref_wb * self.inv_lm).limit(-self.i_max_a, self.i_max_a);
+        self.d_current_command(psi_ref_wb * self.inv_lm)
+    }
+
+    /// The command for d-axis current reference `i_d_a` (A), limited to `±i_max`, with the
+    /// room it leaves for `i_qs*`. A non-finite reference gives a zero command.
+    pub fn d_current_command(&self, i_d_a: f32) -> FluxCommand {
+        let i_d_a = i_d_a.limit(-self.i_max_a, self.i_max_a);
         if !i_d_a.is_finite() {
             return FluxCommand::default();
         }
-        let i_q_max_a = libm::sqrtf((self.i_max_a * self.i_max_a - i_d_a * i_d_a).max(0.0));
+        let i_q_max_a = sqrt_f32((self.i_max_a * self.i_max_a - i_d_a * i_d_a).max(0.0));
         FluxCommand { i_d_a, i_q_max_a }
+    }
+
+    /// The steady-state rotor flux of d-axis current `i_d_a`, `L_m·i_d`, Wb.
+    pub fn flux_of(&self, i_d_a: f32) -> f32 {
+        self.lm_h * i_d_a
+    }
+
+    /// Torque per rotor flux and q-axis current, `(3/2)·p·L_m/L_r`, N·m/(Wb·A).
+    pub fn torque_factor(&self) -> f32 {
+        1.0 / self.inv_torque_factor
+    }
+
+    /// The encoder's reading: the rotor's electrical angle `theta_r_rad` (rad, any range
+    /// a single wrap brings into `[-π, π)`). The field angle becomes `θ_r + θ_sl`, and its
+    /// sin/cos are computed afresh for the next step.
+    pub fn anchor(&self, s: &mut IfocState, theta_r_rad: f32) {
+        s.theta_e_rad = wrap_angle(wrap_angle(theta_r_rad) + s.theta_sl_rad);
+        s.resync_field();
     }
 
     /// A state with θ_e = 0 and the flux estimate `psi_r_wb` (0: an unmagnetized machine).
     pub fn state(&self, psi_r_wb: f32) -> IfocState {
         IfocState {
             theta_e_rad: 0.0,
+            theta_sl_rad: 0.0,
             field: SinCos::default(),
             steps_to_resync: 0,
             psi_r_wb,
@@ -195,9 +233,12 @@ impl IfocConfig {
         self.i_max_a
     }
 
-    /// One step: flux command ([`IfocConfig::flux_command`]), torque command and mechanical
-    /// speed (rad/s) → current references at the present field angle; then the angle and
-    /// flux model advance by one sample.
+    /// One step: flux command ([`IfocConfig::flux_command`]), torque command, mechanical
+    /// speed (rad/s), the measured stator current (A) and a trim of the references (A, field
+    /// frame) → current references at the present field angle; then the angle and the flux
+    /// model (on the measured d-axis current) advance by one sample. The trim is added to
+    /// the references the current loops track (`i_ref_ab`) but not to the intended ones
+    /// (`i_ref_dq`), which set the slip.
     #[inline]
     pub fn update(
         &self,
@@ -205,6 +246,8 @@ impl IfocConfig {
         flux: &FluxCommand,
         cmd: TorqueCommand,
         omega_m_rad_s: f32,
+        i_meas: AlphaBeta,
+        trim: Dq,
     ) -> IfocOutput {
         let i_d = flux.i_d_a;
         let inv_psi = s.inv_psi_floored;
@@ -217,9 +260,11 @@ impl IfocConfig {
         let theta = s.theta_e_rad;
         let i_ref_dq = Dq { d: i_d, q: i_q };
         let s_field = s.field;
-        let i_ref_ab = i_ref_dq.inverse_park(s_field);
-        let delta = (self.pole_pairs * omega_m_rad_s + omega_sl) * self.ts_s;
+        let i_ref_ab = Dq { d: i_d + trim.d, q: i_q + trim.q }.inverse_park(s_field);
+        let slip_step = omega_sl * self.ts_s;
+        let delta = self.pole_pairs * omega_m_rad_s * self.ts_s + slip_step;
         s.theta_e_rad = wrap_angle(theta + delta);
+        s.theta_sl_rad = wrap_angle(s.theta_sl_rad + slip_step);
         // Rotated with the angle; afresh every FIELD_RESYNC_STEPS steps, and after a step
         // too large to rotate accurately (or not finite).
         let rotatable = delta.abs() <= SinCos::MAX_ROTATION_RAD; // false for NaN
@@ -229,9 +274,42 @@ impl IfocConfig {
         if resync {
             s.resync_field();
         }
-        s.psi_r_wb += self.flux_model_gain * (self.lm_h * i_d - s.psi_r_wb);
+        let i_d_meas = i_meas.alpha * s_field.cos + i_meas.beta * s_field.sin;
+        s.psi_r_wb += self.flux_model_gain * (self.lm_h * i_d_meas - s.psi_r_wb);
         s.inv_psi_floored = self.inv_psi_floored(s.psi_r_wb);
         IfocOutput { i_ref_dq, i_ref_ab, theta_e_rad: theta, field: s_field, omega_sl_rad_s: omega_sl }
+    }
+}
+
+impl IfocConfig {
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        for x in [
+            self.inv_lm,
+            self.lm_h,
+            self.slip_gain,
+            self.inv_torque_factor,
+            self.pole_pairs,
+            self.flux_model_gain,
+            self.psi_min_wb,
+            self.i_max_a,
+            self.ts_s,
+        ] {
+            w.f(x);
+        }
+    }
+
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        Self {
+            inv_lm: r.f(),
+            lm_h: r.f(),
+            slip_gain: r.f(),
+            inv_torque_factor: r.f(),
+            pole_pairs: r.f(),
+            flux_model_gain: r.f(),
+            psi_min_wb: r.f(),
+            i_max_a: r.f(),
+            ts_s: r.f(),
+        }
     }
 }
 
@@ -244,6 +322,23 @@ mod tests {
         IfocConfig::new(&m, 5e-5, 0.05, 10.0).unwrap()
     }
 
+    /// `n` steps with ideal current control one step late: the measured current is the
+    /// previous step's reference. Returns the last output.
+    fn run(
+        c: &IfocConfig,
+        s: &mut IfocState,
+        psi: f32,
+        cmd: TorqueCommand,
+        omega_m: f32,
+        n: usize,
+    ) -> IfocOutput {
+        let mut out = IfocOutput::default();
+        for _ in 0..n {
+            out = c.update(s, &c.flux_command(psi), cmd, omega_m, out.i_ref_ab, Dq::default());
+        }
+        out
+    }
+
     /// Hand-computed operating point, DeLorenzo motor, ψr* = 1 Wb, T* = 1 N·m:
     /// i_ds* = 1/1.42 = 0.704225 A; i_qs* = 1·1.5/(1.5·1·1.42·1) = 0.704225 A;
     /// ω_sl = 1.42·23.2/(1.5·1)·0.704225 = 15.4667 rad/s
@@ -252,17 +347,18 @@ mod tests {
     fn steady_state_operating_point() {
         let c = cfg();
         let mut s = c.state(0.0);
-        let mut out = IfocOutput::default();
         // Flux builds with T_r = 64.7 ms; 1 s is > 15 T_r.
-        for _ in 0..20_000 {
-            out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(1.0), 0.0);
-        }
-        assert!((s.psi_r_wb() - 1.0).abs() < 1e-4, "flux {}", s.psi_r_wb());
+        let out = run(&c, &mut s, 1.0, TorqueCommand::TorqueNm(1.0), 0.0, 20_000);
+        // The measured current is the reference one step late, in a field that has turned by
+        // ω_sl·T = 7.7e-4 rad since: its d part is i_d + i_q·ω_sl·T, 7.7e-4 too high here.
+        assert!((s.psi_r_wb() - 1.000_773).abs() < 1e-4, "flux {}", s.psi_r_wb());
+        let psi = s.psi_r_wb();
         assert!((out.i_ref_dq.d - 0.704_225).abs() < 1e-5);
-        assert!((out.i_ref_dq.q - 0.704_225).abs() < 1e-4);
-        assert!((out.omega_sl_rad_s - 15.466_67).abs() < 2e-3, "{}", out.omega_sl_rad_s);
+        // i_q* and ω_sl* follow the flux estimate: T*/(K'·ψ̂) and L_m·R_r/L_r·i_q*/ψ̂.
+        assert!((out.i_ref_dq.q * psi - 0.704_225).abs() < 1e-4);
+        assert!((out.omega_sl_rad_s * psi * psi - 15.466_67).abs() < 2e-3, "{}", out.omega_sl_rad_s);
         // The αβ reference has the dq magnitude.
-        assert!((out.i_ref_ab.magnitude() - libm::hypotf(0.704_225, 0.704_225)).abs() < 1e-4);
+        assert!((out.i_ref_ab.magnitude() - libm::hypotf(out.i_ref_dq.d, out.i_ref_dq.q)).abs() < 1e-5);
     }
 
     #[test]
@@ -271,10 +367,9 @@ mod tests {
         let mut s = c.state(0.0);
         let tr = 1.5f64 / 23.2;
         let n = (tr / 5e-5).round() as usize;
-        for _ in 0..n {
-            c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(0.0), 0.0);
-        }
-        let expected = 1.0 - libm::exp(-(n as f64) * 5e-5 / tr);
+        run(&c, &mut s, 1.0, TorqueCommand::TorqueNm(0.0), 0.0, n);
+        // The first step measures no current yet (the reference is one step late).
+        let expected = 1.0 - libm::exp(-((n - 1) as f64) * 5e-5 / tr);
         assert!((f64::from(s.psi_r_wb()) - expected).abs() < 1e-4);
     }
 
@@ -286,7 +381,14 @@ mod tests {
         let mut prev = 0.0f32;
         let mut wraps = 0;
         for _ in 0..20_000 {
-            let out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::IqA(0.0), 100.0);
+            let out = c.update(
+                &mut s,
+                &c.flux_command(1.0),
+                TorqueCommand::IqA(0.0),
+                100.0,
+                AlphaBeta::default(),
+                Dq::default(),
+            );
             assert!((-core::f32::consts::PI..core::f32::consts::PI).contains(&out.theta_e_rad));
             if out.theta_e_rad < prev {
                 wraps += 1;
@@ -313,9 +415,18 @@ mod tests {
         let mut worst = (0.0f64, 0.0f32);
         for omega_m in [0.0f32, 37.3, 150.0, -376.0, 1_500.0, -1_900.0, 2_500.0, 8_000.0] {
             let mut s = c.state(0.0);
+            let mut measured = AlphaBeta::default();
             for k in 0..40_000 {
                 let torque = if k < 20_000 { 1.0 } else { -3.0 };
-                let out = c.update(&mut s, &c.flux_command(0.9), TorqueCommand::TorqueNm(torque), omega_m);
+                let out = c.update(
+                    &mut s,
+                    &c.flux_command(0.9),
+                    TorqueCommand::TorqueNm(torque),
+                    omega_m,
+                    measured,
+                    Dq::default(),
+                );
+                measured = out.i_ref_ab;
                 let (sin, cos) = libm::sincos(f64::from(out.theta_e_rad));
                 let e = (f64::from(out.field.sin) - sin).abs().max((f64::from(out.field.cos) - cos).abs());
                 if e > worst.0 {
@@ -331,7 +442,14 @@ mod tests {
     fn guard_bounds_slip_and_current_while_flux_is_zero() {
         let c = cfg();
         let mut s = c.state(0.0);
-        let out = c.update(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(1e6), 0.0);
+        let out = c.update(
+            &mut s,
+            &c.flux_command(1.0),
+            TorqueCommand::TorqueNm(1e6),
+            0.0,
+            AlphaBeta::default(),
+            Dq::default(),
+        );
         assert!(libm::hypotf(out.i_ref_dq.d, out.i_ref_dq.q) <= 10.0 + 1e-4);
         // ω_sl ≤ slip_gain·i_max/ψ_min = 21.96·10/0.05
         assert!(out.omega_sl_rad_s.is_finite() && out.omega_sl_rad_s <= 21.97 * 10.0 / 0.05);

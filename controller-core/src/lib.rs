@@ -1,5 +1,6 @@
 #![no_std]
-#![forbid(unsafe_code)]
+// One `unsafe` block in the crate: the FPU's square root (`num::sqrt_f32`), allowed there.
+#![deny(unsafe_code)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic))]
 #![doc = include_str!("../README.md")]
 
@@ -11,6 +12,7 @@ pub mod current;
 pub mod discretize;
 pub mod drive;
 pub mod encoder;
+pub mod envelope;
 pub mod filter;
 pub mod frames;
 pub mod ifoc;
@@ -18,6 +20,7 @@ pub mod link;
 pub mod motor;
 pub mod num;
 pub mod pi;
+pub mod raw;
 pub mod scaling;
 pub mod selftest;
 pub mod speed;

@@ -29,6 +29,54 @@ pub fn min_f32(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
+/// √x, correctly rounded (IEEE 754), NaN for x < 0. On the Cortex-M4F it is the FPU's
+/// `vsqrt.f32` (14 cycles, in a two-instruction leaf routine: the register classes of
+/// `asm!` need the double-precision `vfp2` feature this FPU does not have); elsewhere
+/// libm's `sqrtf` (a software routine of ≈ 150 instructions on the Cortex-M, where no
+/// hardware square root is available). Both round correctly, so the emulated MCU (PIL) and
+/// the host (SIL) agree bit for bit.
+#[inline]
+pub fn sqrt_f32(x: f32) -> f32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        vsqrt::sqrt(x)
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(x)
+    }
+}
+
+/// The FPU's square root, the crate's one use of `unsafe`.
+#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+#[allow(unsafe_code)]
+mod vsqrt {
+    core::arch::global_asm!(
+        ".section .text.controller_core_vsqrt_f32,\"ax\",%progbits",
+        ".global controller_core_vsqrt_f32",
+        ".type controller_core_vsqrt_f32,%function",
+        ".thumb_func",
+        ".fpu fpv4-sp-d16",
+        "controller_core_vsqrt_f32:",
+        "vsqrt.f32 s0, s0",
+        "bx lr",
+        ".size controller_core_vsqrt_f32, . - controller_core_vsqrt_f32",
+    );
+
+    unsafe extern "C" {
+        fn controller_core_vsqrt_f32(x: f32) -> f32;
+    }
+
+    #[inline]
+    pub fn sqrt(x: f32) -> f32 {
+        // SAFETY: `controller_core_vsqrt_f32` (above) is a leaf routine of the hard-float
+        // procedure call standard: argument and result in s0, `vsqrt.f32 s0, s0`, return; it
+        // touches no memory, no stack and no other register. Every eabihf Arm target has
+        // the single-precision FPU that executes it.
+        unsafe { controller_core_vsqrt_f32(x) }
+    }
+}
+
 use core::fmt::Debug;
 use core::ops::{Add, Mul, Neg, Sub};
 use fixed::types::I32F32;

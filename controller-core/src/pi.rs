@@ -17,6 +17,11 @@
 //! because the integrator state can never exceed the actuator range, which bounds the
 //! recovery overshoot (see `recovery_after_long_saturation_is_bounded`).
 //!
+//! **Vector limit.** Where two channels share one limit on the magnitude of their outputs
+//! (the α/β or d/q current loops and the inverter's voltage circle), each channel runs
+//! [`PiConfig::update_unlimited`], the caller scales the output vector onto the limit and
+//! then each integrator *tracks the applied output* ([`PiConfig::track`]).
+//!
 //! **Bumpless gain change.** `Ki` sits inside the sum, so changing it never bumps the output.
 //! Changing `Kp` is made bumpless by [`PiState::retune`], which moves `(Kp_old − Kp_new)·e`
 //! into the integrator.
@@ -117,11 +122,47 @@ impl<T: Scalar> PiConfig<T> {
     }
 }
 
+impl<T: Scalar> PiConfig<T> {
+    /// First half of an update whose output a caller limits together with other channels
+    /// (the current loops' one vector limit): the output `p + i` with the integral
+    /// increment taken and the integrator kept within `±limit`, before any output limit.
+    /// The caller limits the outputs jointly and, if it did, calls [`PiConfig::track`].
+    #[inline]
+    pub fn update_unlimited(&self, s: &mut PiState<T>, e: T, limit: T) -> T {
+        let p = self.kp * e;
+        s.i_term = (s.i_term + self.ki_over_k * (e + s.e_prev)).limit(-limit, limit);
+        s.p_term = p;
+        s.e_prev = e;
+        p + s.i_term
+    }
+
+    /// Second half, when the output was limited to `applied`: the integrator tracks the
+    /// output actually applied, `i = applied − p` (kept within `±limit`), so that the next
+    /// step starts from what the actuator did, not from what was asked (anti-windup by
+    /// tracking the limited output).
+    #[inline]
+    pub fn track(&self, s: &mut PiState<T>, applied: T, limit: T) {
+        s.i_term = (applied - s.p_term).limit(-limit, limit);
+    }
+}
+
 impl<T: Scalar> PiState<T> {
     /// Bumpless change from `old` to `new` gains: afterwards, the same error gives the same
     /// output as before the change (up to the next integral increment).
     pub fn retune(&mut self, old: &PiConfig<T>, new: &PiConfig<T>) {
         self.i_term = (self.i_term + (old.kp - new.kp) * self.e_prev).limit(new.u_min, new.u_max);
+    }
+}
+
+impl PiConfig<f32> {
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        for x in [self.kp, self.ki_over_k, self.u_min, self.u_max] {
+            w.f(x);
+        }
+    }
+
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        Self { kp: r.f(), ki_over_k: r.f(), u_min: r.f(), u_max: r.f() }
     }
 }
 

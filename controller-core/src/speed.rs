@@ -119,12 +119,35 @@ impl SpeedControllerConfig {
     /// One slow step: speed reference and measurement (mechanical rad/s) → torque command.
     #[inline]
     pub fn update(&self, s: &mut SpeedState, omega_ref_rad_s: f32, omega_m_rad_s: f32) -> TorqueCommand {
+        self.update_limited(s, omega_ref_rad_s, omega_m_rad_s, self.output_limit())
+    }
+
+    /// [`Self::update`] with the output limited to `±limit` (the law's units; the drive
+    /// passes the smaller of the law's own limit and what the bus can deliver at this speed),
+    /// so that the PI's integrator stops where the torque does ([`crate::pi`]).
+    #[inline]
+    pub fn update_limited(
+        &self,
+        s: &mut SpeedState,
+        omega_ref_rad_s: f32,
+        omega_m_rad_s: f32,
+        limit: f32,
+    ) -> TorqueCommand {
         let e = omega_ref_rad_s - omega_m_rad_s;
         match &self.law {
-            Law::Pi { pi, torque: true } => TorqueCommand::TorqueNm(pi.update(&mut s.pi, e)),
-            Law::Pi { pi, torque: false } => TorqueCommand::IqA(pi.update(&mut s.pi, e)),
-            Law::SaturatedP { kp, tau_max } => TorqueCommand::TorqueNm((kp * e).limit(-*tau_max, *tau_max)),
+            Law::Pi { pi, torque: true } => {
+                TorqueCommand::TorqueNm(pi.update_limited(&mut s.pi, e, -limit, limit))
+            }
+            Law::Pi { pi, torque: false } => {
+                TorqueCommand::IqA(pi.update_limited(&mut s.pi, e, -limit, limit))
+            }
+            Law::SaturatedP { kp, .. } => TorqueCommand::TorqueNm((kp * e).limit(-limit, limit)),
         }
+    }
+
+    /// The law's output is a torque (N·m), not an i_q (A).
+    pub fn is_torque(&self) -> bool {
+        !matches!(self.law, Law::Pi { torque: false, .. })
     }
 }
 
@@ -147,6 +170,67 @@ impl PositionConfig {
     #[inline]
     pub fn update(&self, theta_ref_rad: f32, theta_m_rad: f32) -> f32 {
         (self.k_per_s * (theta_ref_rad - theta_m_rad)).limit(-self.omega_max_rad_s, self.omega_max_rad_s)
+    }
+}
+
+impl SpeedControllerConfig {
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        match &self.law {
+            Law::Pi { pi, torque } => {
+                w.u(if *torque { 0 } else { 1 });
+                pi.put(w);
+            }
+            Law::SaturatedP { kp, tau_max } => {
+                w.u(2);
+                for x in [*kp, *tau_max, 0.0, 0.0] {
+                    w.f(x);
+                }
+            }
+        }
+    }
+
+    /// `None` for an unknown law tag.
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Option<Self> {
+        let tag = r.u();
+        // The same four slots: a PI's (kp, ki/K, u_min, u_max), or the P law's (kp, τ_max, 0, 0).
+        let pi = PiConfig::get(r);
+        let law = match tag {
+            0 => Law::Pi { pi, torque: true },
+            1 => Law::Pi { pi, torque: false },
+            2 => Law::SaturatedP { kp: pi.kp(), tau_max: pi.ki_over_k() },
+            _ => return None,
+        };
+        Some(Self { law })
+    }
+
+    /// The saturated-P law (seed 002 eq. (21)) with new gains, checked in f32 (what the
+    /// firmware's `WriteSpeedGains` does without the f64 design path). `None` for another
+    /// law, or a gain that is negative or not finite (τ_max: not positive).
+    pub fn with_saturated_p(&self, kp: f32, tau_max_nm: f32) -> Option<Self> {
+        let ok = kp.is_finite() && kp >= 0.0 && tau_max_nm.is_finite() && tau_max_nm > 0.0;
+        match self.law {
+            Law::SaturatedP { .. } if ok => Some(Self { law: Law::SaturatedP { kp, tau_max: tau_max_nm } }),
+            _ => None,
+        }
+    }
+
+    /// `(k_p, τ_max)` of a saturated-P law.
+    pub fn saturated_p(&self) -> Option<(f32, f32)> {
+        match self.law {
+            Law::SaturatedP { kp, tau_max } => Some((kp, tau_max)),
+            Law::Pi { .. } => None,
+        }
+    }
+}
+
+impl PositionConfig {
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        w.f(self.k_per_s);
+        w.f(self.omega_max_rad_s);
+    }
+
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        Self { k_per_s: r.f(), omega_max_rad_s: r.f() }
     }
 }
 

@@ -24,9 +24,9 @@ fn envelope_ratio(omega_m: f64) -> f64 {
     let (mut early, mut late) = (0.0f64, 0.0f64);
     for n in 0..10_000 {
         let i = AlphaBeta { alpha: x.i_alpha_a as f32, beta: x.i_beta_a as f32 };
-        let u = k.update(&mut st, AlphaBeta::default(), i, 1e6);
+        let [ua, ub] = k.request(&mut st, -i.alpha, -i.beta, 1e6);
         x = machine.rk4(&x, v, 0.0, ts);
-        v = [f64::from(u.alpha), f64::from(u.beta)];
+        v = [f64::from(ua), f64::from(ub)];
         let mag = x.i_alpha_a.hypot(x.i_beta_a);
         if (1000..2000).contains(&n) {
             early = early.max(mag);

@@ -71,6 +71,8 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       flux_floor_wb: {:?},\n\
          \x20       i_ref_max_a: {:?},\n\
          \x20       magnetized_fraction: {:?},\n\
+         \x20       voltage_margin: {:?},\n\
+         \x20       current_trim_bandwidth_rad_s: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
          overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?} }},\n\
          \x20   }})\n\
@@ -93,6 +95,8 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         spec.flux_floor_wb,
         spec.i_ref_max_a,
         spec.magnetized_fraction,
+        spec.voltage_margin,
+        spec.current_trim_bandwidth_rad_s,
         p.i_trip_a,
         p.vdc_min_v,
         p.vdc_max_v,
@@ -112,6 +116,20 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
     let b = file.board.ok_or("the firmware's drive file needs a [board] table")?;
     let t = &b.table;
     let mut s = spec_rs(&file.spec, origin);
+    // The discretised configuration, computed here on the host (f64 design arithmetic and
+    // libm, the same IEEE 754 results as on the target): the firmware embeds the numbers.
+    let cfg = controller_core::drive::DriveConfig::new(&file.spec)
+        .map_err(|e| format!("{origin}: drive configuration rejected: {e:?}"))?;
+    let raw = cfg.to_raw();
+    let _ = write!(
+        s,
+        "\n/// The discretised drive configuration of `drive_spec()`, built at compile time on the\n\
+         /// host (`DriveConfig::new`, then `to_raw`): the firmware checks and copies it\n\
+         /// (`DriveConfig::from_raw`) and runs no design arithmetic.\n\
+         pub const DRIVE_CONFIG: controller_core::raw::RawDriveConfig = \
+         controller_core::raw::RawDriveConfig {{ f: {:?}, u: {:?} }};\n",
+        raw.f, raw.u
+    );
     let [kp_lo, kp_hi] = c.speed_kp_writable;
     let [tau_lo, tau_hi] = c.speed_tau_max_nm_writable;
     // `write!` to a String cannot fail.

@@ -55,10 +55,39 @@ pub struct ControllerTable {
     /// Magnetizing → Running at this fraction of ψ_r* (default 0.95).
     #[serde(default = "default_magnetized")]
     pub magnetized_fraction: f64,
+    /// Field weakening: the steady-state voltage target as a fraction of V_dc/√3 (default
+    /// [`DEFAULT_VOLTAGE_MARGIN`]).
+    #[serde(default = "default_voltage_margin")]
+    pub voltage_margin: f64,
+    /// Bandwidth of the field-frame current trim, rad/s; 0 turns it off (default
+    /// [`DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S`]).
+    #[serde(default = "default_current_trim")]
+    pub current_trim_bandwidth_rad_s: f64,
+}
+
+/// Default bandwidth of the current trim, rad/s: slow against the current loops (their
+/// crossover ≈ 1 000 rad/s), so their dynamics and the certificate's margins are those of
+/// the loops alone, and fast against the flux (1/T_r ≈ 15 rad/s on the DeLorenzo motor), so
+/// the flux follows its reference rather than the loops' tracking error.
+pub const DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S: f64 = 20.0;
+
+fn default_current_trim() -> f64 {
+    DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S
 }
 
 fn default_magnetized() -> f64 {
     0.95
+}
+
+/// Default field-weakening voltage target, as a fraction of the linear limit V_dc/√3: 3 %
+/// of headroom for the current loops' transients (a torque step at top speed asks for
+/// σL_s·di/dt on top of the steady voltage; the vector limit and the loss-of-control time
+/// absorb short excursions), while the steady torque at the voltage limit — which scales
+/// with the voltage squared — stays within 6 % of the machine's envelope.
+pub const DEFAULT_VOLTAGE_MARGIN: f64 = 0.97;
+
+fn default_voltage_margin() -> f64 {
+    DEFAULT_VOLTAGE_MARGIN
 }
 
 /// `controller.current`.
@@ -170,23 +199,29 @@ pub struct ProtectionTable {
     pub encoder_check_time_s: Option<f64>,
 }
 
-/// Default overspeed trip: 1.2 × the speed at which the motor's no-load back-EMF at the
-/// flux reference reaches the largest voltage the bridge can apply on the highest bus the
-/// drive accepts, `ω_m = (V_dc,max/√3) / (ψ_r*·L_s/L_m) / p` (stator flux ≈ ψ_r*·L_s/L_m at
-/// no load; V_dc/√3 is the SVPWM's linear limit). Without field weakening the drive cannot
-/// hold a speed above that under its own torque, so beyond it by 20 % the load is driving
-/// the motor (or the speed loop lost control).
+/// Default overspeed trip: 1.2 × [`FIELD_WEAKENING_RANGE`] × the no-load base speed on the
+/// highest bus the drive accepts — the speed at which the motor's no-load back-EMF at the
+/// flux reference reaches the largest voltage the bridge can apply,
+/// `ω_m = (V_dc,max/√3) / (ψ_r*·L_s/L_m) / p` (stator flux ≈ ψ_r*·L_s/L_m at no load;
+/// V_dc/√3 is the modulator's linear limit). The drive weakens the field above base speed;
+/// beyond the field-weakening range by 20 % the load is driving the motor (or the speed
+/// loop lost control).
 pub fn default_overspeed_rad_s(
     motor: &controller_core::motor::MotorParams,
     flux_ref_wb: f64,
     vdc_max_v: f64,
 ) -> f64 {
     let psi_s_wb = flux_ref_wb * motor.ls_h() / motor.lm_h();
-    1.2 * (vdc_max_v / 3f64.sqrt()) / psi_s_wb / f64::from(motor.pole_pairs())
+    1.2 * FIELD_WEAKENING_RANGE * (vdc_max_v / 3f64.sqrt()) / psi_s_wb / f64::from(motor.pole_pairs())
 }
 
+/// The speed range above base speed a drive is expected to run in (the default overspeed
+/// trip's basis): 2:1, the constant-power range of a general-purpose induction-motor drive.
+/// Set `protection.overspeed_rad_s` for a wider one.
+pub const FIELD_WEAKENING_RANGE: f64 = 2.0;
+
 /// Default stall time, s: a locked rotor under a speed command is caught within this. A
-/// start at the torque limit must leave the "not moving" band (1 % of the overspeed level,
+/// start at the torque limit must leave the "not moving" band (0.5 % of the overspeed level,
 /// `controller_core::drive::STALL_SPEED_FRACTION`) well before it: J·ω_band/τ_limit ≪ this
 /// (checked for the shipped drive at its largest certified inertia by the test
 /// `derived_protection_defaults`). Set it explicitly for a drive with a large inertia and a
@@ -323,6 +358,8 @@ pub fn drive_spec(
         ("controller.flux_ref_wb", c.flux_ref_wb),
         ("controller.i_ref_max_a", c.i_ref_max_a),
         ("controller.magnetized_fraction", c.magnetized_fraction),
+        ("controller.voltage_margin", c.voltage_margin),
+        ("controller.current_trim_bandwidth_rad_s", c.current_trim_bandwidth_rad_s),
         ("controller.position.k_per_s", c.position.k_per_s),
         ("controller.position.omega_max_rad_s", c.position.omega_max_rad_s),
         ("protection.i_trip_a", protection.i_trip_a),
@@ -362,6 +399,8 @@ pub fn drive_spec(
         flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
         i_ref_max_a: c.i_ref_max_a,
         magnetized_fraction: c.magnetized_fraction,
+        voltage_margin: c.voltage_margin,
+        current_trim_bandwidth_rad_s: c.current_trim_bandwidth_rad_s,
         protection: {
             let d = protection_with_defaults(
                 &motor,
@@ -391,6 +430,13 @@ pub fn drive_spec(
             src.error("controller.flux_ref_wb", "must be > 0 and above controller.flux_floor_wb")
         }
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
+        DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
+        // Only `DriveConfig::from_raw` returns it.
+        DriveError::Raw => src.error("controller", "configuration rejected"),
+        DriveError::CurrentTrim => src.error(
+            "controller.current_trim_bandwidth_rad_s",
+            "must be ≥ 0 and below a tenth of the slow loop's rate (rad/s)",
+        ),
         DriveError::Protection => {
             let p = protection;
             if !(p.vdc_min_v >= 0.0 && p.vdc_min_v < p.vdc_max_v) {

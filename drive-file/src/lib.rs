@@ -183,8 +183,9 @@ mod tests {
     fn derived_protection_defaults() {
         let d = DriveFile::shipped().unwrap();
         let p = d.spec.protection;
-        // 1.2 · (400 V/√3) / (0.9 Wb · 1.44/1.42) / 1.
-        assert!((p.overspeed_rad_s - 303.643).abs() < 1e-3, "{}", p.overspeed_rad_s);
+        // 1.2 · 2 · (400 V/√3) / (0.9 Wb · 1.44/1.42) / 1: 20 % beyond a 2:1 field-weakening
+        // range above the no-load base speed on the highest bus.
+        assert!((p.overspeed_rad_s - 607.286).abs() < 1e-3, "{}", p.overspeed_rad_s);
         assert_eq!((p.stall_time_s, p.current_sum_max_a), (0.3, 0.4));
         let j_max = d.spec.motor.j_kgm2() * d.certify.unwrap().j_factor[1];
         let band = controller_core::drive::STALL_SPEED_FRACTION * p.overspeed_rad_s;

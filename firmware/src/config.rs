@@ -1,6 +1,7 @@
 //! The firmware's configuration, generated at build time from the workspace's `drive.toml`
-//! (`build.rs`, `drive_file::codegen`): the drive specification ([`drive_spec`]), the
-//! board's constants ([`BOARD`], [`TIM_CLOCK_HZ`], [`PWM_PERIOD_COUNTS`],
+//! (`build.rs`, `drive_file::codegen`): the drive specification ([`drive_spec`]) and its
+//! discretised configuration, computed on the build host ([`DRIVE_CONFIG`]: the firmware
+//! runs no f64 design arithmetic), the board's constants ([`BOARD`], [`TIM_CLOCK_HZ`], [`PWM_PERIOD_COUNTS`],
 //! [`DEAD_TIME_TICKS`]) and the gain ranges `design certify drive.toml` certified
 //! ([`SPEED_KP`], [`SPEED_TAU_MAX_NM`]), which the firmware enforces on gains written over
 //! its link. Another motor or board is a change of `drive.toml` (and of the pin map in
@@ -21,6 +22,10 @@ mod tests {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
         let d = drive_file::DriveFile::load(std::path::Path::new(path)).unwrap();
         assert_eq!(drive_spec().unwrap(), d.spec);
+        // The embedded configuration is the one the design path builds from the file.
+        let built = controller_core::drive::DriveConfig::new(&d.spec).unwrap();
+        assert_eq!(DRIVE_CONFIG, built.to_raw());
+        assert_eq!(controller_core::drive::DriveConfig::from_raw(&DRIVE_CONFIG), Ok(built));
         let (b, c) = (d.board.unwrap(), d.certify.unwrap());
         assert_eq!(BOARD.current_a_per_count, b.table.current_a_per_count);
         assert_eq!(BOARD.vdc_v_per_count, b.table.vdc_v_per_count);

@@ -14,10 +14,11 @@
 //! `Fault::EncoderLoss`.
 
 use controller_core::drive::{
-    Drive, DriveConfig, DriveError, DriveSpec, FastOutput, Fault, Measurements, Mode, PhaseCommand,
+    Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand,
 };
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
+use controller_core::raw::RawDriveConfig;
 use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling, ScalingError};
 
 /// Speed window of the encoder estimator, in slow-loop reads.
@@ -78,7 +79,6 @@ pub enum ControlError {
 /// Control loop state: the drive plus the converter scalings and the encoder estimator.
 #[derive(Clone, Debug)]
 pub struct ControlLoop {
-    spec: DriveSpec,
     board: BoardConfig,
     drive: Drive,
     current: AdcScaling,
@@ -96,9 +96,14 @@ pub struct ControlLoop {
 }
 
 impl ControlLoop {
-    /// Validate everything once, at start-up.
-    pub fn new(spec: &DriveSpec, board: &BoardConfig) -> Result<Self, ControlError> {
-        let cfg = DriveConfig::new(spec).map_err(ControlError::Drive)?;
+    /// Validate everything once, at start-up: the drive configuration built at compile time
+    /// (`config::DRIVE_CONFIG`, checked by [`DriveConfig::from_raw`]) and the board's scalings.
+    pub fn new(raw: &RawDriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
+        let cfg = DriveConfig::from_raw(raw).map_err(ControlError::Drive)?;
+        Self::with_config(cfg, board)
+    }
+
+    fn with_config(cfg: DriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
         let divider = cfg.slow_divider();
         let current =
             AdcScaling::new(board.current_a_per_count, board.current_offset_counts, board.adc_full_scale)
@@ -106,11 +111,10 @@ impl ControlLoop {
         let vdc =
             AdcScaling::new(board.vdc_v_per_count, 0, board.adc_full_scale).map_err(ControlError::Scaling)?;
         let pwm = PwmScaling::new(board.pwm_period_counts).map_err(ControlError::Scaling)?;
-        let read_period_s = f64::from(divider) / spec.pwm_frequency_hz;
+        let read_period_s = f64::from(f32::from(divider) * cfg.ts_s());
         let encoder_cfg =
             EncoderConfig::new(board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
         Ok(Self {
-            spec: *spec,
             board: *board,
             drive: Drive::new(cfg),
             current,
@@ -128,14 +132,14 @@ impl ControlLoop {
         })
     }
 
-    /// The specification in use.
-    pub fn spec(&self) -> &DriveSpec {
-        &self.spec
+    /// The drive configuration in use.
+    pub fn config(&self) -> &DriveConfig {
+        self.drive.config()
     }
 
-    /// Rebuild everything for `spec` (validated); on error nothing changes.
-    pub fn reconfigure(&mut self, spec: &DriveSpec) -> Result<(), ControlError> {
-        *self = Self::new(spec, &self.board)?;
+    /// Start again from configuration `cfg` (a fresh drive, Idle); on error nothing changes.
+    pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), ControlError> {
+        *self = Self::with_config(cfg, &self.board)?;
         Ok(())
     }
 
@@ -202,7 +206,7 @@ impl ControlLoop {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::drive_spec;
+    use crate::config::{DRIVE_CONFIG, drive_spec};
     use controller_core::drive::Reference;
     use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
 
@@ -224,7 +228,7 @@ mod tests {
 
     #[test]
     fn adc_codes_to_amperes_and_duty_to_compare() {
-        let mut c = ControlLoop::new(&drive_spec().unwrap(), &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
         // Idle: bridge off whatever the inputs.
         assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         c.drive_mut().enable().unwrap();
@@ -250,7 +254,7 @@ mod tests {
 
     #[test]
     fn hardware_break_latches_until_cleared_by_command() {
-        let mut c = ControlLoop::new(&drive_spec().unwrap(), &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
         c.drive_mut().enable().unwrap();
         assert!(matches!(c.step(&at_rest(0)), Bridge::Compare(_)));
         let brk = Samples { hardware_break: true, ..at_rest(0) };
@@ -270,7 +274,7 @@ mod tests {
 
     #[test]
     fn encoder_jump_is_encoder_loss_and_wrap_is_not() {
-        let mut c = ControlLoop::new(&drive_spec().unwrap(), &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
         c.drive_mut().enable().unwrap();
         c.drive_mut().set_reference(Reference::Speed(0.0)).unwrap();
         let div = u32::from(drive_spec().unwrap().slow_divider);
@@ -292,7 +296,7 @@ mod tests {
 
     #[test]
     fn invalid_board_constants_are_rejected_at_construction() {
-        let spec = drive_spec().unwrap();
+        let spec = DRIVE_CONFIG;
         let bad = BoardConfig { pwm_period_counts: 0, ..board() };
         assert_eq!(ControlLoop::new(&spec, &bad).unwrap_err(), ControlError::Scaling(ScalingError::Period));
         let bad = BoardConfig { current_offset_counts: 5000, ..board() };

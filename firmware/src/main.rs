@@ -46,7 +46,7 @@ mod target {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
-    use firmware::config::{BOARD, DEAD_TIME_TICKS, drive_spec};
+    use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG};
     use firmware::control::{ControlError, ControlLoop, Samples};
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
@@ -165,14 +165,7 @@ mod target {
         defmt::info!("drive firmware: 170 MHz, validating the drive configuration");
 
         // Validate at construction: with an invalid configuration nothing is enabled.
-        let control = match drive_spec() {
-            Ok(spec) => ControlLoop::new(&spec, &BOARD),
-            Err(_) => {
-                defmt::error!("motor parameters rejected; bridge stays off");
-                halt_safe();
-            }
-        };
-        let control = match control {
+        let control = match ControlLoop::new(&DRIVE_CONFIG, &BOARD) {
             Ok(c) => c,
             Err(e) => {
                 let why = match e {

@@ -91,7 +91,7 @@ pub fn stop_for_good(mask_interrupts: impl FnOnce(), hw: &mut impl OutputStage) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{BOARD, drive_spec};
+    use crate::config::{BOARD, DRIVE_CONFIG};
     use controller_core::drive::{Fault, Mode};
 
     /// TIM1's main output and break logic: a break pulse clears MOE and sets BIF in hardware;
@@ -156,7 +156,7 @@ mod tests {
         let mut cases = 0;
         // The first four periods after enable take ≤ 4 operations each: 16 injection points.
         for pulse_op in 0..16 {
-            let mut ctl = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
+            let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
             ctl.drive_mut().enable().unwrap();
             let (mut out, mut hw) =
                 (Outputs::new(), ModelTimer { pulse_at: Some(pulse_op), ..Default::default() });
@@ -206,7 +206,7 @@ mod tests {
                 self.0.disable_outputs()
             }
         }
-        let mut ctl = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
+        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
         let (mut out, mut hw) = (Outputs::new(), Count::default());
         for _ in 0..10 {
             assert_eq!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Off);
@@ -229,7 +229,7 @@ mod tests {
     /// interrupt only while interrupts are not masked).
     #[test]
     fn after_stop_for_good_moe_stays_off() {
-        let mut ctl = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
+        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
         ctl.drive_mut().enable().unwrap();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
         for _ in 0..10 {

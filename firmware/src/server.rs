@@ -12,18 +12,14 @@ use crate::config as certified;
 use crate::control::ControlLoop;
 use controller_core::drive::Mode;
 use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
-use controller_core::speed::SpeedLaw;
 
 /// Answer one command.
 pub fn handle(ctl: &mut ControlLoop, cmd: &Command, stats: &LinkStats) -> Reply {
     match cmd {
         Command::Step(_) | Command::Configure(_) => Reply::Nack(NackReason::Unsupported),
-        Command::ReadSpeedGains => match ctl.spec().speed_law {
-            SpeedLaw::SaturatedP { kp, tau_max_nm } => {
-                // Design values (f64) reported in the link's f32.
-                Reply::SpeedGains { kp: kp as f32, tau_max_nm: tau_max_nm as f32 }
-            }
-            _ => Reply::Nack(NackReason::Unsupported),
+        Command::ReadSpeedGains => match ctl.config().speed().saturated_p() {
+            Some((kp, tau_max_nm)) => Reply::SpeedGains { kp, tau_max_nm },
+            None => Reply::Nack(NackReason::Unsupported),
         },
         Command::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
         other => link::execute(ctl.drive_mut(), other, stats),
@@ -41,12 +37,11 @@ fn write_speed_gains(ctl: &mut ControlLoop, kp: f32, tau_max_nm: f32) -> Reply {
     if ctl.drive().mode() != Mode::Idle {
         return Reply::Nack(NackReason::NotIdle);
     }
-    if !matches!(ctl.spec().speed_law, SpeedLaw::SaturatedP { .. }) {
+    // In f32, on the configuration in use: no design arithmetic on the target.
+    let Some(cfg) = ctl.config().with_saturated_p(kp, tau_max_nm) else {
         return Reply::Nack(NackReason::Unsupported);
-    }
-    let mut spec = *ctl.spec();
-    spec.speed_law = SpeedLaw::SaturatedP { kp: f64::from(kp), tau_max_nm: f64::from(tau_max_nm) };
-    match ctl.reconfigure(&spec) {
+    };
+    match ctl.reconfigure(cfg) {
         Ok(()) => Reply::Ack,
         Err(_) => Reply::Nack(NackReason::Configuration),
     }
@@ -55,13 +50,13 @@ fn write_speed_gains(ctl: &mut ControlLoop, kp: f32, tau_max_nm: f32) -> Reply {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::config::{BOARD, drive_spec};
+    use crate::config::{BOARD, DRIVE_CONFIG, drive_spec};
     use controller_core::drive::{Measurements, Reference};
 
     #[test]
     fn commands_reach_the_drive_and_step_or_configure_are_refused() {
         let spec = drive_spec().unwrap();
-        let mut c = ControlLoop::new(&spec, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
         let stats = LinkStats { frames_ok: 5, crc: 2, ..Default::default() };
         assert_eq!(handle(&mut c, &Command::Enable, &stats), Reply::Ack);
         assert_eq!(c.drive().mode(), Mode::Magnetizing);
@@ -85,7 +80,7 @@ mod tests {
 
     #[test]
     fn speed_gains_are_written_only_inside_the_certified_ranges_and_while_idle() {
-        let mut c = ControlLoop::new(&drive_spec().unwrap(), &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
         let s = LinkStats::default();
         let read = |c: &mut ControlLoop| handle(c, &Command::ReadSpeedGains, &s);
         assert_eq!(read(&mut c), Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 });

@@ -178,6 +178,10 @@ pub struct Row {
     pub duty: Option<[f64; 3]>,
     /// DC-bus voltage, V.
     pub vdc_v: f64,
+    /// The drive's rotor-flux estimate, Wb.
+    pub psi_est_wb: f64,
+    /// The drive's rotor-flux reference, Wb.
+    pub psi_ref_wb: f64,
 }
 
 /// The plant's side of one period in [`run`].
@@ -355,6 +359,8 @@ pub fn run(
                     PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),
                 },
                 vdc_v,
+                psi_est_wb: f64::from(out.telemetry.psi_r_wb),
+                psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
             })?;
         } else {
             to_trace -= 1;

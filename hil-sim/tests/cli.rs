@@ -193,7 +193,7 @@ fn bench_reports_consistent_figures_and_rejects_bad_arguments() {
 /// A closed-loop trace carries the drive's mode, the fault, the duties and the bus voltage:
 /// a bus sag injected at 0.4 s shows as `Fault,DcBusUndervoltage` with the duties empty.
 #[test]
-fn closed_loop_trace_has_mode_fault_duties_and_bus() {
+fn closed_loop_trace_has_mode_fault_duties_bus_and_flux() {
     let dir = tmp("modes");
     std::fs::create_dir_all(&dir).unwrap();
     let fig16 =
@@ -207,12 +207,17 @@ fn closed_loop_trace_has_mode_fault_duties_and_bus() {
     assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
     let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
     let mut lines = trace.lines();
-    assert!(lines.next().unwrap().ends_with(",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v"));
+    assert!(
+        lines.next().unwrap().ends_with(",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb")
+    );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    let col = |r: &Vec<&str>, k: usize| r[r.len() - 6 + k].to_string();
+    let col = |r: &Vec<&str>, k: usize| r[r.len() - 8 + k].to_string();
     assert_eq!(col(&rows[10], 0), "Magnetizing");
     assert_eq!(col(&rows[300], 0), "Running");
     assert!(col(&rows[300], 2).parse::<f64>().is_ok() && col(&rows[300], 5) == "310.00");
+    // The flux estimate and reference while running: the rated 0.35 Wb of this drive.
+    assert_eq!(col(&rows[300], 7), "0.35000");
+    assert!((col(&rows[300], 6).parse::<f64>().unwrap() - 0.35).abs() < 0.01);
     let last = rows.last().unwrap();
     assert_eq!(
         (col(last, 0), col(last, 1), col(last, 2), col(last, 5)),

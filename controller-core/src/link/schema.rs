@@ -277,7 +277,14 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
     for v in [a, b, c, s.position.k_per_s, s.position.omega_max_rad_s] {
         w.f64(v)?;
     }
-    for v in [s.flux_ref_wb, s.flux_floor_wb, s.i_ref_max_a, s.magnetized_fraction] {
+    for v in [
+        s.flux_ref_wb,
+        s.flux_floor_wb,
+        s.i_ref_max_a,
+        s.magnetized_fraction,
+        s.voltage_margin,
+        s.current_trim_bandwidth_rad_s,
+    ] {
         w.f64(v)?;
     }
     let p = &s.protection;
@@ -330,6 +337,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
     let position = PositionLaw { k_per_s: r.f64()?, omega_max_rad_s: r.f64()? };
     let (flux_ref_wb, flux_floor_wb, i_ref_max_a, magnetized_fraction) =
         (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
+    let (voltage_margin, current_trim_bandwidth_rad_s) = (r.f64()?, r.f64()?);
     let protection = Protection {
         i_trip_a: r.f64()?,
         vdc_min_v: r.f64()?,
@@ -353,6 +361,8 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         flux_floor_wb,
         i_ref_max_a,
         magnetized_fraction,
+        voltage_margin,
+        current_trim_bandwidth_rad_s,
         protection,
     })
 }
@@ -495,7 +505,14 @@ impl Reply {
                 w.ab(t.i_ab_a)?;
                 w.ab(t.i_ref_ab_a)?;
                 w.ab(t.v_ab_v)?;
-                for v in [t.theta_e_rad, t.omega_sl_rad_s, t.psi_r_wb, t.i_q_ref_a, t.omega_ref_rad_s] {
+                for v in [
+                    t.theta_e_rad,
+                    t.omega_sl_rad_s,
+                    t.psi_r_wb,
+                    t.psi_ref_wb,
+                    t.i_q_ref_a,
+                    t.omega_ref_rad_s,
+                ] {
                     w.f32(v)?;
                 }
             }
@@ -544,6 +561,7 @@ impl Reply {
                     theta_e_rad: r.f32()?,
                     omega_sl_rad_s: r.f32()?,
                     psi_r_wb: r.f32()?,
+                    psi_ref_wb: r.f32()?,
                     i_q_ref_a: r.f32()?,
                     omega_ref_rad_s: r.f32()?,
                 };

@@ -15,7 +15,7 @@ mod target {
     use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
     use controller_core::discretize::Discretization;
     use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, Reference};
-    use controller_core::frames::{Abc, AlphaBeta, SinCos};
+    use controller_core::frames::{Abc, AlphaBeta, Dq, SinCos};
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
     use controller_core::svpwm;
@@ -129,7 +129,7 @@ mod target {
                 let mut s = CurrentState::default();
                 per_call(&ticks, |k| {
                     let e = black_box(current(k % 64)).clarke();
-                    black_box(c.update(&mut s, e, AlphaBeta::default(), 179.0));
+                    black_box(c.request(&mut s, e.alpha, e.beta, 207.0));
                 }) - per_call(&ticks, |k| {
                     black_box(black_box(current(k % 64)).clarke());
                 })
@@ -146,6 +146,8 @@ mod target {
                         &flux,
                         TorqueCommand::TorqueNm(black_box(0.3)),
                         k as f32 * 1e-3,
+                        black_box(current(k % 64)).clarke(),
+                        Dq::default(),
                     ));
                 })
             }

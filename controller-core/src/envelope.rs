@@ -1,0 +1,451 @@
+//! The operating envelope: which torque the current limit and the bus allow at a speed, and
+//! the current references (i_d*, i_q*) that deliver a torque with the most flux the voltage
+//! allows — field weakening above base speed and the breakdown-torque (maximum torque per
+//! volt) limit, from one steady-state model.
+//!
+//! **Model** (the standard dq model at steady state in the rotor-flux frame, seed 000 eqs.
+//! (1)–(9) with `ψ_qr = 0`, `ψ_r = L_m·i_d`). With the *slip ratio* `r = i_q/i_d`:
+//!
+//! ```text
+//! ω_sl = r/T_r                     (eq. (7))
+//! ω_e  = p·ω_m + r/T_r
+//! v_d  = i_d·(R_s − ω_e·σL_s·r)
+//! v_q  = i_d·(R_s·r + ω_e·L_s)      so |v| = i_d·g(r),  g(r)² = v_d² + v_q² at i_d = 1
+//! |i|  = i_d·√(1 + r²)
+//! T    = K·i_d²·r,  K = (3/2)·p·L_m²/L_r
+//! ```
+//!
+//! At a slip ratio r the d-axis current can be at most
+//! `i_d,max(r)² = min(i_d,rated², V²/g(r)², I²/(1 + r²))` (rated flux, voltage budget V,
+//! current limit I), so the largest torque at that ratio is `T(r) = K·r·i_d,max(r)²`. The
+//! **envelope** `T_max = max_r T(r)` is found by a coarse scan of r (T(r) is not unimodal
+//! when generating: towards zero stator frequency the voltage bound loosens and a second,
+//! lower maximum appears) refined by a golden-section search; the **reference** for a
+//! torque `|T*| < T_max` is the smallest r with `T(r) = |T*|` (bisection across the first
+//! scan interval that reaches it), with `i_d* = i_d,max(r)`, `i_q* = r·i_d*`: the smallest r
+//! allows the largest `i_d = √(T*/(K·r))`, i.e.
+//! the most flux, hence the least current and slip, that delivers T* within the limits.
+//! Below base speed that is the rated flux; above it the flux falls with speed (field
+//! weakening, the voltage bound active); at high speed the optimum sits at the
+//! breakdown ratio, the maximum of r/g(r)² (maximum torque per volt). Regeneration is the
+//! mirror image: `(ω_m, r) → (−ω_m, −r)` leaves |v| unchanged.
+//!
+//! R_s is kept: on a small motor (DeLorenzo: R_s·i_q ≈ 50 V of a 179 V limit) the R_s-free
+//! ellipse and breakdown ratio `1/σ` are far off (`tests::breakdown_ratio_with_and_without_rs`).
+//!
+//! The voltage budget V is the caller's: the drive passes a margin below the linear limit
+//! `V_dc/√3`, corrected by a slow regulator on the voltage the current loops actually ask
+//! for ([`crate::drive`]), so that parameter error cannot push them into saturation.
+//!
+//! Cost: a fixed number of evaluations of `T(r)` (each ≈ 20 multiply–adds and one
+//! division), [`SCAN_POINTS`] + [`GOLDEN_STEPS`] + 2 + [`BISECTION_STEPS`], once per slow
+//! period.
+
+use crate::motor::MotorParams;
+use crate::num::{Scalar, min_f32};
+
+/// Points of the coarse scan of T(r) over `(0, 2/σ]` that brackets the envelope's maximum.
+/// T(r) is not unimodal when generating: towards zero stator frequency the voltage bound
+/// loosens and a second, lower maximum appears (the current bound caps it); the scan finds
+/// the global one, and the first ratio that reaches a torque.
+pub const SCAN_POINTS: u32 = 16;
+/// Golden-section steps for the envelope's slip ratio within the scan's bracket (2/16 of
+/// the range): it shrinks to 0.618^16 ≈ 4.5e-4 of its width, 5.6e-5 of the range (T is flat
+/// at its maximum: the torque error is far smaller).
+pub const GOLDEN_STEPS: u32 = 16;
+/// Bisection steps for a torque below the envelope: the ratio to 2^-18 ≈ 3.8e-6 of the
+/// bracket.
+pub const BISECTION_STEPS: u32 = 18;
+
+/// Steady-state machine constants of the envelope (f32, derived at construction).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvelopeConfig {
+    rs_ohm: f32,
+    ls_h: f32,
+    sigma_ls_h: f32,
+    inv_tr_per_s: f32,
+    pole_pairs: f32,
+    /// K = (3/2)·p·L_m²/L_r: torque per (i_d²·r), N·m/A².
+    k_nm_per_a2: f32,
+    /// L_m/L_r.
+    lm_over_lr: f32,
+    /// L_m·R_r/L_r: slip speed per (i_q/ψ_r), electrical rad/s·Wb/A.
+    slip_gain: f32,
+    /// Upper end of the slip-ratio search, 2/σ (the R_s-free breakdown ratio is 1/σ).
+    r_max: f32,
+}
+
+/// One operating point: the current references and the torque limit at this speed and bus.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OperatingPoint {
+    /// d-axis current reference, A (≥ 0).
+    pub i_d_a: f32,
+    /// q-axis current reference, A (the sign of the torque).
+    pub i_q_a: f32,
+    /// Largest torque magnitude in the torque's direction, N·m.
+    pub torque_max_nm: f32,
+}
+
+impl EnvelopeConfig {
+    /// The constants of `motor`.
+    pub fn new(motor: &MotorParams) -> Self {
+        let f = f32::from_f64;
+        Self {
+            rs_ohm: f(motor.rs_ohm()),
+            ls_h: f(motor.ls_h()),
+            sigma_ls_h: f(motor.sigma() * motor.ls_h()),
+            inv_tr_per_s: f(1.0 / motor.tr_s()),
+            pole_pairs: f32::from(motor.pole_pairs()),
+            k_nm_per_a2: f(motor.torque_factor() * motor.lm_h()),
+            lm_over_lr: f(motor.lm_h() / motor.lr_h()),
+            slip_gain: f(motor.lm_h() * motor.rr_ohm() / motor.lr_h()),
+            r_max: f(2.0 / motor.sigma()),
+        }
+    }
+
+    /// Pole pairs p.
+    pub fn pole_pairs(&self) -> f32 {
+        self.pole_pairs
+    }
+
+    /// `i_d,max(r)²` at electrical rotor speed `w_r` (in the motoring direction), for rated
+    /// `i_d²`, voltage budget `V²` and current limit `I²`.
+    #[inline]
+    fn id2_max(&self, r: f32, w_r: f32, id2_rated: f32, v2: f32, i2: f32) -> f32 {
+        let w_e = w_r + r * self.inv_tr_per_s;
+        let vd = self.rs_ohm - w_e * self.sigma_ls_h * r;
+        let vq = self.rs_ohm * r + w_e * self.ls_h;
+        let g2 = vd * vd + vq * vq; // ≥ R_s²·(1 + r²) > 0
+        min_f32(min_f32(id2_rated, v2 / g2), i2 / (1.0 + r * r))
+    }
+
+    /// `T(r)/K`.
+    #[inline]
+    fn torque_per_k(&self, r: f32, w_r: f32, id2_rated: f32, v2: f32, i2: f32) -> f32 {
+        r * self.id2_max(r, w_r, id2_rated, v2, i2)
+    }
+
+    /// The operating point for torque `torque_nm` at mechanical speed `omega_m_rad_s`, with
+    /// rated d-axis current `i_d_rated_a`, voltage budget `v_max_v` (peak phase voltage)
+    /// and current limit `i_max_a`. The torque is limited to the envelope. Non-finite or
+    /// non-positive limits give a zero point (no flux, no torque). Not inlined: the slow
+    /// step calls it once, and inlined its loops cost flash.
+    #[inline(never)]
+    pub fn operating_point(
+        &self,
+        torque_nm: f32,
+        omega_m_rad_s: f32,
+        i_d_rated_a: f32,
+        v_max_v: f32,
+        i_max_a: f32,
+    ) -> OperatingPoint {
+        let ok = |x: f32| x > 0.0 && x < f32::INFINITY; // false for NaN
+        if !(ok(i_d_rated_a)
+            && ok(v_max_v)
+            && ok(i_max_a)
+            && torque_nm.is_finite()
+            && omega_m_rad_s.is_finite())
+        {
+            return OperatingPoint::default();
+        }
+        // Mirror regeneration onto motoring: r ≥ 0 below.
+        let (sign, w_r) = if torque_nm < 0.0 {
+            (-1.0, -self.pole_pairs * omega_m_rad_s)
+        } else {
+            (1.0, self.pole_pairs * omega_m_rad_s)
+        };
+        let (id2r, v2, i2) = (i_d_rated_a * i_d_rated_a, v_max_v * v_max_v, i_max_a * i_max_a);
+        let t = |r: f32| self.torque_per_k(r, w_r, id2r, v2, i2);
+        let wanted = torque_nm.abs() / self.k_nm_per_a2;
+        // Coarse scan: the grid point of the largest T, and the first one reaching the torque.
+        let dr = self.r_max * (1.0 / SCAN_POINTS as f32);
+        let (mut j_max, mut t_max, mut j_first) = (0u32, 0.0f32, None);
+        for j in 1..=SCAN_POINTS {
+            let tj = t(dr * j as f32);
+            if tj > t_max {
+                (j_max, t_max) = (j, tj);
+            }
+            if j_first.is_none() && tj >= wanted {
+                j_first = Some(j);
+            }
+        }
+        // Golden section for the maximum between the scan's neighbours of its best point.
+        const INV_PHI: f32 = 0.618_034;
+        let (mut a, mut b) = (dr * j_max.saturating_sub(1) as f32, dr * (j_max + 1) as f32);
+        let mut c = b - INV_PHI * (b - a);
+        let mut d = a + INV_PHI * (b - a);
+        let (mut tc, mut td) = (t(c), t(d));
+        for _ in 0..GOLDEN_STEPS {
+            if tc > td {
+                b = d;
+                d = c;
+                td = tc;
+                c = b - INV_PHI * (b - a);
+                tc = t(c);
+            } else {
+                a = c;
+                c = d;
+                tc = td;
+                d = a + INV_PHI * (b - a);
+                td = t(d);
+            }
+        }
+        let (r_opt, t_opt) = if tc > td { (c, tc) } else { (d, td) };
+        let torque_max_nm = self.k_nm_per_a2 * t_opt;
+        // The smallest ratio that delivers the torque: bisection across the first scan
+        // interval that reaches it (or, if only the refined maximum does, up to r_opt).
+        let r = if wanted >= t_opt {
+            r_opt
+        } else {
+            let (mut lo, mut hi) = match j_first {
+                Some(j) if j <= j_max => (dr * (j - 1) as f32, dr * j as f32),
+                _ => (dr * j_max.saturating_sub(1) as f32, r_opt),
+            };
+            for _ in 0..BISECTION_STEPS {
+                let mid = 0.5 * (lo + hi);
+                if t(mid) < wanted {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            hi
+        };
+        let i_d_a = crate::num::sqrt_f32(self.id2_max(r, w_r, id2r, v2, i2));
+        OperatingPoint { i_d_a, i_q_a: sign * r * i_d_a, torque_max_nm }
+    }
+}
+
+impl EnvelopeConfig {
+    /// The largest |i_q| (A) the voltage budget `v_max_v` allows *now*, with the rotor flux
+    /// at `psi_r_wb` (not yet at its steady state: it changes with T_r) and the d-axis current
+    /// at `i_d_a`, at mechanical speed `omega_m_rad_s`, in the direction `sign` of the torque
+    /// (±1), at most `i_q_cap_a`. The stator voltage of the dq model with the flux held:
+    /// `v_d = R_s·i_d − ω_e·σL_s·i_q`, `v_q = R_s·i_q + ω_e·(σL_s·i_d + (L_m/L_r)·ψ_r)`,
+    /// `ω_e = p·ω_m + (L_m·R_r/L_r)·i_q/ψ_r`. While field weakening lowers the flux, the back-EMF
+    /// of the flux that is still there leaves less voltage for i_q than the steady state
+    /// would: the torque is held to what the bus can drive until the flux has fallen, so that
+    /// the current loops are not pushed into the voltage limit. Bisection on i_q (|v| grows
+    /// with it): [`BISECTION_STEPS`] evaluations. Zero when even i_q = 0 does not fit.
+    #[inline(never)]
+    pub fn i_q_max_at_flux(
+        &self,
+        psi_r_wb: f32,
+        i_d_a: f32,
+        omega_m_rad_s: f32,
+        v_max_v: f32,
+        i_q_cap_a: f32,
+        sign: f32,
+    ) -> f32 {
+        let psi = if psi_r_wb > 1e-3 { psi_r_wb } else { 1e-3 };
+        let w_r = self.pole_pairs * omega_m_rad_s;
+        let v2 = v_max_v * v_max_v;
+        let fits = |i_q: f32| {
+            let i_q = sign * i_q;
+            let w_e = w_r + self.slip_gain * i_q / psi;
+            let vd = self.rs_ohm * i_d_a - w_e * self.sigma_ls_h * i_q;
+            let vq = self.rs_ohm * i_q + w_e * (self.sigma_ls_h * i_d_a + self.lm_over_lr * psi);
+            vd * vd + vq * vq <= v2 // false for NaN
+        };
+        if fits(i_q_cap_a) {
+            return i_q_cap_a;
+        }
+        let (mut lo, mut hi) = (0.0f32, i_q_cap_a);
+        for _ in 0..BISECTION_STEPS {
+            let mid = 0.5 * (lo + hi);
+            if fits(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    }
+}
+
+impl EnvelopeConfig {
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        for x in [
+            self.rs_ohm,
+            self.ls_h,
+            self.sigma_ls_h,
+            self.inv_tr_per_s,
+            self.pole_pairs,
+            self.k_nm_per_a2,
+            self.lm_over_lr,
+            self.slip_gain,
+            self.r_max,
+        ] {
+            w.f(x);
+        }
+    }
+
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        Self {
+            rs_ohm: r.f(),
+            ls_h: r.f(),
+            sigma_ls_h: r.f(),
+            inv_tr_per_s: r.f(),
+            pole_pairs: r.f(),
+            k_nm_per_a2: r.f(),
+            lm_over_lr: r.f(),
+            slip_gain: r.f(),
+            r_max: r.f(),
+        }
+    }
+}
+
+/// The same model in f64 on a dense grid of slip ratios: the reference the tests (and the
+/// simulator's envelope check) hold [`EnvelopeConfig::operating_point`] against. Returns
+/// `(T_max, i_d, i_q)` at the best of `n` ratios in `(0, 2/σ]`.
+pub fn envelope_by_grid(
+    motor: &MotorParams,
+    omega_m_rad_s: f64,
+    i_d_rated_a: f64,
+    v_max_v: f64,
+    i_max_a: f64,
+    n: u32,
+) -> (f64, f64, f64) {
+    let (rs, ls, sls) = (motor.rs_ohm(), motor.ls_h(), motor.sigma() * motor.ls_h());
+    let k = motor.torque_factor() * motor.lm_h();
+    let w_r = f64::from(motor.pole_pairs()) * omega_m_rad_s;
+    let r_max = 2.0 / motor.sigma();
+    let mut best = (0.0, 0.0, 0.0);
+    for j in 1..=n {
+        let r = r_max * f64::from(j) / f64::from(n);
+        let w_e = w_r + r / motor.tr_s();
+        let (vd, vq) = (rs - w_e * sls * r, rs * r + w_e * ls);
+        let g2 = vd * vd + vq * vq;
+        let id2 =
+            (i_d_rated_a * i_d_rated_a).min(v_max_v * v_max_v / g2).min(i_max_a * i_max_a / (1.0 + r * r));
+        let t = k * r * id2;
+        if t > best.0 {
+            let id = libm::sqrt(id2);
+            best = (t, id, r * id);
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn motor() -> MotorParams {
+        MotorParams::delorenzo_dl10115a1().unwrap()
+    }
+
+    const V: f32 = 178.979_5; // 310 V / √3
+    const ID_RATED: f32 = 0.9 / 1.42;
+
+    /// The solver's envelope against a 200 000-point f64 grid, from standstill to 2.2× the
+    /// no-load base speed, both torque directions, on three buses: within 0.05 %.
+    #[test]
+    fn envelope_matches_a_dense_grid() {
+        let c = EnvelopeConfig::new(&motor());
+        let mut worst = 0.0f64;
+        for v in [V, 0.7 * V, 1.3 * V] {
+            for k in -22..=22 {
+                let w = 20.0 * k as f32;
+                for sign in [1.0f32, -1.0] {
+                    let op = c.operating_point(sign * 1e3, w, ID_RATED, v, 4.0);
+                    let (t_grid, _, _) = envelope_by_grid(
+                        &motor(),
+                        f64::from(sign * w),
+                        f64::from(ID_RATED),
+                        f64::from(v),
+                        4.0,
+                        200_000,
+                    );
+                    let e = (f64::from(op.torque_max_nm) - t_grid).abs() / t_grid;
+                    worst = worst.max(e);
+                    assert!(e < 5e-4, "ω {w} sign {sign} V {v}: {} vs {t_grid}", op.torque_max_nm);
+                    // The point delivers the envelope's torque (K·i_d·i_q, sign included).
+                    let k = motor().torque_factor() * motor().lm_h();
+                    let t_pt = k * f64::from(op.i_d_a) * f64::from(op.i_q_a);
+                    assert!((t_pt - f64::from(sign) * t_grid).abs() < 1e-3 * t_grid, "{t_pt} vs {t_grid}");
+                }
+            }
+        }
+        eprintln!("envelope: worst relative error against the grid {worst:.2e}");
+    }
+
+    /// Below the envelope the point delivers the torque asked, within every limit, and
+    /// with the most flux: no grid ratio that can deliver it does so with a larger i_d.
+    #[test]
+    fn torque_below_the_envelope_with_the_most_flux() {
+        let m = motor();
+        let c = EnvelopeConfig::new(&m);
+        let k = m.torque_factor() * m.lm_h();
+        for w in [0.0f32, 100.0, 195.7, 300.0, 391.0, -250.0] {
+            for frac in [0.0f32, 0.1, 0.5, 0.9, 0.99] {
+                for sign in [1.0f32, -1.0] {
+                    // The envelope in this torque direction (motoring and generating differ).
+                    let t_max = c.operating_point(sign * 1e3, w, ID_RATED, V, 4.0).torque_max_nm;
+                    let t = sign * frac * t_max;
+                    let op = c.operating_point(t, w, ID_RATED, V, 4.0);
+                    let t_pt = (k as f32) * op.i_d_a * op.i_q_a;
+                    assert!((t_pt - t).abs() <= 1e-3 * t_max, "ω {w} T {t}: {t_pt}");
+                    assert!(op.i_d_a <= ID_RATED * (1.0 + 1e-6));
+                    assert!(libm::hypotf(op.i_d_a, op.i_q_a) <= 4.0 * (1.0 + 1e-5));
+                    // Voltage at that point within the budget.
+                    let (id, iq) = (f64::from(op.i_d_a), f64::from(op.i_q_a));
+                    let w_e = f64::from(w) + if id > 0.0 { iq / (id * m.tr_s()) } else { 0.0 };
+                    let vd = m.rs_ohm() * id - w_e * m.sigma() * m.ls_h() * iq;
+                    let vq = m.rs_ohm() * iq + w_e * m.ls_h() * id;
+                    assert!(vd.hypot(vq) <= f64::from(V) * (1.0 + 1e-4), "ω {w} T {t}: |v| {}", vd.hypot(vq));
+                    // Most flux: on a fine grid of ratios, none delivering |T| has a larger i_d.
+                    // A zero torque is motoring's (−0 too).
+                    let mirror = if t < 0.0 { -1.0 } else { 1.0 };
+                    let (sgn_w, tt): (f64, f64) = (mirror * f64::from(w), f64::from(t.abs()));
+                    for j in 1..4000 {
+                        let r = 30.0 * f64::from(j) / 4000.0;
+                        let w_e = sgn_w + r / m.tr_s();
+                        let g2 = (m.rs_ohm() - w_e * m.sigma() * m.ls_h() * r).powi(2)
+                            + (m.rs_ohm() * r + w_e * m.ls_h()).powi(2);
+                        let id2 = f64::from(ID_RATED * ID_RATED)
+                            .min(f64::from(V * V) / g2)
+                            .min(16.0 / (1.0 + r * r));
+                        // Feasible at r: the i_d that gives |T| there, √(|T|/(K·r)), is
+                        // within i_d,max(r). It must not exceed the point's i_d.
+                        if k * r * id2 >= tt * (1.0 + 1e-3) {
+                            let id_r = (tt / (k * r)).sqrt();
+                            assert!(
+                                id_r <= id * (1.0 + 2e-3) + 1e-6,
+                                "ω {w} T {t}: r {r} gives it with i_d {id_r}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Field weakening: at rated flux below the no-load base speed (≈ 196 rad/s here), less
+    /// above it, falling roughly as 1/ω; the breakdown ratio with R_s (the optimum's r at
+    /// high speed) is far from the R_s-free 1/σ = 15 on this motor.
+    #[test]
+    fn breakdown_ratio_with_and_without_rs() {
+        let m = motor();
+        let c = EnvelopeConfig::new(&m);
+        let no_load = |w: f32| c.operating_point(0.0, w, ID_RATED, V, 4.0).i_d_a;
+        assert!((no_load(0.0) - ID_RATED).abs() < 1e-6);
+        assert!((no_load(190.0) - ID_RATED).abs() < 1e-6);
+        let (a, b) = (no_load(300.0), no_load(391.0));
+        assert!(a < 0.7 * ID_RATED && b < a, "{a} {b}");
+        assert!(((a * 300.0) / (b * 391.0) - 1.0).abs() < 0.05);
+        let op = c.operating_point(1e3, 391.0, ID_RATED, V, 4.0);
+        let r = op.i_q_a / op.i_d_a;
+        eprintln!("breakdown ratio at 391 rad/s: {r:.2} (R_s-free: 1/σ = {:.2})", 1.0 / m.sigma());
+        assert!((r - 7.96).abs() < 0.1, "{r}");
+    }
+
+    #[test]
+    fn bad_limits_give_zero() {
+        let c = EnvelopeConfig::new(&motor());
+        for (t, w, v) in [(f32::NAN, 0.0, V), (1.0, f32::INFINITY, V), (1.0, 0.0, 0.0), (1.0, 0.0, f32::NAN)]
+        {
+            assert_eq!(c.operating_point(t, w, ID_RATED, v, 4.0), OperatingPoint::default());
+        }
+    }
+}
