@@ -30,6 +30,14 @@
 //! breakdown ratio, the maximum of r/g(r)² (maximum torque per volt). Regeneration is the
 //! mirror image: `(ω_m, r) → (−ω_m, −r)` leaves |v| unchanged.
 //!
+//! **No more flux than no load allows.** The rated-flux bound is lowered to the flux whose
+//! no-load voltage fits the budget, `i_d ≤ V/g(0)`. Motoring never needs more (the load only
+//! adds voltage: g(r) ≥ g(0)), but generating could run on more flux — the stator resistance's
+//! drop then subtracts from the back-EMF — and a torque reversal would then meet a back-EMF
+//! beyond the bus: the loops saturate until the flux has fallen (T_r), and on a real bridge
+//! the diodes conduct an uncontrolled generating current. The cap costs braking torque at
+//! high speed (`tests::the_flux_is_capped_at_the_no_load_value`).
+//!
 //! R_s is kept: on a small motor (DeLorenzo: R_s·i_q ≈ 50 V of a 179 V limit) the R_s-free
 //! ellipse and breakdown ratio `1/σ` are far off (`tests::breakdown_ratio_with_and_without_rs`).
 //!
@@ -108,6 +116,14 @@ impl EnvelopeConfig {
         self.pole_pairs
     }
 
+    /// `g(0)²`: the stator voltage per A of i_d at no load (r = 0) and electrical rotor
+    /// speed `w_r`, `R_s² + (w_r·L_s)²`.
+    #[inline]
+    fn no_load_g2(&self, w_r: f32) -> f32 {
+        let x = w_r * self.ls_h;
+        self.rs_ohm * self.rs_ohm + x * x
+    }
+
     /// `i_d,max(r)²` at electrical rotor speed `w_r` (in the motoring direction), for rated
     /// `i_d²`, voltage budget `V²` and current limit `I²`.
     #[inline]
@@ -154,7 +170,8 @@ impl EnvelopeConfig {
         } else {
             (1.0, self.pole_pairs * omega_m_rad_s)
         };
-        let (id2r, v2, i2) = (i_d_rated_a * i_d_rated_a, v_max_v * v_max_v, i_max_a * i_max_a);
+        let (v2, i2) = (v_max_v * v_max_v, i_max_a * i_max_a);
+        let id2r = min_f32(i_d_rated_a * i_d_rated_a, v2 / self.no_load_g2(w_r));
         let t = |r: f32| self.torque_per_k(r, w_r, id2r, v2, i2);
         let wanted = torque_nm.abs() / self.k_nm_per_a2;
         // Coarse scan: the grid point of the largest T, and the first one reaching the torque.
@@ -310,14 +327,15 @@ pub fn envelope_by_grid(
     let k = motor.torque_factor() * motor.lm_h();
     let w_r = f64::from(motor.pole_pairs()) * omega_m_rad_s;
     let r_max = 2.0 / motor.sigma();
+    // No more flux than no load allows (see the module docs).
+    let id2_rated = (i_d_rated_a * i_d_rated_a).min(v_max_v * v_max_v / (rs * rs + (w_r * ls) * (w_r * ls)));
     let mut best = (0.0, 0.0, 0.0);
     for j in 1..=n {
         let r = r_max * f64::from(j) / f64::from(n);
         let w_e = w_r + r / motor.tr_s();
         let (vd, vq) = (rs - w_e * sls * r, rs * r + w_e * ls);
         let g2 = vd * vd + vq * vq;
-        let id2 =
-            (i_d_rated_a * i_d_rated_a).min(v_max_v * v_max_v / g2).min(i_max_a * i_max_a / (1.0 + r * r));
+        let id2 = id2_rated.min(v_max_v * v_max_v / g2).min(i_max_a * i_max_a / (1.0 + r * r));
         let t = k * r * id2;
         if t > best.0 {
             let id = libm::sqrt(id2);
@@ -403,7 +421,9 @@ mod tests {
                         let w_e = sgn_w + r / m.tr_s();
                         let g2 = (m.rs_ohm() - w_e * m.sigma() * m.ls_h() * r).powi(2)
                             + (m.rs_ohm() * r + w_e * m.ls_h()).powi(2);
+                        let g0 = m.rs_ohm().powi(2) + (sgn_w * m.ls_h()).powi(2);
                         let id2 = f64::from(ID_RATED * ID_RATED)
+                            .min(f64::from(V * V) / g0)
                             .min(f64::from(V * V) / g2)
                             .min(16.0 / (1.0 + r * r));
                         // Feasible at r: the i_d that gives |T| there, √(|T|/(K·r)), is
@@ -438,6 +458,25 @@ mod tests {
         let r = op.i_q_a / op.i_d_a;
         eprintln!("breakdown ratio at 391 rad/s: {r:.2} (R_s-free: 1/σ = {:.2})", 1.0 / m.sigma());
         assert!((r - 7.96).abs() < 0.1, "{r}");
+    }
+
+    /// Generating at 2× base speed the flux stays at its no-load value: the back-EMF of the
+    /// flux that is there fits the budget, so a reversal to motoring does not saturate.
+    #[test]
+    fn the_flux_is_capped_at_the_no_load_value() {
+        let m = motor();
+        let c = EnvelopeConfig::new(&m);
+        let w = 391.6f32;
+        let no_load = c.operating_point(0.0, w, ID_RATED, V, 4.0);
+        let braking = c.operating_point(-1e3, w, ID_RATED, V, 4.0);
+        eprintln!(
+            "at {w} rad/s: no-load i_d {:.4} A; braking i_d {:.4} A, {:.3} N·m",
+            no_load.i_d_a, braking.i_d_a, braking.torque_max_nm
+        );
+        assert!(braking.i_d_a <= no_load.i_d_a * (1.0 + 1e-5));
+        let back_emf =
+            f64::from(braking.i_d_a) * (m.rs_ohm().powi(2) + (f64::from(w) * m.ls_h()).powi(2)).sqrt();
+        assert!(back_emf <= f64::from(V) * (1.0 + 1e-5), "{back_emf}");
     }
 
     #[test]

@@ -84,7 +84,7 @@ fn default_magnetized() -> f64 {
 /// σL_s·di/dt on top of the steady voltage; the vector limit and the loss-of-control time
 /// absorb short excursions), while the steady torque at the voltage limit — which scales
 /// with the voltage squared — stays within 6 % of the machine's envelope.
-pub const DEFAULT_VOLTAGE_MARGIN: f64 = 0.97;
+pub const DEFAULT_VOLTAGE_MARGIN: f64 = 0.98;
 
 fn default_voltage_margin() -> f64 {
     DEFAULT_VOLTAGE_MARGIN

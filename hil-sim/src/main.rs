@@ -58,8 +58,32 @@ enum Cmd {
         #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=10_000))]
         runs: u32,
     },
+    /// Measure the torque–speed envelope in software in the loop (a dynamometer holds each
+    /// speed, the drive is asked for more torque than it has) against the analytic one;
+    /// writes envelope.csv, envelope.svg and summary.json, and exits 1 if a point is more
+    /// than 5 % off or the drive faulted.
+    Envelope(EnvelopeArgs),
     /// Talk to the board's command/telemetry link on a serial port (115200 baud).
     Link(LinkArgs),
+}
+
+#[derive(Args, Debug)]
+struct EnvelopeArgs {
+    /// A drive file.
+    #[arg(default_value = "drive.toml")]
+    drive: PathBuf,
+    /// DC-bus voltage, V.
+    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
+    vdc: f64,
+    /// Speeds measured, evenly from 0.2× to 2× the no-load base speed.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(2..=200))]
+    points: u32,
+    /// Braking (generating) torque instead of motoring.
+    #[arg(long)]
+    generating: bool,
+    /// Output directory [default: out/envelope].
+    #[arg(long, value_parser = non_empty_path)]
+    out: Option<PathBuf>,
 }
 
 #[derive(Args, Debug)]
@@ -112,6 +136,92 @@ enum LinkCmd {
 
 fn non_empty_path(s: &str) -> Result<PathBuf, String> {
     if s.trim().is_empty() { Err("must not be empty".into()) } else { Ok(PathBuf::from(s)) }
+}
+
+fn positive_volts(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 && x <= 10_000.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a voltage in (0, 10000] V")),
+    }
+}
+
+/// The envelope's acceptance: measured within this fraction of the analytic envelope.
+const ENVELOPE_TOLERANCE: f64 = 0.05;
+
+fn envelope(a: &EnvelopeArgs) -> Result<(), String> {
+    let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
+    let spec = file.spec;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/envelope"));
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let base = hil_sim::envelope::base_speed_rad_s(&spec.motor, spec.flux_ref_wb, a.vdc);
+    if base <= 0.0 {
+        return Err(format!("the rated flux needs more than the {} V bus has even at standstill", a.vdc));
+    }
+    let n = f64::from(a.points - 1);
+    let speeds: Vec<f64> = (0..a.points).map(|k| base * (0.2 + 1.8 * f64::from(k) / n)).collect();
+    let sign = if a.generating { -1.0 } else { 1.0 };
+    eprintln!(
+        "hil-sim: envelope of {} on {} V, {} speeds from {:.1} to {:.1} rad/s (no-load base speed {base:.1} rad/s)",
+        a.drive.display(),
+        a.vdc,
+        speeds.len(),
+        speeds.first().copied().unwrap_or(0.0),
+        speeds.last().copied().unwrap_or(0.0)
+    );
+    let points = hil_sim::envelope::measure(&spec, &spec.motor, a.vdc, &speeds, sign)?;
+    let mut csv =
+        String::from("omega_m_rad_s,measured_nm,analytic_nm,relative_error,ripple_nm,flux_wb,mode\n");
+    println!(
+        "{:>10} {:>12} {:>12} {:>8} {:>10} {:>8}  mode",
+        "ω (rad/s)", "measured", "analytic", "error", "ripple", "ψ_r"
+    );
+    let mut failed = Vec::new();
+    for p in &points {
+        let e = p.relative_error();
+        println!(
+            "{:>10.1} {:>10.4} Nm {:>9.4} Nm {:>+7.2}% {:>7.4} Nm {:>7.3}  {:?}",
+            p.omega_m_rad_s,
+            p.measured_nm,
+            p.analytic_nm,
+            100.0 * e,
+            p.ripple_nm,
+            p.flux_wb,
+            p.mode
+        );
+        csv.push_str(&format!(
+            "{:.4},{:.6},{:.6},{:.6},{:.6},{:.5},{:?}\n",
+            p.omega_m_rad_s, p.measured_nm, p.analytic_nm, e, p.ripple_nm, p.flux_wb, p.mode
+        ));
+        if e.abs() > ENVELOPE_TOLERANCE || p.mode != Mode::Running {
+            failed.push(p.omega_m_rad_s);
+        }
+    }
+    write_text(&out.join("envelope.csv"), &csv)?;
+    write_text(
+        &out.join("envelope.svg"),
+        &hil_sim::envelope::plot(&spec, &spec.motor, a.vdc, &points, sign),
+    )?;
+    let summary = serde_json::json!({
+        "drive": a.drive.display().to_string(),
+        "vdc_v": a.vdc,
+        "base_speed_rad_s": base,
+        "direction": if a.generating { "generating" } else { "motoring" },
+        "tolerance": ENVELOPE_TOLERANCE,
+        "worst_relative_error": points.iter().map(|p| p.relative_error().abs()).fold(0.0, f64::max),
+        "points_outside": failed.len(),
+    });
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    write_text(&out.join("summary.json"), &format!("{text}\n"))?;
+    eprintln!("hil-sim: wrote envelope.csv, envelope.svg, summary.json in {}", out.display());
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} point(s) more than {:.0} % off the envelope or faulted, at {failed:.1?} rad/s",
+            failed.len(),
+            100.0 * ENVELOPE_TOLERANCE
+        ))
+    }
 }
 
 fn positive_seconds(s: &str) -> Result<f64, String> {
@@ -514,6 +624,7 @@ fn main() -> ExitCode {
             stop_on_ctrl_c();
             bench(&bs, scenario, *runs)
         }),
+        Cmd::Envelope(a) => envelope(a),
         Cmd::Link(a) => board_link(a),
     };
     match result {

@@ -14,8 +14,9 @@
 //! # [plant]                        # optional: the simulated machine, if not [motor]
 //!
 //! [load]                           # optional: "torque" (events only, default),
-//! kind = "eddy_brake"              # "eddy_brake" with k_nm_s_rad, "locked_rotor", or
-//! k_nm_s_rad = 0.002               # "coulomb_friction" with friction_nm
+//! kind = "eddy_brake"              # "eddy_brake" with k_nm_s_rad, "locked_rotor",
+//! k_nm_s_rad = 0.002               # "coulomb_friction" with friction_nm, or "dynamometer"
+//!                                  # with omega_m_rad_s (the rotor held at that speed)
 //!
 //! [inverter]                       # optional: "average" (default) or
 //! kind = "switching"               # carrier comparison with dead time
@@ -142,6 +143,10 @@ struct ClosedLoopFile {
     events: Vec<EventTable>,
 }
 
+/// The fastest a dynamometer load may turn the rotor, mechanical rad/s (the design
+/// toolkit's largest certified speed).
+pub const MAX_DYNAMOMETER_RAD_S: f64 = 20_000.0;
+
 fn one() -> u32 {
     1
 }
@@ -153,6 +158,7 @@ enum LoadTable {
     EddyBrake { k_nm_s_rad: f64 },
     LockedRotor,
     CoulombFriction { friction_nm: f64 },
+    Dynamometer { omega_m_rad_s: f64 },
 }
 
 #[derive(Debug, Deserialize)]
@@ -371,6 +377,14 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         Some(LoadTable::CoulombFriction { friction_nm }) => {
             nonneg("load.friction_nm", friction_nm)?;
             LoadModel::CoulombFriction { friction_nm }
+        }
+        Some(LoadTable::Dynamometer { omega_m_rad_s }) => {
+            src.check(
+                omega_m_rad_s.is_finite() && omega_m_rad_s.abs() <= MAX_DYNAMOMETER_RAD_S,
+                "load.omega_m_rad_s",
+                &format!("must be finite, |ω| ≤ {MAX_DYNAMOMETER_RAD_S}"),
+            )?;
+            LoadModel::Dynamometer { omega_m_rad_s }
         }
     };
     let s = &f.sensors;

@@ -115,6 +115,12 @@ pub enum LoadModel {
         /// N·m.
         friction_nm: f64,
     },
+    /// A dynamometer: the rotor turns at `omega_m_rad_s` from the start, whatever the torque
+    /// (for torque–speed measurements).
+    Dynamometer {
+        /// Mechanical speed, rad/s.
+        omega_m_rad_s: f64,
+    },
 }
 
 /// A closed-loop run.
@@ -239,7 +245,7 @@ pub fn run(
     let loaded = match sc.load {
         LoadModel::Torque => *machine,
         LoadModel::EddyBrake { k_nm_s_rad } => machine.with_eddy_brake(k_nm_s_rad),
-        LoadModel::LockedRotor => machine.speed_locked(),
+        LoadModel::LockedRotor | LoadModel::Dynamometer { .. } => machine.speed_locked(),
         LoadModel::CoulombFriction { friction_nm } => machine.with_coulomb_friction(friction_nm),
     };
     let mut machine = &loaded;
@@ -251,6 +257,9 @@ pub fn run(
     let n = (sc.duration_s / ts).round() as u64;
     let trace_every = sc.trace_every.max(1);
     let mut x = MachineState::default();
+    if let LoadModel::Dynamometer { omega_m_rad_s } = sc.load {
+        x.omega_m_rad_s = omega_m_rad_s;
+    }
     let mut load = 0.0;
     // Duties applied during the present period (computed in the previous one). A bridge
     // that is off applies ≈ 0 V in the average model: the same as duties of ½.
