@@ -92,6 +92,14 @@ pub const STALL_SPEED_FRACTION: f64 = 0.005;
 /// the model's steady-state error, not its transients.
 pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
 
+/// The dead-time compensation ramps from −t_d/T to +t_d/T across ± this fraction of the
+/// current-reference limit around zero current (0.1 %: 4 mA on the shipped drive). It acts on
+/// the *reference* currents, which carry no sensor noise, so the ramp can be narrow; a wider
+/// one under-compensates around each zero crossing, where the inverter's error flips at once.
+/// Measured (`dead_time_compensation_reduces_the_current_distortion`, 1 µs at 10 rad/s): the
+/// current's distortion 4.9× smaller with 0.1 %, 1.9× with 0.25 %, 1.0× with 2.5 %.
+pub const DEAD_TIME_BAND_FRACTION: f64 = 0.001;
+
 /// The largest current trim on each axis, as a fraction of the current limit: the trim
 /// corrects the loops' steady tracking error of a few per cent, not a missing current.
 pub const CURRENT_TRIM_RANGE: f32 = 0.25;
@@ -164,6 +172,9 @@ pub struct DriveSpec {
     /// field frame that is a constant error, which the trim removes — so that the flux and the
     /// torque are what the references say (field weakening relies on it).
     pub current_trim_bandwidth_rad_s: f64,
+    /// Dead time the modulator compensates, s (0: none): the board's, when its inverter has
+    /// one ([`svpwm::compensate_dead_time`]).
+    pub dead_time_compensation_s: f64,
     /// Trip thresholds.
     pub protection: Protection,
 }
@@ -189,6 +200,9 @@ pub enum DriveError {
     MagnetizedFraction,
     /// `voltage_margin` not in (0, 1].
     VoltageMargin,
+    /// `dead_time_compensation_s` negative, not finite, or not below a tenth of the PWM
+    /// period.
+    DeadTime,
     /// A raw configuration ([`DriveConfig::from_raw`]) with a non-finite number, an unknown
     /// variant or a zero count.
     Raw,
@@ -220,6 +234,10 @@ pub struct DriveConfig {
     voltage_margin: f32,
     /// The current trim's integral gain per slow step, 1 (bandwidth·T_slow).
     trim_gain: f32,
+    /// Dead time as a fraction of the PWM period (0: no compensation).
+    dead_time_duty: f32,
+    /// Half-width of the dead-time compensation's ramp around zero current, A.
+    dead_time_band_a: f32,
     /// The voltage-margin regulator's integral gain per slow step, 1
     /// ([`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]·T_slow).
     voltage_gain: f32,
@@ -319,6 +337,10 @@ impl DriveConfig {
         if !(trim_bw >= 0.0 && trim_bw * t_slow < 0.1) {
             return Err(DriveError::CurrentTrim);
         }
+        let dead_duty = spec.dead_time_compensation_s / ts;
+        if !(0.0..0.1).contains(&dead_duty) {
+            return Err(DriveError::DeadTime);
+        }
         // The flux model reaches mf·ψ* in T_r·ln(1/(1 − mf)) on the reference current; twice
         // that, plus 20 ms for the current loops, is the most magnetizing may take. Counted
         // in slow steps of the model's decay (no logarithm on the target: 640 B of flash).
@@ -356,6 +378,8 @@ impl DriveConfig {
             voltage_margin: spec.voltage_margin as f32,
             voltage_gain: (VOLTAGE_REGULATOR_BANDWIDTH_RAD_S * t_slow) as f32,
             trim_gain: (trim_bw * t_slow) as f32,
+            dead_time_duty: dead_duty as f32,
+            dead_time_band_a: (DEAD_TIME_BAND_FRACTION * spec.i_ref_max_a) as f32,
             delay_s: (VOLTAGE_DELAY_PERIODS * ts) as f32,
             ts_s: ts as f32,
             slow_divider: spec.slow_divider,
@@ -406,6 +430,8 @@ impl DriveConfig {
             self.magnetized_fraction,
             self.voltage_margin,
             self.trim_gain,
+            self.dead_time_duty,
+            self.dead_time_band_a,
             self.voltage_gain,
             self.delay_s,
             self.ts_s,
@@ -461,6 +487,8 @@ impl DriveConfig {
             magnetized_fraction: r.f(),
             voltage_margin: r.f(),
             trim_gain: r.f(),
+            dead_time_duty: r.f(),
+            dead_time_band_a: r.f(),
             voltage_gain: r.f(),
             delay_s: r.f(),
             ts_s: r.f(),
@@ -1164,6 +1192,12 @@ impl Drive {
         // Advanced over the delay to the period it acts in, then the one vector limit: the
         // modulator's hexagon.
         let modulation = svpwm::modulate(v_req.rotate(self.delay_rotation), m.vdc_v);
+        let duty = if cfg.dead_time_duty > 0.0 {
+            let i_ref = field.i_ref_ab.inverse_clarke();
+            svpwm::compensate_dead_time(modulation.duty, i_ref, cfg.dead_time_duty, cfg.dead_time_band_a)
+        } else {
+            modulation.duty
+        };
         if modulation.saturated {
             self.track_applied(modulation.v_applied, &field, v_clamp);
             self.trim_hold = true;
@@ -1199,7 +1233,7 @@ impl Drive {
             self.stall_steps = 0;
         }
         FastOutput {
-            phases: PhaseCommand::Duty(modulation.duty),
+            phases: PhaseCommand::Duty(duty),
             mode: self.mode,
             telemetry: Telemetry {
                 i_ab_a: i_ab,
@@ -1259,6 +1293,7 @@ pub(crate) fn test_spec() -> DriveSpec {
         magnetized_fraction: 0.95,
         voltage_margin: 0.97,
         current_trim_bandwidth_rad_s: 20.0,
+        dead_time_compensation_s: 0.0,
         protection: Protection {
             i_trip_a: 8.0,
             vdc_min_v: 200.0,

@@ -64,6 +64,28 @@ pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
     }
 }
 
+/// Dead-time compensation, per phase. During the dead time `t_d` after each commanded
+/// switching both switches are off and the freewheeling diode chosen by the current's sign
+/// sets the phase: a current out of the inverter (`i_x > 0`) pulls it to the lower rail, one
+/// into it to the upper rail — on average a voltage error `−sign(i_x)·(t_d/T)·V_dc` per phase
+/// (the simulator's switching inverter, `hil-sim/src/inverter.rs`, models exactly that). The
+/// duty is raised by `(t_d/T)·s(i_x)`, where `s` is the sign made smooth by a linear ramp of
+/// half-width `band_a` around zero, so that a current crossing zero — or the noise on it —
+/// does not toggle the full correction. `i_abc_a` are the *reference* phase currents (smooth,
+/// and ahead of the measured ones by the loops' lag); `dead_duty` = `t_d/T`. Duties stay in
+/// `[0, 1]`.
+#[inline]
+pub fn compensate_dead_time(duty: Abc, i_abc_a: Abc, dead_duty: f32, band_a: f32) -> Abc {
+    let k = dead_duty / band_a;
+    // Comparisons, not `f32::clamp` (a library call on the Cortex-M4F); a NaN current gives
+    // −t_d/T, a finite duty.
+    let d = |d: f32, i: f32| {
+        let s = min_f32(max_f32(k * i, -dead_duty), dead_duty);
+        min_f32(max_f32(d + s, 0.0), 1.0)
+    };
+    Abc { a: d(duty.a, i_abc_a.a), b: d(duty.b, i_abc_a.b), c: d(duty.c, i_abc_a.c) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -137,6 +159,17 @@ mod tests {
         }
         let m = modulate(AlphaBeta { alpha: f32::NAN, beta: 0.0 }, 300.0);
         assert_eq!(m.duty, Abc { a: 0.5, b: 0.5, c: 0.5 });
+    }
+
+    /// The compensation adds ±t_d/T beyond the band, a linear ramp inside it, and stays in
+    /// [0, 1].
+    #[test]
+    fn dead_time_compensation_follows_the_current_sign() {
+        let d = Abc { a: 0.5, b: 0.5, c: 0.999 };
+        let c = compensate_dead_time(d, Abc { a: 2.0, b: -0.05, c: 3.0 }, 0.02, 0.1);
+        assert!((c.a - 0.52).abs() < 1e-7 && (c.b - 0.49).abs() < 1e-7 && c.c == 1.0, "{c:?}");
+        let c = compensate_dead_time(d, Abc { a: -2.0, b: 0.0, c: f32::NAN }, 0.02, 0.1);
+        assert!((c.a - 0.48).abs() < 1e-7 && c.b == 0.5 && c.c.is_finite(), "{c:?}");
     }
 
     proptest! {

@@ -63,6 +63,11 @@ pub struct ControllerTable {
     /// [`DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S`]).
     #[serde(default = "default_current_trim")]
     pub current_trim_bandwidth_rad_s: f64,
+    /// Compensate the board's dead time (`[board] dead_time_s`) in the modulator (default
+    /// false: the simulator's average inverter has no dead time to compensate; turn it on
+    /// for a board, and for the switching inverter model).
+    #[serde(default)]
+    pub dead_time_compensation: bool,
 }
 
 /// Default bandwidth of the current trim, rad/s: slow against the current loops (their
@@ -298,7 +303,17 @@ pub struct DriveFile {
 impl DriveTables {
     /// Validate everything; errors point at the offending value in `src`.
     pub fn validate(&self, src: &Source<'_>) -> Result<DriveFile, FileError> {
-        let spec = drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection)?;
+        let dead_time_s = match (self.controller.dead_time_compensation, &self.board) {
+            (false, _) => 0.0,
+            (true, Some(b)) => b.dead_time_s,
+            (true, None) => {
+                return Err(src.error(
+                    "controller.dead_time_compensation",
+                    "needs the board's dead time: a [board] table with dead_time_s",
+                ));
+            }
+        };
+        let spec = drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection, dead_time_s)?;
         let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
         let board = self.board.as_ref().map(|b| b.validate(src, &spec)).transpose()?;
         Ok(DriveFile { spec, certify, board })
@@ -317,6 +332,7 @@ pub fn drive_spec(
     motor: &MotorTable,
     c: &ControllerTable,
     protection: &ProtectionTable,
+    dead_time_compensation_s: f64,
 ) -> Result<DriveSpec, FileError> {
     let (lo, hi) = PWM_FREQUENCY_HZ;
     src.check(
@@ -401,6 +417,7 @@ pub fn drive_spec(
         magnetized_fraction: c.magnetized_fraction,
         voltage_margin: c.voltage_margin,
         current_trim_bandwidth_rad_s: c.current_trim_bandwidth_rad_s,
+        dead_time_compensation_s,
         protection: {
             let d = protection_with_defaults(
                 &motor,
@@ -431,6 +448,9 @@ pub fn drive_spec(
         }
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
         DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
+        DriveError::DeadTime => {
+            src.error("board.dead_time_s", "must be ≥ 0 and below a tenth of the PWM period to compensate it")
+        }
         // Only `DriveConfig::from_raw` returns it.
         DriveError::Raw => src.error("controller", "configuration rejected"),
         DriveError::CurrentTrim => src.error(

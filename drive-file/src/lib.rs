@@ -28,12 +28,16 @@
 //! flux_floor_wb = 0.05                   # default 5 % of flux_ref_wb
 //! i_ref_max_a = 4.0
 //! magnetized_fraction = 0.95             # default
+//! voltage_margin = 0.98                  # default: steady voltage target, fraction of V_dc/√3
+//! current_trim_bandwidth_rad_s = 20.0    # default: field-frame current trim; 0 turns it off
+//! dead_time_compensation = false         # default; true compensates [board] dead_time_s
 //!
 //! [protection]
 //! i_trip_a = 8.0
 //! vdc_min_v = 200.0
 //! vdc_max_v = 400.0
-//! # overspeed_rad_s, stall_time_s, current_sum_max_a, saturation_time_s: derived defaults
+//! # overspeed_rad_s, stall_time_s, current_sum_max_a, saturation_time_s,
+//! # encoder_check_time_s: derived defaults (drive::protection_with_defaults)
 //!
 //! [certify]                   # optional: what `design certify` checks (certify::CertifyTable)
 //! [board]                     # optional: the firmware's board scaling (board::BoardTable)
@@ -196,6 +200,18 @@ mod tests {
         assert_eq!(DriveFile::parse(Path::new("d.toml"), &t).unwrap().spec.protection.overspeed_rad_s, 500.0);
         let e = err(&SHIPPED.replace("vdc_max_v = 400.0", "vdc_max_v = 400.0\nstall_time_s = -1.0"));
         assert_eq!(e.key.as_deref(), Some("protection.stall_time_s"), "{e}");
+    }
+
+    /// Dead-time compensation takes the board's dead time, and needs a board.
+    #[test]
+    fn dead_time_compensation_takes_the_boards_dead_time() {
+        assert_eq!(DriveFile::shipped().unwrap().spec.dead_time_compensation_s, 0.0);
+        let on = SHIPPED.replace("magnetized_fraction = 0.95", "magnetized_fraction = 0.95\ndead_time_compensation = true");
+        let d = DriveFile::parse(Path::new("d.toml"), &on).unwrap();
+        assert_eq!(d.spec.dead_time_compensation_s, d.board.unwrap().table.dead_time_s);
+        let no_board = on.split("[board]").next().unwrap().to_string();
+        let e = err(&no_board);
+        assert_eq!(e.key.as_deref(), Some("controller.dead_time_compensation"), "{e}");
     }
 
     #[test]

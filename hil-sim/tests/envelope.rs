@@ -162,3 +162,48 @@ fn torque_speed_envelope_within_5_percent_of_the_analytic_one() {
         }
     }
 }
+
+/// Dead-time compensation: the switching inverter with 1 µs dead time at 10 rad/s, where the
+/// dead time's voltage error (V_dc·t_d/T = 6.2 V per phase) is large against the ≈ 12 V the
+/// motor needs. The current's distortion — the RMS of its deviation from its mean in the
+/// machine's rotor-flux frame (the fundamental is the mean there), over the last 0.5 s of a
+/// 1.5 s run, relative to that mean — is at least 2× smaller with the compensation
+/// (`controller_core::svpwm::compensate_dead_time`) than without. (ICAD eq. (20) already
+/// rejects most of the dead time's effect: the test prints the distortion without and with
+/// compensation, and with no dead time at all.)
+#[test]
+fn dead_time_compensation_reduces_the_current_distortion() {
+    let distortion = |compensate: bool, dead_time_s: f64| {
+        let mut b = hil_sim::scenario::speed_step_switching().unwrap();
+        b.scenario.inverter = hil_sim::inverter::InverterModel::Switching { dead_time_s };
+        b.spec.dead_time_compensation_s = if compensate { dead_time_s } else { 0.0 };
+        b.scenario.events = vec![
+            (0.0, hil_sim::sim::Event::Enable),
+            (0.3, hil_sim::sim::Event::Reference(Reference::Speed(10.0))),
+        ];
+        b.scenario.duration_s = 1.5;
+        b.scenario.trace_every = 1;
+        let (rows, mode) = b.run(|_| {}).unwrap();
+        assert_eq!(mode, Mode::Running);
+        let w = window(&rows, 1.0, 1.5);
+        let dq = |r: &Row| {
+            let (s, c) = r.x.psi_beta_wb.atan2(r.x.psi_alpha_wb).sin_cos();
+            (r.x.i_alpha_a * c + r.x.i_beta_a * s, -r.x.i_alpha_a * s + r.x.i_beta_a * c)
+        };
+        let (md, mq) = (mean(&w, |r| dq(r).0), mean(&w, |r| dq(r).1));
+        let ripple2 = mean(&w, |r| {
+            let (d, q) = dq(r);
+            (d - md).powi(2) + (q - mq).powi(2)
+        });
+        ripple2.sqrt() / md.hypot(mq)
+    };
+    let (without, with, ideal) = (distortion(false, 1e-6), distortion(true, 1e-6), distortion(false, 0.0));
+    eprintln!(
+        "1 µs dead time at 10 rad/s: current distortion {:.4} % without compensation, {:.4} % with ({:.1}×); no dead time {:.4} %",
+        100.0 * without,
+        100.0 * with,
+        without / with,
+        100.0 * ideal
+    );
+    assert!(without >= 2.0 * with, "{without} vs {with}");
+}
