@@ -206,7 +206,10 @@ mod tests {
     #[test]
     fn dead_time_compensation_takes_the_boards_dead_time() {
         assert_eq!(DriveFile::shipped().unwrap().spec.dead_time_compensation_s, 0.0);
-        let on = SHIPPED.replace("magnetized_fraction = 0.95", "magnetized_fraction = 0.95\ndead_time_compensation = true");
+        let on = SHIPPED.replace(
+            "magnetized_fraction = 0.95",
+            "magnetized_fraction = 0.95\ndead_time_compensation = true",
+        );
         let d = DriveFile::parse(Path::new("d.toml"), &on).unwrap();
         assert_eq!(d.spec.dead_time_compensation_s, d.board.unwrap().table.dead_time_s);
         let no_board = on.split("[board]").next().unwrap().to_string();

@@ -10,7 +10,7 @@
 use crate::inverter::{InverterModel, Segments};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, FastOutput, Measurements, Mode, PhaseCommand, Reference};
-use controller_core::frames::AlphaBeta;
+use controller_core::frames::{Abc, AlphaBeta};
 use controller_core::motor::MotorParams;
 use plant::{Machine, MachineState, Rk4Midway};
 
@@ -196,6 +196,67 @@ enum Period {
     Average([f64; 2], Rk4Midway),
     /// Switching inverter: the duties whose segments the plant integrates.
     Switching([f64; 3]),
+    /// All six switches off: the freewheeling diodes ([`integrate_bridge_off`]).
+    Off,
+}
+
+/// RK4 steps per PWM period while the bridge is off (10 µs at 20 kHz): the diodes stop
+/// conducting at a current zero, which the step locates to within one step.
+pub const BRIDGE_OFF_SUBSTEPS: u32 = 5;
+
+/// A phase current below this is zero: its diodes block, A.
+const DIODE_ZERO_A: f64 = 1e-9;
+
+/// The bridge with all six switches off, over one period: the freewheeling diodes. A phase
+/// whose current flows out of the bridge (`i_x > 0`) conducts through its lower diode and sits
+/// at `−V_dc/2`; one flowing in, through its upper diode, at `+V_dc/2`. The currents therefore
+/// run against the bus and die out — within about a millisecond on the DeLorenzo motor — and
+/// a phase whose current reaches zero stays open (its diodes block): its current is held at
+/// zero by projecting the current vector off that phase's axis after each RK4 step (all
+/// three, when two are open: the currents sum to zero). Open phases apply no voltage of their
+/// own in the model; the projection stands in for the floating terminal. Not modelled: the
+/// diodes conducting again because the motor's line back-EMF exceeds the bus (the drive caps
+/// the flux so that the no-load back-EMF stays inside its voltage budget,
+/// `controller_core::envelope`). Returns the state and the period-average αβ voltage.
+fn integrate_bridge_off(
+    rk4: &plant::Rk4,
+    x: &MachineState,
+    vdc_v: f64,
+    load_nm: f64,
+) -> (MachineState, [f64; 2]) {
+    const AXES: [(f64, f64); 3] =
+        [(1.0, 0.0), (-0.5, 0.866_025_403_784_438_6), (-0.5, -0.866_025_403_784_438_6)];
+    let phase = |x: &MachineState, (ux, uy): (f64, f64)| x.i_alpha_a * ux + x.i_beta_a * uy;
+    let mut x = *x;
+    let mut v_sum = [0.0; 2];
+    for _ in 0..BRIDGE_OFF_SUBSTEPS {
+        let before = AXES.map(|u| phase(&x, u));
+        let v_abc = before.map(|i| if i.abs() < DIODE_ZERO_A { 0.0 } else { -i.signum() * 0.5 * vdc_v });
+        let [a, b, c] = v_abc;
+        let v = Abc { a, b, c }.clarke();
+        let v = [v.alpha, v.beta];
+        x = rk4.step(&x, v, load_nm);
+        v_sum[0] += v[0];
+        v_sum[1] += v[1];
+        // Open: was not conducting, or its current reached zero within the step.
+        let open = [0, 1, 2].map(|p| before[p].abs() < DIODE_ZERO_A || before[p] * phase(&x, AXES[p]) <= 0.0);
+        match open.iter().filter(|o| **o).count() {
+            0 => {}
+            1 => {
+                let p = open.iter().position(|o| *o).unwrap_or(0);
+                let (ux, uy) = AXES[p];
+                let along = phase(&x, AXES[p]);
+                x.i_alpha_a -= along * ux;
+                x.i_beta_a -= along * uy;
+            }
+            _ => {
+                x.i_alpha_a = 0.0;
+                x.i_beta_a = 0.0;
+            }
+        }
+    }
+    let n = f64::from(BRIDGE_OFF_SUBSTEPS);
+    (x, [v_sum[0] / n, v_sum[1] / n])
 }
 
 /// The plant over the voltage segments of one switching period, each in equal RK4 steps of
@@ -254,6 +315,7 @@ pub fn run(
     let substeps = sc.substeps.max(1);
     let h = ts / f64::from(substeps);
     let mut rk4 = machine.rk4_stepper(h);
+    let mut rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
     let n = (sc.duration_s / ts).round() as u64;
     let trace_every = sc.trace_every.max(1);
     let mut x = MachineState::default();
@@ -293,6 +355,7 @@ pub fn run(
                         x.omega_m_rad_s = 0.0;
                         machine = seized.insert(loaded.speed_locked());
                         rk4 = machine.rk4_stepper(h);
+                        rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
                     }
                 }
             }
@@ -321,8 +384,9 @@ pub fn run(
         // drive's step: the processor then runs both dependent chains side by side.
         let x_at_start = x;
         let period = match sc.inverter {
-            InverterModel::Switching { .. } if bridge_on => Period::Switching(duty_applied),
-            _ => {
+            _ if !bridge_on => Period::Off,
+            InverterModel::Switching { .. } => Period::Switching(duty_applied),
+            InverterModel::Average => {
                 let v = InverterModel::average_voltage(duty_applied, vdc_v);
                 Period::Average(v, rk4.begin_step(&x, v, load))
             }
@@ -337,6 +401,11 @@ pub fn run(
                 for _ in 1..substeps {
                     x = rk4.step(&x, v, load);
                 }
+                v
+            }
+            Period::Off => {
+                let (next, v) = integrate_bridge_off(&rk4_off, &x, vdc_v, load);
+                x = next;
                 v
             }
             Period::Switching(d) => {

@@ -207,3 +207,54 @@ fn dead_time_compensation_reduces_the_current_distortion() {
     );
     assert!(without >= 2.0 * with, "{without} vs {with}");
 }
+
+/// The bridge off is the diode bridge it is, not a short: after a trip at 148 rad/s (a 1 A
+/// offset appears on phase a's sensor: `CurrentSensor`) the phase currents commutate through
+/// the freewheeling diodes against the 310 V bus and are below 50 mA within 2 ms; from then
+/// on no torque, and the motor coasts — its speed decays as friction alone makes it,
+/// ω(t) = ω₀·e^(−B·t/J), within 0.1 %. (Modelled as 0 V, the off bridge shorted the motor:
+/// a trip at 150 rad/s braked it at −3.6 N·m with 3 A flowing.)
+#[test]
+fn a_trip_at_speed_lets_the_motor_coast() {
+    let mut b = hil_sim::scenario::speed_step().unwrap();
+    b.scenario.events = vec![
+        (0.0, hil_sim::sim::Event::Enable),
+        (0.3, hil_sim::sim::Event::Reference(Reference::Speed(150.0))),
+        (
+            1.0,
+            hil_sim::sim::Event::Fault(hil_sim::sim::Injection::CurrentSensor {
+                phase: 0,
+                gain: 1.0,
+                offset_a: 1.0,
+            }),
+        ),
+    ];
+    b.scenario.duration_s = 1.6;
+    b.scenario.trace_every = 1;
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    assert!(matches!(mode, Mode::Fault(_)), "{mode:?}");
+    let t_trip = rows.iter().find(|r| matches!(r.mode, Some(Mode::Fault(_)))).unwrap().t_s;
+    let after: Vec<Row> = rows.iter().filter(|r| r.t_s >= t_trip + 2e-3).copied().collect();
+    let i_max = after
+        .iter()
+        .map(|r| {
+            let i = controller_core::frames::AlphaBeta { alpha: r.x.i_alpha_a, beta: r.x.i_beta_a }
+                .inverse_clarke();
+            i.a.abs().max(i.b.abs()).max(i.c.abs())
+        })
+        .fold(0.0, f64::max);
+    let t_max = after.iter().map(|r| r.torque_nm.abs()).fold(0.0, f64::max);
+    let (first, last) = (after.first().unwrap(), after.last().unwrap());
+    let (j, bf) = (b.plant.j_kgm2(), b.plant.b_nms());
+    let coast = first.x.omega_m_rad_s * (-bf / j * (last.t_s - first.t_s)).exp();
+    eprintln!(
+        "trip at {t_trip:.4} s, {:.2} rad/s: from 2 ms on, phase currents ≤ {:.2e} A, |torque| ≤ {t_max:.2e} N·m; speed {:.3} rad/s after {:.3} s (friction alone: {coast:.3})",
+        first.x.omega_m_rad_s,
+        i_max,
+        last.x.omega_m_rad_s,
+        last.t_s - first.t_s
+    );
+    assert!(i_max < 0.05, "{i_max} A");
+    assert!(t_max < 1e-3, "{t_max} N·m");
+    assert!((last.x.omega_m_rad_s / coast - 1.0).abs() < 1e-3, "{} vs {coast}", last.x.omega_m_rad_s);
+}
