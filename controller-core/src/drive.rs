@@ -100,6 +100,14 @@ pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
 /// current's distortion 4.9× smaller with 0.1 %, 1.9× with 0.25 %, 1.0× with 2.5 %.
 pub const DEAD_TIME_BAND_FRACTION: f64 = 0.001;
 
+/// Regeneration limit: generating torque is reduced linearly from full at this fraction of
+/// `vdc_max_v` (370 V of the shipped 400 V trip) …
+pub const REGEN_LIMIT_START: f64 = 0.925;
+/// … to zero at this one (390 V): without a brake chopper the energy a braking motor returns
+/// charges the DC link, and the drive brakes only as hard as the bus can take, instead of
+/// tripping on over-voltage. A chopper set below the start never lets it act.
+pub const REGEN_LIMIT_END: f64 = 0.975;
+
 /// The largest current trim on each axis, as a fraction of the current limit: the trim
 /// corrects the loops' steady tracking error of a few per cent, not a missing current.
 pub const CURRENT_TRIM_RANGE: f32 = 0.25;
@@ -236,6 +244,10 @@ pub struct DriveConfig {
     trim_gain: f32,
     /// Dead time as a fraction of the PWM period (0: no compensation).
     dead_time_duty: f32,
+    /// Bus voltage at which the regeneration limit starts ([`REGEN_LIMIT_START`]), V.
+    regen_start_v: f32,
+    /// Reciprocal of the regeneration limit's span, 1/V.
+    inv_regen_span_v: f32,
     /// Half-width of the dead-time compensation's ramp around zero current, A.
     dead_time_band_a: f32,
     /// The voltage-margin regulator's integral gain per slow step, 1
@@ -379,6 +391,8 @@ impl DriveConfig {
             voltage_gain: (VOLTAGE_REGULATOR_BANDWIDTH_RAD_S * t_slow) as f32,
             trim_gain: (trim_bw * t_slow) as f32,
             dead_time_duty: dead_duty as f32,
+            regen_start_v: (REGEN_LIMIT_START * p.vdc_max_v) as f32,
+            inv_regen_span_v: (1.0 / ((REGEN_LIMIT_END - REGEN_LIMIT_START) * p.vdc_max_v)) as f32,
             dead_time_band_a: (DEAD_TIME_BAND_FRACTION * spec.i_ref_max_a) as f32,
             delay_s: (VOLTAGE_DELAY_PERIODS * ts) as f32,
             ts_s: ts as f32,
@@ -432,6 +446,8 @@ impl DriveConfig {
             self.trim_gain,
             self.dead_time_duty,
             self.dead_time_band_a,
+            self.regen_start_v,
+            self.inv_regen_span_v,
             self.voltage_gain,
             self.delay_s,
             self.ts_s,
@@ -489,6 +505,8 @@ impl DriveConfig {
             trim_gain: r.f(),
             dead_time_duty: r.f(),
             dead_time_band_a: r.f(),
+            regen_start_v: r.f(),
+            inv_regen_span_v: r.f(),
             voltage_gain: r.f(),
             delay_s: r.f(),
             ts_s: r.f(),
@@ -938,7 +956,12 @@ impl Drive {
             self.flux.i_q_max_a(),
             sign,
         );
-        let torque_now_nm = min_f32(op.torque_max_nm, cfg.ifoc.torque_factor() * psi * i_q_now);
+        let mut torque_now_nm = min_f32(op.torque_max_nm, cfg.ifoc.torque_factor() * psi * i_q_now);
+        if torque_nm * m.omega_m_rad_s < 0.0 {
+            // Generating: no more than the DC link can take (REGEN_LIMIT_START/END).
+            let room = 1.0 - (m.vdc_v - cfg.regen_start_v) * cfg.inv_regen_span_v;
+            torque_now_nm *= room.limit(0.0, 1.0);
+        }
         // The speed loop's limit is the steady envelope: limited by the present flux too, it
         // would ask for a torque the rated flux can give, and the flux would never fall.
         self.torque_max_nm = op.torque_max_nm;

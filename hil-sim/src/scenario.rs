@@ -145,6 +145,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
             sensors: SensorModel::default(),
             load: LoadModel::Torque,
             inverter: InverterModel::Average,
+            dc_link: None,
         },
     })
 }

@@ -22,6 +22,12 @@
 //! kind = "switching"               # carrier comparison with dead time
 //! dead_time_s = 1e-6
 //!
+//! [dc_link]                        # optional: without it the bus is stiff at vdc_v
+//! capacitance_f = 470e-6
+//! source = "rectifier"             # or "supply" (sinks current too); open-circuit vdc_v
+//! resistance_ohm = 0.5             # the source's internal resistance
+//! chopper = { on_v = 360.0, off_v = 350.0, resistance_ohm = 100.0 }   # optional
+//!
 //! [sensors]                        # optional, every key defaults to ideal
 //! current_lsb_a = 0.00806
 //! current_offset_a = [0.0, 0.0, 0.0]
@@ -138,9 +144,34 @@ struct ClosedLoopFile {
     plant: Option<MotorTable>,
     load: Option<LoadTable>,
     inverter: Option<InverterTable>,
+    dc_link: Option<DcLinkTable>,
     #[serde(default)]
     sensors: SensorsTable,
     events: Vec<EventTable>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DcLinkTable {
+    capacitance_f: f64,
+    source: LinkSourceTable,
+    resistance_ohm: f64,
+    chopper: Option<ChopperTable>,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy)]
+#[serde(rename_all = "snake_case")]
+enum LinkSourceTable {
+    Supply,
+    Rectifier,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ChopperTable {
+    on_v: f64,
+    off_v: f64,
+    resistance_ohm: f64,
 }
 
 /// The fastest a dynamometer load may turn the rotor, mechanical rad/s (the design
@@ -418,6 +449,40 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             InverterModel::Switching { dead_time_s }
         }
     };
+    let dc_link = match &f.dc_link {
+        None => None,
+        Some(l) => {
+            let positive =
+                |key: &str, x: f64| src.check(x.is_finite() && x > 0.0, key, "must be finite and > 0");
+            positive("dc_link.capacitance_f", l.capacitance_f)?;
+            positive("dc_link.resistance_ohm", l.resistance_ohm)?;
+            let chopper = match &l.chopper {
+                None => None,
+                Some(c) => {
+                    positive("dc_link.chopper.resistance_ohm", c.resistance_ohm)?;
+                    src.check(
+                        c.off_v.is_finite() && c.on_v.is_finite() && 0.0 < c.off_v && c.off_v < c.on_v,
+                        "dc_link.chopper",
+                        "needs 0 < off_v < on_v",
+                    )?;
+                    Some(crate::sim::Chopper {
+                        on_v: c.on_v,
+                        off_v: c.off_v,
+                        resistance_ohm: c.resistance_ohm,
+                    })
+                }
+            };
+            Some(crate::sim::DcLink {
+                capacitance_f: l.capacitance_f,
+                source: match l.source {
+                    LinkSourceTable::Supply => crate::sim::DcSource::Supply,
+                    LinkSourceTable::Rectifier => crate::sim::DcSource::Rectifier,
+                },
+                resistance_ohm: l.resistance_ohm,
+                chopper,
+            })
+        }
+    };
     let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     Ok(Builtin {
         name: stem,
@@ -433,6 +498,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             sensors,
             load,
             inverter,
+            dc_link,
         },
     })
 }
@@ -643,6 +709,38 @@ torque_nm = 0.5
         assert_eq!(e.key.as_deref(), Some("load.friction_nm"));
         let e = err(&with("kind = \"coulomb_friction\""));
         assert!(e.to_string().contains("friction_nm"), "{e}");
+    }
+
+    #[test]
+    fn dc_link_and_dynamometer() {
+        let with = |table: &str| format!("{FIG16}\n{table}\n");
+        let link = "[dc_link]\ncapacitance_f = 470e-6\nsource = \"rectifier\"\nresistance_ohm = 0.5\n";
+        let f = parse_closed_loop(
+            Path::new("c.toml"),
+            &with(&format!("{link}chopper = {{ on_v = 360.0, off_v = 350.0, resistance_ohm = 100.0 }}")),
+        )
+        .unwrap();
+        let l = f.scenario.dc_link.unwrap();
+        assert_eq!(
+            (l.capacitance_f, l.source, l.resistance_ohm),
+            (470e-6, crate::sim::DcSource::Rectifier, 0.5)
+        );
+        assert_eq!(l.chopper.unwrap().on_v, 360.0);
+        let e = err(&with(&link.replace("470e-6", "0.0")));
+        assert_eq!(e.key.as_deref(), Some("dc_link.capacitance_f"), "{e}");
+        let e =
+            err(&with(&format!("{link}chopper = {{ on_v = 350.0, off_v = 360.0, resistance_ohm = 100.0 }}")));
+        assert_eq!(e.key.as_deref(), Some("dc_link.chopper"), "{e}");
+        let e = err(&with(&link.replace("rectifier", "battery")));
+        assert!(e.to_string().contains("source"), "{e}");
+        let f = parse_closed_loop(
+            Path::new("c.toml"),
+            &with("[load]\nkind = \"dynamometer\"\nomega_m_rad_s = -300.0"),
+        )
+        .unwrap();
+        assert_eq!(f.scenario.load, LoadModel::Dynamometer { omega_m_rad_s: -300.0 });
+        let e = err(&with("[load]\nkind = \"dynamometer\"\nomega_m_rad_s = 1e9"));
+        assert_eq!(e.key.as_deref(), Some("load.omega_m_rad_s"), "{e}");
     }
 
     #[test]

@@ -123,6 +123,78 @@ pub enum LoadModel {
     },
 }
 
+/// The DC link: a capacitor between the source and the inverter, with an optional brake
+/// chopper. Without one ([`Scenario::dc_link`] = `None`) the bus is stiff.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DcLink {
+    /// Link capacitance, F.
+    pub capacitance_f: f64,
+    /// What feeds it (its open-circuit voltage is the scenario's `vdc_v`).
+    pub source: DcSource,
+    /// Internal resistance of the source, Ω.
+    pub resistance_ohm: f64,
+    /// Brake chopper, if any.
+    pub chopper: Option<Chopper>,
+}
+
+/// The DC link's source.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DcSource {
+    /// A supply that sinks current as well as it sources it (a regenerative front end).
+    Supply,
+    /// A diode rectifier: current flows only into the link; regenerated energy stays there.
+    Rectifier,
+}
+
+/// A brake chopper: a resistor switched across the link by a hysteresis comparator (the
+/// hardware's own).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Chopper {
+    /// The resistor is switched in above this, V.
+    pub on_v: f64,
+    /// … and out again below this, V.
+    pub off_v: f64,
+    /// Resistance, Ω.
+    pub resistance_ohm: f64,
+}
+
+/// The DC link's state and its energy bookkeeping, updated once per PWM period with the
+/// phase currents at the period's start: the inverter draws `i_dc = Σ d_x·i_x` (the upper
+/// switches connect their phases to the positive rail; with the bridge off, the phases whose
+/// current flows into the bridge conduct through their upper diodes), the source delivers
+/// `(V_s − V_dc)/R` (a rectifier only when positive), the chopper `V_dc/R_ch` while on;
+/// `C·dV_dc/dt` is the balance (explicit Euler: the link's time constants are far longer than
+/// a period).
+#[derive(Clone, Copy, Debug)]
+struct LinkState {
+    vdc_v: f64,
+    chopper_on: bool,
+}
+
+impl LinkState {
+    /// One period of `ts` s; returns the chopper's current, A.
+    fn step(&mut self, link: &DcLink, source_v: f64, i_dc_a: f64, ts: f64) -> (f64, f64) {
+        let i_src = (source_v - self.vdc_v) / link.resistance_ohm;
+        let i_src = match link.source {
+            DcSource::Supply => i_src,
+            DcSource::Rectifier => i_src.max(0.0),
+        };
+        let i_ch = match link.chopper {
+            Some(c) => {
+                if self.vdc_v > c.on_v {
+                    self.chopper_on = true;
+                } else if self.vdc_v < c.off_v {
+                    self.chopper_on = false;
+                }
+                if self.chopper_on { self.vdc_v / c.resistance_ohm } else { 0.0 }
+            }
+            None => 0.0,
+        };
+        self.vdc_v += ts * (i_src - i_dc_a - i_ch) / link.capacitance_f;
+        (i_src, i_ch)
+    }
+}
+
 /// A closed-loop run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scenario {
@@ -142,6 +214,8 @@ pub struct Scenario {
     pub load: LoadModel,
     /// Inverter model.
     pub inverter: InverterModel,
+    /// DC link (`None`: a stiff bus at `vdc_v`).
+    pub dc_link: Option<DcLink>,
 }
 
 /// A validated open-loop scenario.
@@ -188,6 +262,13 @@ pub struct Row {
     pub psi_est_wb: f64,
     /// The drive's rotor-flux reference, Wb.
     pub psi_ref_wb: f64,
+    /// Current the inverter draws from the DC link during this period, A (negative:
+    /// regeneration into the link).
+    pub i_dc_a: f64,
+    /// Current from the source into the link, A.
+    pub i_source_a: f64,
+    /// Current through the brake chopper's resistor, A.
+    pub i_chopper_a: f64,
 }
 
 /// The plant's side of one period in [`run`].
@@ -332,9 +413,12 @@ pub fn run(
     let mut rows = 0u64;
     // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
     let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
-    // The bus is stiff and its sensor noise-free: one measurement until a bus fault.
+    // A stiff bus (no DC link model) is measured once, until a bus fault; with a link model
+    // the bus follows the link every period, and a bus fault changes the source.
     let mut vdc_v = sc.vdc_v;
     let mut vdc_measured_v = sensors.vdc(vdc_v);
+    let mut source_v = sc.vdc_v;
+    let mut link_state = LinkState { vdc_v: sc.vdc_v, chopper_on: false };
     for k in 0..n {
         if k >= next_event_k {
             let t = k as f64 * ts;
@@ -348,8 +432,12 @@ pub fn run(
                     }
                     Event::Fault(Injection::EncoderStuck) => sensors.freeze_encoder(),
                     Event::Fault(Injection::BusVoltage { vdc_v: v }) => {
-                        vdc_v = v;
-                        vdc_measured_v = sensors.vdc(v);
+                        if sc.dc_link.is_some() {
+                            source_v = v;
+                        } else {
+                            vdc_v = v;
+                            vdc_measured_v = sensors.vdc(v);
+                        }
                     }
                     Event::Fault(Injection::LoadSeizure) => {
                         x.omega_m_rad_s = 0.0;
@@ -414,6 +502,18 @@ pub fn run(
                 segments.average()
             }
         };
+        let vdc_period_v = vdc_v;
+        let (mut i_dc, mut i_src, mut i_ch) = (0.0, 0.0, 0.0);
+        if let Some(link) = &sc.dc_link {
+            i_dc = if bridge_on {
+                duty_applied.iter().zip(i_true).map(|(d, i)| d * i).sum()
+            } else {
+                i_true.iter().map(|i| i.min(0.0)).sum()
+            };
+            (i_src, i_ch) = link_state.step(link, source_v, i_dc, ts);
+            vdc_v = link_state.vdc_v;
+            vdc_measured_v = sensors.vdc(vdc_v);
+        }
         if to_trace == 0 {
             to_trace = trace_every - 1;
             if !x_at_start.is_finite() {
@@ -436,7 +536,10 @@ pub fn run(
                     PhaseCommand::Off => None,
                     PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),
                 },
-                vdc_v,
+                vdc_v: vdc_period_v,
+                i_dc_a: i_dc,
+                i_source_a: i_src,
+                i_chopper_a: i_ch,
                 psi_est_wb: f64::from(out.telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
             })?;
