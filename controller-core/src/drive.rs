@@ -42,7 +42,7 @@
 
 use crate::current::{CurrentControllerConfig, CurrentError, CurrentLaw, CurrentState};
 use crate::discretize::Discretization;
-use crate::envelope::EnvelopeConfig;
+use crate::envelope::{ENVELOPE_REFRESH_SLOW_STEPS, Envelope, EnvelopeConfig};
 use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::ifoc::{FluxCommand, IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
@@ -752,6 +752,10 @@ pub struct Drive {
     omega_sl_rad_s: f32,
     /// The speed loop's output was at its limit at the last slow step.
     speed_saturated: bool,
+    /// The envelope in use ([`EnvelopeConfig::envelope`]).
+    envelope: Envelope,
+    /// Slow steps until it is remade.
+    envelope_age: u16,
     /// The current trim added to the loops' references (field frame), A.
     trim: Dq,
     /// Sum of the field-frame current errors (intended − measured) since the last slow step.
@@ -789,6 +793,8 @@ impl Drive {
             delay_rotation: SinCos::default(),
             omega_sl_rad_s: 0.0,
             speed_saturated: false,
+            envelope: Envelope::ZERO,
+            envelope_age: 0,
             trim: Dq::default(),
             trim_error_sum: Dq::default(),
             trim_hold: false,
@@ -845,6 +851,8 @@ impl Drive {
                 self.delay_rotation = SinCos::default();
                 self.omega_sl_rad_s = 0.0;
                 self.speed_saturated = false;
+                self.envelope = Envelope::ZERO;
+                self.envelope_age = 0;
                 self.trim = Dq::default();
                 self.trim_error_sum = Dq::default();
                 self.trim_hold = false;
@@ -903,7 +911,8 @@ impl Drive {
     ///
     /// Order: encoder → field angle ([`IfocConfig::anchor`]); voltage regulator; speed loop
     /// limited to the envelope's torque at the last slow step; operating point
-    /// ([`EnvelopeConfig::operating_point`]: i_d*, and the torque limited to the envelope).
+    /// ([`EnvelopeConfig::point`] on the envelope remade every [`ENVELOPE_REFRESH_SLOW_STEPS`]:
+    /// i_d*, and the torque limited to the envelope).
     pub fn slow_step(&mut self, m: &Measurements) {
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         if active && m.omega_m_rad_s.abs() > self.cfg.overspeed_rad_s {
@@ -937,26 +946,24 @@ impl Drive {
             }
         };
         let cfg = &self.cfg;
-        let op = cfg.envelope.operating_point(
-            torque_nm,
-            m.omega_m_rad_s,
-            cfg.i_d_rated_a,
-            v_budget,
-            cfg.ifoc.i_max_a(),
-        );
-        self.flux = cfg.ifoc.d_current_command(op.i_d_a);
-        // What the bus drives now, with the flux that is there (it follows i_d* with T_r).
-        let psi = self.ifoc.psi_r_wb();
+        let (w, i_max) = (m.omega_m_rad_s, cfg.ifoc.i_max_a());
         let sign = if torque_nm < 0.0 { -1.0 } else { 1.0 };
-        let i_q_now = cfg.envelope.i_q_max_at_flux(
-            psi,
-            op.i_d_a,
-            m.omega_m_rad_s,
-            v_budget,
-            self.flux.i_q_max_a(),
-            sign,
-        );
-        let mut torque_now_nm = min_f32(op.torque_max_nm, cfg.ifoc.torque_factor() * psi * i_q_now);
+        // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
+        // torque changes direction.
+        if self.envelope_age == 0 || self.envelope.sign() != sign {
+            self.envelope = cfg.envelope.envelope(sign, w, cfg.i_d_rated_a, v_budget, i_max);
+            self.envelope_age = ENVELOPE_REFRESH_SLOW_STEPS;
+        }
+        self.envelope_age -= 1;
+        let op = cfg.envelope.point(&self.envelope, torque_nm, w, cfg.i_d_rated_a, v_budget, i_max);
+        self.flux = cfg.ifoc.d_current_command(op.i_d_a);
+        // What the bus drives now, with the flux that is there (it follows i_d* with T_r):
+        // only worked out when the torque asked for needs more than fits.
+        let psi = self.ifoc.psi_r_wb();
+        let per_a = cfg.ifoc.torque_factor() * max_f32(psi, 1e-3);
+        let needed = min_f32(self.flux.i_q_max_a(), torque_nm.abs() / per_a);
+        let i_q_now = cfg.envelope.i_q_max_at_flux(psi, op.i_d_a, w, v_budget, needed, sign);
+        let mut torque_now_nm = min_f32(op.torque_max_nm, per_a * i_q_now);
         if torque_nm * m.omega_m_rad_s < 0.0 {
             // Generating: no more than the DC link can take (REGEN_LIMIT_START/END).
             let room = 1.0 - (m.vdc_v - cfg.regen_start_v) * cfg.inv_regen_span_v;

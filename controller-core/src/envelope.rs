@@ -45,9 +45,11 @@
 //! `V_dc/√3`, corrected by a slow regulator on the voltage the current loops actually ask
 //! for ([`crate::drive`]), so that parameter error cannot push them into saturation.
 //!
-//! Cost: a fixed number of evaluations of `T(r)` (each ≈ 20 multiply–adds and one
-//! division), [`SCAN_POINTS`] + [`GOLDEN_STEPS`] + 2 + [`BISECTION_STEPS`], once per slow
-//! period.
+//! Cost: evaluations of `T(r)` (each ≈ 20 multiply–adds and one division). The envelope,
+//! [`SCAN_POINTS`] + [`GOLDEN_STEPS`] + 2 of them, is remade every
+//! [`ENVELOPE_REFRESH_SLOW_STEPS`] slow steps; the point for each slow step's torque is one
+//! evaluation below the envelope's voltage and current limits, and [`BISECTION_STEPS`] + 2
+//! where one of them binds.
 
 use crate::motor::MotorParams;
 use crate::num::{Scalar, min_f32};
@@ -141,49 +143,57 @@ impl EnvelopeConfig {
         r * self.id2_max(r, w_r, id2_rated, v2, i2)
     }
 
-    /// The operating point for torque `torque_nm` at mechanical speed `omega_m_rad_s`, with
-    /// rated d-axis current `i_d_rated_a`, voltage budget `v_max_v` (peak phase voltage)
-    /// and current limit `i_max_a`. The torque is limited to the envelope. Non-finite or
-    /// non-positive limits give a zero point (no flux, no torque). Not inlined: the slow
-    /// step calls it once, and inlined its loops cost flash.
-    #[inline(never)]
-    pub fn operating_point(
+    /// The limits of one slow step, checked: `None` for a non-finite or non-positive limit or
+    /// a non-finite speed. Returns `(w_r, id2r, v2, i2)` for the torque direction `sign`:
+    /// the electrical rotor speed mirrored onto motoring, the rated-flux bound capped at the
+    /// no-load flux, V², I².
+    #[inline]
+    fn limits(
         &self,
-        torque_nm: f32,
+        sign: f32,
         omega_m_rad_s: f32,
         i_d_rated_a: f32,
         v_max_v: f32,
         i_max_a: f32,
-    ) -> OperatingPoint {
+    ) -> Option<(f32, f32, f32, f32)> {
         let ok = |x: f32| x > 0.0 && x < f32::INFINITY; // false for NaN
-        if !(ok(i_d_rated_a)
-            && ok(v_max_v)
-            && ok(i_max_a)
-            && torque_nm.is_finite()
-            && omega_m_rad_s.is_finite())
-        {
-            return OperatingPoint::default();
+        if !(ok(i_d_rated_a) && ok(v_max_v) && ok(i_max_a) && omega_m_rad_s.is_finite()) {
+            return None;
         }
         // Mirror regeneration onto motoring: r ≥ 0 below.
-        let (sign, w_r) = if torque_nm < 0.0 {
-            (-1.0, -self.pole_pairs * omega_m_rad_s)
-        } else {
-            (1.0, self.pole_pairs * omega_m_rad_s)
-        };
+        let w_r = sign * self.pole_pairs * omega_m_rad_s;
         let (v2, i2) = (v_max_v * v_max_v, i_max_a * i_max_a);
         let id2r = min_f32(i_d_rated_a * i_d_rated_a, v2 / self.no_load_g2(w_r));
+        Some((w_r, id2r, v2, i2))
+    }
+
+    /// The envelope at mechanical speed `omega_m_rad_s` in the torque direction `sign` (±1),
+    /// with rated d-axis current `i_d_rated_a`, voltage budget `v_max_v` (peak phase voltage)
+    /// and current limit `i_max_a`: the largest torque and the slip ratio that gives it. A
+    /// coarse scan ([`SCAN_POINTS`]) refined by [`GOLDEN_STEPS`] of golden section — the
+    /// expensive part, which the drive refreshes every [`ENVELOPE_REFRESH_SLOW_STEPS`] slow
+    /// steps (and at once when the torque changes direction). Bad limits give a zero envelope.
+    #[inline(never)]
+    pub fn envelope(
+        &self,
+        sign: f32,
+        omega_m_rad_s: f32,
+        i_d_rated_a: f32,
+        v_max_v: f32,
+        i_max_a: f32,
+    ) -> Envelope {
+        let sign = if sign < 0.0 { -1.0 } else { 1.0 };
+        let Some((w_r, id2r, v2, i2)) = self.limits(sign, omega_m_rad_s, i_d_rated_a, v_max_v, i_max_a)
+        else {
+            return Envelope { torque_max_nm: 0.0, r_opt: 0.0, sign };
+        };
         let t = |r: f32| self.torque_per_k(r, w_r, id2r, v2, i2);
-        let wanted = torque_nm.abs() / self.k_nm_per_a2;
-        // Coarse scan: the grid point of the largest T, and the first one reaching the torque.
         let dr = self.r_max * (1.0 / SCAN_POINTS as f32);
-        let (mut j_max, mut t_max, mut j_first) = (0u32, 0.0f32, None);
+        let (mut j_max, mut t_max) = (0u32, 0.0f32);
         for j in 1..=SCAN_POINTS {
             let tj = t(dr * j as f32);
             if tj > t_max {
                 (j_max, t_max) = (j, tj);
-            }
-            if j_first.is_none() && tj >= wanted {
-                j_first = Some(j);
             }
         }
         // Golden section for the maximum between the scan's neighbours of its best point.
@@ -208,19 +218,44 @@ impl EnvelopeConfig {
             }
         }
         let (r_opt, t_opt) = if tc > td { (c, tc) } else { (d, td) };
-        let torque_max_nm = self.k_nm_per_a2 * t_opt;
-        // The smallest ratio that delivers the torque: bisection across the first scan
-        // interval that reaches it (or, if only the refined maximum does, up to r_opt).
-        let r = if wanted >= t_opt {
-            r_opt
+        Envelope { torque_max_nm: self.k_nm_per_a2 * t_opt, r_opt, sign }
+    }
+
+    /// The operating point for torque `torque_nm` (in `env`'s direction) on the envelope
+    /// `env` (made for about the same speed and bus): the smallest slip ratio that gives the
+    /// torque, and the most flux with it. First the rated (capped) flux: if the torque needs
+    /// no more voltage or current than the limits allow there, that is the point — one
+    /// evaluation, the common case below base speed. Otherwise bisection ([`BISECTION_STEPS`])
+    /// on `[0, env.r_opt]`, the envelope's rising side; a torque beyond the envelope gets
+    /// `env.r_opt`. The point's `torque_max_nm` is `env`'s. Bad limits give a zero point.
+    #[inline(never)]
+    pub fn point(
+        &self,
+        env: &Envelope,
+        torque_nm: f32,
+        omega_m_rad_s: f32,
+        i_d_rated_a: f32,
+        v_max_v: f32,
+        i_max_a: f32,
+    ) -> OperatingPoint {
+        let Some((w_r, id2r, v2, i2)) = self.limits(env.sign, omega_m_rad_s, i_d_rated_a, v_max_v, i_max_a)
+        else {
+            return OperatingPoint::default();
+        };
+        if !torque_nm.is_finite() {
+            return OperatingPoint::default();
+        }
+        let wanted = torque_nm.abs() / self.k_nm_per_a2;
+        let r_rated = wanted / id2r;
+        let r = if self.id2_max(r_rated, w_r, id2r, v2, i2) >= id2r {
+            r_rated
+        } else if wanted >= self.torque_per_k(env.r_opt, w_r, id2r, v2, i2) {
+            env.r_opt
         } else {
-            let (mut lo, mut hi) = match j_first {
-                Some(j) if j <= j_max => (dr * (j - 1) as f32, dr * j as f32),
-                _ => (dr * j_max.saturating_sub(1) as f32, r_opt),
-            };
+            let (mut lo, mut hi) = (0.0f32, env.r_opt);
             for _ in 0..BISECTION_STEPS {
                 let mid = 0.5 * (lo + hi);
-                if t(mid) < wanted {
+                if self.torque_per_k(mid, w_r, id2r, v2, i2) < wanted {
                     lo = mid;
                 } else {
                     hi = mid;
@@ -229,9 +264,49 @@ impl EnvelopeConfig {
             hi
         };
         let i_d_a = crate::num::sqrt_f32(self.id2_max(r, w_r, id2r, v2, i2));
-        OperatingPoint { i_d_a, i_q_a: sign * r * i_d_a, torque_max_nm }
+        OperatingPoint { i_d_a, i_q_a: env.sign * r * i_d_a, torque_max_nm: env.torque_max_nm }
+    }
+
+    /// [`Self::envelope`] and [`Self::point`] in one: the operating point for torque
+    /// `torque_nm` at this speed and bus, limited to the envelope.
+    pub fn operating_point(
+        &self,
+        torque_nm: f32,
+        omega_m_rad_s: f32,
+        i_d_rated_a: f32,
+        v_max_v: f32,
+        i_max_a: f32,
+    ) -> OperatingPoint {
+        let env = self.envelope(torque_nm, omega_m_rad_s, i_d_rated_a, v_max_v, i_max_a);
+        self.point(&env, torque_nm, omega_m_rad_s, i_d_rated_a, v_max_v, i_max_a)
     }
 }
+
+/// The envelope at one speed, bus and torque direction ([`EnvelopeConfig::envelope`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Envelope {
+    /// Largest torque magnitude, N·m.
+    pub torque_max_nm: f32,
+    /// The slip ratio i_q/i_d that gives it.
+    r_opt: f32,
+    /// Torque direction, ±1.
+    sign: f32,
+}
+
+impl Envelope {
+    /// No torque (before the first envelope is made).
+    pub const ZERO: Envelope = Envelope { torque_max_nm: 0.0, r_opt: 0.0, sign: 1.0 };
+
+    /// The torque direction it was made for, ±1.
+    pub fn sign(&self) -> f32 {
+        self.sign
+    }
+}
+
+/// The drive remakes its envelope every this many slow steps (8 ms at the shipped 2 kHz):
+/// speed and bus change little in that time (400 rad/s² of the shipped drive's acceleration is
+/// 3.2 rad/s), and the point between refreshes needs one evaluation in the common case.
+pub const ENVELOPE_REFRESH_SLOW_STEPS: u16 = 16;
 
 impl EnvelopeConfig {
     /// The largest |i_q| (A) the voltage budget `v_max_v` allows *now*, with the rotor flux

@@ -153,6 +153,24 @@ mod target {
             }
             Err(_) => f32::NAN,
         };
+        // The slow step's operating point (issue 17): the envelope's solver, at speeds from
+        // standstill to beyond the base speed and torques across the envelope.
+        let envelope = controller_core::envelope::EnvelopeConfig::new(&spec.motor);
+        let operating_point = per_call(&ticks, |k| {
+            let w = black_box((k % 64) as f32 * 6.5);
+            let t = black_box(((k / 64) % 8) as f32 * 0.3 - 1.0);
+            black_box(envelope.operating_point(t, w, 0.634, 175.0, 4.0));
+        });
+        let i_q_at_flux = per_call(&ticks, |k| {
+            let w = black_box((k % 64) as f32 * 6.5);
+            black_box(envelope.i_q_max_at_flux(black_box(0.6), 0.4, w, 175.0, 3.9, 1.0));
+        });
+        let dead_time = per_call(&ticks, |k| {
+            let i = black_box(current(k % 64));
+            black_box(svpwm::compensate_dead_time(Abc { a: 0.4, b: 0.5, c: 0.6 }, i, 0.01, 0.004));
+        }) - per_call(&ticks, |k| {
+            black_box(black_box(current(k % 64)));
+        });
         let svm = per_call(&ticks, |k| {
             let v = black_box(current(k % 64)).clarke().scale(60.0);
             black_box(svpwm::modulate(v, 310.0));
@@ -171,6 +189,9 @@ mod target {
         println!("cost part:sincos {:.1}", sincos);
         println!("cost part:svpwm {:.1}", svm);
         println!("cost part:compare_3ch {:.1}", compare);
+        println!("cost part:envelope_operating_point {:.1}", operating_point);
+        println!("cost part:envelope_i_q_max_at_flux {:.1}", i_q_at_flux);
+        println!("cost part:dead_time_compensation {:.1}", dead_time);
         sh::exit(running)
     }
 }
