@@ -245,6 +245,9 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     b.spec.protection.overspeed_rad_s =
         drive_file::drive::default_overspeed_rad_s(&b.spec.motor, 0.35, b.spec.protection.vdc_max_v);
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
+    // The paper's loops alone: the current trim would correct the stationary loops' tracking
+    // error at ω_e — the very error this figure compares (the PI's reaches 366 rad/s with it).
+    b.spec.current_trim_bandwidth_rad_s = 0.0;
     b.scenario.events = vec![(0.0, Event::Enable), (0.3, Event::Reference(Reference::Speed(376.0)))];
     b.scenario.duration_s = 6.5;
     Ok(b)
