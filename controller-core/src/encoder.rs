@@ -9,6 +9,11 @@
 
 use core::f32::consts::TAU;
 
+/// The drive's speed window, in slow-loop reads: the firmware's estimator and the simulator's
+/// encoder model both use it (one source). 8 reads at the shipped 2 kHz slow loop: 4 ms of
+/// window, 2 ms of delay, 0.38 rad/s of resolution with a 1024-line encoder.
+pub const SPEED_WINDOW_READS: usize = 8;
+
 /// Why an encoder configuration was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EncoderError {

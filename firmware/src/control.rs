@@ -21,8 +21,8 @@ use controller_core::frames::Abc;
 use controller_core::raw::RawDriveConfig;
 use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling, ScalingError};
 
-/// Speed window of the encoder estimator, in slow-loop reads.
-pub const ENCODER_WINDOW: usize = 8;
+/// Speed window of the encoder estimator, in slow-loop reads (the simulator's too).
+pub const ENCODER_WINDOW: usize = controller_core::encoder::SPEED_WINDOW_READS;
 
 /// Raw conversions of one PWM period.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -5,8 +5,8 @@
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderReading, EncoderState};
 use controller_core::frames::Abc;
 
-/// Speed window of the encoder estimator, in slow-loop reads.
-pub const ENCODER_WINDOW: usize = 20;
+/// Speed window of the encoder estimator, in slow-loop reads: the firmware's.
+pub const ENCODER_WINDOW: usize = controller_core::encoder::SPEED_WINDOW_READS;
 
 /// Sensor non-idealities. `Default` is ideal (exact values).
 #[derive(Clone, Copy, Debug, PartialEq)]
