@@ -1144,7 +1144,8 @@ impl Drive {
         // Magnitudes, not vectors: a detuned field angle (rotor resistance off by the
         // certified 2×) turns the voltage vector but hardly changes its length, while a
         // frozen encoder at speed removes the back-EMF from the model's length.
-        let residual = (libm::hypotf(v.d, v.q) - libm::hypotf(vd, vq)).abs();
+        // Volts, far from overflow: √(x² + y²) with the FPU's square root (no libm::hypotf).
+        let residual = (sqrt_f32(v.d * v.d + v.q * v.q) - sqrt_f32(vd * vd + vq * vq)).abs();
         // Consecutive implausible checks (a leaky count accumulated the detuned corner's
         // transients into a false trip).
         if residual > ENCODER_RESIDUAL_FRACTION * v_limit {

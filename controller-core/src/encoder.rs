@@ -56,19 +56,18 @@ pub struct EncoderReading {
 }
 
 impl<const N: usize> EncoderConfig<N> {
-    /// `lines` per revolution, read every `read_period_s`.
-    pub fn new(lines: u32, read_period_s: f64) -> Result<Self, EncoderError> {
+    /// `lines` per revolution, read every `read_period_s`. In f32: the firmware builds it at
+    /// start-up, and f64 there is software arithmetic (flash).
+    pub fn new(lines: u32, read_period_s: f32) -> Result<Self, EncoderError> {
         if lines == 0 || N == 0 {
             return Err(EncoderError::Lines);
         }
         if !(read_period_s.is_finite() && read_period_s > 0.0) {
             return Err(EncoderError::Period);
         }
-        let rad_per_count = f64::from(TAU) / (4.0 * f64::from(lines));
-        Ok(Self {
-            rad_per_count: rad_per_count as f32,
-            rad_s_per_count: (rad_per_count / (N as f64 * read_period_s)) as f32,
-        })
+        // 4·lines ≤ 2^34 rounds to f32 by at most half an ulp: the count's angle to 6e-8.
+        let rad_per_count = TAU / (4.0 * lines as f32);
+        Ok(Self { rad_per_count, rad_s_per_count: rad_per_count / (N as f32 * read_period_s) })
     }
 
     /// Speed resolution (one count over the window), rad/s.

@@ -37,8 +37,9 @@ pub struct AdcScaling {
 
 impl AdcScaling {
     /// `gain` in physical units per count (e.g. A/count, may be negative for an inverting
-    /// amplifier), `offset_counts` the code at zero (≤ `full_scale_counts`).
-    pub fn new(gain: f64, offset_counts: u16, full_scale_counts: u16) -> Result<Self, ScalingError> {
+    /// amplifier), `offset_counts` the code at zero (≤ `full_scale_counts`). In f32: the
+    /// firmware builds it at start-up, and f64 there is software arithmetic (flash).
+    pub fn new(gain: f32, offset_counts: u16, full_scale_counts: u16) -> Result<Self, ScalingError> {
         if !(gain.is_finite() && gain != 0.0 && gain.abs() < 32_767.0) {
             return Err(ScalingError::Gain);
         }
@@ -49,7 +50,7 @@ impl AdcScaling {
         if gain_fixed == I16F16::ZERO {
             return Err(ScalingError::Gain);
         }
-        Ok(Self { offset_counts: i32::from(offset_counts), gain_f32: gain as f32, gain_fixed })
+        Ok(Self { offset_counts: i32::from(offset_counts), gain_f32: gain, gain_fixed })
     }
 
     /// Physical value in f32.
@@ -123,7 +124,7 @@ mod tests {
     #[test]
     fn rejects_bad_scalings() {
         assert_eq!(AdcScaling::new(0.0, 0, 4095), Err(ScalingError::Gain));
-        assert_eq!(AdcScaling::new(f64::NAN, 0, 4095), Err(ScalingError::Gain));
+        assert_eq!(AdcScaling::new(f32::NAN, 0, 4095), Err(ScalingError::Gain));
         assert_eq!(AdcScaling::new(1e-7, 0, 4095), Err(ScalingError::Gain)); // below I16F16 resolution
         assert_eq!(AdcScaling::new(1.0, 5000, 4095), Err(ScalingError::Offset));
         assert_eq!(PwmScaling::new(0), Err(ScalingError::Period));

@@ -27,8 +27,8 @@ mod tests {
         assert_eq!(DRIVE_CONFIG, built.to_raw());
         assert_eq!(controller_core::drive::DriveConfig::from_raw(&DRIVE_CONFIG), Ok(built));
         let (b, c) = (d.board.unwrap(), d.certify.unwrap());
-        assert_eq!(BOARD.current_a_per_count, b.table.current_a_per_count);
-        assert_eq!(BOARD.vdc_v_per_count, b.table.vdc_v_per_count);
+        assert_eq!(BOARD.current_a_per_count, b.table.current_a_per_count as f32);
+        assert_eq!(BOARD.vdc_v_per_count, b.table.vdc_v_per_count as f32);
         assert_eq!(BOARD.current_offset_counts, b.table.current_offset_counts);
         assert_eq!(BOARD.encoder_lines, b.table.encoder_lines);
         assert_eq!(BOARD.encoder_max_counts_per_read, b.table.encoder_max_counts_per_read);

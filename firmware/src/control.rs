@@ -50,11 +50,11 @@ pub enum Bridge {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BoardConfig {
     /// Amperes per ADC count of the phase-current channels.
-    pub current_a_per_count: f64,
+    pub current_a_per_count: f32,
     /// Code at zero current.
     pub current_offset_counts: u16,
     /// Volts per ADC count of the bus channel.
-    pub vdc_v_per_count: f64,
+    pub vdc_v_per_count: f32,
     /// ADC full scale (4095 for 12 bits).
     pub adc_full_scale: u16,
     /// TIM1 auto-reload (compare = this → 100 % duty).
@@ -111,7 +111,7 @@ impl ControlLoop {
         let vdc =
             AdcScaling::new(board.vdc_v_per_count, 0, board.adc_full_scale).map_err(ControlError::Scaling)?;
         let pwm = PwmScaling::new(board.pwm_period_counts).map_err(ControlError::Scaling)?;
-        let read_period_s = f64::from(f32::from(divider) * cfg.ts_s());
+        let read_period_s = f32::from(divider) * cfg.ts_s();
         let encoder_cfg =
             EncoderConfig::new(board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
         Ok(Self {

@@ -103,7 +103,9 @@ impl Sensors {
     /// Sensors for a slow loop read every `slow_period_s`.
     pub fn new(model: SensorModel, slow_period_s: f64) -> Result<Self, EncoderError> {
         let encoder = match model.encoder_lines {
-            Some(lines) => Some((EncoderConfig::new(lines, slow_period_s)?, EncoderState::default(), lines)),
+            Some(lines) => {
+                Some((EncoderConfig::new(lines, slow_period_s as f32)?, EncoderState::default(), lines))
+            }
             None => None,
         };
         let ideal = SensorModel::default();
