@@ -88,8 +88,12 @@ pub const STALL_SPEED_FRACTION: f64 = 0.005;
 /// difference between the voltage target and the voltage the current loops ask for, which
 /// lowers the voltage budget of the current references ([`crate::envelope`]) when the
 /// machine needs more voltage than its model says. Slow against the current loops (≈ 1 000
-/// rad/s) and the rotor flux (1/T_r ≈ 15 rad/s on the DeLorenzo motor), so that it corrects
-/// the model's steady-state error, not its transients.
+/// rad/s), so that it corrects the model's steady-state error, not the loops' transients; of
+/// the order of the flux's 1/T_r (≈ 15 rad/s on the DeLorenzo motor) and of the current trim,
+/// with which it settles without sustained oscillation in the field-weakening acceptance run
+/// (`hil-sim/tests/envelope.rs`). It measures the quadratic mean over a slow period of the
+/// magnitude of the loops' request (peak phase volts, before the hexagon), only ever lowers
+/// the budget, and by at most [`VOLTAGE_REGULATOR_RANGE`].
 pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
 
 /// The dead-time compensation ramps from −t_d/T to +t_d/T across ± this fraction of the

@@ -21,10 +21,13 @@
 //! **envelope** `T_max = max_r T(r)` is found by a coarse scan of r (T(r) is not unimodal
 //! when generating: towards zero stator frequency the voltage bound loosens and a second,
 //! lower maximum appears) refined by a golden-section search; the **reference** for a
-//! torque `|T*| < T_max` is the smallest r with `T(r) = |T*|` (bisection across the first
-//! scan interval that reaches it), with `i_d* = i_d,max(r)`, `i_q* = r·i_d*`: the smallest r
-//! allows the largest `i_d = √(T*/(K·r))`, i.e.
-//! the most flux, hence the least current and slip, that delivers T* within the limits.
+//! torque `|T*| < T_max` is the smallest r with `T(r) = |T*|` — first tried at the rated flux
+//! (one evaluation), else by bisection on `[0, r_opt]`, the envelope's rising side (where
+//! T(r) is assumed monotone: it is while the envelope's maximum is the first one, as on the
+//! shipped motor) — with `i_d* = i_d,max(r)`, `i_q* = r·i_d*`: the smallest r allows the
+//! largest `i_d = √(T*/(K·r))`, i.e.
+//! the most flux, hence the least slip, that delivers T* within the limits (not the least
+//! current: at light load below base speed it keeps the rated flux).
 //! Below base speed that is the rated flux; above it the flux falls with speed (field
 //! weakening, the voltage bound active); at high speed the optimum sits at the
 //! breakdown ratio, the maximum of r/g(r)² (maximum torque per volt). Regeneration is the
@@ -48,7 +51,7 @@
 //! Cost: evaluations of `T(r)` (each ≈ 20 multiply–adds and one division). The envelope,
 //! [`SCAN_POINTS`] + [`GOLDEN_STEPS`] + 2 of them, is remade every
 //! [`ENVELOPE_REFRESH_SLOW_STEPS`] slow steps; the point for each slow step's torque is one
-//! evaluation below the envelope's voltage and current limits, and [`BISECTION_STEPS`] + 2
+//! evaluation below the envelope's voltage and current limits, and [`BISECTION_STEPS`] + 3
 //! where one of them binds.
 
 use crate::motor::MotorParams;

@@ -172,7 +172,7 @@ struct LinkState {
 }
 
 impl LinkState {
-    /// One period of `ts` s; returns the chopper's current, A.
+    /// One period of `ts` s; returns the source's and the chopper's currents, A.
     fn step(&mut self, link: &DcLink, source_v: f64, i_dc_a: f64, ts: f64) -> (f64, f64) {
         let i_src = (source_v - self.vdc_v) / link.resistance_ohm;
         let i_src = match link.source {
