@@ -128,7 +128,7 @@ fn certify_the_shipped_drive_and_reject_a_bad_range() {
     let bad = std::env::temp_dir().join(format!("gains-bad-{}.toml", std::process::id()));
     let text = std::fs::read_to_string(gains)
         .unwrap()
-        .replace("omega_r_max_rad_s = 375.0", "omega_r_max_rad_s = 800.0");
+        .replace("omega_r_max_rad_s = 400.0", "omega_r_max_rad_s = 800.0");
     std::fs::write(&bad, text).unwrap();
     let (code, _, err) = run(&["certify", bad.to_str().unwrap()]);
     assert_eq!(code, Some(1));
@@ -299,7 +299,7 @@ fn bad_inputs_are_located_errors_not_hangs() {
     // certify with ω_r,max = 1e9 hung; a NaN requirement gave "limit NaN" failures.
     let drive = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml")).unwrap();
     for (from, to, key) in [
-        ("omega_r_max_rad_s = 375.0", "omega_r_max_rad_s = 1e9", "certify.omega_r_max_rad_s"),
+        ("omega_r_max_rad_s = 400.0", "omega_r_max_rad_s = 1e9", "certify.omega_r_max_rad_s"),
         ("phase_margin_deg_min = 45.0", "phase_margin_deg_min = nan", "certify.phase_margin_deg_min"),
         ("rs_factor = [1.0, 1.5]", "rs_factor = [1.0, 1.2, 1.5]", "certify.rs_factor"),
     ] {

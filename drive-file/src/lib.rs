@@ -145,7 +145,7 @@ mod tests {
             )
         );
         // A speed range the sweep could not finish (was a hang).
-        let e = err(&replace("omega_r_max_rad_s = 375.0", "omega_r_max_rad_s = 1e9"));
+        let e = err(&replace("omega_r_max_rad_s = 400.0", "omega_r_max_rad_s = 1e9"));
         assert_eq!(e.key.as_deref(), Some("certify.omega_r_max_rad_s"), "{e}");
         // Reversed interval.
         let e = err(&replace("rr_factor = [1.0, 2.0]", "rr_factor = [2.0, 1.0]"));
