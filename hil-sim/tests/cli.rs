@@ -70,7 +70,16 @@ fn unknown_scenario_and_usage_errors() {
 /// `--help` on every subcommand, `--version`, and an unknown argument is named.
 #[test]
 fn help_on_every_subcommand() {
-    for sub in [&[][..], &["list"], &["run"], &["pil"], &["bench"], &["link"], &["link", "x", "set-gains"]] {
+    for sub in [
+        &[][..],
+        &["list"],
+        &["run"],
+        &["pil"],
+        &["bench"],
+        &["envelope"],
+        &["link"],
+        &["link", "x", "set-gains"],
+    ] {
         let st = bin().args(sub).arg("--help").output().unwrap();
         assert!(st.status.success(), "{sub:?}");
         assert!(String::from_utf8_lossy(&st.stdout).contains("Usage:"), "{sub:?}");
@@ -227,4 +236,28 @@ fn closed_loop_trace_has_mode_fault_duties_bus_and_flux() {
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["drive_mode"], "Fault(DcBusUndervoltage)");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `hil-sim envelope`: the table, envelope.csv/svg and summary.json for the shipped drive; a
+/// missing drive file is an error naming it (exit 1), a bad bus voltage a usage error (exit 2).
+#[test]
+fn envelope_writes_its_table_and_plot() {
+    let out = tmp("envelope");
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let st = bin().args(["envelope", drive, "--points", "3", "--out"]).arg(&out).output().unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    let csv = std::fs::read_to_string(out.join("envelope.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 4, "{csv}");
+    assert!(csv.starts_with("omega_m_rad_s,measured_nm,analytic_nm,relative_error"));
+    assert!(std::fs::read_to_string(out.join("envelope.svg")).unwrap().contains("<svg"));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!((summary["base_speed_rad_s"].as_f64().unwrap() - 195.8).abs() < 0.05);
+    assert_eq!(summary["points_outside"], 0);
+    let st = bin().args(["envelope", "/nonexistent/drive.toml", "--out"]).arg(&out).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("/nonexistent/drive.toml"));
+    let st = bin().args(["envelope", drive, "--vdc", "0"]).output().unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&out);
 }
