@@ -76,6 +76,22 @@ pub struct Protection {
     /// motor needs at the encoder's speed by more than [`ENCODER_RESIDUAL_FRACTION`] of the
     /// linear voltage limit, at every slow-step check for this long, s.
     pub encoder_check_time_s: f64,
+    /// The board's brake chopper (a resistor switched across the DC link), if it has one:
+    /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
+    /// every mode (it protects the link whether or not the bridge is active).
+    pub brake_chopper: Option<BrakeChopper>,
+}
+
+/// Brake-chopper thresholds: on above `on_v`, off again below `off_v`
+/// (0 < `off_v` < `on_v` < `vdc_max_v`). With `on_v` below the regeneration limit's start
+/// ([`REGEN_LIMIT_START`]·`vdc_max_v`) the chopper takes the braking energy and the limit acts
+/// only if the chopper cannot (a resistor too large for the power, or none connected).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BrakeChopper {
+    /// Switch on above this bus voltage, V.
+    pub on_v: f64,
+    /// Switch off below this bus voltage, V.
+    pub off_v: f64,
 }
 
 /// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
@@ -223,6 +239,8 @@ pub enum DriveError {
     /// Protection thresholds inconsistent: need 0 ≤ vdc_min < vdc_max,
     /// i_trip > i_ref_max > 0, and positive finite overspeed, stall time and current sum.
     Protection,
+    /// Brake-chopper thresholds not 0 < off < on < vdc_max.
+    BrakeChopper,
 }
 
 /// Validated, discretised drive configuration.
@@ -278,6 +296,10 @@ pub struct DriveConfig {
     saturation_steps: u32,
     /// Slow periods of implausible encoder before the trip.
     encoder_check_steps: u32,
+    /// Brake chopper on above this bus voltage (`f32::MAX` without a chopper: never), V.
+    brake_on_v: f32,
+    /// … and off below this one, V.
+    brake_off_v: f32,
 }
 
 impl DriveConfig {
@@ -323,6 +345,13 @@ impl DriveConfig {
         {
             return Err(DriveError::Protection);
         }
+        let (brake_on_v, brake_off_v) = match p.brake_chopper {
+            None => (f32::MAX, f32::MAX),
+            Some(b) if b.off_v > 0.0 && b.off_v < b.on_v && b.on_v < p.vdc_max_v => {
+                (b.on_v as f32, b.off_v as f32)
+            }
+            Some(_) => return Err(DriveError::BrakeChopper),
+        };
         if !(spec.flux_ref_wb.is_finite() && spec.flux_ref_wb > 0.0 && spec.flux_floor_wb < spec.flux_ref_wb)
         {
             return Err(DriveError::FluxReference);
@@ -401,6 +430,8 @@ impl DriveConfig {
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                 .clamp(1.0, 4e9) as u32,
+            brake_on_v,
+            brake_off_v,
         })
     }
 }
@@ -440,6 +471,8 @@ impl DriveConfig {
             self.overspeed_rad_s,
             self.stall_speed_rad_s,
             self.speed_limit,
+            self.brake_on_v,
+            self.brake_off_v,
         ] {
             w.f(x);
         }
@@ -495,6 +528,8 @@ impl DriveConfig {
             overspeed_rad_s: r.f(),
             stall_speed_rad_s: r.f(),
             speed_limit: r.f(),
+            brake_on_v: r.f(),
+            brake_off_v: r.f(),
             magnetizing_steps_max: r.u(),
             slow_divider: u16::try_from(r.u()).map_err(|_| DriveError::Raw)?,
             i_trip_bits: r.u(),
@@ -681,6 +716,9 @@ pub struct FastOutput {
     pub phases: PhaseCommand,
     /// Mode after this step.
     pub mode: Mode,
+    /// Brake chopper on (the bus above the chopper's on level, and not yet below its off
+    /// level); always `false` without a chopper.
+    pub brake: bool,
     /// Signals.
     pub telemetry: Telemetry,
 }
@@ -705,6 +743,8 @@ pub struct Drive {
     saturated_steps: u32,
     /// Consecutive slow periods with an implausible encoder.
     encoder_bad_steps: u32,
+    /// The brake chopper's comparator state.
+    brake: bool,
     /// The flux (d-axis current) command of the present operating point.
     flux: FluxCommand,
     /// Largest steady torque of the envelope at the last slow step, N·m (the speed loop's
@@ -760,6 +800,7 @@ impl Drive {
             stall_steps: 0,
             saturated_steps: 0,
             encoder_bad_steps: 0,
+            brake: false,
             flux: FluxCommand::default(),
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
@@ -1130,13 +1171,24 @@ impl Drive {
         }
     }
 
+    /// The brake chopper's hysteresis comparator on the measured bus voltage, in every mode:
+    /// on above `on_v`, off below `off_v`, held between; off on a non-finite reading (the
+    /// fast step trips on it; a resistor left on would drain a healthy bus).
+    #[inline]
+    fn brake_chopper(&mut self, vdc_v: f32) -> bool {
+        self.brake = vdc_v > self.cfg.brake_on_v || (self.brake && vdc_v >= self.cfg.brake_off_v);
+        self.brake
+    }
+
     /// Current loop. See the module docs for the signal flow.
     #[inline]
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
         if !self.measurements_ok(m) {
             self.trip_on(m);
         }
-        let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, telemetry: Telemetry::default() };
+        let brake = self.brake_chopper(m.vdc_v);
+        let off =
+            |mode| FastOutput { phases: PhaseCommand::Off, mode, brake, telemetry: Telemetry::default() };
         let running = self.mode == Mode::Running;
         if !running && self.mode != Mode::Magnetizing {
             return off(self.mode); // Idle or Fault
@@ -1237,6 +1289,7 @@ impl Drive {
         FastOutput {
             phases: PhaseCommand::Duty(duty),
             mode: self.mode,
+            brake,
             telemetry: Telemetry {
                 i_ab_a: i_ab,
                 i_ref_ab_a: field.i_ref_ab,
@@ -1305,6 +1358,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             current_sum_max_a: 0.4,
             saturation_time_s: 0.02,
             encoder_check_time_s: 0.01,
+            brake_chopper: None,
         },
     }
 }
@@ -1320,6 +1374,39 @@ mod tests {
 
     fn meas(vdc: f32) -> Measurements {
         Measurements { vdc_v: vdc, ..Default::default() }
+    }
+
+    /// The brake output: never without a chopper; with one, on above `on_v`, held down to
+    /// `off_v`, off below it and on a non-finite reading — in every mode, a fault included.
+    #[test]
+    fn brake_chopper_hysteresis() {
+        let mut d = drive();
+        for v in [0.0, 360.0, 399.0, f32::NAN] {
+            assert!(!d.step(&meas(v)).brake, "{v}");
+        }
+        let mut spec = test_spec();
+        spec.protection.brake_chopper = Some(BrakeChopper { on_v: 360.0, off_v: 350.0 });
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        let sweep =
+            [(359.0, false), (361.0, true), (355.0, true), (350.0, true), (349.0, false), (355.0, false)];
+        for (v, on) in sweep {
+            assert_eq!(d.step(&meas(v)).brake, on, "idle at {v} V");
+        }
+        d.enable().unwrap();
+        for (v, on) in sweep {
+            assert_eq!(d.step(&meas(v)).brake, on, "enabled at {v} V");
+        }
+        assert!(d.step(&meas(361.0)).brake);
+        assert!(!d.step(&meas(f32::NAN)).brake);
+        assert_eq!(d.mode(), Mode::Fault(Fault::NonFiniteInput));
+        // Latched in a fault, the chopper still regulates the bus.
+        assert!(d.step(&meas(401.0)).brake);
+        assert!(d.step(&meas(355.0)).brake);
+        assert!(!d.step(&meas(340.0)).brake);
+        for bad in [(350.0, 360.0), (400.0, 350.0), (360.0, 0.0), (f64::NAN, 350.0)] {
+            spec.protection.brake_chopper = Some(BrakeChopper { on_v: bad.0, off_v: bad.1 });
+            assert_eq!(DriveConfig::new(&spec), Err(DriveError::BrakeChopper), "{bad:?}");
+        }
     }
 
     /// Per-phase R-L load standing in for a locked-rotor machine (seen from the stator at

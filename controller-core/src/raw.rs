@@ -11,7 +11,7 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 49;
+pub const FLOATS: usize = 51;
 /// Integers in a raw drive configuration.
 pub const INTEGERS: usize = 10;
 

@@ -6,7 +6,9 @@ use crate::source::{FileError, Source, num};
 use crate::values::exact_opt;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::{ContinuousSection, Discretization};
-use controller_core::drive::{CurrentFrame, DriveConfig, DriveError, DriveSpec, PositionLaw, Protection};
+use controller_core::drive::{
+    BrakeChopper, CurrentFrame, DriveConfig, DriveError, DriveSpec, PositionLaw, Protection,
+};
 use controller_core::speed::SpeedLaw;
 use serde::Deserialize;
 
@@ -204,6 +206,19 @@ pub struct ProtectionTable {
     pub saturation_time_s: Option<f64>,
     /// Encoder-against-model time, s.
     pub encoder_check_time_s: Option<f64>,
+    /// The board's brake chopper, if it has one: `{ on_v, off_v }`, the bus voltages at
+    /// which the drive switches its resistor in and out (0 < off_v < on_v < vdc_max_v).
+    pub brake_chopper: Option<BrakeChopperTable>,
+}
+
+/// `[protection] brake_chopper = { on_v = 360.0, off_v = 350.0 }`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct BrakeChopperTable {
+    /// Switch the resistor in above this bus voltage, V.
+    pub on_v: f64,
+    /// Switch it out below this one, V.
+    pub off_v: f64,
 }
 
 /// Default overspeed trip: 1.2 × [`FIELD_WEAKENING_RANGE`] × the no-load base speed on the
@@ -264,6 +279,7 @@ pub fn protection_with_defaults(
         current_sum_max_a: DEFAULT_CURRENT_SUM_FRACTION * i_trip_a,
         saturation_time_s: DEFAULT_SATURATION_TIME_S,
         encoder_check_time_s: DEFAULT_ENCODER_CHECK_TIME_S,
+        brake_chopper: None,
     }
 }
 
@@ -401,6 +417,22 @@ pub fn drive_spec(
             src.check(x.is_finite() && x > 0.0, key, &format!("is {}; must be finite and > 0", num(x)))?;
         }
     }
+    if let Some(b) = protection.brake_chopper {
+        src.check(
+            b.off_v.is_finite()
+                && b.on_v.is_finite()
+                && 0.0 < b.off_v
+                && b.off_v < b.on_v
+                && b.on_v < protection.vdc_max_v,
+            "protection.brake_chopper",
+            &format!(
+                "on_v = {}, off_v = {}: need 0 < off_v < on_v < protection.vdc_max_v ({})",
+                num(b.on_v),
+                num(b.off_v),
+                num(protection.vdc_max_v)
+            ),
+        )?;
+    }
     let spec = DriveSpec {
         motor,
         pwm_frequency_hz: pwm.frequency_hz,
@@ -434,6 +466,9 @@ pub fn drive_spec(
                 current_sum_max_a: protection.current_sum_max_a.unwrap_or(d.current_sum_max_a),
                 saturation_time_s: protection.saturation_time_s.unwrap_or(d.saturation_time_s),
                 encoder_check_time_s: protection.encoder_check_time_s.unwrap_or(d.encoder_check_time_s),
+                brake_chopper: protection
+                    .brake_chopper
+                    .map(|b| BrakeChopper { on_v: b.on_v, off_v: b.off_v }),
                 ..d
             }
         },
@@ -471,6 +506,10 @@ pub fn drive_spec(
                     format!("must be above controller.i_ref_max_a = {} A", c.i_ref_max_a),
                 )
             }
+        }
+        // Checked above, with the file's own words.
+        DriveError::BrakeChopper => {
+            src.error("protection.brake_chopper", "need 0 < off_v < on_v < vdc_max_v")
         }
     })?;
     Ok(spec)

@@ -38,6 +38,7 @@
 //! vdc_max_v = 400.0
 //! # overspeed_rad_s, stall_time_s, current_sum_max_a, saturation_time_s,
 //! # encoder_check_time_s: derived defaults (drive::protection_with_defaults)
+//! brake_chopper = { on_v = 360.0, off_v = 350.0 }   # optional: the board's brake chopper
 //!
 //! [certify]                   # optional: what `design certify` checks (certify::CertifyTable)
 //! [board]                     # optional: the firmware's board scaling (board::BoardTable)

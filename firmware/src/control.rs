@@ -153,6 +153,11 @@ impl ControlLoop {
         &mut self.drive
     }
 
+    /// The brake chopper's switch after the last step.
+    pub fn brake(&self) -> bool {
+        self.last.is_some_and(|o| o.brake)
+    }
+
     /// Output of the last step (telemetry).
     pub fn last_output(&self) -> Option<FastOutput> {
         self.last

@@ -25,14 +25,14 @@ mod target {
     use defmt_rtt as _;
     use embassy_executor::Spawner;
     use embassy_stm32::adc::{Adc, AdcChannel as _, Exten, SampleTime};
-    use embassy_stm32::gpio::{AfType, Flex, OutputType, Pull};
+    use embassy_stm32::gpio::{AfType, Flex, Level, Output, OutputType, Pull, Speed};
     use embassy_stm32::interrupt;
     use embassy_stm32::interrupt::{InterruptExt, Priority};
     use embassy_stm32::mode::Async;
     use embassy_stm32::pac;
     use embassy_stm32::pac::timer::vals::Ocm;
     use embassy_stm32::peripherals::{
-        IWDG, PA0, PA1, PA2, PA3, PA6, PA8, PA9, PA10, PB6, PB7, PB13, PB14, PB15, PC0, PC1, TIM1,
+        IWDG, PA0, PA1, PA2, PA3, PA6, PA8, PA9, PA10, PB5, PB6, PB7, PB13, PB14, PB15, PC0, PC1, TIM1,
     };
     use embassy_stm32::time::khz;
     use embassy_stm32::timer::complementary_pwm::{
@@ -64,9 +64,13 @@ mod target {
     /// Control interrupts served; the watchdog task is fed only while this advances.
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
 
-    /// TIM1 as the control interrupt's output stage (`firmware::output`, host-tested
-    /// against a model of this logic).
+    /// TIM1 and the brake pin as the control interrupt's output stage (`firmware::output`,
+    /// host-tested against a model of this logic).
     struct Tim1;
+
+    /// The brake chopper's gate: PB5 (see [`Pins::brake`]), written through BSRR (one atomic
+    /// store: no read-modify-write of the port).
+    const BRAKE_PIN: usize = 5;
 
     /// TIM1_SR's `rc_w0` flags (RM0440 §28.6.5): UIF, CC1IF–CC4IF, COMIF, TIF (bits 0–6),
     /// B2IF, CC1OF–CC4OF, SBIF (8–13), CC5IF, CC6IF (16, 17), IDXF, DIRF, IERRF, TERRF
@@ -97,6 +101,12 @@ mod target {
         }
         fn disable_outputs(&mut self) {
             pac::TIM1.bdtr().modify(|w| w.set_moe(false));
+        }
+        fn set_brake(&mut self, on: bool) {
+            pac::GPIOB.bsrr().write(|w| {
+                w.set_bs(BRAKE_PIN, on);
+                w.set_br(BRAKE_PIN, !on);
+            });
         }
     }
 
@@ -141,6 +151,9 @@ mod target {
         /// LPUART1 TX/RX: the NUCLEO's ST-LINK virtual COM port.
         link_tx: Peri<'static, PA2>,
         link_rx: Peri<'static, PA3>,
+        /// The power board's brake-chopper gate (high: resistor across the DC link), driven
+        /// low at start; the control interrupt writes it ([`BRAKE_PIN`]).
+        brake: Peri<'static, PB5>,
     }
 
     #[embassy_executor::main]
@@ -161,6 +174,7 @@ mod target {
             encoder: (p.PB6, p.PB7),
             link_tx: p.PA2,
             link_rx: p.PA3,
+            brake: p.PB5,
         };
         defmt::info!("drive firmware: 170 MHz, validating the drive configuration");
 
@@ -178,6 +192,9 @@ mod target {
             }
         };
         critical_section::with(|cs| CONTROL.borrow(cs).replace(Some(control)));
+
+        // The brake gate: a push-pull output, low (resistor out) until the drive asks.
+        let brake = Output::new(pins.brake, Level::Low, Speed::Low);
 
         // TIM1: centre-aligned complementary PWM, outputs off until the drive asks.
         let mut pwm = ComplementaryPwm::new(
@@ -274,7 +291,7 @@ mod target {
         // The peripherals' drivers must stay alive.
         loop {
             Timer::after_secs(3600).await;
-            let _ = (&pwm, &bkin, &_injected, &_encoder);
+            let _ = (&pwm, &bkin, &brake, &_injected, &_encoder);
         }
     }
 

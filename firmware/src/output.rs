@@ -30,6 +30,8 @@ pub trait OutputStage {
     fn enable_outputs(&mut self);
     /// Clear MOE.
     fn disable_outputs(&mut self);
+    /// The brake chopper's switch (a GPIO, not TIM1: it acts whether or not the bridge is).
+    fn set_brake(&mut self, on: bool);
 }
 
 /// Whether the firmware has enabled the outputs (and so expects MOE = 1).
@@ -58,6 +60,7 @@ impl Outputs {
         }
         samples.hardware_break |= flagged || lost;
         let bridge = ctl.step(&samples);
+        hw.set_brake(ctl.brake());
         match bridge {
             Bridge::Compare(ccr) => {
                 hw.set_compare(ccr);
@@ -81,11 +84,14 @@ impl Outputs {
 }
 
 /// What the panic and HardFault handlers do, in this order: mask every interrupt (so no
-/// control interrupt can run again and touch MOE), then clear MOE. Nothing re-enables the
-/// outputs afterwards; the watchdog resets the MCU.
+/// control interrupt can run again and touch MOE), then clear MOE and switch the brake
+/// chopper off (nothing regulates the bus any more: a resistor left across a rectifier-fed
+/// link would burn; the over-voltage is the power board's own protection's). Nothing
+/// re-enables the outputs afterwards; the watchdog resets the MCU.
 pub fn stop_for_good(mask_interrupts: impl FnOnce(), hw: &mut impl OutputStage) {
     mask_interrupts();
     hw.disable_outputs();
+    hw.set_brake(false);
 }
 
 #[cfg(test)]
@@ -105,6 +111,7 @@ mod tests {
         pulse_at: Option<usize>,
         fired: bool,
         interrupts_masked: bool,
+        brake: bool,
     }
 
     impl ModelTimer {
@@ -141,6 +148,9 @@ mod tests {
         fn disable_outputs(&mut self) {
             self.op();
             self.moe = false;
+        }
+        fn set_brake(&mut self, on: bool) {
+            self.brake = on;
         }
     }
 
@@ -180,6 +190,33 @@ mod tests {
         assert_eq!(cases, 16);
     }
 
+    /// The brake switch follows the drive's comparator on the bus code in every mode: on above
+    /// the drive file's `on_v` (360 V = code 3600 at 0.1 V per count), held down to `off_v`
+    /// (350 V), off below — with the bridge off, running, and after a fault.
+    #[test]
+    fn the_brake_follows_the_bus_in_every_mode() {
+        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
+        let bus = |out: &mut Outputs, hw: &mut ModelTimer, ctl: &mut ControlLoop, code: u16| {
+            out.period(hw, ctl, Samples { vdc: code, ..at_rest() });
+            hw.brake
+        };
+        let sweep = [(3590, false), (3601, true), (3550, true), (3501, true), (3499, false), (3550, false)];
+        for (code, on) in sweep {
+            assert_eq!(bus(&mut out, &mut hw, &mut ctl, code), on, "idle, code {code}");
+        }
+        ctl.drive_mut().enable().unwrap();
+        for (code, on) in sweep {
+            assert_eq!(bus(&mut out, &mut hw, &mut ctl, code), on, "enabled, code {code}");
+        }
+        // An over-voltage trips the drive; the chopper goes on regulating the bus.
+        assert!(bus(&mut out, &mut hw, &mut ctl, 4010));
+        assert!(matches!(ctl.drive().mode(), Mode::Fault(Fault::DcBusOvervoltage)));
+        assert!(!hw.moe);
+        assert!(bus(&mut out, &mut hw, &mut ctl, 3550));
+        assert!(!bus(&mut out, &mut hw, &mut ctl, 3400));
+    }
+
     /// The outputs are enabled once, on the drive's request, and not re-written while on.
     #[test]
     fn moe_is_written_only_on_an_explicit_enable() {
@@ -204,6 +241,9 @@ mod tests {
             }
             fn disable_outputs(&mut self) {
                 self.0.disable_outputs()
+            }
+            fn set_brake(&mut self, on: bool) {
+                self.0.set_brake(on)
             }
         }
         let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
@@ -236,14 +276,19 @@ mod tests {
             out.period(&mut hw, &mut ctl, at_rest());
         }
         assert!(hw.moe);
+        // The bus above the shipped chopper's 360 V: the brake is on when the stop comes.
+        let high_bus = Samples { vdc: 3700, ..at_rest() };
+        out.period(&mut hw, &mut ctl, high_bus);
+        assert!(hw.brake && hw.moe);
         let mut masked = false;
         stop_for_good(|| masked = true, &mut hw);
+        assert!(!hw.brake);
         hw.interrupts_masked = masked;
         for _ in 0..1000 {
             if !hw.interrupts_masked {
-                out.period(&mut hw, &mut ctl, at_rest());
+                out.period(&mut hw, &mut ctl, high_bus);
             }
-            assert!(!hw.moe);
+            assert!(!hw.moe && !hw.brake);
         }
         // Had the mask been forgotten, the next period would have re-enabled the bridge only
         // through an explicit enable: the drive is still Running, so `armed` finds MOE = 0

@@ -133,6 +133,7 @@ mod tests {
         let telemetry = Reply::Output(FastOutput {
             phases: PhaseCommand::Off,
             mode: Mode::Idle,
+            brake: false,
             telemetry: Telemetry::default(),
         });
         let mut wire = frames(&[telemetry, telemetry]);

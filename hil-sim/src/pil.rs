@@ -218,7 +218,12 @@ impl DriveUnderTest for Pil {
             Err(e) => e,
         };
         self.failure = Some(failure);
-        FastOutput { phases: PhaseCommand::Off, mode: Mode::Idle, telemetry: Telemetry::default() }
+        FastOutput {
+            phases: PhaseCommand::Off,
+            mode: Mode::Idle,
+            brake: false,
+            telemetry: Telemetry::default(),
+        }
     }
 
     fn take_failure(&mut self) -> Option<String> {

@@ -26,7 +26,8 @@
 //! capacitance_f = 470e-6
 //! source = "rectifier"             # or "supply" (sinks current too); open-circuit vdc_v
 //! resistance_ohm = 0.5             # the source's internal resistance
-//! chopper = { on_v = 360.0, off_v = 350.0, resistance_ohm = 100.0 }   # optional
+//! chopper = { resistance_ohm = 100.0 }   # optional: the brake resistor, switched by the
+//!                                  # drive ([protection] brake_chopper)
 //!
 //! [sensors]                        # optional, every key defaults to ideal
 //! current_lsb_a = 0.00806
@@ -169,8 +170,6 @@ enum LinkSourceTable {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ChopperTable {
-    on_v: f64,
-    off_v: f64,
     resistance_ohm: f64,
 }
 
@@ -461,15 +460,11 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                 Some(c) => {
                     positive("dc_link.chopper.resistance_ohm", c.resistance_ohm)?;
                     src.check(
-                        c.off_v.is_finite() && c.on_v.is_finite() && 0.0 < c.off_v && c.off_v < c.on_v,
+                        spec.protection.brake_chopper.is_some(),
                         "dc_link.chopper",
-                        "needs 0 < off_v < on_v",
+                        "the drive has no [protection] brake_chopper to switch this resistor",
                     )?;
-                    Some(crate::sim::Chopper {
-                        on_v: c.on_v,
-                        off_v: c.off_v,
-                        resistance_ohm: c.resistance_ohm,
-                    })
+                    Some(crate::sim::Chopper { resistance_ohm: c.resistance_ohm })
                 }
             };
             Some(crate::sim::DcLink {
@@ -715,22 +710,29 @@ torque_nm = 0.5
     fn dc_link_and_dynamometer() {
         let with = |table: &str| format!("{FIG16}\n{table}\n");
         let link = "[dc_link]\ncapacitance_f = 470e-6\nsource = \"rectifier\"\nresistance_ohm = 0.5\n";
-        let f = parse_closed_loop(
-            Path::new("c.toml"),
-            &with(&format!("{link}chopper = {{ on_v = 360.0, off_v = 350.0, resistance_ohm = 100.0 }}")),
-        )
-        .unwrap();
+        let chopper = format!("{link}chopper = {{ resistance_ohm = 100.0 }}");
+        // The resistor needs a drive that switches it.
+        let thresholds = "brake_chopper = { on_v = 360.0, off_v = 350.0 }";
+        let no_brake = replace(FIG16, thresholds, "");
+        let e = err(&format!("{no_brake}\n{chopper}\n"));
+        assert_eq!(e.key.as_deref(), Some("dc_link.chopper"), "{e}");
+        assert!(e.to_string().contains("brake_chopper"), "{e}");
+        let f = parse_closed_loop(Path::new("c.toml"), &with(&chopper)).unwrap();
         let l = f.scenario.dc_link.unwrap();
         assert_eq!(
             (l.capacitance_f, l.source, l.resistance_ohm),
             (470e-6, crate::sim::DcSource::Rectifier, 0.5)
         );
-        assert_eq!(l.chopper.unwrap().on_v, 360.0);
+        assert_eq!(l.chopper.unwrap().resistance_ohm, 100.0);
+        let b = f.spec.protection.brake_chopper.unwrap();
+        assert_eq!((b.on_v, b.off_v), (360.0, 350.0));
         let e = err(&with(&link.replace("470e-6", "0.0")));
         assert_eq!(e.key.as_deref(), Some("dc_link.capacitance_f"), "{e}");
-        let e =
-            err(&with(&format!("{link}chopper = {{ on_v = 350.0, off_v = 360.0, resistance_ohm = 100.0 }}")));
-        assert_eq!(e.key.as_deref(), Some("dc_link.chopper"), "{e}");
+        // Thresholds the wrong way round, or above the over-voltage trip, point at the drive's key.
+        for bad in ["{ on_v = 350.0, off_v = 360.0 }", "{ on_v = 450.0, off_v = 360.0 }"] {
+            let e = err(&replace(FIG16, thresholds, &format!("brake_chopper = {bad}")));
+            assert_eq!(e.key.as_deref(), Some("protection.brake_chopper"), "{e}");
+        }
         let e = err(&with(&link.replace("rectifier", "battery")));
         assert!(e.to_string().contains("source"), "{e}");
         let f = parse_closed_loop(

@@ -146,14 +146,11 @@ pub enum DcSource {
     Rectifier,
 }
 
-/// A brake chopper: a resistor switched across the link by a hysteresis comparator (the
-/// hardware's own).
+/// A brake chopper: a resistor switched across the link by the drive's brake output
+/// ([`controller_core::drive::FastOutput::brake`], its thresholds in the drive's
+/// `[protection] brake_chopper`), from the period after the drive decides it, like the duties.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Chopper {
-    /// The resistor is switched in above this, V.
-    pub on_v: f64,
-    /// … and out again below this, V.
-    pub off_v: f64,
     /// Resistance, Ω.
     pub resistance_ohm: f64,
 }
@@ -162,33 +159,27 @@ pub struct Chopper {
 /// phase currents at the period's start: the inverter draws `i_dc = Σ d_x·i_x` (the upper
 /// switches connect their phases to the positive rail; with the bridge off, the phases whose
 /// current flows into the bridge conduct through their upper diodes), the source delivers
-/// `(V_s − V_dc)/R` (a rectifier only when positive), the chopper `V_dc/R_ch` while on;
+/// `(V_s − V_dc)/R` (a rectifier only when positive), the chopper `V_dc/R_ch` while the
+/// drive has it on;
 /// `C·dV_dc/dt` is the balance (explicit Euler: the link's time constants are far longer than
 /// a period).
 #[derive(Clone, Copy, Debug)]
 struct LinkState {
     vdc_v: f64,
-    chopper_on: bool,
 }
 
 impl LinkState {
-    /// One period of `ts` s; returns the source's and the chopper's currents, A.
-    fn step(&mut self, link: &DcLink, source_v: f64, i_dc_a: f64, ts: f64) -> (f64, f64) {
+    /// One period of `ts` s with the chopper switched `brake`; returns the source's and the
+    /// chopper's currents, A.
+    fn step(&mut self, link: &DcLink, source_v: f64, i_dc_a: f64, brake: bool, ts: f64) -> (f64, f64) {
         let i_src = (source_v - self.vdc_v) / link.resistance_ohm;
         let i_src = match link.source {
             DcSource::Supply => i_src,
             DcSource::Rectifier => i_src.max(0.0),
         };
         let i_ch = match link.chopper {
-            Some(c) => {
-                if self.vdc_v > c.on_v {
-                    self.chopper_on = true;
-                } else if self.vdc_v < c.off_v {
-                    self.chopper_on = false;
-                }
-                if self.chopper_on { self.vdc_v / c.resistance_ohm } else { 0.0 }
-            }
-            None => 0.0,
+            Some(c) if brake => self.vdc_v / c.resistance_ohm,
+            _ => 0.0,
         };
         self.vdc_v += ts * (i_src - i_dc_a - i_ch) / link.capacitance_f;
         (i_src, i_ch)
@@ -269,6 +260,9 @@ pub struct Row {
     pub i_source_a: f64,
     /// Current through the brake chopper's resistor, A.
     pub i_chopper_a: f64,
+    /// The drive's brake output after this period's step (it switches the chopper in the
+    /// next period).
+    pub brake: bool,
 }
 
 /// The plant's side of one period in [`run`].
@@ -406,7 +400,7 @@ pub fn run(
     let mut load = 0.0;
     // Duties applied during the present period (computed in the previous one). A bridge
     // that is off applies ≈ 0 V in the average model: the same as duties of ½.
-    let (mut duty_applied, mut bridge_on) = ([0.5; 3], false);
+    let (mut duty_applied, mut bridge_on, mut brake_applied) = ([0.5; 3], false, false);
     let mut events = sc.events.iter().peekable();
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
     let mut next_event_k = first_period_of(events.peek());
@@ -418,7 +412,7 @@ pub fn run(
     let mut vdc_v = sc.vdc_v;
     let mut vdc_measured_v = sensors.vdc(vdc_v);
     let mut source_v = sc.vdc_v;
-    let mut link_state = LinkState { vdc_v: sc.vdc_v, chopper_on: false };
+    let mut link_state = LinkState { vdc_v: sc.vdc_v };
     for k in 0..n {
         if k >= next_event_k {
             let t = k as f64 * ts;
@@ -510,7 +504,7 @@ pub fn run(
             } else {
                 i_true.iter().map(|i| i.min(0.0)).sum()
             };
-            (i_src, i_ch) = link_state.step(link, source_v, i_dc, ts);
+            (i_src, i_ch) = link_state.step(link, source_v, i_dc, brake_applied, ts);
             vdc_v = link_state.vdc_v;
             vdc_measured_v = sensors.vdc(vdc_v);
         }
@@ -540,13 +534,15 @@ pub fn run(
                 i_dc_a: i_dc,
                 i_source_a: i_src,
                 i_chopper_a: i_ch,
+                brake: out.brake,
                 psi_est_wb: f64::from(out.telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
             })?;
         } else {
             to_trace -= 1;
         }
-        // Duties computed now act during the next period.
+        // Duties (and the brake) computed now act during the next period.
+        brake_applied = out.brake;
         (duty_applied, bridge_on) = match out.phases {
             PhaseCommand::Off => ([0.5; 3], false),
             PhaseCommand::Duty(d) => ([f64::from(d.a), f64::from(d.b), f64::from(d.c)], true),

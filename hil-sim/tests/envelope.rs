@@ -302,11 +302,13 @@ fn brake(file: &str) -> (Builtin, Vec<Row>, f64) {
     (b, from, stopped)
 }
 
-/// With a brake chopper (on at 360 V, off at 350 V, 100 Ω) the motor stops at −2 N·m, the bus
+/// With a brake chopper (100 Ω, which the drive switches on at 360 V and off at 350 V: the
+/// shipped drive file's `[protection] brake_chopper`) the motor stops at −2 N·m, the bus
 /// stays below its 400 V trip, and the energy balance closes within 2 %: the kinetic energy
 /// released, less friction, equals the machine's copper losses, the change of its magnetic
 /// energy, the link capacitor's and the chopper's energy, less what the rectifier supplied.
-/// Without a chopper the drive limits its generating torque as the bus nears the trip
+/// Without a resistor (the drive's brake output switching nothing) the drive limits its
+/// generating torque as the bus nears the trip
 /// (`REGEN_LIMIT_START/END`, 370…390 V): the bus stays below the trip and the drive stops
 /// without a fault — several times more slowly, on the machine's own losses (the test prints
 /// both times).
@@ -337,7 +339,21 @@ fn braking_with_and_without_a_chopper() {
     // The chopper takes what the machine's losses do not (≈ 40 % here: R_s = 16.2 Ω makes
     // this small motor's copper losses large).
     assert!(chopper > 0.25 * released, "the chopper took {chopper} J of {released}");
+    // The drive switched it: current flows exactly in the periods after the drive's brake
+    // output was on (rows are consecutive periods), and the output followed its hysteresis.
+    let b_cfg = b.spec.protection.brake_chopper.unwrap();
+    for w in rows.windows(2) {
+        assert_eq!(w[1].i_chopper_a > 0.0, w[0].brake, "t = {}", w[1].t_s);
+        if w[1].brake && !w[0].brake {
+            assert!(w[1].vdc_v > b_cfg.on_v - 1.0, "on at {} V", w[1].vdc_v);
+        }
+        if w[0].brake && !w[1].brake {
+            assert!(w[1].vdc_v < b_cfg.off_v + 1.0, "off at {} V", w[1].vdc_v);
+        }
+    }
     let (b, rows, t_limited) = brake("brake-no-chopper.toml");
+    // The drive asked for the brake, but no resistor was there to take the energy.
+    assert!(rows.iter().any(|r| r.brake) && rows.iter().all(|r| r.i_chopper_a == 0.0));
     let v_peak = rows.iter().map(|r| r.vdc_v).fold(0.0, f64::max);
     eprintln!(
         "no chopper: stopped in {t_limited:.3} s ({:.1}× longer), bus ≤ {v_peak:.1} V",

@@ -5,8 +5,8 @@ use super::framing::{BufferFull, MAX_PAYLOAD, encode_frame};
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
-    CurrentFrame, DriveSpec, FastOutput, Fault, Measurements, Mode, PhaseCommand, PositionLaw, Protection,
-    Reference, Telemetry,
+    BrakeChopper, CurrentFrame, DriveSpec, FastOutput, Fault, Measurements, Mode, PhaseCommand, PositionLaw,
+    Protection, Reference, Telemetry,
 };
 use crate::frames::{Abc, AlphaBeta};
 use crate::motor::MotorParams;
@@ -301,6 +301,14 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
     ] {
         w.f64(v)?;
     }
+    match p.brake_chopper {
+        None => w.u8(0)?,
+        Some(b) => {
+            w.u8(1)?;
+            w.f64(b.on_v)?;
+            w.f64(b.off_v)?;
+        }
+    }
     Ok(())
 }
 
@@ -349,6 +357,11 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         current_sum_max_a: r.f64()?,
         saturation_time_s: r.f64()?,
         encoder_check_time_s: r.f64()?,
+        brake_chopper: match r.u8()? {
+            0 => None,
+            1 => Some(BrakeChopper { on_v: r.f64()?, off_v: r.f64()? }),
+            _ => return Err(DecodeError::Value),
+        },
     };
     Ok(DriveSpec {
         motor,
@@ -494,6 +507,7 @@ impl Reply {
             Reply::Output(o) => {
                 w.u8(tag::OUTPUT)?;
                 w.u8(mode_code(o.mode))?;
+                w.u8(u8::from(o.brake))?;
                 match o.phases {
                     PhaseCommand::Off => {
                         w.u8(0)?;
@@ -552,6 +566,11 @@ impl Reply {
             }),
             tag::OUTPUT => {
                 let mode = mode_from_code(r.u8()?)?;
+                let brake = match r.u8()? {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(DecodeError::Value),
+                };
                 let phases = match (r.u8()?, r.abc()?) {
                     (0, _) => PhaseCommand::Off,
                     (1, d) => PhaseCommand::Duty(d),
@@ -568,7 +587,7 @@ impl Reply {
                     i_q_ref_a: r.f32()?,
                     omega_ref_rad_s: r.f32()?,
                 };
-                Reply::Output(FastOutput { phases, mode, telemetry })
+                Reply::Output(FastOutput { phases, mode, brake, telemetry })
             }
             tag::SPEED_GAINS => Reply::SpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
             tag::STATUS => Reply::Status {

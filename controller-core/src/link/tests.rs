@@ -60,8 +60,12 @@ fn cobs_known_vectors() {
 #[test]
 fn every_command_round_trips() {
     let spec = test_spec();
+    // The largest Configure: every optional part present.
+    let mut largest = spec;
+    largest.protection.brake_chopper = Some(crate::drive::BrakeChopper { on_v: 360.0, off_v: 350.0 });
     let cmds = [
         Command::Configure(spec),
+        Command::Configure(largest),
         Command::Enable,
         Command::Disable,
         Command::ClearFault,
@@ -84,9 +88,9 @@ fn every_command_round_trips() {
     assert_eq!(got, cmds);
     assert_eq!(stats.errors(), 0);
     let mut p = [0u8; MAX_PAYLOAD];
-    let n = Command::Configure(spec).encode(&mut p).unwrap();
-    assert!(n <= MAX_PAYLOAD);
-    assert!(frame_of(&Command::Configure(spec)).len() <= MAX_FRAME);
+    let n = Command::Configure(largest).encode(&mut p).unwrap();
+    assert_eq!(n, MAX_PAYLOAD, "MAX_PAYLOAD is the largest Configure");
+    assert!(frame_of(&Command::Configure(largest)).len() <= MAX_FRAME);
 }
 
 #[test]
@@ -102,6 +106,7 @@ fn replies_round_trip_bit_exact() {
         Reply::Output(FastOutput {
             phases: PhaseCommand::Off,
             mode: Mode::Fault(Fault::Overcurrent),
+            brake: true,
             telemetry: Telemetry::default(),
         }),
         Reply::Status { mode: Mode::Running, frames_ok: 7, frame_errors: u32::MAX },
