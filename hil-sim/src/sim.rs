@@ -282,18 +282,24 @@ pub const BRIDGE_OFF_SUBSTEPS: u32 = 5;
 /// A phase current below this is zero: its diodes block, A.
 const DIODE_ZERO_A: f64 = 1e-9;
 
-/// The bridge with all six switches off, over one period: the freewheeling diodes. A phase
-/// whose current flows out of the bridge (`i_x > 0`) conducts through its lower diode and sits
-/// at `−V_dc/2`; one flowing in, through its upper diode, at `+V_dc/2`. The currents therefore
-/// run against the bus and die out — within about a millisecond on the DeLorenzo motor — and
-/// a phase whose current reaches zero stays open (its diodes block): its current is held at
-/// zero by projecting the current vector off that phase's axis after each RK4 step (all
-/// three, when two are open: the currents sum to zero). Open phases apply no voltage of their
-/// own in the model; the projection stands in for the floating terminal. Not modelled: the
-/// diodes conducting again because the motor's line back-EMF exceeds the bus (the drive caps
-/// the flux so that the no-load back-EMF stays inside its voltage budget,
-/// `controller_core::envelope`). Returns the state and the period-average αβ voltage.
+/// The bridge with all six switches off, over one period: the freewheeling diodes, in
+/// [`BRIDGE_OFF_SUBSTEPS`] RK4 steps. A phase whose current flows out of the bridge
+/// (`i_x > 0`) conducts through its lower diode and sits at `−V_dc/2`; one flowing in,
+/// through its upper diode, at `+V_dc/2`. Driven by the bus, the currents die out — within
+/// about a millisecond on the DeLorenzo motor — and a phase whose current reaches zero opens
+/// (its diodes block): its current is held at zero by projecting the current vector off that
+/// phase's axis after each step (all three, when two are open: the currents sum to zero).
+///
+/// An open phase's terminal follows the machine: with `e` the open-circuit back-EMF of the
+/// rotor flux per phase ([`Machine::open_circuit_voltage`]), all three open sit at `e`; with
+/// two conducting at ±V_dc/2, the open one at `1.5·e_x` (its current and its derivative zero,
+/// the star point between). When that exceeds the bus, diodes conduct again — the motor
+/// *regenerates* into the bus while its line back-EMF is above V_dc: from all open, the pair
+/// of phases with the largest line EMF, once it exceeds V_dc; with two conducting, the third
+/// once `|1.5·e_x|` exceeds V_dc/2 (test `a_trip_above_the_bus_regenerates_until_the_emf_is_down`).
+/// Returns the state and the period-average αβ voltage.
 fn integrate_bridge_off(
+    machine: &Machine,
     rk4: &plant::Rk4,
     x: &MachineState,
     vdc_v: f64,
@@ -302,19 +308,50 @@ fn integrate_bridge_off(
     const AXES: [(f64, f64); 3] =
         [(1.0, 0.0), (-0.5, 0.866_025_403_784_438_6), (-0.5, -0.866_025_403_784_438_6)];
     let phase = |x: &MachineState, (ux, uy): (f64, f64)| x.i_alpha_a * ux + x.i_beta_a * uy;
+    let half = 0.5 * vdc_v;
     let mut x = *x;
     let mut v_sum = [0.0; 2];
     for _ in 0..BRIDGE_OFF_SUBSTEPS {
         let before = AXES.map(|u| phase(&x, u));
-        let v_abc = before.map(|i| if i.abs() < DIODE_ZERO_A { 0.0 } else { -i.signum() * 0.5 * vdc_v });
+        // Each phase's diode: +1 upper (at +V_dc/2, current into the bridge), −1 lower, 0 open.
+        let mut diode = before.map(|i| if i.abs() < DIODE_ZERO_A { 0.0 } else { -i.signum() });
+        let e = {
+            let [a, b] = machine.open_circuit_voltage(&x);
+            let e = AlphaBeta { alpha: a, beta: b }.inverse_clarke();
+            [e.a, e.b, e.c]
+        };
+        let conducting = |d: &[f64; 3]| d.iter().filter(|d| **d != 0.0).count();
+        match conducting(&diode) {
+            0 => {
+                let hi = (0..3).fold(0, |m, p| if e[p] > e[m] { p } else { m });
+                let lo = (0..3).fold(0, |m, p| if e[p] < e[m] { p } else { m });
+                if e[hi] - e[lo] > vdc_v {
+                    (diode[hi], diode[lo]) = (1.0, -1.0);
+                }
+            }
+            2 => {
+                let open = diode.iter().position(|d| *d == 0.0).unwrap_or(0);
+                if (1.5 * e[open]).abs() > half {
+                    diode[open] = e[open].signum();
+                }
+            }
+            _ => {}
+        }
+        let two = conducting(&diode) == 2;
+        let v_abc: [f64; 3] = std::array::from_fn(|p| match diode[p] {
+            0.0 if two => 1.5 * e[p],
+            0.0 => e[p],
+            d => d * half,
+        });
         let [a, b, c] = v_abc;
         let v = Abc { a, b, c }.clarke();
         let v = [v.alpha, v.beta];
         x = rk4.step(&x, v, load_nm);
         v_sum[0] += v[0];
         v_sum[1] += v[1];
-        // Open: was not conducting, or its current reached zero within the step.
-        let open = [0, 1, 2].map(|p| before[p].abs() < DIODE_ZERO_A || before[p] * phase(&x, AXES[p]) <= 0.0);
+        // Open: its diodes block (no diode chosen), or its current ended the step at or past
+        // zero, against its diode's direction.
+        let open = [0, 1, 2].map(|p| diode[p] == 0.0 || phase(&x, AXES[p]) * diode[p] >= 0.0);
         match open.iter().filter(|o| **o).count() {
             0 => {}
             1 => {
@@ -486,7 +523,7 @@ pub fn run(
                 v
             }
             Period::Off => {
-                let (next, v) = integrate_bridge_off(&rk4_off, &x, vdc_v, load);
+                let (next, v) = integrate_bridge_off(machine, &rk4_off, &x, vdc_v, load);
                 x = next;
                 v
             }
