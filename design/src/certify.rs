@@ -13,10 +13,19 @@
 //!   `J s + B + k_p n` (P) has each coefficient depending on one uncertain parameter, so
 //!   its interval form is exact and Kharitonov's four polynomials decide robust stability
 //!   over `J × j_factor`.
+//! * **The sampled loops** ([`crate::sampled`]): the same checks on the loops as the drive
+//!   runs them — zero-order hold, one PWM period of computational delay and the drive's
+//!   1.5·T·ω_e advance, the controllers' f32 coefficients — on every corner: the closed
+//!   loop's spectral radius over 0…omega_r_max, and the phase, gain and γh margins at
+//!   omega_r_max against the same minima; the speed loop at the slow period with the
+//!   encoder's speed window and one slow period of torque delay, over a grid of J (and of
+//!   k_p over the writable range). A PWM rate too slow for the current law, or a speed gain
+//!   the sampled loop cannot take, fails here although the continuous checks pass.
 
-use crate::icad::{analyse, closed_loop_abscissa};
+use crate::icad::{IcadReport, analyse, closed_loop_abscissa};
 use crate::kharitonov::IntervalPoly;
-use controller_core::drive::DriveSpec;
+use controller_core::current::CurrentControllerConfig;
+use controller_core::drive::{CurrentFrame, DriveSpec};
 use controller_core::motor::MotorParams;
 use controller_core::speed::SpeedLaw;
 use std::path::Path;
@@ -75,32 +84,7 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
                 let corner = format!("Rs×{rs} Rr×{rr} L×{l}");
                 let cm = corner_motor(m, rs, rr, l)?;
                 let a = analyse(&cm, &spec.current_law, c.omega_r_max_rad_s);
-                let pm = a.channel.phase_margin_deg;
-                checks.push(Check {
-                    name: "current: phase margin (deg)".into(),
-                    corner: corner.clone(),
-                    value: pm,
-                    limit: c.phase_margin_deg_min,
-                    pass: pm.is_some_and(|p| p >= c.phase_margin_deg_min),
-                });
-                let gm = match (a.channel.gain_margin_increase_db, a.channel.gain_margin_reduction_db) {
-                    (Some(x), Some(y)) => Some(x.min(y)),
-                    (x, y) => x.or(y),
-                };
-                checks.push(Check {
-                    name: "current: gain margin (dB)".into(),
-                    corner: corner.clone(),
-                    value: gm,
-                    limit: c.gain_margin_db_min,
-                    pass: gm.is_none_or(|g| g >= c.gain_margin_db_min),
-                });
-                checks.push(Check {
-                    name: "current: γh margin to (1,0) (dB)".into(),
-                    corner: corner.clone(),
-                    value: a.gamma_h_margin_db,
-                    limit: c.gamma_h_margin_db_min,
-                    pass: a.gamma_h_margin_db.is_none_or(|g| g >= c.gamma_h_margin_db_min),
-                });
+                margin_checks(&mut checks, "current", &a, c, &corner);
                 let mut w = 0.0;
                 let mut worst: f64 = f64::NEG_INFINITY;
                 while w <= c.omega_r_max_rad_s {
@@ -109,11 +93,12 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
                 }
                 checks.push(Check {
                     name: "current: worst closed-loop pole Re over 0…ω_r,max (1/s)".into(),
-                    corner,
+                    corner: corner.clone(),
                     value: Some(worst),
                     limit: 0.0,
                     pass: worst < 0.0,
                 });
+                sampled_current_checks(&mut checks, spec, &cm, c, &corner)?;
             }
         }
     }
@@ -146,7 +131,147 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
         limit: 0.0,
         pass: robust,
     });
+    checks.push(sampled_speed_check(spec, c)?);
     Ok(checks)
+}
+
+/// Phase, gain and γh margins of an ICAD report against the certificate's minima.
+fn margin_checks(checks: &mut Vec<Check>, what: &str, a: &IcadReport, c: &CertifySpec, corner: &str) {
+    let pm = a.channel.phase_margin_deg;
+    checks.push(Check {
+        name: format!("{what}: phase margin (deg)"),
+        corner: corner.into(),
+        value: pm,
+        limit: c.phase_margin_deg_min,
+        pass: pm.is_some_and(|p| p >= c.phase_margin_deg_min),
+    });
+    let gm = match (a.channel.gain_margin_increase_db, a.channel.gain_margin_reduction_db) {
+        (Some(x), Some(y)) => Some(x.min(y)),
+        (x, y) => x.or(y),
+    };
+    checks.push(Check {
+        name: format!("{what}: gain margin (dB)"),
+        corner: corner.into(),
+        value: gm,
+        limit: c.gain_margin_db_min,
+        pass: gm.is_none_or(|g| g >= c.gain_margin_db_min),
+    });
+    checks.push(Check {
+        name: format!("{what}: γh margin to (1,0) (dB)"),
+        corner: corner.into(),
+        value: a.gamma_h_margin_db,
+        limit: c.gamma_h_margin_db_min,
+        pass: a.gamma_h_margin_db.is_none_or(|g| g >= c.gamma_h_margin_db_min),
+    });
+}
+
+/// The sampled current loop on one corner ([`crate::sampled`]): spectral radius over
+/// 0…ω_r,max (5 rad/s steps), margins at ω_r,max.
+fn sampled_current_checks(
+    checks: &mut Vec<Check>,
+    spec: &DriveSpec,
+    cm: &MotorParams,
+    c: &CertifySpec,
+    corner: &str,
+) -> Result<(), String> {
+    let name = "sampled current: worst closed-loop ln|z|/T over 0…ω_r,max (1/s)";
+    if spec.current_frame != CurrentFrame::Stationary {
+        // Said, not skipped: the certificate does not cover what it cannot analyse.
+        checks.push(Check {
+            name: format!("{name} (synchronous-frame loops: not modelled)"),
+            corner: corner.into(),
+            value: None,
+            limit: 0.0,
+            pass: false,
+        });
+        return Ok(());
+    }
+    let ts = 1.0 / spec.pwm_frequency_hz;
+    let ctrl = CurrentControllerConfig::<f32>::new(&spec.current_law, ts, spec.discretization, 1.0)
+        .map_err(|e| format!("current law rejected at {} Hz: {e:?}", spec.pwm_frequency_hz))?;
+    let (radius, at) = crate::sampled::current_loop_worst_radius(cm, &ctrl, ts, c.omega_r_max_rad_s, 5.0);
+    // As a continuous decay rate, comparable with the continuous check's pole real part.
+    let sigma = radius.ln() / ts;
+    checks.push(Check {
+        name: format!("{name} (worst at ω_r = {at} rad/s)"),
+        corner: corner.into(),
+        value: Some(sigma),
+        limit: 0.0,
+        pass: sigma < 0.0,
+    });
+    let a = crate::sampled::analyse(cm, &ctrl, ts, c.omega_r_max_rad_s);
+    margin_checks(checks, "sampled current", &a, c, corner);
+    Ok(())
+}
+
+/// Points of the sampled speed check's grid on each interval (J, and k_p over the writable
+/// range), log-spaced, ends included.
+pub const SPEED_GRID_POINTS: usize = 9;
+
+/// The sampled speed loop over the grid J × k_p ([`crate::sampled::SpeedLoop`]).
+fn sampled_speed_check(spec: &DriveSpec, c: &CertifySpec) -> Result<Check, String> {
+    let m = &spec.motor;
+    let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    let grid = |lo: f64, hi: f64| -> Vec<f64> {
+        (0..SPEED_GRID_POINTS)
+            .map(|k| {
+                let f = k as f64 / (SPEED_GRID_POINTS - 1) as f64;
+                if lo > 0.0 && hi > 0.0 { lo * (hi / lo).powf(f) } else { lo + f * (hi - lo) }
+            })
+            .collect()
+    };
+    let js = grid(m.j_kgm2() * c.j_factor[0], m.j_kgm2() * c.j_factor[1]);
+    let kt = m.torque_factor() * spec.flux_ref_wb;
+    let mut worst = (f64::NEG_INFINITY, String::new());
+    for &j in &js {
+        let loops: Vec<(crate::sampled::SpeedLoop, String)> = match spec.speed_law {
+            SpeedLaw::SaturatedP { .. } => grid(c.speed_kp_writable[0], c.speed_kp_writable[1])
+                .into_iter()
+                .map(|kp| {
+                    let l = crate::sampled::SpeedLoop {
+                        j_kgm2: j,
+                        b_nms: m.b_nms(),
+                        ts_s: t_slow,
+                        kp,
+                        ki_over_k: 0.0,
+                    };
+                    (l, format!("J = {j:.4e}, kp = {kp:.4}"))
+                })
+                .collect(),
+            SpeedLaw::PiTorque { kp, ki, .. } => {
+                vec![(
+                    crate::sampled::SpeedLoop::pi(j, m.b_nms(), t_slow, kp, ki, 1.0)?,
+                    format!("J = {j:.4e}"),
+                )]
+            }
+            SpeedLaw::PiIq { kp, ki, .. } => {
+                vec![(
+                    crate::sampled::SpeedLoop::pi(j, m.b_nms(), t_slow, kp, ki, kt)?,
+                    format!("J = {j:.4e}"),
+                )]
+            }
+        };
+        for (l, at) in loops {
+            let r = l.radius();
+            if r > worst.0 || r.is_nan() {
+                worst = (r, at);
+            }
+        }
+    }
+    let sigma = worst.0.ln() / t_slow;
+    Ok(Check {
+        name: format!("sampled speed: worst closed-loop ln|z|/T_slow (1/s) (at {})", worst.1),
+        corner: match spec.speed_law {
+            SpeedLaw::SaturatedP { .. } => format!(
+                "J×[{}, {}], kp∈[{}, {}]",
+                c.j_factor[0], c.j_factor[1], c.speed_kp_writable[0], c.speed_kp_writable[1]
+            ),
+            _ => format!("J×[{}, {}]", c.j_factor[0], c.j_factor[1]),
+        },
+        value: Some(sigma),
+        limit: 0.0,
+        pass: sigma < 0.0,
+    })
 }
 
 #[cfg(test)]
@@ -170,7 +295,7 @@ mod tests {
             );
         }
         assert!(checks.iter().all(|c| c.pass));
-        assert_eq!(checks.len(), 8 * 4 + 1);
+        assert_eq!(checks.len(), 8 * 8 + 2);
     }
 
     /// A speed range beyond the ICAD limit (645 rad/s on the nominal motor) must fail, and a
@@ -189,5 +314,52 @@ mod tests {
         // A writable range reaching kp ≤ −B makes the speed loop not robustly stable.
         let c_neg = CertifySpec { speed_kp_writable: [-0.01, 0.1], ..c };
         assert!(certify(&spec, &c_neg).unwrap().iter().any(|ch| !ch.pass && ch.name.starts_with("speed")));
+    }
+
+    fn failed(text: &str) -> Vec<Check> {
+        let (spec, c) = parse(Path::new("drive.toml"), text).unwrap();
+        certify(&spec, &c).unwrap().into_iter().filter(|ch| !ch.pass).collect()
+    }
+
+    /// Issue 21: a 100 Hz loop passed the continuous certificate (the continuous analysis
+    /// does not know the sampling rate). The sampled one refuses it, and only it.
+    #[test]
+    fn a_100_hz_loop_is_refused_by_the_sampled_certificate_alone() {
+        // The drive file itself refuses parts of it: the current trim's 20 rad/s default at a
+        // 10 Hz slow rate, and the board's 16-bit PWM timer (so: no [board] table here).
+        let slow = GAINS
+            .replace("frequency_hz = 20000.0", "frequency_hz = 100.0")
+            .replace("[controller]\n", "[controller]\ncurrent_trim_bandwidth_rad_s = 0.0\n");
+        let slow = slow.get(..slow.find("[board]").unwrap()).unwrap();
+        let bad = failed(slow);
+        assert!(!bad.is_empty());
+        for ch in &bad {
+            assert!(ch.name.starts_with("sampled"), "{} failed too", ch.name);
+        }
+        assert!(bad.iter().any(|ch| ch.name.starts_with("sampled current: worst closed-loop")));
+    }
+
+    /// Issue 21: a writable speed gain up to 1e9 passed Kharitonov (the continuous speed
+    /// loop is stable for any k_p > −B); the sampled loop refuses it, and the writable range
+    /// is refused from k_p ≈ 3.6 on (the limit `sampled::tests::speed_gain_limits` prints for
+    /// the nominal J; here the grid's smallest J is the nominal one).
+    #[test]
+    fn a_huge_speed_gain_is_refused_by_the_sampled_certificate_alone() {
+        for (hi, refused) in [("1e9", true), ("50.0", true), ("4.0", true), ("3.0", false)] {
+            let text = GAINS
+                .replace("speed_kp_writable = [0.02, 0.1]", &format!("speed_kp_writable = [0.02, {hi}]"));
+            let bad = failed(&text);
+            assert_eq!(!bad.is_empty(), refused, "kp up to {hi}: {bad:?}");
+            for ch in &bad {
+                assert!(ch.name.starts_with("sampled speed"), "{} failed too", ch.name);
+            }
+        }
+    }
+
+    /// Loops the sampled model does not cover are refused, not skipped.
+    #[test]
+    fn synchronous_frame_loops_are_not_certified_silently() {
+        let bad = failed(&GAINS.replace("current_frame = \"stationary\"", "current_frame = \"synchronous\""));
+        assert!(bad.iter().any(|ch| ch.name.contains("not modelled")), "{bad:?}");
     }
 }

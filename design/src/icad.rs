@@ -76,11 +76,22 @@ fn margin_to_one(l: &[Complex64]) -> Option<f64> {
 pub fn analyse(m: &MotorParams, law: &CurrentLaw, omega_r: f64) -> IcadReport {
     let model = ImModel::new(m, omega_r);
     let w = logspace(1e-1, 1e5, 30_000);
+    report(m, omega_r, &w, |x| (model.response(x), law.response(x)))
+}
+
+/// The ICAD quantities on the frequency grid `w` from the plant's and the controller's
+/// responses at each frequency (`response(ω) = (G(ω), k(ω))`): the continuous loop of
+/// [`analyse`] or the sampled one of [`crate::sampled`].
+pub fn report(
+    m: &MotorParams,
+    omega_r: f64,
+    w: &[f64],
+    response: impl Fn(f64) -> (crate::im::G2, Complex64),
+) -> IcadReport {
     let (mut c, mut kg, mut gam, mut gam_h, mut coupling) = (vec![], vec![], vec![], vec![], 0.0f64);
     let one = Complex64::new(1.0, 0.0);
-    for &x in &w {
-        let g = model.response(x);
-        let k = law.response(x);
+    for &x in w {
+        let (g, k) = response(x);
         let gamma = g.gamma();
         let h2 = k * g.g22 / (one + k * g.g22);
         let c1 = k * g.g11 * (one - gamma * h2);
@@ -92,14 +103,13 @@ pub fn analyse(m: &MotorParams, law: &CurrentLaw, omega_r: f64) -> IcadReport {
         gam_h.push(gamma * h2);
     }
     let kg_wr = {
-        let g = model.response(omega_r.abs().max(1e-3));
-        let k = law.response(omega_r.abs().max(1e-3));
+        let (g, k) = response(omega_r.abs().max(1e-3));
         20.0 * (k * g.g11).norm().log10()
     };
     IcadReport {
         omega_r_rad_s: omega_r,
-        channel: margins(&w, &c),
-        diagonal: margins(&w, &kg),
+        channel: margins(w, &c),
+        diagonal: margins(w, &kg),
         coupling_peak_db: 20.0 * coupling.log10(),
         gamma_margin_db: margin_to_one(&gam),
         gamma_h_margin_db: margin_to_one(&gam_h),
@@ -109,7 +119,7 @@ pub fn analyse(m: &MotorParams, law: &CurrentLaw, omega_r: f64) -> IcadReport {
 }
 
 /// Controllable-canonical realisation (A, B, C, D) of a proper SISO `num/den`.
-fn realise(num: &Poly, den: &Poly) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, f64) {
+pub(crate) fn realise(num: &Poly, den: &Poly) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, f64) {
     let n = den.degree();
     let a_n = den.coeffs().first().copied().unwrap_or(1.0);
     let d: Vec<f64> = den.coeffs().iter().map(|x| x / a_n).collect();

@@ -18,6 +18,7 @@ pub mod nyquist;
 pub mod pi_region;
 pub mod poly;
 pub mod recycle;
+pub mod sampled;
 pub mod startup_fit;
 #[cfg(test)]
 mod testutil;
