@@ -63,8 +63,149 @@ enum Cmd {
     /// writes envelope.csv, envelope.svg and summary.json, and exits 1 if a point is more
     /// than 5 % off or the drive faulted.
     Envelope(EnvelopeArgs),
+    /// The nonlinear campaign: the drive file in software in the loop over the corners and
+    /// seeded random samples of its [certify] parameter box, through speed steps, load steps
+    /// to 0.8·τ_max both ways and reversals, with realistic sensors, in parallel on all cores;
+    /// each run judged (no fault, tracking against an ideal torque actuator, flux, torque
+    /// ripple: `hil_sim::campaign`). Writes campaign.csv, campaign.svg and summary.json, and
+    /// exits 1 if any run fails.
+    Campaign(CampaignArgs),
     /// Talk to the board's command/telemetry link on a serial port (115200 baud).
     Link(LinkArgs),
+}
+
+#[derive(Args, Debug)]
+struct CampaignArgs {
+    /// A drive file with a [certify] table.
+    #[arg(default_value = "drive.toml")]
+    drive: PathBuf,
+    /// Runs in the whole campaign (the 16 corners × 4 manoeuvres come first).
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
+    runs: u64,
+    /// Length of each run, s (long runs reach into field weakening).
+    #[arg(long, default_value_t = 1.0, value_parser = campaign_seconds)]
+    duration: f64,
+    /// Seed of the random samples (and of the sensors' noise).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Run only the shard i of N (runs with k mod N = i); shards' CSV rows concatenate into
+    /// the whole campaign's.
+    #[arg(long, default_value = "0/1", value_parser = shard)]
+    shard: (u64, u64),
+    /// DC-bus voltage, V.
+    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
+    vdc: f64,
+    /// Output directory [default: out/campaign].
+    #[arg(long, value_parser = non_empty_path)]
+    out: Option<PathBuf>,
+}
+
+fn campaign_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if (0.5..=60.0).contains(&x) => Ok(x),
+        _ => Err(format!("`{s}` is not a run length in [0.5, 60] s (the speed step comes at 0.25 s)")),
+    }
+}
+
+fn shard(s: &str) -> Result<(u64, u64), String> {
+    let bad = || format!("`{s}` is not a shard i/N with 0 ≤ i < N");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n) = (i.trim().parse::<u64>().map_err(|_| bad())?, n.trim().parse::<u64>().map_err(|_| bad())?);
+    if n == 0 || i >= n { Err(bad()) } else { Ok((i, n)) }
+}
+
+fn campaign(a: &CampaignArgs) -> Result<(), String> {
+    use hil_sim::campaign::{Campaign, Verdict};
+    let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
+    let certify = file.certify.ok_or_else(|| {
+        format!("{}: no [certify] table: the campaign samples its parameter box", a.drive.display())
+    })?;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/campaign"));
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let c = Campaign {
+        spec: file.spec,
+        certify,
+        vdc_v: a.vdc,
+        duration_s: a.duration,
+        runs: a.runs,
+        seed: a.seed,
+        shard: a.shard,
+    };
+    let total = c.indices().count() as u64;
+    eprintln!(
+        "hil-sim: campaign of {} on {} V: {total} run(s) of {} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
+        a.drive.display(),
+        a.vdc,
+        a.duration,
+        a.shard.0,
+        a.shard.1,
+        a.runs,
+        c.omega_s_rad_s()
+    );
+    let start = std::time::Instant::now();
+    // Progress: one line rewritten on a terminal, a line per 10 % otherwise (a CI log).
+    let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let step = (total / if tty { 100 } else { 10 }).max(1);
+    let verdicts = c.run(
+        |done| {
+            if done % step == 0 || done == total {
+                if tty {
+                    eprint!("\rhil-sim: {done}/{total} runs");
+                } else {
+                    eprintln!("hil-sim: {done}/{total} runs");
+                }
+            }
+        },
+        &INTERRUPTED,
+    );
+    if tty {
+        eprintln!();
+    }
+    let verdicts = verdicts?;
+    let elapsed = start.elapsed().as_secs_f64();
+    let mut csv = String::from(Verdict::CSV_HEADER);
+    csv.push('\n');
+    for v in &verdicts {
+        csv.push_str(&v.csv());
+        csv.push('\n');
+    }
+    write_text(&out.join("campaign.csv"), &csv)?;
+    write_text(&out.join("campaign.svg"), &hil_sim::campaign::plot(&c, &verdicts))?;
+    let summary = hil_sim::campaign::summary(&c, &verdicts, elapsed);
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    write_text(&out.join("summary.json"), &format!("{text}\n"))?;
+    println!(
+        "{:<12} {:>6} {:>7} {:>17} {:>13} {:>16}",
+        "manoeuvre", "runs", "passed", "worst tracking", "worst ripple", "flux / ref"
+    );
+    for m in hil_sim::campaign::per_manoeuvre(&verdicts) {
+        println!(
+            "{:<12} {:>6} {:>7} {:>11.3} rad/s {:>10.4} Nm {:>8.3} … {:.3}",
+            m.manoeuvre.name(),
+            m.runs,
+            m.passed,
+            m.worst_tracking_error_rad_s,
+            m.worst_ripple_nm,
+            m.flux_ratio[0],
+            m.flux_ratio[1],
+        );
+    }
+    let failed: Vec<&Verdict> = verdicts.iter().filter(|v| !v.passed()).collect();
+    for v in failed.iter().take(20) {
+        println!("FAIL run {}: {} ({})", v.k, v.failures.join(", "), v.csv());
+    }
+    println!(
+        "{} runs in {elapsed:.2} s ({:.1} ns per simulated PWM period, {:.0} runs/s)",
+        verdicts.len(),
+        hil_sim::campaign::ns_per_period(&c, verdicts.len(), elapsed),
+        verdicts.len() as f64 / elapsed
+    );
+    eprintln!("hil-sim: wrote campaign.csv, campaign.svg, summary.json in {}", out.display());
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("{} of {} runs failed their criteria", failed.len(), verdicts.len()))
+    }
 }
 
 #[derive(Args, Debug)]
@@ -626,6 +767,10 @@ fn main() -> ExitCode {
             bench(&bs, scenario, *runs)
         }),
         Cmd::Envelope(a) => envelope(a),
+        Cmd::Campaign(a) => {
+            stop_on_ctrl_c();
+            campaign(a)
+        }
         Cmd::Link(a) => board_link(a),
     };
     match result {

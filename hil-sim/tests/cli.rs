@@ -77,6 +77,7 @@ fn help_on_every_subcommand() {
         &["pil"],
         &["bench"],
         &["envelope"],
+        &["campaign"],
         &["link"],
         &["link", "x", "set-gains"],
     ] {
@@ -263,5 +264,53 @@ fn envelope_writes_its_table_and_plot() {
     assert!(String::from_utf8_lossy(&st.stderr).contains("/nonexistent/drive.toml"));
     let st = bin().args(["envelope", drive, "--vdc", "0"]).output().unwrap();
     assert_eq!(st.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// `hil-sim campaign`: a shard of a campaign on a box the drive holds writes its CSV (one line
+/// per run of the shard), plot and summary and exits 0; the shipped box's first corner fails
+/// its tracking criterion (exit 1, the failing runs named); a drive file without [certify]
+/// is an error naming what is missing; a bad shard or run length is a usage error (exit 2).
+#[test]
+fn campaign_writes_its_table_and_judges_every_run() {
+    let out = tmp("campaign");
+    std::fs::create_dir_all(&out).unwrap();
+    let shipped = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml")).unwrap();
+    let narrow = out.join("narrow.toml");
+    std::fs::write(
+        &narrow,
+        shipped
+            .replace("rr_factor = [1.0, 2.0]", "rr_factor = [1.0, 1.2]")
+            .replace("inductance_factor = [0.6, 1.0]", "inductance_factor = [0.95, 1.05]"),
+    )
+    .unwrap();
+    let res = out.join("res");
+    let args = ["--runs", "12", "--shard", "1/3", "--duration", "0.5", "--out"];
+    let st = bin().arg("campaign").arg(&narrow).args(args).arg(&res).output().unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    let csv = std::fs::read_to_string(res.join("campaign.csv")).unwrap();
+    let ks: Vec<&str> = csv.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
+    assert_eq!(ks, ["1", "4", "7", "10"]);
+    assert!(std::fs::read_to_string(res.join("campaign.svg")).unwrap().contains("<svg"));
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
+    assert_eq!((summary["runs"].as_u64(), summary["passed"].as_u64()), (Some(4), Some(4)));
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let st = bin()
+        .args(["campaign", drive, "--runs", "1", "--duration", "0.5", "--out"])
+        .arg(&res)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stdout).contains("FAIL run 0: tracking"));
+    let no_certify = out.join("plain.toml");
+    std::fs::write(&no_certify, &shipped[..shipped.find("[certify]").unwrap()]).unwrap();
+    let st = bin().arg("campaign").arg(&no_certify).args(["--out"]).arg(&res).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("no [certify] table"));
+    for bad in [&["--shard", "3/3"][..], &["--shard", "x"], &["--duration", "0.1"], &["--runs", "0"]] {
+        let st = bin().args(["campaign", drive]).args(bad).output().unwrap();
+        assert_eq!(st.status.code(), Some(2), "{bad:?}");
+    }
     let _ = std::fs::remove_dir_all(&out);
 }

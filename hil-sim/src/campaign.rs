@@ -1,0 +1,594 @@
+//! The nonlinear campaign (issue 21): a drive file run in software in the loop over the
+//! corners and seeded random samples of its `[certify]` parameter box, each sample through
+//! manoeuvres across the operating range, each run judged by stated criteria.
+//!
+//! **Runs.** Run k of a campaign takes its parameters from the box — the 16 corners of
+//! (R_s, R_r, L, J) first, each with every manoeuvre, then uniform random samples from
+//! a generator seeded by (campaign seed, k) — and manoeuvre `k mod 4` ([`Manoeuvre`]); its
+//! sensors are realistic ([`SensorModel::realistic`], seeded by k). Every run is therefore
+//! reproducible on its own, and `--shard i/N` (the runs with k mod N = i) splits a campaign
+//! over machines whose CSV files concatenate into the whole one.
+//!
+//! **Manoeuvres** (enable at 0; the speed step once magnetized, at [`STEP_S`]; the second
+//! event half-way through the rest of the run): to +ω_s with a load step of +0.8·τ_max
+//! (motoring), to −ω_s with −0.8·τ_max, to +ω_s with −0.8·τ_max (the load drives: generating),
+//! and a reversal +ω_s/2 → −ω_s/2. ω_s is the top speed of the box — the certified
+//! ω_r,max/p, at most twice the no-load base speed on the bus (field weakening) — or what
+//! the weakest corner (largest J) can reach at τ_max in [`REACH_FRACTION`] of the first half:
+//! short runs stay below base speed, long ones reach into field weakening.
+//!
+//! **Criteria** (each run; [`Verdict`]):
+//! - no fault latched;
+//! - tracking: the speed stays within [`TRACKING_FRACTION`]·ω_s + [`TRACKING_FLOOR_RAD_S`]
+//!   of the same speed law driving an *ideal* torque actuator on the same mechanics with the
+//!   same load ([`IdealLoop`]) — the drive's current loops, field orientation and operating
+//!   point are what is judged, not the speed law's chosen slowness;
+//! - flux: the machine's rotor flux between [`FLUX_BOUNDS`] of the drive's reference once
+//!   magnetized (detuned corners run at a different flux than the model thinks; a collapse or
+//!   a saturation-level excess fails);
+//! - no oscillation: torque peak to peak about its trend line over the last
+//!   [`RIPPLE_WINDOW_S`] below [`RIPPLE_FRACTION`]·τ_max.
+
+use crate::inverter::InverterModel;
+use crate::scenario::Builtin;
+use crate::sensors::SensorModel;
+use crate::sim::{Event, LoadModel, Row, Scenario};
+use controller_core::drive::{DriveConfig, DriveSpec, Mode, Reference};
+use controller_core::ifoc::TorqueCommand;
+use controller_core::motor::MotorParams;
+use controller_core::speed::{SpeedControllerConfig, SpeedLaw, SpeedState};
+use drive_file::certify::Certify;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+/// The speed step comes once the drive is magnetized, s.
+pub const STEP_S: f64 = 0.25;
+/// ω_s is what the largest inertia reaches at τ_max in this fraction of the first half.
+pub const REACH_FRACTION: f64 = 0.6;
+/// Load step as a fraction of τ_max.
+pub const LOAD_FRACTION: f64 = 0.8;
+/// Tracking tolerance: this fraction of ω_s …
+pub const TRACKING_FRACTION: f64 = 0.05;
+/// … plus this, rad/s.
+pub const TRACKING_FLOOR_RAD_S: f64 = 2.0;
+/// Rotor flux over the drive's reference, once magnetized: inside these bounds.
+pub const FLUX_BOUNDS: [f64; 2] = [0.5, 1.3];
+/// Torque ripple is measured over the last this long of the run, s.
+pub const RIPPLE_WINDOW_S: f64 = 0.05;
+/// Torque ripple limit as a fraction of τ_max.
+pub const RIPPLE_FRACTION: f64 = 0.1;
+/// The 16 corners of (R_s, R_r, L, J).
+pub const CORNERS: u64 = 16;
+
+/// A run's manoeuvre (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Manoeuvre {
+    /// +ω_s, then +0.8·τ_max load.
+    Motoring,
+    /// −ω_s, then −0.8·τ_max load.
+    Reverse,
+    /// +ω_s, then −0.8·τ_max load (generating).
+    Generating,
+    /// +ω_s/2, then −ω_s/2.
+    Reversal,
+}
+
+impl Manoeuvre {
+    const ALL: [Manoeuvre; 4] = [Self::Motoring, Self::Reverse, Self::Generating, Self::Reversal];
+
+    fn of(k: u64) -> Self {
+        Self::ALL[(k % 4) as usize]
+    }
+
+    /// Name in the CSV.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Motoring => "motoring",
+            Self::Reverse => "reverse",
+            Self::Generating => "generating",
+            Self::Reversal => "reversal",
+        }
+    }
+}
+
+/// A campaign.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Campaign {
+    /// The drive (its motor is the box's nominal point).
+    pub spec: DriveSpec,
+    /// The box and the top speed.
+    pub certify: Certify,
+    /// Bus voltage, V.
+    pub vdc_v: f64,
+    /// Length of each run, s.
+    pub duration_s: f64,
+    /// Runs in the whole campaign (corners × manoeuvres first).
+    pub runs: u64,
+    /// Seed of the random samples.
+    pub seed: u64,
+    /// This shard: runs with k mod `shard.1` = `shard.0`.
+    pub shard: (u64, u64),
+}
+
+/// The parameter factors of one run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// R_s factor.
+    pub rs: f64,
+    /// R_r factor.
+    pub rr: f64,
+    /// L_s, L_r, L_m factor.
+    pub l: f64,
+    /// J factor.
+    pub j: f64,
+}
+
+/// What one run did and how it was judged.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Verdict {
+    /// Run index.
+    pub k: u64,
+    /// Parameters.
+    pub sample: Sample,
+    /// Manoeuvre.
+    pub manoeuvre: Manoeuvre,
+    /// Speed step target, mechanical rad/s.
+    pub omega_s_rad_s: f64,
+    /// Largest |ω − ω_ideal| after the speed step, rad/s.
+    pub tracking_error_rad_s: f64,
+    /// Smallest and largest |ψ_r|/ψ_ref once magnetized.
+    pub flux_ratio: [f64; 2],
+    /// Torque peak to peak about its trend over the last [`RIPPLE_WINDOW_S`], N·m.
+    pub ripple_nm: f64,
+    /// Final mode.
+    pub mode: Mode,
+    /// Why it failed (empty: passed).
+    pub failures: Vec<&'static str>,
+}
+
+impl Verdict {
+    /// Passed every criterion.
+    pub fn passed(&self) -> bool {
+        self.failures.is_empty()
+    }
+
+    /// The CSV header of [`Verdict::csv`].
+    pub const CSV_HEADER: &'static str = "k,rs_factor,rr_factor,l_factor,j_factor,manoeuvre,omega_s_rad_s,tracking_error_rad_s,flux_ratio_min,flux_ratio_max,ripple_nm,mode,passed,failures";
+
+    /// One CSV line.
+    pub fn csv(&self) -> String {
+        let s = &self.sample;
+        format!(
+            "{},{:.6},{:.6},{:.6},{:.6},{},{:.3},{:.5},{:.4},{:.4},{:.5},{:?},{},{}",
+            self.k,
+            s.rs,
+            s.rr,
+            s.l,
+            s.j,
+            self.manoeuvre.name(),
+            self.omega_s_rad_s,
+            self.tracking_error_rad_s,
+            self.flux_ratio[0],
+            self.flux_ratio[1],
+            self.ripple_nm,
+            self.mode,
+            self.passed(),
+            self.failures.join(" ")
+        )
+    }
+}
+
+/// splitmix64 of `x`.
+fn mix(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^ (x >> 31)
+}
+
+impl Campaign {
+    /// Parameters of run `k`.
+    pub fn sample(&self, k: u64) -> Sample {
+        let c = &self.certify;
+        let corner_runs = CORNERS * 4;
+        if k < corner_runs {
+            let corner = k / 4;
+            let pick = |iv: [f64; 2], bit: u64| if corner >> bit & 1 == 0 { iv[0] } else { iv[1] };
+            return Sample {
+                rs: pick(c.rs_factor, 0),
+                rr: pick(c.rr_factor, 1),
+                l: pick(c.inductance_factor, 2),
+                j: pick(c.j_factor, 3),
+            };
+        }
+        let mut state = mix(self.seed ^ mix(k));
+        let mut uniform = |iv: [f64; 2]| {
+            state = mix(state);
+            iv[0] + (iv[1] - iv[0]) * ((state >> 11) as f64 / (1u64 << 53) as f64)
+        };
+        Sample {
+            rs: uniform(c.rs_factor),
+            rr: uniform(c.rr_factor),
+            l: uniform(c.inductance_factor),
+            j: uniform(c.j_factor),
+        }
+    }
+
+    /// ω_s (module docs), mechanical rad/s.
+    pub fn omega_s_rad_s(&self) -> f64 {
+        let m = &self.spec.motor;
+        let p = f64::from(m.pole_pairs());
+        let base = crate::envelope::base_speed_rad_s(m, self.spec.flux_ref_wb, self.vdc_v);
+        let top = (self.certify.omega_r_max_rad_s / p).min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
+        let tau = torque_limit_nm(&self.spec);
+        let j_max = m.j_kgm2() * self.certify.j_factor[1];
+        let half = 0.5 * (self.duration_s - STEP_S);
+        top.min(REACH_FRACTION * half * tau / j_max)
+    }
+
+    /// The run indices of this shard.
+    pub fn indices(&self) -> impl Iterator<Item = u64> + '_ {
+        (0..self.runs).filter(|k| k % self.shard.1 == self.shard.0)
+    }
+
+    /// Run `k`; stops with an error at the next slow period once `cancel` is set.
+    pub fn run_one(&self, k: u64, cancel: &AtomicBool) -> Result<Verdict, String> {
+        let sample = self.sample(k);
+        let manoeuvre = Manoeuvre::of(k);
+        let m = &self.spec.motor;
+        let plant = MotorParams::new(
+            m.rs_ohm() * sample.rs,
+            m.rr_ohm() * sample.rr,
+            m.ls_h() * sample.l,
+            m.lr_h() * sample.l,
+            m.lm_h() * sample.l,
+            m.pole_pairs(),
+            m.j_kgm2() * sample.j,
+            m.b_nms(),
+        )
+        .map_err(|e| format!("run {k}: sample motor rejected: {e:?}"))?;
+        let w = self.omega_s_rad_s();
+        let tau_l = LOAD_FRACTION * torque_limit_nm(&self.spec);
+        let t2 = STEP_S + 0.5 * (self.duration_s - STEP_S);
+        let speed = |x: f64| Event::Reference(Reference::Speed(x as f32));
+        let (first, second) = match manoeuvre {
+            Manoeuvre::Motoring => (speed(w), Event::LoadNm(tau_l)),
+            Manoeuvre::Reverse => (speed(-w), Event::LoadNm(-tau_l)),
+            Manoeuvre::Generating => (speed(w), Event::LoadNm(-tau_l)),
+            Manoeuvre::Reversal => (speed(0.5 * w), speed(-0.5 * w)),
+        };
+        let divider = self.spec.slow_divider;
+        let b = Builtin {
+            name: format!("campaign-{k}"),
+            about: String::new(),
+            spec: self.spec,
+            plant,
+            scenario: Scenario {
+                events: vec![(0.0, Event::Enable), (STEP_S, first), (t2, second)],
+                duration_s: self.duration_s,
+                vdc_v: self.vdc_v,
+                substeps: 1,
+                // One row per slow period: the ideal loop runs on the rows.
+                trace_every: u32::from(divider),
+                sensors: SensorModel::realistic(mix(self.seed ^ k)),
+                load: LoadModel::Torque,
+                inverter: InverterModel::Average,
+                dc_link: None,
+            },
+        };
+        let t_row = f64::from(divider) / self.spec.pwm_frequency_hz;
+        let mut ideal = IdealLoop::new(&self.spec, &plant, t_row)?;
+        let (mut track, mut flux, mut faulted) = (0.0f64, [f64::INFINITY, 0.0f64], false);
+        let mut window: Vec<(f64, f64)> = Vec::new();
+        let mode = b.run_into(
+            |_| {},
+            |r: &Row| {
+                if cancel.load(Ordering::Relaxed) {
+                    return Err("interrupted".into());
+                }
+                faulted |= matches!(r.mode, Some(Mode::Fault(_)));
+                if r.t_s >= STEP_S {
+                    track = track.max((r.x.omega_m_rad_s - ideal.omega_m_rad_s).abs());
+                    let ratio = r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb) / r.psi_ref_wb.max(1e-9);
+                    flux = [flux[0].min(ratio), flux[1].max(ratio)];
+                }
+                if r.t_s >= self.duration_s - RIPPLE_WINDOW_S {
+                    window.push((r.t_s, r.torque_nm));
+                }
+                // The ideal loop follows the same reference and load from the speed step on.
+                if r.t_s >= STEP_S {
+                    ideal.step(r.omega_ref_rad_s, r.load_nm);
+                } else {
+                    ideal.omega_m_rad_s = r.x.omega_m_rad_s;
+                }
+                Ok(())
+            },
+        )?;
+        let ripple = detrended_peak_to_peak(&window);
+        let mut failures = Vec::new();
+        if faulted || mode != Mode::Running {
+            failures.push("fault");
+        }
+        // Written so that a NaN fails.
+        if track.is_nan() || track > TRACKING_FRACTION * w + TRACKING_FLOOR_RAD_S {
+            failures.push("tracking");
+        }
+        if !(flux[0] >= FLUX_BOUNDS[0] && flux[1] <= FLUX_BOUNDS[1]) {
+            failures.push("flux");
+        }
+        if ripple.is_nan() || ripple > RIPPLE_FRACTION * torque_limit_nm(&self.spec) {
+            failures.push("oscillation");
+        }
+        Ok(Verdict {
+            k,
+            sample,
+            manoeuvre,
+            omega_s_rad_s: w,
+            tracking_error_rad_s: track,
+            flux_ratio: flux,
+            ripple_nm: ripple,
+            mode,
+            failures,
+        })
+    }
+
+    /// Every run of this shard, in parallel on all cores (rayon), in index order;
+    /// `progress(done)` after each; the first error (an interrupt: `cancel`) stops them all.
+    pub fn run(&self, progress: impl Fn(u64) + Sync, cancel: &AtomicBool) -> Result<Vec<Verdict>, String> {
+        let done = AtomicU64::new(0);
+        let indices: Vec<u64> = self.indices().collect();
+        indices
+            .par_iter()
+            .map(|&k| {
+                let v = self.run_one(k, cancel);
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+                v
+            })
+            .collect()
+    }
+}
+
+/// Peak to peak of `points` about their least-squares line: an oscillation, not the slow
+/// transient a load step leaves (a P speed law settles with J/k_p ≈ 0.1 s), NaN if empty.
+pub fn detrended_peak_to_peak(points: &[(f64, f64)]) -> f64 {
+    if points.is_empty() {
+        return f64::NAN;
+    }
+    let n = points.len() as f64;
+    let (mt, my) = points.iter().fold((0.0, 0.0), |(a, b), (t, y)| (a + t / n, b + y / n));
+    let (stt, sty) =
+        points.iter().fold((0.0, 0.0), |(a, b), (t, y)| (a + (t - mt).powi(2), b + (t - mt) * (y - my)));
+    let slope = if stt > 0.0 { sty / stt } else { 0.0 };
+    let (lo, hi) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (t, y)| {
+        let r = y - my - slope * (t - mt);
+        (lo.min(r), hi.max(r))
+    });
+    hi - lo
+}
+
+/// The drive's torque limit (τ_max of a torque law; K_t·i_q,max at the rated flux for an
+/// i_q law), N·m.
+pub fn torque_limit_nm(spec: &DriveSpec) -> f64 {
+    match spec.speed_law {
+        SpeedLaw::SaturatedP { tau_max_nm, .. } => tau_max_nm,
+        SpeedLaw::PiTorque { limit, .. } => limit,
+        SpeedLaw::PiIq { limit, .. } => limit * spec.motor.torque_factor() * spec.flux_ref_wb,
+    }
+}
+
+/// The drive's speed law on an ideal torque actuator: the law's own discrete code
+/// (`SpeedControllerConfig`, ideal speed measurement) driving `J dω/dt = τ − Bω − T_L` of
+/// the sampled plant's mechanics, one step per slow period (zero-order hold).
+#[derive(Clone, Copy, Debug)]
+pub struct IdealLoop {
+    law: SpeedControllerConfig,
+    state: SpeedState,
+    kt: f64,
+    a: f64,
+    g: f64,
+    /// The ideal loop's speed, mechanical rad/s.
+    pub omega_m_rad_s: f64,
+}
+
+impl IdealLoop {
+    /// For drive `spec` on the mechanics of `plant`, stepped every `t_s`.
+    pub fn new(spec: &DriveSpec, plant: &MotorParams, t_s: f64) -> Result<Self, String> {
+        let law =
+            SpeedControllerConfig::new(&spec.speed_law, t_s).map_err(|e| format!("speed law: {e:?}"))?;
+        DriveConfig::new(spec).map_err(|e| format!("drive: {e:?}"))?;
+        let (j, b) = (plant.j_kgm2(), plant.b_nms());
+        let (a, g) = if b > 0.0 {
+            let a = (-b * t_s / j).exp();
+            (a, (1.0 - a) / b)
+        } else {
+            (1.0, t_s / j)
+        };
+        Ok(Self {
+            law,
+            state: SpeedState::default(),
+            kt: spec.motor.torque_factor() * spec.flux_ref_wb,
+            a,
+            g,
+            omega_m_rad_s: 0.0,
+        })
+    }
+
+    /// One slow period with reference `omega_ref` and load `load_nm`.
+    pub fn step(&mut self, omega_ref: f64, load_nm: f64) {
+        let tau = match self.law.update(&mut self.state, omega_ref as f32, self.omega_m_rad_s as f32) {
+            TorqueCommand::TorqueNm(t) => f64::from(t),
+            TorqueCommand::IqA(i) => self.kt * f64::from(i),
+        };
+        self.omega_m_rad_s = self.a * self.omega_m_rad_s + self.g * (tau - load_nm);
+    }
+}
+
+/// One manoeuvre's runs: counts and worst values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ManoeuvreStats {
+    /// The manoeuvre.
+    pub manoeuvre: Manoeuvre,
+    /// Runs.
+    pub runs: usize,
+    /// Runs that passed.
+    pub passed: usize,
+    /// Largest tracking error, rad/s.
+    pub worst_tracking_error_rad_s: f64,
+    /// Largest torque ripple, N·m.
+    pub worst_ripple_nm: f64,
+    /// Smallest and largest flux ratio.
+    pub flux_ratio: [f64; 2],
+}
+
+/// [`ManoeuvreStats`] of each manoeuvre.
+pub fn per_manoeuvre(verdicts: &[Verdict]) -> Vec<ManoeuvreStats> {
+    Manoeuvre::ALL
+        .iter()
+        .map(|&m| {
+            let of: Vec<&Verdict> = verdicts.iter().filter(|v| v.manoeuvre == m).collect();
+            ManoeuvreStats {
+                manoeuvre: m,
+                runs: of.len(),
+                passed: of.iter().filter(|v| v.passed()).count(),
+                worst_tracking_error_rad_s: of.iter().map(|v| v.tracking_error_rad_s).fold(0.0, f64::max),
+                worst_ripple_nm: of.iter().map(|v| v.ripple_nm).fold(0.0, f64::max),
+                flux_ratio: [
+                    of.iter().map(|v| v.flux_ratio[0]).fold(f64::INFINITY, f64::min),
+                    of.iter().map(|v| v.flux_ratio[1]).fold(0.0, f64::max),
+                ],
+            }
+        })
+        .collect()
+}
+
+/// Nanoseconds of computation per simulated PWM period (all cores' work in `elapsed_s`).
+pub fn ns_per_period(c: &Campaign, runs: usize, elapsed_s: f64) -> f64 {
+    1e9 * elapsed_s / (runs as f64 * c.duration_s * c.spec.pwm_frequency_hz).max(1.0)
+}
+
+/// The campaign's summary as JSON: what was run, the criteria, the counts and worst values
+/// per manoeuvre, the failed runs, and the time it took.
+pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json::Value {
+    let per: Vec<_> = per_manoeuvre(verdicts)
+        .iter()
+        .map(|m| {
+            serde_json::json!({
+                "manoeuvre": m.manoeuvre.name(),
+                "runs": m.runs,
+                "passed": m.passed,
+                "worst_tracking_error_rad_s": m.worst_tracking_error_rad_s,
+                "worst_ripple_nm": m.worst_ripple_nm,
+                "flux_ratio_min": m.flux_ratio[0],
+                "flux_ratio_max": m.flux_ratio[1],
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "runs": verdicts.len(),
+        "passed": verdicts.iter().filter(|v| v.passed()).count(),
+        "failed": verdicts.iter().filter(|v| !v.passed()).map(|v| v.k).collect::<Vec<_>>(),
+        "campaign_runs": c.runs,
+        "shard": format!("{}/{}", c.shard.0, c.shard.1),
+        "seed": c.seed,
+        "duration_s": c.duration_s,
+        "vdc_v": c.vdc_v,
+        "omega_s_rad_s": c.omega_s_rad_s(),
+        "box": {
+            "rs_factor": c.certify.rs_factor,
+            "rr_factor": c.certify.rr_factor,
+            "inductance_factor": c.certify.inductance_factor,
+            "j_factor": c.certify.j_factor,
+        },
+        "criteria": {
+            "tracking_rad_s": TRACKING_FRACTION * c.omega_s_rad_s() + TRACKING_FLOOR_RAD_S,
+            "flux_ratio": FLUX_BOUNDS,
+            "ripple_nm": RIPPLE_FRACTION * torque_limit_nm(&c.spec),
+        },
+        "per_manoeuvre": per,
+        "elapsed_s": elapsed_s,
+        "ns_per_period": ns_per_period(c, verdicts.len(), elapsed_s),
+    })
+}
+
+/// The overview plot: each run's tracking error against its limit (relative), by run index,
+/// passed and failed apart.
+pub fn plot(c: &Campaign, verdicts: &[Verdict]) -> String {
+    use report::plot::{Series, line_plot};
+    let limit = TRACKING_FRACTION * c.omega_s_rad_s() + TRACKING_FLOOR_RAD_S;
+    let pts = |pass: bool| -> Vec<(f64, f64)> {
+        verdicts
+            .iter()
+            .filter(|v| v.passed() == pass)
+            .map(|v| (v.k as f64, v.tracking_error_rad_s / limit))
+            .collect()
+    };
+    line_plot(
+        &format!("Campaign: {} runs of {} s, tracking error over its limit", verdicts.len(), c.duration_s),
+        "run k",
+        &[Series::markers("passed", pts(true)), Series::markers("failed", pts(false))],
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn campaign(runs: u64, duration_s: f64) -> Campaign {
+        let f = drive_file::DriveFile::shipped().unwrap();
+        Campaign {
+            spec: f.spec,
+            certify: f.certify.unwrap(),
+            vdc_v: 310.0,
+            duration_s,
+            runs,
+            seed: 1,
+            shard: (0, 1),
+        }
+    }
+
+    /// Corners first (every manoeuvre of each), then seeded samples inside the box; a run's
+    /// parameters depend only on (seed, k), so shards agree with the whole.
+    #[test]
+    fn samples_are_corners_then_seeded_and_shard_independent() {
+        let c = campaign(200, 1.0);
+        let corners: std::collections::BTreeSet<String> =
+            (0..64).map(|k| format!("{:?}", c.sample(k))).collect();
+        assert_eq!(corners.len(), 16);
+        assert_eq!(c.sample(0), c.sample(3));
+        for k in 64..200 {
+            let s = c.sample(k);
+            let inside = |x: f64, iv: [f64; 2]| x >= iv[0] && x <= iv[1];
+            assert!(inside(s.rs, c.certify.rs_factor) && inside(s.rr, c.certify.rr_factor));
+            assert!(inside(s.l, c.certify.inductance_factor) && inside(s.j, c.certify.j_factor));
+        }
+        let other = Campaign { shard: (1, 3), ..c };
+        assert_eq!(other.sample(100), c.sample(100));
+        let idx: Vec<u64> = other.indices().take(3).collect();
+        assert_eq!(idx, [1, 4, 7]);
+        assert_ne!(Campaign { seed: 2, ..c }.sample(100), c.sample(100));
+    }
+
+    /// A ramp has no ripple; a sine on it has its own peak to peak.
+    #[test]
+    fn detrending() {
+        let ramp: Vec<(f64, f64)> =
+            (0..100).map(|k| (k as f64 * 1e-3, 3.0 + 20.0 * k as f64 * 1e-3)).collect();
+        assert!(detrended_peak_to_peak(&ramp) < 1e-12);
+        let wavy: Vec<(f64, f64)> = ramp.iter().map(|&(t, y)| (t, y + 0.1 * (t * 2000.0).sin())).collect();
+        assert!((detrended_peak_to_peak(&wavy) - 0.2).abs() < 0.01);
+        assert!(detrended_peak_to_peak(&[]).is_nan());
+    }
+
+    /// The ideal loop of the saturated P law settles where eq. (21) puts it:
+    /// ω = (k_p·ω_ref − T_L)/(k_p + B).
+    #[test]
+    fn the_ideal_loop_settles_at_the_p_laws_speed() {
+        let c = campaign(1, 1.0);
+        let mut l = IdealLoop::new(&c.spec, &c.spec.motor, 5e-4).unwrap();
+        for _ in 0..40_000 {
+            l.step(100.0, 0.5);
+        }
+        let (kp, b) = (0.05, c.spec.motor.b_nms());
+        assert!((l.omega_m_rad_s - (kp * 100.0 - 0.5) / (kp + b)).abs() < 1e-3, "{}", l.omega_m_rad_s);
+    }
+}
