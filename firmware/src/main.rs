@@ -359,9 +359,9 @@ mod target {
                 }
             };
             for &b in input.iter().take(n) {
-                let Some(cmd) = decoder.push_command(b, &mut stats) else { continue };
+                let Some(cmd) = decoder.push_board_command(b, &mut stats) else { continue };
                 let reply = critical_section::with(|cs| {
-                    CONTROL.borrow_ref_mut(cs).as_mut().map(|c| server::handle(c, &cmd, &stats))
+                    CONTROL.borrow_ref_mut(cs).as_mut().map(|c| server::handle_board(c, &cmd, &stats))
                 });
                 if let Some(r) = reply
                     && let Ok(len) = link::reply_frame(&r, &mut frame)

@@ -11,7 +11,16 @@
 use crate::config as certified;
 use crate::control::ControlLoop;
 use controller_core::drive::Mode;
-use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
+use controller_core::link::{self, BoardCommand, Command, LinkStats, NackReason, Reply};
+
+/// Answer one command as the board decodes it ([`Command::decode_board`]: `Configure` and
+/// `Step` arrive unparsed, as [`BoardCommand::Refused`]).
+pub fn handle_board(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
+    match cmd.command() {
+        None => Reply::Nack(NackReason::Unsupported),
+        Some(c) => handle(ctl, &c, stats),
+    }
+}
 
 /// Answer one command.
 pub fn handle(ctl: &mut ControlLoop, cmd: &Command, stats: &LinkStats) -> Reply {
@@ -76,6 +85,34 @@ mod tests {
         );
         assert_eq!(handle(&mut c, &Command::Disable, &stats), Reply::Ack);
         assert_eq!(c.drive().mode(), Mode::Idle);
+    }
+
+    /// On the wire: `Configure` and `Step` frames are refused unparsed (the board decodes no
+    /// motor in f64), every other command as the host encoded it.
+    #[test]
+    fn the_board_refuses_configure_and_step_frames_unparsed() {
+        let spec = drive_spec().unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut stats = LinkStats::default();
+        let mut decoder = link::FrameDecoder::new();
+        let mut reply = |cmd: &Command, c: &mut ControlLoop, stats: &mut LinkStats| {
+            let mut f = [0u8; link::MAX_FRAME];
+            let n = link::command_frame(cmd, &mut f).unwrap();
+            let mut got = None;
+            for &b in &f[..n] {
+                if let Some(bc) = decoder.push_board_command(b, stats) {
+                    got = Some(handle_board(c, &bc, stats));
+                }
+            }
+            got
+        };
+        let unsupported = Some(Reply::Nack(NackReason::Unsupported));
+        assert_eq!(reply(&Command::Configure(spec), &mut c, &mut stats), unsupported);
+        assert_eq!(reply(&Command::Step(Measurements::default()), &mut c, &mut stats), unsupported);
+        assert_eq!(reply(&Command::Enable, &mut c, &mut stats), Some(Reply::Ack));
+        assert_eq!(c.drive().mode(), Mode::Magnetizing);
+        assert_eq!(stats.frames_ok, 3);
+        assert_eq!(link::Command::decode_board(&[0x7E]), Err(link::DecodeError::UnknownType(0x7E)));
     }
 
     #[test]

@@ -33,7 +33,7 @@ pub use framing::{
     encode_frame,
 };
 pub use receive::LinkStats;
-pub use schema::{Command, DecodeError, NackReason, Reply, command_frame, reply_frame};
+pub use schema::{BoardCommand, Command, DecodeError, NackReason, Reply, command_frame, reply_frame};
 
 #[cfg(test)]
 mod tests;

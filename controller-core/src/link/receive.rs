@@ -1,7 +1,7 @@
 //! Receiving: frames decoded into messages, every frame counted in [`LinkStats`].
 
 use super::framing::{FrameDecoder, FrameError};
-use super::schema::{Command, DecodeError, Reply};
+use super::schema::{BoardCommand, Command, DecodeError, Reply};
 
 /// Error counters of one link endpoint.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -59,6 +59,11 @@ impl FrameDecoder {
     /// is counted in `stats`: accepted, or by its error.
     pub fn push_command(&mut self, byte: u8, stats: &mut LinkStats) -> Option<Command> {
         self.push_message(byte, stats, Command::decode)
+    }
+
+    /// [`FrameDecoder::push_command`] as the board decodes ([`Command::decode_board`]).
+    pub fn push_board_command(&mut self, byte: u8, stats: &mut LinkStats) -> Option<BoardCommand> {
+        self.push_message(byte, stats, Command::decode_board)
     }
 
     /// Feed one byte; at the end of a frame that is a valid reply return it (counted as
