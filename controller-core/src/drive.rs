@@ -76,6 +76,9 @@ pub struct Protection {
     /// motor needs at the encoder's speed by more than [`ENCODER_RESIDUAL_FRACTION`] of the
     /// linear voltage limit, at every slow-step check for this long, s.
     pub encoder_check_time_s: f64,
+    /// A controlled stop ([`Drive::controlled_stop`]: the speed loop brakes to standstill,
+    /// then the bridge goes off) takes at most this long before the bridge goes off anyway, s.
+    pub stop_time_s: f64,
     /// The board's brake chopper (a resistor switched across the DC link), if it has one:
     /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
     /// every mode (it protects the link whether or not the bridge is active).
@@ -296,6 +299,8 @@ pub struct DriveConfig {
     saturation_steps: u32,
     /// Slow periods of implausible encoder before the trip.
     encoder_check_steps: u32,
+    /// Slow steps a controlled stop may take before the bridge goes off anyway.
+    stop_slow_steps: u32,
     /// Brake chopper on above this bus voltage (`f32::MAX` without a chopper: never), V.
     brake_on_v: f32,
     /// … and off below this one, V.
@@ -329,6 +334,7 @@ impl DriveConfig {
             p.current_sum_max_a,
             p.saturation_time_s,
             p.encoder_check_time_s,
+            p.stop_time_s,
         ]
         .iter()
         .all(|x| x.is_finite());
@@ -341,7 +347,8 @@ impl DriveConfig {
             && p.stall_time_s > 0.0
             && p.current_sum_max_a > 0.0
             && p.saturation_time_s > 0.0
-            && p.encoder_check_time_s > 0.0)
+            && p.encoder_check_time_s > 0.0
+            && p.stop_time_s > 0.0)
         {
             return Err(DriveError::Protection);
         }
@@ -430,6 +437,8 @@ impl DriveConfig {
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                 .clamp(1.0, 4e9) as u32,
+            stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
+                as u32,
             brake_on_v,
             brake_off_v,
         })
@@ -484,6 +493,7 @@ impl DriveConfig {
             self.stall_slow_steps,
             self.saturation_steps,
             self.encoder_check_steps,
+            self.stop_slow_steps,
         ] {
             w.u(x);
         }
@@ -537,6 +547,7 @@ impl DriveConfig {
             stall_slow_steps: r.u(),
             saturation_steps: r.u(),
             encoder_check_steps: r.u(),
+            stop_slow_steps: r.u(),
         };
         let counts = [
             u32::from(cfg.slow_divider),
@@ -544,6 +555,7 @@ impl DriveConfig {
             cfg.stall_slow_steps,
             cfg.saturation_steps,
             cfg.encoder_check_steps,
+            cfg.stop_slow_steps,
         ];
         if r.bad || counts.contains(&0) {
             return Err(DriveError::Raw);
@@ -745,6 +757,8 @@ pub struct Drive {
     encoder_bad_steps: u32,
     /// The brake chopper's comparator state.
     brake: bool,
+    /// Slow steps left of a controlled stop (`None`: not stopping).
+    stop_steps_left: Option<u32>,
     /// The flux (d-axis current) command of the present operating point.
     flux: FluxCommand,
     /// Largest steady torque of the envelope at the last slow step, N·m (the speed loop's
@@ -801,6 +815,7 @@ impl Drive {
             saturated_steps: 0,
             encoder_bad_steps: 0,
             brake: false,
+            stop_steps_left: None,
             flux: FluxCommand::default(),
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
@@ -888,6 +903,28 @@ impl Drive {
         if !matches!(self.mode, Mode::Fault(_)) {
             self.mode = Mode::Idle;
         }
+        self.stop_steps_left = None;
+    }
+
+    /// A controlled stop (stop category 1): Running, the speed loop brakes to standstill
+    /// within its torque and regeneration limits, then the bridge goes off (Idle) — once the
+    /// speed is below the stall check's "not moving" level, or after `stop_time_s` at the
+    /// latest; Magnetizing, the bridge goes off at once. A new reference (the host is back)
+    /// cancels the stop. What the firmware does when its link falls silent.
+    pub fn controlled_stop(&mut self) {
+        match self.mode {
+            Mode::Running if self.stop_steps_left.is_none() => {
+                self.reference = Reference::Speed(0.0);
+                self.stop_steps_left = Some(self.cfg.stop_slow_steps);
+            }
+            Mode::Magnetizing => self.disable(),
+            _ => {}
+        }
+    }
+
+    /// A controlled stop is under way.
+    pub fn is_stopping(&self) -> bool {
+        self.stop_steps_left.is_some()
     }
 
     /// Fault → Idle.
@@ -909,6 +946,7 @@ impl Drive {
             return Err(CommandError::NonFinite);
         }
         self.reference = r;
+        self.stop_steps_left = None;
         Ok(())
     }
 
@@ -942,6 +980,14 @@ impl Drive {
         if !active || !m.is_finite() {
             self.torque_cmd = TorqueCommand::TorqueNm(0.0);
             return;
+        }
+        if let Some(left) = self.stop_steps_left {
+            if left == 0 || m.omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
+                self.disable();
+                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
+                return;
+            }
+            self.stop_steps_left = Some(left - 1);
         }
         self.track_encoder(m.theta_m_rad);
         self.update_trim();
@@ -1358,6 +1404,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             current_sum_max_a: 0.4,
             saturation_time_s: 0.02,
             encoder_check_time_s: 0.01,
+            stop_time_s: 5.0,
             brake_chopper: None,
         },
     }
@@ -1452,7 +1499,7 @@ mod tests {
         bad.u[1] = 7; // the current frame's tag
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         let mut bad = raw;
-        bad.u[raw::INTEGERS - 6] = 0; // the slow divider
+        bad.u[raw::INTEGERS - 7] = 0; // the slow divider
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         // New speed gains in f32 equal a rebuild from the design values.
         let moved = cfg.with_saturated_p(0.08, 1.5).unwrap();

@@ -25,6 +25,9 @@ pub struct BoardTable {
     pub encoder_lines: u32,
     /// Largest plausible encoder-counter change between two slow-loop reads.
     pub encoder_max_counts_per_read: u16,
+    /// Link watchdog: no valid frame for this long while the bridge is on → a controlled
+    /// stop, s (optional: without it the firmware runs on without its host).
+    pub link_timeout_s: Option<f64>,
 }
 
 /// Validated board data, with the timer values derived from the drive's PWM frequency.
@@ -74,6 +77,13 @@ impl BoardTable {
             "board.encoder_max_counts_per_read",
             "must lie in 1…32767 (below the 16-bit counter's half range)",
         )?;
+        if let Some(t) = self.link_timeout_s {
+            src.check(
+                t.is_finite() && (0.02..=3600.0).contains(&t),
+                "board.link_timeout_s",
+                "must lie in [0.02, 3600] s (the link task wakes every 10 ms)",
+            )?;
+        }
         Ok(Board {
             table: *self,
             pwm_period_counts: arr.round() as u16,

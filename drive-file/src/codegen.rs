@@ -75,7 +75,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_trim_bandwidth_rad_s: {:?},\n\
          \x20       dead_time_compensation_s: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
-         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, brake_chopper: {} }},\n\
+         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, stop_time_s: {:?}, brake_chopper: {} }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -107,6 +107,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         p.current_sum_max_a,
         p.saturation_time_s,
         p.encoder_check_time_s,
+        p.stop_time_s,
         match p.brake_chopper {
             None => "None".to_string(),
             Some(b) => format!(
@@ -163,7 +164,9 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
          /// Saturated-P speed gain accepted over the link, N·m per rad/s (`[certify]`).\n\
          pub const SPEED_KP: (f32, f32) = ({:?}, {:?});\n\
          /// τ_max accepted over the link, N·m (`[certify]`).\n\
-         pub const SPEED_TAU_MAX_NM: (f32, f32) = ({:?}, {:?});\n",
+         pub const SPEED_TAU_MAX_NM: (f32, f32) = ({:?}, {:?});\n\
+         /// Link watchdog, ms (`[board] link_timeout_s`; 0: off).\n\
+         pub const LINK_TIMEOUT_MS: u32 = {};\n",
         t.tim_clock_hz,
         b.pwm_period_counts,
         t.dead_time_s,
@@ -179,6 +182,7 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
         kp_hi as f32,
         tau_lo as f32,
         tau_hi as f32,
+        t.link_timeout_s.map_or(0, |t| (t * 1e3).round() as u32),
     );
     Ok(s)
 }

@@ -206,6 +206,8 @@ pub struct ProtectionTable {
     pub saturation_time_s: Option<f64>,
     /// Encoder-against-model time, s.
     pub encoder_check_time_s: Option<f64>,
+    /// Longest controlled stop before the bridge goes off anyway, s.
+    pub stop_time_s: Option<f64>,
     /// The board's brake chopper, if it has one: `{ on_v, off_v }`, the bus voltages at
     /// which the drive switches its resistor in and out (0 < off_v < on_v < vdc_max_v).
     pub brake_chopper: Option<BrakeChopperTable>,
@@ -279,9 +281,30 @@ pub fn protection_with_defaults(
         current_sum_max_a: DEFAULT_CURRENT_SUM_FRACTION * i_trip_a,
         saturation_time_s: DEFAULT_SATURATION_TIME_S,
         encoder_check_time_s: DEFAULT_ENCODER_CHECK_TIME_S,
+        stop_time_s: default_stop_time_s(motor, flux_ref_wb, vdc_max_v),
         brake_chopper: None,
     }
 }
+
+/// Default longest controlled stop, s: the time to brake from the default overspeed level to
+/// rest, `J·ω_over/τ_stop`, at least 1 s, with `τ_stop` = [`STOP_TORQUE_FRACTION`] of the
+/// torque the rated flux gives with i_q = i_d, `1.5·p·ψ_r*²/L_r` — a light braking torque
+/// any drive of this motor has, whatever its speed law. A stop the speed loop cannot finish
+/// in that time (a load driving the motor, a bus that cannot take the energy) ends with the
+/// bridge off and the motor coasting. Shipped drive: τ_stop = 0.5·1.5·0.9²/1.5 = 0.405 N·m,
+/// 0.005·607.3/0.405 = 7.5 s.
+pub fn default_stop_time_s(
+    motor: &controller_core::motor::MotorParams,
+    flux_ref_wb: f64,
+    vdc_max_v: f64,
+) -> f64 {
+    let tau_stop_nm =
+        STOP_TORQUE_FRACTION * 1.5 * f64::from(motor.pole_pairs()) * flux_ref_wb * flux_ref_wb / motor.lr_h();
+    (motor.j_kgm2() * default_overspeed_rad_s(motor, flux_ref_wb, vdc_max_v) / tau_stop_nm).max(1.0)
+}
+
+/// See [`default_stop_time_s`].
+pub const STOP_TORQUE_FRACTION: f64 = 0.5;
 
 /// Default current-sum limit as a fraction of `i_trip_a`: far above the noise of three
 /// 12-bit channels and their gain errors at working currents, below the sum a dead phase
@@ -412,6 +435,7 @@ pub fn drive_spec(
         ("protection.current_sum_max_a", protection.current_sum_max_a),
         ("protection.saturation_time_s", protection.saturation_time_s),
         ("protection.encoder_check_time_s", protection.encoder_check_time_s),
+        ("protection.stop_time_s", protection.stop_time_s),
     ] {
         if let Some(x) = x {
             src.check(x.is_finite() && x > 0.0, key, &format!("is {}; must be finite and > 0", num(x)))?;
@@ -466,6 +490,7 @@ pub fn drive_spec(
                 current_sum_max_a: protection.current_sum_max_a.unwrap_or(d.current_sum_max_a),
                 saturation_time_s: protection.saturation_time_s.unwrap_or(d.saturation_time_s),
                 encoder_check_time_s: protection.encoder_check_time_s.unwrap_or(d.encoder_check_time_s),
+                stop_time_s: protection.stop_time_s.unwrap_or(d.stop_time_s),
                 brake_chopper: protection
                     .brake_chopper
                     .map(|b| BrakeChopper { on_v: b.on_v, off_v: b.off_v }),

@@ -101,6 +101,17 @@ impl DriveFile {
 mod tests {
     use super::*;
 
+    /// The shipped drive's default controlled-stop time (`drive::default_stop_time_s` quotes
+    /// it): 0.005 kg·m² · 607.3 rad/s / (0.5 · 1.5 · 0.9² / 1.5 N·m) = 7.50 s.
+    #[test]
+    fn default_stop_time_of_the_shipped_drive() {
+        let f = DriveFile::shipped().unwrap();
+        let t = f.spec.protection.stop_time_s;
+        eprintln!("default stop_time_s = {t:.4} s");
+        assert!((t - 0.005 * f.spec.protection.overspeed_rad_s / 0.405).abs() < 1e-9);
+        assert!((t - 7.4974).abs() < 1e-3, "{t}");
+    }
+
     fn err(text: &str) -> FileError {
         DriveFile::parse(Path::new("d.toml"), text).unwrap_err()
     }

@@ -46,7 +46,7 @@ mod target {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
-    use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG};
+    use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, LINK_TIMEOUT_MS};
     use firmware::control::{ControlError, ControlLoop, Samples};
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
@@ -334,14 +334,28 @@ mod target {
         ISR_COUNT.fetch_add(1, Ordering::Relaxed);
     }
 
-    /// Commands in, replies and telemetry (every 10 ms) out.
+    /// Milliseconds since boot, wrapping (the link watchdog's clock).
+    fn now_ms() -> u32 {
+        embassy_time::Instant::now().as_millis() as u32
+    }
+
+    /// Commands in, replies and telemetry (every 10 ms) out; the link watchdog
+    /// (`server::LinkWatchdog`): a link silent for `LINK_TIMEOUT_MS` while the bridge is on
+    /// stops the drive (a controlled stop).
     #[embassy_executor::task]
     async fn link_task(mut tx: UartTx<'static, Async>, mut rx: RingBufferedUartRx<'static>) {
         let mut decoder = FrameDecoder::new();
         let mut stats = LinkStats::default();
         let mut input = [0u8; 64];
         let mut frame = [0u8; MAX_FRAME];
+        let mut watchdog = server::LinkWatchdog::new(LINK_TIMEOUT_MS, now_ms());
         loop {
+            let stopped = critical_section::with(|cs| {
+                CONTROL.borrow_ref_mut(cs).as_mut().is_some_and(|c| watchdog.poll(now_ms(), c))
+            });
+            if stopped {
+                defmt::warn!("link silent for {=u32} ms: controlled stop", LINK_TIMEOUT_MS);
+            }
             let n = match with_timeout(Duration::from_millis(10), rx.read(&mut input)).await {
                 Ok(Ok(n)) => n,
                 Ok(Err(_)) => 0, // overrun/framing error: the frames it hit fail their CRC
@@ -360,6 +374,7 @@ mod target {
             };
             for &b in input.iter().take(n) {
                 let Some(cmd) = decoder.push_board_command(b, &mut stats) else { continue };
+                watchdog.frame(now_ms());
                 let reply = critical_section::with(|cs| {
                     CONTROL.borrow_ref_mut(cs).as_mut().map(|c| server::handle_board(c, &cmd, &stats))
                 });

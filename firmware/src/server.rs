@@ -13,6 +13,42 @@ use crate::control::ControlLoop;
 use controller_core::drive::Mode;
 use controller_core::link::{self, BoardCommand, Command, LinkStats, NackReason, Reply};
 
+/// The link's watchdog: no valid frame for `timeout_ms` while the bridge is on (Magnetizing
+/// or Running) → one controlled stop ([`controller_core::drive::Drive::controlled_stop`]);
+/// a frame re-arms it. `timeout_ms` = 0: off. Times are a free-running millisecond counter
+/// (wrapping).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LinkWatchdog {
+    timeout_ms: u32,
+    last_ms: u32,
+    fired: bool,
+}
+
+impl LinkWatchdog {
+    /// Armed from `now_ms`.
+    pub const fn new(timeout_ms: u32, now_ms: u32) -> Self {
+        Self { timeout_ms, last_ms: now_ms, fired: false }
+    }
+
+    /// A valid frame arrived.
+    pub fn frame(&mut self, now_ms: u32) {
+        self.last_ms = now_ms;
+        self.fired = false;
+    }
+
+    /// Check at `now_ms`; stops the drive (once) when the link has been silent too long.
+    /// Returns whether it did.
+    pub fn poll(&mut self, now_ms: u32, ctl: &mut ControlLoop) -> bool {
+        let on = matches!(ctl.drive().mode(), Mode::Magnetizing | Mode::Running);
+        if self.timeout_ms == 0 || self.fired || !on || now_ms.wrapping_sub(self.last_ms) < self.timeout_ms {
+            return false;
+        }
+        ctl.drive_mut().controlled_stop();
+        self.fired = true;
+        true
+    }
+}
+
 /// Answer one command as the board decodes it ([`Command::decode_board`]: `Configure` and
 /// `Step` arrive unparsed, as [`BoardCommand::Refused`]).
 pub fn handle_board(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
@@ -113,6 +149,33 @@ mod tests {
         assert_eq!(c.drive().mode(), Mode::Magnetizing);
         assert_eq!(stats.frames_ok, 3);
         assert_eq!(link::Command::decode_board(&[0x7E]), Err(link::DecodeError::UnknownType(0x7E)));
+    }
+
+    /// The watchdog stops a running drive once after `timeout` ms of silence (the drive then
+    /// brakes: it is stopping, still Running), not before, not while Idle, and a frame
+    /// re-arms it; the counter may wrap.
+    #[test]
+    fn a_silent_link_stops_a_running_drive() {
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let start = u32::MAX - 100; // wraps during the test
+        let mut w = LinkWatchdog::new(1000, start);
+        assert!(!w.poll(start.wrapping_add(5000), &mut c), "Idle: nothing to stop");
+        c.drive_mut().enable().unwrap();
+        // Magnetizing: a controlled stop turns the bridge off at once.
+        w.frame(start);
+        assert!(!w.poll(start.wrapping_add(999), &mut c));
+        assert!(w.poll(start.wrapping_add(1000), &mut c));
+        assert_eq!(c.drive().mode(), Mode::Idle);
+        assert!(!w.poll(start.wrapping_add(2000), &mut c), "once");
+        // Re-armed by a frame: a second silence stops the drive again.
+        c.drive_mut().enable().unwrap();
+        w.frame(start.wrapping_add(3000));
+        assert!(!w.poll(start.wrapping_add(3999), &mut c));
+        assert!(w.poll(start.wrapping_add(4000), &mut c));
+        let off = LinkWatchdog::new(0, start);
+        assert_eq!(off, LinkWatchdog { timeout_ms: 0, last_ms: start, fired: false });
+        assert!(!{ off }.poll(start.wrapping_add(1_000_000), &mut c));
+        assert_eq!(certified::LINK_TIMEOUT_MS, 1000, "drive.toml link_timeout_s");
     }
 
     #[test]

@@ -722,7 +722,11 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
     match (cmd, command) {
         (Some(c), _) => println!("{:?}", link.transact(&c)?),
         (None, LinkCmd::Telemetry { n }) => {
+            // Each status request keeps the board's link watchdog (`[board] link_timeout_s`)
+            // from stopping the drive while we watch; the board streams an output after 10 ms
+            // of quiet.
             for _ in 0..n {
+                println!("{:?}", link.transact(&Command::GetStatus)?);
                 println!("{:?}", link.next_reply()?);
             }
         }

@@ -211,6 +211,10 @@ impl DriveUnderTest for Pil {
         self.expect_ack(&Command::SetReference(r))
     }
 
+    fn controlled_stop(&mut self) -> Result<(), String> {
+        self.expect_ack(&Command::Stop)
+    }
+
     fn step(&mut self, m: &Measurements) -> FastOutput {
         let failure = match self.transact(&Command::Step(*m)) {
             Ok(Reply::Output(o)) => return o,

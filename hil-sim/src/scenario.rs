@@ -241,9 +241,12 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     b.about = about.into();
     b.spec.current_law = law;
     b.spec.flux_ref_wb = 0.35;
-    // The overspeed level follows the flux reference (drive_file's default rule).
+    // The overspeed level and the stop time follow the flux reference (drive_file's default
+    // rules).
+    let vdc_max = b.spec.protection.vdc_max_v;
     b.spec.protection.overspeed_rad_s =
-        drive_file::drive::default_overspeed_rad_s(&b.spec.motor, 0.35, b.spec.protection.vdc_max_v);
+        drive_file::drive::default_overspeed_rad_s(&b.spec.motor, 0.35, vdc_max);
+    b.spec.protection.stop_time_s = drive_file::drive::default_stop_time_s(&b.spec.motor, 0.35, vdc_max);
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
     // The paper's loops alone: the current trim would correct the stationary loops' tracking
     // error at ω_e — the very error this figure compares (the PI's reaches 366 rad/s with it).

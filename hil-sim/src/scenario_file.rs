@@ -39,7 +39,8 @@
 //! kind = "enable"
 //! [[events]]
 //! t_s = 0.3
-//! kind = "speed"                   # speed (rad/s), position (rad), torque (N·m), load (N·m)
+//! kind = "speed"                   # speed (rad/s), position (rad), torque (N·m), load (N·m);
+//!                                  # "stop": a controlled stop (brake to rest, bridge off)
 //! value = 150.0                    # or kind = "rotating_current", amplitude_a, omega_rad_s
 //! [[events]]                       # a fault injected into the simulated hardware:
 //! t_s = 1.0
@@ -231,6 +232,7 @@ impl Default for SensorsTable {
 #[serde(rename_all = "snake_case")]
 enum EventKind {
     Enable,
+    Stop,
     Speed,
     Position,
     Torque,
@@ -358,6 +360,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         };
         let ev = match e.kind {
             EventKind::Enable => Event::Enable,
+            EventKind::Stop => Event::Stop,
             EventKind::Speed => Event::Reference(Reference::Speed(bounded("value", e.value)? as f32)),
             EventKind::Position => Event::Reference(Reference::Position(bounded("value", e.value)? as f32)),
             EventKind::Torque => Event::Reference(Reference::Torque(bounded("value", e.value)? as f32)),

@@ -30,6 +30,8 @@ pub trait DriveUnderTest {
     fn enable(&mut self) -> Result<(), String>;
     /// [`Drive::set_reference`].
     fn set_reference(&mut self, r: Reference) -> Result<(), String>;
+    /// [`Drive::controlled_stop`].
+    fn controlled_stop(&mut self) -> Result<(), String>;
     /// [`Drive::step`]; phases off if the step failed (see [`DriveUnderTest::take_failure`]).
     fn step(&mut self, m: &Measurements) -> FastOutput;
     /// Why the last [`DriveUnderTest::step`] failed, if it did (taken: asked again, `None`).
@@ -54,6 +56,11 @@ impl DriveUnderTest for Drive {
         Ok(())
     }
 
+    fn controlled_stop(&mut self) -> Result<(), String> {
+        Drive::controlled_stop(self);
+        Ok(())
+    }
+
     fn step(&mut self, m: &Measurements) -> FastOutput {
         Drive::step(self, m)
     }
@@ -68,6 +75,8 @@ pub enum Event {
     Reference(Reference),
     /// New load torque, N·m.
     LoadNm(f64),
+    /// A controlled stop ([`Drive::controlled_stop`]).
+    Stop,
     /// A fault of the plant, inverter or sensors from this time on.
     Fault(Injection),
 }
@@ -457,6 +466,7 @@ pub fn run(
                 match *e {
                     Event::Enable => drive.enable()?,
                     Event::Reference(r) => drive.set_reference(r)?,
+                    Event::Stop => drive.controlled_stop()?,
                     Event::LoadNm(l) => load = l,
                     Event::Fault(Injection::CurrentSensor { phase, gain, offset_a }) => {
                         sensors.fail_current_channel(phase, gain, offset_a);
@@ -770,6 +780,9 @@ mod tests {
         }
         fn set_reference(&mut self, r: Reference) -> Result<(), String> {
             DriveUnderTest::set_reference(&mut self.drive, r)
+        }
+        fn controlled_stop(&mut self) -> Result<(), String> {
+            DriveUnderTest::controlled_stop(&mut self.drive)
         }
         fn step(&mut self, m: &Measurements) -> FastOutput {
             self.steps += 1;

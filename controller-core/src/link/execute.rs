@@ -33,6 +33,10 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
             drive.clear_fault();
             Reply::Ack
         }
+        Command::Stop => {
+            drive.controlled_stop();
+            Reply::Ack
+        }
         Command::SetReference(r) => command_result(drive.set_reference(*r)),
         Command::Step(m) => Reply::Output(drive.step(m)),
         Command::GetStatus => {

@@ -132,6 +132,9 @@ pub enum Command {
     },
     /// Ask for the speed-loop gains; answered by `SpeedGains`.
     ReadSpeedGains,
+    /// A controlled stop ([`crate::drive::Drive::controlled_stop`]): brake to standstill,
+    /// then the bridge off.
+    Stop,
 }
 
 /// Why a command was refused.
@@ -190,6 +193,7 @@ pub(crate) mod tag {
     pub const GET_STATUS: u8 = 0x07;
     pub const WRITE_SPEED_GAINS: u8 = 0x08;
     pub const READ_SPEED_GAINS: u8 = 0x09;
+    pub const STOP: u8 = 0x0A;
     pub const ACK: u8 = 0x81;
     pub const NACK: u8 = 0x82;
     pub const OUTPUT: u8 = 0x83;
@@ -298,6 +302,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         p.current_sum_max_a,
         p.saturation_time_s,
         p.encoder_check_time_s,
+        p.stop_time_s,
     ] {
         w.f64(v)?;
     }
@@ -357,6 +362,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         current_sum_max_a: r.f64()?,
         saturation_time_s: r.f64()?,
         encoder_check_time_s: r.f64()?,
+        stop_time_s: r.f64()?,
         brake_chopper: match r.u8()? {
             0 => None,
             1 => Some(BrakeChopper { on_v: r.f64()?, off_v: r.f64()? }),
@@ -456,6 +462,7 @@ impl Command {
                 w.f32(*tau_max_nm)?;
             }
             Command::ReadSpeedGains => w.u8(tag::READ_SPEED_GAINS)?,
+            Command::Stop => w.u8(tag::STOP)?,
         }
         Ok(w.n)
     }
@@ -504,6 +511,7 @@ fn decode_board_tag(t: u8, r: &mut Reader<'_>) -> Result<BoardCommand, DecodeErr
         tag::GET_STATUS => BoardCommand::GetStatus,
         tag::WRITE_SPEED_GAINS => BoardCommand::WriteSpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
         tag::READ_SPEED_GAINS => BoardCommand::ReadSpeedGains,
+        tag::STOP => BoardCommand::Stop,
         other => return Err(DecodeError::UnknownType(other)),
     })
 }
@@ -531,6 +539,8 @@ pub enum BoardCommand {
     },
     /// [`Command::ReadSpeedGains`].
     ReadSpeedGains,
+    /// [`Command::Stop`].
+    Stop,
     /// `Configure` or `Step`: answered with `Nack(Unsupported)`, payload not parsed.
     Refused,
 }
@@ -546,6 +556,7 @@ impl BoardCommand {
             BoardCommand::GetStatus => Command::GetStatus,
             BoardCommand::WriteSpeedGains { kp, tau_max_nm } => Command::WriteSpeedGains { kp, tau_max_nm },
             BoardCommand::ReadSpeedGains => Command::ReadSpeedGains,
+            BoardCommand::Stop => Command::Stop,
             BoardCommand::Refused => return None,
         })
     }

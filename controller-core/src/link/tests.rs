@@ -82,6 +82,7 @@ fn every_command_round_trips() {
         Command::GetStatus,
         Command::WriteSpeedGains { kp: 0.05, tau_max_nm: 2.0 },
         Command::ReadSpeedGains,
+        Command::Stop,
     ];
     let stream: Vec<u8> = cmds.iter().flat_map(frame_of).collect();
     let (got, stats) = decode_all(&stream);
