@@ -79,6 +79,10 @@ pub struct Protection {
     /// A controlled stop ([`Drive::controlled_stop`]: the speed loop brakes to standstill,
     /// then the bridge goes off) takes at most this long before the bridge goes off anyway, s.
     pub stop_time_s: f64,
+    /// Open phase: the window, s, over which a phase whose reference current is substantial
+    /// ([`OPEN_PHASE_COMMANDED_FRACTION`] of the rated magnetizing current on average) but
+    /// whose measured current stays below [`OPEN_PHASE_ABSENT_FRACTION`] of it trips.
+    pub open_phase_time_s: f64,
     /// The board's brake chopper (a resistor switched across the DC link), if it has one:
     /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
     /// every mode (it protects the link whether or not the bridge is active).
@@ -96,6 +100,16 @@ pub struct BrakeChopper {
     /// Switch off below this bus voltage, V.
     pub off_v: f64,
 }
+
+/// Open-phase check: a phase is *commanded* over a window when the mean magnitude of its
+/// reference current is at least this fraction of the rated magnetizing current …
+pub const OPEN_PHASE_COMMANDED_FRACTION: f32 = 0.2;
+/// … and *absent* when its measured current's mean magnitude is below about this fraction
+/// of the current's amplitude (sensor noise of 0.01 A RMS averages to 0.008 A, a tenth of
+/// this level at the shipped motor's 0.63 A); see `OpenPhaseWindow::add`.
+pub const OPEN_PHASE_ABSENT_FRACTION: f32 = 0.1;
+/// Consecutive windows an open phase (or no motor current) must persist for.
+pub const OPEN_PHASE_WINDOWS: u8 = 2;
 
 /// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
 pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
@@ -301,6 +315,8 @@ pub struct DriveConfig {
     encoder_check_steps: u32,
     /// Slow steps a controlled stop may take before the bridge goes off anyway.
     stop_slow_steps: u32,
+    /// Fast steps of the open-phase check's window.
+    open_phase_steps: u32,
     /// Brake chopper on above this bus voltage (`f32::MAX` without a chopper: never), V.
     brake_on_v: f32,
     /// … and off below this one, V.
@@ -335,6 +351,7 @@ impl DriveConfig {
             p.saturation_time_s,
             p.encoder_check_time_s,
             p.stop_time_s,
+            p.open_phase_time_s,
         ]
         .iter()
         .all(|x| x.is_finite());
@@ -348,7 +365,8 @@ impl DriveConfig {
             && p.current_sum_max_a > 0.0
             && p.saturation_time_s > 0.0
             && p.encoder_check_time_s > 0.0
-            && p.stop_time_s > 0.0)
+            && p.stop_time_s > 0.0
+            && p.open_phase_time_s > 0.0)
         {
             return Err(DriveError::Protection);
         }
@@ -439,6 +457,7 @@ impl DriveConfig {
                 .clamp(1.0, 4e9) as u32,
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
+            open_phase_steps: libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32,
             brake_on_v,
             brake_off_v,
         })
@@ -494,6 +513,7 @@ impl DriveConfig {
             self.saturation_steps,
             self.encoder_check_steps,
             self.stop_slow_steps,
+            self.open_phase_steps,
         ] {
             w.u(x);
         }
@@ -548,6 +568,7 @@ impl DriveConfig {
             saturation_steps: r.u(),
             encoder_check_steps: r.u(),
             stop_slow_steps: r.u(),
+            open_phase_steps: r.u(),
         };
         let counts = [
             u32::from(cfg.slow_divider),
@@ -556,6 +577,7 @@ impl DriveConfig {
             cfg.saturation_steps,
             cfg.encoder_check_steps,
             cfg.stop_slow_steps,
+            cfg.open_phase_steps,
         ];
         if r.bad || counts.contains(&0) {
             return Err(DriveError::Raw);
@@ -617,10 +639,14 @@ pub enum Fault {
     /// The three measured phase currents do not sum to zero (a dead, stuck or drifting
     /// current sensor).
     CurrentSensor,
-    /// Magnetizing takes more than twice the time the reference current needs: the flux
-    /// model, on the measured current, does not build — no motor current flows (open leads,
+    /// No phase carries the current it is commanded over `open_phase_time_s`, or
+    /// magnetizing takes more than twice the time the reference current needs (the flux
+    /// model, on the measured current, does not build): no motor current flows (open leads,
     /// a motor that is not there, dead current sensors).
     NoMotorCurrent,
+    /// A phase is commanded a current but carries none, over `open_phase_time_s` (a broken
+    /// lead or connector).
+    OpenPhase,
 }
 
 /// Drive state.
@@ -735,6 +761,84 @@ pub struct FastOutput {
     pub telemetry: Telemetry,
 }
 
+/// The open-phase check's window ([`Protection::open_phase_time_s`]).
+#[derive(Clone, Copy, Debug, Default)]
+struct OpenPhaseWindow {
+    /// Σ|i_ref| per phase, A.
+    reference: Abc,
+    /// Σ|i| per phase, A.
+    measured: Abc,
+    steps: u32,
+    /// Consecutive windows in which each phase looked open.
+    suspect: [u8; 3],
+    /// Consecutive windows without any motor current.
+    no_current: u8,
+}
+
+impl OpenPhaseWindow {
+    /// One fast step's reference and measured phase currents. At the end of a window of
+    /// `steps` fast steps, with `level_a` the rated magnetizing current:
+    /// - a phase *looks open* when it was commanded (mean |i_ref| ≥
+    ///   [`OPEN_PHASE_COMMANDED_FRACTION`]·`level_a`) while the other two carry current (their
+    ///   mean |i| at least a quarter of that level, far above the sensors' noise) but it hardly
+    ///   does: its mean |i| below a quarter of theirs and below
+    ///   [`OPEN_PHASE_ABSENT_FRACTION`] of its own mean |i_ref| (an open lead carries none,
+    ///   the other two equal and opposite currents);
+    /// - the motor *carries no current* when the reference does (the sum of the mean
+    ///   |i_ref| at least twice the commanded level) and the measured sum is below
+    ///   [`OPEN_PHASE_ABSENT_FRACTION`] of it (no lead connected, or every sensor dead: the
+    ///   current-sum check cannot see three sensors reading zero).
+    ///
+    /// Either must hold for [`OPEN_PHASE_WINDOWS`] windows in a row — a healthy phase passes
+    /// its zero crossing, and slow current loops (seed 000's) catch up, within one — to give
+    /// [`Fault::OpenPhase`] or [`Fault::NoMotorCurrent`]. Then a new window.
+    #[inline]
+    fn add(&mut self, reference: Abc, measured: Abc, steps: u32, level_a: f32) -> Option<Fault> {
+        let (r, i) = (&mut self.reference, &mut self.measured);
+        r.a += reference.a.abs();
+        r.b += reference.b.abs();
+        r.c += reference.c.abs();
+        i.a += measured.a.abs();
+        i.b += measured.b.abs();
+        i.c += measured.c.abs();
+        self.steps += 1;
+        if self.steps < steps {
+            return None;
+        }
+        let commanded = OPEN_PHASE_COMMANDED_FRACTION * level_a * self.steps as f32;
+        let (r, i) = (self.reference, self.measured);
+        let (r_sum, i_sum) = (r.a + r.b + r.c, i.a + i.b + i.c);
+        // Absent against the other two phases' current *and* against its own reference: a
+        // phase at its reference's zero crossing (slow rotation: generating near synchronism,
+        // standstill) legitimately carries little, and so does its reference; the other two
+        // must carry clearly more than the sensors' noise.
+        let looks_open = |r: f32, i: f32| {
+            let others = 0.5 * (i_sum - i);
+            r >= commanded
+                && others >= 0.25 * commanded
+                && i < 0.25 * others
+                && i < OPEN_PHASE_ABSENT_FRACTION * r
+        };
+        let count = |n: u8, now: bool| if now { n.saturating_add(1) } else { 0 };
+        let [sa, sb, sc] = self.suspect;
+        let suspect = [
+            count(sa, looks_open(r.a, i.a)),
+            count(sb, looks_open(r.b, i.b)),
+            count(sc, looks_open(r.c, i.c)),
+        ];
+        let no_current =
+            count(self.no_current, r_sum >= 2.0 * commanded && i_sum < OPEN_PHASE_ABSENT_FRACTION * r_sum);
+        *self = Self { suspect, no_current, ..Self::default() };
+        if no_current >= OPEN_PHASE_WINDOWS {
+            Some(Fault::NoMotorCurrent)
+        } else if suspect.iter().any(|&n| n >= OPEN_PHASE_WINDOWS) {
+            Some(Fault::OpenPhase)
+        } else {
+            None
+        }
+    }
+}
+
 /// A drive: configuration plus all loop states.
 #[derive(Clone, Copy, Debug)]
 pub struct Drive {
@@ -759,6 +863,8 @@ pub struct Drive {
     brake: bool,
     /// Slow steps left of a controlled stop (`None`: not stopping).
     stop_steps_left: Option<u32>,
+    /// The open-phase check's window: Σ|i_ref| and Σ|i| per phase, and its steps so far.
+    open_phase: OpenPhaseWindow,
     /// The flux (d-axis current) command of the present operating point.
     flux: FluxCommand,
     /// Largest steady torque of the envelope at the last slow step, N·m (the speed loop's
@@ -816,6 +922,7 @@ impl Drive {
             encoder_bad_steps: 0,
             brake: false,
             stop_steps_left: None,
+            open_phase: OpenPhaseWindow::default(),
             flux: FluxCommand::default(),
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
@@ -875,6 +982,7 @@ impl Drive {
                 self.stall_steps = 0;
                 self.saturated_steps = 0;
                 self.encoder_bad_steps = 0;
+                self.open_phase = OpenPhaseWindow::default();
                 self.flux = FluxCommand::default();
                 self.torque_max_nm = 0.0;
                 self.v_cut_v = 0.0;
@@ -1265,6 +1373,16 @@ impl Drive {
             }
         };
         self.omega_sl_rad_s = field.omega_sl_rad_s;
+        let window = self.open_phase.add(
+            field.i_ref_ab.inverse_clarke(),
+            m.i_abc_a,
+            cfg.open_phase_steps,
+            cfg.i_d_rated_a,
+        );
+        if let Some(f) = window {
+            self.trip(f);
+            return off(self.mode);
+        }
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
         let v_clamp = m.vdc_v * (2.0 / 3.0);
         // The loops' request, in the stationary frame.
@@ -1405,6 +1523,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             saturation_time_s: 0.02,
             encoder_check_time_s: 0.01,
             stop_time_s: 5.0,
+            open_phase_time_s: 0.0025,
             brake_chopper: None,
         },
     }
@@ -1499,7 +1618,7 @@ mod tests {
         bad.u[1] = 7; // the current frame's tag
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         let mut bad = raw;
-        bad.u[raw::INTEGERS - 7] = 0; // the slow divider
+        bad.u[raw::INTEGERS - 8] = 0; // the slow divider
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         // New speed gains in f32 equal a rebuild from the design values.
         let moved = cfg.with_saturated_p(0.08, 1.5).unwrap();
@@ -1581,6 +1700,8 @@ mod tests {
     fn magnetizing_without_current_is_no_motor_current() {
         let mut spec = test_spec();
         spec.protection.saturation_time_s = 10.0;
+        // The open-phase check's "no motor current" would come first too.
+        spec.protection.open_phase_time_s = 10.0;
         let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
         d.enable().unwrap();
         let m = Measurements { vdc_v: 310.0, ..Default::default() };

@@ -13,7 +13,7 @@
 /// Floats in a raw drive configuration.
 pub const FLOATS: usize = 51;
 /// Integers in a raw drive configuration.
-pub const INTEGERS: usize = 11;
+pub const INTEGERS: usize = 12;
 
 /// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
 /// expression: what the firmware's build script writes.

@@ -75,7 +75,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_trim_bandwidth_rad_s: {:?},\n\
          \x20       dead_time_compensation_s: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
-         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, stop_time_s: {:?}, brake_chopper: {} }},\n\
+         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {} }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -108,6 +108,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         p.saturation_time_s,
         p.encoder_check_time_s,
         p.stop_time_s,
+        p.open_phase_time_s,
         match p.brake_chopper {
             None => "None".to_string(),
             Some(b) => format!(

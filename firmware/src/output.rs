@@ -246,7 +246,7 @@ mod tests {
                 self.0.set_brake(on)
             }
         }
-        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut ctl = ControlLoop::at_rest_for_tests();
         let (mut out, mut hw) = (Outputs::new(), Count::default());
         for _ in 0..10 {
             assert_eq!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Off);

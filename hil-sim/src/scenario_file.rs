@@ -46,7 +46,8 @@
 //! t_s = 1.0
 //! kind = "fault"
 //! fault = "current_sensor"         # phase = "a"|"b"|"c", gain, offset_a (dead: 0, 0)
-//! phase = "b"                      # or "encoder_stuck", "bus_voltage" (vdc_v), "load_seizure"
+//! phase = "b"                      # or "encoder_stuck", "bus_voltage" (vdc_v), "load_seizure",
+//!                                  # "open_phase" (phase)
 //! gain = 0.0
 //! offset_a = 0.0
 //! ```
@@ -245,6 +246,7 @@ enum EventKind {
 #[serde(rename_all = "snake_case")]
 enum FaultKind {
     CurrentSensor,
+    OpenPhase,
     EncoderStuck,
     BusVoltage,
     LoadSeizure,
@@ -370,28 +372,29 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                 amplitude_a: bounded("amplitude_a", e.amplitude_a)? as f32,
                 omega_rad_s: bounded("omega_rad_s", e.omega_rad_s)? as f32,
             }),
-            EventKind::Fault => Event::Fault(match e.fault {
-                None => return Err(src.error(&key("kind"), "a `fault` event needs `fault = \"…\"`")),
-                Some(FaultKind::CurrentSensor) => {
-                    let phase = match e.phase.as_deref() {
-                        Some("a") => 0,
-                        Some("b") => 1,
-                        Some("c") => 2,
-                        _ => return Err(src.error(&key("phase"), "needs phase = \"a\", \"b\" or \"c\"")),
-                    };
-                    Injection::CurrentSensor {
-                        phase,
+            EventKind::Fault => Event::Fault({
+                let phase_of = || match e.phase.as_deref() {
+                    Some("a") => Ok(0),
+                    Some("b") => Ok(1),
+                    Some("c") => Ok(2),
+                    _ => Err(src.error(&key("phase"), "needs phase = \"a\", \"b\" or \"c\"")),
+                };
+                match e.fault {
+                    None => return Err(src.error(&key("kind"), "a `fault` event needs `fault = \"…\"`")),
+                    Some(FaultKind::CurrentSensor) => Injection::CurrentSensor {
+                        phase: phase_of()?,
                         gain: bounded("gain", e.gain)?,
                         offset_a: bounded("offset_a", e.offset_a)?,
+                    },
+                    Some(FaultKind::OpenPhase) => Injection::OpenPhase { phase: phase_of()? },
+                    Some(FaultKind::EncoderStuck) => Injection::EncoderStuck,
+                    Some(FaultKind::BusVoltage) => {
+                        let v = bounded("vdc_v", e.vdc_v)?;
+                        src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
+                        Injection::BusVoltage { vdc_v: v }
                     }
+                    Some(FaultKind::LoadSeizure) => Injection::LoadSeizure,
                 }
-                Some(FaultKind::EncoderStuck) => Injection::EncoderStuck,
-                Some(FaultKind::BusVoltage) => {
-                    let v = bounded("vdc_v", e.vdc_v)?;
-                    src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
-                    Injection::BusVoltage { vdc_v: v }
-                }
-                Some(FaultKind::LoadSeizure) => Injection::LoadSeizure,
             }),
         };
         events.push((e.t_s, ev));

@@ -104,6 +104,12 @@ pub enum Injection {
     },
     /// The load seizes: the rotor is held at standstill from now on.
     LoadSeizure,
+    /// The lead of `phase` (0 = a, 1 = b, 2 = c) opens: no current flows in it from now on
+    /// (a broken wire or connector; the motor runs single-phase on the other two).
+    OpenPhase {
+        /// Phase index 0…2.
+        phase: usize,
+    },
 }
 
 /// Load beyond the event-driven constant torque.
@@ -288,6 +294,11 @@ enum Period {
 /// conducting at a current zero, which the step locates to within one step.
 pub const BRIDGE_OFF_SUBSTEPS: u32 = 5;
 
+/// The phase axes a, b, c in the αβ plane, scaled so that the projection of the current
+/// vector on an axis is that phase's current (amplitude-invariant Clarke).
+const PHASE_AXES: [(f64, f64); 3] =
+    [(1.0, 0.0), (-0.5, 0.866_025_403_784_438_6), (-0.5, -0.866_025_403_784_438_6)];
+
 /// A phase current below this is zero: its diodes block, A.
 const DIODE_ZERO_A: f64 = 1e-9;
 
@@ -314,8 +325,7 @@ fn integrate_bridge_off(
     vdc_v: f64,
     load_nm: f64,
 ) -> (MachineState, [f64; 2]) {
-    const AXES: [(f64, f64); 3] =
-        [(1.0, 0.0), (-0.5, 0.866_025_403_784_438_6), (-0.5, -0.866_025_403_784_438_6)];
+    const AXES: [(f64, f64); 3] = PHASE_AXES;
     let phase = |x: &MachineState, (ux, uy): (f64, f64)| x.i_alpha_a * ux + x.i_beta_a * uy;
     let half = 0.5 * vdc_v;
     let mut x = *x;
@@ -459,6 +469,8 @@ pub fn run(
     let mut vdc_measured_v = sensors.vdc(vdc_v);
     let mut source_v = sc.vdc_v;
     let mut link_state = LinkState { vdc_v: sc.vdc_v };
+    // An open lead's axis: its current is held at zero after every plant step.
+    let mut open_phase: Option<(f64, f64)> = None;
     for k in 0..n {
         if k >= next_event_k {
             let t = k as f64 * ts;
@@ -479,6 +491,9 @@ pub fn run(
                             vdc_v = v;
                             vdc_measured_v = sensors.vdc(v);
                         }
+                    }
+                    Event::Fault(Injection::OpenPhase { phase }) => {
+                        open_phase = PHASE_AXES.get(phase).copied()
                     }
                     Event::Fault(Injection::LoadSeizure) => {
                         x.omega_m_rad_s = 0.0;
@@ -543,6 +558,11 @@ pub fn run(
                 segments.average()
             }
         };
+        if let Some((ux, uy)) = open_phase {
+            let along = x.i_alpha_a * ux + x.i_beta_a * uy;
+            x.i_alpha_a -= along * ux;
+            x.i_beta_a -= along * uy;
+        }
         let vdc_period_v = vdc_v;
         let (mut i_dc, mut i_src, mut i_ch) = (0.0, 0.0, 0.0);
         if let Some(link) = &sc.dc_link {

@@ -303,6 +303,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         p.saturation_time_s,
         p.encoder_check_time_s,
         p.stop_time_s,
+        p.open_phase_time_s,
     ] {
         w.f64(v)?;
     }
@@ -363,6 +364,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         saturation_time_s: r.f64()?,
         encoder_check_time_s: r.f64()?,
         stop_time_s: r.f64()?,
+        open_phase_time_s: r.f64()?,
         brake_chopper: match r.u8()? {
             0 => None,
             1 => Some(BrakeChopper { on_v: r.f64()?, off_v: r.f64()? }),
@@ -407,6 +409,7 @@ fn mode_code(m: Mode) -> u8 {
         Mode::Fault(Fault::NoMotorCurrent) => 20,
         Mode::Fault(Fault::LossOfControl) => 21,
         Mode::Fault(Fault::EncoderImplausible) => 22,
+        Mode::Fault(Fault::OpenPhase) => 23,
     }
 }
 
@@ -428,6 +431,7 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
         20 => Mode::Fault(Fault::NoMotorCurrent),
         21 => Mode::Fault(Fault::LossOfControl),
         22 => Mode::Fault(Fault::EncoderImplausible),
+        23 => Mode::Fault(Fault::OpenPhase),
         _ => return Err(DecodeError::Value),
     })
 }

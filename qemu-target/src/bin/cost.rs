@@ -64,6 +64,10 @@ mod target {
         // trip during the measurement. The check still runs every step; it just never fires.
         let mut spec = spec;
         spec.protection.saturation_time_s = 1e6;
+        // Likewise the open-phase check, which would find a phase of the synthetic current
+        // "open" against the drive's reference: its window keeps accumulating (the per-step
+        // cost), its end-of-window verdict (every 50th step) is left out of the average.
+        spec.protection.open_phase_time_s = 1e6;
         let Ok(cfg) = DriveConfig::new(&spec) else { sh::exit(false) };
         let ts = 1.0 / spec.pwm_frequency_hz;
         // Inputs: a 1.5 A current vector rotating at 0.01 rad per sample.
