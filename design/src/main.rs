@@ -57,9 +57,20 @@ struct IcadArgs {
     /// `icad20` (seed 002 eq. (20)) or `pi:KP,KI`.
     #[arg(long, value_parser = parse_law)]
     controller: CurrentLaw,
+    /// PWM rate of the sampled analysis (the loop as the drive runs it: zero-order hold, one
+    /// period of delay; `design::sampled`), Hz.
+    #[arg(long, default_value_t = 20_000.0, value_parser = positive_rate)]
+    pwm_hz: f64,
     /// Print JSON.
     #[arg(long)]
     json: bool,
+}
+
+fn positive_rate(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && (1.0..=1e6).contains(&x) => Ok(x),
+        _ => Err(format!("`{s}` is not a rate in [1, 1e6] Hz")),
+    }
 }
 
 /// `design certify`: on every corner of the parameter box (see `design::certify`).
@@ -99,6 +110,16 @@ fn icad(a: &IcadArgs) -> Result<bool, String> {
     let r = design::icad::analyse(&m, &law, omega_r);
     let stable_here = design::icad::closed_loop_abscissa(&m, &law, omega_r) < 0.0;
     let range = design::icad::stable_omega_r_max(&m, &law, 5.0, 5000.0);
+    let ts = 1.0 / a.pwm_hz;
+    let ctrl = controller_core::current::CurrentControllerConfig::<f32>::new(
+        &law,
+        ts,
+        controller_core::discretize::Discretization::Tustin,
+        1.0,
+    )
+    .map_err(|e| format!("the law cannot be discretised at {} Hz: {e:?}", a.pwm_hz))?;
+    let sampled = design::sampled::analyse(&m, &ctrl, ts, omega_r);
+    let sampled_range = design::sampled::stable_omega_r_max(&m, &ctrl, ts, 5.0, 5000.0);
     let v = serde_json::json!({
         "omega_r_rad_s": omega_r,
         "crossover_rad_s": r.channel.crossover_rad_s,
@@ -117,6 +138,12 @@ fn icad(a: &IcadArgs) -> Result<bool, String> {
         "stable_at_omega_r": stable_here,
         "stable_omega_r_max_rad_s": range,
         "stable_omega_r_search_limit_rad_s": 5000.0,
+        "sampled_pwm_hz": a.pwm_hz,
+        "sampled_phase_margin_deg": sampled.channel.phase_margin_deg,
+        "sampled_gain_margin_increase_db": sampled.channel.gain_margin_increase_db,
+        "sampled_gain_margin_reduction_db": sampled.channel.gain_margin_reduction_db,
+        "sampled_gamma_h_margin_db": sampled.gamma_h_margin_db,
+        "sampled_stable_omega_r_max_rad_s": sampled_range,
     });
     if json {
         println!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);

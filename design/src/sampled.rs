@@ -162,6 +162,28 @@ pub fn current_loop_worst_radius(
     worst
 }
 
+/// Largest ω_r (searched up to `limit` in steps of `step`) such that the sampled loop is
+/// stable for every electrical rotor speed in [0, ω_r] — [`crate::icad::stable_omega_r_max`]
+/// for the loop as the drive runs it; `None` if unstable already at 0.
+pub fn stable_omega_r_max(
+    m: &MotorParams,
+    ctrl: &CurrentControllerConfig<f32>,
+    ts_s: f64,
+    step: f64,
+    limit: f64,
+) -> Option<f64> {
+    let mut last = None;
+    let mut w = 0.0;
+    while w <= limit {
+        if spectral_radius(&current_loop_matrix(m, ctrl, ts_s, w)) >= 1.0 {
+            return last;
+        }
+        last = Some(w);
+        w += step;
+    }
+    last
+}
+
 /// The sampled loop's 2×2 frequency response at ω (0 < ω < π/T), delay and advance included.
 pub fn sampled_response(p: &SampledPlant, omega_r: f64, ts_s: f64, omega_rad_s: f64) -> G2 {
     let z = Complex64::from_polar(1.0, omega_rad_s * ts_s);
@@ -349,6 +371,20 @@ mod tests {
         let (r100, _) = current_loop_worst_radius(&m, &icad(1e-2), 1e-2, 400.0, 5.0);
         eprintln!("spectral radius: 20 kHz {r20k:.6}, 100 Hz {r100:.3}");
         assert!(r20k < 1.0 && r100 > 1.0);
+    }
+
+    /// The stable rotor-speed range of the sampled ICAD loop at 20 kHz against the continuous
+    /// analysis's 645 rad/s (seed 002 eq. (13) motor): the test prints both — the same 645:
+    /// the limit is the structure's (γh at low frequency, where the delay hardly acts), the
+    /// delay costs margin, not range.
+    #[test]
+    fn sampled_stable_speed_range() {
+        let m = drive_file::motor::load("delorenzo-eq13").unwrap();
+        let cont = crate::icad::stable_omega_r_max(&m, &CurrentLaw::ICAD_EQ20, 5.0, 5000.0);
+        let samp = stable_omega_r_max(&m, &icad(5e-5), 5e-5, 5.0, 5000.0);
+        eprintln!("ICAD (20) stable for ω_r ∈ [0, {cont:?}] continuous, [0, {samp:?}] sampled at 20 kHz");
+        assert_eq!(cont, Some(645.0));
+        assert!(samp.is_some_and(|w| w > 400.0 && w <= 645.0 + 5.0), "{samp:?}");
     }
 
     /// The speed loop: the shipped k_p = 0.05 is stable, k_p = 50 and 1e9 are not; for the
