@@ -23,9 +23,10 @@
 //!   of the same speed law driving an *ideal* torque actuator on the same mechanics with the
 //!   same load ([`IdealLoop`]) — the drive's current loops, field orientation and operating
 //!   point are what is judged, not the speed law's chosen slowness;
-//! - flux: the machine's rotor flux between [`FLUX_BOUNDS`] of the drive's reference once
+//! - flux: the machine's rotor flux between [`FLUX_BOUNDS`] of the drive's flux model once
 //!   magnetized (detuned corners run at a different flux than the model thinks; a collapse or
-//!   a saturation-level excess fails);
+//!   a saturation-level excess fails; the model, not the reference, so that the flux's own
+//!   T_r lag in field weakening is not counted);
 //! - no oscillation: torque peak to peak about its trend line over the last
 //!   [`RIPPLE_WINDOW_S`] below [`RIPPLE_FRACTION`]·τ_max.
 
@@ -34,6 +35,7 @@ use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, LoadModel, Row, Scenario};
 use controller_core::drive::{DriveConfig, DriveSpec, Mode, Reference};
+use controller_core::envelope::EnvelopeConfig;
 use controller_core::ifoc::TorqueCommand;
 use controller_core::motor::MotorParams;
 use controller_core::speed::{SpeedControllerConfig, SpeedLaw, SpeedState};
@@ -51,7 +53,7 @@ pub const LOAD_FRACTION: f64 = 0.8;
 pub const TRACKING_FRACTION: f64 = 0.05;
 /// … plus this, rad/s.
 pub const TRACKING_FLOOR_RAD_S: f64 = 2.0;
-/// Rotor flux over the drive's reference, once magnetized: inside these bounds.
+/// Rotor flux over the drive's flux model ψ̂_r, once magnetized: inside these bounds.
 pub const FLUX_BOUNDS: [f64; 2] = [0.5, 1.3];
 /// Torque ripple is measured over the last this long of the run, s.
 pub const RIPPLE_WINDOW_S: f64 = 0.05;
@@ -136,7 +138,7 @@ pub struct Verdict {
     pub omega_s_rad_s: f64,
     /// Largest |ω − ω_ideal| after the speed step, rad/s.
     pub tracking_error_rad_s: f64,
-    /// Smallest and largest |ψ_r|/ψ_ref once magnetized.
+    /// Smallest and largest |ψ_r|/ψ̂_r (the drive's flux model) once magnetized.
     pub flux_ratio: [f64; 2],
     /// Torque peak to peak about its trend over the last [`RIPPLE_WINDOW_S`], N·m.
     pub ripple_nm: f64,
@@ -277,7 +279,7 @@ impl Campaign {
             },
         };
         let t_row = f64::from(divider) / self.spec.pwm_frequency_hz;
-        let mut ideal = IdealLoop::new(&self.spec, &plant, t_row)?;
+        let mut ideal = IdealLoop::new(&self.spec, &plant, self.vdc_v, t_row)?;
         let (mut track, mut flux, mut faulted) = (0.0f64, [f64::INFINITY, 0.0f64], false);
         let mut window: Vec<(f64, f64)> = Vec::new();
         let mode = b.run_into(
@@ -287,9 +289,9 @@ impl Campaign {
                     return Err("interrupted".into());
                 }
                 faulted |= matches!(r.mode, Some(Mode::Fault(_)));
-                if r.t_s >= STEP_S {
+                if r.t_s >= STEP_S && r.mode == Some(Mode::Running) {
                     track = track.max((r.x.omega_m_rad_s - ideal.omega_m_rad_s).abs());
-                    let ratio = r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb) / r.psi_ref_wb.max(1e-9);
+                    let ratio = r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb) / r.psi_est_wb.max(1e-9);
                     flux = [flux[0].min(ratio), flux[1].max(ratio)];
                 }
                 if r.t_s >= self.duration_s - RIPPLE_WINDOW_S {
@@ -378,7 +380,12 @@ pub fn torque_limit_nm(spec: &DriveSpec) -> f64 {
 
 /// The drive's speed law on an ideal torque actuator: the law's own discrete code
 /// (`SpeedControllerConfig`, ideal speed measurement) driving `J dω/dt = τ − Bω − T_L` of
-/// the sampled plant's mechanics, one step per slow period (zero-order hold).
+/// the sampled plant's mechanics, one step per slow period (zero-order hold). The torque is
+/// limited, like the drive's, to its own steady-state envelope at the present speed
+/// (`controller_core::envelope`: nominal motor, the drive's voltage target on the bus,
+/// remade every [`controller_core::envelope::ENVELOPE_REFRESH_SLOW_STEPS`]), so that above base
+/// speed the criterion compares the drive with what its operating point allows, not with
+/// τ_max.
 #[derive(Clone, Copy, Debug)]
 pub struct IdealLoop {
     law: SpeedControllerConfig,
@@ -386,13 +393,19 @@ pub struct IdealLoop {
     kt: f64,
     a: f64,
     g: f64,
+    envelope: EnvelopeConfig,
+    /// Rated d-axis current, voltage target and current limit of the envelope.
+    limits: (f32, f32, f32),
+    /// The envelope's torque magnitude (motoring, generating) at the last refresh, N·m.
+    torque_max_nm: (f64, f64),
+    age: u32,
     /// The ideal loop's speed, mechanical rad/s.
     pub omega_m_rad_s: f64,
 }
 
 impl IdealLoop {
-    /// For drive `spec` on the mechanics of `plant`, stepped every `t_s`.
-    pub fn new(spec: &DriveSpec, plant: &MotorParams, t_s: f64) -> Result<Self, String> {
+    /// For drive `spec` on the mechanics of `plant` and bus `vdc_v`, stepped every `t_s`.
+    pub fn new(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, t_s: f64) -> Result<Self, String> {
         let law =
             SpeedControllerConfig::new(&spec.speed_law, t_s).map_err(|e| format!("speed law: {e:?}"))?;
         DriveConfig::new(spec).map_err(|e| format!("drive: {e:?}"))?;
@@ -403,22 +416,37 @@ impl IdealLoop {
         } else {
             (1.0, t_s / j)
         };
+        let i_d_rated = (spec.flux_ref_wb / spec.motor.lm_h()).min(spec.i_ref_max_a);
+        let v_target = spec.voltage_margin * vdc_v / 3f64.sqrt();
         Ok(Self {
             law,
             state: SpeedState::default(),
             kt: spec.motor.torque_factor() * spec.flux_ref_wb,
             a,
             g,
+            envelope: EnvelopeConfig::new(&spec.motor),
+            limits: (i_d_rated as f32, v_target as f32, spec.i_ref_max_a as f32),
+            torque_max_nm: (f64::INFINITY, f64::INFINITY),
+            age: 0,
             omega_m_rad_s: 0.0,
         })
     }
 
     /// One slow period with reference `omega_ref` and load `load_nm`.
     pub fn step(&mut self, omega_ref: f64, load_nm: f64) {
+        if self.age == 0 {
+            let (i_d, v, i_max) = self.limits;
+            let w = self.omega_m_rad_s as f32;
+            let env = |sign: f32| f64::from(self.envelope.envelope(sign, w, i_d, v, i_max).torque_max_nm);
+            self.torque_max_nm = (env(1.0), env(-1.0));
+            self.age = u32::from(controller_core::envelope::ENVELOPE_REFRESH_SLOW_STEPS);
+        }
+        self.age -= 1;
         let tau = match self.law.update(&mut self.state, omega_ref as f32, self.omega_m_rad_s as f32) {
             TorqueCommand::TorqueNm(t) => f64::from(t),
             TorqueCommand::IqA(i) => self.kt * f64::from(i),
         };
+        let tau = tau.clamp(-self.torque_max_nm.1, self.torque_max_nm.0);
         self.omega_m_rad_s = self.a * self.omega_m_rad_s + self.g * (tau - load_nm);
     }
 }
@@ -584,7 +612,7 @@ mod tests {
     #[test]
     fn the_ideal_loop_settles_at_the_p_laws_speed() {
         let c = campaign(1, 1.0);
-        let mut l = IdealLoop::new(&c.spec, &c.spec.motor, 5e-4).unwrap();
+        let mut l = IdealLoop::new(&c.spec, &c.spec.motor, 310.0, 5e-4).unwrap();
         for _ in 0..40_000 {
             l.step(100.0, 0.5);
         }

@@ -176,7 +176,7 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     write_text(&out.join("summary.json"), &format!("{text}\n"))?;
     println!(
         "{:<12} {:>6} {:>7} {:>17} {:>13} {:>16}",
-        "manoeuvre", "runs", "passed", "worst tracking", "worst ripple", "flux / ref"
+        "manoeuvre", "runs", "passed", "worst tracking", "worst ripple", "flux / model"
     );
     for m in hil_sim::campaign::per_manoeuvre(&verdicts) {
         println!(

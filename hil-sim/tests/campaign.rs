@@ -25,7 +25,7 @@ fn run(c: &Campaign) -> Vec<Verdict> {
 /// The shipped drive passes the linear certificates (continuous and sampled) over its
 /// `[certify]` box, but the nonlinear campaign over the same box finds what they cannot:
 /// at the hot-rotor corners (R_r ×2) the fixed-parameter field orientation runs the real
-/// rotor flux above 1.3× its reference under load (a real machine would saturate), and at
+/// rotor flux above 1.3× its flux model under load (a real machine would saturate), and at
 /// the low-inductance corners (L ×0.6) the torque falls short of its command, so the speed
 /// misses what an ideal torque actuator would give. The nominal corners pass. The test
 /// prints each corner's verdict (the figures in docs/design-toolkit.md).
