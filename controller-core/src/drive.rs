@@ -79,9 +79,9 @@ pub struct Protection {
     /// A controlled stop ([`Drive::controlled_stop`]: the speed loop brakes to standstill,
     /// then the bridge goes off) takes at most this long before the bridge goes off anyway, s.
     pub stop_time_s: f64,
-    /// Open phase: the window, s, over which a phase whose reference current is substantial
-    /// ([`OPEN_PHASE_COMMANDED_FRACTION`] of the rated magnetizing current on average) but
-    /// whose measured current stays below [`OPEN_PHASE_ABSENT_FRACTION`] of it trips.
+    /// Open phase: the window, s, of the open-phase and no-motor-current check (a phase
+    /// commanded a current but carrying none while the others do, for two windows in a row:
+    /// [`Fault::OpenPhase`]; no phase carrying its current: [`Fault::NoMotorCurrent`]).
     pub open_phase_time_s: f64,
     /// The board's brake chopper (a resistor switched across the DC link), if it has one:
     /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
@@ -104,10 +104,14 @@ pub struct BrakeChopper {
 /// Open-phase check: a phase is *commanded* over a window when the mean magnitude of its
 /// reference current is at least this fraction of the rated magnetizing current …
 pub const OPEN_PHASE_COMMANDED_FRACTION: f32 = 0.2;
-/// … and *absent* when its measured current's mean magnitude is below about this fraction
-/// of the current's amplitude (sensor noise of 0.01 A RMS averages to 0.008 A, a tenth of
-/// this level at the shipped motor's 0.63 A); see `OpenPhaseWindow::add`.
+/// … and *absent* when its measured current's mean magnitude is below this fraction of its
+/// reference's (and every phase absent when their sum is below this fraction of the
+/// references' sum); see `OpenPhaseWindow::add`.
 pub const OPEN_PHASE_ABSENT_FRACTION: f32 = 0.1;
+/// … and below this fraction of the mean magnitude of the other two phases' currents, which
+/// must themselves reach this fraction of the commanded level (sensor noise of 0.01 A RMS
+/// averages to 0.008 A, a quarter of that level at the shipped motor's 0.63 A).
+pub const OPEN_PHASE_OTHERS_FRACTION: f32 = 0.25;
 /// Consecutive windows an open phase (or no motor current) must persist for.
 pub const OPEN_PHASE_WINDOWS: u8 = 2;
 
@@ -780,8 +784,8 @@ impl OpenPhaseWindow {
     /// `steps` fast steps, with `level_a` the rated magnetizing current:
     /// - a phase *looks open* when it was commanded (mean |i_ref| ≥
     ///   [`OPEN_PHASE_COMMANDED_FRACTION`]·`level_a`) while the other two carry current (their
-    ///   mean |i| at least a quarter of that level, far above the sensors' noise) but it hardly
-    ///   does: its mean |i| below a quarter of theirs and below
+    ///   mean |i| at least [`OPEN_PHASE_OTHERS_FRACTION`] of that level) but it hardly does:
+    ///   its mean |i| below [`OPEN_PHASE_OTHERS_FRACTION`] of theirs and below
     ///   [`OPEN_PHASE_ABSENT_FRACTION`] of its own mean |i_ref| (an open lead carries none,
     ///   the other two equal and opposite currents);
     /// - the motor *carries no current* when the reference does (the sum of the mean
@@ -815,8 +819,8 @@ impl OpenPhaseWindow {
         let looks_open = |r: f32, i: f32| {
             let others = 0.5 * (i_sum - i);
             r >= commanded
-                && others >= 0.25 * commanded
-                && i < 0.25 * others
+                && others >= OPEN_PHASE_OTHERS_FRACTION * commanded
+                && i < OPEN_PHASE_OTHERS_FRACTION * others
                 && i < OPEN_PHASE_ABSENT_FRACTION * r
         };
         let count = |n: u8, now: bool| if now { n.saturating_add(1) } else { 0 };

@@ -22,7 +22,7 @@
 //! [`SPEED_WINDOW_READS`] slow reads divided by their span (an FIR of the per-period angle
 //! increments `Δθ = c₁ω + c₂τ`, exact under the hold); the torque commanded at slow step k
 //! applied during slow period k + 1 (one slow period for the current loops to build it up:
-//! their closed-loop time constants are ≈ 1 ms, two slow periods). The saturated P law is
+//! an assumption, checked against the simulated drive by `hil-sim/tests/sampled_speed.rs`). The saturated P law is
 //! checked in its linear region (|τ| < τ_max); a PI law with its integrator
 //! `K_i/K·(z + 1)/(z − 1)`. Stability over a grid of J (and of k_p over the writable range):
 //! Kharitonov's theorem does not carry over to the unit circle, so the sampled speed check

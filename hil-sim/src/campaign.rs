@@ -34,7 +34,7 @@ use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, LoadModel, Row, Scenario};
-use controller_core::drive::{DriveConfig, DriveSpec, Mode, Reference};
+use controller_core::drive::{DriveSpec, Mode, Reference};
 use controller_core::envelope::EnvelopeConfig;
 use controller_core::ifoc::TorqueCommand;
 use controller_core::motor::MotorParams;
@@ -408,7 +408,6 @@ impl IdealLoop {
     pub fn new(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, t_s: f64) -> Result<Self, String> {
         let law =
             SpeedControllerConfig::new(&spec.speed_law, t_s).map_err(|e| format!("speed law: {e:?}"))?;
-        DriveConfig::new(spec).map_err(|e| format!("drive: {e:?}"))?;
         let (j, b) = (plant.j_kgm2(), plant.b_nms());
         let (a, g) = if b > 0.0 {
             let a = (-b * t_s / j).exp();
@@ -416,7 +415,7 @@ impl IdealLoop {
         } else {
             (1.0, t_s / j)
         };
-        let i_d_rated = (spec.flux_ref_wb / spec.motor.lm_h()).min(spec.i_ref_max_a);
+        let i_d_rated = crate::envelope::rated_d_current_a(spec, &spec.motor);
         let v_target = spec.voltage_margin * vdc_v / 3f64.sqrt();
         Ok(Self {
             law,

@@ -39,7 +39,7 @@ pub fn base_speed_rad_s(motor: &MotorParams, flux_ref_wb: f64, vdc_v: f64) -> f6
 }
 
 /// The d-axis current of the rated flux on `plant`, within the current limit, A.
-fn rated_d_current_a(spec: &DriveSpec, plant: &MotorParams) -> f64 {
+pub(crate) fn rated_d_current_a(spec: &DriveSpec, plant: &MotorParams) -> f64 {
     (spec.flux_ref_wb / plant.lm_h()).min(spec.i_ref_max_a)
 }
 

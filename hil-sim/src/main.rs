@@ -79,8 +79,9 @@ struct CampaignArgs {
     /// A drive file with a [certify] table.
     #[arg(default_value = "drive.toml")]
     drive: PathBuf,
-    /// Runs in the whole campaign (the 16 corners × 4 manoeuvres come first).
-    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
+    /// Runs in the whole campaign (the 16 corners × 4 manoeuvres come first), at most
+    /// 1 000 000 (every verdict is kept for the table; shard a larger campaign).
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     runs: u64,
     /// Length of each run, s (long runs reach into field weakening).
     #[arg(long, default_value_t = 1.0, value_parser = campaign_seconds)]

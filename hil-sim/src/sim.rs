@@ -325,13 +325,12 @@ fn integrate_bridge_off(
     vdc_v: f64,
     load_nm: f64,
 ) -> (MachineState, [f64; 2]) {
-    const AXES: [(f64, f64); 3] = PHASE_AXES;
     let phase = |x: &MachineState, (ux, uy): (f64, f64)| x.i_alpha_a * ux + x.i_beta_a * uy;
     let half = 0.5 * vdc_v;
     let mut x = *x;
     let mut v_sum = [0.0; 2];
     for _ in 0..BRIDGE_OFF_SUBSTEPS {
-        let before = AXES.map(|u| phase(&x, u));
+        let before = PHASE_AXES.map(|u| phase(&x, u));
         // Each phase's diode: +1 upper (at +V_dc/2, current into the bridge), −1 lower, 0 open.
         let mut diode = before.map(|i| if i.abs() < DIODE_ZERO_A { 0.0 } else { -i.signum() });
         let e = {
@@ -370,13 +369,13 @@ fn integrate_bridge_off(
         v_sum[1] += v[1];
         // Open: its diodes block (no diode chosen), or its current ended the step at or past
         // zero, against its diode's direction.
-        let open = [0, 1, 2].map(|p| diode[p] == 0.0 || phase(&x, AXES[p]) * diode[p] >= 0.0);
+        let open = [0, 1, 2].map(|p| diode[p] == 0.0 || phase(&x, PHASE_AXES[p]) * diode[p] >= 0.0);
         match open.iter().filter(|o| **o).count() {
             0 => {}
             1 => {
                 let p = open.iter().position(|o| *o).unwrap_or(0);
-                let (ux, uy) = AXES[p];
-                let along = phase(&x, AXES[p]);
+                let (ux, uy) = PHASE_AXES[p];
+                let along = phase(&x, PHASE_AXES[p]);
                 x.i_alpha_a -= along * ux;
                 x.i_beta_a -= along * uy;
             }

@@ -308,9 +308,46 @@ fn campaign_writes_its_table_and_judges_every_run() {
     let st = bin().arg("campaign").arg(&no_certify).args(["--out"]).arg(&res).output().unwrap();
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("no [certify] table"));
-    for bad in [&["--shard", "3/3"][..], &["--shard", "x"], &["--duration", "0.1"], &["--runs", "0"]] {
+    // A campaign beyond 1e6 runs (every verdict is kept in memory) is refused, not run out of
+    // memory: 1e8 runs was accepted and would have needed gigabytes.
+    for bad in [
+        &["--shard", "3/3"][..],
+        &["--shard", "x"],
+        &["--duration", "0.1"],
+        &["--runs", "0"],
+        &["--runs", "100000000"],
+    ] {
         let st = bin().args(["campaign", drive]).args(bad).output().unwrap();
         assert_eq!(st.status.code(), Some(2), "{bad:?}");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// Ctrl-C during a campaign: the runs stop, nothing is written, exit 1 naming the interrupt.
+#[test]
+fn interrupted_campaign_writes_nothing() {
+    let out = tmp("campaign-sigint");
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let child = bin()
+        .args(["campaign", drive, "--runs", "100000", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The output directory is made before the runs start.
+    let t0 = std::time::Instant::now();
+    while !out.exists() && t0.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let st = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(st.success());
+    let done = child.wait_with_output().unwrap();
+    assert_eq!(done.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"));
+    for f in ["campaign.csv", "campaign.svg", "summary.json"] {
+        assert!(!out.join(f).exists(), "{f}");
     }
     let _ = std::fs::remove_dir_all(&out);
 }
