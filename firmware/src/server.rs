@@ -1,7 +1,7 @@
 //! Command handling of the board's link (LPUART1, `controller_core::link` frames — the same
 //! as the processor-in-the-loop link).
 //!
-//! Accepted: `Enable`, `Disable`, `ClearFault`, `SetReference`, `GetStatus`,
+//! Accepted: `Enable`, `Disable`, `Stop` (a controlled stop), `ClearFault`, `SetReference`, `GetStatus`,
 //! `ReadSpeedGains`, and `WriteSpeedGains` while Idle with both values inside the ranges
 //! certified in `drive.toml` ([`crate::config`]; `Nack(OutOfCertifiedRange)` otherwise).
 //! Refused with `Nack(Unsupported)`: `Step` (on the board the ADC provides the

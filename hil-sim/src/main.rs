@@ -255,6 +255,8 @@ enum LinkCmd {
     Enable,
     /// Disable the bridge.
     Disable,
+    /// A controlled stop: brake to rest on the speed loop, then the bridge off.
+    Stop,
     /// Clear a latched fault.
     ClearFault,
     /// Mode and link counters.
@@ -702,6 +704,7 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
     let cmd = match command {
         LinkCmd::Enable => Some(Command::Enable),
         LinkCmd::Disable => Some(Command::Disable),
+        LinkCmd::Stop => Some(Command::Stop),
         LinkCmd::ClearFault => Some(Command::ClearFault),
         LinkCmd::Status => Some(Command::GetStatus),
         LinkCmd::Speed { value } => Some(Command::SetReference(Reference::Speed(value))),

@@ -80,6 +80,7 @@ fn help_on_every_subcommand() {
         &["campaign"],
         &["link"],
         &["link", "x", "set-gains"],
+        &["link", "x", "stop"],
     ] {
         let st = bin().args(sub).arg("--help").output().unwrap();
         assert!(st.status.success(), "{sub:?}");
