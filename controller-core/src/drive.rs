@@ -40,6 +40,8 @@
 //! output (impossible for finite inputs, checked anyway) trips too. The fast step performs no indexing, no division by unchecked values that could
 //! panic, and no `unwrap`: it cannot panic for any input (property-tested).
 
+use core::f32::consts::{PI, TAU};
+
 use crate::current::{CurrentControllerConfig, CurrentError, CurrentLaw, CurrentState};
 use crate::discretize::Discretization;
 use crate::envelope::{ENVELOPE_REFRESH_SLOW_STEPS, Envelope, EnvelopeConfig};
@@ -76,6 +78,12 @@ pub struct Protection {
     /// motor needs at the encoder's speed by more than [`ENCODER_RESIDUAL_FRACTION`] of the
     /// linear voltage limit, at every slow-step check for this long, s.
     pub encoder_check_time_s: f64,
+    /// Encoder jump: the position's change between two slow-loop reads may differ from the
+    /// previous read's change by at most this, mechanical rad — the count quantisation plus
+    /// the largest acceleration the mechanics allow over a read period squared. More is a
+    /// glitch, a counter that stopped at speed, or an encoder that lost counts
+    /// ([`Fault::EncoderLoss`], within two reads).
+    pub encoder_jump_rad: f64,
     /// A controlled stop ([`Drive::controlled_stop`]: the speed loop brakes to standstill,
     /// then the bridge goes off) takes at most this long before the bridge goes off anyway, s.
     pub stop_time_s: f64,
@@ -317,6 +325,8 @@ pub struct DriveConfig {
     saturation_steps: u32,
     /// Slow periods of implausible encoder before the trip.
     encoder_check_steps: u32,
+    /// Largest plausible change of the encoder's per-read increment, mechanical rad.
+    encoder_jump_rad: f32,
     /// Slow steps a controlled stop may take before the bridge goes off anyway.
     stop_slow_steps: u32,
     /// Fast steps of the open-phase check's window.
@@ -354,6 +364,7 @@ impl DriveConfig {
             p.current_sum_max_a,
             p.saturation_time_s,
             p.encoder_check_time_s,
+            p.encoder_jump_rad,
             p.stop_time_s,
             p.open_phase_time_s,
         ]
@@ -369,6 +380,7 @@ impl DriveConfig {
             && p.current_sum_max_a > 0.0
             && p.saturation_time_s > 0.0
             && p.encoder_check_time_s > 0.0
+            && p.encoder_jump_rad > 0.0
             && p.stop_time_s > 0.0
             && p.open_phase_time_s > 0.0)
         {
@@ -459,6 +471,8 @@ impl DriveConfig {
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                 .clamp(1.0, 4e9) as u32,
+            // Finite in f32 too.
+            encoder_jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
             open_phase_steps: libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32,
@@ -505,6 +519,7 @@ impl DriveConfig {
             self.speed_limit,
             self.brake_on_v,
             self.brake_off_v,
+            self.encoder_jump_rad,
         ] {
             w.f(x);
         }
@@ -564,6 +579,7 @@ impl DriveConfig {
             speed_limit: r.f(),
             brake_on_v: r.f(),
             brake_off_v: r.f(),
+            encoder_jump_rad: r.f(),
             magnetizing_steps_max: r.u(),
             slow_divider: u16::try_from(r.u()).map_err(|_| DriveError::Raw)?,
             i_trip_bits: r.u(),
@@ -621,8 +637,9 @@ pub enum Fault {
     NonFiniteInput,
     /// A controller output was not finite.
     NonFiniteOutput,
-    /// The position sensor stopped making sense (reported by the firmware through
-    /// [`Drive::trip`]).
+    /// The encoder's position jumped: its change over a read departs from the previous
+    /// read's by more than `encoder_jump_rad` (a glitch, a counter that stopped at speed, lost
+    /// counts, a line count that changed).
     EncoderLoss,
     /// The inverter's hardware break input fired (the timer already turned the bridge off;
     /// reported by the firmware through [`Drive::trip`]).
@@ -705,7 +722,10 @@ pub struct Measurements {
     pub vdc_v: f32,
     /// Mechanical speed, rad/s.
     pub omega_m_rad_s: f32,
-    /// Mechanical position, rad (not wrapped).
+    /// Mechanical angle, rad, within a revolution: `[-π, π)` as the encoder reports it
+    /// (`crate::encoder`; any finite value is accepted — the drive works on the wrapped
+    /// difference of successive readings and counts the turns itself, so the angle keeps its
+    /// precision however far the motor has turned). Read by the slow step.
     pub theta_m_rad: f32,
 }
 
@@ -882,12 +902,17 @@ pub struct Drive {
     v_req_steps: u16,
     /// Slow steps spent magnetizing.
     magnetizing_steps: u32,
-    /// Encoder position at the last slow step, mechanical rad (not wrapped).
+    /// Encoder angle at the last slow step, mechanical rad, within a revolution.
     theta_m_prev_rad: f32,
+    /// Whole turns counted from the encoder's readings (the position loop's position is
+    /// `turns·2π + theta_m_prev_rad`).
+    turns: i32,
+    /// The encoder's change over the last read, mechanical rad.
+    encoder_step_rad: f32,
+    /// Readings taken so far, up to 2 (the jump check needs two changes).
+    encoder_reads: u8,
     /// The rotor's electrical angle from the encoder, rad, in `[-π, π)`.
     theta_r_rad: f32,
-    /// `theta_m_prev_rad` holds a reading (false until the first slow step after enable).
-    encoder_primed: bool,
     /// The rotation that advances the output voltage over the delay
     /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed at the last slow step.
     delay_rotation: SinCos,
@@ -934,8 +959,10 @@ impl Drive {
             v_req_steps: 0,
             magnetizing_steps: 0,
             theta_m_prev_rad: 0.0,
+            turns: 0,
+            encoder_step_rad: 0.0,
+            encoder_reads: 0,
             theta_r_rad: 0.0,
-            encoder_primed: false,
             delay_rotation: SinCos::default(),
             omega_sl_rad_s: 0.0,
             speed_saturated: false,
@@ -993,7 +1020,6 @@ impl Drive {
                 self.v_req2_sum = 0.0;
                 self.v_req_steps = 0;
                 self.magnetizing_steps = 0;
-                self.encoder_primed = false;
                 self.theta_r_rad = 0.0;
                 self.delay_rotation = SinCos::default();
                 self.omega_sl_rad_s = 0.0;
@@ -1084,6 +1110,7 @@ impl Drive {
     /// ([`EnvelopeConfig::point`] on the envelope remade every [`ENVELOPE_REFRESH_SLOW_STEPS`]:
     /// i_d*, and the torque limited to the envelope).
     pub fn slow_step(&mut self, m: &Measurements) {
+        let step_rad = self.read_encoder(m.theta_m_rad);
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         if active && m.omega_m_rad_s.abs() > self.cfg.overspeed_rad_s {
             self.trip(Fault::Overspeed);
@@ -1101,7 +1128,7 @@ impl Drive {
             }
             self.stop_steps_left = Some(left - 1);
         }
-        self.track_encoder(m.theta_m_rad);
+        self.anchor_field(step_rad);
         self.update_trim();
         let v_budget = self.voltage_budget(m.vdc_v);
         let running = self.mode == Mode::Running;
@@ -1117,7 +1144,7 @@ impl Drive {
                     self.speed_torque(w, m.omega_m_rad_s, limit)
                 }
                 Reference::Position(th) => {
-                    let w = self.cfg.position.update(th, m.theta_m_rad);
+                    let w = self.cfg.position.update(th, self.position_rad());
                     self.omega_ref_rad_s = w;
                     self.speed_torque(w, m.omega_m_rad_s, limit)
                 }
@@ -1194,17 +1221,55 @@ impl Drive {
         }
     }
 
-    /// The encoder's new position: the rotor's electrical angle advances by p·Δθ_m (the
-    /// difference of two readings, exact in f32 for close readings), and the field angle is
-    /// re-anchored on it.
-    fn track_encoder(&mut self, theta_m_rad: f32) {
-        if self.encoder_primed {
-            let d = theta_m_rad - self.theta_m_prev_rad;
-            self.theta_r_rad = wrap_angle(self.theta_r_rad + wrap_angle(self.cfg.envelope.pole_pairs() * d));
-            self.cfg.ifoc.anchor(&mut self.ifoc, self.theta_r_rad);
+    /// One encoder reading, in every mode (the turn count must not miss a turn made while
+    /// the bridge is off): returns the change since the last reading, mechanical rad (the
+    /// wrapped difference of two angles within a revolution: exact in f32 however far the
+    /// motor has turned; 0 for the first reading or a non-finite one), and counts the turns.
+    ///
+    /// **Jump check** ([`Fault::EncoderLoss`]): a change that departs from the previous one by
+    /// more than `encoder_jump_rad`. For motion the mechanics allow, the second difference of
+    /// the readings is `α·T²` plus at most two counts of quantisation; a glitch, a counter
+    /// that stops at speed or a line count that changes exceed it at the first or second read.
+    /// (Below the speed at which one read's change is smaller than the level — ≈ 17 rad/s
+    /// for the shipped drive — a stopped counter looks like a stop: the stall check
+    /// catches it.)
+    fn read_encoder(&mut self, theta_m_rad: f32) -> f32 {
+        if !theta_m_rad.is_finite() {
+            return 0.0;
         }
+        let step =
+            if self.encoder_reads == 0 { 0.0 } else { wrap_angle(theta_m_rad - self.theta_m_prev_rad) };
+        // The angle wrapped past ±π: a turn.
+        let raw = theta_m_rad - self.theta_m_prev_rad;
+        if self.encoder_reads > 0 && (raw - step).abs() > PI {
+            self.turns = self.turns.saturating_add(if raw < step { 1 } else { -1 });
+        }
+        if self.encoder_reads >= 2
+            && !matches!(self.mode, Mode::Fault(_))
+            && (step - self.encoder_step_rad).abs() > self.cfg.encoder_jump_rad
+        {
+            self.trip(Fault::EncoderLoss);
+        }
+        self.encoder_step_rad = step;
         self.theta_m_prev_rad = theta_m_rad;
-        self.encoder_primed = true;
+        self.encoder_reads = self.encoder_reads.saturating_add(1).min(2);
+        step
+    }
+
+    /// Multi-turn mechanical position from the encoder, rad (the position loop's): turns
+    /// counted since the first reading plus the angle within the turn. In f32, its
+    /// resolution is that of a position of this size (1e-3 rad at ±4 000 turns); the field
+    /// angle does not use it.
+    fn position_rad(&self) -> f32 {
+        self.turns as f32 * TAU + self.theta_m_prev_rad
+    }
+
+    /// The rotor's electrical angle advances by p·Δθ_m (the encoder's change over the read),
+    /// and the field angle is re-anchored on it.
+    fn anchor_field(&mut self, step_rad: f32) {
+        self.theta_r_rad =
+            wrap_angle(self.theta_r_rad + wrap_angle(self.cfg.envelope.pole_pairs() * step_rad));
+        self.cfg.ifoc.anchor(&mut self.ifoc, self.theta_r_rad);
     }
 
     /// The current trim integrates the mean field-frame error of the last slow period (the
@@ -1526,6 +1591,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             current_sum_max_a: 0.4,
             saturation_time_s: 0.02,
             encoder_check_time_s: 0.01,
+            encoder_jump_rad: 8.7e-3,
             stop_time_s: 5.0,
             open_phase_time_s: 0.0025,
             brake_chopper: None,
@@ -1678,6 +1744,87 @@ mod tests {
     }
 
     /// A drive brought to Running on the R-L load (computed once, then copied).
+    /// The wrapped encoder angle of a motion `turns_before` revolutions into a run at
+    /// `step_rad` per read (what the encoder estimator or the simulator reports: the f64
+    /// angle wrapped into [-π, π), then f32).
+    fn wrapped(theta_rad: f64) -> Measurements {
+        let t = theta_rad - core::f64::consts::TAU * (theta_rad / core::f64::consts::TAU).round();
+        Measurements { vdc_v: 310.0, theta_m_rad: t as f32, ..Default::default() }
+    }
+
+    /// Hours at speed: the turn count and the angle within the turn keep the field angle's
+    /// increments exact however far the motor has turned (a multi-turn f32 angle had an ulp
+    /// of 0.125 rad after an hour at 376 rad/s), and the position loop's position counts
+    /// the turns. 10⁶ rad into the run, 0.0752 rad per read (150 rad/s at 2 kHz), the
+    /// field angle advances as it does at the start of the run.
+    #[test]
+    fn the_encoder_angle_stays_exact_far_from_zero() {
+        let step = 0.0752;
+        // The field is anchored while active; the position is counted in every mode.
+        let field_after = |start: f64| {
+            let mut d = drive();
+            let mut r = running_drive();
+            // Already running: the jump from its readings at rest is not this test's.
+            r.cfg.encoder_jump_rad = f32::MAX;
+            let mut first = 0.0;
+            for k in 0..40 {
+                d.slow_step(&wrapped(start + f64::from(k) * step));
+                r.slow_step(&wrapped(start + f64::from(k) * step));
+                if k == 0 {
+                    first = r.theta_r_rad;
+                }
+            }
+            assert_eq!((d.mode(), r.mode()), (Mode::Idle, Mode::Running), "no jump");
+            (wrap_angle(r.theta_r_rad - first), d.position_rad())
+        };
+        let (near, pos_near) = field_after(0.0);
+        let (far, pos_far) = field_after(1e6);
+        assert!((near - far).abs() < 1e-4, "{near} vs {far}");
+        assert!((f64::from(near) - 39.0 * step).abs() < 1e-4, "{near}");
+        // The position counts the turns: 39 steps from the first reading.
+        assert!((f64::from(pos_near) - 39.0 * step).abs() < 1e-5, "{pos_near}");
+        let first = f64::from(wrapped(1e6).theta_m_rad);
+        assert!((f64::from(pos_far) - (first + 39.0 * step)).abs() < 1e-5, "{pos_far}");
+        // Backwards through many turns.
+        let mut d = drive();
+        for k in 0..2000 {
+            d.slow_step(&wrapped(-f64::from(k) * step));
+        }
+        assert!((f64::from(d.position_rad()) + 1999.0 * step).abs() < 1e-3, "{}", d.position_rad());
+    }
+
+    /// The jump check: a reading whose change departs from the last change by more than
+    /// `encoder_jump_rad` latches `EncoderLoss` (a glitch; a counter that stops at speed); a
+    /// steady speed and an acceleration within the level do not; the check runs in Idle too
+    /// (a drive must not start on a broken encoder), but not before two changes are known.
+    #[test]
+    fn an_encoder_jump_is_encoder_loss() {
+        let level = test_spec().protection.encoder_jump_rad;
+        let mut d = drive();
+        // The first reading may be anything; then a steady 0.0752 rad per read with an
+        // acceleration just inside the level.
+        let mut theta = 2.0;
+        let mut step = 0.0752;
+        for _ in 0..50 {
+            d.slow_step(&wrapped(theta));
+            theta += step;
+            step += 0.9 * level;
+        }
+        assert_eq!(d.mode(), Mode::Idle);
+        // A counter that stops: the change falls from ≈ 0.46 rad to 0.
+        d.slow_step(&wrapped(theta));
+        d.slow_step(&wrapped(theta));
+        assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+        // A glitch of 1.2 × the level at standstill, while running.
+        let mut d = running_drive();
+        for _ in 0..3 {
+            d.slow_step(&wrapped(0.0));
+        }
+        assert_eq!(d.mode(), Mode::Running);
+        d.slow_step(&wrapped(1.2 * level));
+        assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+    }
+
     /// Overspeed trips while the bridge is active (in the slow step), never while Idle.
     #[test]
     fn overspeed_trips_only_while_active() {

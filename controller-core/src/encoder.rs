@@ -6,6 +6,11 @@
 //! than 32 768 counts pass between two reads: at 1024 lines and a 1 kHz slow loop that is
 //! 48 000 rad/s). Speed is the count difference over a window of `N` reads (M-method):
 //! `ω = Δcounts·2π/(4·lines) / (N·T)`; resolution `2π/(4·lines·N·T)` rad/s, delay `N·T/2`.
+//!
+//! The angle is reported within one revolution, `[-π, π)`: the count modulo `4·lines`, exact
+//! in f32. A multi-turn angle in f32 would lose the count after 2^24 counts (4 096
+//! revolutions at 1024 lines, under a minute and a half at 3 000 rpm); the drive counts the
+//! turns itself from successive readings (`controller_core::drive`).
 
 use core::f32::consts::TAU;
 
@@ -26,6 +31,7 @@ pub enum EncoderError {
 /// Encoder configuration. `N` is the speed window in reads.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EncoderConfig<const N: usize> {
+    counts_per_rev: i64,
     rad_per_count: f32,
     rad_s_per_count: f32,
 }
@@ -46,10 +52,10 @@ impl<const N: usize> Default for EncoderState<N> {
     }
 }
 
-/// Position (rad, not wrapped) and speed (rad/s).
+/// Position (rad, within a revolution) and speed (rad/s).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct EncoderReading {
-    /// Mechanical angle since the first read, rad.
+    /// Mechanical angle since the first read, rad, wrapped into `[-π, π)`.
     pub theta_m_rad: f32,
     /// Mechanical speed over the window, rad/s.
     pub omega_m_rad_s: f32,
@@ -67,7 +73,11 @@ impl<const N: usize> EncoderConfig<N> {
         }
         // 4·lines ≤ 2^34 rounds to f32 by at most half an ulp: the count's angle to 6e-8.
         let rad_per_count = TAU / (4.0 * lines as f32);
-        Ok(Self { rad_per_count, rad_s_per_count: rad_per_count / (N as f32 * read_period_s) })
+        Ok(Self {
+            counts_per_rev: 4 * i64::from(lines),
+            rad_per_count,
+            rad_s_per_count: rad_per_count / (N as f32 * read_period_s),
+        })
     }
 
     /// Speed resolution (one count over the window), rad/s.
@@ -90,10 +100,13 @@ impl<const N: usize> EncoderConfig<N> {
             *slot = s.counts;
         }
         s.head = if s.head + 1 >= N { 0 } else { s.head + 1 };
+        // Within a revolution: the count modulo 4·lines, exact in f32 below 2^24 (lines < 4
+        // million); shifted into [-π, π).
+        let in_turn = s.counts.rem_euclid(self.counts_per_rev);
+        let in_turn =
+            if 2 * in_turn >= self.counts_per_rev { in_turn - self.counts_per_rev } else { in_turn };
         EncoderReading {
-            // i64 → f32: exact below 2^24 counts (4096 revolutions at 1024 lines), then
-            // relative precision 6e-8 — the position loop works on differences.
-            theta_m_rad: s.counts as f32 * self.rad_per_count,
+            theta_m_rad: in_turn as f32 * self.rad_per_count,
             omega_m_rad_s: (s.counts - oldest) as f32 * self.rad_s_per_count,
         }
     }
@@ -115,9 +128,11 @@ mod tests {
             let raw = ((theta * counts_per_rad).floor() as i64).rem_euclid(65_536) as u16;
             r = cfg.update(&mut s, raw);
         }
-        // 5 s at 100 rad/s = 500 rad; the counter wrapped ~5 times.
+        // 5 s at 100 rad/s = 499.9 rad (79.56 turns) = −2.7875 rad within the turn; the
+        // counter wrapped ~5 times.
+        let within = 499.9 - 80.0 * f64::from(TAU);
         assert!(
-            (f64::from(r.theta_m_rad) - 499.9).abs() < 2.0 * f64::from(TAU) / 4096.0 + 1e-3,
+            (f64::from(r.theta_m_rad) - within).abs() < 2.0 * f64::from(TAU) / 4096.0 + 1e-3,
             "{}",
             r.theta_m_rad
         );
@@ -142,5 +157,34 @@ mod tests {
         assert!((r.omega_m_rad_s + 10.0 * TAU / 2000.0 / 1e-3).abs() < 1e-3);
         assert_eq!(EncoderConfig::<4>::new(0, 1e-3), Err(EncoderError::Lines));
         assert_eq!(EncoderConfig::<4>::new(10, 0.0), Err(EncoderError::Period));
+    }
+    /// Hours at speed: 2^26 counts (16 384 revolutions at 1024 lines, 5.5 min at 50 rev/s).
+    /// A multi-turn angle in f32 has an ulp of 2 counts there, so two readings a count
+    /// apart could not be told apart; the reading within one revolution stays exact.
+    #[test]
+    fn readings_stay_exact_after_many_revolutions() {
+        let cfg = EncoderConfig::<8>::new(1024, 5e-4).unwrap();
+        let mut s = EncoderState::default();
+        let count = TAU / 4096.0;
+        // 49 counts per read (150 rad/s at 2 kHz), counter wrapping every 1 337 reads.
+        let mut raw = 0u16;
+        let mut prev = cfg.update(&mut s, raw).theta_m_rad;
+        for k in 1..1_400_000u32 {
+            raw = raw.wrapping_add(49);
+            let r = cfg.update(&mut s, raw);
+            if k > 1_369_000 {
+                let mut d = r.theta_m_rad - prev;
+                if d < -core::f32::consts::PI {
+                    d += TAU;
+                }
+                assert!(
+                    (d - 49.0 * count).abs() < 1e-4,
+                    "read {k}: increment {d} rad, 49 counts = {}",
+                    49.0 * count
+                );
+                assert!((-core::f32::consts::PI..core::f32::consts::PI).contains(&r.theta_m_rad));
+            }
+            prev = r.theta_m_rad;
+        }
     }
 }

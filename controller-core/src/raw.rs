@@ -11,7 +11,7 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 51;
+pub const FLOATS: usize = 52;
 /// Integers in a raw drive configuration.
 pub const INTEGERS: usize = 12;
 

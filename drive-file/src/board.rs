@@ -23,8 +23,6 @@ pub struct BoardTable {
     pub vdc_v_per_count: f64,
     /// Encoder lines per revolution.
     pub encoder_lines: u32,
-    /// Largest plausible encoder-counter change between two slow-loop reads.
-    pub encoder_max_counts_per_read: u16,
     /// Link watchdog: no valid frame for this long while the bridge is on → a controlled
     /// stop, s (optional: without it the firmware runs on without its host).
     pub link_timeout_s: Option<f64>,
@@ -72,11 +70,6 @@ impl BoardTable {
             "must lie within the ADC range",
         )?;
         src.check(self.encoder_lines > 0, "board.encoder_lines", "must be ≥ 1")?;
-        src.check(
-            (1..32_768).contains(&self.encoder_max_counts_per_read),
-            "board.encoder_max_counts_per_read",
-            "must lie in 1…32767 (below the 16-bit counter's half range)",
-        )?;
         if let Some(t) = self.link_timeout_s {
             src.check(
                 t.is_finite() && (0.02..=3600.0).contains(&t),

@@ -75,7 +75,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_trim_bandwidth_rad_s: {:?},\n\
          \x20       dead_time_compensation_s: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
-         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {} }},\n\
+         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, encoder_jump_rad: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {} }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -107,6 +107,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         p.current_sum_max_a,
         p.saturation_time_s,
         p.encoder_check_time_s,
+        p.encoder_jump_rad,
         p.stop_time_s,
         p.open_phase_time_s,
         match p.brake_chopper {
@@ -160,7 +161,6 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
          \x20   adc_full_scale: {},\n\
          \x20   pwm_period_counts: {},\n\
          \x20   encoder_lines: {},\n\
-         \x20   encoder_max_counts_per_read: {},\n\
          }};\n\
          /// Saturated-P speed gain accepted over the link, N·m per rad/s (`[certify]`).\n\
          pub const SPEED_KP: (f32, f32) = ({:?}, {:?});\n\
@@ -178,7 +178,6 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
         t.adc_full_scale,
         b.pwm_period_counts,
         t.encoder_lines,
-        t.encoder_max_counts_per_read,
         kp_lo as f32,
         kp_hi as f32,
         tau_lo as f32,

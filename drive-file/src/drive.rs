@@ -206,6 +206,8 @@ pub struct ProtectionTable {
     pub saturation_time_s: Option<f64>,
     /// Encoder-against-model time, s.
     pub encoder_check_time_s: Option<f64>,
+    /// Largest plausible change of the encoder's per-read position change, mechanical rad.
+    pub encoder_jump_rad: Option<f64>,
     /// Longest controlled stop before the bridge goes off anyway, s.
     pub stop_time_s: Option<f64>,
     /// Open-phase check window, s.
@@ -265,15 +267,66 @@ pub const DEFAULT_SATURATION_TIME_S: f64 = 0.02;
 /// σL_s·di/dt the steady-state model leaves out) or a speed transient passes.
 pub const DEFAULT_ENCODER_CHECK_TIME_S: f64 = 0.01;
 
+/// Default encoder jump level, mechanical rad: [`ENCODER_JUMP_COUNTS`] counts of the
+/// encoder plus the position change that [`ENCODER_ACCEL_FACTOR`] times the drive's peak
+/// acceleration makes over a read period squared, `α·T²` with
+/// `α = ENCODER_ACCEL_FACTOR·τ_peak/J` and `τ_peak = 1.5·p·(L_m/L_r)·ψ_r*·i_ref_max` (the
+/// torque of the largest current reference all on the q axis at the rated flux). For the
+/// shipped drive: 4·2π/4096 + 10·5.11/0.005·(0.5 ms)² = 6.14e-3 + 2.56e-3 = 8.69e-3 rad. A
+/// motion the mechanics allow — the drive's torque and a load ten times it, a seizing load
+/// included — stays below; a glitch of more than ≈ 6 counts, or a counter that stops at
+/// more than 17 rad/s (8.69e-3 rad per 0.5 ms read), does not.
+pub fn default_encoder_jump_rad(
+    motor: &controller_core::motor::MotorParams,
+    flux_ref_wb: f64,
+    i_ref_max_a: f64,
+    encoder_lines: u32,
+    read_period_s: f64,
+) -> f64 {
+    let count_rad = core::f64::consts::TAU / (4.0 * f64::from(encoder_lines.max(1)));
+    let tau_peak_nm =
+        1.5 * f64::from(motor.pole_pairs()) * motor.lm_h() / motor.lr_h() * flux_ref_wb * i_ref_max_a;
+    let accel_rad_s2 = ENCODER_ACCEL_FACTOR * tau_peak_nm / motor.j_kgm2();
+    ENCODER_JUMP_COUNTS * count_rad + accel_rad_s2 * read_period_s * read_period_s
+}
+
+/// See [`default_encoder_jump_rad`]: the floor quantisation of the three readings a second
+/// difference takes makes it err by less than 2 counts; 2 more allow one count of edge
+/// chatter on two of them.
+pub const ENCODER_JUMP_COUNTS: f64 = 4.0;
+
+/// See [`default_encoder_jump_rad`]: the acceleration allowed, in multiples of the drive's
+/// own peak (a load ten times the drive's torque, as in the supervisor's 20 N·m test).
+pub const ENCODER_ACCEL_FACTOR: f64 = 10.0;
+
+/// The encoder resolution the derived [`default_encoder_jump_rad`] assumes without a
+/// `[board]` table (the simulator's realistic encoder, and the shipped board's).
+pub const DEFAULT_ENCODER_LINES: u32 = 1024;
+
+/// What the derived defaults are computed from, beyond the motor and the three required
+/// protection keys.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DefaultsBasis {
+    /// Rotor-flux reference ψ_r*, Wb.
+    pub flux_ref_wb: f64,
+    /// Largest current reference, A.
+    pub i_ref_max_a: f64,
+    /// Encoder lines per revolution.
+    pub encoder_lines: u32,
+    /// Slow-loop (encoder read) period, s.
+    pub slow_period_s: f64,
+}
+
 /// The protection of a drive with the derived defaults for every optional key (what a
 /// `[protection]` table with only its three required keys gives).
 pub fn protection_with_defaults(
     motor: &controller_core::motor::MotorParams,
-    flux_ref_wb: f64,
+    basis: &DefaultsBasis,
     i_trip_a: f64,
     vdc_min_v: f64,
     vdc_max_v: f64,
 ) -> Protection {
+    let flux_ref_wb = basis.flux_ref_wb;
     Protection {
         i_trip_a,
         vdc_min_v,
@@ -283,6 +336,13 @@ pub fn protection_with_defaults(
         current_sum_max_a: DEFAULT_CURRENT_SUM_FRACTION * i_trip_a,
         saturation_time_s: DEFAULT_SATURATION_TIME_S,
         encoder_check_time_s: DEFAULT_ENCODER_CHECK_TIME_S,
+        encoder_jump_rad: default_encoder_jump_rad(
+            motor,
+            flux_ref_wb,
+            basis.i_ref_max_a,
+            basis.encoder_lines,
+            basis.slow_period_s,
+        ),
         stop_time_s: default_stop_time_s(motor, flux_ref_wb, vdc_max_v),
         open_phase_time_s: DEFAULT_OPEN_PHASE_TIME_S,
         brake_chopper: None,
@@ -364,7 +424,9 @@ impl DriveTables {
                 ));
             }
         };
-        let spec = drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection, dead_time_s)?;
+        let lines = self.board.map_or(DEFAULT_ENCODER_LINES, |b| b.encoder_lines);
+        let spec =
+            drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection, dead_time_s, lines)?;
         let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
         let board = self.board.as_ref().map(|b| b.validate(src, &spec)).transpose()?;
         Ok(DriveFile { spec, certify, board })
@@ -384,6 +446,7 @@ pub fn drive_spec(
     c: &ControllerTable,
     protection: &ProtectionTable,
     dead_time_compensation_s: f64,
+    encoder_lines: u32,
 ) -> Result<DriveSpec, FileError> {
     let (lo, hi) = PWM_FREQUENCY_HZ;
     src.check(
@@ -445,6 +508,7 @@ pub fn drive_spec(
         ("protection.current_sum_max_a", protection.current_sum_max_a),
         ("protection.saturation_time_s", protection.saturation_time_s),
         ("protection.encoder_check_time_s", protection.encoder_check_time_s),
+        ("protection.encoder_jump_rad", protection.encoder_jump_rad),
         ("protection.stop_time_s", protection.stop_time_s),
         ("protection.open_phase_time_s", protection.open_phase_time_s),
     ] {
@@ -488,9 +552,15 @@ pub fn drive_spec(
         current_trim_bandwidth_rad_s: c.current_trim_bandwidth_rad_s,
         dead_time_compensation_s,
         protection: {
+            let basis = DefaultsBasis {
+                flux_ref_wb: c.flux_ref_wb,
+                i_ref_max_a: c.i_ref_max_a,
+                encoder_lines,
+                slow_period_s: f64::from(pwm.slow_divider) / pwm.frequency_hz,
+            };
             let d = protection_with_defaults(
                 &motor,
-                c.flux_ref_wb,
+                &basis,
                 protection.i_trip_a,
                 protection.vdc_min_v,
                 protection.vdc_max_v,
@@ -501,6 +571,7 @@ pub fn drive_spec(
                 current_sum_max_a: protection.current_sum_max_a.unwrap_or(d.current_sum_max_a),
                 saturation_time_s: protection.saturation_time_s.unwrap_or(d.saturation_time_s),
                 encoder_check_time_s: protection.encoder_check_time_s.unwrap_or(d.encoder_check_time_s),
+                encoder_jump_rad: protection.encoder_jump_rad.unwrap_or(d.encoder_jump_rad),
                 stop_time_s: protection.stop_time_s.unwrap_or(d.stop_time_s),
                 open_phase_time_s: protection.open_phase_time_s.unwrap_or(d.open_phase_time_s),
                 brake_chopper: protection

@@ -37,7 +37,8 @@
 //! vdc_min_v = 200.0
 //! vdc_max_v = 400.0
 //! # overspeed_rad_s, stall_time_s, current_sum_max_a, saturation_time_s,
-//! # encoder_check_time_s: derived defaults (drive::protection_with_defaults)
+//! # encoder_check_time_s, encoder_jump_rad, stop_time_s, open_phase_time_s: derived
+//! # defaults (drive::protection_with_defaults; the encoder's from [board] encoder_lines)
 //! brake_chopper = { on_v = 360.0, off_v = 350.0 }   # optional: the board's brake chopper
 //!
 //! [certify]                   # optional: what `design certify` checks (certify::CertifyTable)
@@ -207,6 +208,13 @@ mod tests {
         let band = controller_core::drive::STALL_SPEED_FRACTION * p.overspeed_rad_s;
         let leave_s = j_max * band / 2.0; // τ_max = 2 N·m
         assert!(leave_s < 0.1 * p.stall_time_s, "{leave_s}");
+        // Encoder jump: 4 counts of 1024 lines + 10 × (1.5·1·(1.42/1.5)·0.9·4 N·m)/0.005 kg·m²
+        // × (0.5 ms)² = 6.136e-3 + 2.556e-3 rad; the board's line count is used (a 512-line
+        // board doubles the counts' share).
+        assert!((p.encoder_jump_rad - 8.692e-3).abs() < 1e-6, "{}", p.encoder_jump_rad);
+        let t = SHIPPED.replace("encoder_lines = 1024", "encoder_lines = 512");
+        let p512 = DriveFile::parse(Path::new("d.toml"), &t).unwrap().spec.protection.encoder_jump_rad;
+        assert!((p512 - 2.0 * 6.136e-3 - 2.556e-3).abs() < 1e-6, "{p512}");
         // Explicit values win; a bad one points at its key.
         let t = SHIPPED.replace("vdc_max_v = 400.0", "vdc_max_v = 400.0\noverspeed_rad_s = 500.0");
         assert_eq!(DriveFile::parse(Path::new("d.toml"), &t).unwrap().spec.protection.overspeed_rad_s, 500.0);

@@ -31,7 +31,6 @@ mod tests {
         assert_eq!(BOARD.vdc_v_per_count, b.table.vdc_v_per_count as f32);
         assert_eq!(BOARD.current_offset_counts, b.table.current_offset_counts);
         assert_eq!(BOARD.encoder_lines, b.table.encoder_lines);
-        assert_eq!(BOARD.encoder_max_counts_per_read, b.table.encoder_max_counts_per_read);
         assert_eq!(
             (PWM_PERIOD_COUNTS, DEAD_TIME_TICKS, TIM_CLOCK_HZ),
             (b.pwm_period_counts, b.dead_time_ticks, b.table.tim_clock_hz)
@@ -49,11 +48,11 @@ mod tests {
         // Centre-aligned: one period = 2·(ARR + 1) timer ticks.
         let f = f64::from(TIM_CLOCK_HZ) / (2.0 * (f64::from(PWM_PERIOD_COUNTS) + 1.0));
         assert!((f - spec.pwm_frequency_hz).abs() < 1e-9, "{f}");
-        // Encoder plausibility limit: counts per slow-loop read → rad/s, above twice the
-        // 376 rad/s top speed (seed 002 Fig. 16) and below the 16-bit wrap.
+        // The 16-bit counter must not wrap by half its range between two reads below the
+        // overspeed level (the estimator takes the wrapping difference as a signed step).
         let read_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
         let counts_per_rad = 4.0 * f64::from(BOARD.encoder_lines) / core::f64::consts::TAU;
-        let limit_rad_s = f64::from(BOARD.encoder_max_counts_per_read) / counts_per_rad / read_s;
-        assert!(limit_rad_s > 2.0 * 376.0 && BOARD.encoder_max_counts_per_read < 32_768, "{limit_rad_s}");
+        let counts = spec.protection.overspeed_rad_s * read_s * counts_per_rad;
+        assert!(counts < 32_768.0 / 2.0, "{counts}");
     }
 }

@@ -9,13 +9,10 @@
 //!  TIM1 break flag ─▶ Drive::trip(HardwareBreak) ─┘                    └─ Off ─▶ MOE = 0
 //! ```
 //!
-//! Encoder loss: a change of more than [`BoardConfig::encoder_max_counts_per_read`] counts
-//! between two reads (far beyond the top speed: a counter that jumped) latches
-//! `Fault::EncoderLoss`.
+//! Encoder loss: the drive's own jump check (`controller_core::drive`, `Fault::EncoderLoss`)
+//! on the angle the estimator reports — the same code in the simulator.
 
-use controller_core::drive::{
-    Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand,
-};
+use controller_core::drive::{Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, PhaseCommand};
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
 use controller_core::raw::RawDriveConfig;
@@ -61,8 +58,6 @@ pub struct BoardConfig {
     pub pwm_period_counts: u16,
     /// Encoder lines per revolution.
     pub encoder_lines: u32,
-    /// Largest plausible counter change between two reads.
-    pub encoder_max_counts_per_read: u16,
 }
 
 /// Why the control loop could not be built.
@@ -86,8 +81,6 @@ pub struct ControlLoop {
     pwm: PwmScaling,
     encoder_cfg: EncoderConfig<ENCODER_WINDOW>,
     encoder: EncoderState<ENCODER_WINDOW>,
-    encoder_last: Option<u16>,
-    encoder_max: u16,
     theta_m_rad: f32,
     omega_m_rad_s: f32,
     divider: u16,
@@ -133,8 +126,6 @@ impl ControlLoop {
             pwm,
             encoder_cfg,
             encoder: EncoderState::default(),
-            encoder_last: None,
-            encoder_max: board.encoder_max_counts_per_read,
             theta_m_rad: 0.0,
             omega_m_rad_s: 0.0,
             divider,
@@ -205,14 +196,6 @@ impl ControlLoop {
     }
 
     fn read_encoder(&mut self, raw: u16) {
-        if let Some(last) = self.encoder_last {
-            // Wrapping difference of the 16-bit counter, as a signed step.
-            let jump = raw.wrapping_sub(last) as i16;
-            if jump.unsigned_abs() > self.encoder_max && !matches!(self.drive.mode(), Mode::Fault(_)) {
-                self.drive.trip(Fault::EncoderLoss);
-            }
-        }
-        self.encoder_last = Some(raw);
         let r = self.encoder_cfg.update(&mut self.encoder, raw);
         self.theta_m_rad = r.theta_m_rad;
         self.omega_m_rad_s = r.omega_m_rad_s;
@@ -223,7 +206,7 @@ impl ControlLoop {
 mod tests {
     use super::*;
     use crate::config::{DRIVE_CONFIG, drive_spec};
-    use controller_core::drive::Reference;
+    use controller_core::drive::{Mode, Reference};
     use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
 
     pub(crate) fn board() -> BoardConfig {
@@ -234,7 +217,6 @@ mod tests {
             adc_full_scale: 4095,
             pwm_period_counts: 4249,
             encoder_lines: 1024,
-            encoder_max_counts_per_read: 1000,
         }
     }
 
@@ -294,15 +276,17 @@ mod tests {
         c.drive_mut().enable().unwrap();
         c.drive_mut().set_reference(Reference::Speed(0.0)).unwrap();
         let div = u32::from(drive_spec().unwrap().slow_divider);
-        // Counter running backwards through the 16-bit wrap at 40 counts per read (≈ 123 rad/s,
-        // below the overspeed level): fine.
-        let mut enc = 200u16;
-        for k in 0..(20 * div) {
+        // Counter running backwards through the 16-bit wrap, speeding up by one count per read
+        // (6 100 rad/s², within the jump check's allowance) to 40 counts per read
+        // (≈ 123 rad/s, below the overspeed level): fine.
+        let mut enc = 600u16;
+        for k in 0..(60 * div) {
             if k % div == 0 {
-                enc = enc.wrapping_sub(40);
+                enc = enc.wrapping_sub((k / div).min(40) as u16);
             }
             assert!(matches!(c.step(&at_rest(enc)), Bridge::Compare(_)), "step {k}");
         }
+        assert!(enc > 60_000, "wrapped: {enc}");
         // A jump of 5000 counts between two reads.
         for _ in 0..div {
             let _ = c.step(&at_rest(enc.wrapping_add(5000)));

@@ -241,12 +241,19 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     b.about = about.into();
     b.spec.current_law = law;
     b.spec.flux_ref_wb = 0.35;
-    // The overspeed level and the stop time follow the flux reference (drive_file's default
-    // rules).
+    // The overspeed level, the stop time and the encoder jump level follow the flux reference
+    // (drive_file's default rules).
     let vdc_max = b.spec.protection.vdc_max_v;
     b.spec.protection.overspeed_rad_s =
         drive_file::drive::default_overspeed_rad_s(&b.spec.motor, 0.35, vdc_max);
     b.spec.protection.stop_time_s = drive_file::drive::default_stop_time_s(&b.spec.motor, 0.35, vdc_max);
+    b.spec.protection.encoder_jump_rad = drive_file::drive::default_encoder_jump_rad(
+        &b.spec.motor,
+        0.35,
+        b.spec.i_ref_max_a,
+        drive_file::drive::DEFAULT_ENCODER_LINES,
+        f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz,
+    );
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
     // The paper's loops alone: the current trim would correct the stationary loops' tracking
     // error at ω_e — the very error this figure compares (the PI's reaches 366 rad/s with it).
@@ -292,7 +299,13 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     b.spec.flux_ref_wb = 4.5;
     b.spec.flux_floor_wb = 0.2;
     b.spec.i_ref_max_a = 260.0;
-    b.spec.protection = drive_file::drive::protection_with_defaults(&motor, 4.5, 400.0, 2500.0, 3800.0);
+    let basis = drive_file::drive::DefaultsBasis {
+        flux_ref_wb: 4.5,
+        i_ref_max_a: 260.0,
+        encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
+        slow_period_s: f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz,
+    };
+    b.spec.protection = drive_file::drive::protection_with_defaults(&motor, &basis, 400.0, 2500.0, 3800.0);
     b.scenario.vdc_v = 3300.0;
     b.scenario.events = vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Speed(100.0)))];
     b.scenario.duration_s = 5.0;

@@ -46,8 +46,10 @@
 //! t_s = 1.0
 //! kind = "fault"
 //! fault = "current_sensor"         # phase = "a"|"b"|"c", gain, offset_a (dead: 0, 0)
-//! phase = "b"                      # or "encoder_stuck", "bus_voltage" (vdc_v), "load_seizure",
-//!                                  # "open_phase" (phase)
+//! phase = "b"                      # or "encoder_stuck", "encoder_glitch" (counts),
+//!                                  # "encoder_lines" (lines: the encoder's actual count),
+//!                                  # "bus_voltage" (vdc_v), "load_seizure" (torque_nm: its
+//!                                  # friction), "open_phase" (phase)
 //! gain = 0.0
 //! offset_a = 0.0
 //! ```
@@ -248,6 +250,8 @@ enum FaultKind {
     CurrentSensor,
     OpenPhase,
     EncoderStuck,
+    EncoderGlitch,
+    EncoderLines,
     BusVoltage,
     LoadSeizure,
 }
@@ -265,6 +269,9 @@ struct EventTable {
     gain: Option<f64>,
     offset_a: Option<f64>,
     vdc_v: Option<f64>,
+    torque_nm: Option<f64>,
+    counts: Option<i64>,
+    lines: Option<u32>,
 }
 
 /// `duration_s` and `sample_period_s` within their stated maxima; returns the row count.
@@ -388,12 +395,28 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                     },
                     Some(FaultKind::OpenPhase) => Injection::OpenPhase { phase: phase_of()? },
                     Some(FaultKind::EncoderStuck) => Injection::EncoderStuck,
+                    Some(FaultKind::EncoderGlitch) => {
+                        let counts = bounded("counts", e.counts.map(|c| c as f64))?;
+                        Injection::EncoderGlitch { counts: counts as i64 }
+                    }
+                    Some(FaultKind::EncoderLines) => match e.lines {
+                        Some(lines) if lines >= 1 => Injection::EncoderLines { lines },
+                        _ => {
+                            return Err(
+                                src.error(&key("lines"), "needs lines ≥ 1 (the encoder's actual count)")
+                            );
+                        }
+                    },
                     Some(FaultKind::BusVoltage) => {
                         let v = bounded("vdc_v", e.vdc_v)?;
                         src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
                         Injection::BusVoltage { vdc_v: v }
                     }
-                    Some(FaultKind::LoadSeizure) => Injection::LoadSeizure,
+                    Some(FaultKind::LoadSeizure) => {
+                        let torque_nm = bounded("torque_nm", e.torque_nm)?;
+                        src.check(torque_nm > 0.0, &key("torque_nm"), "must be > 0")?;
+                        Injection::LoadSeizure { torque_nm }
+                    }
                 }
             }),
         };
@@ -697,6 +720,29 @@ torque_nm = 0.5
         assert_eq!(e.key.as_deref(), Some("events[2].vdc_v"), "{e}");
         let e = err(&with("fault = \"meteor\""));
         assert!(e.reason.contains("meteor"), "{e}");
+        let last =
+            |ev: &str| parse_closed_loop(Path::new("c.toml"), &with(ev)).unwrap().scenario.events.pop();
+        assert_eq!(
+            last("fault = \"encoder_glitch\"\ncounts = -40"),
+            Some((1.0, Event::Fault(Injection::EncoderGlitch { counts: -40 })))
+        );
+        assert_eq!(
+            last("fault = \"encoder_lines\"\nlines = 512"),
+            Some((1.0, Event::Fault(Injection::EncoderLines { lines: 512 })))
+        );
+        assert_eq!(
+            last("fault = \"load_seizure\"\ntorque_nm = 20.0"),
+            Some((1.0, Event::Fault(Injection::LoadSeizure { torque_nm: 20.0 })))
+        );
+        for (ev, k) in [
+            ("fault = \"encoder_glitch\"", "counts"),
+            ("fault = \"encoder_lines\"\nlines = 0", "lines"),
+            ("fault = \"load_seizure\"", "torque_nm"),
+            ("fault = \"load_seizure\"\ntorque_nm = -1.0", "torque_nm"),
+        ] {
+            let e = err(&with(ev));
+            assert_eq!(e.key.as_deref(), Some(format!("events[2].{k}").as_str()), "{e}");
+        }
     }
 
     #[test]

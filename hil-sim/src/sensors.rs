@@ -4,6 +4,7 @@
 
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderReading, EncoderState};
 use controller_core::frames::Abc;
+use std::f64::consts::TAU;
 
 /// Speed window of the encoder estimator, in slow-loop reads: the firmware's.
 pub const ENCODER_WINDOW: usize = controller_core::encoder::SPEED_WINDOW_READS;
@@ -85,6 +86,11 @@ fn quantize(x: f64, lsb: f64) -> f64 {
     if lsb > 0.0 { (x / lsb).round() * lsb } else { x }
 }
 
+/// Quadrature counts (4 per line) of an encoder with `lines` over the angle `theta_m_rad`.
+fn counts_at(theta_m_rad: f64, lines: u32) -> i64 {
+    (theta_m_rad * 4.0 * f64::from(lines) / TAU).floor() as i64
+}
+
 /// Sensor state for one run.
 #[derive(Clone, Debug)]
 pub struct Sensors {
@@ -97,6 +103,12 @@ pub struct Sensors {
     /// The last 16-bit count read, and the count a frozen encoder keeps reporting.
     last_count: u16,
     frozen_count: Option<u16>,
+    /// The counter: `count_base + ⌊(θ − theta_base)·4·lines/2π⌋`, so that a glitch (spurious
+    /// counts) or a change of the line count carries on from the count reached.
+    count_base: i64,
+    theta_base_rad: f64,
+    /// Spurious counts to add at the next read (a glitch).
+    glitch_counts: i64,
 }
 
 impl Sensors {
@@ -121,6 +133,9 @@ impl Sensors {
             exact_currents,
             last_count: 0,
             frozen_count: None,
+            count_base: 0,
+            theta_base_rad: 0.0,
+            glitch_counts: 0,
         })
     }
 
@@ -171,19 +186,40 @@ impl Sensors {
         self.frozen_count = Some(self.last_count);
     }
 
+    /// At the next read the counter jumps by `counts` spurious counts (noise on the encoder's
+    /// lines, a missed index): the count is off by that much from then on.
+    pub fn glitch_encoder(&mut self, counts: i64) {
+        self.glitch_counts = self.glitch_counts.saturating_add(counts);
+    }
+
+    /// From now on the encoder counts `lines` per revolution, the estimator still decoding
+    /// with the configured number (a wrong line count); the count carries on from where it is,
+    /// at the new rate from the angle `theta_m_rad` on. No effect without an encoder model.
+    pub fn change_encoder_lines(&mut self, lines: u32, theta_m_rad: f64) {
+        if let Some((_, _, l)) = &mut self.encoder {
+            self.count_base =
+                self.count_base.saturating_add(counts_at(theta_m_rad - self.theta_base_rad, *l));
+            self.theta_base_rad = theta_m_rad;
+            *l = lines.max(1);
+        }
+    }
+
     /// Measured bus voltage.
     pub fn vdc(&self, vdc_v: f64) -> f32 {
         quantize(vdc_v, self.model.vdc_lsb_v) as f32
     }
 
     /// Encoder read (call once per slow period): counts of a 16-bit quadrature counter.
-    /// Without an encoder model, the exact values are returned (and a frozen encoder
-    /// reports the angle and zero speed of the moment it froze).
+    /// Without an encoder model, the exact values are returned, the angle wrapped into
+    /// `[-π, π)` like the estimator's (and a frozen encoder reports the angle and zero speed
+    /// of the moment it froze; a glitch or a line-count change needs the encoder model).
     pub fn encoder_read(&mut self, theta_m_rad: f64, omega_m_rad_s: f64) -> EncoderReading {
         let frozen = self.frozen_count;
         self.last = match &mut self.encoder {
             Some((cfg, st, lines)) => {
-                let counts = (theta_m_rad * 4.0 * f64::from(*lines) / std::f64::consts::TAU).floor() as i64;
+                self.count_base = self.count_base.saturating_add(std::mem::take(&mut self.glitch_counts));
+                let counts =
+                    self.count_base.saturating_add(counts_at(theta_m_rad - self.theta_base_rad, *lines));
                 // The hardware counter keeps only the low 16 bits.
                 let count = frozen.unwrap_or(counts.rem_euclid(65_536) as u16);
                 self.last_count = count;
@@ -192,7 +228,10 @@ impl Sensors {
             None if frozen.is_some() => {
                 EncoderReading { theta_m_rad: self.last.theta_m_rad, omega_m_rad_s: 0.0 }
             }
-            None => EncoderReading { theta_m_rad: theta_m_rad as f32, omega_m_rad_s: omega_m_rad_s as f32 },
+            None => EncoderReading {
+                theta_m_rad: (theta_m_rad - TAU * (theta_m_rad / TAU).round()) as f32,
+                omega_m_rad_s: omega_m_rad_s as f32,
+            },
         };
         self.last
     }

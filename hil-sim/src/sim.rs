@@ -97,13 +97,30 @@ pub enum Injection {
     },
     /// The encoder counter stops counting (a lost or stuck encoder).
     EncoderStuck,
+    /// The encoder counter jumps by `counts` spurious counts at the next read (noise on its
+    /// lines); the count stays off by that much. Needs the encoder model.
+    EncoderGlitch {
+        /// Spurious counts (either sign).
+        counts: i64,
+    },
+    /// The encoder counts `lines` per revolution from now on while the estimator decodes
+    /// with the configured number (a wrong line count). Needs the encoder model.
+    EncoderLines {
+        /// The encoder's actual lines per revolution.
+        lines: u32,
+    },
     /// The DC bus becomes `vdc_v` (a sag or a surge).
     BusVoltage {
         /// New bus voltage, V.
         vdc_v: f64,
     },
-    /// The load seizes: the rotor is held at standstill from now on.
-    LoadSeizure,
+    /// The load seizes: a friction torque of `torque_nm` brakes the rotor to rest and holds
+    /// it there (a jammed gearbox or bearing; the deceleration is finite, as in a real
+    /// seizure).
+    LoadSeizure {
+        /// The seized load's friction torque, N·m.
+        torque_nm: f64,
+    },
     /// The lead of `phase` (0 = a, 1 = b, 2 = c) opens: no current flows in it from now on
     /// (a broken wire or connector; the motor runs single-phase on the other two).
     OpenPhase {
@@ -483,6 +500,10 @@ pub fn run(
                         sensors.fail_current_channel(phase, gain, offset_a);
                     }
                     Event::Fault(Injection::EncoderStuck) => sensors.freeze_encoder(),
+                    Event::Fault(Injection::EncoderGlitch { counts }) => sensors.glitch_encoder(counts),
+                    Event::Fault(Injection::EncoderLines { lines }) => {
+                        sensors.change_encoder_lines(lines, x.theta_m_rad)
+                    }
                     Event::Fault(Injection::BusVoltage { vdc_v: v }) => {
                         if sc.dc_link.is_some() {
                             source_v = v;
@@ -494,9 +515,8 @@ pub fn run(
                     Event::Fault(Injection::OpenPhase { phase }) => {
                         open_phase = PHASE_AXES.get(phase).copied()
                     }
-                    Event::Fault(Injection::LoadSeizure) => {
-                        x.omega_m_rad_s = 0.0;
-                        machine = seized.insert(loaded.speed_locked());
+                    Event::Fault(Injection::LoadSeizure { torque_nm }) => {
+                        machine = seized.insert(loaded.with_coulomb_friction(torque_nm));
                         rk4 = machine.rk4_stepper(h);
                         rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
                     }

@@ -277,8 +277,9 @@ fn a_trip_at_speed_lets_the_motor_coast() {
 /// through the diodes into the bus, braking the motor, until its decaying flux has brought the
 /// line EMF down to the bus; then the phases open and the motor coasts. The test prints the
 /// peak current, the braking torque and the line EMF when the last phase opens, and asserts
-/// that EMF lies within 2 % of the bus (the current dies at its zero crossing, a few
-/// substeps after the EMF's peak falls below the bus; the flux decays ≈ 1 %/ms here).
+/// that EMF is within 2 % of the bus or above it, and below it by the next line-voltage peak
+/// (the current dies at its zero crossing after the last EMF peak above the bus; the flux
+/// decays ≈ 1 %/ms here).
 /// (Before, an open phase never conducted again, whatever its EMF.)
 #[test]
 fn a_trip_above_the_bus_regenerates_until_the_emf_is_down() {
@@ -324,7 +325,13 @@ fn a_trip_above_the_bus_regenerates_until_the_emf_is_down() {
     assert!(line_emf(at_trip) > 250.0, "the motor's EMF was above the sagged bus");
     assert!(end.t_s - at_trip.t_s > 5e-3, "the diodes conducted beyond the currents' own decay");
     assert!(braking < -0.1, "regeneration brakes the motor: {braking}");
-    assert!((line_emf(end) / 150.0 - 1.0).abs() < 0.02, "{}", line_emf(end));
+    // The last current dies near an EMF peak; the line voltage peaks again a sixth of the
+    // electrical period later (2.7 ms at 386 rad/s), so the envelope may still be above the
+    // bus at the end, but must be below it by that next peak (the flux decays ≈ 1 %/ms).
+    let sixth = std::f64::consts::PI / 3.0 / end.x.omega_m_rad_s.abs();
+    let next_peak = rows.iter().find(|r| r.t_s >= end.t_s + sixth).unwrap();
+    assert!(line_emf(end) > 0.98 * 150.0, "{}", line_emf(end));
+    assert!(line_emf(next_peak) < 150.0, "{}", line_emf(next_peak));
     assert!(rows[last_conducting + 1..].iter().all(|r| r.torque_nm.abs() < 1e-9));
 }
 

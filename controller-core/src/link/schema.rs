@@ -302,6 +302,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         p.current_sum_max_a,
         p.saturation_time_s,
         p.encoder_check_time_s,
+        p.encoder_jump_rad,
         p.stop_time_s,
         p.open_phase_time_s,
     ] {
@@ -363,6 +364,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         current_sum_max_a: r.f64()?,
         saturation_time_s: r.f64()?,
         encoder_check_time_s: r.f64()?,
+        encoder_jump_rad: r.f64()?,
         stop_time_s: r.f64()?,
         open_phase_time_s: r.f64()?,
         brake_chopper: match r.u8()? {
