@@ -122,6 +122,14 @@ pub const OPEN_PHASE_ABSENT_FRACTION: f32 = 0.1;
 pub const OPEN_PHASE_OTHERS_FRACTION: f32 = 0.25;
 /// Consecutive windows an open phase (or no motor current) must persist for.
 pub const OPEN_PHASE_WINDOWS: u8 = 2;
+/// The current-sum check's windowed level, as a fraction of `current_sum_max_a`: the mean
+/// |i_a + i_b + i_c| over one open-phase window above it is [`Fault::CurrentSensor`]. The
+/// instantaneous check (the full level) catches a large error at once; the mean, a sensor
+/// whose error stays below the full level (a gain fault at a light load): healthy sensors
+/// leave a mean of a few tens of mA (three channels of 10 mA RMS noise: 14 mA; a 20 mA offset;
+/// a 0.5 % gain error: 20 mA at 4 A), a gain of 0.5 on a phase carrying 0.75 A leaves
+/// 0.24 A.
+pub const CURRENT_SUM_MEAN_FRACTION: f32 = 0.25;
 
 /// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
 pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
@@ -792,6 +800,8 @@ struct OpenPhaseWindow {
     reference: Abc,
     /// Σ|i| per phase, A.
     measured: Abc,
+    /// Σ|i_a + i_b + i_c|, A.
+    sum_error: f32,
     steps: u32,
     /// Consecutive windows in which each phase looked open.
     suspect: [u8; 3],
@@ -816,8 +826,18 @@ impl OpenPhaseWindow {
     /// Either must hold for [`OPEN_PHASE_WINDOWS`] windows in a row — a healthy phase passes
     /// its zero crossing, and slow current loops (seed 000's) catch up, within one — to give
     /// [`Fault::OpenPhase`] or [`Fault::NoMotorCurrent`]. Then a new window.
+    ///
+    /// Also, in one window: the mean |i_a + i_b + i_c| above `sum_mean_max_a` is
+    /// [`Fault::CurrentSensor`] ([`CURRENT_SUM_MEAN_FRACTION`]).
     #[inline]
-    fn add(&mut self, reference: Abc, measured: Abc, steps: u32, level_a: f32) -> Option<Fault> {
+    fn add(
+        &mut self,
+        reference: Abc,
+        measured: Abc,
+        steps: u32,
+        level_a: f32,
+        sum_mean_max_a: f32,
+    ) -> Option<Fault> {
         let (r, i) = (&mut self.reference, &mut self.measured);
         r.a += reference.a.abs();
         r.b += reference.b.abs();
@@ -825,9 +845,13 @@ impl OpenPhaseWindow {
         i.a += measured.a.abs();
         i.b += measured.b.abs();
         i.c += measured.c.abs();
+        self.sum_error += (measured.a + measured.b + measured.c).abs();
         self.steps += 1;
         if self.steps < steps {
             return None;
+        }
+        if self.sum_error > sum_mean_max_a * self.steps as f32 {
+            return Some(Fault::CurrentSensor);
         }
         let commanded = OPEN_PHASE_COMMANDED_FRACTION * level_a * self.steps as f32;
         let (r, i) = (self.reference, self.measured);
@@ -1447,6 +1471,7 @@ impl Drive {
             m.i_abc_a,
             cfg.open_phase_steps,
             cfg.i_d_rated_a,
+            CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
         );
         if let Some(f) = window {
             self.trip(f);

@@ -7,6 +7,8 @@
 //!   [`sensors`] (ADC, bus, encoder), loads;
 //! * [`link_client`]: the host end of the command/telemetry link (PIL FIFOs, board UART);
 //! * [`pil`]: the same runs with the drive on an emulated Cortex-M4F (QEMU), lockstep;
+//! * [`campaign`]: the nonlinear campaign over a parameter box; [`faults`]: the
+//!   fault-injection matrix;
 //! * [`scenario`]: the papers' experiments as built-ins, on the shipped drive file;
 //!   [`scenario_file`]: scenario files (a drive file plus a run); plots and
 //!   file writing: the `report` crate.
@@ -18,6 +20,7 @@
 
 pub mod campaign;
 pub mod envelope;
+pub mod faults;
 pub mod inverter;
 pub mod link_client;
 pub mod pil;

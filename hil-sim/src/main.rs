@@ -70,6 +70,13 @@ enum Cmd {
     /// ripple: `hil_sim::campaign`). Writes campaign.csv, campaign.svg and summary.json, and
     /// exits 1 if any run fails.
     Campaign(CampaignArgs),
+    /// The fault-injection matrix: every fault the simulator injects (open phase, encoder
+    /// stuck/glitch/wrong line count, current sensor dead/stuck/gain/offset, bus sag and
+    /// surge, parameter steps, load seizure) at standstill, mid-speed and top speed, motoring
+    /// and generating, in parallel on all cores; each row judged against issue 18's detection
+    /// bounds (`hil_sim::faults`). Prints the table, writes faults.md, faults.json and
+    /// faults.svg, and exits 1 if a row fails.
+    Faults(FaultsArgs),
     /// Talk to the board's command/telemetry link on a serial port (115200 baud).
     Link(LinkArgs),
 }
@@ -99,6 +106,95 @@ struct CampaignArgs {
     /// Output directory [default: out/campaign].
     #[arg(long, value_parser = non_empty_path)]
     out: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+struct FaultsArgs {
+    /// A drive file (its [certify] omega_r_max_rad_s sets the top speed, if it has one).
+    #[arg(default_value = "drive.toml")]
+    drive: PathBuf,
+    /// DC-bus voltage, V.
+    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
+    vdc: f64,
+    /// Output directory [default: out/faults].
+    #[arg(long, value_parser = non_empty_path)]
+    out: Option<PathBuf>,
+}
+
+fn faults(a: &FaultsArgs) -> Result<(), String> {
+    use hil_sim::faults::Matrix;
+    let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/faults"));
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    // Without [certify], the top speed is twice the base speed (the field-weakening range).
+    let omega_r_max = file.certify.map_or(f64::INFINITY, |c| c.omega_r_max_rad_s);
+    let m = Matrix::new(file.spec, omega_r_max, a.vdc);
+    let total = m.cases()?.len() * m.points().len();
+    eprintln!(
+        "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s)",
+        a.drive.display(),
+        a.vdc,
+        m.top_speed_rad_s
+    );
+    let start = std::time::Instant::now();
+    let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let rows = m.run(
+        |done| {
+            if tty {
+                eprint!("\rhil-sim: {done}/{total} rows");
+            } else if done % 10 == 0 || done == total {
+                eprintln!("hil-sim: {done}/{total} rows");
+            }
+        },
+        &INTERRUPTED,
+    );
+    if tty {
+        eprintln!();
+    }
+    let rows = rows?;
+    let elapsed = start.elapsed().as_secs_f64();
+    let md = hil_sim::faults::markdown(&m, &rows);
+    write_text(&out.join("faults.md"), &md)?;
+    let json = serde_json::to_string_pretty(&hil_sim::faults::json(&m, &rows)).map_err(|e| e.to_string())?;
+    write_text(&out.join("faults.json"), &format!("{json}\n"))?;
+    write_text(&out.join("faults.svg"), &hil_sim::faults::svg(&m, &rows))?;
+    println!(
+        "{:<30} {:<22} {:>8} {:<26} {:<30} {:>4} {:>7} {:>9} {:<22} verdict",
+        "fault injected",
+        "operating point",
+        "ω rad/s",
+        "asked",
+        "detected as",
+        "off",
+        "peak A",
+        "E_bus J",
+        "final"
+    );
+    for o in &rows {
+        println!(
+            "{:<30} {:<22} {:>8.1} {:<26} {:<30} {:>4} {:>7.2} {:>9.3} {:<22} {}{}",
+            o.case.name,
+            o.at.name(),
+            o.speed_at_injection_rad_s,
+            o.asked(),
+            o.seen(),
+            o.off_after_periods.map_or("—".into(), |n| n.to_string()),
+            o.peak_current_a,
+            o.energy_into_bus_j,
+            format!("{:?}", o.final_mode),
+            o.verdict(),
+            if o.failures.is_empty() { String::new() } else { format!(": {}", o.failures.join("; ")) },
+        );
+    }
+    let (failed, gaps) =
+        (rows.iter().filter(|o| !o.passed()).count(), rows.iter().filter(|o| o.verdict() == "gap").count());
+    println!(
+        "{} rows in {elapsed:.2} s: {} pass, {gaps} stated gaps, {failed} fail",
+        rows.len(),
+        rows.len() - failed - gaps
+    );
+    eprintln!("hil-sim: wrote faults.md, faults.json, faults.svg in {}", out.display());
+    if failed == 0 { Ok(()) } else { Err(format!("{failed} of {} rows failed their criterion", rows.len())) }
 }
 
 fn campaign_seconds(s: &str) -> Result<f64, String> {
@@ -778,6 +874,10 @@ fn main() -> ExitCode {
         Cmd::Campaign(a) => {
             stop_on_ctrl_c();
             campaign(a)
+        }
+        Cmd::Faults(a) => {
+            stop_on_ctrl_c();
+            faults(a)
         }
         Cmd::Link(a) => board_link(a),
     };

@@ -49,7 +49,9 @@
 //! phase = "b"                      # or "encoder_stuck", "encoder_glitch" (counts),
 //!                                  # "encoder_lines" (lines: the encoder's actual count),
 //!                                  # "bus_voltage" (vdc_v), "load_seizure" (torque_nm: its
-//!                                  # friction), "open_phase" (phase)
+//!                                  # friction), "open_phase" (phase), "plant" (rs_factor,
+//!                                  # rr_factor, lm_factor: the plant's R_s, R_r, L_m
+//!                                  # scaled — heating, saturation; each default 1)
 //! gain = 0.0
 //! offset_a = 0.0
 //! ```
@@ -252,6 +254,7 @@ enum FaultKind {
     EncoderStuck,
     EncoderGlitch,
     EncoderLines,
+    Plant,
     BusVoltage,
     LoadSeizure,
 }
@@ -272,6 +275,9 @@ struct EventTable {
     torque_nm: Option<f64>,
     counts: Option<i64>,
     lines: Option<u32>,
+    rs_factor: Option<f64>,
+    rr_factor: Option<f64>,
+    lm_factor: Option<f64>,
 }
 
 /// `duration_s` and `sample_period_s` within their stated maxima; returns the row count.
@@ -411,6 +417,26 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                         let v = bounded("vdc_v", e.vdc_v)?;
                         src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
                         Injection::BusVoltage { vdc_v: v }
+                    }
+                    Some(FaultKind::Plant) => {
+                        let f = |name: &str, v: Option<f64>| -> Result<f64, FileError> {
+                            let x = v.unwrap_or(1.0);
+                            src.check(
+                                x.is_finite() && (0.1..=10.0).contains(&x),
+                                &key(name),
+                                "must lie in [0.1, 10] (a factor on the plant's value)",
+                            )?;
+                            Ok(x)
+                        };
+                        let (rs, rr, lm) = (
+                            f("rs_factor", e.rs_factor)?,
+                            f("rr_factor", e.rr_factor)?,
+                            f("lm_factor", e.lm_factor)?,
+                        );
+                        match crate::sim::scaled_plant(&plant, rs, rr, lm) {
+                            Some(motor) => Injection::Plant { motor },
+                            None => return Err(src.error(&key("lm_factor"), "gives an invalid motor")),
+                        }
                     }
                     Some(FaultKind::LoadSeizure) => {
                         let torque_nm = bounded("torque_nm", e.torque_nm)?;
@@ -734,7 +760,19 @@ torque_nm = 0.5
             last("fault = \"load_seizure\"\ntorque_nm = 20.0"),
             Some((1.0, Event::Fault(Injection::LoadSeizure { torque_nm: 20.0 })))
         );
+        match last("fault = \"plant\"\nrr_factor = 1.5\nlm_factor = 0.8") {
+            Some((1.0, Event::Fault(Injection::Plant { motor }))) => {
+                assert!((motor.rr_ohm() - 1.5 * 23.2).abs() < 1e-12);
+                assert!((motor.lm_h() - 0.8 * 1.42).abs() < 1e-12);
+                // The leakage stays: L_s − L_m as before.
+                assert!((motor.ls_h() - motor.lm_h() - (1.44 - 1.42)).abs() < 1e-12);
+                assert_eq!(motor.rs_ohm(), 16.2);
+            }
+            other => panic!("{other:?}"),
+        }
         for (ev, k) in [
+            ("fault = \"plant\"\nrs_factor = 0.0", "rs_factor"),
+            ("fault = \"plant\"\nlm_factor = nan", "lm_factor"),
             ("fault = \"encoder_glitch\"", "counts"),
             ("fault = \"encoder_lines\"\nlines = 0", "lines"),
             ("fault = \"load_seizure\"", "torque_nm"),

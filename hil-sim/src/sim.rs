@@ -114,6 +114,12 @@ pub enum Injection {
         /// New bus voltage, V.
         vdc_v: f64,
     },
+    /// The machine's electrical parameters become those of `motor` (the rotor heating, the
+    /// magnetizing inductance saturating); the mechanics and the state carry over.
+    Plant {
+        /// The new electrical parameters (its J and B are not used).
+        motor: MotorParams,
+    },
     /// The load seizes: a friction torque of `torque_nm` brakes the rotor to rest and holds
     /// it there (a jammed gearbox or bearing; the deceleration is finite, as in a real
     /// seizure).
@@ -127,6 +133,25 @@ pub enum Injection {
         /// Phase index 0…2.
         phase: usize,
     },
+}
+
+/// `m` with its resistances scaled by `rs_factor` and `rr_factor` (heating) and its
+/// magnetizing inductance by `lm_factor` (saturation: L_s and L_r change by the same
+/// amount, the leakage inductances stay) — a [`Injection::Plant`] change. `None` if the
+/// result is not a valid motor.
+pub fn scaled_plant(m: &MotorParams, rs_factor: f64, rr_factor: f64, lm_factor: f64) -> Option<MotorParams> {
+    let lm = lm_factor * m.lm_h();
+    MotorParams::new(
+        rs_factor * m.rs_ohm(),
+        rr_factor * m.rr_ohm(),
+        m.ls_h() - m.lm_h() + lm,
+        m.lr_h() - m.lm_h() + lm,
+        lm,
+        m.pole_pairs(),
+        m.j_kgm2(),
+        m.b_nms(),
+    )
+    .ok()
 }
 
 /// Load beyond the event-driven constant torque.
@@ -456,9 +481,8 @@ pub fn run(
         LoadModel::LockedRotor | LoadModel::Dynamometer { .. } => machine.speed_locked(),
         LoadModel::CoulombFriction { friction_nm } => machine.with_coulomb_friction(friction_nm),
     };
-    let mut machine = &loaded;
-    // The machine after a load seizure (built only if one is injected).
-    let mut seized: Option<Machine> = None;
+    // The machine as it is now (a load seizure or a parameter change rebuilds it).
+    let mut machine = loaded;
     let substeps = sc.substeps.max(1);
     let h = ts / f64::from(substeps);
     let mut rk4 = machine.rk4_stepper(h);
@@ -516,7 +540,12 @@ pub fn run(
                         open_phase = PHASE_AXES.get(phase).copied()
                     }
                     Event::Fault(Injection::LoadSeizure { torque_nm }) => {
-                        machine = seized.insert(loaded.with_coulomb_friction(torque_nm));
+                        machine = machine.with_coulomb_friction(torque_nm);
+                        rk4 = machine.rk4_stepper(h);
+                        rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
+                    }
+                    Event::Fault(Injection::Plant { motor }) => {
+                        machine = machine.with_electrical(&motor);
                         rk4 = machine.rk4_stepper(h);
                         rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
                     }
@@ -567,13 +596,13 @@ pub fn run(
                 v
             }
             Period::Off => {
-                let (next, v) = integrate_bridge_off(machine, &rk4_off, &x, vdc_v, load);
+                let (next, v) = integrate_bridge_off(&machine, &rk4_off, &x, vdc_v, load);
                 x = next;
                 v
             }
             Period::Switching(d) => {
                 let segments = sc.inverter.segments(d, i_true, vdc_v, ts);
-                x = integrate_segments(machine, &x, &segments, h, load);
+                x = integrate_segments(&machine, &x, &segments, h, load);
                 segments.average()
             }
         };

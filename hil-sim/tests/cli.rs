@@ -78,6 +78,7 @@ fn help_on_every_subcommand() {
         &["bench"],
         &["envelope"],
         &["campaign"],
+        &["faults"],
         &["link"],
         &["link", "x", "set-gains"],
         &["link", "x", "stop"],
@@ -351,4 +352,29 @@ fn interrupted_campaign_writes_nothing() {
         assert!(!out.join(f).exists(), "{f}");
     }
     let _ = std::fs::remove_dir_all(&out);
+}
+
+/// `hil-sim faults`: the whole matrix on the shipped drive passes (every row detected as
+/// asked, or a stated gap) and writes its table as markdown, JSON and SVG; a missing drive
+/// file is named.
+#[test]
+fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
+    let res = tmp("faults");
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let st = bin().args(["faults", drive, "--out"]).arg(&res).output().unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("faults.json")).unwrap()).unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 13 * 6);
+    assert_eq!(json["failed"].as_u64(), Some(0));
+    assert!(
+        std::fs::read_to_string(res.join("faults.md"))
+            .unwrap()
+            .contains("| open phase a | mid-speed motoring |")
+    );
+    assert!(std::fs::read_to_string(res.join("faults.svg")).unwrap().contains("<svg"));
+    let st = bin().args(["faults", "no-such-drive.toml", "--out"]).arg(&res).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("no-such-drive.toml"));
 }

@@ -366,6 +366,14 @@ impl Machine {
         Self { inv_j: 0.0, b_nms: 0.0, coulomb_nm: 0.0, ..*self }
     }
 
+    /// The same mechanics (inertia, friction, a locked rotor) with the electrical
+    /// parameters of `m` (a parameter change mid-run: the rotor heating, the magnetizing
+    /// inductance saturating); the state carries over as it is (currents and rotor flux).
+    pub fn with_electrical(&self, m: &MotorParams) -> Self {
+        let e = Self::new(m);
+        Self { inv_j: self.inv_j, b_nms: self.b_nms, coulomb_nm: self.coulomb_nm, ..e }
+    }
+
     /// The same machine with Coulomb friction of magnitude `t_c_nm`: −T_c·sign(ω_m) while
     /// turning; at rest it holds up to T_c of driving torque (stiction = Coulomb level).
     /// The friction torque is fixed at each RK4 step's start, and a step in which ω_m would

@@ -64,6 +64,21 @@ const CERTIFY: Step = Step::cargo(
     "certify",
     &["run", "--quiet", "--release", "--package", "design", "--", "certify", "drive.toml"],
 );
+const FAULTS: Step = Step::cargo(
+    "fault-injection matrix (hil-sim faults)",
+    &[
+        "run",
+        "--quiet",
+        "--release",
+        "--package",
+        "hil-sim",
+        "--",
+        "faults",
+        "drive.toml",
+        "--out",
+        "target/faults",
+    ],
+);
 const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
 const CORE_M4: Step =
     Step::cargo("build-core-m4", &["build", "--package", "controller-core", "--target", THUMB, "--release"]);
@@ -493,7 +508,7 @@ fn module_cycles() -> bool {
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
-        "ci" => [&FMT, &CLIPPY, &CLIPPY_FW, &DOC, &TEST, &CERTIFY, &CORE_M4, &FW]
+        "ci" => [&FMT, &CLIPPY, &CLIPPY_FW, &DOC, &TEST, &CERTIFY, &FAULTS, &CORE_M4, &FW]
             .into_iter()
             .chain(QEMU_STEPS)
             .chain([&FUZZ])
@@ -506,9 +521,10 @@ fn main() -> ExitCode {
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![&FW],
         "certify" => vec![&CERTIFY],
+        "faults" => vec![&FAULTS],
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci | lint | modules | test-host | certify | build-core-m4 | build-fw | qemu | fuzz>"
+                "usage: cargo xtask <ci | lint | modules | test-host | certify | faults | build-core-m4 | build-fw | qemu | fuzz>"
             );
             return ExitCode::from(2);
         }

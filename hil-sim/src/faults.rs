@@ -1,0 +1,613 @@
+//! The fault-injection matrix (issue 18): every fault the simulator can inject, at
+//! standstill, mid-speed and top speed, motoring and generating, each run judged against
+//! the detection the issue asks for.
+//!
+//! **Runs.** The drive file on its nominal motor with realistic sensors
+//! ([`SensorModel::realistic`], seeded by the row), a stiff bus: enable at 0, the operating
+//! point's reference at [`REFERENCE_S`] with its load, the fault injected at [`INJECT_S`]
+//! (the point reached: checked, the row is an error otherwise), observed for [`OBSERVE_S`].
+//! Operating points ([`Point`]): standstill is a position hold (a speed law with
+//! proportional action alone would turn under the load), mid-speed is half the base speed
+//! on the bus, top speed 90 % of the drive's top (its certified ω_r,max/p, at most twice the
+//! base speed: field weakening); the load is ±[`LOAD_FRACTION`] of the torque limit
+//! (motoring: against the motion, or positive at standstill; generating: with it), at top
+//! speed a quarter of that (the envelope's torque there is small).
+//!
+//! **Measured** (every PWM period from the injection): the fault latched first and when,
+//! the PWM periods from the detection to the bridge off (the drive's output of the detecting
+//! step: 0 means the bridge is off for the next period), the peak true phase current against
+//! the trip level, the energy the motor returned to the bus
+//! (`−∫ 1.5·(v_α i_α + v_β i_β) dt`, the average inverter being lossless) and the final mode.
+//!
+//! **Criteria** ([`Expect`]): a fault detected with its code within its bound (sensor faults
+//! 10 ms, encoder faults two slow periods, open phase 50 ms, stall 0.5 s, bus one PWM
+//! period), the bridge off within one PWM period of the detection, the peak phase current
+//! ≤ 110 % of the trip level; or — for a change the drive must tolerate — no trip at all.
+//! A row the issue's bound cannot or does not yet hold for is a stated **gap** with its
+//! reason: printed as such, and a failure of the matrix if it starts passing (so the list
+//! stays true).
+
+use crate::inverter::InverterModel;
+use crate::scenario::Builtin;
+use crate::sensors::SensorModel;
+use crate::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
+use controller_core::drive::{DriveSpec, Fault, Mode, Reference};
+use controller_core::frames::AlphaBeta;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// The operating point's reference (and load) come at this time, s (the drive magnetized).
+pub const REFERENCE_S: f64 = 0.25;
+/// The fault is injected at this time, s (every operating point reached).
+pub const INJECT_S: f64 = 2.5;
+/// Each run is observed this long after the injection, s (the stall bound and margin).
+pub const OBSERVE_S: f64 = 0.6;
+/// Load as a fraction of the torque limit (a quarter of it at top speed).
+pub const LOAD_FRACTION: f64 = 0.25;
+/// Peak phase current allowed, as a fraction of the trip level.
+pub const PEAK_CURRENT_FRACTION: f64 = 1.1;
+/// The operating point counts as reached when the speed is within this of its target,
+/// rad/s (the saturated-P law's steady error under the load included).
+pub const REACHED_TOLERANCE_RAD_S: f64 = 15.0;
+/// Detection bounds (issue 18's acceptance): sensor faults, s.
+pub const SENSOR_BOUND_S: f64 = 0.010;
+/// … open phase, s.
+pub const OPEN_PHASE_BOUND_S: f64 = 0.050;
+/// … stall, s.
+pub const STALL_BOUND_S: f64 = 0.5;
+/// … encoder faults, slow periods.
+pub const ENCODER_BOUND_SLOW_PERIODS: f64 = 2.0;
+
+/// Where the fault strikes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Point {
+    /// Position hold at rest.
+    Standstill,
+    /// Half the base speed.
+    Mid,
+    /// 90 % of the top speed (field weakening).
+    Top,
+}
+
+impl Point {
+    /// Name in tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            Point::Standstill => "standstill",
+            Point::Mid => "mid-speed",
+            Point::Top => "top speed",
+        }
+    }
+}
+
+/// An operating point: where, and which way the torque flows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OperatingPoint {
+    /// Where.
+    pub point: Point,
+    /// Motoring (the load against the motion) or generating (the load driving).
+    pub motoring: bool,
+    /// Mechanical speed, rad/s.
+    pub speed_rad_s: f64,
+    /// Load torque, N·m (positive against positive speed).
+    pub load_nm: f64,
+}
+
+impl OperatingPoint {
+    /// "mid-speed motoring" and the like.
+    pub fn name(&self) -> String {
+        format!("{} {}", self.point.name(), if self.motoring { "motoring" } else { "generating" })
+    }
+}
+
+/// A fault to inject.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Case {
+    /// Short name.
+    pub name: &'static str,
+    /// What is injected.
+    pub injection: Injection,
+}
+
+/// What a row must show.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Expect {
+    /// This fault, latched first, within `bound_s` of the injection.
+    Fault {
+        /// The code.
+        fault: Fault,
+        /// Detection bound, s.
+        bound_s: f64,
+    },
+    /// No trip: the drive must ride through it.
+    RideThrough,
+    /// A stated gap: what the issue asks (`fault` within `bound_s`) does not hold here, for
+    /// the reason given. The row fails if it starts to hold.
+    Gap {
+        /// The code the issue asks for.
+        fault: Fault,
+        /// Its bound, s.
+        bound_s: f64,
+        /// Why it does not hold.
+        why: &'static str,
+    },
+}
+
+/// One row's measurements and verdict.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// The fault injected.
+    pub case: Case,
+    /// Where.
+    pub at: OperatingPoint,
+    /// What was asked.
+    pub expect: Expect,
+    /// The speed at the injection, rad/s.
+    pub speed_at_injection_rad_s: f64,
+    /// The fault latched first after the injection, and its delay, s.
+    pub detected: Option<(Fault, f64)>,
+    /// PWM periods from the detection to the bridge off (0: off from the next period).
+    pub off_after_periods: Option<u64>,
+    /// Peak true phase current after the injection, A.
+    pub peak_current_a: f64,
+    /// Energy the motor returned to the bus after the injection, J.
+    pub energy_into_bus_j: f64,
+    /// Mode at the end.
+    pub final_mode: Mode,
+    /// Criteria not met (empty: the row passes; for a gap, "gap closed" when it holds).
+    pub failures: Vec<String>,
+}
+
+impl Outcome {
+    /// The row meets its criterion (a gap: it still does not hold).
+    pub fn passed(&self) -> bool {
+        self.failures.is_empty()
+    }
+
+    /// "pass", "gap" or "FAIL".
+    pub fn verdict(&self) -> &'static str {
+        match (self.passed(), self.expect) {
+            (false, _) => "FAIL",
+            (true, Expect::Gap { .. }) => "gap",
+            (true, _) => "pass",
+        }
+    }
+
+    /// What was asked, in words.
+    pub fn asked(&self) -> String {
+        match self.expect {
+            Expect::Fault { fault, bound_s } => format!("{fault:?} ≤ {}", ms(bound_s)),
+            Expect::RideThrough => "no trip".into(),
+            Expect::Gap { fault, bound_s, .. } => format!("({fault:?} ≤ {})", ms(bound_s)),
+        }
+    }
+
+    /// What was seen, in words.
+    pub fn seen(&self) -> String {
+        match self.detected {
+            Some((f, t)) => format!("{f:?} after {}", ms(t)),
+            None => format!("none ({:?})", self.final_mode),
+        }
+    }
+}
+
+fn ms(t_s: f64) -> String {
+    format!("{:.2} ms", 1e3 * t_s)
+}
+
+/// The matrix of one drive.
+#[derive(Clone, Debug)]
+pub struct Matrix {
+    /// The drive.
+    pub spec: DriveSpec,
+    /// Its top speed (certified ω_r,max/p, at most twice the base speed), rad/s.
+    pub top_speed_rad_s: f64,
+    /// Bus voltage, V.
+    pub vdc_v: f64,
+}
+
+impl Matrix {
+    /// The matrix of `spec` on `vdc_v`, up to the electrical speed `omega_r_max_rad_s`.
+    pub fn new(spec: DriveSpec, omega_r_max_rad_s: f64, vdc_v: f64) -> Self {
+        let m = &spec.motor;
+        let base = crate::envelope::base_speed_rad_s(m, spec.flux_ref_wb, vdc_v);
+        let top = (omega_r_max_rad_s / f64::from(m.pole_pairs()))
+            .min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
+        Self { spec, top_speed_rad_s: top, vdc_v }
+    }
+
+    /// The six operating points.
+    pub fn points(&self) -> Vec<OperatingPoint> {
+        let tau = crate::campaign::torque_limit_nm(&self.spec);
+        let base = crate::envelope::base_speed_rad_s(&self.spec.motor, self.spec.flux_ref_wb, self.vdc_v);
+        let mut v = Vec::new();
+        for (point, speed, load) in [
+            (Point::Standstill, 0.0, LOAD_FRACTION * tau),
+            (Point::Mid, 0.5 * base, LOAD_FRACTION * tau),
+            (Point::Top, 0.9 * self.top_speed_rad_s, 0.25 * LOAD_FRACTION * tau),
+        ] {
+            for motoring in [true, false] {
+                v.push(OperatingPoint {
+                    point,
+                    motoring,
+                    speed_rad_s: speed,
+                    load_nm: if motoring { load } else { -load },
+                });
+            }
+        }
+        v
+    }
+
+    /// The faults injected (the plant's parameter changes act on `spec.motor`).
+    pub fn cases(&self) -> Result<Vec<Case>, String> {
+        let m = &self.spec.motor;
+        let hot = scaled_plant(m, 1.0, 1.5, 1.0).ok_or("R_r × 1.5 is not a valid motor")?;
+        let saturated = scaled_plant(m, 1.0, 1.0, 0.8).ok_or("L_m × 0.8 is not a valid motor")?;
+        Ok(vec![
+            Case { name: "open phase a", injection: Injection::OpenPhase { phase: 0 } },
+            Case { name: "encoder stuck", injection: Injection::EncoderStuck },
+            Case { name: "encoder glitch 100 counts", injection: Injection::EncoderGlitch { counts: 100 } },
+            Case { name: "encoder 512 lines (1024 set)", injection: Injection::EncoderLines { lines: 512 } },
+            Case {
+                name: "sensor b dead",
+                injection: Injection::CurrentSensor { phase: 1, gain: 0.0, offset_a: 0.0 },
+            },
+            Case {
+                name: "sensor b stuck at 1 A",
+                injection: Injection::CurrentSensor { phase: 1, gain: 0.0, offset_a: 1.0 },
+            },
+            Case {
+                name: "sensor b gain 0.5",
+                injection: Injection::CurrentSensor { phase: 1, gain: 0.5, offset_a: 0.0 },
+            },
+            Case {
+                name: "sensor b offset +0.5 A",
+                injection: Injection::CurrentSensor { phase: 1, gain: 1.0, offset_a: 0.5 },
+            },
+            Case { name: "bus sag to 150 V", injection: Injection::BusVoltage { vdc_v: 150.0 } },
+            Case { name: "bus surge to 450 V", injection: Injection::BusVoltage { vdc_v: 450.0 } },
+            Case { name: "R_r step × 1.5 (heating)", injection: Injection::Plant { motor: hot } },
+            Case { name: "L_m step × 0.8 (saturation)", injection: Injection::Plant { motor: saturated } },
+            Case {
+                name: "load seizure (10 × τ_max)",
+                injection: Injection::LoadSeizure {
+                    torque_nm: 10.0 * crate::campaign::torque_limit_nm(&self.spec),
+                },
+            },
+        ])
+    }
+
+    /// What the issue asks of `case` at `at`, or the stated gap.
+    pub fn expect(&self, case: &Case, at: &OperatingPoint) -> Expect {
+        let slow_s = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
+        let encoder_s = ENCODER_BOUND_SLOW_PERIODS * slow_s;
+        let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
+        let rest = at.point == Point::Standstill;
+        match case.injection {
+            Injection::OpenPhase { .. } => {
+                Expect::Fault { fault: Fault::OpenPhase, bound_s: OPEN_PHASE_BOUND_S }
+            }
+            Injection::EncoderStuck if rest => Expect::Gap {
+                fault: Fault::EncoderLoss,
+                bound_s: encoder_s,
+                why: "at rest a stuck counter reads what a healthy one reads; the load then turns the rotor \
+                      unseen (needs a speed observer from the electrical quantities)",
+            },
+            Injection::EncoderLines { .. } if rest => Expect::Gap {
+                fault: Fault::EncoderLoss,
+                bound_s: encoder_s,
+                why: "at rest a wrong line count changes no reading",
+            },
+            Injection::EncoderStuck | Injection::EncoderGlitch { .. } | Injection::EncoderLines { .. } => {
+                Expect::Fault { fault: Fault::EncoderLoss, bound_s: encoder_s }
+            }
+            Injection::CurrentSensor { .. } => {
+                Expect::Fault { fault: Fault::CurrentSensor, bound_s: SENSOR_BOUND_S }
+            }
+            Injection::BusVoltage { vdc_v } => Expect::Fault {
+                fault: if vdc_v < self.spec.protection.vdc_min_v {
+                    Fault::DcBusUndervoltage
+                } else {
+                    Fault::DcBusOvervoltage
+                },
+                bound_s: pwm_s,
+            },
+            Injection::Plant { .. } => Expect::RideThrough,
+            // At rest under a position hold, a seized load changes nothing the drive commands.
+            Injection::LoadSeizure { .. } if rest => Expect::RideThrough,
+            Injection::LoadSeizure { .. } => Expect::Fault { fault: Fault::Stall, bound_s: STALL_BOUND_S },
+        }
+    }
+
+    /// Every row (case × point), in parallel on all cores (rayon), in matrix order;
+    /// `progress(done)` after each; `cancel` stops them at the next period.
+    pub fn run(&self, progress: impl Fn(usize) + Sync, cancel: &AtomicBool) -> Result<Vec<Outcome>, String> {
+        let rows: Vec<(Case, OperatingPoint)> =
+            self.cases()?.into_iter().flat_map(|c| self.points().into_iter().map(move |p| (c, p))).collect();
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        rows.par_iter()
+            .enumerate()
+            .map(|(k, (case, at))| {
+                let o = self.run_one(k as u64, case, at, self.expect(case, at), cancel);
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+                o
+            })
+            .collect()
+    }
+
+    /// One row (`k` seeds its sensors), judged against `expect` (the matrix's own:
+    /// [`Matrix::expect`]).
+    pub fn run_one(
+        &self,
+        k: u64,
+        case: &Case,
+        at: &OperatingPoint,
+        expect: Expect,
+        cancel: &AtomicBool,
+    ) -> Result<Outcome, String> {
+        let reference = if at.point == Point::Standstill {
+            Reference::Position(0.0)
+        } else {
+            Reference::Speed(at.speed_rad_s as f32)
+        };
+        let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
+        let b = Builtin {
+            name: format!("faults-{k}"),
+            about: String::new(),
+            spec: self.spec,
+            plant: self.spec.motor,
+            scenario: Scenario {
+                events: vec![
+                    (0.0, Event::Enable),
+                    (REFERENCE_S, Event::Reference(reference)),
+                    (REFERENCE_S, Event::LoadNm(at.load_nm)),
+                    (INJECT_S, Event::Fault(case.injection)),
+                ],
+                duration_s: INJECT_S + OBSERVE_S,
+                vdc_v: self.vdc_v,
+                substeps: 1,
+                trace_every: 1,
+                sensors: SensorModel::realistic(0xFA17 + k),
+                load: LoadModel::Torque,
+                inverter: InverterModel::Average,
+                dc_link: None,
+            },
+        };
+        let i_trip = self.spec.protection.i_trip_a;
+        let mut speed_at_injection = f64::NAN;
+        let mut detected: Option<(Fault, f64)> = None;
+        let mut off_after: Option<u64> = None;
+        let (mut peak, mut energy) = (0.0f64, 0.0f64);
+        let mut before_injection_fault: Option<Mode> = None;
+        // The first row at or after the injection (the event loop's own comparison).
+        let mut injected_at: Option<f64> = None;
+        let final_mode = b.run_into(
+            |_| {},
+            |r: &Row| {
+                if cancel.load(Ordering::Relaxed) {
+                    return Err("interrupted".into());
+                }
+                if r.t_s < INJECT_S {
+                    if before_injection_fault.is_none() && matches!(r.mode, Some(Mode::Fault(_))) {
+                        before_injection_fault = r.mode;
+                    }
+                    return Ok(());
+                }
+                let t0 = *injected_at.get_or_insert(r.t_s);
+                if r.t_s == t0 {
+                    speed_at_injection = r.x.omega_m_rad_s;
+                }
+                let i = AlphaBeta { alpha: r.x.i_alpha_a, beta: r.x.i_beta_a }.inverse_clarke();
+                peak = peak.max(i.a.abs()).max(i.b.abs()).max(i.c.abs());
+                energy -= 1.5 * (r.v_ab_v[0] * r.x.i_alpha_a + r.v_ab_v[1] * r.x.i_beta_a) * pwm_s;
+                if detected.is_none()
+                    && let Some(Mode::Fault(f)) = r.mode
+                {
+                    detected = Some((f, r.t_s - t0));
+                }
+                if let Some((_, t)) = detected
+                    && off_after.is_none()
+                    && r.duty.is_none()
+                {
+                    off_after = Some(((r.t_s - t0 - t) / pwm_s).round() as u64);
+                }
+                Ok(())
+            },
+        )?;
+        if let Some(mode) = before_injection_fault {
+            return Err(format!("{} at {}: {mode:?} before the injection", case.name, at.name()));
+        }
+        let off_target = (speed_at_injection - at.speed_rad_s).abs();
+        // Written so that a NaN (no row at the injection) is an error too.
+        if off_target.is_nan() || off_target > REACHED_TOLERANCE_RAD_S {
+            return Err(format!(
+                "{} at {}: the operating point was not reached ({speed_at_injection:.1} of {:.1} rad/s)",
+                case.name,
+                at.name(),
+                at.speed_rad_s
+            ));
+        }
+        let mut failures = Vec::new();
+        let judge = |fault: Fault, bound_s: f64, failures: &mut Vec<String>| match detected {
+            Some((f, t)) if f == fault && t <= bound_s + 0.5 * pwm_s => {
+                if off_after.is_none_or(|n| n > 1) {
+                    failures.push(format!("bridge off after {off_after:?} periods"));
+                }
+            }
+            Some((f, t)) if f == fault => {
+                failures.push(format!("{f:?} after {}, bound {}", ms(t), ms(bound_s)))
+            }
+            Some((f, _)) => failures.push(format!("detected as {f:?}, not {fault:?}")),
+            None => failures.push(format!("not detected ({final_mode:?} at the end)")),
+        };
+        match expect {
+            Expect::Fault { fault, bound_s } => judge(fault, bound_s, &mut failures),
+            Expect::RideThrough => {
+                if let Some((f, t)) = detected {
+                    failures.push(format!("tripped: {f:?} after {}", ms(t)));
+                }
+            }
+            Expect::Gap { fault, bound_s, .. } => {
+                let mut would = Vec::new();
+                judge(fault, bound_s, &mut would);
+                if would.is_empty() && peak <= PEAK_CURRENT_FRACTION * i_trip {
+                    failures
+                        .push("gap closed: the row now meets the issue's bound (update the matrix)".into());
+                }
+            }
+        }
+        if !matches!(expect, Expect::Gap { .. }) && (peak.is_nan() || peak > PEAK_CURRENT_FRACTION * i_trip) {
+            failures.push(format!(
+                "peak current {peak:.2} A > {:.0} % of {i_trip} A",
+                100.0 * PEAK_CURRENT_FRACTION
+            ));
+        }
+        Ok(Outcome {
+            case: *case,
+            at: *at,
+            expect,
+            speed_at_injection_rad_s: speed_at_injection,
+            detected,
+            off_after_periods: off_after,
+            peak_current_a: peak,
+            energy_into_bus_j: energy,
+            final_mode,
+            failures,
+        })
+    }
+}
+
+/// The table as markdown.
+pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
+    let mut s = format!(
+        "# Fault-injection matrix\n\n`hil-sim faults`: {} rows, {} V bus, trip level {} A, top speed {:.1} rad/s \
+         (hil_sim::faults). Gaps are stated with their reason below the table.\n\n\
+         | fault injected | operating point | ω at injection (rad/s) | asked | detected as | bridge off after (periods) \
+         | peak \\|i\\| (A) | peak / trip | energy into bus (J) | final state | verdict |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|\n",
+        rows.len(),
+        m.vdc_v,
+        m.spec.protection.i_trip_a,
+        m.top_speed_rad_s
+    );
+    for o in rows {
+        s.push_str(&format!(
+            "| {} | {} | {:.1} | {} | {} | {} | {:.2} | {:.0} % | {:.3} | {:?} | {}{} |\n",
+            o.case.name,
+            o.at.name(),
+            o.speed_at_injection_rad_s,
+            o.asked(),
+            o.seen(),
+            o.off_after_periods.map_or("—".into(), |n| n.to_string()),
+            o.peak_current_a,
+            100.0 * o.peak_current_a / m.spec.protection.i_trip_a,
+            o.energy_into_bus_j,
+            o.final_mode,
+            o.verdict(),
+            if o.failures.is_empty() { String::new() } else { format!(": {}", o.failures.join("; ")) },
+        ));
+    }
+    let mut gaps: Vec<(&str, &str)> = rows
+        .iter()
+        .filter_map(|o| match o.expect {
+            Expect::Gap { why, .. } => Some((o.case.name, why)),
+            _ => None,
+        })
+        .collect();
+    gaps.dedup();
+    if !gaps.is_empty() {
+        s.push_str("\n## Gaps\n\n");
+        for (name, why) in gaps {
+            s.push_str(&format!("- **{name}** at standstill: {why}.\n"));
+        }
+    }
+    s
+}
+
+/// The rows as JSON.
+pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
+    let row = |o: &Outcome| {
+        serde_json::json!({
+            "fault": o.case.name,
+            "point": o.at.name(),
+            "speed_at_injection_rad_s": o.speed_at_injection_rad_s,
+            "asked": o.asked(),
+            "detected": o.detected.map(|(f, _)| format!("{f:?}")),
+            "detection_time_s": o.detected.map(|(_, t)| t),
+            "bridge_off_after_periods": o.off_after_periods,
+            "peak_current_a": o.peak_current_a,
+            "trip_level_a": m.spec.protection.i_trip_a,
+            "energy_into_bus_j": o.energy_into_bus_j,
+            "final_mode": format!("{:?}", o.final_mode),
+            "verdict": o.verdict(),
+            "failures": o.failures,
+        })
+    };
+    serde_json::json!({
+        "vdc_v": m.vdc_v,
+        "top_speed_rad_s": m.top_speed_rad_s,
+        "rows": rows.iter().map(row).collect::<Vec<_>>(),
+        "passed": rows.iter().filter(|o| o.verdict() == "pass").count(),
+        "gaps": rows.iter().filter(|o| o.verdict() == "gap").count(),
+        "failed": rows.iter().filter(|o| !o.passed()).count(),
+    })
+}
+
+/// An overview: one cell per row (fault × operating point), coloured by verdict, with the
+/// fault detected and its delay.
+pub fn svg(m: &Matrix, rows: &[Outcome]) -> String {
+    let points = m.points();
+    let mut cases: Vec<&str> = rows.iter().map(|o| o.case.name).collect();
+    cases.dedup();
+    let (label_w, cell_w, cell_h, head_h) = (230.0, 150.0, 34.0, 60.0);
+    let width = label_w + cell_w * points.len() as f64 + 10.0;
+    let height = head_h + cell_h * cases.len() as f64 + 40.0;
+    let esc = |t: &str| t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{width}\" height=\"{height}\" \
+         font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
+         <text x=\"8\" y=\"18\" font-size=\"14\">Fault-injection matrix: detected fault and delay \
+         (green pass, amber stated gap, red fail)</text>\n"
+    );
+    for (j, p) in points.iter().enumerate() {
+        let x = label_w + cell_w * (j as f64 + 0.5);
+        s.push_str(&format!(
+            "<text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n<text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n",
+            head_h - 22.0,
+            p.point.name(),
+            head_h - 8.0,
+            if p.motoring { "motoring" } else { "generating" }
+        ));
+    }
+    for (i, c) in cases.iter().enumerate() {
+        let y = head_h + cell_h * i as f64;
+        s.push_str(&format!("<text x=\"8\" y=\"{}\">{}</text>\n", y + cell_h / 2.0 + 4.0, esc(c)));
+        for (j, p) in points.iter().enumerate() {
+            let Some(o) = rows.iter().find(|o| o.case.name == *c && o.at == *p) else { continue };
+            let fill = match o.verdict() {
+                "pass" => "#b7e4b0",
+                "gap" => "#f5d98b",
+                _ => "#f2a3a3",
+            };
+            let x = label_w + cell_w * j as f64;
+            let (line1, line2) = match o.detected {
+                Some((f, t)) => (format!("{f:?}"), ms(t)),
+                None => ("no trip".into(), format!("{:?}", o.final_mode)),
+            };
+            s.push_str(&format!(
+                "<rect x=\"{x}\" y=\"{y}\" width=\"{}\" height=\"{}\" fill=\"{fill}\" stroke=\"white\"/>\n\
+                 <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\n",
+                cell_w,
+                cell_h,
+                x + cell_w / 2.0,
+                y + 14.0,
+                esc(&line1),
+                x + cell_w / 2.0,
+                y + 28.0,
+                esc(&line2)
+            ));
+        }
+    }
+    s.push_str("</svg>\n");
+    s
+}
