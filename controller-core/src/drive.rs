@@ -95,7 +95,100 @@ pub struct Protection {
     /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
     /// every mode (it protects the link whether or not the bridge is active).
     pub brake_chopper: Option<BrakeChopper>,
+    /// The motor's I²t thermal limit ([`Fault::MotorOverload`]), if the motor's rated current
+    /// and thermal time constant are known.
+    pub motor_thermal: Option<ThermalLimit>,
+    /// The inverter's I²t thermal limit ([`Fault::InverterOverload`]), from the board data.
+    pub inverter_thermal: Option<ThermalLimit>,
+    /// The faults answered by a controlled stop and then the bridge off (the fault latched
+    /// once the stop ends), instead of the bridge off at once; only those after which the
+    /// drive still controls the motor ([`FaultSet::STOPPABLE`]).
+    pub stop_on: FaultSet,
 }
+
+/// An I²t thermal limit: a first-order thermal model, `dθ/dt = (I²/I_rated² − θ)/τ` with
+/// I the RMS phase current, θ = 1 the steady temperature rise at the rated current; the
+/// limit trips when θ reaches `overload_factor²` (so `overload_factor × I_rated` may flow
+/// for ever, and `k × I_rated` trips after `τ·ln(k²/(k² − overload_factor²))` from cold).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThermalLimit {
+    /// Rated (continuous) RMS phase current, A.
+    pub rated_current_a: f64,
+    /// Thermal time constant, s.
+    pub time_constant_s: f64,
+    /// The continuous current allowed, as a multiple of the rated one (≥ 1: a motor's
+    /// service factor; 1 for an inverter rated for its continuous current).
+    pub overload_factor: f64,
+}
+
+/// A set of [`Fault`]s (a bit per fault, [`Fault::bit`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FaultSet(pub u32);
+
+impl FaultSet {
+    /// No fault.
+    pub const EMPTY: Self = Self(0);
+    /// The faults a controlled stop may answer: the drive still measures, senses and
+    /// controls the motor after them (thermal overloads; an overspeed, if the load does not
+    /// overpower the drive — otherwise the stop time ends it).
+    pub const STOPPABLE: Self =
+        Self(Fault::MotorOverload.bit() | Fault::InverterOverload.bit() | Fault::Overspeed.bit());
+
+    /// `f` is in the set.
+    pub const fn contains(self, f: Fault) -> bool {
+        self.0 & f.bit() != 0
+    }
+
+    /// The set with `f`.
+    pub const fn with(self, f: Fault) -> Self {
+        Self(self.0 | f.bit())
+    }
+}
+
+/// A thermal limit, discretised ([`ThermalLimit`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ThermalConfig {
+    /// 1/I_rated², 1/A².
+    inv_rated2: f32,
+    /// θ += (x − θ)·gain every [`THERMAL_UPDATE_SLOW_STEPS`].
+    gain: f32,
+    /// Trip at θ ≥ this (`f32::MAX`: no limit).
+    limit: f32,
+}
+
+impl ThermalConfig {
+    const NONE: Self = Self { inv_rated2: 0.0, gain: 0.0, limit: f32::MAX };
+
+    fn new(t: Option<&ThermalLimit>, t_slow_s: f64) -> Result<Self, DriveError> {
+        let Some(t) = t else { return Ok(Self::NONE) };
+        let ok = [t.rated_current_a, t.time_constant_s, t.overload_factor].iter().all(|x| x.is_finite())
+            && t.rated_current_a > 0.0
+            && t.time_constant_s > 0.0
+            && t.overload_factor >= 1.0
+            && t.overload_factor <= 10.0;
+        if !ok {
+            return Err(DriveError::Protection);
+        }
+        let dt = f64::from(THERMAL_UPDATE_SLOW_STEPS) * t_slow_s;
+        Ok(Self {
+            inv_rated2: (1.0 / (t.rated_current_a * t.rated_current_a)) as f32,
+            gain: (1.0 - libm::exp(-dt / t.time_constant_s)) as f32,
+            limit: (t.overload_factor * t.overload_factor) as f32,
+        })
+    }
+
+    /// θ after a period of mean squared RMS current `i2_a2`; `true` at the limit.
+    #[inline]
+    fn update(&self, theta: &mut f32, i2_a2: f32) -> bool {
+        *theta += (i2_a2 * self.inv_rated2 - *theta) * self.gain;
+        *theta >= self.limit
+    }
+}
+
+/// The thermal models are updated with the mean squared current of this many slow steps
+/// (0.5 s at the shipped 2 kHz): in f32, an update every slow step would be smaller than the
+/// rounding of θ for thermal time constants of minutes.
+pub const THERMAL_UPDATE_SLOW_STEPS: u16 = 1000;
 
 /// Brake-chopper thresholds: on above `on_v`, off again below `off_v`
 /// (0 < `off_v` < `on_v` < `vdc_max_v`). With `on_v` below the regeneration limit's start
@@ -335,6 +428,13 @@ pub struct DriveConfig {
     encoder_check_steps: u32,
     /// Largest plausible change of the encoder's per-read increment, mechanical rad.
     encoder_jump_rad: f32,
+    /// Thermal models: 1/I_rated² (per A² of |i_αβ|²/2, the RMS phase current squared), the
+    /// update gain `1 − e^(−N·T_slow/τ)` and the trip level `overload_factor²` (`f32::MAX`
+    /// without a limit) — motor, then inverter.
+    motor_thermal: ThermalConfig,
+    inverter_thermal: ThermalConfig,
+    /// The faults answered by a controlled stop.
+    stop_on: FaultSet,
     /// Slow steps a controlled stop may take before the bridge goes off anyway.
     stop_slow_steps: u32,
     /// Fast steps of the open-phase check's window.
@@ -481,6 +581,13 @@ impl DriveConfig {
                 .clamp(1.0, 4e9) as u32,
             // Finite in f32 too.
             encoder_jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
+            motor_thermal: ThermalConfig::new(p.motor_thermal.as_ref(), t_slow)?,
+            inverter_thermal: ThermalConfig::new(p.inverter_thermal.as_ref(), t_slow)?,
+            stop_on: if p.stop_on.0 & !FaultSet::STOPPABLE.0 == 0 {
+                p.stop_on
+            } else {
+                return Err(DriveError::Protection);
+            },
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
             open_phase_steps: libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32,
@@ -528,6 +635,12 @@ impl DriveConfig {
             self.brake_on_v,
             self.brake_off_v,
             self.encoder_jump_rad,
+            self.motor_thermal.inv_rated2,
+            self.motor_thermal.gain,
+            self.motor_thermal.limit,
+            self.inverter_thermal.inv_rated2,
+            self.inverter_thermal.gain,
+            self.inverter_thermal.limit,
         ] {
             w.f(x);
         }
@@ -541,6 +654,7 @@ impl DriveConfig {
             self.encoder_check_steps,
             self.stop_slow_steps,
             self.open_phase_steps,
+            self.stop_on.0,
         ] {
             w.u(x);
         }
@@ -588,6 +702,8 @@ impl DriveConfig {
             brake_on_v: r.f(),
             brake_off_v: r.f(),
             encoder_jump_rad: r.f(),
+            motor_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
+            inverter_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
             magnetizing_steps_max: r.u(),
             slow_divider: u16::try_from(r.u()).map_err(|_| DriveError::Raw)?,
             i_trip_bits: r.u(),
@@ -597,6 +713,7 @@ impl DriveConfig {
             encoder_check_steps: r.u(),
             stop_slow_steps: r.u(),
             open_phase_steps: r.u(),
+            stop_on: FaultSet(r.u()),
         };
         let counts = [
             u32::from(cfg.slow_divider),
@@ -607,7 +724,7 @@ impl DriveConfig {
             cfg.stop_slow_steps,
             cfg.open_phase_steps,
         ];
-        if r.bad || counts.contains(&0) {
+        if r.bad || counts.contains(&0) || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0 {
             return Err(DriveError::Raw);
         }
         Ok(cfg)
@@ -676,6 +793,37 @@ pub enum Fault {
     /// A phase is commanded a current but carries none, over `open_phase_time_s` (a broken
     /// lead or connector).
     OpenPhase,
+    /// The motor's I²t thermal model reached its limit ([`Protection::motor_thermal`]).
+    MotorOverload,
+    /// The inverter's I²t thermal model reached its limit ([`Protection::inverter_thermal`]).
+    InverterOverload,
+}
+
+impl Fault {
+    /// Every fault.
+    pub const ALL: [Fault; 16] = [
+        Fault::Overcurrent,
+        Fault::DcBusOvervoltage,
+        Fault::DcBusUndervoltage,
+        Fault::NonFiniteInput,
+        Fault::NonFiniteOutput,
+        Fault::EncoderLoss,
+        Fault::HardwareBreak,
+        Fault::Overspeed,
+        Fault::Stall,
+        Fault::LossOfControl,
+        Fault::EncoderImplausible,
+        Fault::CurrentSensor,
+        Fault::NoMotorCurrent,
+        Fault::OpenPhase,
+        Fault::MotorOverload,
+        Fault::InverterOverload,
+    ];
+
+    /// The fault's bit in a [`FaultSet`].
+    pub const fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
 }
 
 /// Drive state.
@@ -915,6 +1063,17 @@ pub struct Drive {
     open_phase: OpenPhaseWindow,
     /// The flux (d-axis current) command of the present operating point.
     flux: FluxCommand,
+    /// Σ of the RMS phase current squared, A², over the slow steps since the thermal models'
+    /// last update, and their count.
+    thermal_sum_a2: f32,
+    thermal_steps: u16,
+    /// The thermal models' states (1 = the steady rise at the rated current): motor,
+    /// inverter. They carry on through every mode (the motor cools while the bridge is off).
+    theta_motor: f32,
+    theta_inverter: f32,
+    /// A fault answered by a controlled stop ([`Protection::stop_on`]), latched when the stop
+    /// ends.
+    pending_fault: Option<Fault>,
     /// Largest steady torque of the envelope at the last slow step, N·m (the speed loop's
     /// limit).
     torque_max_nm: f32,
@@ -977,6 +1136,11 @@ impl Drive {
             stop_steps_left: None,
             open_phase: OpenPhaseWindow::default(),
             flux: FluxCommand::default(),
+            thermal_sum_a2: 0.0,
+            thermal_steps: 0,
+            theta_motor: 0.0,
+            theta_inverter: 0.0,
+            pending_fault: None,
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
             v_req2_sum: 0.0,
@@ -1063,9 +1227,41 @@ impl Drive {
     /// Back to Idle (phases off). A latched fault stays latched.
     pub fn disable(&mut self) {
         if !matches!(self.mode, Mode::Fault(_)) {
-            self.mode = Mode::Idle;
+            // A fault answered by a controlled stop latches when the bridge goes off.
+            self.mode = match self.pending_fault.take() {
+                Some(f) => Mode::Fault(f),
+                None => Mode::Idle,
+            };
         }
         self.stop_steps_left = None;
+    }
+
+    /// A fault answered by a controlled stop that is under way ([`Protection::stop_on`]): it
+    /// latches when the bridge goes off.
+    pub fn pending_fault(&self) -> Option<Fault> {
+        self.pending_fault
+    }
+
+    /// The thermal models' states, motor and inverter (1 = the steady temperature rise at
+    /// the rated current; the limit is `overload_factor²`; 0 without a limit).
+    pub fn thermal_state(&self) -> (f32, f32) {
+        (self.theta_motor, self.theta_inverter)
+    }
+
+    /// React to fault `f`: a controlled stop, the fault latched when it ends, if `f` is in
+    /// `stop_on` and the drive is Running; otherwise the bridge off at once ([`Drive::trip`]).
+    fn fault_reaction(&mut self, f: Fault) {
+        if self.cfg.stop_on.contains(f) && self.mode == Mode::Running {
+            if self.pending_fault.is_none() {
+                self.pending_fault = Some(f);
+                self.reference = Reference::Speed(0.0);
+                if self.stop_steps_left.is_none() {
+                    self.stop_steps_left = Some(self.cfg.stop_slow_steps);
+                }
+            }
+        } else {
+            self.trip(f);
+        }
     }
 
     /// A controlled stop (stop category 1): Running, the speed loop brakes to standstill
@@ -1075,6 +1271,7 @@ impl Drive {
     /// cancels the stop. What the firmware does when its link falls silent.
     pub fn controlled_stop(&mut self) {
         match self.mode {
+            _ if self.pending_fault.is_some() => {}
             Mode::Running if self.stop_steps_left.is_none() => {
                 self.reference = Reference::Speed(0.0);
                 self.stop_steps_left = Some(self.cfg.stop_slow_steps);
@@ -1107,6 +1304,10 @@ impl Drive {
         if !finite {
             return Err(CommandError::NonFinite);
         }
+        if self.pending_fault.is_some() {
+            // A stop for a fault is not cancelled by a new reference.
+            return Err(CommandError::Faulted);
+        }
         self.reference = r;
         self.stop_steps_left = None;
         Ok(())
@@ -1135,6 +1336,7 @@ impl Drive {
     /// i_d*, and the torque limited to the envelope).
     pub fn slow_step(&mut self, m: &Measurements) {
         let step_rad = self.read_encoder(m.theta_m_rad);
+        self.update_thermal(m.i_abc_a);
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         if active && m.omega_m_rad_s.abs() > self.cfg.overspeed_rad_s {
             self.trip(Fault::Overspeed);
@@ -1387,7 +1589,33 @@ impl Drive {
     /// on. The supervisor calls it; the firmware calls it for faults only it can see.
     pub fn trip(&mut self, f: Fault) {
         if !matches!(self.mode, Mode::Fault(_)) {
-            self.mode = Mode::Fault(f);
+            // A fault whose controlled stop was under way came first.
+            self.mode = Mode::Fault(self.pending_fault.take().unwrap_or(f));
+            self.stop_steps_left = None;
+        }
+    }
+
+    /// The thermal models (every slow step, every mode): the RMS phase current squared
+    /// (|i_αβ|²/2, the Clarke transform being amplitude-invariant) averaged over
+    /// [`THERMAL_UPDATE_SLOW_STEPS`], then one step of each model; at its limit,
+    /// [`Fault::MotorOverload`] or [`Fault::InverterOverload`] ([`Drive::fault_reaction`]).
+    fn update_thermal(&mut self, i_abc: Abc) {
+        let i = i_abc.clarke();
+        let i2 = 0.5 * (i.alpha * i.alpha + i.beta * i.beta);
+        if i2.is_finite() {
+            self.thermal_sum_a2 += i2;
+        }
+        self.thermal_steps += 1;
+        if self.thermal_steps < THERMAL_UPDATE_SLOW_STEPS {
+            return;
+        }
+        let mean = self.thermal_sum_a2 * (1.0 / THERMAL_UPDATE_SLOW_STEPS as f32);
+        (self.thermal_sum_a2, self.thermal_steps) = (0.0, 0);
+        if self.cfg.motor_thermal.update(&mut self.theta_motor, mean) {
+            self.fault_reaction(Fault::MotorOverload);
+        }
+        if self.cfg.inverter_thermal.update(&mut self.theta_inverter, mean) {
+            self.fault_reaction(Fault::InverterOverload);
         }
     }
 
@@ -1617,6 +1845,9 @@ pub(crate) fn test_spec() -> DriveSpec {
             saturation_time_s: 0.02,
             encoder_check_time_s: 0.01,
             encoder_jump_rad: 8.7e-3,
+            motor_thermal: None,
+            inverter_thermal: None,
+            stop_on: FaultSet::EMPTY,
             stop_time_s: 5.0,
             open_phase_time_s: 0.0025,
             brake_chopper: None,
@@ -1713,7 +1944,10 @@ mod tests {
         bad.u[1] = 7; // the current frame's tag
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         let mut bad = raw;
-        bad.u[raw::INTEGERS - 8] = 0; // the slow divider
+        bad.u[raw::INTEGERS - 9] = 0; // the slow divider
+        assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+        let mut bad = raw;
+        bad.u[raw::INTEGERS - 1] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         // New speed gains in f32 equal a rebuild from the design values.
         let moved = cfg.with_saturated_p(0.08, 1.5).unwrap();
@@ -1848,6 +2082,108 @@ mod tests {
         assert_eq!(d.mode(), Mode::Running);
         d.slow_step(&wrapped(1.2 * level));
         assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+    }
+
+    /// The I²t model: a constant current of k × rated from cold trips after
+    /// `τ·ln(k²/(k² − sf²))` (to one update period), the model on the RMS phase current of
+    /// the amplitude-invariant Clarke transform; below sf × rated it never trips; it cools in
+    /// Idle.
+    #[test]
+    fn i2t_trips_when_the_thermal_model_says() {
+        let limit = ThermalLimit { rated_current_a: 1.0, time_constant_s: 20.0, overload_factor: 1.15 };
+        let mut spec = test_spec();
+        spec.protection.motor_thermal = Some(limit);
+        let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+        let update_s = f64::from(THERMAL_UPDATE_SLOW_STEPS) * t_slow;
+        // Balanced currents of 2 A RMS (peak 2√2): k = 2.
+        let peak = 2.0 * core::f32::consts::SQRT_2;
+        let at = |k: u32| {
+            let th = k as f32 * 0.3;
+            Measurements {
+                i_abc_a: Abc {
+                    a: peak * libm::cosf(th),
+                    b: peak * libm::cosf(th - 2.094_395_2),
+                    c: peak * libm::cosf(th + 2.094_395_2),
+                },
+                vdc_v: 310.0,
+                ..Default::default()
+            }
+        };
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        let mut k = 0;
+        while d.mode() == Mode::Idle && k < 10_000_000 {
+            d.slow_step(&at(k));
+            k += 1;
+        }
+        assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
+        let t = f64::from(k) * t_slow;
+        let expected = 20.0 * libm::log(4.0 / (4.0 - 1.15 * 1.15));
+        assert!((t - expected).abs() <= update_s, "{t} vs {expected}");
+        // 1.1 A RMS (below 1.15) for ten time constants: no trip.
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        let small = |k| {
+            let m = at(k);
+            Measurements {
+                i_abc_a: Abc { a: m.i_abc_a.a * 0.55, b: m.i_abc_a.b * 0.55, c: m.i_abc_a.c * 0.55 },
+                ..m
+            }
+        };
+        for k in 0..(10.0 * 20.0 / t_slow) as u32 {
+            d.slow_step(&small(k));
+        }
+        assert_eq!(d.mode(), Mode::Idle);
+        let (hot, _) = d.thermal_state();
+        assert!((hot - 1.21).abs() < 0.01, "{hot}");
+        // It cools without current.
+        for _ in 0..(20.0 / t_slow) as u32 {
+            d.slow_step(&Measurements { vdc_v: 310.0, ..Default::default() });
+        }
+        let (cool, _) = d.thermal_state();
+        assert!((cool / hot - libm::expf(-1.0)).abs() < 0.02, "{cool}");
+    }
+
+    /// A fault in `stop_on`: Running, a controlled stop (speed reference 0, a new reference
+    /// refused), the fault latched when the stop ends; a hard fault meanwhile latches the
+    /// first one with the bridge off at once; outside Running, the bridge off at once.
+    #[test]
+    fn a_stoppable_fault_stops_then_latches() {
+        let mut spec = test_spec();
+        spec.protection.stop_on = FaultSet::EMPTY.with(Fault::MotorOverload);
+        let cfg = DriveConfig::new(&spec).unwrap();
+        let mut d = running_drive();
+        d.cfg = cfg;
+        d.fault_reaction(Fault::MotorOverload);
+        assert_eq!((d.mode(), d.pending_fault()), (Mode::Running, Some(Fault::MotorOverload)));
+        assert!(d.is_stopping());
+        assert_eq!(d.set_reference(Reference::Speed(100.0)), Err(CommandError::Faulted));
+        // At rest: the stop ends at the next slow step, and the fault latches.
+        d.slow_step(&Measurements { vdc_v: 310.0, ..Default::default() });
+        assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
+        assert_eq!(d.pending_fault(), None);
+        // A hard fault during the stop: bridge off now, the first fault latched.
+        let mut d = running_drive();
+        d.cfg = cfg;
+        d.fault_reaction(Fault::MotorOverload);
+        d.trip(Fault::Overcurrent);
+        assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
+        // Not in stop_on (or not Running): at once.
+        let mut d = running_drive();
+        d.cfg = cfg;
+        d.fault_reaction(Fault::InverterOverload);
+        assert_eq!(d.mode(), Mode::Fault(Fault::InverterOverload));
+        // A fault that leaves nothing to control with cannot be configured as a stop.
+        spec.protection.stop_on = FaultSet::EMPTY.with(Fault::EncoderLoss);
+        assert_eq!(DriveConfig::new(&spec), Err(DriveError::Protection));
+    }
+
+    /// Every fault has its own bit.
+    #[test]
+    fn fault_bits_are_distinct() {
+        let all = Fault::ALL.iter().fold(0u32, |acc, f| {
+            assert_eq!(acc & f.bit(), 0, "{f:?}");
+            acc | f.bit()
+        });
+        assert_eq!(all.count_ones() as usize, Fault::ALL.len());
     }
 
     /// Overspeed trips while the bridge is active (in the slow step), never while Idle.

@@ -26,6 +26,22 @@ pub struct BoardTable {
     /// Link watchdog: no valid frame for this long while the bridge is on → a controlled
     /// stop, s (optional: without it the firmware runs on without its host).
     pub link_timeout_s: Option<f64>,
+    /// The inverter's rated continuous RMS phase current, A (optional: with
+    /// `inverter_overload`, the default inverter I²t limit, `drive::default_inverter_thermal`).
+    pub inverter_rated_current_a: Option<f64>,
+    /// The inverter's overload rating: `{ factor, time_s }`, e.g. 150 % for 60 s.
+    pub inverter_overload: Option<OverloadTable>,
+}
+
+/// `[board] inverter_overload = { factor = 1.5, time_s = 60.0 }`: `factor` × the rated
+/// current for `time_s` from cold.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct OverloadTable {
+    /// Overload current over the rated one (> 1).
+    pub factor: f64,
+    /// How long it may flow from cold, s.
+    pub time_s: f64,
 }
 
 /// Validated board data, with the timer values derived from the drive's PWM frequency.
@@ -40,6 +56,30 @@ pub struct Board {
 }
 
 impl BoardTable {
+    /// The inverter's rating (the drive's I²t default is built from it before the rest of
+    /// the board is checked).
+    pub fn validate_overload(&self, src: &Source<'_>) -> Result<(), FileError> {
+        if let Some(i) = self.inverter_rated_current_a {
+            src.check(i.is_finite() && i > 0.0, "board.inverter_rated_current_a", "must be finite and > 0")?;
+        }
+        if let Some(o) = self.inverter_overload {
+            src.check(
+                o.factor.is_finite()
+                    && o.factor > 1.0
+                    && o.factor <= 10.0
+                    && o.time_s.is_finite()
+                    && o.time_s > 0.0,
+                "board.inverter_overload",
+                "needs 1 < factor ≤ 10 and time_s > 0",
+            )?;
+        }
+        src.check(
+            self.inverter_rated_current_a.is_some() == self.inverter_overload.is_some(),
+            "board.inverter_overload",
+            "give both inverter_rated_current_a and inverter_overload, or neither",
+        )
+    }
+
     /// Validate against the drive; errors point at the value.
     pub fn validate(&self, src: &Source<'_>, spec: &DriveSpec) -> Result<Board, FileError> {
         src.check(self.tim_clock_hz > 0, "board.tim_clock_hz", "must be > 0")?;
@@ -70,6 +110,7 @@ impl BoardTable {
             "must lie within the ADC range",
         )?;
         src.check(self.encoder_lines > 0, "board.encoder_lines", "must be ≥ 1")?;
+        self.validate_overload(src)?;
         if let Some(t) = self.link_timeout_s {
             src.check(
                 t.is_finite() && (0.02..=3600.0).contains(&t),

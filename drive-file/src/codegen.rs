@@ -75,7 +75,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_trim_bandwidth_rad_s: {:?},\n\
          \x20       dead_time_compensation_s: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
-         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, encoder_jump_rad: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {} }},\n\
+         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, encoder_jump_rad: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {}, motor_thermal: {}, inverter_thermal: {}, stop_on: controller_core::drive::FaultSet({}) }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -117,7 +117,20 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
                 b.on_v, b.off_v
             ),
         },
+        thermal(p.motor_thermal),
+        thermal(p.inverter_thermal),
+        p.stop_on.0,
     )
+}
+
+fn thermal(t: Option<controller_core::drive::ThermalLimit>) -> String {
+    match t {
+        None => "None".into(),
+        Some(t) => format!(
+            "Some(controller_core::drive::ThermalLimit {{ rated_current_a: {:?}, time_constant_s: {:?}, overload_factor: {:?} }})",
+            t.rated_current_a, t.time_constant_s, t.overload_factor
+        ),
+    }
 }
 
 /// The firmware's configuration: [`spec_rs`], the board constants (`BOARD` of type

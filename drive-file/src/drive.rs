@@ -7,7 +7,8 @@ use crate::values::exact_opt;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::{ContinuousSection, Discretization};
 use controller_core::drive::{
-    BrakeChopper, CurrentFrame, DriveConfig, DriveError, DriveSpec, PositionLaw, Protection,
+    BrakeChopper, CurrentFrame, DriveConfig, DriveError, DriveSpec, Fault, FaultSet, PositionLaw, Protection,
+    ThermalLimit,
 };
 use controller_core::speed::SpeedLaw;
 use serde::Deserialize;
@@ -215,6 +216,109 @@ pub struct ProtectionTable {
     /// The board's brake chopper, if it has one: `{ on_v, off_v }`, the bus voltages at
     /// which the drive switches its resistor in and out (0 < off_v < on_v < vdc_max_v).
     pub brake_chopper: Option<BrakeChopperTable>,
+    /// The motor's I²t limit (default: [`default_motor_thermal`] from `[motor]`).
+    pub motor_thermal: Option<ThermalTable>,
+    /// The inverter's I²t limit (default: [`default_inverter_thermal`] from `[board]`).
+    pub inverter_thermal: Option<ThermalTable>,
+    /// The reaction to each fault that allows a choice (default: [`DEFAULT_REACTION`]).
+    pub reaction: Option<ReactionTable>,
+}
+
+/// `motor_thermal = { rated_current_a = 0.9, time_constant_s = 900.0, overload_factor = 1.15 }`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ThermalTable {
+    /// Rated RMS phase current, A.
+    pub rated_current_a: f64,
+    /// Thermal time constant, s.
+    pub time_constant_s: f64,
+    /// Continuous current allowed over the rated one (≥ 1).
+    pub overload_factor: f64,
+}
+
+/// What the drive does on a fault: turn the bridge off at once, or stop the motor under
+/// control and then turn it off (the fault latched when the stop ends).
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Reaction {
+    /// The bridge off at once (the motor coasts).
+    Off,
+    /// A controlled stop, then the bridge off.
+    Stop,
+}
+
+/// `reaction = { motor_overload = "stop", inverter_overload = "stop", overspeed = "off" }`:
+/// the faults after which the drive still controls the motor may be answered by a
+/// controlled stop; every other fault turns the bridge off at once (a current, voltage or
+/// encoder fault leaves nothing to control with).
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct ReactionTable {
+    /// The motor's I²t limit.
+    pub motor_overload: Option<Reaction>,
+    /// The inverter's I²t limit.
+    pub inverter_overload: Option<Reaction>,
+    /// Overspeed (a stop only helps if the load does not overpower the drive; the stop time
+    /// ends it otherwise).
+    pub overspeed: Option<Reaction>,
+}
+
+/// Default reactions: the thermal overloads stop the motor under control (it is hot, not
+/// out of control: a loaded machine should not coast), an overspeed turns the bridge off
+/// (a load driving the motor past the limit would run on through a stop).
+pub const DEFAULT_REACTION: ReactionTable = ReactionTable {
+    motor_overload: Some(Reaction::Stop),
+    inverter_overload: Some(Reaction::Stop),
+    overspeed: Some(Reaction::Off),
+};
+
+impl ReactionTable {
+    /// The faults answered by a controlled stop (unset entries take [`DEFAULT_REACTION`]'s).
+    pub fn stop_on(&self) -> FaultSet {
+        let d = DEFAULT_REACTION;
+        [
+            (self.motor_overload.or(d.motor_overload), Fault::MotorOverload),
+            (self.inverter_overload.or(d.inverter_overload), Fault::InverterOverload),
+            (self.overspeed.or(d.overspeed), Fault::Overspeed),
+        ]
+        .iter()
+        .fold(FaultSet::EMPTY, |s, (r, f)| if *r == Some(Reaction::Stop) { s.with(*f) } else { s })
+    }
+}
+
+impl ThermalTable {
+    fn limit(self) -> ThermalLimit {
+        ThermalLimit {
+            rated_current_a: self.rated_current_a,
+            time_constant_s: self.time_constant_s,
+            overload_factor: self.overload_factor,
+        }
+    }
+}
+
+/// Default motor service factor: the continuous current the motor I²t limit allows, over the
+/// rated current (IEC/NEMA general-purpose motors: 1.15).
+pub const DEFAULT_MOTOR_SERVICE_FACTOR: f64 = 1.15;
+
+/// Default motor I²t limit: the nameplate current and thermal time constant of `[motor]`
+/// (both or neither), continuous current up to [`DEFAULT_MOTOR_SERVICE_FACTOR`] × rated.
+pub fn default_motor_thermal(
+    rated_current_a: Option<f64>,
+    time_constant_s: Option<f64>,
+) -> Option<ThermalLimit> {
+    Some(ThermalLimit {
+        rated_current_a: rated_current_a?,
+        time_constant_s: time_constant_s?,
+        overload_factor: DEFAULT_MOTOR_SERVICE_FACTOR,
+    })
+}
+
+/// Default inverter I²t limit from the board's rating: continuous current up to the rated
+/// one, and `factor` × rated for `time_s` from cold — the time constant that makes it so,
+/// `τ = time_s / ln(factor²/(factor² − 1))` (150 % for 60 s: τ = 102 s).
+pub fn default_inverter_thermal(rated_current_a: f64, factor: f64, time_s: f64) -> ThermalLimit {
+    let k2 = factor * factor;
+    ThermalLimit { rated_current_a, time_constant_s: time_s / (k2 / (k2 - 1.0)).ln(), overload_factor: 1.0 }
 }
 
 /// `[protection] brake_chopper = { on_v = 360.0, off_v = 350.0 }`.
@@ -315,6 +419,22 @@ pub struct DefaultsBasis {
     pub encoder_lines: u32,
     /// Slow-loop (encoder read) period, s.
     pub slow_period_s: f64,
+    /// The motor's I²t limit ([`default_motor_thermal`]), if known.
+    pub motor_thermal: Option<ThermalLimit>,
+    /// The inverter's I²t limit ([`default_inverter_thermal`]), if known.
+    pub inverter_thermal: Option<ThermalLimit>,
+}
+
+/// What a drive's defaults take from its `[board]` table (or the stated defaults without
+/// one).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoardDefaults {
+    /// Dead time to compensate, s (0: off).
+    pub dead_time_compensation_s: f64,
+    /// Encoder lines per revolution ([`DEFAULT_ENCODER_LINES`] without a board).
+    pub encoder_lines: u32,
+    /// The inverter's I²t limit from its rating, if the board states one.
+    pub inverter_thermal: Option<ThermalLimit>,
 }
 
 /// The protection of a drive with the derived defaults for every optional key (what a
@@ -346,6 +466,9 @@ pub fn protection_with_defaults(
         stop_time_s: default_stop_time_s(motor, flux_ref_wb, vdc_max_v),
         open_phase_time_s: DEFAULT_OPEN_PHASE_TIME_S,
         brake_chopper: None,
+        motor_thermal: basis.motor_thermal,
+        inverter_thermal: basis.inverter_thermal,
+        stop_on: DEFAULT_REACTION.stop_on(),
     }
 }
 
@@ -424,9 +547,18 @@ impl DriveTables {
                 ));
             }
         };
-        let lines = self.board.map_or(DEFAULT_ENCODER_LINES, |b| b.encoder_lines);
-        let spec =
-            drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection, dead_time_s, lines)?;
+        if let Some(b) = &self.board {
+            b.validate_overload(src)?;
+        }
+        let board = BoardDefaults {
+            dead_time_compensation_s: dead_time_s,
+            encoder_lines: self.board.map_or(DEFAULT_ENCODER_LINES, |b| b.encoder_lines),
+            inverter_thermal: self.board.and_then(|b| {
+                let o = b.inverter_overload?;
+                Some(default_inverter_thermal(b.inverter_rated_current_a?, o.factor, o.time_s))
+            }),
+        };
+        let spec = drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection, &board)?;
         let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
         let board = self.board.as_ref().map(|b| b.validate(src, &spec)).transpose()?;
         Ok(DriveFile { spec, certify, board })
@@ -445,9 +577,9 @@ pub fn drive_spec(
     motor: &MotorTable,
     c: &ControllerTable,
     protection: &ProtectionTable,
-    dead_time_compensation_s: f64,
-    encoder_lines: u32,
+    board: &BoardDefaults,
 ) -> Result<DriveSpec, FileError> {
+    let dead_time_compensation_s = board.dead_time_compensation_s;
     let (lo, hi) = PWM_FREQUENCY_HZ;
     src.check(
         pwm.frequency_hz.is_finite() && (lo..=hi).contains(&pwm.frequency_hz),
@@ -459,6 +591,7 @@ pub fn drive_spec(
         "pwm.slow_divider",
         &format!("must lie in 1…{SLOW_DIVIDER_MAX}"),
     )?;
+    let motor_table = motor;
     let motor = motor.validate(src, "motor")?;
     let current_law = match c.current {
         CurrentTable::Icad { kp: None, ki: None, lag_num: None, lag_den: None } => CurrentLaw::ICAD_EQ20,
@@ -516,6 +649,21 @@ pub fn drive_spec(
             src.check(x.is_finite() && x > 0.0, key, &format!("is {}; must be finite and > 0", num(x)))?;
         }
     }
+    for (key, t) in [
+        ("protection.motor_thermal", protection.motor_thermal),
+        ("protection.inverter_thermal", protection.inverter_thermal),
+    ] {
+        if let Some(t) = t {
+            src.check(
+                [t.rated_current_a, t.time_constant_s, t.overload_factor].iter().all(|x| x.is_finite())
+                    && t.rated_current_a > 0.0
+                    && t.time_constant_s > 0.0
+                    && (1.0..=10.0).contains(&t.overload_factor),
+                key,
+                "needs rated_current_a > 0, time_constant_s > 0 and 1 ≤ overload_factor ≤ 10",
+            )?;
+        }
+    }
     if let Some(b) = protection.brake_chopper {
         src.check(
             b.off_v.is_finite()
@@ -555,8 +703,13 @@ pub fn drive_spec(
             let basis = DefaultsBasis {
                 flux_ref_wb: c.flux_ref_wb,
                 i_ref_max_a: c.i_ref_max_a,
-                encoder_lines,
+                encoder_lines: board.encoder_lines,
                 slow_period_s: f64::from(pwm.slow_divider) / pwm.frequency_hz,
+                motor_thermal: default_motor_thermal(
+                    motor_table.rated_current_a,
+                    motor_table.thermal_time_constant_s,
+                ),
+                inverter_thermal: board.inverter_thermal,
             };
             let d = protection_with_defaults(
                 &motor,
@@ -577,6 +730,9 @@ pub fn drive_spec(
                 brake_chopper: protection
                     .brake_chopper
                     .map(|b| BrakeChopper { on_v: b.on_v, off_v: b.off_v }),
+                motor_thermal: protection.motor_thermal.map(ThermalTable::limit).or(d.motor_thermal),
+                inverter_thermal: protection.inverter_thermal.map(ThermalTable::limit).or(d.inverter_thermal),
+                stop_on: protection.reaction.map_or(d.stop_on, |r| r.stop_on()),
                 ..d
             }
         },

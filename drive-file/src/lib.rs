@@ -215,6 +215,34 @@ mod tests {
         let t = SHIPPED.replace("encoder_lines = 1024", "encoder_lines = 512");
         let p512 = DriveFile::parse(Path::new("d.toml"), &t).unwrap().spec.protection.encoder_jump_rad;
         assert!((p512 - 2.0 * 6.136e-3 - 2.556e-3).abs() < 1e-6, "{p512}");
+        // I²t: the motor's from [motor] with the 1.15 service factor; the inverter's from
+        // [board]: 150 % for 60 s → τ = 60/ln(2.25/1.25) = 102.07 s; overloads stop the motor
+        // under control by default, an overspeed turns the bridge off.
+        let m = p.motor_thermal.unwrap();
+        assert_eq!((m.rated_current_a, m.time_constant_s, m.overload_factor), (0.88, 900.0, 1.15));
+        let i = p.inverter_thermal.unwrap();
+        assert_eq!((i.rated_current_a, i.overload_factor), (4.0, 1.0));
+        assert!((i.time_constant_s - 102.07).abs() < 0.01, "{}", i.time_constant_s);
+        use controller_core::drive::{Fault, FaultSet};
+        assert_eq!(p.stop_on, FaultSet::EMPTY.with(Fault::MotorOverload).with(Fault::InverterOverload));
+        let t = SHIPPED.replace(
+            "vdc_max_v = 400.0",
+            "vdc_max_v = 400.0\nreaction = { motor_overload = \"off\", overspeed = \"stop\" }",
+        );
+        let p2 = DriveFile::parse(Path::new("d.toml"), &t).unwrap().spec.protection;
+        assert_eq!(p2.stop_on, FaultSet::EMPTY.with(Fault::InverterOverload).with(Fault::Overspeed));
+        let e = err(&SHIPPED
+            .replace("vdc_max_v = 400.0", "vdc_max_v = 400.0\nreaction = { encoder_loss = \"stop\" }"));
+        assert_eq!(e.key.as_deref(), Some("protection.reaction.encoder_loss"), "{e}");
+        let e = err(&SHIPPED.replace("thermal_time_constant_s = 900.0", ""));
+        assert_eq!(e.key.as_deref(), Some("motor.thermal_time_constant_s"), "{e}");
+        let e = err(&SHIPPED.replace("{ factor = 1.5,", "{ factor = 0.9,"));
+        assert_eq!(e.key.as_deref(), Some("board.inverter_overload"), "{e}");
+        let e = err(&SHIPPED.replace(
+            "vdc_max_v = 400.0",
+            "vdc_max_v = 400.0\nmotor_thermal = { rated_current_a = -1.0, time_constant_s = 9.0, overload_factor = 1.1 }",
+        ));
+        assert_eq!(e.key.as_deref(), Some("protection.motor_thermal"), "{e}");
         // Explicit values win; a bad one points at its key.
         let t = SHIPPED.replace("vdc_max_v = 400.0", "vdc_max_v = 400.0\noverspeed_rad_s = 500.0");
         assert_eq!(DriveFile::parse(Path::new("d.toml"), &t).unwrap().spec.protection.overspeed_rad_s, 500.0);

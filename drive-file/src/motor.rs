@@ -30,6 +30,13 @@ pub struct MotorTable {
     pub j_kgm2: f64,
     /// Viscous friction, N·m·s/rad.
     pub b_nms: f64,
+    /// Rated (nameplate) RMS phase current, A (optional: with the thermal time constant,
+    /// the default motor I²t limit, `drive::default_motor_thermal`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rated_current_a: Option<f64>,
+    /// Thermal time constant of the winding, s (optional, see `rated_current_a`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub thermal_time_constant_s: Option<f64>,
 }
 
 /// Accepted magnitude of each value. The bounds are wide — from a 10 W servo motor to a
@@ -61,6 +68,8 @@ impl MotorTable {
             pole_pairs: m.pole_pairs(),
             j_kgm2: m.j_kgm2(),
             b_nms: m.b_nms(),
+            rated_current_a: None,
+            thermal_time_constant_s: None,
         }
     }
 
@@ -90,6 +99,23 @@ impl MotorTable {
             (1..=POLE_PAIRS_MAX).contains(&self.pole_pairs),
             &format!("{table}.pole_pairs"),
             &format!("must lie in 1…{POLE_PAIRS_MAX}"),
+        )?;
+        for (key, x) in [
+            ("rated_current_a", self.rated_current_a),
+            ("thermal_time_constant_s", self.thermal_time_constant_s),
+        ] {
+            if let Some(x) = x {
+                src.check(
+                    x.is_finite() && x > 0.0 && x <= 1e6,
+                    &format!("{table}.{key}"),
+                    "must lie in (0, 1e6]",
+                )?;
+            }
+        }
+        src.check(
+            self.rated_current_a.is_some() == self.thermal_time_constant_s.is_some(),
+            &format!("{table}.thermal_time_constant_s"),
+            "give both rated_current_a and thermal_time_constant_s (the motor's I²t limit), or neither",
         )?;
         for (key, l) in [("ls_h", self.ls_h), ("lr_h", self.lr_h)] {
             src.check(

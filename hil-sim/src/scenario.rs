@@ -254,6 +254,10 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
         drive_file::drive::DEFAULT_ENCODER_LINES,
         f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz,
     );
+    // The paper's motor data alone: no I²t limits (the scenario file that embeds this drive,
+    // hil-sim/scenarios/fig16-icad.toml, has no thermal data; a 6.5 s run is far below any).
+    b.spec.protection.motor_thermal = None;
+    b.spec.protection.inverter_thermal = None;
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
     // The paper's loops alone: the current trim would correct the stationary loops' tracking
     // error at ω_e — the very error this figure compares (the PI's reaches 366 rad/s with it).
@@ -304,6 +308,9 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
         i_ref_max_a: 260.0,
         encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
         slow_period_s: f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz,
+        // The 500 hp machine's thermal data are not in the paper.
+        motor_thermal: None,
+        inverter_thermal: None,
     };
     b.spec.protection = drive_file::drive::protection_with_defaults(&motor, &basis, 400.0, 2500.0, 3800.0);
     b.scenario.vdc_v = 3300.0;

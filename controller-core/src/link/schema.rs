@@ -5,8 +5,8 @@ use super::framing::{BufferFull, MAX_PAYLOAD, encode_frame};
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
-    BrakeChopper, CurrentFrame, DriveSpec, FastOutput, Fault, Measurements, Mode, PhaseCommand, PositionLaw,
-    Protection, Reference, Telemetry,
+    BrakeChopper, CurrentFrame, DriveSpec, FastOutput, Fault, FaultSet, Measurements, Mode, PhaseCommand,
+    PositionLaw, Protection, Reference, Telemetry, ThermalLimit,
 };
 use crate::frames::{Abc, AlphaBeta};
 use crate::motor::MotorParams;
@@ -46,6 +46,9 @@ impl<'a> Writer<'a> {
     fn u16(&mut self, v: u16) -> Result<(), BufferFull> {
         self.bytes(&v.to_le_bytes())
     }
+    fn u32(&mut self, v: u32) -> Result<(), BufferFull> {
+        self.bytes(&v.to_le_bytes())
+    }
     fn f32(&mut self, v: f32) -> Result<(), BufferFull> {
         self.bytes(&v.to_le_bytes())
     }
@@ -80,6 +83,9 @@ impl<'a> Reader<'a> {
     }
     fn u16(&mut self) -> Result<u16, DecodeError> {
         Ok(u16::from_le_bytes(self.take()?))
+    }
+    fn u32(&mut self) -> Result<u32, DecodeError> {
+        Ok(u32::from_le_bytes(self.take()?))
     }
     fn f32(&mut self) -> Result<f32, DecodeError> {
         Ok(f32::from_le_bytes(self.take()?))
@@ -316,6 +322,18 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
             w.f64(b.off_v)?;
         }
     }
+    for t in [p.motor_thermal, p.inverter_thermal] {
+        match t {
+            None => w.u8(0)?,
+            Some(t) => {
+                w.u8(1)?;
+                w.f64(t.rated_current_a)?;
+                w.f64(t.time_constant_s)?;
+                w.f64(t.overload_factor)?;
+            }
+        }
+    }
+    w.u32(p.stop_on.0)?;
     Ok(())
 }
 
@@ -372,6 +390,9 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
             1 => Some(BrakeChopper { on_v: r.f64()?, off_v: r.f64()? }),
             _ => return Err(DecodeError::Value),
         },
+        motor_thermal: read_thermal(r)?,
+        inverter_thermal: read_thermal(r)?,
+        stop_on: FaultSet(r.u32()?),
     };
     Ok(DriveSpec {
         motor,
@@ -390,6 +411,18 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         current_trim_bandwidth_rad_s,
         dead_time_compensation_s,
         protection,
+    })
+}
+
+fn read_thermal(r: &mut Reader<'_>) -> Result<Option<ThermalLimit>, DecodeError> {
+    Ok(match r.u8()? {
+        0 => None,
+        1 => Some(ThermalLimit {
+            rated_current_a: r.f64()?,
+            time_constant_s: r.f64()?,
+            overload_factor: r.f64()?,
+        }),
+        _ => return Err(DecodeError::Value),
     })
 }
 
@@ -412,6 +445,8 @@ fn mode_code(m: Mode) -> u8 {
         Mode::Fault(Fault::LossOfControl) => 21,
         Mode::Fault(Fault::EncoderImplausible) => 22,
         Mode::Fault(Fault::OpenPhase) => 23,
+        Mode::Fault(Fault::MotorOverload) => 24,
+        Mode::Fault(Fault::InverterOverload) => 25,
     }
 }
 
@@ -434,6 +469,8 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
         21 => Mode::Fault(Fault::LossOfControl),
         22 => Mode::Fault(Fault::EncoderImplausible),
         23 => Mode::Fault(Fault::OpenPhase),
+        24 => Mode::Fault(Fault::MotorOverload),
+        25 => Mode::Fault(Fault::InverterOverload),
         _ => return Err(DecodeError::Value),
     })
 }

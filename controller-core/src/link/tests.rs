@@ -63,6 +63,11 @@ fn every_command_round_trips() {
     // The largest Configure: every optional part present.
     let mut largest = spec;
     largest.protection.brake_chopper = Some(crate::drive::BrakeChopper { on_v: 360.0, off_v: 350.0 });
+    let thermal =
+        crate::drive::ThermalLimit { rated_current_a: 1.0, time_constant_s: 600.0, overload_factor: 1.15 };
+    largest.protection.motor_thermal = Some(thermal);
+    largest.protection.inverter_thermal = Some(thermal);
+    largest.protection.stop_on = crate::drive::FaultSet::STOPPABLE;
     let cmds = [
         Command::Configure(spec),
         Command::Configure(largest),
