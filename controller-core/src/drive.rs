@@ -1250,6 +1250,8 @@ impl Drive {
 
     /// React to fault `f`: a controlled stop, the fault latched when it ends, if `f` is in
     /// `stop_on` and the drive is Running; otherwise the bridge off at once ([`Drive::trip`]).
+    #[cold]
+    #[inline(never)]
     fn fault_reaction(&mut self, f: Fault) {
         if self.cfg.stop_on.contains(f) && self.mode == Mode::Running {
             if self.pending_fault.is_none() {
@@ -1599,6 +1601,7 @@ impl Drive {
     /// (|i_αβ|²/2, the Clarke transform being amplitude-invariant) averaged over
     /// [`THERMAL_UPDATE_SLOW_STEPS`], then one step of each model; at its limit,
     /// [`Fault::MotorOverload`] or [`Fault::InverterOverload`] ([`Drive::fault_reaction`]).
+    #[inline(never)]
     fn update_thermal(&mut self, i_abc: Abc) {
         let i = i_abc.clarke();
         let i2 = 0.5 * (i.alpha * i.alpha + i.beta * i.beta);
