@@ -1196,7 +1196,8 @@ impl Drive {
                 self.ifoc = self.cfg.ifoc.state(0.0);
                 self.speed = SpeedState::default();
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
-                self.steps_to_slow = 0;
+                // The slow cadence is not restarted: whoever reads the encoder every N-th
+                // period (the firmware, the simulator) stays in step with the slow step.
                 self.test_angle_rad = 0.0;
                 self.stall_steps = 0;
                 self.saturated_steps = 0;

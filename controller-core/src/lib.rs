@@ -8,6 +8,7 @@
 #[macro_use]
 extern crate std;
 
+pub mod calibration;
 pub mod current;
 pub mod discretize;
 pub mod drive;

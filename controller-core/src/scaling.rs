@@ -53,6 +53,12 @@ impl AdcScaling {
         Ok(Self { offset_counts: i32::from(offset_counts), gain_f32: gain, gain_fixed })
     }
 
+    /// The same channel with its zero at `offset_counts` (a measured offset: the caller keeps
+    /// it within the ADC range).
+    pub fn with_offset(self, offset_counts: u16) -> Self {
+        Self { offset_counts: i32::from(offset_counts), ..self }
+    }
+
     /// Physical value in f32.
     #[inline]
     pub fn to_f32(&self, code: AdcCode) -> f32 {

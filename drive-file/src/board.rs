@@ -17,8 +17,16 @@ pub struct BoardTable {
     pub adc_full_scale: u16,
     /// Amperes per ADC count of the phase-current channels.
     pub current_a_per_count: f64,
-    /// Current-channel code at zero current.
+    /// Current-channel code at zero current (nominal: the firmware measures each channel's
+    /// at start-up).
     pub current_offset_counts: u16,
+    /// Offset calibration: the largest departure of a channel's measured zero from
+    /// `current_offset_counts`, counts (default [`DEFAULT_OFFSET_ERROR_FRACTION`] of the ADC
+    /// full scale).
+    pub current_offset_max_error_counts: Option<f64>,
+    /// Offset calibration: the largest RMS noise of a channel with the bridge off, counts
+    /// (default [`DEFAULT_NOISE_MAX_COUNTS`]).
+    pub current_noise_max_counts: Option<f64>,
     /// Volts per ADC count of the bus channel.
     pub vdc_v_per_count: f64,
     /// Encoder lines per revolution.
@@ -44,6 +52,14 @@ pub struct OverloadTable {
     pub time_s: f64,
 }
 
+/// Default offset tolerance as a fraction of the ADC full scale: 5 % (205 counts of 4095) —
+/// a shunt amplifier's zero drifts by a few counts, a broken one (stuck at a rail, without
+/// its reference) by hundreds.
+pub const DEFAULT_OFFSET_ERROR_FRACTION: f64 = 0.05;
+/// Default noise limit, counts RMS: a healthy 12-bit shunt channel shows one to three counts
+/// with the bridge off; eight is a floating input or switching noise coupled in.
+pub const DEFAULT_NOISE_MAX_COUNTS: f64 = 8.0;
+
 /// Validated board data, with the timer values derived from the drive's PWM frequency.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Board {
@@ -53,6 +69,9 @@ pub struct Board {
     pub pwm_period_counts: u16,
     /// Dead time in timer ticks.
     pub dead_time_ticks: u16,
+    /// Offset calibration limits (defaults applied), counts: largest zero error, largest
+    /// RMS noise.
+    pub calibration_limits_counts: (f64, f64),
 }
 
 impl BoardTable {
@@ -110,6 +129,15 @@ impl BoardTable {
             "must lie within the ADC range",
         )?;
         src.check(self.encoder_lines > 0, "board.encoder_lines", "must be ≥ 1")?;
+        let offset_max = self
+            .current_offset_max_error_counts
+            .unwrap_or(DEFAULT_OFFSET_ERROR_FRACTION * f64::from(self.adc_full_scale));
+        let noise_max = self.current_noise_max_counts.unwrap_or(DEFAULT_NOISE_MAX_COUNTS);
+        for (key, x) in
+            [("current_offset_max_error_counts", offset_max), ("current_noise_max_counts", noise_max)]
+        {
+            src.check(x.is_finite() && x > 0.0, &format!("board.{key}"), "must be finite and > 0")?;
+        }
         self.validate_overload(src)?;
         if let Some(t) = self.link_timeout_s {
             src.check(
@@ -122,6 +150,7 @@ impl BoardTable {
             table: *self,
             pwm_period_counts: arr.round() as u16,
             dead_time_ticks: ticks.round() as u16,
+            calibration_limits_counts: (offset_max, noise_max),
         })
     }
 }

@@ -9,14 +9,29 @@
 //!  TIM1 break flag ─▶ Drive::trip(HardwareBreak) ─┘                    └─ Off ─▶ MOE = 0
 //! ```
 //!
+//! **Offset calibration** (first thing after start-up and after every reconfiguration):
+//! [`CALIBRATION_SAMPLES`] periods with the bridge held off, the three current channels'
+//! mean codes become their zeros (`controller_core::calibration`); a channel too far from
+//! its nominal zero or too noisy latches `Fault::CurrentSensor` and the drive cannot be
+//! enabled until the board is reset ([`ControlLoop::calibration`] says which channel and
+//! why). Until it is done, the bridge stays off whatever the link asks.
+//!
 //! Encoder loss: the drive's own jump check (`controller_core::drive`, `Fault::EncoderLoss`)
 //! on the angle the estimator reports — the same code in the simulator.
 
-use controller_core::drive::{Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, PhaseCommand};
+use controller_core::calibration::{
+    CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
+};
+use controller_core::drive::{
+    Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand,
+};
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
 use controller_core::raw::RawDriveConfig;
 use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling, ScalingError};
+
+/// Samples of the offset calibration (51 ms at 20 kHz; issue 19: at least 1 024).
+pub const CALIBRATION_SAMPLES: u32 = controller_core::calibration::MIN_SAMPLES;
 
 /// Speed window of the encoder estimator, in slow-loop reads (the simulator's too).
 pub const ENCODER_WINDOW: usize = controller_core::encoder::SPEED_WINDOW_READS;
@@ -58,6 +73,11 @@ pub struct BoardConfig {
     pub pwm_period_counts: u16,
     /// Encoder lines per revolution.
     pub encoder_lines: u32,
+    /// Offset calibration: the largest departure of a channel's zero from
+    /// `current_offset_counts`, counts …
+    pub current_offset_max_error_counts: f32,
+    /// … and the largest RMS noise of a channel with the bridge off, counts.
+    pub current_noise_max_counts: f32,
 }
 
 /// Why the control loop could not be built.
@@ -69,6 +89,19 @@ pub enum ControlError {
     Scaling(ScalingError),
     /// Encoder configuration rejected.
     Encoder(EncoderError),
+    /// Offset-calibration limits rejected.
+    Calibration(CalibrationConfigError),
+}
+
+/// Where the offset calibration stands.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Calibration {
+    /// Under way, bridge held off.
+    Running(OffsetCalibration),
+    /// Done: the channels' zeros.
+    Done(Offsets),
+    /// Refused (`Fault::CurrentSensor` latched).
+    Failed(CalibrationError),
 }
 
 /// Control loop state: the drive plus the converter scalings and the encoder estimator.
@@ -76,7 +109,10 @@ pub enum ControlError {
 pub struct ControlLoop {
     board: BoardConfig,
     drive: Drive,
-    current: AdcScaling,
+    /// Phase-current channels a, b, c (their zeros from the calibration).
+    current: [AdcScaling; 3],
+    calibration_cfg: CalibrationConfig,
+    calibration: Calibration,
     vdc: AdcScaling,
     pwm: PwmScaling,
     encoder_cfg: EncoderConfig<ENCODER_WINDOW>,
@@ -97,14 +133,28 @@ impl ControlLoop {
     }
 
     /// The shipped configuration without the checks that compare the measured currents with
-    /// the drive's references (open phase, loss of control), for tests that step an enabled
-    /// drive on samples at rest.
+    /// the drive's references or the machine model (open phase, loss of control, encoder
+    /// against the model), calibrated, for tests that step an enabled drive on samples at
+    /// rest.
     #[cfg(test)]
     pub(crate) fn at_rest_for_tests() -> Self {
         let mut spec = crate::config::drive_spec().unwrap();
         spec.protection.open_phase_time_s = 1e6;
         spec.protection.saturation_time_s = 1e6;
-        Self::with_config(DriveConfig::new(&spec).unwrap(), &crate::config::BOARD).unwrap()
+        spec.protection.encoder_check_time_s = 1e6;
+        let mut c = Self::with_config(DriveConfig::new(&spec).unwrap(), &crate::config::BOARD).unwrap();
+        c.calibrate_at_rest();
+        c
+    }
+
+    /// The offset calibration on samples at the nominal zero (tests).
+    #[cfg(test)]
+    pub(crate) fn calibrate_at_rest(&mut self) {
+        let zero = self.board.current_offset_counts;
+        for _ in 0..CALIBRATION_SAMPLES {
+            let _ = self.step(&Samples { i_abc: [zero; 3], vdc: 3100, encoder: 0, hardware_break: false });
+        }
+        assert!(matches!(self.calibration, Calibration::Done(_)), "{:?}", self.calibration);
     }
 
     fn with_config(cfg: DriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
@@ -112,6 +162,13 @@ impl ControlLoop {
         let current =
             AdcScaling::new(board.current_a_per_count, board.current_offset_counts, board.adc_full_scale)
                 .map_err(ControlError::Scaling)?;
+        let calibration_cfg = CalibrationConfig::new(
+            CALIBRATION_SAMPLES,
+            board.current_offset_counts,
+            board.current_offset_max_error_counts,
+            board.current_noise_max_counts,
+        )
+        .map_err(ControlError::Calibration)?;
         let vdc =
             AdcScaling::new(board.vdc_v_per_count, 0, board.adc_full_scale).map_err(ControlError::Scaling)?;
         let pwm = PwmScaling::new(board.pwm_period_counts).map_err(ControlError::Scaling)?;
@@ -121,7 +178,9 @@ impl ControlLoop {
         Ok(Self {
             board: *board,
             drive: Drive::new(cfg),
-            current,
+            current: [current; 3],
+            calibration_cfg,
+            calibration: Calibration::Running(OffsetCalibration::default()),
             vdc,
             pwm,
             encoder_cfg,
@@ -155,6 +214,36 @@ impl ControlLoop {
         &mut self.drive
     }
 
+    /// Where the offset calibration stands.
+    pub fn calibration(&self) -> Calibration {
+        self.calibration
+    }
+
+    /// One period of the calibration: the bridge held off (an enable from the link is
+    /// undone), the three codes added; at the end, the channels' zeros or the fault.
+    #[cold]
+    #[inline(never)]
+    fn calibrate(&mut self, codes: [u16; 3]) {
+        let Calibration::Running(mut cal) = self.calibration else { return };
+        if matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running) {
+            self.drive.disable();
+        }
+        self.calibration = match cal.add(&self.calibration_cfg, codes) {
+            None => Calibration::Running(cal),
+            Some(Ok(offsets)) => {
+                // Each zero lies within the tolerance of the nominal code.
+                let [a, b, c] = offsets.counts;
+                let [sa, sb, sc] = self.current;
+                self.current = [sa.with_offset(a), sb.with_offset(b), sc.with_offset(c)];
+                Calibration::Done(offsets)
+            }
+            Some(Err(e)) => {
+                self.drive.trip(Fault::CurrentSensor);
+                Calibration::Failed(e)
+            }
+        };
+    }
+
     /// The brake chopper's switch after the last step.
     pub fn brake(&self) -> bool {
         self.last.is_some_and(|o| o.brake)
@@ -174,13 +263,14 @@ impl ControlLoop {
             self.read_encoder(s.encoder);
         }
         self.count = if self.count + 1 >= self.divider { 0 } else { self.count + 1 };
+        let calibrating = matches!(self.calibration, Calibration::Running(_));
+        if calibrating {
+            self.calibrate(s.i_abc);
+        }
         let [a, b, c] = s.i_abc;
+        let [sa, sb, sc] = &self.current;
         let m = Measurements {
-            i_abc_a: Abc {
-                a: self.current.to_f32(AdcCode(a)),
-                b: self.current.to_f32(AdcCode(b)),
-                c: self.current.to_f32(AdcCode(c)),
-            },
+            i_abc_a: Abc { a: sa.to_f32(AdcCode(a)), b: sb.to_f32(AdcCode(b)), c: sc.to_f32(AdcCode(c)) },
             vdc_v: self.vdc.to_f32(AdcCode(s.vdc)),
             omega_m_rad_s: self.omega_m_rad_s,
             theta_m_rad: self.theta_m_rad,
@@ -189,6 +279,8 @@ impl ControlLoop {
         self.last = Some(out);
         match out.phases {
             PhaseCommand::Off => Bridge::Off,
+            // The calibration's last period: the bridge stays off until the next one.
+            PhaseCommand::Duty(_) if calibrating => Bridge::Off,
             PhaseCommand::Duty(d) => {
                 Bridge::Compare([self.pwm.compare(d.a), self.pwm.compare(d.b), self.pwm.compare(d.c)])
             }
@@ -217,6 +309,8 @@ mod tests {
             adc_full_scale: 4095,
             pwm_period_counts: 4249,
             encoder_lines: 1024,
+            current_offset_max_error_counts: 204.75,
+            current_noise_max_counts: 8.0,
         }
     }
 
@@ -227,11 +321,17 @@ mod tests {
     #[test]
     fn adc_codes_to_amperes_and_duty_to_compare() {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        c.calibrate_at_rest();
         // Idle: bridge off whatever the inputs.
         assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         c.drive_mut().enable().unwrap();
-        // Zero current at the offset code, 310 V: magnetizing starts. Min–max SVPWM centres
-        // the three compare values on half the period.
+        // Zero current at the offset code, 310 V: magnetizing starts (with the flux command
+        // of the next slow step: within one slow period). Min–max SVPWM centres the three
+        // compare values on half the period.
+        let div = drive_spec().unwrap().slow_divider;
+        for _ in 1..div {
+            let _ = c.step(&at_rest(0));
+        }
         match c.step(&at_rest(0)) {
             Bridge::Compare(ccr) => {
                 let (max, min) = (ccr.iter().max().unwrap(), ccr.iter().min().unwrap());
@@ -253,6 +353,7 @@ mod tests {
     #[test]
     fn hardware_break_latches_until_cleared_by_command() {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        c.calibrate_at_rest();
         c.drive_mut().enable().unwrap();
         assert!(matches!(c.step(&at_rest(0)), Bridge::Compare(_)));
         let brk = Samples { hardware_break: true, ..at_rest(0) };
@@ -279,12 +380,12 @@ mod tests {
         // Counter running backwards through the 16-bit wrap, speeding up by one count per read
         // (6 100 rad/s², within the jump check's allowance) to 40 counts per read
         // (≈ 123 rad/s, below the overspeed level): fine.
-        let mut enc = 600u16;
+        let mut enc = 0u16; // where the calibration left the counter
         for k in 0..(60 * div) {
             if k % div == 0 {
                 enc = enc.wrapping_sub((k / div).min(40) as u16);
             }
-            assert!(matches!(c.step(&at_rest(enc)), Bridge::Compare(_)), "step {k}");
+            assert!(matches!(c.step(&at_rest(enc)), Bridge::Compare(_)), "step {k}: {:?}", c.drive().mode());
         }
         assert!(enc > 60_000, "wrapped: {enc}");
         // A jump of 5000 counts between two reads.
@@ -292,6 +393,70 @@ mod tests {
             let _ = c.step(&at_rest(enc.wrapping_add(5000)));
         }
         assert_eq!(c.drive().mode(), Mode::Fault(Fault::EncoderLoss));
+    }
+
+    /// The offset calibration at start-up: the bridge stays off for its 1 024 periods (an
+    /// enable from the link is undone), then each channel's mean code is its zero — a
+    /// sample at those codes reads 0 A — and the drive runs.
+    #[test]
+    fn offsets_are_calibrated_with_the_bridge_off() {
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let zeros = [2060u16, 2040, 2048];
+        // ±1 count of noise, alternating.
+        let sample = |k: u32| Samples {
+            i_abc: zeros.map(|z| if k.is_multiple_of(2) { z + 1 } else { z - 1 }),
+            ..at_rest(0)
+        };
+        c.drive_mut().enable().unwrap();
+        for k in 0..CALIBRATION_SAMPLES {
+            assert_eq!(c.step(&sample(k)), Bridge::Off, "period {k}");
+            assert!(matches!(c.drive().mode(), Mode::Idle), "the enable is undone");
+        }
+        match c.calibration() {
+            Calibration::Done(o) => {
+                assert_eq!(o.counts, zeros);
+                assert!(o.rms_counts.iter().all(|r| (r - 1.0).abs() < 1e-3), "{:?}", o.rms_counts);
+            }
+            other => panic!("{other:?}"),
+        }
+        c.drive_mut().enable().unwrap();
+        let div = drive_spec().unwrap().slow_divider;
+        let mut out = Bridge::Off;
+        for _ in 0..div {
+            out = c.step(&Samples { i_abc: zeros, ..at_rest(0) });
+        }
+        assert!(matches!(out, Bridge::Compare(_)));
+        let i = c.last_output().unwrap().telemetry.i_ab_a;
+        assert_eq!((i.alpha, i.beta), (0.0, 0.0));
+    }
+
+    /// A channel stuck at the rail, or a floating (noisy) one: a fault latched, the channel
+    /// named by the calibration, the drive cannot be enabled.
+    #[test]
+    fn a_bad_channel_fails_the_calibration() {
+        let stuck: fn(u32) -> [u16; 3] = |_| [2048, 4095, 2048];
+        let floating: fn(u32) -> [u16; 3] = |k| [2048, 2048, if k.is_multiple_of(2) { 2078 } else { 2018 }];
+        for (codes, channel) in [(stuck, 1u8), (floating, 2)] {
+            let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+            for k in 0..CALIBRATION_SAMPLES {
+                assert_eq!(c.step(&Samples { i_abc: codes(k), ..at_rest(0) }), Bridge::Off);
+            }
+            match c.calibration() {
+                Calibration::Failed(
+                    CalibrationError::Offset { channel: ch, .. }
+                    | CalibrationError::Noise { channel: ch, .. },
+                ) => {
+                    assert_eq!(ch, channel)
+                }
+                other => panic!("{other:?}"),
+            }
+            // A channel at the rail reads 16.5 A: the supervisor's Overcurrent (it runs in
+            // every mode) latches first; a noisy one, the calibration's CurrentSensor.
+            let want = if channel == 1 { Fault::Overcurrent } else { Fault::CurrentSensor };
+            assert_eq!(c.drive().mode(), Mode::Fault(want));
+            assert!(c.drive_mut().enable().is_err());
+            assert_eq!(c.step(&at_rest(0)), Bridge::Off);
+        }
     }
 
     #[test]

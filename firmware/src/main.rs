@@ -18,6 +18,7 @@
 
 #[cfg(target_os = "none")]
 mod target {
+    use controller_core::calibration::CalibrationError;
     use controller_core::link::{self, FrameDecoder, LinkStats, MAX_FRAME, Reply};
     use core::cell::RefCell;
     use core::sync::atomic::{AtomicU32, Ordering};
@@ -47,7 +48,7 @@ mod target {
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
     use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, LINK_TIMEOUT_MS};
-    use firmware::control::{ControlError, ControlLoop, Samples};
+    use firmware::control::{Calibration, ControlError, ControlLoop, Samples};
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
 
@@ -186,6 +187,7 @@ mod target {
                     ControlError::Drive(_) => "drive specification",
                     ControlError::Scaling(_) => "ADC/PWM scaling",
                     ControlError::Encoder(_) => "encoder",
+                    ControlError::Calibration(_) => "offset-calibration limits",
                 };
                 defmt::error!("configuration rejected ({=str}); bridge stays off", why);
                 halt_safe();
@@ -349,12 +351,46 @@ mod target {
         let mut input = [0u8; 64];
         let mut frame = [0u8; MAX_FRAME];
         let mut watchdog = server::LinkWatchdog::new(LINK_TIMEOUT_MS, now_ms());
+        let mut calibration_logged = false;
         loop {
-            let stopped = critical_section::with(|cs| {
-                CONTROL.borrow_ref_mut(cs).as_mut().is_some_and(|c| watchdog.poll(now_ms(), c))
+            let (stopped, calibration) = critical_section::with(|cs| {
+                let mut control = CONTROL.borrow_ref_mut(cs);
+                let calibration = control.as_ref().map(|c| c.calibration());
+                (control.as_mut().is_some_and(|c| watchdog.poll(now_ms(), c)), calibration)
             });
             if stopped {
                 defmt::warn!("link silent for {=u32} ms: controlled stop", LINK_TIMEOUT_MS);
+            }
+            // The offset calibration's result, once (from this task: never from the interrupt).
+            match calibration {
+                Some(Calibration::Done(o)) if !calibration_logged => {
+                    calibration_logged = true;
+                    defmt::info!(
+                        "current offsets {=u16} {=u16} {=u16} counts, noise {=f32} {=f32} {=f32} counts RMS",
+                        o.counts[0],
+                        o.counts[1],
+                        o.counts[2],
+                        o.rms_counts[0],
+                        o.rms_counts[1],
+                        o.rms_counts[2]
+                    );
+                }
+                Some(Calibration::Failed(e)) if !calibration_logged => {
+                    calibration_logged = true;
+                    match e {
+                        CalibrationError::Offset { channel, mean_counts } => defmt::error!(
+                            "current channel {=u8}: zero at {=f32} counts, out of range: bridge stays off",
+                            channel,
+                            mean_counts
+                        ),
+                        CalibrationError::Noise { channel, rms_counts } => defmt::error!(
+                            "current channel {=u8}: {=f32} counts RMS of noise: bridge stays off",
+                            channel,
+                            rms_counts
+                        ),
+                    }
+                }
+                _ => {}
             }
             let n = match with_timeout(Duration::from_millis(10), rx.read(&mut input)).await {
                 Ok(Ok(n)) => n,

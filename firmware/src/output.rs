@@ -167,6 +167,7 @@ mod tests {
         // The first four periods after enable take ≤ 4 operations each: 16 injection points.
         for pulse_op in 0..16 {
             let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+            ctl.calibrate_at_rest();
             ctl.drive_mut().enable().unwrap();
             let (mut out, mut hw) =
                 (Outputs::new(), ModelTimer { pulse_at: Some(pulse_op), ..Default::default() });
@@ -196,6 +197,7 @@ mod tests {
     #[test]
     fn the_brake_follows_the_bus_in_every_mode() {
         let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        ctl.calibrate_at_rest();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
         let bus = |out: &mut Outputs, hw: &mut ModelTimer, ctl: &mut ControlLoop, code: u16| {
             out.period(hw, ctl, Samples { vdc: code, ..at_rest() });
@@ -270,6 +272,7 @@ mod tests {
     #[test]
     fn after_stop_for_good_moe_stays_off() {
         let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        ctl.calibrate_at_rest();
         ctl.drive_mut().enable().unwrap();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
         for _ in 0..10 {

@@ -102,6 +102,7 @@ mod tests {
     fn commands_reach_the_drive_and_step_or_configure_are_refused() {
         let spec = drive_spec().unwrap();
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
         let stats = LinkStats { frames_ok: 5, crc: 2, ..Default::default() };
         assert_eq!(handle(&mut c, &Command::Enable, &stats), Reply::Ack);
         assert_eq!(c.drive().mode(), Mode::Magnetizing);
@@ -129,6 +130,7 @@ mod tests {
     fn the_board_refuses_configure_and_step_frames_unparsed() {
         let spec = drive_spec().unwrap();
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
         let mut stats = LinkStats::default();
         let mut decoder = link::FrameDecoder::new();
         let mut reply = |cmd: &Command, c: &mut ControlLoop, stats: &mut LinkStats| {
@@ -157,6 +159,7 @@ mod tests {
     #[test]
     fn a_silent_link_stops_a_running_drive() {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
         let start = u32::MAX - 100; // wraps during the test
         let mut w = LinkWatchdog::new(1000, start);
         assert!(!w.poll(start.wrapping_add(5000), &mut c), "Idle: nothing to stop");
@@ -181,6 +184,7 @@ mod tests {
     #[test]
     fn speed_gains_are_written_only_inside_the_certified_ranges_and_while_idle() {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
         let s = LinkStats::default();
         let read = |c: &mut ControlLoop| handle(c, &Command::ReadSpeedGains, &s);
         assert_eq!(read(&mut c), Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 });

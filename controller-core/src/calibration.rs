@@ -1,0 +1,216 @@
+//! Current-sensor offset calibration with the bridge off (issue 19; issue 20's first check).
+//!
+//! With no current flowing, each phase-current channel reads its offset plus noise. Over
+//! `samples` conversions the mean is the offset and the standard deviation the noise; a
+//! channel whose offset lies further than `max_offset_error_counts` from the nominal code
+//! (a broken amplifier, a missing reference voltage) or whose noise exceeds
+//! `max_noise_counts` RMS (a floating input, a switching-noise coupling) is refused by name.
+//! Sums of the codes' departures d from the nominal one: Σd in i64 (exact), Σd² in f32
+//! (each d² exact; the departures of a healthy channel are small, so the sum is too, and the
+//! variance `E[d²] − E[d]²` loses nothing that matters; a broken channel is refused
+//! anyway). Cheap on a Cortex-M4 and no soft 64-bit conversion beyond one at the end.
+
+/// At least this many samples (issue 19: ≥ 1 024).
+pub const MIN_SAMPLES: u32 = 1024;
+/// At most this many (a second of a 20 kHz loop and more; Σd stays far inside i64).
+pub const MAX_SAMPLES: u32 = 1 << 20;
+
+/// Why a calibration configuration was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CalibrationConfigError {
+    /// Samples outside [`MIN_SAMPLES`]…[`MAX_SAMPLES`].
+    Samples,
+    /// A limit that is not finite and positive.
+    Limit,
+}
+
+/// Why a calibration failed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CalibrationError {
+    /// The channel's offset is too far from the nominal code.
+    Offset {
+        /// Channel (0 = a).
+        channel: u8,
+        /// Its mean code.
+        mean_counts: f32,
+    },
+    /// The channel is too noisy.
+    Noise {
+        /// Channel (0 = a).
+        channel: u8,
+        /// Its RMS noise, counts.
+        rms_counts: f32,
+    },
+}
+
+/// Offsets found: the rounded mean code of each channel, the mean and the RMS noise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Offsets {
+    /// Rounded mean code of each channel (the zero of its scaling).
+    pub counts: [u16; 3],
+    /// Mean code of each channel.
+    pub mean_counts: [f32; 3],
+    /// RMS noise of each channel, counts.
+    pub rms_counts: [f32; 3],
+}
+
+/// Calibration limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CalibrationConfig {
+    samples: u32,
+    nominal_counts: u16,
+    max_offset_error_counts: f32,
+    max_noise_counts: f32,
+}
+
+impl CalibrationConfig {
+    /// `samples` conversions per channel; the offset must lie within
+    /// `max_offset_error_counts` of `nominal_counts`, the RMS noise below `max_noise_counts`.
+    pub fn new(
+        samples: u32,
+        nominal_counts: u16,
+        max_offset_error_counts: f32,
+        max_noise_counts: f32,
+    ) -> Result<Self, CalibrationConfigError> {
+        if !(MIN_SAMPLES..=MAX_SAMPLES).contains(&samples) {
+            return Err(CalibrationConfigError::Samples);
+        }
+        let ok = |x: f32| x.is_finite() && x > 0.0;
+        if !(ok(max_offset_error_counts) && ok(max_noise_counts)) {
+            return Err(CalibrationConfigError::Limit);
+        }
+        Ok(Self { samples, nominal_counts, max_offset_error_counts, max_noise_counts })
+    }
+
+    /// Samples per channel.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+}
+
+/// A calibration under way.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OffsetCalibration {
+    /// Σd and Σd² of d = code − nominal.
+    sum: [i64; 3],
+    sum2: [f32; 3],
+    n: u32,
+}
+
+impl Default for OffsetCalibration {
+    fn default() -> Self {
+        Self { sum: [0; 3], sum2: [0.0; 3], n: 0 }
+    }
+}
+
+impl OffsetCalibration {
+    /// One conversion of the three channels (bridge off). `None` until `cfg.samples()`
+    /// have been taken, then the verdict (and again for every further call: start a new
+    /// calibration with `OffsetCalibration::default()`).
+    pub fn add(
+        &mut self,
+        cfg: &CalibrationConfig,
+        codes: [u16; 3],
+    ) -> Option<Result<Offsets, CalibrationError>> {
+        if self.n < cfg.samples {
+            for ((s, s2), c) in self.sum.iter_mut().zip(self.sum2.iter_mut()).zip(codes) {
+                let d = i32::from(c) - i32::from(cfg.nominal_counts);
+                *s += i64::from(d);
+                // |d| < 2^16: d² exact in f32 up to 2^24, rounded beyond (a broken channel).
+                *s2 += (d * d) as f32;
+            }
+            self.n += 1;
+        }
+        (self.n >= cfg.samples).then(|| self.verdict(cfg))
+    }
+
+    fn verdict(&self, cfg: &CalibrationConfig) -> Result<Offsets, CalibrationError> {
+        let n = self.n.max(1) as f32;
+        let nominal = f32::from(cfg.nominal_counts);
+        let mut out = Offsets { counts: [0; 3], mean_counts: [0.0; 3], rms_counts: [0.0; 3] };
+        for channel in 0..3u8 {
+            let k = usize::from(channel);
+            let (s, s2) = (self.sum.get(k).copied().unwrap_or(0), self.sum2.get(k).copied().unwrap_or(0.0));
+            let mean_d = s as f32 / n;
+            let mean = nominal + mean_d;
+            let rms = crate::num::sqrt_f32((s2 / n - mean_d * mean_d).max(0.0));
+            // Both finite: sums of finite codes.
+            if mean_d.abs() > cfg.max_offset_error_counts {
+                return Err(CalibrationError::Offset { channel, mean_counts: mean });
+            }
+            if rms > cfg.max_noise_counts {
+                return Err(CalibrationError::Noise { channel, rms_counts: rms });
+            }
+            if let (Some(c), Some(m), Some(r)) =
+                (out.counts.get_mut(k), out.mean_counts.get_mut(k), out.rms_counts.get_mut(k))
+            {
+                // Rounded to the nearest code (within the ADC range: checked above).
+                (*c, *m, *r) = ((mean + 0.5) as u16, mean, rms);
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> CalibrationConfig {
+        CalibrationConfig::new(1024, 2048, 200.0, 8.0).unwrap()
+    }
+
+    /// A seeded noise source: uniform in ±`half` counts (RMS half/√3).
+    fn noise(seed: &mut u64, half: i32) -> i32 {
+        *seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        ((*seed >> 33) % (2 * half as u64 + 1)) as i32 - half
+    }
+
+    #[test]
+    fn finds_the_offsets_to_half_a_count() {
+        let c = cfg();
+        let mut cal = OffsetCalibration::default();
+        let mut seed = 7;
+        let offsets = [2060, 2011, 2048];
+        let mut verdict = None;
+        for k in 0..1024 {
+            let codes = offsets.map(|o| (o + noise(&mut seed, 6)) as u16);
+            verdict = cal.add(&c, codes);
+            assert_eq!(verdict.is_some(), k == 1023);
+        }
+        let o = verdict.unwrap().unwrap();
+        assert_eq!(o.counts, [2060, 2011, 2048]);
+        for (m, want) in o.mean_counts.iter().zip(offsets) {
+            assert!((m - want as f32).abs() < 0.5, "{m}");
+        }
+        // Uniform ±6: RMS √(((13² − 1)/12)) = 3.74.
+        for r in o.rms_counts {
+            assert!((r - 3.74).abs() < 0.3, "{r}");
+        }
+    }
+
+    #[test]
+    fn refuses_a_channel_out_of_range_or_noisy_by_name() {
+        let c = cfg();
+        let run = |codes: &dyn Fn(&mut u64) -> [u16; 3]| {
+            let mut cal = OffsetCalibration::default();
+            let mut seed = 3;
+            let mut v = None;
+            for _ in 0..1024 {
+                v = cal.add(&c, codes(&mut seed));
+            }
+            v.unwrap()
+        };
+        // Phase b's amplifier stuck at the rail.
+        let e = run(&|_| [2048, 4095, 2048]).unwrap_err();
+        assert_eq!(e, CalibrationError::Offset { channel: 1, mean_counts: 4095.0 });
+        // Phase c floating: ±40 counts of noise (RMS 23).
+        let e = run(&|s| [2048, 2048, (2048 + noise(s, 40)) as u16]).unwrap_err();
+        assert!(
+            matches!(e, CalibrationError::Noise { channel: 2, rms_counts } if rms_counts > 20.0),
+            "{e:?}"
+        );
+        assert_eq!(CalibrationConfig::new(100, 2048, 200.0, 8.0), Err(CalibrationConfigError::Samples));
+        assert_eq!(CalibrationConfig::new(1024, 2048, f32::NAN, 8.0), Err(CalibrationConfigError::Limit));
+    }
+}
