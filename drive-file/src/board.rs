@@ -39,6 +39,20 @@ pub struct BoardTable {
     pub inverter_rated_current_a: Option<f64>,
     /// The inverter's overload rating: `{ factor, time_s }`, e.g. 150 % for 60 s.
     pub inverter_overload: Option<OverloadTable>,
+    /// The power board's hardware overcurrent comparator on the leg currents (BKIN):
+    /// `{ trip_a, filter_s }` — what the simulator models (`hil_sim::bridge_fault`); the
+    /// firmware only sees its break.
+    pub comparator: Option<ComparatorTable>,
+}
+
+/// `[board] comparator = { trip_a = 12.0, filter_s = 1e-6 }`.
+#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ComparatorTable {
+    /// Trip level of the filtered |leg current|, A.
+    pub trip_a: f64,
+    /// Filter time constant (RC and comparator delay), s.
+    pub filter_s: f64,
 }
 
 /// `[board] inverter_overload = { factor = 1.5, time_s = 60.0 }`: `factor` × the rated
@@ -139,6 +153,17 @@ impl BoardTable {
             src.check(x.is_finite() && x > 0.0, &format!("board.{key}"), "must be finite and > 0")?;
         }
         self.validate_overload(src)?;
+        if let Some(c) = self.comparator {
+            src.check(
+                c.trip_a.is_finite()
+                    && c.trip_a > 0.0
+                    && c.filter_s.is_finite()
+                    && c.filter_s > 0.0
+                    && c.filter_s * spec.pwm_frequency_hz <= 0.1,
+                "board.comparator",
+                "needs trip_a > 0 and 0 < filter_s ≤ a tenth of the PWM period",
+            )?;
+        }
         if let Some(t) = self.link_timeout_s {
             src.check(
                 t.is_finite() && (0.02..=3600.0).contains(&t),

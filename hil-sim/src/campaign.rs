@@ -276,6 +276,7 @@ impl Campaign {
                 load: LoadModel::Torque,
                 inverter: InverterModel::Average,
                 dc_link: None,
+                comparator: None,
             },
         };
         let t_row = f64::from(divider) / self.spec.pwm_frequency_hz;

@@ -124,6 +124,7 @@ fn point(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, w: f64, sign: f32) -
             load: LoadModel::Dynamometer { omega_m_rad_s: w },
             inverter: InverterModel::Average,
             dc_link: None,
+            comparator: None,
         },
     };
     let (rows, mode) = b.run(|_| {})?;

@@ -27,6 +27,7 @@
 //! reason: printed as such, and a failure of the matrix if it starts passing (so the list
 //! stays true).
 
+use crate::bridge_fault::{Comparator, PhaseShort};
 use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
@@ -119,6 +120,13 @@ pub enum Expect {
         /// Detection bound, s.
         bound_s: f64,
     },
+    /// Either of two faults (whichever protection acts first), within `bound_s`.
+    Either {
+        /// The codes.
+        faults: [Fault; 2],
+        /// Detection bound, s.
+        bound_s: f64,
+    },
     /// No trip: the drive must ride through it.
     RideThrough,
     /// A stated gap: what the issue asks (`fault` within `bound_s`) does not hold here, for
@@ -150,6 +158,9 @@ pub struct Outcome {
     pub off_after_periods: Option<u64>,
     /// Peak true phase current after the injection, A.
     pub peak_current_a: f64,
+    /// Peak |leg current| after the injection (the motor's plus a short's), A; 0 when the
+    /// legs are not modelled (no comparator, no short).
+    pub peak_leg_a: f64,
     /// Energy the motor returned to the bus after the injection, J.
     pub energy_into_bus_j: f64,
     /// Mode at the end.
@@ -177,6 +188,7 @@ impl Outcome {
     pub fn asked(&self) -> String {
         match self.expect {
             Expect::Fault { fault, bound_s } => format!("{fault:?} ≤ {}", ms(bound_s)),
+            Expect::Either { faults: [a, b], bound_s } => format!("{a:?}/{b:?} ≤ {}", ms(bound_s)),
             Expect::RideThrough => "no trip".into(),
             Expect::Gap { fault, bound_s, .. } => format!("({fault:?} ≤ {})", ms(bound_s)),
         }
@@ -204,16 +216,22 @@ pub struct Matrix {
     pub top_speed_rad_s: f64,
     /// Bus voltage, V.
     pub vdc_v: f64,
+    /// The board's hardware comparator, if the drive file gives one.
+    pub comparator: Option<Comparator>,
 }
 
+/// The short injected: two terminals through 0.05 Ω and 20 µH (a few metres of cable).
+pub const SHORT: PhaseShort = PhaseShort { phases: [0, 1], resistance_ohm: 0.05, inductance_h: 20e-6 };
+
 impl Matrix {
-    /// The matrix of `spec` on `vdc_v`, up to the electrical speed `omega_r_max_rad_s`.
+    /// The matrix of `spec` on `vdc_v`, up to the electrical speed `omega_r_max_rad_s`
+    /// (without the board's comparator: [`Matrix::comparator`]).
     pub fn new(spec: DriveSpec, omega_r_max_rad_s: f64, vdc_v: f64) -> Self {
         let m = &spec.motor;
         let base = crate::envelope::base_speed_rad_s(m, spec.flux_ref_wb, vdc_v);
         let top = (omega_r_max_rad_s / f64::from(m.pole_pairs()))
             .min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
-        Self { spec, top_speed_rad_s: top, vdc_v }
+        Self { spec, top_speed_rad_s: top, vdc_v, comparator: None }
     }
 
     /// The six operating points.
@@ -245,6 +263,7 @@ impl Matrix {
         let saturated = scaled_plant(m, 1.0, 1.0, 0.8).ok_or("L_m × 0.8 is not a valid motor")?;
         Ok(vec![
             Case { name: "open phase a", injection: Injection::OpenPhase { phase: 0 } },
+            Case { name: "short a–b (20 µH, 0.05 Ω)", injection: Injection::PhaseShort(SHORT) },
             Case { name: "encoder stuck", injection: Injection::EncoderStuck },
             Case { name: "encoder glitch 100 counts", injection: Injection::EncoderGlitch { counts: 100 } },
             Case { name: "encoder 512 lines (1024 set)", injection: Injection::EncoderLines { lines: 512 } },
@@ -287,6 +306,14 @@ impl Matrix {
             Injection::OpenPhase { .. } => {
                 Expect::Fault { fault: Fault::OpenPhase, bound_s: OPEN_PHASE_BOUND_S }
             }
+            // The comparator breaks the bridge within its filter time, inside the period
+            // (the drive learns it at its next interrupt), or — a short whose current stays
+            // below the comparator's level within the period — the software's overcurrent
+            // check at the next sample: one period either way.
+            Injection::PhaseShort(_) if self.comparator.is_some() => {
+                Expect::Either { faults: [Fault::HardwareBreak, Fault::Overcurrent], bound_s: pwm_s }
+            }
+            Injection::PhaseShort(_) => Expect::Fault { fault: Fault::Overcurrent, bound_s: pwm_s },
             Injection::EncoderStuck if rest => Expect::Gap {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,
@@ -371,13 +398,14 @@ impl Matrix {
                 load: LoadModel::Torque,
                 inverter: InverterModel::Average,
                 dc_link: None,
+                comparator: self.comparator,
             },
         };
         let i_trip = self.spec.protection.i_trip_a;
         let mut speed_at_injection = f64::NAN;
         let mut detected: Option<(Fault, f64)> = None;
         let mut off_after: Option<u64> = None;
-        let (mut peak, mut energy) = (0.0f64, 0.0f64);
+        let (mut peak, mut peak_leg, mut energy) = (0.0f64, 0.0f64, 0.0f64);
         let mut before_injection_fault: Option<Mode> = None;
         // The first row at or after the injection (the event loop's own comparison).
         let mut injected_at: Option<f64> = None;
@@ -399,6 +427,7 @@ impl Matrix {
                 }
                 let i = AlphaBeta { alpha: r.x.i_alpha_a, beta: r.x.i_beta_a }.inverse_clarke();
                 peak = peak.max(i.a.abs()).max(i.b.abs()).max(i.c.abs());
+                peak_leg = peak_leg.max(r.i_leg_peak_a);
                 energy -= 1.5 * (r.v_ab_v[0] * r.x.i_alpha_a + r.v_ab_v[1] * r.x.i_beta_a) * pwm_s;
                 if detected.is_none()
                     && let Some(Mode::Fault(f)) = r.mode
@@ -428,20 +457,21 @@ impl Matrix {
             ));
         }
         let mut failures = Vec::new();
-        let judge = |fault: Fault, bound_s: f64, failures: &mut Vec<String>| match detected {
-            Some((f, t)) if f == fault && t <= bound_s + 0.5 * pwm_s => {
+        let judge = |accept: &[Fault], bound_s: f64, failures: &mut Vec<String>| match detected {
+            Some((f, t)) if accept.contains(&f) && t <= bound_s + 0.5 * pwm_s => {
                 if off_after.is_none_or(|n| n > 1) {
                     failures.push(format!("bridge off after {off_after:?} periods"));
                 }
             }
-            Some((f, t)) if f == fault => {
+            Some((f, t)) if accept.contains(&f) => {
                 failures.push(format!("{f:?} after {}, bound {}", ms(t), ms(bound_s)))
             }
-            Some((f, _)) => failures.push(format!("detected as {f:?}, not {fault:?}")),
+            Some((f, _)) => failures.push(format!("detected as {f:?}, not {accept:?}")),
             None => failures.push(format!("not detected ({final_mode:?} at the end)")),
         };
         match expect {
-            Expect::Fault { fault, bound_s } => judge(fault, bound_s, &mut failures),
+            Expect::Fault { fault, bound_s } => judge(&[fault], bound_s, &mut failures),
+            Expect::Either { faults, bound_s } => judge(&faults, bound_s, &mut failures),
             Expect::RideThrough => {
                 if let Some((f, t)) = detected {
                     failures.push(format!("tripped: {f:?} after {}", ms(t)));
@@ -449,7 +479,7 @@ impl Matrix {
             }
             Expect::Gap { fault, bound_s, .. } => {
                 let mut would = Vec::new();
-                judge(fault, bound_s, &mut would);
+                judge(&[fault], bound_s, &mut would);
                 if would.is_empty() && peak <= PEAK_CURRENT_FRACTION * i_trip {
                     failures
                         .push("gap closed: the row now meets the issue's bound (update the matrix)".into());
@@ -470,6 +500,7 @@ impl Matrix {
             detected,
             off_after_periods: off_after,
             peak_current_a: peak,
+            peak_leg_a: peak_leg,
             energy_into_bus_j: energy,
             final_mode,
             failures,
@@ -483,8 +514,8 @@ pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
         "# Fault-injection matrix\n\n`hil-sim faults`: {} rows, {} V bus, trip level {} A, top speed {:.1} rad/s \
          (hil_sim::faults). Gaps are stated with their reason below the table.\n\n\
          | fault injected | operating point | ω at injection (rad/s) | asked | detected as | bridge off after (periods) \
-         | peak \\|i\\| (A) | peak / trip | energy into bus (J) | final state | verdict |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|\n",
+         | peak \\|i\\| (A) | peak / trip | peak leg \\|i\\| (A) | energy into bus (J) | final state | verdict |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
         rows.len(),
         m.vdc_v,
         m.spec.protection.i_trip_a,
@@ -492,7 +523,7 @@ pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
     );
     for o in rows {
         s.push_str(&format!(
-            "| {} | {} | {:.1} | {} | {} | {} | {:.2} | {:.0} % | {:.3} | {:?} | {}{} |\n",
+            "| {} | {} | {:.1} | {} | {} | {} | {:.2} | {:.0} % | {} | {:.3} | {:?} | {}{} |\n",
             o.case.name,
             o.at.name(),
             o.speed_at_injection_rad_s,
@@ -501,6 +532,7 @@ pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
             o.off_after_periods.map_or("—".into(), |n| n.to_string()),
             o.peak_current_a,
             100.0 * o.peak_current_a / m.spec.protection.i_trip_a,
+            if o.peak_leg_a > 0.0 { format!("{:.2}", o.peak_leg_a) } else { "—".into() },
             o.energy_into_bus_j,
             o.final_mode,
             o.verdict(),
@@ -536,6 +568,7 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
             "detection_time_s": o.detected.map(|(_, t)| t),
             "bridge_off_after_periods": o.off_after_periods,
             "peak_current_a": o.peak_current_a,
+            "peak_leg_current_a": o.peak_leg_a,
             "trip_level_a": m.spec.protection.i_trip_a,
             "energy_into_bus_j": o.energy_into_bus_j,
             "final_mode": format!("{:?}", o.final_mode),

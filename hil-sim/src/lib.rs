@@ -18,6 +18,7 @@
 #![allow(clippy::indexing_slicing)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+pub mod bridge_fault;
 pub mod campaign;
 pub mod envelope;
 pub mod faults;

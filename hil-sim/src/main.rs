@@ -128,7 +128,11 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     // Without [certify], the top speed is twice the base speed (the field-weakening range).
     let omega_r_max = file.certify.map_or(f64::INFINITY, |c| c.omega_r_max_rad_s);
-    let m = Matrix::new(file.spec, omega_r_max, a.vdc);
+    let mut m = Matrix::new(file.spec, omega_r_max, a.vdc);
+    m.comparator = file
+        .board
+        .and_then(|b| b.table.comparator)
+        .map(|c| hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
     let total = m.cases()?.len() * m.points().len();
     eprintln!(
         "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s)",
@@ -159,7 +163,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     write_text(&out.join("faults.json"), &format!("{json}\n"))?;
     write_text(&out.join("faults.svg"), &hil_sim::faults::svg(&m, &rows))?;
     println!(
-        "{:<30} {:<22} {:>8} {:<26} {:<30} {:>4} {:>7} {:>9} {:<22} verdict",
+        "{:<30} {:<22} {:>8} {:<40} {:<30} {:>4} {:>7} {:>7} {:>9} {:<22} verdict",
         "fault injected",
         "operating point",
         "ω rad/s",
@@ -167,12 +171,13 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
         "detected as",
         "off",
         "peak A",
+        "leg A",
         "E_bus J",
         "final"
     );
     for o in &rows {
         println!(
-            "{:<30} {:<22} {:>8.1} {:<26} {:<30} {:>4} {:>7.2} {:>9.3} {:<22} {}{}",
+            "{:<30} {:<22} {:>8.1} {:<40} {:<30} {:>4} {:>7.2} {:>7} {:>9.3} {:<22} {}{}",
             o.case.name,
             o.at.name(),
             o.speed_at_injection_rad_s,
@@ -180,6 +185,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
             o.seen(),
             o.off_after_periods.map_or("—".into(), |n| n.to_string()),
             o.peak_current_a,
+            if o.peak_leg_a > 0.0 { format!("{:.2}", o.peak_leg_a) } else { "—".into() },
             o.energy_into_bus_j,
             format!("{:?}", o.final_mode),
             o.verdict(),
@@ -480,7 +486,7 @@ fn interrupted() -> Result<(), String> {
 
 const BASE_HEADER: &str =
     "t_s,i_alpha_a,i_beta_a,psi_alpha_wb,psi_beta_wb,omega_m_rad_s,theta_m_rad,torque_nm,v_alpha_v,v_beta_v";
-const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm,drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,brake,i_chopper_a";
+const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm,drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,brake,i_chopper_a,i_leg_peak_a,comparator";
 
 /// Most points per plotted curve.
 const PLOT_POINTS: f64 = 4000.0;
@@ -554,6 +560,7 @@ fn write_row(f: &mut dyn Write, r: &Row, closed_loop: bool) -> std::io::Result<(
         }
         write!(f, ",{:.2},{:.5},{:.5}", r.vdc_v, r.psi_est_wb, r.psi_ref_wb)?;
         write!(f, ",{},{:.4}", u8::from(r.brake), r.i_chopper_a)?;
+        write!(f, ",{:.4},{}", r.i_leg_peak_a, u8::from(r.hw_break))?;
     }
     writeln!(f)
 }

@@ -146,6 +146,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
             load: LoadModel::Torque,
             inverter: InverterModel::Average,
             dc_link: None,
+            comparator: None,
         },
     })
 }

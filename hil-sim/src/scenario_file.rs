@@ -51,9 +51,15 @@
 //!                                  # "bus_voltage" (vdc_v), "load_seizure" (torque_nm: its
 //!                                  # friction), "open_phase" (phase), "plant" (rs_factor,
 //!                                  # rr_factor, lm_factor: the plant's R_s, R_r, L_m
-//!                                  # scaled — heating, saturation; each default 1)
+//!                                  # scaled — heating, saturation; each default 1),
+//!                                  # "phase_short" (phases = "ab", resistance_ohm,
+//!                                  # inductance_h: two motor terminals shorted)
 //! gain = 0.0
 //! offset_a = 0.0
+//!
+//! [comparator]                     # optional: the board's hardware overcurrent comparator
+//! trip_a = 12.0                    # on the leg currents (hil_sim::bridge_fault)
+//! filter_s = 1e-6
 //! ```
 //!
 //! **Open loop** (plant alone, validation) — a `[motor]` table (or `drive = "path"` for
@@ -152,9 +158,18 @@ struct ClosedLoopFile {
     load: Option<LoadTable>,
     inverter: Option<InverterTable>,
     dc_link: Option<DcLinkTable>,
+    comparator: Option<ComparatorTable>,
     #[serde(default)]
     sensors: SensorsTable,
     events: Vec<EventTable>,
+}
+
+/// `[comparator]`: the power board's hardware overcurrent comparator.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ComparatorTable {
+    trip_a: f64,
+    filter_s: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -255,6 +270,7 @@ enum FaultKind {
     EncoderGlitch,
     EncoderLines,
     Plant,
+    PhaseShort,
     BusVoltage,
     LoadSeizure,
 }
@@ -275,6 +291,9 @@ struct EventTable {
     torque_nm: Option<f64>,
     counts: Option<i64>,
     lines: Option<u32>,
+    phases: Option<String>,
+    resistance_ohm: Option<f64>,
+    inductance_h: Option<f64>,
     rs_factor: Option<f64>,
     rr_factor: Option<f64>,
     lm_factor: Option<f64>,
@@ -418,6 +437,27 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                         src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
                         Injection::BusVoltage { vdc_v: v }
                     }
+                    Some(FaultKind::PhaseShort) => {
+                        let phases = match e.phases.as_deref() {
+                            Some("ab" | "ba") => [0, 1],
+                            Some("bc" | "cb") => [1, 2],
+                            Some("ca" | "ac") => [2, 0],
+                            _ => {
+                                return Err(
+                                    src.error(&key("phases"), "needs phases = \"ab\", \"bc\" or \"ca\"")
+                                );
+                            }
+                        };
+                        let r = bounded("resistance_ohm", e.resistance_ohm)?;
+                        let l = bounded("inductance_h", e.inductance_h)?;
+                        src.check(r >= 0.0, &key("resistance_ohm"), "must be ≥ 0")?;
+                        src.check(l > 0.0, &key("inductance_h"), "must be > 0")?;
+                        Injection::PhaseShort(crate::bridge_fault::PhaseShort {
+                            phases,
+                            resistance_ohm: r,
+                            inductance_h: l,
+                        })
+                    }
                     Some(FaultKind::Plant) => {
                         let f = |name: &str, v: Option<f64>| -> Result<f64, FileError> {
                             let x = v.unwrap_or(1.0);
@@ -533,6 +573,18 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             })
         }
     };
+    let comparator = match f.comparator {
+        None => None,
+        Some(c) => {
+            src.check(c.trip_a.is_finite() && c.trip_a > 0.0, "comparator.trip_a", "must be finite and > 0")?;
+            src.check(
+                c.filter_s.is_finite() && c.filter_s > 0.0 && c.filter_s * spec.pwm_frequency_hz <= 0.1,
+                "comparator.filter_s",
+                "must be > 0 and at most a tenth of the PWM period",
+            )?;
+            Some(crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s })
+        }
+    };
     let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     Ok(Builtin {
         name: stem,
@@ -549,6 +601,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             load,
             inverter,
             dc_link,
+            comparator,
         },
     })
 }
@@ -770,7 +823,32 @@ torque_nm = 0.5
             }
             other => panic!("{other:?}"),
         }
+        assert_eq!(
+            last("fault = \"phase_short\"\nphases = \"bc\"\nresistance_ohm = 0.1\ninductance_h = 1e-5"),
+            Some((
+                1.0,
+                Event::Fault(Injection::PhaseShort(crate::bridge_fault::PhaseShort {
+                    phases: [1, 2],
+                    resistance_ohm: 0.1,
+                    inductance_h: 1e-5
+                }))
+            ))
+        );
+        let with_comparator = |c: &str| format!("{FIG16}\n[comparator]\n{c}\n");
+        let f = parse_closed_loop(Path::new("c.toml"), &with_comparator("trip_a = 12.0\nfilter_s = 1e-6"))
+            .unwrap();
+        assert_eq!(
+            f.scenario.comparator,
+            Some(crate::bridge_fault::Comparator { trip_a: 12.0, filter_s: 1e-6 })
+        );
+        let e = err(&with_comparator("trip_a = 12.0\nfilter_s = 1e-3"));
+        assert_eq!(e.key.as_deref(), Some("comparator.filter_s"), "{e}");
         for (ev, k) in [
+            ("fault = \"phase_short\"\nphases = \"aa\"", "phases"),
+            (
+                "fault = \"phase_short\"\nphases = \"ab\"\nresistance_ohm = 0.1\ninductance_h = 0.0",
+                "inductance_h",
+            ),
             ("fault = \"plant\"\nrs_factor = 0.0", "rs_factor"),
             ("fault = \"plant\"\nlm_factor = nan", "lm_factor"),
             ("fault = \"encoder_glitch\"", "counts"),

@@ -7,6 +7,7 @@
 //! Sensors: [`SensorModel`] (ideal by default). Loads: a piecewise-constant torque set by
 //! events, plus the [`LoadModel`] (eddy-current brake or locked rotor).
 
+use crate::bridge_fault::{Comparator, Legs, PhaseShort};
 use crate::inverter::{InverterModel, Segments};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, FastOutput, Measurements, Mode, PhaseCommand, Reference};
@@ -39,6 +40,11 @@ pub trait DriveUnderTest {
     fn take_failure(&mut self) -> Option<String> {
         None
     }
+    /// The board's comparator broke the bridge ([`Drive::trip`] with `HardwareBreak`, what
+    /// the firmware does when it finds the break flag).
+    fn hardware_break(&mut self) -> Result<(), String> {
+        Err("the hardware comparator's break is modelled for the in-process drive only".into())
+    }
 }
 
 impl DriveUnderTest for Drive {
@@ -63,6 +69,11 @@ impl DriveUnderTest for Drive {
 
     fn step(&mut self, m: &Measurements) -> FastOutput {
         Drive::step(self, m)
+    }
+
+    fn hardware_break(&mut self) -> Result<(), String> {
+        self.trip(controller_core::drive::Fault::HardwareBreak);
+        Ok(())
     }
 }
 
@@ -127,6 +138,10 @@ pub enum Injection {
         /// The seized load's friction torque, N·m.
         torque_nm: f64,
     },
+    /// Two motor terminals short ([`crate::bridge_fault`]): a current through the short's
+    /// resistance and inductance from leg to leg, which the current sensors and the
+    /// comparator see.
+    PhaseShort(PhaseShort),
     /// The lead of `phase` (0 = a, 1 = b, 2 = c) opens: no current flows in it from now on
     /// (a broken wire or connector; the motor runs single-phase on the other two).
     OpenPhase {
@@ -264,6 +279,8 @@ pub struct Scenario {
     pub inverter: InverterModel,
     /// DC link (`None`: a stiff bus at `vdc_v`).
     pub dc_link: Option<DcLink>,
+    /// The power board's hardware overcurrent comparator (`None`: not modelled).
+    pub comparator: Option<Comparator>,
 }
 
 /// A validated open-loop scenario.
@@ -320,6 +337,11 @@ pub struct Row {
     /// The drive's brake output after this period's step (it switches the chopper in the
     /// next period).
     pub brake: bool,
+    /// Largest |leg current| in this period, A (0 unless the comparator or a short is
+    /// modelled: then the legs are resolved within the period, [`crate::bridge_fault`]).
+    pub i_leg_peak_a: f64,
+    /// The hardware comparator has broken the bridge (MOE cleared, latched).
+    pub hw_break: bool,
 }
 
 /// The plant's side of one period in [`run`].
@@ -497,6 +519,9 @@ pub fn run(
     // Duties applied during the present period (computed in the previous one). A bridge
     // that is off applies ≈ 0 V in the average model: the same as duties of ½.
     let (mut duty_applied, mut bridge_on, mut brake_applied) = ([0.5; 3], false, false);
+    // The legs within the period (a short, the comparator): resolved only when modelled.
+    let mut legs = Legs::default();
+    let mut legs_modelled = sc.comparator.is_some();
     let mut events = sc.events.iter().peekable();
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
     let mut next_event_k = first_period_of(events.peek());
@@ -536,6 +561,10 @@ pub fn run(
                             vdc_measured_v = sensors.vdc(v);
                         }
                     }
+                    Event::Fault(Injection::PhaseShort(short)) => {
+                        legs.short = Some((short, 0.0));
+                        legs_modelled = true;
+                    }
                     Event::Fault(Injection::OpenPhase { phase }) => {
                         open_phase = PHASE_AXES.get(phase).copied()
                     }
@@ -556,7 +585,12 @@ pub fn run(
         // True phase currents (controller-core's inverse Clarke, in f64).
         let i = AlphaBeta { alpha: x.i_alpha_a, beta: x.i_beta_a }.inverse_clarke();
         let i_true = [i.a, i.b, i.c];
-        let i_abc = sensors.currents(i_true);
+        let i_abc = sensors.currents(if legs_modelled { legs.currents(i_true) } else { i_true });
+        if legs.broken {
+            // The firmware finds the break flag in its next interrupt; the bridge is off.
+            drive.hardware_break()?;
+            bridge_on = false;
+        }
         let enc = if to_slow == 0 {
             to_slow = divider.saturating_sub(1);
             sensors.encoder_read(x.theta_m_rad, x.omega_m_rad_s)
@@ -611,6 +645,12 @@ pub fn run(
             x.i_alpha_a -= along * ux;
             x.i_beta_a -= along * uy;
         }
+        let mut leg_period = crate::bridge_fault::LegPeriod::default();
+        if legs_modelled {
+            let end = AlphaBeta { alpha: x.i_alpha_a, beta: x.i_beta_a }.inverse_clarke();
+            let pole = bridge_on.then(|| duty_applied.map(|d| (d - 0.5) * vdc_v));
+            leg_period = legs.period(sc.comparator.as_ref(), i_true, [end.a, end.b, end.c], pole, vdc_v, ts);
+        }
         let vdc_period_v = vdc_v;
         let (mut i_dc, mut i_src, mut i_ch) = (0.0, 0.0, 0.0);
         if let Some(link) = &sc.dc_link {
@@ -650,6 +690,8 @@ pub fn run(
                 i_source_a: i_src,
                 i_chopper_a: i_ch,
                 brake: out.brake,
+                i_leg_peak_a: leg_period.peak_a,
+                hw_break: legs.broken,
                 psi_est_wb: f64::from(out.telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
             })?;

@@ -9,7 +9,10 @@ use std::sync::atomic::AtomicBool;
 
 fn shipped() -> Matrix {
     let d = drive_file::DriveFile::shipped().unwrap();
-    Matrix::new(d.spec, d.certify.unwrap().omega_r_max_rad_s, 310.0)
+    let mut m = Matrix::new(d.spec, d.certify.unwrap().omega_r_max_rad_s, 310.0);
+    let c = d.board.unwrap().table.comparator.unwrap();
+    m.comparator = Some(hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
+    m
 }
 
 fn case(m: &Matrix, name: &str) -> Case {
@@ -72,4 +75,22 @@ fn an_interrupt_stops_the_matrix() {
     let m = shipped();
     let e = m.run(|_| {}, &AtomicBool::new(true)).unwrap_err();
     assert!(e.contains("interrupted"), "{e}");
+}
+
+/// A short between terminals a and b (20 µH, 0.05 Ω) at top speed: the leg current rises at
+/// the pole-voltage difference over 20 µH, the board's comparator (12 A, 1 µs) breaks the
+/// bridge within the period — the drive learns it at its next interrupt, `HardwareBreak`
+/// one period after the injection — and the short's current dies through the diodes; the
+/// motor's own phase currents do not move (the stiff legs feed it).
+#[test]
+fn a_terminal_short_breaks_the_bridge_through_the_comparator() {
+    let m = shipped();
+    let (c, at) = (case(&m, "short a–b"), point(&m, Point::Top, true));
+    let o = m.run_one(4, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+    assert!(o.passed(), "{:?}", o.failures);
+    let (f, t) = o.detected.unwrap();
+    assert_eq!(f, Fault::HardwareBreak);
+    assert!((t - 5e-5).abs() < 1e-9, "one PWM period: {t}");
+    assert!(o.peak_leg_a > 12.0 && o.peak_leg_a < 25.0, "{}", o.peak_leg_a);
+    assert!(o.peak_current_a < 1.0, "{}", o.peak_current_a);
 }
