@@ -53,7 +53,8 @@
 //!                                  # rr_factor, lm_factor: the plant's R_s, R_r, L_m
 //!                                  # scaled — heating, saturation; each default 1),
 //!                                  # "phase_short" (phases = "ab", resistance_ohm,
-//!                                  # inductance_h: two motor terminals shorted)
+//!                                  # inductance_h: two motor terminals shorted),
+//!                                  # "switch_open" (phase, switch = "upper"|"lower")
 //! gain = 0.0
 //! offset_a = 0.0
 //!
@@ -271,6 +272,7 @@ enum FaultKind {
     EncoderLines,
     Plant,
     PhaseShort,
+    SwitchOpen,
     BusVoltage,
     LoadSeizure,
 }
@@ -292,6 +294,7 @@ struct EventTable {
     counts: Option<i64>,
     lines: Option<u32>,
     phases: Option<String>,
+    switch: Option<String>,
     resistance_ohm: Option<f64>,
     inductance_h: Option<f64>,
     rs_factor: Option<f64>,
@@ -437,6 +440,16 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                         src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
                         Injection::BusVoltage { vdc_v: v }
                     }
+                    Some(FaultKind::SwitchOpen) => Injection::SwitchOpen {
+                        phase: phase_of()?,
+                        upper: match e.switch.as_deref() {
+                            Some("upper") => true,
+                            Some("lower") => false,
+                            _ => {
+                                return Err(src.error(&key("switch"), "needs switch = \"upper\" or \"lower\""));
+                            }
+                        },
+                    },
                     Some(FaultKind::PhaseShort) => {
                         let phases = match e.phases.as_deref() {
                             Some("ab" | "ba") => [0, 1],
@@ -843,7 +856,12 @@ torque_nm = 0.5
         );
         let e = err(&with_comparator("trip_a = 12.0\nfilter_s = 1e-3"));
         assert_eq!(e.key.as_deref(), Some("comparator.filter_s"), "{e}");
+        assert_eq!(
+            last("fault = \"switch_open\"\nphase = \"c\"\nswitch = \"lower\""),
+            Some((1.0, Event::Fault(Injection::SwitchOpen { phase: 2, upper: false })))
+        );
         for (ev, k) in [
+            ("fault = \"switch_open\"\nphase = \"a\"\nswitch = \"middle\"", "switch"),
             ("fault = \"phase_short\"\nphases = \"aa\"", "phases"),
             (
                 "fault = \"phase_short\"\nphases = \"ab\"\nresistance_ohm = 0.1\ninductance_h = 0.0",

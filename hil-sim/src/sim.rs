@@ -142,6 +142,17 @@ pub enum Injection {
     /// resistance and inductance from leg to leg, which the current sensors and the
     /// comparator see.
     PhaseShort(PhaseShort),
+    /// A switch of `phase`'s leg never conducts again (a dead gate driver, a bond wire off):
+    /// its leg cannot drive the current in that switch's direction, which then flows
+    /// through the opposite diode — with the upper switch open, a positive phase current
+    /// puts the leg at −V_dc/2 for the whole period (decided on the current at the period's
+    /// start).
+    SwitchOpen {
+        /// Phase index 0…2.
+        phase: usize,
+        /// The upper switch (else the lower one).
+        upper: bool,
+    },
     /// The lead of `phase` (0 = a, 1 = b, 2 = c) opens: no current flows in it from now on
     /// (a broken wire or connector; the motor runs single-phase on the other two).
     OpenPhase {
@@ -522,6 +533,8 @@ pub fn run(
     // The legs within the period (a short, the comparator): resolved only when modelled.
     let mut legs = Legs::default();
     let mut legs_modelled = sc.comparator.is_some();
+    // A switch stuck open: (phase, upper).
+    let mut switch_open: Option<(usize, bool)> = None;
     let mut events = sc.events.iter().peekable();
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
     let mut next_event_k = first_period_of(events.peek());
@@ -560,6 +573,9 @@ pub fn run(
                             vdc_v = v;
                             vdc_measured_v = sensors.vdc(v);
                         }
+                    }
+                    Event::Fault(Injection::SwitchOpen { phase, upper }) => {
+                        switch_open = Some((phase.min(2), upper));
                     }
                     Event::Fault(Injection::PhaseShort(short)) => {
                         legs.short = Some((short, 0.0));
@@ -609,6 +625,14 @@ pub fn run(
         // so with the average inverter the plant's first RK4 stages are issued before the
         // drive's step: the processor then runs both dependent chains side by side.
         let x_at_start = x;
+        if let Some((p, upper)) = switch_open {
+            // The dead switch's direction of current flows through the opposite diode.
+            match (upper, i_true[p] > 0.0) {
+                (true, true) => duty_applied[p] = 0.0,
+                (false, false) => duty_applied[p] = 1.0,
+                _ => {}
+            }
+        }
         let period = match sc.inverter {
             _ if !bridge_on => Period::Off,
             InverterModel::Switching { .. } => Period::Switching(duty_applied),
