@@ -261,6 +261,13 @@ pub const REGEN_LIMIT_END: f64 = 0.975;
 /// corrects the loops' steady tracking error of a few per cent, not a missing current.
 pub const CURRENT_TRIM_RANGE: f32 = 0.25;
 
+/// While the modulator limits the loops' request (the machine needs more voltage than the
+/// bus gives: a hot motor's R_s, saturation, an acceleration into the limit), the voltage
+/// regulator cuts this many times faster than its bandwidth: at 10 rad/s it took ≈ 100 ms to
+/// lower the budget by the excess, while the loops lost their current in the 20 ms of the
+/// loss-of-control check (issue 21's campaign: R_s × 1.5, R_r × 1.2 tripped at 111 rad/s).
+pub const VOLTAGE_REGULATOR_LIMITED_GAIN: f32 = 10.0;
+
 /// The deepest the voltage regulator may cut the budget, as a fraction of V_dc/√3.
 pub const VOLTAGE_REGULATOR_RANGE: f32 = 0.5;
 
@@ -1358,8 +1365,11 @@ impl Drive {
             self.stop_steps_left = Some(left - 1);
         }
         self.anchor_field(step_rad);
+        // The modulator limited the loops' request since the last slow step (read before
+        // the trim clears it).
+        let limited = self.trim_hold;
         self.update_trim();
-        let v_budget = self.voltage_budget(m.vdc_v);
+        let v_budget = self.voltage_budget(m.vdc_v, limited);
         let running = self.mode == Mode::Running;
         let limit = self.torque_max_nm;
         let torque_nm = if !running {
@@ -1520,13 +1530,15 @@ impl Drive {
     /// less the regulator's cut, which integrates the target's excess over the RMS of the
     /// voltage the loops asked for since the last slow step (only downwards from zero, and
     /// at most [`VOLTAGE_REGULATOR_RANGE`] of the limit).
-    fn voltage_budget(&mut self, vdc_v: f32) -> f32 {
+    fn voltage_budget(&mut self, vdc_v: f32, limited: bool) -> f32 {
         let cfg = &self.cfg;
         let target = cfg.voltage_margin * svpwm::linear_limit_v(vdc_v);
         if self.v_req_steps > 0 {
             let v_req = sqrt_f32(self.v_req2_sum / f32::from(self.v_req_steps));
             let floor = -VOLTAGE_REGULATOR_RANGE * svpwm::linear_limit_v(vdc_v);
-            self.v_cut_v = (self.v_cut_v + cfg.voltage_gain * (target - v_req)).limit(floor, 0.0);
+            let gain =
+                if limited { VOLTAGE_REGULATOR_LIMITED_GAIN * cfg.voltage_gain } else { cfg.voltage_gain };
+            self.v_cut_v = (self.v_cut_v + gain * (target - v_req)).limit(floor, 0.0);
         }
         self.v_req2_sum = 0.0;
         self.v_req_steps = 0;

@@ -382,11 +382,11 @@ pub fn torque_limit_nm(spec: &DriveSpec) -> f64 {
 /// The drive's speed law on an ideal torque actuator: the law's own discrete code
 /// (`SpeedControllerConfig`, ideal speed measurement) driving `J dω/dt = τ − Bω − T_L` of
 /// the sampled plant's mechanics, one step per slow period (zero-order hold). The torque is
-/// limited, like the drive's, to its own steady-state envelope at the present speed
-/// (`controller_core::envelope`: nominal motor, the drive's voltage target on the bus,
-/// remade every [`controller_core::envelope::ENVELOPE_REFRESH_SLOW_STEPS`]), so that above base
-/// speed the criterion compares the drive with what its operating point allows, not with
-/// τ_max.
+/// limited to the steady-state envelope of the *sampled* machine at the present speed
+/// (`controller_core::envelope` with the plant's parameters, the drive's voltage target on
+/// the bus, remade every [`controller_core::envelope::ENVELOPE_REFRESH_SLOW_STEPS`]), so that
+/// above base speed the criterion compares the drive with what the machine it drives allows
+/// — a hot motor's larger R_s leaves less torque at speed for any drive — not with τ_max.
 #[derive(Clone, Copy, Debug)]
 pub struct IdealLoop {
     law: SpeedControllerConfig,
@@ -416,15 +416,15 @@ impl IdealLoop {
         } else {
             (1.0, t_s / j)
         };
-        let i_d_rated = crate::envelope::rated_d_current_a(spec, &spec.motor);
+        let i_d_rated = crate::envelope::rated_d_current_a(spec, plant);
         let v_target = spec.voltage_margin * vdc_v / 3f64.sqrt();
         Ok(Self {
             law,
             state: SpeedState::default(),
-            kt: spec.motor.torque_factor() * spec.flux_ref_wb,
+            kt: plant.torque_factor() * spec.flux_ref_wb,
             a,
             g,
-            envelope: EnvelopeConfig::new(&spec.motor),
+            envelope: EnvelopeConfig::new(plant),
             limits: (i_d_rated as f32, v_target as f32, spec.i_ref_max_a as f32),
             torque_max_nm: (f64::INFINITY, f64::INFINITY),
             age: 0,

@@ -446,7 +446,9 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                             Some("upper") => true,
                             Some("lower") => false,
                             _ => {
-                                return Err(src.error(&key("switch"), "needs switch = \"upper\" or \"lower\""));
+                                return Err(
+                                    src.error(&key("switch"), "needs switch = \"upper\" or \"lower\"")
+                                );
                             }
                         },
                     },
