@@ -363,3 +363,138 @@ mod tests {
         assert!(bad.iter().any(|ch| ch.name.contains("not modelled")), "{bad:?}");
     }
 }
+
+/// The pictures an engineer checks before flashing (issue 21), as `(file name, SVG)`: on
+/// every current-loop corner of the box, at ω_r,max — the Nyquist plots of γ and γ·h₂ around
+/// (1, 0) (seed 002's structural-robustness conditions and its Fig. 9), the individual
+/// channel c₁ and k·g₁₁ in magnitude and phase (nominal motor), and the stable-speed sweep:
+/// the full 2×2 loop's worst closed-loop pole over 0…ω_r,max. Continuous-time, like the
+/// paper's figures; the sampled certificate's numbers are in the checks.
+pub fn pictures(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<(&'static str, String)>, String> {
+    use report::plot::{Series, line_plot, plot_in};
+    let m = &spec.motor;
+    let law = &spec.current_law;
+    let w = crate::tf::logspace(1.0, 1e5, 800);
+    let wr = c.omega_r_max_rad_s;
+    let mut corners = Vec::new();
+    for rs in c.rs_factor {
+        for rr in c.rr_factor {
+            for l in c.inductance_factor {
+                corners.push((format!("Rs×{rs} Rr×{rr} L×{l}"), corner_motor(m, rs, rr, l)?));
+            }
+        }
+    }
+    let curves: Vec<_> = corners.iter().map(|(_, cm)| crate::icad::curves(cm, law, wr, &w)).collect();
+    let point = || Series::markers("(1, 0)", vec![(1.0, 0.0)]).colored("#d62728");
+    let nyquist = |title: &str, f: fn(&crate::icad::IcadPoint) -> num_complex::Complex64| {
+        let mut series: Vec<Series<'_>> = corners
+            .iter()
+            .zip(&curves)
+            .map(|((name, _), cv)| Series::line(name, cv.iter().map(|p| (f(p).re, f(p).im)).collect()))
+            .collect();
+        series.push(point());
+        plot_in(title, "Re", &series, ((-1.0, 3.0), (-2.0, 2.0)))
+    };
+    let gamma = nyquist(
+        &format!(
+            "γ(jω) at ω_r = {wr} rad/s, every corner: its phase-0 crossings stay left of (1, 0) (seed 002 (b.2))"
+        ),
+        |p| p.gamma,
+    );
+    let gamma_h = nyquist(
+        &format!(
+            "γ·h₂(jω) at ω_r = {wr} rad/s, every corner: no encirclement of (1, 0) (seed 002 (a.2), Fig. 9)"
+        ),
+        |p| p.gamma_h2,
+    );
+    let nominal = curves.first().ok_or("no corner")?;
+    let db = |z: num_complex::Complex64| 20.0 * z.norm().log10();
+    let phase = crate::margins::unwrapped_phase_deg(&nominal.iter().map(|p| p.c1).collect::<Vec<_>>());
+    let phase_kg = crate::margins::unwrapped_phase_deg(&nominal.iter().map(|p| p.kg11).collect::<Vec<_>>());
+    let lw: Vec<f64> = w.iter().map(|x| x.log10()).collect();
+    let magnitude = line_plot(
+        &format!(
+            "|c₁| and |k·g₁₁| at ω_r = {wr} rad/s, {} (dB against log₁₀ ω)",
+            corners.first().map_or("", |c| &c.0)
+        ),
+        "log₁₀ ω (rad/s)",
+        &[
+            Series::line("|c₁| dB", lw.iter().zip(nominal).map(|(x, p)| (*x, db(p.c1))).collect()),
+            Series::line("|k·g₁₁| dB", lw.iter().zip(nominal).map(|(x, p)| (*x, db(p.kg11))).collect()),
+            Series::line("0 dB", vec![(0.0, 0.0), (5.0, 0.0)]).colored("#7f7f7f"),
+        ],
+    );
+    let phase_plot = line_plot(
+        &format!("phase of c₁ and k·g₁₁ at ω_r = {wr} rad/s (degrees against log₁₀ ω)"),
+        "log₁₀ ω (rad/s)",
+        &[
+            Series::line("∠c₁", lw.iter().copied().zip(phase).collect()),
+            Series::line("∠k·g₁₁", lw.iter().copied().zip(phase_kg).collect()),
+            Series::line("−180°", vec![(0.0, -180.0), (5.0, -180.0)]).colored("#7f7f7f"),
+        ],
+    );
+    let speeds: Vec<f64> = (0..=80).map(|k| wr * f64::from(k) / 80.0).collect();
+    let sweep: Vec<Series<'_>> = corners
+        .iter()
+        .map(|(name, cm)| {
+            Series::line(name, speeds.iter().map(|&x| (x, closed_loop_abscissa(cm, law, x))).collect())
+        })
+        .collect();
+    let stable = line_plot(
+        &format!(
+            "worst closed-loop pole Re (1/s) of the 2×2 current loop against ω_r, 0…{wr} rad/s: below 0 is stable"
+        ),
+        "ω_r (rad/s)",
+        &sweep,
+    );
+    Ok(vec![
+        ("nyquist_gamma.svg", gamma),
+        ("nyquist_gamma_h.svg", gamma_h),
+        ("bode_magnitude.svg", magnitude),
+        ("bode_phase.svg", phase_plot),
+        ("stable_speed.svg", stable),
+    ])
+}
+
+#[cfg(test)]
+mod picture_tests {
+    use super::*;
+
+    /// The shipped drive's pictures: five SVG documents; the Nyquist plots draw one curve per
+    /// corner (8) and the point (1, 0); the data they draw keeps γ·h₂ clear of (1, 0) by the
+    /// certified margin (its phase-0 crossings at |γh₂| ≤ 10^(−γh margin/20)).
+    #[test]
+    fn the_certificate_draws_every_corner() {
+        let d = drive_file::DriveFile::shipped().unwrap();
+        let (spec, c) = (d.spec, d.certify.unwrap());
+        let pics = pictures(&spec, &c).unwrap();
+        let names: Vec<&str> = pics.iter().map(|p| p.0).collect();
+        assert_eq!(
+            names,
+            [
+                "nyquist_gamma.svg",
+                "nyquist_gamma_h.svg",
+                "bode_magnitude.svg",
+                "bode_phase.svg",
+                "stable_speed.svg"
+            ]
+        );
+        for (name, svg) in &pics {
+            assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{name}");
+            assert!(svg.trim_end().ends_with("</svg>"), "{name}");
+        }
+        let gh = &pics[1].1;
+        assert_eq!(gh.matches("<path").count(), 8, "one curve per corner");
+        assert!(gh.contains("Rs×1.5 Rr×2 L×0.6") && gh.contains("(1, 0)"));
+        let a = analyse(&spec.motor, &spec.current_law, c.omega_r_max_rad_s);
+        let margin = a.gamma_h_margin_db.unwrap();
+        let w = crate::tf::logspace(1.0, 1e5, 800);
+        let cv = crate::icad::curves(&spec.motor, &spec.current_law, c.omega_r_max_rad_s, &w);
+        let near_one = cv
+            .iter()
+            .filter(|p| p.gamma_h2.im.abs() < 1e-3 * p.gamma_h2.norm().max(1e-9) && p.gamma_h2.re > 0.0)
+            .map(|p| p.gamma_h2.norm())
+            .fold(0.0f64, f64::max);
+        assert!(near_one <= 10f64.powf(-margin / 20.0) * 1.02, "{near_one} vs margin {margin} dB");
+    }
+}

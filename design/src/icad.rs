@@ -89,18 +89,13 @@ pub fn report(
     response: impl Fn(f64) -> (crate::im::G2, Complex64),
 ) -> IcadReport {
     let (mut c, mut kg, mut gam, mut gam_h, mut coupling) = (vec![], vec![], vec![], vec![], 0.0f64);
-    let one = Complex64::new(1.0, 0.0);
     for &x in w {
-        let (g, k) = response(x);
-        let gamma = g.gamma();
-        let h2 = k * g.g22 / (one + k * g.g22);
-        let c1 = k * g.g11 * (one - gamma * h2);
-        let cpl = (g.g12 / g.g22 * h2 / (one + c1)).norm();
-        coupling = coupling.max(cpl);
-        c.push(c1);
-        kg.push(k * g.g11);
-        gam.push(gamma);
-        gam_h.push(gamma * h2);
+        let p = point(response(x));
+        coupling = coupling.max(p.coupling);
+        c.push(p.c1);
+        kg.push(p.kg11);
+        gam.push(p.gamma);
+        gam_h.push(p.gamma_h2);
     }
     let kg_wr = {
         let (g, k) = response(omega_r.abs().max(1e-3));
@@ -116,6 +111,42 @@ pub fn report(
         gm_min: gm_min(m),
         kg_at_omega_r_db: kg_wr,
     }
+}
+
+/// The ICAD functions at one frequency (eqs. (7)–(10)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IcadPoint {
+    /// Individual channel c₁ (7).
+    pub c1: Complex64,
+    /// k·g₁₁.
+    pub kg11: Complex64,
+    /// γ (8).
+    pub gamma: Complex64,
+    /// γ·h₂.
+    pub gamma_h2: Complex64,
+    /// |coupling| (10).
+    pub coupling: f64,
+}
+
+fn point((g, k): (crate::im::G2, Complex64)) -> IcadPoint {
+    let one = Complex64::new(1.0, 0.0);
+    let gamma = g.gamma();
+    let h2 = k * g.g22 / (one + k * g.g22);
+    let c1 = k * g.g11 * (one - gamma * h2);
+    IcadPoint {
+        c1,
+        kg11: k * g.g11,
+        gamma,
+        gamma_h2: gamma * h2,
+        coupling: (g.g12 / g.g22 * h2 / (one + c1)).norm(),
+    }
+}
+
+/// The ICAD functions of `law` on motor `m` at electrical rotor speed `omega_r`, at each
+/// frequency of `w` (rad/s) — what the certificate's pictures draw.
+pub fn curves(m: &MotorParams, law: &CurrentLaw, omega_r: f64, w: &[f64]) -> Vec<IcadPoint> {
+    let model = ImModel::new(m, omega_r);
+    w.iter().map(|&x| point((model.response(x), law.response(x)))).collect()
 }
 
 /// Controllable-canonical realisation (A, B, C, D) of a proper SISO `num/den`.

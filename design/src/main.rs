@@ -81,6 +81,10 @@ struct CertifyArgs {
     /// Print JSON.
     #[arg(long)]
     json: bool,
+    /// Also write the certificate's pictures (SVG) here: Nyquist plots of γ and γ·h₂ on
+    /// every corner, Bode plots of c₁ and k·g₁₁, the stable-speed sweep.
+    #[arg(long)]
+    plot_dir: Option<std::path::PathBuf>,
 }
 
 fn finite_speed(s: &str) -> Result<f64, String> {
@@ -160,6 +164,13 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
     let (spec, c) = design::certify::load(std::path::Path::new(&path))?;
     let checks = design::certify::certify(&spec, &c)?;
     let ok = checks.iter().all(|c| c.pass);
+    if let Some(dir) = &a.plot_dir {
+        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        for (name, svg) in design::certify::pictures(&spec, &c)? {
+            cli::write_atomic(&dir.join(name), &svg)?;
+        }
+        eprintln!("design: wrote the certificate's pictures to {}", dir.display());
+    }
     if json {
         let v: Vec<_> = checks
             .iter()

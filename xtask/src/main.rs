@@ -62,7 +62,18 @@ const DOC: Step = Step {
 };
 const CERTIFY: Step = Step::cargo(
     "certify",
-    &["run", "--quiet", "--release", "--package", "design", "--", "certify", "drive.toml"],
+    &[
+        "run",
+        "--quiet",
+        "--release",
+        "--package",
+        "design",
+        "--",
+        "certify",
+        "drive.toml",
+        "--plot-dir",
+        "target/certificate",
+    ],
 );
 const FAULTS: Step = Step::cargo(
     "fault-injection matrix (hil-sim faults)",
