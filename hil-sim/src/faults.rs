@@ -194,6 +194,16 @@ impl Outcome {
         }
     }
 
+    /// Table cells shared by the markdown and the terminal table: the periods to the bridge
+    /// off, the peak leg current ("—" when not measured) and the failures (": …", or empty).
+    pub fn cells(&self) -> (String, String, String) {
+        (
+            self.off_after_periods.map_or("—".into(), |n| n.to_string()),
+            if self.peak_leg_a > 0.0 { format!("{:.2}", self.peak_leg_a) } else { "—".into() },
+            if self.failures.is_empty() { String::new() } else { format!(": {}", self.failures.join("; ")) },
+        )
+    }
+
     /// What was seen, in words.
     pub fn seen(&self) -> String {
         match self.detected {
@@ -528,21 +538,19 @@ pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
         m.top_speed_rad_s
     );
     for o in rows {
+        let (off, leg, failures) = o.cells();
         s.push_str(&format!(
-            "| {} | {} | {:.1} | {} | {} | {} | {:.2} | {:.0} % | {} | {:.3} | {:?} | {}{} |\n",
+            "| {} | {} | {:.1} | {} | {} | {off} | {:.2} | {:.0} % | {leg} | {:.3} | {:?} | {}{failures} |\n",
             o.case.name,
             o.at.name(),
             o.speed_at_injection_rad_s,
             o.asked(),
             o.seen(),
-            o.off_after_periods.map_or("—".into(), |n| n.to_string()),
             o.peak_current_a,
             100.0 * o.peak_current_a / m.spec.protection.i_trip_a,
-            if o.peak_leg_a > 0.0 { format!("{:.2}", o.peak_leg_a) } else { "—".into() },
             o.energy_into_bus_j,
             o.final_mode,
             o.verdict(),
-            if o.failures.is_empty() { String::new() } else { format!(": {}", o.failures.join("; ")) },
         ));
     }
     let mut gaps: Vec<(&str, &str)> = rows

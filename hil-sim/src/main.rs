@@ -176,20 +176,18 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
         "final"
     );
     for o in &rows {
+        let (off, leg, failures) = o.cells();
         println!(
-            "{:<30} {:<22} {:>8.1} {:<40} {:<30} {:>4} {:>7.2} {:>7} {:>9.3} {:<22} {}{}",
+            "{:<30} {:<22} {:>8.1} {:<40} {:<30} {off:>4} {:>7.2} {leg:>7} {:>9.3} {:<22} {}{failures}",
             o.case.name,
             o.at.name(),
             o.speed_at_injection_rad_s,
             o.asked(),
             o.seen(),
-            o.off_after_periods.map_or("—".into(), |n| n.to_string()),
             o.peak_current_a,
-            if o.peak_leg_a > 0.0 { format!("{:.2}", o.peak_leg_a) } else { "—".into() },
             o.energy_into_bus_j,
             format!("{:?}", o.final_mode),
             o.verdict(),
-            if o.failures.is_empty() { String::new() } else { format!(": {}", o.failures.join("; ")) },
         );
     }
     let (failed, gaps) =
