@@ -124,6 +124,13 @@ struct FaultsArgs {
 fn faults(a: &FaultsArgs) -> Result<(), String> {
     use hil_sim::faults::Matrix;
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
+    let p = &file.spec.protection;
+    if !(a.vdc > p.vdc_min_v && a.vdc < p.vdc_max_v) {
+        return Err(format!(
+            "--vdc {} V lies outside the drive's bus range ({} … {} V of [protection]): every row would trip before its fault",
+            a.vdc, p.vdc_min_v, p.vdc_max_v
+        ));
+    }
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/faults"));
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     // Without [certify], the top speed is twice the base speed (the field-weakening range).

@@ -379,4 +379,8 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     let st = bin().args(["faults", "no-such-drive.toml", "--out"]).arg(&res).output().unwrap();
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("no-such-drive.toml"));
+    // A bus outside the drive's range: said before any row runs.
+    let st = bin().args(["faults", drive, "--vdc", "1000", "--out"]).arg(&res).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("outside the drive's bus range"));
 }
