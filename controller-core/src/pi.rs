@@ -155,6 +155,20 @@ impl<T: Scalar> PiState<T> {
 }
 
 impl PiConfig<f32> {
+    /// [`PiConfig::new`] with Tustin's integral, designed at run time in f32 (a gain found by
+    /// a measurement on the target, without soft-float f64): `kp`, `ki` as there, output
+    /// within `±u_max`. `None` unless the gains are finite and non-negative and `ts_s` and
+    /// `u_max` finite and positive.
+    pub fn tustin_f32(kp: f32, ki: f32, ts_s: f32, u_max: f32) -> Option<Self> {
+        let ok = |x: f32| x.is_finite() && x >= 0.0;
+        (ok(kp) && ok(ki) && ok(ts_s) && ts_s > 0.0 && ok(u_max) && u_max > 0.0).then_some(Self {
+            kp,
+            ki_over_k: ki * ts_s * 0.5,
+            u_min: -u_max,
+            u_max,
+        })
+    }
+
     pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
         for x in [self.kp, self.ki_over_k, self.u_min, self.u_max] {
             w.f(x);

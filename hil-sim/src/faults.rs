@@ -330,6 +330,13 @@ impl Matrix {
             Injection::SwitchOpen { .. } => {
                 Expect::Fault { fault: Fault::OpenPhase, bound_s: OPEN_PHASE_BOUND_S }
             }
+            // A wiring error made at installation, not a failure in service: commissioning
+            // refuses it (`hil_sim::identify`); not among the matrix's cases.
+            Injection::CurrentChannelsSwapped { .. } => Expect::Gap {
+                fault: Fault::CurrentSensor,
+                bound_s: SENSOR_BOUND_S,
+                why: "swapped current channels are an installation error, refused by commissioning",
+            },
             Injection::EncoderStuck if rest => Expect::Gap {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,

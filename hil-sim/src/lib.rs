@@ -22,6 +22,7 @@ pub mod bridge_fault;
 pub mod campaign;
 pub mod envelope;
 pub mod faults;
+pub mod identify;
 pub mod inverter;
 pub mod link_client;
 pub mod pil;

@@ -77,8 +77,179 @@ enum Cmd {
     /// bounds (`hil_sim::faults`). Prints the table, writes faults.md, faults.json and
     /// faults.svg, and exits 1 if a row fails.
     Faults(FaultsArgs),
+    /// Self-commissioning in software in the loop: controller-core's standstill sequence
+    /// (offsets and bus, voltage pulses for current direction and phase order, three DC
+    /// levels, two sinusoidal injections) on the simulated motor, with realistic sensors and
+    /// a switching inverter with 1 µs of dead time; prints what it identified against the
+    /// simulated motor and writes a motor file with intervals (nothing when it fails).
+    Identify(IdentifyArgs),
     /// Talk to the board's command/telemetry link on a serial port (115200 baud).
     Link(LinkArgs),
+}
+
+#[derive(Args, Debug)]
+struct IdentifyArgs {
+    /// The motor to simulate: a shipped motor's name, a motor file, a drive file or a
+    /// scenario file.
+    motor: String,
+    /// The motor file to write.
+    #[arg(long, value_parser = non_empty_path)]
+    out: PathBuf,
+    /// Test current, A: the higher DC level (the motor's rated peak current is a good
+    /// choice).
+    #[arg(long, value_parser = positive_amperes)]
+    test_current: f64,
+    /// Phase-current limit during the tests, A [default: 2 × the test current].
+    #[arg(long, value_parser = positive_amperes)]
+    current_limit: Option<f64>,
+    /// DC-bus voltage, V (the accepted range is ±20 % of it).
+    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
+    vdc: f64,
+    /// PWM frequency, Hz.
+    #[arg(long, default_value_t = 20_000.0)]
+    pwm_hz: f64,
+    /// Time each DC level is held, s (at least 4 rotor time constants).
+    #[arg(long, default_value_t = 3.0)]
+    level_time: f64,
+    /// Assumed leakage split L_lr/L_ls (the terminals cannot tell it; 1 is the usual equal
+    /// split, 1.5 IEEE 112's for NEMA design B).
+    #[arg(long, default_value_t = 1.0, value_parser = leakage_ratio)]
+    leakage_ratio: f64,
+    /// Seed of the sensors' noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Swap the current channels of phases b and c (a wiring error the sequence refuses).
+    #[arg(long)]
+    swap_current_channels: bool,
+}
+
+fn positive_amperes(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 && x <= 1e5 => Ok(x),
+        _ => Err(format!("`{s}` is not a current in (0, 100000] A")),
+    }
+}
+
+fn leakage_ratio(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if (0.1..=10.0).contains(&x) => Ok(x),
+        _ => Err(format!("`{s}` is not a leakage ratio L_lr/L_ls in [0.1, 10]")),
+    }
+}
+
+fn identify(a: &IdentifyArgs) -> Result<(), String> {
+    use controller_core::commission::{CommissionConfig, CommissionSpec, Stage};
+    use hil_sim::identify::{self, Setup};
+    let motor = drive_file::motor::load(&a.motor).map_err(|e| e.to_string())?;
+    let spec = CommissionSpec {
+        pwm_hz: a.pwm_hz as f32,
+        test_current_a: a.test_current as f32,
+        current_limit_a: a.current_limit.unwrap_or(2.0 * a.test_current) as f32,
+        vdc_min_v: (0.8 * a.vdc) as f32,
+        vdc_max_v: (1.2 * a.vdc) as f32,
+        level_time_s: a.level_time as f32,
+    };
+    let config = CommissionConfig::new(spec).map_err(|e| {
+        let why = match e {
+            controller_core::commission::CommissionSpecError::PwmFrequency => {
+                "--pwm-hz must lie in 1 … 100 kHz"
+            }
+            controller_core::commission::CommissionSpecError::TestCurrent => {
+                "--test-current must be positive"
+            }
+            controller_core::commission::CommissionSpecError::CurrentLimit => {
+                "--current-limit must be at least 1.5 × the test current"
+            }
+            controller_core::commission::CommissionSpecError::BusRange => "--vdc gives no bus range",
+            controller_core::commission::CommissionSpecError::LevelTime => {
+                "--level-time must lie between 192 PWM periods and 60 s"
+            }
+        };
+        why.to_string()
+    })?;
+    let mut setup = Setup::realistic(motor, config, a.vdc, a.seed);
+    if a.swap_current_channels {
+        setup.injections.push(hil_sim::sim::Injection::CurrentChannelsSwapped { first: 1, second: 2 });
+    }
+    let mut shown = (None, -1.0);
+    let (record, t) = identify::simulate(
+        &setup,
+        |stage: Stage, t_s| {
+            // Done or refused: the final call reports the simulation's allowance, not the time.
+            let running = stage.index() < Stage::COUNT;
+            if running && (shown.0 != Some(stage) || t_s - shown.1 >= 1.0) {
+                eprint!(
+                    "\rhil-sim: [{}/{}] {:<44} t = {t_s:5.1} s",
+                    stage.index() + 1,
+                    Stage::COUNT,
+                    identify::stage_name(stage)
+                );
+                shown = (Some(stage), t_s);
+            }
+        },
+        || INTERRUPTED.load(Ordering::Relaxed),
+    )
+    .map_err(|e| {
+        eprintln!();
+        e.to_string()
+    })?;
+    eprintln!();
+    let id = identify::estimate(&config, &record)?;
+    let (l_sigma, l_mm, r_rr, tr) = identify::inverse_gamma(&motor);
+    let tm = id.t_model(a.leakage_ratio);
+    let truth = identify::t_model(motor.rs_ohm(), l_sigma, l_mm, r_rr, a.leakage_ratio);
+    println!(
+        "motor time {t:.1} s; against the simulated motor (T-model under L_lr/L_ls = {}):",
+        a.leakage_ratio
+    );
+    println!(
+        "{:<12} {:>12} {:>26} {:>12} {:>8}",
+        "parameter", "identified", "interval", "simulated", "error"
+    );
+    let rows: [(&str, &identify::Estimate, f64); 5] = [
+        ("R_s Ω", &id.rs_ohm, motor.rs_ohm()),
+        ("σL_s H", &id.l_sigma_h, l_sigma),
+        ("T_r s", &id.tr_s, tr),
+        ("L_M H", &id.l_mm_h, l_mm),
+        ("R_R Ω", &id.r_rr_ohm, r_rr),
+    ];
+    let g = |x: f64| format!("{x:.5}");
+    for (name, e, x) in rows {
+        let iv = format!("[{}, {}]", g(e.interval[0]), g(e.interval[1]));
+        println!(
+            "{name:<12} {:>12} {iv:>26} {:>12} {:>+7.2}%",
+            g(e.value),
+            g(x),
+            100.0 * (e.value / x - 1.0)
+        );
+    }
+    let t_rows = [
+        ("R_r Ω", tm.rr_ohm, truth.rr_ohm),
+        ("L_s H", tm.ls_h, truth.ls_h),
+        ("L_r H", tm.lr_h, truth.lr_h),
+        ("L_m H", tm.lm_h, truth.lm_h),
+    ];
+    for (name, v, x) in t_rows {
+        println!("{name:<12} {:>12} {:>26} {:>12} {:>+7.2}%", g(v), "", g(x), 100.0 * (v / x - 1.0));
+    }
+    let ve = a.vdc * 1e-6 * a.pwm_hz;
+    println!(
+        "inverter voltage error {} V per phase (the simulated 1 µs dead time: {} V); offsets {:?} A",
+        g(id.inverter_error_v.value),
+        g(ve),
+        id.offsets_a.map(|o| (o * 1e5).round() / 1e5)
+    );
+    let about = format!(
+        "Simulated commissioning of `{}` (hil-sim identify: {} V bus, {} Hz PWM, test current {} A, seed {}).",
+        a.motor, a.vdc, a.pwm_hz, a.test_current, a.seed
+    );
+    let text =
+        identify::motor_file(&id, a.leakage_ratio, motor.pole_pairs(), motor.j_kgm2(), motor.b_nms(), &about);
+    // The file must load as a motor before it is written.
+    drive_file::motor::parse(&a.out, &text).map_err(|e| format!("the identified motor is not valid: {e}"))?;
+    write_text(&a.out, &text)?;
+    eprintln!("hil-sim: wrote {}", a.out.display());
+    Ok(())
 }
 
 #[derive(Args, Debug)]
@@ -890,6 +1061,10 @@ fn main() -> ExitCode {
         Cmd::Faults(a) => {
             stop_on_ctrl_c();
             faults(a)
+        }
+        Cmd::Identify(a) => {
+            stop_on_ctrl_c();
+            identify(a)
         }
         Cmd::Link(a) => board_link(a),
     };

@@ -109,6 +109,8 @@ pub struct Sensors {
     theta_base_rad: f64,
     /// Spurious counts to add at the next read (a glitch).
     glitch_counts: i64,
+    /// Two current channels wired to each other's phase (`swap_current_channels`).
+    swapped: Option<(usize, usize)>,
 }
 
 impl Sensors {
@@ -136,6 +138,7 @@ impl Sensors {
             count_base: 0,
             theta_base_rad: 0.0,
             glitch_counts: 0,
+            swapped: None,
         })
     }
 
@@ -165,8 +168,19 @@ impl Sensors {
             let i = true_abc.get(k).copied().unwrap_or(0.0);
             *o = quantize(g * i + off + noise, m.current_lsb_a) as f32;
         }
+        if let Some((p, q)) = self.swapped {
+            out.swap(p, q);
+        }
         let [a, b, c] = out;
         Abc { a, b, c }
+    }
+
+    /// From now on the current channels of phases `p` and `q` read each other's phase (a
+    /// wiring error between the shunts and the ADC inputs, or two motor leads swapped at
+    /// the sensors). Indices above 2 are taken as 2.
+    pub fn swap_current_channels(&mut self, p: usize, q: usize) {
+        self.swapped = Some((p.min(2), q.min(2)));
+        self.exact_currents = false;
     }
 
     /// From now on the current sensor of `phase` reads `gain·i + offset_a` (a fault).

@@ -45,6 +45,11 @@ pub trait DriveUnderTest {
     fn hardware_break(&mut self) -> Result<(), String> {
         Err("the hardware comparator's break is modelled for the in-process drive only".into())
     }
+    /// The controller has nothing more to do: the run may end early (asked every 2 000
+    /// periods). A drive never finishes.
+    fn finished(&self) -> bool {
+        false
+    }
 }
 
 impl DriveUnderTest for Drive {
@@ -105,6 +110,14 @@ pub enum Injection {
         gain: f64,
         /// New offset, A.
         offset_a: f64,
+    },
+    /// The current channels of phases `first` and `second` read each other's phase from
+    /// now on (swapped wiring; a commissioning check must refuse it).
+    CurrentChannelsSwapped {
+        /// Phase index 0…2.
+        first: usize,
+        /// Phase index 0…2.
+        second: usize,
     },
     /// The encoder counter stops counting (a lost or stuck encoder).
     EncoderStuck,
@@ -561,6 +574,9 @@ pub fn run(
                     Event::Fault(Injection::CurrentSensor { phase, gain, offset_a }) => {
                         sensors.fail_current_channel(phase, gain, offset_a);
                     }
+                    Event::Fault(Injection::CurrentChannelsSwapped { first, second }) => {
+                        sensors.swap_current_channels(first, second)
+                    }
                     Event::Fault(Injection::EncoderStuck) => sensors.freeze_encoder(),
                     Event::Fault(Injection::EncoderGlitch { counts }) => sensors.glitch_encoder(counts),
                     Event::Fault(Injection::EncoderLines { lines }) => {
@@ -731,6 +747,9 @@ pub fn run(
         if to_progress == 0 {
             to_progress = 1999;
             progress(k as f64 / n as f64);
+            if drive.finished() {
+                break;
+            }
         } else {
             to_progress -= 1;
         }

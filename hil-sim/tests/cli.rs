@@ -384,3 +384,74 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("outside the drive's bus range"));
 }
+
+/// `identify` writes a motor file that loads (its [motor] is the nominal T-model, its
+/// [identification] holds the intervals); a refused sequence exits 1 naming the reason and
+/// writes nothing; bad arguments exit 2.
+#[test]
+fn identify_writes_a_motor_file_or_nothing() {
+    let dir = tmp("identify");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("motor.toml");
+    let st = bin()
+        .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    let stdout = String::from_utf8_lossy(&st.stdout);
+    assert!(stdout.contains("R_s Ω") && stdout.contains("inverter voltage error"), "{stdout}");
+    let m = drive_file::motor::load(out.to_str().unwrap()).unwrap();
+    assert!((m.rs_ohm() / 16.2 - 1.0).abs() < 0.03, "{}", m.rs_ohm());
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("[identification]") && text.contains("sigma_ls_h = ["), "{text}");
+
+    let refused = dir.join("refused.toml");
+    let st = bin()
+        .args([
+            "identify",
+            "delorenzo-appendix",
+            "--test-current",
+            "1.24",
+            "--swap-current-channels",
+            "--out",
+        ])
+        .arg(&refused)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&st.stderr).contains("phase order"),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert!(!refused.exists());
+
+    for bad in [
+        vec!["identify", "delorenzo-appendix", "--test-current", "-1", "--out", "x.toml"],
+        vec![
+            "identify",
+            "delorenzo-appendix",
+            "--test-current",
+            "1",
+            "--leakage-ratio",
+            "0",
+            "--out",
+            "x.toml",
+        ],
+        vec!["identify", "delorenzo-appendix", "--out", "x.toml"],
+    ] {
+        let st = bin().args(&bad).current_dir(&dir).output().unwrap();
+        assert_eq!(st.status.code(), Some(2), "{bad:?}");
+    }
+    // A spec the sequence refuses to build: a usage error named, exit 1, nothing written.
+    let st = bin()
+        .args(["identify", "delorenzo-appendix", "--test-current", "1", "--current-limit", "1.2", "--out"])
+        .arg(&refused)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("--current-limit"));
+    assert!(!refused.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,680 @@
+//! Self-commissioning, host side (issue 20): run `controller_core::commission` against a
+//! simulated motor (software in the loop), estimate the motor from its [`Record`], and write
+//! a motor file with nominal values and intervals.
+//!
+//! # The model identified, and the leakage split
+//! Seen from its terminals, an induction machine at standstill is the *inverse-Γ* circuit:
+//! R_s, then L_σ = σL_s in series, then L_M = L_m²/L_r in parallel with R_R = R_r·(L_m/L_r)².
+//! Its rotor time constant is T_r = L_M/R_R = L_r/R_r and L_s = L_σ + L_M. These four values
+//! are all the terminals can tell; the T-model's five (R_s, R_r, L_s, L_r, L_m) need one
+//! more: how the leakage divides between stator and rotor, `k = L_lr/L_ls` (default 1, the
+//! usual equal split; IEEE Std 112 suggests 1.5 for NEMA design B, 1 for A and D). Control
+//! does not depend on it: the current loops see R_s, σL_s and the rotor branch; IFOC's slip
+//! gain needs T_r; the torque constant is 1.5·p·L_m²/L_r = 1.5·p·L_M; the rotor flux
+//! referred to the stator, (L_m/L_r)·ψ_r, and every transfer function from stator voltage
+//! to stator current are the same for every k (`split_leaves_the_terminals_unchanged`).
+//!
+//! # Estimation
+//! - **R_s and the inverter's voltage error**: the DC levels' settled voltages `c` against
+//!   their currents: `c = R_s·I + e` (two levels: the error e, constant while the phase
+//!   currents keep their sign, cancels). Along phase a, each phase's dead-time error
+//!   `−sign(i_x)·V_e` adds up to `−(4/3)·V_e` on the α axis, which the loop makes up:
+//!   e = (4/3)·V_e, so V_e = ¾·e; its dead-time equivalent is `V_e/V_dc` of the period.
+//! - **T_r and R_R** from each level step (the DC-decay test): with the current held by the
+//!   loop at the new level, the rotor flux settles with T_r, and the voltage carries
+//!   `dψ/dt = R_R·ΔI·e^{−t/T_r}` above its settled value. Each block mean is fitted by
+//!   `c + A·(mean of e^{−(t − t₀)/τ} over the block)`, weighted by the block's length, with
+//!   c and A by least squares for each τ and τ by a search on a logarithmic grid refined by
+//!   golden section (variable projection). t₀ is the current's mean lag behind its step
+//!   (from the record) less the 1.5 periods by which a commanded voltage precedes its
+//!   effect. R_R = A/ΔI, L_M = R_R·T_r.
+//! - **σL_s** from the injections: `Z(jω) = V̂·e^{−j1.5ωT}·sinc(ωT/2)/Î` (the voltage acts
+//!   one period late and is held for a period), and
+//!   `L_σ = (Im Z − Im Z_R)/ω` with the rotor branch `Z_R = jωL_M·R_R/(jωL_M + R_R)`.
+//!
+//! Every estimate is made once per repeat (two level pairs for R_s, three steps for T_r and
+//! R_R, two frequencies for L_σ); the nominal value is their mean, the interval spans them,
+//! widened by the stated margins ([`MARGIN`]).
+
+use crate::inverter::InverterModel;
+use crate::sensors::SensorModel;
+use crate::sim::{self, DriveUnderTest, Event, LoadModel, Scenario};
+use controller_core::commission::{
+    BLOCKS, CommissionConfig, CommissionOutput, Commissioning, LEVELS, Record, Refusal, Stage,
+};
+use controller_core::drive::{FastOutput, Measurements, Mode, Reference, Telemetry};
+use controller_core::frames::AlphaBeta;
+use controller_core::motor::MotorParams;
+use plant::Machine;
+use std::cell::Cell;
+use std::rc::Rc;
+
+/// Relative margin added on each side of the repeats' span, per parameter: the accuracy the
+/// identification is tested to on every shipped motor and on seeded random motors
+/// (`tests/identify.rs`) — what the repeats cannot show (a current sensor's gain error
+/// scales every impedance alike; the model's approximations).
+pub const MARGIN: Margins = Margins { rs: 0.03, l_sigma: 0.05, tr: 0.05, rr: 0.05, lm: 0.03 };
+
+/// Relative margins ([`MARGIN`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Margins {
+    /// R_s.
+    pub rs: f64,
+    /// σL_s.
+    pub l_sigma: f64,
+    /// T_r.
+    pub tr: f64,
+    /// R_r (and R_R).
+    pub rr: f64,
+    /// L_m, L_s, L_r (and L_M).
+    pub lm: f64,
+}
+
+/// A value and its interval.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Mean of the repeats.
+    pub value: f64,
+    /// Smallest and largest repeat, widened by the margin.
+    pub interval: [f64; 2],
+    /// Largest repeat over the smallest, minus one (the repeatability).
+    pub spread: f64,
+}
+
+impl Estimate {
+    fn of(repeats: &[f64], margin: f64) -> Self {
+        let n = repeats.len().max(1) as f64;
+        let value = repeats.iter().sum::<f64>() / n;
+        let lo = repeats.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = repeats.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        Self { value, interval: [lo * (1.0 - margin), hi * (1.0 + margin)], spread: hi / lo - 1.0 }
+    }
+
+    /// A derived value: `f` of the nominal values, its interval from `f` at the ends
+    /// (`f` monotonic in each argument: the caller passes the ends that bound it).
+    fn derived(value: f64, lo: f64, hi: f64) -> Self {
+        Self { value, interval: [lo.min(hi), hi.max(lo)], spread: f64::NAN }
+    }
+
+    /// `x` lies in the interval.
+    pub fn contains(&self, x: f64) -> bool {
+        self.interval[0] <= x && x <= self.interval[1]
+    }
+}
+
+/// One exponential fit of a level step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DecayFit {
+    /// Settled voltage, V.
+    pub c_v: f64,
+    /// Amplitude at the current's step, V.
+    pub a_v: f64,
+    /// Time constant, s.
+    pub tau_s: f64,
+    /// RMS of the weighted residual, V.
+    pub rms_v: f64,
+    /// Settled current of the level, A.
+    pub i_a: f64,
+}
+
+/// What the standstill sequence identified.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Identified {
+    /// Stator resistance, Ω.
+    pub rs_ohm: Estimate,
+    /// Transient inductance σL_s = L_σ, H.
+    pub l_sigma_h: Estimate,
+    /// Rotor time constant, s.
+    pub tr_s: Estimate,
+    /// Referred rotor resistance R_R = R_r·(L_m/L_r)², Ω.
+    pub r_rr_ohm: Estimate,
+    /// L_M = L_m²/L_r, H.
+    pub l_mm_h: Estimate,
+    /// The inverter's voltage error per phase V_e, V.
+    pub inverter_error_v: Estimate,
+    /// Current-channel offsets, A.
+    pub offsets_a: [f64; 3],
+    /// Mean bus voltage, V.
+    pub vdc_v: f64,
+    /// The decay fits of the three level steps.
+    pub decays: [DecayFit; 3],
+    /// Impedance measured at each injection: (ω rad/s, Re Z, Im Z).
+    pub impedance: [(f64, f64, f64); 2],
+}
+
+/// The T-model under a leakage split.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TModel {
+    /// Stator resistance, Ω.
+    pub rs_ohm: f64,
+    /// Rotor resistance, Ω.
+    pub rr_ohm: f64,
+    /// Stator self-inductance, H.
+    pub ls_h: f64,
+    /// Rotor self-inductance, H.
+    pub lr_h: f64,
+    /// Magnetizing inductance, H.
+    pub lm_h: f64,
+}
+
+/// The T-model with `L_lr/L_ls = ratio` whose terminals are R_s, L_σ, L_M, R_R.
+pub fn t_model(rs: f64, l_sigma: f64, l_mm: f64, r_rr: f64, ratio: f64) -> TModel {
+    let ls = l_sigma + l_mm;
+    // L_M·(L_m + k·(L_s − L_m)) = L_m²: the positive root.
+    let b = l_mm * (1.0 - ratio);
+    let lm = 0.5 * (b + (b * b + 4.0 * ratio * l_mm * ls).sqrt());
+    let lr = lm * lm / l_mm;
+    TModel { rs_ohm: rs, rr_ohm: r_rr * (lr / lm).powi(2), ls_h: ls, lr_h: lr, lm_h: lm }
+}
+
+impl Identified {
+    /// The T-model at the nominal values, with leakage ratio `ratio`.
+    pub fn t_model(&self, ratio: f64) -> TModel {
+        t_model(self.rs_ohm.value, self.l_sigma_h.value, self.l_mm_h.value, self.r_rr_ohm.value, ratio)
+    }
+
+    /// Intervals of the T-model's parameters under `ratio`: each from the inverse-Γ
+    /// intervals' ends (R_r grows with R_R; L_m, L_s, L_r with L_σ and L_M).
+    pub fn t_intervals(&self, ratio: f64) -> [(&'static str, Estimate); 5] {
+        let n = self.t_model(ratio);
+        let [sl, sh] = self.l_sigma_h.interval;
+        let [ml, mh] = self.l_mm_h.interval;
+        let [rl, rh] = self.r_rr_ohm.interval;
+        let lo = t_model(self.rs_ohm.value, sl, ml, rl, ratio);
+        let hi = t_model(self.rs_ohm.value, sh, mh, rh, ratio);
+        // R_r = R_R·(L_r/L_m)²; (L_r/L_m)² depends on L_σ and L_M in opposite senses: its
+        // bounds from the cross ends.
+        let ratio2 = |s: f64, m: f64| {
+            let t = t_model(1.0, s, m, 1.0, ratio);
+            t.rr_ohm
+        };
+        let q = [ratio2(sl, ml), ratio2(sl, mh), ratio2(sh, ml), ratio2(sh, mh)];
+        let (qmin, qmax) =
+            q.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        [
+            ("rs_ohm", self.rs_ohm),
+            ("rr_ohm", Estimate::derived(n.rr_ohm, rl * qmin, rh * qmax)),
+            ("ls_h", Estimate::derived(n.ls_h, lo.ls_h, hi.ls_h)),
+            ("lr_h", Estimate::derived(n.lr_h, lo.lr_h, hi.lr_h)),
+            ("lm_h", Estimate::derived(n.lm_h, lo.lm_h, hi.lm_h)),
+        ]
+    }
+}
+
+/// Mean over periods `a..e` of `q^(k − k0)`.
+fn block_mean(q: f64, a: f64, e: f64, k0: f64) -> f64 {
+    let n = e - a;
+    if (1.0 - q).abs() < 1e-12 {
+        return q.powf(a - k0);
+    }
+    q.powf(a - k0) * (1.0 - q.powf(n)) / (n * (1.0 - q))
+}
+
+/// Weighted least squares of `y ≈ c + A·g` for fixed g: (c, A, Σw·r²).
+fn fit_linear(w: &[f64], g: &[f64], y: &[f64]) -> (f64, f64, f64) {
+    let (mut s, mut sg, mut sgg, mut sy, mut sgy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for ((w, g), y) in w.iter().zip(g).zip(y) {
+        s += w;
+        sg += w * g;
+        sgg += w * g * g;
+        sy += w * y;
+        sgy += w * g * y;
+    }
+    let det = s * sgg - sg * sg;
+    if det.abs() < 1e-300 {
+        let c = sy / s;
+        return (c, 0.0, w.iter().zip(y).map(|(w, y)| w * (y - c).powi(2)).sum());
+    }
+    let c = (sgg * sy - sg * sgy) / det;
+    let a = (s * sgy - sg * sy) / det;
+    let ssr = w.iter().zip(g).zip(y).map(|((w, g), y)| w * (y - c - a * g).powi(2)).sum();
+    (c, a, ssr)
+}
+
+/// Periods of the loop's transient after a step left out of the decay fit: ten time
+/// constants of the current loop (`1/ω_c` is `LOOP_BANDWIDTH_DIVIDER/2π` periods).
+fn skip_periods() -> f64 {
+    10.0 * f64::from(controller_core::commission::LOOP_BANDWIDTH_DIVIDER) / (2.0 * std::f64::consts::PI)
+}
+
+/// Fits one level's record (see the module docs).
+fn fit_decay(cfg: &CommissionConfig, rec: &Record, level: usize) -> Result<DecayFit, String> {
+    let lv = rec.levels.get(level).ok_or("no such level")?;
+    let ts = f64::from(cfg.ts_s());
+    let ends: Vec<f64> = cfg.block_end().iter().map(|&e| f64::from(e)).collect();
+    let starts: Vec<f64> = std::iter::once(0.0).chain(ends.iter().copied()).take(BLOCKS).collect();
+    let settled = |x: &[f32; BLOCKS]| -> f64 {
+        // The last three blocks, weighted by length.
+        let (mut s, mut n) = (0.0, 0.0);
+        for b in BLOCKS - 3..BLOCKS {
+            let len = ends[b] - starts[b];
+            s += f64::from(x[b]) * len;
+            n += len;
+        }
+        s / n
+    };
+    let i_now = settled(&lv.i_alpha_a);
+    let i_before = if level == 0 { 0.0 } else { settled(&rec.levels[level - 1].i_alpha_a) };
+    let ref_before = if level == 0 { 0.0 } else { f64::from(rec.levels[level - 1].i_ref_a) };
+    let step_ref = f64::from(lv.i_ref_a) - ref_before;
+    let lag = if step_ref.abs() > 0.0 { f64::from(lv.lag_a_periods) / step_ref } else { 0.0 };
+    let k0 = lag - 1.5;
+    let skip = skip_periods();
+    let keep: Vec<usize> = (0..BLOCKS).filter(|&b| starts[b] >= skip).collect();
+    let w: Vec<f64> = keep.iter().map(|&b| ends[b] - starts[b]).collect();
+    let y: Vec<f64> = keep.iter().map(|&b| f64::from(lv.v_alpha_v[b])).collect();
+    let ssr_at = |tau: f64| {
+        let q = (-1.0 / (tau / ts)).exp();
+        let g: Vec<f64> = keep.iter().map(|&b| block_mean(q, starts[b], ends[b], k0)).collect();
+        let (c, a, ssr) = fit_linear(&w, &g, &y);
+        (ssr, c, a)
+    };
+    // Logarithmic grid from 2 periods to 10 levels, then golden section on ln τ.
+    let level_s = f64::from(cfg.level_periods()) * ts;
+    let (lo, hi) = ((2.0 * ts).ln(), (10.0 * level_s).ln());
+    let grid = 200;
+    let x_at = |j: usize| lo + (hi - lo) * j as f64 / grid as f64;
+    let best = (0..=grid)
+        .map(|j| (j, ssr_at(x_at(j).exp()).0))
+        .fold((0, f64::INFINITY), |acc, (j, s)| if s < acc.1 { (j, s) } else { acc })
+        .0;
+    let (mut a, mut b) = (x_at(best.saturating_sub(1)), x_at((best + 1).min(grid)));
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..80 {
+        let (x1, x2) = (b - g * (b - a), a + g * (b - a));
+        if ssr_at(x1.exp()).0 < ssr_at(x2.exp()).0 {
+            b = x2;
+        } else {
+            a = x1;
+        }
+    }
+    let tau = (0.5 * (a + b)).exp();
+    let (ssr, c, amp) = ssr_at(tau);
+    let wsum: f64 = w.iter().sum();
+    if tau > 0.5 * level_s {
+        return Err(format!(
+            "level {level}: the rotor time constant ({tau:.3} s) is longer than half a level ({:.3} s): \
+             hold the levels longer (--level-time ≥ {:.1} s)",
+            0.5 * level_s,
+            4.0 * tau
+        ));
+    }
+    if !(i_now - i_before).is_finite() || (i_now - i_before).abs() < 1e-9 {
+        return Err(format!("level {level}: the current did not step"));
+    }
+    Ok(DecayFit { c_v: c, a_v: amp, tau_s: tau, rms_v: (ssr / wsum).sqrt(), i_a: i_now })
+}
+
+/// Estimates the motor from a finished sequence's record (see the module docs).
+pub fn estimate(cfg: &CommissionConfig, rec: &Record) -> Result<Identified, String> {
+    let ts = f64::from(cfg.ts_s());
+    let decays = [fit_decay(cfg, rec, 0)?, fit_decay(cfg, rec, 1)?, fit_decay(cfg, rec, 2)?];
+    let [d0, d1, d2] = decays;
+    // R_s from the two level pairs; the voltage error from each level's line.
+    let rs = [(d1.c_v - d0.c_v) / (d1.i_a - d0.i_a), (d1.c_v - d2.c_v) / (d1.i_a - d2.i_a)];
+    let rs_mean = 0.5 * (rs[0] + rs[1]);
+    let e: Vec<f64> = decays.iter().map(|d| 0.75 * (d.c_v - rs_mean * d.i_a)).collect();
+    // Each step: R_R = A/ΔI, T_r = τ.
+    let steps = [(d0, 0.0), (d1, d0.i_a), (d2, d1.i_a)];
+    let r_rr: Vec<f64> = steps.iter().map(|(d, before)| d.a_v / (d.i_a - before)).collect();
+    let tr: Vec<f64> = decays.iter().map(|d| d.tau_s).collect();
+    if r_rr.iter().chain(&tr).chain(&rs).any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(format!(
+            "the DC levels do not fit an induction machine (R_s {rs:?} Ω, R_R {r_rr:?} Ω, T_r {tr:?} s)"
+        ));
+    }
+    let rs_est = Estimate::of(&rs, MARGIN.rs);
+    let rr_est = Estimate::of(&r_rr, MARGIN.rr);
+    let tr_est = Estimate::of(&tr, MARGIN.tr);
+    let l_mm: Vec<f64> = r_rr.iter().zip(&tr).map(|(r, t)| r * t).collect();
+    let lmm_est = Estimate::of(&l_mm, MARGIN.lm);
+    // σL_s from each injection.
+    let mut impedance = [(0.0, 0.0, 0.0); 2];
+    let mut l_sigma = Vec::new();
+    for (slot, j) in impedance.iter_mut().zip(&rec.injections) {
+        let n = f64::from(j.periods_per_cycle);
+        let w = 2.0 * std::f64::consts::PI / (n * ts);
+        // x = X_s·sin φ + X_c·cos φ = Re((X_c − jX_s)·e^{jφ}).
+        let phasor = |sc: [f32; 2]| (f64::from(sc[1]), -f64::from(sc[0]));
+        let (vr, vi) = phasor(j.v_sin_cos);
+        let (ir, ii) = phasor(j.i_sin_cos);
+        let half = 0.5 * w * ts;
+        let (dr, di) = ((-3.0 * half).cos(), (-3.0 * half).sin());
+        let sinc = half.sin() / half;
+        let (var, vai) = ((vr * dr - vi * di) * sinc, (vr * di + vi * dr) * sinc);
+        let den = ir * ir + ii * ii;
+        if den.is_nan() || den <= 0.0 {
+            return Err("no current answered the injection".into());
+        }
+        let (zr, zi) = ((var * ir + vai * ii) / den, (vai * ir - var * ii) / den);
+        *slot = (w, zr, zi);
+        // Rotor branch jωL_M·R_R/(jωL_M + R_R): imaginary part ω·L_M·R_R²/(R_R² + ω²L_M²).
+        let (lm, rr) = (lmm_est.value, rr_est.value);
+        let zb_im = w * lm * rr * rr / (rr * rr + w * w * lm * lm);
+        l_sigma.push((zi - zb_im) / w);
+    }
+    if l_sigma.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(format!("the injections give no positive transient inductance ({l_sigma:?} H)"));
+    }
+    let offsets_a = rec.offsets_a.map(f64::from);
+    Ok(Identified {
+        rs_ohm: rs_est,
+        l_sigma_h: Estimate::of(&l_sigma, MARGIN.l_sigma),
+        tr_s: tr_est,
+        r_rr_ohm: rr_est,
+        l_mm_h: lmm_est,
+        inverter_error_v: Estimate::of(&e, 0.0),
+        offsets_a,
+        vdc_v: f64::from(rec.vdc_v),
+        decays,
+        impedance,
+    })
+}
+
+/// The true values the identification should find for `m`: (L_σ, L_M, R_R, T_r).
+pub fn inverse_gamma(m: &MotorParams) -> (f64, f64, f64, f64) {
+    let k = m.lm_h() / m.lr_h();
+    let l_sigma = m.ls_h() - m.lm_h() * k;
+    let l_mm = m.lm_h() * k;
+    let r_rr = m.rr_ohm() * k * k;
+    (l_sigma, l_mm, r_rr, m.lr_h() / m.rr_ohm())
+}
+
+/// A simulated commissioning: the motor, the board and what the user states.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setup {
+    /// The motor the simulator runs (unknown to the sequence).
+    pub motor: MotorParams,
+    /// The sequence's configuration.
+    pub config: CommissionConfig,
+    /// Bus voltage, V.
+    pub vdc_v: f64,
+    /// Sensors.
+    pub sensors: SensorModel,
+    /// Inverter.
+    pub inverter: InverterModel,
+    /// Things done to the hardware at t = 0 (a swapped pair of current channels…).
+    pub injections: Vec<sim::Injection>,
+}
+
+impl Setup {
+    /// The acceptance's setup: a switching inverter with 1 µs of dead time, and the realistic
+    /// front end of `SensorModel::realistic` with its current range (and so its LSB, noise
+    /// and offset) widened to 8× the test current when that exceeds its ±16.5 A.
+    pub fn realistic(motor: MotorParams, config: CommissionConfig, vdc_v: f64, seed: u64) -> Self {
+        let mut sensors = SensorModel::realistic(seed);
+        let range_a = 3.3 / 2.0 / 0.1;
+        let scale = (8.0 * f64::from(config.spec().test_current_a) / range_a).max(1.0);
+        sensors.current_lsb_a *= scale;
+        sensors.current_noise_rms_a *= scale;
+        sensors.current_offset_a = sensors.current_offset_a.map(|o| o * scale);
+        Self {
+            motor,
+            config,
+            vdc_v,
+            sensors,
+            inverter: InverterModel::Switching { dead_time_s: 1e-6 },
+            injections: Vec::new(),
+        }
+    }
+}
+
+/// [`Commissioning`] as the simulator's controller.
+struct Sequence {
+    c: Commissioning,
+    stage: Rc<Cell<Stage>>,
+}
+
+impl DriveUnderTest for Sequence {
+    fn slow_divider(&self) -> u16 {
+        10
+    }
+    fn enable(&mut self) -> Result<(), String> {
+        Ok(())
+    }
+    fn set_reference(&mut self, _: Reference) -> Result<(), String> {
+        Err("a commissioning sequence takes no reference".into())
+    }
+    fn controlled_stop(&mut self) -> Result<(), String> {
+        self.c.abort();
+        Ok(())
+    }
+    fn step(&mut self, m: &Measurements) -> FastOutput {
+        let CommissionOutput { phases, stage, v_ab_v, i_ref_alpha_a } = self.c.step(m);
+        self.stage.set(stage);
+        FastOutput {
+            phases,
+            mode: if matches!(stage, Stage::Done | Stage::Refused(_)) { Mode::Idle } else { Mode::Running },
+            brake: false,
+            telemetry: Telemetry {
+                v_ab_v,
+                i_ref_ab_a: AlphaBeta { alpha: i_ref_alpha_a, beta: 0.0 },
+                ..Telemetry::default()
+            },
+        }
+    }
+    fn finished(&self) -> bool {
+        matches!(self.c.stage(), Stage::Done | Stage::Refused(_))
+    }
+}
+
+/// Why a simulated commissioning did not give a record.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RunError {
+    /// The sequence refused (the bridge went off).
+    Refused(Refusal),
+    /// The simulation failed.
+    Simulation(String),
+    /// Stopped by the caller.
+    Interrupted,
+}
+
+impl std::fmt::Display for RunError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RunError::Refused(r) => write!(f, "commissioning refused: {}", describe(r)),
+            RunError::Simulation(e) => write!(f, "simulation: {e}"),
+            RunError::Interrupted => write!(f, "interrupted"),
+        }
+    }
+}
+
+/// A refusal in words.
+pub fn describe(r: &Refusal) -> String {
+    match r {
+        Refusal::BusOutOfRange(v) => format!("the bus reads {v} V, outside the accepted range"),
+        Refusal::BusUnsteady(v) => format!("the bus varied by {v} V with the bridge off"),
+        Refusal::OffsetTooLarge { channel, offset_a } => {
+            format!("current channel {} reads {offset_a} A with the bridge off", phase_name(*channel))
+        }
+        Refusal::NoCurrent => {
+            "the current rose by less than a quarter of the test current after the largest voltage pulse \
+             (an open lead, no motor, dead sensors — or a test current too large for this bus)"
+                .into()
+        }
+        Refusal::PhaseOrder => {
+            "phase order: phase b's pulse answered along c and c's along b (current channels swapped)".into()
+        }
+        Refusal::CurrentSign => {
+            "every current answered against its pulse (current sensors' sign inverted)".into()
+        }
+        Refusal::CurrentDirection { phase } => {
+            format!("the current answered phase {}'s pulse in another direction", phase_name(*phase))
+        }
+        Refusal::NoDecay => "the current did not decay after a pulse".into(),
+        Refusal::Overcurrent(i) => format!("a phase current of {i} A exceeded the limit"),
+        Refusal::VoltageLimit => "the test current needs more voltage than the bus gives (lower it)".into(),
+        Refusal::NonFinite => "a measurement was not finite".into(),
+        Refusal::Aborted => "aborted".into(),
+    }
+}
+
+fn phase_name(p: u8) -> char {
+    match p {
+        0 => 'a',
+        1 => 'b',
+        _ => 'c',
+    }
+}
+
+/// A stage in words, for progress displays.
+pub fn stage_name(s: Stage) -> String {
+    match s {
+        Stage::Offsets => "offsets and bus (bridge off)".into(),
+        Stage::Pulse(p) => format!("voltage pulse along phase {}", phase_name(p)),
+        Stage::Level(l) => format!(
+            "DC level {} of 3 ({} × the test current)",
+            l + 1,
+            LEVELS.get(usize::from(l)).copied().unwrap_or(0.0)
+        ),
+        Stage::Injection(j) => format!("sinusoidal injection {} of 2", j + 1),
+        Stage::Done => "done".into(),
+        Stage::Refused(_) => "refused".into(),
+    }
+}
+
+/// Runs the sequence in SIL: the record, and the motor time it took (s).
+/// `progress(stage, t_s)` is called every 2 000 periods; `interrupted()` stops the run.
+pub fn simulate(
+    setup: &Setup,
+    mut progress: impl FnMut(Stage, f64),
+    interrupted: impl Fn() -> bool,
+) -> Result<(Record, f64), RunError> {
+    let cfg = setup.config;
+    let ts = f64::from(cfg.ts_s());
+    let stage = Rc::new(Cell::new(Stage::Offsets));
+    let mut seq = Sequence { c: Commissioning::new(cfg), stage: Rc::clone(&stage) };
+    let scenario = Scenario {
+        events: setup.injections.iter().map(|&i| (0.0, Event::Fault(i))).collect(),
+        duration_s: cfg.max_periods() as f64 * ts,
+        vdc_v: setup.vdc_v,
+        substeps: 4,
+        trace_every: 2000,
+        sensors: setup.sensors,
+        load: LoadModel::Torque,
+        inverter: setup.inverter,
+        dc_link: None,
+        comparator: None,
+    };
+    let machine = Machine::new(&setup.motor);
+    let mut last_t = 0.0;
+    let result = sim::run(
+        &mut seq,
+        &machine,
+        1.0 / ts,
+        &scenario,
+        |f| progress(stage.get(), f * scenario.duration_s),
+        |row| {
+            last_t = row.t_s;
+            if interrupted() { Err("interrupted".into()) } else { Ok(()) }
+        },
+    );
+    match result {
+        Err(_) if interrupted() => return Err(RunError::Interrupted),
+        Err(e) => return Err(RunError::Simulation(e)),
+        Ok(_) => {}
+    }
+    match seq.c.stage() {
+        Stage::Refused(r) => Err(RunError::Refused(r)),
+        _ => match seq.c.record() {
+            Some(r) => Ok((*r, last_t)),
+            None => Err(RunError::Simulation("the sequence did not finish in the time allowed".into())),
+        },
+    }
+}
+
+/// The motor file: `[motor]` at the nominal values under `ratio`, with `pole_pairs`, `j`, `b`
+/// as given (not identified at standstill), and `[identification]` with the intervals and
+/// the inverter's error.
+pub fn motor_file(
+    id: &Identified,
+    ratio: f64,
+    pole_pairs: u8,
+    j_kgm2: f64,
+    b_nms: f64,
+    about: &str,
+) -> String {
+    let t = id.t_model(ratio);
+    let n = drive_file::source::num;
+    let iv = |e: &Estimate| format!("[{}, {}]", n(e.interval[0]), n(e.interval[1]));
+    let mut s = String::new();
+    for line in about.lines() {
+        s.push_str(&format!("# {line}\n"));
+    }
+    s.push_str(&format!(
+        "# Identified at standstill by controller-core's commissioning sequence (hil_sim::identify).\n\
+         # The leakage split L_lr/L_ls = {} is assumed (the terminals cannot tell it; control does not\n\
+         # depend on it). pole_pairs, j_kgm2 and b_nms are as given, not identified.\n\
+         [motor]\n\
+         rs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = {}\nlm_h = {}\npole_pairs = {pole_pairs}\nj_kgm2 = {}\nb_nms = {}\n\n",
+        n(ratio),
+        n(t.rs_ohm),
+        n(t.rr_ohm),
+        n(t.ls_h),
+        n(t.lr_h),
+        n(t.lm_h),
+        n(j_kgm2),
+        n(b_nms),
+    ));
+    s.push_str(
+        "# Intervals: the repeats' span widened by the stated margins (hil_sim::identify::MARGIN).\n\
+         [identification]\n",
+    );
+    s.push_str(&format!("leakage_ratio = {}\n", n(ratio)));
+    for (key, e) in id.t_intervals(ratio) {
+        s.push_str(&format!("{key} = {}\n", iv(&e)));
+    }
+    s.push_str(&format!(
+        "sigma_ls_h = {}\ntr_s = {}\nl_mm_h = {}\nr_rr_ohm = {}\n",
+        iv(&id.l_sigma_h),
+        iv(&id.tr_s),
+        iv(&id.l_mm_h),
+        iv(&id.r_rr_ohm)
+    ));
+    s.push_str(&format!(
+        "# Inverter voltage error per phase (dead time and switch drops) at {} V, and its share of the bus:\n\
+         inverter_error_v = {}\ndead_time_duty = {}\ncurrent_offsets_a = [{}, {}, {}]\n",
+        n(id.vdc_v),
+        n(id.inverter_error_v.value),
+        n(id.inverter_error_v.value / id.vdc_v),
+        n(id.offsets_a[0]),
+        n(id.offsets_a[1]),
+        n(id.offsets_a[2]),
+    ));
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The T-models of one set of terminals under different splits have the same standstill
+    /// impedance at every frequency.
+    #[test]
+    fn split_leaves_the_terminals_unchanged() {
+        let z = |t: &TModel, w: f64| {
+            // R_s + jωL_ls + (jωL_m ∥ (R_r + jωL_lr)).
+            let (lls, llr) = (t.ls_h - t.lm_h, t.lr_h - t.lm_h);
+            let (ar, ai) = (0.0, w * t.lm_h);
+            let (br, bi) = (t.rr_ohm, w * llr);
+            let (nr, ni) = (ar * br - ai * bi, ar * bi + ai * br);
+            let (dr, di) = (ar + br, ai + bi);
+            let d = dr * dr + di * di;
+            (t.rs_ohm + (nr * dr + ni * di) / d, w * lls + (ni * dr - nr * di) / d)
+        };
+        let m = MotorParams::new(16.2, 23.2, 1.44, 1.5, 1.42, 1, 0.005, 0.0005).unwrap();
+        let (ls, lmm, rrr, _) = inverse_gamma(&m);
+        let truth = TModel { rs_ohm: 16.2, rr_ohm: 23.2, ls_h: 1.44, lr_h: 1.5, lm_h: 1.42 };
+        for ratio in [0.2, 1.0, 1.5, 4.0] {
+            let t = t_model(16.2, ls, lmm, rrr, ratio);
+            assert!(((t.lr_h - t.lm_h) / (t.ls_h - t.lm_h) - ratio).abs() < 1e-9);
+            for w in [1.0, 30.0, 1e3] {
+                let (a, b) = (z(&t, w), z(&truth, w));
+                assert!((a.0 - b.0).abs() < 1e-9 * b.0.abs() + 1e-9 && (a.1 - b.1).abs() < 1e-9 * b.1.abs());
+            }
+        }
+        // The motor's own split gives the motor back.
+        let own = t_model(16.2, ls, lmm, rrr, (1.5 - 1.42) / (1.44 - 1.42));
+        assert!((own.lm_h - 1.42).abs() < 1e-9 && (own.rr_ohm - 23.2).abs() < 1e-9, "{own:?}");
+    }
+}

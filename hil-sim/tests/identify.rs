@@ -1,0 +1,127 @@
+//! Issue 20's acceptance in SIL: the standstill commissioning (`controller_core::commission`
+//! measuring, `hil_sim::identify` estimating) on every shipped motor and on seeded random
+//! motors, with realistic sensors (12-bit ADC with offset, gain error and noise) and a
+//! switching inverter with 1 µs of dead time.
+#![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
+
+use controller_core::commission::{CommissionConfig, CommissionSpec, Refusal};
+use controller_core::motor::MotorParams;
+use hil_sim::identify::{self, Identified, RunError, Setup};
+use hil_sim::sim::Injection;
+
+const PWM_HZ: f32 = 20_000.0;
+const DEAD_TIME_S: f64 = 1e-6;
+
+fn spec(test_current_a: f32, vdc_v: f32) -> CommissionSpec {
+    CommissionSpec {
+        pwm_hz: PWM_HZ,
+        test_current_a,
+        current_limit_a: 2.0 * test_current_a,
+        vdc_min_v: 0.8 * vdc_v,
+        vdc_max_v: 1.2 * vdc_v,
+        level_time_s: 3.0,
+    }
+}
+
+fn setup(m: MotorParams, i_test: f32, vdc: f64, seed: u64) -> Setup {
+    let cfg = CommissionConfig::new(spec(i_test, vdc as f32)).unwrap();
+    Setup::realistic(m, cfg, vdc, seed)
+}
+
+fn identify(s: &Setup) -> (Identified, f64) {
+    let (rec, t) = identify::simulate(s, |_, _| {}, || false).unwrap();
+    (identify::estimate(&s.config, &rec).unwrap(), t)
+}
+
+/// Issue 20's bounds: R_s and L_m within 3 %; σL_s, R_r and T_r within 5 %; offsets within
+/// 1 LSB; the inverter's voltage error within 10 %; every interval holds the true value;
+/// ≤ 30 s of motor time. L_m and R_r are compared under the motor's own leakage split (the
+/// terminals cannot tell the split: `identify`'s module docs); the split-free L_M = L_m²/L_r
+/// and R_R = R_r·(L_m/L_r)² are held to the same bounds.
+fn check(name: &str, m: &MotorParams, s: &Setup) -> String {
+    let (id, t) = identify(s);
+    let (l_sigma, l_mm, r_rr, tr) = identify::inverse_gamma(m);
+    let own_split = (m.lr_h() - m.lm_h()) / (m.ls_h() - m.lm_h());
+    let tm = id.t_model(own_split);
+    let intervals = id.t_intervals(own_split);
+    let rel = |a: f64, b: f64| a / b - 1.0;
+    let errors = [
+        ("R_s", rel(id.rs_ohm.value, m.rs_ohm()), 0.03, id.rs_ohm.contains(m.rs_ohm())),
+        ("σL_s", rel(id.l_sigma_h.value, l_sigma), 0.05, id.l_sigma_h.contains(l_sigma)),
+        ("T_r", rel(id.tr_s.value, tr), 0.05, id.tr_s.contains(tr)),
+        ("R_R", rel(id.r_rr_ohm.value, r_rr), 0.05, id.r_rr_ohm.contains(r_rr)),
+        ("L_M", rel(id.l_mm_h.value, l_mm), 0.03, id.l_mm_h.contains(l_mm)),
+        ("R_r", rel(tm.rr_ohm, m.rr_ohm()), 0.05, intervals[1].1.contains(m.rr_ohm())),
+        ("L_m", rel(tm.lm_h, m.lm_h()), 0.03, intervals[4].1.contains(m.lm_h())),
+        ("L_s", rel(tm.ls_h, m.ls_h()), 0.03, intervals[2].1.contains(m.ls_h())),
+        ("L_r", rel(tm.lr_h, m.lr_h()), 0.03, intervals[3].1.contains(m.lr_h())),
+    ];
+    let mut line = format!("{name:<24}");
+    for (what, e, bound, inside) in errors {
+        assert!(e.abs() <= bound, "{name}: {what} off by {:+.2} % (bound {} %)", 100.0 * e, 100.0 * bound);
+        assert!(inside, "{name}: the interval of {what} misses the true value");
+        line += &format!(" {what} {:+.2} %", 100.0 * e);
+    }
+    let lsb = s.sensors.current_lsb_a;
+    for (k, (got, truth)) in id.offsets_a.iter().zip(s.sensors.current_offset_a).enumerate() {
+        assert!((got - truth).abs() <= lsb, "{name}: offset {k}: {got} A against {truth} A (LSB {lsb} A)");
+    }
+    let ve = s.vdc_v * DEAD_TIME_S * f64::from(PWM_HZ);
+    let e_ve = rel(id.inverter_error_v.value, ve);
+    assert!(e_ve.abs() <= 0.10, "{name}: inverter error {} V against {ve} V", id.inverter_error_v.value);
+    assert!(t <= 30.0, "{name}: {t} s of motor time");
+    line + &format!(" V_e {:+.2} %, {t:.1} s", 100.0 * e_ve)
+}
+
+/// Every shipped motor; the 500 hp Krause machine on a 2300 V-class bus (3 250 V) at 100 A.
+#[test]
+fn every_shipped_motor_is_identified_within_the_bounds() {
+    for (name, _) in drive_file::motor::BUILTIN {
+        let m = drive_file::motor::load(name).unwrap();
+        let (i, vdc) = if m.rs_ohm() < 1.0 { (100.0, 3250.0) } else { (1.24, 310.0) };
+        println!("{}", check(name, &m, &setup(m, i, vdc, 7)));
+    }
+}
+
+/// Motors the code has never seen: random parameters within a physical range (a 2 % to
+/// 10 % leakage on each side, unequal; L_m 0.05…2 H; T_r 20…600 ms; L_s/R_s 10…200 ms;
+/// R_s·I 10…40 V on a 310 V bus).
+#[test]
+fn seeded_random_motors_meet_the_same_bounds() {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = |lo: f64, hi: f64| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        lo + (hi - lo) * (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for k in 0..6 {
+        let lm = (uniform(0.05f64.ln(), 2f64.ln())).exp();
+        let (ls, lr) = (lm * (1.0 + uniform(0.02, 0.1)), lm * (1.0 + uniform(0.02, 0.1)));
+        let rr = lr / uniform(0.02, 0.6);
+        let rs = ls / uniform(0.01, 0.2);
+        let i = (uniform(10.0, 40.0) / rs) as f32;
+        let m = MotorParams::new(rs, rr, ls, lr, lm, 2, 0.01, 0.0).unwrap();
+        println!("{}", check(&format!("random {k} (I = {i:.2} A)"), &m, &setup(m, i, 310.0, 100 + k)));
+    }
+}
+
+/// A swapped pair of current channels is refused before any DC test; so is an inverted
+/// sensor set.
+#[test]
+fn swapped_current_channels_are_refused() {
+    let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+    let mut s = setup(m, 1.24, 310.0, 3);
+    s.injections.push(Injection::CurrentChannelsSwapped { first: 1, second: 2 });
+    let r = identify::simulate(&s, |_, _| {}, || false).unwrap_err();
+    assert_eq!(r, RunError::Refused(Refusal::PhaseOrder));
+    let mut s = setup(m, 1.24, 310.0, 3);
+    s.sensors.current_gain = [-1.0; 3];
+    let r = identify::simulate(&s, |_, _| {}, || false).unwrap_err();
+    assert_eq!(r, RunError::Refused(Refusal::CurrentSign));
+    // A lead that is open: no current along a.
+    let mut s = setup(m, 1.24, 310.0, 3);
+    s.injections.push(Injection::OpenPhase { phase: 0 });
+    let r = identify::simulate(&s, |_, _| {}, || false).unwrap_err();
+    assert_eq!(r, RunError::Refused(Refusal::NoCurrent));
+}
