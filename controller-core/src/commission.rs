@@ -361,6 +361,74 @@ pub struct Record {
     pub injections: [InjectionRecord; 2],
 }
 
+/// Bytes of a serialised [`Record`] ([`Record::write_bytes`]).
+pub const RECORD_BYTES: usize = 4 * (3 + 3 + 1 + 3 * 6 + 2 + 3 * (2 + 2 * BLOCKS) + 2 * 5);
+
+impl Record {
+    /// Every field in declaration order, as 4-byte little-endian words (f32 as IEEE-754
+    /// bits, so a record crosses a link bit-exactly): [`RECORD_BYTES`] into `out`. `None`
+    /// if `out` is shorter.
+    pub fn write_bytes(&self, out: &mut [u8]) -> Option<usize> {
+        let mut chunks = out.chunks_exact_mut(4);
+        let mut put = |w: u32| chunks.next().map(|c| c.copy_from_slice(&w.to_le_bytes()));
+        let mut ok = true;
+        let mut f = |x: f32| ok &= put(x.to_bits()).is_some();
+        self.visit(&mut f);
+        ok.then_some(RECORD_BYTES)
+    }
+
+    /// The record of [`Record::write_bytes`]'s bytes; `None` unless `bytes` holds exactly
+    /// [`RECORD_BYTES`].
+    pub fn read_bytes(bytes: &[u8]) -> Option<Self> {
+        if bytes.len() != RECORD_BYTES {
+            return None;
+        }
+        let mut words = bytes.chunks_exact(4).map(|c| {
+            let mut w = [0u8; 4];
+            w.copy_from_slice(c);
+            u32::from_le_bytes(w)
+        });
+        let mut r = Record::default();
+        r.visit_mut(&mut |x: &mut f32| *x = f32::from_bits(words.next().unwrap_or(0)));
+        Some(r)
+    }
+
+    /// Each field as an f32 (integers by their bits), in order.
+    fn visit(&self, f: &mut impl FnMut(f32)) {
+        let mut copy = *self;
+        copy.visit_mut(&mut |x: &mut f32| f(*x));
+    }
+
+    fn visit_mut(&mut self, f: &mut impl FnMut(&mut f32)) {
+        let bits = |f: &mut dyn FnMut(&mut f32), n: &mut u32| {
+            let mut x = f32::from_bits(*n);
+            f(&mut x);
+            *n = x.to_bits();
+        };
+        self.offsets_a.iter_mut().chain(self.noise_a.iter_mut()).for_each(&mut *f);
+        f(&mut self.vdc_v);
+        for p in self.pulses.iter_mut() {
+            f(&mut p.v_pulse_v);
+            bits(f, &mut p.periods);
+            for ab in [&mut p.delta_i_half_a, &mut p.delta_i_a] {
+                f(&mut ab.alpha);
+                f(&mut ab.beta);
+            }
+        }
+        f(&mut self.l_sigma_pulse_h);
+        f(&mut self.kp_v_per_a);
+        for l in self.levels.iter_mut() {
+            f(&mut l.i_ref_a);
+            l.v_alpha_v.iter_mut().chain(l.i_alpha_a.iter_mut()).for_each(&mut *f);
+            f(&mut l.lag_a_periods);
+        }
+        for j in self.injections.iter_mut() {
+            bits(f, &mut j.periods_per_cycle);
+            j.v_sin_cos.iter_mut().chain(j.i_sin_cos.iter_mut()).for_each(&mut *f);
+        }
+    }
+}
+
 /// Output of one step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CommissionOutput {
@@ -935,6 +1003,27 @@ mod tests {
         // A test current this motor cannot carry on 310 V: the voltage limit.
         let hot = Motor { rs: 250.0, ..MOTOR };
         assert_eq!(run(hot, false, 1.0).stage(), Stage::Refused(Refusal::VoltageLimit));
+    }
+
+    #[test]
+    fn a_record_crosses_as_bytes_bit_for_bit() {
+        let c = run(MOTOR, false, 1.0);
+        let r = c.record().unwrap();
+        let mut buf = [0u8; RECORD_BYTES];
+        assert_eq!(r.write_bytes(&mut buf), Some(RECORD_BYTES));
+        assert_eq!(Record::read_bytes(&buf).as_ref(), Some(r));
+        assert_eq!(r.write_bytes(&mut buf[..RECORD_BYTES - 1]), None);
+        assert_eq!(Record::read_bytes(&buf[1..]), None);
+        // Every word is a field: a record of distinct values round-trips too.
+        let mut k = 0u32;
+        let mut distinct = Record::default();
+        distinct.visit_mut(&mut |x: &mut f32| {
+            k += 1;
+            *x = k as f32;
+        });
+        assert_eq!(4 * k as usize, RECORD_BYTES);
+        distinct.write_bytes(&mut buf).unwrap();
+        assert_eq!(Record::read_bytes(&buf), Some(distinct));
     }
 
     #[test]

@@ -5,8 +5,9 @@
 //! `ReadSpeedGains`, and `WriteSpeedGains` while Idle with both values inside the ranges
 //! certified in `drive.toml` ([`crate::config`]; `Nack(OutOfCertifiedRange)` otherwise).
 //! Refused with `Nack(Unsupported)`: `Step` (on the board the ADC provides the
-//! measurements) and `Configure` (the rest of the constants are the certified ones the
-//! firmware was built with).
+//! measurements), `Configure` (the rest of the constants are the certified ones the
+//! firmware was built with), and `Commission`/`GetCommissionRecord` (the commissioning
+//! sequence runs in SIL and PIL; this firmware does not carry it yet).
 
 use crate::config as certified;
 use crate::control::ControlLoop;
@@ -49,8 +50,8 @@ impl LinkWatchdog {
     }
 }
 
-/// Answer one command as the board decodes it ([`Command::decode_board`]: `Configure` and
-/// `Step` arrive unparsed, as [`BoardCommand::Refused`]).
+/// Answer one command as the board decodes it ([`Command::decode_board`]: `Configure`,
+/// `Step` and the commissioning commands arrive unparsed, as [`BoardCommand::Refused`]).
 pub fn handle_board(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
     match cmd.command() {
         None => Reply::Nack(NackReason::Unsupported),
@@ -147,9 +148,11 @@ mod tests {
         let unsupported = Some(Reply::Nack(NackReason::Unsupported));
         assert_eq!(reply(&Command::Configure(spec), &mut c, &mut stats), unsupported);
         assert_eq!(reply(&Command::Step(Measurements::default()), &mut c, &mut stats), unsupported);
+        // Commissioning runs in the PIL server only (not in this firmware yet).
+        assert_eq!(reply(&Command::GetCommissionRecord { chunk: 0 }, &mut c, &mut stats), unsupported);
         assert_eq!(reply(&Command::Enable, &mut c, &mut stats), Some(Reply::Ack));
         assert_eq!(c.drive().mode(), Mode::Magnetizing);
-        assert_eq!(stats.frames_ok, 3);
+        assert_eq!(stats.frames_ok, 4);
         assert_eq!(link::Command::decode_board(&[0x7E]), Err(link::DecodeError::UnknownType(0x7E)));
     }
 

@@ -37,13 +37,15 @@
 //! widened by the stated margins ([`MARGIN`]).
 
 use crate::inverter::InverterModel;
+use crate::pil::{Pil, PilOptions};
 use crate::sensors::SensorModel;
 use crate::sim::{self, DriveUnderTest, Event, LoadModel, Scenario};
 use controller_core::commission::{
-    BLOCKS, CommissionConfig, CommissionOutput, Commissioning, LEVELS, Record, Refusal, Stage,
+    BLOCKS, CommissionConfig, CommissionOutput, Commissioning, LEVELS, RECORD_BYTES, Record, Refusal, Stage,
 };
-use controller_core::drive::{FastOutput, Measurements, Mode, Reference, Telemetry};
+use controller_core::drive::{FastOutput, Measurements, Mode, PhaseCommand, Reference, Telemetry};
 use controller_core::frames::AlphaBeta;
+use controller_core::link::{Command, RECORD_CHUNK_BYTES, RECORD_CHUNKS, Reply};
 use controller_core::motor::MotorParams;
 use plant::Machine;
 use std::cell::Cell;
@@ -419,10 +421,54 @@ impl Setup {
     }
 }
 
-/// [`Commissioning`] as the simulator's controller.
+/// Where the sequence runs.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Target {
+    /// In this process (software in the loop).
+    InProcess,
+    /// On the emulated Cortex-M4F (processor in the loop).
+    Pil(PilOptions),
+}
+
+/// A sequence the simulator drives: in process, or on the emulated MCU.
+enum Runner {
+    InProcess(Box<Commissioning>),
+    Pil { pil: Box<Pil>, stage: Stage, failure: Option<String> },
+}
+
+/// [`Runner`] as the simulator's controller; the stage is shared with the progress display.
 struct Sequence {
-    c: Commissioning,
+    runner: Runner,
     stage: Rc<Cell<Stage>>,
+}
+
+fn is_over(s: Stage) -> bool {
+    matches!(s, Stage::Done | Stage::Refused(_))
+}
+
+impl Sequence {
+    /// The finished sequence's record (from the target, in chunks, over PIL).
+    fn record(&mut self) -> Result<Option<Record>, String> {
+        match &mut self.runner {
+            Runner::InProcess(c) => Ok(c.record().copied()),
+            Runner::Pil { pil, stage, .. } => {
+                if *stage != Stage::Done {
+                    return Ok(None);
+                }
+                let mut bytes = Vec::with_capacity(usize::from(RECORD_CHUNKS) * RECORD_CHUNK_BYTES);
+                for chunk in 0..RECORD_CHUNKS {
+                    match pil.transact(&Command::GetCommissionRecord { chunk })? {
+                        Reply::CommissionRecord { chunk: got, bytes: b } if got == chunk => bytes.extend(b),
+                        other => return Err(format!("unexpected reply {other:?} to record part {chunk}")),
+                    }
+                }
+                bytes.truncate(RECORD_BYTES);
+                Record::read_bytes(&bytes)
+                    .map(Some)
+                    .ok_or_else(|| "the target's record did not decode".into())
+            }
+        }
+    }
 }
 
 impl DriveUnderTest for Sequence {
@@ -436,15 +482,41 @@ impl DriveUnderTest for Sequence {
         Err("a commissioning sequence takes no reference".into())
     }
     fn controlled_stop(&mut self) -> Result<(), String> {
-        self.c.abort();
+        match &mut self.runner {
+            Runner::InProcess(c) => c.abort(),
+            Runner::Pil { pil, .. } => {
+                pil.transact(&Command::Stop)?;
+            }
+        }
         Ok(())
     }
     fn step(&mut self, m: &Measurements) -> FastOutput {
-        let CommissionOutput { phases, stage, v_ab_v, i_ref_alpha_a } = self.c.step(m);
+        let out = match &mut self.runner {
+            Runner::InProcess(c) => c.step(m),
+            Runner::Pil { pil, stage, failure } => match pil.transact(&Command::Step(*m)) {
+                Ok(Reply::Commission(o)) => {
+                    *stage = o.stage;
+                    o
+                }
+                other => {
+                    *failure = Some(match other {
+                        Ok(r) => format!("unexpected reply {r:?} to a step"),
+                        Err(e) => e,
+                    });
+                    CommissionOutput {
+                        phases: PhaseCommand::Off,
+                        stage: *stage,
+                        v_ab_v: AlphaBeta::default(),
+                        i_ref_alpha_a: 0.0,
+                    }
+                }
+            },
+        };
+        let CommissionOutput { phases, stage, v_ab_v, i_ref_alpha_a } = out;
         self.stage.set(stage);
         FastOutput {
             phases,
-            mode: if matches!(stage, Stage::Done | Stage::Refused(_)) { Mode::Idle } else { Mode::Running },
+            mode: if is_over(stage) { Mode::Idle } else { Mode::Running },
             brake: false,
             telemetry: Telemetry {
                 v_ab_v,
@@ -453,8 +525,14 @@ impl DriveUnderTest for Sequence {
             },
         }
     }
+    fn take_failure(&mut self) -> Option<String> {
+        match &mut self.runner {
+            Runner::InProcess(_) => None,
+            Runner::Pil { failure, .. } => failure.take(),
+        }
+    }
     fn finished(&self) -> bool {
-        matches!(self.c.stage(), Stage::Done | Stage::Refused(_))
+        is_over(self.stage.get())
     }
 }
 
@@ -537,13 +615,39 @@ pub fn stage_name(s: Stage) -> String {
 /// `progress(stage, t_s)` is called every 2 000 periods; `interrupted()` stops the run.
 pub fn simulate(
     setup: &Setup,
+    progress: impl FnMut(Stage, f64),
+    interrupted: impl Fn() -> bool,
+) -> Result<(Record, f64), RunError> {
+    simulate_on(setup, &Target::InProcess, progress, interrupted)
+}
+
+/// [`simulate`] with the sequence on `target`: in process or on the emulated MCU, against
+/// the same simulated motor — equal records, bit for bit (`tests/pil.rs`).
+pub fn simulate_on(
+    setup: &Setup,
+    target: &Target,
     mut progress: impl FnMut(Stage, f64),
     interrupted: impl Fn() -> bool,
 ) -> Result<(Record, f64), RunError> {
     let cfg = setup.config;
     let ts = f64::from(cfg.ts_s());
     let stage = Rc::new(Cell::new(Stage::Offsets));
-    let mut seq = Sequence { c: Commissioning::new(cfg), stage: Rc::clone(&stage) };
+    let runner = match target {
+        Target::InProcess => Runner::InProcess(Box::new(Commissioning::new(cfg))),
+        Target::Pil(opts) => {
+            let mut pil = Pil::launch(opts).map_err(RunError::Simulation)?;
+            match pil.transact(&Command::Commission(*cfg.spec())).map_err(RunError::Simulation)? {
+                Reply::Ack => {}
+                other => {
+                    return Err(RunError::Simulation(format!(
+                        "the target refused the sequence's spec: {other:?}"
+                    )));
+                }
+            }
+            Runner::Pil { pil: Box::new(pil), stage: Stage::Offsets, failure: None }
+        }
+    };
+    let mut seq = Sequence { runner, stage: Rc::clone(&stage) };
     let scenario = Scenario {
         events: setup.injections.iter().map(|&i| (0.0, Event::Fault(i))).collect(),
         duration_s: cfg.max_periods() as f64 * ts,
@@ -574,10 +678,10 @@ pub fn simulate(
         Err(e) => return Err(RunError::Simulation(e)),
         Ok(_) => {}
     }
-    match seq.c.stage() {
+    match stage.get() {
         Stage::Refused(r) => Err(RunError::Refused(r)),
-        _ => match seq.c.record() {
-            Some(r) => Ok((*r, last_t)),
+        _ => match seq.record().map_err(RunError::Simulation)? {
+            Some(r) => Ok((r, last_t)),
             None => Err(RunError::Simulation("the sequence did not finish in the time allowed".into())),
         },
     }

@@ -121,6 +121,14 @@ struct IdentifyArgs {
     /// Swap the current channels of phases b and c (a wiring error the sequence refuses).
     #[arg(long)]
     swap_current_channels: bool,
+    /// Run the sequence on the emulated Cortex-M4F (QEMU, processor in the loop) instead of
+    /// in this process: the same record, so the same file, bit for bit.
+    #[arg(long)]
+    pil: bool,
+    /// With --pil: the `pil` target program [default: qemu-target's release build, or
+    /// $HIL_SIM_PIL_ELF]. Build it with `cargo xtask qemu`.
+    #[arg(long, requires = "pil")]
+    elf: Option<PathBuf>,
 }
 
 fn positive_amperes(s: &str) -> Result<f64, String> {
@@ -171,9 +179,19 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
     if a.swap_current_channels {
         setup.injections.push(hil_sim::sim::Injection::CurrentChannelsSwapped { first: 1, second: 2 });
     }
+    let target = if a.pil {
+        let mut opts = PilOptions::default();
+        if let Some(e) = &a.elf {
+            opts.elf = std::path::absolute(e).map_err(|er| format!("--elf {}: {er}", e.display()))?;
+        }
+        identify::Target::Pil(opts)
+    } else {
+        identify::Target::InProcess
+    };
     let mut shown = (None, -1.0);
-    let (record, t) = identify::simulate(
+    let (record, t) = identify::simulate_on(
         &setup,
+        &target,
         |stage: Stage, t_s| {
             // Done or refused: the final call reports the simulation's allowance, not the time.
             let running = stage.index() < Stage::COUNT;
@@ -243,6 +261,7 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
         "Simulated commissioning of `{}` (hil-sim identify: {} V bus, {} Hz PWM, test current {} A, seed {}).",
         a.motor, a.vdc, a.pwm_hz, a.test_current, a.seed
     );
+    // Nothing in the text says where the sequence ran: SIL and PIL write the same file.
     let text =
         identify::motor_file(&id, a.leakage_ratio, motor.pole_pairs(), motor.j_kgm2(), motor.b_nms(), &about);
     // The file must load as a motor before it is written.

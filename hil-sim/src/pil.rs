@@ -91,6 +91,17 @@ impl Pil {
     /// Start QEMU with `opts.elf` and configure its drive with `spec` (validated on the
     /// target).
     pub fn start(opts: &PilOptions, spec: &DriveSpec) -> Result<Self, String> {
+        let mut pil = Self::launch(opts)?;
+        pil.slow_divider = spec.slow_divider;
+        match pil.transact(&Command::Configure(*spec))? {
+            Reply::Ack => Ok(pil),
+            other => Err(format!("target refused the drive specification: {other:?}")),
+        }
+    }
+
+    /// Start QEMU with `opts.elf`, nothing configured yet (a commissioning sequence is
+    /// started with `Command::Commission`).
+    pub fn launch(opts: &PilOptions) -> Result<Self, String> {
         let elf = &opts.elf;
         if !elf.is_file() {
             return Err(format!(
@@ -143,18 +154,14 @@ impl Pil {
                 return Err(e);
             }
         };
-        let mut pil = Pil {
+        Ok(Pil {
             restore_affinity,
             qemu,
             dir,
             link: LinkClient::new(from_mcu, to_mcu),
-            slow_divider: spec.slow_divider,
+            slow_divider: 1,
             failure: None,
-        };
-        match pil.transact(&Command::Configure(*spec))? {
-            Reply::Ack => Ok(pil),
-            other => Err(format!("target refused the drive specification: {other:?}")),
-        }
+        })
     }
 
     /// Whether QEMU and the calling thread share one CPU.

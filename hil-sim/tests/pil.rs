@@ -134,3 +134,38 @@ fn interrupted_pil_run_removes_its_fifo_directory() {
     assert!(!fifo_dir.exists() && !out.join("trace.csv.partial").exists());
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// Issue 20: the commissioning sequence on the emulated Cortex-M4F records exactly what it
+/// records in process, so the motor file is the same, bit for bit; a refusal is the same too.
+#[test]
+#[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
+fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
+    use controller_core::commission::{CommissionConfig, CommissionSpec, Refusal};
+    use hil_sim::identify::{self, RunError, Setup, Target};
+    let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+    let spec = CommissionSpec {
+        pwm_hz: 20_000.0,
+        test_current_a: 1.24,
+        current_limit_a: 2.48,
+        vdc_min_v: 248.0,
+        vdc_max_v: 372.0,
+        level_time_s: 3.0,
+    };
+    let setup = Setup::realistic(m, CommissionConfig::new(spec).unwrap(), 310.0, 5);
+    let file = |target: &Target| {
+        let (rec, t) = identify::simulate_on(&setup, target, |_, _| {}, || false).unwrap();
+        let id = identify::estimate(&setup.config, &rec).unwrap();
+        (rec, t, identify::motor_file(&id, 1.0, 1, 0.005, 0.0005, "pil = sil"))
+    };
+    let wall = Instant::now();
+    let (pil_rec, pil_t, pil_file) = file(&Target::Pil(PilOptions::default()));
+    println!("PIL commissioning: {pil_t:.1} s of motor time in {:.1} s", wall.elapsed().as_secs_f64());
+    let (sil_rec, sil_t, sil_file) = file(&Target::InProcess);
+    assert_eq!(pil_rec, sil_rec);
+    assert_eq!(pil_t, sil_t);
+    assert_eq!(pil_file, sil_file);
+    let mut swapped = setup.clone();
+    swapped.injections.push(hil_sim::sim::Injection::CurrentChannelsSwapped { first: 1, second: 2 });
+    let r = identify::simulate_on(&swapped, &Target::Pil(PilOptions::default()), |_, _| {}, || false);
+    assert_eq!(r.unwrap_err(), RunError::Refused(Refusal::PhaseOrder));
+}

@@ -33,7 +33,10 @@ pub use framing::{
     encode_frame,
 };
 pub use receive::LinkStats;
-pub use schema::{BoardCommand, Command, DecodeError, NackReason, Reply, command_frame, reply_frame};
+pub use schema::{
+    BoardCommand, Command, DecodeError, NackReason, RECORD_CHUNK_BYTES, RECORD_CHUNKS, Reply, command_frame,
+    reply_frame,
+};
 
 #[cfg(test)]
 mod tests;

@@ -2,6 +2,7 @@
 //! and its fields in a fixed little-endian layout (`f32`/`f64` as IEEE-754 bits).
 
 use super::framing::{BufferFull, MAX_PAYLOAD, encode_frame};
+use crate::commission::{CommissionOutput, CommissionSpec, RECORD_BYTES, Refusal, Stage};
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
@@ -141,7 +142,22 @@ pub enum Command {
     /// A controlled stop ([`crate::drive::Drive::controlled_stop`]): brake to standstill,
     /// then the bridge off.
     Stop,
+    /// Start a commissioning sequence ([`crate::commission`]) in place of the drive; `Step`
+    /// is then answered by `Commission`. `Ack`, or `Nack(Configuration)` for a spec that
+    /// `CommissionConfig::new` rejects.
+    Commission(CommissionSpec),
+    /// Ask for part `chunk` of the finished sequence's record ([`RECORD_CHUNK_BYTES`] each);
+    /// answered by `CommissionRecord`, or `Nack(NoRecord)`.
+    GetCommissionRecord {
+        /// 0 … [`RECORD_CHUNKS`] − 1.
+        chunk: u8,
+    },
 }
+
+/// Bytes of a record per `CommissionRecord` reply.
+pub const RECORD_CHUNK_BYTES: usize = 128;
+/// `CommissionRecord` replies that carry a whole record.
+pub const RECORD_CHUNKS: u8 = RECORD_BYTES.div_ceil(RECORD_CHUNK_BYTES) as u8;
 
 /// Why a command was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -160,6 +176,8 @@ pub enum NackReason {
     NotConfigured,
     /// A gain outside the certified range.
     OutOfCertifiedRange,
+    /// No finished commissioning record (or no such part of it).
+    NoRecord,
 }
 
 /// Drive → host.
@@ -177,6 +195,16 @@ pub enum Reply {
         kp: f32,
         /// Torque limit τ_max, N·m.
         tau_max_nm: f32,
+    },
+    /// Result of a `Step` during commissioning.
+    Commission(CommissionOutput),
+    /// Part of a commissioning record: bytes `chunk·RECORD_CHUNK_BYTES …` of
+    /// `Record::write_bytes`, zero-padded after the end.
+    CommissionRecord {
+        /// Which part.
+        chunk: u8,
+        /// Its bytes.
+        bytes: [u8; RECORD_CHUNK_BYTES],
     },
     /// Mode and the receiver's counters.
     Status {
@@ -200,11 +228,15 @@ pub(crate) mod tag {
     pub const WRITE_SPEED_GAINS: u8 = 0x08;
     pub const READ_SPEED_GAINS: u8 = 0x09;
     pub const STOP: u8 = 0x0A;
+    pub const COMMISSION: u8 = 0x0B;
+    pub const GET_COMMISSION_RECORD: u8 = 0x0C;
     pub const ACK: u8 = 0x81;
     pub const NACK: u8 = 0x82;
     pub const OUTPUT: u8 = 0x83;
     pub const STATUS: u8 = 0x84;
     pub const SPEED_GAINS: u8 = 0x85;
+    pub const COMMISSION_OUTPUT: u8 = 0x86;
+    pub const COMMISSION_RECORD: u8 = 0x87;
 }
 
 fn write_reference(w: &mut Writer<'_>, r: Reference) -> Result<(), BufferFull> {
@@ -475,6 +507,83 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
     })
 }
 
+/// A stage as (code, refusal code, refusal value, refusal index).
+fn stage_code(s: Stage) -> (u8, u8, f32, u8) {
+    let (r, v, i) = match s {
+        Stage::Refused(r) => match r {
+            Refusal::BusOutOfRange(v) => (0, v, 0),
+            Refusal::BusUnsteady(v) => (1, v, 0),
+            Refusal::OffsetTooLarge { channel, offset_a } => (2, offset_a, channel),
+            Refusal::NoCurrent => (3, 0.0, 0),
+            Refusal::PhaseOrder => (4, 0.0, 0),
+            Refusal::CurrentSign => (5, 0.0, 0),
+            Refusal::CurrentDirection { phase } => (6, 0.0, phase),
+            Refusal::NoDecay => (7, 0.0, 0),
+            Refusal::Overcurrent(i) => (8, i, 0),
+            Refusal::VoltageLimit => (9, 0.0, 0),
+            Refusal::NonFinite => (10, 0.0, 0),
+            Refusal::Aborted => (11, 0.0, 0),
+        },
+        _ => (0, 0.0, 0),
+    };
+    let code = match s {
+        Stage::Offsets => 0,
+        Stage::Pulse(p) => 1 + p.min(2),
+        Stage::Level(l) => 4 + l.min(2),
+        Stage::Injection(j) => 7 + j.min(1),
+        Stage::Done => 9,
+        Stage::Refused(_) => 10,
+    };
+    (code, r, v, i)
+}
+
+fn stage_from_code(code: u8, r: u8, v: f32, i: u8) -> Result<Stage, DecodeError> {
+    Ok(match code {
+        0 => Stage::Offsets,
+        1..=3 => Stage::Pulse(code - 1),
+        4..=6 => Stage::Level(code - 4),
+        7..=8 => Stage::Injection(code - 7),
+        9 => Stage::Done,
+        10 => Stage::Refused(match (r, i) {
+            (0, _) => Refusal::BusOutOfRange(v),
+            (1, _) => Refusal::BusUnsteady(v),
+            (2, 0..=2) => Refusal::OffsetTooLarge { channel: i, offset_a: v },
+            (3, _) => Refusal::NoCurrent,
+            (4, _) => Refusal::PhaseOrder,
+            (5, _) => Refusal::CurrentSign,
+            (6, 0..=2) => Refusal::CurrentDirection { phase: i },
+            (7, _) => Refusal::NoDecay,
+            (8, _) => Refusal::Overcurrent(v),
+            (9, _) => Refusal::VoltageLimit,
+            (10, _) => Refusal::NonFinite,
+            (11, _) => Refusal::Aborted,
+            _ => return Err(DecodeError::Value),
+        }),
+        _ => return Err(DecodeError::Value),
+    })
+}
+
+fn write_phases(w: &mut Writer<'_>, p: PhaseCommand) -> Result<(), BufferFull> {
+    match p {
+        PhaseCommand::Off => {
+            w.u8(0)?;
+            w.abc(Abc::default())
+        }
+        PhaseCommand::Duty(d) => {
+            w.u8(1)?;
+            w.abc(d)
+        }
+    }
+}
+
+fn read_phases(r: &mut Reader<'_>) -> Result<PhaseCommand, DecodeError> {
+    match (r.u8()?, r.abc()?) {
+        (0, _) => Ok(PhaseCommand::Off),
+        (1, d) => Ok(PhaseCommand::Duty(d)),
+        _ => Err(DecodeError::Value),
+    }
+}
+
 impl Command {
     /// Serialise into `buf` (at most [`MAX_PAYLOAD`] bytes). Returns the payload length.
     pub fn encode(&self, buf: &mut [u8]) -> Result<usize, BufferFull> {
@@ -506,6 +615,18 @@ impl Command {
             }
             Command::ReadSpeedGains => w.u8(tag::READ_SPEED_GAINS)?,
             Command::Stop => w.u8(tag::STOP)?,
+            Command::Commission(c) => {
+                w.u8(tag::COMMISSION)?;
+                for v in
+                    [c.pwm_hz, c.test_current_a, c.current_limit_a, c.vdc_min_v, c.vdc_max_v, c.level_time_s]
+                {
+                    w.f32(v)?;
+                }
+            }
+            Command::GetCommissionRecord { chunk } => {
+                w.u8(tag::GET_COMMISSION_RECORD)?;
+                w.u8(*chunk)?;
+            }
         }
         Ok(w.n)
     }
@@ -522,6 +643,15 @@ impl Command {
                 omega_m_rad_s: r.f32()?,
                 theta_m_rad: r.f32()?,
             }),
+            tag::COMMISSION => Command::Commission(CommissionSpec {
+                pwm_hz: r.f32()?,
+                test_current_a: r.f32()?,
+                current_limit_a: r.f32()?,
+                vdc_min_v: r.f32()?,
+                vdc_max_v: r.f32()?,
+                level_time_s: r.f32()?,
+            }),
+            tag::GET_COMMISSION_RECORD => Command::GetCommissionRecord { chunk: r.u8()? },
             other => decode_board_tag(other, &mut r)?.command().ok_or(DecodeError::UnknownType(other))?,
         };
         r.finish()?;
@@ -534,7 +664,7 @@ impl Command {
     /// hardware (42 000 → 36 280 B of flash on the firmware, with the smaller [`BoardCommand`]).
     pub fn decode_board(payload: &[u8]) -> Result<BoardCommand, DecodeError> {
         let (&t, rest) = payload.split_first().ok_or(DecodeError::Length)?;
-        if t == tag::CONFIGURE || t == tag::STEP {
+        if matches!(t, tag::CONFIGURE | tag::STEP | tag::COMMISSION | tag::GET_COMMISSION_RECORD) {
             return Ok(BoardCommand::Refused);
         }
         let mut r = Reader { rest };
@@ -584,7 +714,8 @@ pub enum BoardCommand {
     ReadSpeedGains,
     /// [`Command::Stop`].
     Stop,
-    /// `Configure` or `Step`: answered with `Nack(Unsupported)`, payload not parsed.
+    /// `Configure`, `Step`, `Commission` or `GetCommissionRecord`: answered with
+    /// `Nack(Unsupported)`, payload not parsed.
     Refused,
 }
 
@@ -621,22 +752,14 @@ impl Reply {
                     NackReason::Unsupported => 4,
                     NackReason::NotConfigured => 5,
                     NackReason::OutOfCertifiedRange => 6,
+                    NackReason::NoRecord => 7,
                 })?;
             }
             Reply::Output(o) => {
                 w.u8(tag::OUTPUT)?;
                 w.u8(mode_code(o.mode))?;
                 w.u8(u8::from(o.brake))?;
-                match o.phases {
-                    PhaseCommand::Off => {
-                        w.u8(0)?;
-                        w.abc(Abc::default())?;
-                    }
-                    PhaseCommand::Duty(d) => {
-                        w.u8(1)?;
-                        w.abc(d)?;
-                    }
-                }
+                write_phases(&mut w, o.phases)?;
                 let t = &o.telemetry;
                 w.ab(t.i_ab_a)?;
                 w.ab(t.i_ref_ab_a)?;
@@ -656,6 +779,22 @@ impl Reply {
                 w.u8(tag::SPEED_GAINS)?;
                 w.f32(*kp)?;
                 w.f32(*tau_max_nm)?;
+            }
+            Reply::Commission(o) => {
+                w.u8(tag::COMMISSION_OUTPUT)?;
+                let (code, r, v, i) = stage_code(o.stage);
+                w.u8(code)?;
+                w.u8(r)?;
+                w.f32(v)?;
+                w.u8(i)?;
+                write_phases(&mut w, o.phases)?;
+                w.ab(o.v_ab_v)?;
+                w.f32(o.i_ref_alpha_a)?;
+            }
+            Reply::CommissionRecord { chunk, bytes } => {
+                w.u8(tag::COMMISSION_RECORD)?;
+                w.u8(*chunk)?;
+                w.bytes(bytes)?;
             }
             Reply::Status { mode, frames_ok, frame_errors } => {
                 w.u8(tag::STATUS)?;
@@ -681,6 +820,7 @@ impl Reply {
                 4 => NackReason::Unsupported,
                 5 => NackReason::NotConfigured,
                 6 => NackReason::OutOfCertifiedRange,
+                7 => NackReason::NoRecord,
                 _ => return Err(DecodeError::Value),
             }),
             tag::OUTPUT => {
@@ -690,11 +830,7 @@ impl Reply {
                     1 => true,
                     _ => return Err(DecodeError::Value),
                 };
-                let phases = match (r.u8()?, r.abc()?) {
-                    (0, _) => PhaseCommand::Off,
-                    (1, d) => PhaseCommand::Duty(d),
-                    _ => return Err(DecodeError::Value),
-                };
+                let phases = read_phases(&mut r)?;
                 let telemetry = Telemetry {
                     i_ab_a: r.ab()?,
                     i_ref_ab_a: r.ab()?,
@@ -709,6 +845,16 @@ impl Reply {
                 Reply::Output(FastOutput { phases, mode, brake, telemetry })
             }
             tag::SPEED_GAINS => Reply::SpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
+            tag::COMMISSION_OUTPUT => {
+                let (code, refusal, v, i) = (r.u8()?, r.u8()?, r.f32()?, r.u8()?);
+                Reply::Commission(CommissionOutput {
+                    stage: stage_from_code(code, refusal, v, i)?,
+                    phases: read_phases(&mut r)?,
+                    v_ab_v: r.ab()?,
+                    i_ref_alpha_a: r.f32()?,
+                })
+            }
+            tag::COMMISSION_RECORD => Reply::CommissionRecord { chunk: r.u8()?, bytes: r.take()? },
             tag::STATUS => Reply::Status {
                 mode: mode_from_code(r.u8()?)?,
                 frames_ok: u32::from_le_bytes(r.take()?),

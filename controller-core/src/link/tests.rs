@@ -88,6 +88,15 @@ fn every_command_round_trips() {
         Command::WriteSpeedGains { kp: 0.05, tau_max_nm: 2.0 },
         Command::ReadSpeedGains,
         Command::Stop,
+        Command::Commission(crate::commission::CommissionSpec {
+            pwm_hz: 20_000.0,
+            test_current_a: 1.24,
+            current_limit_a: 2.48,
+            vdc_min_v: 248.0,
+            vdc_max_v: 372.0,
+            level_time_s: 3.0,
+        }),
+        Command::GetCommissionRecord { chunk: 10 },
     ];
     let stream: Vec<u8> = cmds.iter().flat_map(frame_of).collect();
     let (got, stats) = decode_all(&stream);
@@ -118,8 +127,31 @@ fn replies_round_trip_bit_exact() {
         Reply::Status { mode: Mode::Running, frames_ok: 7, frame_errors: u32::MAX },
         Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 },
         Reply::Nack(NackReason::OutOfCertifiedRange),
+        Reply::Nack(NackReason::NoRecord),
+        Reply::CommissionRecord { chunk: 3, bytes: core::array::from_fn(|k| k as u8) },
     ];
-    for r in replies {
+    use crate::commission::{CommissionOutput, Refusal, Stage};
+    let stages = [
+        Stage::Offsets,
+        Stage::Pulse(2),
+        Stage::Level(1),
+        Stage::Injection(1),
+        Stage::Done,
+        Stage::Refused(Refusal::BusOutOfRange(150.5)),
+        Stage::Refused(Refusal::OffsetTooLarge { channel: 2, offset_a: -0.4 }),
+        Stage::Refused(Refusal::CurrentDirection { phase: 1 }),
+        Stage::Refused(Refusal::Overcurrent(9.5)),
+        Stage::Refused(Refusal::Aborted),
+    ];
+    let commissioning = stages.map(|stage| {
+        Reply::Commission(CommissionOutput {
+            phases: PhaseCommand::Duty(Abc { a: 0.25, b: 0.5, c: 0.75 }),
+            stage,
+            v_ab_v: crate::frames::AlphaBeta { alpha: 12.5, beta: -1e-7 },
+            i_ref_alpha_a: 0.62,
+        })
+    });
+    for r in replies.into_iter().chain(commissioning) {
         let mut f = [0u8; MAX_FRAME];
         let n = reply_frame(&r, &mut f).unwrap();
         let mut d = FrameDecoder::new();
