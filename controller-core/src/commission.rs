@@ -29,6 +29,14 @@
 //! 4. **Two sinusoidal injections** around I/2 (100 and 200 periods per cycle, amplitude
 //!    [`INJECTION_FRACTION`]·I): lock-in sums of the voltage and the current over whole
 //!    cycles give the impedance at those frequencies, hence the transient inductance σL_s.
+//! 5. **A slow rotating field**, only if the motor may turn ([`CommissionSpec::rotate`]):
+//!    the current vector I/2 turns, its frequency ramped to [`ROTATION_HZ`] over
+//!    [`ROTATION_RAMP_S`], held for [`ROTATION_HOLD_S`] and ramped back to zero over
+//!    [`ROTATION_STOP_S`]. The rotor follows with a small slip. The encoder's turning is
+//!    recorded at the end of each of [`ROTATION_BLOCKS`] equal blocks of the ramp and the
+//!    hold: against the field's, it tells the encoder's direction and line count (with the
+//!    motor's pole pairs, on the host), and the speed it gives, with the torque the
+//!    identified model gives for the impressed current, the inertia and friction.
 //!
 //! The current loops (α and β, the latter held at zero) are PI loops designed from L̂σ:
 //! crossover `ω_c` = 2π·f_pwm/[`LOOP_BANDWIDTH_DIVIDER`], the integral's zero a decade
@@ -86,6 +94,17 @@ pub const INJECTION_SETTLE_CYCLES: u32 = 4;
 pub const INJECTION_CYCLES: u32 = 16;
 /// DC levels: multiples of the test current.
 pub const LEVELS: [f32; 3] = [0.5, 1.0, 0.5];
+/// Electrical frequency of the rotating field's hold, Hz (slow: the back-EMF stays small and
+/// the rotor, unloaded, keeps up with a small slip).
+pub const ROTATION_HZ: f32 = 2.0;
+/// Time the field's frequency ramps up, s…
+pub const ROTATION_RAMP_S: f32 = 1.0;
+/// …is held, s…
+pub const ROTATION_HOLD_S: f32 = 2.0;
+/// …and ramps back to zero, braking the rotor, s.
+pub const ROTATION_STOP_S: f32 = 1.0;
+/// Recorded blocks over the ramp and the hold.
+pub const ROTATION_BLOCKS: usize = 60;
 
 /// What the user states about the test (validated by [`CommissionConfig::new`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -104,6 +123,9 @@ pub struct CommissionSpec {
     pub vdc_max_v: f32,
     /// Time each DC level is held, s (≥ 4 rotor time constants for a good decay fit).
     pub level_time_s: f32,
+    /// The motor may turn (nothing coupled that must not move): end with the rotating
+    /// field (stage 5).
+    pub rotate: bool,
 }
 
 /// Why a [`CommissionSpec`] was rejected.
@@ -213,10 +235,16 @@ impl CommissionConfig {
         let pulses = 3 * doublings * (2 * PULSE_MAX_PERIODS + REST_MAX_PERIODS);
         let injections: u32 =
             INJECTION_PERIODS.iter().map(|n| n * (INJECTION_SETTLE_CYCLES + INJECTION_CYCLES)).sum();
+        let rotation = if self.spec.rotate {
+            ((ROTATION_RAMP_S + ROTATION_HOLD_S + ROTATION_STOP_S) * self.spec.pwm_hz) as u64 + 1
+        } else {
+            0
+        };
         u64::from(OFFSET_PERIODS)
             + u64::from(pulses)
             + 3 * u64::from(self.level_periods)
             + u64::from(injections)
+            + rotation
     }
 }
 
@@ -271,6 +299,8 @@ pub enum Stage {
     Level(u8),
     /// Sinusoidal injection 0…1.
     Injection(u8),
+    /// The slow rotating field.
+    Rotate,
     /// Finished: [`Commissioning::record`] holds the measurements.
     Done,
     /// Refused: the bridge is off.
@@ -279,7 +309,7 @@ pub enum Stage {
 
 impl Stage {
     /// Stages of a full sequence.
-    pub const COUNT: u8 = 9;
+    pub const COUNT: u8 = 10;
 
     /// 0-based position of the stage in the sequence ([`Stage::COUNT`] when finished or
     /// refused).
@@ -289,6 +319,7 @@ impl Stage {
             Stage::Pulse(p) => 1 + p,
             Stage::Level(l) => 4 + l,
             Stage::Injection(j) => 7 + j,
+            Stage::Rotate => 9,
             Stage::Done | Stage::Refused(_) => Self::COUNT,
         }
     }
@@ -340,6 +371,24 @@ pub struct InjectionRecord {
     pub i_sin_cos: [f32; 2],
 }
 
+/// The rotating field's record.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RotationRecord {
+    /// Amplitude of the rotating current, A.
+    pub amplitude_a: f32,
+    /// Periods per block (the ramp and the hold in [`ROTATION_BLOCKS`] equal blocks).
+    pub periods_per_block: u32,
+    /// The encoder's turning from the field's start to the end of each block, rad (the sum
+    /// of its readings' wrapped differences).
+    pub theta_m_rad: [f32; ROTATION_BLOCKS],
+}
+
+impl Default for RotationRecord {
+    fn default() -> Self {
+        Self { amplitude_a: 0.0, periods_per_block: 0, theta_m_rad: [0.0; ROTATION_BLOCKS] }
+    }
+}
+
 /// Everything measured.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Record {
@@ -359,10 +408,13 @@ pub struct Record {
     pub levels: [LevelRecord; 3],
     /// The injections.
     pub injections: [InjectionRecord; 2],
+    /// The rotating field (all zero unless [`CommissionSpec::rotate`]).
+    pub rotation: RotationRecord,
 }
 
 /// Bytes of a serialised [`Record`] ([`Record::write_bytes`]).
-pub const RECORD_BYTES: usize = 4 * (3 + 3 + 1 + 3 * 6 + 2 + 3 * (2 + 2 * BLOCKS) + 2 * 5);
+pub const RECORD_BYTES: usize =
+    4 * (3 + 3 + 1 + 3 * 6 + 2 + 3 * (2 + 2 * BLOCKS) + 2 * 5 + 2 + ROTATION_BLOCKS);
 
 impl Record {
     /// Every field in declaration order, as 4-byte little-endian words (f32 as IEEE-754
@@ -426,6 +478,10 @@ impl Record {
             bits(f, &mut j.periods_per_cycle);
             j.v_sin_cos.iter_mut().chain(j.i_sin_cos.iter_mut()).for_each(&mut *f);
         }
+        let r = &mut self.rotation;
+        f(&mut r.amplitude_a);
+        bits(f, &mut r.periods_per_block);
+        r.theta_m_rad.iter_mut().for_each(&mut *f);
     }
 }
 
@@ -481,6 +537,9 @@ pub struct Commissioning {
     i_ref_prev_a: f32,
     /// Consecutive periods at the voltage limit.
     saturated: u32,
+    /// The rotating field's angle, rad, and the last encoder reading, rad.
+    theta_e_rad: f32,
+    theta_m_prev_rad: f32,
 }
 
 impl Commissioning {
@@ -510,6 +569,8 @@ impl Commissioning {
             block_n: 0,
             i_ref_prev_a: 0.0,
             saturated: 0,
+            theta_e_rad: 0.0,
+            theta_m_prev_rad: 0.0,
         }
     }
 
@@ -582,6 +643,7 @@ impl Commissioning {
             Stage::Pulse(p) => self.pulse(p, i, m.vdc_v),
             Stage::Level(l) => self.level(l, i, m.vdc_v),
             Stage::Injection(j) => self.injection(j, i, m.vdc_v),
+            Stage::Rotate => self.rotate(i, m),
             Stage::Done | Stage::Refused(_) => None,
         };
         let Some((v, i_ref)) = v else {
@@ -810,10 +872,15 @@ impl Commissioning {
     /// The current loops on `i_ref` along α (β at zero); `None` (refused) when they need
     /// more than the voltage limit.
     fn regulate(&mut self, i_ref: f32, i: AlphaBeta, vdc_v: f32) -> Option<AlphaBeta> {
+        self.regulate_ab(AlphaBeta { alpha: i_ref, beta: 0.0 }, i, vdc_v)
+    }
+
+    /// The current loops on the vector `i_ref`.
+    fn regulate_ab(&mut self, i_ref: AlphaBeta, i: AlphaBeta, vdc_v: f32) -> Option<AlphaBeta> {
         let loops = self.loops?;
         let limit = VOLTAGE_LIMIT_FRACTION * svpwm::linear_limit_v(vdc_v);
-        let alpha = loops.update_limited(&mut self.pi_alpha, i_ref - i.alpha, -limit, limit);
-        let beta = loops.update_limited(&mut self.pi_beta, -i.beta, -limit, limit);
+        let alpha = loops.update_limited(&mut self.pi_alpha, i_ref.alpha - i.alpha, -limit, limit);
+        let beta = loops.update_limited(&mut self.pi_beta, i_ref.beta - i.beta, -limit, limit);
         if alpha.abs() >= limit || beta.abs() >= limit {
             self.saturated += 1;
             if self.saturated > SATURATION_PERIODS {
@@ -889,11 +956,66 @@ impl Commissioning {
         if self.k >= settle + INJECTION_CYCLES * n {
             if j + 1 < INJECTION_PERIODS.len() as u8 {
                 self.next(Stage::Injection(j + 1));
+            } else if self.cfg.spec.rotate {
+                self.next(Stage::Rotate);
+                self.theta_e_rad = 0.0;
+                self.block = 0;
+                (self.block_v, self.block_n) = (0.0, 0);
             } else {
                 self.stage = Stage::Done;
             }
         }
         Some((v, i_ref))
+    }
+}
+
+impl Commissioning {
+    /// Stage 5: the slow rotating field (see the module docs).
+    fn rotate(&mut self, i: AlphaBeta, m: &Measurements) -> Option<(AlphaBeta, f32)> {
+        let pwm = self.cfg.spec.pwm_hz;
+        let (ramp, hold, stop) =
+            ((ROTATION_RAMP_S * pwm) as u32, (ROTATION_HOLD_S * pwm) as u32, (ROTATION_STOP_S * pwm) as u32);
+        let w_max = 2.0 * core::f32::consts::PI * ROTATION_HZ;
+        let k = self.k;
+        let w = if k < ramp {
+            w_max * k as f32 / ramp as f32
+        } else if k < ramp + hold {
+            w_max
+        } else {
+            (w_max * (1.0 - (k - ramp - hold) as f32 / stop as f32)).max(0.0)
+        };
+        let amplitude = LEVELS[0] * self.cfg.spec.test_current_a;
+        let sc = SinCos::new(self.theta_e_rad);
+        let i_ref = AlphaBeta { alpha: amplitude * sc.cos, beta: amplitude * sc.sin };
+        let v = self.regulate_ab(i_ref, i, m.vdc_v)?;
+        let step_rad = w * self.cfg.ts_s;
+        self.theta_e_rad = crate::frames::wrap_angle(self.theta_e_rad + step_rad);
+        if k == 0 {
+            self.theta_m_prev_rad = m.theta_m_rad;
+        }
+        let d_theta_m = crate::frames::wrap_angle(m.theta_m_rad - self.theta_m_prev_rad);
+        self.theta_m_prev_rad = m.theta_m_rad;
+        let per_block = (ramp + hold) / ROTATION_BLOCKS as u32;
+        let r = &mut self.record.rotation;
+        r.amplitude_a = amplitude;
+        r.periods_per_block = per_block;
+        // The turning so far (exact in f32 to a count for tens of revolutions).
+        self.block_v += d_theta_m;
+        if self.block < ROTATION_BLOCKS {
+            self.block_n += 1;
+            if self.block_n >= per_block {
+                if let Some(b) = r.theta_m_rad.get_mut(self.block) {
+                    *b = self.block_v;
+                }
+                self.block += 1;
+                self.block_n = 0;
+            }
+        }
+        self.k += 1;
+        if self.k >= ramp + hold + stop {
+            self.stage = Stage::Done;
+        }
+        Some((v, i_ref.alpha))
     }
 }
 
@@ -920,6 +1042,7 @@ mod tests {
             vdc_min_v: 200.0,
             vdc_max_v: 400.0,
             level_time_s: 0.5,
+            rotate: false,
         }
     }
 

@@ -337,6 +337,11 @@ impl Matrix {
                 bound_s: SENSOR_BOUND_S,
                 why: "swapped current channels are an installation error, refused by commissioning",
             },
+            Injection::EncoderReversed => Expect::Gap {
+                fault: Fault::EncoderImplausible,
+                bound_s: encoder_s,
+                why: "a reversed encoder is an installation error, refused by commissioning",
+            },
             Injection::EncoderStuck if rest => Expect::Gap {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,

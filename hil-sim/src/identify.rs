@@ -142,6 +142,173 @@ pub struct Identified {
     pub decays: [DecayFit; 3],
     /// Impedance measured at each injection: (ω rad/s, Re Z, Im Z).
     pub impedance: [(f64, f64, f64); 2],
+    /// The rotating field's results (if the motor was allowed to turn).
+    pub rotation: Option<Rotation>,
+}
+
+/// What the slow rotating field found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Rotation {
+    /// The rotor's turning over the field's mechanical turning during the hold (1 − slip):
+    /// the encoder's direction and line count, with the pole pairs given.
+    pub ratio: f64,
+    /// Mean speed during the hold, rad/s.
+    pub omega_hold_rad_s: f64,
+    /// Inertia, kg·m².
+    pub j_kgm2: Estimate,
+    /// Viscous friction, N·m·s/rad.
+    pub b_nms: Estimate,
+}
+
+/// Relative margin on J and B, beyond three standard errors of their fit.
+pub const MECHANICS_MARGIN: f64 = 0.10;
+
+/// How well the slip during the hold is known, as a fraction of the field's frequency (the
+/// hold's speed ratio scatters by ≈ 0.2 % between runs: the encoder's sampling at the hold's
+/// ends and its speed estimate's lag). B rests on the small torque of that slip: the error
+/// `k_τ·δω_sl/ω` it allows (k_τ = 1.5·p·L_M·I²·T_r, the torque per slip of an impressed
+/// current) widens B's interval — for a large machine with little friction, B is then
+/// hardly known, and its interval says so.
+pub const SLIP_RESOLUTION: f64 = 0.002;
+
+/// The rotor may turn this much slower than the field's mechanical speed (slip), or this
+/// little faster (the encoder's and the fit's resolution), before the encoder's line count
+/// or the pole pairs are taken to be wrong.
+pub const ROTATION_RATIO_RANGE: [f64; 2] = [0.7, 1.05];
+
+/// The rotating field's estimates (module docs; `Err` names a wrong encoder).
+///
+/// The field's angle is recomputed as the sequence made it; the rotor's from the recorded
+/// encoder turning at each block's end (exact to a count). The direction and line count:
+/// the rotor's turning over the field's mechanical turning during the second half of the
+/// hold. The mechanics: the flux of the impressed current through the identified rotor
+/// (`dψ/dt = R_R·i − ψ/T_r + j·p·ω·ψ`, ω from the encoder) gives the torque
+/// `τ = 1.5·p·(ψ × i)`; from rest, `J·ω(t) + B·θ(t) = ∫₀ᵗ τ` at every block's middle (ω the
+/// block's mean speed, θ the turning so far), solved for J and B by least squares.
+///
+/// The torque is that of a small slip, and a speed error δω moves it by `k_τ·p·δω`: the
+/// stiffer the machine (large k_τ, long T_r), the more J rests on the encoder's resolution
+/// — within 10 % on every motor of `tests/identify.rs` (0.1 % on the DeLorenzo machine,
+/// 4 % on the 500 hp Krause machine).
+fn rotation(
+    cfg: &CommissionConfig,
+    rec: &Record,
+    pole_pairs: u8,
+    l_mm: f64,
+    r_rr: f64,
+) -> Result<Rotation, String> {
+    use controller_core::commission::{ROTATION_HOLD_S, ROTATION_HZ, ROTATION_RAMP_S};
+    let r = &rec.rotation;
+    let p = f64::from(pole_pairs);
+    let pwm = f64::from(cfg.spec().pwm_hz);
+    let ts = 1.0 / pwm;
+    let ramp = (f64::from(ROTATION_RAMP_S) * pwm).floor();
+    let w_max = 2.0 * std::f64::consts::PI * f64::from(ROTATION_HZ);
+    let per_block = f64::from(r.periods_per_block);
+    let blocks = r.theta_m_rad.len();
+    let dt_block = per_block * ts;
+    let theta_m: Vec<f64> = std::iter::once(0.0).chain(r.theta_m_rad.iter().map(|x| f64::from(*x))).collect();
+    // The second half of the hold: the field turns at w_max there.
+    let hold_blocks = (f64::from(ROTATION_HOLD_S) / dt_block).round() as usize;
+    let from = blocks - hold_blocks / 2;
+    let ratio = p * (theta_m[blocks] - theta_m[from]) / (w_max * (blocks - from) as f64 * dt_block);
+    if !ratio.is_finite() || per_block <= 0.0 {
+        return Err("the rotating field's record is empty".into());
+    }
+    if ratio < 0.0 {
+        return Err(format!(
+            "the encoder counts against the rotating field (the rotor turned {ratio:.3}× the field): its A and B \
+             channels, or two motor leads, are swapped"
+        ));
+    }
+    let [lo, hi] = ROTATION_RATIO_RANGE;
+    if !(lo..=hi).contains(&ratio) {
+        return Err(format!(
+            "the encoder saw the rotor turn {ratio:.3}× the field's mechanical speed (expected {lo} … {hi}): \
+             a wrong encoder line count, or {pole_pairs} pole pairs is wrong"
+        ));
+    }
+    // Mean speed of each block, and its middle's turning so far.
+    let omega: Vec<f64> = (0..blocks).map(|b| (theta_m[b + 1] - theta_m[b]) / dt_block).collect();
+    let theta_mid: Vec<f64> = (0..blocks).map(|b| 0.5 * (theta_m[b] + theta_m[b + 1])).collect();
+    let omega_at = |k: f64| {
+        // Piecewise linear through the block means at the block middles, from rest.
+        let x = k / per_block - 0.5;
+        if x <= 0.0 {
+            return omega[0] * (k / (0.5 * per_block)).clamp(0.0, 1.0);
+        }
+        let b = (x.floor() as usize).min(blocks - 2);
+        omega[b] + (omega[b + 1] - omega[b]) * (x - b as f64).clamp(0.0, 1.0)
+    };
+    let amp = f64::from(r.amplitude_a);
+    let tr = l_mm / r_rr;
+    // The flux the rotation starts from: the last level's step down from I to I/2 still
+    // decaying (the injections ride on I/2 and average out).
+    let injections: u32 = controller_core::commission::INJECTION_PERIODS
+        .iter()
+        .map(|n| {
+            n * (controller_core::commission::INJECTION_SETTLE_CYCLES
+                + controller_core::commission::INJECTION_CYCLES)
+        })
+        .sum();
+    let since_s = (f64::from(cfg.level_periods()) + f64::from(injections)) * ts;
+    let step_a = f64::from(rec.levels[1].i_ref_a - rec.levels[2].i_ref_a);
+    let psi0 = l_mm * (amp + step_a * (-since_s / tr).exp());
+    let (mut psi, mut theta_e) = ([psi0, 0.0], 0.0f64);
+    let n = blocks * r.periods_per_block as usize;
+    let mut torque_int = 0.0;
+    let mut torque_at_mid = vec![0.0; blocks];
+    let half = r.periods_per_block as usize / 2;
+    for k in 0..n {
+        let kf = k as f64;
+        let w = if kf < ramp { w_max * kf / ramp } else { w_max };
+        let i = [amp * theta_e.cos(), amp * theta_e.sin()];
+        let wr = p * omega_at(kf);
+        let f = |psi: [f64; 2]| {
+            [r_rr * i[0] - psi[0] / tr - wr * psi[1], r_rr * i[1] - psi[1] / tr + wr * psi[0]]
+        };
+        let k1 = f(psi);
+        let k2 = f([psi[0] + 0.5 * ts * k1[0], psi[1] + 0.5 * ts * k1[1]]);
+        torque_int += 1.5 * p * (psi[0] * i[1] - psi[1] * i[0]) * ts;
+        psi = [psi[0] + ts * k2[0], psi[1] + ts * k2[1]];
+        theta_e += w * ts;
+        if k % r.periods_per_block as usize == half
+            && let Some(t) = torque_at_mid.get_mut(k / r.periods_per_block as usize)
+        {
+            *t = torque_int;
+        }
+    }
+    let (mut a11, mut a12, mut a22, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for b in 0..blocks {
+        let (x1, x2, y) = (omega[b], theta_mid[b], torque_at_mid[b]);
+        a11 += x1 * x1;
+        a12 += x1 * x2;
+        a22 += x2 * x2;
+        y1 += x1 * y;
+        y2 += x2 * y;
+    }
+    let det = a11 * a22 - a12 * a12;
+    if det.abs() <= 1e-300 {
+        return Err("the rotor did not accelerate: no inertia to fit".into());
+    }
+    let j = (a22 * y1 - a12 * y2) / det;
+    let b = (a11 * y2 - a12 * y1) / det;
+    let ssr: f64 = (0..blocks).map(|k| (torque_at_mid[k] - j * omega[k] - b * theta_mid[k]).powi(2)).sum();
+    let s2 = ssr / (blocks as f64 - 2.0);
+    let (sj, sb) = ((s2 * a22 / det).sqrt(), (s2 * a11 / det).sqrt());
+    if !(j.is_finite() && j > 0.0) {
+        return Err(format!("the rotating field gives no positive inertia ({j} kg·m²)"));
+    }
+    let widen = |x: f64, s: f64| {
+        let m = MECHANICS_MARGIN * x.abs();
+        Estimate { value: x, interval: [(x - 3.0 * s - m).max(0.0), x + 3.0 * s + m], spread: s / x.abs() }
+    };
+    let omega_hold = (theta_m[blocks] - theta_m[from]) / ((blocks - from) as f64 * dt_block);
+    let k_tau = 1.5 * p * l_mm * amp * amp * tr;
+    let b_slip = k_tau * SLIP_RESOLUTION * w_max / omega_hold.abs().max(1e-9);
+    let mut b_est = widen(b.max(0.0), sb);
+    b_est.interval = [(b_est.interval[0] - b_slip).max(0.0), b_est.interval[1] + b_slip];
+    Ok(Rotation { ratio, omega_hold_rad_s: omega_hold, j_kgm2: widen(j, sj), b_nms: b_est })
 }
 
 /// The T-model under a leakage split.
@@ -307,8 +474,9 @@ fn fit_decay(cfg: &CommissionConfig, rec: &Record, level: usize) -> Result<Decay
     Ok(DecayFit { c_v: c, a_v: amp, tau_s: tau, rms_v: (ssr / wsum).sqrt(), i_a: i_now })
 }
 
-/// Estimates the motor from a finished sequence's record (see the module docs).
-pub fn estimate(cfg: &CommissionConfig, rec: &Record) -> Result<Identified, String> {
+/// Estimates the motor from a finished sequence's record (see the module docs);
+/// `pole_pairs` (the nameplate's) checks the encoder against the rotating field.
+pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<Identified, String> {
     let ts = f64::from(cfg.ts_s());
     let decays = [fit_decay(cfg, rec, 0)?, fit_decay(cfg, rec, 1)?, fit_decay(cfg, rec, 2)?];
     let [d0, d1, d2] = decays;
@@ -359,6 +527,11 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record) -> Result<Identified, Stri
         return Err(format!("the injections give no positive transient inductance ({l_sigma:?} H)"));
     }
     let offsets_a = rec.offsets_a.map(f64::from);
+    let rotation = if cfg.spec().rotate {
+        Some(rotation(cfg, rec, pole_pairs, lmm_est.value, rr_est.value)?)
+    } else {
+        None
+    };
     Ok(Identified {
         rs_ohm: rs_est,
         l_sigma_h: Estimate::of(&l_sigma, MARGIN.l_sigma),
@@ -370,6 +543,7 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record) -> Result<Identified, Stri
         vdc_v: f64::from(rec.vdc_v),
         decays,
         impedance,
+        rotation,
     })
 }
 
@@ -606,6 +780,7 @@ pub fn stage_name(s: Stage) -> String {
             LEVELS.get(usize::from(l)).copied().unwrap_or(0.0)
         ),
         Stage::Injection(j) => format!("sinusoidal injection {} of 2", j + 1),
+        Stage::Rotate => "slow rotating field (encoder, inertia)".into(),
         Stage::Done => "done".into(),
         Stage::Refused(_) => "refused".into(),
     }
@@ -687,9 +862,9 @@ pub fn simulate_on(
     }
 }
 
-/// The motor file: `[motor]` at the nominal values under `ratio`, with `pole_pairs`, `j`, `b`
-/// as given (not identified at standstill), and `[identification]` with the intervals and
-/// the inverter's error.
+/// The motor file: `[motor]` at the nominal values under `ratio`, with `pole_pairs` as given,
+/// J and B identified by the rotating field if it ran (else `j_kgm2`, `b_nms` as given), and
+/// `[identification]` with the intervals and the inverter's error.
 pub fn motor_file(
     id: &Identified,
     ratio: f64,
@@ -699,6 +874,10 @@ pub fn motor_file(
     about: &str,
 ) -> String {
     let t = id.t_model(ratio);
+    let (j_kgm2, b_nms, mechanics) = match &id.rotation {
+        Some(r) => (r.j_kgm2.value, r.b_nms.value, "j_kgm2 and b_nms by the slow rotating field"),
+        None => (j_kgm2, b_nms, "j_kgm2 and b_nms are as given (the motor was not allowed to turn)"),
+    };
     let n = drive_file::source::num;
     let iv = |e: &Estimate| format!("[{}, {}]", n(e.interval[0]), n(e.interval[1]));
     let mut s = String::new();
@@ -708,7 +887,7 @@ pub fn motor_file(
     s.push_str(&format!(
         "# Identified at standstill by controller-core's commissioning sequence (hil_sim::identify).\n\
          # The leakage split L_lr/L_ls = {} is assumed (the terminals cannot tell it; control does not\n\
-         # depend on it). pole_pairs, j_kgm2 and b_nms are as given, not identified.\n\
+         # depend on it). pole_pairs is as given; {mechanics}.\n\
          [motor]\n\
          rs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = {}\nlm_h = {}\npole_pairs = {pole_pairs}\nj_kgm2 = {}\nb_nms = {}\n\n",
         n(ratio),
@@ -735,6 +914,15 @@ pub fn motor_file(
         iv(&id.l_mm_h),
         iv(&id.r_rr_ohm)
     ));
+    if let Some(r) = &id.rotation {
+        s.push_str(&format!(
+            "j_kgm2 = {}\nb_nms = {}\n# The rotor turned {}× the field's mechanical speed (1 − slip) at {} rad/s.\n",
+            iv(&r.j_kgm2),
+            iv(&r.b_nms),
+            n(r.ratio),
+            n(r.omega_hold_rad_s)
+        ));
+    }
     s.push_str(&format!(
         "# Inverter voltage error per phase (dead time and switch drops) at {} V, and its share of the bus:\n\
          inverter_error_v = {}\ndead_time_duty = {}\ncurrent_offsets_a = [{}, {}, {}]\n",

@@ -118,9 +118,19 @@ struct IdentifyArgs {
     /// Seed of the sensors' noise.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// The motor may turn: end with a slow rotating field that checks the encoder's
+    /// direction and line count and identifies the inertia and friction.
+    #[arg(long)]
+    rotate: bool,
+    /// The motor's pole pairs (nameplate) [default: the simulated motor's].
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=64))]
+    pole_pairs: Option<u8>,
     /// Swap the current channels of phases b and c (a wiring error the sequence refuses).
     #[arg(long)]
     swap_current_channels: bool,
+    /// Make the encoder count backwards (a wiring error the rotating field finds).
+    #[arg(long, requires = "rotate")]
+    reverse_encoder: bool,
     /// Run the sequence on the emulated Cortex-M4F (QEMU, processor in the loop) instead of
     /// in this process: the same record, so the same file, bit for bit.
     #[arg(long)]
@@ -156,6 +166,7 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
         vdc_min_v: (0.8 * a.vdc) as f32,
         vdc_max_v: (1.2 * a.vdc) as f32,
         level_time_s: a.level_time as f32,
+        rotate: a.rotate,
     };
     let config = CommissionConfig::new(spec).map_err(|e| {
         let why = match e {
@@ -179,6 +190,10 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
     if a.swap_current_channels {
         setup.injections.push(hil_sim::sim::Injection::CurrentChannelsSwapped { first: 1, second: 2 });
     }
+    if a.reverse_encoder {
+        setup.injections.push(hil_sim::sim::Injection::EncoderReversed);
+    }
+    let pole_pairs = a.pole_pairs.unwrap_or(motor.pole_pairs());
     let target = if a.pil {
         let mut opts = PilOptions::default();
         if let Some(e) = &a.elf {
@@ -212,7 +227,7 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
         e.to_string()
     })?;
     eprintln!();
-    let id = identify::estimate(&config, &record)?;
+    let id = identify::estimate(&config, &record, pole_pairs)?;
     let (l_sigma, l_mm, r_rr, tr) = identify::inverse_gamma(&motor);
     let tm = id.t_model(a.leakage_ratio);
     let truth = identify::t_model(motor.rs_ohm(), l_sigma, l_mm, r_rr, a.leakage_ratio);
@@ -257,13 +272,28 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
         g(ve),
         id.offsets_a.map(|o| (o * 1e5).round() / 1e5)
     );
+    if let Some(r) = &id.rotation {
+        println!(
+            "rotating field: the rotor turned {:.4}× the field ({:.2} rad/s); J {} kg·m² [{}, {}] (simulated {}), \
+             B {} N·m·s/rad [{}, {}] (simulated {})",
+            r.ratio,
+            r.omega_hold_rad_s,
+            g(r.j_kgm2.value),
+            g(r.j_kgm2.interval[0]),
+            g(r.j_kgm2.interval[1]),
+            g(motor.j_kgm2()),
+            g(r.b_nms.value),
+            g(r.b_nms.interval[0]),
+            g(r.b_nms.interval[1]),
+            g(motor.b_nms()),
+        );
+    }
     let about = format!(
         "Simulated commissioning of `{}` (hil-sim identify: {} V bus, {} Hz PWM, test current {} A, seed {}).",
         a.motor, a.vdc, a.pwm_hz, a.test_current, a.seed
     );
     // Nothing in the text says where the sequence ran: SIL and PIL write the same file.
-    let text =
-        identify::motor_file(&id, a.leakage_ratio, motor.pole_pairs(), motor.j_kgm2(), motor.b_nms(), &about);
+    let text = identify::motor_file(&id, a.leakage_ratio, pole_pairs, motor.j_kgm2(), motor.b_nms(), &about);
     // The file must load as a motor before it is written.
     drive_file::motor::parse(&a.out, &text).map_err(|e| format!("the identified motor is not valid: {e}"))?;
     write_text(&a.out, &text)?;

@@ -111,6 +111,8 @@ pub struct Sensors {
     glitch_counts: i64,
     /// Two current channels wired to each other's phase (`swap_current_channels`).
     swapped: Option<(usize, usize)>,
+    /// −1: the encoder counts backwards (`reverse_encoder`).
+    encoder_sign: f64,
 }
 
 impl Sensors {
@@ -139,6 +141,7 @@ impl Sensors {
             theta_base_rad: 0.0,
             glitch_counts: 0,
             swapped: None,
+            encoder_sign: 1.0,
         })
     }
 
@@ -218,6 +221,18 @@ impl Sensors {
         }
     }
 
+    /// From now on the encoder counts backwards (its A and B channels swapped); the count
+    /// carries on from where it is, from the angle `theta_m_rad` on.
+    pub fn reverse_encoder(&mut self, theta_m_rad: f64) {
+        if let Some((_, _, l)) = &self.encoder {
+            self.count_base = self
+                .count_base
+                .saturating_add(counts_at(self.encoder_sign * (theta_m_rad - self.theta_base_rad), *l));
+            self.theta_base_rad = theta_m_rad;
+        }
+        self.encoder_sign = -self.encoder_sign;
+    }
+
     /// Measured bus voltage.
     pub fn vdc(&self, vdc_v: f64) -> f32 {
         quantize(vdc_v, self.model.vdc_lsb_v) as f32
@@ -232,8 +247,10 @@ impl Sensors {
         self.last = match &mut self.encoder {
             Some((cfg, st, lines)) => {
                 self.count_base = self.count_base.saturating_add(std::mem::take(&mut self.glitch_counts));
-                let counts =
-                    self.count_base.saturating_add(counts_at(theta_m_rad - self.theta_base_rad, *lines));
+                let counts = self.count_base.saturating_add(counts_at(
+                    self.encoder_sign * (theta_m_rad - self.theta_base_rad),
+                    *lines,
+                ));
                 // The hardware counter keeps only the low 16 bits.
                 let count = frozen.unwrap_or(counts.rem_euclid(65_536) as u16);
                 self.last_count = count;
@@ -242,10 +259,13 @@ impl Sensors {
             None if frozen.is_some() => {
                 EncoderReading { theta_m_rad: self.last.theta_m_rad, omega_m_rad_s: 0.0 }
             }
-            None => EncoderReading {
-                theta_m_rad: (theta_m_rad - TAU * (theta_m_rad / TAU).round()) as f32,
-                omega_m_rad_s: omega_m_rad_s as f32,
-            },
+            None => {
+                let (theta, omega) = (self.encoder_sign * theta_m_rad, self.encoder_sign * omega_m_rad_s);
+                EncoderReading {
+                    theta_m_rad: (theta - TAU * (theta / TAU).round()) as f32,
+                    omega_m_rad_s: omega as f32,
+                }
+            }
         };
         self.last
     }

@@ -121,6 +121,9 @@ pub enum Injection {
     },
     /// The encoder counter stops counting (a lost or stuck encoder).
     EncoderStuck,
+    /// The encoder counts backwards from now on (its A and B channels swapped: an
+    /// installation error commissioning must refuse).
+    EncoderReversed,
     /// The encoder counter jumps by `counts` spurious counts at the next read (noise on its
     /// lines); the count stays off by that much. Needs the encoder model.
     EncoderGlitch {
@@ -578,6 +581,7 @@ pub fn run(
                         sensors.swap_current_channels(first, second)
                     }
                     Event::Fault(Injection::EncoderStuck) => sensors.freeze_encoder(),
+                    Event::Fault(Injection::EncoderReversed) => sensors.reverse_encoder(x.theta_m_rad),
                     Event::Fault(Injection::EncoderGlitch { counts }) => sensors.glitch_encoder(counts),
                     Event::Fault(Injection::EncoderLines { lines }) => {
                         sensors.change_encoder_lines(lines, x.theta_m_rad)

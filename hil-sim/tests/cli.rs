@@ -385,6 +385,10 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     assert!(String::from_utf8_lossy(&st.stderr).contains("outside the drive's bus range"));
 }
 
+fn refused_path(dir: &std::path::Path) -> PathBuf {
+    dir.join("refused.toml")
+}
+
 /// `identify` writes a motor file that loads (its [motor] is the nominal T-model, its
 /// [identification] holds the intervals); a refused sequence exits 1 naming the reason and
 /// writes nothing; bad arguments exit 2.
@@ -394,7 +398,7 @@ fn identify_writes_a_motor_file_or_nothing() {
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("motor.toml");
     let st = bin()
-        .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--out"])
+        .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--rotate", "--out"])
         .arg(&out)
         .output()
         .unwrap();
@@ -405,6 +409,29 @@ fn identify_writes_a_motor_file_or_nothing() {
     assert!((m.rs_ohm() / 16.2 - 1.0).abs() < 0.03, "{}", m.rs_ohm());
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("[identification]") && text.contains("sigma_ls_h = ["), "{text}");
+    assert!(text.contains("j_kgm2 = [") && text.contains("by the slow rotating field"), "{text}");
+    assert!((m.j_kgm2() / 0.005 - 1.0).abs() < 0.1, "{}", m.j_kgm2());
+    // A reversed encoder: the rotating field names it, nothing written.
+    let st = bin()
+        .args([
+            "identify",
+            "delorenzo-appendix",
+            "--test-current",
+            "1.24",
+            "--rotate",
+            "--reverse-encoder",
+            "--out",
+        ])
+        .arg(refused_path(&dir))
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&st.stderr).contains("counts against"),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert!(!refused_path(&dir).exists());
 
     let refused = dir.join("refused.toml");
     let st = bin()

@@ -20,6 +20,7 @@ fn spec(test_current_a: f32, vdc_v: f32) -> CommissionSpec {
         vdc_min_v: 0.8 * vdc_v,
         vdc_max_v: 1.2 * vdc_v,
         level_time_s: 3.0,
+        rotate: true,
     }
 }
 
@@ -30,12 +31,15 @@ fn setup(m: MotorParams, i_test: f32, vdc: f64, seed: u64) -> Setup {
 
 fn identify(s: &Setup) -> (Identified, f64) {
     let (rec, t) = identify::simulate(s, |_, _| {}, || false).unwrap();
-    (identify::estimate(&s.config, &rec).unwrap(), t)
+    (identify::estimate(&s.config, &rec, s.motor.pole_pairs()).unwrap(), t)
 }
 
 /// Issue 20's bounds: R_s and L_m within 3 %; σL_s, R_r and T_r within 5 %; offsets within
 /// 1 LSB; the inverter's voltage error within 10 %; every interval holds the true value;
-/// ≤ 30 s of motor time. L_m and R_r are compared under the motor's own leakage split (the
+/// ≤ 30 s of motor time (the rotating field included). Beyond the issue's bounds: J within
+/// 10 % (`identify::rotation`'s docs: the torque of a small slip is sensitive to the speed
+/// measured, more so the stiffer the machine), and the intervals of J and B hold the true
+/// values. L_m and R_r are compared under the motor's own leakage split (the
 /// terminals cannot tell the split: `identify`'s module docs); the split-free L_M = L_m²/L_r
 /// and R_R = R_r·(L_m/L_r)² are held to the same bounds.
 fn check(name: &str, m: &MotorParams, s: &Setup) -> String {
@@ -70,7 +74,11 @@ fn check(name: &str, m: &MotorParams, s: &Setup) -> String {
     let e_ve = rel(id.inverter_error_v.value, ve);
     assert!(e_ve.abs() <= 0.10, "{name}: inverter error {} V against {ve} V", id.inverter_error_v.value);
     assert!(t <= 30.0, "{name}: {t} s of motor time");
-    line + &format!(" V_e {:+.2} %, {t:.1} s", 100.0 * e_ve)
+    let rot = id.rotation.unwrap();
+    let e_j = rel(rot.j_kgm2.value, m.j_kgm2());
+    assert!(e_j.abs() <= 0.10, "{name}: J off by {:+.2} %", 100.0 * e_j);
+    assert!(rot.j_kgm2.contains(m.j_kgm2()) && rot.b_nms.contains(m.b_nms()), "{name}: {rot:?}");
+    line + &format!(" V_e {:+.2} % J {:+.2} %, {t:.1} s", 100.0 * e_ve, 100.0 * e_j)
 }
 
 /// Every shipped motor; the 500 hp Krause machine on a 2300 V-class bus (3 250 V) at 100 A.
@@ -101,13 +109,13 @@ fn seeded_random_motors_meet_the_same_bounds() {
         let rr = lr / uniform(0.02, 0.6);
         let rs = ls / uniform(0.01, 0.2);
         let i = (uniform(10.0, 40.0) / rs) as f32;
-        let m = MotorParams::new(rs, rr, ls, lr, lm, 2, 0.01, 0.0).unwrap();
+        let m = MotorParams::new(rs, rr, ls, lr, lm, 2, 0.01, uniform(0.0, 1e-3)).unwrap();
         println!("{}", check(&format!("random {k} (I = {i:.2} A)"), &m, &setup(m, i, 310.0, 100 + k)));
     }
 }
 
 /// A swapped pair of current channels is refused before any DC test; so is an inverted
-/// sensor set.
+/// sensor set; a reversed encoder (or wrong line count, or pole pairs) by the rotating field.
 #[test]
 fn swapped_current_channels_are_refused() {
     let m = drive_file::motor::load("delorenzo-appendix").unwrap();
@@ -119,6 +127,20 @@ fn swapped_current_channels_are_refused() {
     s.sensors.current_gain = [-1.0; 3];
     let r = identify::simulate(&s, |_, _| {}, || false).unwrap_err();
     assert_eq!(r, RunError::Refused(Refusal::CurrentSign));
+    // A reversed encoder, an encoder with twice the lines, a wrong pole-pair count: the
+    // rotating field's ratio names each.
+    let encoder = |injection: Option<Injection>, pole_pairs: u8| {
+        let mut s = setup(m, 1.24, 310.0, 3);
+        s.injections.extend(injection);
+        let (rec, _) = identify::simulate(&s, |_, _| {}, || false).unwrap();
+        identify::estimate(&s.config, &rec, pole_pairs).unwrap_err()
+    };
+    let e = encoder(Some(Injection::EncoderReversed), 1);
+    assert!(e.contains("counts against the rotating field"), "{e}");
+    let e = encoder(Some(Injection::EncoderLines { lines: 2048 }), 1);
+    assert!(e.contains("line count"), "{e}");
+    let e = encoder(None, 2);
+    assert!(e.contains("2 pole pairs is wrong"), "{e}");
     // A lead that is open: no current along a.
     let mut s = setup(m, 1.24, 310.0, 3);
     s.injections.push(Injection::OpenPhase { phase: 0 });

@@ -150,11 +150,12 @@ fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
         vdc_min_v: 248.0,
         vdc_max_v: 372.0,
         level_time_s: 3.0,
+        rotate: true,
     };
     let setup = Setup::realistic(m, CommissionConfig::new(spec).unwrap(), 310.0, 5);
     let file = |target: &Target| {
         let (rec, t) = identify::simulate_on(&setup, target, |_, _| {}, || false).unwrap();
-        let id = identify::estimate(&setup.config, &rec).unwrap();
+        let id = identify::estimate(&setup.config, &rec, 1).unwrap();
         (rec, t, identify::motor_file(&id, 1.0, 1, 0.005, 0.0005, "pil = sil"))
     };
     let wall = Instant::now();

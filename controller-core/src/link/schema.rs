@@ -533,6 +533,7 @@ fn stage_code(s: Stage) -> (u8, u8, f32, u8) {
         Stage::Injection(j) => 7 + j.min(1),
         Stage::Done => 9,
         Stage::Refused(_) => 10,
+        Stage::Rotate => 11,
     };
     (code, r, v, i)
 }
@@ -544,6 +545,7 @@ fn stage_from_code(code: u8, r: u8, v: f32, i: u8) -> Result<Stage, DecodeError>
         4..=6 => Stage::Level(code - 4),
         7..=8 => Stage::Injection(code - 7),
         9 => Stage::Done,
+        11 => Stage::Rotate,
         10 => Stage::Refused(match (r, i) {
             (0, _) => Refusal::BusOutOfRange(v),
             (1, _) => Refusal::BusUnsteady(v),
@@ -622,6 +624,7 @@ impl Command {
                 {
                     w.f32(v)?;
                 }
+                w.u8(u8::from(c.rotate))?;
             }
             Command::GetCommissionRecord { chunk } => {
                 w.u8(tag::GET_COMMISSION_RECORD)?;
@@ -650,6 +653,11 @@ impl Command {
                 vdc_min_v: r.f32()?,
                 vdc_max_v: r.f32()?,
                 level_time_s: r.f32()?,
+                rotate: match r.u8()? {
+                    0 => false,
+                    1 => true,
+                    _ => return Err(DecodeError::Value),
+                },
             }),
             tag::GET_COMMISSION_RECORD => Command::GetCommissionRecord { chunk: r.u8()? },
             other => decode_board_tag(other, &mut r)?.command().ok_or(DecodeError::UnknownType(other))?,

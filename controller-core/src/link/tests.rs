@@ -95,6 +95,7 @@ fn every_command_round_trips() {
             vdc_min_v: 248.0,
             vdc_max_v: 372.0,
             level_time_s: 3.0,
+            rotate: true,
         }),
         Command::GetCommissionRecord { chunk: 10 },
     ];
@@ -136,6 +137,7 @@ fn replies_round_trip_bit_exact() {
         Stage::Pulse(2),
         Stage::Level(1),
         Stage::Injection(1),
+        Stage::Rotate,
         Stage::Done,
         Stage::Refused(Refusal::BusOutOfRange(150.5)),
         Stage::Refused(Refusal::OffsetTooLarge { channel: 2, offset_a: -0.4 }),
