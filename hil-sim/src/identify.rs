@@ -547,6 +547,74 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
     })
 }
 
+/// The pictures of a run: `decays.svg` — each DC level's recorded voltage above its settled
+/// value, over its fitted amplitude, against time over its fitted T_r: all three on
+/// `e^{−t/T_r}` when the model holds; and, with the rotating field, `rotation.svg` — the
+/// encoder's speed against the field's mechanical speed. (name, SVG) pairs.
+pub fn plots(
+    cfg: &CommissionConfig,
+    rec: &Record,
+    id: &Identified,
+    pole_pairs: u8,
+) -> Vec<(&'static str, String)> {
+    use report::plot::{Series, line_plot};
+    let ts = f64::from(cfg.ts_s());
+    let ends = cfg.block_end();
+    let mut series = Vec::new();
+    let labels = ["0 → I/2", "I/2 → I", "I → I/2"];
+    for ((level, fit), label) in rec.levels.iter().zip(&id.decays).zip(labels) {
+        let pts = (0..BLOCKS)
+            .filter_map(|b| {
+                let start = if b == 0 { 0.0 } else { f64::from(ends[b - 1]) };
+                let mid = 0.5 * (start + f64::from(ends[b])) * ts;
+                let x = mid / fit.tau_s;
+                let y = (f64::from(level.v_alpha_v[b]) - fit.c_v) / fit.a_v;
+                (x <= 5.0 && start >= skip_periods()).then_some((x, y))
+            })
+            .collect();
+        series.push(Series::dots(label, pts));
+    }
+    let model = (0..=200).map(|k| k as f64 * 5.0 / 200.0).map(|x| (x, (-x).exp())).collect();
+    series.push(Series::line("e^(−t/T_r)", model));
+    let mut out = vec![(
+        "decays.svg",
+        line_plot("DC levels: (v − v_settled)/A against t/T_r", "t / T_r (each step's fitted T_r)", &series),
+    )];
+    if let Some(rot) = &id.rotation {
+        let r = &rec.rotation;
+        let dt = f64::from(r.periods_per_block) * ts;
+        let mut prev = 0.0;
+        let speed: Vec<(f64, f64)> = r
+            .theta_m_rad
+            .iter()
+            .enumerate()
+            .map(|(b, th)| {
+                let w = (f64::from(*th) - prev) / dt;
+                prev = f64::from(*th);
+                ((b as f64 + 0.5) * dt, w)
+            })
+            .collect();
+        let ramp = f64::from(controller_core::commission::ROTATION_RAMP_S);
+        let w_max = 2.0 * std::f64::consts::PI * f64::from(controller_core::commission::ROTATION_HZ)
+            / f64::from(pole_pairs);
+        let t_end = speed.last().map_or(0.0, |p| p.0 + 0.5 * dt);
+        let field = vec![(0.0, 0.0), (ramp, w_max), (t_end, w_max)];
+        let title = format!(
+            "Rotating field: J = {:.4} kg·m², B = {:.4} N·m·s/rad, rotor/field {:.4}",
+            rot.j_kgm2.value, rot.b_nms.value, rot.ratio
+        );
+        out.push((
+            "rotation.svg",
+            line_plot(
+                &title,
+                "t, s (from the field's start)",
+                &[Series::line("field / p, rad/s", field), Series::dots("encoder, rad/s", speed)],
+            ),
+        ));
+    }
+    out
+}
+
 /// The true values the identification should find for `m`: (L_σ, L_M, R_R, T_r).
 pub fn inverse_gamma(m: &MotorParams) -> (f64, f64, f64, f64) {
     let k = m.lm_h() / m.lr_h();

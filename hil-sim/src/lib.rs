@@ -8,7 +8,8 @@
 //! * [`link_client`]: the host end of the command/telemetry link (PIL FIFOs, board UART);
 //! * [`pil`]: the same runs with the drive on an emulated Cortex-M4F (QEMU), lockstep;
 //! * [`campaign`]: the nonlinear campaign over a parameter box; [`faults`]: the
-//!   fault-injection matrix;
+//!   fault-injection matrix; [`identify`]: self-commissioning (the core's sequence against
+//!   the simulated motor, in process or on QEMU) and the motor's estimation;
 //! * [`scenario`]: the papers' experiments as built-ins, on the shipped drive file;
 //!   [`scenario_file`]: scenario files (a drive file plus a run); plots and
 //!   file writing: the `report` crate.

@@ -131,6 +131,9 @@ struct IdentifyArgs {
     /// Make the encoder count backwards (a wiring error the rotating field finds).
     #[arg(long, requires = "rotate")]
     reverse_encoder: bool,
+    /// Also write the pictures (decays.svg; rotation.svg with --rotate) into this directory.
+    #[arg(long, value_parser = non_empty_path)]
+    plot_dir: Option<PathBuf>,
     /// Run the sequence on the emulated Cortex-M4F (QEMU, processor in the loop) instead of
     /// in this process: the same record, so the same file, bit for bit.
     #[arg(long)]
@@ -298,6 +301,13 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
     drive_file::motor::parse(&a.out, &text).map_err(|e| format!("the identified motor is not valid: {e}"))?;
     write_text(&a.out, &text)?;
     eprintln!("hil-sim: wrote {}", a.out.display());
+    if let Some(dir) = &a.plot_dir {
+        std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        for (name, svg) in identify::plots(&config, &record, &id, pole_pairs) {
+            write_text(&dir.join(name), &svg)?;
+        }
+        eprintln!("hil-sim: wrote the pictures in {}", dir.display());
+    }
     Ok(())
 }
 

@@ -400,6 +400,8 @@ fn identify_writes_a_motor_file_or_nothing() {
     let st = bin()
         .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--rotate", "--out"])
         .arg(&out)
+        .arg("--plot-dir")
+        .arg(dir.join("plots"))
         .output()
         .unwrap();
     assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
@@ -411,6 +413,9 @@ fn identify_writes_a_motor_file_or_nothing() {
     assert!(text.contains("[identification]") && text.contains("sigma_ls_h = ["), "{text}");
     assert!(text.contains("j_kgm2 = [") && text.contains("by the slow rotating field"), "{text}");
     assert!((m.j_kgm2() / 0.005 - 1.0).abs() < 0.1, "{}", m.j_kgm2());
+    for svg in ["decays.svg", "rotation.svg"] {
+        assert!(std::fs::read_to_string(dir.join("plots").join(svg)).unwrap().starts_with("<svg"), "{svg}");
+    }
     // A reversed encoder: the rotating field names it, nothing written.
     let st = bin()
         .args([
