@@ -16,12 +16,21 @@
 //! enabled until the board is reset ([`ControlLoop::calibration`] says which channel and
 //! why). Until it is done, the bridge stays off whatever the link asks.
 //!
+//! **Commissioning** (feature `commissioning`; `controller_core::commission`, issue 20):
+//! started from the link while
+//! the drive is Idle and calibrated (`ControlLoop::start_commissioning`), the sequence takes
+//! the drive's place in the interrupt until it finishes or refuses; the drive still steps
+//! (Idle: its brake chopper and its hardware-break latch), and a latched fault, a `Stop` or a
+//! `Disable` aborts the sequence — the bridge off for good.
+//!
 //! Encoder loss: the drive's own jump check (`controller_core::drive`, `Fault::EncoderLoss`)
 //! on the angle the estimator reports — the same code in the simulator.
 
 use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
+#[cfg(feature = "commissioning")]
+use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::{
     Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand,
 };
@@ -122,6 +131,18 @@ pub struct ControlLoop {
     divider: u16,
     count: u16,
     last: Option<FastOutput>,
+    /// A commissioning sequence in the drive's place, and its last output.
+    #[cfg(feature = "commissioning")]
+    commission: Option<(Commissioning, Option<CommissionOutput>)>,
+}
+
+/// Why a commissioning sequence was not started.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CommissionRefused {
+    /// The drive is not Idle (running, or a fault latched).
+    NotIdle,
+    /// The offset calibration has not finished (or failed).
+    NotCalibrated,
 }
 
 impl ControlLoop {
@@ -190,6 +211,8 @@ impl ControlLoop {
             divider,
             count: 0,
             last: None,
+            #[cfg(feature = "commissioning")]
+            commission: None,
         })
     }
 
@@ -244,6 +267,51 @@ impl ControlLoop {
         };
     }
 
+    /// Start commissioning with `cfg` (built outside the interrupt): only while Idle and
+    /// calibrated. A finished or refused sequence is replaced.
+    #[cfg(feature = "commissioning")]
+    pub fn start_commissioning(&mut self, cfg: CommissionConfig) -> Result<(), CommissionRefused> {
+        if self.drive.mode() != Mode::Idle || self.commissioning() {
+            return Err(CommissionRefused::NotIdle);
+        }
+        if !matches!(self.calibration, Calibration::Done(_)) {
+            return Err(CommissionRefused::NotCalibrated);
+        }
+        self.commission = Some((Commissioning::new(cfg), None));
+        Ok(())
+    }
+
+    /// A sequence is running (not finished, not refused).
+    pub fn commissioning(&self) -> bool {
+        #[cfg(feature = "commissioning")]
+        return self
+            .commission
+            .as_ref()
+            .is_some_and(|(c, _)| !matches!(c.stage(), Stage::Done | Stage::Refused(_)));
+        #[cfg(not(feature = "commissioning"))]
+        false
+    }
+
+    /// Stop the sequence: the bridge off for good (`Refusal::Aborted`).
+    pub fn abort_commissioning(&mut self) {
+        #[cfg(feature = "commissioning")]
+        if let Some((c, _)) = &mut self.commission {
+            c.abort();
+        }
+    }
+
+    /// The last step's output of the sequence (`None`: none started).
+    #[cfg(feature = "commissioning")]
+    pub fn commission_output(&self) -> Option<CommissionOutput> {
+        self.commission.as_ref().and_then(|(_, o)| *o)
+    }
+
+    /// The finished sequence's record.
+    #[cfg(feature = "commissioning")]
+    pub fn commission_record(&self) -> Option<&Record> {
+        self.commission.as_ref().and_then(|(c, _)| c.record())
+    }
+
     /// The brake chopper's switch after the last step.
     pub fn brake(&self) -> bool {
         self.last.is_some_and(|o| o.brake)
@@ -277,6 +345,22 @@ impl ControlLoop {
         };
         let out = self.drive.step(&m);
         self.last = Some(out);
+        #[cfg(feature = "commissioning")]
+        if let Some((c, last)) =
+            self.commission.as_mut().filter(|(c, _)| !matches!(c.stage(), Stage::Done | Stage::Refused(_)))
+        {
+            if matches!(out.mode, Mode::Fault(_)) {
+                c.abort();
+            }
+            let o = c.step(&m);
+            *last = Some(o);
+            return match o.phases {
+                PhaseCommand::Off => Bridge::Off,
+                PhaseCommand::Duty(d) => {
+                    Bridge::Compare([self.pwm.compare(d.a), self.pwm.compare(d.b), self.pwm.compare(d.c)])
+                }
+            };
+        }
         match out.phases {
             PhaseCommand::Off => Bridge::Off,
             // The calibration's last period: the bridge stays off until the next one.

@@ -411,8 +411,13 @@ mod target {
             for &b in input.iter().take(n) {
                 let Some(cmd) = decoder.push_board_command(b, &mut stats) else { continue };
                 watchdog.frame(now_ms());
+                // Heavy work (a commissioning configuration) outside the critical section.
+                let prepared = server::prepare(&cmd);
                 let reply = critical_section::with(|cs| {
-                    CONTROL.borrow_ref_mut(cs).as_mut().map(|c| server::handle_board(c, &cmd, &stats))
+                    CONTROL
+                        .borrow_ref_mut(cs)
+                        .as_mut()
+                        .map(|c| server::handle_board(c, &cmd, prepared, &stats))
                 });
                 if let Some(r) = reply
                     && let Ok(len) = link::reply_frame(&r, &mut frame)

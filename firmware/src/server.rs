@@ -5,12 +5,21 @@
 //! `ReadSpeedGains`, and `WriteSpeedGains` while Idle with both values inside the ranges
 //! certified in `drive.toml` ([`crate::config`]; `Nack(OutOfCertifiedRange)` otherwise).
 //! Refused with `Nack(Unsupported)`: `Step` (on the board the ADC provides the
-//! measurements), `Configure` (the rest of the constants are the certified ones the
-//! firmware was built with), and `Commission`/`GetCommissionRecord` (the commissioning
-//! sequence runs in SIL and PIL; this firmware does not carry it yet).
+//! measurements) and `Configure` (the rest of the constants are the certified ones the
+//! firmware was built with).
+//!
+//! Commissioning (feature `commissioning`; without it these commands are answered
+//! `Nack(Unsupported)`): `Commission` while Idle and calibrated
+//! starts the sequence in the drive's place — its configuration built by [`prepare`]
+//! outside the interrupt's critical section, swapped in by [`handle_board`];
+//! `GetCommissionStage` and `GetCommissionRecord` report it; `Stop` or `Disable` abort it,
+//! and nothing else reaches the drive while it runs (`Nack(NotIdle)`).
 
 use crate::config as certified;
+#[cfg(feature = "commissioning")]
+use crate::control::CommissionRefused;
 use crate::control::ControlLoop;
+use controller_core::commission::{CommissionConfig, CommissionSpecError};
 use controller_core::drive::Mode;
 use controller_core::link::{self, BoardCommand, Command, LinkStats, NackReason, Reply};
 
@@ -41,21 +50,78 @@ impl LinkWatchdog {
     /// Returns whether it did.
     pub fn poll(&mut self, now_ms: u32, ctl: &mut ControlLoop) -> bool {
         let on = matches!(ctl.drive().mode(), Mode::Magnetizing | Mode::Running);
+        let on = on || ctl.commissioning();
         if self.timeout_ms == 0 || self.fired || !on || now_ms.wrapping_sub(self.last_ms) < self.timeout_ms {
             return false;
         }
         ctl.drive_mut().controlled_stop();
+        ctl.abort_commissioning();
         self.fired = true;
         true
     }
 }
 
-/// Answer one command as the board decodes it ([`Command::decode_board`]: `Configure`,
-/// `Step` and the commissioning commands arrive unparsed, as [`BoardCommand::Refused`]).
-pub fn handle_board(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
-    match cmd.command() {
-        None => Reply::Nack(NackReason::Unsupported),
-        Some(c) => handle(ctl, &c, stats),
+/// The work a command needs before it reaches the control loop, done outside the critical
+/// section: a commissioning sequence's configuration.
+// Lives only between `prepare` and `handle_board`, on the link task's stack; no heap to box
+// the configuration (≈ 220 B) in.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Prepared {
+    /// Nothing to prepare.
+    Nothing,
+    /// `Commission`'s configuration, or why its spec was rejected.
+    Commission(Result<CommissionConfig, CommissionSpecError>),
+}
+
+/// Prepare `cmd` (call outside the critical section, then [`handle_board`] inside it).
+pub fn prepare(cmd: &BoardCommand) -> Prepared {
+    match cmd {
+        #[cfg(feature = "commissioning")]
+        BoardCommand::Commission(spec) => Prepared::Commission(CommissionConfig::new(*spec)),
+        _ => Prepared::Nothing,
+    }
+}
+
+/// Answer one command as the board decodes it ([`Command::decode_board`]: `Configure` and
+/// `Step` arrive unparsed, as [`BoardCommand::Refused`]), with what [`prepare`] built.
+pub fn handle_board(
+    ctl: &mut ControlLoop,
+    cmd: &BoardCommand,
+    prepared: Prepared,
+    stats: &LinkStats,
+) -> Reply {
+    match (cmd, prepared) {
+        #[cfg(feature = "commissioning")]
+        (BoardCommand::Commission(_), Prepared::Commission(cfg)) => {
+            match cfg.map(|c| ctl.start_commissioning(c)) {
+                Ok(Ok(())) => Reply::Ack,
+                Ok(Err(CommissionRefused::NotIdle)) => Reply::Nack(NackReason::NotIdle),
+                Ok(Err(CommissionRefused::NotCalibrated)) => Reply::Nack(NackReason::NotConfigured),
+                Err(_) => Reply::Nack(NackReason::Configuration),
+            }
+        }
+        // Not prepared: refused rather than built inside the critical section.
+        #[cfg(feature = "commissioning")]
+        (BoardCommand::Commission(_), _) => Reply::Nack(NackReason::Configuration),
+        #[cfg(feature = "commissioning")]
+        (BoardCommand::GetCommissionStage, _) => {
+            ctl.commission_output().map_or(Reply::Nack(NackReason::NoRecord), Reply::Commission)
+        }
+        #[cfg(feature = "commissioning")]
+        (BoardCommand::GetCommissionRecord { chunk }, _) => {
+            link::record_chunk(ctl.commission_record(), *chunk)
+        }
+        (BoardCommand::Stop | BoardCommand::Disable, _) if ctl.commissioning() => {
+            ctl.abort_commissioning();
+            Reply::Ack
+        }
+        (BoardCommand::GetStatus, _) => handle(ctl, &Command::GetStatus, stats),
+        _ if ctl.commissioning() => Reply::Nack(NackReason::NotIdle),
+        _ => match cmd.command() {
+            None => Reply::Nack(NackReason::Unsupported),
+            Some(c) => handle(ctl, &c, stats),
+        },
     }
 }
 
@@ -140,7 +206,7 @@ mod tests {
             let mut got = None;
             for &b in &f[..n] {
                 if let Some(bc) = decoder.push_board_command(b, stats) {
-                    got = Some(handle_board(c, &bc, stats));
+                    got = Some(handle_board(c, &bc, prepare(&bc), stats));
                 }
             }
             got
@@ -148,8 +214,13 @@ mod tests {
         let unsupported = Some(Reply::Nack(NackReason::Unsupported));
         assert_eq!(reply(&Command::Configure(spec), &mut c, &mut stats), unsupported);
         assert_eq!(reply(&Command::Step(Measurements::default()), &mut c, &mut stats), unsupported);
-        // Commissioning runs in the PIL server only (not in this firmware yet).
-        assert_eq!(reply(&Command::GetCommissionRecord { chunk: 0 }, &mut c, &mut stats), unsupported);
+        // No sequence ran: no record (without the feature: not supported).
+        let no_record = Some(Reply::Nack(if cfg!(feature = "commissioning") {
+            NackReason::NoRecord
+        } else {
+            NackReason::Unsupported
+        }));
+        assert_eq!(reply(&Command::GetCommissionRecord { chunk: 0 }, &mut c, &mut stats), no_record);
         assert_eq!(reply(&Command::Enable, &mut c, &mut stats), Some(Reply::Ack));
         assert_eq!(c.drive().mode(), Mode::Magnetizing);
         assert_eq!(stats.frames_ok, 4);
@@ -208,5 +279,70 @@ mod tests {
         // Not while the bridge is active.
         assert_eq!(handle(&mut c, &Command::Enable, &s), Reply::Ack);
         assert_eq!(write(&mut c, 0.05, 1.0), Reply::Nack(NackReason::NotIdle));
+    }
+
+    /// Commissioning on the board (feature `commissioning`): refused until the offsets are
+    /// calibrated, then the sequence takes the bridge (off during its own offsets, switching
+    /// from its first pulse), reports its stage, refuses other commands, and a hardware
+    /// break or a `Stop` ends it with the bridge off for good.
+    #[cfg(feature = "commissioning")]
+    #[test]
+    fn commissioning_takes_the_bridge_and_a_break_or_stop_ends_it() {
+        use crate::control::{Bridge, Samples};
+        use controller_core::commission::{CommissionSpec, Refusal, Stage};
+        let spec = CommissionSpec {
+            pwm_hz: 20_000.0,
+            test_current_a: 1.0,
+            current_limit_a: 2.0,
+            vdc_min_v: 250.0,
+            vdc_max_v: 370.0,
+            level_time_s: 1.0,
+            rotate: false,
+        };
+        let cmd = BoardCommand::Commission(spec);
+        let stats = LinkStats::default();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Nack(NackReason::NotConfigured));
+        c.calibrate_at_rest();
+        assert_eq!(
+            handle_board(&mut c, &cmd, Prepared::Nothing, &stats),
+            Reply::Nack(NackReason::Configuration)
+        );
+        let bad = BoardCommand::Commission(CommissionSpec { test_current_a: -1.0, ..spec });
+        assert_eq!(handle_board(&mut c, &bad, prepare(&bad), &stats), Reply::Nack(NackReason::Configuration));
+        assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Ack);
+        assert!(c.commissioning());
+        assert_eq!(
+            handle_board(&mut c, &BoardCommand::Enable, Prepared::Nothing, &stats),
+            Reply::Nack(NackReason::NotIdle)
+        );
+        let zero = BOARD.current_offset_counts;
+        let at_rest = Samples { i_abc: [zero; 3], vdc: 3100, encoder: 0, hardware_break: false };
+        let first = (0..4000).find(|_| matches!(c.step(&at_rest), Bridge::Compare(_)));
+        // The sequence's own offsets (2 048 periods) with the bridge off, then the first pulse.
+        assert_eq!(first, Some(controller_core::commission::OFFSET_PERIODS as usize));
+        let stage = handle_board(&mut c, &BoardCommand::GetCommissionStage, Prepared::Nothing, &stats);
+        assert!(matches!(stage, Reply::Commission(o) if o.stage == Stage::Pulse(0)), "{stage:?}");
+        // A hardware break: the drive latches it, the sequence ends, the bridge stays off.
+        assert_eq!(c.step(&Samples { hardware_break: true, ..at_rest }), Bridge::Off);
+        assert!(!c.commissioning());
+        for _ in 0..100 {
+            assert_eq!(c.step(&at_rest), Bridge::Off);
+        }
+        let stage = handle_board(&mut c, &BoardCommand::GetCommissionStage, Prepared::Nothing, &stats);
+        assert!(
+            matches!(stage, Reply::Commission(o) if o.stage == Stage::Refused(Refusal::Aborted)),
+            "{stage:?}"
+        );
+        // A new one on a healthy drive, stopped from the link.
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
+        assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Ack);
+        assert_eq!(handle_board(&mut c, &BoardCommand::Stop, Prepared::Nothing, &stats), Reply::Ack);
+        assert!(!c.commissioning());
+        assert_eq!(c.step(&at_rest), Bridge::Off);
+        let record =
+            handle_board(&mut c, &BoardCommand::GetCommissionRecord { chunk: 0 }, Prepared::Nothing, &stats);
+        assert_eq!(record, Reply::Nack(NackReason::NoRecord));
     }
 }

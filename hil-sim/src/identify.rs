@@ -697,17 +697,7 @@ impl Sequence {
                 if *stage != Stage::Done {
                     return Ok(None);
                 }
-                let mut bytes = Vec::with_capacity(usize::from(RECORD_CHUNKS) * RECORD_CHUNK_BYTES);
-                for chunk in 0..RECORD_CHUNKS {
-                    match pil.transact(&Command::GetCommissionRecord { chunk })? {
-                        Reply::CommissionRecord { chunk: got, bytes: b } if got == chunk => bytes.extend(b),
-                        other => return Err(format!("unexpected reply {other:?} to record part {chunk}")),
-                    }
-                }
-                bytes.truncate(RECORD_BYTES);
-                Record::read_bytes(&bytes)
-                    .map(Some)
-                    .ok_or_else(|| "the target's record did not decode".into())
+                fetch_record(|c| pil.transact(c)).map(Some)
             }
         }
     }
@@ -785,6 +775,8 @@ pub enum RunError {
     Refused(Refusal),
     /// The simulation failed.
     Simulation(String),
+    /// The link to the board failed, or the board refused to start.
+    Link(String),
     /// Stopped by the caller.
     Interrupted,
 }
@@ -794,6 +786,7 @@ impl std::fmt::Display for RunError {
         match self {
             RunError::Refused(r) => write!(f, "commissioning refused: {}", describe(r)),
             RunError::Simulation(e) => write!(f, "simulation: {e}"),
+            RunError::Link(e) => write!(f, "link: {e}"),
             RunError::Interrupted => write!(f, "interrupted"),
         }
     }
@@ -852,6 +845,64 @@ pub fn stage_name(s: Stage) -> String {
         Stage::Done => "done".into(),
         Stage::Refused(_) => "refused".into(),
     }
+}
+
+/// The finished sequence's record from a target, part by part.
+fn fetch_record(mut transact: impl FnMut(&Command) -> Result<Reply, String>) -> Result<Record, String> {
+    let mut bytes = Vec::with_capacity(usize::from(RECORD_CHUNKS) * RECORD_CHUNK_BYTES);
+    for chunk in 0..RECORD_CHUNKS {
+        match transact(&Command::GetCommissionRecord { chunk })? {
+            Reply::CommissionRecord { chunk: got, bytes: b } if got == chunk => bytes.extend(b),
+            other => return Err(format!("unexpected reply {other:?} to record part {chunk}")),
+        }
+    }
+    bytes.truncate(RECORD_BYTES);
+    Record::read_bytes(&bytes).ok_or_else(|| "the target's record did not decode".into())
+}
+
+/// Runs the sequence on a board over its link (firmware built with the `commissioning`
+/// feature): starts it, polls its stage every `poll` (each poll also keeps the board's link
+/// watchdog from aborting it), and fetches the record. `progress` sees every stage polled;
+/// `interrupted()` sends `Stop` (the board aborts: bridge off) and returns.
+pub fn over_link<R: std::io::Read, W: std::io::Write>(
+    link: &mut crate::link_client::LinkClient<R, W>,
+    spec: controller_core::commission::CommissionSpec,
+    poll: std::time::Duration,
+    mut progress: impl FnMut(Stage),
+    interrupted: impl Fn() -> bool,
+) -> Result<Record, RunError> {
+    let broken = RunError::Link;
+    match link.transact(&Command::Commission(spec)).map_err(broken)? {
+        Reply::Ack => {}
+        Reply::Nack(r) => {
+            return Err(RunError::Link(format!(
+                "the board did not start the sequence: {r:?} (NotConfigured: offsets not calibrated; \
+                 Unsupported: firmware built without the `commissioning` feature)"
+            )));
+        }
+        other => return Err(RunError::Link(format!("unexpected reply {other:?} to Commission"))),
+    }
+    loop {
+        if interrupted() {
+            let _ = link.transact(&Command::Stop);
+            return Err(RunError::Interrupted);
+        }
+        match link.transact(&Command::GetCommissionStage).map_err(broken)? {
+            Reply::Commission(o) => {
+                progress(o.stage);
+                match o.stage {
+                    Stage::Done => break,
+                    Stage::Refused(r) => return Err(RunError::Refused(r)),
+                    _ => {}
+                }
+            }
+            // Started, not stepped yet.
+            Reply::Nack(controller_core::link::NackReason::NoRecord) => {}
+            other => return Err(RunError::Link(format!("unexpected reply {other:?} to GetCommissionStage"))),
+        }
+        std::thread::sleep(poll);
+    }
+    fetch_record(|c| link.transact(c)).map_err(RunError::Link)
 }
 
 /// Runs the sequence in SIL: the record, and the motor time it took (s).

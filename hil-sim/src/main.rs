@@ -158,6 +158,65 @@ fn leakage_ratio(s: &str) -> Result<f64, String> {
     }
 }
 
+fn link_identify<R: std::io::Read, W: std::io::Write>(
+    link: &mut hil_sim::link_client::LinkClient<R, W>,
+    a: &LinkIdentifyArgs,
+) -> Result<(), String> {
+    use controller_core::commission::{CommissionConfig, CommissionSpec, Stage};
+    use hil_sim::identify;
+    let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
+    let spec = CommissionSpec {
+        pwm_hz: file.spec.pwm_frequency_hz as f32,
+        test_current_a: a.test_current as f32,
+        current_limit_a: a.current_limit.unwrap_or(2.0 * a.test_current) as f32,
+        vdc_min_v: file.spec.protection.vdc_min_v as f32,
+        vdc_max_v: file.spec.protection.vdc_max_v as f32,
+        level_time_s: a.level_time as f32,
+        rotate: a.rotate,
+    };
+    // The board validates the same way; refuse here first, with a reason.
+    let config =
+        CommissionConfig::new(spec).map_err(|e| format!("the test's parameters are refused: {e:?}"))?;
+    stop_on_ctrl_c();
+    let mut shown = None;
+    let record = identify::over_link(
+        link,
+        spec,
+        Duration::from_millis(200),
+        |stage: Stage| {
+            if shown != Some(stage) && stage.index() < Stage::COUNT {
+                eprintln!(
+                    "hil-sim: [{}/{}] {}",
+                    stage.index() + 1,
+                    Stage::COUNT,
+                    identify::stage_name(stage)
+                );
+                shown = Some(stage);
+            }
+        },
+        || INTERRUPTED.load(Ordering::Relaxed),
+    )
+    .map_err(|e| e.to_string())?;
+    let m = &file.spec.motor;
+    let id = identify::estimate(&config, &record, m.pole_pairs())?;
+    let about = format!(
+        "Commissioned on the board over its link (hil-sim link … identify: test current {} A, drive file {}).",
+        a.test_current,
+        a.drive.display()
+    );
+    let text = identify::motor_file(&id, a.leakage_ratio, m.pole_pairs(), m.j_kgm2(), m.b_nms(), &about);
+    drive_file::motor::parse(&a.out, &text).map_err(|e| format!("the identified motor is not valid: {e}"))?;
+    write_text(&a.out, &text)?;
+    eprintln!("hil-sim: wrote {}", a.out.display());
+    Ok(())
+}
+
+/// Ctrl-C sets [`INTERRUPTED`]: the run stops at its next check and writes nothing (a
+/// second Ctrl-C while it winds down is ignored).
+fn stop_on_ctrl_c() {
+    let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::Relaxed));
+}
+
 fn identify(a: &IdentifyArgs) -> Result<(), String> {
     use controller_core::commission::{CommissionConfig, CommissionSpec, Stage};
     use hil_sim::identify::{self, Setup};
@@ -586,7 +645,7 @@ struct LinkArgs {
     timeout_s: f64,
 }
 
-#[derive(Subcommand, Debug, Clone, Copy)]
+#[derive(Subcommand, Debug, Clone)]
 enum LinkCmd {
     /// Enable the bridge (Idle → Magnetizing → Running).
     Enable,
@@ -613,6 +672,36 @@ enum LinkCmd {
         #[arg(default_value_t = 10)]
         n: u32,
     },
+    /// Self-commissioning on the board (firmware built with `--features commissioning`):
+    /// the standstill sequence (and the rotating field with --rotate), progress shown,
+    /// the motor estimated and written to --out; nothing written if it fails.
+    Identify(LinkIdentifyArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+struct LinkIdentifyArgs {
+    /// The motor file to write.
+    #[arg(long, value_parser = non_empty_path)]
+    out: PathBuf,
+    /// Test current, A (the motor's rated peak current is a good choice).
+    #[arg(long, value_parser = positive_amperes)]
+    test_current: f64,
+    /// Phase-current limit during the tests, A [default: 2 × the test current].
+    #[arg(long, value_parser = positive_amperes)]
+    current_limit: Option<f64>,
+    /// The drive file the firmware was built from: its PWM frequency, bus range, pole pairs,
+    /// and J and B for a standstill-only run.
+    #[arg(long, default_value = "drive.toml")]
+    drive: PathBuf,
+    /// Time each DC level is held, s.
+    #[arg(long, default_value_t = 3.0)]
+    level_time: f64,
+    /// The motor may turn (the rotating field: encoder check, J and B).
+    #[arg(long)]
+    rotate: bool,
+    /// Assumed leakage split L_lr/L_ls.
+    #[arg(long, default_value_t = 1.0, value_parser = leakage_ratio)]
+    leakage_ratio: f64,
 }
 
 fn non_empty_path(s: &str) -> Result<PathBuf, String> {
@@ -1036,7 +1125,7 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
         }
         return Ok(());
     }
-    let Some(command) = a.command else {
+    let Some(command) = a.command.clone() else {
         return Err("which command? (`hil-sim link --help`)".into());
     };
     let cmd = match command {
@@ -1050,7 +1139,7 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
         LinkCmd::Torque { value } => Some(Command::SetReference(Reference::Torque(value))),
         LinkCmd::Gains => Some(Command::ReadSpeedGains),
         LinkCmd::SetGains { kp, tau_max_nm } => Some(Command::WriteSpeedGains { kp, tau_max_nm }),
-        LinkCmd::Telemetry { .. } => None,
+        LinkCmd::Telemetry { .. } | LinkCmd::Identify(_) => None,
     };
     let timeout = Duration::from_secs_f64(a.timeout_s);
     // Raw 8N1 at 115200 baud; reads return after 100 ms without data (the client's own
@@ -1062,6 +1151,7 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
     let rx = port.try_clone().map_err(|e| format!("{}: {e}", a.device))?;
     let mut link = hil_sim::link_client::LinkClient::new(rx, port).with_reply_timeout(timeout);
     match (cmd, command) {
+        (None, LinkCmd::Identify(args)) => link_identify(&mut link, &args)?,
         (Some(c), _) => println!("{:?}", link.transact(&c)?),
         (None, LinkCmd::Telemetry { n }) => {
             // Each status request keeps the board's link watchdog (`[board] link_timeout_s`)
@@ -1080,11 +1170,6 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let builtins = || scenario::all().map_err(|e| format!("built-in scenarios: {e}"));
-    let stop_on_ctrl_c = || {
-        // A second Ctrl-C while the run winds down is ignored; the run stops within one
-        // trace row.
-        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::Relaxed));
-    };
     let result = match &cli.command {
         Cmd::List => builtins().map(|bs| {
             for b in &bs {

@@ -147,3 +147,114 @@ fn swapped_current_channels_are_refused() {
     let r = identify::simulate(&s, |_, _| {}, || false).unwrap_err();
     assert_eq!(r, RunError::Refused(Refusal::NoCurrent));
 }
+
+/// `hil-sim link <dev> identify`'s protocol against an emulated board: a thread that runs
+/// the sequence on its own clock (20 000 periods per stage poll) against an inverse-Γ motor
+/// at standstill and answers the link as the firmware's `commissioning` feature does. The
+/// host starts it, polls, fetches the record in parts and estimates; Ctrl-C's `Stop` aborts.
+#[test]
+fn a_board_is_commissioned_over_its_link() {
+    use controller_core::commission::{Commissioning, Stage};
+    use controller_core::drive::{Measurements, PhaseCommand};
+    use controller_core::frames::AlphaBeta;
+    use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, NackReason, Reply};
+    use std::io::{Read, Write};
+    use std::os::unix::net::UnixStream;
+    let (rs, l_sigma, r_rr, tr) = (16.2, 0.0957, 20.8, 0.0647);
+    let board = move |mut s: UnixStream| {
+        let mut seq: Option<(Commissioning, Option<controller_core::commission::CommissionOutput>)> = None;
+        let (mut i, mut psi, mut v) = ([0.0f64; 2], [0.0f64; 2], [0.0f64; 2]);
+        let mut dec = FrameDecoder::new();
+        let mut stats = LinkStats::default();
+        let mut buf = [0u8; 256];
+        let mut frame = [0u8; MAX_FRAME];
+        loop {
+            let Ok(n) = s.read(&mut buf) else { return };
+            if n == 0 {
+                return;
+            }
+            for &b in &buf[..n] {
+                let Some(cmd) = dec.push_command(b, &mut stats) else { continue };
+                let reply = match (&mut seq, cmd) {
+                    (_, Command::Commission(spec)) => match CommissionConfig::new(spec) {
+                        Ok(cfg) => {
+                            seq = Some((Commissioning::new(cfg), None));
+                            Reply::Ack
+                        }
+                        Err(_) => Reply::Nack(NackReason::Configuration),
+                    },
+                    (Some((c, last)), Command::GetCommissionStage) => {
+                        let ts = 5e-5;
+                        for _ in 0..20_000 {
+                            let abc = AlphaBeta { alpha: i[0] as f32, beta: i[1] as f32 }.inverse_clarke();
+                            let m = Measurements { i_abc_a: abc, vdc_v: 310.0, ..Default::default() };
+                            let o = c.step(&m);
+                            *last = Some(o);
+                            let applied = v;
+                            v = match o.phases {
+                                PhaseCommand::Off => [0.0; 2],
+                                PhaseCommand::Duty(_) => {
+                                    [f64::from(o.v_ab_v.alpha), f64::from(o.v_ab_v.beta)]
+                                }
+                            };
+                            for _ in 0..20 {
+                                for ax in 0..2 {
+                                    let dpsi = r_rr * i[ax] - psi[ax] / tr;
+                                    let di = (applied[ax] - rs * i[ax] - dpsi) / l_sigma;
+                                    psi[ax] += ts / 20.0 * dpsi;
+                                    i[ax] += ts / 20.0 * di;
+                                }
+                            }
+                        }
+                        last.map_or(Reply::Nack(NackReason::NoRecord), Reply::Commission)
+                    }
+                    (Some((c, _)), Command::GetCommissionRecord { chunk }) => {
+                        link::record_chunk(c.record(), chunk)
+                    }
+                    (Some((c, _)), Command::Stop) => {
+                        c.abort();
+                        Reply::Ack
+                    }
+                    _ => Reply::Nack(NackReason::Unsupported),
+                };
+                let n = link::reply_frame(&reply, &mut frame).unwrap();
+                if s.write_all(&frame[..n]).is_err() {
+                    return;
+                }
+            }
+        }
+    };
+    let run = |interrupt_after: Option<usize>| {
+        let (host, dev) = UnixStream::pair().unwrap();
+        let t = std::thread::spawn(move || board(dev));
+        let mut link = hil_sim::link_client::LinkClient::new(host.try_clone().unwrap(), host)
+            .with_reply_timeout(std::time::Duration::from_secs(20));
+        let mut spec = spec(1.24, 310.0);
+        spec.rotate = false;
+        let mut stages = Vec::new();
+        let polls = std::cell::Cell::new(0usize);
+        let r = identify::over_link(
+            &mut link,
+            spec,
+            std::time::Duration::ZERO,
+            |s| {
+                polls.set(polls.get() + 1);
+                stages.push(s)
+            },
+            || interrupt_after.is_some_and(|n| polls.get() >= n),
+        );
+        drop(link);
+        t.join().unwrap();
+        (r, stages, spec)
+    };
+    let (r, stages, spec) = run(None);
+    let rec = r.unwrap();
+    assert!(stages.contains(&Stage::Level(1)) && stages.last() == Some(&Stage::Done), "{stages:?}");
+    let id = identify::estimate(&CommissionConfig::new(spec).unwrap(), &rec, 1).unwrap();
+    assert!((id.rs_ohm.value / rs - 1.0).abs() < 0.03, "{:?}", id.rs_ohm);
+    assert!((id.l_sigma_h.value / l_sigma - 1.0).abs() < 0.05, "{:?}", id.l_sigma_h);
+    assert!((id.tr_s.value / tr - 1.0).abs() < 0.05, "{:?}", id.tr_s);
+    // Interrupted after two polls: the board is told to stop and the run reports it.
+    let (r, _, _) = run(Some(2));
+    assert_eq!(r.unwrap_err(), RunError::Interrupted);
+}

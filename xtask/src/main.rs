@@ -99,6 +99,29 @@ const CLIPPY_FW: Step = Step::cargo(
     "clippy (firmware for the board)",
     &["clippy", "--package", "firmware", "--target", THUMB, "--profile", "firmware", "--", "-D", "warnings"],
 );
+/// The firmware with the commissioning sequence (feature `commissioning`, not in the default
+/// image: its flash): checked for the board and tested on the host.
+const CLIPPY_FW_COMMISSIONING: Step = Step::cargo(
+    "clippy (firmware for the board, commissioning)",
+    &[
+        "clippy",
+        "--package",
+        "firmware",
+        "--target",
+        THUMB,
+        "--profile",
+        "firmware",
+        "--features",
+        "commissioning",
+        "--",
+        "-D",
+        "warnings",
+    ],
+);
+const TEST_FW_COMMISSIONING: Step = Step::cargo(
+    "test-host (firmware, commissioning)",
+    &["test", "--package", "firmware", "--features", "commissioning"],
+);
 
 const M3: &str = "thumbv7m-none-eabi";
 const Q_FMT: Step = Step::in_qemu_target("qemu-target fmt", &["fmt", "--", "--check"]);
@@ -519,16 +542,28 @@ fn module_cycles() -> bool {
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let steps: Vec<&Step> = match task.as_str() {
-        "ci" => [&FMT, &CLIPPY, &CLIPPY_FW, &DOC, &TEST, &CERTIFY, &FAULTS, &CORE_M4, &FW]
-            .into_iter()
-            .chain(QEMU_STEPS)
-            .chain([&FUZZ])
-            .collect(),
+        "ci" => [
+            &FMT,
+            &CLIPPY,
+            &CLIPPY_FW,
+            &CLIPPY_FW_COMMISSIONING,
+            &DOC,
+            &TEST,
+            &TEST_FW_COMMISSIONING,
+            &CERTIFY,
+            &FAULTS,
+            &CORE_M4,
+            &FW,
+        ]
+        .into_iter()
+        .chain(QEMU_STEPS)
+        .chain([&FUZZ])
+        .collect(),
         "fuzz" => vec![&FUZZ],
         "qemu" => QEMU_STEPS.to_vec(),
-        "lint" => vec![&FMT, &CLIPPY, &CLIPPY_FW, &DOC],
+        "lint" => vec![&FMT, &CLIPPY, &CLIPPY_FW, &CLIPPY_FW_COMMISSIONING, &DOC],
         "modules" => vec![],
-        "test-host" => vec![&TEST],
+        "test-host" => vec![&TEST, &TEST_FW_COMMISSIONING],
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![&FW],
         "certify" => vec![&CERTIFY],

@@ -45,7 +45,9 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
         // Gains live in the specification, which the board keeps (firmware `server`).
         Command::WriteSpeedGains { .. } | Command::ReadSpeedGains => Reply::Nack(NackReason::Unsupported),
         // A drive does not commission; the endpoint that can (the PIL server) handles these.
-        Command::Commission(_) | Command::GetCommissionRecord { .. } => Reply::Nack(NackReason::Unsupported),
+        Command::Commission(_) | Command::GetCommissionRecord { .. } | Command::GetCommissionStage => {
+            Reply::Nack(NackReason::Unsupported)
+        }
     }
 }
 

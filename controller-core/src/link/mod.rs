@@ -35,7 +35,7 @@ pub use framing::{
 pub use receive::LinkStats;
 pub use schema::{
     BoardCommand, Command, DecodeError, NackReason, RECORD_CHUNK_BYTES, RECORD_CHUNKS, Reply, command_frame,
-    reply_frame,
+    record_chunk, reply_frame,
 };
 
 #[cfg(test)]

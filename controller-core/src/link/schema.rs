@@ -2,7 +2,7 @@
 //! and its fields in a fixed little-endian layout (`f32`/`f64` as IEEE-754 bits).
 
 use super::framing::{BufferFull, MAX_PAYLOAD, encode_frame};
-use crate::commission::{CommissionOutput, CommissionSpec, RECORD_BYTES, Refusal, Stage};
+use crate::commission::{CommissionOutput, CommissionSpec, RECORD_BYTES, Record, Refusal, Stage};
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
@@ -152,6 +152,28 @@ pub enum Command {
         /// 0 … [`RECORD_CHUNKS`] − 1.
         chunk: u8,
     },
+    /// Ask where the commissioning sequence stands; answered by `Commission` (its last
+    /// step's output), or `Nack(NoRecord)` when none was started.
+    GetCommissionStage,
+}
+
+/// The reply to `GetCommissionRecord { chunk }` for `record` (`None`: not finished).
+pub fn record_chunk(record: Option<&Record>, chunk: u8) -> Reply {
+    let mut all = [0u8; RECORD_BYTES];
+    let Some(_) = record.and_then(|r| r.write_bytes(&mut all)) else {
+        return Reply::Nack(NackReason::NoRecord);
+    };
+    let start = usize::from(chunk) * RECORD_CHUNK_BYTES;
+    match all.get(start..) {
+        Some(part) if !part.is_empty() => {
+            let mut bytes = [0u8; RECORD_CHUNK_BYTES];
+            for (b, x) in bytes.iter_mut().zip(part) {
+                *b = *x;
+            }
+            Reply::CommissionRecord { chunk, bytes }
+        }
+        _ => Reply::Nack(NackReason::NoRecord),
+    }
 }
 
 /// Bytes of a record per `CommissionRecord` reply.
@@ -230,6 +252,7 @@ pub(crate) mod tag {
     pub const STOP: u8 = 0x0A;
     pub const COMMISSION: u8 = 0x0B;
     pub const GET_COMMISSION_RECORD: u8 = 0x0C;
+    pub const GET_COMMISSION_STAGE: u8 = 0x0D;
     pub const ACK: u8 = 0x81;
     pub const NACK: u8 = 0x82;
     pub const OUTPUT: u8 = 0x83;
@@ -630,6 +653,7 @@ impl Command {
                 w.u8(tag::GET_COMMISSION_RECORD)?;
                 w.u8(*chunk)?;
             }
+            Command::GetCommissionStage => w.u8(tag::GET_COMMISSION_STAGE)?,
         }
         Ok(w.n)
     }
@@ -646,20 +670,6 @@ impl Command {
                 omega_m_rad_s: r.f32()?,
                 theta_m_rad: r.f32()?,
             }),
-            tag::COMMISSION => Command::Commission(CommissionSpec {
-                pwm_hz: r.f32()?,
-                test_current_a: r.f32()?,
-                current_limit_a: r.f32()?,
-                vdc_min_v: r.f32()?,
-                vdc_max_v: r.f32()?,
-                level_time_s: r.f32()?,
-                rotate: match r.u8()? {
-                    0 => false,
-                    1 => true,
-                    _ => return Err(DecodeError::Value),
-                },
-            }),
-            tag::GET_COMMISSION_RECORD => Command::GetCommissionRecord { chunk: r.u8()? },
             other => decode_board_tag(other, &mut r)?.command().ok_or(DecodeError::UnknownType(other))?,
         };
         r.finish()?;
@@ -672,7 +682,7 @@ impl Command {
     /// hardware (42 000 → 36 280 B of flash on the firmware, with the smaller [`BoardCommand`]).
     pub fn decode_board(payload: &[u8]) -> Result<BoardCommand, DecodeError> {
         let (&t, rest) = payload.split_first().ok_or(DecodeError::Length)?;
-        if matches!(t, tag::CONFIGURE | tag::STEP | tag::COMMISSION | tag::GET_COMMISSION_RECORD) {
+        if matches!(t, tag::CONFIGURE | tag::STEP) {
             return Ok(BoardCommand::Refused);
         }
         let mut r = Reader { rest };
@@ -693,6 +703,21 @@ fn decode_board_tag(t: u8, r: &mut Reader<'_>) -> Result<BoardCommand, DecodeErr
         tag::WRITE_SPEED_GAINS => BoardCommand::WriteSpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
         tag::READ_SPEED_GAINS => BoardCommand::ReadSpeedGains,
         tag::STOP => BoardCommand::Stop,
+        tag::COMMISSION => BoardCommand::Commission(CommissionSpec {
+            pwm_hz: r.f32()?,
+            test_current_a: r.f32()?,
+            current_limit_a: r.f32()?,
+            vdc_min_v: r.f32()?,
+            vdc_max_v: r.f32()?,
+            level_time_s: r.f32()?,
+            rotate: match r.u8()? {
+                0 => false,
+                1 => true,
+                _ => return Err(DecodeError::Value),
+            },
+        }),
+        tag::GET_COMMISSION_RECORD => BoardCommand::GetCommissionRecord { chunk: r.u8()? },
+        tag::GET_COMMISSION_STAGE => BoardCommand::GetCommissionStage,
         other => return Err(DecodeError::UnknownType(other)),
     })
 }
@@ -722,8 +747,16 @@ pub enum BoardCommand {
     ReadSpeedGains,
     /// [`Command::Stop`].
     Stop,
-    /// `Configure`, `Step`, `Commission` or `GetCommissionRecord`: answered with
-    /// `Nack(Unsupported)`, payload not parsed.
+    /// [`Command::Commission`].
+    Commission(CommissionSpec),
+    /// [`Command::GetCommissionRecord`].
+    GetCommissionRecord {
+        /// Part.
+        chunk: u8,
+    },
+    /// [`Command::GetCommissionStage`].
+    GetCommissionStage,
+    /// `Configure` or `Step`: answered with `Nack(Unsupported)`, payload not parsed.
     Refused,
 }
 
@@ -739,6 +772,9 @@ impl BoardCommand {
             BoardCommand::WriteSpeedGains { kp, tau_max_nm } => Command::WriteSpeedGains { kp, tau_max_nm },
             BoardCommand::ReadSpeedGains => Command::ReadSpeedGains,
             BoardCommand::Stop => Command::Stop,
+            BoardCommand::Commission(s) => Command::Commission(s),
+            BoardCommand::GetCommissionRecord { chunk } => Command::GetCommissionRecord { chunk },
+            BoardCommand::GetCommissionStage => Command::GetCommissionStage,
             BoardCommand::Refused => return None,
         })
     }

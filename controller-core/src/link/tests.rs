@@ -98,6 +98,7 @@ fn every_command_round_trips() {
             rotate: true,
         }),
         Command::GetCommissionRecord { chunk: 10 },
+        Command::GetCommissionStage,
     ];
     let stream: Vec<u8> = cmds.iter().flat_map(frame_of).collect();
     let (got, stats) = decode_all(&stream);

@@ -6,10 +6,10 @@
 
 #[cfg(target_os = "none")]
 mod target {
-    use controller_core::commission::{CommissionConfig, Commissioning, RECORD_BYTES};
+    use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning};
     use controller_core::drive::{Drive, DriveConfig};
     use controller_core::link::{
-        self, Command, FrameDecoder, LinkStats, MAX_FRAME, NackReason, RECORD_CHUNK_BYTES, Reply,
+        self, Command, FrameDecoder, LinkStats, MAX_FRAME, NackReason, Reply,
     };
     use cortex_m_rt::entry;
     use qemu_target::sh;
@@ -19,27 +19,7 @@ mod target {
     enum Endpoint {
         None,
         Drive(Drive),
-        Commission(Commissioning),
-    }
-
-    /// Part `chunk` of a finished sequence's record.
-    fn record_chunk(c: &Commissioning, chunk: u8) -> Reply {
-        let mut all = [0u8; RECORD_BYTES];
-        let Some(_) = c.record().and_then(|r| r.write_bytes(&mut all)) else {
-            return Reply::Nack(NackReason::NoRecord);
-        };
-        let start = usize::from(chunk) * RECORD_CHUNK_BYTES;
-        let Some(part) = all.get(start..) else {
-            return Reply::Nack(NackReason::NoRecord);
-        };
-        if part.is_empty() {
-            return Reply::Nack(NackReason::NoRecord);
-        }
-        let mut bytes = [0u8; RECORD_CHUNK_BYTES];
-        for (b, x) in bytes.iter_mut().zip(part) {
-            *b = *x;
-        }
-        Reply::CommissionRecord { chunk, bytes }
+        Commission(Commissioning, Option<CommissionOutput>),
     }
 
     #[entry]
@@ -65,17 +45,26 @@ mod target {
                 let reply = match (&mut endpoint, &cmd) {
                     (_, Command::Commission(spec)) => match CommissionConfig::new(*spec) {
                         Ok(cfg) => {
-                            endpoint = Endpoint::Commission(Commissioning::new(cfg));
+                            endpoint = Endpoint::Commission(Commissioning::new(cfg), None);
                             Reply::Ack
                         }
                         Err(_) => Reply::Nack(NackReason::Configuration),
                     },
-                    (Endpoint::Commission(c), Command::Step(m)) => Reply::Commission(c.step(m)),
-                    (Endpoint::Commission(c), Command::Stop | Command::Disable) => {
+                    (Endpoint::Commission(c, last), Command::Step(m)) => {
+                        let out = c.step(m);
+                        *last = Some(out);
+                        Reply::Commission(out)
+                    }
+                    (Endpoint::Commission(c, _), Command::Stop | Command::Disable) => {
                         c.abort();
                         Reply::Ack
                     }
-                    (Endpoint::Commission(c), Command::GetCommissionRecord { chunk }) => record_chunk(c, *chunk),
+                    (Endpoint::Commission(c, _), Command::GetCommissionRecord { chunk }) => {
+                        link::record_chunk(c.record(), *chunk)
+                    }
+                    (Endpoint::Commission(_, last), Command::GetCommissionStage) => {
+                        last.map_or(Reply::Nack(NackReason::NoRecord), Reply::Commission)
+                    }
                     (Endpoint::Drive(d), c) => link::execute(d, c, &stats),
                     (_, Command::Configure(spec)) => match DriveConfig::new(spec) {
                         Ok(cfg) => {
@@ -84,7 +73,7 @@ mod target {
                         }
                         Err(_) => Reply::Nack(NackReason::Configuration),
                     },
-                    (Endpoint::Commission(_), _) => Reply::Nack(NackReason::Unsupported),
+                    (Endpoint::Commission(..), _) => Reply::Nack(NackReason::Unsupported),
                     (Endpoint::None, _) => Reply::Nack(NackReason::NotConfigured),
                 };
                 match link::reply_frame(&reply, &mut frame) {
