@@ -23,3 +23,4 @@ pub mod startup_fit;
 #[cfg(test)]
 mod testutil;
 pub mod tf;
+pub mod tune;

@@ -33,6 +33,10 @@ enum Cmd {
     Icad(IcadArgs),
     /// Check every controller constant of a drive file against its [certify] intervals.
     Certify(CertifyArgs),
+    /// Synthesise the current and speed gains for a motor on a template drive file (its
+    /// board, PWM, protection and certificate), widen the box to the motor file's
+    /// [identification] intervals, certify, and write the drive file (nothing if it fails).
+    Tune(TuneArgs),
     /// Seed 001's recycle-process study.
     Recycle(cli::recycle::RecycleArgs),
     /// Interval plant fitted to a nonlinear start-up (seed 000 Sec. 6).
@@ -85,6 +89,57 @@ struct CertifyArgs {
     /// every corner, Bode plots of c₁ and k·g₁₁, the stable-speed sweep.
     #[arg(long)]
     plot_dir: Option<std::path::PathBuf>,
+}
+
+/// `design tune --motor M --out F [--template drive.toml]` (design::tune).
+#[derive(Args, Debug)]
+struct TuneArgs {
+    /// A shipped motor or a motor file (e.g. `hil-sim identify`'s, with [identification]).
+    #[arg(long)]
+    motor: String,
+    /// The template drive file: board, PWM, protection, flux reference, current limit, the
+    /// certificate's minima and speed range.
+    #[arg(long, default_value = "drive.toml")]
+    template: std::path::PathBuf,
+    /// The drive file to write.
+    #[arg(long)]
+    out: std::path::PathBuf,
+}
+
+fn tune(a: &TuneArgs) -> Result<bool, String> {
+    let motor = drive_file::motor::load(&a.motor).map_err(|e| e.to_string())?;
+    let intervals = if std::path::Path::new(&a.motor).is_file() {
+        let text = drive_file::source::read(std::path::Path::new(&a.motor)).map_err(|e| e.to_string())?;
+        design::tune::Intervals::parse(&text).map_err(|e| format!("{}: {e}", a.motor))?
+    } else {
+        None
+    };
+    let template = drive_file::source::read(&a.template).map_err(|e| e.to_string())?;
+    let t = design::tune::tune(&a.template, &template, &motor, intervals.as_ref())?;
+    let law = &t.spec.current_law;
+    println!(
+        "current loops: PI kp {:.4} V/A, ki {:.1} V/(A·s) — crossover {:.0} rad/s on the nominal motor",
+        law.kp_v_per_a, law.ki_v_per_as, t.omega_c_rad_s
+    );
+    if let controller_core::speed::SpeedLaw::SaturatedP { kp, tau_max_nm } = t.spec.speed_law {
+        println!(
+            "speed loop: saturated P kp {kp:.5} N·m·s/rad, τ_max {tau_max_nm:.3} N·m — crossover {:.1} rad/s",
+            t.omega_s_rad_s
+        );
+    }
+    let c = &t.certify;
+    println!(
+        "box: Rs×{:?} Rr×{:?} L×{:?} J×{:?}; writable kp {:?}; certified: {} checks pass",
+        c.rs_factor,
+        c.rr_factor,
+        c.inductance_factor,
+        c.j_factor,
+        c.speed_kp_writable,
+        t.checks.len()
+    );
+    cli::write_atomic(&a.out, &t.text)?;
+    eprintln!("design: wrote {}", a.out.display());
+    Ok(true)
 }
 
 fn finite_speed(s: &str) -> Result<f64, String> {
@@ -209,6 +264,7 @@ fn main() -> ExitCode {
         Cmd::Kharitonov(a) => cli::kharitonov::run(a),
         Cmd::Icad(a) => icad(a),
         Cmd::Certify(a) => certify(a),
+        Cmd::Tune(a) => tune(a),
         Cmd::Recycle(a) => cli::recycle::run(a),
         Cmd::Bench => cli::bench::run(),
         Cmd::StartupFit(a) => cli::startup_fit::run(a),

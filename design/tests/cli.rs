@@ -1,4 +1,4 @@
-//! CLI contracts of `design kharitonov`, `icad`, `certify` and `recycle`.
+//! CLI contracts of `design kharitonov`, `icad`, `certify`, `tune` and `recycle`.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
 use std::process::Command;
@@ -312,4 +312,35 @@ fn bad_inputs_are_located_errors_not_hangs() {
         assert!(started.elapsed().as_secs() < 10);
         let _ = std::fs::remove_file(&f);
     }
+}
+
+/// `design tune` writes a drive file `design certify` passes; a motor the template's board
+/// cannot magnetize is refused by name (exit 2) and nothing is written.
+#[test]
+fn tune_writes_a_certified_drive_file_or_nothing() {
+    let dir = std::env::temp_dir().join(format!("design-tune-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let template = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let out = dir.join("tuned.toml");
+    let out_s = out.to_str().unwrap();
+    let (code, stdout, err) =
+        run(&["tune", "--motor", "delorenzo-perturbed", "--template", template, "--out", out_s]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(stdout.contains("current loops: PI") && stdout.contains("certified: 66 checks pass"), "{stdout}");
+    let (code, stdout, _) = run(&["certify", out_s]);
+    assert_eq!(code, Some(0), "{stdout}");
+    let refused = dir.join("refused.toml");
+    let (code, _, err) = run(&[
+        "tune",
+        "--motor",
+        "krause-2300v-500hp",
+        "--template",
+        template,
+        "--out",
+        refused.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("cannot magnetize"), "{err}");
+    assert!(!refused.exists());
+    let _ = std::fs::remove_dir_all(&dir);
 }

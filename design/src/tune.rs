@@ -1,0 +1,351 @@
+//! `design tune` (issue 21): a drive file for a motor — its current and speed gains
+//! synthesised and the result certified — from a template drive file (the board, the PWM,
+//! the protection, the certificate's minima and operating range) and a motor file (a
+//! shipped motor, or one `hil-sim identify` wrote, whose `[identification]` intervals widen
+//! the certified box).
+//!
+//! **Current loops**: stationary-frame PI (seed 002 Sec. VI-D, the law the sampled
+//! certificate models; eq. (20)'s ICAD controller is the DeLorenzo motor's own design).
+//! Below the rotor's corner the stator sees `R_s + R_R + s·σL_s` (the rotor branch is
+//! resistive for ω ≫ 1/T_r); the PI's zero cancels that pole: `k_p = ω_c·σL_s`,
+//! `k_i = ω_c·(R_s + R_R)`, an integrator loop of crossover ω_c on the nominal motor. ω_c
+//! is the largest of a geometric search from 2π·f_pwm/5 down (ratio [`SEARCH_RATIO`]) for
+//! which every current check of the certificate passes on every corner of the box — the
+//! sampled ones (delay, ZOH, the f32 coefficients) bound it from above.
+//!
+//! **Speed loop**: saturated P (seed 002 eq. (21)), `k_p = J·ω_s`: the speed loop's
+//! crossover ω_s on the nominal inertia, at most ω_c/[`SPEED_BELOW_CURRENT`], and at most
+//! what keeps the encoder's speed resolution from shaking the torque: `k_p·Δω_q ≤`
+//! [`ENCODER_NOISE_FRACTION`]`·τ_max`, with `Δω_q = 2π/(4·lines)/(window·T_slow)` one count
+//! over the speed estimate's window (the linear certificate cannot see quantisation; the
+//! nonlinear campaign's torque-ripple criterion can). Then the largest of the same kind of
+//! search for which the speed checks pass with the writable range `[k_p/2, 2·k_p]` (what
+//! the link may set). τ_max: the template's (the torque the application asks), at most what
+//! the template's current limit gives at its flux reference,
+//! `1.5·p·(L_m/L_r)·ψ*·√(i_max² − (ψ*/L_m)²)`; the writable range `[τ_max/20, τ_max]`.
+//! (τ_max at that current limit — 5.05 N·m on the DeLorenzo motor against the template's 2
+//! — fails the nonlinear campaign's tracking at every corner: the loops then run at the
+//! current limit and the flux sags to 0.9 of its model.)
+//!
+//! **Box**: the template's factors, widened to hold the motor file's `[identification]`
+//! intervals (relative to its nominal values; L_s, L_r and L_m's widest together).
+
+use crate::certify::{CertifySpec, Check, certify};
+use controller_core::current::CurrentLaw;
+use controller_core::drive::{CurrentFrame, DriveSpec};
+use controller_core::motor::MotorParams;
+use controller_core::speed::SpeedLaw;
+use std::path::Path;
+
+/// Each candidate crossover is this fraction of the last.
+pub const SEARCH_RATIO: f64 = 0.9;
+/// The speed loop's crossover is at least this many times below the current loops'.
+pub const SPEED_BELOW_CURRENT: f64 = 20.0;
+/// One count of speed resolution may move the torque by at most this fraction of τ_max
+/// (`hil-sim campaign` on the DeLorenzo motor with the narrow box, 64 runs: k_p = 0.1 passes
+/// all, 0.2 fails 1 and 0.4 fails 15 — 2.5 % of τ_max per count is k_p = 0.13).
+pub const ENCODER_NOISE_FRACTION: f64 = 0.025;
+
+/// A motor file's `[identification]` intervals that the box must hold.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Intervals {
+    /// R_s, Ω.
+    pub rs_ohm: Option<[f64; 2]>,
+    /// R_r, Ω.
+    pub rr_ohm: Option<[f64; 2]>,
+    /// L_s, L_r, L_m, H.
+    pub inductances_h: [Option<[f64; 2]>; 3],
+    /// J, kg·m².
+    pub j_kgm2: Option<[f64; 2]>,
+}
+
+impl Intervals {
+    /// The `[identification]` table of a motor file's text (`None` without one).
+    pub fn parse(text: &str) -> Result<Option<Self>, String> {
+        let table: toml::Table = toml::from_str(text).map_err(|e| e.to_string())?;
+        let Some(id) = table.get("identification").and_then(|v| v.as_table()) else {
+            return Ok(None);
+        };
+        let pair = |key: &str| -> Result<Option<[f64; 2]>, String> {
+            match id.get(key) {
+                None => Ok(None),
+                Some(v) => {
+                    let a = v.as_array().ok_or(format!("identification.{key}: not an interval"))?;
+                    let x =
+                        |i: usize| a.get(i).and_then(|x| x.as_float().or(x.as_integer().map(|n| n as f64)));
+                    match (a.len(), x(0), x(1)) {
+                        (2, Some(lo), Some(hi))
+                            if lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo <= hi =>
+                        {
+                            Ok(Some([lo, hi]))
+                        }
+                        _ => Err(format!("identification.{key}: not an interval [lo, hi] with 0 ≤ lo ≤ hi")),
+                    }
+                }
+            }
+        };
+        Ok(Some(Self {
+            rs_ohm: pair("rs_ohm")?,
+            rr_ohm: pair("rr_ohm")?,
+            inductances_h: [pair("ls_h")?, pair("lr_h")?, pair("lm_h")?],
+            j_kgm2: pair("j_kgm2")?,
+        }))
+    }
+}
+
+/// The result of [`tune`].
+#[derive(Clone, Debug)]
+pub struct Tuned {
+    /// The drive file's text.
+    pub text: String,
+    /// Its drive.
+    pub spec: DriveSpec,
+    /// Its certificate.
+    pub certify: CertifySpec,
+    /// The current loops' crossover on the nominal motor, rad/s.
+    pub omega_c_rad_s: f64,
+    /// The speed loop's crossover on the nominal inertia, rad/s.
+    pub omega_s_rad_s: f64,
+    /// Every check of the certificate (all pass).
+    pub checks: Vec<Check>,
+}
+
+fn hull(f: [f64; 2], nominal: f64, interval: Option<[f64; 2]>) -> [f64; 2] {
+    match interval {
+        Some([lo, hi]) if nominal > 0.0 => [f[0].min(lo / nominal), f[1].max(hi / nominal)],
+        _ => f,
+    }
+}
+
+/// The current checks passing (the names the certificate gives them).
+fn current_ok(checks: &[Check]) -> bool {
+    checks
+        .iter()
+        .filter(|c| c.name.starts_with("current") || c.name.starts_with("sampled current"))
+        .all(|c| c.pass)
+}
+
+fn speed_ok(checks: &[Check]) -> bool {
+    checks
+        .iter()
+        .filter(|c| c.name.starts_with("speed") || c.name.starts_with("sampled speed"))
+        .all(|c| c.pass)
+}
+
+/// Tune `motor` on the template drive file (`template_text`, read from `template_path`).
+pub fn tune(
+    template_path: &Path,
+    template_text: &str,
+    motor: &MotorParams,
+    intervals: Option<&Intervals>,
+) -> Result<Tuned, String> {
+    let file = drive_file::DriveFile::parse(template_path, template_text).map_err(|e| e.to_string())?;
+    let mut cert = file.certify.ok_or_else(|| {
+        format!(
+            "{}: the template needs a [certify] table (the certificate's minima and range)",
+            template_path.display()
+        )
+    })?;
+    let mut spec = file.spec;
+    if spec.current_frame != CurrentFrame::Stationary {
+        return Err(
+            "the template's current frame is synchronous: only stationary-frame loops are certified".into()
+        );
+    }
+    spec.motor = *motor;
+    if let Some(iv) = intervals {
+        cert.rs_factor = hull(cert.rs_factor, motor.rs_ohm(), iv.rs_ohm);
+        cert.rr_factor = hull(cert.rr_factor, motor.rr_ohm(), iv.rr_ohm);
+        for (nominal, i) in [motor.ls_h(), motor.lr_h(), motor.lm_h()].into_iter().zip(iv.inductances_h) {
+            cert.inductance_factor = hull(cert.inductance_factor, nominal, i);
+        }
+        cert.j_factor = hull(cert.j_factor, motor.j_kgm2(), iv.j_kgm2);
+    }
+    // The stator seen below the rotor's corner.
+    let k = motor.lm_h() / motor.lr_h();
+    let sigma_ls = motor.ls_h() - motor.lm_h() * k;
+    let r = motor.rs_ohm() + motor.rr_ohm() * k * k;
+    let top = 2.0 * std::f64::consts::PI * spec.pwm_frequency_hz / 5.0;
+    let bottom = top / 100.0;
+    let mut omega_c = top;
+    let mut found = None;
+    while omega_c >= bottom {
+        spec.current_law = CurrentLaw { kp_v_per_a: omega_c * sigma_ls, ki_v_per_as: omega_c * r, lag: None };
+        let checks = certify(&spec, &cert)?;
+        if current_ok(&checks) {
+            found = Some(omega_c);
+            break;
+        }
+        omega_c *= SEARCH_RATIO;
+    }
+    let omega_c = found.ok_or_else(|| {
+        format!(
+            "no current-loop crossover from {top:.0} down to {bottom:.0} rad/s passes the certificate on every corner \
+             (the box or the PWM rate asks too much)"
+        )
+    })?;
+    spec.current_law = CurrentLaw { kp_v_per_a: omega_c * sigma_ls, ki_v_per_as: omega_c * r, lag: None };
+    // Speed: saturated P; τ_max from the current limit at the flux reference.
+    let psi = spec.flux_ref_wb;
+    let i_d = psi / motor.lm_h();
+    let i_q = (spec.i_ref_max_a.powi(2) - i_d * i_d).max(0.0).sqrt();
+    let tau_limit = motor.torque_factor() * psi * i_q;
+    let template_tau = match file.spec.speed_law {
+        SpeedLaw::SaturatedP { tau_max_nm, .. } => tau_max_nm,
+        SpeedLaw::PiTorque { limit, .. } => limit,
+        SpeedLaw::PiIq { limit, .. } => motor.torque_factor() * psi * limit,
+    };
+    let tau_max = tau_limit.min(template_tau);
+    if !(tau_max.is_finite() && tau_max > 0.0) {
+        return Err(format!(
+            "the current limit {} A cannot magnetize the motor to ψ* = {psi} Wb (i_d = {i_d:.3} A): no torque left",
+            spec.i_ref_max_a
+        ));
+    }
+    let j = motor.j_kgm2();
+    let lines =
+        file.board.as_ref().map_or(drive_file::drive::DEFAULT_ENCODER_LINES, |b| b.table.encoder_lines);
+    let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    let window = controller_core::encoder::SPEED_WINDOW_READS as f64;
+    let speed_quantum = 2.0 * std::f64::consts::PI / (4.0 * f64::from(lines)) / (window * t_slow);
+    let kp_noise = ENCODER_NOISE_FRACTION * tau_max / speed_quantum;
+    let mut omega_s = (omega_c / SPEED_BELOW_CURRENT).min(kp_noise / j);
+    let mut speed = None;
+    while omega_s >= omega_c / (SPEED_BELOW_CURRENT * 1000.0) {
+        let kp = j * omega_s;
+        spec.speed_law = SpeedLaw::SaturatedP { kp, tau_max_nm: tau_max };
+        cert.speed_kp_writable = [0.5 * kp, 2.0 * kp];
+        cert.speed_tau_max_nm_writable = [tau_max / 20.0, tau_max];
+        let checks = certify(&spec, &cert)?;
+        if speed_ok(&checks) && current_ok(&checks) {
+            speed = Some((omega_s, checks));
+            break;
+        }
+        omega_s *= SEARCH_RATIO;
+    }
+    let (omega_s, _) = speed.ok_or("no speed-loop gain passes the certificate")?;
+    let text = write(template_text, template_path, &spec, &cert, omega_c, omega_s)?;
+    // The file as written, read back and certified whole.
+    let back =
+        drive_file::DriveFile::parse(Path::new("<tuned>"), &text).map_err(|e| format!("tuned file: {e}"))?;
+    let back_cert = back.certify.ok_or("tuned file lost its [certify]")?;
+    let checks = certify(&back.spec, &back_cert)?;
+    if let Some(c) = checks.iter().find(|c| !c.pass) {
+        return Err(format!("the tuned file fails `{}` at {} (as written)", c.name, c.corner));
+    }
+    Ok(Tuned {
+        text,
+        spec: back.spec,
+        certify: back_cert,
+        omega_c_rad_s: omega_c,
+        omega_s_rad_s: omega_s,
+        checks,
+    })
+}
+
+/// The template's tables with `[motor]`, the gains and `[certify]`'s box and writable
+/// ranges replaced (comments are not kept: the header says where the file came from).
+fn write(
+    template_text: &str,
+    template_path: &Path,
+    spec: &DriveSpec,
+    cert: &CertifySpec,
+    omega_c: f64,
+    omega_s: f64,
+) -> Result<String, String> {
+    use toml::Value;
+    let mut t: toml::Table = toml::from_str(template_text).map_err(|e| e.to_string())?;
+    let m = &spec.motor;
+    let motor = t.entry("motor").or_insert_with(|| Value::Table(toml::Table::new()));
+    let motor = motor.as_table_mut().ok_or("[motor] is not a table")?;
+    for (key, x) in [
+        ("rs_ohm", m.rs_ohm()),
+        ("rr_ohm", m.rr_ohm()),
+        ("ls_h", m.ls_h()),
+        ("lr_h", m.lr_h()),
+        ("lm_h", m.lm_h()),
+        ("j_kgm2", m.j_kgm2()),
+        ("b_nms", m.b_nms()),
+    ] {
+        motor.insert(key.into(), Value::Float(x));
+    }
+    motor.insert("pole_pairs".into(), Value::Integer(i64::from(m.pole_pairs())));
+    let controller = t.get_mut("controller").and_then(Value::as_table_mut).ok_or("no [controller] table")?;
+    let mut current = toml::Table::new();
+    current.insert("kind".into(), Value::String("pi".into()));
+    current.insert("kp".into(), Value::Float(spec.current_law.kp_v_per_a));
+    current.insert("ki".into(), Value::Float(spec.current_law.ki_v_per_as));
+    controller.insert("current".into(), Value::Table(current));
+    let SpeedLaw::SaturatedP { kp, tau_max_nm } = spec.speed_law else {
+        return Err("internal: the tuned speed law is not saturated P".into());
+    };
+    let mut speed = toml::Table::new();
+    speed.insert("kind".into(), Value::String("saturated_p".into()));
+    speed.insert("kp".into(), Value::Float(kp));
+    speed.insert("tau_max_nm".into(), Value::Float(tau_max_nm));
+    controller.insert("speed".into(), Value::Table(speed));
+    let c = t.get_mut("certify").and_then(Value::as_table_mut).ok_or("no [certify] table")?;
+    let pair = |p: [f64; 2]| Value::Array(vec![Value::Float(p[0]), Value::Float(p[1])]);
+    for (key, p) in [
+        ("rs_factor", cert.rs_factor),
+        ("rr_factor", cert.rr_factor),
+        ("inductance_factor", cert.inductance_factor),
+        ("j_factor", cert.j_factor),
+        ("speed_kp_writable", cert.speed_kp_writable),
+        ("speed_tau_max_nm_writable", cert.speed_tau_max_nm_writable),
+    ] {
+        c.insert(key.into(), pair(p));
+    }
+    let body = toml::to_string(&t).map_err(|e| e.to_string())?;
+    Ok(format!(
+        "# Tuned by `design tune` from the template {} (design::tune): stationary-frame PI current\n\
+         # loops with their zero on the stator's pole, crossover {omega_c:.0} rad/s on the nominal\n\
+         # motor (the fastest the certificate passes on every corner); saturated-P speed loop,\n\
+         # crossover {omega_s:.1} rad/s on the nominal inertia. `design certify` this file.\n{body}",
+        template_path.display()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TEMPLATE: &str = include_str!("../../drive.toml");
+
+    /// Every shipped DeLorenzo motor on the shipped board: a drive file that the certificate
+    /// passes whole, with faster or equal current loops than the search's floor.
+    #[test]
+    fn shipped_motors_on_the_shipped_board_are_certified() {
+        for name in ["delorenzo-appendix", "delorenzo-eq13", "delorenzo-perturbed"] {
+            let m = drive_file::motor::load(name).unwrap();
+            let t = tune(Path::new("drive.toml"), TEMPLATE, &m, None).unwrap();
+            assert!(t.checks.iter().all(|c| c.pass), "{name}");
+            assert!(
+                t.omega_c_rad_s > 1000.0 && t.omega_s_rad_s > 1.0,
+                "{name}: {} {}",
+                t.omega_c_rad_s,
+                t.omega_s_rad_s
+            );
+            println!(
+                "{name}: ω_c {:.0} rad/s, ω_s {:.1} rad/s, {} checks",
+                t.omega_c_rad_s,
+                t.omega_s_rad_s,
+                t.checks.len()
+            );
+        }
+    }
+
+    #[test]
+    fn identification_intervals_widen_the_box() {
+        let text = "[motor]\nrs_ohm = 16.2\nrr_ohm = 23.2\nls_h = 1.44\nlr_h = 1.5\nlm_h = 1.42\npole_pairs = 1\n\
+                    j_kgm2 = 0.005\nb_nms = 0.0005\n[identification]\nrs_ohm = [15.0, 17.0]\nj_kgm2 = [0.004, 0.011]\n";
+        let iv = Intervals::parse(text).unwrap().unwrap();
+        assert_eq!(iv.rs_ohm, Some([15.0, 17.0]));
+        let m = drive_file::motor::parse(Path::new("m.toml"), text).unwrap();
+        let t = tune(Path::new("drive.toml"), TEMPLATE, &m, Some(&iv)).unwrap();
+        assert!((t.certify.rs_factor[0] - 15.0 / 16.2).abs() < 1e-12, "{:?}", t.certify.rs_factor);
+        assert_eq!(t.certify.j_factor[1], 0.011 / 0.005);
+        assert!(Intervals::parse("[identification]\nrs_ohm = [2.0, 1.0]\n").is_err());
+        assert_eq!(Intervals::parse("[motor]\n").unwrap(), None);
+    }
+}
