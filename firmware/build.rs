@@ -3,6 +3,8 @@
 //! (`drive.toml`, read by the `drive-file` crate — the one source of every constant): the
 //! drive specification, the board constants and the certified ranges of the gains writable
 //! over the link. A bad drive file stops the build with its `file:line:column: key: reason`.
+//! `FIRMWARE_DRIVE_FILE=<path>` builds from another drive file (e.g. one `design tune` wrote;
+//! a relative path is taken from the workspace root).
 use std::{env, fs, path::PathBuf};
 
 fn main() {
@@ -14,11 +16,13 @@ fn main() {
     }
     println!("cargo::rustc-link-search={}", out.display());
     println!("cargo::rerun-if-changed={}", src.display());
-    let drive = root.join("drive.toml");
+    println!("cargo::rerun-if-env-changed=FIRMWARE_DRIVE_FILE");
+    let name = env::var("FIRMWARE_DRIVE_FILE").unwrap_or_else(|_| "drive.toml".into());
+    let drive = root.join(&name);
     println!("cargo::rerun-if-changed={}", drive.display());
     let code = drive_file::DriveFile::load(&drive)
         .map_err(|e| e.to_string())
-        .and_then(|d| drive_file::codegen::firmware_rs(&d, "drive.toml"));
+        .and_then(|d| drive_file::codegen::firmware_rs(&d, &name));
     match code {
         Ok(code) => {
             if let Err(e) = fs::write(out.join("config.rs"), code) {

@@ -52,7 +52,7 @@ enum Cmd {
 #[derive(Args, Debug)]
 struct IcadArgs {
     /// A shipped motor (delorenzo-eq13, delorenzo-appendix, delorenzo-perturbed,
-    /// krause-2300v-500hp) or any file with a [motor] table.
+    /// krause-2300v-500hp, em-synergy-m800006) or any file with a [motor] table.
     #[arg(long)]
     motor: String,
     /// Electrical rotor speed, rad/s.

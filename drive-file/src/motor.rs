@@ -159,11 +159,12 @@ fn field_key(f: MotorField) -> &'static str {
 
 /// `(name, TOML text)` of every shipped motor (`motors/*.toml`; the comments in each file
 /// say where every number comes from).
-pub const BUILTIN: [(&str, &str); 4] = [
+pub const BUILTIN: [(&str, &str); 5] = [
     ("delorenzo-appendix", include_str!("../../motors/delorenzo-appendix.toml")),
     ("delorenzo-eq13", include_str!("../../motors/delorenzo-eq13.toml")),
     ("delorenzo-perturbed", include_str!("../../motors/delorenzo-perturbed.toml")),
     ("krause-2300v-500hp", include_str!("../../motors/krause-2300v-500hp.toml")),
+    ("em-synergy-m800006", include_str!("../../motors/em-synergy-m800006.toml")),
 ];
 
 /// Only the `[motor]` table of a file; other tables (a drive's, a scenario's) are ignored.

@@ -81,12 +81,18 @@ fn check(name: &str, m: &MotorParams, s: &Setup) -> String {
     line + &format!(" V_e {:+.2} % J {:+.2} %, {t:.1} s", 100.0 * e_ve, 100.0 * e_j)
 }
 
-/// Every shipped motor; the 500 hp Krause machine on a 2300 V-class bus (3 250 V) at 100 A.
+/// Every shipped motor, each on its bus: the DeLorenzo machines on 310 V at 1.24 A, the
+/// 500 hp Krause machine on a 2300 V-class bus (3 250 V) at 100 A, the EM_Synergy motor on
+/// 24 V at 2.6 A (its rated peak current).
 #[test]
 fn every_shipped_motor_is_identified_within_the_bounds() {
     for (name, _) in drive_file::motor::BUILTIN {
         let m = drive_file::motor::load(name).unwrap();
-        let (i, vdc) = if m.rs_ohm() < 1.0 { (100.0, 3250.0) } else { (1.24, 310.0) };
+        let (i, vdc) = match name {
+            "krause-2300v-500hp" => (100.0, 3250.0),
+            "em-synergy-m800006" => (2.6, 24.0),
+            _ => (1.24, 310.0),
+        };
         println!("{}", check(name, &m, &setup(m, i, vdc, 7)));
     }
 }
