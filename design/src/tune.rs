@@ -335,6 +335,19 @@ mod tests {
         }
     }
 
+    /// The walk-through's motor on its 24 V template (docs/walkthrough.md).
+    #[test]
+    fn the_walkthrough_motor_tunes_on_its_template() {
+        let template = include_str!("../../drives/em-synergy-24v.toml");
+        let m = drive_file::motor::load("em-synergy-m800006").unwrap();
+        let t = tune(Path::new("drives/em-synergy-24v.toml"), template, &m, None).unwrap();
+        assert!(t.checks.iter().all(|c| c.pass));
+        let SpeedLaw::SaturatedP { kp, tau_max_nm } = t.spec.speed_law else { panic!() };
+        assert_eq!(tau_max_nm, 0.12);
+        // The encoder rule binds: k_p·Δω_q = 2.5 % of τ_max (Δω_q = 0.383 rad/s).
+        assert!((kp * 0.3835 / (0.025 * 0.12) - 1.0).abs() < 0.01, "{kp}");
+    }
+
     #[test]
     fn identification_intervals_widen_the_box() {
         let text = "[motor]\nrs_ohm = 16.2\nrr_ohm = 23.2\nls_h = 1.44\nlr_h = 1.5\nlm_h = 1.42\npole_pairs = 1\n\
