@@ -335,6 +335,16 @@ mod tests {
         }
     }
 
+    /// The 500 hp Krause machine on its 3 300 V template: certified (linear; the template's
+    /// own placeholder gains are not).
+    #[test]
+    fn the_krause_motor_tunes_on_its_template() {
+        let template = include_str!("../../drives/krause-3300v.toml");
+        let m = drive_file::motor::load("krause-2300v-500hp").unwrap();
+        let t = tune(Path::new("drives/krause-3300v.toml"), template, &m, None).unwrap();
+        assert!(t.checks.iter().all(|c| c.pass));
+    }
+
     /// The walk-through's motor on its 24 V template (docs/walkthrough.md).
     #[test]
     fn the_walkthrough_motor_tunes_on_its_template() {
