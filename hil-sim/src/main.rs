@@ -79,7 +79,8 @@ enum Cmd {
     Faults(FaultsArgs),
     /// Self-commissioning in software in the loop: controller-core's standstill sequence
     /// (offsets and bus, voltage pulses for current direction and phase order, three DC
-    /// levels, two sinusoidal injections) on the simulated motor, with realistic sensors and
+    /// levels, two sinusoidal injections; with --rotate a slow rotating field for the encoder
+    /// and J, B) on the simulated motor, with realistic sensors and
     /// a switching inverter with 1 µs of dead time; prints what it identified against the
     /// simulated motor and writes a motor file with intervals (nothing when it fails).
     Identify(IdentifyArgs),
@@ -87,11 +88,9 @@ enum Cmd {
     Link(LinkArgs),
 }
 
-#[derive(Args, Debug)]
-struct IdentifyArgs {
-    /// The motor to simulate: a shipped motor's name, a motor file, a drive file or a
-    /// scenario file.
-    motor: String,
+/// What every commissioning run takes (`identify` and `link … identify`).
+#[derive(Args, Debug, Clone)]
+struct CommissionArgs {
     /// The motor file to write.
     #[arg(long, value_parser = non_empty_path)]
     out: PathBuf,
@@ -102,12 +101,6 @@ struct IdentifyArgs {
     /// Phase-current limit during the tests, A [default: 2 × the test current].
     #[arg(long, value_parser = positive_amperes)]
     current_limit: Option<f64>,
-    /// DC-bus voltage, V (the accepted range is ±20 % of it).
-    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
-    vdc: f64,
-    /// PWM frequency, Hz.
-    #[arg(long, default_value_t = 20_000.0)]
-    pwm_hz: f64,
     /// Time each DC level is held, s (at least 4 rotor time constants).
     #[arg(long, default_value_t = 3.0)]
     level_time: f64,
@@ -115,13 +108,74 @@ struct IdentifyArgs {
     /// split, 1.5 IEEE 112's for NEMA design B).
     #[arg(long, default_value_t = 1.0, value_parser = leakage_ratio)]
     leakage_ratio: f64,
-    /// Seed of the sensors' noise.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
     /// The motor may turn: end with a slow rotating field that checks the encoder's
     /// direction and line count and identifies the inertia and friction.
     #[arg(long)]
     rotate: bool,
+}
+
+impl CommissionArgs {
+    /// The sequence's spec for a PWM rate and a bus range; refused with the flag to change.
+    fn config(
+        &self,
+        pwm_hz: f64,
+        vdc_v: (f64, f64),
+    ) -> Result<controller_core::commission::CommissionConfig, String> {
+        use controller_core::commission::{CommissionConfig, CommissionSpec, CommissionSpecError as E};
+        let spec = CommissionSpec {
+            pwm_hz: pwm_hz as f32,
+            test_current_a: self.test_current as f32,
+            current_limit_a: self.current_limit.unwrap_or(2.0 * self.test_current) as f32,
+            vdc_min_v: vdc_v.0 as f32,
+            vdc_max_v: vdc_v.1 as f32,
+            level_time_s: self.level_time as f32,
+            rotate: self.rotate,
+        };
+        CommissionConfig::new(spec).map_err(|e| {
+            match e {
+                E::PwmFrequency => "the PWM frequency must lie in 1 … 100 kHz",
+                E::TestCurrent => "--test-current must be positive",
+                E::CurrentLimit => "--current-limit must be at least 1.5 × the test current",
+                E::BusRange => "the bus range is empty",
+                E::LevelTime => "--level-time must lie between 192 PWM periods and 60 s",
+            }
+            .to_string()
+        })
+    }
+
+    /// Write the motor file for `id` (checked to load as a motor first; atomically).
+    fn write(
+        &self,
+        id: &hil_sim::identify::Identified,
+        pole_pairs: u8,
+        j_b: (f64, f64),
+        about: &str,
+    ) -> Result<(), String> {
+        let text = hil_sim::identify::motor_file(id, self.leakage_ratio, pole_pairs, j_b.0, j_b.1, about);
+        drive_file::motor::parse(&self.out, &text)
+            .map_err(|e| format!("the identified motor is not valid: {e}"))?;
+        write_text(&self.out, &text)?;
+        eprintln!("hil-sim: wrote {}", self.out.display());
+        Ok(())
+    }
+}
+
+#[derive(Args, Debug)]
+struct IdentifyArgs {
+    /// The motor to simulate: a shipped motor's name, a motor file, a drive file or a
+    /// scenario file.
+    motor: String,
+    #[command(flatten)]
+    run: CommissionArgs,
+    /// DC-bus voltage, V (the accepted range is ±20 % of it).
+    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
+    vdc: f64,
+    /// PWM frequency, Hz.
+    #[arg(long, default_value_t = 20_000.0)]
+    pwm_hz: f64,
+    /// Seed of the sensors' noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
     /// The motor's pole pairs (nameplate) [default: the simulated motor's].
     #[arg(long, value_parser = clap::value_parser!(u8).range(1..=64))]
     pole_pairs: Option<u8>,
@@ -162,26 +216,17 @@ fn link_identify<R: std::io::Read, W: std::io::Write>(
     link: &mut hil_sim::link_client::LinkClient<R, W>,
     a: &LinkIdentifyArgs,
 ) -> Result<(), String> {
-    use controller_core::commission::{CommissionConfig, CommissionSpec, Stage};
+    use controller_core::commission::Stage;
     use hil_sim::identify;
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
-    let spec = CommissionSpec {
-        pwm_hz: file.spec.pwm_frequency_hz as f32,
-        test_current_a: a.test_current as f32,
-        current_limit_a: a.current_limit.unwrap_or(2.0 * a.test_current) as f32,
-        vdc_min_v: file.spec.protection.vdc_min_v as f32,
-        vdc_max_v: file.spec.protection.vdc_max_v as f32,
-        level_time_s: a.level_time as f32,
-        rotate: a.rotate,
-    };
-    // The board validates the same way; refuse here first, with a reason.
-    let config =
-        CommissionConfig::new(spec).map_err(|e| format!("the test's parameters are refused: {e:?}"))?;
+    let p = &file.spec.protection;
+    // The board validates the same way; refused here first, with a reason.
+    let config = a.run.config(file.spec.pwm_frequency_hz, (p.vdc_min_v, p.vdc_max_v))?;
     stop_on_ctrl_c();
     let mut shown = None;
     let record = identify::over_link(
         link,
-        spec,
+        *config.spec(),
         Duration::from_millis(200),
         |stage: Stage| {
             if shown != Some(stage) && stage.index() < Stage::COUNT {
@@ -201,14 +246,10 @@ fn link_identify<R: std::io::Read, W: std::io::Write>(
     let id = identify::estimate(&config, &record, m.pole_pairs())?;
     let about = format!(
         "Commissioned on the board over its link (hil-sim link … identify: test current {} A, drive file {}).",
-        a.test_current,
+        a.run.test_current,
         a.drive.display()
     );
-    let text = identify::motor_file(&id, a.leakage_ratio, m.pole_pairs(), m.j_kgm2(), m.b_nms(), &about);
-    drive_file::motor::parse(&a.out, &text).map_err(|e| format!("the identified motor is not valid: {e}"))?;
-    write_text(&a.out, &text)?;
-    eprintln!("hil-sim: wrote {}", a.out.display());
-    Ok(())
+    a.run.write(&id, m.pole_pairs(), (m.j_kgm2(), m.b_nms()), &about)
 }
 
 /// Ctrl-C sets [`INTERRUPTED`]: the run stops at its next check and writes nothing (a
@@ -218,36 +259,10 @@ fn stop_on_ctrl_c() {
 }
 
 fn identify(a: &IdentifyArgs) -> Result<(), String> {
-    use controller_core::commission::{CommissionConfig, CommissionSpec, Stage};
+    use controller_core::commission::Stage;
     use hil_sim::identify::{self, Setup};
     let motor = drive_file::motor::load(&a.motor).map_err(|e| e.to_string())?;
-    let spec = CommissionSpec {
-        pwm_hz: a.pwm_hz as f32,
-        test_current_a: a.test_current as f32,
-        current_limit_a: a.current_limit.unwrap_or(2.0 * a.test_current) as f32,
-        vdc_min_v: (0.8 * a.vdc) as f32,
-        vdc_max_v: (1.2 * a.vdc) as f32,
-        level_time_s: a.level_time as f32,
-        rotate: a.rotate,
-    };
-    let config = CommissionConfig::new(spec).map_err(|e| {
-        let why = match e {
-            controller_core::commission::CommissionSpecError::PwmFrequency => {
-                "--pwm-hz must lie in 1 … 100 kHz"
-            }
-            controller_core::commission::CommissionSpecError::TestCurrent => {
-                "--test-current must be positive"
-            }
-            controller_core::commission::CommissionSpecError::CurrentLimit => {
-                "--current-limit must be at least 1.5 × the test current"
-            }
-            controller_core::commission::CommissionSpecError::BusRange => "--vdc gives no bus range",
-            controller_core::commission::CommissionSpecError::LevelTime => {
-                "--level-time must lie between 192 PWM periods and 60 s"
-            }
-        };
-        why.to_string()
-    })?;
+    let config = a.run.config(a.pwm_hz, (0.8 * a.vdc, 1.2 * a.vdc))?;
     let mut setup = Setup::realistic(motor, config, a.vdc, a.seed);
     if a.swap_current_channels {
         setup.injections.push(hil_sim::sim::Injection::CurrentChannelsSwapped { first: 1, second: 2 });
@@ -291,11 +306,11 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
     eprintln!();
     let id = identify::estimate(&config, &record, pole_pairs)?;
     let (l_sigma, l_mm, r_rr, tr) = identify::inverse_gamma(&motor);
-    let tm = id.t_model(a.leakage_ratio);
-    let truth = identify::t_model(motor.rs_ohm(), l_sigma, l_mm, r_rr, a.leakage_ratio);
+    let tm = id.t_model(a.run.leakage_ratio);
+    let truth = identify::t_model(motor.rs_ohm(), l_sigma, l_mm, r_rr, a.run.leakage_ratio);
     println!(
         "motor time {t:.1} s; against the simulated motor (T-model under L_lr/L_ls = {}):",
-        a.leakage_ratio
+        a.run.leakage_ratio
     );
     println!(
         "{:<12} {:>12} {:>26} {:>12} {:>8}",
@@ -352,14 +367,10 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
     }
     let about = format!(
         "Simulated commissioning of `{}` (hil-sim identify: {} V bus, {} Hz PWM, test current {} A, seed {}).",
-        a.motor, a.vdc, a.pwm_hz, a.test_current, a.seed
+        a.motor, a.vdc, a.pwm_hz, a.run.test_current, a.seed
     );
     // Nothing in the text says where the sequence ran: SIL and PIL write the same file.
-    let text = identify::motor_file(&id, a.leakage_ratio, pole_pairs, motor.j_kgm2(), motor.b_nms(), &about);
-    // The file must load as a motor before it is written.
-    drive_file::motor::parse(&a.out, &text).map_err(|e| format!("the identified motor is not valid: {e}"))?;
-    write_text(&a.out, &text)?;
-    eprintln!("hil-sim: wrote {}", a.out.display());
+    a.run.write(&id, pole_pairs, (motor.j_kgm2(), motor.b_nms()), &about)?;
     if let Some(dir) = &a.plot_dir {
         std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
         for (name, svg) in identify::plots(&config, &record, &id, pole_pairs) {
@@ -680,28 +691,12 @@ enum LinkCmd {
 
 #[derive(Args, Debug, Clone)]
 struct LinkIdentifyArgs {
-    /// The motor file to write.
-    #[arg(long, value_parser = non_empty_path)]
-    out: PathBuf,
-    /// Test current, A (the motor's rated peak current is a good choice).
-    #[arg(long, value_parser = positive_amperes)]
-    test_current: f64,
-    /// Phase-current limit during the tests, A [default: 2 × the test current].
-    #[arg(long, value_parser = positive_amperes)]
-    current_limit: Option<f64>,
+    #[command(flatten)]
+    run: CommissionArgs,
     /// The drive file the firmware was built from: its PWM frequency, bus range, pole pairs,
     /// and J and B for a standstill-only run.
     #[arg(long, default_value = "drive.toml")]
     drive: PathBuf,
-    /// Time each DC level is held, s.
-    #[arg(long, default_value_t = 3.0)]
-    level_time: f64,
-    /// The motor may turn (the rotating field: encoder check, J and B).
-    #[arg(long)]
-    rotate: bool,
-    /// Assumed leakage split L_lr/L_ls.
-    #[arg(long, default_value_t = 1.0, value_parser = leakage_ratio)]
-    leakage_ratio: f64,
 }
 
 fn non_empty_path(s: &str) -> Result<PathBuf, String> {
