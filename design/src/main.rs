@@ -89,6 +89,82 @@ struct CertifyArgs {
     /// every corner, Bode plots of c₁ and k·g₁₁, the stable-speed sweep.
     #[arg(long)]
     plot_dir: Option<std::path::PathBuf>,
+    /// The nonlinear campaign's summary.json (`hil-sim campaign <this file>`, unsharded): it
+    /// must be of this very file (its fingerprint) and box; the file is certified when both
+    /// the linear checks and every campaign run pass.
+    #[arg(long)]
+    campaign: Option<std::path::PathBuf>,
+    /// Write the certificate (JSON: the file's fingerprint, every linear check, the
+    /// campaign's figures, the verdict) here.
+    #[arg(long)]
+    out: Option<std::path::PathBuf>,
+}
+
+/// The campaign's part of a certificate: its summary checked against the drive file.
+struct Nonlinear {
+    /// Every run passed.
+    ok: bool,
+    passed: u64,
+    runs: u64,
+    /// What the certificate keeps of the summary.
+    record: serde_json::Value,
+}
+
+fn campaign_result(
+    summary_path: &std::path::Path,
+    drive_text: &str,
+    c: &design::certify::CertifySpec,
+) -> Result<Nonlinear, String> {
+    use serde_json::Value;
+    let shown = summary_path.display();
+    let text = std::fs::read_to_string(summary_path).map_err(|e| format!("{shown}: {e}"))?;
+    let s: Value =
+        serde_json::from_str(&text).map_err(|e| format!("{shown}: not a campaign summary: {e}"))?;
+    let at = |pointer: &str| s.pointer(pointer).cloned().unwrap_or(Value::Null);
+    let fp = drive_file::source::fingerprint(drive_text);
+    let theirs = at("/drive/fingerprint");
+    if theirs.as_str() != Some(fp.as_str()) {
+        return Err(format!(
+            "{shown}: the campaign ran another drive file (fingerprint {theirs} against this file's {fp}): run `hil-sim campaign` on this one"
+        ));
+    }
+    if at("/shard").as_str() != Some("0/1") {
+        return Err(format!("{shown}: one shard of a campaign ({}), not the whole", at("/shard")));
+    }
+    // Within 1e-12: serde_json's default float parsing is not always correctly rounded.
+    let same = |key: &str, x: [f64; 2]| {
+        let near = |i: usize, v: f64| {
+            at(&format!("/box/{key}/{i}")).as_f64().is_some_and(|y| (y - v).abs() <= 1e-12 * v.abs().max(1.0))
+        };
+        near(0, x[0]) && near(1, x[1])
+    };
+    if !(same("rs_factor", c.rs_factor)
+        && same("rr_factor", c.rr_factor)
+        && same("inductance_factor", c.inductance_factor)
+        && same("j_factor", c.j_factor))
+    {
+        return Err(format!("{shown}: the campaign's box differs from the file's [certify]"));
+    }
+    let (runs, passed) = (at("/runs").as_u64().unwrap_or(0), at("/passed").as_u64().unwrap_or(0));
+    let ok = runs > 0 && runs == passed && at("/campaign_runs").as_u64() == Some(runs);
+    let mut record = serde_json::Map::new();
+    for k in [
+        "runs",
+        "passed",
+        "failed",
+        "seed",
+        "duration_s",
+        "vdc_v",
+        "omega_s_rad_s",
+        "box",
+        "criteria",
+        "per_manoeuvre",
+    ] {
+        record.insert(k.into(), at(&format!("/{k}")));
+    }
+    record.insert("summary".into(), shown.to_string().into());
+    record.insert("passed_all".into(), ok.into());
+    Ok(Nonlinear { ok, passed, runs, record: Value::Object(record) })
 }
 
 /// `design tune --motor M --out F [--template drive.toml]` (design::tune).
@@ -216,9 +292,36 @@ fn icad(a: &IcadArgs) -> Result<bool, String> {
 
 fn certify(a: &CertifyArgs) -> Result<bool, String> {
     let (path, json) = (a.drive.clone(), a.json);
-    let (spec, c) = design::certify::load(std::path::Path::new(&path))?;
+    let drive_text = drive_file::source::read(std::path::Path::new(&path)).map_err(|e| e.to_string())?;
+    let (spec, c) = design::certify::parse(std::path::Path::new(&path), &drive_text)?;
     let checks = design::certify::certify(&spec, &c)?;
-    let ok = checks.iter().all(|c| c.pass);
+    let linear_ok = checks.iter().all(|c| c.pass);
+    let nonlinear = a.campaign.as_deref().map(|p| campaign_result(p, &drive_text, &c)).transpose()?;
+    let ok = linear_ok && nonlinear.as_ref().is_none_or(|n| n.ok);
+    if let Some(out) = &a.out {
+        let v: Vec<_> = checks
+            .iter()
+            .map(|c| serde_json::json!({"check": c.name, "corner": c.corner, "value": c.value, "limit": c.limit, "pass": c.pass}))
+            .collect();
+        let cert = serde_json::json!({
+            "file": path,
+            "fingerprint": drive_file::source::fingerprint(&drive_text),
+            "certified": ok,
+            "linear": {"certified": linear_ok, "checks": v},
+            "nonlinear": nonlinear.as_ref().map(|n| n.record.clone()),
+        });
+        let text = serde_json::to_string_pretty(&cert).map_err(|e| e.to_string())?;
+        cli::write_atomic(out, &format!("{text}\n"))?;
+        eprintln!("design: wrote the certificate to {}", out.display());
+    }
+    if let Some(n) = &nonlinear {
+        println!(
+            "campaign: {} of {} runs passed{}",
+            n.passed,
+            n.runs,
+            if n.ok { "" } else { " — NOT certified nonlinearly" }
+        );
+    }
     if let Some(dir) = &a.plot_dir {
         std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
         for (name, svg) in design::certify::pictures(&spec, &c)? {
@@ -246,6 +349,9 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             );
         }
         println!("{path}: {}", if ok { "certified" } else { "NOT certified" });
+    }
+    if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
+        eprintln!("design certify: {path}: the campaign passed {} of {} runs", n.passed, n.runs);
     }
     if !ok {
         for ch in checks.iter().filter(|c| !c.pass) {

@@ -193,6 +193,17 @@ impl<'a> Source<'a> {
     }
 }
 
+/// A file's fingerprint: FNV-1a (64 bits) of its text, in hex — what ties a result (a
+/// campaign's summary) to the exact file it was computed on.
+pub fn fingerprint(text: &str) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in text.bytes() {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{h:016x}")
+}
+
 /// A number for a message: plain in the usual range, in exponent form beyond it (so that
 /// `1e300` does not print as 301 digits).
 pub fn num(x: f64) -> String {
@@ -222,6 +233,13 @@ pub fn read(path: &Path) -> Result<String, FileError> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn fingerprint_is_fnv1a_64() {
+        // FNV-1a 64 test vectors (the empty string and "a").
+        assert_eq!(super::fingerprint(""), "cbf29ce484222325");
+        assert_eq!(super::fingerprint("a"), "af63dc4c8601ec8c");
+    }
+
     use super::*;
     use serde::Deserialize;
 

@@ -579,7 +579,18 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     }
     write_text(&out.join("campaign.csv"), &csv)?;
     write_text(&out.join("campaign.svg"), &hil_sim::campaign::plot(&c, &verdicts))?;
-    let summary = hil_sim::campaign::summary(&c, &verdicts, elapsed);
+    let mut summary = hil_sim::campaign::summary(&c, &verdicts, elapsed);
+    // Which file exactly: `design certify --campaign` refuses a summary of another one.
+    let drive_text = drive_file::source::read(&a.drive).map_err(|e| e.to_string())?;
+    if let Some(o) = summary.as_object_mut() {
+        o.insert(
+            "drive".into(),
+            serde_json::json!({
+                "file": a.drive.display().to_string(),
+                "fingerprint": drive_file::source::fingerprint(&drive_text),
+            }),
+        );
+    }
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     write_text(&out.join("summary.json"), &format!("{text}\n"))?;
     println!(
