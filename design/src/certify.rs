@@ -447,13 +447,160 @@ pub fn pictures(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<(&'static str, 
         "ω_r (rad/s)",
         &sweep,
     );
+    let (region, speed_step) = speed_pictures(spec, c)?;
+    let current_step = current_step_picture(spec, c, &corners)?;
     Ok(vec![
         ("nyquist_gamma.svg", gamma),
         ("nyquist_gamma_h.svg", gamma_h),
         ("bode_magnitude.svg", magnitude),
         ("bode_phase.svg", phase_plot),
         ("stable_speed.svg", stable),
+        ("speed_region.svg", region),
+        ("speed_step.svg", speed_step),
+        ("current_step.svg", current_step),
     ])
+}
+
+/// The sampled speed loop with a torque law's gain `kp` (a saturated P's, or a PI's at the
+/// drive's values) on inertia `j`.
+fn speed_loop(spec: &DriveSpec, j: f64, kp: f64) -> Result<crate::sampled::SpeedLoop, String> {
+    let m = &spec.motor;
+    let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    let kt = m.torque_factor() * spec.flux_ref_wb;
+    match spec.speed_law {
+        SpeedLaw::SaturatedP { .. } => {
+            Ok(crate::sampled::SpeedLoop { j_kgm2: j, b_nms: m.b_nms(), ts_s: t_slow, kp, ki_over_k: 0.0 })
+        }
+        SpeedLaw::PiTorque { ki, .. } => crate::sampled::SpeedLoop::pi(j, m.b_nms(), t_slow, kp, ki, 1.0),
+        SpeedLaw::PiIq { ki, .. } => crate::sampled::SpeedLoop::pi(j, m.b_nms(), t_slow, kp, ki, kt),
+    }
+}
+
+/// The speed loop's region — the sampled closed loop's slowest pole, `ln|z|/T_slow`,
+/// against k_p at the box's smallest and largest inertia, with the writable range and the
+/// configured gain marked (below zero is stable) — and its step response: the speed after a
+/// unit reference step on both inertias (the linear loop, below the torque limit), from the
+/// sampled model: x(k+1) = M·x(k) from the state of a step of 1 at rest.
+fn speed_pictures(spec: &DriveSpec, c: &CertifySpec) -> Result<(String, String), String> {
+    use report::plot::{Series, line_plot};
+    let m = &spec.motor;
+    let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    let kp_now = match spec.speed_law {
+        SpeedLaw::SaturatedP { kp, .. } | SpeedLaw::PiTorque { kp, .. } | SpeedLaw::PiIq { kp, .. } => kp,
+    };
+    let js = [m.j_kgm2() * c.j_factor[0], m.j_kgm2() * c.j_factor[1]];
+    let k_hi = 4.0 * c.speed_kp_writable[1].max(kp_now);
+    let kps: Vec<f64> = (1..=200).map(|k| k_hi * f64::from(k) / 200.0).collect();
+    let mut series = Vec::new();
+    let labels: Vec<String> = js.iter().map(|j| format!("J = {j:.4e} kg·m²")).collect();
+    for (j, label) in js.iter().zip(&labels) {
+        let pts: Result<Vec<(f64, f64)>, String> =
+            kps.iter().map(|&kp| Ok((kp, speed_loop(spec, *j, kp)?.radius().ln() / t_slow))).collect();
+        series.push(Series::line(label, pts?));
+    }
+    let [w0, w1] = c.speed_kp_writable;
+    series.push(Series::markers("writable k_p", vec![(w0, 0.0), (w1, 0.0)]).colored("#2ca02c"));
+    series.push(Series::markers("configured k_p", vec![(kp_now, 0.0)]).colored("#d62728"));
+    series.push(Series::line("0 (stability)", vec![(0.0, 0.0), (k_hi, 0.0)]).colored("#7f7f7f"));
+    let region = line_plot(
+        "sampled speed loop: slowest pole ln|z|/T_slow (1/s) against k_p, at J_min and J_max (below 0 is stable)",
+        "k_p (N·m per rad/s)",
+        &series,
+    );
+    let mut steps = Vec::new();
+    for (j, label) in js.iter().zip(&labels) {
+        let y = speed_step(&speed_loop(spec, *j, kp_now)?, 400);
+        steps.push(Series::line(
+            label,
+            y.iter().enumerate().map(|(k, v)| (k as f64 * t_slow * 1e3, *v)).collect(),
+        ));
+    }
+    let step = line_plot(
+        &format!(
+            "sampled speed loop: speed after a unit reference step, k_p = {kp_now} (linear, below τ_max)"
+        ),
+        "t (ms)",
+        &steps,
+    );
+    Ok((region, step))
+}
+
+/// The speed of `l` after a unit reference step at rest, `n` slow periods: in the error
+/// coordinates (ω − 1 = −1, every recorded angle increment −T: what the window measures less
+/// the reference), x(k+1) = M·x(k).
+pub fn speed_step(l: &crate::sampled::SpeedLoop, n: usize) -> Vec<f64> {
+    let mm = l.matrix();
+    let mut x = nalgebra::DVector::<f64>::zeros(mm.nrows());
+    for (i, v) in x.iter_mut().enumerate().take(controller_core::encoder::SPEED_WINDOW_READS + 1) {
+        *v = if i == 0 { -1.0 } else { -l.ts_s };
+    }
+    (0..n)
+        .map(|_| {
+            let y = 1.0 + x[0];
+            x = &mm * &x;
+            y
+        })
+        .collect()
+}
+
+/// i_α of the sampled current loop (`m`, `ctrl`, at `omega_r`) after a unit i_α reference
+/// step, `n` PWM periods: x(k+1) = M·x(k) + b, b the reference's input — where −i_α enters
+/// the controller, with the opposite sign.
+pub fn current_step(
+    m: &MotorParams,
+    ctrl: &CurrentControllerConfig<f32>,
+    ts: f64,
+    omega_r: f64,
+    n: usize,
+) -> Vec<f64> {
+    let mm = crate::sampled::current_loop_matrix(m, ctrl, ts, omega_r);
+    let b = nalgebra::DVector::<f64>::from_iterator(
+        mm.nrows(),
+        (0..mm.nrows()).map(|r| if r < 4 { 0.0 } else { -mm[(r, 0)] }),
+    );
+    let mut x = nalgebra::DVector::<f64>::zeros(mm.nrows());
+    (0..n)
+        .map(|_| {
+            let y = x[0];
+            x = &mm * &x + &b;
+            y
+        })
+        .collect()
+}
+
+/// The sampled current loop's α current after a unit α reference step, on every corner at
+/// ω_r = 0 and at ω_r,max (x(k+1) = M·x(k) + b·r, b the controller's reference input).
+fn current_step_picture(
+    spec: &DriveSpec,
+    c: &CertifySpec,
+    corners: &[(String, MotorParams)],
+) -> Result<String, String> {
+    use report::plot::{Series, line_plot};
+    let ts = 1.0 / spec.pwm_frequency_hz;
+    let ctrl = CurrentControllerConfig::<f32>::new(&spec.current_law, ts, spec.discretization, 1.0)
+        .map_err(|e| format!("current law rejected at {} Hz: {e:?}", spec.pwm_frequency_hz))?;
+    let mut series = Vec::new();
+    let labels: Vec<String> = corners
+        .iter()
+        .flat_map(|(name, _)| [format!("{name}, ω_r = 0"), format!("{name}, ω_r = {}", c.omega_r_max_rad_s)])
+        .collect();
+    let mut label = labels.iter();
+    for (_, cm) in corners {
+        for wr in [0.0, c.omega_r_max_rad_s] {
+            let y = current_step(cm, &ctrl, ts, wr, 200);
+            if let Some(l) = label.next() {
+                series.push(Series::line(
+                    l,
+                    y.iter().enumerate().map(|(k, v)| (k as f64 * ts * 1e3, *v)).collect(),
+                ));
+            }
+        }
+    }
+    Ok(line_plot(
+        "sampled current loop: i_α after a unit i_α reference step, every corner, at rest and at ω_r,max",
+        "t (ms)",
+        &series,
+    ))
 }
 
 #[cfg(test)]
@@ -476,13 +623,28 @@ mod picture_tests {
                 "nyquist_gamma_h.svg",
                 "bode_magnitude.svg",
                 "bode_phase.svg",
-                "stable_speed.svg"
+                "stable_speed.svg",
+                "speed_region.svg",
+                "speed_step.svg",
+                "current_step.svg"
             ]
         );
         for (name, svg) in &pics {
             assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{name}");
             assert!(svg.trim_end().ends_with("</svg>"), "{name}");
         }
+        // The step responses drawn: the current loop's integral action takes i_α to the
+        // reference within 10 ms at rest (nominal motor); the saturated P speed loop to
+        // k_p/(k_p + B) within 2 s (J_max).
+        let ctrl =
+            CurrentControllerConfig::<f32>::new(&spec.current_law, 5e-5, spec.discretization, 1.0).unwrap();
+        let i = current_step(&spec.motor, &ctrl, 5e-5, 0.0, 200);
+        assert!((i[199] - 1.0).abs() < 0.01 && i[1].abs() < 1e-12, "{} {}", i[1], i[199]);
+        let SpeedLaw::SaturatedP { kp, .. } = spec.speed_law else { panic!() };
+        let l = speed_loop(&spec, spec.motor.j_kgm2() * c.j_factor[1], kp).unwrap();
+        let w = speed_step(&l, 4000);
+        let target = kp / (kp + spec.motor.b_nms());
+        assert!((w[3999] - target).abs() < 0.01 * target, "{} vs {target}", w[3999]);
         let gh = &pics[1].1;
         assert_eq!(gh.matches("<path").count(), 8, "one curve per corner");
         assert!(gh.contains("Rs×1.5 Rr×2 L×0.6") && gh.contains("(1, 0)"));
