@@ -79,7 +79,8 @@ pub const DEFAULT_NOISE_MAX_COUNTS: f64 = 8.0;
 pub struct Board {
     /// `[board]` as written (validated).
     pub table: BoardTable,
-    /// Centre-aligned PWM: ARR = f_tim/(2·f_pwm) − 1.
+    /// Centre-aligned PWM (the counter up to ARR and down, a period of 2·ARR ticks):
+    /// ARR = f_tim/(2·f_pwm).
     pub pwm_period_counts: u16,
     /// Dead time in timer ticks.
     pub dead_time_ticks: u16,
@@ -117,12 +118,14 @@ impl BoardTable {
     pub fn validate(&self, src: &Source<'_>, spec: &DriveSpec) -> Result<Board, FileError> {
         src.check(self.tim_clock_hz > 0, "board.tim_clock_hz", "must be > 0")?;
         let f_tim = f64::from(self.tim_clock_hz);
-        let arr = f_tim / (2.0 * spec.pwm_frequency_hz) - 1.0;
+        // Centre-aligned: the counter runs 0 → ARR → 0, a period of 2·ARR ticks (not
+        // 2·(ARR + 1): with ARR = f_tim/(2·f) − 1 the PWM ran at 20 004.7 Hz, issue 19).
+        let arr = f_tim / (2.0 * spec.pwm_frequency_hz);
         src.check(
             (arr - arr.round()).abs() < 1e-9 && (100.0..=65_535.0).contains(&arr),
             "pwm.frequency_hz",
             &format!(
-                "board.tim_clock_hz/(2·f_pwm) − 1 = {arr} must be a whole number of timer ticks in 100…65535"
+                "board.tim_clock_hz/(2·f_pwm) = {arr} must be a whole number of timer ticks in 100…65535"
             ),
         )?;
         let ticks = self.dead_time_s * f_tim;

@@ -130,7 +130,8 @@ mod tests {
         let d = DriveFile::shipped().unwrap();
         assert!(d.certify.is_some() && d.board.is_some());
         let b = d.board.unwrap();
-        assert_eq!((b.pwm_period_counts, b.dead_time_ticks), (4249, 85));
+        // 170 MHz / (2 · 4250) = 20 000 Hz exactly.
+        assert_eq!((b.pwm_period_counts, b.dead_time_ticks), (4250, 85));
     }
 
     /// Issue 16, item 2: each value found by trying is an input error that points at it.

@@ -45,8 +45,9 @@ mod tests {
     #[test]
     fn pwm_period_gives_the_drive_frequency() {
         let spec = drive_spec().unwrap();
-        // Centre-aligned: one period = 2·(ARR + 1) timer ticks.
-        let f = f64::from(TIM_CLOCK_HZ) / (2.0 * (f64::from(PWM_PERIOD_COUNTS) + 1.0));
+        // Centre-aligned: the counter runs 0 → ARR → 0, one period = 2·ARR timer ticks
+        // (with 2·(ARR + 1) the board formula made the PWM run at 20 004.7 Hz, issue 19).
+        let f = f64::from(TIM_CLOCK_HZ) / (2.0 * f64::from(PWM_PERIOD_COUNTS));
         assert!((f - spec.pwm_frequency_hz).abs() < 1e-9, "{f}");
         // The 16-bit counter must not wrap by half its range between two reads below the
         // overspeed level (the estimator takes the wrapping difference as a signed step).

@@ -100,6 +100,24 @@ pub enum ControlError {
     Encoder(EncoderError),
     /// Offset-calibration limits rejected.
     Calibration(CalibrationConfigError),
+    /// The timer's ARR read back at start is not the board's period: the PWM would not run
+    /// at the rate the drive's constants were discretised for.
+    PwmPeriod {
+        /// ARR read from TIM1.
+        read: u16,
+        /// `BoardConfig::pwm_period_counts`.
+        expected: u16,
+    },
+}
+
+/// The PWM period check at start: TIM1's ARR, read back after its configuration, must be the
+/// board's (centre-aligned, a period of 2·ARR ticks; `drive-file`'s board validation).
+pub fn check_pwm_period(read: u16, board: &BoardConfig) -> Result<(), ControlError> {
+    if read == board.pwm_period_counts {
+        Ok(())
+    } else {
+        Err(ControlError::PwmPeriod { read, expected: board.pwm_period_counts })
+    }
 }
 
 /// Where the offset calibration stands.
@@ -391,7 +409,7 @@ mod tests {
             current_offset_counts: 2048,
             vdc_v_per_count: 0.1,
             adc_full_scale: 4095,
-            pwm_period_counts: 4249,
+            pwm_period_counts: 4250,
             encoder_lines: 1024,
             current_offset_max_error_counts: 204.75,
             current_noise_max_counts: 8.0,
@@ -419,9 +437,9 @@ mod tests {
         match c.step(&at_rest(0)) {
             Bridge::Compare(ccr) => {
                 let (max, min) = (ccr.iter().max().unwrap(), ccr.iter().min().unwrap());
-                assert!(*max <= 4249, "{ccr:?}");
+                assert!(*max <= 4250, "{ccr:?}");
                 assert!(
-                    ((u32::from(*max) + u32::from(*min)) as f64 / 2.0 - 4249.0 / 2.0).abs() <= 1.0,
+                    ((u32::from(*max) + u32::from(*min)) as f64 / 2.0 - 4250.0 / 2.0).abs() <= 1.0,
                     "{ccr:?}"
                 );
                 assert!(max > min, "a voltage is applied: {ccr:?}");
@@ -552,5 +570,11 @@ mod tests {
         assert_eq!(ControlLoop::new(&spec, &bad).unwrap_err(), ControlError::Scaling(ScalingError::Offset));
         let bad = BoardConfig { encoder_lines: 0, ..board() };
         assert_eq!(ControlLoop::new(&spec, &bad).unwrap_err(), ControlError::Encoder(EncoderError::Lines));
+        // Issue 19: the timer's period read back must be the board's (embassy's `khz(20)`
+        // programs ARR = 4249, a 20 004.7 Hz PWM; the board's is 4250, 20 000 Hz).
+        let b = crate::config::BOARD;
+        assert_eq!(b.pwm_period_counts, 4250);
+        assert_eq!(check_pwm_period(4250, &b), Ok(()));
+        assert_eq!(check_pwm_period(4249, &b), Err(ControlError::PwmPeriod { read: 4249, expected: 4250 }));
     }
 }

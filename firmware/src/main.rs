@@ -188,6 +188,7 @@ mod target {
                     ControlError::Scaling(_) => "ADC/PWM scaling",
                     ControlError::Encoder(_) => "encoder",
                     ControlError::Calibration(_) => "offset-calibration limits",
+                    ControlError::PwmPeriod { .. } => "PWM period",
                 };
                 defmt::error!("configuration rejected ({=str}); bridge stays off", why);
                 halt_safe();
@@ -213,6 +214,20 @@ mod target {
             CountingMode::CenterAlignedBothInterrupts,
         );
         pwm.set_master_output_enable(false);
+        // The period the drive's constants were discretised for: centre-aligned, 2·ARR ticks
+        // (embassy's `khz(20)` programs one tick less). Written, read back, checked.
+        pac::TIM1.arr().write(|w| w.set_arr(BOARD.pwm_period_counts));
+        let arr_read = pac::TIM1.arr().read().arr();
+        if let Err(ControlError::PwmPeriod { read, expected }) =
+            firmware::control::check_pwm_period(arr_read, &BOARD)
+        {
+            defmt::error!(
+                "TIM1 ARR reads {=u16}, the board's period is {=u16}: bridge stays off",
+                read,
+                expected
+            );
+            halt_safe();
+        }
         pwm.set_dead_time(DEAD_TIME_TICKS);
         pwm.set_off_state_selection_run(Ossr::IDLE_LEVEL);
         pwm.set_off_state_selection_idle(Ossi::IDLE_LEVEL);
