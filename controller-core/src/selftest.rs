@@ -302,7 +302,12 @@ pub fn link_rejects_corruption(spec: &DriveSpec) -> Check {
         }
     }
     // Round trip of a reply.
-    let r = Reply::Status { mode: Mode::Running, frames_ok: 3, frame_errors: 4 };
+    let r = Reply::Status {
+        mode: Mode::Running,
+        frames_ok: 3,
+        frame_errors: 4,
+        timing: link::LoopTiming::default(),
+    };
     let mut p = [0u8; MAX_FRAME];
     if !matches!(r.encode(&mut p).map(|k| Reply::decode(p.get(..k).unwrap_or(&[]))), Ok(Ok(x)) if x == r) {
         bad += 1.0;

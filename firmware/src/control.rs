@@ -110,6 +110,46 @@ pub enum ControlError {
     },
 }
 
+/// The control interrupt's timing (issue 19): the longest step in CPU cycles (DWT CYCCNT on
+/// the board) and the steps that took a whole PWM period or more — their compare values
+/// missed the update they were for. Atomics: the interrupt writes, the link task reads.
+#[derive(Debug, Default)]
+pub struct LoopTimer {
+    max: core::sync::atomic::AtomicU32,
+    overruns: core::sync::atomic::AtomicU32,
+}
+
+impl LoopTimer {
+    /// Nothing recorded.
+    pub const fn new() -> Self {
+        Self { max: core::sync::atomic::AtomicU32::new(0), overruns: core::sync::atomic::AtomicU32::new(0) }
+    }
+
+    /// One step took `cycles`; a PWM period is `period_cycles`.
+    pub fn record(&self, cycles: u32, period_cycles: u32) {
+        use core::sync::atomic::Ordering::Relaxed;
+        self.max.fetch_max(cycles, Relaxed);
+        if cycles >= period_cycles {
+            self.overruns.fetch_add(1, Relaxed);
+        }
+    }
+
+    /// What the link's `Status` reports.
+    pub fn read(&self) -> controller_core::link::LoopTiming {
+        use core::sync::atomic::Ordering::Relaxed;
+        controller_core::link::LoopTiming {
+            cycles_max: self.max.load(Relaxed),
+            overruns: self.overruns.load(Relaxed),
+        }
+    }
+}
+
+/// CPU cycles of one PWM period: TIM1 runs on the CPU clock (the board's `tim_clock_hz`),
+/// centre-aligned, 2·ARR ticks a period.
+pub fn period_cycles(board: &BoardConfig) -> u32 {
+    2 * u32::from(board.pwm_period_counts)
+}
+
 /// The PWM period check at start: TIM1's ARR, read back after its configuration, must be the
 /// board's (centre-aligned, a period of 2·ARR ticks; `drive-file`'s board validation).
 pub fn check_pwm_period(read: u16, board: &BoardConfig) -> Result<(), ControlError> {
@@ -576,5 +616,22 @@ mod tests {
         assert_eq!(b.pwm_period_counts, 4250);
         assert_eq!(check_pwm_period(4250, &b), Ok(()));
         assert_eq!(check_pwm_period(4249, &b), Err(ControlError::PwmPeriod { read: 4249, expected: 4250 }));
+    }
+
+    /// The interrupt's timing: the longest step kept, a step of a whole period or more an
+    /// overrun (8 500 cycles at 170 MHz and 20 kHz).
+    #[test]
+    fn the_loop_timer_keeps_the_longest_step_and_counts_overruns() {
+        let period = period_cycles(&crate::config::BOARD);
+        assert_eq!(period, 8500);
+        let t = LoopTimer::new();
+        for c in [900, 1200, 800, 8499] {
+            t.record(c, period);
+        }
+        assert_eq!(t.read(), controller_core::link::LoopTiming { cycles_max: 8499, overruns: 0 });
+        t.record(8500, period);
+        t.record(20_000, period);
+        t.record(1000, period);
+        assert_eq!(t.read(), controller_core::link::LoopTiming { cycles_max: 20_000, overruns: 2 });
     }
 }

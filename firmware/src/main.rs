@@ -64,6 +64,8 @@ mod target {
     static OUTPUTS: Mutex<core::cell::Cell<Outputs>> = Mutex::new(core::cell::Cell::new(Outputs::new()));
     /// Control interrupts served; the watchdog task is fed only while this advances.
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
+    /// The control interrupt's longest step and overruns (`Status`).
+    static LOOP_TIMER: firmware::control::LoopTimer = firmware::control::LoopTimer::new();
 
     /// TIM1 and the brake pin as the control interrupt's output stage (`firmware::output`,
     /// host-tested against a model of this logic).
@@ -166,6 +168,12 @@ mod target {
         pac::DBGMCU.apb1lfzr().modify(|w| w.set_iwdg(true));
         // A core lockup (e.g. a fault inside the HardFault handler) is a TIM1 break input.
         pac::SYSCFG.cfgr2().modify(|w| w.set_cll(true));
+        // The cycle counter the control interrupt times itself with (`Status`). Taken once
+        // here; nothing else uses the core peripherals (the time driver is TIM3).
+        if let Some(mut cp) = cortex_m::Peripherals::take() {
+            cp.DCB.enable_trace();
+            cp.DWT.enable_cycle_counter();
+        }
         let pins = Pins {
             pwm_high: (p.PA8, p.PA9, p.PA10),
             pwm_low: (p.PB13, p.PB14, p.PB15),
@@ -318,11 +326,13 @@ mod target {
     /// ≈ 596 instructions (fast step, on average) plus ≈ 118 every 10th period (slow step), counted under
     /// QEMU (`cargo xtask qemu`, `qemu-target/src/bin/cost.rs`): 7 % of the period at one
     /// cycle per instruction. The real cycle count (FPU divide latency, flash wait states)
-    /// is still to be measured on the board with DWT CYCCNT. The compare values
+    /// the board measures itself: DWT CYCCNT around this handler, the longest step and the
+    /// steps of a period or more in the link's `Status` (`control::LoopTimer`). The compare values
     /// written here take effect at the next update event (preload), i.e. one period after
     /// sampling — the delay the simulator models.
     #[interrupt]
     fn ADC1_2() {
+        let t0 = cortex_m::peripheral::DWT::cycle_count();
         let adc = pac::ADC1;
         if !adc.isr().read().jeos() {
             return;
@@ -349,6 +359,8 @@ mod target {
             }
         });
         ISR_COUNT.fetch_add(1, Ordering::Relaxed);
+        let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
+        LOOP_TIMER.record(cycles, firmware::control::period_cycles(&BOARD));
     }
 
     /// Milliseconds since boot, wrapping (the link watchdog's clock).
@@ -433,6 +445,13 @@ mod target {
                         .borrow_ref_mut(cs)
                         .as_mut()
                         .map(|c| server::handle_board(c, &cmd, prepared, &stats))
+                });
+                // The status carries the interrupt's timing (the link module cannot see it).
+                let reply = reply.map(|r| match r {
+                    Reply::Status { mode, frames_ok, frame_errors, .. } => {
+                        Reply::Status { mode, frames_ok, frame_errors, timing: LOOP_TIMER.read() }
+                    }
+                    other => other,
                 });
                 if let Some(r) = reply
                     && let Ok(len) = link::reply_frame(&r, &mut frame)

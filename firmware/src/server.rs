@@ -185,7 +185,12 @@ mod tests {
         assert_eq!(handle(&mut c, &Command::Configure(spec), &stats), Reply::Nack(NackReason::Unsupported));
         assert_eq!(
             handle(&mut c, &Command::GetStatus, &stats),
-            Reply::Status { mode: Mode::Magnetizing, frames_ok: 5, frame_errors: 2 }
+            Reply::Status {
+                mode: Mode::Magnetizing,
+                frames_ok: 5,
+                frame_errors: 2,
+                timing: Default::default()
+            }
         );
         assert_eq!(handle(&mut c, &Command::Disable, &stats), Reply::Ack);
         assert_eq!(c.drive().mode(), Mode::Idle);

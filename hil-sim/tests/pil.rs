@@ -64,7 +64,7 @@ fn target_counts_every_malformed_frame_and_keeps_serving() {
     pil.send_raw(&noise).unwrap();
     // No reply to any of them; the next good command is answered.
     match pil.transact(&Command::GetStatus).unwrap() {
-        Reply::Status { mode, frames_ok, frame_errors } => {
+        Reply::Status { mode, frames_ok, frame_errors, .. } => {
             assert_eq!(mode, Mode::Idle);
             assert_eq!(frames_ok, 2, "Configure and GetStatus");
             assert_eq!(frame_errors, 6);

@@ -236,7 +236,19 @@ pub enum Reply {
         frames_ok: u32,
         /// Frames the drive rejected.
         frame_errors: u32,
+        /// The control interrupt's timing (zero where it is not measured: PIL).
+        timing: LoopTiming,
     },
+}
+
+/// The control interrupt's timing on a board (DWT cycle counter): the longest step seen and
+/// the steps that took a whole PWM period or more.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LoopTiming {
+    /// Most CPU cycles one control interrupt took.
+    pub cycles_max: u32,
+    /// Control interrupts that took at least a PWM period (their compare values came late).
+    pub overruns: u32,
 }
 
 pub(crate) mod tag {
@@ -840,11 +852,13 @@ impl Reply {
                 w.u8(*chunk)?;
                 w.bytes(bytes)?;
             }
-            Reply::Status { mode, frames_ok, frame_errors } => {
+            Reply::Status { mode, frames_ok, frame_errors, timing } => {
                 w.u8(tag::STATUS)?;
                 w.u8(mode_code(*mode))?;
                 w.bytes(&frames_ok.to_le_bytes())?;
                 w.bytes(&frame_errors.to_le_bytes())?;
+                w.u32(timing.cycles_max)?;
+                w.u32(timing.overruns)?;
             }
         }
         Ok(w.n)
@@ -903,6 +917,7 @@ impl Reply {
                 mode: mode_from_code(r.u8()?)?,
                 frames_ok: u32::from_le_bytes(r.take()?),
                 frame_errors: u32::from_le_bytes(r.take()?),
+                timing: LoopTiming { cycles_max: r.u32()?, overruns: r.u32()? },
             },
             other => return Err(DecodeError::UnknownType(other)),
         };

@@ -126,7 +126,12 @@ fn replies_round_trip_bit_exact() {
             brake: true,
             telemetry: Telemetry::default(),
         }),
-        Reply::Status { mode: Mode::Running, frames_ok: 7, frame_errors: u32::MAX },
+        Reply::Status {
+            mode: Mode::Running,
+            frames_ok: 7,
+            frame_errors: u32::MAX,
+            timing: super::LoopTiming { cycles_max: 1234, overruns: 2 },
+        },
         Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 },
         Reply::Nack(NackReason::OutOfCertifiedRange),
         Reply::Nack(NackReason::NoRecord),
