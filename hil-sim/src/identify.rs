@@ -208,11 +208,22 @@ fn rotation(
     let blocks = r.theta_m_rad.len();
     let dt_block = per_block * ts;
     let theta_m: Vec<f64> = std::iter::once(0.0).chain(r.theta_m_rad.iter().map(|x| f64::from(*x))).collect();
+    // A record from elsewhere (a board's) is checked before it is used: no blocks, or blocks
+    // that do not fit the ramp and the hold, are an empty record, not a panic.
+    let pwm_f32 = cfg.spec().pwm_hz;
+    // As the sequence computes it (controller_core::commission, in f32 and u32).
+    let expected =
+        f64::from(((ROTATION_RAMP_S * pwm_f32) as u32 + (ROTATION_HOLD_S * pwm_f32) as u32) / blocks as u32);
+    if per_block <= 0.0 || per_block != expected {
+        return Err(format!(
+            "the rotating field's record is empty or not this sequence's ({per_block} periods per block, expected {expected})"
+        ));
+    }
     // The second half of the hold: the field turns at w_max there.
     let hold_blocks = (f64::from(ROTATION_HOLD_S) / dt_block).round() as usize;
-    let from = blocks - hold_blocks / 2;
+    let from = blocks.saturating_sub(hold_blocks / 2).min(blocks - 1);
     let ratio = p * (theta_m[blocks] - theta_m[from]) / (w_max * (blocks - from) as f64 * dt_block);
-    if !ratio.is_finite() || per_block <= 0.0 {
+    if !ratio.is_finite() {
         return Err("the rotating field's record is empty".into());
     }
     if ratio < 0.0 {
@@ -1058,6 +1069,31 @@ pub fn motor_file(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A record that did not come from this sequence (a board's, corrupted) is refused, not
+    /// a panic: the rotating field's blocks empty or of another length.
+    #[test]
+    fn a_foreign_rotation_record_is_refused() {
+        use controller_core::commission::CommissionSpec;
+        let spec = CommissionSpec {
+            pwm_hz: 20_000.0,
+            test_current_a: 1.0,
+            current_limit_a: 2.0,
+            vdc_min_v: 250.0,
+            vdc_max_v: 370.0,
+            level_time_s: 1.0,
+            rotate: true,
+        };
+        let cfg = CommissionConfig::new(spec).unwrap();
+        let mut rec = Record::default();
+        for periods in [0, 1, 999, 1001, u32::MAX] {
+            rec.rotation.periods_per_block = periods;
+            let e = rotation(&cfg, &rec, 1, 1.34, 20.8).unwrap_err();
+            assert!(e.contains("empty or not this sequence's"), "{periods}: {e}");
+        }
+        rec.rotation.periods_per_block = 1000;
+        assert!(rotation(&cfg, &rec, 1, 1.34, 20.8).is_err(), "a rotor that never turned");
+    }
 
     /// The T-models of one set of terminals under different splits have the same standstill
     /// impedance at every frequency.
