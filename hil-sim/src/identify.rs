@@ -1070,6 +1070,38 @@ pub fn motor_file(
 mod tests {
     use super::*;
 
+    /// Any record — every word random bits, as a broken link or board could deliver — is
+    /// estimated or refused, never a panic.
+    #[test]
+    fn random_records_never_panic() {
+        use controller_core::commission::{CommissionSpec, RECORD_BYTES};
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        for rotate in [false, true] {
+            let spec = CommissionSpec {
+                pwm_hz: 20_000.0,
+                test_current_a: 1.0,
+                current_limit_a: 2.0,
+                vdc_min_v: 250.0,
+                vdc_max_v: 370.0,
+                level_time_s: 1.0,
+                rotate,
+            };
+            let cfg = CommissionConfig::new(spec).unwrap();
+            for _ in 0..100 {
+                let bytes: Vec<u8> = (0..RECORD_BYTES)
+                    .map(|_| {
+                        x ^= x << 13;
+                        x ^= x >> 7;
+                        x ^= x << 17;
+                        x as u8
+                    })
+                    .collect();
+                let rec = Record::read_bytes(&bytes).unwrap();
+                let _ = estimate(&cfg, &rec, 1);
+            }
+        }
+    }
+
     /// A record that did not come from this sequence (a board's, corrupted) is refused, not
     /// a panic: the rotating field's blocks empty or of another length.
     #[test]
