@@ -345,6 +345,65 @@ mod tests {
         assert!(t.checks.iter().all(|c| c.pass));
     }
 
+    /// A template sized for motor `m` on a 310 V bus: rated flux 0.9·(V_dc/√3)/(2π·50 Hz),
+    /// current limit three times the magnetizing current, τ_max half of what it gives,
+    /// trip at twice the limit; the narrow box self-commissioning supports.
+    fn template_for(m: &MotorParams) -> String {
+        let psi = 0.9 * 310.0 / 3f64.sqrt() / (2.0 * std::f64::consts::PI * 50.0);
+        let i_d = psi / m.lm_h();
+        let i_max = 3.0 * i_d;
+        let tau = 0.5 * m.torque_factor() * psi * (i_max * i_max - i_d * i_d).sqrt();
+        format!(
+            "[pwm]\nfrequency_hz = 20000.0\nslow_divider = 10\n\
+             [motor]\nrs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = {}\nlm_h = {}\npole_pairs = {}\nj_kgm2 = {}\nb_nms = {}\n\
+             [controller]\ncurrent = {{ kind = \"pi\", kp = 1.0, ki = 1.0 }}\n\
+             speed = {{ kind = \"saturated_p\", kp = 0.001, tau_max_nm = {tau} }}\n\
+             flux_ref_wb = {psi}\ni_ref_max_a = {i_max}\n\
+             [protection]\ni_trip_a = {}\nvdc_min_v = 250.0\nvdc_max_v = 370.0\n\
+             [certify]\nomega_r_max_rad_s = 628.0\nrs_factor = [1.0, 1.5]\nrr_factor = [1.0, 1.2]\n\
+             inductance_factor = [0.95, 1.05]\nj_factor = [1.0, 2.0]\nspeed_kp_writable = [0.0005, 0.002]\n\
+             speed_tau_max_nm_writable = [{}, {tau}]\nphase_margin_deg_min = 45.0\ngain_margin_db_min = 6.0\n\
+             gamma_h_margin_db_min = 1.0\n",
+            m.rs_ohm(),
+            m.rr_ohm(),
+            m.ls_h(),
+            m.lr_h(),
+            m.lm_h(),
+            m.pole_pairs(),
+            m.j_kgm2(),
+            m.b_nms(),
+            2.0 * i_max,
+            tau / 20.0,
+        )
+    }
+
+    /// Motors the toolkit has never seen (the ranges of `hil-sim/tests/identify.rs`: 2–10 %
+    /// leakage each side, L_m 0.05…2 H, T_r 20…600 ms, L_s/R_s 10…200 ms, p = 2), each on a
+    /// template sized for it: the tuned file passes every linear check.
+    #[test]
+    fn seeded_random_motors_tune_and_certify() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut uniform = |lo: f64, hi: f64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            lo + (hi - lo) * (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for k in 0..6 {
+            let lm = (uniform(0.05f64.ln(), 2f64.ln())).exp();
+            let (ls, lr) = (lm * (1.0 + uniform(0.02, 0.1)), lm * (1.0 + uniform(0.02, 0.1)));
+            let rr = lr / uniform(0.02, 0.6);
+            let rs = ls / uniform(0.01, 0.2);
+            let j = uniform(1e-4, 1e-1);
+            let m = MotorParams::new(rs, rr, ls, lr, lm, 2, j, j * 0.01).unwrap();
+            let template = template_for(&m);
+            let t = tune(Path::new("template.toml"), &template, &m, None)
+                .unwrap_or_else(|e| panic!("random {k} ({m:?}): {e}"));
+            assert!(t.checks.iter().all(|c| c.pass), "random {k}");
+            println!("random {k}: ω_c {:.0} rad/s, ω_s {:.1} rad/s", t.omega_c_rad_s, t.omega_s_rad_s);
+        }
+    }
+
     /// The walk-through's motor on its 24 V template (docs/walkthrough.md).
     #[test]
     fn the_walkthrough_motor_tunes_on_its_template() {
