@@ -323,6 +323,11 @@ impl Stage {
             Stage::Done | Stage::Refused(_) => Self::COUNT,
         }
     }
+
+    /// The sequence is over: finished or refused (the bridge stays off).
+    pub fn is_over(self) -> bool {
+        matches!(self, Stage::Done | Stage::Refused(_))
+    }
 }
 
 /// One voltage pulse's result.
@@ -613,7 +618,7 @@ impl Commissioning {
 
     /// One PWM period.
     pub fn step(&mut self, m: &Measurements) -> CommissionOutput {
-        if matches!(self.stage, Stage::Done | Stage::Refused(_)) {
+        if self.stage.is_over() {
             return self.off();
         }
         if !(m.i_abc_a.is_finite() && m.vdc_v.is_finite()) {
@@ -654,7 +659,7 @@ impl Commissioning {
             return self.off();
         }
         let modulation = svpwm::modulate(v, m.vdc_v);
-        if matches!(self.stage, Stage::Done | Stage::Refused(_)) {
+        if self.stage.is_over() {
             return self.off();
         }
         CommissionOutput {
@@ -1077,7 +1082,7 @@ mod tests {
                     i[ax] += h * di;
                 }
             }
-            if matches!(c.stage(), Stage::Done | Stage::Refused(_)) {
+            if c.stage().is_over() {
                 break;
             }
         }

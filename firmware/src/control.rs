@@ -345,7 +345,7 @@ impl ControlLoop {
         return self
             .commission
             .as_ref()
-            .is_some_and(|(c, _)| !matches!(c.stage(), Stage::Done | Stage::Refused(_)));
+            .is_some_and(|(c, _)| !c.stage().is_over());
         #[cfg(not(feature = "commissioning"))]
         false
     }
@@ -405,7 +405,7 @@ impl ControlLoop {
         self.last = Some(out);
         #[cfg(feature = "commissioning")]
         if let Some((c, last)) =
-            self.commission.as_mut().filter(|(c, _)| !matches!(c.stage(), Stage::Done | Stage::Refused(_)))
+            self.commission.as_mut().filter(|(c, _)| !c.stage().is_over())
         {
             if matches!(out.mode, Mode::Fault(_)) {
                 c.abort();

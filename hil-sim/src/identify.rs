@@ -695,10 +695,6 @@ struct Sequence {
     stage: Rc<Cell<Stage>>,
 }
 
-fn is_over(s: Stage) -> bool {
-    matches!(s, Stage::Done | Stage::Refused(_))
-}
-
 impl Sequence {
     /// The finished sequence's record (from the target, in chunks, over PIL).
     fn record(&mut self) -> Result<Option<Record>, String> {
@@ -759,7 +755,7 @@ impl DriveUnderTest for Sequence {
         self.stage.set(stage);
         FastOutput {
             phases,
-            mode: if is_over(stage) { Mode::Idle } else { Mode::Running },
+            mode: if stage.is_over() { Mode::Idle } else { Mode::Running },
             brake: false,
             telemetry: Telemetry {
                 v_ab_v,
@@ -775,7 +771,7 @@ impl DriveUnderTest for Sequence {
         }
     }
     fn finished(&self) -> bool {
-        is_over(self.stage.get())
+        self.stage.get().is_over()
     }
 }
 
