@@ -30,7 +30,7 @@ use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
 #[cfg(feature = "commissioning")]
-use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
+use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record};
 use controller_core::drive::{
     Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand,
 };
@@ -342,10 +342,7 @@ impl ControlLoop {
     /// A sequence is running (not finished, not refused).
     pub fn commissioning(&self) -> bool {
         #[cfg(feature = "commissioning")]
-        return self
-            .commission
-            .as_ref()
-            .is_some_and(|(c, _)| !c.stage().is_over());
+        return self.commission.as_ref().is_some_and(|(c, _)| !c.stage().is_over());
         #[cfg(not(feature = "commissioning"))]
         false
     }
@@ -404,9 +401,7 @@ impl ControlLoop {
         let out = self.drive.step(&m);
         self.last = Some(out);
         #[cfg(feature = "commissioning")]
-        if let Some((c, last)) =
-            self.commission.as_mut().filter(|(c, _)| !c.stage().is_over())
-        {
+        if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {
             if matches!(out.mode, Mode::Fault(_)) {
                 c.abort();
             }

@@ -303,6 +303,8 @@ mod tests {
             vdc_max_v: 370.0,
             level_time_s: 1.0,
             rotate: false,
+            rated_flux_wb: 0.823,
+            no_load_hz: 15.0,
         };
         let cmd = BoardCommand::Commission(spec);
         let stats = LinkStats::default();

@@ -130,7 +130,8 @@ pub struct Identified {
     pub tr_s: Estimate,
     /// Referred rotor resistance R_R = R_r·(L_m/L_r)², Ω.
     pub r_rr_ohm: Estimate,
-    /// L_M = L_m²/L_r, H.
+    /// L_M = L_m²/L_r, H: at rated flux by the no-load test if it ran, else from the DC
+    /// levels.
     pub l_mm_h: Estimate,
     /// The inverter's voltage error per phase V_e, V.
     pub inverter_error_v: Estimate,
@@ -144,6 +145,27 @@ pub struct Identified {
     pub impedance: [(f64, f64, f64); 2],
     /// The rotating field's results (if the motor was allowed to turn).
     pub rotation: Option<Rotation>,
+    /// The no-load test's results (if the motor was allowed to turn).
+    pub no_load: Option<NoLoad>,
+}
+
+/// What the no-load test at rated flux found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NoLoad {
+    /// L_M at the test's flux, H (one repeat per window).
+    pub l_mm_h: Estimate,
+    /// L_M from the DC levels (the standstill test's flux), H.
+    pub standstill_l_mm_h: Estimate,
+    /// Stator flux reached, Wb (peak), against the rated flux asked for.
+    pub flux_wb: f64,
+    /// The rated stator flux asked for, Wb.
+    pub rated_flux_wb: f64,
+    /// Field frequency, rad/s (electrical).
+    pub omega_e_rad_s: f64,
+    /// Current amplitude, A.
+    pub amplitude_a: f64,
+    /// Mean slip, rad/s (electrical; from the encoder and the pole pairs).
+    pub slip_rad_s: f64,
 }
 
 /// What the slow rotating field found.
@@ -538,24 +560,120 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
         return Err(format!("the injections give no positive transient inductance ({l_sigma:?} H)"));
     }
     let offsets_a = rec.offsets_a.map(f64::from);
-    let rotation = if cfg.spec().rotate {
-        Some(rotation(cfg, rec, pole_pairs, lmm_est.value, rr_est.value)?)
+    let l_sigma_est = Estimate::of(&l_sigma, MARGIN.l_sigma);
+    let e_est = Estimate::of(&e, 0.0);
+    let (rotation, no_load) = if cfg.spec().rotate {
+        let rot = rotation(cfg, rec, pole_pairs, lmm_est.value, rr_est.value)?;
+        let terminals = Terminals { rs: rs_est.value, l_sigma: l_sigma_est.value, v_e: e_est.value };
+        (Some(rot), Some(no_load(cfg, rec, pole_pairs, terminals, lmm_est)?))
     } else {
-        None
+        (None, None)
     };
     Ok(Identified {
         rs_ohm: rs_est,
-        l_sigma_h: Estimate::of(&l_sigma, MARGIN.l_sigma),
+        l_sigma_h: l_sigma_est,
         tr_s: tr_est,
         r_rr_ohm: rr_est,
-        l_mm_h: lmm_est,
-        inverter_error_v: Estimate::of(&e, 0.0),
+        l_mm_h: no_load.map_or(lmm_est, |n| n.l_mm_h),
+        inverter_error_v: e_est,
         offsets_a,
         vdc_v: f64::from(rec.vdc_v),
         decays,
         impedance,
         rotation,
+        no_load,
     })
+}
+
+/// The standstill estimates the no-load test's impedance is corrected with.
+#[derive(Clone, Copy, Debug)]
+struct Terminals {
+    /// R_s, Ω.
+    rs: f64,
+    /// L_σ, H.
+    l_sigma: f64,
+    /// The inverter's voltage error per phase, V.
+    v_e: f64,
+}
+
+/// The no-load test's estimates (`controller_core::commission::no_load`).
+///
+/// Per window, in the frame of the current reference: the commanded voltage acts 1.5
+/// periods later and held (`V = V̂·e^{−j1.5ωT}·sinc(ωT/2)`, as for the injections), less the
+/// inverter's error — each phase's `−sign(i)·V_e` square wave has the fundamental
+/// `(4/π)·V_e` along the current, which the loops make up. Then `Z = V/I`, the rotor branch
+/// `Z_R = Z − R_s − jωL_σ` and its admittance `Y_R = 1/(jωL_M) + s/R_R` (s the slip):
+/// `L_M = −1/(ω·Im Y_R)`, whatever the slip (it only adds a real part). The stator flux
+/// reached is `|V − R_s·I|/ω`.
+fn no_load(
+    cfg: &CommissionConfig,
+    rec: &Record,
+    pole_pairs: u8,
+    t: Terminals,
+    standstill: Estimate,
+) -> Result<NoLoad, String> {
+    let n = &rec.no_load;
+    let ts = f64::from(cfg.ts_s());
+    let w = f64::from(n.omega_e_rad_s);
+    let periods = f64::from(n.periods_per_window);
+    if !(w > 0.0 && w.is_finite() && periods > 0.0) {
+        return Err("the no-load test did not run (the rotor did not follow the slow field)".into());
+    }
+    let half = 0.5 * w * ts;
+    let delay = num_complex::Complex64::from_polar(half.sin() / half, -3.0 * half);
+    let mut l_mm = Vec::new();
+    let (mut flux, mut slip) = (0.0, 0.0);
+    for win in &n.windows {
+        let v = num_complex::Complex64::new(f64::from(win.v_dq_v[0]), f64::from(win.v_dq_v[1])) * delay;
+        let i = num_complex::Complex64::new(f64::from(win.i_dq_a[0]), f64::from(win.i_dq_a[1]));
+        if i.norm().is_nan() || i.norm() <= 0.0 {
+            return Err("no current in the no-load test's record".into());
+        }
+        let v = v - i / i.norm() * (4.0 / std::f64::consts::PI * t.v_e);
+        let z_r = v / i - t.rs - num_complex::Complex64::new(0.0, w * t.l_sigma);
+        let l = -1.0 / (w * (1.0 / z_r).im);
+        if !(l.is_finite() && l > 0.0) {
+            return Err(format!("the no-load test gives no positive magnetizing inductance ({l} H)"));
+        }
+        l_mm.push(l);
+        flux += (v - i * t.rs).norm() / w;
+        slip += w - f64::from(pole_pairs) * f64::from(win.theta_m_rad) / (periods * ts);
+    }
+    let k = n.windows.len() as f64;
+    Ok(NoLoad {
+        l_mm_h: Estimate::of(&l_mm, MARGIN.lm),
+        standstill_l_mm_h: standstill,
+        flux_wb: flux / k,
+        rated_flux_wb: f64::from(cfg.spec().rated_flux_wb),
+        omega_e_rad_s: w,
+        amplitude_a: f64::from(n.amplitude_a),
+        slip_rad_s: slip / k,
+    })
+}
+
+/// One line on the no-load test's result.
+pub fn describe_no_load(n: &NoLoad) -> String {
+    format!(
+        "no-load test: stator flux {:.4} Wb ({:.1} % of rated {:.4} Wb) at {:.2} Hz with {:.4} A, slip {:.3} rad/s; \
+         L_M {:.5} H [{:.5}, {:.5}] (DC levels: {:.5} H)",
+        n.flux_wb,
+        100.0 * n.flux_wb / n.rated_flux_wb,
+        n.rated_flux_wb,
+        n.omega_e_rad_s / (2.0 * std::f64::consts::PI),
+        n.amplitude_a,
+        n.slip_rad_s,
+        n.l_mm_h.value,
+        n.l_mm_h.interval[0],
+        n.l_mm_h.interval[1],
+        n.standstill_l_mm_h.value,
+    )
+}
+
+/// Rated stator flux linkage (peak, per phase), Wb, from the nameplate's rated line voltage
+/// (RMS) and frequency: `√2·V_LL/(√3·2π·f)` (the stator resistance's drop neglected).
+pub fn rated_flux_wb(rated_voltage_v: f64, rated_frequency_hz: f64) -> f64 {
+    std::f64::consts::SQRT_2 * rated_voltage_v
+        / (3f64.sqrt() * 2.0 * std::f64::consts::PI * rated_frequency_hz)
 }
 
 /// The pictures of a run: `decays.svg` — each DC level's recorded voltage above its settled
@@ -650,6 +768,8 @@ pub struct Setup {
     pub inverter: InverterModel,
     /// Things done to the hardware at t = 0 (a swapped pair of current channels…).
     pub injections: Vec<sim::Injection>,
+    /// Things that happen during the run: (time s, what).
+    pub later: Vec<(f64, sim::Injection)>,
 }
 
 impl Setup {
@@ -670,6 +790,7 @@ impl Setup {
             sensors,
             inverter: InverterModel::Switching { dead_time_s: 1e-6 },
             injections: Vec::new(),
+            later: Vec::new(),
         }
     }
 }
@@ -826,6 +947,10 @@ pub fn describe(r: &Refusal) -> String {
         Refusal::VoltageLimit => "the test current needs more voltage than the bus gives (lower it)".into(),
         Refusal::NonFinite => "a measurement was not finite".into(),
         Refusal::Aborted => "aborted".into(),
+        Refusal::RotorStalled(hz) => format!(
+            "in the no-load test the rotor did not follow the field (the field reached {hz} Hz): is a load \
+             coupled, or a brake on?"
+        ),
     }
 }
 
@@ -849,6 +974,7 @@ pub fn stage_name(s: Stage) -> String {
         ),
         Stage::Injection(j) => format!("sinusoidal injection {} of 2", j + 1),
         Stage::Rotate => "slow rotating field (encoder, inertia)".into(),
+        Stage::NoLoad => "no-load test at rated flux (magnetizing inductance)".into(),
         Stage::Done => "done".into(),
         Stage::Refused(_) => "refused".into(),
     }
@@ -950,7 +1076,13 @@ pub fn simulate_on(
     };
     let mut seq = Sequence { runner, stage: Rc::clone(&stage) };
     let scenario = Scenario {
-        events: setup.injections.iter().map(|&i| (0.0, Event::Fault(i))).collect(),
+        events: setup
+            .injections
+            .iter()
+            .map(|&i| (0.0, i))
+            .chain(setup.later.iter().copied())
+            .map(|(t, i)| (t, Event::Fault(i)))
+            .collect(),
         duration_s: cfg.max_periods() as f64 * ts,
         vdc_v: setup.vdc_v,
         substeps: 4,
@@ -1006,14 +1138,28 @@ pub fn motor_file(
     };
     let n = drive_file::source::num;
     let iv = |e: &Estimate| format!("[{}, {}]", n(e.interval[0]), n(e.interval[1]));
+    let magnetizing = match &id.no_load {
+        Some(nl) => format!(
+            "L_M (so L_m, L_s, L_r) by the no-load test at {:.4} Wb stator flux ({:.1} % of the rated\n\
+             # {:.4} Wb), {:.2} Hz, {:.4} A; the DC levels gave L_M = {:.5} H",
+            nl.flux_wb,
+            100.0 * nl.flux_wb / nl.rated_flux_wb,
+            nl.rated_flux_wb,
+            nl.omega_e_rad_s / (2.0 * std::f64::consts::PI),
+            nl.amplitude_a,
+            nl.standstill_l_mm_h.value
+        ),
+        None => "L_M (so L_m, L_s, L_r) by the DC levels (the motor was not allowed to turn)".into(),
+    };
     let mut s = String::new();
     for line in about.lines() {
         s.push_str(&format!("# {line}\n"));
     }
     s.push_str(&format!(
-        "# Identified at standstill by controller-core's commissioning sequence (hil_sim::identify).\n\
+        "# Identified by controller-core's commissioning sequence (hil_sim::identify).\n\
          # The leakage split L_lr/L_ls = {} is assumed (the terminals cannot tell it; control does not\n\
          # depend on it). pole_pairs is as given; {mechanics}.\n\
+         # {magnetizing}.\n\
          [motor]\n\
          rs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = {}\nlm_h = {}\npole_pairs = {pole_pairs}\nj_kgm2 = {}\nb_nms = {}\n\n",
         n(ratio),
@@ -1081,6 +1227,8 @@ mod tests {
                 vdc_max_v: 370.0,
                 level_time_s: 1.0,
                 rotate,
+                rated_flux_wb: 0.823,
+                no_load_hz: 15.0,
             };
             let cfg = CommissionConfig::new(spec).unwrap();
             for _ in 0..100 {
@@ -1111,6 +1259,8 @@ mod tests {
             vdc_max_v: 370.0,
             level_time_s: 1.0,
             rotate: true,
+            rated_flux_wb: 0.823,
+            no_load_hz: 15.0,
         };
         let cfg = CommissionConfig::new(spec).unwrap();
         let mut rec = Record::default();

@@ -109,9 +109,22 @@ struct CommissionArgs {
     #[arg(long, default_value_t = 1.0, value_parser = leakage_ratio)]
     leakage_ratio: f64,
     /// The motor may turn: end with a slow rotating field that checks the encoder's
-    /// direction and line count and identifies the inertia and friction.
-    #[arg(long)]
+    /// direction and line count and identifies the inertia and friction, then the no-load
+    /// test that measures the magnetizing inductance at rated flux (needs the nameplate's
+    /// --rated-voltage and --rated-frequency).
+    #[arg(long, requires_all = ["rated_voltage", "rated_frequency"])]
     rotate: bool,
+    /// Nameplate: rated line voltage, V RMS (with --rated-frequency, the rated flux of the
+    /// no-load test).
+    #[arg(long, requires = "rotate", value_parser = positive_volts)]
+    rated_voltage: Option<f64>,
+    /// Nameplate: rated frequency, Hz.
+    #[arg(long, requires = "rotate", value_parser = positive_hertz)]
+    rated_frequency: Option<f64>,
+    /// The no-load test's field frequency, Hz [default: a quarter of the rated frequency,
+    /// at least 2 Hz; lowered if the bus cannot give rated flux there].
+    #[arg(long, requires = "rotate", value_parser = positive_hertz)]
+    no_load_frequency: Option<f64>,
 }
 
 impl CommissionArgs {
@@ -121,7 +134,9 @@ impl CommissionArgs {
         pwm_hz: f64,
         vdc_v: (f64, f64),
     ) -> Result<controller_core::commission::CommissionConfig, String> {
-        use controller_core::commission::{CommissionConfig, CommissionSpec, CommissionSpecError as E};
+        use controller_core::commission::{
+            CommissionConfig, CommissionSpec, CommissionSpecError as E, ROTATION_HZ,
+        };
         let spec = CommissionSpec {
             pwm_hz: pwm_hz as f32,
             test_current_a: self.test_current as f32,
@@ -130,6 +145,14 @@ impl CommissionArgs {
             vdc_max_v: vdc_v.1 as f32,
             level_time_s: self.level_time as f32,
             rotate: self.rotate,
+            rated_flux_wb: match (self.rated_voltage, self.rated_frequency) {
+                (Some(v), Some(f)) => hil_sim::identify::rated_flux_wb(v, f) as f32,
+                _ => 0.0,
+            },
+            no_load_hz: self
+                .no_load_frequency
+                .or(self.rated_frequency.map(|f| (0.25 * f).max(f64::from(ROTATION_HZ))))
+                .unwrap_or(0.0) as f32,
         };
         CommissionConfig::new(spec).map_err(|e| {
             match e {
@@ -138,6 +161,7 @@ impl CommissionArgs {
                 E::CurrentLimit => "--current-limit must be at least 1.5 × the test current",
                 E::BusRange => "the bus range is empty",
                 E::LevelTime => "--level-time must lie between 192 PWM periods and 60 s",
+                E::NoLoad => "--no-load-frequency must lie in 2 … 400 Hz (and the rated flux be positive)",
             }
             .to_string()
         })
@@ -202,6 +226,13 @@ fn positive_amperes(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x > 0.0 && x <= 1e5 => Ok(x),
         _ => Err(format!("`{s}` is not a current in (0, 100000] A")),
+    }
+}
+
+fn positive_hertz(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 && x <= 1000.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a frequency in (0, 1000] Hz")),
     }
 }
 
@@ -364,6 +395,9 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
             g(r.b_nms.interval[1]),
             g(motor.b_nms()),
         );
+    }
+    if let Some(n) = &id.no_load {
+        println!("{}", hil_sim::identify::describe_no_load(n));
     }
     let about = format!(
         "Simulated commissioning of `{}` (hil-sim identify: {} V bus, {} Hz PWM, test current {} A, seed {}).",

@@ -398,7 +398,8 @@ fn identify_writes_a_motor_file_or_nothing() {
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("motor.toml");
     let st = bin()
-        .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--rotate", "--out"])
+        .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--rotate"])
+        .args(["--rated-voltage", "380", "--rated-frequency", "60", "--out"])
         .arg(&out)
         .arg("--plot-dir")
         .arg(dir.join("plots"))
@@ -407,11 +408,13 @@ fn identify_writes_a_motor_file_or_nothing() {
     assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
     let stdout = String::from_utf8_lossy(&st.stdout);
     assert!(stdout.contains("R_s Ω") && stdout.contains("inverter voltage error"), "{stdout}");
+    assert!(stdout.contains("no-load test: stator flux"), "{stdout}");
     let m = drive_file::motor::load(out.to_str().unwrap()).unwrap();
     assert!((m.rs_ohm() / 16.2 - 1.0).abs() < 0.03, "{}", m.rs_ohm());
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(text.contains("[identification]") && text.contains("sigma_ls_h = ["), "{text}");
     assert!(text.contains("j_kgm2 = [") && text.contains("by the slow rotating field"), "{text}");
+    assert!(text.contains("no-load test at"), "{text}");
     assert!((m.j_kgm2() / 0.005 - 1.0).abs() < 0.1, "{}", m.j_kgm2());
     for svg in ["decays.svg", "rotation.svg"] {
         assert!(std::fs::read_to_string(dir.join("plots").join(svg)).unwrap().starts_with("<svg"), "{svg}");
@@ -424,6 +427,10 @@ fn identify_writes_a_motor_file_or_nothing() {
             "--test-current",
             "1.24",
             "--rotate",
+            "--rated-voltage",
+            "380",
+            "--rated-frequency",
+            "60",
             "--reverse-encoder",
             "--out",
         ])
@@ -437,6 +444,14 @@ fn identify_writes_a_motor_file_or_nothing() {
         String::from_utf8_lossy(&st.stderr)
     );
     assert!(!refused_path(&dir).exists());
+    // --rotate without the nameplate the no-load test needs: a usage error, nothing run.
+    let st = bin()
+        .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--rotate", "--out"])
+        .arg(refused_path(&dir))
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("--rated-voltage"), "{st:?}");
 
     let refused = dir.join("refused.toml");
     let st = bin()

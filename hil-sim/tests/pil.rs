@@ -151,6 +151,8 @@ fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
         vdc_max_v: 372.0,
         level_time_s: 3.0,
         rotate: true,
+        rated_flux_wb: 0.823,
+        no_load_hz: 15.0,
     };
     let setup = Setup::realistic(m, CommissionConfig::new(spec).unwrap(), 310.0, 5);
     let file = |target: &Target| {

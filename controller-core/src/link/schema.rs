@@ -558,6 +558,7 @@ fn stage_code(s: Stage) -> (u8, u8, f32, u8) {
             Refusal::VoltageLimit => (9, 0.0, 0),
             Refusal::NonFinite => (10, 0.0, 0),
             Refusal::Aborted => (11, 0.0, 0),
+            Refusal::RotorStalled(hz) => (12, hz, 0),
         },
         _ => (0, 0.0, 0),
     };
@@ -569,6 +570,7 @@ fn stage_code(s: Stage) -> (u8, u8, f32, u8) {
         Stage::Done => 9,
         Stage::Refused(_) => 10,
         Stage::Rotate => 11,
+        Stage::NoLoad => 12,
     };
     (code, r, v, i)
 }
@@ -581,6 +583,7 @@ fn stage_from_code(code: u8, r: u8, v: f32, i: u8) -> Result<Stage, DecodeError>
         7..=8 => Stage::Injection(code - 7),
         9 => Stage::Done,
         11 => Stage::Rotate,
+        12 => Stage::NoLoad,
         10 => Stage::Refused(match (r, i) {
             (0, _) => Refusal::BusOutOfRange(v),
             (1, _) => Refusal::BusUnsteady(v),
@@ -594,6 +597,7 @@ fn stage_from_code(code: u8, r: u8, v: f32, i: u8) -> Result<Stage, DecodeError>
             (9, _) => Refusal::VoltageLimit,
             (10, _) => Refusal::NonFinite,
             (11, _) => Refusal::Aborted,
+            (12, _) => Refusal::RotorStalled(v),
             _ => return Err(DecodeError::Value),
         }),
         _ => return Err(DecodeError::Value),
@@ -660,6 +664,8 @@ impl Command {
                     w.f32(v)?;
                 }
                 w.u8(u8::from(c.rotate))?;
+                w.f32(c.rated_flux_wb)?;
+                w.f32(c.no_load_hz)?;
             }
             Command::GetCommissionRecord { chunk } => {
                 w.u8(tag::GET_COMMISSION_RECORD)?;
@@ -727,6 +733,8 @@ fn decode_board_tag(t: u8, r: &mut Reader<'_>) -> Result<BoardCommand, DecodeErr
                 1 => true,
                 _ => return Err(DecodeError::Value),
             },
+            rated_flux_wb: r.f32()?,
+            no_load_hz: r.f32()?,
         }),
         tag::GET_COMMISSION_RECORD => BoardCommand::GetCommissionRecord { chunk: r.u8()? },
         tag::GET_COMMISSION_STAGE => BoardCommand::GetCommissionStage,

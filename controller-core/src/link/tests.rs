@@ -96,6 +96,8 @@ fn every_command_round_trips() {
             vdc_max_v: 372.0,
             level_time_s: 3.0,
             rotate: true,
+            rated_flux_wb: 0.823,
+            no_load_hz: 15.0,
         }),
         Command::GetCommissionRecord { chunk: 10 },
         Command::GetCommissionStage,
@@ -144,12 +146,14 @@ fn replies_round_trip_bit_exact() {
         Stage::Level(1),
         Stage::Injection(1),
         Stage::Rotate,
+        Stage::NoLoad,
         Stage::Done,
         Stage::Refused(Refusal::BusOutOfRange(150.5)),
         Stage::Refused(Refusal::OffsetTooLarge { channel: 2, offset_a: -0.4 }),
         Stage::Refused(Refusal::CurrentDirection { phase: 1 }),
         Stage::Refused(Refusal::Overcurrent(9.5)),
         Stage::Refused(Refusal::Aborted),
+        Stage::Refused(Refusal::RotorStalled(7.25)),
     ];
     let commissioning = stages.map(|stage| {
         Reply::Commission(CommissionOutput {

@@ -36,7 +36,14 @@
 //!    recorded at the end of each of [`ROTATION_BLOCKS`] equal blocks of the ramp and the
 //!    hold: against the field's, it tells the encoder's direction and line count (with the
 //!    motor's pole pairs, on the host), and the speed it gives, with the torque the
-//!    identified model gives for the impressed current, the inertia and friction.
+//!    identified model gives for the impressed current, the inertia and friction. It
+//!    ramps back to zero only if the no-load test cannot start (a rotor that did not turn).
+//! 6. **The no-load test at rated flux** ([`Stage::NoLoad`], whenever the field turns; module
+//!    [`no_load`]): from the slow field's hold the field accelerates, its lead over the
+//!    rotor bounded, to the test frequency, with the current amplitude that gives the rated
+//!    stator flux; there the loops' voltage and current are recorded in the field's frame,
+//!    whence the magnetizing inductance *at rated flux* (on the host); then the field brings
+//!    the rotor back to rest.
 //!
 //! The current loops (α and β, the latter held at zero) are PI loops designed from L̂σ:
 //! crossover `ω_c` = 2π·f_pwm/[`LOOP_BANDWIDTH_DIVIDER`], the integral's zero a decade
@@ -50,6 +57,10 @@ use crate::drive::{Measurements, PhaseCommand};
 use crate::frames::{Abc, AlphaBeta, SinCos};
 use crate::pi::{PiConfig, PiState};
 use crate::svpwm;
+
+pub mod no_load;
+
+pub use no_load::{NO_LOAD_WINDOWS, NoLoadRecord, NoLoadWindow};
 
 /// Periods of the offset and bus measurement (≥ 1 024, issue 19's calibration).
 pub const OFFSET_PERIODS: u32 = 2048;
@@ -124,8 +135,17 @@ pub struct CommissionSpec {
     /// Time each DC level is held, s (≥ 4 rotor time constants for a good decay fit).
     pub level_time_s: f32,
     /// The motor may turn (nothing coupled that must not move): end with the rotating
-    /// field (stage 5).
+    /// field (stage 5) and the no-load test at rated flux (stage 6).
     pub rotate: bool,
+    /// Rated stator flux linkage, Wb (peak, per phase: `√2·V_LL/(√3·2π·f)` from the nameplate's
+    /// rated line voltage V_LL and frequency f), the no-load test's flux. Used only with
+    /// [`CommissionSpec::rotate`].
+    pub rated_flux_wb: f32,
+    /// The no-load test's field frequency, Hz (electrical; lowered if the bus cannot give
+    /// rated flux there, [`no_load::NO_LOAD_VOLTAGE_FRACTION`]). A quarter of the rated
+    /// frequency keeps the test short and the rotor slow. Used only with
+    /// [`CommissionSpec::rotate`].
+    pub no_load_hz: f32,
 }
 
 /// Why a [`CommissionSpec`] was rejected.
@@ -141,6 +161,9 @@ pub enum CommissionSpecError {
     BusRange,
     /// Level time shorter than [`BLOCKS`]·[`FIRST_BLOCK_PERIODS`]·2 periods or over 60 s.
     LevelTime,
+    /// With [`CommissionSpec::rotate`]: a rated flux that is not finite and positive, or a
+    /// no-load frequency outside [`ROTATION_HZ`] … 400 Hz.
+    NoLoad,
 }
 
 /// A validated commissioning configuration.
@@ -174,6 +197,13 @@ impl CommissionConfig {
         let least = 2.0 * FIRST_BLOCK_PERIODS * BLOCKS as f32;
         if !(periods.is_finite() && periods >= least && spec.level_time_s <= 60.0) {
             return Err(CommissionSpecError::LevelTime);
+        }
+        if spec.rotate
+            && !(finite_pos(spec.rated_flux_wb)
+                && spec.no_load_hz.is_finite()
+                && (ROTATION_HZ..=400.0).contains(&spec.no_load_hz))
+        {
+            return Err(CommissionSpecError::NoLoad);
         }
         let level_periods = periods as u32;
         // The ratio r with FIRST·(r^B − 1)/(r − 1) = level: bisection (the sum grows with r).
@@ -236,7 +266,9 @@ impl CommissionConfig {
         let injections: u32 =
             INJECTION_PERIODS.iter().map(|n| n * (INJECTION_SETTLE_CYCLES + INJECTION_CYCLES)).sum();
         let rotation = if self.spec.rotate {
-            ((ROTATION_RAMP_S + ROTATION_HOLD_S + ROTATION_STOP_S) * self.spec.pwm_hz) as u64 + 1
+            ((ROTATION_RAMP_S + ROTATION_HOLD_S + ROTATION_STOP_S) * self.spec.pwm_hz) as u64
+                + 1
+                + no_load::max_periods(self.spec.pwm_hz)
         } else {
             0
         };
@@ -286,6 +318,10 @@ pub enum Refusal {
     NonFinite,
     /// Stopped by the caller.
     Aborted,
+    /// In the no-load test, the rotor did not follow the field to the test frequency within
+    /// [`no_load::NO_LOAD_RAMP_MAX_S`] (a load coupled, a brake on): the field's frequency
+    /// reached, Hz.
+    RotorStalled(f32),
 }
 
 /// The sequence's stage (for progress displays: [`Stage::index`] of [`Stage::COUNT`]).
@@ -301,6 +337,8 @@ pub enum Stage {
     Injection(u8),
     /// The slow rotating field.
     Rotate,
+    /// The no-load test at rated flux.
+    NoLoad,
     /// Finished: [`Commissioning::record`] holds the measurements.
     Done,
     /// Refused: the bridge is off.
@@ -309,7 +347,7 @@ pub enum Stage {
 
 impl Stage {
     /// Stages of a full sequence.
-    pub const COUNT: u8 = 10;
+    pub const COUNT: u8 = 11;
 
     /// 0-based position of the stage in the sequence ([`Stage::COUNT`] when finished or
     /// refused).
@@ -320,6 +358,7 @@ impl Stage {
             Stage::Level(l) => 4 + l,
             Stage::Injection(j) => 7 + j,
             Stage::Rotate => 9,
+            Stage::NoLoad => 10,
             Stage::Done | Stage::Refused(_) => Self::COUNT,
         }
     }
@@ -415,11 +454,13 @@ pub struct Record {
     pub injections: [InjectionRecord; 2],
     /// The rotating field (all zero unless [`CommissionSpec::rotate`]).
     pub rotation: RotationRecord,
+    /// The no-load test (all zero unless it ran).
+    pub no_load: NoLoadRecord,
 }
 
 /// Bytes of a serialised [`Record`] ([`Record::write_bytes`]).
 pub const RECORD_BYTES: usize =
-    4 * (3 + 3 + 1 + 3 * 6 + 2 + 3 * (2 + 2 * BLOCKS) + 2 * 5 + 2 + ROTATION_BLOCKS);
+    4 * (3 + 3 + 1 + 3 * 6 + 2 + 3 * (2 + 2 * BLOCKS) + 2 * 5 + 2 + ROTATION_BLOCKS + NoLoadRecord::WORDS);
 
 impl Record {
     /// Every field in declaration order, as 4-byte little-endian words (f32 as IEEE-754
@@ -487,6 +528,18 @@ impl Record {
         f(&mut r.amplitude_a);
         bits(f, &mut r.periods_per_block);
         r.theta_m_rad.iter_mut().for_each(&mut *f);
+        let n = &mut self.no_load;
+        for x in
+            [&mut n.rs_ohm, &mut n.ls_h, &mut n.tr_s, &mut n.k_e, &mut n.flux_first_wb, &mut n.amplitude_a]
+        {
+            f(x);
+        }
+        f(&mut n.omega_e_rad_s);
+        bits(f, &mut n.periods_per_window);
+        for w in n.windows.iter_mut() {
+            w.v_dq_v.iter_mut().chain(w.i_dq_a.iter_mut()).for_each(&mut *f);
+            f(&mut w.theta_m_rad);
+        }
     }
 }
 
@@ -545,6 +598,8 @@ pub struct Commissioning {
     /// The rotating field's angle, rad, and the last encoder reading, rad.
     theta_e_rad: f32,
     theta_m_prev_rad: f32,
+    /// The no-load test's state.
+    no_load: no_load::NoLoadState,
 }
 
 impl Commissioning {
@@ -576,6 +631,7 @@ impl Commissioning {
             saturated: 0,
             theta_e_rad: 0.0,
             theta_m_prev_rad: 0.0,
+            no_load: no_load::NoLoadState::default(),
         }
     }
 
@@ -649,6 +705,7 @@ impl Commissioning {
             Stage::Level(l) => self.level(l, i, m.vdc_v),
             Stage::Injection(j) => self.injection(j, i, m.vdc_v),
             Stage::Rotate => self.rotate(i, m),
+            Stage::NoLoad => self.no_load(i, m),
             Stage::Done | Stage::Refused(_) => None,
         };
         let Some((v, i_ref)) = v else {
@@ -1017,7 +1074,10 @@ impl Commissioning {
             }
         }
         self.k += 1;
-        if self.k >= ramp + hold + stop {
+        // At the hold's end, the no-load test takes over the turning field (if it can).
+        if self.k == ramp + hold && self.start_no_load(m.vdc_v) {
+            self.next(Stage::NoLoad);
+        } else if self.k >= ramp + hold + stop {
             self.stage = Stage::Done;
         }
         Some((v, i_ref.alpha))
@@ -1048,13 +1108,19 @@ mod tests {
             vdc_max_v: 400.0,
             level_time_s: 0.5,
             rotate: false,
+            rated_flux_wb: 0.823,
+            no_load_hz: 15.0,
         }
     }
 
     /// Runs the sequence; `swap` exchanges the b and c current channels, `sign` multiplies
     /// every reading.
     fn run(motor: Motor, swap: bool, sign: f32) -> Commissioning {
-        let cfg = CommissionConfig::new(spec()).unwrap();
+        run_spec(spec(), motor, swap, sign)
+    }
+
+    fn run_spec(spec: CommissionSpec, motor: Motor, swap: bool, sign: f32) -> Commissioning {
+        let cfg = CommissionConfig::new(spec).unwrap();
         let mut c = Commissioning::new(cfg);
         let ts = 1.0 / 20_000.0;
         let (mut i, mut psi) = ([0.0f64; 2], [0.0f64; 2]);
@@ -1167,6 +1233,33 @@ mod tests {
         assert_eq!(bad(|s| s.vdc_max_v = 100.0), CommissionSpecError::BusRange);
         assert_eq!(bad(|s| s.level_time_s = 1e-3), CommissionSpecError::LevelTime);
         assert_eq!(bad(|s| s.level_time_s = 1e9), CommissionSpecError::LevelTime);
+        // The no-load test's nameplate matters only if the motor may turn.
+        let mut s = spec();
+        s.rated_flux_wb = f32::NAN;
+        assert!(CommissionConfig::new(s).is_ok());
+        s.rotate = true;
+        assert_eq!(CommissionConfig::new(s).unwrap_err(), CommissionSpecError::NoLoad);
+        s.rated_flux_wb = 0.8;
+        s.no_load_hz = 1.0;
+        assert_eq!(CommissionConfig::new(s).unwrap_err(), CommissionSpecError::NoLoad);
+    }
+
+    /// A rotor that does not turn (this model's encoder reads 0): the slow field ramps down
+    /// and the sequence ends without the no-load test, whose record stays empty (the host
+    /// names the encoder). The sequence's own set-up estimates from the DC levels are what
+    /// the no-load test would use: L̂_s within 5 % and T̂_r within 10 % of the model's.
+    #[test]
+    fn a_rotor_that_does_not_turn_skips_the_no_load_test() {
+        let c = run_spec(CommissionSpec { rotate: true, ..spec() }, MOTOR, false, 1.0);
+        assert_eq!(c.stage(), Stage::Done);
+        let r = c.record().unwrap();
+        assert_eq!(r.no_load, NoLoadRecord::default());
+        assert!(r.rotation.theta_m_rad.iter().all(|&x| x == 0.0));
+        let (rs, ls, tr) = c.level_estimates().unwrap();
+        let l_s = MOTOR.l_sigma + MOTOR.rr * MOTOR.tr;
+        assert!((f64::from(rs) / MOTOR.rs - 1.0).abs() < 0.01, "R̂_s {rs}");
+        assert!((f64::from(ls) / l_s - 1.0).abs() < 0.05, "L̂_s {ls} against {l_s}");
+        assert!((f64::from(tr) / MOTOR.tr - 1.0).abs() < 0.10, "T̂_r {tr}");
     }
 
     #[test]

@@ -1,0 +1,381 @@
+//! Stage 6 of the sequence: the no-load test at rated flux (issue 20: "L_m from a no-load
+//! rotating test at rated flux"). It runs only if the motor may turn, and takes over the slow
+//! rotating field at the end of its hold.
+//!
+//! The standstill levels measure the magnetizing inductance at the flux of their DC
+//! currents; a real machine's L_m falls as its iron saturates, and control runs at rated
+//! flux. So the field is brought to rated flux, with the rotor turning freely at nearly the
+//! field's speed (no load: almost no rotor current), and the terminal impedance there gives
+//! L_m (on the host: `hil_sim::identify`).
+//!
+//! 1. **Set-up** from what the sequence has measured so far (no model from the user):
+//!    - R̂_s from the settled voltages of the first two DC levels (the inverter's error
+//!      cancels);
+//!    - L̂_s and T̂_r from the area of the second level's decay (I/2 → I): with
+//!      `e(t) = v(t) − v(∞)`, the flux so far `A(t) = ∫₀ᵗ e dt + R̂_s·lag` is
+//!      `L_σ·ΔI + L_M·ΔI·(1 − e^{−t/T_r})` (the leakage's share at the step, the rotor's
+//!      after), so `L̂_s·ΔI = A(∞)` and T̂_r is the time A(t) covers 1 − e^{−1} of the rotor's
+//!      share (with the pulses' L̂σ; interpolated between block ends). An area, not a moment:
+//!      the long settled tail's noise barely moves it. Crude (± 10 %), and only used to set
+//!      the test up: the slip bound and the settling;
+//!    - the field's electrical turning per encoder radian `k_e` over the second half of the
+//!      hold (p/(1 − s) whatever the encoder's lines or direction: the rotor's electrical
+//!      speed is `k_e·ω_encoder` from here on). A rotor that did not turn skips the test.
+//! 2. **Accelerate**: the field frequency rises by at most [`NO_LOAD_RAMP_RAD_S2`] and leads
+//!    the rotor's electrical speed by at most `1/T̂_r` (the slip of the most torque per
+//!    ampere for an impressed current), up to the test frequency; the amplitude ramps to
+//!    `ψ_rated/L̂_s` (at most the test current). A rotor that does not follow within
+//!    [`NO_LOAD_RAMP_MAX_S`] is [`Refusal::RotorStalled`].
+//! 3. **Settle**: the stator flux — the voltage's component across the current over ω: at no
+//!    load the back-EMF is nearly at right angles to the current, while the stator
+//!    resistance's drop and the inverter's error lie along it — is averaged over blocks of T̂_r (at least
+//!    [`NO_LOAD_SETTLE_MIN_S`]); the settling ends when two blocks in a row agree within
+//!    [`NO_LOAD_FLUX_STEADY`] after at least [`NO_LOAD_SETTLE_TR`] blocks (the rotor flux's
+//!    and the rotor speed's transients both move it), or after [`NO_LOAD_SETTLE_MAX_BLOCKS`].
+//!    Its last block corrects the amplitude once toward rated flux (by at most
+//!    [`NO_LOAD_CORRECTION_MAX`] either way: saturation), and it settles again.
+//! 4. **Measure** [`NO_LOAD_WINDOWS`] windows of [`NO_LOAD_WINDOW_S`]: the mean commanded
+//!    voltage and measured current in the frame of the current reference, and the encoder's
+//!    turning (the slip).
+//! 5. **Decelerate**: the field frequency falls as it rose (the field lags the rotor by at
+//!    most `1/T̂_r`) to zero, and the standing field brakes the rotor for at most
+//!    [`NO_LOAD_BRAKE_S`]; then the sequence is done.
+
+use super::{Commissioning, LEVELS, ROTATION_BLOCKS, ROTATION_HOLD_S, ROTATION_HZ, Refusal, Stage};
+use crate::drive::Measurements;
+use crate::frames::{AlphaBeta, SinCos, wrap_angle};
+use crate::svpwm;
+use core::f32::consts::PI;
+
+/// The test frequency is lowered, if need be, so that rated flux takes at most this fraction
+/// of the linear voltage limit (the rest is the loops' room).
+pub const NO_LOAD_VOLTAGE_FRACTION: f32 = 0.5;
+/// Steepest rise (and fall) of the field's frequency, rad/s² (20 Hz/s electrical).
+pub const NO_LOAD_RAMP_RAD_S2: f32 = 2.0 * PI * 20.0;
+/// The rotor's speed for the slip bound is measured over this many periods (10 ms at 20 kHz).
+pub const NO_LOAD_SPEED_PERIODS: u32 = 200;
+/// The current amplitude moves to its target over this time, s.
+pub const NO_LOAD_AMPLITUDE_RAMP_S: f32 = 0.2;
+/// Settling at the test frequency: at least this many flux blocks of T̂_r…
+pub const NO_LOAD_SETTLE_TR: u32 = 3;
+/// …a block lasting at least this long, s…
+pub const NO_LOAD_SETTLE_MIN_S: f32 = 0.05;
+/// …until two blocks in a row agree within this fraction…
+pub const NO_LOAD_FLUX_STEADY: f32 = 0.002;
+/// …or this many blocks have passed.
+pub const NO_LOAD_SETTLE_MAX_BLOCKS: u32 = 40;
+/// T̂_r is taken within these bounds, s (it sets the slip bound and the settling time only).
+pub const NO_LOAD_TR_RANGE_S: [f32; 2] = [1e-3, 2.0];
+/// The flux correction changes the amplitude by at most this ratio either way.
+pub const NO_LOAD_CORRECTION_MAX: f32 = 1.3;
+/// Measurement windows (repeats, for the interval)…
+pub const NO_LOAD_WINDOWS: usize = 4;
+/// …of this length each, s.
+pub const NO_LOAD_WINDOW_S: f32 = 0.125;
+/// The field must reach the test frequency within this, s ([`Refusal::RotorStalled`]); the
+/// deceleration ends after it at the latest.
+pub const NO_LOAD_RAMP_MAX_S: f32 = 10.0;
+/// Longest braking by the standing field at the end, s.
+pub const NO_LOAD_BRAKE_S: f32 = 1.0;
+/// The rotor counts as at rest below this electrical speed, a fraction of the slip bound.
+pub const NO_LOAD_REST_FRACTION: f32 = 0.05;
+/// Largest |k_e| accepted, electrical rad per encoder rad (64 pole pairs at a 4× slip or
+/// line-count error): beyond it the rotor did not turn.
+pub const NO_LOAD_KE_MAX: f32 = 256.0;
+
+/// One measurement window: means over [`NoLoadRecord::periods_per_window`] periods.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NoLoadWindow {
+    /// Commanded voltage in the frame of the current reference (d along it), V (the voltage
+    /// commanded at period k against the reference's angle at period k).
+    pub v_dq_v: [f32; 2],
+    /// Measured current in that frame, A.
+    pub i_dq_a: [f32; 2],
+    /// The encoder's turning over the window, rad.
+    pub theta_m_rad: f32,
+}
+
+/// The no-load test's record (all zero if it did not run).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct NoLoadRecord {
+    /// The sequence's own R̂_s, Ω (set-up only).
+    pub rs_ohm: f32,
+    /// The sequence's own L̂_s, H (set-up only).
+    pub ls_h: f32,
+    /// The sequence's own T̂_r, s, within [`NO_LOAD_TR_RANGE_S`] (set-up only).
+    pub tr_s: f32,
+    /// Field electrical rad per encoder rad over the slow field's hold.
+    pub k_e: f32,
+    /// Stator flux after the first settling, before the correction, Wb.
+    pub flux_first_wb: f32,
+    /// Current amplitude during the measurement, A.
+    pub amplitude_a: f32,
+    /// Field frequency during the measurement, rad/s (electrical).
+    pub omega_e_rad_s: f32,
+    /// Periods per window.
+    pub periods_per_window: u32,
+    /// The windows.
+    pub windows: [NoLoadWindow; NO_LOAD_WINDOWS],
+}
+
+impl NoLoadRecord {
+    /// 4-byte words of a serialised record.
+    pub const WORDS: usize = 8 + 5 * NO_LOAD_WINDOWS;
+}
+
+/// Where the test stands.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) enum Phase {
+    #[default]
+    Accelerate,
+    Settle {
+        corrected: bool,
+    },
+    Measure,
+    Decelerate,
+    Brake,
+}
+
+/// The test's working state.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct NoLoadState {
+    phase: Phase,
+    /// Periods into the phase (or window).
+    k: u32,
+    /// Field frequency, its target, rad/s.
+    omega_e: f32,
+    omega_target: f32,
+    /// Rotor electrical speed from the last speed block, rad/s.
+    omega_r_e: f32,
+    /// Largest lead (or lag) of the field over the rotor, rad/s.
+    slip_max: f32,
+    /// Current amplitude, its target, A.
+    amplitude: f32,
+    amplitude_target: f32,
+    /// Amplitude change per period while ramping, A.
+    amplitude_step: f32,
+    /// Periods of one flux block while settling, the blocks so far and the last one's flux.
+    block_periods: u32,
+    blocks: u32,
+    flux_prev: f32,
+    /// Encoder turning of the present speed block, rad, and its periods.
+    speed_theta: f32,
+    speed_n: u32,
+    /// Σ stator flux over the present block, Wb.
+    flux_sum: f32,
+    /// Present window and its sums.
+    window: usize,
+    sums: NoLoadWindow,
+}
+
+/// Upper bound of the test's periods (every wait to its timeout, T̂_r at its bound).
+pub(super) fn max_periods(pwm_hz: f32) -> u64 {
+    let settle = NO_LOAD_SETTLE_MAX_BLOCKS as f32 * NO_LOAD_TR_RANGE_S[1].max(NO_LOAD_SETTLE_MIN_S);
+    let s = 2.0 * NO_LOAD_RAMP_MAX_S
+        + 2.0 * (settle + NO_LOAD_AMPLITUDE_RAMP_S)
+        + NO_LOAD_WINDOWS as f32 * NO_LOAD_WINDOW_S
+        + NO_LOAD_BRAKE_S;
+    (s * pwm_hz) as u64 + 8
+}
+
+/// Moves `x` toward `target` by at most `step`.
+fn toward(x: f32, target: f32, step: f32) -> f32 {
+    if x < target { (x + step).min(target) } else { (x - step).max(target) }
+}
+
+impl Commissioning {
+    /// R̂_s, L̂_s and T̂_r from the DC levels (module docs, step 1); `None` if they make no
+    /// sense (then the test does not run).
+    pub(super) fn level_estimates(&self) -> Option<(f32, f32, f32)> {
+        let [l0, l1, _] = &self.record.levels;
+        let ts = self.cfg.ts_s;
+        let (v0, v1) = (*l0.v_alpha_v.last()?, *l1.v_alpha_v.last()?);
+        let di = l1.i_ref_a - l0.i_ref_a;
+        let rs = (v1 - v0) / di;
+        // (time at the block's end s, A there V·s), block by block.
+        let areas = self.cfg.block_end.iter().zip(l1.v_alpha_v.iter()).scan(
+            (0u32, rs * l1.lag_a_periods * ts),
+            |(start, a), (&end, &v)| {
+                *a += (v - v1) * (end - *start) as f32 * ts;
+                *start = end;
+                Some((end as f32 * ts, *a))
+            },
+        );
+        let (_, total) = areas.clone().last()?;
+        let ls = total / di;
+        let l_sigma = self.record.l_sigma_pulse_h;
+        let l_mm = ls - l_sigma;
+        let threshold = (l_sigma + (1.0 - libm::expf(-1.0)) * l_mm) * di;
+        // The first block end past the threshold, interpolated from the one before.
+        let mut before = (0.0, rs * l1.lag_a_periods * ts);
+        let mut tr = f32::NAN;
+        for (t, a) in areas {
+            if a >= threshold {
+                tr = before.0 + (t - before.0) * (threshold - before.1) / (a - before.1);
+                break;
+            }
+            before = (t, a);
+        }
+        let [lo, hi] = NO_LOAD_TR_RANGE_S;
+        (rs.is_finite() && rs > 0.0 && ls.is_finite() && l_mm > 0.0 && tr.is_finite() && tr > 0.0)
+            .then_some((rs, ls, tr.clamp(lo, hi)))
+    }
+
+    /// At the slow field's hold end: sets the test up (module docs, step 1); `false` if it
+    /// cannot run (the slow field then ramps down as without it).
+    pub(super) fn start_no_load(&mut self, vdc_v: f32) -> bool {
+        let Some((rs, ls, tr)) = self.level_estimates() else {
+            return false;
+        };
+        let spec = self.cfg.spec;
+        let rot = &self.record.rotation;
+        // The second half of the hold: its blocks end at the record's end.
+        let hold_blocks = (ROTATION_HOLD_S * spec.pwm_hz) as u32 / rot.periods_per_block.max(1);
+        let half = (hold_blocks / 2) as usize;
+        let (Some(&end), Some(&from)) =
+            (rot.theta_m_rad.last(), rot.theta_m_rad.get(ROTATION_BLOCKS.saturating_sub(half + 1)))
+        else {
+            return false;
+        };
+        let w_rot = 2.0 * PI * ROTATION_HZ;
+        let field = w_rot * (half as u32 * rot.periods_per_block) as f32 * self.cfg.ts_s;
+        let k_e = field / (end - from);
+        if !(k_e.is_finite() && k_e.abs() <= NO_LOAD_KE_MAX) {
+            return false;
+        }
+        let psi = spec.rated_flux_wb;
+        let w_bus = NO_LOAD_VOLTAGE_FRACTION * svpwm::linear_limit_v(vdc_v) / psi;
+        let omega_target = (2.0 * PI * spec.no_load_hz).min(w_bus).max(w_rot);
+        let amplitude_target = (psi / ls).min(spec.test_current_a);
+        let amplitude = LEVELS[0] * spec.test_current_a;
+        self.no_load = NoLoadState {
+            omega_e: w_rot,
+            omega_target,
+            omega_r_e: w_rot,
+            slip_max: (1.0 / tr).min(omega_target),
+            amplitude,
+            amplitude_target,
+            amplitude_step: (amplitude_target - amplitude).abs().max(0.1 * amplitude_target)
+                / (NO_LOAD_AMPLITUDE_RAMP_S * spec.pwm_hz),
+            block_periods: (tr.max(NO_LOAD_SETTLE_MIN_S) * spec.pwm_hz) as u32,
+            ..NoLoadState::default()
+        };
+        let r = &mut self.record.no_load;
+        (r.rs_ohm, r.ls_h, r.tr_s, r.k_e) = (rs, ls, tr, k_e);
+        r.periods_per_window = (NO_LOAD_WINDOW_S * spec.pwm_hz) as u32;
+        true
+    }
+
+    /// One period of the test (module docs).
+    pub(super) fn no_load(&mut self, i: AlphaBeta, m: &Measurements) -> Option<(AlphaBeta, f32)> {
+        let ts = self.cfg.ts_s;
+        let pwm = self.cfg.spec.pwm_hz;
+        let d_theta_m = wrap_angle(m.theta_m_rad - self.theta_m_prev_rad);
+        self.theta_m_prev_rad = m.theta_m_rad;
+        let k_e = self.record.no_load.k_e;
+        let s = &mut self.no_load;
+        s.speed_theta += d_theta_m;
+        s.speed_n += 1;
+        if s.speed_n >= NO_LOAD_SPEED_PERIODS {
+            s.omega_r_e = k_e * s.speed_theta / (s.speed_n as f32 * ts);
+            (s.speed_theta, s.speed_n) = (0.0, 0);
+        }
+        s.amplitude = toward(s.amplitude, s.amplitude_target, s.amplitude_step);
+        let ramp = NO_LOAD_RAMP_RAD_S2 * ts;
+        s.k += 1;
+        match s.phase {
+            Phase::Accelerate => {
+                s.omega_e = (s.omega_e + ramp).min(s.omega_r_e + s.slip_max).min(s.omega_target).max(0.0);
+                if s.omega_e >= s.omega_target && s.amplitude == s.amplitude_target {
+                    (s.phase, s.k) = (Phase::Settle { corrected: false }, 0);
+                } else if s.k as f32 > NO_LOAD_RAMP_MAX_S * pwm {
+                    let hz = s.omega_e / (2.0 * PI);
+                    self.refuse(Refusal::RotorStalled(hz));
+                    return None;
+                }
+            }
+            Phase::Settle { .. } | Phase::Measure => {}
+            Phase::Decelerate => {
+                s.omega_e = (s.omega_e - ramp).max(s.omega_r_e - s.slip_max).max(0.0);
+                if s.omega_e <= 0.0 || s.k as f32 > NO_LOAD_RAMP_MAX_S * pwm {
+                    (s.phase, s.k, s.omega_e) = (Phase::Brake, 0, 0.0);
+                }
+            }
+            Phase::Brake => {
+                let at_rest = s.speed_n == 0 && s.omega_r_e.abs() < NO_LOAD_REST_FRACTION * s.slip_max;
+                if at_rest || s.k as f32 > NO_LOAD_BRAKE_S * pwm {
+                    self.stage = Stage::Done;
+                }
+            }
+        }
+        let sc = SinCos::new(self.theta_e_rad);
+        let amplitude = self.no_load.amplitude;
+        let i_ref = AlphaBeta { alpha: amplitude * sc.cos, beta: amplitude * sc.sin };
+        let v = self.regulate_ab(i_ref, i, m.vdc_v)?;
+        self.measure(v, i, sc, d_theta_m);
+        self.theta_e_rad = wrap_angle(self.theta_e_rad + self.no_load.omega_e * ts);
+        Some((v, i_ref.alpha))
+    }
+
+    /// The settling's flux and its correction, and the measurement windows.
+    fn measure(&mut self, v: AlphaBeta, i: AlphaBeta, sc: SinCos, d_theta_m: f32) {
+        let psi_rated = self.cfg.spec.rated_flux_wb;
+        let test_current = self.cfg.spec.test_current_a;
+        let rec = &mut self.record.no_load;
+        let s = &mut self.no_load;
+        match s.phase {
+            Phase::Settle { corrected } => {
+                // The voltage across the current: R_s·i and the inverter's error lie along it.
+                let across = (v.beta * i.alpha - v.alpha * i.beta).abs();
+                s.flux_sum += across / (i.magnitude() * s.omega_e).max(f32::MIN_POSITIVE);
+                if s.k < s.block_periods {
+                    return;
+                }
+                let flux = s.flux_sum / s.k as f32;
+                let steady = (flux - s.flux_prev).abs() <= NO_LOAD_FLUX_STEADY * flux;
+                (s.flux_sum, s.k, s.flux_prev) = (0.0, 0, flux);
+                s.blocks += 1;
+                if (steady && s.blocks >= NO_LOAD_SETTLE_TR) || s.blocks >= NO_LOAD_SETTLE_MAX_BLOCKS {
+                    (s.blocks, s.flux_prev) = (0, 0.0);
+                    if corrected {
+                        s.phase = Phase::Measure;
+                        rec.amplitude_a = s.amplitude;
+                        rec.omega_e_rad_s = s.omega_e;
+                    } else {
+                        rec.flux_first_wb = flux;
+                        let c =
+                            (psi_rated / flux).clamp(1.0 / NO_LOAD_CORRECTION_MAX, NO_LOAD_CORRECTION_MAX);
+                        let c = if c.is_finite() { c } else { 1.0 };
+                        s.amplitude_target = (s.amplitude * c).min(test_current);
+                        s.phase = Phase::Settle { corrected: true };
+                    }
+                }
+            }
+            Phase::Measure => {
+                let (vd, id) = (v.park(sc), i.park(sc));
+                let w = &mut s.sums;
+                w.v_dq_v[0] += vd.d;
+                w.v_dq_v[1] += vd.q;
+                w.i_dq_a[0] += id.d;
+                w.i_dq_a[1] += id.q;
+                w.theta_m_rad += d_theta_m;
+                if s.k >= rec.periods_per_window {
+                    let n = s.k as f32;
+                    if let Some(out) = rec.windows.get_mut(s.window) {
+                        *out = NoLoadWindow {
+                            v_dq_v: w.v_dq_v.map(|x| x / n),
+                            i_dq_a: w.i_dq_a.map(|x| x / n),
+                            theta_m_rad: w.theta_m_rad,
+                        };
+                    }
+                    (s.sums, s.k) = (NoLoadWindow::default(), 0);
+                    s.window += 1;
+                    if s.window >= NO_LOAD_WINDOWS {
+                        s.phase = Phase::Decelerate;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
