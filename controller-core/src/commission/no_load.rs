@@ -83,6 +83,9 @@ pub const NO_LOAD_REST_FRACTION: f32 = 0.05;
 /// line-count error): beyond it the rotor did not turn.
 pub const NO_LOAD_KE_MAX: f32 = 256.0;
 
+/// 1 − e^{−1}: the share of an exponential's area one time constant covers.
+const ONE_MINUS_INV_E: f32 = 0.632_120_56;
+
 /// One measurement window: means over [`NoLoadRecord::periods_per_window`] periods.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct NoLoadWindow {
@@ -205,7 +208,7 @@ impl Commissioning {
         let ls = total / di;
         let l_sigma = self.record.l_sigma_pulse_h;
         let l_mm = ls - l_sigma;
-        let threshold = (l_sigma + (1.0 - libm::expf(-1.0)) * l_mm) * di;
+        let threshold = (l_sigma + ONE_MINUS_INV_E * l_mm) * di;
         // The first block end past the threshold, interpolated from the one before.
         let mut before = (0.0, rs * l1.lag_a_periods * ts);
         let mut tr = f32::NAN;
