@@ -275,6 +275,9 @@ fn link_identify<R: std::io::Read, W: std::io::Write>(
     .map_err(|e| e.to_string())?;
     let m = &file.spec.motor;
     let id = identify::estimate(&config, &record, m.pole_pairs())?;
+    if let Some(n) = &id.no_load {
+        println!("{}", identify::describe_no_load(n));
+    }
     let about = format!(
         "Commissioned on the board over its link (hil-sim link … identify: test current {} A, drive file {}).",
         a.run.test_current,
