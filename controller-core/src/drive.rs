@@ -32,7 +32,10 @@
 //! when the bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases
 //! off in the same step. In the slow step: overspeed (|ω_m| above `overspeed_rad_s` while
 //! active) and stall (the speed loop's output at its limit with the rotor below 0.5 % of the
-//! overspeed level for `stall_time_s`); after the modulator, loss of control (the current
+//! overspeed level for `stall_time_s`), speed-following error (the speed loop at its limit
+//! for `following_time_s` while the speed moved *against* the commanded torque by more than
+//! a tenth of what that torque would do to the drive's inertia: a load beyond the drive
+//! drags the motor away from its reference); after the modulator, loss of control (the current
 //! loops at their voltage limit for `saturation_time_s`), and once per slow period the
 //! encoder against the machine model ([`Fault::EncoderImplausible`]). Magnetizing ends when the
 //! flux model — on the measured current — reaches the running flux; if it has not within twice
@@ -68,6 +71,12 @@ pub struct Protection {
     /// Stall trip: the speed loop's output at its limit while |ω_m| stays below
     /// [`STALL_SPEED_FRACTION`] of `overspeed_rad_s` for this long, s.
     pub stall_time_s: f64,
+    /// Speed-following error ([`Fault::FollowingError`]): the speed loop at its limit, the
+    /// rotor turning (steps below the stall check's "not moving" level not counted), for this
+    /// long while the speed moved against the commanded torque by more than
+    /// [`FOLLOWING_PROGRESS_FRACTION`] of what that torque alone would have done to the drive's
+    /// inertia, s.
+    pub following_time_s: f64,
     /// Current-sensor plausibility: |i_a + i_b + i_c| of the three measured phase currents
     /// (zero for any star-connected motor) above this trips, A.
     pub current_sum_max_a: f64,
@@ -229,6 +238,16 @@ pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
 
 /// "Not moving" for the stall check: below this fraction of the overspeed level.
 pub const STALL_SPEED_FRACTION: f64 = 0.005;
+
+/// The following-error check's margin: over a window of `following_time_s` at the speed
+/// loop's limit, the speed may move against the commanded torque by at most this fraction
+/// of `Σ τ_cmd·T_slow / J` (the drive's inertia) — a load 10 % beyond the torque (5 % on
+/// twice that J, the top of a certified box) before it trips. Against, not merely too
+/// little: a load the envelope's torque just holds keeps the motor steady below its
+/// reference with the loop at its limit (a hot motor in field weakening does, in the
+/// campaign), which is no fault. The speed, not the speed error: a position loop may move
+/// its speed reference faster than the torque limit lets the motor follow.
+pub const FOLLOWING_PROGRESS_FRACTION: f64 = 0.1;
 
 /// Bandwidth of the field-weakening voltage regulator, rad/s: an integrator on the
 /// difference between the voltage target and the voltage the current loops ask for, which
@@ -427,6 +446,11 @@ pub struct DriveConfig {
     stall_speed_rad_s: f32,
     /// Slow steps of stall before the trip.
     stall_slow_steps: u32,
+    /// Slow steps of a following-error window.
+    following_slow_steps: u32,
+    /// [`FOLLOWING_PROGRESS_FRACTION`]·T_slow/J, rad/s per N·m: the least progress per slow
+    /// step at the torque commanded.
+    following_gain: f32,
     /// The speed loop's output limit (saturation test of the stall check).
     speed_limit: f32,
     /// Fast steps with the voltage request outside the hexagon before the trip.
@@ -476,6 +500,7 @@ impl DriveConfig {
             spec.i_ref_max_a,
             p.overspeed_rad_s,
             p.stall_time_s,
+            p.following_time_s,
             p.current_sum_max_a,
             p.saturation_time_s,
             p.encoder_check_time_s,
@@ -492,6 +517,7 @@ impl DriveConfig {
             && p.i_trip_a > spec.i_ref_max_a
             && p.overspeed_rad_s > 0.0
             && p.stall_time_s > 0.0
+            && p.following_time_s > 0.0
             && p.current_sum_max_a > 0.0
             && p.saturation_time_s > 0.0
             && p.encoder_check_time_s > 0.0
@@ -582,6 +608,9 @@ impl DriveConfig {
             // At least one slow step; saturating for absurdly long times.
             stall_slow_steps: libm::ceil(p.stall_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
+            following_slow_steps: libm::ceil(p.following_time_s * f / f64::from(spec.slow_divider))
+                .clamp(1.0, 4e9) as u32,
+            following_gain: (FOLLOWING_PROGRESS_FRACTION * t_slow / spec.motor.j_kgm2()) as f32,
             speed_limit: speed.output_limit(),
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
@@ -638,6 +667,7 @@ impl DriveConfig {
             self.vdc_max_v,
             self.overspeed_rad_s,
             self.stall_speed_rad_s,
+            self.following_gain,
             self.speed_limit,
             self.brake_on_v,
             self.brake_off_v,
@@ -657,6 +687,7 @@ impl DriveConfig {
             self.i_trip_bits,
             self.i_sum_bits,
             self.stall_slow_steps,
+            self.following_slow_steps,
             self.saturation_steps,
             self.encoder_check_steps,
             self.stop_slow_steps,
@@ -705,6 +736,7 @@ impl DriveConfig {
             vdc_max_v: r.f(),
             overspeed_rad_s: r.f(),
             stall_speed_rad_s: r.f(),
+            following_gain: r.f(),
             speed_limit: r.f(),
             brake_on_v: r.f(),
             brake_off_v: r.f(),
@@ -716,6 +748,7 @@ impl DriveConfig {
             i_trip_bits: r.u(),
             i_sum_bits: r.u(),
             stall_slow_steps: r.u(),
+            following_slow_steps: r.u(),
             saturation_steps: r.u(),
             encoder_check_steps: r.u(),
             stop_slow_steps: r.u(),
@@ -726,6 +759,7 @@ impl DriveConfig {
             u32::from(cfg.slow_divider),
             cfg.magnetizing_steps_max,
             cfg.stall_slow_steps,
+            cfg.following_slow_steps,
             cfg.saturation_steps,
             cfg.encoder_check_steps,
             cfg.stop_slow_steps,
@@ -804,11 +838,15 @@ pub enum Fault {
     MotorOverload,
     /// The inverter's I²t thermal model reached its limit ([`Protection::inverter_thermal`]).
     InverterOverload,
+    /// The speed loop at its limit with the rotor turning, for `following_time_s`, while the
+    /// speed error did not shrink as the commanded torque would make it (a load beyond the
+    /// drive's torque: the motor is dragged away from its reference).
+    FollowingError,
 }
 
 impl Fault {
     /// Every fault.
-    pub const ALL: [Fault; 16] = [
+    pub const ALL: [Fault; 17] = [
         Fault::Overcurrent,
         Fault::DcBusOvervoltage,
         Fault::DcBusUndervoltage,
@@ -825,6 +863,7 @@ impl Fault {
         Fault::OpenPhase,
         Fault::MotorOverload,
         Fault::InverterOverload,
+        Fault::FollowingError,
     ];
 
     /// The fault's bit in a [`FaultSet`].
@@ -1058,6 +1097,11 @@ pub struct Drive {
     test_angle_rad: f32,
     /// Consecutive slow steps with the stall condition.
     stall_steps: u32,
+    /// Slow steps into the present following-error window, the speed at its start (rad/s)
+    /// and the margin since, signed as the torque (rad/s).
+    following_steps: u32,
+    following_w0_rad_s: f32,
+    following_owed_rad_s: f32,
     /// Consecutive fast steps with the voltage request outside the hexagon.
     saturated_steps: u32,
     /// Consecutive slow periods with an implausible encoder.
@@ -1137,6 +1181,9 @@ impl Drive {
             speed: SpeedState::default(),
             test_angle_rad: 0.0,
             stall_steps: 0,
+            following_steps: 0,
+            following_w0_rad_s: 0.0,
+            following_owed_rad_s: 0.0,
             saturated_steps: 0,
             encoder_bad_steps: 0,
             brake: false,
@@ -1207,6 +1254,7 @@ impl Drive {
                 // period (the firmware, the simulator) stays in step with the slow step.
                 self.test_angle_rad = 0.0;
                 self.stall_steps = 0;
+                self.following_steps = 0;
                 self.saturated_steps = 0;
                 self.encoder_bad_steps = 0;
                 self.open_phase = OpenPhaseWindow::default();
@@ -1439,6 +1487,53 @@ impl Drive {
             }
         } else {
             self.stall_steps = 0;
+        }
+        self.check_following(commanding_motion, m.omega_m_rad_s);
+    }
+
+    /// The speed-following check ([`Fault::FollowingError`]): while the speed loop is at its
+    /// limit, generating or at the configured torque limit (a rotor at rest pauses the
+    /// window: that is the stall check's; one passing through zero, dragged backwards, keeps
+    /// it), windows of
+    /// `following_time_s`; a window in which the speed moved against the torque by more
+    /// than [`FOLLOWING_PROGRESS_FRACTION`] of `Σ τ_cmd·T_slow/J` trips, any other starts the
+    /// next.
+    fn check_following(&mut self, commanding_motion: bool, omega_m_rad_s: f32) {
+        if !(commanding_motion && self.speed_saturated) {
+            self.following_steps = 0;
+            return;
+        }
+        if omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
+            return;
+        }
+        // The slow step commands a torque (an i_q command owes nothing: no trip from it).
+        let torque_nm = match self.torque_cmd {
+            TorqueCommand::TorqueNm(t) => t,
+            TorqueCommand::IqA(_) => 0.0,
+        };
+        // Counted while generating (a load driving the motor against the brake: a runaway)
+        // or at the configured torque limit (nothing more to give at any speed); a motoring
+        // motor held below its reference by the envelope's smaller torque in field weakening
+        // slows to where the torque holds the load, which is no fault.
+        let full = self.cfg.speed.is_torque() && torque_nm.abs() >= 0.99 * self.cfg.speed_limit;
+        if !(full || torque_nm * omega_m_rad_s < 0.0) {
+            self.following_steps = 0;
+            return;
+        }
+        if self.following_steps == 0 {
+            (self.following_w0_rad_s, self.following_owed_rad_s) = (omega_m_rad_s, 0.0);
+        }
+        self.following_owed_rad_s += self.cfg.following_gain * torque_nm;
+        self.following_steps += 1;
+        if self.following_steps >= self.cfg.following_slow_steps {
+            let owed = self.following_owed_rad_s;
+            let moved = omega_m_rad_s - self.following_w0_rad_s;
+            // Dragged against the torque by more than the margin (no torque: no trip).
+            if owed != 0.0 && moved * owed.signum() < -owed.abs() {
+                self.trip(Fault::FollowingError);
+                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
+            }
+            self.following_steps = 0;
         }
     }
 
@@ -1787,6 +1882,7 @@ impl Drive {
             self.mode = Mode::Running;
             self.speed = SpeedState::default();
             self.stall_steps = 0;
+            self.following_steps = 0;
         }
         FastOutput {
             phases: PhaseCommand::Duty(duty),
@@ -1857,6 +1953,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             vdc_max_v: 400.0,
             overspeed_rad_s: 450.0,
             stall_time_s: 0.3,
+            following_time_s: 0.3,
             current_sum_max_a: 0.4,
             saturation_time_s: 0.02,
             encoder_check_time_s: 0.01,
@@ -1960,7 +2057,7 @@ mod tests {
         bad.u[1] = 7; // the current frame's tag
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         let mut bad = raw;
-        bad.u[raw::INTEGERS - 9] = 0; // the slow divider
+        bad.u[raw::INTEGERS - 10] = 0; // the slow divider
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
         let mut bad = raw;
         bad.u[raw::INTEGERS - 1] = Fault::EncoderLoss.bit(); // stop_on: not stoppable

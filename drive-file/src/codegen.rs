@@ -75,7 +75,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_trim_bandwidth_rad_s: {:?},\n\
          \x20       dead_time_compensation_s: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
-         overspeed_rad_s: {:?}, stall_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, encoder_jump_rad: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {}, motor_thermal: {}, inverter_thermal: {}, stop_on: controller_core::drive::FaultSet({}) }},\n\
+         overspeed_rad_s: {:?}, stall_time_s: {:?}, following_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, encoder_jump_rad: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {}, motor_thermal: {}, inverter_thermal: {}, stop_on: controller_core::drive::FaultSet({}) }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -104,6 +104,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         p.vdc_max_v,
         p.overspeed_rad_s,
         p.stall_time_s,
+        p.following_time_s,
         p.current_sum_max_a,
         p.saturation_time_s,
         p.encoder_check_time_s,

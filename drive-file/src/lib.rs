@@ -36,7 +36,7 @@
 //! i_trip_a = 8.0
 //! vdc_min_v = 200.0
 //! vdc_max_v = 400.0
-//! # overspeed_rad_s, stall_time_s, current_sum_max_a, saturation_time_s,
+//! # overspeed_rad_s, stall_time_s, following_time_s, current_sum_max_a, saturation_time_s,
 //! # encoder_check_time_s, encoder_jump_rad, stop_time_s, open_phase_time_s: derived
 //! # defaults (drive::protection_with_defaults; the encoder's from [board] encoder_lines)
 //! brake_chopper = { on_v = 360.0, off_v = 350.0 }   # optional: the board's brake chopper
@@ -204,7 +204,7 @@ mod tests {
         // 1.2 · 2 · (400 V/√3) / (0.9 Wb · 1.44/1.42) / 1: 20 % beyond a 2:1 field-weakening
         // range above the no-load base speed on the highest bus.
         assert!((p.overspeed_rad_s - 607.286).abs() < 1e-3, "{}", p.overspeed_rad_s);
-        assert_eq!((p.stall_time_s, p.current_sum_max_a), (0.3, 0.4));
+        assert_eq!((p.stall_time_s, p.following_time_s, p.current_sum_max_a), (0.3, 0.2, 0.4));
         let j_max = d.spec.motor.j_kgm2() * d.certify.unwrap().j_factor[1];
         let band = controller_core::drive::STALL_SPEED_FRACTION * p.overspeed_rad_s;
         let leave_s = j_max * band / 2.0; // τ_max = 2 N·m

@@ -56,6 +56,9 @@ pub const SENSOR_BOUND_S: f64 = 0.010;
 pub const OPEN_PHASE_BOUND_S: f64 = 0.050;
 /// … stall, s.
 pub const STALL_BOUND_S: f64 = 0.5;
+/// The overload case's load, a multiple of the torque limit (with the operating point's
+/// load direction).
+pub const OVERLOAD_FACTOR: f64 = 1.5;
 /// … encoder faults, slow periods.
 pub const ENCODER_BOUND_SLOW_PERIODS: f64 = 2.0;
 
@@ -298,6 +301,12 @@ impl Matrix {
             Case { name: "R_r step × 1.5 (heating)", injection: Injection::Plant { motor: hot } },
             Case { name: "L_m step × 0.8 (saturation)", injection: Injection::Plant { motor: saturated } },
             Case {
+                name: "overload (1.5 × τ_max)",
+                injection: Injection::LoadStep {
+                    torque_nm: OVERLOAD_FACTOR * crate::campaign::torque_limit_nm(&self.spec),
+                },
+            },
+            Case {
                 name: "load seizure (10 × τ_max)",
                 injection: Injection::LoadSeizure {
                     torque_nm: 10.0 * crate::campaign::torque_limit_nm(&self.spec),
@@ -369,6 +378,18 @@ impl Matrix {
             },
             Injection::Plant { .. } => Expect::RideThrough,
             // At rest under a position hold, a seized load changes nothing the drive commands.
+            // A load the drive cannot hold drags the rotor away from its reference: named by
+            // the following-error check, or by overspeed if the rotor crosses that first.
+            Injection::LoadStep { .. } if at.point == Point::Top && at.motoring => Expect::Gap {
+                fault: Fault::FollowingError,
+                bound_s: STALL_BOUND_S,
+                why: "in field weakening a motoring overload first slows the motor toward where the envelope's \
+                      torque grows (no fault: a hot motor under load does that in the campaign); it is named \
+                      once the full torque no longer holds it, below base speed, later than 0.5 s",
+            },
+            Injection::LoadStep { .. } => {
+                Expect::Either { faults: [Fault::FollowingError, Fault::Overspeed], bound_s: STALL_BOUND_S }
+            }
             Injection::LoadSeizure { .. } if rest => Expect::RideThrough,
             Injection::LoadSeizure { .. } => Expect::Fault { fault: Fault::Stall, bound_s: STALL_BOUND_S },
         }
@@ -406,6 +427,14 @@ impl Matrix {
             Reference::Speed(at.speed_rad_s as f32)
         };
         let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
+        // An overload acts the way the operating point's load does (against the motion when
+        // motoring, with it when generating).
+        let injection = match case.injection {
+            Injection::LoadStep { torque_nm } => {
+                Injection::LoadStep { torque_nm: torque_nm.copysign(at.load_nm) }
+            }
+            other => other,
+        };
         let b = Builtin {
             name: format!("faults-{k}"),
             about: String::new(),
@@ -416,7 +445,7 @@ impl Matrix {
                     (0.0, Event::Enable),
                     (REFERENCE_S, Event::Reference(reference)),
                     (REFERENCE_S, Event::LoadNm(at.load_nm)),
-                    (INJECT_S, Event::Fault(case.injection)),
+                    (INJECT_S, Event::Fault(injection)),
                 ],
                 duration_s: INJECT_S + OBSERVE_S,
                 vdc_v: self.vdc_v,

@@ -72,7 +72,7 @@ enum Cmd {
     Campaign(CampaignArgs),
     /// The fault-injection matrix: every fault the simulator injects (open phase, encoder
     /// stuck/glitch/wrong line count, current sensor dead/stuck/gain/offset, bus sag and
-    /// surge, parameter steps, load seizure) at standstill, mid-speed and top speed, motoring
+    /// surge, parameter steps, an overload, load seizure) at standstill, mid-speed and top speed, motoring
     /// and generating, in parallel on all cores; each row judged against issue 18's detection
     /// bounds (`hil_sim::faults`). Prints the table, writes faults.md, faults.json and
     /// faults.svg, and exits 1 if a row fails.

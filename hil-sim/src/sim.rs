@@ -154,6 +154,13 @@ pub enum Injection {
         /// The seized load's friction torque, N·m.
         torque_nm: f64,
     },
+    /// The load's torque steps to `torque_nm` (as [`Event::LoadNm`]: positive against
+    /// positive speed) — an overload beyond what the drive can give, which does not lock the
+    /// rotor but drags it away from its reference.
+    LoadStep {
+        /// The new load torque, N·m.
+        torque_nm: f64,
+    },
     /// Two motor terminals short ([`crate::bridge_fault`]): a current through the short's
     /// resistance and inductance from leg to leg, which the current sensors and the
     /// comparator see.
@@ -604,6 +611,7 @@ pub fn run(
                     Event::Fault(Injection::OpenPhase { phase }) => {
                         open_phase = PHASE_AXES.get(phase).copied()
                     }
+                    Event::Fault(Injection::LoadStep { torque_nm }) => load = torque_nm,
                     Event::Fault(Injection::LoadSeizure { torque_nm }) => {
                         machine = machine.with_coulomb_friction(torque_nm);
                         rk4 = machine.rk4_stepper(h);

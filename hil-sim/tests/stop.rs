@@ -4,7 +4,7 @@
 //! after `protection.stop_time_s`.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
-use controller_core::drive::{Mode, Reference};
+use controller_core::drive::{Fault, Mode, Reference};
 use hil_sim::sim::Event;
 
 /// From 148 rad/s: braked at the torque limit (the shipped drive's 2 N·m on J = 0.005:
@@ -37,21 +37,27 @@ fn a_controlled_stop_brakes_to_rest_then_turns_the_bridge_off() {
     assert!(rows.iter().filter(|r| r.t_s >= off.t_s).all(|r| r.duty.is_none()));
 }
 
-/// A load of 3 N·m drives the motor (more than the drive's 2 N·m can hold): the stop cannot
-/// finish, and the bridge goes off at `stop_time_s` (0.5 s here), within a slow period.
+/// A load of 1.9 N·m drives the motor, all but the drive's 2 N·m: the brake slows it at
+/// 20 rad/s² only, the stop cannot finish, and the bridge goes off at `stop_time_s` (0.5 s
+/// here), within a slow period. A load beyond the brake (3 N·m) drags the motor against it:
+/// `FollowingError` latched before the stop time, the bridge off.
 #[test]
 fn a_stop_that_cannot_finish_ends_with_the_bridge_off_after_stop_time() {
-    let mut b = hil_sim::scenario::speed_step().unwrap();
-    b.spec.protection.stop_time_s = 0.5;
-    b.scenario.events = vec![
-        (0.0, Event::Enable),
-        (0.3, Event::Reference(Reference::Speed(50.0))),
-        (1.0, Event::LoadNm(-3.0)),
-        (1.0, Event::Stop),
-    ];
-    b.scenario.duration_s = 1.8;
-    b.scenario.trace_every = 1;
-    let (rows, mode) = b.run(|_| {}).unwrap();
+    let run = |load_nm: f64| {
+        let mut b = hil_sim::scenario::speed_step().unwrap();
+        b.spec.protection.stop_time_s = 0.5;
+        b.scenario.events = vec![
+            (0.0, Event::Enable),
+            (0.3, Event::Reference(Reference::Speed(50.0))),
+            (1.0, Event::LoadNm(-load_nm)),
+            (1.0, Event::Stop),
+        ];
+        b.scenario.duration_s = 1.8;
+        b.scenario.trace_every = 1;
+        let (rows, mode) = b.run(|_| {}).unwrap();
+        (b, rows, mode)
+    };
+    let (b, rows, mode) = run(1.9);
     assert_eq!(mode, Mode::Idle);
     let off = rows.iter().find(|r| r.t_s > 1.0 && r.mode == Some(Mode::Idle)).unwrap();
     let slow = f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz;
@@ -61,5 +67,9 @@ fn a_stop_that_cannot_finish_ends_with_the_bridge_off_after_stop_time() {
         off.x.omega_m_rad_s
     );
     assert!((off.t_s - 1.0 - 0.5).abs() <= 2.0 * slow, "{}", off.t_s);
-    assert!(off.x.omega_m_rad_s > 50.0, "still driven: {}", off.x.omega_m_rad_s);
+    assert!(off.x.omega_m_rad_s > 30.0, "still driven: {}", off.x.omega_m_rad_s);
+    let (_, rows, mode) = run(3.0);
+    assert_eq!(mode, Mode::Fault(Fault::FollowingError));
+    let tripped = rows.iter().find(|r| matches!(r.mode, Some(Mode::Fault(_)))).unwrap();
+    assert!(tripped.t_s - 1.0 < 0.5, "{}", tripped.t_s);
 }

@@ -372,6 +372,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         p.vdc_max_v,
         p.overspeed_rad_s,
         p.stall_time_s,
+        p.following_time_s,
         p.current_sum_max_a,
         p.saturation_time_s,
         p.encoder_check_time_s,
@@ -446,6 +447,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         vdc_max_v: r.f64()?,
         overspeed_rad_s: r.f64()?,
         stall_time_s: r.f64()?,
+        following_time_s: r.f64()?,
         current_sum_max_a: r.f64()?,
         saturation_time_s: r.f64()?,
         encoder_check_time_s: r.f64()?,
@@ -514,6 +516,7 @@ fn mode_code(m: Mode) -> u8 {
         Mode::Fault(Fault::OpenPhase) => 23,
         Mode::Fault(Fault::MotorOverload) => 24,
         Mode::Fault(Fault::InverterOverload) => 25,
+        Mode::Fault(Fault::FollowingError) => 26,
     }
 }
 
@@ -538,6 +541,7 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
         23 => Mode::Fault(Fault::OpenPhase),
         24 => Mode::Fault(Fault::MotorOverload),
         25 => Mode::Fault(Fault::InverterOverload),
+        26 => Mode::Fault(Fault::FollowingError),
         _ => return Err(DecodeError::Value),
     })
 }
