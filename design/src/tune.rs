@@ -404,6 +404,62 @@ mod tests {
         }
     }
 
+    /// The same random motors' tuned files pass the nonlinear certificate too (issue 21:
+    /// "passes both certificates"): a campaign of 200 one-second runs each over the tuned
+    /// file's box (`hil_sim::campaign`: speed steps, load steps to the torque limit and
+    /// reversals, realistic sensors), every run within its criteria. **Fails today** (findings
+    /// in docs/design-toolkit.md, "Random motors in the campaign"): run it with `--ignored`.
+    #[test]
+    #[ignore = "issue 21 finding: 4 of 6 random motors fail the campaign (docs/design-toolkit.md)"]
+    fn seeded_random_motors_pass_the_campaign() {
+        use std::sync::atomic::AtomicBool;
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut uniform = |lo: f64, hi: f64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            lo + (hi - lo) * (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut failed = Vec::new();
+        for k in 0..6 {
+            let lm = (uniform(0.05f64.ln(), 2f64.ln())).exp();
+            let (ls, lr) = (lm * (1.0 + uniform(0.02, 0.1)), lm * (1.0 + uniform(0.02, 0.1)));
+            let rr = lr / uniform(0.02, 0.6);
+            let rs = ls / uniform(0.01, 0.2);
+            let j = uniform(1e-4, 1e-1);
+            let m = MotorParams::new(rs, rr, ls, lr, lm, 2, j, j * 0.01).unwrap();
+            let t = tune(Path::new("template.toml"), &template_for(&m), &m, None).unwrap();
+            let c = hil_sim::campaign::Campaign {
+                spec: t.spec,
+                certify: t.certify,
+                vdc_v: 310.0,
+                duration_s: 1.0,
+                runs: 200,
+                seed: 1,
+                shard: (0, 1),
+            };
+            let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
+            let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
+            println!(
+                "random {k} (L_m {:.3} H, T_r {:.3} s, J {:.2e} kg·m², i_ref_max {:.2} A, i_trip {:.2} A): {} of {} runs pass",
+                m.lm_h(),
+                m.lr_h() / m.rr_ohm(),
+                m.j_kgm2(),
+                t.spec.i_ref_max_a,
+                t.spec.protection.i_trip_a,
+                v.len() - bad.len(),
+                v.len()
+            );
+            for b in bad.iter().take(5) {
+                println!("  {b}");
+            }
+            if !bad.is_empty() {
+                failed.push(k);
+            }
+        }
+        assert!(failed.is_empty(), "random motors {failed:?} fail the campaign");
+    }
+
     /// The walk-through's motor on its 24 V template (docs/walkthrough.md).
     #[test]
     fn the_walkthrough_motor_tunes_on_its_template() {
