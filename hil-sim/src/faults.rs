@@ -3,7 +3,7 @@
 //! the detection the issue asks for.
 //!
 //! **Runs.** The drive file on its nominal motor with realistic sensors
-//! ([`SensorModel::realistic`], seeded by the row), a stiff bus: enable at 0, the operating
+//! ([`SensorModel::realistic_for_trip`], seeded by the row), a stiff bus: enable at 0, the operating
 //! point's reference at [`REFERENCE_S`] with its load, the fault injected at [`INJECT_S`]
 //! (the point reached: checked, the row is an error otherwise), observed for [`OBSERVE_S`].
 //! Operating points ([`Point`]): standstill is a position hold (a speed law with
@@ -451,7 +451,7 @@ impl Matrix {
                 vdc_v: self.vdc_v,
                 substeps: 1,
                 trace_every: 1,
-                sensors: SensorModel::realistic(0xFA17 + k),
+                sensors: SensorModel::realistic_for_trip(0xFA17 + k, self.spec.protection.i_trip_a),
                 load: LoadModel::Torque,
                 inverter: InverterModel::Average,
                 dc_link: None,

@@ -576,6 +576,7 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
         seed: a.seed,
         shard: a.shard,
     };
+    c.check_duration()?;
     let total = c.indices().count() as u64;
     eprintln!(
         "hil-sim: campaign of {} on {} V: {total} run(s) of {} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",

@@ -59,6 +59,28 @@ impl SensorModel {
     }
 }
 
+/// The trip level [`SensorModel::realistic`]'s board is designed for, A (±16.5 A of full
+/// scale: about twice it).
+pub const REALISTIC_TRIP_A: f64 = 8.0;
+
+impl SensorModel {
+    /// [`SensorModel::realistic`] on a board designed for a drive tripping at `i_trip_a`:
+    /// full scale, LSB, noise and offset scaled by `i_trip_a`/[`REALISTIC_TRIP_A`] (1 for the
+    /// shipped drive). A fixed ±16.5 A front end is 37 times too fine for a 300 A machine and
+    /// too coarse for a 2.4 A one: its noise and offset alone reached the current-sum check's
+    /// level there (a random motor of `design`'s campaign test tripped `CurrentSensor`).
+    pub fn realistic_for_trip(seed: u64, i_trip_a: f64) -> Self {
+        let k = if i_trip_a.is_finite() && i_trip_a > 0.0 { i_trip_a / REALISTIC_TRIP_A } else { 1.0 };
+        let r = Self::realistic(seed);
+        Self {
+            current_lsb_a: r.current_lsb_a * k,
+            current_offset_a: r.current_offset_a.map(|o| o * k),
+            current_noise_rms_a: r.current_noise_rms_a * k,
+            ..r
+        }
+    }
+}
+
 /// splitmix64: small, seeded, reproducible.
 #[derive(Clone, Copy, Debug)]
 struct Rng(u64);

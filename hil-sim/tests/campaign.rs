@@ -106,3 +106,28 @@ fn a_hot_motor_into_field_weakening_keeps_control() {
         }
     }
 }
+
+/// A rotor ten times slower (T_r 0.65 s): the drive magnetizes it in 1.94 s, so the speed
+/// step waits until 2.13 s, and 1 s runs are refused with the duration needed instead of
+/// ending, every one, in Magnetizing.
+#[test]
+fn runs_too_short_to_magnetize_are_refused() {
+    let mut c = shipped(4);
+    let m = c.spec.motor;
+    c.spec.motor = controller_core::motor::MotorParams::new(
+        m.rs_ohm(),
+        m.rr_ohm() / 10.0,
+        m.ls_h(),
+        m.lr_h(),
+        m.lm_h(),
+        m.pole_pairs(),
+        m.j_kgm2(),
+        m.b_nms(),
+    )
+    .unwrap();
+    assert!((c.step_s() - 2.131).abs() < 1e-3, "{}", c.step_s());
+    let e = c.run(|_| {}, &AtomicBool::new(false)).unwrap_err();
+    assert!(e.contains("take a duration of at least 2.38 s"), "{e}");
+    c.duration_s = 2.4;
+    assert!(c.check_duration().is_ok());
+}
