@@ -640,6 +640,23 @@ fn no_load(
         slip += w - f64::from(pole_pairs) * f64::from(win.theta_m_rad) / (periods * ts);
     }
     let k = n.windows.len() as f64;
+    let rated = f64::from(cfg.spec().rated_flux_wb);
+    if flux / k < NO_LOAD_FLUX_MIN * rated {
+        let spec = cfg.spec();
+        let capped = f64::from(n.amplitude_a) >= 0.999 * f64::from(spec.test_current_a);
+        let lowered = w < 0.999 * 2.0 * std::f64::consts::PI * f64::from(spec.no_load_hz);
+        let why = match (capped, lowered) {
+            (true, true) => "the test current capped the current and the bus the frequency",
+            (true, false) => "the test current capped the current (raise --test-current)",
+            (false, true) => "the bus could not give it at the test frequency, lowered to its floor",
+            (false, false) => "the flux correction reached its limit (a strongly saturating motor?)",
+        };
+        return Err(format!(
+            "the no-load test reached only {:.1} % of the rated flux {rated:.4} Wb ({why}): check the nameplate \
+             (--rated-voltage, --rated-frequency); nothing measured at rated flux",
+            100.0 * flux / k / rated
+        ));
+    }
     Ok(NoLoad {
         l_mm_h: Estimate::of(&l_mm, MARGIN.lm),
         standstill_l_mm_h: standstill,
@@ -668,6 +685,10 @@ pub fn describe_no_load(n: &NoLoad) -> String {
         n.standstill_l_mm_h.value,
     )
 }
+
+/// The no-load test must reach this fraction of the rated flux, or the estimate is refused
+/// (its L_m would not be the rated flux's; a wrong nameplate, or a test current too small).
+pub const NO_LOAD_FLUX_MIN: f64 = 0.95;
 
 /// Rated stator flux linkage (peak, per phase), Wb, from the nameplate's rated line voltage
 /// (RMS) and frequency: `√2·V_LL/(√3·2π·f)` (the stator resistance's drop neglected).
@@ -948,8 +969,8 @@ pub fn describe(r: &Refusal) -> String {
         Refusal::NonFinite => "a measurement was not finite".into(),
         Refusal::Aborted => "aborted".into(),
         Refusal::RotorStalled(hz) => format!(
-            "in the no-load test the rotor did not follow the field (the field reached {hz} Hz): is a load \
-             coupled, or a brake on?"
+            "in the no-load test the rotor did not follow the field (the field reached {hz:.2} Hz): is a load \
+             coupled or a brake on — or is the rated voltage given far below the motor's (a field too weak to turn it)?"
         ),
     }
 }
