@@ -74,6 +74,49 @@ pub const DEFAULT_OFFSET_ERROR_FRACTION: f64 = 0.05;
 /// with the bridge off; eight is a floating input or switching noise coupled in.
 pub const DEFAULT_NOISE_MAX_COUNTS: f64 = 8.0;
 
+/// The encoder's input filter may last at most this fraction of the shortest interval
+/// between two quadrature edges at the overspeed level.
+pub const ENCODER_FILTER_FRACTION: f64 = 0.15;
+
+/// The STM32 timers' sixteen input-filter settings (TIMx_CCMRx ICxF, with CKD = 0 so that
+/// f_DTS = f_CK_INT): (f_CK_INT divider, samples N) by code. An edge passes once N samples
+/// at f_CK_INT/divider agree.
+pub const TIMER_INPUT_FILTERS: [(u32, u32); 16] = [
+    (1, 1),
+    (1, 2),
+    (1, 4),
+    (1, 8),
+    (2, 6),
+    (2, 8),
+    (4, 6),
+    (4, 8),
+    (8, 6),
+    (8, 8),
+    (16, 5),
+    (16, 6),
+    (16, 8),
+    (32, 5),
+    (32, 6),
+    (32, 8),
+];
+
+/// The encoder timer's input filter: the longest of [`TIMER_INPUT_FILTERS`] that lasts at most
+/// [`ENCODER_FILTER_FRACTION`] of the shortest interval between two quadrature edges at
+/// `overspeed_rad_s` (`1/(4·lines·ω/2π)`): it rejects the glitches shorter than it (ringing
+/// of a long encoder cable as the bridge switches) and delays a real edge by it. (code, its
+/// duration s). The timer's clock is `tim_clock_hz` (TIM4 on APB1 at the same 170 MHz as
+/// TIM1 on the G474).
+pub fn encoder_filter(tim_clock_hz: u32, encoder_lines: u32, overspeed_rad_s: f64) -> (u8, f64) {
+    let edge_s = std::f64::consts::TAU / (4.0 * f64::from(encoder_lines) * overspeed_rad_s);
+    let duration = |(div, n): (u32, u32)| f64::from(div * n) / f64::from(tim_clock_hz);
+    TIMER_INPUT_FILTERS
+        .iter()
+        .enumerate()
+        .filter(|&(_, &f)| duration(f) <= ENCODER_FILTER_FRACTION * edge_s)
+        .max_by(|a, b| duration(*a.1).total_cmp(&duration(*b.1)))
+        .map_or((0, 0.0), |(code, &f)| (code as u8, duration(f)))
+}
+
 /// Validated board data, with the timer values derived from the drive's PWM frequency.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Board {

@@ -156,6 +156,8 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
          controller_core::raw::RawDriveConfig {{ f: {:?}, u: {:?} }};\n",
         raw.f, raw.u
     );
+    let filter =
+        crate::board::encoder_filter(t.tim_clock_hz, t.encoder_lines, file.spec.protection.overspeed_rad_s);
     let [kp_lo, kp_hi] = c.speed_kp_writable;
     let [tau_lo, tau_hi] = c.speed_tau_max_nm_writable;
     // `write!` to a String cannot fail.
@@ -183,7 +185,10 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
          /// τ_max accepted over the link, N·m (`[certify]`).\n\
          pub const SPEED_TAU_MAX_NM: (f32, f32) = ({:?}, {:?});\n\
          /// Link watchdog, ms (`[board] link_timeout_s`; 0: off).\n\
-         pub const LINK_TIMEOUT_MS: u32 = {};\n",
+         pub const LINK_TIMEOUT_MS: u32 = {};\n\
+         /// The encoder timer's input filter, TIMx_CCMR1 IC1F/IC2F code ({:?} s:\n\
+         /// `drive_file::board::encoder_filter` at the overspeed level).\n\
+         pub const ENCODER_FILTER: u8 = {};\n",
         t.tim_clock_hz,
         b.pwm_period_counts,
         t.dead_time_s,
@@ -201,6 +206,8 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
         tau_lo as f32,
         tau_hi as f32,
         t.link_timeout_s.map_or(0, |t| (t * 1e3).round() as u32),
+        filter.1,
+        filter.0,
     );
     Ok(s)
 }

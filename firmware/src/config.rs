@@ -42,6 +42,27 @@ mod tests {
         );
     }
 
+    /// The encoder's input filter for drive.toml (170 MHz, 1 024 lines, overspeed 607.3 rad/s:
+    /// quadrature edges 2.53 µs apart at the overspeed level, 15 % of it 0.379 µs): code 9,
+    /// f_CK_INT/8 and N = 8, 0.376 µs — the longest setting within the bound.
+    #[test]
+    fn encoder_filter_fits_the_overspeed_edges() {
+        let spec = drive_spec().unwrap();
+        let (code, d) = drive_file::board::encoder_filter(
+            TIM_CLOCK_HZ,
+            BOARD.encoder_lines,
+            spec.protection.overspeed_rad_s,
+        );
+        assert_eq!((ENCODER_FILTER, code), (9, 9));
+        assert!((d - 64.0 / 170e6).abs() < 1e-15, "{d}");
+        let edge = core::f64::consts::TAU / (4.0 * 1024.0 * spec.protection.overspeed_rad_s);
+        assert!(d <= drive_file::board::ENCODER_FILTER_FRACTION * edge);
+        // The next longer setting (f/16, N = 5: 0.47 µs) would not fit.
+        assert!(80.0 / 170e6 > drive_file::board::ENCODER_FILTER_FRACTION * edge);
+        // A very fast encoder gets no filter rather than one that eats its edges.
+        assert_eq!(drive_file::board::encoder_filter(170_000_000, 1 << 20, 1e4).0, 0);
+    }
+
     #[test]
     fn pwm_period_gives_the_drive_frequency() {
         let spec = drive_spec().unwrap();

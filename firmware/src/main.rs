@@ -47,7 +47,7 @@ mod target {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
-    use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, LINK_TIMEOUT_MS};
+    use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS};
     use firmware::control::{Calibration, ControlError, ControlLoop, Samples};
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
@@ -283,6 +283,13 @@ mod target {
         // TIM4 quadrature encoder (x4).
         let qc = QeiConfig { ch1_pull: Pull::Up, ch2_pull: Pull::Up, ..Default::default() };
         let _encoder = Qei::new(p.TIM4, pins.encoder.0, pins.encoder.1, qc);
+        // Its input filter on A and B (`ENCODER_FILTER`, from the board's line count
+        // and the overspeed level: glitches shorter than ≈ 0.38 µs rejected with drive.toml).
+        let filter = pac::timer::vals::FilterValue::from_bits(ENCODER_FILTER);
+        pac::TIM4.ccmr_input(0).modify(|w| {
+            w.set_icf(0, filter);
+            w.set_icf(1, filter);
+        });
 
         // Link on the ST-LINK virtual COM port.
         let mut uart_cfg = usart::Config::default();
@@ -322,10 +329,10 @@ mod target {
 
     /// The control interrupt: end of the injected ADC sequence, once per PWM period.
     ///
-    /// Time budget: one period is 50 µs = 8 500 cycles at 170 MHz. The control step executes
-    /// ≈ 596 instructions (fast step, on average) plus ≈ 118 every 10th period (slow step), counted under
-    /// QEMU (`cargo xtask qemu`, `qemu-target/src/bin/cost.rs`): 7 % of the period at one
-    /// cycle per instruction. The real cycle count (FPU divide latency, flash wait states)
+    /// Time budget: one period is 50 µs = 8 500 cycles at 170 MHz. The control step's
+    /// instructions per fast and slow step are counted under QEMU (`cargo xtask qemu`,
+    /// `qemu-target/src/bin/cost.rs`; the figures in docs/performance.md): about a tenth of
+    /// the period at one cycle per instruction. The real cycle count (FPU divide latency, flash wait states)
     /// the board measures itself: DWT CYCCNT around this handler, the longest step and the
     /// steps of a period or more in the link's `Status` (`control::LoopTimer`). The compare values
     /// written here take effect at the next update event (preload), i.e. one period after
