@@ -76,32 +76,8 @@ fn corner_motor(m: &MotorParams, rs: f64, rr: f64, l: f64) -> Result<MotorParams
 
 /// Run every check.
 pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> {
-    let mut checks = Vec::new();
+    let mut checks = certify_current(spec, c)?;
     let m = &spec.motor;
-    for rs in c.rs_factor {
-        for rr in c.rr_factor {
-            for l in c.inductance_factor {
-                let corner = format!("Rs×{rs} Rr×{rr} L×{l}");
-                let cm = corner_motor(m, rs, rr, l)?;
-                let a = analyse(&cm, &spec.current_law, c.omega_r_max_rad_s);
-                margin_checks(&mut checks, "current", &a, c, &corner);
-                let mut w = 0.0;
-                let mut worst: f64 = f64::NEG_INFINITY;
-                while w <= c.omega_r_max_rad_s {
-                    worst = worst.max(closed_loop_abscissa(&cm, &spec.current_law, w));
-                    w += 5.0;
-                }
-                checks.push(Check {
-                    name: "current: worst closed-loop pole Re over 0…ω_r,max (1/s)".into(),
-                    corner: corner.clone(),
-                    value: Some(worst),
-                    limit: 0.0,
-                    pass: worst < 0.0,
-                });
-                sampled_current_checks(&mut checks, spec, &cm, c, &corner)?;
-            }
-        }
-    }
     let (j, b) = (m.j_kgm2(), m.b_nms());
     let (jl, jh) = (j * c.j_factor[0], j * c.j_factor[1]);
     let kt = m.torque_factor() * spec.flux_ref_wb;
@@ -132,6 +108,38 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
         pass: robust,
     });
     checks.push(sampled_speed_check(spec, c)?);
+    Ok(checks)
+}
+
+/// The current loops' checks alone (continuous and sampled, every corner): what `design
+/// tune` searches the current gains on.
+pub fn certify_current(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> {
+    let mut checks = Vec::new();
+    let m = &spec.motor;
+    for rs in c.rs_factor {
+        for rr in c.rr_factor {
+            for l in c.inductance_factor {
+                let corner = format!("Rs×{rs} Rr×{rr} L×{l}");
+                let cm = corner_motor(m, rs, rr, l)?;
+                let a = analyse(&cm, &spec.current_law, c.omega_r_max_rad_s);
+                margin_checks(&mut checks, "current", &a, c, &corner);
+                let mut w = 0.0;
+                let mut worst: f64 = f64::NEG_INFINITY;
+                while w <= c.omega_r_max_rad_s {
+                    worst = worst.max(closed_loop_abscissa(&cm, &spec.current_law, w));
+                    w += 5.0;
+                }
+                checks.push(Check {
+                    name: "current: worst closed-loop pole Re over 0…ω_r,max (1/s)".into(),
+                    corner: corner.clone(),
+                    value: Some(worst),
+                    limit: 0.0,
+                    pass: worst < 0.0,
+                });
+                sampled_current_checks(&mut checks, spec, &cm, c, &corner)?;
+            }
+        }
+    }
     Ok(checks)
 }
 

@@ -58,7 +58,8 @@ struct IcadArgs {
     /// Electrical rotor speed, rad/s.
     #[arg(long, allow_negative_numbers = true, value_parser = finite_speed)]
     omega_r: f64,
-    /// `icad20` (seed 002 eq. (20)) or `pi:KP,KI`.
+    /// `icad20` (seed 002 eq. (20)), `pi:KP,KI`, or a drive file (`.toml`: its current law,
+    /// e.g. one `design tune --current icad` wrote).
     #[arg(long, value_parser = parse_law)]
     controller: CurrentLaw,
     /// PWM rate of the sampled analysis (the loop as the drive runs it: zero-order hold, one
@@ -180,6 +181,11 @@ struct TuneArgs {
     /// The drive file to write.
     #[arg(long)]
     out: std::path::PathBuf,
+    /// The current controller: `pi` (the fastest the certificate passes) or `icad` (seed
+    /// 002 eq. (20)'s structure placed from `[certify] omega_r_max_rad_s`, the gain the most
+    /// robust over the box).
+    #[arg(long, default_value = "pi")]
+    current: design::tune::CurrentDesign,
 }
 
 fn tune(a: &TuneArgs) -> Result<bool, String> {
@@ -191,11 +197,22 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         None
     };
     let template = drive_file::source::read(&a.template).map_err(|e| e.to_string())?;
-    let t = design::tune::tune(&a.template, &template, &motor, intervals.as_ref())?;
+    let t = design::tune::tune(&a.template, &template, &motor, intervals.as_ref(), a.current)?;
     let law = &t.spec.current_law;
+    let lag = law.lag.map_or(String::new(), |l| {
+        format!(
+            " × lag ({} s² + {} s + {})/({} s² + {} s + {})",
+            l.num[0], l.num[1], l.num[2], l.den[0], l.den[1], l.den[2]
+        )
+    });
     println!(
-        "current loops: PI kp {:.4} V/A, ki {:.1} V/(A·s) — crossover {:.0} rad/s on the nominal motor",
-        law.kp_v_per_a, law.ki_v_per_as, t.omega_c_rad_s
+        "current loops: {} kp {:.4} V/A, ki {:.1} V/(A·s){lag} — crossover {:.0} rad/s on the nominal motor, \
+         smallest margin {:.3}× its minimum over the box",
+        if law.lag.is_some() { "ICAD" } else { "PI" },
+        law.kp_v_per_a,
+        law.ki_v_per_as,
+        t.omega_c_rad_s,
+        t.current_robustness
     );
     if let controller_core::speed::SpeedLaw::SaturatedP { kp, tau_max_nm } = t.spec.speed_law {
         println!(
@@ -229,12 +246,17 @@ fn finite_speed(s: &str) -> Result<f64, String> {
 fn parse_law(s: &str) -> Result<CurrentLaw, String> {
     match s {
         "icad20" => Ok(CurrentLaw::ICAD_EQ20),
+        file if file.ends_with(".toml") => {
+            let path = std::path::Path::new(file);
+            let text = drive_file::source::read(path).map_err(|e| e.to_string())?;
+            Ok(drive_file::DriveFile::parse(path, &text).map_err(|e| e.to_string())?.spec.current_law)
+        }
         other => match other.strip_prefix("pi:") {
             Some(g) => {
                 let (kp, ki) = cli::kharitonov::parse_pi(g)?;
                 Ok(CurrentLaw { kp_v_per_a: kp, ki_v_per_as: ki, lag: None })
             }
-            None => Err(format!("`{other}` is neither icad20 nor pi:KP,KI")),
+            None => Err(format!("`{other}` is neither icad20, pi:KP,KI nor a drive file (.toml)")),
         },
     }
 }
