@@ -510,11 +510,14 @@ fn speed_pictures(spec: &DriveSpec, c: &CertifySpec) -> Result<(String, String),
     series.push(Series::markers("writable k_p", vec![(w0, 0.0), (w1, 0.0)]).colored("#2ca02c"));
     series.push(Series::markers("configured k_p", vec![(kp_now, 0.0)]).colored("#d62728"));
     series.push(Series::line("0 (stability)", vec![(0.0, 0.0), (k_hi, 0.0)]).colored("#7f7f7f"));
-    let region = line_plot(
-        "sampled speed loop: slowest pole ln|z|/T_slow (1/s) against k_p, at J_min and J_max (below 0 is stable)",
-        "k_p (N·m per rad/s)",
-        &series,
-    );
+    let region = match spec.speed_law {
+        SpeedLaw::PiTorque { kp, ki, .. } => pi_region_picture(spec, c, kp, ki)?,
+        _ => line_plot(
+            "sampled speed loop: slowest pole ln|z|/T_slow (1/s) against k_p, at J_min and J_max (below 0 is stable)",
+            "k_p (N·m per rad/s)",
+            &series,
+        ),
+    };
     let mut steps = Vec::new();
     for (j, label) in js.iter().zip(&labels) {
         let y = speed_step(&speed_loop(spec, *j, kp_now)?, 400);
@@ -531,6 +534,51 @@ fn speed_pictures(spec: &DriveSpec, c: &CertifySpec) -> Result<(String, String),
         &steps,
     );
     Ok((region, step))
+}
+
+/// Seed 000's k_p–k_i regions of a speed PI → torque over the inertia interval
+/// ([`crate::pi_region::SpeedRegions`]) on a grid around the configured point: robustly
+/// stable, and stable with the certificate's gain–phase margins too; the configured point.
+fn pi_region_picture(spec: &DriveSpec, c: &CertifySpec, kp: f64, ki: f64) -> Result<String, String> {
+    use report::plot::{Series, plot_in};
+    let m = &spec.motor;
+    let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    let r = crate::pi_region::SpeedRegions::new(
+        [m.j_kgm2() * c.j_factor[0], m.j_kgm2() * c.j_factor[1]],
+        m.b_nms(),
+        t_slow,
+        [c.phase_margin_deg_min, c.gain_margin_db_min],
+    )?;
+    let (kp_hi, ki_hi) = (2.5 * kp.abs().max(1e-9), 2.5 * ki.abs().max(1e-9));
+    let n = 48;
+    let (mut stable, mut margins) = (Vec::new(), Vec::new());
+    for a in 1..=n {
+        for b in 1..=n {
+            let (x, y) = (kp_hi * f64::from(a) / f64::from(n), ki_hi * f64::from(b) / f64::from(n));
+            if r.margins(x, y) {
+                margins.push((x, y));
+            } else if r.stable(x, y) {
+                stable.push((x, y));
+            }
+        }
+    }
+    Ok(plot_in(
+        &format!(
+            "speed PI regions over J × [{}, {}] (seed 000; dead time {:.2} ms as a Padé): stable, and with {}° / {} dB",
+            c.j_factor[0],
+            c.j_factor[1],
+            r.tau_s * 1e3,
+            c.phase_margin_deg_min,
+            c.gain_margin_db_min
+        ),
+        "k_p (N·m per rad/s); vertical: k_i (N·m/rad)",
+        &[
+            Series::markers("robustly stable", stable).colored("#c7c7c7"),
+            Series::markers("with the margins", margins).colored("#2ca02c"),
+            Series::markers("configured (k_p, k_i)", vec![(kp, ki)]).colored("#d62728"),
+        ],
+        ((0.0, kp_hi), (0.0, ki_hi)),
+    ))
 }
 
 /// The speed of `l` after a unit reference step at rest, `n` slow periods: in the error

@@ -186,6 +186,11 @@ struct TuneArgs {
     /// robust over the box).
     #[arg(long, default_value = "pi")]
     current: design::tune::CurrentDesign,
+    /// The speed controller: `p` (saturated P, seed 002 eq. (21); the link may rewrite its
+    /// gains) or `pi` (PI → torque farthest inside seed 000's stability, gain–phase-margin
+    /// and bandwidth regions over the inertia interval).
+    #[arg(long, default_value = "p")]
+    speed: design::tune::SpeedDesign,
 }
 
 fn tune(a: &TuneArgs) -> Result<bool, String> {
@@ -197,7 +202,13 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         None
     };
     let template = drive_file::source::read(&a.template).map_err(|e| e.to_string())?;
-    let t = design::tune::tune(&a.template, &template, &motor, intervals.as_ref(), a.current)?;
+    let t = design::tune::tune(
+        &a.template,
+        &template,
+        &motor,
+        intervals.as_ref(),
+        design::tune::Structure { current: a.current, speed: a.speed },
+    )?;
     let law = &t.spec.current_law;
     let lag = law.lag.map_or(String::new(), |l| {
         format!(
@@ -214,11 +225,17 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         t.omega_c_rad_s,
         t.current_robustness
     );
-    if let controller_core::speed::SpeedLaw::SaturatedP { kp, tau_max_nm } = t.spec.speed_law {
-        println!(
+    match t.spec.speed_law {
+        controller_core::speed::SpeedLaw::SaturatedP { kp, tau_max_nm } => println!(
             "speed loop: saturated P kp {kp:.5} N·m·s/rad, τ_max {tau_max_nm:.3} N·m — crossover {:.1} rad/s",
             t.omega_s_rad_s
-        );
+        ),
+        controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit } => println!(
+            "speed loop: PI kp {kp:.5} N·m·s/rad, ki {ki:.5} N·m/rad, limit {limit:.3} N·m — seed 000's regions, \
+             bandwidth ≥ {:.1} rad/s on every inertia",
+            design::tune::speed_pi_bandwidth(t.omega_s_rad_s, &t.certify)
+        ),
+        controller_core::speed::SpeedLaw::PiIq { .. } => {}
     }
     let c = &t.certify;
     println!(

@@ -198,6 +198,75 @@ pub fn linspace(lo: f64, hi: f64, n: usize) -> Vec<f64> {
     (0..n).map(|k| lo + (hi - lo) * k as f64 / (n.max(2) - 1) as f64).collect()
 }
 
+/// The speed loop's dead time as the region design models it, in slow periods: the speed
+/// estimate's window (its centre lies `SPEED_WINDOW_READS/2` periods back), the torque
+/// applied one slow period after the sample, and the hold's half period.
+pub fn speed_dead_time_periods() -> f64 {
+    controller_core::encoder::SPEED_WINDOW_READS as f64 / 2.0 + 1.5
+}
+
+/// Seed 000's regions (Sec. 3–5) for the speed loop's PI → torque: the plant
+/// `e^{−sτ}/(J s + B)` with J over an interval and the dead time τ
+/// ([`speed_dead_time_periods`]·T_slow) as a first-order Padé `(1 − sτ/2)/(1 + sτ/2)`, so
+/// `N = 1 − sτ/2` and `D = (Jτ/2)s² + (J + Bτ/2)s + B` form an interval plant, decided on
+/// its 16 Kharitonov plants.
+#[derive(Clone, Debug)]
+pub struct SpeedRegions {
+    plants: Vec<(usize, usize, crate::poly::Poly, crate::poly::Poly)>,
+    gm: Tester,
+    pm: Tester,
+    /// The inertia interval, kg·m².
+    pub j_kgm2: [f64; 2],
+    /// The modelled dead time, s.
+    pub tau_s: f64,
+    /// The phase margin asked, degrees, and the gain margin, dB.
+    pub minima: [f64; 2],
+}
+
+impl SpeedRegions {
+    /// The regions for J ∈ `j_kgm2`, friction `b_nms`, slow period `t_slow_s`, and the
+    /// phase and gain margins asked (degrees, dB).
+    pub fn new(j_kgm2: [f64; 2], b_nms: f64, t_slow_s: f64, minima: [f64; 2]) -> Result<Self, String> {
+        use crate::kharitonov::IntervalPoly;
+        use Tester;
+        let tau = speed_dead_time_periods() * t_slow_s;
+        let [jl, jh] = j_kgm2;
+        let plant = IntervalPlant {
+            num: IntervalPoly::point(&[-tau / 2.0, 1.0]),
+            den: IntervalPoly::new(
+                &[jl * tau / 2.0, jl + b_nms * tau / 2.0, b_nms],
+                &[jh * tau / 2.0, jh + b_nms * tau / 2.0, b_nms],
+            )
+            .map_err(|e| format!("speed plant: {e:?}"))?,
+        };
+        Ok(Self {
+            plants: plant.kharitonov_plants(),
+            gm: Tester { gain: 10f64.powf(minima[1] / 20.0), phase_rad: 0.0 },
+            pm: Tester { gain: 1.0, phase_rad: minima[0].to_radians() },
+            j_kgm2,
+            tau_s: tau,
+            minima,
+        })
+    }
+
+    /// Robustly stable.
+    pub fn stable(&self, kp: f64, ki: f64) -> bool {
+        self.plants.iter().all(|(_, _, n, d)| is_stabilising(n, d, kp, ki))
+    }
+
+    /// Stable with each gain–phase tester in the loop (the margins) on every plant.
+    pub fn margins(&self, kp: f64, ki: f64) -> bool {
+        self.plants.iter().all(|(_, _, n, d)| {
+            tester_is_stable(n, d, kp, ki, self.gm) && tester_is_stable(n, d, kp, ki, self.pm)
+        })
+    }
+
+    /// Closed-loop bandwidth at least `omega_b_rad_s` on every plant (seed 000 eq. (19)).
+    pub fn bandwidth(&self, kp: f64, ki: f64, omega_b_rad_s: f64) -> bool {
+        self.plants.iter().all(|(_, _, n, d)| meets_bandwidth(n, d, kp, ki, omega_b_rad_s))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -40,6 +40,7 @@
 //! intervals (relative to its nominal values; L_s, L_r and L_m's widest together).
 
 use crate::certify::{CertifySpec, Check, certify, certify_current};
+use crate::pi_region::SpeedRegions;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::ContinuousSection;
 use controller_core::drive::{CurrentFrame, DriveSpec};
@@ -67,6 +68,134 @@ impl std::str::FromStr for CurrentDesign {
             other => Err(format!("`{other}` is neither pi nor icad")),
         }
     }
+}
+
+/// The controllers [`tune`] synthesises.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Structure {
+    /// The current loops'.
+    pub current: CurrentDesign,
+    /// The speed loop's.
+    pub speed: SpeedDesign,
+}
+
+/// The speed controller [`tune`] synthesises.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SpeedDesign {
+    /// Saturated P (seed 002 eq. (21)), the gains the link may rewrite.
+    #[default]
+    SaturatedP,
+    /// PI → torque, seed 000's regions ([`speed_pi`]).
+    Pi,
+}
+
+impl std::str::FromStr for SpeedDesign {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "p" => Ok(Self::SaturatedP),
+            "pi" => Ok(Self::Pi),
+            other => Err(format!("`{other}` is neither p nor pi")),
+        }
+    }
+}
+
+/// The bandwidth the speed PI must reach on every inertia: the saturated-P loop's
+/// (crossover `omega_s_rad_s` on the nominal inertia) on the heaviest, `ω_s/j_factor_max`
+/// — as fast as the proportional loop, with integral action besides.
+pub fn speed_pi_bandwidth(omega_s_rad_s: f64, cert: &CertifySpec) -> f64 {
+    omega_s_rad_s / cert.j_factor[1]
+}
+
+/// Points per axis of the speed PI's k_p–k_i grid ([`speed_pi`]).
+pub const SPEED_PI_GRID: usize = 81;
+
+/// A speed PI chosen by seed 000's method on [`SpeedRegions`]: on an [`SPEED_PI_GRID`]²
+/// grid of the k_p–k_i plane a point is admissible when it has the margins, a closed-loop
+/// bandwidth of at least `omega_b_rad_s` on every inertia, and `k_p ≤ kp_max` (the
+/// encoder-noise rule). The chosen point is the admissible one **farthest from the
+/// region's boundary** (the nearest inadmissible grid point, in coordinates scaled by the
+/// grid's extent, which is the admissible region's with a quarter to spare). Returns
+/// `(k_p, k_i)`.
+pub fn speed_pi(regions: &SpeedRegions, omega_b_rad_s: f64, kp_max: f64) -> Result<(f64, f64), String> {
+    let (tau, [jl, jh]) = (regions.tau_s, regions.j_kgm2);
+    let stable = |kp: f64, ki: f64| regions.stable(kp, ki);
+    let admissible = |kp: f64, ki: f64| {
+        kp <= kp_max && regions.margins(kp, ki) && regions.bandwidth(kp, ki, omega_b_rad_s)
+    };
+    // The grid's extent: the admissible region's, found on coarse grids — k_p up to the
+    // robust stability limit (about J_min·π/(2τ), grown while the region reaches the edge)
+    // and `kp_max`; k_i from the same scale, shrunk (the margins keep k_i/k_p well below
+    // 1/τ) or grown until the region sits inside with a quarter of its size to spare.
+    let mut kp_hi = 2.0 * jl / tau;
+    for _ in 0..20 {
+        if !(1..=8).any(|i| stable(kp_hi, kp_hi / tau * f64::from(i) / 64.0)) {
+            break;
+        }
+        kp_hi *= 2.0;
+    }
+    kp_hi = kp_hi.min(kp_max);
+    let coarse = 33;
+    let extent = |kp_hi: f64, ki_hi: f64| {
+        let mut top: Option<(f64, f64)> = None;
+        for a in 1..=coarse {
+            for b in 1..=coarse {
+                let (kp, ki) = (kp_hi * a as f64 / coarse as f64, ki_hi * b as f64 / coarse as f64);
+                if admissible(kp, ki) {
+                    let t = top.get_or_insert((kp, ki));
+                    *t = (t.0.max(kp), t.1.max(ki));
+                }
+            }
+        }
+        top
+    };
+    let mut ki_hi = 2.0 * kp_hi / tau;
+    let mut found = None;
+    for _ in 0..40 {
+        match extent(kp_hi, ki_hi) {
+            Some((_, ki)) if ki >= ki_hi * (1.0 - 1.0 / coarse as f64) => ki_hi *= 2.0,
+            Some(top) => {
+                found = Some(top);
+                break;
+            }
+            None => ki_hi *= 0.5,
+        }
+    }
+    if let Some((kp_top, ki_top)) = found {
+        (kp_hi, ki_hi) = ((1.25 * kp_top).min(kp_hi), 1.25 * ki_top);
+    }
+    let n = SPEED_PI_GRID;
+    let at = |i: usize, hi: f64| hi * i as f64 / (n - 1) as f64;
+    let member: Vec<bool> = (0..n * n).map(|k| admissible(at(k / n, kp_hi), at(k % n, ki_hi))).collect();
+    // Beyond the grid is outside: the k_i = 0 and k_p = 0 axes (a root at the origin; no
+    // P action), k_p past `kp_max` or the stability limit, k_i past the region's extent.
+    let outside: Vec<(f64, f64)> = (0..n * n)
+        .filter(|&k| !member.get(k).copied().unwrap_or(false))
+        .map(|k| ((k / n) as f64, (k % n) as f64))
+        .chain((0..n).flat_map(|i| {
+            let (i, e) = (i as f64, n as f64);
+            [(i, -1.0), (-1.0, i), (i, e), (e, i)]
+        }))
+        .collect();
+    let best = (0..n * n)
+        .filter(|&k| member.get(k).copied().unwrap_or(false))
+        .map(|k| {
+            let (a, b) = ((k / n) as f64, (k % n) as f64);
+            let d =
+                outside.iter().map(|(x, y)| (x - a).powi(2) + (y - b).powi(2)).fold(f64::INFINITY, f64::min);
+            (k, d)
+        })
+        .max_by(|x, y| x.1.total_cmp(&y.1));
+    let Some((k, _)) = best else {
+        return Err(format!(
+            "no speed PI meets the margins ({}°, {} dB) and a bandwidth of {omega_b_rad_s:.2} rad/s on every inertia of \
+             J [{jl:.4e}, {jh:.4e}] kg·m² with k_p ≤ {kp_max:.4e} (dead time {:.2} ms)",
+            regions.minima[0],
+            regions.minima[1],
+            tau * 1e3
+        ));
+    };
+    Ok((at(k / n, kp_hi), at(k % n, ki_hi)))
 }
 
 /// ICAD lag: double zero at `−ω_h` (seed 002 eq. (20): −400 rad/s at ω_h = 400 rad/s).
@@ -190,8 +319,8 @@ impl Intervals {
 /// The result of [`tune`].
 #[derive(Clone, Debug)]
 pub struct Tuned {
-    /// The current controller's structure.
-    pub design: CurrentDesign,
+    /// The controllers' structure.
+    pub structure: Structure,
     /// [`robustness`] of the current checks: 1 is the certificate's boundary.
     pub current_robustness: f64,
     /// The drive file's text.
@@ -236,7 +365,7 @@ pub fn tune(
     template_text: &str,
     motor: &MotorParams,
     intervals: Option<&Intervals>,
-    design: CurrentDesign,
+    structure: Structure,
 ) -> Result<Tuned, String> {
     let file = drive_file::DriveFile::parse(template_path, template_text).map_err(|e| e.to_string())?;
     let mut cert = file.certify.ok_or_else(|| {
@@ -266,7 +395,7 @@ pub fn tune(
     let r = motor.rs_ohm() + motor.rr_ohm() * k * k;
     let top = 2.0 * std::f64::consts::PI * spec.pwm_frequency_hz / 5.0;
     let bottom = top / 100.0;
-    let omega_c = match design {
+    let omega_c = match structure.current {
         CurrentDesign::Pi => {
             let mut omega_c = top;
             let mut found = None;
@@ -338,6 +467,20 @@ pub fn tune(
         omega_s *= SEARCH_RATIO;
     }
     let (omega_s, _) = speed.ok_or("no speed-loop gain passes the certificate")?;
+    if structure.speed == SpeedDesign::Pi {
+        let omega_b = speed_pi_bandwidth(omega_s, &cert);
+        let js = [j * cert.j_factor[0], j * cert.j_factor[1]];
+        let minima = [cert.phase_margin_deg_min, cert.gain_margin_db_min];
+        let (kp, ki) = speed_pi(&SpeedRegions::new(js, motor.b_nms(), t_slow, minima)?, omega_b, kp_noise)?;
+        spec.speed_law = SpeedLaw::PiTorque { kp, ki, limit: tau_max };
+        if let Some(c) = certify(&spec, &cert)?.iter().find(|c| !c.pass) {
+            return Err(format!(
+                "the speed PI of seed 000's regions (k_p {kp:.4e}, k_i {ki:.4e}) fails `{}` at {}: the Padé model of \
+                 the dead time is too coarse here — use `--speed p`",
+                c.name, c.corner
+            ));
+        }
+    }
     let text = write(template_text, template_path, &spec, &cert, omega_c, omega_s)?;
     // The file as written, read back and certified whole.
     let back =
@@ -348,7 +491,7 @@ pub fn tune(
         return Err(format!("the tuned file fails `{}` at {} (as written)", c.name, c.corner));
     }
     Ok(Tuned {
-        design,
+        structure,
         current_robustness: robustness(&certify_current(&back.spec, &back_cert)?).0,
         text,
         spec: back.spec,
@@ -461,13 +604,21 @@ fn write(
         current.insert("lag_den".into(), triple(lag.den));
     }
     controller.insert("current".into(), Value::Table(current));
-    let SpeedLaw::SaturatedP { kp, tau_max_nm } = spec.speed_law else {
-        return Err("internal: the tuned speed law is not saturated P".into());
-    };
     let mut speed = toml::Table::new();
-    speed.insert("kind".into(), Value::String("saturated_p".into()));
-    speed.insert("kp".into(), Value::Float(kp));
-    speed.insert("tau_max_nm".into(), Value::Float(tau_max_nm));
+    match spec.speed_law {
+        SpeedLaw::SaturatedP { kp, tau_max_nm } => {
+            speed.insert("kind".into(), Value::String("saturated_p".into()));
+            speed.insert("kp".into(), Value::Float(kp));
+            speed.insert("tau_max_nm".into(), Value::Float(tau_max_nm));
+        }
+        SpeedLaw::PiTorque { kp, ki, limit } => {
+            speed.insert("kind".into(), Value::String("pi_torque".into()));
+            speed.insert("kp".into(), Value::Float(kp));
+            speed.insert("ki".into(), Value::Float(ki));
+            speed.insert("limit".into(), Value::Float(limit));
+        }
+        SpeedLaw::PiIq { .. } => return Err("internal: tune does not write an i_q speed law".into()),
+    }
     controller.insert("speed".into(), Value::Table(speed));
     let c = t.get_mut("certify").and_then(Value::as_table_mut).ok_or("no [certify] table")?;
     let pair = |p: [f64; 2]| Value::Array(vec![Value::Float(p[0]), Value::Float(p[1])]);
@@ -482,6 +633,15 @@ fn write(
         c.insert(key.into(), pair(p));
     }
     let body = toml::to_string(&t).map_err(|e| e.to_string())?;
+    let speed_loop = match spec.speed_law {
+        SpeedLaw::SaturatedP { .. } => {
+            format!("saturated-P speed loop, crossover\n# {omega_s:.1} rad/s on the nominal inertia")
+        }
+        _ => format!(
+            "PI speed loop farthest inside seed 000's\n# regions (bandwidth ≥ {:.1} rad/s on every inertia)",
+            speed_pi_bandwidth(omega_s, cert)
+        ),
+    };
     let current = if law.lag.is_some() {
         "ICAD current loops (seed 002\n# eq. (20)'s placement scaled to the top rotor speed, the gain the most robust over the box)"
     } else {
@@ -489,8 +649,7 @@ fn write(
     };
     Ok(format!(
         "# Tuned by `design tune` from the template {} (design::tune): stationary-frame {current},\n\
-         # crossover {omega_c:.0} rad/s on the nominal motor; saturated-P speed loop, crossover\n\
-         # {omega_s:.1} rad/s on the nominal inertia. `design certify` this file.\n{body}",
+         # crossover {omega_c:.0} rad/s on the nominal motor; {speed_loop}. `design certify` this file.\n{body}",
         template_path.display()
     ))
 }
@@ -507,7 +666,7 @@ mod tests {
     fn shipped_motors_on_the_shipped_board_are_certified() {
         for name in ["delorenzo-appendix", "delorenzo-eq13", "delorenzo-perturbed"] {
             let m = drive_file::motor::load(name).unwrap();
-            let t = tune(Path::new("drive.toml"), TEMPLATE, &m, None, CurrentDesign::Pi).unwrap();
+            let t = tune(Path::new("drive.toml"), TEMPLATE, &m, None, Structure::default()).unwrap();
             assert!(t.checks.iter().all(|c| c.pass), "{name}");
             assert!(
                 t.omega_c_rad_s > 1000.0 && t.omega_s_rad_s > 1.0,
@@ -541,7 +700,14 @@ mod tests {
     #[test]
     fn tuned_icad_is_at_least_as_robust_as_eq20() {
         let m = drive_file::motor::load("delorenzo-appendix").unwrap();
-        let t = tune(Path::new("drive.toml"), TEMPLATE, &m, None, CurrentDesign::Icad).unwrap();
+        let t = tune(
+            Path::new("drive.toml"),
+            TEMPLATE,
+            &m,
+            None,
+            Structure { current: CurrentDesign::Icad, ..Default::default() },
+        )
+        .unwrap();
         assert!(t.checks.iter().all(|c| c.pass));
         let law = t.spec.current_law;
         assert_eq!(law.lag, CurrentLaw::ICAD_EQ20.lag);
@@ -601,6 +767,63 @@ mod tests {
         assert!(t.current_robustness >= r0);
     }
 
+    /// `--speed pi` on the DeLorenzo motor: a PI with integral action inside every region
+    /// of seed 000's design (margins and bandwidth on all 16 Kharitonov plants of the
+    /// inertia interval, k_p under the encoder-noise limit), away from their boundary (±5 %
+    /// in either gain stays inside), and certified — the exact sampled loop included.
+    #[test]
+    fn speed_pi_lies_inside_seed000s_regions() {
+        let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+        let structure = Structure { speed: SpeedDesign::Pi, ..Default::default() };
+        let t = tune(Path::new("drive.toml"), TEMPLATE, &m, None, structure).unwrap();
+        assert!(t.checks.iter().all(|c| c.pass));
+        let SpeedLaw::PiTorque { kp, ki, limit } = t.spec.speed_law else { panic!("{:?}", t.spec.speed_law) };
+        assert_eq!(limit, 2.0);
+        let c = &t.certify;
+        let t_slow = f64::from(t.spec.slow_divider) / t.spec.pwm_frequency_hz;
+        let r = SpeedRegions::new(
+            [m.j_kgm2() * c.j_factor[0], m.j_kgm2() * c.j_factor[1]],
+            m.b_nms(),
+            t_slow,
+            [c.phase_margin_deg_min, c.gain_margin_db_min],
+        )
+        .unwrap();
+        let omega_b = speed_pi_bandwidth(t.omega_s_rad_s, c);
+        let kp_noise = ENCODER_NOISE_FRACTION * 2.0 / (std::f64::consts::TAU / 4096.0 / (8.0 * t_slow));
+        println!("speed PI: kp {kp:.5}, ki {ki:.5}, ω_B {omega_b:.2} rad/s, kp limit {kp_noise:.5}");
+        assert!(ki > 0.0 && kp <= kp_noise);
+        for (a, b) in [(1.0, 1.0), (0.95, 1.0), (1.05, 1.0), (1.0, 0.95), (1.0, 1.05)] {
+            let (x, y) = (a * kp, b * ki);
+            assert!(r.margins(x, y) && r.bandwidth(x, y, omega_b), "({x}, {y}) outside");
+        }
+    }
+
+    /// The speed PI's drive in the nonlinear campaign, on the narrow box (what
+    /// self-commissioning's intervals give): every run passes.
+    #[test]
+    fn speed_pi_passes_the_campaign() {
+        use hil_sim::campaign::Campaign;
+        use std::sync::atomic::AtomicBool;
+        let template = TEMPLATE
+            .replace("rr_factor = [1.0, 2.0]", "rr_factor = [1.0, 1.2]")
+            .replace("inductance_factor = [0.6, 1.0]", "inductance_factor = [0.95, 1.05]");
+        let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+        let structure = Structure { speed: SpeedDesign::Pi, ..Default::default() };
+        let t = tune(Path::new("narrow.toml"), &template, &m, None, structure).unwrap();
+        let c = Campaign {
+            spec: t.spec,
+            certify: t.certify,
+            vdc_v: 310.0,
+            duration_s: 1.0,
+            runs: 64,
+            seed: 1,
+            shard: (0, 1),
+        };
+        let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
+        let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
+        assert!(bad.is_empty(), "{} of {} fail:\n{}", bad.len(), v.len(), bad.join("\n"));
+    }
+
     /// A PWM rate too slow for the ICAD loops at the top speed: refused, naming the check
     /// that binds (at 5 kHz the sampled phase margin stays under 18° of 45°).
     #[test]
@@ -609,7 +832,14 @@ mod tests {
             .replace("frequency_hz = 20000.0", "frequency_hz = 5000.0")
             .replace("slow_divider = 10", "slow_divider = 2");
         let m = drive_file::motor::load("delorenzo-appendix").unwrap();
-        let e = tune(Path::new("slow.toml"), &template, &m, None, CurrentDesign::Icad).unwrap_err();
+        let e = tune(
+            Path::new("slow.toml"),
+            &template,
+            &m,
+            None,
+            Structure { current: CurrentDesign::Icad, ..Default::default() },
+        )
+        .unwrap_err();
         assert!(e.contains("no ICAD gain") && e.contains("sampled current: phase margin"), "{e}");
     }
 
@@ -619,7 +849,8 @@ mod tests {
     fn the_krause_motor_tunes_on_its_template() {
         let template = include_str!("../../drives/krause-3300v.toml");
         let m = drive_file::motor::load("krause-2300v-500hp").unwrap();
-        let t = tune(Path::new("drives/krause-3300v.toml"), template, &m, None, CurrentDesign::Pi).unwrap();
+        let t =
+            tune(Path::new("drives/krause-3300v.toml"), template, &m, None, Structure::default()).unwrap();
         assert!(t.checks.iter().all(|c| c.pass));
     }
 
@@ -675,7 +906,7 @@ mod tests {
             let j = uniform(1e-4, 1e-1);
             let m = MotorParams::new(rs, rr, ls, lr, lm, 2, j, j * 0.01).unwrap();
             let template = template_for(&m);
-            let t = tune(Path::new("template.toml"), &template, &m, None, CurrentDesign::Pi)
+            let t = tune(Path::new("template.toml"), &template, &m, None, Structure::default())
                 .unwrap_or_else(|e| panic!("random {k} ({m:?}): {e}"));
             assert!(t.checks.iter().all(|c| c.pass), "random {k}");
             println!("random {k}: ω_c {:.0} rad/s, ω_s {:.1} rad/s", t.omega_c_rad_s, t.omega_s_rad_s);
@@ -708,7 +939,8 @@ mod tests {
             let rs = ls / uniform(0.01, 0.2);
             let j = uniform(1e-4, 1e-1);
             let m = MotorParams::new(rs, rr, ls, lr, lm, 2, j, j * 0.01).unwrap();
-            let t = tune(Path::new("template.toml"), &template_for(&m), &m, None, CurrentDesign::Pi).unwrap();
+            let t =
+                tune(Path::new("template.toml"), &template_for(&m), &m, None, Structure::default()).unwrap();
             let mut c = Campaign {
                 spec: t.spec,
                 certify: t.certify,
@@ -753,7 +985,8 @@ mod tests {
     fn the_walkthrough_motor_tunes_on_its_template() {
         let template = include_str!("../../drives/em-synergy-24v.toml");
         let m = drive_file::motor::load("em-synergy-m800006").unwrap();
-        let t = tune(Path::new("drives/em-synergy-24v.toml"), template, &m, None, CurrentDesign::Pi).unwrap();
+        let t =
+            tune(Path::new("drives/em-synergy-24v.toml"), template, &m, None, Structure::default()).unwrap();
         assert!(t.checks.iter().all(|c| c.pass));
         let SpeedLaw::SaturatedP { kp, tau_max_nm } = t.spec.speed_law else { panic!() };
         assert_eq!(tau_max_nm, 0.12);
@@ -768,7 +1001,7 @@ mod tests {
         let iv = Intervals::parse(text).unwrap().unwrap();
         assert_eq!(iv.rs_ohm, Some([15.0, 17.0]));
         let m = drive_file::motor::parse(Path::new("m.toml"), text).unwrap();
-        let t = tune(Path::new("drive.toml"), TEMPLATE, &m, Some(&iv), CurrentDesign::Pi).unwrap();
+        let t = tune(Path::new("drive.toml"), TEMPLATE, &m, Some(&iv), Structure::default()).unwrap();
         assert!((t.certify.rs_factor[0] - 15.0 / 16.2).abs() < 1e-12, "{:?}", t.certify.rs_factor);
         assert_eq!(t.certify.j_factor[1], 0.011 / 0.005);
         assert!(Intervals::parse("[identification]\nrs_ohm = [2.0, 1.0]\n").is_err());
