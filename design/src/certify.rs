@@ -19,7 +19,8 @@
 //!   loop's spectral radius over 0…omega_r_max, and the phase, gain and γh margins at
 //!   omega_r_max against the same minima; the speed loop at the slow period with the
 //!   encoder's speed window and one slow period of torque delay, over a grid of J (and of
-//!   k_p over the writable range). A PWM rate too slow for the current law, or a speed gain
+//!   k_p over the writable range); and the position loop closed around it
+//!   ([`crate::sampled::SpeedLoop::position_matrix`]) over the same grid. A PWM rate too slow for the current law, or a speed gain
 //!   the sampled loop cannot take, fails here although the continuous checks pass.
 
 use crate::icad::{IcadReport, analyse, closed_loop_abscissa};
@@ -107,7 +108,8 @@ pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> 
         limit: 0.0,
         pass: robust,
     });
-    checks.push(sampled_speed_check(spec, c)?);
+    checks.push(sampled_speed_check(spec, c, None)?);
+    checks.push(sampled_speed_check(spec, c, Some(spec.position.k_per_s))?);
     Ok(checks)
 }
 
@@ -216,8 +218,9 @@ fn sampled_current_checks(
 /// range), log-spaced, ends included.
 pub const SPEED_GRID_POINTS: usize = 9;
 
-/// The sampled speed loop over the grid J × k_p ([`crate::sampled::SpeedLoop`]).
-fn sampled_speed_check(spec: &DriveSpec, c: &CertifySpec) -> Result<Check, String> {
+/// The sampled speed loop over the grid J × k_p ([`crate::sampled::SpeedLoop`]), or with
+/// `position` (its gain, 1/s) the position loop closed around it.
+fn sampled_speed_check(spec: &DriveSpec, c: &CertifySpec, position: Option<f64>) -> Result<Check, String> {
     let m = &spec.motor;
     let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
     let grid = |lo: f64, hi: f64| -> Vec<f64> {
@@ -260,15 +263,19 @@ fn sampled_speed_check(spec: &DriveSpec, c: &CertifySpec) -> Result<Check, Strin
             }
         };
         for (l, at) in loops {
-            let r = l.radius();
+            let r = position.map_or_else(|| l.radius(), |k| l.position_radius(k));
             if r > worst.0 || r.is_nan() {
                 worst = (r, at);
             }
         }
     }
     let sigma = worst.0.ln() / t_slow;
+    let what = match position {
+        None => "speed".to_string(),
+        Some(k) => format!("position (k = {k} 1/s)"),
+    };
     Ok(Check {
-        name: format!("sampled speed: worst closed-loop ln|z|/T_slow (1/s) (at {})", worst.1),
+        name: format!("sampled {what}: worst closed-loop ln|z|/T_slow (1/s) (at {})", worst.1),
         corner: match spec.speed_law {
             SpeedLaw::SaturatedP { .. } => format!(
                 "J×[{}, {}], kp∈[{}, {}]",
@@ -303,7 +310,7 @@ mod tests {
             );
         }
         assert!(checks.iter().all(|c| c.pass));
-        assert_eq!(checks.len(), 8 * 8 + 2);
+        assert_eq!(checks.len(), 8 * 8 + 3);
     }
 
     /// A speed range beyond the ICAD limit (645 rad/s on the nominal motor) must fail, and a
@@ -358,9 +365,15 @@ mod tests {
                 .replace("speed_kp_writable = [0.02, 0.1]", &format!("speed_kp_writable = [0.02, {hi}]"));
             let bad = failed(&text);
             assert_eq!(!bad.is_empty(), refused, "kp up to {hi}: {bad:?}");
+            // The speed check, and the position cascade closed around that speed loop.
             for ch in &bad {
-                assert!(ch.name.starts_with("sampled speed"), "{} failed too", ch.name);
+                assert!(
+                    ch.name.starts_with("sampled speed") || ch.name.starts_with("sampled position"),
+                    "{} failed too",
+                    ch.name
+                );
             }
+            assert_eq!(bad.iter().any(|ch| ch.name.starts_with("sampled speed")), refused);
         }
     }
 

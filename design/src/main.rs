@@ -233,10 +233,17 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit } => println!(
             "speed loop: PI kp {kp:.5} N·m·s/rad, ki {ki:.5} N·m/rad, limit {limit:.3} N·m — seed 000's regions, \
              bandwidth ≥ {:.1} rad/s on every inertia",
-            design::tune::speed_pi_bandwidth(t.omega_s_rad_s, &t.certify)
+            design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify)
         ),
         controller_core::speed::SpeedLaw::PiIq { .. } => {}
     }
+    println!(
+        "position loop: k {:.4} 1/s (the speed loop's {:.2} rad/s on the heaviest inertia / {}), ω_max {} rad/s",
+        t.spec.position.k_per_s,
+        design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify),
+        design::tune::POSITION_BELOW_SPEED,
+        t.spec.position.omega_max_rad_s
+    );
     let c = &t.certify;
     println!(
         "box: Rs×{:?} Rr×{:?} L×{:?} J×{:?}; writable kp {:?}; certified: {} checks pass",

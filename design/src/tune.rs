@@ -36,6 +36,11 @@
 //! — fails the nonlinear campaign's tracking at every corner: the loops then run at the
 //! current limit and the flux sags to 0.9 of its model.)
 //!
+//! **Position loop**: `k = ω_B/`[`POSITION_BELOW_SPEED`], ω_B the speed loop's bandwidth
+//! on the heaviest inertia ([`heaviest_speed_bandwidth`]): critically damped there; the
+//! certificate checks the sampled cascade. The speed limit `omega_max_rad_s` is the
+//! template's.
+//!
 //! **Box**: the template's factors, widened to hold the motor file's `[identification]`
 //! intervals (relative to its nominal values; L_s, L_r and L_m's widest together).
 
@@ -100,12 +105,18 @@ impl std::str::FromStr for SpeedDesign {
     }
 }
 
-/// The bandwidth the speed PI must reach on every inertia: the saturated-P loop's
-/// (crossover `omega_s_rad_s` on the nominal inertia) on the heaviest, `ω_s/j_factor_max`
-/// — as fast as the proportional loop, with integral action besides.
-pub fn speed_pi_bandwidth(omega_s_rad_s: f64, cert: &CertifySpec) -> f64 {
+/// The saturated-P speed loop's bandwidth (crossover `omega_s_rad_s` on the nominal
+/// inertia) on the heaviest inertia, `ω_s/j_factor_max`: what the speed PI must reach on
+/// every inertia (as fast as the proportional loop, with integral action besides), and
+/// what places the position loop ([`POSITION_BELOW_SPEED`]).
+pub fn heaviest_speed_bandwidth(omega_s_rad_s: f64, cert: &CertifySpec) -> f64 {
     omega_s_rad_s / cert.j_factor[1]
 }
+
+/// The position loop's gain is the speed loop's bandwidth on the heaviest inertia over
+/// this: the cascade `k·ω_B/(s(s + ω_B))` is then critically damped there
+/// (ζ = ½·√(ω_B/k) = 1), better damped on lighter inertias.
+pub const POSITION_BELOW_SPEED: f64 = 4.0;
 
 /// Points per axis of the speed PI's k_p–k_i grid ([`speed_pi`]).
 pub const SPEED_PI_GRID: usize = 81;
@@ -467,8 +478,9 @@ pub fn tune(
         omega_s *= SEARCH_RATIO;
     }
     let (omega_s, _) = speed.ok_or("no speed-loop gain passes the certificate")?;
+    spec.position.k_per_s = heaviest_speed_bandwidth(omega_s, &cert) / POSITION_BELOW_SPEED;
     if structure.speed == SpeedDesign::Pi {
-        let omega_b = speed_pi_bandwidth(omega_s, &cert);
+        let omega_b = heaviest_speed_bandwidth(omega_s, &cert);
         let js = [j * cert.j_factor[0], j * cert.j_factor[1]];
         let minima = [cert.phase_margin_deg_min, cert.gain_margin_db_min];
         let (kp, ki) = speed_pi(&SpeedRegions::new(js, motor.b_nms(), t_slow, minima)?, omega_b, kp_noise)?;
@@ -620,6 +632,10 @@ fn write(
         SpeedLaw::PiIq { .. } => return Err("internal: tune does not write an i_q speed law".into()),
     }
     controller.insert("speed".into(), Value::Table(speed));
+    let mut position = toml::Table::new();
+    position.insert("k_per_s".into(), Value::Float(spec.position.k_per_s));
+    position.insert("omega_max_rad_s".into(), Value::Float(spec.position.omega_max_rad_s));
+    controller.insert("position".into(), Value::Table(position));
     let c = t.get_mut("certify").and_then(Value::as_table_mut).ok_or("no [certify] table")?;
     let pair = |p: [f64; 2]| Value::Array(vec![Value::Float(p[0]), Value::Float(p[1])]);
     for (key, p) in [
@@ -639,7 +655,7 @@ fn write(
         }
         _ => format!(
             "PI speed loop farthest inside seed 000's\n# regions (bandwidth ≥ {:.1} rad/s on every inertia)",
-            speed_pi_bandwidth(omega_s, cert)
+            heaviest_speed_bandwidth(omega_s, cert)
         ),
     };
     let current = if law.lag.is_some() {
@@ -668,6 +684,11 @@ mod tests {
             let m = drive_file::motor::load(name).unwrap();
             let t = tune(Path::new("drive.toml"), TEMPLATE, &m, None, Structure::default()).unwrap();
             assert!(t.checks.iter().all(|c| c.pass), "{name}");
+            // The position loop: critically damped on the heaviest inertia, the sampled
+            // cascade among the checks.
+            let omega_b = t.omega_s_rad_s / t.certify.j_factor[1];
+            assert!((t.spec.position.k_per_s - omega_b / POSITION_BELOW_SPEED).abs() < 1e-12);
+            assert!(t.checks.iter().any(|c| c.name.starts_with("sampled position") && c.pass));
             assert!(
                 t.omega_c_rad_s > 1000.0 && t.omega_s_rad_s > 1.0,
                 "{name}: {} {}",
@@ -788,7 +809,7 @@ mod tests {
             [c.phase_margin_deg_min, c.gain_margin_db_min],
         )
         .unwrap();
-        let omega_b = speed_pi_bandwidth(t.omega_s_rad_s, c);
+        let omega_b = heaviest_speed_bandwidth(t.omega_s_rad_s, c);
         let kp_noise = ENCODER_NOISE_FRACTION * 2.0 / (std::f64::consts::TAU / 4096.0 / (8.0 * t_slow));
         println!("speed PI: kp {kp:.5}, ki {ki:.5}, ω_B {omega_b:.2} rad/s, kp limit {kp_noise:.5}");
         assert!(ki > 0.0 && kp <= kp_noise);

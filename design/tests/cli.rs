@@ -326,7 +326,7 @@ fn tune_writes_a_certified_drive_file_or_nothing() {
     let (code, stdout, err) =
         run(&["tune", "--motor", "delorenzo-perturbed", "--template", template, "--out", out_s]);
     assert_eq!(code, Some(0), "{err}");
-    assert!(stdout.contains("current loops: PI") && stdout.contains("certified: 66 checks pass"), "{stdout}");
+    assert!(stdout.contains("current loops: PI") && stdout.contains("certified: 67 checks pass"), "{stdout}");
     let (code, stdout, _) = run(&["certify", out_s]);
     assert_eq!(code, Some(0), "{stdout}");
     let refused = dir.join("refused.toml");
@@ -377,7 +377,7 @@ fn certificate_records_linear_and_nonlinear_results() {
     let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cert).unwrap()).unwrap();
     assert_eq!(c["certified"], true);
     assert_eq!(c["fingerprint"], fp.as_str());
-    assert_eq!(c["linear"]["checks"].as_array().unwrap().len(), 66);
+    assert_eq!(c["linear"]["checks"].as_array().unwrap().len(), 67);
     assert_eq!(c["nonlinear"]["passed"], 64);
     let failed = write("failed.json", summary(&fp, "0/1", &[3, 7]));
     let (code, _, err) = run(&["certify", drive, "--campaign", &failed]);
