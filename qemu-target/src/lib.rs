@@ -120,3 +120,50 @@ pub mod clock {
         }
     }
 }
+
+#[cfg(target_os = "none")]
+pub mod stack {
+    //! Stack depth of a call: paint the free stack below the caller's frame with a pattern,
+    //! make the call, find the deepest word it changed. The exception frame the hardware
+    //! pushes on an interrupt's entry ([`EXCEPTION_FRAME_FP_BYTES`]) is not part of it.
+
+    const PATTERN: u32 = 0xA5C3_5A3C;
+    /// Bytes painted below the painter's frame.
+    pub const PAINTED: usize = 16 * 1024;
+    /// What the Cortex-M4F pushes on entering an interrupt whose handler uses the FPU: the
+    /// basic frame (8 words) and the FP context (S0–S15, FPSCR, a reserved word): 26 words.
+    pub const EXCEPTION_FRAME_FP_BYTES: usize = 26 * 4;
+
+    /// The main stack pointer now.
+    #[inline(always)]
+    pub fn pointer() -> usize {
+        cortex_m::register::msp::read() as usize
+    }
+
+    /// Paint [`PAINTED`] bytes below this function's frame (64 bytes of it left alone);
+    /// returns the painted region's top.
+    #[inline(never)]
+    pub fn paint() -> usize {
+        let top = (pointer() - 64) & !3;
+        for a in (top - PAINTED..top).step_by(4) {
+            // SAFETY: the words lie below the stack pointer, in the stack's free space (the
+            // 4 MiB data SRAM of mps2-an386 holds nothing else there): no live frame or
+            // static is written. Volatile, so the writes are not elided.
+            unsafe { core::ptr::write_volatile(a as *mut u32, PATTERN) };
+        }
+        top
+    }
+
+    /// Bytes of stack below `sp` (the caller's stack pointer, read before the call) that the
+    /// calls since [`paint`] (which returned `top`) reached: `sp` less the deepest word no
+    /// longer the pattern. [`PAINTED`] or more: the calls went past the painted region.
+    pub fn depth_below(sp: usize, top: usize) -> usize {
+        for a in (top - PAINTED..top).step_by(4) {
+            // SAFETY: aligned reads of the painted region, below the stack pointer.
+            if unsafe { core::ptr::read_volatile(a as *const u32) } != PATTERN {
+                return sp - a;
+            }
+        }
+        0
+    }
+}

@@ -7,7 +7,8 @@
 //! The fast step is the firmware's interrupt body: ADC codes → amperes and volts
 //! (`AdcScaling`) → `Drive::fast_step` (supervisor, Clarke, IFOC with the field angle's
 //! sin/cos, two ICAD channels, SVPWM) → compare values (`PwmScaling`). The components are
-//! also measured alone to show what dominates. Output: `cost <name> <instructions>` lines.
+//! also measured alone to show what dominates. Output: `cost <name> <instructions>` lines,
+//! then the stack depth of `Drive::step` (`qemu_target::stack`: painted, then scanned).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -184,6 +185,15 @@ mod target {
             black_box([pwm.compare(d), pwm.compare(d * 0.5), pwm.compare(1.0 - d)]);
         });
 
+        // Stack depth of the firmware's interrupt body, `Drive::step` (the fast step, and
+        // every slow_divider-th period the slow step): 20 periods from a painted stack.
+        let sp = qemu_target::stack::pointer();
+        let top = qemu_target::stack::paint();
+        for k in 0..20 {
+            black_box(drive.step(&measure(black_box(input(k)), k)));
+        }
+        let stack = qemu_target::stack::depth_below(sp, top);
+
         println!("cost fast_step {:.1}", fast);
         println!("cost slow_step {:.1}", slow);
         println!("cost part:adc_scaling_4ch {:.1}", adc);
@@ -196,6 +206,12 @@ mod target {
         println!("cost part:envelope_operating_point {:.1}", operating_point);
         println!("cost part:envelope_i_q_max_at_flux {:.1}", i_q_at_flux);
         println!("cost part:dead_time_compensation {:.1}", dead_time);
+        println!("stack drive_step_bytes {stack}");
+        println!(
+            "stack interrupt_bytes {} (with the {} B exception frame)",
+            stack + qemu_target::stack::EXCEPTION_FRAME_FP_BYTES,
+            qemu_target::stack::EXCEPTION_FRAME_FP_BYTES
+        );
         sh::exit(running)
     }
 }
