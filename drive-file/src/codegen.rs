@@ -165,7 +165,7 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
         s,
         "\n/// Timer clock of TIM1, Hz.\n\
          pub const TIM_CLOCK_HZ: u32 = {};\n\
-         /// Centre-aligned PWM: ARR = f_tim/(2·f_pwm) − 1.\n\
+         /// Centre-aligned PWM (0 → ARR → 0, 2·ARR ticks a period): ARR = f_tim/(2·f_pwm).\n\
          pub const PWM_PERIOD_COUNTS: u16 = {};\n\
          /// Dead time, timer ticks ({:?} s).\n\
          pub const DEAD_TIME_TICKS: u16 = {};\n\
