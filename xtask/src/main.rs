@@ -9,7 +9,8 @@
 //!   of its own), its build for the Cortex-M4F, the control-law self-tests as `defmt-test`
 //!   tests on QEMU `mps2-an386` and `lm3s6965evb` (`cargo test --target …` in `qemu-target`,
 //!   runner in `qemu-target/.cargo/config.toml`), the instruction-count benchmark
-//!   (`-icount shift=0`), and the processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
+//!   (`-icount shift=0`) at opt-level 3 and as the firmware ships (its profile), and the
+//!   processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu`, `fuzz` — single
 //!   steps; `modules` — no import cycle between the top-level modules of any crate (part of
@@ -152,6 +153,23 @@ const Q_COST: Step = Step::qemu(
         "qemu-target/target/thumbv7em-none-eabihf/release/cost",
     ],
 );
+const Q_BUILD_M4_FW: Step = Step::in_qemu_target(
+    "qemu-target build (M4F, the firmware's profile)",
+    &["build", "--target", THUMB, "--profile", "firmware", "--bin", "cost"],
+);
+const Q_COST_FW: Step = Step::qemu(
+    "instructions per step as the firmware ships (profile firmware: opt-level z, fat LTO, controller-core at 3)",
+    &[
+        "-cpu",
+        "cortex-m4",
+        "-machine",
+        "mps2-an386",
+        "-icount",
+        "shift=0",
+        "-kernel",
+        "qemu-target/target/thumbv7em-none-eabihf/firmware/cost",
+    ],
+);
 const PIL: Step = Step::cargo(
     "processor in the loop (hil-sim/tests/pil.rs)",
     &["test", "--release", "--package", "hil-sim", "--test", "pil", "--", "--ignored", "--nocapture"],
@@ -165,7 +183,8 @@ const FUZZ: Step = Step {
     // cargo fuzz passes nightly-only flags (sanitizer, coverage) to the stable compiler.
     env: &[("RUSTC_BOOTSTRAP", "1")],
 };
-const QEMU_STEPS: [&Step; 7] = [&Q_FMT, &Q_CLIPPY, &Q_BUILD_M4, &Q_TESTS_M4, &Q_TESTS_M3, &Q_COST, &PIL];
+const QEMU_STEPS: [&Step; 9] =
+    [&Q_FMT, &Q_CLIPPY, &Q_BUILD_M4, &Q_TESTS_M4, &Q_TESTS_M3, &Q_COST, &Q_BUILD_M4_FW, &Q_COST_FW, &PIL];
 
 /// Test totals summed over every `test result:` line cargo printed.
 #[derive(Default)]
