@@ -1372,7 +1372,6 @@ impl Drive {
     }
 
     /// One PWM period: the slow step on every N-th call, then the fast step.
-    #[inline]
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
         if self.steps_to_slow == 0 {
             self.slow_step(m);
@@ -1767,7 +1766,6 @@ impl Drive {
     }
 
     /// Current loop. See the module docs for the signal flow.
-    #[inline]
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
         if !self.measurements_ok(m) {
             self.trip_on(m);
