@@ -500,8 +500,8 @@ mod target {
     #[panic_handler]
     fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
         stop_for_good(cortex_m::interrupt::disable, &mut Tim1);
-        // File and line only: formatting the message would link core::fmt (≈ 10 KiB). With
-        // interrupts masked, defmt-rtt does not wait for the probe.
+        // File and line only: formatting the message would link core::fmt (≈ 10 KiB).
+        // defmt-rtt never waits for the probe (`disable-blocking-mode`).
         match info.location() {
             Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
             None => defmt::error!("panic"),
