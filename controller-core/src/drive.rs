@@ -1694,6 +1694,17 @@ impl Drive {
         }
     }
 
+    /// The fast step's supervisor and brake chopper alone, for a period in which the
+    /// firmware holds the bridge itself (the bootstrap pre-charge, all low sides on): a
+    /// failing check latches its fault as in [`Drive::fast_step`]; the control state does not
+    /// move. Returns the brake chopper's switch.
+    pub fn supervise_only(&mut self, m: &Measurements) -> bool {
+        if !self.measurements_ok(m) {
+            self.trip_on(m);
+        }
+        self.brake_chopper(m.vdc_v)
+    }
+
     /// Latch fault `f` (the first fault stays latched): phases off from the next fast step
     /// on. The supervisor calls it; the firmware calls it for faults only it can see.
     pub fn trip(&mut self, f: Fault) {

@@ -43,6 +43,10 @@ pub struct BoardTable {
     /// `{ trip_a, filter_s }` — what the simulator models (`hil_sim::bridge_fault`); the
     /// firmware only sees its break.
     pub comparator: Option<ComparatorTable>,
+    /// How long the firmware holds all three low sides on before the bridge's first period
+    /// after it was off, charging the high-side gate drivers' bootstrap capacitors, s
+    /// (default [`DEFAULT_BOOTSTRAP_PRECHARGE_S`]; 0: none, for isolated gate supplies).
+    pub bootstrap_precharge_s: Option<f64>,
 }
 
 /// `[board] comparator = { trip_a = 12.0, filter_s = 1e-6 }`.
@@ -73,6 +77,13 @@ pub const DEFAULT_OFFSET_ERROR_FRACTION: f64 = 0.05;
 /// Default noise limit, counts RMS: a healthy 12-bit shunt channel shows one to three counts
 /// with the bridge off; eight is a floating input or switching noise coupled in.
 pub const DEFAULT_NOISE_MAX_COUNTS: f64 = 8.0;
+
+/// Default bootstrap pre-charge, s: five time constants of a 1 µF bootstrap capacitor
+/// charged through 400 Ω — a placeholder for the gate driver's datasheet values.
+pub const DEFAULT_BOOTSTRAP_PRECHARGE_S: f64 = 2e-3;
+
+/// The longest bootstrap pre-charge accepted, s.
+pub const BOOTSTRAP_PRECHARGE_MAX_S: f64 = 0.1;
 
 /// The encoder's input filter may last at most this fraction of the shortest interval
 /// between two quadrature edges at the overspeed level.
@@ -130,6 +141,8 @@ pub struct Board {
     /// Offset calibration limits (defaults applied), counts: largest zero error, largest
     /// RMS noise.
     pub calibration_limits_counts: (f64, f64),
+    /// The bootstrap pre-charge in PWM periods (default applied).
+    pub bootstrap_precharge_periods: u16,
 }
 
 impl BoardTable {
@@ -217,11 +230,20 @@ impl BoardTable {
                 "must lie in [0.02, 3600] s (the link task wakes every 10 ms)",
             )?;
         }
+        let precharge = self.bootstrap_precharge_s.unwrap_or(DEFAULT_BOOTSTRAP_PRECHARGE_S);
+        src.check(
+            precharge.is_finite() && (0.0..=BOOTSTRAP_PRECHARGE_MAX_S).contains(&precharge),
+            "board.bootstrap_precharge_s",
+            &format!("must lie in [0, {BOOTSTRAP_PRECHARGE_MAX_S}] s"),
+        )?;
         Ok(Board {
             table: *self,
             pwm_period_counts: arr.round() as u16,
             dead_time_ticks: ticks.round() as u16,
             calibration_limits_counts: (offset_max, noise_max),
+            // Saturates at 65 535 periods (0.1 s only above a 655 kHz PWM).
+            bootstrap_precharge_periods: (precharge * spec.pwm_frequency_hz).round().min(f64::from(u16::MAX))
+                as u16,
         })
     }
 }

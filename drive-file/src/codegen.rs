@@ -179,6 +179,7 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
          \x20   encoder_lines: {},\n\
          \x20   current_offset_max_error_counts: {:?},\n\
          \x20   current_noise_max_counts: {:?},\n\
+         \x20   bootstrap_precharge_periods: {},\n\
          }};\n\
          /// Saturated-P speed gain accepted over the link, N·m per rad/s (`[certify]`).\n\
          pub const SPEED_KP: (f32, f32) = ({:?}, {:?});\n\
@@ -201,6 +202,7 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
         t.encoder_lines,
         b.calibration_limits_counts.0 as f32,
         b.calibration_limits_counts.1 as f32,
+        b.bootstrap_precharge_periods,
         kp_lo as f32,
         kp_hi as f32,
         tau_lo as f32,

@@ -167,6 +167,9 @@ mod tests {
         // Configured gain outside the writable range.
         let e = err(&replace("speed_kp_writable = [0.02, 0.1]", "speed_kp_writable = [0.06, 0.1]"));
         assert_eq!(e.key.as_deref(), Some("certify.speed_kp_writable"), "{e}");
+        // A bootstrap pre-charge that would hold the low sides on for minutes.
+        let e = err(&replace("bootstrap_precharge_s = 2e-3", "bootstrap_precharge_s = 60.0"));
+        assert_eq!(e.key.as_deref(), Some("board.bootstrap_precharge_s"), "{e}");
         // Trip level below the current limit.
         let e = err(&replace("i_trip_a = 8.0", "i_trip_a = 3.0"));
         assert_eq!((e.key.as_deref(), e.at), (Some("protection.i_trip_a"), Some(pos(s, "8.0"))), "{e}");

@@ -31,6 +31,9 @@ mod tests {
         assert_eq!(BOARD.vdc_v_per_count, b.table.vdc_v_per_count as f32);
         assert_eq!(BOARD.current_offset_counts, b.table.current_offset_counts);
         assert_eq!(BOARD.encoder_lines, b.table.encoder_lines);
+        // The default bootstrap pre-charge, 2 ms, at 20 kHz.
+        assert_eq!(BOARD.bootstrap_precharge_periods, b.bootstrap_precharge_periods);
+        assert_eq!(BOARD.bootstrap_precharge_periods, 40);
         assert_eq!(
             (PWM_PERIOD_COUNTS, DEAD_TIME_TICKS, TIM_CLOCK_HZ),
             (b.pwm_period_counts, b.dead_time_ticks, b.table.tim_clock_hz)

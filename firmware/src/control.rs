@@ -87,6 +87,9 @@ pub struct BoardConfig {
     pub current_offset_max_error_counts: f32,
     /// … and the largest RMS noise of a channel with the bridge off, counts.
     pub current_noise_max_counts: f32,
+    /// PWM periods with all low sides on before the bridge's first period after it was off
+    /// (the bootstrap pre-charge, `[board] bootstrap_precharge_s`; 0: none).
+    pub bootstrap_precharge_periods: u16,
 }
 
 /// Why the control loop could not be built.
@@ -189,6 +192,10 @@ pub struct ControlLoop {
     divider: u16,
     count: u16,
     last: Option<FastOutput>,
+    /// The last period's bridge output was not `Off`.
+    bridge_on: bool,
+    /// Pre-charge periods left (0: none under way).
+    precharge_left: u16,
     /// A commissioning sequence in the drive's place, and its last output.
     #[cfg(feature = "commissioning")]
     commission: Option<(Commissioning, Option<CommissionOutput>)>,
@@ -269,6 +276,8 @@ impl ControlLoop {
             divider,
             count: 0,
             last: None,
+            bridge_on: false,
+            precharge_left: 0,
             #[cfg(feature = "commissioning")]
             commission: None,
         })
@@ -382,6 +391,71 @@ impl ControlLoop {
         if s.hardware_break {
             self.drive.trip(Fault::HardwareBreak);
         }
+        let bridge = match self.precharge(s) {
+            Some(b) => b,
+            None => self.control(s),
+        };
+        self.bridge_on = bridge != Bridge::Off;
+        bridge
+    }
+
+    /// The bootstrap pre-charge: a drive that asks for the bridge (enabled from the link)
+    /// while the bridge was off first gets `bootstrap_precharge_periods` with all three low
+    /// sides on (compare 0: the zero vector, no voltage on the motor), so that the high-side
+    /// gate drivers' bootstrap capacitors are charged before its first period. Meanwhile the
+    /// drive's supervisor runs on every sample ([`Drive::supervise_only`]: a fault ends the
+    /// pre-charge with the bridge off) and nothing else of it moves — neither its control
+    /// state nor its slow cadence (the encoder is not read either), so its first period
+    /// afterwards is the one it would have had without. A disable meanwhile ends it. Not
+    /// for a commissioning sequence (its own first stages run with the bridge off).
+    fn precharge(&mut self, s: &Samples) -> Option<Bridge> {
+        let wants_bridge = matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running);
+        if !wants_bridge {
+            self.precharge_left = 0;
+            return None;
+        }
+        if self.bridge_on && self.precharge_left == 0 {
+            return None; // running: the common case
+        }
+        if matches!(self.calibration, Calibration::Running(_)) {
+            return None; // the calibration undoes the enable
+        }
+        if !self.bridge_on {
+            self.precharge_left = self.board.bootstrap_precharge_periods;
+        }
+        if self.precharge_left == 0 {
+            return None;
+        }
+        self.precharge_left -= 1;
+        let m = self.measurements(s);
+        let brake = self.drive.supervise_only(&m);
+        if let Some(o) = self.last.as_mut() {
+            o.brake = brake;
+            o.mode = self.drive.mode();
+        }
+        if matches!(self.drive.mode(), Mode::Fault(_)) {
+            self.precharge_left = 0;
+            return Some(Bridge::Off);
+        }
+        let low = self.pwm.compare(0.0);
+        Some(Bridge::Compare([low; 3]))
+    }
+
+    /// The samples in SI units, with the encoder's last reading.
+    #[inline]
+    fn measurements(&self, s: &Samples) -> Measurements {
+        let [a, b, c] = s.i_abc;
+        let [sa, sb, sc] = &self.current;
+        Measurements {
+            i_abc_a: Abc { a: sa.to_f32(AdcCode(a)), b: sb.to_f32(AdcCode(b)), c: sc.to_f32(AdcCode(c)) },
+            vdc_v: self.vdc.to_f32(AdcCode(s.vdc)),
+            omega_m_rad_s: self.omega_m_rad_s,
+            theta_m_rad: self.theta_m_rad,
+        }
+    }
+
+    /// The control step proper: encoder, calibration, drive (or commissioning) → bridge.
+    fn control(&mut self, s: &Samples) -> Bridge {
         if self.count == 0 {
             self.read_encoder(s.encoder);
         }
@@ -390,14 +464,7 @@ impl ControlLoop {
         if calibrating {
             self.calibrate(s.i_abc);
         }
-        let [a, b, c] = s.i_abc;
-        let [sa, sb, sc] = &self.current;
-        let m = Measurements {
-            i_abc_a: Abc { a: sa.to_f32(AdcCode(a)), b: sb.to_f32(AdcCode(b)), c: sc.to_f32(AdcCode(c)) },
-            vdc_v: self.vdc.to_f32(AdcCode(s.vdc)),
-            omega_m_rad_s: self.omega_m_rad_s,
-            theta_m_rad: self.theta_m_rad,
-        };
+        let m = self.measurements(s);
         let out = self.drive.step(&m);
         self.last = Some(out);
         #[cfg(feature = "commissioning")]
@@ -448,6 +515,16 @@ mod tests {
             encoder_lines: 1024,
             current_offset_max_error_counts: 204.75,
             current_noise_max_counts: 8.0,
+            bootstrap_precharge_periods: 40,
+        }
+    }
+
+    /// Enable, then the bootstrap pre-charge on samples at rest: all low sides on (compare
+    /// 0), for exactly the board's periods.
+    fn enable_through_precharge(c: &mut ControlLoop) {
+        c.drive_mut().enable().unwrap();
+        for k in 0..c.board.bootstrap_precharge_periods {
+            assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]), "pre-charge period {k}");
         }
     }
 
@@ -461,7 +538,7 @@ mod tests {
         c.calibrate_at_rest();
         // Idle: bridge off whatever the inputs.
         assert_eq!(c.step(&at_rest(0)), Bridge::Off);
-        c.drive_mut().enable().unwrap();
+        enable_through_precharge(&mut c);
         // Zero current at the offset code, 310 V: magnetizing starts (with the flux command
         // of the next slow step: within one slow period). Min–max SVPWM centres the three
         // compare values on half the period.
@@ -485,6 +562,56 @@ mod tests {
         let s = Samples { i_abc: [2048 + 1241, 2048 - 620, 2048 - 621], ..at_rest(0) };
         assert_eq!(c.step(&s), Bridge::Off);
         assert_eq!(c.drive().mode(), Mode::Fault(Fault::Overcurrent));
+    }
+
+    /// The bootstrap pre-charge leaves the drive exactly where an enable without it would:
+    /// after it, each period's compare values equal those of a loop with no pre-charge,
+    /// period for period (the drive was not stepped, its slow cadence did not move).
+    #[test]
+    fn the_precharge_does_not_disturb_the_drive() {
+        let mut with = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let mut without =
+            ControlLoop::new(&DRIVE_CONFIG, &BoardConfig { bootstrap_precharge_periods: 0, ..board() })
+                .unwrap();
+        for c in [&mut with, &mut without] {
+            c.calibrate_at_rest();
+        }
+        enable_through_precharge(&mut with);
+        without.drive_mut().enable().unwrap();
+        let mut switching = 0;
+        for k in 0..200u16 {
+            // A current that moves, so that the loops' outputs move too (it does not follow
+            // the references: the open-phase check ends the run, in both alike).
+            let s = Samples { i_abc: [2048 + k % 50, 2048 - k % 50, 2048], ..at_rest(k / 10) };
+            let (a, b) = (with.step(&s), without.step(&s));
+            assert_eq!(a, b, "period {k}");
+            switching += usize::from(matches!(a, Bridge::Compare(_)));
+        }
+        assert!(switching > 150, "{switching}");
+        assert_eq!(with.drive().mode(), without.drive().mode());
+    }
+
+    /// A fault during the pre-charge ends it with the bridge off (the supervisor runs on
+    /// every sample); a disable ends it too; the next enable pre-charges again.
+    #[test]
+    fn the_precharge_ends_on_a_fault_or_a_disable() {
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        c.calibrate_at_rest();
+        c.drive_mut().enable().unwrap();
+        assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]));
+        // +10 A on phase a, above the 8 A trip level.
+        let s = Samples { i_abc: [2048 + 1241, 2048 - 620, 2048 - 621], ..at_rest(0) };
+        assert_eq!(c.step(&s), Bridge::Off);
+        assert_eq!(c.drive().mode(), Mode::Fault(Fault::Overcurrent));
+        assert_eq!(c.step(&at_rest(0)), Bridge::Off);
+        c.drive_mut().clear_fault();
+        c.drive_mut().enable().unwrap();
+        assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]));
+        c.drive_mut().disable();
+        assert_eq!(c.step(&at_rest(0)), Bridge::Off);
+        // A fresh enable: the whole pre-charge again.
+        enable_through_precharge(&mut c);
+        assert!(matches!(c.step(&at_rest(0)), Bridge::Compare(ccr) if ccr != [0; 3]));
     }
 
     #[test]
@@ -511,7 +638,7 @@ mod tests {
     #[test]
     fn encoder_jump_is_encoder_loss_and_wrap_is_not() {
         let mut c = ControlLoop::at_rest_for_tests();
-        c.drive_mut().enable().unwrap();
+        enable_through_precharge(&mut c);
         c.drive_mut().set_reference(Reference::Speed(0.0)).unwrap();
         let div = u32::from(drive_spec().unwrap().slow_divider);
         // Counter running backwards through the 16-bit wrap, speeding up by one count per read
