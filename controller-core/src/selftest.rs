@@ -307,6 +307,11 @@ pub fn link_rejects_corruption(spec: &DriveSpec) -> Check {
         frames_ok: 3,
         frame_errors: 4,
         timing: link::LoopTiming::default(),
+        readings: link::BoardReadings {
+            i_abc_counts: [2048, 2047, 2049],
+            vdc_counts: 3100,
+            encoder_counts: 9,
+        },
     };
     let mut p = [0u8; MAX_FRAME];
     if !matches!(r.encode(&mut p).map(|k| Reply::decode(p.get(..k).unwrap_or(&[]))), Ok(Ok(x)) if x == r) {

@@ -36,6 +36,7 @@ use controller_core::drive::{
 };
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
+use controller_core::link::BoardReadings;
 use controller_core::raw::RawDriveConfig;
 use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling, ScalingError};
 
@@ -196,6 +197,8 @@ pub struct ControlLoop {
     bridge_on: bool,
     /// Pre-charge periods left (0: none under way).
     precharge_left: u16,
+    /// The last period's samples, raw (the link's status reports them).
+    readings: BoardReadings,
     /// A commissioning sequence in the drive's place, and its last output.
     #[cfg(feature = "commissioning")]
     commission: Option<(Commissioning, Option<CommissionOutput>)>,
@@ -278,6 +281,7 @@ impl ControlLoop {
             last: None,
             bridge_on: false,
             precharge_left: 0,
+            readings: BoardReadings::default(),
             #[cfg(feature = "commissioning")]
             commission: None,
         })
@@ -302,6 +306,11 @@ impl ControlLoop {
     /// The drive, for commands from the link.
     pub fn drive_mut(&mut self) -> &mut Drive {
         &mut self.drive
+    }
+
+    /// The last period's raw samples.
+    pub fn readings(&self) -> BoardReadings {
+        self.readings
     }
 
     /// Where the offset calibration stands.
@@ -388,6 +397,7 @@ impl ControlLoop {
 
     /// One PWM period: the control interrupt.
     pub fn step(&mut self, s: &Samples) -> Bridge {
+        self.readings = BoardReadings { i_abc_counts: s.i_abc, vdc_counts: s.vdc, encoder_counts: s.encoder };
         if s.hardware_break {
             self.drive.trip(Fault::HardwareBreak);
         }

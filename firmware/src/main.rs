@@ -455,8 +455,8 @@ mod target {
                 });
                 // The status carries the interrupt's timing (the link module cannot see it).
                 let reply = reply.map(|r| match r {
-                    Reply::Status { mode, frames_ok, frame_errors, .. } => {
-                        Reply::Status { mode, frames_ok, frame_errors, timing: LOOP_TIMER.read() }
+                    Reply::Status { mode, frames_ok, frame_errors, readings, .. } => {
+                        Reply::Status { mode, frames_ok, frame_errors, timing: LOOP_TIMER.read(), readings }
                     }
                     other => other,
                 });

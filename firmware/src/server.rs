@@ -134,7 +134,13 @@ pub fn handle(ctl: &mut ControlLoop, cmd: &Command, stats: &LinkStats) -> Reply 
             None => Reply::Nack(NackReason::Unsupported),
         },
         Command::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
-        other => link::execute(ctl.drive_mut(), other, stats),
+        other => match link::execute(ctl.drive_mut(), other, stats) {
+            // The board's raw readings (the timing is filled in by the interrupt's owner).
+            Reply::Status { mode, frames_ok, frame_errors, timing, .. } => {
+                Reply::Status { mode, frames_ok, frame_errors, timing, readings: ctl.readings() }
+            }
+            r => r,
+        },
     }
 }
 
@@ -189,7 +195,13 @@ mod tests {
                 mode: Mode::Magnetizing,
                 frames_ok: 5,
                 frame_errors: 2,
-                timing: Default::default()
+                timing: Default::default(),
+                // The calibration's last sample: codes at the nominal zero, 310 V, encoder 0.
+                readings: link::BoardReadings {
+                    i_abc_counts: [2048; 3],
+                    vdc_counts: 3100,
+                    encoder_counts: 0
+                },
             }
         );
         assert_eq!(handle(&mut c, &Command::Disable, &stats), Reply::Ack);

@@ -40,12 +40,13 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
         Command::SetReference(r) => command_result(drive.set_reference(*r)),
         Command::Step(m) => Reply::Output(drive.step(m)),
         Command::GetStatus => {
-            // The timing is the board's to fill in (firmware `server`).
+            // The timing and readings are the board's to fill in (firmware `server`).
             Reply::Status {
                 mode: drive.mode(),
                 frames_ok: stats.frames_ok,
                 frame_errors: stats.errors(),
                 timing: super::schema::LoopTiming::default(),
+                readings: super::schema::BoardReadings::default(),
             }
         }
         // Gains live in the specification, which the board keeps (firmware `server`).

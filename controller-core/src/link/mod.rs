@@ -34,8 +34,8 @@ pub use framing::{
 };
 pub use receive::LinkStats;
 pub use schema::{
-    BoardCommand, Command, DecodeError, LoopTiming, NackReason, RECORD_CHUNK_BYTES, RECORD_CHUNKS, Reply,
-    command_frame, record_chunk, reply_frame,
+    BoardCommand, BoardReadings, Command, DecodeError, LoopTiming, NackReason, RECORD_CHUNK_BYTES,
+    RECORD_CHUNKS, Reply, command_frame, record_chunk, reply_frame,
 };
 
 #[cfg(test)]

@@ -238,7 +238,21 @@ pub enum Reply {
         frame_errors: u32,
         /// The control interrupt's timing (zero where it is not measured: PIL).
         timing: LoopTiming,
+        /// The board's raw readings of the last control period (zero without a board).
+        readings: BoardReadings,
     },
+}
+
+/// The board's raw readings at the last control period, before any scaling: what bring-up
+/// checks against the drive file's scalings (docs/firmware.md's checklist).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BoardReadings {
+    /// Phase-current ADC codes a, b, c.
+    pub i_abc_counts: [u16; 3],
+    /// DC-bus ADC code.
+    pub vdc_counts: u16,
+    /// Quadrature counter (the encoder timer's count).
+    pub encoder_counts: u16,
 }
 
 /// The control interrupt's timing on a board (DWT cycle counter): the longest step seen and
@@ -864,13 +878,17 @@ impl Reply {
                 w.u8(*chunk)?;
                 w.bytes(bytes)?;
             }
-            Reply::Status { mode, frames_ok, frame_errors, timing } => {
+            Reply::Status { mode, frames_ok, frame_errors, timing, readings } => {
                 w.u8(tag::STATUS)?;
                 w.u8(mode_code(*mode))?;
                 w.bytes(&frames_ok.to_le_bytes())?;
                 w.bytes(&frame_errors.to_le_bytes())?;
                 w.u32(timing.cycles_max)?;
                 w.u32(timing.overruns)?;
+                let [a, b, c] = readings.i_abc_counts;
+                for x in [a, b, c, readings.vdc_counts, readings.encoder_counts] {
+                    w.bytes(&x.to_le_bytes())?;
+                }
             }
         }
         Ok(w.n)
@@ -930,6 +948,10 @@ impl Reply {
                 frames_ok: u32::from_le_bytes(r.take()?),
                 frame_errors: u32::from_le_bytes(r.take()?),
                 timing: LoopTiming { cycles_max: r.u32()?, overruns: r.u32()? },
+                readings: {
+                    let mut u = || r.take().map(u16::from_le_bytes);
+                    BoardReadings { i_abc_counts: [u()?, u()?, u()?], vdc_counts: u()?, encoder_counts: u()? }
+                },
             },
             other => return Err(DecodeError::UnknownType(other)),
         };

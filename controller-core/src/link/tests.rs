@@ -133,6 +133,11 @@ fn replies_round_trip_bit_exact() {
             frames_ok: 7,
             frame_errors: u32::MAX,
             timing: super::LoopTiming { cycles_max: 1234, overruns: 2 },
+            readings: super::BoardReadings {
+                i_abc_counts: [2048, 1, u16::MAX],
+                vdc_counts: 3100,
+                encoder_counts: 7,
+            },
         },
         Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 },
         Reply::Nack(NackReason::OutOfCertifiedRange),
