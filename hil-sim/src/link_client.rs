@@ -113,9 +113,81 @@ impl<R: Read, W: Write> LinkClient<R, W> {
     }
 }
 
+/// A board's `Status` for a person at the bench: mode, link counters, the control step's
+/// longest time against the PWM period, and the raw readings scaled with the drive file's
+/// `[board]` (the firmware's own scalings, before its offset calibration).
+pub fn format_status(r: &Reply, file: &drive_file::DriveFile) -> Option<String> {
+    let Reply::Status { mode, frames_ok, frame_errors, timing, readings } = r else { return None };
+    let mut s =
+        format!("mode          {mode:?}\nframes        {frames_ok} accepted, {frame_errors} rejected\n");
+    let f_pwm = file.spec.pwm_frequency_hz;
+    match &file.board {
+        Some(b) => {
+            let t = &b.table;
+            let f_cpu = f64::from(t.tim_clock_hz);
+            s += &format!(
+                "control step  longest {} cycles = {:.1} µs of the {:.1} µs period, {} overruns\n",
+                timing.cycles_max,
+                f64::from(timing.cycles_max) / f_cpu * 1e6,
+                1e6 / f_pwm,
+                timing.overruns
+            );
+            let amps = |c: u16| (f64::from(c) - f64::from(t.current_offset_counts)) * t.current_a_per_count;
+            let [a, bb, c] = readings.i_abc_counts;
+            s += &format!(
+                "currents      {a} {bb} {c} counts (zero {}): {:+.3} {:+.3} {:+.3} A\n",
+                t.current_offset_counts,
+                amps(a),
+                amps(bb),
+                amps(c)
+            );
+            s += &format!(
+                "bus           {} counts: {:.1} V\n",
+                readings.vdc_counts,
+                f64::from(readings.vdc_counts) * t.vdc_v_per_count
+            );
+            s += &format!(
+                "encoder       {} counts ({} per revolution)\n",
+                readings.encoder_counts,
+                4 * u64::from(t.encoder_lines)
+            );
+        }
+        None => {
+            s += &format!(
+                "control step  longest {} cycles, {} overruns\nreadings      {readings:?} (no [board] to scale them)\n",
+                timing.cycles_max, timing.overruns
+            );
+        }
+    }
+    Some(s)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shipped board's scalings: the calibration's zero reads 0 A, 3 100 counts 310 V, a
+    /// 3 400-cycle step 20.0 µs of the 50 µs period.
+    #[test]
+    fn status_reads_in_units() {
+        let file = drive_file::DriveFile::shipped().unwrap();
+        let r = Reply::Status {
+            mode: controller_core::drive::Mode::Idle,
+            frames_ok: 3,
+            frame_errors: 1,
+            timing: controller_core::link::LoopTiming { cycles_max: 3400, overruns: 0 },
+            readings: controller_core::link::BoardReadings {
+                i_abc_counts: [2048, 2048 + 124, 2048 - 124],
+                vdc_counts: 3100,
+                encoder_counts: 4096,
+            },
+        };
+        let s = format_status(&r, &file).unwrap();
+        assert!(s.contains("20.0 µs of the 50.0 µs period"), "{s}");
+        assert!(s.contains("+0.000 +0.999 -0.999 A"), "{s}");
+        assert!(s.contains("310.0 V") && s.contains("4096 per revolution"), "{s}");
+        assert_eq!(format_status(&Reply::Ack, &file), None);
+    }
     use controller_core::drive::{FastOutput, Mode, PhaseCommand, Telemetry};
 
     fn frames(replies: &[Reply]) -> Vec<u8> {

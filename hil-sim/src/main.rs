@@ -715,8 +715,13 @@ enum LinkCmd {
     Stop,
     /// Clear a latched fault.
     ClearFault,
-    /// Mode and link counters.
-    Status,
+    /// Mode, link counters, the control step's longest time and the board's raw readings,
+    /// scaled with the drive file the firmware was built from.
+    Status {
+        /// The firmware's drive file (its `[board]` scalings).
+        #[arg(long, default_value = "drive.toml")]
+        drive: PathBuf,
+    },
     /// Speed reference, rad/s.
     Speed { value: f32 },
     /// Position reference, rad.
@@ -1177,7 +1182,7 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
         LinkCmd::Disable => Some(Command::Disable),
         LinkCmd::Stop => Some(Command::Stop),
         LinkCmd::ClearFault => Some(Command::ClearFault),
-        LinkCmd::Status => Some(Command::GetStatus),
+        LinkCmd::Status { .. } => Some(Command::GetStatus),
         LinkCmd::Speed { value } => Some(Command::SetReference(Reference::Speed(value))),
         LinkCmd::Position { value } => Some(Command::SetReference(Reference::Position(value))),
         LinkCmd::Torque { value } => Some(Command::SetReference(Reference::Torque(value))),
@@ -1196,6 +1201,14 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
     let mut link = hil_sim::link_client::LinkClient::new(rx, port).with_reply_timeout(timeout);
     match (cmd, command) {
         (None, LinkCmd::Identify(args)) => link_identify(&mut link, &args)?,
+        (Some(c), LinkCmd::Status { drive }) => {
+            let file = drive_file::DriveFile::load(&drive).map_err(|e| e.to_string())?;
+            let r = link.transact(&c)?;
+            match hil_sim::link_client::format_status(&r, &file) {
+                Some(text) => print!("{text}"),
+                None => println!("{r:?}"),
+            }
+        }
         (Some(c), _) => println!("{:?}", link.transact(&c)?),
         (None, LinkCmd::Telemetry { n }) => {
             // Each status request keeps the board's link watchdog (`[board] link_timeout_s`)
