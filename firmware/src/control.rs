@@ -204,6 +204,24 @@ pub struct ControlLoop {
     commission: Option<(Commissioning, Option<CommissionOutput>)>,
 }
 
+/// What the link task needs from the control interrupt, published after every step through
+/// a [`crate::boundary::TripleBuffer`] (no critical section): the last output, the offset
+/// calibration's state, and whether the bridge is on (the link watchdog's concern).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Snapshot {
+    /// The last step's output (telemetry).
+    pub output: Option<FastOutput>,
+    /// The offset calibration (`None` before the first step).
+    pub calibration: Option<Calibration>,
+    /// The drive (or a commissioning sequence) has the bridge.
+    pub bridge_on: bool,
+}
+
+impl Snapshot {
+    /// Before the first step.
+    pub const EMPTY: Self = Self { output: None, calibration: None, bridge_on: false };
+}
+
 /// Why a commissioning sequence was not started.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CommissionRefused {
@@ -306,6 +324,15 @@ impl ControlLoop {
     /// The drive, for commands from the link.
     pub fn drive_mut(&mut self) -> &mut Drive {
         &mut self.drive
+    }
+
+    /// What the link task reads (after each step: [`Snapshot`]).
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            output: self.last,
+            calibration: Some(self.calibration),
+            bridge_on: matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running) || self.commissioning(),
+        }
     }
 
     /// The last period's raw samples.

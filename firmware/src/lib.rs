@@ -5,6 +5,7 @@
 //! * [`output`]: the output stage — MOE, the break flag and the compare registers behind a
 //!   trait, host-tested against a model of the timer's break logic;
 //! * [`server`]: the command/telemetry link's command handling;
+//! * [`boundary`]: the lock-free hand-over from the control interrupt to the link task;
 //! * [`config`]: the drive and board constants, generated from `drive.toml` at build time —
 //!   the pin map is in `main.rs`'s `pins` module, next to the peripherals it names.
 //!
@@ -13,6 +14,7 @@
 #![no_std]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing))]
 
+pub mod boundary;
 pub mod config;
 pub mod control;
 pub mod output;

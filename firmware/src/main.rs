@@ -47,8 +47,9 @@ mod target {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
+    use firmware::boundary::TripleBuffer;
     use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS};
-    use firmware::control::{Calibration, ControlError, ControlLoop, Samples};
+    use firmware::control::{Calibration, ControlError, ControlLoop, Samples, Snapshot};
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
 
@@ -66,6 +67,9 @@ mod target {
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
     /// The control interrupt's longest step and overruns (`Status`).
     static LOOP_TIMER: firmware::control::LoopTimer = firmware::control::LoopTimer::new();
+    /// What the link task reads of the control loop (telemetry, calibration, bridge on),
+    /// published by the control interrupt after every step without a critical section.
+    static SNAPSHOT: TripleBuffer<Snapshot> = TripleBuffer::new(Snapshot::EMPTY);
 
     /// TIM1 and the brake pin as the control interrupt's output stage (`firmware::output`,
     /// host-tested against a model of this logic).
@@ -361,6 +365,7 @@ mod target {
                     let mut o = outputs.get();
                     o.period(&mut Tim1, ctl, samples);
                     outputs.set(o);
+                    SNAPSHOT.write(ctl.snapshot());
                 }
                 None => Tim1.disable_outputs(),
             }
@@ -387,11 +392,14 @@ mod target {
         let mut watchdog = server::LinkWatchdog::new(LINK_TIMEOUT_MS, now_ms());
         let mut calibration_logged = false;
         loop {
-            let (stopped, calibration) = critical_section::with(|cs| {
-                let mut control = CONTROL.borrow_ref_mut(cs);
-                let calibration = control.as_ref().map(|c| c.calibration());
-                (control.as_mut().is_some_and(|c| watchdog.poll(now_ms(), c)), calibration)
-            });
+            // The control loop's state, lock-free; the control loop itself (a critical
+            // section) only to stop it and for commands.
+            let snapshot = SNAPSHOT.read();
+            let stopped = watchdog.due(now_ms(), snapshot.bridge_on)
+                && critical_section::with(|cs| {
+                    CONTROL.borrow_ref_mut(cs).as_mut().map(server::LinkWatchdog::stop).is_some()
+                });
+            let calibration = snapshot.calibration;
             if stopped {
                 defmt::warn!("link silent for {=u32} ms: controlled stop", LINK_TIMEOUT_MS);
             }
@@ -431,10 +439,7 @@ mod target {
                 Ok(Err(_)) => 0, // overrun/framing error: the frames it hit fail their CRC
                 Err(_) => {
                     // Quiet for 10 ms: stream telemetry.
-                    let out = critical_section::with(|cs| {
-                        CONTROL.borrow_ref(cs).as_ref().and_then(|c| c.last_output())
-                    });
-                    if let Some(o) = out
+                    if let Some(o) = SNAPSHOT.read().output
                         && let Ok(len) = link::reply_frame(&Reply::Output(o), &mut frame)
                     {
                         let _ = tx.write(frame.get(..len).unwrap_or(&[])).await;

@@ -49,15 +49,32 @@ impl LinkWatchdog {
     /// Check at `now_ms`; stops the drive (once) when the link has been silent too long.
     /// Returns whether it did.
     pub fn poll(&mut self, now_ms: u32, ctl: &mut ControlLoop) -> bool {
-        let on = matches!(ctl.drive().mode(), Mode::Magnetizing | Mode::Running);
-        let on = on || ctl.commissioning();
-        if self.timeout_ms == 0 || self.fired || !on || now_ms.wrapping_sub(self.last_ms) < self.timeout_ms {
+        let due = self.due(now_ms, ctl.snapshot().bridge_on);
+        if due {
+            Self::stop(ctl);
+        }
+        due
+    }
+
+    /// Whether to stop now, with the bridge on or not (`control::Snapshot::bridge_on`): once
+    /// per silence, then [`LinkWatchdog::stop`] does it. The firmware's link task asks this
+    /// without touching the control loop and takes it only to stop.
+    pub fn due(&mut self, now_ms: u32, bridge_on: bool) -> bool {
+        if self.timeout_ms == 0
+            || self.fired
+            || !bridge_on
+            || now_ms.wrapping_sub(self.last_ms) < self.timeout_ms
+        {
             return false;
         }
-        ctl.drive_mut().controlled_stop();
-        ctl.abort_commissioning();
         self.fired = true;
         true
+    }
+
+    /// The watchdog's reaction: a controlled stop, and any commissioning sequence aborted.
+    pub fn stop(ctl: &mut ControlLoop) {
+        ctl.drive_mut().controlled_stop();
+        ctl.abort_commissioning();
     }
 }
 
