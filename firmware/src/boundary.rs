@@ -1,11 +1,16 @@
-//! The control interrupt → link task hand-over, lock-free: a triple buffer.
+//! The link task ↔ control interrupt boundary, lock-free: a triple buffer out of the
+//! interrupt, a one-slot mailbox into it.
 //!
-//! The interrupt (the only writer) publishes a copy of what the task needs — the last
+//! **Out** ([`TripleBuffer`]): the interrupt (the only writer) publishes a copy of what the task needs — the last
 //! output, the calibration's state, whether the bridge is on — after every step; the task
 //! (the only reader) takes the newest without masking the interrupt. Three slots: the one
 //! the writer fills, the one the reader holds, and the one in between; an atomic swap hands
 //! a slot from one side to the other, so the two never touch the same slot and no read is
 //! ever torn (unlike a sequence lock, there is no racing copy to retry).
+//!
+//! **In** ([`Mailbox`]): the task posts one request (a command); the interrupt serves it at
+//! the end of a period and leaves the reply; the task takes it. Whose turn it is is one
+//! atomic state, so the request and the reply are only ever touched by their owner.
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicU8, Ordering};
@@ -83,6 +88,79 @@ impl<T: Copy + core::fmt::Debug> core::fmt::Debug for TripleBuffer<T> {
     }
 }
 
+/// [`Mailbox`] states: who owns the slots.
+const EMPTY: u8 = 0;
+const REQUEST: u8 = 1;
+const REPLY: u8 = 2;
+
+/// A one-slot request/reply mailbox between one task (posts, takes) and one interrupt
+/// (serves).
+pub struct Mailbox<Q: Copy, A: Copy> {
+    state: AtomicU8,
+    request: UnsafeCell<Option<Q>>,
+    reply: UnsafeCell<Option<A>>,
+}
+
+// SAFETY: `state` says who owns the slots — the task in EMPTY (writes the request) and in
+// REPLY (reads the reply), the interrupt in REQUEST (reads the request, writes the reply)
+// — and changes hands only by Release stores seen with Acquire loads, so a slot is never
+// accessed by both sides and each side sees the other's writes. `Q`, `A: Send`: they cross.
+unsafe impl<Q: Copy + Send, A: Copy + Send> Sync for Mailbox<Q, A> {}
+
+impl<Q: Copy, A: Copy> Mailbox<Q, A> {
+    /// Empty.
+    pub const fn new() -> Self {
+        Self { state: AtomicU8::new(EMPTY), request: UnsafeCell::new(None), reply: UnsafeCell::new(None) }
+    }
+
+    /// The task: post `q`. False while a request or an untaken reply is in the box.
+    pub fn post(&self, q: Q) -> bool {
+        if self.state.load(Ordering::Acquire) != EMPTY {
+            return false;
+        }
+        // SAFETY: EMPTY: the task owns the request slot.
+        unsafe { *self.request.get() = Some(q) };
+        self.state.store(REQUEST, Ordering::Release);
+        true
+    }
+
+    /// The interrupt: answer a posted request with `f` (nothing to do otherwise: one
+    /// atomic load).
+    pub fn serve(&self, f: impl FnOnce(&Q) -> A) {
+        if self.state.load(Ordering::Acquire) != REQUEST {
+            return;
+        }
+        // SAFETY: REQUEST: the interrupt owns both slots.
+        let a = unsafe { (*self.request.get()).as_ref().map(f) };
+        // SAFETY: as above.
+        unsafe { *self.reply.get() = a };
+        self.state.store(REPLY, Ordering::Release);
+    }
+
+    /// The task: the reply, once served (the box is empty again after it).
+    pub fn take(&self) -> Option<A> {
+        if self.state.load(Ordering::Acquire) != REPLY {
+            return None;
+        }
+        // SAFETY: REPLY: the task owns the reply slot.
+        let a = unsafe { (*self.reply.get()).take() };
+        self.state.store(EMPTY, Ordering::Release);
+        a
+    }
+}
+
+impl<Q: Copy, A: Copy> Default for Mailbox<Q, A> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<Q: Copy, A: Copy> core::fmt::Debug for Mailbox<Q, A> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Mailbox").field("state", &self.state.load(Ordering::Relaxed)).finish()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -123,5 +201,29 @@ mod tests {
                 assert_eq!(v, k * 10 + k % 5 - 1);
             }
         }
+    }
+
+    /// Post → serve → take; a second post waits for the reply to be taken; serving with
+    /// nothing posted does nothing.
+    #[test]
+    fn the_mailbox_answers_one_request_at_a_time() {
+        let m: Mailbox<u32, u64> = Mailbox::new();
+        let mut served = 0;
+        m.serve(|_| {
+            served += 1;
+            0
+        });
+        assert_eq!((served, m.take()), (0, None));
+        assert!(m.post(7));
+        assert!(!m.post(8), "busy until served and taken");
+        assert_eq!(m.take(), None, "not served yet");
+        m.serve(|q| u64::from(*q) * 10);
+        assert!(!m.post(9), "a reply waits");
+        m.serve(|_| unreachable!("served once"));
+        assert_eq!(m.take(), Some(70));
+        assert_eq!(m.take(), None);
+        assert!(m.post(9));
+        m.serve(|q| u64::from(*q));
+        assert_eq!(m.take(), Some(9));
     }
 }

@@ -19,9 +19,9 @@
 #[cfg(target_os = "none")]
 mod target {
     use controller_core::calibration::CalibrationError;
-    use controller_core::link::{self, FrameDecoder, LinkStats, MAX_FRAME, Reply};
+    use controller_core::link::{self, BoardCommand, FrameDecoder, LinkStats, MAX_FRAME, Reply};
     use core::cell::RefCell;
-    use core::sync::atomic::{AtomicU32, Ordering};
+    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
     use critical_section::Mutex;
     use defmt_rtt as _;
     use embassy_executor::Spawner;
@@ -47,7 +47,7 @@ mod target {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
-    use firmware::boundary::TripleBuffer;
+    use firmware::boundary::{Mailbox, TripleBuffer};
     use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS};
     use firmware::control::{Calibration, ControlError, ControlLoop, Samples, Snapshot};
     use firmware::output::{OutputStage, Outputs, stop_for_good};
@@ -59,7 +59,8 @@ mod target {
         DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
     });
 
-    /// The control loop, shared by the control interrupt and the link task.
+    /// The control loop: put in place at start-up, then the control interrupt's alone (the
+    /// link task reaches it through `SNAPSHOT`, `COMMANDS` and `WATCHDOG_STOP`).
     static CONTROL: Mutex<RefCell<Option<ControlLoop>>> = Mutex::new(RefCell::new(None));
     /// The output stage's state (whether the firmware enabled MOE), the control interrupt's.
     static OUTPUTS: Mutex<core::cell::Cell<Outputs>> = Mutex::new(core::cell::Cell::new(Outputs::new()));
@@ -70,6 +71,11 @@ mod target {
     /// What the link task reads of the control loop (telemetry, calibration, bridge on),
     /// published by the control interrupt after every step without a critical section.
     static SNAPSHOT: TripleBuffer<Snapshot> = TripleBuffer::new(Snapshot::EMPTY);
+    /// Commands into the control interrupt, which executes them after its step and leaves
+    /// the reply: the link task never masks it.
+    static COMMANDS: Mailbox<(BoardCommand, server::Prepared, LinkStats), Reply> = Mailbox::new();
+    /// The link watchdog's stop, for the control interrupt to carry out.
+    static WATCHDOG_STOP: AtomicBool = AtomicBool::new(false);
 
     /// TIM1 and the brake pin as the control interrupt's output stage (`firmware::output`,
     /// host-tested against a model of this logic).
@@ -313,8 +319,9 @@ mod target {
         interrupt::LPUART1.set_priority(Priority::P5);
         interrupt::ADC1_2.set_priority(Priority::P0);
         interrupt::ADC1_2.unpend();
-        // SAFETY: the handler only touches CONTROL (through a critical section) and the
-        // TIM1/ADC1/TIM4 registers that nothing else writes after this point.
+        // SAFETY: the handler only touches CONTROL (through a critical section), the
+        // lock-free boundary statics and the TIM1/ADC1/TIM4 registers that nothing else
+        // writes after this point.
         unsafe { interrupt::ADC1_2.enable() };
 
         match (link_task(tx, rx), watchdog_task(p.IWDG)) {
@@ -365,6 +372,12 @@ mod target {
                     let mut o = outputs.get();
                     o.period(&mut Tim1, ctl, samples);
                     outputs.set(o);
+                    // The link task's requests, after the period's outputs are written: a
+                    // command takes effect from the next period.
+                    if WATCHDOG_STOP.swap(false, Ordering::Relaxed) {
+                        server::LinkWatchdog::stop(ctl);
+                    }
+                    COMMANDS.serve(|(cmd, prepared, stats)| server::handle_board(ctl, cmd, *prepared, stats));
                     SNAPSHOT.write(ctl.snapshot());
                 }
                 None => Tim1.disable_outputs(),
@@ -380,6 +393,30 @@ mod target {
         embassy_time::Instant::now().as_millis() as u32
     }
 
+    /// `cmd` executed by the control interrupt (`COMMANDS`): its reply within
+    /// [`COMMAND_TIMEOUT_MS`], else none (no control loop, or the interrupt not running; a
+    /// late reply is dropped before the next command).
+    async fn execute(cmd: BoardCommand, prepared: server::Prepared, stats: LinkStats) -> Option<Reply> {
+        let _ = COMMANDS.take();
+        if !COMMANDS.post((cmd, prepared, stats)) {
+            return None;
+        }
+        let t0 = embassy_time::Instant::now();
+        loop {
+            if let Some(r) = COMMANDS.take() {
+                return Some(r);
+            }
+            if t0.elapsed() > Duration::from_millis(COMMAND_TIMEOUT_MS) {
+                return None;
+            }
+            Timer::after_micros(50).await;
+        }
+    }
+
+    /// How long the link task waits for the control interrupt to execute a command, ms (the
+    /// interrupt serves one each 50 µs period).
+    const COMMAND_TIMEOUT_MS: u64 = 10;
+
     /// Commands in, replies and telemetry (every 10 ms) out; the link watchdog
     /// (`server::LinkWatchdog`): a link silent for `LINK_TIMEOUT_MS` while the bridge is on
     /// stops the drive (a controlled stop).
@@ -392,13 +429,12 @@ mod target {
         let mut watchdog = server::LinkWatchdog::new(LINK_TIMEOUT_MS, now_ms());
         let mut calibration_logged = false;
         loop {
-            // The control loop's state, lock-free; the control loop itself (a critical
-            // section) only to stop it and for commands.
+            // The control loop's state, and requests to it, lock-free (`firmware::boundary`).
             let snapshot = SNAPSHOT.read();
-            let stopped = watchdog.due(now_ms(), snapshot.bridge_on)
-                && critical_section::with(|cs| {
-                    CONTROL.borrow_ref_mut(cs).as_mut().map(server::LinkWatchdog::stop).is_some()
-                });
+            let stopped = watchdog.due(now_ms(), snapshot.bridge_on);
+            if stopped {
+                WATCHDOG_STOP.store(true, Ordering::Relaxed);
+            }
             let calibration = snapshot.calibration;
             if stopped {
                 defmt::warn!("link silent for {=u32} ms: controlled stop", LINK_TIMEOUT_MS);
@@ -450,14 +486,9 @@ mod target {
             for &b in input.iter().take(n) {
                 let Some(cmd) = decoder.push_board_command(b, &mut stats) else { continue };
                 watchdog.frame(now_ms());
-                // Heavy work (a commissioning configuration) outside the critical section.
+                // Heavy work (a commissioning configuration) here, not in the interrupt.
                 let prepared = server::prepare(&cmd);
-                let reply = critical_section::with(|cs| {
-                    CONTROL
-                        .borrow_ref_mut(cs)
-                        .as_mut()
-                        .map(|c| server::handle_board(c, &cmd, prepared, &stats))
-                });
+                let reply = execute(cmd, prepared, stats).await;
                 // The status carries the interrupt's timing (the link module cannot see it).
                 let reply = reply.map(|r| match r {
                     Reply::Status { mode, frames_ok, frame_errors, readings, .. } => {
