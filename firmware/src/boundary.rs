@@ -13,44 +13,61 @@
 //! atomic state, so the request and the reply are only ever touched by their owner.
 
 use core::cell::UnsafeCell;
-use core::sync::atomic::{AtomicU8, Ordering};
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
 /// The middle slot's index in the low bits, and this bit when it holds a value the reader
 /// has not taken yet.
 const FRESH: u8 = 0b100;
 const INDEX: u8 = 0b011;
+/// The indices are stored XOR these, so that the all-zero state — the one a zero-initialised
+/// static starts in (`.bss`: no flash for an initial image) — is back 0, middle 1, front 2.
+const MIDDLE_XOR: u8 = 1;
+const FRONT_XOR: u8 = 2;
 
-/// A single-writer, single-reader triple buffer of `T`.
+/// One slot of a [`TripleBuffer`].
+type Slot<T> = UnsafeCell<MaybeUninit<T>>;
+
+/// A single-writer, single-reader triple buffer of `T`. Zero-initialised: nothing is
+/// published until the first [`TripleBuffer::write`].
 pub struct TripleBuffer<T: Copy> {
-    slots: (UnsafeCell<T>, UnsafeCell<T>, UnsafeCell<T>),
-    /// The middle slot (index | FRESH).
+    slots: (Slot<T>, Slot<T>, Slot<T>),
+    /// The middle slot (index ^ MIDDLE_XOR | FRESH).
     middle: AtomicU8,
     /// The writer's slot (touched by the writer only).
     back: AtomicU8,
-    /// The reader's slot (touched by the reader only).
+    /// The reader's slot ^ FRONT_XOR (touched by the reader only).
     front: AtomicU8,
+    /// The reader's slot holds a value (touched by the reader only).
+    taken: AtomicBool,
 }
 
 // SAFETY: the slots are shared between one writer and one reader that never access the
 // same slot at once: each side only touches the slot whose index it owns (`back`,
 // `front`), and ownership moves between them only through the atomic swap of `middle`
-// (AcqRel: the writes to a slot happen-before the reader's reads of it). `T: Send` since
-// values cross from the interrupt to the task.
+// (AcqRel: the writes to a slot happen-before the reader's reads of it). A slot is read
+// only after a write handed it over (`FRESH`, then `taken`). `T: Send` since values cross
+// from the interrupt to the task.
 unsafe impl<T: Copy + Send> Sync for TripleBuffer<T> {}
 
 impl<T: Copy> TripleBuffer<T> {
-    /// Every slot holds `init`; nothing fresh.
-    pub const fn new(init: T) -> Self {
+    /// Nothing published.
+    pub const fn new() -> Self {
         Self {
-            slots: (UnsafeCell::new(init), UnsafeCell::new(init), UnsafeCell::new(init)),
-            middle: AtomicU8::new(1),
+            slots: (
+                UnsafeCell::new(MaybeUninit::uninit()),
+                UnsafeCell::new(MaybeUninit::uninit()),
+                UnsafeCell::new(MaybeUninit::uninit()),
+            ),
+            middle: AtomicU8::new(0),
             back: AtomicU8::new(0),
-            front: AtomicU8::new(2),
+            front: AtomicU8::new(0),
+            taken: AtomicBool::new(false),
         }
     }
 
     /// Slot `i` (0, 1, 2: the indices are a permutation of these by construction).
-    fn slot(&self, i: u8) -> &UnsafeCell<T> {
+    fn slot(&self, i: u8) -> &Slot<T> {
         match i {
             0 => &self.slots.0,
             1 => &self.slots.1,
@@ -63,26 +80,37 @@ impl<T: Copy> TripleBuffer<T> {
         let back = self.back.load(Ordering::Relaxed) & INDEX;
         // SAFETY: `back` is the writer's slot: the reader holds `front`, and the middle is
         // neither (the three indices are always a permutation of 0, 1, 2).
-        unsafe { *self.slot(back).get() = value };
-        let old = self.middle.swap(back | FRESH, Ordering::AcqRel);
-        self.back.store(old & INDEX, Ordering::Relaxed);
+        unsafe { (*self.slot(back).get()).write(value) };
+        let old = self.middle.swap((back ^ MIDDLE_XOR) | FRESH, Ordering::AcqRel);
+        self.back.store((old ^ MIDDLE_XOR) & INDEX, Ordering::Relaxed);
     }
 
     /// The newest value published (the reader: one context only, e.g. the link task); the
-    /// last one taken again if nothing new came.
-    pub fn read(&self) -> T {
-        let mut front = self.front.load(Ordering::Relaxed) & INDEX;
+    /// last one taken again if nothing new came; `None` before the first write.
+    pub fn read(&self) -> Option<T> {
+        let mut front = (self.front.load(Ordering::Relaxed) ^ FRONT_XOR) & INDEX;
         if self.middle.load(Ordering::Relaxed) & FRESH != 0 {
-            let old = self.middle.swap(front, Ordering::AcqRel);
-            front = old & INDEX;
-            self.front.store(front, Ordering::Relaxed);
+            let old = self.middle.swap(front ^ MIDDLE_XOR, Ordering::AcqRel);
+            front = (old ^ MIDDLE_XOR) & INDEX;
+            self.front.store(front ^ FRONT_XOR, Ordering::Relaxed);
+            self.taken.store(true, Ordering::Relaxed);
         }
-        // SAFETY: `front` is the reader's slot: the writer fills `back` only.
-        unsafe { *self.slot(front).get() }
+        if !self.taken.load(Ordering::Relaxed) {
+            return None;
+        }
+        // SAFETY: `front` is the reader's slot (the writer fills `back` only), written before
+        // it was handed over (`taken`).
+        Some(unsafe { (*self.slot(front).get()).assume_init_read() })
     }
 }
 
-impl<T: Copy + core::fmt::Debug> core::fmt::Debug for TripleBuffer<T> {
+impl<T: Copy> Default for TripleBuffer<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Copy> core::fmt::Debug for TripleBuffer<T> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("TripleBuffer").field("middle", &self.middle.load(Ordering::Relaxed)).finish()
     }
@@ -97,8 +125,8 @@ const REPLY: u8 = 2;
 /// (serves).
 pub struct Mailbox<Q: Copy, A: Copy> {
     state: AtomicU8,
-    request: UnsafeCell<Option<Q>>,
-    reply: UnsafeCell<Option<A>>,
+    request: UnsafeCell<MaybeUninit<Q>>,
+    reply: UnsafeCell<MaybeUninit<A>>,
 }
 
 // SAFETY: `state` says who owns the slots — the task in EMPTY (writes the request) and in
@@ -108,9 +136,13 @@ pub struct Mailbox<Q: Copy, A: Copy> {
 unsafe impl<Q: Copy + Send, A: Copy + Send> Sync for Mailbox<Q, A> {}
 
 impl<Q: Copy, A: Copy> Mailbox<Q, A> {
-    /// Empty.
+    /// Empty (zero-initialised: a static of it takes no flash).
     pub const fn new() -> Self {
-        Self { state: AtomicU8::new(EMPTY), request: UnsafeCell::new(None), reply: UnsafeCell::new(None) }
+        Self {
+            state: AtomicU8::new(EMPTY),
+            request: UnsafeCell::new(MaybeUninit::uninit()),
+            reply: UnsafeCell::new(MaybeUninit::uninit()),
+        }
     }
 
     /// The task: post `q`. False while a request or an untaken reply is in the box.
@@ -119,7 +151,7 @@ impl<Q: Copy, A: Copy> Mailbox<Q, A> {
             return false;
         }
         // SAFETY: EMPTY: the task owns the request slot.
-        unsafe { *self.request.get() = Some(q) };
+        unsafe { (*self.request.get()).write(q) };
         self.state.store(REQUEST, Ordering::Release);
         true
     }
@@ -130,10 +162,11 @@ impl<Q: Copy, A: Copy> Mailbox<Q, A> {
         if self.state.load(Ordering::Acquire) != REQUEST {
             return;
         }
-        // SAFETY: REQUEST: the interrupt owns both slots.
-        let a = unsafe { (*self.request.get()).as_ref().map(f) };
+        // SAFETY: REQUEST: the interrupt owns both slots, and `post` wrote the request.
+        let q = unsafe { (*self.request.get()).assume_init_read() };
+        let a = f(&q);
         // SAFETY: as above.
-        unsafe { *self.reply.get() = a };
+        unsafe { (*self.reply.get()).write(a) };
         self.state.store(REPLY, Ordering::Release);
     }
 
@@ -142,10 +175,10 @@ impl<Q: Copy, A: Copy> Mailbox<Q, A> {
         if self.state.load(Ordering::Acquire) != REPLY {
             return None;
         }
-        // SAFETY: REPLY: the task owns the reply slot.
-        let a = unsafe { (*self.reply.get()).take() };
+        // SAFETY: REPLY: the task owns the reply slot, and `serve` wrote it.
+        let a = unsafe { (*self.reply.get()).assume_init_read() };
         self.state.store(EMPTY, Ordering::Release);
-        a
+        Some(a)
     }
 }
 
@@ -167,29 +200,29 @@ mod tests {
 
     #[test]
     fn the_reader_gets_the_newest_value() {
-        let b = TripleBuffer::new(0u32);
-        assert_eq!(b.read(), 0);
+        let b = TripleBuffer::<u32>::new();
+        assert_eq!(b.read(), None, "nothing published yet");
         b.write(1);
         b.write(2);
-        assert_eq!(b.read(), 2);
+        assert_eq!(b.read(), Some(2));
         // Nothing new: the same value again.
-        assert_eq!(b.read(), 2);
+        assert_eq!(b.read(), Some(2));
         b.write(3);
-        assert_eq!(b.read(), 3);
+        assert_eq!(b.read(), Some(3));
     }
 
     /// The reader's slot is never the writer's: whatever the writer does between two reads,
     /// the slots stay a permutation and the value the reader holds is not overwritten.
     #[test]
     fn writer_and_reader_never_share_a_slot() {
-        let b = TripleBuffer::new(0u64);
+        let b = TripleBuffer::<u64>::new();
         for k in 1..1000u64 {
             for j in 0..(k % 5) {
                 b.write(k * 10 + j);
                 let (m, bk, fr) = (
-                    b.middle.load(Ordering::Relaxed) & INDEX,
+                    (b.middle.load(Ordering::Relaxed) ^ MIDDLE_XOR) & INDEX,
                     b.back.load(Ordering::Relaxed),
-                    b.front.load(Ordering::Relaxed),
+                    b.front.load(Ordering::Relaxed) ^ FRONT_XOR,
                 );
                 let mut ix = [m, bk, fr];
                 ix.sort_unstable();
@@ -198,7 +231,7 @@ mod tests {
             }
             let v = b.read();
             if k % 5 != 0 {
-                assert_eq!(v, k * 10 + k % 5 - 1);
+                assert_eq!(v, Some(k * 10 + k % 5 - 1));
             }
         }
     }

@@ -61,7 +61,10 @@ mod target {
 
     /// The control loop: put in place at start-up, then the control interrupt's alone (the
     /// link task reaches it through `SNAPSHOT`, `COMMANDS` and `WATCHDOG_STOP`).
-    static CONTROL: Mutex<RefCell<Option<ControlLoop>>> = Mutex::new(RefCell::new(None));
+    static CONTROL: Mutex<RefCell<Option<&'static mut ControlLoop>>> = Mutex::new(RefCell::new(None));
+    /// Where the control loop lives: zero-initialised (`.bss`), so its ≈ 900 B take no flash
+    /// for an initial image, as an `Option<ControlLoop>` static did.
+    static CONTROL_CELL: static_cell::StaticCell<ControlLoop> = static_cell::StaticCell::new();
     /// The output stage's state (whether the firmware enabled MOE), the control interrupt's.
     static OUTPUTS: Mutex<core::cell::Cell<Outputs>> = Mutex::new(core::cell::Cell::new(Outputs::new()));
     /// Control interrupts served; the watchdog task is fed only while this advances.
@@ -70,7 +73,7 @@ mod target {
     static LOOP_TIMER: firmware::control::LoopTimer = firmware::control::LoopTimer::new();
     /// What the link task reads of the control loop (telemetry, calibration, bridge on),
     /// published by the control interrupt after every step without a critical section.
-    static SNAPSHOT: TripleBuffer<Snapshot> = TripleBuffer::new(Snapshot::EMPTY);
+    static SNAPSHOT: TripleBuffer<Snapshot> = TripleBuffer::new();
     /// Commands into the control interrupt, which executes them after its step and leaves
     /// the reply: the link task never masks it.
     static COMMANDS: Mailbox<(BoardCommand, server::Prepared, LinkStats), Reply> = Mailbox::new();
@@ -212,6 +215,7 @@ mod target {
                 halt_safe();
             }
         };
+        let control: &'static mut ControlLoop = CONTROL_CELL.init(control);
         critical_section::with(|cs| CONTROL.borrow(cs).replace(Some(control)));
 
         // The brake gate: a push-pull output, low (resistor out) until the drive asks.
@@ -430,7 +434,7 @@ mod target {
         let mut calibration_logged = false;
         loop {
             // The control loop's state, and requests to it, lock-free (`firmware::boundary`).
-            let snapshot = SNAPSHOT.read();
+            let snapshot = SNAPSHOT.read().unwrap_or(Snapshot::EMPTY);
             let stopped = watchdog.due(now_ms(), snapshot.bridge_on);
             if stopped {
                 WATCHDOG_STOP.store(true, Ordering::Relaxed);
@@ -475,7 +479,7 @@ mod target {
                 Ok(Err(_)) => 0, // overrun/framing error: the frames it hit fail their CRC
                 Err(_) => {
                     // Quiet for 10 ms: stream telemetry.
-                    if let Some(o) = SNAPSHOT.read().output
+                    if let Some(o) = SNAPSHOT.read().and_then(|s| s.output)
                         && let Ok(len) = link::reply_frame(&Reply::Output(o), &mut frame)
                     {
                         let _ = tx.write(frame.get(..len).unwrap_or(&[])).await;
