@@ -78,6 +78,14 @@ fn corner_motor(m: &MotorParams, rs: f64, rr: f64, l: f64) -> Result<MotorParams
 /// Run every check.
 pub fn certify(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> {
     let mut checks = certify_current(spec, c)?;
+    checks.extend(certify_speed(spec, c)?);
+    Ok(checks)
+}
+
+/// The speed and position loops' checks alone (Kharitonov, sampled speed, sampled
+/// position): what `design tune` searches the speed gain on, the current loops fixed.
+pub fn certify_speed(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, String> {
+    let mut checks = Vec::new();
     let m = &spec.motor;
     let (j, b) = (m.j_kgm2(), m.b_nms());
     let (jl, jh) = (j * c.j_factor[0], j * c.j_factor[1]);
