@@ -1190,6 +1190,12 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
         LinkCmd::SetGains { kp, tau_max_nm } => Some(Command::WriteSpeedGains { kp, tau_max_nm }),
         LinkCmd::Telemetry { .. } | LinkCmd::Identify(_) => None,
     };
+    // The drive file the status is scaled with: read before the port is opened, so that a bad
+    // file is reported as such, board or no board.
+    let status_file = match &command {
+        LinkCmd::Status { drive } => Some(drive_file::DriveFile::load(drive).map_err(|e| e.to_string())?),
+        _ => None,
+    };
     let timeout = Duration::from_secs_f64(a.timeout_s);
     // Raw 8N1 at 115200 baud; reads return after 100 ms without data (the client's own
     // deadline decides when to give up).
@@ -1201,10 +1207,9 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
     let mut link = hil_sim::link_client::LinkClient::new(rx, port).with_reply_timeout(timeout);
     match (cmd, command) {
         (None, LinkCmd::Identify(args)) => link_identify(&mut link, &args)?,
-        (Some(c), LinkCmd::Status { drive }) => {
-            let file = drive_file::DriveFile::load(&drive).map_err(|e| e.to_string())?;
+        (Some(c), LinkCmd::Status { .. }) if let Some(file) = &status_file => {
             let r = link.transact(&c)?;
-            match hil_sim::link_client::format_status(&r, &file) {
+            match hil_sim::link_client::format_status(&r, file) {
                 Some(text) => print!("{text}"),
                 None => println!("{r:?}"),
             }

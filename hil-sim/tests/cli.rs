@@ -82,6 +82,7 @@ fn help_on_every_subcommand() {
         &["link"],
         &["link", "x", "set-gains"],
         &["link", "x", "stop"],
+        &["link", "x", "status"],
     ] {
         let st = bin().args(sub).arg("--help").output().unwrap();
         assert!(st.status.success(), "{sub:?}");
@@ -92,6 +93,21 @@ fn help_on_every_subcommand() {
     let st = bin().args(["run", "speed-step", "--outt", "x"]).output().unwrap();
     assert_eq!(st.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&st.stderr).contains("--outt"));
+}
+
+/// `link … status --drive F`: a bad drive file is named before any port is opened (found by
+/// trying: it was read after, so a missing board hid it).
+#[test]
+fn a_bad_status_drive_file_is_named_before_the_port() {
+    let dir = tmp("status-drive");
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[pwm]\nfrequency_hz = 20000.0\n").unwrap();
+    let st = bin().args(["link", "/dev/no-such-port", "status", "--drive"]).arg(&bad).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("bad.toml") && !err.contains("no-such-port"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The output directory is checked before the run, not after it.
