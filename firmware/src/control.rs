@@ -112,6 +112,16 @@ pub enum ControlError {
         /// `BoardConfig::pwm_period_counts`.
         expected: u16,
     },
+    /// TIM1's update event, read back at start, is not once per period at the top of the
+    /// count (where the currents are sampled): the duties would not take effect one period
+    /// after their sample, the delay the simulator and the certificate analyse.
+    UpdateTiming {
+        /// RCR read from TIM1.
+        rcr: u16,
+        /// The counter's direction just after the first update event (`true`: counting
+        /// down, i.e. the event was at the top); `None`: no update event came.
+        down_after_update: Option<bool>,
+    },
 }
 
 /// The control interrupt's timing (issue 19): the longest step in CPU cycles (DWT CYCCNT on
@@ -161,6 +171,28 @@ pub fn check_pwm_period(read: u16, board: &BoardConfig) -> Result<(), ControlErr
         Ok(())
     } else {
         Err(ControlError::PwmPeriod { read, expected: board.pwm_period_counts })
+    }
+}
+
+/// TIM1's repetition counter: in centre-aligned mode it counts both the overflow (top) and
+/// the underflow (bottom), so 1 gives one update event per period. Written while the
+/// counter is stopped, before its start, the event falls on the overflow (RM0440, the
+/// repetition counter's description: "if the RCR was written before starting the counter,
+/// the UEV occurs on the overflow") — the top of the count, where the ADC samples. The
+/// compare values the control interrupt writes after a sample are therefore loaded at the
+/// next sample's instant: **one PWM period of delay**, whatever the interrupt's duration up
+/// to a period. With 0 (two events a period) they were loaded at the bottom, half a period
+/// after the sample — or a whole one when the step (a slow step with a link command) ran
+/// past it: a delay that depended on the code's timing.
+pub const UPDATE_REPETITION: u16 = 1;
+
+/// The update-timing check at start: TIM1's RCR read back, and the direction the counter
+/// runs right after the first update event (down: the event was at the top).
+pub fn check_update_timing(rcr: u16, down_after_update: Option<bool>) -> Result<(), ControlError> {
+    if rcr == UPDATE_REPETITION && down_after_update == Some(true) {
+        Ok(())
+    } else {
+        Err(ControlError::UpdateTiming { rcr, down_after_update })
     }
 }
 
@@ -775,6 +807,20 @@ mod tests {
         assert_eq!(b.pwm_period_counts, 4250);
         assert_eq!(check_pwm_period(4250, &b), Ok(()));
         assert_eq!(check_pwm_period(4249, &b), Err(ControlError::PwmPeriod { read: 4249, expected: 4250 }));
+    }
+
+    /// The update event must come once per period at the top of the count: RCR 1 read back
+    /// and the counter running down after the first event; an event at the bottom, a
+    /// repetition counter at 0 (the event twice a period) or no event at all refuse to run.
+    #[test]
+    fn the_update_event_must_be_at_the_top_once_per_period() {
+        assert_eq!(check_update_timing(1, Some(true)), Ok(()));
+        for (rcr, down) in [(1, Some(false)), (0, Some(true)), (3, Some(true)), (1, None)] {
+            assert_eq!(
+                check_update_timing(rcr, down),
+                Err(ControlError::UpdateTiming { rcr, down_after_update: down })
+            );
+        }
     }
 
     /// The interrupt's timing: the longest step kept, a step of a whole period or more an

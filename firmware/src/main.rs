@@ -31,7 +31,7 @@ mod target {
     use embassy_stm32::interrupt::{InterruptExt, Priority};
     use embassy_stm32::mode::Async;
     use embassy_stm32::pac;
-    use embassy_stm32::pac::timer::vals::Ocm;
+    use embassy_stm32::pac::timer::vals::{Dir, Ocm, Urs};
     use embassy_stm32::peripherals::{
         IWDG, PA0, PA1, PA2, PA3, PA6, PA8, PA9, PA10, PB5, PB6, PB7, PB13, PB14, PB15, PC0, PC1, TIM1,
     };
@@ -49,7 +49,9 @@ mod target {
     use embassy_time::{Duration, Timer, with_timeout};
     use firmware::boundary::{Mailbox, TripleBuffer};
     use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS};
-    use firmware::control::{Calibration, ControlError, ControlLoop, Samples, Snapshot};
+    use firmware::control::{
+        Calibration, ControlError, ControlLoop, Samples, Snapshot, UPDATE_REPETITION, check_update_timing,
+    };
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
 
@@ -94,6 +96,10 @@ mod target {
     const SR_RC_W0_FLAGS: u32 = 0x00F3_3F7F | (1 << 7);
     /// BIF, bit 7.
     const SR_BIF: u32 = 1 << 7;
+    /// UIF, bit 0.
+    const SR_UIF: u32 = 1;
+    /// Status-register reads to wait for TIM1's first update event at start.
+    const UPDATE_WAIT_POLLS: u32 = 100_000;
 
     impl OutputStage for Tim1 {
         fn break_flag(&mut self) -> bool {
@@ -210,6 +216,7 @@ mod target {
                     ControlError::Encoder(_) => "encoder",
                     ControlError::Calibration(_) => "offset-calibration limits",
                     ControlError::PwmPeriod { .. } => "PWM period",
+                    ControlError::UpdateTiming { .. } => "PWM update timing",
                 };
                 defmt::error!("configuration rejected ({=str}); bridge stays off", why);
                 halt_safe();
@@ -279,6 +286,35 @@ mod target {
         pac::TIM1.ccmr_output(1).modify(|w| w.set_ocm(1, Ocm::PWM_MODE2));
         pac::TIM1.ccr(3).modify(|w| w.set_ccr(arr - 1));
         pwm.set_mms2(Mms2::COMPARE_OC4);
+        // Update delay: one period (`control::UPDATE_REPETITION`). The counter stopped, RCR
+        // written, an update generated (the repetition counter and the preloads reloaded,
+        // the counter back to 0), then started: the update event now falls on every
+        // overflow, the sampling instant. Read back — RCR, and the counter running down just
+        // after the first event — or the bridge stays off.
+        let update = critical_section::with(|_| {
+            let tim = pac::TIM1;
+            tim.cr1().modify(|w| w.set_cen(false));
+            tim.rcr().write(|w| w.set_rep(UPDATE_REPETITION));
+            tim.cr1().modify(|w| w.set_urs(Urs::COUNTER_ONLY));
+            tim.egr().write(|w| w.set_ug(true));
+            tim.cr1().modify(|w| w.set_urs(Urs::ANY_EVENT));
+            tim.sr().write_value(pac::timer::regs::SrAdv(SR_RC_W0_FLAGS & !SR_UIF));
+            tim.cr1().modify(|w| w.set_cen(true));
+            // The first event comes after ARR ticks (half a period); a poll takes cycles,
+            // so this bound is several periods.
+            let down = (0..UPDATE_WAIT_POLLS)
+                .find(|_| tim.sr().read().uif())
+                .map(|_| tim.cr1().read().dir() == Dir::DOWN);
+            check_update_timing(tim.rcr().read().rep(), down)
+        });
+        if let Err(ControlError::UpdateTiming { rcr, down_after_update }) = update {
+            defmt::error!(
+                "TIM1 update event not once per period at the top (RCR {=u16}, down after it: {}): bridge stays off",
+                rcr,
+                down_after_update
+            );
+            halt_safe();
+        }
 
         // ADC1: four injected conversions per trigger, end-of-sequence interrupt.
         let adc = Adc::new(p.ADC1, Default::default());
@@ -350,8 +386,9 @@ mod target {
     /// the period at one cycle per instruction. The real cycle count (FPU divide latency, flash wait states)
     /// the board measures itself: DWT CYCCNT around this handler, the longest step and the
     /// steps of a period or more in the link's `Status` (`control::LoopTimer`). The compare values
-    /// written here take effect at the next update event (preload), i.e. one period after
-    /// sampling — the delay the simulator models.
+    /// written here take effect at the next update event (preload), which is at the next
+    /// sample's instant (`control::UPDATE_REPETITION`): one period after sampling — the
+    /// delay the simulator and the certificate model.
     #[interrupt]
     fn ADC1_2() {
         let t0 = cortex_m::peripheral::DWT::cycle_count();
