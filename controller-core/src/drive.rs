@@ -268,6 +268,11 @@ pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
 /// (`hil-sim` test `dead_time_compensation_reduces_the_current_distortion`).
 pub const DEAD_TIME_BAND_FRACTION: f64 = 0.001;
 
+/// The lowest duty limit a sampling window may leave ([`DriveSpec::sample_window_s`], less
+/// the dead-time compensation): beyond 20 % of the voltage lost the board's window, not the
+/// modulator, is what needs fixing (a window of up to 5 µs at 20 kHz).
+pub const DUTY_MAX_MIN: f64 = 0.8;
+
 /// Regeneration limit: generating torque is reduced linearly from full at this fraction of
 /// `vdc_max_v` (370 V of the shipped 400 V trip) …
 pub const REGEN_LIMIT_START: f64 = 0.925;
@@ -358,8 +363,30 @@ pub struct DriveSpec {
     /// Dead time the modulator compensates, s (0: none): the board's, when its inverter has
     /// one ([`svpwm::compensate_dead_time`]).
     pub dead_time_compensation_s: f64,
+    /// The low-side conduction each phase's current sample needs on either side of the top
+    /// of the count, s (0: current sensors that need none, e.g. in-line). The modulator keeps
+    /// every duty at most `1 − 2·window/T` (less the dead time's compensation), so all three
+    /// phases are measured in every period, and the drive treats that fraction of the bus as
+    /// what it has ([`svpwm::modulate_sampled`]). The board's (`[board] sample_window_s`).
+    pub sample_window_s: f64,
     /// Trip thresholds.
     pub protection: Protection,
+}
+
+impl DriveSpec {
+    /// The highest duty the modulator gives a phase: `1 − 2·sample_window_s·f_pwm` less the
+    /// dead-time compensation, 1 without a sampling window — also the fraction of the bus
+    /// voltage the drive counts on (its current loops, envelope and checks; the envelope a
+    /// host computes for this drive: `hil_sim::envelope`). Validated by [`DriveConfig::new`]
+    /// (at least [`DUTY_MAX_MIN`]).
+    pub fn duty_max(&self) -> f64 {
+        if self.sample_window_s > 0.0 {
+            let f = self.pwm_frequency_hz;
+            1.0 - 2.0 * self.sample_window_s * f - self.dead_time_compensation_s * f
+        } else {
+            1.0
+        }
+    }
 }
 
 /// Why a drive specification was rejected.
@@ -386,6 +413,9 @@ pub enum DriveError {
     /// `dead_time_compensation_s` negative, not finite, or not below a tenth of the PWM
     /// period.
     DeadTime,
+    /// `sample_window_s` negative or not finite, or so long (with the dead time's
+    /// compensation) that the highest duty is below [`DUTY_MAX_MIN`].
+    SampleWindow,
     /// A raw configuration ([`DriveConfig::from_raw`]) with a non-finite number, an unknown
     /// variant or a zero count.
     Raw,
@@ -421,6 +451,10 @@ pub struct DriveConfig {
     trim_gain: f32,
     /// Dead time as a fraction of the PWM period (0: no compensation).
     dead_time_duty: f32,
+    /// The highest duty the modulator gives a phase, `1 − 2·window/T` less the dead-time
+    /// compensation added after it (1: no sampling window): also the fraction of the
+    /// measured bus the loops, the envelope and the checks count on.
+    duty_max: f32,
     /// Bus voltage at which the regeneration limit starts ([`REGEN_LIMIT_START`]), V.
     regen_start_v: f32,
     /// Reciprocal of the regeneration limit's span, 1/V.
@@ -554,6 +588,10 @@ impl DriveConfig {
         if !(0.0..0.1).contains(&dead_duty) {
             return Err(DriveError::DeadTime);
         }
+        let duty_max = spec.duty_max();
+        if !(spec.sample_window_s >= 0.0 && duty_max >= DUTY_MAX_MIN) {
+            return Err(DriveError::SampleWindow);
+        }
         // The flux model reaches mf·ψ* in T_r·ln(1/(1 − mf)) on the reference current; twice
         // that, plus 20 ms for the current loops, is the most magnetizing may take. Counted
         // in slow steps of the model's decay (no logarithm on the target: 640 B of flash).
@@ -592,6 +630,7 @@ impl DriveConfig {
             voltage_gain: (VOLTAGE_REGULATOR_BANDWIDTH_RAD_S * t_slow) as f32,
             trim_gain: (trim_bw * t_slow) as f32,
             dead_time_duty: dead_duty as f32,
+            duty_max: duty_max as f32,
             regen_start_v: (REGEN_LIMIT_START * p.vdc_max_v) as f32,
             inv_regen_span_v: (1.0 / ((REGEN_LIMIT_END - REGEN_LIMIT_START) * p.vdc_max_v)) as f32,
             dead_time_band_a: (DEAD_TIME_BAND_FRACTION * spec.i_ref_max_a) as f32,
@@ -657,6 +696,7 @@ impl DriveConfig {
             self.voltage_margin,
             self.trim_gain,
             self.dead_time_duty,
+            self.duty_max,
             self.dead_time_band_a,
             self.regen_start_v,
             self.inv_regen_span_v,
@@ -726,6 +766,7 @@ impl DriveConfig {
             voltage_margin: r.f(),
             trim_gain: r.f(),
             dead_time_duty: r.f(),
+            duty_max: r.f(),
             dead_time_band_a: r.f(),
             regen_start_v: r.f(),
             inv_regen_span_v: r.f(),
@@ -1416,7 +1457,7 @@ impl Drive {
         // the trim clears it).
         let limited = self.trim_hold;
         self.update_trim();
-        let v_budget = self.voltage_budget(m.vdc_v, limited);
+        let v_budget = self.voltage_budget(m.vdc_v * self.cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
         let limit = self.torque_max_nm;
         let torque_nm = if !running {
@@ -1826,7 +1867,8 @@ impl Drive {
             return off(self.mode);
         }
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
-        let v_clamp = m.vdc_v * (2.0 / 3.0);
+        let v_usable = m.vdc_v * cfg.duty_max;
+        let v_clamp = v_usable * (2.0 / 3.0);
         // The loops' request, in the stationary frame.
         let v_req = match cfg.current_frame {
             CurrentFrame::Stationary => {
@@ -1851,7 +1893,7 @@ impl Drive {
         self.v_req_steps = self.v_req_steps.saturating_add(1);
         // Advanced over the delay to the period it acts in, then the one vector limit: the
         // modulator's hexagon.
-        let modulation = svpwm::modulate(v_req.rotate(self.delay_rotation), m.vdc_v);
+        let modulation = svpwm::modulate_sampled(v_req.rotate(self.delay_rotation), m.vdc_v, cfg.duty_max);
         let duty = if cfg.dead_time_duty > 0.0 {
             let i_ref = field.i_ref_ab.inverse_clarke();
             svpwm::compensate_dead_time(modulation.duty, i_ref, cfg.dead_time_duty, cfg.dead_time_band_a)
@@ -1878,7 +1920,7 @@ impl Drive {
                 modulation.v_applied,
                 &field,
                 m.omega_m_rad_s,
-                svpwm::linear_limit_v(m.vdc_v),
+                svpwm::linear_limit_v(v_usable),
             );
             if self.mode != Mode::Running {
                 return off(self.mode);
@@ -1956,6 +1998,7 @@ pub(crate) fn test_spec() -> DriveSpec {
         voltage_margin: 0.97,
         current_trim_bandwidth_rad_s: 20.0,
         dead_time_compensation_s: 0.0,
+        sample_window_s: 0.0,
         protection: Protection {
             i_trip_a: 8.0,
             vdc_min_v: 200.0,

@@ -14,6 +14,17 @@
 //! hexagon boundary. The returned [`Modulation::saturated`] flag reports it. A non-positive or
 //! non-finite bus voltage, or a non-finite request, yields 50 % duty on all phases
 //! (zero voltage); the drive supervisor trips on such inputs before they get here.
+//!
+//! **Low-side shunt sampling** ([`modulate_sampled`]). A phase's current is measured in its
+//! low-side shunt, which carries it only while the low-side switch conducts: around the top
+//! of the count, `(1 − d)·T` per period. With `d_s` the highest duty that still leaves the
+//! board's window, the span is limited to `d_s·V_dc` (the hexagon scaled by `d_s`: the
+//! drive's usable bus) and the common mode is moved down (less of the top zero vector) by
+//! as much as the highest centred duty exceeds `d_s`: every phase keeps its window, so all
+//! three currents are measured in every period — the supervisor's current-sum checks need
+//! the third — at the cost of `1 − d_s` of the voltage. (Rebuilding the highest phase from
+//! the other two keeps that voltage, but was measured to blind those checks at top speed:
+//! docs/firmware.md.)
 
 use crate::frames::{Abc, AlphaBeta};
 use crate::num::{max_f32, min_f32};
@@ -36,9 +47,19 @@ pub fn linear_limit_v(vdc_v: f32) -> f32 {
     vdc_v * 0.577_350_26
 }
 
-/// Duty cycles for voltage `v` on a bus of `vdc_v` volts (see the module docs).
+/// Duty cycles for voltage `v` on a bus of `vdc_v` volts (see the module docs); every duty
+/// up to 1 allowed ([`modulate_sampled`] with 1: no sampling window).
 #[inline]
 pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
+    modulate_sampled(v, vdc_v, 1.0)
+}
+
+/// Duty cycles for voltage `v` on a bus of `vdc_v` volts with every duty at most
+/// `duty_max` (the highest duty whose low-side window still holds a current sample; 1: no
+/// window needed): the span limited to `duty_max·V_dc`, the common mode moved down (module
+/// docs). `duty_max` in `(½, 1]` (the drive's configuration validates it).
+#[inline]
+pub fn modulate_sampled(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
     let zero =
         Modulation { duty: Abc { a: 0.5, b: 0.5, c: 0.5 }, v_applied: AlphaBeta::default(), saturated: true };
     // Positive and finite (NaN fails both comparisons).
@@ -53,10 +74,16 @@ pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
     if !span.is_finite() {
         return zero;
     }
-    let (scale, saturated) = if span > vdc_v { (vdc_v / span, true) } else { (1.0, false) };
+    let limit = duty_max * vdc_v;
+    let (scale, saturated) = if span > limit { (limit / span, true) } else { (1.0, false) };
     let v0 = -0.5 * (max + min);
     let k = scale / vdc_v;
-    let duty = |x: f32| (0.5 + (x + v0) * k).clamp(0.0, 1.0);
+    // Centred duties reach ½ + ½·span·k: down by their excess over the limit (the lowest
+    // stays ≥ 0, the span being within it).
+    let shift = if duty_max < 1.0 { max_f32(0.5 + 0.5 * span * k - duty_max, 0.0) } else { 0.0 };
+    // Comparisons, not `f32::clamp`: with a limit that is not a constant its panic path (and
+    // core::fmt's float printing, ≈ 15 KB of flash) would be linked.
+    let duty = |x: f32| min_f32(max_f32(0.5 - shift + (x + v0) * k, 0.0), duty_max);
     Modulation {
         duty: Abc { a: duty(abc.a), b: duty(abc.b), c: duty(abc.c) },
         v_applied: v.scale(scale),
@@ -170,6 +197,52 @@ mod tests {
         assert!((c.a - 0.52).abs() < 1e-7 && (c.b - 0.49).abs() < 1e-7 && c.c == 1.0, "{c:?}");
         let c = compensate_dead_time(d, Abc { a: -2.0, b: 0.0, c: f32::NAN }, 0.02, 0.1);
         assert!((c.a - 0.48).abs() < 1e-7 && c.b == 0.5 && c.c.is_finite(), "{c:?}");
+    }
+
+    /// With a sampling limit: every duty at most the limit, the circle of the scaled
+    /// hexagon applied as requested (only the common mode moves, and only down), beyond it the
+    /// angle kept, the applied voltage the duties'.
+    #[test]
+    fn a_sampling_limit_keeps_every_phase_measured() {
+        let (vdc, d_s) = (310.0, 0.94);
+        let r0 = linear_limit_v(vdc);
+        for k in 0..720 {
+            let th = k as f32 * TAU / 720.0;
+            let sc = SinCos::new(th);
+            for r in [0.5, 0.88, 0.9399, 0.95, 1.0, 1.3, 2.0] {
+                let v = AlphaBeta { alpha: r * r0 * sc.cos, beta: r * r0 * sc.sin };
+                let m = modulate_sampled(v, vdc, d_s);
+                for d in [m.duty.a, m.duty.b, m.duty.c] {
+                    assert!((0.0..=d_s).contains(&d), "duty {d} at {th} rad, {r}");
+                }
+                let back = applied(&m, vdc);
+                assert!(
+                    (back.alpha - m.v_applied.alpha).abs() < 2e-3
+                        && (back.beta - m.v_applied.beta).abs() < 2e-3
+                );
+                if r < d_s {
+                    assert!(!m.saturated && m.v_applied == v, "{th} {r}");
+                    let p = modulate(v, vdc);
+                    let s = p.duty.a - m.duty.a;
+                    assert!(
+                        s >= -1e-6
+                            && (s - (p.duty.b - m.duty.b)).abs() < 1e-5
+                            && (s - (p.duty.c - m.duty.c)).abs() < 1e-5
+                    );
+                } else if m.saturated {
+                    let (a0, a1) =
+                        (libm::atan2f(v.beta, v.alpha), libm::atan2f(m.v_applied.beta, m.v_applied.alpha));
+                    assert!((a0 - a1).abs() < 1e-4, "angle {a0} → {a1}");
+                }
+            }
+        }
+        // A vertex: d_s of the hexagon's, one phase at d_s, two at 0.
+        let m = modulate_sampled(AlphaBeta { alpha: vdc, beta: 0.0 }, vdc, d_s);
+        assert!((m.duty.a - d_s).abs() < 1e-6 && m.duty.b < 1e-6 && m.duty.c < 1e-6, "{m:?}");
+        assert!((m.v_applied.alpha - d_s * 2.0 * vdc / 3.0).abs() < 1e-3);
+        // No limit: exactly `modulate`.
+        let v = AlphaBeta { alpha: 150.0, beta: 90.0 };
+        assert_eq!(modulate_sampled(v, vdc, 1.0), modulate(v, vdc));
     }
 
     proptest! {

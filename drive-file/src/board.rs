@@ -47,6 +47,11 @@ pub struct BoardTable {
     /// after it was off, charging the high-side gate drivers' bootstrap capacitors, s
     /// (default [`DEFAULT_BOOTSTRAP_PRECHARGE_S`]; 0: none, for isolated gate supplies).
     pub bootstrap_precharge_s: Option<f64>,
+    /// The low-side conduction a phase-current sample needs on either side of the top of the
+    /// count, s: the dead time, then the shunt amplifier's settling and the ADC's sampling
+    /// (default `dead_time_s` + [`DEFAULT_SAMPLE_SETTLE_S`]). A phase whose duty leaves less
+    /// is rebuilt from the other two (`controller_core::drive::DriveSpec::sample_window_s`).
+    pub sample_window_s: Option<f64>,
 }
 
 /// `[board] comparator = { trip_a = 12.0, filter_s = 1e-6 }`.
@@ -81,6 +86,12 @@ pub const DEFAULT_NOISE_MAX_COUNTS: f64 = 8.0;
 /// Default bootstrap pre-charge, s: five time constants of a 1 µF bootstrap capacitor
 /// charged through 400 Ω — a placeholder for the gate driver's datasheet values.
 pub const DEFAULT_BOOTSTRAP_PRECHARGE_S: f64 = 2e-3;
+
+/// The shunt amplifier's settling after the low side turns on and the ADC's sampling of
+/// the three phases, s, added to the dead time for [`BoardTable::sample_window_s`]'s
+/// default: 1 µs, a placeholder for the power board's measurement (an amplifier settling to
+/// 12 bits in ≈ 0.5 µs, three conversions' sampling phases of 6.5 ADC cycles each).
+pub const DEFAULT_SAMPLE_SETTLE_S: f64 = 1e-6;
 
 /// The longest bootstrap pre-charge accepted, s.
 pub const BOOTSTRAP_PRECHARGE_MAX_S: f64 = 0.1;
@@ -146,6 +157,11 @@ pub struct Board {
 }
 
 impl BoardTable {
+    /// [`BoardTable::sample_window_s`] or its default.
+    pub fn sample_window_s(&self) -> f64 {
+        self.sample_window_s.unwrap_or(self.dead_time_s + DEFAULT_SAMPLE_SETTLE_S)
+    }
+
     /// The inverter's rating (the drive's I²t default is built from it before the rest of
     /// the board is checked).
     pub fn validate_overload(&self, src: &Source<'_>) -> Result<(), FileError> {

@@ -442,6 +442,9 @@ pub struct DefaultsBasis {
 pub struct BoardDefaults {
     /// Dead time to compensate, s (0: off).
     pub dead_time_compensation_s: f64,
+    /// The low-side window a current sample needs, s (0 without a board: sensors that need
+    /// none).
+    pub sample_window_s: f64,
     /// Encoder lines per revolution ([`DEFAULT_ENCODER_LINES`] without a board).
     pub encoder_lines: u32,
     /// The inverter's I²t limit from its rating, if the board states one.
@@ -564,6 +567,7 @@ impl DriveTables {
         }
         let board = BoardDefaults {
             dead_time_compensation_s: dead_time_s,
+            sample_window_s: self.board.map_or(0.0, |b| b.sample_window_s()),
             encoder_lines: self.board.map_or(DEFAULT_ENCODER_LINES, |b| b.encoder_lines),
             inverter_thermal: self.board.and_then(|b| {
                 let o = b.inverter_overload?;
@@ -592,6 +596,7 @@ pub fn drive_spec(
     board: &BoardDefaults,
 ) -> Result<DriveSpec, FileError> {
     let dead_time_compensation_s = board.dead_time_compensation_s;
+    let sample_window_s = board.sample_window_s;
     let (lo, hi) = PWM_FREQUENCY_HZ;
     src.check(
         pwm.frequency_hz.is_finite() && (lo..=hi).contains(&pwm.frequency_hz),
@@ -712,6 +717,7 @@ pub fn drive_spec(
         voltage_margin: c.voltage_margin,
         current_trim_bandwidth_rad_s: c.current_trim_bandwidth_rad_s,
         dead_time_compensation_s,
+        sample_window_s,
         protection: {
             let basis = DefaultsBasis {
                 flux_ref_wb: c.flux_ref_wb,
@@ -766,6 +772,14 @@ pub fn drive_spec(
         DriveError::DeadTime => {
             src.error("board.dead_time_s", "must be ≥ 0 and below a tenth of the PWM period to compensate it")
         }
+        DriveError::SampleWindow => src.error(
+            "board.sample_window_s",
+            format!(
+                "must be ≥ 0 and leave the phases a duty of at least {} with the dead time's compensation \
+                 (1 − 2·window·f_pwm − dead time·f_pwm)",
+                controller_core::drive::DUTY_MAX_MIN
+            ),
+        ),
         // Only `DriveConfig::from_raw` returns it.
         DriveError::Raw => src.error("controller", "configuration rejected"),
         DriveError::CurrentTrim => src.error(

@@ -224,7 +224,7 @@ impl Campaign {
     pub fn omega_s_rad_s(&self) -> f64 {
         let m = &self.spec.motor;
         let p = f64::from(m.pole_pairs());
-        let base = crate::envelope::base_speed_rad_s(m, self.spec.flux_ref_wb, self.vdc_v);
+        let base = crate::envelope::drive_base_speed_rad_s(&self.spec, self.vdc_v);
         let top = (self.certify.omega_r_max_rad_s / p).min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
         let tau = torque_limit_nm(&self.spec);
         let j_max = m.j_kgm2() * self.certify.j_factor[1];

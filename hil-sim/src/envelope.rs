@@ -38,6 +38,12 @@ pub fn base_speed_rad_s(motor: &MotorParams, flux_ref_wb: f64, vdc_v: f64) -> f6
     if x2 <= 0.0 { 0.0 } else { x2.sqrt() / (motor.ls_h() * f64::from(motor.pole_pairs())) }
 }
 
+/// [`base_speed_rad_s`] of drive `spec` on a bus of `vdc_v`: on the part of the bus its
+/// modulator uses ([`DriveSpec::duty_max`]: the low-side sampling window's cost).
+pub fn drive_base_speed_rad_s(spec: &DriveSpec, vdc_v: f64) -> f64 {
+    base_speed_rad_s(&spec.motor, spec.flux_ref_wb, spec.duty_max() * vdc_v)
+}
+
 /// The d-axis current of the rated flux on `plant`, within the current limit, A.
 pub(crate) fn rated_d_current_a(spec: &DriveSpec, plant: &MotorParams) -> f64 {
     (spec.flux_ref_wb / plant.lm_h()).min(spec.i_ref_max_a)
@@ -139,7 +145,7 @@ fn point(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, w: f64, sign: f32) -
         plant,
         f64::from(sign) * w,
         rated_d_current_a(spec, plant),
-        vdc_v / 3f64.sqrt(),
+        spec.duty_max() * vdc_v / 3f64.sqrt(),
         spec.i_ref_max_a,
         20_000,
     );
@@ -161,7 +167,7 @@ pub fn plot(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, points: &[Point],
     let curve: Vec<(f64, f64)> = (0..=200)
         .map(|k| {
             let w = top * f64::from(k) / 200.0;
-            let v = vdc_v / 3f64.sqrt();
+            let v = spec.duty_max() * vdc_v / 3f64.sqrt();
             let (t, _, _) =
                 envelope_by_grid(plant, f64::from(sign) * w, i_d_rated, v, spec.i_ref_max_a, 4000);
             (w, t)

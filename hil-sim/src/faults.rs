@@ -241,7 +241,7 @@ impl Matrix {
     /// (without the board's comparator: [`Matrix::comparator`]).
     pub fn new(spec: DriveSpec, omega_r_max_rad_s: f64, vdc_v: f64) -> Self {
         let m = &spec.motor;
-        let base = crate::envelope::base_speed_rad_s(m, spec.flux_ref_wb, vdc_v);
+        let base = crate::envelope::drive_base_speed_rad_s(&spec, vdc_v);
         let top = (omega_r_max_rad_s / f64::from(m.pole_pairs()))
             .min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
         Self { spec, top_speed_rad_s: top, vdc_v, comparator: None }
@@ -250,7 +250,7 @@ impl Matrix {
     /// The six operating points.
     pub fn points(&self) -> Vec<OperatingPoint> {
         let tau = crate::campaign::torque_limit_nm(&self.spec);
-        let base = crate::envelope::base_speed_rad_s(&self.spec.motor, self.spec.flux_ref_wb, self.vdc_v);
+        let base = crate::envelope::drive_base_speed_rad_s(&self.spec, self.vdc_v);
         let mut v = Vec::new();
         for (point, speed, load) in [
             (Point::Standstill, 0.0, LOAD_FRACTION * tau),

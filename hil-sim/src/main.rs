@@ -772,7 +772,7 @@ fn envelope(a: &EnvelopeArgs) -> Result<(), String> {
     let spec = file.spec;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/envelope"));
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let base = hil_sim::envelope::base_speed_rad_s(&spec.motor, spec.flux_ref_wb, a.vdc);
+    let base = hil_sim::envelope::drive_base_speed_rad_s(&spec, a.vdc);
     if base <= 0.0 {
         return Err(format!("the rated flux needs more than the {} V bus has even at standstill", a.vdc));
     }

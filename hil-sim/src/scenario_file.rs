@@ -545,6 +545,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         current_noise_rms_a: s.current_noise_rms_a,
         vdc_lsb_v: s.vdc_lsb_v,
         encoder_lines: s.encoder_lines,
+        low_side_window_s: None,
         seed: s.seed,
     };
     let inverter = match f.inverter {

@@ -24,6 +24,13 @@ pub struct SensorModel {
     pub vdc_lsb_v: f64,
     /// Encoder lines per revolution (`None`: exact speed and angle).
     pub encoder_lines: Option<u32>,
+    /// Low-side shunts: the conduction a phase's sample needs on either side of the top of
+    /// the count, s; a phase whose duty leaves less (in the period before the sample or the
+    /// one after) reads no current — its shunt carries none while the high side conducts.
+    /// `None`: the drive's own (`DriveSpec::sample_window_s`, the drive file's board) in a
+    /// [`crate::scenario::Builtin`] run, none in a bare [`crate::sim::run`]; `Some(0.0)`:
+    /// sensors that need no window.
+    pub low_side_window_s: Option<f64>,
     /// Noise seed: equal seeds give equal runs.
     pub seed: u64,
 }
@@ -37,6 +44,7 @@ impl Default for SensorModel {
             current_noise_rms_a: 0.0,
             vdc_lsb_v: 0.0,
             encoder_lines: None,
+            low_side_window_s: None,
             seed: 1,
         }
     }
@@ -54,6 +62,7 @@ impl SensorModel {
             current_noise_rms_a: 0.01,
             vdc_lsb_v: 0.1,
             encoder_lines: Some(1024),
+            low_side_window_s: None,
             seed,
         }
     }
@@ -170,6 +179,18 @@ impl Sensors {
     /// Sampled phase currents from the true ones.
     #[inline(always)]
     pub fn currents(&mut self, true_abc: [f64; 3]) -> Abc {
+        self.currents_sampled(true_abc, 0)
+    }
+
+    /// [`Sensors::currents`] with the phases in `unsampled` (bit 0 a, 1 b, 2 c) read while
+    /// their shunts carry no current ([`SensorModel::low_side_window_s`]).
+    pub fn currents_sampled(&mut self, true_abc: [f64; 3], unsampled: u8) -> Abc {
+        let mut true_abc = true_abc;
+        for (k, i) in true_abc.iter_mut().enumerate() {
+            if unsampled & (1 << k) != 0 {
+                *i = 0.0;
+            }
+        }
         if self.exact_currents {
             let [a, b, c] = true_abc.map(|i| i as f32);
             Abc { a, b, c }

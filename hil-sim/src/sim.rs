@@ -558,6 +558,12 @@ pub fn run(
     let mut legs_modelled = sc.comparator.is_some();
     // A switch stuck open: (phase, upper).
     let mut switch_open: Option<(usize, bool)> = None;
+    // Low-side shunts: the highest duty that leaves a phase its sampling window (above 1:
+    // none needed), and the duties of the period before the present one (bridge off: none).
+    let sensed_duty_max = 1.0 - 2.0 * sc.sensors.low_side_window_s.unwrap_or(0.0) * pwm_hz;
+    // The drive's limit is the same number in f32: its rounding is no lost window.
+    const DUTY_TOLERANCE: f64 = 1e-6;
+    let mut duty_before: Option<[f64; 3]> = None;
     let mut events = sc.events.iter().peekable();
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
     let mut next_event_k = first_period_of(events.peek());
@@ -629,7 +635,20 @@ pub fn run(
         // True phase currents (controller-core's inverse Clarke, in f64).
         let i = AlphaBeta { alpha: x.i_alpha_a, beta: x.i_beta_a }.inverse_clarke();
         let i_true = [i.a, i.b, i.c];
-        let i_abc = sensors.currents(if legs_modelled { legs.currents(i_true) } else { i_true });
+        // A phase without a window in the period before the sample or the one after it reads
+        // no current.
+        let mask = |d: &[f64; 3]| {
+            d.iter()
+                .enumerate()
+                .fold(0u8, |m, (k, &x)| m | (u8::from(x > sensed_duty_max + DUTY_TOLERANCE) << k))
+        };
+        let unsampled = if sensed_duty_max < 1.0 {
+            duty_before.as_ref().map_or(0, mask) | if bridge_on { mask(&duty_applied) } else { 0 }
+        } else {
+            0
+        };
+        let i_abc =
+            sensors.currents_sampled(if legs_modelled { legs.currents(i_true) } else { i_true }, unsampled);
         if legs.broken {
             // The firmware finds the break flag in its next interrupt; the bridge is off.
             drive.hardware_break()?;
@@ -751,6 +770,7 @@ pub fn run(
             to_trace -= 1;
         }
         // Duties (and the brake) computed now act during the next period.
+        duty_before = bridge_on.then_some(duty_applied);
         brake_applied = out.brake;
         (duty_applied, bridge_on) = match out.phases {
             PhaseCommand::Off => ([0.5; 3], false),

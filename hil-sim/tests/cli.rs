@@ -277,7 +277,7 @@ fn envelope_writes_its_table_and_plot() {
     assert!(std::fs::read_to_string(out.join("envelope.svg")).unwrap().contains("<svg"));
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
-    assert!((summary["base_speed_rad_s"].as_f64().unwrap() - 195.8).abs() < 0.05);
+    assert!((summary["base_speed_rad_s"].as_f64().unwrap() - 184.0).abs() < 0.05);
     assert_eq!(summary["points_outside"], 0);
     let st = bin().args(["envelope", "/nonexistent/drive.toml", "--out"]).arg(&out).output().unwrap();
     assert_eq!(st.status.code(), Some(1));

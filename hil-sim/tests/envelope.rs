@@ -5,7 +5,7 @@
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
 
 use controller_core::drive::{Mode, Reference};
-use hil_sim::envelope::{base_speed_rad_s, measure};
+use hil_sim::envelope::{drive_base_speed_rad_s, measure};
 use hil_sim::scenario::Builtin;
 use hil_sim::scenario_file::{ScenarioFileKind, load};
 use hil_sim::sim::Row;
@@ -41,21 +41,22 @@ fn volts(r: &Row) -> f64 {
     r.v_ab_v[0].hypot(r.v_ab_v[1])
 }
 
-/// 0 → 376 rad/s → twice the no-load base speed (195.8 rad/s on 310 V: the speed at which
-/// the rated 0.9 Wb alone needs V_dc/√3), then a 0.2 N·m load step at top speed and its
-/// removal, with the shipped drive. Before field weakening the same drive hung at ≈ 226 rad/s
-/// on the voltage limit. At the end of each plateau: the speed where the saturated-P law
+/// 0 → 300 rad/s → twice the no-load base speed (184.0 rad/s on 310 V: the speed at which
+/// the rated 0.9 Wb alone needs the modulator's 94 % of V_dc/√3, the rest being the low-side
+/// shunts' sampling window), then a 0.2 N·m load step at top speed and its removal, with the
+/// shipped drive. Before field weakening the same drive hung at ≈ 226 rad/s on the voltage
+/// limit (on the whole bus). At the end of each plateau: the speed where the saturated-P law
 /// eq. (21) puts it (no integral: ω = (k_p·ω_ref − T_L)/(k_p + B)) within 1 rad/s and steady
 /// (peak to peak < 0.5 rad/s over 0.5 s: no sustained oscillation), the rotor flux within 5 %
-/// of its weakened reference, |v| within V_dc/√3; no fault; the torque within τ_max except for
+/// of its weakened reference, |v| within the modulator's 94 % of V_dc/√3; no fault; the torque within τ_max except for
 /// the current loops' step response to the 0 → τ_max speed step (ICAD eq. (20) overshoots:
-/// ≤ 25 % for ≤ 5 ms). At 372 rad/s the torque ripple is below 0.1 N·m peak to peak.
+/// ≤ 26 % for ≤ 5 ms). At 300 rad/s the torque ripple is below 0.1 N·m peak to peak.
 #[test]
 fn field_weakening_to_twice_base_speed_with_a_load_step_at_the_top() {
     let mut b = scenario("field-weakening.toml");
     b.scenario.trace_every = 1; // every PWM period: the ripple
-    let base = base_speed_rad_s(&b.spec.motor, b.spec.flux_ref_wb, b.scenario.vdc_v);
-    assert!((base - 195.8).abs() < 0.05, "{base}");
+    let base = drive_base_speed_rad_s(&b.spec, b.scenario.vdc_v);
+    assert!((base - 184.0).abs() < 0.05, "{base}");
     assert!(b.scenario.events.iter().any(|(_, e)| matches!(
         e,
         hil_sim::sim::Event::Reference(Reference::Speed(w)) if (f64::from(*w) - 2.0 * base).abs() < 0.1
@@ -77,7 +78,7 @@ fn field_weakening_to_twice_base_speed_with_a_load_step_at_the_top() {
     );
     assert!(psi_u / ref_u - 1.0 > 0.1);
     let (kp, bf) = (0.05, b.spec.motor.b_nms());
-    let v_lin = b.scenario.vdc_v / 3f64.sqrt();
+    let v_lin = b.spec.duty_max() * b.scenario.vdc_v / 3f64.sqrt();
     let peak_torque = rows.iter().map(|r| r.torque_nm.abs()).fold(0.0, f64::max);
     let over: Vec<f64> = rows.iter().filter(|r| r.torque_nm.abs() > 2.0 * 1.02).map(|r| r.t_s).collect();
     let overshoot_s = over.last().zip(over.first()).map_or(0.0, |(l, f)| l - f);
@@ -86,10 +87,11 @@ fn field_weakening_to_twice_base_speed_with_a_load_step_at_the_top() {
         1e3 * overshoot_s,
         over.first()
     );
-    assert!(peak_torque <= 2.0 * 1.25 && overshoot_s <= 5e-3, "torque {peak_torque} N·m beyond τ_max");
+    // 25 % is ICAD eq. (20)'s step overshoot; the voltage limit during the step adds 0.05 %.
+    assert!(peak_torque <= 2.0 * 1.26 && overshoot_s <= 5e-3, "torque {peak_torque} N·m beyond τ_max");
     assert!(over.iter().all(|t| (0.3..0.31).contains(t)), "beyond τ_max other than at the speed step");
-    let w_top = 391.6; // the scenario's reference, 2 × the base speed to 0.1 rad/s (checked above)
-    for (end_s, w_ref, load) in [(3.0, 376.0, 0.0), (5.0, w_top, 0.0), (6.5, w_top, 0.2), (8.0, w_top, 0.0)] {
+    let w_top = 368.0; // the scenario's reference, 2 × the base speed to 0.1 rad/s (checked above)
+    for (end_s, w_ref, load) in [(3.0, 300.0, 0.0), (5.0, w_top, 0.0), (6.5, w_top, 0.2), (8.0, w_top, 0.0)] {
         let w = window(&rows, end_s - 0.5, end_s);
         let expected = (kp * w_ref - load) / (kp + bf);
         let (speed, wobble) = (mean(&w, |r| r.x.omega_m_rad_s), span(&w, |r| r.x.omega_m_rad_s));
@@ -134,7 +136,7 @@ fn torque_reversal_at_300_rad_s_without_loss_of_control() {
         &b.spec.motor,
         300.0,
         i_d_rated,
-        b.scenario.vdc_v / 3f64.sqrt(),
+        b.spec.duty_max() * b.scenario.vdc_v / 3f64.sqrt(),
         b.spec.i_ref_max_a,
         20_000,
     );
@@ -156,7 +158,7 @@ fn torque_reversal_at_300_rad_s_without_loss_of_control() {
 #[test]
 fn torque_speed_envelope_within_5_percent_of_the_analytic_one() {
     let spec = drive_file::DriveFile::shipped().unwrap().spec;
-    let base = base_speed_rad_s(&spec.motor, spec.flux_ref_wb, 310.0);
+    let base = drive_base_speed_rad_s(&spec, 310.0);
     let speeds: Vec<f64> = (0..10).map(|k| base * (0.2 + 0.2 * f64::from(k))).collect();
     for sign in [1.0, -1.0] {
         let points = measure(&spec, &spec.motor, 310.0, &speeds, sign).unwrap();
@@ -322,11 +324,11 @@ fn a_trip_above_the_bus_regenerates_until_the_emf_is_down() {
         end.x.omega_m_rad_s,
         line_emf(end)
     );
-    assert!(line_emf(at_trip) > 250.0, "the motor's EMF was above the sagged bus");
+    assert!(line_emf(at_trip) > 1.5 * 150.0, "the motor's EMF was well above the sagged bus");
     assert!(end.t_s - at_trip.t_s > 5e-3, "the diodes conducted beyond the currents' own decay");
     assert!(braking < -0.1, "regeneration brakes the motor: {braking}");
     // The last current dies near an EMF peak; the line voltage peaks again a sixth of the
-    // electrical period later (2.7 ms at 386 rad/s), so the envelope may still be above the
+    // electrical period later (2.9 ms at 362 rad/s), so the envelope may still be above the
     // bus at the end, but must be below it by that next peak (the flux decays ≈ 1 %/ms).
     let sixth = std::f64::consts::PI / 3.0 / end.x.omega_m_rad_s.abs();
     let next_peak = rows.iter().find(|r| r.t_s >= end.t_s + sixth).unwrap();
@@ -425,4 +427,31 @@ fn braking_with_and_without_a_chopper() {
     );
     assert!(v_peak < b.spec.protection.vdc_max_v, "{v_peak}");
     assert!(t_limited > t_chopper);
+}
+
+/// Low-side shunts (issue 19): the simulator's sensors read no current in a phase whose duty
+/// leaves less than the board's 1.5 µs on either side of the sample (`[board]
+/// sample_window_s`). The shipped drive keeps every duty at most 0.94 and runs the
+/// field-weakening scenario to twice its base speed without a fault, every phase measured
+/// in every period; the same drive unaware of the window (duties up to 1) reads zero in the
+/// phase nearest its top duty and trips on the current sum as soon as it reaches the hexagon.
+#[test]
+fn the_low_side_sampling_window_is_kept() {
+    let b = scenario("field-weakening.toml");
+    assert_eq!(b.spec.sample_window_s, 1.5e-6);
+    assert!((b.spec.duty_max() - 0.94).abs() < 1e-12);
+    let mut aware = b.clone();
+    aware.scenario.trace_every = 1;
+    let (rows, mode) = aware.run(|_| {}).unwrap();
+    assert_eq!(mode, Mode::Running);
+    let top = rows.iter().filter_map(|r| r.duty).flatten().fold(0.0, f64::max);
+    eprintln!("aware of the window: highest duty {top:.6}");
+    assert!(top <= 0.94 + 1e-6 && top > 0.93, "{top}");
+    let mut unaware = b.clone();
+    unaware.spec.sample_window_s = 0.0;
+    unaware.scenario.sensors.low_side_window_s = Some(1.5e-6);
+    let (rows, mode) = unaware.run(|_| {}).unwrap();
+    let first = rows.iter().find(|r| matches!(r.mode, Some(Mode::Fault(_)))).map(|r| r.t_s);
+    eprintln!("unaware: {mode:?} at {first:?} s");
+    assert_eq!(mode, Mode::Fault(controller_core::drive::Fault::CurrentSensor));
 }

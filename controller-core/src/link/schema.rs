@@ -376,6 +376,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         s.voltage_margin,
         s.current_trim_bandwidth_rad_s,
         s.dead_time_compensation_s,
+        s.sample_window_s,
     ] {
         w.f64(v)?;
     }
@@ -453,8 +454,8 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
     let position = PositionLaw { k_per_s: r.f64()?, omega_max_rad_s: r.f64()? };
     let (flux_ref_wb, flux_floor_wb, i_ref_max_a, magnetized_fraction) =
         (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
-    let (voltage_margin, current_trim_bandwidth_rad_s, dead_time_compensation_s) =
-        (r.f64()?, r.f64()?, r.f64()?);
+    let (voltage_margin, current_trim_bandwidth_rad_s, dead_time_compensation_s, sample_window_s) =
+        (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
     let protection = Protection {
         i_trip_a: r.f64()?,
         vdc_min_v: r.f64()?,
@@ -493,6 +494,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         voltage_margin,
         current_trim_bandwidth_rad_s,
         dead_time_compensation_s,
+        sample_window_s,
         protection,
     })
 }
