@@ -452,7 +452,8 @@ impl IdealLoop {
             (1.0, t_s / j)
         };
         let i_d_rated = crate::envelope::rated_d_current_a(spec, plant);
-        let v_target = spec.voltage_margin * vdc_v / 3f64.sqrt();
+        // The drive's target on the part of the bus its modulator uses (the sampling window).
+        let v_target = spec.voltage_margin * spec.duty_max() * vdc_v / 3f64.sqrt();
         Ok(Self {
             law,
             state: SpeedState::default(),
