@@ -224,6 +224,20 @@ pub const OPEN_PHASE_ABSENT_FRACTION: f32 = 0.1;
 pub const OPEN_PHASE_OTHERS_FRACTION: f32 = 0.25;
 /// Consecutive windows an open phase (or no motor current) must persist for.
 pub const OPEN_PHASE_WINDOWS: u8 = 2;
+
+/// The stuck-switch check ([`Fault::SwitchOpen`]) judges a half-wave of a phase's reference
+/// (a run of one sign) that holds at least this many open-phase windows' worth of the
+/// commanded level ([`OPEN_PHASE_COMMANDED_FRACTION`] of the rated magnetizing current per
+/// step).
+pub const SWITCH_CHARGE_WINDOWS: f32 = 1.0;
+/// … the half-wave's shortfall (Σ of the reference's excess over the current, in the
+/// reference's direction) above this fraction of its Σ|i_ref| is a phase that does not
+/// follow in that direction …
+pub const SWITCH_SHORTFALL_MISSING: f32 = 0.6;
+/// … while the last half-wave the other way followed (shortfall below this fraction).
+pub const SWITCH_SHORTFALL_FOLLOWING: f32 = 0.3;
+/// … for this many half-waves the same way in a row.
+pub const SWITCH_MISSED_HALF_WAVES: u8 = 2;
 /// The current-sum check's windowed level, as a fraction of `current_sum_max_a`: the mean
 /// |i_a + i_b + i_c| over one open-phase window above it is [`Fault::CurrentSensor`]. The
 /// instantaneous check (the full level) catches a large error at once; the mean, a sensor
@@ -883,11 +897,15 @@ pub enum Fault {
     /// speed error did not shrink as the commanded torque would make it (a load beyond the
     /// drive's torque: the motor is dragged away from its reference).
     FollowingError,
+    /// A phase follows its reference in one direction of current and not in the other: a
+    /// bridge switch (or its gate drive) stuck open — its direction of current can only
+    /// flow through the opposite diode, which pins the phase to the other rail.
+    SwitchOpen,
 }
 
 impl Fault {
     /// Every fault.
-    pub const ALL: [Fault; 17] = [
+    pub const ALL: [Fault; 18] = [
         Fault::Overcurrent,
         Fault::DcBusOvervoltage,
         Fault::DcBusUndervoltage,
@@ -905,6 +923,7 @@ impl Fault {
         Fault::MotorOverload,
         Fault::InverterOverload,
         Fault::FollowingError,
+        Fault::SwitchOpen,
     ];
 
     /// The fault's bit in a [`FaultSet`].
@@ -1122,6 +1141,73 @@ impl OpenPhaseWindow {
     }
 }
 
+/// The stuck-switch check ([`Fault::SwitchOpen`]), per phase: the present half-wave of the
+/// reference (its sign, Σ|i_ref| and Σ shortfall), the last shortfall ratio of each
+/// direction (negative: none yet) and the consecutive half-waves that missed.
+#[derive(Clone, Copy, Debug, Default)]
+struct SwitchWatch {
+    sign: [i8; 3],
+    reference: [f32; 3],
+    shortfall: [f32; 3],
+    /// Last completed half-wave's shortfall ratio, [phase][0: positive, 1: negative].
+    last: [[f32; 2]; 3],
+    /// Consecutive missed half-waves, [phase][direction].
+    missed: [[u8; 2]; 3],
+}
+
+impl SwitchWatch {
+    /// One fast step of the references and the measured currents; `charge` is the least
+    /// Σ|i_ref| of a half-wave that is judged. At the end of a half-wave (the reference
+    /// changes sign): it *missed* when its shortfall ratio is above
+    /// [`SWITCH_SHORTFALL_MISSING`] while the phase's last half-wave the other way followed
+    /// (below [`SWITCH_SHORTFALL_FOLLOWING`]); two missed half-waves the same way in a row — a
+    /// reference step misses one — are [`Fault::SwitchOpen`]. An open lead misses both ways,
+    /// a phase that never reverses (standstill) is never judged: both are the open-phase
+    /// check's.
+    #[inline]
+    fn add(&mut self, reference: Abc, measured: Abc, charge: f32) -> Option<Fault> {
+        let (r, m) = ([reference.a, reference.b, reference.c], [measured.a, measured.b, measured.c]);
+        let mut fault = None;
+        for k in 0..3 {
+            let (Some(&rk), Some(&mk)) = (r.get(k), m.get(k)) else { continue };
+            let sign: i8 = if rk >= 0.0 { 1 } else { -1 };
+            let (Some(s), Some(rs), Some(sh), Some(last), Some(missed)) = (
+                self.sign.get_mut(k),
+                self.reference.get_mut(k),
+                self.shortfall.get_mut(k),
+                self.last.get_mut(k),
+                self.missed.get_mut(k),
+            ) else {
+                continue;
+            };
+            if sign != *s {
+                // The half-wave the other way (`ended`) is over: judged if it was long enough.
+                let ended = usize::from(sign > 0);
+                if *rs >= charge {
+                    let ratio = *sh / *rs;
+                    let other = last.get(1 - ended).copied().unwrap_or(-1.0);
+                    let miss = ratio > SWITCH_SHORTFALL_MISSING
+                        && (0.0..SWITCH_SHORTFALL_FOLLOWING).contains(&other);
+                    if let Some(n) = missed.get_mut(ended) {
+                        *n = if miss { n.saturating_add(1) } else { 0 };
+                        if *n >= SWITCH_MISSED_HALF_WAVES {
+                            fault = Some(Fault::SwitchOpen);
+                        }
+                    }
+                    if let Some(l) = last.get_mut(ended) {
+                        *l = ratio;
+                    }
+                }
+                (*s, *rs, *sh) = (sign, 0.0, 0.0);
+            }
+            let f = f32::from(sign);
+            *rs += f * rk;
+            *sh += max_f32(f * (rk - mk), 0.0);
+        }
+        fault
+    }
+}
+
 /// A drive: configuration plus all loop states.
 #[derive(Clone, Copy, Debug)]
 pub struct Drive {
@@ -1153,6 +1239,8 @@ pub struct Drive {
     stop_steps_left: Option<u32>,
     /// The open-phase check's window: Σ|i_ref| and Σ|i| per phase, and its steps so far.
     open_phase: OpenPhaseWindow,
+    /// The stuck-switch check's half-waves.
+    switches: SwitchWatch,
     /// The flux (d-axis current) command of the present operating point.
     flux: FluxCommand,
     /// Σ of the RMS phase current squared, A², over the slow steps since the thermal models'
@@ -1230,6 +1318,7 @@ impl Drive {
             brake: false,
             stop_steps_left: None,
             open_phase: OpenPhaseWindow::default(),
+            switches: SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() },
             flux: FluxCommand::default(),
             thermal_sum_a2: 0.0,
             thermal_steps: 0,
@@ -1299,6 +1388,7 @@ impl Drive {
                 self.saturated_steps = 0;
                 self.encoder_bad_steps = 0;
                 self.open_phase = OpenPhaseWindow::default();
+                self.switches = SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() };
                 self.flux = FluxCommand::default();
                 self.torque_max_nm = 0.0;
                 self.v_cut_v = 0.0;
@@ -1855,14 +1945,28 @@ impl Drive {
             }
         };
         self.omega_sl_rad_s = field.omega_sl_rad_s;
+        let i_ref_abc = field.i_ref_ab.inverse_clarke();
         let window = self.open_phase.add(
-            field.i_ref_ab.inverse_clarke(),
+            i_ref_abc,
             m.i_abc_a,
             cfg.open_phase_steps,
             cfg.i_d_rated_a,
             CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
         );
         if let Some(f) = window {
+            self.trip(f);
+            return off(self.mode);
+        }
+        if running
+            && let Some(f) = self.switches.add(
+                i_ref_abc,
+                m.i_abc_a,
+                SWITCH_CHARGE_WINDOWS
+                    * OPEN_PHASE_COMMANDED_FRACTION
+                    * cfg.i_d_rated_a
+                    * cfg.open_phase_steps as f32,
+            )
+        {
             self.trip(f);
             return off(self.mode);
         }
@@ -1895,7 +1999,7 @@ impl Drive {
         // modulator's hexagon.
         let modulation = svpwm::modulate_sampled(v_req.rotate(self.delay_rotation), m.vdc_v, cfg.duty_max);
         let duty = if cfg.dead_time_duty > 0.0 {
-            let i_ref = field.i_ref_ab.inverse_clarke();
+            let i_ref = i_ref_abc;
             svpwm::compensate_dead_time(modulation.duty, i_ref, cfg.dead_time_duty, cfg.dead_time_band_a)
         } else {
             modulation.duty
@@ -2509,6 +2613,53 @@ mod tests {
 
     fn non_finite() -> impl Strategy<Value = f32> {
         prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(f32::NEG_INFINITY)]
+    }
+
+    /// The stuck-switch check on synthetic half-waves: a phase whose positive half-waves
+    /// carry nothing while its negative ones follow is `SwitchOpen` at the end of the second
+    /// positive half-wave that follows a negative one, not before; a healthy phase lagging its reference by 20°, and a
+    /// reference step the loops take a millisecond to follow, are not.
+    #[test]
+    fn a_phase_that_follows_one_way_only_is_a_stuck_switch() {
+        let (steps_per_period, charge) = (400, 10.0);
+        let run = |shape: &dyn Fn(f32, f32) -> f32, periods: usize| {
+            let mut w = SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() };
+            for n in 0..periods * steps_per_period {
+                let th = core::f32::consts::TAU * n as f32 / steps_per_period as f32;
+                let third = core::f32::consts::TAU / 3.0;
+                let r = Abc { a: libm::cosf(th), b: libm::cosf(th - third), c: libm::cosf(th + third) };
+                let m = Abc {
+                    a: shape(th, r.a),
+                    b: libm::cosf(th - third - 0.35),
+                    c: libm::cosf(th + third - 0.35),
+                };
+                if let Some(f) = w.add(r, m, charge) {
+                    return Some((f, n));
+                }
+            }
+            None
+        };
+        // Phase a's upper switch dead: no positive current.
+        let (f, n) = run(&|th, _| libm::cosf(th - 0.35).min(0.0), 4).unwrap();
+        assert_eq!(f, Fault::SwitchOpen);
+        // The positive half-waves end at ¼, 1¼ and 2¼ periods (cos from 0); the first has no
+        // negative half-wave before it to compare with, the second misses once, the third
+        // twice: the fault at 2¼ periods.
+        let expected = 2 * steps_per_period + steps_per_period / 4;
+        assert!(n.abs_diff(expected) <= 1, "{n} vs {expected}");
+        // Healthy, 20° behind.
+        assert_eq!(run(&|th, _| libm::cosf(th - 0.35), 6), None);
+        // A step: two periods in, the reference's amplitude jumps ×5 and phase a's current
+        // stays at zero for 20 steps (a millisecond at 20 kHz) before it follows.
+        let mut w = SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() };
+        for n in 0..4 * steps_per_period {
+            let th = core::f32::consts::TAU * n as f32 / steps_per_period as f32;
+            let k = if n < 2 * steps_per_period + 40 { 0.2 } else { 1.0 };
+            let r = Abc { a: k * libm::cosf(th), b: k * libm::cosf(th - 2.1), c: k * libm::cosf(th + 2.1) };
+            let late = (2 * steps_per_period + 40..2 * steps_per_period + 60).contains(&n);
+            let m = if late { Abc { a: 0.0, ..r } } else { r };
+            assert_eq!(w.add(r, m, charge), None, "step {n}");
+        }
     }
 
     proptest! {

@@ -533,6 +533,7 @@ fn mode_code(m: Mode) -> u8 {
         Mode::Fault(Fault::MotorOverload) => 24,
         Mode::Fault(Fault::InverterOverload) => 25,
         Mode::Fault(Fault::FollowingError) => 26,
+        Mode::Fault(Fault::SwitchOpen) => 27,
     }
 }
 
@@ -558,6 +559,7 @@ fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
         24 => Mode::Fault(Fault::MotorOverload),
         25 => Mode::Fault(Fault::InverterOverload),
         26 => Mode::Fault(Fault::FollowingError),
+        27 => Mode::Fault(Fault::SwitchOpen),
         _ => return Err(DecodeError::Value),
     })
 }
