@@ -123,10 +123,10 @@ pub enum Expect {
         /// Detection bound, s.
         bound_s: f64,
     },
-    /// Either of two faults (whichever protection acts first), within `bound_s`.
+    /// Any of these faults (whichever protection acts first), within `bound_s`.
     Either {
         /// The codes.
-        faults: [Fault; 2],
+        faults: &'static [Fault],
         /// Detection bound, s.
         bound_s: f64,
     },
@@ -157,6 +157,9 @@ pub struct Outcome {
     pub speed_at_injection_rad_s: f64,
     /// The fault latched first after the injection, and its delay, s.
     pub detected: Option<(Fault, f64)>,
+    /// A switch stuck open: when it first mattered after the injection, s (`None`: never
+    /// within the observation); the detection bound runs from there. Other faults: 0.
+    pub acting_after_s: Option<f64>,
     /// PWM periods from the detection to the bridge off (0: off from the next period).
     pub off_after_periods: Option<u64>,
     /// Peak true phase current after the injection, A.
@@ -191,7 +194,10 @@ impl Outcome {
     pub fn asked(&self) -> String {
         match self.expect {
             Expect::Fault { fault, bound_s } => format!("{fault:?} ≤ {}", ms(bound_s)),
-            Expect::Either { faults: [a, b], bound_s } => format!("{a:?}/{b:?} ≤ {}", ms(bound_s)),
+            Expect::Either { faults, bound_s } => {
+                let names: Vec<String> = faults.iter().map(|f| format!("{f:?}")).collect();
+                format!("{} ≤ {}", names.join("/"), ms(bound_s))
+            }
             Expect::RideThrough => "no trip".into(),
             Expect::Gap { fault, bound_s, .. } => format!("({fault:?} ≤ {})", ms(bound_s)),
         }
@@ -209,9 +215,14 @@ impl Outcome {
 
     /// What was seen, in words.
     pub fn seen(&self) -> String {
-        match self.detected {
+        let seen = match self.detected {
             Some((f, t)) => format!("{f:?} after {}", ms(t)),
             None => format!("none ({:?})", self.final_mode),
+        };
+        match (self.case.injection, self.acting_after_s) {
+            (Injection::SwitchOpen { .. }, Some(t)) => format!("{seen} (needed from {})", ms(t)),
+            (Injection::SwitchOpen { .. }, None) => format!("{seen} (never needed)"),
+            _ => seen,
         }
     }
 }
@@ -277,6 +288,14 @@ impl Matrix {
         Ok(vec![
             Case { name: "open phase a", injection: Injection::OpenPhase { phase: 0 } },
             Case { name: "short a–b (20 µH, 0.05 Ω)", injection: Injection::PhaseShort(SHORT) },
+            Case {
+                name: "switch a upper stuck open",
+                injection: Injection::SwitchOpen { phase: 0, upper: true },
+            },
+            Case {
+                name: "switch a lower stuck open",
+                injection: Injection::SwitchOpen { phase: 0, upper: false },
+            },
             Case { name: "encoder stuck", injection: Injection::EncoderStuck },
             Case { name: "encoder glitch 100 counts", injection: Injection::EncoderGlitch { counts: 100 } },
             Case { name: "encoder 512 lines (1024 set)", injection: Injection::EncoderLines { lines: 512 } },
@@ -330,15 +349,28 @@ impl Matrix {
             // below the comparator's level within the period — the software's overcurrent
             // check at the next sample: one period either way.
             Injection::PhaseShort(_) if self.comparator.is_some() => {
-                Expect::Either { faults: [Fault::HardwareBreak, Fault::Overcurrent], bound_s: pwm_s }
+                Expect::Either { faults: &[Fault::HardwareBreak, Fault::Overcurrent], bound_s: pwm_s }
             }
             Injection::PhaseShort(_) => Expect::Fault { fault: Fault::Overcurrent, bound_s: pwm_s },
-            // Not among the matrix's cases yet (docs/protection.md: the drive catches a dead
-            // switch late and by other names); within the half-period of its current in
-            // which the switch is needed, the phase looks like an open lead.
-            Injection::SwitchOpen { .. } => {
-                Expect::Fault { fault: Fault::OpenPhase, bound_s: OPEN_PHASE_BOUND_S }
-            }
+            // A switch stuck open does nothing until its direction of current is needed: the
+            // bound runs from the first period it mattered ([`Outcome::acting_after_s`]).
+            // The phase then cannot follow one way: `SwitchOpen` once a half-wave the other
+            // way has followed; before that (or when the reference hardly reverses) the phase
+            // carries none of its current, which is `OpenPhase`; a dead lower switch leaves
+            // its low-side shunt without current exactly then, which the current-sum check
+            // sees first.
+            Injection::SwitchOpen { upper: true, .. } if at.point != Point::Top => Expect::Gap {
+                fault: Fault::SwitchOpen,
+                bound_s: OPEN_PHASE_BOUND_S,
+                why: "below top speed a half-wave takes longer than the bound (none at rest): before one the \
+                      other way has been compared, the phase is named by the open-phase check or — when the \
+                      loops saturate against the pinned phase first — by the voltage check, EncoderImplausible \
+                      (within 15 ms of the switch's first use, but by a name that blames the encoder)",
+            },
+            Injection::SwitchOpen { .. } => Expect::Either {
+                faults: &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor],
+                bound_s: OPEN_PHASE_BOUND_S,
+            },
             // A wiring error made at installation, not a failure in service: commissioning
             // refuses it (`hil_sim::identify`); not among the matrix's cases.
             Injection::CurrentChannelsSwapped { .. } => Expect::Gap {
@@ -388,7 +420,7 @@ impl Matrix {
                       once the full torque no longer holds it, below base speed, later than 0.5 s",
             },
             Injection::LoadStep { .. } => {
-                Expect::Either { faults: [Fault::FollowingError, Fault::Overspeed], bound_s: STALL_BOUND_S }
+                Expect::Either { faults: &[Fault::FollowingError, Fault::Overspeed], bound_s: STALL_BOUND_S }
             }
             Injection::LoadSeizure { .. } if rest => Expect::RideThrough,
             Injection::LoadSeizure { .. } => Expect::Fault { fault: Fault::Stall, bound_s: STALL_BOUND_S },
@@ -464,6 +496,7 @@ impl Matrix {
         let mut off_after: Option<u64> = None;
         let (mut peak, mut peak_leg, mut energy) = (0.0f64, 0.0f64, 0.0f64);
         let mut before_injection_fault: Option<Mode> = None;
+        let mut acting_at: Option<f64> = None;
         // The first row at or after the injection (the event loop's own comparison).
         let mut injected_at: Option<f64> = None;
         let final_mode = b.run_into(
@@ -485,6 +518,9 @@ impl Matrix {
                 let i = AlphaBeta { alpha: r.x.i_alpha_a, beta: r.x.i_beta_a }.inverse_clarke();
                 peak = peak.max(i.a.abs()).max(i.b.abs()).max(i.c.abs());
                 peak_leg = peak_leg.max(r.i_leg_peak_a);
+                if acting_at.is_none() && r.switch_acting {
+                    acting_at = Some(r.t_s - t0);
+                }
                 energy -= 1.5 * (r.v_ab_v[0] * r.x.i_alpha_a + r.v_ab_v[1] * r.x.i_beta_a) * pwm_s;
                 if detected.is_none()
                     && let Some(Mode::Fault(f)) = r.mode
@@ -514,7 +550,19 @@ impl Matrix {
             ));
         }
         let mut failures = Vec::new();
-        let judge = |accept: &[Fault], bound_s: f64, failures: &mut Vec<String>| match detected {
+        // The bound's origin: the injection, or a stuck switch's first use.
+        let acting_after_s = match case.injection {
+            Injection::SwitchOpen { .. } => acting_at,
+            _ => Some(0.0),
+        };
+        let latent = acting_after_s.is_none();
+        let from_origin = detected.map(|(f, t)| (f, t - acting_after_s.unwrap_or(0.0)));
+        let judge = |accept: &[Fault], bound_s: f64, failures: &mut Vec<String>| match from_origin {
+            // A switch that never mattered must not trip anything.
+            None if latent => {}
+            Some((f, t)) if latent => {
+                failures.push(format!("{f:?} after {} although the switch never mattered", ms(t)))
+            }
             Some((f, t)) if accept.contains(&f) && t <= bound_s + 0.5 * pwm_s => {
                 if off_after.is_none_or(|n| n > 1) {
                     failures.push(format!("bridge off after {off_after:?} periods"));
@@ -528,7 +576,7 @@ impl Matrix {
         };
         match expect {
             Expect::Fault { fault, bound_s } => judge(&[fault], bound_s, &mut failures),
-            Expect::Either { faults, bound_s } => judge(&faults, bound_s, &mut failures),
+            Expect::Either { faults, bound_s } => judge(faults, bound_s, &mut failures),
             Expect::RideThrough => {
                 if let Some((f, t)) = detected {
                     failures.push(format!("tripped: {f:?} after {}", ms(t)));
@@ -555,6 +603,7 @@ impl Matrix {
             expect,
             speed_at_injection_rad_s: speed_at_injection,
             detected,
+            acting_after_s,
             off_after_periods: off_after,
             peak_current_a: peak,
             peak_leg_a: peak_leg,
@@ -594,18 +643,20 @@ pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
             o.verdict(),
         ));
     }
-    let mut gaps: Vec<(&str, &str)> = rows
-        .iter()
-        .filter_map(|o| match o.expect {
-            Expect::Gap { why, .. } => Some((o.case.name, why)),
-            _ => None,
-        })
-        .collect();
-    gaps.dedup();
+    // Each gap once, with the operating points it holds at.
+    let mut gaps: Vec<(&str, &str, Vec<String>)> = Vec::new();
+    for o in rows {
+        if let Expect::Gap { why, .. } = o.expect {
+            match gaps.iter_mut().find(|(n, w, _)| *n == o.case.name && *w == why) {
+                Some((_, _, points)) => points.push(o.at.name()),
+                None => gaps.push((o.case.name, why, vec![o.at.name()])),
+            }
+        }
+    }
     if !gaps.is_empty() {
         s.push_str("\n## Gaps\n\n");
-        for (name, why) in gaps {
-            s.push_str(&format!("- **{name}** at standstill: {why}.\n"));
+        for (name, why, points) in gaps {
+            s.push_str(&format!("- **{name}** ({}): {why}.\n", points.join(", ")));
         }
     }
     s
@@ -621,6 +672,7 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
             "asked": o.asked(),
             "detected": o.detected.map(|(f, _)| format!("{f:?}")),
             "detection_time_s": o.detected.map(|(_, t)| t),
+            "bound_from_s": o.acting_after_s,
             "bridge_off_after_periods": o.off_after_periods,
             "peak_current_a": o.peak_current_a,
             "peak_leg_current_a": o.peak_leg_a,

@@ -376,7 +376,15 @@ pub struct Row {
     pub i_leg_peak_a: f64,
     /// The hardware comparator has broken the bridge (MOE cleared, latched).
     pub hw_break: bool,
+    /// A switch stuck open mattered in this period: its direction of current was needed
+    /// and the duty it would have switched (at least [`SWITCH_ACTING_DUTY`]) went through
+    /// the opposite diode instead.
+    pub switch_acting: bool,
 }
+
+/// The least part of a period a stuck-open switch must have been asked to conduct for the
+/// period to count as one where it mattered ([`Row::switch_acting`]).
+pub const SWITCH_ACTING_DUTY: f64 = 0.02;
 
 /// The plant's side of one period in [`run`].
 enum Period {
@@ -672,13 +680,18 @@ pub fn run(
         // so with the average inverter the plant's first RK4 stages are issued before the
         // drive's step: the processor then runs both dependent chains side by side.
         let x_at_start = x;
-        if let Some((p, upper)) = switch_open {
+        let mut switch_acting = false;
+        if let Some((p, upper)) = switch_open
+            && bridge_on
+        {
             // The dead switch's direction of current flows through the opposite diode.
+            let before = duty_applied[p];
             match (upper, i_true[p] > 0.0) {
                 (true, true) => duty_applied[p] = 0.0,
                 (false, false) => duty_applied[p] = 1.0,
                 _ => {}
             }
+            switch_acting = (duty_applied[p] - before).abs() >= SWITCH_ACTING_DUTY;
         }
         let period = match sc.inverter {
             _ if !bridge_on => Period::Off,
@@ -763,6 +776,7 @@ pub fn run(
                 brake: out.brake,
                 i_leg_peak_a: leg_period.peak_a,
                 hw_break: legs.broken,
+                switch_acting,
                 psi_est_wb: f64::from(out.telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
             })?;

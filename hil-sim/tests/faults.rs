@@ -1,6 +1,6 @@
 //! Issue 18's fault-injection matrix (`hil_sim::faults`, `hil-sim faults`): single rows with
 //! their measured quantities, and the judge failing what it must fail. The whole matrix runs
-//! in `cargo xtask ci` (release: 78 rows in ≈ 0.5 s).
+//! in `cargo xtask ci` (release: 102 rows in ≈ 0.7 s).
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
 use controller_core::drive::{Fault, Mode};
@@ -154,4 +154,17 @@ fn stuck_switches_at_every_point() {
             }
         }
     }
+}
+
+/// The markdown's list of gaps names the operating points each holds at (it said "at
+/// standstill" for every gap, the top-speed overload's included: found by reading it).
+#[test]
+fn the_gap_list_names_its_operating_points() {
+    let m = shipped();
+    let (c, at) = (case(&m, "overload"), point(&m, Point::Top, true));
+    let o = m.run_one(6, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+    assert_eq!(o.verdict(), "gap");
+    let md = hil_sim::faults::markdown(&m, &[o]);
+    assert!(md.contains("- **overload (1.5 × τ_max)** (top speed motoring): in field weakening"), "{md}");
+    assert!(!md.contains("at standstill:"), "{md}");
 }
