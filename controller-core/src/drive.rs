@@ -1141,70 +1141,92 @@ impl OpenPhaseWindow {
     }
 }
 
-/// The stuck-switch check ([`Fault::SwitchOpen`]), per phase: the present half-wave of the
+/// The stuck-switch check ([`Fault::SwitchOpen`]) of one phase: the present half-wave of the
 /// reference (its sign, Σ|i_ref| and Σ shortfall), the last shortfall ratio of each
 /// direction (negative: none yet) and the consecutive half-waves that missed.
-#[derive(Clone, Copy, Debug, Default)]
-struct SwitchWatch {
-    sign: [i8; 3],
-    reference: [f32; 3],
-    shortfall: [f32; 3],
-    /// Last completed half-wave's shortfall ratio, [phase][0: positive, 1: negative].
-    last: [[f32; 2]; 3],
-    /// Consecutive missed half-waves, [phase][direction].
-    missed: [[u8; 2]; 3],
+#[derive(Clone, Copy, Debug)]
+struct HalfWaves {
+    /// +1 or −1 (0 before the first step).
+    sign: f32,
+    reference: f32,
+    shortfall: f32,
+    /// The last completed half-wave of each direction.
+    positive: Verdicts,
+    negative: Verdicts,
 }
 
-impl SwitchWatch {
-    /// One fast step of the references and the measured currents; `charge` is the least
-    /// Σ|i_ref| of a half-wave that is judged. At the end of a half-wave (the reference
-    /// changes sign): it *missed* when its shortfall ratio is above
+/// The last judged half-wave of one direction: its shortfall ratio (negative: none yet),
+/// and how many in a row missed.
+#[derive(Clone, Copy, Debug)]
+struct Verdicts {
+    ratio: f32,
+    missed: u8,
+}
+
+impl Verdicts {
+    const NONE: Self = Self { ratio: -1.0, missed: 0 };
+
+    /// A half-wave of this direction with shortfall `ratio` ended; `other` is the last one
+    /// the other way. `true`: [`SWITCH_MISSED_HALF_WAVES`] missed in a row.
+    fn judge(&mut self, ratio: f32, other: &Verdicts) -> bool {
+        let miss =
+            ratio > SWITCH_SHORTFALL_MISSING && (0.0..SWITCH_SHORTFALL_FOLLOWING).contains(&other.ratio);
+        self.missed = if miss { self.missed.saturating_add(1) } else { 0 };
+        self.ratio = ratio;
+        self.missed >= SWITCH_MISSED_HALF_WAVES
+    }
+}
+
+impl Default for HalfWaves {
+    fn default() -> Self {
+        Self { sign: 0.0, reference: 0.0, shortfall: 0.0, positive: Verdicts::NONE, negative: Verdicts::NONE }
+    }
+}
+
+impl HalfWaves {
+    /// One fast step of the phase's reference `r` and measured current `m`; `charge` is the
+    /// least Σ|i_ref| of a half-wave that is judged. At the end of a half-wave (the reference
+    /// changes sign) it *missed* when its shortfall ratio is above
     /// [`SWITCH_SHORTFALL_MISSING`] while the phase's last half-wave the other way followed
-    /// (below [`SWITCH_SHORTFALL_FOLLOWING`]); two missed half-waves the same way in a row — a
-    /// reference step misses one — are [`Fault::SwitchOpen`]. An open lead misses both ways,
-    /// a phase that never reverses (standstill) is never judged: both are the open-phase
-    /// check's.
+    /// (below [`SWITCH_SHORTFALL_FOLLOWING`]); [`SWITCH_MISSED_HALF_WAVES`] missed the same
+    /// way in a row — a reference step misses one — are a stuck switch (`true`). An open lead
+    /// misses both ways, a phase that never reverses (standstill) is never judged: both are
+    /// the open-phase check's.
+    #[inline]
+    fn add(&mut self, r: f32, m: f32, charge: f32) -> bool {
+        let sign = if r >= 0.0 { 1.0 } else { -1.0 };
+        let mut stuck = false;
+        if sign != self.sign {
+            if self.reference >= charge {
+                // The half-wave that ended ran the other way.
+                let ratio = self.shortfall / self.reference;
+                stuck = if sign > 0.0 {
+                    self.negative.judge(ratio, &self.positive)
+                } else {
+                    self.positive.judge(ratio, &self.negative)
+                };
+            }
+            (self.sign, self.reference, self.shortfall) = (sign, 0.0, 0.0);
+        }
+        self.reference += sign * r;
+        self.shortfall += max_f32(sign * (r - m), 0.0);
+        stuck
+    }
+}
+
+/// [`HalfWaves`] of the three phases.
+#[derive(Clone, Copy, Debug, Default)]
+struct SwitchWatch([HalfWaves; 3]);
+
+impl SwitchWatch {
+    /// One fast step: [`Fault::SwitchOpen`] if a phase's half-waves say so.
     #[inline]
     fn add(&mut self, reference: Abc, measured: Abc, charge: f32) -> Option<Fault> {
-        let (r, m) = ([reference.a, reference.b, reference.c], [measured.a, measured.b, measured.c]);
-        let mut fault = None;
-        for k in 0..3 {
-            let (Some(&rk), Some(&mk)) = (r.get(k), m.get(k)) else { continue };
-            let sign: i8 = if rk >= 0.0 { 1 } else { -1 };
-            let (Some(s), Some(rs), Some(sh), Some(last), Some(missed)) = (
-                self.sign.get_mut(k),
-                self.reference.get_mut(k),
-                self.shortfall.get_mut(k),
-                self.last.get_mut(k),
-                self.missed.get_mut(k),
-            ) else {
-                continue;
-            };
-            if sign != *s {
-                // The half-wave the other way (`ended`) is over: judged if it was long enough.
-                let ended = usize::from(sign > 0);
-                if *rs >= charge {
-                    let ratio = *sh / *rs;
-                    let other = last.get(1 - ended).copied().unwrap_or(-1.0);
-                    let miss = ratio > SWITCH_SHORTFALL_MISSING
-                        && (0.0..SWITCH_SHORTFALL_FOLLOWING).contains(&other);
-                    if let Some(n) = missed.get_mut(ended) {
-                        *n = if miss { n.saturating_add(1) } else { 0 };
-                        if *n >= SWITCH_MISSED_HALF_WAVES {
-                            fault = Some(Fault::SwitchOpen);
-                        }
-                    }
-                    if let Some(l) = last.get_mut(ended) {
-                        *l = ratio;
-                    }
-                }
-                (*s, *rs, *sh) = (sign, 0.0, 0.0);
-            }
-            let f = f32::from(sign);
-            *rs += f * rk;
-            *sh += max_f32(f * (rk - mk), 0.0);
-        }
-        fault
+        let [a, b, c] = &mut self.0;
+        let stuck = a.add(reference.a, measured.a, charge)
+            | b.add(reference.b, measured.b, charge)
+            | c.add(reference.c, measured.c, charge);
+        stuck.then_some(Fault::SwitchOpen)
     }
 }
 
@@ -1318,7 +1340,7 @@ impl Drive {
             brake: false,
             stop_steps_left: None,
             open_phase: OpenPhaseWindow::default(),
-            switches: SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() },
+            switches: SwitchWatch::default(),
             flux: FluxCommand::default(),
             thermal_sum_a2: 0.0,
             thermal_steps: 0,
@@ -1388,7 +1410,7 @@ impl Drive {
                 self.saturated_steps = 0;
                 self.encoder_bad_steps = 0;
                 self.open_phase = OpenPhaseWindow::default();
-                self.switches = SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() };
+                self.switches = SwitchWatch::default();
                 self.flux = FluxCommand::default();
                 self.torque_max_nm = 0.0;
                 self.v_cut_v = 0.0;
@@ -1957,14 +1979,20 @@ impl Drive {
             self.trip(f);
             return off(self.mode);
         }
+        // The stuck-switch check once per slow period (the fast step right after the slow
+        // step, as the encoder check): enough samples of a half-wave up to the top speed
+        // (≈ 18 per electrical period at 700 rad/s), at a tenth of the instructions; its
+        // charge is counted in those samples.
+        let after_slow = self.steps_to_slow == cfg.slow_divider.saturating_sub(1);
         if running
+            && after_slow
             && let Some(f) = self.switches.add(
                 i_ref_abc,
                 m.i_abc_a,
                 SWITCH_CHARGE_WINDOWS
                     * OPEN_PHASE_COMMANDED_FRACTION
                     * cfg.i_d_rated_a
-                    * cfg.open_phase_steps as f32,
+                    * (cfg.open_phase_steps as f32 / f32::from(cfg.slow_divider.max(1))),
             )
         {
             self.trip(f);
@@ -2623,7 +2651,7 @@ mod tests {
     fn a_phase_that_follows_one_way_only_is_a_stuck_switch() {
         let (steps_per_period, charge) = (400, 10.0);
         let run = |shape: &dyn Fn(f32, f32) -> f32, periods: usize| {
-            let mut w = SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() };
+            let mut w = SwitchWatch::default();
             for n in 0..periods * steps_per_period {
                 let th = core::f32::consts::TAU * n as f32 / steps_per_period as f32;
                 let third = core::f32::consts::TAU / 3.0;
@@ -2651,7 +2679,7 @@ mod tests {
         assert_eq!(run(&|th, _| libm::cosf(th - 0.35), 6), None);
         // A step: two periods in, the reference's amplitude jumps ×5 and phase a's current
         // stays at zero for 20 steps (a millisecond at 20 kHz) before it follows.
-        let mut w = SwitchWatch { last: [[-1.0; 2]; 3], ..SwitchWatch::default() };
+        let mut w = SwitchWatch::default();
         for n in 0..4 * steps_per_period {
             let th = core::f32::consts::TAU * n as f32 / steps_per_period as f32;
             let k = if n < 2 * steps_per_period + 40 { 0.2 } else { 1.0 };
