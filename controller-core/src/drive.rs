@@ -518,6 +518,10 @@ pub struct DriveConfig {
     stop_slow_steps: u32,
     /// Fast steps of the open-phase check's window.
     open_phase_steps: u32,
+    /// The least Σ|i_ref| of a half-wave the stuck-switch check judges, A, summed over its
+    /// samples (one per slow period): [`SWITCH_CHARGE_WINDOWS`] open-phase windows of the
+    /// commanded level.
+    switch_charge_a: f32,
     /// Brake chopper on above this bus voltage (`f32::MAX` without a chopper: never), V.
     brake_on_v: f32,
     /// … and off below this one, V.
@@ -630,6 +634,8 @@ impl DriveConfig {
             .map_err(DriveError::Speed)?;
         let position = PositionConfig::new(spec.position.k_per_s, spec.position.omega_max_rad_s)
             .map_err(DriveError::Position)?;
+        let i_d_rated_a = ifoc.flux_command(spec.flux_ref_wb as f32).i_d_a();
+        let open_phase_steps = libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32;
         Ok(Self {
             current,
             current_frame: spec.current_frame,
@@ -637,7 +643,7 @@ impl DriveConfig {
             speed,
             position,
             envelope: EnvelopeConfig::new(&spec.motor),
-            i_d_rated_a: ifoc.flux_command(spec.flux_ref_wb as f32).i_d_a(),
+            i_d_rated_a,
             magnetized_fraction: mf as f32,
             magnetizing_steps_max: libm::ceil(magnetizing_s / t_slow).clamp(1.0, 4e9) as u32,
             voltage_margin: spec.voltage_margin as f32,
@@ -679,7 +685,11 @@ impl DriveConfig {
             },
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
-            open_phase_steps: libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32,
+            open_phase_steps,
+            switch_charge_a: SWITCH_CHARGE_WINDOWS
+                * OPEN_PHASE_COMMANDED_FRACTION
+                * i_d_rated_a
+                * (open_phase_steps as f32 / f32::from(spec.slow_divider)),
             brake_on_v,
             brake_off_v,
         })
@@ -711,6 +721,7 @@ impl DriveConfig {
             self.trim_gain,
             self.dead_time_duty,
             self.duty_max,
+            self.switch_charge_a,
             self.dead_time_band_a,
             self.regen_start_v,
             self.inv_regen_span_v,
@@ -781,6 +792,7 @@ impl DriveConfig {
             trim_gain: r.f(),
             dead_time_duty: r.f(),
             duty_max: r.f(),
+            switch_charge_a: r.f(),
             dead_time_band_a: r.f(),
             regen_start_v: r.f(),
             inv_regen_span_v: r.f(),
@@ -1981,19 +1993,11 @@ impl Drive {
         }
         // The stuck-switch check once per slow period (the fast step right after the slow
         // step, as the encoder check): enough samples of a half-wave up to the top speed
-        // (≈ 18 per electrical period at 700 rad/s), at a tenth of the instructions; its
-        // charge is counted in those samples.
+        // (≈ 18 per electrical period at 700 rad/s), at a tenth of the instructions.
         let after_slow = self.steps_to_slow == cfg.slow_divider.saturating_sub(1);
         if running
             && after_slow
-            && let Some(f) = self.switches.add(
-                i_ref_abc,
-                m.i_abc_a,
-                SWITCH_CHARGE_WINDOWS
-                    * OPEN_PHASE_COMMANDED_FRACTION
-                    * cfg.i_d_rated_a
-                    * (cfg.open_phase_steps as f32 / f32::from(cfg.slow_divider.max(1))),
-            )
+            && let Some(f) = self.switches.add(i_ref_abc, m.i_abc_a, cfg.switch_charge_a)
         {
             self.trip(f);
             return off(self.mode);
@@ -2046,7 +2050,7 @@ impl Drive {
         // Once per slow period (the fast step right after the slow step), while Running on
         // the field-oriented references: the encoder against the machine model.
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
-        if running && field_oriented && self.steps_to_slow == self.cfg.slow_divider.saturating_sub(1) {
+        if running && field_oriented && after_slow {
             self.check_encoder(
                 i_ab.park(field.field),
                 modulation.v_applied,

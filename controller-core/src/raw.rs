@@ -11,7 +11,7 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 60;
+pub const FLOATS: usize = 61;
 /// Integers in a raw drive configuration.
 pub const INTEGERS: usize = 14;
 

@@ -49,8 +49,8 @@ pub struct BoardTable {
     pub bootstrap_precharge_s: Option<f64>,
     /// The low-side conduction a phase-current sample needs on either side of the top of the
     /// count, s: the dead time, then the shunt amplifier's settling and the ADC's sampling
-    /// (default `dead_time_s` + [`DEFAULT_SAMPLE_SETTLE_S`]). A phase whose duty leaves less
-    /// is rebuilt from the other two (`controller_core::drive::DriveSpec::sample_window_s`).
+    /// (default `dead_time_s` + [`DEFAULT_SAMPLE_SETTLE_S`]). The modulator keeps every duty
+    /// short enough to leave it (`controller_core::drive::DriveSpec::sample_window_s`).
     pub sample_window_s: Option<f64>,
 }
 

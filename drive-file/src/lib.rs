@@ -170,6 +170,12 @@ mod tests {
         // A bootstrap pre-charge that would hold the low sides on for minutes.
         let e = err(&replace("bootstrap_precharge_s = 2e-3", "bootstrap_precharge_s = 60.0"));
         assert_eq!(e.key.as_deref(), Some("board.bootstrap_precharge_s"), "{e}");
+        // A sampling window that leaves the phases less than DUTY_MAX_MIN, a negative one, a
+        // NaN: named at the key.
+        for bad in ["5.5e-6", "-1e-6", "nan"] {
+            let e = err(&replace("sample_window_s = 1.5e-6", &format!("sample_window_s = {bad}")));
+            assert_eq!(e.key.as_deref(), Some("board.sample_window_s"), "{bad}: {e}");
+        }
         // Trip level below the current limit.
         let e = err(&replace("i_trip_a = 8.0", "i_trip_a = 3.0"));
         assert_eq!((e.key.as_deref(), e.at), (Some("protection.i_trip_a"), Some(pos(s, "8.0"))), "{e}");
