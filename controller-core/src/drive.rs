@@ -51,6 +51,7 @@ use crate::envelope::{ENVELOPE_REFRESH_SLOW_STEPS, Envelope, EnvelopeConfig};
 use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::ifoc::{FluxCommand, IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
+use crate::mras::{Evidence, MrasConfig, RotorFit};
 use crate::num::{Scalar, max_f32, min_f32, sqrt_f32};
 use crate::raw::{self, RawDriveConfig};
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
@@ -383,6 +384,10 @@ pub struct DriveSpec {
     /// phases are measured in every period, and the drive treats that fraction of the bus as
     /// what it has ([`svpwm::modulate_sampled`]). The board's (`[board] sample_window_s`).
     pub sample_window_s: f64,
+    /// The range of the rotor resistance, × the motor's `R_r` (`[1, 1]`: the motor's, fixed):
+    /// the rotor-resistance adaptation ([`crate::mras`]) keeps its estimate within it and
+    /// starts from its geometric middle.
+    pub rotor_resistance_range: [f64; 2],
     /// Trip thresholds.
     pub protection: Protection,
 }
@@ -418,6 +423,8 @@ pub enum DriveError {
     Position(SpeedError),
     /// IFOC parameters rejected.
     Ifoc(IfocError),
+    /// `rotor_resistance_range` not `0 < min ≤ max`, finite.
+    RotorResistanceRange,
     /// Flux reference not finite and positive, or `flux_floor_wb` not below it.
     FluxReference,
     /// `magnetized_fraction` not in (0, 1).
@@ -449,6 +456,8 @@ pub struct DriveConfig {
     current: CurrentControllerConfig<f32>,
     current_frame: CurrentFrame,
     ifoc: IfocConfig,
+    /// The rotor-resistance adaptation.
+    mras: MrasConfig,
     speed: SpeedControllerConfig,
     position: PositionConfig,
     envelope: EnvelopeConfig,
@@ -630,6 +639,8 @@ impl DriveConfig {
         .map_err(DriveError::Current)?;
         let ifoc = IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a)
             .map_err(DriveError::Ifoc)?;
+        let mras = MrasConfig::new(&spec.motor, t_slow, spec.rotor_resistance_range)
+            .map_err(|_| DriveError::RotorResistanceRange)?;
         let speed = SpeedControllerConfig::new(&spec.speed_law, ts * f64::from(spec.slow_divider))
             .map_err(DriveError::Speed)?;
         let position = PositionConfig::new(spec.position.k_per_s, spec.position.omega_max_rad_s)
@@ -640,6 +651,7 @@ impl DriveConfig {
             current,
             current_frame: spec.current_frame,
             ifoc,
+            mras,
             speed,
             position,
             envelope: EnvelopeConfig::new(&spec.motor),
@@ -711,6 +723,7 @@ impl DriveConfig {
             CurrentFrame::Synchronous => 1,
         });
         self.ifoc.put(&mut w);
+        self.mras.put(&mut w);
         self.speed.put(&mut w);
         self.position.put(&mut w);
         self.envelope.put(&mut w);
@@ -776,6 +789,7 @@ impl DriveConfig {
             _ => return Err(DriveError::Raw),
         };
         let ifoc = IfocConfig::get(&mut r);
+        let mras = MrasConfig::get(&mut r);
         let speed = SpeedControllerConfig::get(&mut r).ok_or(DriveError::Raw)?;
         let position = PositionConfig::get(&mut r);
         let envelope = EnvelopeConfig::get(&mut r);
@@ -783,6 +797,7 @@ impl DriveConfig {
             current,
             current_frame,
             ifoc,
+            mras,
             speed,
             position,
             envelope,
@@ -832,7 +847,8 @@ impl DriveConfig {
             cfg.stop_slow_steps,
             cfg.open_phase_steps,
         ];
-        if r.bad || counts.contains(&0) || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0 {
+        if r.bad || !cfg.mras.is_valid() || counts.contains(&0) || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
+        {
             return Err(DriveError::Raw);
         }
         Ok(cfg)
@@ -1043,6 +1059,9 @@ pub struct Telemetry {
     pub i_q_ref_a: f32,
     /// Speed reference of the speed loop, mechanical rad/s.
     pub omega_ref_rad_s: f32,
+    /// The rotor resistance the field orientation runs on, × the motor's
+    /// ([`crate::mras`]).
+    pub rr_scale: f32,
 }
 
 /// Output of one fast step.
@@ -1297,6 +1316,11 @@ pub struct Drive {
     v_req2_sum: f32,
     /// Fast steps in `v_req2_sum`.
     v_req_steps: u16,
+    /// Sum of the d-axis voltage the loops asked for since the last slow step, while
+    /// magnetizing (the rotor-resistance fit's), V.
+    v_d_sum: f32,
+    /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
+    rotor_fit: RotorFit,
     /// Slow steps spent magnetizing.
     magnetizing_steps: u32,
     /// Encoder angle at the last slow step, mechanical rad, within a revolution.
@@ -1340,7 +1364,7 @@ impl Drive {
             omega_ref_rad_s: 0.0,
             steps_to_slow: 0,
             current: CurrentState::default(),
-            ifoc: cfg.ifoc.state(0.0),
+            ifoc: cfg.ifoc.state(0.0, cfg.mras.initial_scale()),
             speed: SpeedState::default(),
             test_angle_rad: 0.0,
             stall_steps: 0,
@@ -1363,6 +1387,8 @@ impl Drive {
             v_cut_v: 0.0,
             v_req2_sum: 0.0,
             v_req_steps: 0,
+            v_d_sum: 0.0,
+            rotor_fit: RotorFit::default(),
             magnetizing_steps: 0,
             theta_m_prev_rad: 0.0,
             turns: 0,
@@ -1411,7 +1437,8 @@ impl Drive {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
                 self.current = CurrentState::default();
-                self.ifoc = self.cfg.ifoc.state(0.0);
+                // The rotor resistance's estimate is the rotor's temperature: it carries over.
+                self.ifoc = self.cfg.ifoc.state(0.0, self.ifoc.rotor_resistance_scale());
                 self.speed = SpeedState::default();
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
                 // The slow cadence is not restarted: whoever reads the encoder every N-th
@@ -1428,6 +1455,8 @@ impl Drive {
                 self.v_cut_v = 0.0;
                 self.v_req2_sum = 0.0;
                 self.v_req_steps = 0;
+                self.v_d_sum = 0.0;
+                self.rotor_fit = RotorFit::default();
                 self.magnetizing_steps = 0;
                 self.theta_r_rad = 0.0;
                 self.delay_rotation = SinCos::default();
@@ -1580,7 +1609,15 @@ impl Drive {
         // The modulator limited the loops' request since the last slow step (read before
         // the trim clears it).
         let limited = self.trim_hold;
-        self.update_trim();
+        if self.mode == Mode::Running || !self.cfg.mras.fit_pending(&self.rotor_fit) {
+            self.update_trim();
+        } else {
+            self.trim_error_sum = Dq::default();
+            self.trim_hold = false;
+        }
+        // The loops' mean d-axis request over the slow period while magnetizing (read before
+        // the budget clears it).
+        let v_d_mean = self.v_d_sum / f32::from(self.v_req_steps.max(1));
         let v_budget = self.voltage_budget(m.vdc_v * self.cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
         let limit = self.torque_max_nm;
@@ -1635,6 +1672,10 @@ impl Drive {
         };
         self.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
         if !running {
+            // The rotor resistance from the building flux ([`MrasConfig::fit`]).
+            if let Some(r) = self.cfg.mras.fit(&mut self.rotor_fit, v_d_mean, self.flux.i_d_a()) {
+                self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, r);
+            }
             self.magnetizing_steps = self.magnetizing_steps.saturating_add(1);
             if self.magnetizing_steps > cfg.magnetizing_steps_max {
                 // The flux model runs on the measured current: none flows.
@@ -1801,6 +1842,7 @@ impl Drive {
         }
         self.v_req2_sum = 0.0;
         self.v_req_steps = 0;
+        self.v_d_sum = 0.0;
         target + self.v_cut_v
     }
 
@@ -2062,8 +2104,27 @@ impl Drive {
                 return off(self.mode);
             }
         }
+        if running && field_oriented && after_slow && !modulation.saturated {
+            // The rotor resistance from the reactive power (the loops' own request: not limited).
+            let e = &self.cfg.envelope;
+            let evidence = Evidence {
+                i: i_ab.park(field.field),
+                v: v_req.park(field.field),
+                w_e_rad_s: e.pole_pairs() * m.omega_m_rad_s + field.omega_sl_rad_s,
+                psi_r_wb: self.ifoc.psi_r_wb(),
+                v_limit_v: svpwm::linear_limit_v(v_usable),
+            };
+            let r = self.cfg.mras.update(self.ifoc.rotor_resistance_scale(), e, &evidence);
+            self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, r);
+        }
+        if !running {
+            // The magnetizing fit's voltage, in the field frame of this step (at speed the
+            // field turns within a slow period).
+            self.v_d_sum += v_req.park(field.field).d;
+        }
         if !running
             && self.ifoc.psi_r_wb() >= self.cfg.magnetized_fraction * self.cfg.ifoc.flux_of(self.flux.i_d_a())
+            && !self.cfg.mras.fit_pending(&self.rotor_fit)
         {
             // The flux model runs on the measured current: the motor is magnetized.
             self.mode = Mode::Running;
@@ -2085,6 +2146,7 @@ impl Drive {
                 psi_ref_wb: self.cfg.ifoc.flux_of(self.flux.i_d_a()),
                 i_q_ref_a: field.i_ref_dq.q,
                 omega_ref_rad_s: self.omega_ref_rad_s,
+                rr_scale: self.ifoc.rotor_resistance_scale(),
             },
         }
     }
@@ -2135,6 +2197,7 @@ pub(crate) fn test_spec() -> DriveSpec {
         current_trim_bandwidth_rad_s: 20.0,
         dead_time_compensation_s: 0.0,
         sample_window_s: 0.0,
+        rotor_resistance_range: [1.0, 1.0],
         protection: Protection {
             i_trip_a: 8.0,
             vdc_min_v: 200.0,
@@ -2576,6 +2639,30 @@ mod tests {
             let pi = d.current_state().axis1.pi;
             assert!((pi.i_term - 16.2 * t.i_ab_a.alpha).abs() < 0.05, "{frame:?} {pi:?}");
             assert!(pi.p_term.abs() < 0.5);
+        }
+    }
+
+    /// With the rotor-resistance adaptation on, an RL load (no rotor: the magnetizing
+    /// voltage does not decay) gives the fit nothing to read: the drive still enters Running,
+    /// on the range's middle, and keeps that estimate across disable/enable.
+    #[test]
+    fn an_rl_load_leaves_the_rotor_estimate_where_it_was() {
+        let spec = DriveSpec { rotor_resistance_range: [1.0, 2.0], ..test_spec() };
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
+        for _ in 0..2 {
+            d.enable().unwrap();
+            let mut i = Abc::default();
+            let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+            for _ in 0..20_000 {
+                if let PhaseCommand::Duty(duty) = out.phases {
+                    i = rl_step(i, duty, vdc, r, l, ts);
+                }
+                out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+            }
+            assert_eq!(d.mode(), Mode::Running);
+            assert_eq!(out.telemetry.rr_scale, core::f32::consts::SQRT_2);
+            d.disable();
         }
     }
 

@@ -121,6 +121,11 @@ impl EnvelopeConfig {
         self.pole_pairs
     }
 
+    /// `L_m/L_r`.
+    pub fn lm_over_lr(&self) -> f32 {
+        self.lm_over_lr
+    }
+
     /// `g(0)²`: the stator voltage per A of i_d at no load (r = 0) and electrical rotor
     /// speed `w_r`, `R_s² + (w_r·L_s)²`.
     #[inline]

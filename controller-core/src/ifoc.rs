@@ -57,6 +57,8 @@ pub struct IfocConfig {
     inv_torque_factor: f32,
     pole_pairs: f32,
     flux_model_gain: f32,
+    /// `T/T_r`, the flux model's rate per step at the motor's rotor resistance.
+    flux_rate: f32,
     psi_min_wb: f32,
     i_max_a: f32,
     ts_s: f32,
@@ -80,6 +82,12 @@ pub struct IfocState {
     steps_to_resync: u8,
     /// Rotor-flux model estimate ψ̂_r, Wb.
     psi_r_wb: f32,
+    /// The slip gain `L_m·R̂_r/L_r` and the flux model's gain `1 − e^{−T·R̂_r/L_r}` of the
+    /// rotor resistance in use, R̂_r = the motor's × [`IfocState::rotor_resistance_scale`]
+    /// (set by [`IfocConfig::set_rotor_resistance_scale`]).
+    slip_gain: f32,
+    flux_model_gain: f32,
+    rr_scale: f32,
     /// 1/max(ψ̂_r, ψ_min): the one division of the step (for i_qs* and ω_sl), made when ψ̂_r
     /// is updated, at the end of the step before — off the head of the next step's chain
     /// of dependent operations (`hil-sim bench`: ≈ 1 ns per period).
@@ -100,6 +108,11 @@ impl IfocState {
     /// Slip angle θ_sl, rad, in `[-π, π)`.
     pub fn theta_sl_rad(&self) -> f32 {
         self.theta_sl_rad
+    }
+
+    /// The rotor resistance in use over the motor's, R̂_r/R_r.
+    pub fn rotor_resistance_scale(&self) -> f32 {
+        self.rr_scale
     }
 
     /// sin and cos of the field angle afresh; restarts the resync countdown. Kept out of
@@ -169,6 +182,7 @@ impl IfocConfig {
             inv_torque_factor: f(1.0 / motor.torque_factor()),
             pole_pairs: f32::from(motor.pole_pairs()),
             flux_model_gain: f(1.0 - libm::exp(-ts_s / motor.tr_s())),
+            flux_rate: f(ts_s / motor.tr_s()),
             psi_min_wb: f(psi_min_wb),
             i_max_a: f(i_max_a),
             ts_s: f(ts_s),
@@ -210,16 +224,37 @@ impl IfocConfig {
         s.resync_field();
     }
 
-    /// A state with θ_e = 0 and the flux estimate `psi_r_wb` (0: an unmagnetized machine).
-    pub fn state(&self, psi_r_wb: f32) -> IfocState {
-        IfocState {
+    /// A state with θ_e = 0, the flux estimate `psi_r_wb` (0: an unmagnetized machine) and
+    /// the rotor resistance `rr_scale` × the motor's ([`IfocConfig::set_rotor_resistance_scale`]).
+    pub fn state(&self, psi_r_wb: f32, rr_scale: f32) -> IfocState {
+        let mut s = IfocState {
             theta_e_rad: 0.0,
             theta_sl_rad: 0.0,
             field: SinCos::default(),
             steps_to_resync: 0,
+            slip_gain: self.slip_gain,
+            flux_model_gain: self.flux_model_gain,
+            rr_scale: 1.0,
             psi_r_wb,
             inv_psi_floored: self.inv_psi_floored(psi_r_wb),
+        };
+        self.set_rotor_resistance_scale(&mut s, rr_scale);
+        s
+    }
+
+    /// Run the slip and the flux model on the rotor resistance `scale` × the motor's (a
+    /// finite, positive scale; anything else is ignored): `ω_sl = scale·L_m·R_r/(L_r·ψ̂)·i_qs*`,
+    /// and the flux model's gain `1 − e^{−scale·x}` (`x = T/T_r`) as
+    /// `g·scale·(1 − (scale − 1)·x/2)` from the motor's exact `g = 1 − e^{−x}`: exact at
+    /// scale 1, its error `O(x³)` — 1.5e-7 of the gain at the shipped `x = 7.7e-4` and
+    /// scale 2, about f32's rounding (test `the_rotor_resistance_scales_slip_and_flux_model`).
+    pub fn set_rotor_resistance_scale(&self, s: &mut IfocState, scale: f32) {
+        if !(scale.is_finite() && scale > 0.0) {
+            return;
         }
+        s.rr_scale = scale;
+        s.slip_gain = scale * self.slip_gain;
+        s.flux_model_gain = self.flux_model_gain * scale * (1.0 - 0.5 * (scale - 1.0) * self.flux_rate);
     }
 
     /// 1/ψ̂_r with ψ̂_r floored at `psi_min_wb` (the guard of the module docs).
@@ -256,7 +291,7 @@ impl IfocConfig {
             TorqueCommand::IqA(i) => i,
         };
         let i_q = i_q_wanted.limit(-flux.i_q_max_a, flux.i_q_max_a);
-        let omega_sl = self.slip_gain * i_q * inv_psi;
+        let omega_sl = s.slip_gain * i_q * inv_psi;
         let theta = s.theta_e_rad;
         let i_ref_dq = Dq { d: i_d, q: i_q };
         let s_field = s.field;
@@ -277,7 +312,7 @@ impl IfocConfig {
         // Only the d part: the drive parks the measured current itself where it needs q
         // (kept apart, the Cortex-M4F runs ≈ 7 fewer instructions per fast step).
         let i_d_meas = i_meas.alpha * s_field.cos + i_meas.beta * s_field.sin;
-        s.psi_r_wb += self.flux_model_gain * (self.lm_h * i_d_meas - s.psi_r_wb);
+        s.psi_r_wb += s.flux_model_gain * (self.lm_h * i_d_meas - s.psi_r_wb);
         s.inv_psi_floored = self.inv_psi_floored(s.psi_r_wb);
         IfocOutput { i_ref_dq, i_ref_ab, theta_e_rad: theta, field: s_field, omega_sl_rad_s: omega_sl }
     }
@@ -292,6 +327,7 @@ impl IfocConfig {
             self.inv_torque_factor,
             self.pole_pairs,
             self.flux_model_gain,
+            self.flux_rate,
             self.psi_min_wb,
             self.i_max_a,
             self.ts_s,
@@ -308,6 +344,7 @@ impl IfocConfig {
             inv_torque_factor: r.f(),
             pole_pairs: r.f(),
             flux_model_gain: r.f(),
+            flux_rate: r.f(),
             psi_min_wb: r.f(),
             i_max_a: r.f(),
             ts_s: r.f(),
@@ -348,7 +385,7 @@ mod tests {
     #[test]
     fn steady_state_operating_point() {
         let c = cfg();
-        let mut s = c.state(0.0);
+        let mut s = c.state(0.0, 1.0);
         // Flux builds with T_r = 64.7 ms; 1 s is > 15 T_r.
         let out = run(&c, &mut s, 1.0, TorqueCommand::TorqueNm(1.0), 0.0, 20_000);
         // The measured current is the reference one step late, in a field that has turned by
@@ -366,7 +403,7 @@ mod tests {
     #[test]
     fn flux_model_is_first_order_with_tr() {
         let c = cfg();
-        let mut s = c.state(0.0);
+        let mut s = c.state(0.0, 1.0);
         let tr = 1.5f64 / 23.2;
         let n = (tr / 5e-5).round() as usize;
         run(&c, &mut s, 1.0, TorqueCommand::TorqueNm(0.0), 0.0, n);
@@ -378,7 +415,7 @@ mod tests {
     #[test]
     fn field_angle_advances_at_synchronous_speed_and_wraps() {
         let c = cfg();
-        let mut s = c.state(1.0);
+        let mut s = c.state(1.0, 1.0);
         // p = 1, ω_m = 100 rad/s, no torque: θ advances 100·T per step.
         let mut prev = 0.0f32;
         let mut wraps = 0;
@@ -416,7 +453,7 @@ mod tests {
         let c = cfg();
         let mut worst = (0.0f64, 0.0f32);
         for omega_m in [0.0f32, 37.3, 150.0, -376.0, 1_500.0, -1_900.0, 2_500.0, 8_000.0] {
-            let mut s = c.state(0.0);
+            let mut s = c.state(0.0, 1.0);
             let mut measured = AlphaBeta::default();
             for k in 0..40_000 {
                 let torque = if k < 20_000 { 1.0 } else { -3.0 };
@@ -443,7 +480,7 @@ mod tests {
     #[test]
     fn guard_bounds_slip_and_current_while_flux_is_zero() {
         let c = cfg();
-        let mut s = c.state(0.0);
+        let mut s = c.state(0.0, 1.0);
         let out = c.update(
             &mut s,
             &c.flux_command(1.0),
@@ -467,6 +504,31 @@ mod tests {
         let f = c.flux_command(100.0);
         assert_eq!((f.i_d_a(), f.i_q_max_a()), (10.0, 0.0));
         assert_eq!(c.flux_command(f32::NAN), FluxCommand::default());
+    }
+
+    #[test]
+    fn the_rotor_resistance_scales_slip_and_flux_model() {
+        let m = MotorParams::delorenzo_dl10115a1().unwrap();
+        let c = cfg();
+        let x = 1.0 / (20e3 * m.tr_s());
+        for scale in [0.5f32, 1.0, 1.5, 2.0, 3.0] {
+            let s = c.state(0.0, scale);
+            assert_eq!(s.rotor_resistance_scale(), scale);
+            let slip = f64::from(s.slip_gain) / (m.lm_h() * m.rr_ohm() / m.lr_h());
+            assert!((slip - f64::from(scale)).abs() <= 1e-6, "{scale}: slip gain ×{slip}");
+            let exact = 1.0 - (-f64::from(scale) * x).exp();
+            let rel = f64::from(s.flux_model_gain) / exact - 1.0;
+            assert!(rel.abs() <= 1e-6, "{scale}: flux model gain off by {rel:e}");
+        }
+        // At scale 1 the motor's own numbers, bit for bit.
+        let s = c.state(0.0, 1.0);
+        assert_eq!((s.slip_gain, s.flux_model_gain), (c.slip_gain, c.flux_model_gain));
+        // Anything but a finite positive scale is ignored.
+        let mut s = c.state(0.0, 2.0);
+        for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            c.set_rotor_resistance_scale(&mut s, bad);
+            assert_eq!(s.rotor_resistance_scale(), 2.0);
+        }
     }
 
     #[test]

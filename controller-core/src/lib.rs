@@ -20,6 +20,7 @@ pub mod frames;
 pub mod ifoc;
 pub mod link;
 pub mod motor;
+pub mod mras;
 pub mod num;
 pub mod pi;
 pub mod raw;

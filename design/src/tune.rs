@@ -821,13 +821,15 @@ mod tests {
     }
 
     /// The speed PI's drive in the nonlinear campaign, on the narrow box (what
-    /// self-commissioning's intervals give): every run passes.
+    /// self-commissioning's intervals give; the rotor resistance adapted within the same
+    /// interval): every run passes.
     #[test]
     fn speed_pi_passes_the_campaign() {
         use hil_sim::campaign::Campaign;
         use std::sync::atomic::AtomicBool;
         let template = TEMPLATE
             .replace("rr_factor = [1.0, 2.0]", "rr_factor = [1.0, 1.2]")
+            .replace("rotor_resistance_range = [1.0, 2.0]", "rotor_resistance_range = [1.0, 1.2]")
             .replace("inductance_factor = [0.6, 1.0]", "inductance_factor = [0.95, 1.05]");
         let m = drive_file::motor::load("delorenzo-appendix").unwrap();
         let structure = Structure { speed: SpeedDesign::Pi, ..Default::default() };

@@ -71,6 +71,14 @@ pub struct ControllerTable {
     /// for a board, and for the switching inverter model).
     #[serde(default)]
     pub dead_time_compensation: bool,
+    /// The rotor resistance's range, × `[motor] rr_ohm` (default
+    /// [`controller_core::mras::DEFAULT_RANGE`]; `[1.0, 1.0]` turns the adaptation off).
+    #[serde(default = "default_rotor_resistance_range")]
+    pub rotor_resistance_range: [f64; 2],
+}
+
+fn default_rotor_resistance_range() -> [f64; 2] {
+    controller_core::mras::DEFAULT_RANGE
 }
 
 /// Default bandwidth of the current trim, rad/s: slow against the current loops (their
@@ -648,6 +656,12 @@ pub fn drive_spec(
     ] {
         finite(src, key, x)?;
     }
+    let [rr_min, rr_max] = c.rotor_resistance_range;
+    src.check(
+        rr_min.is_finite() && rr_max.is_finite() && 0.0 < rr_min && rr_min <= rr_max,
+        "controller.rotor_resistance_range",
+        &format!("is [{}, {}]; needs 0 < min ≤ max (× [motor] rr_ohm)", num(rr_min), num(rr_max)),
+    )?;
     if let Some(f) = c.flux_floor_wb {
         finite(src, "controller.flux_floor_wb", f)?;
         src.check(f > 0.0, "controller.flux_floor_wb", "must be > 0")?;
@@ -718,6 +732,7 @@ pub fn drive_spec(
         current_trim_bandwidth_rad_s: c.current_trim_bandwidth_rad_s,
         dead_time_compensation_s,
         sample_window_s,
+        rotor_resistance_range: c.rotor_resistance_range,
         protection: {
             let basis = DefaultsBasis {
                 flux_ref_wb: c.flux_ref_wb,
@@ -769,6 +784,9 @@ pub fn drive_spec(
         }
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
         DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
+        DriveError::RotorResistanceRange => {
+            src.error("controller.rotor_resistance_range", "needs 0 < min ≤ max (× [motor] rr_ohm)")
+        }
         DriveError::DeadTime => {
             src.error("board.dead_time_s", "must be ≥ 0 and below a tenth of the PWM period to compensate it")
         }

@@ -31,6 +31,7 @@
 //! voltage_margin = 0.98                  # default: steady voltage target, fraction of V_dc/√3
 //! current_trim_bandwidth_rad_s = 20.0    # default: field-frame current trim; 0 turns it off
 //! dead_time_compensation = false         # default; true compensates [board] dead_time_s
+//! rotor_resistance_range = [1.0, 1.5]   # default: R_r adapted within × rr_ohm; [1, 1] fixes it
 //!
 //! [protection]
 //! i_trip_a = 8.0
@@ -175,6 +176,16 @@ mod tests {
         for bad in ["5.5e-6", "-1e-6", "nan"] {
             let e = err(&replace("sample_window_s = 1.5e-6", &format!("sample_window_s = {bad}")));
             assert_eq!(e.key.as_deref(), Some("board.sample_window_s"), "{bad}: {e}");
+        }
+        // A rotor-resistance range reversed, through zero, or NaN: named at its key, with
+        // what it needs.
+        for bad in ["[2.0, 1.0]", "[0.0, 2.0]", "[1.0, nan]", "[1.0, inf]"] {
+            let e = err(&replace(
+                "rotor_resistance_range = [1.0, 2.0]",
+                &format!("rotor_resistance_range = {bad}"),
+            ));
+            assert_eq!(e.key.as_deref(), Some("controller.rotor_resistance_range"), "{bad}: {e}");
+            assert!(e.reason.contains("0 < min ≤ max"), "{bad}: {e}");
         }
         // Trip level below the current limit.
         let e = err(&replace("i_trip_a = 8.0", "i_trip_a = 3.0"));

@@ -651,13 +651,14 @@ mod tests {
         let mut switching = 0;
         for k in 0..200u16 {
             // A current that moves, so that the loops' outputs move too (it does not follow
-            // the references: the open-phase check ends the run, in both alike).
+            // the references: the open-phase check ends the run, in both alike, after ≈ 100
+            // periods of switching).
             let s = Samples { i_abc: [2048 + k % 50, 2048 - k % 50, 2048], ..at_rest(k / 10) };
             let (a, b) = (with.step(&s), without.step(&s));
             assert_eq!(a, b, "period {k}");
             switching += usize::from(matches!(a, Bridge::Compare(_)));
         }
-        assert!(switching > 150, "{switching}");
+        assert!(switching > 90, "{switching} {:?}", with.drive().mode());
         assert_eq!(with.drive().mode(), without.drive().mode());
     }
 

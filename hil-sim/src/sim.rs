@@ -361,6 +361,8 @@ pub struct Row {
     pub psi_est_wb: f64,
     /// The drive's rotor-flux reference, Wb.
     pub psi_ref_wb: f64,
+    /// The rotor resistance the drive's field orientation runs on, × the motor file's.
+    pub rr_scale: f64,
     /// Current the inverter draws from the DC link during this period, A (negative:
     /// regeneration into the link).
     pub i_dc_a: f64,
@@ -779,6 +781,7 @@ pub fn run(
                 switch_acting,
                 psi_est_wb: f64::from(out.telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
+                rr_scale: f64::from(out.telemetry.rr_scale),
             })?;
         } else {
             to_trace -= 1;

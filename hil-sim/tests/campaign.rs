@@ -2,7 +2,7 @@
 //! software in the loop over its parameter box, each run judged by the module's criteria.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
-use hil_sim::campaign::{Campaign, FLUX_BOUNDS, Verdict};
+use hil_sim::campaign::{Campaign, Verdict};
 use std::sync::atomic::AtomicBool;
 
 fn shipped(runs: u64) -> Campaign {
@@ -23,12 +23,13 @@ fn run(c: &Campaign) -> Vec<Verdict> {
 }
 
 /// The shipped drive passes the linear certificates (continuous and sampled) over its
-/// `[certify]` box, but the nonlinear campaign over the same box finds what they cannot:
-/// at the hot-rotor corners (R_r ×2) the fixed-parameter field orientation runs the real
-/// rotor flux above 1.3× its flux model under load (a real machine would saturate), and at
-/// the low-inductance corners (L ×0.6) the torque falls short of its command, so the speed
-/// misses what an ideal torque actuator would give. The nominal corners pass. The test
-/// prints each corner's verdict (the figures in docs/design-toolkit.md).
+/// `[certify]` box; the nonlinear campaign over the same box finds what they cannot: at the
+/// low-inductance corners (L ×0.6, a saturated machine) the flux is 0.6× what the drive
+/// believes and the torque falls short of its command, so the speed misses what an ideal
+/// torque actuator would give. The hot-rotor corners (R_r ×2), which ran the flux up to 1.66×
+/// its model before the rotor resistance was measured while magnetizing and adapted online
+/// (`controller_core::mras`), pass like the nominal ones. The test prints each corner's
+/// verdict (the figures in docs/design-toolkit.md).
 #[test]
 fn the_campaign_finds_what_the_linear_certificate_cannot() {
     let (spec, c) = design::certify::parse(std::path::Path::new("drive.toml"), drive_file::SHIPPED).unwrap();
@@ -40,30 +41,34 @@ fn the_campaign_finds_what_the_linear_certificate_cannot() {
     }
     let cert = campaign.certify;
     for v in &verdicts {
-        let s = v.sample;
-        let (hot, small_l) = (s.rr == cert.rr_factor[1], s.l == cert.inductance_factor[0]);
-        match (hot, small_l) {
-            (false, false) => assert!(v.passed(), "nominal corner failed: {}", v.csv()),
-            (true, false) => {
-                assert!(v.failures.contains(&"flux") && v.flux_ratio[1] > FLUX_BOUNDS[1], "{}", v.csv())
-            }
-            (_, true) => assert!(v.failures.contains(&"tracking"), "{}", v.csv()),
+        let small_l = v.sample.l == cert.inductance_factor[0];
+        if small_l {
+            assert_eq!(v.failures, ["tracking"], "{}", v.csv());
+        } else {
+            assert!(v.passed(), "corner failed: {}", v.csv());
         }
-        assert!(!v.failures.contains(&"fault"), "no corner faults: {}", v.csv());
     }
 }
 
-/// A box the fixed-parameter drive can hold (R_r within +20 %, inductances ±5 %: what
-/// identification, not a datasheet, gives) passes every run: the corners and seeded samples.
+/// What a commissioned drive faces: inductances within ±5 % (identification, issue 20),
+/// both resistances over the shipped box's whole temperature range (R_s ×[1, 1.5], R_r
+/// ×[1, 2], the rotor's measured and adapted by the drive), inertia ×[1, 2] — every run
+/// passes, the corners and seeded samples. Before the adaptation the same box held only with
+/// R_r within +20 % (`rotor_resistance_range = [1, 1]` below: the hot corners fail on flux).
 #[test]
-fn a_box_the_drive_can_hold_passes_every_run() {
+fn a_commissioned_box_passes_every_run() {
     let mut c = shipped(96);
-    c.certify.rr_factor = [1.0, 1.2];
     c.certify.inductance_factor = [0.95, 1.05];
     let verdicts = run(&c);
     let failed: Vec<String> = verdicts.iter().filter(|v| !v.passed()).map(Verdict::csv).collect();
     assert!(failed.is_empty(), "{failed:#?}");
     assert_eq!(verdicts.len(), 96);
+    let worst = verdicts.iter().map(|v| v.flux_ratio[1]).fold(0.0, f64::max);
+    eprintln!("commissioned box: 96 of 96 pass; flux at most {worst:.3} of the model's");
+    c.spec.rotor_resistance_range = [1.0, 1.0];
+    let fixed = run(&c);
+    let hot_flux = fixed.iter().filter(|v| v.sample.rr == 2.0).all(|v| v.failures.contains(&"flux"));
+    assert!(hot_flux, "without the adaptation every R_r ×2 corner runs the flux above its bound");
 }
 
 /// Shards make the same runs as the whole campaign, bit for bit (each run's parameters,

@@ -237,21 +237,23 @@ fn closed_loop_trace_has_mode_fault_duties_bus_and_flux() {
     let mut lines = trace.lines();
     assert!(
         lines.next().unwrap().ends_with(
-            ",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,brake,i_chopper_a,i_leg_peak_a,comparator"
+            ",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,rr_scale,brake,i_chopper_a,i_leg_peak_a,comparator"
         )
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    let col = |r: &Vec<&str>, k: usize| r[r.len() - 12 + k].to_string();
+    let col = |r: &Vec<&str>, k: usize| r[r.len() - 13 + k].to_string();
     assert_eq!(col(&rows[10], 0), "Magnetizing");
     assert_eq!(col(&rows[300], 0), "Running");
     assert!(col(&rows[300], 2).parse::<f64>().is_ok() && col(&rows[300], 5) == "310.00");
     // The flux estimate and reference while running: the rated 0.35 Wb of this drive.
     assert_eq!(col(&rows[300], 7), "0.35000");
     // A stiff 310 V bus: the brake output stays off (this drive has no chopper anyway).
-    assert_eq!((col(&rows[300], 8), col(&rows[300], 9)), ("0".into(), "0.0000".into()));
+    assert_eq!((col(&rows[300], 9), col(&rows[300], 10)), ("0".into(), "0.0000".into()));
+    // The rotor resistance the drive runs on, × the motor's: measured while magnetizing.
+    assert!((col(&rows[300], 8).parse::<f64>().unwrap() - 1.0).abs() < 0.1);
     assert!((col(&rows[300], 6).parse::<f64>().unwrap() - 0.35).abs() < 0.01);
     // No comparator, no short in this scenario: the legs are not resolved, nothing breaks.
-    assert_eq!((col(&rows[300], 10), col(&rows[300], 11)), ("0.0000".into(), "0".into()));
+    assert_eq!((col(&rows[300], 11), col(&rows[300], 12)), ("0.0000".into(), "0".into()));
     let last = rows.last().unwrap();
     assert_eq!(
         (col(last, 0), col(last, 1), col(last, 2), col(last, 5)),

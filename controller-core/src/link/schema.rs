@@ -377,6 +377,8 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         s.current_trim_bandwidth_rad_s,
         s.dead_time_compensation_s,
         s.sample_window_s,
+        s.rotor_resistance_range[0],
+        s.rotor_resistance_range[1],
     ] {
         w.f64(v)?;
     }
@@ -456,6 +458,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
     let (voltage_margin, current_trim_bandwidth_rad_s, dead_time_compensation_s, sample_window_s) =
         (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
+    let rotor_resistance_range = [r.f64()?, r.f64()?];
     let protection = Protection {
         i_trip_a: r.f64()?,
         vdc_min_v: r.f64()?,
@@ -495,6 +498,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         current_trim_bandwidth_rad_s,
         dead_time_compensation_s,
         sample_window_s,
+        rotor_resistance_range,
         protection,
     })
 }
@@ -857,6 +861,7 @@ impl Reply {
                     t.psi_ref_wb,
                     t.i_q_ref_a,
                     t.omega_ref_rad_s,
+                    t.rr_scale,
                 ] {
                     w.f32(v)?;
                 }
@@ -933,6 +938,7 @@ impl Reply {
                     psi_ref_wb: r.f32()?,
                     i_q_ref_a: r.f32()?,
                     omega_ref_rad_s: r.f32()?,
+                    rr_scale: r.f32()?,
                 };
                 Reply::Output(FastOutput { phases, mode, brake, telemetry })
             }

@@ -1,0 +1,437 @@
+//! Rotor-resistance adaptation: a reactive-power model-reference adaptive system (MRAS).
+//!
+//! The field orientation ([`crate::ifoc`]) slips the field by `ω_sl = L_m·R_r/(L_r·ψ̂_r)·i_qs*`
+//! and runs its flux model with `T_r = L_r/R_r`. The rotor resistance grows with the rotor's
+//! temperature (aluminium bars: ≈ +0.4 %/K, so ×1.5 at 120 K above the temperature it was
+//! measured at); with the resistance the motor file states, a hot rotor under load gets too
+//! little slip and its flux runs above the model's (×1.66 at R_r ×2 in the campaign, issue 21).
+//! This module estimates the scale `r̂ = R̂_r/R_r` online; the drive runs the slip and flux
+//! model on it ([`crate::ifoc::IfocConfig::set_rotor_resistance_scale`]).
+//!
+//! **Reference (the machine)**: the reactive power of the measured currents and the voltage
+//! the current loops asked for, in the field frame, `q = v_q·i_d − v_d·i_q` (the
+//! amplitude-invariant scaling's; a factor 3/2 apart from the watts on both sides).
+//!
+//! **Adjustable model**: the same in steady state, with the flux held,
+//! `q̂ = ω_e·(σL_s·|i|² + (L_m/L_r)·ψ̂_r·i_d)` — `v_d = R_s·i_d − ω_e·σL_s·i_q`,
+//! `v_q = R_s·i_q + ω_e·(σL_s·i_d + (L_m/L_r)·ψ̂_r)` ([`EnvelopeConfig::stator_voltage`]):
+//! **the stator resistance cancels**, so a hot stator (R_s ×1.5 in the certified box) does not
+//! bias the estimate, and neither does a voltage error in phase with the current (the
+//! dead time's, to first order).
+//!
+//! **Why it converges.** With the currents imposed, the rotor flux in steady state is
+//! `ψ_r = L_m·i/(1 + j·ω_sl·T_r)`, so `q = ω_e·|i|²·(σL_s + (L_m²/L_r)/(1 + (ω_sl·T_r)²))`. The
+//! drive's own model has `ω_sl·T̂_r = i_q/i_d = a`. With the true scale ρ,
+//! `ω_sl·T_r = (r̂/ρ)·a`, and the normalised error
+//! `x = (q − q̂)/(ω_e·(L_m²/L_r)·|i|²) = 1/(1 + (r̂·a/ρ)²) − 1/(1 + a²)` is positive when
+//! `r̂ < ρ`, negative when `r̂ > ρ`, zero at `r̂ = ρ` — in motoring and generating alike (the
+//! slip enters squared). Its slope at the match, `∂x/∂ln r̂ = −2a²/(1 + a²)²`, is largest at
+//! `a = 1` (0.5) and small at both ends: no information at no load (no slip to get wrong) and
+//! little at full torque from a low flux (a = 6 at the shipped drive's limit). The update is
+//! a gradient step on `ln r̂`, scaled so that at the slope's peak it is one slow period of a
+//! first-order response with the rotor time constant (the flux cannot follow a faster change
+//! of the slip): `r̂ ← r̂·(1 + (T_slow/T_r)·x/0.5)`, limited to the configured range —
+//! slower where the slope is smaller. (A Newton step, dividing by the slope, was tried: at
+//! a = 6 it multiplies the gain by 10, and the shipped drive generating at full current and
+//! 74 rad/s, where the field speed ω_e = ω_r + ω_sl is −24 rad/s, oscillated: torque ripple
+//! 3.1 N·m, test `torque_speed_envelope_within_5_percent_of_the_analytic_one`.)
+//!
+//! **When it listens** ([`MrasConfig::update`] returns the scale unchanged otherwise):
+//! Running on the field-oriented references, the modulator not limiting the request (the
+//! voltage is then the loops' own), `|i_q| ≥` [`LOAD_RATIO_MIN`]`·i_d` (the slope at least
+//! 64 % of its peak) and the rotor-flux EMF `|ω_e|·(L_m/L_r)·ψ̂_r` at least
+//! [`EMF_FRACTION_MIN`] of the linear voltage limit (so that the voltage's own errors —
+//! dead time, sensor gain — stay small against it). At rest and at no load the estimate is
+//! held: it is the rotor's temperature, which changes over minutes.
+//!
+//! **Where it starts: measured while magnetizing** ([`MrasConfig::fit`]). The rotor's
+//! temperature at power-up is unknown, and a first full-torque acceleration on a guess is
+//! where the detuning costs most. At rest, with the d-axis current held by the loops, the
+//! d-axis voltage is `v_d(t) = R_s·i_d + R_R·i_d·e^{−t/T_r}` (`R_R = (L_m/L_r)²·R_r`; the
+//! second term is `(L_m/L_r)·dψ_r/dt` of the building flux), so the sums `S₀, S₁, S₂` of
+//! three consecutive windows of length W fall geometrically and
+//! `(S₀ − S₁)/(S₁ − S₂) = e^{W/T_r}`: the rotor time constant **without the stator
+//! resistance**, any constant offset of the voltage (dead time, current-sensor offset) or
+//! the flux left from an earlier run. `r̂ = T_r,motor/T̂_r`, limited to the range. The
+//! windows start [`FIT_SKIP_S`] after the enable (the current's own step), each
+//! [`FIT_WINDOW_FRACTION`] of T_r at the range's middle; the drive stays magnetizing until
+//! the fit is done. A rotor that turns, or sums that do not fall, leave the estimate where
+//! it was. Before the first
+//! fit the estimate is the range's geometric middle ([`MrasConfig::initial_scale`]); it is
+//! kept across disable/enable.
+//!
+//! What it cannot tell apart: an inductance error (saturation; L ×0.6 at the certified box's
+//! corner) scales `q` as a whole, and the law reads it as a slip error — the range limits
+//! what that costs. The inductances come from identification (issue 20), not from here.
+
+use crate::envelope::EnvelopeConfig;
+use crate::frames::Dq;
+use crate::motor::MotorParams;
+use crate::num::{Scalar, sqrt_f32};
+
+/// The least load ratio `|i_q|/i_d` the law listens at: the slope `s(a) = 2a²/(1 + a²)²` is
+/// 0.32 there, 64 % of its peak (0.5 at a = 1).
+pub const LOAD_RATIO_MIN: f32 = 0.5;
+
+/// The peak of the error's slope `s(a) = 2a²/(1 + a²)²` (at a = 1).
+const SLOPE_PEAK: f32 = 0.5;
+
+/// The most the gradient step is amplified where the slope is small.
+const AMPLIFICATION_MAX: f32 = 3.0;
+
+/// The least rotor-flux EMF the law listens at, as a fraction of the linear voltage limit.
+pub const EMF_FRACTION_MIN: f32 = 0.1;
+
+/// The range a drive file gets by default, × the motor's R_r: a rotor resistance measured
+/// cold (identification, a datasheet's ambient figure), up to ≈ 120 K hotter — aluminium
+/// bars, ≈ +0.4 %/K: a class-F rotor at its limit.
+pub const DEFAULT_RANGE: [f64; 2] = [1.0, 1.5];
+
+/// The fit's windows start this long after the enable, when the d-axis current's own step is
+/// over (the current loops settle within ≈ 1 ms; the ICAD lag's slow modes, −50 ± j200 rad/s
+/// in eq. (20), have decayed to e^{−0.5}: 5 ms gave 3.5 % more bias at R_s ×1.5).
+pub const FIT_SKIP_S: f64 = 10e-3;
+
+/// Each window of the fit is this fraction of the rotor time constant at the middle of the
+/// range: the three windows take 2.4 of its 3 time constants of magnetizing (to 95 %). Longer
+/// windows average more of the voltage's noise (the current sensors' through the loops'
+/// gain): with half a time constant, one of twelve seeded runs with realistic sensors was
+/// 22 % off; the error with 0.8 is what `magnetizing_measures_the_rotor_resistance` prints.
+pub const FIT_WINDOW_FRACTION: f64 = 0.8;
+
+/// The fit gives up when the d-axis current reference moves by more than this fraction.
+pub const FIT_I_D_TOLERANCE: f32 = 0.01;
+
+/// Why an adaptation range was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MrasError {
+    /// The range is not `0 < min ≤ max`, finite.
+    Range,
+    /// The slow period or the rotor time constant is not finite and positive.
+    Rate,
+}
+
+/// The adaptation's constants (from the motor, the slow period and the range).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MrasConfig {
+    /// `1/(L_m²/L_r)`, 1/H.
+    inv_lm2_over_lr: f32,
+    /// `T_slow/T_r`: the update's gain.
+    gain: f32,
+    /// The range of `r̂`, × the motor's R_r.
+    min: f32,
+    max: f32,
+    /// The magnetizing fit: slow steps skipped, slow steps per window, and
+    /// `T_r,motor/W` (`r̂ = (T_r/W)·ln((S₀ − S₁)/(S₁ − S₂))`).
+    fit_skip_steps: u32,
+    fit_window_steps: u32,
+    tr_over_window: f32,
+}
+
+/// What one slow period shows the online law ([`MrasConfig::update`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Evidence {
+    /// The measured current in the field frame, A.
+    pub i: Dq,
+    /// The voltage the current loops asked for, same frame and instant, V.
+    pub v: Dq,
+    /// The field's speed, electrical rad/s.
+    pub w_e_rad_s: f32,
+    /// The drive's rotor-flux estimate, Wb.
+    pub psi_r_wb: f32,
+    /// The linear voltage limit of the usable bus, V.
+    pub v_limit_v: f32,
+}
+
+/// The magnetizing fit's progress ([`MrasConfig::fit`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RotorFit {
+    /// Slow steps since the enable.
+    steps: u32,
+    /// The windows' sums of v_d, V.
+    sums: [f32; 3],
+    /// The d-axis current reference the fit started with, A.
+    i_d_a: f32,
+    /// Finished (estimated, or given up).
+    done: bool,
+}
+
+impl MrasConfig {
+    /// For `motor`, a slow period `t_slow_s` and the range `[min, max]` of the rotor
+    /// resistance, × the motor's (`[1, 1]`: no adaptation).
+    pub fn new(motor: &MotorParams, t_slow_s: f64, range: [f64; 2]) -> Result<Self, MrasError> {
+        let [min, max] = range;
+        if !(min.is_finite() && max.is_finite() && min > 0.0 && min <= max) {
+            return Err(MrasError::Range);
+        }
+        let gain = t_slow_s / motor.tr_s();
+        if !(gain.is_finite() && gain > 0.0) {
+            return Err(MrasError::Rate);
+        }
+        let f = f32::from_f64;
+        let window_s = FIT_WINDOW_FRACTION * motor.tr_s() / libm::sqrt(min * max);
+        let fit_window_steps = libm::round(window_s / t_slow_s).clamp(1.0, 1e6) as u32;
+        Ok(Self {
+            inv_lm2_over_lr: f(motor.lr_h() / (motor.lm_h() * motor.lm_h())),
+            gain: f(gain.min(1.0)),
+            min: f(min),
+            max: f(max),
+            fit_skip_steps: libm::ceil(FIT_SKIP_S / t_slow_s).clamp(0.0, 1e6) as u32,
+            fit_window_steps,
+            tr_over_window: f(motor.tr_s() / (f64::from(fit_window_steps) * t_slow_s)),
+        })
+    }
+
+    /// One slow step of magnetizing: the mean d-axis voltage the loops asked for over the
+    /// slow period `v_d_v` (V) and the d-axis current reference `i_d_a` (A). Returns the
+    /// fitted scale once, when the third window closes (module docs), `None` before, after
+    /// and when the fit is given up: the reference moved by more than [`FIT_I_D_TOLERANCE`]
+    /// (field weakening on a spinning rotor), or the voltage is not finite.
+    /// [`RotorFit::default`] starts it (at the enable).
+    pub fn fit(&self, f: &mut RotorFit, v_d_v: f32, i_d_a: f32) -> Option<f32> {
+        if f.done || !self.active() {
+            return None;
+        }
+        if f.steps == 0 {
+            f.i_d_a = i_d_a;
+        }
+        if !(v_d_v.is_finite() && (i_d_a - f.i_d_a).abs() <= FIT_I_D_TOLERANCE * f.i_d_a.abs()) {
+            f.done = true;
+            return None;
+        }
+        f.steps = f.steps.saturating_add(1);
+        let k = f.steps.checked_sub(self.fit_skip_steps.saturating_add(1))?;
+        let window = (k / self.fit_window_steps) as usize;
+        if let Some(sum) = f.sums.get_mut(window) {
+            *sum += v_d_v;
+        }
+        if k + 1 < 3 * self.fit_window_steps {
+            return None;
+        }
+        f.done = true;
+        let [s0, s1, s2] = f.sums;
+        if !(s0 > s1 && s1 > s2) {
+            return None;
+        }
+        let r = self.tr_over_window * crate::num::ln_f32((s0 - s1) / (s1 - s2));
+        // A ratio at or below 1 (the middle window's step the smaller) is noise, not a fit.
+        if r.is_finite() && r > 0.0 { Some(r.limit(self.min, self.max)) } else { None }
+    }
+
+    /// Adapting at all (the range is not a single value).
+    pub fn active(&self) -> bool {
+        self.max > self.min
+    }
+
+    /// The magnetizing fit is still to come (the drive keeps magnetizing until it is done).
+    pub fn fit_pending(&self, f: &RotorFit) -> bool {
+        self.active() && !f.done
+    }
+
+    /// A configuration [`MrasConfig::new`] could have made (a check on raw data).
+    pub fn is_valid(&self) -> bool {
+        self.min > 0.0 && self.min <= self.max && self.fit_window_steps > 0 && self.gain > 0.0
+    }
+
+    /// The range, × the motor's R_r.
+    pub fn range(&self) -> [f32; 2] {
+        [self.min, self.max]
+    }
+
+    /// The estimate at power-up: the range's geometric middle `√(min·max)`.
+    pub fn initial_scale(&self) -> f32 {
+        sqrt_f32(self.min * self.max)
+    }
+
+    /// One slow period: the scale `r` (× the motor's R_r) after this period's `evidence` —
+    /// or `r` unchanged when it is not informative (module docs). `model` is the drive's
+    /// machine model.
+    #[inline(never)]
+    pub fn update(&self, r: f32, model: &EnvelopeConfig, evidence: &Evidence) -> f32 {
+        let Evidence { i, v, w_e_rad_s: w_e, psi_r_wb, v_limit_v } = *evidence;
+        let listening = self.active()
+            && i.d > 0.0
+            && i.q.abs() >= LOAD_RATIO_MIN * i.d
+            && (w_e * model.lm_over_lr() * psi_r_wb).abs() >= EMF_FRACTION_MIN * v_limit_v;
+        if !listening {
+            return r;
+        }
+        let (vd, vq) = model.stator_voltage(i.d, i.q, w_e, psi_r_wb);
+        let q_model = vq * i.d - vd * i.q;
+        let q = v.q * i.d - v.d * i.q;
+        let i2 = i.d * i.d + i.q * i.q;
+        let x = (q - q_model) * self.inv_lm2_over_lr / (w_e * i2);
+        let a2 = i.q * i.q / (i.d * i.d);
+        let one_a2 = 1.0 + a2;
+        let slope = 2.0 * a2 / (one_a2 * one_a2);
+        let step = x / crate::num::max_f32(slope, SLOPE_PEAK / AMPLIFICATION_MAX);
+        let next = r * (1.0 + self.gain * step);
+        if next.is_finite() { next.limit(self.min, self.max) } else { r }
+    }
+
+    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+        for x in [self.inv_lm2_over_lr, self.gain, self.min, self.max, self.tr_over_window] {
+            w.f(x);
+        }
+        w.u(self.fit_skip_steps);
+        w.u(self.fit_window_steps);
+    }
+
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        Self {
+            inv_lm2_over_lr: r.f(),
+            gain: r.f(),
+            min: r.f(),
+            max: r.f(),
+            tr_over_window: r.f(),
+            fit_skip_steps: r.u(),
+            fit_window_steps: r.u(),
+        }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    const T_SLOW: f64 = 5e-4;
+
+    fn motor() -> MotorParams {
+        MotorParams::delorenzo_dl10115a1().unwrap()
+    }
+
+    fn cfg(range: [f64; 2]) -> MrasConfig {
+        MrasConfig::new(&motor(), T_SLOW, range).unwrap()
+    }
+
+    /// The machine's steady state under field orientation on the scale `r` when its rotor
+    /// resistance is `rho` × the motor's: the currents `(i_d, i_q)` imposed in the drive's
+    /// frame, which turns at `ω_e = p·ω_m + r·ω_sl,nominal`; the rotor flux
+    /// `ψ_r = L_m·i/(1 + j·ω_sl·T_r)` and `v = R_s·i + j·ω_e·(σL_s·i + (L_m/L_r)·ψ_r)`, with
+    /// the stator resistance `rs` × the motor's. The drive's flux estimate is its steady
+    /// model `L_m·i_d`. f64, from the parameters alone (not `EnvelopeConfig`).
+    fn evidence(r: f32, rho: f64, rs: f64, i_d: f64, i_q: f64, omega_m: f64) -> Evidence {
+        let m = motor();
+        let (lm, lr, ls) = (m.lm_h(), m.lr_h(), m.ls_h());
+        let sigma_ls = m.sigma() * ls;
+        let tr = m.tr_s() / rho;
+        let w_sl = f64::from(r) * i_q / (m.tr_s() * i_d);
+        let w_e = f64::from(m.pole_pairs()) * omega_m + w_sl;
+        // ψ_r = L_m·(i_d + j·i_q)/(1 + j·w_sl·T_r).
+        let (a, b) = (1.0, w_sl * tr);
+        let den = a * a + b * b;
+        let (psi_d, psi_q) = (lm * (i_d * a + i_q * b) / den, lm * (i_q * a - i_d * b) / den);
+        let k = lm / lr;
+        let v_d = m.rs_ohm() * rs * i_d - w_e * (sigma_ls * i_q + k * psi_q);
+        let v_q = m.rs_ohm() * rs * i_q + w_e * (sigma_ls * i_d + k * psi_d);
+        Evidence {
+            i: Dq { d: i_d as f32, q: i_q as f32 },
+            v: Dq { d: v_d as f32, q: v_q as f32 },
+            w_e_rad_s: w_e as f32,
+            psi_r_wb: (lm * i_d) as f32,
+            v_limit_v: 168.0,
+        }
+    }
+
+    /// Iterated on the steady state, the online law settles at the true rotor resistance —
+    /// motoring and generating, forwards and backwards, at a light and a heavy load, with the
+    /// stator 50 % more resistive than the model's — and never leaves the range.
+    #[test]
+    fn the_online_law_settles_at_the_true_resistance() {
+        let c = cfg([1.0, 2.0]);
+        let model = EnvelopeConfig::new(&motor());
+        for rho in [1.0, 1.3, 2.0] {
+            for (i_q, omega_m) in [(0.5, 150.0), (2.0, 150.0), (-2.0, 150.0), (2.0, -150.0), (-1.0, 80.0)] {
+                for rs in [1.0, 1.5] {
+                    let mut r = c.initial_scale();
+                    for _ in 0..20_000 {
+                        r = c.update(r, &model, &evidence(r, rho, rs, 0.634, i_q, omega_m));
+                        assert!((1.0..=2.0).contains(&r), "left the range: {r}");
+                    }
+                    let err = f64::from(r) / rho - 1.0;
+                    assert!(
+                        err.abs() < 2e-3,
+                        "ρ {rho}, i_q {i_q}, ω_m {omega_m}, R_s ×{rs}: r̂ {r} ({err:+e})"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Where the evidence says nothing the estimate holds: no load, too slow a field, a
+    /// single-valued range, a non-finite voltage.
+    #[test]
+    fn the_online_law_holds_without_evidence() {
+        let model = EnvelopeConfig::new(&motor());
+        let c = cfg([1.0, 2.0]);
+        let r = 1.7;
+        // Truth ×1: the law would move if it listened.
+        assert!(c.update(r, &model, &evidence(r, 1.0, 1.0, 0.634, 2.0, 150.0)) < r);
+        assert_eq!(c.update(r, &model, &evidence(r, 1.0, 1.0, 0.634, 0.2, 150.0)), r, "no load");
+        // Generating, the field nearly at rest: ω_e = p·ω_m + ω_sl = 2 rad/s.
+        let w_sl = f64::from(r) * 2.0 / (motor().tr_s() * 0.634);
+        assert_eq!(c.update(r, &model, &evidence(r, 1.0, 1.0, 0.634, 2.0, 2.0 - w_sl)), r, "slow field");
+        let mut e = evidence(r, 1.0, 1.0, 0.634, 2.0, 150.0);
+        e.v.q = f32::NAN;
+        assert_eq!(c.update(r, &model, &e), r, "not finite");
+        let fixed = cfg([1.3, 1.3]);
+        assert_eq!(fixed.update(1.3, &model, &evidence(1.3, 1.0, 1.0, 0.634, 2.0, 150.0)), 1.3);
+        assert_eq!(fixed.initial_scale(), 1.3);
+    }
+
+    /// The magnetizing fit reads the rotor time constant from the d-axis voltage's decay
+    /// `c + A·e^{−t/T_r}` whatever the offset `c` (the stator's drop, dead time) and amplitude;
+    /// it gives up on a moving current reference and on sums that do not fall.
+    #[test]
+    fn the_fit_reads_the_rotor_time_constant() {
+        let c = cfg([1.0, 2.0]);
+        let tr0 = motor().tr_s();
+        for rho in [1.0, 1.25, 1.6, 2.0] {
+            for (offset, amplitude) in [(10.3, 13.2), (25.0, 6.0), (-3.0, 20.0)] {
+                let mut f = RotorFit::default();
+                let mut got = None;
+                for k in 1..=2_000u32 {
+                    let t = f64::from(k) * T_SLOW;
+                    let v = offset + amplitude * (-t * rho / tr0).exp();
+                    if let Some(r) = c.fit(&mut f, v as f32, 0.634) {
+                        assert!(got.is_none(), "one estimate");
+                        got = Some(r);
+                    }
+                }
+                let r = got.unwrap();
+                assert!((f64::from(r) / rho - 1.0).abs() < 1e-3, "ρ {rho}, c {offset}, A {amplitude}: {r}");
+                assert!(!c.fit_pending(&f));
+            }
+        }
+        // Clamped to the range: a rotor far colder than the range's lower end.
+        let mut f = RotorFit::default();
+        let got = (1..=2_000u32).find_map(|k| {
+            let t = f64::from(k) * T_SLOW;
+            c.fit(&mut f, (10.0 + 13.0 * (-t * 0.5 / tr0).exp()) as f32, 0.634)
+        });
+        assert_eq!(got, Some(1.0));
+        // The reference moves (field weakening while spinning): given up, nothing returned.
+        let mut f = RotorFit::default();
+        let none = (1..=2_000u32).all(|k| {
+            let i_d = if k < 100 { 0.634 } else { 0.6 };
+            c.fit(&mut f, (10.0 + 13.0 * (-f64::from(k) * T_SLOW / tr0).exp()) as f32, i_d).is_none()
+        });
+        assert!(none && !c.fit_pending(&f));
+        // A voltage that rises (no building flux to read): no estimate.
+        let mut f = RotorFit::default();
+        assert!((1..=2_000u32).all(|k| c.fit(&mut f, k as f32 * 0.01, 0.634).is_none()));
+        // Without a range there is nothing to fit.
+        assert!(!cfg([1.0, 1.0]).fit_pending(&RotorFit::default()));
+    }
+
+    #[test]
+    fn rejects_bad_ranges() {
+        let m = motor();
+        for range in [[0.0, 1.0], [1.5, 1.0], [-1.0, 2.0], [1.0, f64::NAN], [f64::INFINITY, f64::INFINITY]] {
+            assert_eq!(MrasConfig::new(&m, T_SLOW, range), Err(MrasError::Range), "{range:?}");
+        }
+        assert_eq!(MrasConfig::new(&m, 0.0, [1.0, 2.0]), Err(MrasError::Rate));
+        assert!(cfg([1.0, 2.0]).is_valid());
+    }
+}
