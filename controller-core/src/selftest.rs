@@ -214,9 +214,12 @@ pub fn sincos_accuracy() -> Check {
 
 /// The drive `spec` with ideal current tracking (measured = reference of the previous
 /// step): the time from `enable` to Running against the IFOC flux model's
-/// `T_r·ln(1/(1 − fraction))`, relative error. Limit 1e-3: the discrete flux model's time
-/// constant at 20 kHz is exact to ≪ 1e-4 and the count has one-sample resolution (≈ 2e-4
-/// of the ≈ 4600 samples); host measurement 5.4e-5.
+/// `T_r·ln(1/(1 − fraction))`, relative error — T_r of the rotor resistance the drive runs on
+/// (its range's middle: ideal tracking leaves the magnetizing fit no decaying voltage to
+/// read, `controller_core::mras`). Limit 1e-3: the discrete flux model's time
+/// constant at 20 kHz is exact to ≪ 1e-4 and the count has one-sample resolution (≈ 4e-4
+/// of the ≈ 2 740 samples of the shipped drive, ≈ 2e-4 of the ≈ 4 600 at R_r as the motor
+/// file states it).
 pub fn drive_magnetizing_time(spec: &DriveSpec) -> Check {
     let Ok(cfg) = DriveConfig::new(spec) else {
         return Check { name: "magnetizing", measured: f64::NAN, limit: 0.0 };
@@ -231,7 +234,8 @@ pub fn drive_magnetizing_time(spec: &DriveSpec) -> Check {
         steps += 1;
     }
     let t = f64::from(steps) / spec.pwm_frequency_hz;
-    let expected = spec.motor.tr_s() * libm::log(1.0 / (1.0 - spec.magnetized_fraction));
+    let tr_s = spec.motor.tr_s() / f64::from(drive.ifoc_state().rotor_resistance_scale());
+    let expected = tr_s * libm::log(1.0 / (1.0 - spec.magnetized_fraction));
     let measured =
         if drive.mode() == Mode::Running { (t - expected).abs() / expected } else { f64::INFINITY };
     Check { name: "time to Running vs Tr*ln(1/(1-f)), rel. error", measured, limit: 1e-3 }
