@@ -28,13 +28,15 @@
 //! slip enters squared). Its slope at the match, `∂x/∂ln r̂ = −2a²/(1 + a²)²`, is largest at
 //! `a = 1` (0.5) and small at both ends: no information at no load (no slip to get wrong) and
 //! little at full torque from a low flux (a = 6 at the shipped drive's limit). The update is
-//! a gradient step on `ln r̂`, scaled so that at the slope's peak it is one slow period of a
-//! first-order response with the rotor time constant (the flux cannot follow a faster change
-//! of the slip): `r̂ ← r̂·(1 + (T_slow/T_r)·x/0.5)`, limited to the configured range —
-//! slower where the slope is smaller. (A Newton step, dividing by the slope, was tried: at
-//! a = 6 it multiplies the gain by 10, and the shipped drive generating at full current and
-//! 74 rad/s, where the field speed ω_e = ω_r + ω_sl is −24 rad/s, oscillated: torque ripple
-//! 3.1 N·m, test `torque_speed_envelope_within_5_percent_of_the_analytic_one`.)
+//! a gradient step on `ln r̂`, `r̂ ← r̂·(1 + g·x/max(s(a), 0.5/`[`AMPLIFICATION_MAX`]`))`,
+//! `g = T_slow/(`[`LAW_TIME_CONSTANTS`]`·T_r)`, limited to the configured range: a
+//! first-order response with three rotor time constants where the slope peaks (the flux
+//! cannot follow a faster change of the slip), never faster elsewhere, the step amplified
+//! where the slope is small so that a high load ratio still converges (4.7 T_r at a = 6).
+//! Found by trying (docs/rotor-resistance.md): a Newton step — dividing by the slope
+//! uncapped — oscillated generating at a = 6; one rotor time constant with a cap of 3 put
+//! torque ripple into the 24 V walk-through motor's generating runs (T_r = 14 ms); no
+//! amplification left a flying start in field weakening seconds from converged.
 //!
 //! **When it listens** ([`MrasConfig::update`] returns the scale unchanged otherwise):
 //! Running on the field-oriented references, the modulator not limiting the request (the
@@ -76,8 +78,12 @@ pub const LOAD_RATIO_MIN: f32 = 0.5;
 /// The peak of the error's slope `s(a) = 2a²/(1 + a²)²` (at a = 1).
 const SLOPE_PEAK: f32 = 0.5;
 
-/// The most the gradient step is amplified where the slope is small.
-const AMPLIFICATION_MAX: f32 = 3.0;
+/// The law's time constant at the slope's peak, in rotor time constants (module docs).
+pub const LAW_TIME_CONSTANTS: f64 = 3.0;
+
+/// The most the gradient step is amplified where the slope is small: the slope's peak over
+/// this is the least divisor, so no slope is followed faster than the peak's.
+const AMPLIFICATION_MAX: f32 = 6.0;
 
 /// The least rotor-flux EMF the law listens at, as a fraction of the linear voltage limit.
 pub const EMF_FRACTION_MIN: f32 = 0.1;
@@ -116,7 +122,7 @@ pub enum MrasError {
 pub struct MrasConfig {
     /// `1/(L_m²/L_r)`, 1/H.
     inv_lm2_over_lr: f32,
-    /// `T_slow/T_r`: the update's gain.
+    /// `T_slow/(LAW_TIME_CONSTANTS·T_r)`: the update's gain.
     gain: f32,
     /// The range of `r̂`, × the motor's R_r.
     min: f32,
@@ -164,7 +170,7 @@ impl MrasConfig {
         if !(min.is_finite() && max.is_finite() && min > 0.0 && min <= max) {
             return Err(MrasError::Range);
         }
-        let gain = t_slow_s / motor.tr_s();
+        let gain = t_slow_s / (LAW_TIME_CONSTANTS * motor.tr_s());
         if !(gain.is_finite() && gain > 0.0) {
             return Err(MrasError::Rate);
         }

@@ -821,15 +821,13 @@ mod tests {
     }
 
     /// The speed PI's drive in the nonlinear campaign, on the narrow box (what
-    /// self-commissioning's intervals give; the rotor resistance adapted within the same
-    /// interval): every run passes.
+    /// self-commissioning's intervals give): every run passes.
     #[test]
     fn speed_pi_passes_the_campaign() {
         use hil_sim::campaign::Campaign;
         use std::sync::atomic::AtomicBool;
         let template = TEMPLATE
             .replace("rr_factor = [1.0, 2.0]", "rr_factor = [1.0, 1.2]")
-            .replace("rotor_resistance_range = [1.0, 2.0]", "rotor_resistance_range = [1.0, 1.2]")
             .replace("inductance_factor = [0.6, 1.0]", "inductance_factor = [0.95, 1.05]");
         let m = drive_file::motor::load("delorenzo-appendix").unwrap();
         let structure = Structure { speed: SpeedDesign::Pi, ..Default::default() };
@@ -949,12 +947,12 @@ mod tests {
     /// certificates"): 200 runs each over the tuned file's box (`hil_sim::campaign`: speed
     /// steps, load steps to the torque limit and reversals, realistic sensors scaled to the
     /// drive's trip level), long enough for each motor to magnetize first. Every run passes
-    /// but a stated gap: a reversal at the R_r ×1.2 corners may miss tracking by a little —
-    /// the fixed-T_r field orientation, detuned (docs/design-toolkit.md); any other failure,
-    /// or a fault, fails the test.
+    /// (a stated gap — reversals at the R_r ×1.2 corners missing tracking by a little, the
+    /// fixed-T_r orientation detuned — closed with the drive's rotor-resistance estimate,
+    /// docs/rotor-resistance.md).
     #[test]
     fn seeded_random_motors_pass_the_campaign() {
-        use hil_sim::campaign::{Campaign, Manoeuvre, STEP_S};
+        use hil_sim::campaign::{Campaign, STEP_S};
         use std::sync::atomic::AtomicBool;
         let mut failed = Vec::new();
         for (k, m) in seeded_random_motors().into_iter().enumerate() {
@@ -972,13 +970,9 @@ mod tests {
             // A long rotor time constant magnetizes later: 0.75 s after the step as at 1 s.
             c.duration_s = c.duration_s.max(c.step_s() + (1.0 - STEP_S));
             let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-            let gap = |v: &hil_sim::campaign::Verdict| {
-                v.manoeuvre == Manoeuvre::Reversal && v.sample.rr > 1.19 && v.failures == ["tracking"]
-            };
-            let bad: Vec<String> = v.iter().filter(|v| !v.passed() && !gap(v)).map(|v| v.csv()).collect();
+            let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
             println!(
-                "random {k} (L_m {:.3} H, T_r {:.3} s, J {:.2e} kg·m², i_trip {:.2} A, runs of {:.2} s): {} of {} pass, \
-                 {} reversals at R_r ×1.2 miss tracking (stated), {} fail",
+                "random {k} (L_m {:.3} H, T_r {:.3} s, J {:.2e} kg·m², i_trip {:.2} A, runs of {:.2} s): {} of {} pass",
                 m.lm_h(),
                 m.lr_h() / m.rr_ohm(),
                 m.j_kgm2(),
@@ -986,8 +980,6 @@ mod tests {
                 c.duration_s,
                 v.iter().filter(|v| v.passed()).count(),
                 v.len(),
-                v.iter().filter(|v| gap(v)).count(),
-                bad.len()
             );
             for b in bad.iter().take(5) {
                 println!("  {b}");

@@ -63,7 +63,7 @@ fn run(
 /// resistance without the stator's: with realistic sensors (12-bit currents with offset,
 /// gain error and noise; four noise seeds each), cold and hot rotors, cold and hot stators,
 /// the estimate when the drive starts running is within 6 % of the truth, 3 % on average
-/// (measured: 2.3 % and 0.8 %) — the detuning left for the online law. (Before the fit the drive ran on the range's middle, √2: up to 41 % off.)
+/// (measured: 2.7 % and 0.9 %) — the detuning left for the online law. (Before the fit the drive ran on the range's middle, √2: up to 41 % off.)
 #[test]
 fn magnetizing_measures_the_rotor_resistance() {
     let spec = shipped();
