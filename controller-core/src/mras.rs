@@ -57,10 +57,11 @@
 //! the flux left from an earlier run. `r̂ = T_r,motor/T̂_r`, limited to the range. The
 //! windows start [`FIT_SKIP_S`] after the enable (the current's own step), each
 //! [`FIT_WINDOW_FRACTION`] of T_r at the range's middle; the drive stays magnetizing until
-//! the fit is done. A rotor that turns, or sums that do not fall, leave the estimate where
-//! it was. Before the first
-//! fit the estimate is the range's geometric middle ([`MrasConfig::initial_scale`]); it is
-//! kept across disable/enable.
+//! the fit is done. It holds on a spinning rotor too (with i_q = 0 the cross term
+//! `−ω_e·σL_s·i_q` is zero and the flux builds on the d axis); a d-axis reference that moves
+//! (field weakening while spinning), or sums that do not fall, leave the estimate where it
+//! was. Before the first fit the estimate is the range's geometric middle
+//! ([`MrasConfig::initial_scale`]); it is kept across disable/enable.
 //!
 //! What it cannot tell apart: an inductance error (saturation; L ×0.6 at the certified box's
 //! corner) scales `q` as a whole, and the law reads it as a slip error — the range limits
@@ -83,7 +84,7 @@ pub const LAW_TIME_CONSTANTS: f64 = 3.0;
 
 /// The most the gradient step is amplified where the slope is small: the slope's peak over
 /// this is the least divisor, so no slope is followed faster than the peak's.
-const AMPLIFICATION_MAX: f32 = 6.0;
+pub const AMPLIFICATION_MAX: f32 = 6.0;
 
 /// The least rotor-flux EMF the law listens at, as a fraction of the linear voltage limit.
 pub const EMF_FRACTION_MIN: f32 = 0.1;
