@@ -2619,15 +2619,7 @@ mod tests {
             let spec = DriveSpec { current_frame: frame, ..test_spec() };
             let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
             d.enable().unwrap();
-            let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
-            let mut i = Abc::default();
-            let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
-            for _ in 0..20_000 {
-                if let PhaseCommand::Duty(duty) = out.phases {
-                    i = rl_step(i, duty, vdc, r, l, ts);
-                }
-                out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
-            }
+            let out = run_rl_load(&mut d, 20_000);
             assert_eq!(d.mode(), Mode::Running, "{frame:?}");
             // i_ds* = 0.9/1.42 = 0.6338 A; at standstill with zero torque, θ_e stays 0, so the
             // reference is on α: i_α → 0.6338 A, i_β → 0.
@@ -2642,6 +2634,21 @@ mod tests {
         }
     }
 
+    /// `steps` periods of `d` on a star-connected RL load (16.2 Ω, 0.1 H) from zero current
+    /// on a 310 V bus; the last period's output.
+    fn run_rl_load(d: &mut Drive, steps: usize) -> FastOutput {
+        let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
+        let mut i = Abc::default();
+        let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+        for _ in 0..steps {
+            if let PhaseCommand::Duty(duty) = out.phases {
+                i = rl_step(i, duty, vdc, r, l, ts);
+            }
+            out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+        }
+        out
+    }
+
     /// With the rotor-resistance adaptation on, an RL load (no rotor: the magnetizing
     /// voltage does not decay) gives the fit nothing to read: the drive still enters Running,
     /// on the range's middle, and keeps that estimate across disable/enable.
@@ -2649,17 +2656,9 @@ mod tests {
     fn an_rl_load_leaves_the_rotor_estimate_where_it_was() {
         let spec = DriveSpec { rotor_resistance_range: [1.0, 2.0], ..test_spec() };
         let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
-        let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
         for _ in 0..2 {
             d.enable().unwrap();
-            let mut i = Abc::default();
-            let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
-            for _ in 0..20_000 {
-                if let PhaseCommand::Duty(duty) = out.phases {
-                    i = rl_step(i, duty, vdc, r, l, ts);
-                }
-                out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
-            }
+            let out = run_rl_load(&mut d, 20_000);
             assert_eq!(d.mode(), Mode::Running);
             assert_eq!(out.telemetry.rr_scale, core::f32::consts::SQRT_2);
             d.disable();

@@ -7,7 +7,7 @@ use controller_core::motor::MotorParams;
 use hil_sim::inverter::InverterModel;
 use hil_sim::scenario::Builtin;
 use hil_sim::sensors::SensorModel;
-use hil_sim::sim::{Event, Injection, LoadModel, Row, Scenario};
+use hil_sim::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
 
 fn shipped() -> DriveSpec {
     drive_file::DriveFile::shipped().unwrap().spec
@@ -15,18 +15,7 @@ fn shipped() -> DriveSpec {
 
 /// The shipped motor with its resistances scaled: `rs`×R_s, `rr`×R_r.
 fn motor(spec: &DriveSpec, rs: f64, rr: f64) -> MotorParams {
-    let m = &spec.motor;
-    MotorParams::new(
-        m.rs_ohm() * rs,
-        m.rr_ohm() * rr,
-        m.ls_h(),
-        m.lr_h(),
-        m.lm_h(),
-        m.pole_pairs(),
-        m.j_kgm2(),
-        m.b_nms(),
-    )
-    .unwrap()
+    scaled_plant(&spec.motor, rs, rr, 1.0).unwrap()
 }
 
 fn run(
