@@ -51,7 +51,7 @@ use crate::envelope::{ENVELOPE_REFRESH_SLOW_STEPS, Envelope, EnvelopeConfig};
 use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::ifoc::{FluxCommand, IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
-use crate::mras::{Evidence, MrasConfig, RotorFit};
+use crate::mras::{Evidence, MrasConfig, MrasError, RotorFit};
 use crate::num::{Scalar, max_f32, min_f32, sqrt_f32};
 use crate::raw::{self, RawDriveConfig};
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
@@ -388,6 +388,10 @@ pub struct DriveSpec {
     /// the rotor-resistance adaptation ([`crate::mras`]) keeps its estimate within it and
     /// starts from its geometric middle.
     pub rotor_resistance_range: [f64; 2],
+    /// The range of the inductances, × the motor's `L_s`, `L_r`, `L_m` alike (`[1, 1]`: the
+    /// motor's, fixed): the magnetizing fit ([`crate::mras`]) measures them at every enable
+    /// of a demagnetized rotor within it; the drive starts from the motor's, limited to it.
+    pub inductance_range: [f64; 2],
     /// Trip thresholds.
     pub protection: Protection,
 }
@@ -423,8 +427,11 @@ pub enum DriveError {
     Position(SpeedError),
     /// IFOC parameters rejected.
     Ifoc(IfocError),
-    /// `rotor_resistance_range` not `0 < min ≤ max`, finite.
+    /// `rotor_resistance_range` not `0 < min ≤ max ≤ 10·min`, finite
+    /// ([`crate::mras::RANGE_RATIO_MAX`]).
     RotorResistanceRange,
+    /// `inductance_range` not `0 < min ≤ max ≤ 10·min`, finite.
+    InductanceRange,
     /// Flux reference not finite and positive, or `flux_floor_wb` not below it.
     FluxReference,
     /// `magnetized_fraction` not in (0, 1).
@@ -639,8 +646,17 @@ impl DriveConfig {
         .map_err(DriveError::Current)?;
         let ifoc = IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a)
             .map_err(DriveError::Ifoc)?;
-        let mras = MrasConfig::new(&spec.motor, t_slow, spec.rotor_resistance_range)
-            .map_err(|_| DriveError::RotorResistanceRange)?;
+        let mras = MrasConfig::new(
+            &spec.motor,
+            ts,
+            spec.slow_divider,
+            spec.rotor_resistance_range,
+            spec.inductance_range,
+        )
+        .map_err(|e| match e {
+            MrasError::InductanceRange => DriveError::InductanceRange,
+            MrasError::Range | MrasError::Rate => DriveError::RotorResistanceRange,
+        })?;
         let speed = SpeedControllerConfig::new(&spec.speed_law, ts * f64::from(spec.slow_divider))
             .map_err(DriveError::Speed)?;
         let position = PositionConfig::new(spec.position.k_per_s, spec.position.omega_max_rad_s)
@@ -1062,6 +1078,8 @@ pub struct Telemetry {
     /// The rotor resistance the field orientation runs on, × the motor's
     /// ([`crate::mras`]).
     pub rr_scale: f32,
+    /// The inductances the field orientation runs on, × the motor's ([`crate::mras`]).
+    pub l_scale: f32,
 }
 
 /// Output of one fast step.
@@ -1321,6 +1339,14 @@ pub struct Drive {
     v_d_sum: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,
+    /// Slow steps with the bridge off (saturating): whether the rotor has lost its flux
+    /// ([`MrasConfig::demagnetized_after`]).
+    idle_slow_steps: u32,
+    /// The machine model on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]):
+    /// the envelope's, the encoder check's and the rotor-resistance law's.
+    model: EnvelopeConfig,
+    /// The d-axis current of the rated flux on the inductance in use, A.
+    i_d_rated_a: f32,
     /// Slow steps spent magnetizing.
     magnetizing_steps: u32,
     /// Encoder angle at the last slow step, mechanical rad, within a revolution.
@@ -1364,7 +1390,11 @@ impl Drive {
             omega_ref_rad_s: 0.0,
             steps_to_slow: 0,
             current: CurrentState::default(),
-            ifoc: cfg.ifoc.state(0.0, cfg.mras.initial_scale()),
+            ifoc: {
+                let mut s = cfg.ifoc.state(0.0, cfg.mras.initial_scale());
+                cfg.ifoc.set_inductance_scale(&mut s, cfg.mras.initial_inductance_scale());
+                s
+            },
             speed: SpeedState::default(),
             test_angle_rad: 0.0,
             stall_steps: 0,
@@ -1389,6 +1419,10 @@ impl Drive {
             v_req_steps: 0,
             v_d_sum: 0.0,
             rotor_fit: RotorFit::default(),
+            // Powered up: nothing has driven the rotor.
+            idle_slow_steps: u32::MAX,
+            model: cfg.envelope.with_inductance_scale(cfg.mras.initial_inductance_scale()),
+            i_d_rated_a: cfg.i_d_rated_a / cfg.mras.initial_inductance_scale(),
             magnetizing_steps: 0,
             theta_m_prev_rad: 0.0,
             turns: 0,
@@ -1437,8 +1471,11 @@ impl Drive {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
                 self.current = CurrentState::default();
-                // The rotor resistance's estimate is the rotor's temperature: it carries over.
+                // The rotor resistance's estimate is the rotor's temperature, the inductance's
+                // the machine's: they carry over.
+                let l = self.ifoc.inductance_scale();
                 self.ifoc = self.cfg.ifoc.state(0.0, self.ifoc.rotor_resistance_scale());
+                self.cfg.ifoc.set_inductance_scale(&mut self.ifoc, l);
                 self.speed = SpeedState::default();
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
                 // The slow cadence is not restarted: whoever reads the encoder every N-th
@@ -1456,7 +1493,8 @@ impl Drive {
                 self.v_req2_sum = 0.0;
                 self.v_req_steps = 0;
                 self.v_d_sum = 0.0;
-                self.rotor_fit = RotorFit::default();
+                self.rotor_fit = RotorFit::new(self.cfg.mras.demagnetized_after(self.idle_slow_steps));
+                self.idle_slow_steps = 0;
                 self.magnetizing_steps = 0;
                 self.theta_r_rad = 0.0;
                 self.delay_rotation = SinCos::default();
@@ -1593,6 +1631,9 @@ impl Drive {
             self.trip(Fault::Overspeed);
         }
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
+        if !active {
+            self.idle_slow_steps = self.idle_slow_steps.saturating_add(1);
+        }
         if !active || !m.is_finite() {
             self.torque_cmd = TorqueCommand::TorqueNm(0.0);
             return;
@@ -1615,9 +1656,9 @@ impl Drive {
             self.trim_error_sum = Dq::default();
             self.trim_hold = false;
         }
-        // The loops' mean d-axis request over the slow period while magnetizing (read before
-        // the budget clears it).
-        let v_d_mean = self.v_d_sum / f32::from(self.v_req_steps.max(1));
+        // The loops' d-axis request over the slow period while magnetizing (read before the
+        // budget clears it).
+        let (v_d_sum, v_d_steps) = (self.v_d_sum, self.v_req_steps);
         let v_budget = self.voltage_budget(m.vdc_v * self.cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
         let limit = self.torque_max_nm;
@@ -1644,18 +1685,18 @@ impl Drive {
         // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
         // torque changes direction.
         if self.envelope_age == 0 || self.envelope.sign() != sign {
-            self.envelope = cfg.envelope.envelope(sign, w, cfg.i_d_rated_a, v_budget, i_max);
+            self.envelope = self.model.envelope(sign, w, self.i_d_rated_a, v_budget, i_max);
             self.envelope_age = ENVELOPE_REFRESH_SLOW_STEPS;
         }
         self.envelope_age -= 1;
-        let op = cfg.envelope.point(&self.envelope, torque_nm, w, cfg.i_d_rated_a, v_budget, i_max);
+        let op = self.model.point(&self.envelope, torque_nm, w, self.i_d_rated_a, v_budget, i_max);
         self.flux = cfg.ifoc.d_current_command(op.i_d_a);
         // What the bus drives now, with the flux that is there (it follows i_d* with T_r):
         // only worked out when the torque asked for needs more than fits.
         let psi = self.ifoc.psi_r_wb();
         let per_a = cfg.ifoc.torque_factor() * max_f32(psi, 1e-3);
         let needed = min_f32(self.flux.i_q_max_a(), torque_nm.abs() / per_a);
-        let i_q_now = cfg.envelope.i_q_max_at_flux(psi, op.i_d_a, w, v_budget, needed, sign);
+        let i_q_now = self.model.i_q_max_at_flux(psi, op.i_d_a, w, v_budget, needed, sign);
         let mut torque_now_nm = min_f32(op.torque_max_nm, per_a * i_q_now);
         if torque_nm * m.omega_m_rad_s < 0.0 {
             // Generating: no more than the DC link can take (REGEN_LIMIT_START/END).
@@ -1672,12 +1713,17 @@ impl Drive {
         };
         self.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
         if !running {
-            // The rotor resistance from the building flux ([`MrasConfig::fit`]).
-            if let Some(r) = self.cfg.mras.fit(&mut self.rotor_fit, v_d_mean, self.flux.i_d_a()) {
-                self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, r);
+            // The rotor resistance and the inductance from the building flux
+            // ([`MrasConfig::fit`]).
+            let l_now = self.ifoc.inductance_scale();
+            if let Some(fit) =
+                self.cfg.mras.fit(&mut self.rotor_fit, v_d_sum, v_d_steps, self.flux.i_d_a(), l_now)
+            {
+                self.set_inductance_scale(fit.inductance_scale);
+                self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, fit.rr_scale);
             }
             self.magnetizing_steps = self.magnetizing_steps.saturating_add(1);
-            if self.magnetizing_steps > cfg.magnetizing_steps_max {
+            if self.magnetizing_steps > self.cfg.magnetizing_steps_max {
                 // The flux model runs on the measured current: none flows.
                 self.trip(Fault::NoMotorCurrent);
             }
@@ -1809,6 +1855,20 @@ impl Drive {
         self.theta_r_rad =
             wrap_angle(self.theta_r_rad + wrap_angle(self.cfg.envelope.pole_pairs() * step_rad));
         self.cfg.ifoc.anchor(&mut self.ifoc, self.theta_r_rad);
+    }
+
+    /// Run on the inductances `l` × the motor's (the magnetizing fit's): the flux model, the
+    /// machine model and the rated flux's d-axis current `ψ*/(l·L_m)` — the drive keeps
+    /// magnetizing until the flux model reaches it. The envelope is remade at the next slow
+    /// step.
+    fn set_inductance_scale(&mut self, l: f32) {
+        if !(l.is_finite() && l > 0.0) || l == self.ifoc.inductance_scale() {
+            return;
+        }
+        self.cfg.ifoc.set_inductance_scale(&mut self.ifoc, l);
+        self.model = self.cfg.envelope.with_inductance_scale(l);
+        self.i_d_rated_a = self.cfg.i_d_rated_a / l;
+        self.envelope_age = 0;
     }
 
     /// The current trim integrates the mean field-frame error of the last slow period (the
@@ -1953,7 +2013,7 @@ impl Drive {
     /// it out of the model.
     #[inline(never)]
     fn check_encoder(&mut self, i_dq: Dq, v_ab: AlphaBeta, field: &IfocOutput, omega_m: f32, v_limit: f32) {
-        let e = &self.cfg.envelope;
+        let e = &self.model;
         let (i, v) = (i_dq, v_ab.park(field.field));
         let w_e = e.pole_pairs() * omega_m + field.omega_sl_rad_s;
         let (vd, vq) = e.stator_voltage(i.d, i.q, w_e, self.ifoc.psi_r_wb());
@@ -2026,7 +2086,7 @@ impl Drive {
             i_ref_abc,
             m.i_abc_a,
             cfg.open_phase_steps,
-            cfg.i_d_rated_a,
+            self.i_d_rated_a,
             CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
         );
         if let Some(f) = window {
@@ -2106,7 +2166,7 @@ impl Drive {
         }
         if running && field_oriented && after_slow && !modulation.saturated {
             // The rotor resistance from the reactive power (the loops' own request: not limited).
-            let e = &self.cfg.envelope;
+            let e = &self.model;
             let evidence = Evidence {
                 i: i_ab.park(field.field),
                 v: v_req.park(field.field),
@@ -2119,11 +2179,19 @@ impl Drive {
         }
         if !running {
             // The magnetizing fit's voltage, in the field frame of this step (at speed the
-            // field turns within a slow period).
-            self.v_d_sum += v_req.park(field.field).d;
+            // field turns within a slow period): what the machine gets — the request, or the
+            // modulator's limit of it at the current's step, back in the request's frame (the
+            // flux linkage the fit reads is the volt-seconds applied).
+            let v = if modulation.saturated {
+                let r = self.delay_rotation;
+                modulation.v_applied.rotate(SinCos { sin: -r.sin, cos: r.cos })
+            } else {
+                v_req
+            };
+            self.v_d_sum += v.park(field.field).d;
         }
         if !running
-            && self.ifoc.psi_r_wb() >= self.cfg.magnetized_fraction * self.cfg.ifoc.flux_of(self.flux.i_d_a())
+            && self.ifoc.psi_r_wb() >= self.cfg.magnetized_fraction * self.ifoc.flux_of(self.flux.i_d_a())
             && !self.cfg.mras.fit_pending(&self.rotor_fit)
         {
             // The flux model runs on the measured current: the motor is magnetized.
@@ -2143,10 +2211,11 @@ impl Drive {
                 theta_e_rad: field.theta_e_rad,
                 omega_sl_rad_s: field.omega_sl_rad_s,
                 psi_r_wb: self.ifoc.psi_r_wb(),
-                psi_ref_wb: self.cfg.ifoc.flux_of(self.flux.i_d_a()),
+                psi_ref_wb: self.ifoc.flux_of(self.flux.i_d_a()),
                 i_q_ref_a: field.i_ref_dq.q,
                 omega_ref_rad_s: self.omega_ref_rad_s,
                 rr_scale: self.ifoc.rotor_resistance_scale(),
+                l_scale: self.ifoc.inductance_scale(),
             },
         }
     }
@@ -2198,6 +2267,7 @@ pub(crate) fn test_spec() -> DriveSpec {
         dead_time_compensation_s: 0.0,
         sample_window_s: 0.0,
         rotor_resistance_range: [1.0, 1.0],
+        inductance_range: [1.0, 1.0],
         protection: Protection {
             i_trip_a: 8.0,
             vdc_min_v: 200.0,

@@ -116,6 +116,24 @@ impl EnvelopeConfig {
         }
     }
 
+    /// The same machine with every inductance × `scale` (L_s, L_r, L_m alike, so σ and
+    /// L_m/L_r stay; T_r = L_r/R_r and K ∝ L_m²/L_r scale with it): the drive's model once
+    /// the magnetizing fit has measured the inductance ([`crate::mras`]). Exact at 1.
+    pub fn with_inductance_scale(&self, scale: f32) -> Self {
+        Self {
+            ls_h: self.ls_h * scale,
+            sigma_ls_h: self.sigma_ls_h * scale,
+            inv_tr_per_s: self.inv_tr_per_s / scale,
+            k_nm_per_a2: self.k_nm_per_a2 * scale,
+            ..*self
+        }
+    }
+
+    /// `L_m²/L_r`, H: the rotor-flux path's inductance seen from the stator.
+    pub fn lm2_over_lr(&self) -> f32 {
+        self.k_nm_per_a2 / (1.5 * self.pole_pairs)
+    }
+
     /// Pole pairs p.
     pub fn pole_pairs(&self) -> f32 {
         self.pole_pairs

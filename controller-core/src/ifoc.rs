@@ -88,6 +88,10 @@ pub struct IfocState {
     slip_gain: f32,
     flux_model_gain: f32,
     rr_scale: f32,
+    /// The magnetizing inductance in use, `L̂_m = L_m·`[`IfocState::inductance_scale`] (the
+    /// flux model's `ψ̂_r → L̂_m·i_ds`; set by [`IfocConfig::set_inductance_scale`]), H.
+    lm_h: f32,
+    l_scale: f32,
     /// 1/max(ψ̂_r, ψ_min): the one division of the step (for i_qs* and ω_sl), made when ψ̂_r
     /// is updated, at the end of the step before — off the head of the next step's chain
     /// of dependent operations (`hil-sim bench`: ≈ 1 ns per period).
@@ -113,6 +117,17 @@ impl IfocState {
     /// The rotor resistance in use over the motor's, R̂_r/R_r.
     pub fn rotor_resistance_scale(&self) -> f32 {
         self.rr_scale
+    }
+
+    /// The inductances in use over the motor's, L̂/L (L_s, L_r, L_m alike).
+    pub fn inductance_scale(&self) -> f32 {
+        self.l_scale
+    }
+
+    /// The steady-state rotor flux of d-axis current `i_d_a` on the inductance in use,
+    /// `L̂_m·i_d`, Wb.
+    pub fn flux_of(&self, i_d_a: f32) -> f32 {
+        self.lm_h * i_d_a
     }
 
     /// sin and cos of the field angle afresh; restarts the resync countdown. Kept out of
@@ -206,7 +221,8 @@ impl IfocConfig {
         FluxCommand { i_d_a, i_q_max_a }
     }
 
-    /// The steady-state rotor flux of d-axis current `i_d_a`, `L_m·i_d`, Wb.
+    /// The steady-state rotor flux of d-axis current `i_d_a` on the motor's inductance,
+    /// `L_m·i_d`, Wb ([`IfocState::flux_of`]: on the inductance in use).
     pub fn flux_of(&self, i_d_a: f32) -> f32 {
         self.lm_h * i_d_a
     }
@@ -235,6 +251,8 @@ impl IfocConfig {
             slip_gain: self.slip_gain,
             flux_model_gain: self.flux_model_gain,
             rr_scale: 1.0,
+            lm_h: self.lm_h,
+            l_scale: 1.0,
             psi_r_wb,
             inv_psi_floored: self.inv_psi_floored(psi_r_wb),
         };
@@ -243,18 +261,40 @@ impl IfocConfig {
     }
 
     /// Run the slip and the flux model on the rotor resistance `scale` × the motor's (a
-    /// finite, positive scale; anything else is ignored): `ω_sl = scale·L_m·R_r/(L_r·ψ̂)·i_qs*`,
-    /// and the flux model's gain `1 − e^{−scale·x}` (`x = T/T_r`) as
-    /// `g·scale·(1 − (scale − 1)·x/2)` from the motor's exact `g = 1 − e^{−x}`: exact at
-    /// scale 1, its error `O(x³)` — 1.5e-7 of the gain at the shipped `x = 7.7e-4` and
-    /// scale 2, about f32's rounding (test `the_rotor_resistance_scales_slip_and_flux_model`).
+    /// finite, positive scale; anything else is ignored): `ω_sl = scale·L_m·R_r/(L_r·ψ̂)·i_qs*`
+    /// (ψ̂ on the inductance in use: the slip `R_r·i_q/(L_r·i_d)` does not depend on it), and
+    /// the flux model's rate `1/T̂_r = (R̂_r/R_r)/(L̂/L)/T_r` ([`Self::set_inductance_scale`]).
     pub fn set_rotor_resistance_scale(&self, s: &mut IfocState, scale: f32) {
         if !(scale.is_finite() && scale > 0.0) {
             return;
         }
         s.rr_scale = scale;
         s.slip_gain = scale * self.slip_gain;
-        s.flux_model_gain = self.flux_model_gain * scale * (1.0 - 0.5 * (scale - 1.0) * self.flux_rate);
+        self.set_flux_model_rate(s);
+    }
+
+    /// Run the flux model on the inductances `scale` × the motor's (L_s, L_r, L_m alike —
+    /// a finite, positive scale; anything else is ignored): its target `L̂_m·i_ds` and its
+    /// time constant `T̂_r = L̂_r/R̂_r`. The estimate ψ̂_r is rescaled with it (it is `L̂_m` times
+    /// the filtered current), so that a flux measured with the old inductance is not lost.
+    pub fn set_inductance_scale(&self, s: &mut IfocState, scale: f32) {
+        if !(scale.is_finite() && scale > 0.0) {
+            return;
+        }
+        s.psi_r_wb *= scale / s.l_scale;
+        s.inv_psi_floored = self.inv_psi_floored(s.psi_r_wb);
+        s.l_scale = scale;
+        s.lm_h = scale * self.lm_h;
+        self.set_flux_model_rate(s);
+    }
+
+    /// The flux model's gain `1 − e^{−c·x}` (`x = T/T_r`, `c = (R̂_r/R_r)/(L̂/L)`) as
+    /// `g·c·(1 − (c − 1)·x/2)` from the motor's exact `g = 1 − e^{−x}`: exact at c = 1, its
+    /// error `O((c·x)³)` — 1.5e-7 of the gain at the shipped `x = 7.7e-4` and c = 2, about
+    /// f32's rounding (test `the_rotor_resistance_scales_slip_and_flux_model`).
+    fn set_flux_model_rate(&self, s: &mut IfocState) {
+        let c = s.rr_scale / s.l_scale;
+        s.flux_model_gain = self.flux_model_gain * c * (1.0 - 0.5 * (c - 1.0) * self.flux_rate);
     }
 
     /// 1/ψ̂_r with ψ̂_r floored at `psi_min_wb` (the guard of the module docs).
@@ -312,7 +352,7 @@ impl IfocConfig {
         // Only the d part: the drive parks the measured current itself where it needs q
         // (kept apart, the Cortex-M4F runs ≈ 7 fewer instructions per fast step).
         let i_d_meas = i_meas.alpha * s_field.cos + i_meas.beta * s_field.sin;
-        s.psi_r_wb += s.flux_model_gain * (self.lm_h * i_d_meas - s.psi_r_wb);
+        s.psi_r_wb += s.flux_model_gain * (s.lm_h * i_d_meas - s.psi_r_wb);
         s.inv_psi_floored = self.inv_psi_floored(s.psi_r_wb);
         IfocOutput { i_ref_dq, i_ref_ab, theta_e_rad: theta, field: s_field, omega_sl_rad_s: omega_sl }
     }
@@ -528,6 +568,39 @@ mod tests {
         for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
             c.set_rotor_resistance_scale(&mut s, bad);
             assert_eq!(s.rotor_resistance_scale(), 2.0);
+        }
+    }
+
+    /// On the inductances ×ℓ (L_s, L_r, L_m alike) with the rotor resistance ×r, the flux
+    /// model is the scaled machine's — target ℓ·L_m·i_d, time constant ℓ·T_r/r — and the slip
+    /// is the machine's `r·R_r·i_q/(ℓ·L_r·i_d)` at the flux it builds; the estimate is
+    /// rescaled with ℓ; bad scales are ignored.
+    #[test]
+    fn the_inductance_scales_the_flux_model() {
+        let m = MotorParams::delorenzo_dl10115a1().unwrap();
+        let c = cfg();
+        let x = 1.0 / (20e3 * m.tr_s());
+        for (l, r) in [(0.6f32, 1.0f32), (0.6, 2.0), (0.8, 1.3), (1.0, 1.0)] {
+            let mut s = c.state(0.5, r);
+            c.set_inductance_scale(&mut s, l);
+            assert_eq!(s.inductance_scale(), l);
+            assert!((s.psi_r_wb() - 0.5 * l).abs() <= 1e-7, "ψ̂ rescaled: {}", s.psi_r_wb());
+            assert!((f64::from(s.flux_of(1.0)) / (f64::from(l) * m.lm_h()) - 1.0).abs() <= 1e-6);
+            let exact = 1.0 - (-f64::from(r / l) * x).exp();
+            let rel = f64::from(s.flux_model_gain) / exact - 1.0;
+            assert!(rel.abs() <= 1e-6, "ℓ {l}, r {r}: flux model gain off by {rel:e}");
+            // Slip at i_d = 1 A, i_q = 1 A on the flux ℓ·L_m: the machine's r·R_r/(ℓ·L_r).
+            let slip = f64::from(s.slip_gain) / (f64::from(l) * m.lm_h());
+            let truth = f64::from(r) * m.rr_ohm() / (f64::from(l) * m.lr_h());
+            assert!((slip / truth - 1.0).abs() <= 1e-6, "ℓ {l}, r {r}: slip {slip} of {truth}");
+        }
+        // At ℓ = 1 the motor's own numbers, bit for bit.
+        let mut s = c.state(0.0, 1.0);
+        c.set_inductance_scale(&mut s, 1.0);
+        assert_eq!((s.slip_gain, s.flux_model_gain, s.lm_h), (c.slip_gain, c.flux_model_gain, c.lm_h));
+        for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            c.set_inductance_scale(&mut s, bad);
+            assert_eq!(s.inductance_scale(), 1.0);
         }
     }
 

@@ -76,6 +76,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       dead_time_compensation_s: {:?},\n\
          \x20       sample_window_s: {:?},\n\
          \x20       rotor_resistance_range: {:?},\n\
+         \x20       inductance_range: {:?},\n\
          \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
          overspeed_rad_s: {:?}, stall_time_s: {:?}, following_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, encoder_jump_rad: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {}, motor_thermal: {}, inverter_thermal: {}, stop_on: controller_core::drive::FaultSet({}) }},\n\
          \x20   }})\n\
@@ -103,6 +104,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         spec.dead_time_compensation_s,
         spec.sample_window_s,
         spec.rotor_resistance_range,
+        spec.inductance_range,
         p.i_trip_a,
         p.vdc_min_v,
         p.vdc_max_v,

@@ -10,6 +10,7 @@ use controller_core::drive::{
     BrakeChopper, CurrentFrame, DriveConfig, DriveError, DriveSpec, Fault, FaultSet, PositionLaw, Protection,
     ThermalLimit,
 };
+use controller_core::mras::RANGE_RATIO_MAX;
 use controller_core::speed::SpeedLaw;
 use serde::Deserialize;
 
@@ -75,6 +76,15 @@ pub struct ControllerTable {
     /// [`controller_core::mras::DEFAULT_RANGE`]; `[1.0, 1.0]` turns the adaptation off).
     #[serde(default = "default_rotor_resistance_range")]
     pub rotor_resistance_range: [f64; 2],
+    /// The inductances' range, × `[motor] ls_h`, `lr_h`, `lm_h` alike (default `[1.0, 1.0]`:
+    /// the motor file's, fixed); within it the drive measures them at every enable of a
+    /// demagnetized rotor ([`controller_core::mras`]).
+    #[serde(default = "default_inductance_range")]
+    pub inductance_range: [f64; 2],
+}
+
+fn default_inductance_range() -> [f64; 2] {
+    [1.0, 1.0]
 }
 
 fn default_rotor_resistance_range() -> [f64; 2] {
@@ -656,12 +666,16 @@ pub fn drive_spec(
     ] {
         finite(src, key, x)?;
     }
-    let [rr_min, rr_max] = c.rotor_resistance_range;
-    src.check(
-        rr_min.is_finite() && rr_max.is_finite() && 0.0 < rr_min && rr_min <= rr_max,
-        "controller.rotor_resistance_range",
-        &format!("is [{}, {}]; needs 0 < min ≤ max (× [motor] rr_ohm)", num(rr_min), num(rr_max)),
-    )?;
+    for (key, [min, max], of) in [
+        ("controller.rotor_resistance_range", c.rotor_resistance_range, "rr_ohm"),
+        ("controller.inductance_range", c.inductance_range, "ls_h, lr_h, lm_h"),
+    ] {
+        src.check(
+            min.is_finite() && max.is_finite() && 0.0 < min && min <= max && max <= RANGE_RATIO_MAX * min,
+            key,
+            &format!("is [{}, {}]; {}", num(min), num(max), range_need(of)),
+        )?;
+    }
     if let Some(f) = c.flux_floor_wb {
         finite(src, "controller.flux_floor_wb", f)?;
         src.check(f > 0.0, "controller.flux_floor_wb", "must be > 0")?;
@@ -733,6 +747,7 @@ pub fn drive_spec(
         dead_time_compensation_s,
         sample_window_s,
         rotor_resistance_range: c.rotor_resistance_range,
+        inductance_range: c.inductance_range,
         protection: {
             let basis = DefaultsBasis {
                 flux_ref_wb: c.flux_ref_wb,
@@ -785,7 +800,10 @@ pub fn drive_spec(
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
         DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
         DriveError::RotorResistanceRange => {
-            src.error("controller.rotor_resistance_range", "needs 0 < min ≤ max (× [motor] rr_ohm)")
+            src.error("controller.rotor_resistance_range", range_need("rr_ohm"))
+        }
+        DriveError::InductanceRange => {
+            src.error("controller.inductance_range", range_need("ls_h, lr_h, lm_h"))
         }
         DriveError::DeadTime => {
             src.error("board.dead_time_s", "must be ≥ 0 and below a tenth of the PWM period to compensate it")
@@ -823,4 +841,9 @@ pub fn drive_spec(
         }
     })?;
     Ok(spec)
+}
+
+/// What an estimate's range needs, × the motor's `of`.
+fn range_need(of: &str) -> String {
+    format!("needs 0 < min ≤ max ≤ {}·min (× [motor] {of})", num(RANGE_RATIO_MAX))
 }

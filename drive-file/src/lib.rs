@@ -32,6 +32,7 @@
 //! current_trim_bandwidth_rad_s = 20.0    # default: field-frame current trim; 0 turns it off
 //! dead_time_compensation = false         # default; true compensates [board] dead_time_s
 //! rotor_resistance_range = [1.0, 1.5]   # default: R_r adapted within × rr_ohm; [1, 1] fixes it
+//! inductance_range = [1.0, 1.0]         # default: fixed; [0.6, 1.0] measures L within × the motor's
 //!
 //! [protection]
 //! i_trip_a = 8.0
@@ -177,15 +178,21 @@ mod tests {
             let e = err(&replace("sample_window_s = 1.5e-6", &format!("sample_window_s = {bad}")));
             assert_eq!(e.key.as_deref(), Some("board.sample_window_s"), "{bad}: {e}");
         }
-        // A rotor-resistance range reversed, through zero, or NaN: named at its key, with
+        // A rotor-resistance or inductance range reversed, through zero, NaN, or wider than
+        // RANGE_RATIO_MAX (an estimate that would start at ×1e15): named at its key, with
         // what it needs.
-        for bad in ["[2.0, 1.0]", "[0.0, 2.0]", "[1.0, nan]", "[1.0, inf]"] {
-            let e = err(&replace(
-                "rotor_resistance_range = [1.0, 2.0]",
-                &format!("rotor_resistance_range = {bad}"),
-            ));
-            assert_eq!(e.key.as_deref(), Some("controller.rotor_resistance_range"), "{bad}: {e}");
-            assert!(e.reason.contains("0 < min ≤ max"), "{bad}: {e}");
+        for key in ["rotor_resistance_range", "inductance_range"] {
+            let line = if key == "inductance_range" {
+                "inductance_range = [0.6, 1.0]"
+            } else {
+                "rotor_resistance_range = [1.0, 2.0]"
+            };
+            for bad in ["[2.0, 1.0]", "[0.0, 2.0]", "[1.0, nan]", "[1.0, inf]", "[1.0, 1e30]", "[0.05, 1.0]"]
+            {
+                let e = err(&replace(line, &format!("{key} = {bad}")));
+                assert_eq!(e.key.as_deref(), Some(format!("controller.{key}").as_str()), "{bad}: {e}");
+                assert!(e.reason.contains("0 < min ≤ max ≤ 10·min"), "{bad}: {e}");
+            }
         }
         // Trip level below the current limit.
         let e = err(&replace("i_trip_a = 8.0", "i_trip_a = 3.0"));

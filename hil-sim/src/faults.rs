@@ -367,6 +367,17 @@ impl Matrix {
                       loops saturate against the pinned phase first — by the voltage check, EncoderImplausible \
                       (within 15 ms of the switch's first use, but by a name that blames the encoder)",
             },
+            // At rest the field's slow turn decides when a dead lower switch's direction is
+            // needed and whether its shunt reads zero first; where the loops saturate against
+            // the pinned phase before, the voltage check names it (the 36-run survey in
+            // docs/protection.md: four of the six standstill injections).
+            Injection::SwitchOpen { upper: false, .. } if rest && at.motoring => Expect::Gap {
+                fault: Fault::SwitchOpen,
+                bound_s: OPEN_PHASE_BOUND_S,
+                why: "at rest, when the loops saturate against the pinned phase before its low-side shunt reads \
+                      zero, the voltage check names it EncoderImplausible (within 15 ms of the switch's first \
+                      use, but by a name that blames the encoder)",
+            },
             Injection::SwitchOpen { .. } => Expect::Either {
                 faults: &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor],
                 bound_s: OPEN_PHASE_BOUND_S,

@@ -859,7 +859,7 @@ fn interrupted() -> Result<(), String> {
 
 const BASE_HEADER: &str =
     "t_s,i_alpha_a,i_beta_a,psi_alpha_wb,psi_beta_wb,omega_m_rad_s,theta_m_rad,torque_nm,v_alpha_v,v_beta_v";
-const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm,drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,rr_scale,brake,i_chopper_a,i_leg_peak_a,comparator";
+const CLOSED_LOOP_HEADER: &str = ",i_alpha_ref_a,i_beta_ref_a,omega_ref_rad_s,load_nm,drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,rr_scale,l_scale,brake,i_chopper_a,i_leg_peak_a,comparator";
 
 /// Most points per plotted curve.
 const PLOT_POINTS: f64 = 4000.0;
@@ -931,7 +931,11 @@ fn write_row(f: &mut dyn Write, r: &Row, closed_loop: bool) -> std::io::Result<(
             Some([a, b, c]) => write!(f, ",{a:.6},{b:.6},{c:.6}")?,
             None => write!(f, ",,,")?,
         }
-        write!(f, ",{:.2},{:.5},{:.5},{:.4}", r.vdc_v, r.psi_est_wb, r.psi_ref_wb, r.rr_scale)?;
+        write!(
+            f,
+            ",{:.2},{:.5},{:.5},{:.4},{:.4}",
+            r.vdc_v, r.psi_est_wb, r.psi_ref_wb, r.rr_scale, r.l_scale
+        )?;
         write!(f, ",{},{:.4}", u8::from(r.brake), r.i_chopper_a)?;
         write!(f, ",{:.4},{}", r.i_leg_peak_a, u8::from(r.hw_break))?;
     }

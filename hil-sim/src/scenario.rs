@@ -269,8 +269,10 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     // The paper's current measurement: no low-side sampling window (the scenario file has no
     // [board]); the shipped board's is in the scenarios on drive.toml.
     b.spec.sample_window_s = 0.0;
-    // The paper's field orientation: the motor's rotor resistance, fixed (no adaptation).
+    // The paper's field orientation: the motor's rotor resistance and inductances, fixed (no
+    // adaptation).
     b.spec.rotor_resistance_range = [1.0, 1.0];
+    b.spec.inductance_range = [1.0, 1.0];
     b.scenario.events = vec![(0.0, Event::Enable), (0.3, Event::Reference(Reference::Speed(376.0)))];
     b.scenario.duration_s = 6.5;
     Ok(b)
@@ -311,8 +313,10 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     b.spec.speed_law = SpeedLaw::pi2_seed000(250.0);
     b.spec.flux_ref_wb = 4.5;
     b.spec.flux_floor_wb = 0.2;
-    // The paper's field orientation: the motor's rotor resistance, fixed (Fig. 12 detunes it).
+    // The paper's field orientation: the motor's rotor resistance and inductances, fixed
+    // (Fig. 12 detunes it).
     b.spec.rotor_resistance_range = [1.0, 1.0];
+    b.spec.inductance_range = [1.0, 1.0];
     b.spec.i_ref_max_a = 260.0;
     let basis = drive_file::drive::DefaultsBasis {
         flux_ref_wb: 4.5,

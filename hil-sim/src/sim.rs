@@ -363,6 +363,8 @@ pub struct Row {
     pub psi_ref_wb: f64,
     /// The rotor resistance the drive's field orientation runs on, × the motor file's.
     pub rr_scale: f64,
+    /// The inductances the drive's field orientation runs on, × the motor file's.
+    pub l_scale: f64,
     /// Current the inverter draws from the DC link during this period, A (negative:
     /// regeneration into the link).
     pub i_dc_a: f64,
@@ -782,6 +784,7 @@ pub fn run(
                 psi_est_wb: f64::from(out.telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
                 rr_scale: f64::from(out.telemetry.rr_scale),
+                l_scale: f64::from(out.telemetry.l_scale),
             })?;
         } else {
             to_trace -= 1;

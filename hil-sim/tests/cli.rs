@@ -237,23 +237,25 @@ fn closed_loop_trace_has_mode_fault_duties_bus_and_flux() {
     let mut lines = trace.lines();
     assert!(
         lines.next().unwrap().ends_with(
-            ",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,rr_scale,brake,i_chopper_a,i_leg_peak_a,comparator"
+            ",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,rr_scale,l_scale,brake,i_chopper_a,i_leg_peak_a,comparator"
         )
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    let col = |r: &Vec<&str>, k: usize| r[r.len() - 13 + k].to_string();
+    let col = |r: &Vec<&str>, k: usize| r[r.len() - 14 + k].to_string();
     assert_eq!(col(&rows[10], 0), "Magnetizing");
     assert_eq!(col(&rows[300], 0), "Running");
     assert!(col(&rows[300], 2).parse::<f64>().is_ok() && col(&rows[300], 5) == "310.00");
     // The flux estimate and reference while running: the rated 0.35 Wb of this drive.
     assert_eq!(col(&rows[300], 7), "0.35000");
     // A stiff 310 V bus: the brake output stays off (this drive has no chopper anyway).
-    assert_eq!((col(&rows[300], 9), col(&rows[300], 10)), ("0".into(), "0.0000".into()));
+    assert_eq!((col(&rows[300], 10), col(&rows[300], 11)), ("0".into(), "0.0000".into()));
     // The rotor resistance the drive runs on, × the motor's: measured while magnetizing.
     assert!((col(&rows[300], 8).parse::<f64>().unwrap() - 1.0).abs() < 0.1);
+    // The inductances, × the motor's: this scenario's drive keeps the motor file's.
+    assert_eq!(col(&rows[300], 9), "1.0000");
     assert!((col(&rows[300], 6).parse::<f64>().unwrap() - 0.35).abs() < 0.01);
     // No comparator, no short in this scenario: the legs are not resolved, nothing breaks.
-    assert_eq!((col(&rows[300], 11), col(&rows[300], 12)), ("0.0000".into(), "0".into()));
+    assert_eq!((col(&rows[300], 12), col(&rows[300], 13)), ("0.0000".into(), "0".into()));
     let last = rows.last().unwrap();
     assert_eq!(
         (col(last, 0), col(last, 1), col(last, 2), col(last, 5)),
@@ -290,8 +292,9 @@ fn envelope_writes_its_table_and_plot() {
 }
 
 /// `hil-sim campaign`: a shard of a campaign on a box the drive holds writes its CSV (one line
-/// per run of the shard), plot and summary and exits 0; the shipped box's first corner fails
-/// its tracking criterion (exit 1, the failing runs named); a drive file without [certify]
+/// per run of the shard), plot and summary and exits 0; the shipped box's first corner (L ×0.6)
+/// on the motor file's inductances (`inductance_range = [1, 1]`) fails its tracking criterion
+/// (exit 1, the failing runs named); a drive file without [certify]
 /// is an error naming what is missing; a bad shard or run length is a usage error (exit 2).
 #[test]
 fn campaign_writes_its_table_and_judges_every_run() {
@@ -317,14 +320,22 @@ fn campaign_writes_its_table_and_judges_every_run() {
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
     assert_eq!((summary["runs"].as_u64(), summary["passed"].as_u64()), (Some(4), Some(4)));
-    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let fixed_l = out.join("fixed-l.toml");
+    std::fs::write(
+        &fixed_l,
+        shipped.replace("inductance_range = [0.6, 1.0]", "inductance_range = [1.0, 1.0]"),
+    )
+    .unwrap();
     let st = bin()
-        .args(["campaign", drive, "--runs", "1", "--duration", "0.5", "--out"])
+        .arg("campaign")
+        .arg(&fixed_l)
+        .args(["--runs", "1", "--duration", "0.5", "--out"])
         .arg(&res)
         .output()
         .unwrap();
-    assert_eq!(st.status.code(), Some(1));
+    assert_eq!(st.status.code(), Some(1), "{}", String::from_utf8_lossy(&st.stdout));
     assert!(String::from_utf8_lossy(&st.stdout).contains("FAIL run 0: tracking"));
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
     let no_certify = out.join("plain.toml");
     std::fs::write(&no_certify, &shipped[..shipped.find("[certify]").unwrap()]).unwrap();
     let st = bin().arg("campaign").arg(&no_certify).args(["--out"]).arg(&res).output().unwrap();

@@ -379,6 +379,8 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         s.sample_window_s,
         s.rotor_resistance_range[0],
         s.rotor_resistance_range[1],
+        s.inductance_range[0],
+        s.inductance_range[1],
     ] {
         w.f64(v)?;
     }
@@ -459,6 +461,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
     let (voltage_margin, current_trim_bandwidth_rad_s, dead_time_compensation_s, sample_window_s) =
         (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
     let rotor_resistance_range = [r.f64()?, r.f64()?];
+    let inductance_range = [r.f64()?, r.f64()?];
     let protection = Protection {
         i_trip_a: r.f64()?,
         vdc_min_v: r.f64()?,
@@ -499,6 +502,7 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         dead_time_compensation_s,
         sample_window_s,
         rotor_resistance_range,
+        inductance_range,
         protection,
     })
 }
@@ -862,6 +866,7 @@ impl Reply {
                     t.i_q_ref_a,
                     t.omega_ref_rad_s,
                     t.rr_scale,
+                    t.l_scale,
                 ] {
                     w.f32(v)?;
                 }
@@ -939,6 +944,7 @@ impl Reply {
                     i_q_ref_a: r.f32()?,
                     omega_ref_rad_s: r.f32()?,
                     rr_scale: r.f32()?,
+                    l_scale: r.f32()?,
                 };
                 Reply::Output(FastOutput { phases, mode, brake, telemetry })
             }

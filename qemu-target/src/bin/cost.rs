@@ -195,9 +195,8 @@ mod target {
         // The rotor-resistance law once per slow period, with evidence it listens to (a
         // loaded machine at speed; in the periods above the synthetic current keeps the loops
         // saturated, so it mostly does not), and one step of the magnetizing fit.
-        let t_slow = ts * f64::from(spec.slow_divider);
         let model = EnvelopeConfig::new(&spec.motor);
-        let (law, fit) = match MrasConfig::new(&spec.motor, t_slow, [1.0, 2.0]) {
+        let (law, fit) = match MrasConfig::new(&spec.motor, ts, spec.slow_divider, [1.0, 2.0], [0.6, 1.0]) {
             Ok(c) => {
                 let mut r = 1.4f32;
                 let law = per_call(&ticks, |k| {
@@ -210,12 +209,14 @@ mod target {
                     };
                     r = c.update(black_box(r), &model, black_box(&e));
                 });
-                let mut f = RotorFit::default();
+                let mut f = RotorFit::new(true);
+                let n = spec.slow_divider;
                 let fit = per_call(&ticks, |k| {
                     if k % 512 == 0 {
-                        f = RotorFit::default();
+                        f = RotorFit::new(true);
                     }
-                    black_box(c.fit(&mut f, black_box(10.0 + 1e3 / (k % 512 + 100) as f32), 0.634));
+                    let v = black_box(10.0 + 1e3 / (k % 512 + 100) as f32) * f32::from(n);
+                    black_box(c.fit(&mut f, v, n, 0.634, 1.0));
                 });
                 (law, fit)
             }
