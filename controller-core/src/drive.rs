@@ -1716,6 +1716,9 @@ impl Drive {
             // The rotor resistance and the inductance from the building flux
             // ([`MrasConfig::fit`]).
             let l_now = self.ifoc.inductance_scale();
+            if m.omega_m_rad_s.abs() >= self.cfg.stall_speed_rad_s {
+                self.rotor_fit.turning();
+            }
             if let Some(fit) =
                 self.cfg.mras.fit(&mut self.rotor_fit, v_d_sum, v_d_steps, self.flux.i_d_a(), l_now)
             {

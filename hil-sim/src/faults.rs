@@ -370,7 +370,8 @@ impl Matrix {
             // At rest the field's slow turn decides when a dead lower switch's direction is
             // needed and whether its shunt reads zero first; where the loops saturate against
             // the pinned phase before, the voltage check names it (the 36-run survey in
-            // docs/protection.md: four of the six standstill injections).
+            // docs/protection.md: two of the six standstill injections, 13–15 ms after the
+            // switch was first needed).
             Injection::SwitchOpen { upper: false, .. } if rest && at.motoring => Expect::Gap {
                 fault: Fault::SwitchOpen,
                 bound_s: OPEN_PHASE_BOUND_S,
