@@ -23,7 +23,7 @@
 //!   ([`crate::sampled::SpeedLoop::position_matrix`]) over the same grid. A PWM rate too slow for the current law, or a speed gain
 //!   the sampled loop cannot take, fails here although the continuous checks pass.
 
-use crate::icad::{IcadReport, analyse, closed_loop_abscissa};
+use crate::icad::{IcadReport, analyse_in, closed_loop_abscissa_in};
 use crate::kharitonov::IntervalPoly;
 use controller_core::current::CurrentControllerConfig;
 use controller_core::drive::{CurrentFrame, DriveSpec};
@@ -131,12 +131,13 @@ pub fn certify_current(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, 
             for l in c.inductance_factor {
                 let corner = format!("Rs×{rs} Rr×{rr} L×{l}");
                 let cm = corner_motor(m, rs, rr, l)?;
-                let a = analyse(&cm, &spec.current_law, c.omega_r_max_rad_s);
+                let frame = spec.current_frame;
+                let a = analyse_in(&cm, &spec.current_law, c.omega_r_max_rad_s, frame);
                 margin_checks(&mut checks, "current", &a, c, &corner);
                 let mut w = 0.0;
                 let mut worst: f64 = f64::NEG_INFINITY;
                 while w <= c.omega_r_max_rad_s {
-                    worst = worst.max(closed_loop_abscissa(&cm, &spec.current_law, w));
+                    worst = worst.max(closed_loop_abscissa_in(&cm, &spec.current_law, w, frame));
                     w += 5.0;
                 }
                 checks.push(Check {
@@ -193,21 +194,12 @@ fn sampled_current_checks(
     corner: &str,
 ) -> Result<(), String> {
     let name = "sampled current: worst closed-loop ln|z|/T over 0…ω_r,max (1/s)";
-    if spec.current_frame != CurrentFrame::Stationary {
-        // Said, not skipped: the certificate does not cover what it cannot analyse.
-        checks.push(Check {
-            name: format!("{name} (synchronous-frame loops: not modelled)"),
-            corner: corner.into(),
-            value: None,
-            limit: 0.0,
-            pass: false,
-        });
-        return Ok(());
-    }
+    let frame = spec.current_frame;
     let ts = 1.0 / spec.pwm_frequency_hz;
     let ctrl = CurrentControllerConfig::<f32>::new(&spec.current_law, ts, spec.discretization, 1.0)
         .map_err(|e| format!("current law rejected at {} Hz: {e:?}", spec.pwm_frequency_hz))?;
-    let (radius, at) = crate::sampled::current_loop_worst_radius(cm, &ctrl, ts, c.omega_r_max_rad_s, 5.0);
+    let (radius, at) =
+        crate::sampled::current_loop_worst_radius_in(cm, &ctrl, ts, c.omega_r_max_rad_s, 5.0, frame);
     // As a continuous decay rate, comparable with the continuous check's pole real part.
     let sigma = radius.ln() / ts;
     checks.push(Check {
@@ -217,7 +209,7 @@ fn sampled_current_checks(
         limit: 0.0,
         pass: sigma < 0.0,
     });
-    let a = crate::sampled::analyse(cm, &ctrl, ts, c.omega_r_max_rad_s);
+    let a = crate::sampled::analyse_in(cm, &ctrl, ts, c.omega_r_max_rad_s, frame);
     margin_checks(checks, "sampled current", &a, c, corner);
     Ok(())
 }
@@ -385,11 +377,30 @@ mod tests {
         }
     }
 
-    /// Loops the sampled model does not cover are refused, not skipped.
+    /// Synchronous-frame loops are analysed in the field's coordinates (`ImModel::in_frame`,
+    /// `sampled::current_loop_matrix_in`), not as stationary ones: seed 002's PI (360, 9 000)
+    /// in the synchronous frame has a different sampled stability figure from the same PI in
+    /// the stationary frame, and a gain beyond the Nyquist rate is refused in either frame.
     #[test]
-    fn synchronous_frame_loops_are_not_certified_silently() {
-        let bad = failed(&GAINS.replace("current_frame = \"stationary\"", "current_frame = \"synchronous\""));
-        assert!(bad.iter().any(|ch| ch.name.contains("not modelled")), "{bad:?}");
+    fn synchronous_frame_loops_are_analysed_in_their_frame() {
+        let pi = GAINS
+            .replace("current = { kind = \"icad\" }", "current = { kind = \"pi\", kp = 360.0, ki = 9000.0 }");
+        assert_ne!(pi, GAINS, "the template's current law");
+        let sampled = |text: &str| -> f64 {
+            let (spec, c) = parse(Path::new("t.toml"), text).unwrap();
+            let checks = certify(&spec, &c).unwrap();
+            checks
+                .iter()
+                .filter(|ch| ch.name.starts_with("sampled current: worst"))
+                .filter_map(|ch| ch.value)
+                .fold(f64::NEG_INFINITY, f64::max)
+        };
+        let sync = pi.replace("current_frame = \"stationary\"", "current_frame = \"synchronous\"");
+        let (st, sy) = (sampled(&pi), sampled(&sync));
+        eprintln!("seed 002's PI: worst sampled ln|z|/T {st:.2} 1/s stationary, {sy:.2} 1/s synchronous");
+        assert!(st < 0.0 && sy < 0.0 && (st - sy).abs() > 1.0, "{st} vs {sy}");
+        let fast = sync.replace("kp = 360.0", "kp = 5000.0");
+        assert!(failed(&fast).iter().any(|ch| ch.name.starts_with("sampled current: worst")));
     }
 }
 
@@ -413,7 +424,9 @@ pub fn pictures(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<(&'static str, 
             }
         }
     }
-    let curves: Vec<_> = corners.iter().map(|(_, cm)| crate::icad::curves(cm, law, wr, &w)).collect();
+    let frame = spec.current_frame;
+    let curves: Vec<_> =
+        corners.iter().map(|(_, cm)| crate::icad::curves_in(cm, law, wr, &w, frame)).collect();
     let point = || Series::markers("(1, 0)", vec![(1.0, 0.0)]).colored("#d62728");
     let nyquist = |title: &str, f: fn(&crate::icad::IcadPoint) -> num_complex::Complex64| {
         let mut series: Vec<Series<'_>> = corners
@@ -466,7 +479,10 @@ pub fn pictures(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<(&'static str, 
     let sweep: Vec<Series<'_>> = corners
         .iter()
         .map(|(name, cm)| {
-            Series::line(name, speeds.iter().map(|&x| (x, closed_loop_abscissa(cm, law, x))).collect())
+            Series::line(
+                name,
+                speeds.iter().map(|&x| (x, closed_loop_abscissa_in(cm, law, x, frame))).collect(),
+            )
         })
         .collect();
     let stable = line_plot(
@@ -629,8 +645,9 @@ pub fn current_step(
     ts: f64,
     omega_r: f64,
     n: usize,
+    frame: CurrentFrame,
 ) -> Vec<f64> {
-    let mm = crate::sampled::current_loop_matrix(m, ctrl, ts, omega_r);
+    let mm = crate::sampled::current_loop_matrix_in(m, ctrl, ts, omega_r, frame);
     let b = nalgebra::DVector::<f64>::from_iterator(
         mm.nrows(),
         (0..mm.nrows()).map(|r| if r < 4 { 0.0 } else { -mm[(r, 0)] }),
@@ -664,7 +681,7 @@ fn current_step_picture(
     let mut label = labels.iter();
     for (_, cm) in corners {
         for wr in [0.0, c.omega_r_max_rad_s] {
-            let y = current_step(cm, &ctrl, ts, wr, 200);
+            let y = current_step(cm, &ctrl, ts, wr, 200, spec.current_frame);
             if let Some(l) = label.next() {
                 series.push(Series::line(
                     l,
@@ -674,7 +691,7 @@ fn current_step_picture(
         }
     }
     Ok(line_plot(
-        "sampled current loop: i_α after a unit i_α reference step, every corner, at rest and at ω_r,max",
+        "sampled current loop: i_α (i_d in the synchronous frame) after a unit reference step, every corner, at rest and at ω_r,max",
         "t (ms)",
         &series,
     ))
@@ -715,7 +732,7 @@ mod picture_tests {
         // k_p/(k_p + B) within 2 s (J_max).
         let ctrl =
             CurrentControllerConfig::<f32>::new(&spec.current_law, 5e-5, spec.discretization, 1.0).unwrap();
-        let i = current_step(&spec.motor, &ctrl, 5e-5, 0.0, 200);
+        let i = current_step(&spec.motor, &ctrl, 5e-5, 0.0, 200, CurrentFrame::Stationary);
         assert!((i[199] - 1.0).abs() < 0.01 && i[1].abs() < 1e-12, "{} {}", i[1], i[199]);
         let SpeedLaw::SaturatedP { kp, .. } = spec.speed_law else { panic!() };
         let l = speed_loop(&spec, spec.motor.j_kgm2() * c.j_factor[1], kp).unwrap();
@@ -725,7 +742,7 @@ mod picture_tests {
         let gh = &pics[1].1;
         assert_eq!(gh.matches("<path").count(), 8, "one curve per corner");
         assert!(gh.contains("Rs×1.5 Rr×2 L×0.6") && gh.contains("(1, 0)"));
-        let a = analyse(&spec.motor, &spec.current_law, c.omega_r_max_rad_s);
+        let a = crate::icad::analyse(&spec.motor, &spec.current_law, c.omega_r_max_rad_s);
         let margin = a.gamma_h_margin_db.unwrap();
         let w = crate::tf::logspace(1.0, 1e5, 800);
         let cv = crate::icad::curves(&spec.motor, &spec.current_law, c.omega_r_max_rad_s, &w);

@@ -16,6 +16,7 @@ use crate::margins::{Margins, margins, unwrapped_phase_deg};
 use crate::poly::Poly;
 use crate::tf::logspace;
 use controller_core::current::CurrentLaw;
+use controller_core::drive::CurrentFrame;
 use controller_core::motor::MotorParams;
 use nalgebra::DMatrix;
 use num_complex::Complex64;
@@ -74,7 +75,12 @@ fn margin_to_one(l: &[Complex64]) -> Option<f64> {
 
 /// ICAD analysis of `law` on motor `m` at electrical rotor speed `omega_r`.
 pub fn analyse(m: &MotorParams, law: &CurrentLaw, omega_r: f64) -> IcadReport {
-    let model = ImModel::new(m, omega_r);
+    analyse_in(m, law, omega_r, CurrentFrame::Stationary)
+}
+
+/// [`analyse`] for loops in `frame` (the synchronous frame's plant: [`ImModel::in_frame`]).
+pub fn analyse_in(m: &MotorParams, law: &CurrentLaw, omega_r: f64, frame: CurrentFrame) -> IcadReport {
+    let model = ImModel::in_frame(m, omega_r, frame);
     let w = logspace(1e-1, 1e5, 30_000);
     report(m, omega_r, &w, |x| (model.response(x), law.response(x)))
 }
@@ -145,7 +151,18 @@ fn point((g, k): (crate::im::G2, Complex64)) -> IcadPoint {
 /// The ICAD functions of `law` on motor `m` at electrical rotor speed `omega_r`, at each
 /// frequency of `w` (rad/s) — what the certificate's pictures draw.
 pub fn curves(m: &MotorParams, law: &CurrentLaw, omega_r: f64, w: &[f64]) -> Vec<IcadPoint> {
-    let model = ImModel::new(m, omega_r);
+    curves_in(m, law, omega_r, w, CurrentFrame::Stationary)
+}
+
+/// [`curves`] for loops in `frame` ([`ImModel::in_frame`]).
+pub fn curves_in(
+    m: &MotorParams,
+    law: &CurrentLaw,
+    omega_r: f64,
+    w: &[f64],
+    frame: CurrentFrame,
+) -> Vec<IcadPoint> {
+    let model = ImModel::in_frame(m, omega_r, frame);
     w.iter().map(|&x| point((model.response(x), law.response(x)))).collect()
 }
 
@@ -178,7 +195,12 @@ pub(crate) fn realise(num: &Poly, den: &Poly) -> (DMatrix<f64>, DMatrix<f64>, DM
 /// Largest real part of the closed-loop eigenvalues of the full 2×2 loop (plant at
 /// `omega_r`, controller `law` on both axes, unity negative feedback).
 pub fn closed_loop_abscissa(m: &MotorParams, law: &CurrentLaw, omega_r: f64) -> f64 {
-    let model = ImModel::new(m, omega_r);
+    closed_loop_abscissa_in(m, law, omega_r, CurrentFrame::Stationary)
+}
+
+/// [`closed_loop_abscissa`] for loops in `frame` ([`ImModel::in_frame`]).
+pub fn closed_loop_abscissa_in(m: &MotorParams, law: &CurrentLaw, omega_r: f64, frame: CurrentFrame) -> f64 {
+    let model = ImModel::in_frame(m, omega_r, frame);
     let (num, den) = law_polys(law);
     let (ak, bk, ck, dk) = realise(&num, &den);
     let nk = ak.nrows();

@@ -5,7 +5,14 @@
 //! x = [i_sα, i_sβ, ψ_rα, ψ_rβ], u = [v_sα, v_sβ], y = [i_sα, i_sβ], with A(ω_r) and B of
 //! eq. (1). `G(jω) = C (jωI − A)⁻¹ B` is evaluated by a complex linear solve; the structure
 //! gives g₂₂ = g₁₁ and g₂₁ = −g₁₂.
+//!
+//! **Synchronous frame** ([`ImModel::in_frame`]): the same machine seen by loops that park
+//! their currents at the field angle θ_e and turn their voltage back. With `x = R(θ_e)·x_dq`
+//! (R the rotation of each (α, β) pair) and θ̇_e = ω_e, `ẋ_dq = (A − ω_e·J)·x_dq + B·u_dq`,
+//! J = blockdiag([[0, −1], [1, 0]]) — A and B commute with R (the machine has no preferred
+//! axis). At no load the field turns with the rotor, ω_e = ω_r.
 
+use controller_core::drive::CurrentFrame;
 use controller_core::motor::MotorParams;
 use nalgebra::{Matrix4, Matrix4x2};
 use num_complex::Complex64;
@@ -47,6 +54,19 @@ impl ImModel {
         let a = Matrix4::from_fn(|i, j| a[i][j]);
         let b = Matrix4x2::new(inv_sigma_ls, 0.0, 0.0, inv_sigma_ls, 0.0, 0.0, 0.0, 0.0);
         Self { a, b }
+    }
+
+    /// Eq. (1) as the current loops of `frame` see it (module docs): the stationary frame's
+    /// [`ImModel::new`], or in the field frame turning at ω_e = ω_r.
+    pub fn in_frame(m: &MotorParams, omega_r: f64, frame: CurrentFrame) -> Self {
+        let mut model = Self::new(m, omega_r);
+        if frame == CurrentFrame::Synchronous {
+            for pair in [0, 2] {
+                model.a[(pair, pair + 1)] += omega_r;
+                model.a[(pair + 1, pair)] -= omega_r;
+            }
+        }
+        model
     }
 
     /// G(jω) = C (jωI − A)⁻¹ B.

@@ -16,6 +16,15 @@
 //! the sampled loop (seed 002's quantities, [`crate::icad::report`]) up to the Nyquist
 //! frequency π/T.
 //!
+//! **Synchronous-frame current loops** ([`current_loop_matrix_in`]): the drive parks the
+//! currents sampled at period k at the field angle θ_k, runs the same controller on d and q,
+//! turns its output back at θ_k and ahead over the delay. In the field's coordinates
+//! `x_dq(k) = R(−θ_k)·x(k)` (θ_{k+1} = θ_k + ω_e·T; ω_e = ω_r at no load), with Φ and Γ
+//! commuting with R: `x_dq(k+1) = Φ·R(−ω_e·T)·x_dq(k) + Γ·R(1.5·ω_e·T − 2·ω_e·T)·d(k)`, d the
+//! controller's output of the period before (applied during period k, turned at θ_{k−1}
+//! and ahead by the delay's 1.5·ω_e·T: the middle of period k, seen from θ_{k+1}). The
+//! same state-space matrix and frequency response follow, with those Φ and Γ.
+//!
 //! **Speed loop**. The mechanical plant `J dω/dt = τ − Bω` under a zero-order hold of the
 //! slow period T_s = N_div·T; the speed measured as the firmware's and the simulator's
 //! encoder estimator does, the angle advanced over the last
@@ -33,6 +42,7 @@ use crate::im::{G2, ImModel};
 use crate::poly::Poly;
 use controller_core::current::CurrentControllerConfig;
 use controller_core::discretize::Discretization;
+use controller_core::drive::CurrentFrame;
 use controller_core::drive::VOLTAGE_DELAY_PERIODS;
 use controller_core::encoder::SPEED_WINDOW_READS;
 use controller_core::motor::MotorParams;
@@ -67,11 +77,38 @@ impl SampledPlant {
     }
 }
 
+/// The rotation `R(θ)`.
+fn rotation(theta: f64) -> Matrix2<f64> {
+    let (s, c) = theta.sin_cos();
+    Matrix2::new(c, -s, s, c)
+}
+
 /// The voltage's rotation ahead over the delay, `R(θ)` with `θ = 1.5·T·ω_e`.
 fn advance(omega_e: f64, ts_s: f64) -> Matrix2<f64> {
-    let th = VOLTAGE_DELAY_PERIODS * ts_s * omega_e;
-    let (s, c) = th.sin_cos();
-    Matrix2::new(c, -s, s, c)
+    rotation(VOLTAGE_DELAY_PERIODS * ts_s * omega_e)
+}
+
+/// One period of the plant in the loops' coordinates: `(Φ, Γ·R)` with the voltage's
+/// rotation R (module docs) — the stationary frame's Φ and Γ·R(1.5·ω_e·T), or in the field's
+/// coordinates Φ·R(−ω_e·T) and Γ·R(−0.5·ω_e·T).
+fn loop_plant(
+    m: &MotorParams,
+    omega_r: f64,
+    ts_s: f64,
+    frame: CurrentFrame,
+) -> (Matrix4<f64>, Matrix4x2<f64>) {
+    let p = SampledPlant::new(m, omega_r, ts_s);
+    match frame {
+        CurrentFrame::Stationary => (p.phi, p.gamma * advance(omega_r, ts_s)),
+        CurrentFrame::Synchronous => {
+            let step = rotation(-omega_r * ts_s);
+            let mut turn = Matrix4::<f64>::zeros();
+            turn.fixed_view_mut::<2, 2>(0, 0).copy_from(&step);
+            turn.fixed_view_mut::<2, 2>(2, 2).copy_from(&step);
+            let back = rotation((VOLTAGE_DELAY_PERIODS - 2.0) * ts_s * omega_r);
+            (p.phi * turn, p.gamma * back)
+        }
+    }
 }
 
 /// One axis of the implemented current controller as z-domain `(num, den)` polynomials.
@@ -96,8 +133,18 @@ pub fn current_loop_matrix(
     ts_s: f64,
     omega_r: f64,
 ) -> DMatrix<f64> {
-    let p = SampledPlant::new(m, omega_r, ts_s);
-    let gr = p.gamma * advance(omega_r, ts_s);
+    current_loop_matrix_in(m, ctrl, ts_s, omega_r, CurrentFrame::Stationary)
+}
+
+/// [`current_loop_matrix`] for loops in `frame` (module docs).
+pub fn current_loop_matrix_in(
+    m: &MotorParams,
+    ctrl: &CurrentControllerConfig<f32>,
+    ts_s: f64,
+    omega_r: f64,
+    frame: CurrentFrame,
+) -> DMatrix<f64> {
+    let (phi, gr) = loop_plant(m, omega_r, ts_s, frame);
     let (num, den) = controller_z(ctrl);
     let (ak, bk, ck, dk) = realise(&num, &den);
     let nk = ak.nrows();
@@ -105,7 +152,7 @@ pub fn current_loop_matrix(
     let mut mm = DMatrix::<f64>::zeros(n, n);
     for i in 0..4 {
         for j in 0..4 {
-            mm[(i, j)] = p.phi[(i, j)];
+            mm[(i, j)] = phi[(i, j)];
         }
         for j in 0..2 {
             mm[(i, 4 + j)] = gr[(i, j)];
@@ -146,11 +193,23 @@ pub fn current_loop_worst_radius(
     omega_r_max: f64,
     step: f64,
 ) -> (f64, f64) {
+    current_loop_worst_radius_in(m, ctrl, ts_s, omega_r_max, step, CurrentFrame::Stationary)
+}
+
+/// [`current_loop_worst_radius`] for loops in `frame`.
+pub fn current_loop_worst_radius_in(
+    m: &MotorParams,
+    ctrl: &CurrentControllerConfig<f32>,
+    ts_s: f64,
+    omega_r_max: f64,
+    step: f64,
+    frame: CurrentFrame,
+) -> (f64, f64) {
     let mut worst = (f64::NEG_INFINITY, 0.0);
     let mut w = 0.0f64;
     loop {
         let w_here = w.min(omega_r_max);
-        let r = spectral_radius(&current_loop_matrix(m, ctrl, ts_s, w_here));
+        let r = spectral_radius(&current_loop_matrix_in(m, ctrl, ts_s, w_here, frame));
         if r > worst.0 || r.is_nan() {
             worst = (r, w_here);
         }
@@ -186,9 +245,14 @@ pub fn stable_omega_r_max(
 
 /// The sampled loop's 2×2 frequency response at ω (0 < ω < π/T), delay and advance included.
 pub fn sampled_response(p: &SampledPlant, omega_r: f64, ts_s: f64, omega_rad_s: f64) -> G2 {
+    response_of(&p.phi, &(p.gamma * advance(omega_r, ts_s)), ts_s, omega_rad_s)
+}
+
+/// `C(zI − Φ)⁻¹Γ·z⁻¹` at `z = e^{jωT}`.
+fn response_of(phi: &Matrix4<f64>, gamma: &Matrix4x2<f64>, ts_s: f64, omega_rad_s: f64) -> G2 {
     let z = Complex64::from_polar(1.0, omega_rad_s * ts_s);
-    let a = Matrix4::<Complex64>::identity() * z - p.phi.map(|x| Complex64::new(x, 0.0));
-    let b = (p.gamma * advance(omega_r, ts_s)).map(|x| Complex64::new(x, 0.0));
+    let a = Matrix4::<Complex64>::identity() * z - phi.map(|x| Complex64::new(x, 0.0));
+    let b = gamma.map(|x| Complex64::new(x, 0.0));
     let x = a.lu().solve(&b).unwrap_or_else(|| Matrix4x2::from_element(Complex64::new(f64::NAN, f64::NAN)));
     let d = z.inv();
     G2 { g11: x[(0, 0)] * d, g12: x[(0, 1)] * d, g21: x[(1, 0)] * d, g22: x[(1, 1)] * d }
@@ -196,10 +260,21 @@ pub fn sampled_response(p: &SampledPlant, omega_r: f64, ts_s: f64, omega_rad_s: 
 
 /// ICAD analysis of the sampled current loop at `omega_r` (frequencies up to 0.999·π/T).
 pub fn analyse(m: &MotorParams, ctrl: &CurrentControllerConfig<f32>, ts_s: f64, omega_r: f64) -> IcadReport {
-    let p = SampledPlant::new(m, omega_r, ts_s);
+    analyse_in(m, ctrl, ts_s, omega_r, CurrentFrame::Stationary)
+}
+
+/// [`analyse`] for loops in `frame` (module docs).
+pub fn analyse_in(
+    m: &MotorParams,
+    ctrl: &CurrentControllerConfig<f32>,
+    ts_s: f64,
+    omega_r: f64,
+    frame: CurrentFrame,
+) -> IcadReport {
+    let (phi, gamma) = loop_plant(m, omega_r, ts_s, frame);
     let nyquist = 0.999 * std::f64::consts::PI / ts_s;
     let w = crate::tf::logspace(1e-1, nyquist, 20_000);
-    report(m, omega_r, &w, |x| (sampled_response(&p, omega_r, ts_s, x), ctrl.response(x, ts_s)))
+    report(m, omega_r, &w, |x| (response_of(&phi, &gamma, ts_s, x), ctrl.response(x, ts_s)))
 }
 
 /// The sampled speed loop (module docs).
@@ -389,6 +464,67 @@ mod tests {
         let measured = (peak_late / peak_early).powf(1.0 / (n as f64 / 2.0));
         assert!(rho < 1.0, "{rho}");
         assert!((measured - rho).abs() < 2e-4, "decay per period {measured} vs ρ = {rho}");
+    }
+
+    /// The synchronous-frame matrix against a time simulation of the drive's synchronous
+    /// loops in the stationary frame — currents parked at θ_k, controller-core's controller
+    /// on d and q, its output turned back at θ_k and ahead by 1.5·ω_e·T, applied the next
+    /// period: the impulse response decays at the synchronous matrix's spectral radius, not
+    /// at the stationary one's (seed 002's PI 360/9 000 at 300 rad/s).
+    #[test]
+    fn synchronous_matrix_matches_the_controller_code() {
+        let m = delorenzo();
+        let (ts, wr) = (5e-5, 300.0);
+        let law = CurrentLaw::PI_SEED002;
+        let ctrl = CurrentControllerConfig::new(&law, ts, Discretization::Tustin, 179.0).unwrap();
+        let p = SampledPlant::new(&m, wr, ts);
+        let ahead = advance(wr, ts);
+        let mut state = controller_core::current::CurrentState::<f32>::default();
+        let mut x = nalgebra::Vector4::new(0.0, 0.0, 0.0, 0.0);
+        let mut d = nalgebra::Vector2::new(0.0, 0.0);
+        let (mut peak_early, mut peak_late) = (0.0f64, 0.0f64);
+        let n = 20000;
+        for k in 0..n {
+            let theta = wr * ts * k as f64;
+            let i_dq = rotation(-theta) * nalgebra::Vector2::new(x[0], x[1]);
+            let r = if k == 0 { 0.01 } else { 0.0 };
+            let [ud, uq] = ctrl.request(&mut state, (r - i_dq[0]) as f32, (-i_dq[1]) as f32, 1e6);
+            x = p.phi * x + p.gamma * (ahead * d);
+            d = rotation(theta) * nalgebra::Vector2::new(f64::from(ud), f64::from(uq));
+            let mag = x[0].hypot(x[1]);
+            if (n / 4..n / 2).contains(&k) {
+                peak_early = peak_early.max(mag);
+            }
+            if k >= 3 * n / 4 {
+                peak_late = peak_late.max(mag);
+            }
+        }
+        let measured = (peak_late / peak_early).powf(1.0 / (n as f64 / 2.0));
+        let sync = spectral_radius(&current_loop_matrix_in(&m, &ctrl, ts, wr, CurrentFrame::Synchronous));
+        let stat = spectral_radius(&current_loop_matrix(&m, &ctrl, ts, wr));
+        eprintln!("decay per period {measured:.7}: synchronous ρ {sync:.7}, stationary ρ {stat:.7}");
+        assert!(sync < 1.0 && (measured - sync).abs() < 2e-5, "{measured} vs {sync}");
+        assert!((measured - stat).abs() > 10.0 * (measured - sync).abs(), "{measured}: {stat} as close");
+    }
+
+    /// The two synchronous-frame models, derived apart — the continuous `A − ω_e·J` and the
+    /// sampled `Φ·R(−ω_e·T)`, `Γ·R(−0.5·ω_e·T)` — agree where the sampling hardly matters:
+    /// at 1 MHz the sampled loop's slowest mode, `ln|z|/T`, is the continuous loop's within
+    /// 1 % over 0…400 rad/s (seed 002's PI 360/9 000).
+    #[test]
+    fn synchronous_sampled_and_continuous_agree_at_a_fast_rate() {
+        let m = delorenzo();
+        let law = CurrentLaw::PI_SEED002;
+        let ts = 1e-6;
+        let ctrl = CurrentControllerConfig::new(&law, ts, Discretization::Tustin, 179.0).unwrap();
+        for wr in [0.0, 150.0, 400.0] {
+            let cont = crate::icad::closed_loop_abscissa_in(&m, &law, wr, CurrentFrame::Synchronous);
+            let samp = spectral_radius(&current_loop_matrix_in(&m, &ctrl, ts, wr, CurrentFrame::Synchronous))
+                .ln()
+                / ts;
+            eprintln!("ω_r {wr}: continuous {cont:.4} 1/s, sampled at 1 MHz {samp:.4} 1/s");
+            assert!((samp / cont - 1.0).abs() < 0.01, "ω_r {wr}: {samp} vs {cont}");
+        }
     }
 
     /// 20 kHz: stable over the certified speeds; 100 Hz: the same law is unstable (its

@@ -390,7 +390,7 @@ pub fn tune(
     let mut spec = file.spec;
     if spec.current_frame != CurrentFrame::Stationary {
         return Err(
-            "the template's current frame is synchronous: only stationary-frame loops are certified".into()
+            "the template's current frame is synchronous: design tune synthesises stationary-frame loops (seed 002's rules); design certify checks either".into()
         );
     }
     spec.motor = *motor;
