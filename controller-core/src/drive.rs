@@ -1746,12 +1746,18 @@ impl Drive {
     }
 
     /// The speed-following check ([`Fault::FollowingError`]): while the speed loop is at its
-    /// limit, generating or at the configured torque limit (a rotor at rest pauses the
-    /// window: that is the stall check's; one passing through zero, dragged backwards, keeps
-    /// it), windows of
-    /// `following_time_s`; a window in which the speed moved against the torque by more
-    /// than [`FOLLOWING_PROGRESS_FRACTION`] of `Σ τ_cmd·T_slow/J` trips, any other starts the
-    /// next.
+    /// limit (a rotor at rest pauses the window: that is the stall check's; one passing
+    /// through zero, dragged backwards, keeps it), windows of `following_time_s`; a window in
+    /// which the speed moved against the torque by more than it owes trips, any other starts
+    /// the next. Owed, with `f` = [`FOLLOWING_PROGRESS_FRACTION`] and J the drive's inertia:
+    /// generating (a load driving the motor against the brake: a runaway), `f·Σ τ_cmd·T_slow/J`
+    /// — a load beyond `(1 + f)·τ_cmd`; motoring, `Σ ((1 + f)·τ_max − |τ_cmd|)·T_slow/J` — a
+    /// load beyond `(1 + f)` of the configured limit τ_max, which no speed can hold (at the
+    /// limit the two agree). A motoring motor held below its reference by the envelope's
+    /// smaller torque in field weakening slows to where the torque holds the load, which is no
+    /// fault, unless the load is beyond what any speed gives: that is caught at once instead of
+    /// once the motor has slowed to base speed. Speed laws with an i_q output (no torque
+    /// limit to compare) count only while generating.
     fn check_following(&mut self, commanding_motion: bool, omega_m_rad_s: f32) {
         if !(commanding_motion && self.speed_saturated) {
             self.following_steps = 0;
@@ -1765,19 +1771,22 @@ impl Drive {
             TorqueCommand::TorqueNm(t) => t,
             TorqueCommand::IqA(_) => 0.0,
         };
-        // Counted while generating (a load driving the motor against the brake: a runaway)
-        // or at the configured torque limit (nothing more to give at any speed); a motoring
-        // motor held below its reference by the envelope's smaller torque in field weakening
-        // slows to where the torque holds the load, which is no fault.
-        let full = self.cfg.speed.is_torque() && torque_nm.abs() >= 0.99 * self.cfg.speed_limit;
-        if !(full || torque_nm * omega_m_rad_s < 0.0) {
+        let generating = torque_nm * omega_m_rad_s < 0.0;
+        if !(generating || self.cfg.speed.is_torque()) {
             self.following_steps = 0;
             return;
         }
         if self.following_steps == 0 {
             (self.following_w0_rad_s, self.following_owed_rad_s) = (omega_m_rad_s, 0.0);
         }
-        self.following_owed_rad_s += self.cfg.following_gain * torque_nm;
+        let f = FOLLOWING_PROGRESS_FRACTION as f32;
+        self.following_owed_rad_s += if generating {
+            self.cfg.following_gain * torque_nm
+        } else {
+            // following_gain = f·T_slow/J.
+            let beyond = (1.0 + f) * self.cfg.speed_limit - torque_nm.abs();
+            self.cfg.following_gain * (1.0 / f) * beyond * torque_nm.signum()
+        };
         self.following_steps += 1;
         if self.following_steps >= self.cfg.following_slow_steps {
             let owed = self.following_owed_rad_s;

@@ -424,13 +424,6 @@ impl Matrix {
             // At rest under a position hold, a seized load changes nothing the drive commands.
             // A load the drive cannot hold drags the rotor away from its reference: named by
             // the following-error check, or by overspeed if the rotor crosses that first.
-            Injection::LoadStep { .. } if at.point == Point::Top && at.motoring => Expect::Gap {
-                fault: Fault::FollowingError,
-                bound_s: STALL_BOUND_S,
-                why: "in field weakening a motoring overload first slows the motor toward where the envelope's \
-                      torque grows (no fault: a hot motor under load does that in the campaign); it is named \
-                      once the full torque no longer holds it, below base speed, later than 0.5 s",
-            },
             Injection::LoadStep { .. } => {
                 Expect::Either { faults: &[Fault::FollowingError, Fault::Overspeed], bound_s: STALL_BOUND_S }
             }

@@ -455,3 +455,46 @@ fn the_low_side_sampling_window_is_kept() {
     eprintln!("unaware: {mode:?} at {first:?} s");
     assert_eq!(mode, Mode::Fault(controller_core::drive::Fault::CurrentSensor));
 }
+
+/// A motoring load at the top of field weakening (368 rad/s, where the envelope gives
+/// ≈ 0.53 N·m): one the configured τ_max (2 N·m) could hold at a lower speed only slows the
+/// motor toward where the envelope's torque holds it — no fault, as a hot motor under load
+/// does in the campaign; one beyond 1.1·τ_max (3 N·m: no speed holds it) is a
+/// `FollowingError` within issue 18's 0.5 s, named while the motor is still in field
+/// weakening (before: only once it had slowed below base speed, after more than 0.5 s).
+#[test]
+fn an_overload_in_field_weakening_is_named_at_once() {
+    let run = |load_nm: f64| {
+        let mut b = scenario("field-weakening.toml");
+        b.scenario.trace_every = 20;
+        b.scenario.duration_s = 6.5;
+        for (t, e) in &mut b.scenario.events {
+            if let hil_sim::sim::Event::LoadNm(l) = e
+                && *t == 5.0
+            {
+                *l = load_nm;
+            }
+        }
+        b.run(|_| {}).unwrap().0
+    };
+    let held = run(1.6);
+    let end = held.last().unwrap();
+    eprintln!("1.6 N·m at the top: {:?}, ω {:.1} rad/s at {:.1} s", end.mode, end.x.omega_m_rad_s, end.t_s);
+    assert!(held.iter().all(|r| !matches!(r.mode, Some(Mode::Fault(_)))), "a load τ_max holds: no fault");
+    assert!(end.x.omega_m_rad_s < 300.0, "the motor slowed: {}", end.x.omega_m_rad_s);
+    let over = run(3.0);
+    let trip = over.iter().find(|r| matches!(r.mode, Some(Mode::Fault(_)))).unwrap();
+    eprintln!(
+        "3 N·m at the top: {:?} after {:.1} ms, at {:.1} rad/s",
+        trip.mode,
+        1e3 * (trip.t_s - 5.0),
+        trip.x.omega_m_rad_s
+    );
+    assert_eq!(trip.mode, Some(Mode::Fault(controller_core::drive::Fault::FollowingError)));
+    assert!(
+        trip.t_s - 5.0 <= 0.5 && trip.x.omega_m_rad_s > 184.0,
+        "{:.3} s, {:.1} rad/s",
+        trip.t_s,
+        trip.x.omega_m_rad_s
+    );
+}

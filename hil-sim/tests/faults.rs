@@ -157,14 +157,15 @@ fn stuck_switches_at_every_point() {
 }
 
 /// The markdown's list of gaps names the operating points each holds at (it said "at
-/// standstill" for every gap, the top-speed overload's included: found by reading it).
+/// standstill" for every gap, the top-speed overload's included — a gap since closed, by
+/// the following check's motoring rule: found by reading it).
 #[test]
 fn the_gap_list_names_its_operating_points() {
     let m = shipped();
-    let (c, at) = (case(&m, "overload"), point(&m, Point::Top, true));
+    let (c, at) = (case(&m, "switch a upper stuck open"), point(&m, Point::Mid, true));
     let o = m.run_one(6, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
     assert_eq!(o.verdict(), "gap");
     let md = hil_sim::faults::markdown(&m, &[o]);
-    assert!(md.contains("- **overload (1.5 × τ_max)** (top speed motoring): in field weakening"), "{md}");
+    assert!(md.contains("- **switch a upper stuck open** (mid-speed motoring): below top speed"), "{md}");
     assert!(!md.contains("at standstill:"), "{md}");
 }
