@@ -30,7 +30,7 @@ use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
 #[cfg(feature = "commissioning")]
-use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record};
+use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::{
     Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand,
 };
@@ -234,6 +234,9 @@ pub struct ControlLoop {
     /// A commissioning sequence in the drive's place, and its last output.
     #[cfg(feature = "commissioning")]
     commission: Option<(Commissioning, Option<CommissionOutput>)>,
+    /// The commissioning sequence's pre-charge periods left, before its first pulse.
+    #[cfg(feature = "commissioning")]
+    commission_precharge_left: u16,
 }
 
 /// What the link task needs from the control interrupt, published after every step through
@@ -334,6 +337,8 @@ impl ControlLoop {
             readings: BoardReadings::default(),
             #[cfg(feature = "commissioning")]
             commission: None,
+            #[cfg(feature = "commissioning")]
+            commission_precharge_left: 0,
         })
     }
 
@@ -413,6 +418,9 @@ impl ControlLoop {
             return Err(CommissionRefused::NotCalibrated);
         }
         self.commission = Some((Commissioning::new(cfg), None));
+        // The sequence's first stage measures the offsets with the bridge off; its pulses
+        // then get the bootstrap pre-charge first ([`ControlLoop::control`]).
+        self.commission_precharge_left = self.board.bootstrap_precharge_periods;
         Ok(())
     }
 
@@ -475,8 +483,9 @@ impl ControlLoop {
     /// drive's supervisor runs on every sample ([`Drive::supervise_only`]: a fault ends the
     /// pre-charge with the bridge off) and nothing else of it moves — neither its control
     /// state nor its slow cadence (the encoder is not read either), so its first period
-    /// afterwards is the one it would have had without. A disable meanwhile ends it. Not
-    /// for a commissioning sequence (its own first stages run with the bridge off).
+    /// afterwards is the one it would have had without. A disable meanwhile ends it. A
+    /// commissioning sequence gets its own, after its offsets and before its first pulse
+    /// ([`ControlLoop::start_commissioning`]).
     fn precharge(&mut self, s: &Samples) -> Option<Bridge> {
         let wants_bridge = matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running);
         if !wants_bridge {
@@ -540,6 +549,17 @@ impl ControlLoop {
         if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {
             if matches!(out.mode, Mode::Fault(_)) {
                 c.abort();
+            }
+            // The bootstrap pre-charge before the sequence's first pulse: once its offsets
+            // are measured (bridge off), it pauses with all low sides on — the zero vector,
+            // no voltage on the motor — while the drive's supervisor above runs (a fault
+            // aborts the sequence: its stage is then over). Its own timing is untouched: it
+            // resumes where it paused.
+            let paused = !matches!(c.stage(), Stage::Offsets) && !c.stage().is_over();
+            if self.commission_precharge_left > 0 && paused {
+                self.commission_precharge_left -= 1;
+                let low = self.pwm.compare(0.0);
+                return Bridge::Compare([low; 3]);
             }
             let o = c.step(&m);
             *last = Some(o);
@@ -683,6 +703,62 @@ mod tests {
         // A fresh enable: the whole pre-charge again.
         enable_through_precharge(&mut c);
         assert!(matches!(c.step(&at_rest(0)), Bridge::Compare(ccr) if ccr != [0; 3]));
+    }
+
+    /// A commissioning sequence's first pulse gets the bootstrap pre-charge: its offsets are
+    /// measured with the bridge off, then it pauses for `bootstrap_precharge_periods` with all
+    /// low sides on (compare 0) and resumes where it paused — from then on its outputs are
+    /// those of a loop without the pre-charge, period for period, 40 periods later. A fault
+    /// during the pre-charge aborts the sequence with the bridge off.
+    #[cfg(feature = "commissioning")]
+    #[test]
+    fn a_commissioning_sequence_pre_charges_before_its_first_pulse() {
+        use controller_core::commission::{CommissionSpec, OFFSET_PERIODS};
+        let spec = CommissionSpec {
+            pwm_hz: 20_000.0,
+            test_current_a: 1.0,
+            current_limit_a: 2.0,
+            vdc_min_v: 200.0,
+            vdc_max_v: 400.0,
+            level_time_s: 0.5,
+            rotate: false,
+            rated_flux_wb: 0.9,
+            no_load_hz: 15.0,
+        };
+        let start = |periods: u16| {
+            let mut c = ControlLoop::new(
+                &DRIVE_CONFIG,
+                &BoardConfig { bootstrap_precharge_periods: periods, ..board() },
+            )
+            .unwrap();
+            c.calibrate_at_rest();
+            c.start_commissioning(CommissionConfig::new(spec).unwrap()).unwrap();
+            for k in 0..OFFSET_PERIODS {
+                assert_eq!(c.step(&at_rest(0)), Bridge::Off, "offsets, period {k}");
+            }
+            c
+        };
+        let (mut with, mut without) = (start(40), start(0));
+        assert!(matches!(with.commission_output().map(|o| o.stage), Some(Stage::Pulse(0))));
+        for k in 0..40 {
+            assert_eq!(with.step(&at_rest(0)), Bridge::Compare([0; 3]), "pre-charge period {k}");
+        }
+        let mut pulsing = 0;
+        for k in 0..400 {
+            let (a, b) = (with.step(&at_rest(0)), without.step(&at_rest(0)));
+            assert_eq!(a, b, "period {k} after the pre-charge");
+            pulsing += usize::from(matches!(a, Bridge::Compare(ccr) if ccr != [0; 3]));
+        }
+        assert!(pulsing > 0, "the sequence pulsed");
+        // A fault during the pre-charge: +10 A on phase a, above the 8 A trip level.
+        let mut c = start(40);
+        assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]));
+        let s = Samples { i_abc: [2048 + 1241, 2048 - 620, 2048 - 621], ..at_rest(0) };
+        assert_eq!(c.step(&s), Bridge::Off);
+        assert!(!c.commissioning());
+        for _ in 0..100 {
+            assert_eq!(c.step(&at_rest(0)), Bridge::Off);
+        }
     }
 
     #[test]
