@@ -87,6 +87,22 @@ impl MotorParams {
         Ok(Self { rs_ohm, rr_ohm, ls_h, lr_h, lm_h, pole_pairs, j_kgm2, b_nms })
     }
 
+    /// The same machine with its resistances `rs`× and `rr`×, its inductances `l`× (L_s, L_r
+    /// and L_m alike: σ and L_m/L_r stay) and its inertia `j`× — a corner or sample of a
+    /// certified parameter box (seed 000 Fig. 12, the design toolkit's `[certify]`).
+    pub fn scaled(&self, rs: f64, rr: f64, l: f64, j: f64) -> Result<Self, MotorError> {
+        Self::new(
+            rs * self.rs_ohm,
+            rr * self.rr_ohm,
+            l * self.ls_h,
+            l * self.lr_h,
+            l * self.lm_h,
+            self.pole_pairs,
+            j * self.j_kgm2,
+            self.b_nms,
+        )
+    }
+
     /// DeLorenzo DL10115A1, seed 002 appendix: Rs = 16.2 Ω, Rr = 23.2 Ω, Ls = 1.44 H,
     /// Lr = 1.5 H, Lm = 1.42 H, P = 2 poles (p = 1). J and B are not given in the paper;
     /// the values here (J = 0.005 kg·m², B = 0.0005 N·m·s) are placeholders of the right
@@ -144,6 +160,19 @@ impl MotorParams {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A box corner: resistances and inertia scaled as given, the inductances together (σ and
+    /// L_m/L_r unchanged, T_r = L_r/R_r × l/rr); ×1 is the motor itself; a corner that is no
+    /// motor is refused.
+    #[test]
+    fn scaled_is_a_box_corner() {
+        let m = MotorParams::delorenzo_dl10115a1().unwrap();
+        assert_eq!(m.scaled(1.0, 1.0, 1.0, 1.0), Ok(m));
+        let c = m.scaled(1.5, 2.0, 0.6, 2.0).unwrap();
+        assert_eq!((c.rs_ohm(), c.rr_ohm(), c.j_kgm2(), c.b_nms()), (1.5 * 16.2, 46.4, 0.01, m.b_nms()));
+        assert!((c.sigma() - m.sigma()).abs() < 1e-12 && (c.tr_s() / m.tr_s() - 0.3).abs() < 1e-12);
+        assert!(m.scaled(1.0, 1.0, -1.0, 1.0).is_err());
+    }
 
     #[test]
     fn derived_quantities_of_the_delorenzo_motor() {

@@ -62,17 +62,7 @@ pub struct Check {
 }
 
 fn corner_motor(m: &MotorParams, rs: f64, rr: f64, l: f64) -> Result<MotorParams, String> {
-    MotorParams::new(
-        rs * m.rs_ohm(),
-        rr * m.rr_ohm(),
-        l * m.ls_h(),
-        l * m.lr_h(),
-        l * m.lm_h(),
-        m.pole_pairs(),
-        m.j_kgm2(),
-        m.b_nms(),
-    )
-    .map_err(|e| format!("corner motor rejected: {e:?}"))
+    m.scaled(rs, rr, l, 1.0).map_err(|e| format!("corner motor rejected: {e:?}"))
 }
 
 /// Run every check.

@@ -271,18 +271,8 @@ impl Campaign {
         let step_s = self.step_s();
         let sample = self.sample(k);
         let manoeuvre = Manoeuvre::of(k);
-        let m = &self.spec.motor;
-        let plant = MotorParams::new(
-            m.rs_ohm() * sample.rs,
-            m.rr_ohm() * sample.rr,
-            m.ls_h() * sample.l,
-            m.lr_h() * sample.l,
-            m.lm_h() * sample.l,
-            m.pole_pairs(),
-            m.j_kgm2() * sample.j,
-            m.b_nms(),
-        )
-        .map_err(|e| format!("run {k}: sample motor rejected: {e:?}"))?;
+        let plant = (self.spec.motor.scaled(sample.rs, sample.rr, sample.l, sample.j))
+            .map_err(|e| format!("run {k}: sample motor rejected: {e:?}"))?;
         let w = self.omega_s_rad_s();
         let tau_l = LOAD_FRACTION * torque_limit_nm(&self.spec);
         let t2 = step_s + 0.5 * (self.duration_s - step_s);

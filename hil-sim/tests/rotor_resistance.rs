@@ -51,18 +51,7 @@ fn run(
 /// The shipped motor with its resistances and inductances scaled — `rs`×R_s, `rr`×R_r, and
 /// `l`× L_s, L_r, L_m alike (the campaign's box).
 fn box_motor(spec: &DriveSpec, rs: f64, rr: f64, l: f64) -> MotorParams {
-    let m = &spec.motor;
-    MotorParams::new(
-        rs * m.rs_ohm(),
-        rr * m.rr_ohm(),
-        l * m.ls_h(),
-        l * m.lr_h(),
-        l * m.lm_h(),
-        m.pole_pairs(),
-        m.j_kgm2(),
-        m.b_nms(),
-    )
-    .unwrap()
+    spec.motor.scaled(rs, rr, l, 1.0).unwrap()
 }
 
 /// At rest, the magnetizing fit gives the rotor resistance without the stator's, and the
