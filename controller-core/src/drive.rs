@@ -390,7 +390,8 @@ pub struct DriveSpec {
     pub rotor_resistance_range: [f64; 2],
     /// The range of the inductances, × the motor's `L_s`, `L_r`, `L_m` alike (`[1, 1]`: the
     /// motor's, fixed): the magnetizing fit ([`crate::mras`]) measures them at every enable
-    /// of a demagnetized rotor within it; the drive starts from the motor's, limited to it.
+    /// of a demagnetized rotor at rest within it; the drive starts from the motor's, limited
+    /// to it.
     pub inductance_range: [f64; 2],
     /// Trip thresholds.
     pub protection: Protection,
@@ -1334,8 +1335,8 @@ pub struct Drive {
     v_req2_sum: f32,
     /// Fast steps in `v_req2_sum`.
     v_req_steps: u16,
-    /// Sum of the d-axis voltage the loops asked for since the last slow step, while
-    /// magnetizing (the rotor-resistance fit's), V.
+    /// Sum of the d-axis voltage since the last slow step while magnetizing — the loops'
+    /// request, or the modulator's limit of it while it limits (the magnetizing fit's), V.
     v_d_sum: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,
@@ -1463,6 +1464,20 @@ impl Drive {
     /// IFOC state: field angle and rotor-flux estimate.
     pub fn ifoc_state(&self) -> &IfocState {
         &self.ifoc
+    }
+
+    /// Slow steps since a bridge last drove the rotor (saturating; `u32::MAX` from power-up):
+    /// what decides whether the next enable measures the inductances
+    /// ([`MrasConfig::demagnetized_after`]).
+    pub fn idle_slow_steps(&self) -> u32 {
+        self.idle_slow_steps
+    }
+
+    /// The rotor was driven by something else `idle_slow_steps` slow steps ago (0: now) — a
+    /// commissioning sequence in the drive's place, or the drive this one replaces (a new
+    /// configuration): its flux may still be there at the next enable.
+    pub fn rotor_driven(&mut self, idle_slow_steps: u32) {
+        self.idle_slow_steps = idle_slow_steps;
     }
 
     /// Idle → Magnetizing with fresh loop states. No effect when already active.
@@ -1772,7 +1787,8 @@ impl Drive {
             TorqueCommand::IqA(_) => 0.0,
         };
         let generating = torque_nm * omega_m_rad_s < 0.0;
-        if !(generating || self.cfg.speed.is_torque()) {
+        // No torque owes nothing (a zero limit still reads as saturated).
+        if torque_nm == 0.0 || !(generating || self.cfg.speed.is_torque()) {
             self.following_steps = 0;
             return;
         }
@@ -1791,7 +1807,7 @@ impl Drive {
         if self.following_steps >= self.cfg.following_slow_steps {
             let owed = self.following_owed_rad_s;
             let moved = omega_m_rad_s - self.following_w0_rad_s;
-            // Dragged against the torque by more than the margin (no torque: no trip).
+            // Dragged against the torque by more than the margin.
             if owed != 0.0 && moved * owed.signum() < -owed.abs() {
                 self.trip(Fault::FollowingError);
                 self.torque_cmd = TorqueCommand::TorqueNm(0.0);
@@ -2098,7 +2114,9 @@ impl Drive {
             i_ref_abc,
             m.i_abc_a,
             cfg.open_phase_steps,
-            self.i_d_rated_a,
+            // The motor file's magnetizing current, as the stuck-switch check's charge: a
+            // saturated machine's (×1/ℓ̂) is larger, so its phases pass the level sooner.
+            cfg.i_d_rated_a,
             CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
         );
         if let Some(f) = window {
@@ -2689,6 +2707,37 @@ mod tests {
             }
             d
         })
+    }
+
+    /// The following check's windows (`following_slow_steps` slow steps each): a rotor dragged
+    /// back while the speed loop saturates at its configured limit trips; at a zero torque
+    /// (a limit of 0 reads as saturated too — the regeneration limit with the bus at its end)
+    /// nothing is owed, however fast the rotor slows: its sign was ±1 of ±0.0 and the
+    /// motoring rule owed 1.1·τ_max.
+    #[test]
+    fn the_following_check_owes_nothing_at_zero_torque() {
+        let run = |torque_nm: f32, decel_rad_s_per_step: f32| {
+            let mut d = running_drive();
+            d.reference = Reference::Speed(100.0);
+            d.speed_saturated = true;
+            d.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
+            for k in 0..=d.cfg.following_slow_steps {
+                d.check_following(true, 200.0 - decel_rad_s_per_step * k as f32);
+            }
+            d.mode()
+        };
+        // Motoring at the 2 N·m limit, the rotor slowing as a 2.5 N·m load would (J = 0.005
+        // kg·m², T_slow = 0.5 ms): beyond 1.1·τ_max.
+        let limit = running_drive().cfg.speed_limit;
+        let d_steps = || running_drive().cfg.following_slow_steps;
+        let decel = (2.5 - limit) / 0.005 * 5e-4 + 0.01;
+        assert_eq!(run(limit, decel), Mode::Fault(Fault::FollowingError));
+        // The rotor slowing as a 3 N·m load would, with no torque to hold it (the window
+        // stays above the stall band: 200 → 20 rad/s).
+        let fast = 3.0 / 0.005 * 5e-4;
+        assert!(200.0 - fast * d_steps() as f32 > 10.0);
+        assert_eq!(run(0.0, fast), Mode::Running);
+        assert_eq!(run(-0.0, fast), Mode::Running);
     }
 
     /// Wiring check of the whole fast path (Clarke → IFOC → current loops → SVPWM → duty →

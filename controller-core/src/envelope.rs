@@ -130,7 +130,7 @@ impl EnvelopeConfig {
     }
 
     /// `L_m²/L_r`, H: the rotor-flux path's inductance seen from the stator.
-    pub fn lm2_over_lr(&self) -> f32 {
+    pub fn lm2_over_lr_h(&self) -> f32 {
         self.k_nm_per_a2 / (1.5 * self.pole_pairs)
     }
 

@@ -2,8 +2,11 @@
 //!
 //! With the d axis on the rotor flux (`ψ_qr = 0`, `ψ_dr = ψ_r`, eq. (6)):
 //!
-//! * flux reference → `i_ds* = ψ_r*/L_m` (eq. (9), steady state of eq. (8));
-//! * rotor-flux model, eq. (8) `ψ_r = L_m/(1 + s·T_r)·i_ds`, discretised exactly (ZOH), driven
+//! * flux reference → `i_ds* = ψ_r*/L_m` (eq. (9), steady state of eq. (8); the drive divides
+//!   by the inductance scale in use, [`IfocConfig::set_inductance_scale`]);
+//! * rotor-flux model, eq. (8) `ψ_r = L_m/(1 + s·T_r)·i_ds`, discretised exactly (ZOH) — on
+//!   the estimated `L̂_m` and `T̂_r` ([`IfocConfig::set_inductance_scale`],
+//!   [`IfocConfig::set_rotor_resistance_scale`]; the motor's when not estimated), driven
 //!   by the **measured** d-axis current (Park of the measured currents at the field angle):
 //!   `ψ̂[k+1] = ψ̂[k] + (1 − e^{−T/T_r})·(L_m·i_ds − ψ̂[k])` — so the estimate cannot run ahead
 //!   of a motor that is not there, and slip and torque stay consistent while the flux

@@ -626,9 +626,10 @@ pub fn speed_step(l: &crate::sampled::SpeedLoop, n: usize) -> Vec<f64> {
         .collect()
 }
 
-/// i_α of the sampled current loop (`m`, `ctrl`, at `omega_r`) after a unit i_α reference
-/// step, `n` PWM periods: x(k+1) = M·x(k) + b, b the reference's input — where −i_α enters
-/// the controller, with the opposite sign.
+/// i_α of the sampled current loop (`m`, `ctrl`, at `omega_r`, loops in `frame`: i_d after
+/// a unit i_d step in the synchronous frame) after a unit reference step, `n` PWM periods:
+/// x(k+1) = M·x(k) + b, b the reference's input — where −i_α enters the controller, with
+/// the opposite sign.
 pub fn current_step(
     m: &MotorParams,
     ctrl: &CurrentControllerConfig<f32>,

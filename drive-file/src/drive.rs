@@ -78,7 +78,7 @@ pub struct ControllerTable {
     pub rotor_resistance_range: [f64; 2],
     /// The inductances' range, × `[motor] ls_h`, `lr_h`, `lm_h` alike (default `[1.0, 1.0]`:
     /// the motor file's, fixed); within it the drive measures them at every enable of a
-    /// demagnetized rotor ([`controller_core::mras`]).
+    /// demagnetized rotor at rest ([`controller_core::mras`]).
     #[serde(default = "default_inductance_range")]
     pub inductance_range: [f64; 2],
 }

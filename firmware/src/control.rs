@@ -349,7 +349,10 @@ impl ControlLoop {
 
     /// Start again from configuration `cfg` (a fresh drive, Idle); on error nothing changes.
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), ControlError> {
+        // The rotor is the same: how long ago it was driven carries over (its flux).
+        let idle = self.drive.idle_slow_steps();
         *self = Self::with_config(cfg, &self.board)?;
+        self.drive.rotor_driven(idle);
         Ok(())
     }
 
@@ -563,6 +566,11 @@ impl ControlLoop {
             }
             let o = c.step(&m);
             *last = Some(o);
+            if o.phases != PhaseCommand::Off {
+                // The sequence magnetizes the rotor: the drive's next enable must not read
+                // the flux it leaves as a smaller inductance.
+                self.drive.rotor_driven(0);
+            }
             return match o.phases {
                 PhaseCommand::Off => Bridge::Off,
                 PhaseCommand::Duty(d) => {
@@ -750,6 +758,12 @@ mod tests {
             pulsing += usize::from(matches!(a, Bridge::Compare(ccr) if ccr != [0; 3]));
         }
         assert!(pulsing > 0, "the sequence pulsed");
+        // The rotor it drove is not demagnetized for the drive's next enable.
+        assert!(with.drive().idle_slow_steps() < 10, "{}", with.drive().idle_slow_steps());
+        // A new configuration keeps how long ago the rotor was driven (its flux).
+        let idle = with.drive().idle_slow_steps();
+        with.reconfigure(DriveConfig::new(&drive_spec().unwrap()).unwrap()).unwrap();
+        assert_eq!(with.drive().idle_slow_steps(), idle);
         // A fault during the pre-charge: +10 A on phase a, above the 8 A trip level.
         let mut c = start(40);
         assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]));

@@ -60,13 +60,31 @@ fn a_drive_that_misses_a_fault_fails_its_row() {
 fn a_gap_that_closes_fails_its_row() {
     let m = shipped();
     let (c, at) = (case(&m, "encoder glitch"), point(&m, Point::Mid, false));
-    let gap = Expect::Gap { fault: Fault::EncoderLoss, bound_s: 1e-3, why: "test" };
+    let gap = Expect::Gap { fault: Fault::EncoderLoss, bound_s: 1e-3, why: "test", caught: &[] };
     let o = m.run_one(3, &c, &at, gap, &AtomicBool::new(false)).unwrap();
     assert_eq!(o.detected.map(|(f, _)| f), Some(Fault::EncoderLoss));
     assert!(o.failures.iter().any(|f| f.contains("gap closed")), "{:?}", o.failures);
     // … and a ride-through that trips fails too.
     let o = m.run_one(3, &c, &at, Expect::RideThrough, &AtomicBool::new(false)).unwrap();
     assert!(o.failures.iter().any(|f| f.contains("tripped")), "{:?}", o.failures);
+}
+
+/// A gap that must still be caught fails its row when nothing catches it: the stuck lower
+/// switch at rest, motoring (a stated gap: named `EncoderImplausible`) with the voltage
+/// check's window at 1e6 s and the open-phase check's too — the bridge would keep switching.
+#[test]
+fn a_switch_gap_that_nothing_catches_fails_its_row() {
+    let mut m = shipped();
+    let (c, at) = (case(&m, "switch a lower stuck open"), point(&m, Point::Standstill, true));
+    let expect = m.expect(&c, &at);
+    assert!(matches!(expect, Expect::Gap { caught, .. } if caught.contains(&Fault::EncoderImplausible)));
+    assert_eq!(m.run_one(4, &c, &at, expect, &AtomicBool::new(false)).unwrap().verdict(), "gap");
+    m.spec.protection.encoder_check_time_s = 1e6;
+    m.spec.protection.open_phase_time_s = 1e6;
+    m.spec.protection.saturation_time_s = 1e6;
+    m.spec.protection.current_sum_max_a = 7.9;
+    let o = m.run_one(4, &c, &at, expect, &AtomicBool::new(false)).unwrap();
+    assert_eq!(o.verdict(), "FAIL", "{:?} {:?}", o.detected, o.failures);
 }
 
 /// An interrupt stops a row with an error (the CLI then writes nothing).

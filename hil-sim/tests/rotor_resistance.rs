@@ -153,7 +153,7 @@ fn the_online_law_follows_a_heating_rotor() {
 
 /// The inductance is read from the whole flux linkage an enable builds, so only on a rotor
 /// idle long enough to have lost its flux (`controller_core::mras::DEMAGNETIZED_TIME_CONSTANTS`,
-/// 0.33 s on the shipped motor): re-enabled 50 ms after a stop, the drive keeps the
+/// 0.32 s on the shipped motor): re-enabled 50 ms after a stop, the drive keeps the
 /// estimate it had, bit for bit (the rotor still holds most of its flux, which would read as
 /// a smaller inductance); re-enabled 0.5 s after one it measures again, within 6 %. The
 /// rotor resistance is read every time (the decay's ratio does not depend on the flux left).
