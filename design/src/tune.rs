@@ -4,7 +4,8 @@
 //! shipped motor, or one `hil-sim identify` wrote, whose `[identification]` intervals widen
 //! the certified box).
 //!
-//! **Current loops**, [`CurrentDesign`]: stationary-frame PI (the default) or ICAD.
+//! **Current loops**, [`CurrentDesign`]: PI (the default; in the template's frame, stationary or
+//! synchronous — the same rule, checked in that frame) or ICAD (stationary frame only).
 //!
 //! *ICAD* (`--current icad`): seed 002 eq. (20)'s structure — PI × a lag pair — placed from
 //! the top electrical rotor speed ω_h = `[certify] omega_r_max_rad_s` by the rules of
@@ -388,9 +389,12 @@ pub fn tune(
         )
     })?;
     let mut spec = file.spec;
-    if spec.current_frame != CurrentFrame::Stationary {
+    if spec.current_frame == CurrentFrame::Synchronous && structure.current == CurrentDesign::Icad {
         return Err(
-            "the template's current frame is synchronous: design tune synthesises stationary-frame loops (seed 002's rules); design certify checks either".into()
+            "the template's current frame is synchronous: ICAD's lag pair is placed at the stationary \
+                    frame's top speed ω_h, where the field frame's currents are constant — take the PI \
+                    (--current pi), or a stationary-frame template"
+                .into(),
         );
     }
     spec.motor = *motor;
@@ -1003,6 +1007,26 @@ mod tests {
         assert_eq!(tau_max_nm, 0.12);
         // The encoder rule binds: k_p·Δω_q = 2.5 % of τ_max (Δω_q = 0.383 rad/s).
         assert!((kp * 0.3835 / (0.025 * 0.12) - 1.0).abs() < 0.01, "{kp}");
+    }
+
+    /// A synchronous-frame template: the same PI rule (its zero on the stator's pole below the
+    /// rotor corner holds in the field frame too), searched against the certificate in that
+    /// frame, passes every check and keeps the frame; ICAD in it is refused by name.
+    #[test]
+    fn a_synchronous_template_tunes_a_pi() {
+        let sync = TEMPLATE.replace("current_frame = \"stationary\"", "current_frame = \"synchronous\"");
+        assert_ne!(sync, TEMPLATE);
+        let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+        let t = tune(Path::new("sync.toml"), &sync, &m, None, Structure::default()).unwrap();
+        assert_eq!(t.spec.current_frame, CurrentFrame::Synchronous);
+        assert!(t.checks.iter().all(|c| c.pass));
+        assert!(t.checks.iter().any(|c| c.name.starts_with("sampled current: worst")));
+        let written = drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap();
+        assert_eq!(written.spec.current_frame, CurrentFrame::Synchronous);
+        println!("synchronous PI: ω_c {:.0} rad/s, {} checks", t.omega_c_rad_s, t.checks.len());
+        let icad = Structure { current: CurrentDesign::Icad, ..Default::default() };
+        let e = tune(Path::new("sync.toml"), &sync, &m, None, icad).unwrap_err();
+        assert!(e.contains("synchronous") && e.contains("--current pi"), "{e}");
     }
 
     #[test]
