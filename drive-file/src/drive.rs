@@ -452,6 +452,8 @@ pub struct DefaultsBasis {
     pub motor_thermal: Option<ThermalLimit>,
     /// The inverter's I²t limit ([`default_inverter_thermal`]), if known.
     pub inverter_thermal: Option<ThermalLimit>,
+    /// The current ADC's resolution, A per count ([`default_current_sum_a`]), if known.
+    pub current_lsb_a: Option<f64>,
 }
 
 /// What a drive's defaults take from its `[board]` table (or the stated defaults without
@@ -467,6 +469,8 @@ pub struct BoardDefaults {
     pub encoder_lines: u32,
     /// The inverter's I²t limit from its rating, if the board states one.
     pub inverter_thermal: Option<ThermalLimit>,
+    /// The current ADC's resolution, A per count, if the board states it.
+    pub current_lsb_a: Option<f64>,
 }
 
 /// The protection of a drive with the derived defaults for every optional key (what a
@@ -486,7 +490,7 @@ pub fn protection_with_defaults(
         overspeed_rad_s: default_overspeed_rad_s(motor, flux_ref_wb, vdc_max_v),
         stall_time_s: DEFAULT_STALL_TIME_S,
         following_time_s: DEFAULT_FOLLOWING_TIME_S,
-        current_sum_max_a: DEFAULT_CURRENT_SUM_FRACTION * i_trip_a,
+        current_sum_max_a: default_current_sum_a(i_trip_a, basis.current_lsb_a),
         saturation_time_s: DEFAULT_SATURATION_TIME_S,
         encoder_check_time_s: DEFAULT_ENCODER_CHECK_TIME_S,
         encoder_jump_rad: default_encoder_jump_rad(
@@ -536,6 +540,23 @@ pub const STOP_TORQUE_FRACTION: f64 = 0.5;
 /// 12-bit channels and their gain errors at working currents, below the sum a dead phase
 /// sensor leaves at the magnetizing current.
 pub const DEFAULT_CURRENT_SUM_FRACTION: f64 = 0.05;
+
+/// The least default current-sum limit in the current ADC's counts: the check trips on one
+/// sample, so the sum of three channels must stay below it with their quantisation (±½
+/// count each), the offsets the calibration leaves (±½ count each: 3 counts together) and
+/// six standard deviations of their noise — three channels of ≈ 1.2 counts RMS (the
+/// simulator's realistic front end, 10 mA on 8.06 mA counts): 6·√3·1.2 ≈ 12.5 counts; 20
+/// with the margin. On the shipped board 20 counts are 0.16 A, under the 5 % of the trip
+/// level; on a coarse one (a 100 A front end on an 8 A drive: 49 mA counts) the fraction
+/// alone would trip on the noise.
+pub const CURRENT_SUM_COUNTS: f64 = 20.0;
+
+/// The default current-sum limit: [`DEFAULT_CURRENT_SUM_FRACTION`] of `i_trip_a`, at least
+/// [`CURRENT_SUM_COUNTS`] of the board's current resolution `lsb_a` (A per count) when it is
+/// known.
+pub fn default_current_sum_a(i_trip_a: f64, lsb_a: Option<f64>) -> f64 {
+    (DEFAULT_CURRENT_SUM_FRACTION * i_trip_a).max(CURRENT_SUM_COUNTS * lsb_a.unwrap_or(0.0))
+}
 
 /// The tables that make a drive, as written.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
@@ -591,6 +612,7 @@ impl DriveTables {
                 let o = b.inverter_overload?;
                 Some(default_inverter_thermal(b.inverter_rated_current_a?, o.factor, o.time_s))
             }),
+            current_lsb_a: self.board.map(|b| b.current_a_per_count),
         };
         let spec = drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection, &board)?;
         let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
@@ -759,6 +781,7 @@ pub fn drive_spec(
                     motor_table.thermal_time_constant_s,
                 ),
                 inverter_thermal: board.inverter_thermal,
+                current_lsb_a: board.current_lsb_a,
             };
             let d = protection_with_defaults(
                 &motor,

@@ -232,6 +232,13 @@ mod tests {
         // range above the no-load base speed on the highest bus.
         assert!((p.overspeed_rad_s - 607.286).abs() < 1e-3, "{}", p.overspeed_rad_s);
         assert_eq!((p.stall_time_s, p.following_time_s, p.current_sum_max_a), (0.3, 0.2, 0.4));
+        // The current-sum limit: 5 % of the 8 A trip level on the shipped board (20 of its
+        // 8.06 mA counts are 0.16 A); on a 100 A front end (48.8 mA counts) 20 counts, 0.98 A.
+        let coarse =
+            SHIPPED.replace("current_a_per_count = 0.008056640625", "current_a_per_count = 0.048828125");
+        assert_ne!(coarse, SHIPPED);
+        let p_coarse = DriveFile::parse(Path::new("d.toml"), &coarse).unwrap().spec.protection;
+        assert_eq!(p_coarse.current_sum_max_a, 20.0 * 0.048828125);
         let j_max = d.spec.motor.j_kgm2() * d.certify.unwrap().j_factor[1];
         let band = controller_core::drive::STALL_SPEED_FRACTION * p.overspeed_rad_s;
         let leave_s = j_max * band / 2.0; // τ_max = 2 N·m

@@ -326,6 +326,8 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
         // The 500 hp machine's thermal data are not in the paper.
         motor_thermal: None,
         inverter_thermal: None,
+        // The paper states no board: the fraction of the trip level alone.
+        current_lsb_a: None,
     };
     b.spec.protection = drive_file::drive::protection_with_defaults(&motor, &basis, 400.0, 2500.0, 3800.0);
     b.scenario.vdc_v = 3300.0;
