@@ -221,8 +221,8 @@ impl RotorFit {
     /// The rotor turns during the fit: the inductance is not read (the rotor time constant
     /// still is). On a turning rotor the stationary loops lag their references at the
     /// field's frequency — the trim that corrects it is held while the fit runs — so the
-    /// flux linkage built is not `L_s·i_d*`: a flying start at 147 rad/s read ℓ̂ ≈ 2 % low and
-    /// cost 0.6 % of the envelope's torque there.
+    /// flux linkage built is not `L_s·i_d*`: a flying start at 147 rad/s ran 2 % below its
+    /// flux and lost 0.55 points of the envelope's torque (docs/rotor-resistance.md).
     pub fn turning(&mut self) {
         self.demagnetized = false;
     }
@@ -621,21 +621,10 @@ mod tests {
     /// constant voltage `offset` (the stator's drop at any R_s, dead time): the fit's input
     /// per slow step, exact per fast step — the step's `σL_s·i_d` at once, then the rotor flux
     /// `ψ_r = l·L_m·i_d·(1 − e^{−t/T_r})` seen through `L_m/L_r`. Returns what the fit read.
+    /// Enabled `lead` fast steps before a slow step (0: at one): the drive's first slow step
+    /// then sums `lead` steps that ran before any d-axis reference (no current: the voltage
+    /// is 0 there).
     fn magnetize(
-        c: &MrasConfig,
-        demagnetized: bool,
-        l: f64,
-        r: f64,
-        offset: f64,
-        i_d: f64,
-    ) -> Option<Fitted> {
-        magnetize_after(c, demagnetized, l, r, offset, i_d, 0)
-    }
-
-    /// [`magnetize`] enabled `lead` fast steps before a slow step: the drive's first slow
-    /// step then sums `lead` steps that ran before any d-axis reference (no current: the
-    /// voltage is 0 there).
-    fn magnetize_after(
         c: &MrasConfig,
         demagnetized: bool,
         l: f64,
@@ -677,7 +666,7 @@ mod tests {
         for l in [0.6, 0.75, 1.0] {
             for r in [1.0, 1.4, 2.0] {
                 for offset in [10.3, 15.4, -2.0] {
-                    let x = magnetize(&c, true, l, r, offset, 0.634).unwrap();
+                    let x = magnetize(&c, true, l, r, offset, 0.634, 0).unwrap();
                     let (el, er) = (f64::from(x.inductance_scale) / l - 1.0, f64::from(x.rr_scale) / r - 1.0);
                     assert!(el.abs() < 1e-3 && er.abs() < 1e-3, "ℓ {l}, r {r}, c {offset}: {x:?}");
                 }
@@ -685,20 +674,20 @@ mod tests {
         }
         // Enabled between slow steps (the firmware's enables come at any period): the same.
         for lead in [1, 5, 9] {
-            let x = magnetize_after(&c, true, 0.6, 1.0, 15.4, 0.634, lead).unwrap();
+            let x = magnetize(&c, true, 0.6, 1.0, 15.4, 0.634, lead).unwrap();
             assert!((f64::from(x.inductance_scale) / 0.6 - 1.0).abs() < 1e-3, "lead {lead}: {x:?}");
         }
         // Beyond the ranges: limited to them.
-        let x = magnetize(&c, true, 0.5, 2.5, 10.0, 0.634).unwrap();
+        let x = magnetize(&c, true, 0.5, 2.5, 10.0, 0.634, 0).unwrap();
         assert_eq!((x.inductance_scale, x.rr_scale), (0.6, 2.0));
         // Not known to be demagnetized: ℓ̂ stays at the 0.8 in use, r̂ = (r/ℓ)·0.8.
-        let x = magnetize(&c, false, 0.6, 1.2, 10.0, 0.634).unwrap();
+        let x = magnetize(&c, false, 0.6, 1.2, 10.0, 0.634, 0).unwrap();
         assert_eq!(x.inductance_scale, 0.8);
         assert!((f64::from(x.rr_scale) / (1.2 / 0.6 * 0.8) - 1.0).abs() < 1e-3, "{x:?}");
         // An inductance range alone still fits (the rotor resistance stays at its value).
         let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 1.0], [0.6, 1.0]).unwrap();
         assert!(c.fit_pending(&RotorFit::default()) && !c.active());
-        let x = magnetize(&c, true, 0.7, 1.0, 10.0, 0.634).unwrap();
+        let x = magnetize(&c, true, 0.7, 1.0, 10.0, 0.634, 0).unwrap();
         assert!((f64::from(x.inductance_scale) / 0.7 - 1.0).abs() < 1e-3 && x.rr_scale == 1.0, "{x:?}");
     }
 
