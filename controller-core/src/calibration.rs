@@ -5,15 +5,17 @@
 //! channel whose offset lies further than `max_offset_error_counts` from the nominal code
 //! (a broken amplifier, a missing reference voltage) or whose noise exceeds
 //! `max_noise_counts` RMS (a floating input, a switching-noise coupling) is refused by name.
-//! Sums of the codes' departures d from the nominal one: Σd in i64 (exact), Σd² in f32
-//! (each d² exact; the departures of a healthy channel are small, so the sum is too, and the
-//! variance `E[d²] − E[d]²` loses nothing that matters; a broken channel is refused
-//! anyway). Cheap on a Cortex-M4 and no soft 64-bit conversion beyond one at the end.
+//! Sums of the codes' departures d from the nominal one: Σd in i32 (exact: at most
+//! [`MAX_SAMPLES`] departures below 2^16 each), Σd² in f32 (each d² exact; the departures of
+//! a healthy channel are small, so the sum is too, and the variance `E[d²] − E[d]²` loses
+//! nothing that matters; a broken channel is refused anyway). Cheap on a Cortex-M4: no
+//! 64-bit arithmetic (a soft conversion, `__aeabi_l2f`, on the M4F).
 
 /// At least this many samples (issue 19: ≥ 1 024).
 pub const MIN_SAMPLES: u32 = 1024;
-/// At most this many (a second of a 20 kHz loop and more; Σd stays far inside i64).
-pub const MAX_SAMPLES: u32 = 1 << 20;
+/// At most this many (1.6 s of a 20 kHz loop): 2^15 departures below 2^16 each keep Σd
+/// inside i32 (test `extreme_codes_at_most_samples_sum_exactly`).
+pub const MAX_SAMPLES: u32 = 1 << 15;
 
 /// Why a calibration configuration was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,7 +94,7 @@ impl CalibrationConfig {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct OffsetCalibration {
     /// Σd and Σd² of d = code − nominal.
-    sum: [i64; 3],
+    sum: [i32; 3],
     sum2: [f32; 3],
     n: u32,
 }
@@ -115,9 +117,12 @@ impl OffsetCalibration {
         if self.n < cfg.samples {
             for ((s, s2), c) in self.sum.iter_mut().zip(self.sum2.iter_mut()).zip(codes) {
                 let d = i32::from(c) - i32::from(cfg.nominal_counts);
-                *s += i64::from(d);
-                // |d| < 2^16: d² exact in f32 up to 2^24, rounded beyond (a broken channel).
-                *s2 += (d * d) as f32;
+                // |Σd| ≤ MAX_SAMPLES·(2^16 − 1) < 2^31: no overflow.
+                *s += d;
+                // |d| < 2^16, exact in f32; d² exact up to 2^24, rounded beyond (a broken
+                // channel). Squared in f32: in i32 it overflows above 46 340.
+                let df = d as f32;
+                *s2 += df * df;
             }
             self.n += 1;
         }
@@ -158,6 +163,23 @@ mod tests {
 
     fn cfg() -> CalibrationConfig {
         CalibrationConfig::new(1024, 2048, 200.0, 8.0).unwrap()
+    }
+
+    /// The i32 sum's bound: the most samples, every code as far from the nominal one as a
+    /// u16 can be, sums exactly (overflow checks are on in tests) and reads back the mean.
+    #[test]
+    fn extreme_codes_at_most_samples_sum_exactly() {
+        for (nominal, code) in [(0u16, u16::MAX), (u16::MAX, 0u16)] {
+            let c = CalibrationConfig::new(MAX_SAMPLES, nominal, 1e6, 1e6).unwrap();
+            let mut cal = OffsetCalibration::default();
+            let mut verdict = None;
+            for _ in 0..MAX_SAMPLES {
+                verdict = cal.add(&c, [code; 3]);
+            }
+            let o = verdict.unwrap().unwrap();
+            assert_eq!(o.counts, [code; 3]);
+            assert_eq!(o.mean_counts, [f32::from(code); 3]);
+        }
     }
 
     /// A seeded noise source: uniform in ±`half` counts (RMS half/√3).

@@ -1242,7 +1242,10 @@ impl HalfWaves {
     /// way in a row — a reference step misses one — are a stuck switch (`true`). An open lead
     /// misses both ways, a phase that never reverses (standstill) is never judged: both are
     /// the open-phase check's.
-    #[inline]
+    ///
+    /// Out of line: one copy for the three phases (inlined, three took 800 B of flash), at a
+    /// call's few instructions once per slow period.
+    #[inline(never)]
     fn add(&mut self, r: f32, m: f32, charge: f32) -> bool {
         let sign = if r >= 0.0 { 1.0 } else { -1.0 };
         let mut stuck = false;

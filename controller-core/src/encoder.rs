@@ -22,33 +22,41 @@ pub const SPEED_WINDOW_READS: usize = 8;
 /// Why an encoder configuration was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EncoderError {
-    /// Zero lines.
+    /// Zero lines, or more than [`MAX_LINES`].
     Lines,
     /// Read period not finite and positive.
     Period,
 }
 
+/// The most lines per revolution: 4·lines = 2^24 counts, the most an f32 angle within a
+/// revolution resolves count by count (and far inside the i32 the count is kept in).
+pub const MAX_LINES: u32 = 1 << 22;
+
 /// Encoder configuration. `N` is the speed window in reads.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EncoderConfig<const N: usize> {
-    counts_per_rev: i64,
+    counts_per_rev: i32,
     rad_per_count: f32,
     rad_s_per_count: f32,
 }
 
-/// Encoder state: accumulated counts and the last `N` accumulated values.
+/// Encoder state: the count within a revolution, the accumulated count (wrapping, for the
+/// speed window's differences) and its last `N` values. 32-bit only: 64-bit division and
+/// conversions are library calls on the Cortex-M4F.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EncoderState<const N: usize> {
     last_raw: u16,
-    counts: i64,
-    history: [i64; N],
+    /// In `[0, 4·lines)`.
+    in_turn: i32,
+    counts: u32,
+    history: [u32; N],
     head: usize,
     primed: bool,
 }
 
 impl<const N: usize> Default for EncoderState<N> {
     fn default() -> Self {
-        Self { last_raw: 0, counts: 0, history: [0; N], head: 0, primed: false }
+        Self { last_raw: 0, in_turn: 0, counts: 0, history: [0; N], head: 0, primed: false }
     }
 }
 
@@ -65,16 +73,17 @@ impl<const N: usize> EncoderConfig<N> {
     /// `lines` per revolution, read every `read_period_s`. In f32: the firmware builds it at
     /// start-up, and f64 there is software arithmetic (flash).
     pub fn new(lines: u32, read_period_s: f32) -> Result<Self, EncoderError> {
-        if lines == 0 || N == 0 {
+        if lines == 0 || lines > MAX_LINES || N == 0 {
             return Err(EncoderError::Lines);
         }
         if !(read_period_s.is_finite() && read_period_s > 0.0) {
             return Err(EncoderError::Period);
         }
-        // 4·lines ≤ 2^34 rounds to f32 by at most half an ulp: the count's angle to 6e-8.
+        // 4·lines ≤ 2^24 is exact in f32.
         let rad_per_count = TAU / (4.0 * lines as f32);
         Ok(Self {
-            counts_per_rev: 4 * i64::from(lines),
+            // ≤ 2^24: no overflow.
+            counts_per_rev: 4 * lines as i32,
             rad_per_count,
             rad_s_per_count: rad_per_count / (N as f32 * read_period_s),
         })
@@ -93,21 +102,25 @@ impl<const N: usize> EncoderConfig<N> {
             s.primed = true;
         }
         // Two's-complement difference of a wrapping 16-bit counter.
-        s.counts += i64::from(raw.wrapping_sub(s.last_raw) as i16);
+        let delta = i32::from(raw.wrapping_sub(s.last_raw) as i16);
+        s.counts = s.counts.wrapping_add_signed(delta);
         s.last_raw = raw;
         let oldest = s.history.get(s.head).copied().unwrap_or(s.counts);
         if let Some(slot) = s.history.get_mut(s.head) {
             *slot = s.counts;
         }
         s.head = if s.head + 1 >= N { 0 } else { s.head + 1 };
-        // Within a revolution: the count modulo 4·lines, exact in f32 below 2^24 (lines < 4
-        // million); shifted into [-π, π).
-        let in_turn = s.counts.rem_euclid(self.counts_per_rev);
+        // Within a revolution: the count modulo 4·lines (|in_turn + delta| < 2^25 and
+        // 4·lines ≥ 4: the checked remainder is never `None`), exact in f32 (≤ 2^24);
+        // shifted into [-π, π).
+        s.in_turn = (s.in_turn + delta).checked_rem_euclid(self.counts_per_rev).unwrap_or(0);
         let in_turn =
-            if 2 * in_turn >= self.counts_per_rev { in_turn - self.counts_per_rev } else { in_turn };
+            if 2 * s.in_turn >= self.counts_per_rev { s.in_turn - self.counts_per_rev } else { s.in_turn };
+        // The window's displacement: a wrapping difference, exact below 2^31 counts.
+        let moved = s.counts.wrapping_sub(oldest) as i32;
         EncoderReading {
             theta_m_rad: in_turn as f32 * self.rad_per_count,
-            omega_m_rad_s: (s.counts - oldest) as f32 * self.rad_s_per_count,
+            omega_m_rad_s: moved as f32 * self.rad_s_per_count,
         }
     }
 }
@@ -156,8 +169,48 @@ mod tests {
         // 10 counts/read at 2000 counts/rev, 1 kHz: −31.4 rad/s
         assert!((r.omega_m_rad_s + 10.0 * TAU / 2000.0 / 1e-3).abs() < 1e-3);
         assert_eq!(EncoderConfig::<4>::new(0, 1e-3), Err(EncoderError::Lines));
+        assert_eq!(EncoderConfig::<4>::new(MAX_LINES + 1, 1e-3), Err(EncoderError::Lines));
+        assert!(EncoderConfig::<4>::new(MAX_LINES, 1e-3).is_ok());
         assert_eq!(EncoderConfig::<4>::new(10, 0.0), Err(EncoderError::Period));
     }
+    /// The 32-bit count gives what a 64-bit multi-turn count modulo 4·lines gives, for any
+    /// line count (1 … MAX_LINES) and any steps the 16-bit counter can make between reads.
+    #[test]
+    fn in_turn_count_matches_a_64_bit_reference() {
+        for lines in [1u32, 3, 1024, 2500, MAX_LINES] {
+            let cfg = EncoderConfig::<8>::new(lines, 5e-4).unwrap();
+            let cpr = 4 * i64::from(lines);
+            let mut s = EncoderState::default();
+            cfg.update(&mut s, 0); // primes: the count starts here
+            let (mut raw, mut total) = (0u16, 0i64);
+            let mut seed = 0x2545_f491_4f6c_dd1du64;
+            // Every accumulated count, the primer's first; before the window fills, 0.
+            let mut totals = vec![0i64];
+            for k in 0..20_000usize {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                let step = (seed >> 48) as u16 as i16;
+                let step = if k % 3 == 0 { step / 256 } else { step };
+                raw = raw.wrapping_add(step as u16);
+                total += i64::from(step);
+                let r = cfg.update(&mut s, raw);
+                let mut want = total.rem_euclid(cpr);
+                if 2 * want >= cpr {
+                    want -= cpr;
+                }
+                assert_eq!(
+                    r.theta_m_rad,
+                    want as f32 * (TAU / (4.0 * lines as f32)),
+                    "lines {lines}, read {k}"
+                );
+                totals.push(total);
+                let oldest = totals.len().checked_sub(9).map_or(0, |j| totals[j]);
+                assert_eq!(r.omega_m_rad_s, (total - oldest) as f32 * cfg.speed_resolution_rad_s());
+            }
+        }
+    }
+
     /// Hours at speed: 2^26 counts (16 384 revolutions at 1024 lines, 5.5 min at 50 rev/s).
     /// A multi-turn angle in f32 has an ulp of 2 counts there, so two readings a count
     /// apart could not be told apart; the reading within one revolution stays exact.

@@ -215,8 +215,9 @@ impl Dq {
 }
 
 /// Wrap an angle into `[-π, π)`. Exact for |θ| < 3π (one add/subtract of 2π), which is
-/// all that one control step can produce from a wrapped angle; larger inputs are reduced
-/// with `remainderf`. Non-finite input gives NaN (the supervisor trips on it).
+/// all that one control step can produce from a wrapped angle; larger inputs take
+/// [`wrap_far`] (out of line: the common case stays a compare or two where it is inlined).
+/// Non-finite input gives NaN (the supervisor trips on it).
 #[inline]
 pub fn wrap_angle(theta_rad: f32) -> f32 {
     let t = if theta_rad >= PI {
@@ -226,11 +227,41 @@ pub fn wrap_angle(theta_rad: f32) -> f32 {
     } else {
         return theta_rad;
     };
-    if (-PI..PI).contains(&t) {
-        t
+    if (-PI..PI).contains(&t) { t } else { wrap_far(theta_rad) }
+}
+
+/// 2π in two parts (Cody–Waite): 6.28125 has 8 significant bits, so its product with a turn
+/// count below 2^16 is exact in f32; the rest, rounded to f32, carries the error.
+const TAU_HI: f32 = 6.281_25;
+const TAU_LO: f32 = (core::f64::consts::TAU - 6.281_25) as f32;
+/// Above this many turns an f32 angle's spacing is a radian or more: no phase left.
+const WRAP_TURNS_MAX: f32 = (1u32 << 22) as f32;
+
+/// [`wrap_angle`] for |θ| ≥ 3π: θ less its nearest whole number of turns n (taken off as
+/// n·`TAU_HI` + n·`TAU_LO`), within a few units in the last place of θ for |n| < 2^16
+/// (|θ| < 4·10^5 rad; test `wrap_far_matches_f64_and_stays_in_range`). Beyond 2^22 turns
+/// (2.6·10^7 rad) an f32 carries no phase: 0. Non-finite: NaN. Replaces `libm::remainderf`
+/// (264 B of flash on the M4F, called from every inlined `wrap_angle`).
+#[cold]
+#[inline(never)]
+pub fn wrap_far(theta_rad: f32) -> f32 {
+    if !theta_rad.is_finite() {
+        return f32::NAN;
+    }
+    let turns = theta_rad * (1.0 / TAU);
+    if turns.abs() >= WRAP_TURNS_MAX {
+        return 0.0;
+    }
+    // Nearest whole number (|turns| < 2^22: adding and taking off 1.5·2^23 rounds it).
+    const ROUND: f32 = 12_582_912.0;
+    let n = (turns + ROUND) - ROUND;
+    let r = (theta_rad - n * TAU_HI) - n * TAU_LO;
+    if r >= PI {
+        r - TAU
+    } else if r < -PI {
+        r + TAU
     } else {
-        let r = libm::remainderf(theta_rad, TAU);
-        if r >= PI { r - TAU } else { r }
+        r
     }
 }
 
@@ -320,6 +351,41 @@ mod tests {
         assert!(close(wrap_angle(3.5 * PI), -0.5 * PI, 1e-5));
         assert!(close(wrap_angle(-7.0 * PI / 2.0), 0.5 * PI, 1e-5));
         assert!(wrap_angle(f32::NAN).is_nan());
+    }
+
+    /// The far wrap against f64 on a dense grid up to 4·10^5 rad (2^16 turns): within
+    /// 2 units in the last place of the input (its own resolution) plus 1e-6 rad,
+    /// compared around the circle; in range for every finite input; NaN for non-finite.
+    #[test]
+    fn wrap_far_matches_f64_and_stays_in_range() {
+        let mut worst_ulps = 0.0f64;
+        let mut k = 0u32;
+        let mut theta = 3.0 * PI;
+        while theta < 4.0e5 {
+            for t in [theta, -theta] {
+                let w = wrap_angle(t);
+                assert!((-PI..PI).contains(&w), "{t} → {w}");
+                let want =
+                    f64::from(t) - core::f64::consts::TAU * (f64::from(t) / core::f64::consts::TAU).round();
+                let mut d = f64::from(w) - want;
+                if d > core::f64::consts::PI {
+                    d -= core::f64::consts::TAU;
+                } else if d < -core::f64::consts::PI {
+                    d += core::f64::consts::TAU;
+                }
+                let ulp = f64::from(f32::from_bits(t.abs().to_bits() + 1) - t.abs());
+                assert!(d.abs() <= 2.0 * ulp + 1e-6, "{t}: {w} vs {want} ({} ulp)", d.abs() / ulp);
+                worst_ulps = worst_ulps.max(d.abs() / ulp);
+            }
+            k += 1;
+            // Dense near 3π, then geometric with an irrational-ish stride.
+            theta = if k < 20_000 { 3.0 * PI + k as f32 * 1.0e-3 } else { theta * 1.000_137 + 0.37 };
+        }
+        assert!(worst_ulps > 0.0);
+        for t in [1.0e7f32, 2.6e7, 3.0e7, 1.0e30, f32::MAX, f32::MIN, -5.0e8] {
+            assert!((-PI..PI).contains(&wrap_angle(t)), "{t}");
+        }
+        assert!(wrap_angle(f32::INFINITY).is_nan() && wrap_angle(f32::NEG_INFINITY).is_nan());
     }
 
     proptest! {
