@@ -9,6 +9,7 @@
 extern crate std;
 
 pub mod calibration;
+pub mod capture;
 pub mod commission;
 pub mod current;
 pub mod discretize;

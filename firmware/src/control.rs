@@ -29,6 +29,7 @@
 use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
+use controller_core::capture::Capture;
 #[cfg(feature = "commissioning")]
 use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::{
@@ -45,6 +46,9 @@ pub const CALIBRATION_SAMPLES: u32 = controller_core::calibration::MIN_SAMPLES;
 
 /// Speed window of the encoder estimator, in slow-loop reads (the simulator's too).
 pub const ENCODER_WINDOW: usize = controller_core::encoder::SPEED_WINDOW_READS;
+
+/// Samples in a capture's record (`controller_core::capture`).
+pub const CAPTURE_DEPTH: usize = controller_core::capture::RECORD_SAMPLES;
 
 /// Raw conversions of one PWM period.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -231,6 +235,8 @@ pub struct ControlLoop {
     precharge_left: u16,
     /// The last period's samples, raw (the link's status reports them).
     readings: BoardReadings,
+    /// The scope: the drive's measurements and output of chosen periods.
+    capture: Capture<CAPTURE_DEPTH>,
     /// A commissioning sequence in the drive's place, and its last output.
     #[cfg(feature = "commissioning")]
     commission: Option<(Commissioning, Option<CommissionOutput>)>,
@@ -335,6 +341,7 @@ impl ControlLoop {
             bridge_on: false,
             precharge_left: 0,
             readings: BoardReadings::default(),
+            capture: Capture::new(),
             #[cfg(feature = "commissioning")]
             commission: None,
             #[cfg(feature = "commissioning")]
@@ -348,12 +355,34 @@ impl ControlLoop {
     }
 
     /// Start again from configuration `cfg` (a fresh drive, Idle); on error nothing changes.
+    ///
+    /// What depends on the configuration is made anew — the drive, the slow cadence, the
+    /// encoder's estimator; what belongs to the board is kept: the measured current offsets
+    /// and the capture. Field by field, in place: no temporary of the loop's size on the
+    /// control interrupt's stack, where the link's commands are served.
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), ControlError> {
+        let divider = cfg.slow_divider();
+        let read_period_s = f32::from(divider) * cfg.ts_s();
+        let encoder_cfg =
+            EncoderConfig::new(self.board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
         // The rotor is the same: how long ago it was driven carries over (its flux).
         let idle = self.drive.idle_slow_steps();
-        *self = Self::with_config(cfg, &self.board)?;
+        self.drive = Drive::new(cfg);
         self.drive.rotor_driven(idle);
+        (self.encoder_cfg, self.encoder, self.theta_m_rad, self.omega_m_rad_s) =
+            (encoder_cfg, EncoderState::default(), 0.0, 0.0);
+        (self.divider, self.count, self.last, self.precharge_left) = (divider, 0, None, 0);
         Ok(())
+    }
+
+    /// The capture (the link's `ArmCapture`, `ReadCapture`).
+    pub fn capture(&self) -> &Capture<CAPTURE_DEPTH> {
+        &self.capture
+    }
+
+    /// The capture, to arm it.
+    pub fn capture_mut(&mut self) -> &mut Capture<CAPTURE_DEPTH> {
+        &mut self.capture
     }
 
     /// The drive (mode, telemetry, commands).
@@ -548,6 +577,7 @@ impl ControlLoop {
         let m = self.measurements(s);
         let out = self.drive.step(&m);
         self.last = Some(out);
+        self.capture.record(&m, &out);
         #[cfg(feature = "commissioning")]
         if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {
             if matches!(out.mode, Mode::Fault(_)) {

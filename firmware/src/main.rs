@@ -515,10 +515,14 @@ mod target {
                 Ok(Ok(n)) => n,
                 Ok(Err(_)) => 0, // overrun/framing error: the frames it hit fail their CRC
                 Err(_) => {
-                    // Quiet for 10 ms: stream telemetry.
-                    if let Some(o) = SNAPSHOT.read().and_then(|s| s.output)
-                        && let Ok(len) = link::reply_frame(&Reply::Output(o), &mut frame)
-                    {
+                    // Quiet for 10 ms: stream telemetry. The frame is encoded in a statement
+                    // of its own: no message lives across the `await` (the task's state
+                    // would hold it, and moving it there linked a `memmove`).
+                    let len = SNAPSHOT
+                        .read()
+                        .and_then(|s| s.output)
+                        .and_then(|o| link::reply_frame(&Reply::Output(o), &mut frame).ok());
+                    if let Some(len) = len {
                         let _ = tx.write(frame.get(..len).unwrap_or(&[])).await;
                     }
                     continue;
@@ -537,9 +541,8 @@ mod target {
                     }
                     other => other,
                 });
-                if let Some(r) = reply
-                    && let Ok(len) = link::reply_frame(&r, &mut frame)
-                {
+                let len = reply.and_then(|r| link::reply_frame(&r, &mut frame).ok());
+                if let Some(len) = len {
                     let _ = tx.write(frame.get(..len).unwrap_or(&[])).await;
                 }
             }

@@ -134,6 +134,9 @@ pub fn handle_board(
             Reply::Ack
         }
         (BoardCommand::GetStatus, _) => handle(ctl, &Command::GetStatus, stats),
+        // The capture records the drive's periods whatever runs: served at any time.
+        (BoardCommand::ArmCapture(spec), _) => link::arm_capture(ctl.capture_mut(), *spec),
+        (BoardCommand::ReadCapture { chunk }, _) => link::read_capture(ctl.capture(), *chunk),
         _ if ctl.commissioning() => Reply::Nack(NackReason::NotIdle),
         _ => match cmd.command() {
             None => Reply::Nack(NackReason::Unsupported),
@@ -151,6 +154,8 @@ pub fn handle(ctl: &mut ControlLoop, cmd: &Command, stats: &LinkStats) -> Reply 
             None => Reply::Nack(NackReason::Unsupported),
         },
         Command::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
+        Command::ArmCapture(spec) => link::arm_capture(ctl.capture_mut(), *spec),
+        Command::ReadCapture { chunk } => link::read_capture(ctl.capture(), *chunk),
         other => match link::execute(ctl.drive_mut(), other, stats) {
             // The board's raw readings (the timing is filled in by the interrupt's owner).
             Reply::Status { mode, frames_ok, frame_errors, timing, .. } => {
@@ -259,6 +264,89 @@ mod tests {
         assert_eq!(c.drive().mode(), Mode::Magnetizing);
         assert_eq!(stats.frames_ok, 4);
         assert_eq!(link::Command::decode_board(&[0x7E]), Err(link::DecodeError::UnknownType(0x7E)));
+    }
+
+    /// The scope on the board, over the wire: armed on the measured current a rising through
+    /// 1 A with 4 pre-trigger samples, every 2nd period; the record holds the control loop's
+    /// own readings of the board's ADC codes, the trigger's sample at index 4; a gain write
+    /// meanwhile keeps it (and the measured offsets); a bad spec and a chunk past the end are
+    /// refused.
+    #[test]
+    fn the_capture_records_the_control_loops_periods_and_reads_out_over_the_link() {
+        use crate::control::{CAPTURE_DEPTH, Samples};
+        use controller_core::capture::{CaptureSpec, CaptureState, Edge, Signal, Trigger};
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
+        let mut stats = LinkStats::default();
+        let mut decoder = link::FrameDecoder::new();
+        let mut reply = |cmd: &Command, c: &mut ControlLoop| {
+            let mut f = [0u8; link::MAX_FRAME];
+            let n = link::command_frame(cmd, &mut f).unwrap();
+            let mut got = None;
+            for &b in &f[..n] {
+                if let Some(bc) = decoder.push_board_command(b, &mut stats) {
+                    got = handle_board(c, &bc, prepare(&bc), &stats).into();
+                }
+            }
+            got.unwrap()
+        };
+        let trigger = Trigger::Level { signal: Signal::IA, edge: Edge::Rising, level: 1.0 };
+        let spec = CaptureSpec {
+            signals: [Signal::IA, Signal::IB, Signal::Vdc, Signal::Mode],
+            trigger,
+            pre_samples: 4,
+            decimation: 2,
+        };
+        let bad = CaptureSpec { pre_samples: CAPTURE_DEPTH as u16, ..spec };
+        assert_eq!(reply(&Command::ArmCapture(bad), &mut c), Reply::Nack(NackReason::Configuration));
+        assert_eq!(reply(&Command::ArmCapture(spec), &mut c), Reply::Ack);
+        // Phase a's code climbs one count per period from the offset: i_a = k·16.5/2048 A,
+        // above 1 A from k = 125 (the 125th period is odd: the first sample above is k = 126).
+        let a_per_count = BOARD.current_a_per_count;
+        let offset = BOARD.current_offset_counts;
+        let samples = |k: u16| Samples {
+            i_abc: [offset + k, offset - k, offset],
+            vdc: 3100,
+            encoder: 0,
+            hardware_break: false,
+        };
+        for k in 0..1000u16 {
+            let _ = c.step(&samples(k));
+            if k == 300 {
+                // A gain write while it records: the capture and the offsets carry over.
+                let (kp, tau) = (crate::config::SPEED_KP.0, crate::config::SPEED_TAU_MAX_NM.0);
+                let w = Command::WriteSpeedGains { kp, tau_max_nm: tau };
+                assert_eq!(reply(&w, &mut c), Reply::Ack);
+                assert!(matches!(c.snapshot().calibration, Some(crate::control::Calibration::Done(_))));
+            }
+        }
+        let chunks = CAPTURE_DEPTH / controller_core::capture::CHUNK_SAMPLES;
+        let mut record = [0.0f32; 4 * CAPTURE_DEPTH];
+        for (k, part) in record.chunks_exact_mut(32).enumerate() {
+            match reply(&Command::ReadCapture { chunk: k as u8 }, &mut c) {
+                Reply::Capture { state: CaptureState::Done, samples, chunk, bytes } => {
+                    assert_eq!((usize::from(samples), usize::from(chunk)), (CAPTURE_DEPTH, k));
+                    for (x, b) in part.iter_mut().zip(bytes.chunks_exact(4)) {
+                        *x = f32::from_le_bytes(b.try_into().unwrap());
+                    }
+                }
+                r => panic!("chunk {k}: {r:?}"),
+            }
+        }
+        assert_eq!(
+            reply(&Command::ReadCapture { chunk: chunks as u8 }, &mut c),
+            Reply::Nack(NackReason::NoRecord)
+        );
+        // Sample j is period 118 + 2j: the trigger's (j = 4) is period 126.
+        for (j, s) in record.chunks_exact(4).enumerate() {
+            let k = 118 + 2 * j as u16;
+            let i_a = f32::from(k) * a_per_count;
+            assert!((s[0] - i_a).abs() < 1e-4, "sample {j}: {} A, period {k}: {i_a} A", s[0]);
+            assert!((s[1] + i_a).abs() < 1e-4);
+            assert_eq!(s[2], 310.0);
+            assert_eq!(s[3], 0.0, "Idle");
+        }
+        assert!(record[4 * 3] < 1.0 && record[4 * 4] >= 1.0);
     }
 
     /// The watchdog stops a running drive once after `timeout` ms of silence (the drive then

@@ -21,6 +21,7 @@
 
 pub mod bridge_fault;
 pub mod campaign;
+pub mod capture;
 pub mod envelope;
 pub mod faults;
 pub mod identify;

@@ -286,6 +286,58 @@ fn link_identify<R: std::io::Read, W: std::io::Write>(
     a.run.write(&id, m.pole_pairs(), (m.j_kgm2(), m.b_nms()), &about)
 }
 
+/// The capture's spec from the command line, checked before any port is opened.
+fn capture_spec(a: &LinkCaptureArgs) -> Result<(controller_core::capture::CaptureSpec, usize), String> {
+    use hil_sim::capture::{parse_signals, parse_trigger};
+    let (signals, shown) = parse_signals(&a.signals).map_err(|e| format!("--signals: {e}"))?;
+    let trigger = parse_trigger(&a.trigger).map_err(|e| format!("--trigger: {e}"))?;
+    let depth = controller_core::capture::RECORD_SAMPLES;
+    if usize::from(a.pre) >= depth {
+        return Err(format!("--pre {}: must be below the record's {depth} samples", a.pre));
+    }
+    Ok((
+        controller_core::capture::CaptureSpec { signals, trigger, pre_samples: a.pre, decimation: a.every },
+        shown,
+    ))
+}
+
+/// `hil-sim link DEVICE capture`: arm, wait (progress on stderr, Ctrl-C stops), read, write.
+fn link_capture<R: std::io::Read, W: std::io::Write>(
+    link: &mut hil_sim::link_client::LinkClient<R, W>,
+    a: &LinkCaptureArgs,
+    spec: controller_core::capture::CaptureSpec,
+    shown: usize,
+    period_s: f64,
+) -> Result<(), String> {
+    use controller_core::capture::CaptureState;
+    stop_on_ctrl_c();
+    let mut transact = |c: &controller_core::link::Command| link.transact(c);
+    let record = hil_sim::capture::take(
+        &mut transact,
+        &hil_sim::capture::Request { spec, period_s, shown },
+        Duration::from_secs_f64(a.wait_s),
+        Duration::from_millis(100),
+        &|| INTERRUPTED.load(Ordering::Relaxed),
+        &mut |s| {
+            eprintln!(
+                "hil-sim: capture {}",
+                match s {
+                    CaptureState::Idle => "idle",
+                    CaptureState::Armed => "armed, waiting for the trigger",
+                    CaptureState::Triggered => "triggered",
+                    CaptureState::Done => "done, reading it out",
+                }
+            );
+        },
+    )?;
+    let csv = a.out.join("capture.csv");
+    let svg = a.out.join("capture.svg");
+    write_text(&csv, &record.csv())?;
+    write_text(&svg, &record.svg(&format!("capture ({})", a.trigger)))?;
+    println!("{} samples: {} and {}", record.samples.len(), csv.display(), svg.display());
+    Ok(())
+}
+
 /// Ctrl-C sets [`INTERRUPTED`]: the run stops at its next check and writes nothing (a
 /// second Ctrl-C while it winds down is ignored).
 fn stop_on_ctrl_c() {
@@ -741,6 +793,37 @@ enum LinkCmd {
     /// the standstill sequence (and the rotating field with --rotate), progress shown,
     /// the motor estimated and written to --out; nothing written if it fails.
     Identify(LinkIdentifyArgs),
+    /// The drive's scope: arm a capture of up to four signals, wait for its trigger, read
+    /// the record out and write `capture.csv` and `capture.svg` to --out (nothing if it
+    /// fails or is interrupted).
+    Capture(LinkCaptureArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+struct LinkCaptureArgs {
+    /// One to four signals, comma-separated: i_a, i_b, i_c, vdc, omega_m, theta_m, i_alpha,
+    /// i_beta, i_ref_alpha, i_ref_beta, v_alpha, v_beta, theta_e, omega_sl, psi_r, psi_ref,
+    /// i_q_ref, omega_ref, rr_scale, l_scale, duty_a, duty_b, duty_c, mode.
+    #[arg(long, default_value = "i_alpha,i_ref_alpha,omega_m,omega_ref")]
+    signals: String,
+    /// `immediate`, or SIGNAL:rising|falling|either:LEVEL (e.g. omega_ref:rising:100).
+    #[arg(long, default_value = "immediate")]
+    trigger: String,
+    /// Samples kept before the trigger's (below the record's 256).
+    #[arg(long, default_value_t = 64)]
+    pre: u16,
+    /// One sample every N control periods.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
+    every: u16,
+    /// Give up when no record is complete after this many seconds.
+    #[arg(long, default_value_t = 60.0, value_parser = positive_seconds)]
+    wait_s: f64,
+    /// The drive file the firmware was built from (its PWM period gives the time axis).
+    #[arg(long, default_value = "drive.toml")]
+    drive: PathBuf,
+    /// Output directory.
+    #[arg(long, default_value = "capture", value_parser = non_empty_path)]
+    out: PathBuf,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -1192,12 +1275,22 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
         LinkCmd::Torque { value } => Some(Command::SetReference(Reference::Torque(value))),
         LinkCmd::Gains => Some(Command::ReadSpeedGains),
         LinkCmd::SetGains { kp, tau_max_nm } => Some(Command::WriteSpeedGains { kp, tau_max_nm }),
-        LinkCmd::Telemetry { .. } | LinkCmd::Identify(_) => None,
+        LinkCmd::Telemetry { .. } | LinkCmd::Identify(_) | LinkCmd::Capture(_) => None,
     };
-    // The drive file the status is scaled with: read before the port is opened, so that a bad
-    // file is reported as such, board or no board.
+    // The drive file the status is scaled with (or the capture timed with): read before the
+    // port is opened, so that a bad file or argument is reported as such, board or no board.
     let status_file = match &command {
-        LinkCmd::Status { drive } => Some(drive_file::DriveFile::load(drive).map_err(|e| e.to_string())?),
+        LinkCmd::Status { drive } | LinkCmd::Capture(LinkCaptureArgs { drive, .. }) => {
+            Some(drive_file::DriveFile::load(drive).map_err(|e| e.to_string())?)
+        }
+        _ => None,
+    };
+    let capture = match &command {
+        LinkCmd::Capture(c) => {
+            let spec = capture_spec(c)?;
+            std::fs::create_dir_all(&c.out).map_err(|e| format!("cannot create {}: {e}", c.out.display()))?;
+            Some(spec)
+        }
         _ => None,
     };
     let timeout = Duration::from_secs_f64(a.timeout_s);
@@ -1211,6 +1304,9 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
     let mut link = hil_sim::link_client::LinkClient::new(rx, port).with_reply_timeout(timeout);
     match (cmd, command) {
         (None, LinkCmd::Identify(args)) => link_identify(&mut link, &args)?,
+        (None, LinkCmd::Capture(args)) if let (Some((spec, shown)), Some(file)) = (capture, &status_file) => {
+            link_capture(&mut link, &args, spec, shown, 1.0 / file.spec.pwm_frequency_hz)?
+        }
         (Some(c), LinkCmd::Status { .. }) if let Some(file) = &status_file => {
             let r = link.transact(&c)?;
             match hil_sim::link_client::format_status(&r, file) {

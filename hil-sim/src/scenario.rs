@@ -109,7 +109,9 @@ impl Builtin {
         Ok(pil)
     }
 
-    fn simulate(
+    /// Run the scenario against `dut` (a drive, a `Pil` prepared by the caller — e.g. with a
+    /// capture armed); returns the periods run.
+    pub fn simulate(
         &self,
         dut: &mut impl sim::DriveUnderTest,
         progress: impl FnMut(f64),

@@ -83,6 +83,7 @@ fn help_on_every_subcommand() {
         &["link", "x", "set-gains"],
         &["link", "x", "stop"],
         &["link", "x", "status"],
+        &["link", "x", "capture"],
     ] {
         let st = bin().args(sub).arg("--help").output().unwrap();
         assert!(st.status.success(), "{sub:?}");
@@ -107,6 +108,39 @@ fn a_bad_status_drive_file_is_named_before_the_port() {
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("bad.toml") && !err.contains("no-such-port"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `link … capture`: bad signals, triggers, pre-trigger counts, drive files and output
+/// directories are named before any port is opened.
+#[test]
+fn capture_arguments_are_checked_before_the_port() {
+    let dir = tmp("capture-args");
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let drive = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../drive.toml");
+    let drive = drive.to_str().unwrap();
+    let sub = file.join("sub");
+    for (args, says) in [
+        (vec!["--signals", "i_a,bogus"], "unknown signal `bogus`"),
+        (vec!["--signals", "i_a,i_b,i_c,vdc,mode"], "1 to 4 signals"),
+        (vec!["--trigger", "omega_ref:up:1"], "rising, falling or either"),
+        (vec!["--trigger", "omega_ref:rising:NaN"], "not finite"),
+        (vec!["--pre", "256"], "below the record's 256"),
+        (vec!["--drive", "/no/such/drive.toml"], "drive.toml"),
+        (vec!["--out", sub.to_str().unwrap()], "cannot create"),
+    ] {
+        let mut cmd = bin();
+        cmd.args(["link", "/dev/no-such-port", "capture"]).args(&args);
+        if !args.contains(&"--drive") {
+            cmd.args(["--drive", drive]);
+        }
+        let st = cmd.output().unwrap();
+        assert_eq!(st.status.code(), Some(1), "{args:?}");
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert!(err.contains(says) && !err.contains("no-such-port"), "{args:?}: {err}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

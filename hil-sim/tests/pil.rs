@@ -172,3 +172,70 @@ fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
     let r = identify::simulate_on(&swapped, &Target::Pil(PilOptions::default()), |_, _| {}, || false);
     assert_eq!(r.unwrap_err(), RunError::Refused(Refusal::PhaseOrder));
 }
+
+/// Issue 19: the capture of a PIL `fig11` run equals the SIL trace. The emulated MCU records
+/// into the firmware's capture (`controller_core::capture`, its depth) after every `Step`;
+/// read out over the link, each sample equals the in-process run's trace row of the same
+/// period, bit for bit: once armed immediately (every 100th period from the first), once on
+/// a level trigger (the α current reference rising through 0.5 A, 32 samples before it,
+/// every period).
+#[test]
+#[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
+fn pil_capture_of_fig11_equals_the_sil_trace() {
+    use controller_core::capture::{CaptureSpec, CaptureState, Edge, RECORD_SAMPLES, Signal, Trigger};
+    use hil_sim::capture;
+    let b = scenario::fig11_locked_rotor().unwrap();
+    assert_eq!(b.scenario.trace_every, 1, "one row per period");
+    let (sil, _) = b.run(|_| {}).unwrap();
+    let ts = 1.0 / b.spec.pwm_frequency_hz;
+    // The trace's values as the drive's f32 (the row holds them widened to f64, exactly).
+    let value = |row: &hil_sim::sim::Row, s: Signal| -> f32 {
+        match s {
+            Signal::IRefAlpha => row.i_ref_ab_a[0] as f32,
+            Signal::IRefBeta => row.i_ref_ab_a[1] as f32,
+            Signal::PsiR => row.psi_est_wb as f32,
+            Signal::DutyA => row.duty.map_or(f32::NAN, |d| d[0] as f32),
+            _ => unreachable!(),
+        }
+    };
+    let signals = [Signal::IRefAlpha, Signal::IRefBeta, Signal::PsiR, Signal::DutyA];
+    let same = |a: f32, b: f32| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan());
+    let level_trigger = Trigger::Level { signal: Signal::IRefAlpha, edge: Edge::Rising, level: 0.5 };
+    for (trigger, pre, every) in [(Trigger::Immediate, 0u16, 100u16), (level_trigger, 32, 1)] {
+        let spec = CaptureSpec { signals, trigger, pre_samples: pre, decimation: every };
+        let mut pil = hil_sim::pil::Pil::start(&PilOptions::default(), &b.spec).unwrap();
+        capture::arm(&mut |c| pil.transact(c), spec).unwrap();
+        b.simulate(&mut pil, |_| {}, |_| Ok(())).unwrap();
+        let req = capture::Request { spec, period_s: ts, shown: 4 };
+        let (state, record) = capture::read(&mut |c| pil.transact(c), &req).unwrap();
+        assert_eq!(state, CaptureState::Done, "{trigger:?}");
+        let record = record.unwrap();
+        assert_eq!(record.samples.len(), RECORD_SAMPLES);
+        // The trace's rows the record holds: sample j is period first + j·every.
+        let first = match trigger {
+            Trigger::Immediate => 0,
+            Trigger::Level { level, .. } => {
+                let x = |k: usize| value(&sil[k], Signal::IRefAlpha);
+                let fired = (usize::from(pre).max(1)..sil.len())
+                    .find(|&k| x(k - 1) < level && x(k) >= level)
+                    .expect("the reference crosses 0.5 A");
+                println!("level trigger at period {fired} (t = {:.5} s)", fired as f64 * ts);
+                fired - usize::from(pre)
+            }
+        };
+        for (j, sample) in record.samples.iter().enumerate() {
+            let row = &sil[first + j * usize::from(every)];
+            for (c, s) in signals.iter().enumerate() {
+                assert!(
+                    same(sample[c], value(row, *s)),
+                    "{trigger:?}: sample {j} (t = {} s), {}: PIL {} vs SIL {}",
+                    row.t_s,
+                    s.name(),
+                    sample[c],
+                    value(row, *s)
+                );
+            }
+        }
+        println!("{trigger:?}: {} samples equal the SIL trace", record.samples.len());
+    }
+}

@@ -221,6 +221,19 @@ pub fn plot_in(title: &str, x_label: &str, series: &[Series<'_>], window: Window
     s
 }
 
+/// Panels made by [`line_plot`] / [`plot_in`], one above the other in one SVG document
+/// (each keeps its own axes: signals of different units on a shared time axis).
+pub fn stack(panels: &[String]) -> String {
+    let height = H * panels.len() as f64;
+    let mut s = format!("<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{W}\" height=\"{height}\">\n");
+    for (k, p) in panels.iter().enumerate() {
+        // A nested <svg> placed at its row.
+        s.push_str(&p.replacen("<svg ", &format!("<svg y=\"{}\" ", H * k as f64), 1));
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
 fn escape(t: &str) -> String {
     t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
@@ -257,6 +270,21 @@ mod tests {
         );
         assert_eq!(svg.matches("<path").count(), 3);
         assert!(svg.contains("t&lt;1&gt;") && svg.ends_with("</svg>\n"));
+    }
+}
+
+#[cfg(test)]
+mod stack_tests {
+    use super::*;
+
+    #[test]
+    fn panels_are_nested_one_per_row() {
+        let p = |t: &str| line_plot(t, "t (s)", &[Series::line("y", vec![(0.0, 1.0), (1.0, 0.0)])]);
+        let svg = stack(&[p("a"), p("b"), p("c")]);
+        assert_eq!(svg.matches("<svg ").count(), 4);
+        assert!(svg.contains(&format!("height=\"{}\"", 3.0 * H)));
+        assert!(svg.contains(&format!("<svg y=\"{}\" ", 2.0 * H)));
+        assert!(svg.ends_with("</svg>\n</svg>\n"));
     }
 }
 

@@ -3,6 +3,7 @@
 
 use super::receive::LinkStats;
 use super::schema::{Command, NackReason, Reply};
+use crate::capture::{Capture, CaptureSpec};
 use crate::drive::{CommandError, Drive, DriveConfig, Mode};
 
 /// Carry out `cmd` on `drive` and say how it went — the command handling shared by the
@@ -55,6 +56,31 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
         Command::Commission(_) | Command::GetCommissionRecord { .. } | Command::GetCommissionStage => {
             Reply::Nack(NackReason::Unsupported)
         }
+        // The capture is the endpoint's, beside the drive ([`arm_capture`], [`read_capture`]).
+        Command::ArmCapture(_) | Command::ReadCapture { .. } => Reply::Nack(NackReason::Unsupported),
+    }
+}
+
+/// `ArmCapture`: `Ack`, or `Nack(Configuration)` for a spec the capture refuses.
+pub fn arm_capture<const DEPTH: usize>(capture: &mut Capture<DEPTH>, spec: CaptureSpec) -> Reply {
+    match capture.arm(spec) {
+        Ok(()) => Reply::Ack,
+        Err(_) => Reply::Nack(NackReason::Configuration),
+    }
+}
+
+/// `ReadCapture { chunk }`: the state, and the chunk once the record is done (zeros
+/// before); `Nack(NoRecord)` past the record's end.
+pub fn read_capture<const DEPTH: usize>(capture: &Capture<DEPTH>, chunk: u8) -> Reply {
+    if usize::from(chunk) >= Capture::<DEPTH>::CHUNKS {
+        return Reply::Nack(NackReason::NoRecord);
+    }
+    Reply::Capture {
+        state: capture.state(),
+        // At most 65 528 (`Capture::new`'s bound).
+        samples: DEPTH as u16,
+        chunk,
+        bytes: capture.chunk(usize::from(chunk)).unwrap_or([0; crate::capture::CHUNK_BYTES]),
     }
 }
 

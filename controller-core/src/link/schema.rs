@@ -2,6 +2,7 @@
 //! and its fields in a fixed little-endian layout (`f32`/`f64` as IEEE-754 bits).
 
 use super::framing::{BufferFull, MAX_PAYLOAD, encode_frame};
+use crate::capture::{CHANNELS, CHUNK_BYTES, CaptureSpec, CaptureState, Edge, Signal, Trigger};
 use crate::commission::{CommissionOutput, CommissionSpec, RECORD_BYTES, Record, Refusal, Stage};
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
@@ -155,6 +156,16 @@ pub enum Command {
     /// Ask where the commissioning sequence stands; answered by `Commission` (its last
     /// step's output), or `Nack(NoRecord)` when none was started.
     GetCommissionStage,
+    /// Arm the capture ([`crate::capture`]) with this spec, dropping any record; `Ack`, or
+    /// `Nack(Configuration)` for a spec [`Capture::arm`](crate::capture::Capture::arm)
+    /// refuses.
+    ArmCapture(CaptureSpec),
+    /// Ask where the capture stands and, once it is done, for part `chunk` of its record;
+    /// answered by `Capture`, or `Nack(NoRecord)` past the record's end.
+    ReadCapture {
+        /// 0 … samples/8 − 1.
+        chunk: u8,
+    },
 }
 
 /// The reply to `GetCommissionRecord { chunk }` for `record` (`None`: not finished).
@@ -228,6 +239,18 @@ pub enum Reply {
         /// Its bytes.
         bytes: [u8; RECORD_CHUNK_BYTES],
     },
+    /// The capture's state and, once done, part `chunk` of its record
+    /// ([`Capture::chunk`](crate::capture::Capture::chunk); zeros before).
+    Capture {
+        /// Where it stands.
+        state: CaptureState,
+        /// Samples in a record (the buffer's depth).
+        samples: u16,
+        /// Which part.
+        chunk: u8,
+        /// Its bytes.
+        bytes: [u8; CHUNK_BYTES],
+    },
     /// Mode and the receiver's counters.
     Status {
         /// Drive mode.
@@ -279,6 +302,8 @@ pub(crate) mod tag {
     pub const COMMISSION: u8 = 0x0B;
     pub const GET_COMMISSION_RECORD: u8 = 0x0C;
     pub const GET_COMMISSION_STAGE: u8 = 0x0D;
+    pub const ARM_CAPTURE: u8 = 0x0E;
+    pub const READ_CAPTURE: u8 = 0x0F;
     pub const ACK: u8 = 0x81;
     pub const NACK: u8 = 0x82;
     pub const OUTPUT: u8 = 0x83;
@@ -286,6 +311,7 @@ pub(crate) mod tag {
     pub const SPEED_GAINS: u8 = 0x85;
     pub const COMMISSION_OUTPUT: u8 = 0x86;
     pub const COMMISSION_RECORD: u8 = 0x87;
+    pub const CAPTURE: u8 = 0x88;
 }
 
 fn write_reference(w: &mut Writer<'_>, r: Reference) -> Result<(), BufferFull> {
@@ -311,6 +337,42 @@ fn write_reference(w: &mut Writer<'_>, r: Reference) -> Result<(), BufferFull> {
             w.f32(omega_rad_s)
         }
     }
+}
+
+/// A capture spec: the four signal codes, the trigger (kind 0 immediate, 1 rising,
+/// 2 falling, 3 either; its signal's code; its level), pre-trigger samples, decimation.
+fn write_capture_spec(w: &mut Writer<'_>, c: &CaptureSpec) -> Result<(), BufferFull> {
+    for s in c.signals {
+        w.u8(s.code())?;
+    }
+    let (kind, signal, level) = match c.trigger {
+        Trigger::Immediate => (0, Signal::IA, 0.0),
+        Trigger::Level { signal, edge: Edge::Rising, level } => (1, signal, level),
+        Trigger::Level { signal, edge: Edge::Falling, level } => (2, signal, level),
+        Trigger::Level { signal, edge: Edge::Either, level } => (3, signal, level),
+    };
+    w.u8(kind)?;
+    w.u8(signal.code())?;
+    w.f32(level)?;
+    w.u16(c.pre_samples)?;
+    w.u16(c.decimation)
+}
+
+fn read_capture_spec(r: &mut Reader<'_>) -> Result<CaptureSpec, DecodeError> {
+    let mut signal = || r.u8().and_then(|c| Signal::from_code(c).ok_or(DecodeError::Value));
+    let mut signals = [Signal::IA; CHANNELS];
+    for s in &mut signals {
+        *s = signal()?;
+    }
+    let (kind, signal, level) = (r.u8()?, Signal::from_code(r.u8()?).ok_or(DecodeError::Value)?, r.f32()?);
+    let trigger = match kind {
+        0 => Trigger::Immediate,
+        1 => Trigger::Level { signal, edge: Edge::Rising, level },
+        2 => Trigger::Level { signal, edge: Edge::Falling, level },
+        3 => Trigger::Level { signal, edge: Edge::Either, level },
+        _ => return Err(DecodeError::Value),
+    };
+    Ok(CaptureSpec { signals, trigger, pre_samples: r.u16()?, decimation: r.u16()? })
 }
 
 fn read_reference(r: &mut Reader<'_>) -> Result<Reference, DecodeError> {
@@ -519,7 +581,7 @@ fn read_thermal(r: &mut Reader<'_>) -> Result<Option<ThermalLimit>, DecodeError>
     })
 }
 
-fn mode_code(m: Mode) -> u8 {
+pub(crate) fn mode_code(m: Mode) -> u8 {
     match m {
         Mode::Idle => 0,
         Mode::Magnetizing => 1,
@@ -702,6 +764,14 @@ impl Command {
                 w.u8(*chunk)?;
             }
             Command::GetCommissionStage => w.u8(tag::GET_COMMISSION_STAGE)?,
+            Command::ArmCapture(c) => {
+                w.u8(tag::ARM_CAPTURE)?;
+                write_capture_spec(&mut w, c)?;
+            }
+            Command::ReadCapture { chunk } => {
+                w.u8(tag::READ_CAPTURE)?;
+                w.u8(*chunk)?;
+            }
         }
         Ok(w.n)
     }
@@ -768,6 +838,8 @@ fn decode_board_tag(t: u8, r: &mut Reader<'_>) -> Result<BoardCommand, DecodeErr
         }),
         tag::GET_COMMISSION_RECORD => BoardCommand::GetCommissionRecord { chunk: r.u8()? },
         tag::GET_COMMISSION_STAGE => BoardCommand::GetCommissionStage,
+        tag::ARM_CAPTURE => BoardCommand::ArmCapture(read_capture_spec(r)?),
+        tag::READ_CAPTURE => BoardCommand::ReadCapture { chunk: r.u8()? },
         other => return Err(DecodeError::UnknownType(other)),
     })
 }
@@ -806,6 +878,13 @@ pub enum BoardCommand {
     },
     /// [`Command::GetCommissionStage`].
     GetCommissionStage,
+    /// [`Command::ArmCapture`].
+    ArmCapture(CaptureSpec),
+    /// [`Command::ReadCapture`].
+    ReadCapture {
+        /// Part.
+        chunk: u8,
+    },
     /// `Configure` or `Step`: answered with `Nack(Unsupported)`, payload not parsed.
     Refused,
 }
@@ -825,6 +904,8 @@ impl BoardCommand {
             BoardCommand::Commission(s) => Command::Commission(s),
             BoardCommand::GetCommissionRecord { chunk } => Command::GetCommissionRecord { chunk },
             BoardCommand::GetCommissionStage => Command::GetCommissionStage,
+            BoardCommand::ArmCapture(c) => Command::ArmCapture(c),
+            BoardCommand::ReadCapture { chunk } => Command::ReadCapture { chunk },
             BoardCommand::Refused => return None,
         })
     }
@@ -889,6 +970,13 @@ impl Reply {
             }
             Reply::CommissionRecord { chunk, bytes } => {
                 w.u8(tag::COMMISSION_RECORD)?;
+                w.u8(*chunk)?;
+                w.bytes(bytes)?;
+            }
+            Reply::Capture { state, samples, chunk, bytes } => {
+                w.u8(tag::CAPTURE)?;
+                w.u8(state.code())?;
+                w.u16(*samples)?;
                 w.u8(*chunk)?;
                 w.bytes(bytes)?;
             }
@@ -959,6 +1047,12 @@ impl Reply {
                 })
             }
             tag::COMMISSION_RECORD => Reply::CommissionRecord { chunk: r.u8()?, bytes: r.take()? },
+            tag::CAPTURE => Reply::Capture {
+                state: CaptureState::from_code(r.u8()?).ok_or(DecodeError::Value)?,
+                samples: r.u16()?,
+                chunk: r.u8()?,
+                bytes: r.take()?,
+            },
             tag::STATUS => Reply::Status {
                 mode: mode_from_code(r.u8()?)?,
                 frames_ok: u32::from_le_bytes(r.take()?),

@@ -2,6 +2,7 @@
 
 use super::schema::tag;
 use super::*;
+use crate::capture::{CaptureSpec, Edge, Signal, Trigger};
 use crate::drive::test_spec;
 use crate::drive::{FastOutput, Fault, Measurements, Mode, PhaseCommand, Reference, Telemetry};
 use crate::frames::Abc;
@@ -101,7 +102,23 @@ fn every_command_round_trips() {
         }),
         Command::GetCommissionRecord { chunk: 10 },
         Command::GetCommissionStage,
+        Command::ArmCapture(CaptureSpec {
+            signals: [Signal::Mode, Signal::DutyC, Signal::IA, Signal::OmegaRef],
+            trigger: Trigger::Immediate,
+            pre_samples: 0,
+            decimation: 1,
+        }),
+        Command::ReadCapture { chunk: 31 },
     ];
+    let captures = [Edge::Rising, Edge::Falling, Edge::Either].map(|edge| {
+        Command::ArmCapture(CaptureSpec {
+            signals: [Signal::IAlpha, Signal::IRefAlpha, Signal::VAlpha, Signal::PsiR],
+            trigger: Trigger::Level { signal: Signal::ThetaM, edge, level: -1.5e-3 },
+            pre_samples: 255,
+            decimation: u16::MAX,
+        })
+    });
+    let cmds: Vec<Command> = cmds.into_iter().chain(captures).collect();
     let stream: Vec<u8> = cmds.iter().flat_map(frame_of).collect();
     let (got, stats) = decode_all(&stream);
     assert_eq!(got, cmds);
@@ -143,6 +160,18 @@ fn replies_round_trip_bit_exact() {
         Reply::Nack(NackReason::OutOfCertifiedRange),
         Reply::Nack(NackReason::NoRecord),
         Reply::CommissionRecord { chunk: 3, bytes: core::array::from_fn(|k| k as u8) },
+        Reply::Capture {
+            state: crate::capture::CaptureState::Triggered,
+            samples: 256,
+            chunk: 7,
+            bytes: core::array::from_fn(|k| (3 * k) as u8),
+        },
+        Reply::Capture {
+            state: crate::capture::CaptureState::Done,
+            samples: 8,
+            chunk: 0,
+            bytes: [0xA5; 128],
+        },
     ];
     use crate::commission::{CommissionOutput, Refusal, Stage};
     let stages = [
@@ -253,4 +282,44 @@ proptest! {
         let out = [back.i_abc_a.a, back.i_abc_a.b, back.i_abc_a.c, back.vdc_v, back.omega_m_rad_s, back.theta_m_rad];
         for (i, v) in out.iter().enumerate() { prop_assert_eq!(v.to_bits(), bits[i]); }
     }
+}
+
+/// A capture spec with an unknown signal or trigger kind is refused as a value; the
+/// capture's replies: `Ack`, `Nack(Configuration)` for a spec the depth refuses, the state
+/// with zeros before the record is done, `Nack(NoRecord)` past its end.
+#[test]
+fn capture_specs_and_replies() {
+    use crate::capture::{Capture, CaptureState};
+    let spec = CaptureSpec {
+        signals: [Signal::IA; 4],
+        trigger: Trigger::Level { signal: Signal::IB, edge: Edge::Rising, level: 1.0 },
+        pre_samples: 2,
+        decimation: 1,
+    };
+    let mut p = [0u8; MAX_PAYLOAD];
+    let n = Command::ArmCapture(spec).encode(&mut p).unwrap();
+    assert_eq!(n, 15, "type, 4 signals, kind, signal, level, pre-samples, decimation");
+    for (at, bad) in [(1, 24u8), (5, 4), (6, 200)] {
+        let mut q = p;
+        q[at] = bad;
+        assert_eq!(Command::decode(&q[..n]), Err(DecodeError::Value), "byte {at} = {bad}");
+        assert_eq!(Command::decode_board(&q[..n]), Err(DecodeError::Value));
+    }
+    let mut c = Capture::<16>::new();
+    assert_eq!(
+        arm_capture(&mut c, CaptureSpec { pre_samples: 16, ..spec }),
+        Reply::Nack(NackReason::Configuration)
+    );
+    assert_eq!(arm_capture(&mut c, spec), Reply::Ack);
+    assert_eq!(
+        read_capture(&c, 1),
+        Reply::Capture { state: CaptureState::Armed, samples: 16, chunk: 1, bytes: [0; 128] }
+    );
+    assert_eq!(read_capture(&c, 2), Reply::Nack(NackReason::NoRecord));
+    // A drive alone has no capture.
+    let mut drive = crate::drive::Drive::new(crate::drive::DriveConfig::new(&test_spec()).unwrap());
+    assert_eq!(
+        execute(&mut drive, &Command::ArmCapture(spec), &LinkStats::default()),
+        Reply::Nack(NackReason::Unsupported)
+    );
 }

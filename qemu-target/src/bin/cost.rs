@@ -13,9 +13,12 @@
 
 #[cfg(target_os = "none")]
 mod target {
+    use controller_core::capture::{Capture, CaptureSpec, Edge, RECORD_SAMPLES, Signal, Trigger};
     use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
     use controller_core::discretize::Discretization;
-    use controller_core::drive::{Drive, DriveConfig, Measurements, Mode, Reference};
+    use controller_core::drive::{
+        Drive, DriveConfig, FastOutput, Measurements, Mode, PhaseCommand, Reference, Telemetry,
+    };
     use controller_core::envelope::EnvelopeConfig;
     use controller_core::frames::{Abc, AlphaBeta, Dq, SinCos};
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
@@ -236,6 +239,34 @@ mod target {
             let d = black_box(k as f32 * (1.0 / 4096.0));
             black_box([pwm.compare(d), pwm.compare(d * 0.5), pwm.compare(1.0 - d)]);
         });
+        // The capture (issue 19), as the firmware calls it after every step: a recorded
+        // sample of four signals (armed on a trigger that never fires, so it records on),
+        // and the call while nothing is armed.
+        let out = FastOutput {
+            phases: PhaseCommand::Duty(Abc { a: 0.4, b: 0.5, c: 0.6 }),
+            mode: Mode::Running,
+            brake: false,
+            telemetry: Telemetry::default(),
+        };
+        let mut capture = Capture::<RECORD_SAMPLES>::new();
+        let capture_idle = per_call(&ticks, |k| {
+            capture.record(black_box(&measure(input(k), k)), black_box(&out));
+        }) - adc;
+        let never = Trigger::Level { signal: Signal::Vdc, edge: Edge::Rising, level: 1e9 };
+        let spec = CaptureSpec {
+            signals: [Signal::IA, Signal::IAlpha, Signal::OmegaRef, Signal::DutyA],
+            trigger: never,
+            pre_samples: 0,
+            decimation: 1,
+        };
+        let capture_sample = match capture.arm(spec) {
+            Ok(()) => {
+                per_call(&ticks, |k| {
+                    capture.record(black_box(&measure(input(k), k)), black_box(&out));
+                }) - adc
+            }
+            Err(_) => f32::NAN,
+        };
 
         // Stack depth of the firmware's interrupt body, `Drive::step` (the fast step, and
         // every slow_divider-th period the slow step): 20 periods from a painted stack.
@@ -258,6 +289,8 @@ mod target {
         println!("cost part:sincos {:.1}", sincos);
         println!("cost part:svpwm {:.1}", svm);
         println!("cost part:compare_3ch {:.1}", compare);
+        println!("cost part:capture_idle {:.1}", capture_idle);
+        println!("cost part:capture_sample {:.1}", capture_sample);
         println!("cost part:envelope_operating_point {:.1}", operating_point);
         println!("cost part:envelope_i_q_max_at_flux {:.1}", i_q_at_flux);
         println!("cost part:dead_time_compensation {:.1}", dead_time);

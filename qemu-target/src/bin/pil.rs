@@ -1,11 +1,13 @@
 //! Processor-in-the-loop server: the drive — or the commissioning sequence — on the emulated
 //! Cortex-M4F, one link frame per PWM period with `hil-sim pil` / `hil-sim identify --pil`
-//! (see the crate docs). Exits with status 0 when the host closes
+//! (see the crate docs). The capture ([`controller_core::capture`], the firmware's depth)
+//! records every drive `Step`, as the firmware's control interrupt does. Exits with status 0 when the host closes
 //! `to_mcu`, 1 if the FIFOs cannot be opened or a reply cannot be written.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
 mod target {
+    use controller_core::capture::{Capture, RECORD_SAMPLES};
     use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning};
     use controller_core::drive::{Drive, DriveConfig};
     use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, NackReason, Reply};
@@ -32,6 +34,7 @@ mod target {
         // Until the host sends `Configure` or `Commission`, only those and `GetStatus`-like
         // queries are answered (`Nack(NotConfigured)`).
         let mut endpoint = Endpoint::None;
+        let mut capture = Capture::<RECORD_SAMPLES>::new();
         let mut stats = LinkStats::default();
         let mut decoder = FrameDecoder::new();
         let mut input = [0u8; 256];
@@ -65,6 +68,13 @@ mod target {
                     }
                     (Endpoint::Commission(_, last), Command::GetCommissionStage) => {
                         last.map_or(Reply::Nack(NackReason::NoRecord), Reply::Commission)
+                    }
+                    (_, Command::ArmCapture(spec)) => link::arm_capture(&mut capture, *spec),
+                    (_, Command::ReadCapture { chunk }) => link::read_capture(&capture, *chunk),
+                    (Endpoint::Drive(d), Command::Step(m)) => {
+                        let out = d.step(m);
+                        capture.record(m, &out);
+                        Reply::Output(out)
                     }
                     (Endpoint::Drive(d), c) => link::execute(d, c, &stats),
                     (_, Command::Configure(spec)) => match DriveConfig::new(spec) {
