@@ -11,9 +11,14 @@
 //! The signals are what the control step had and decided: its [`Measurements`] and its
 //! [`FastOutput`] ([`Signal`]). The firmware records after every step in the control
 //! interrupt; the processor-in-the-loop server after every `Step`, so a PIL run's capture is
-//! the simulation's trace, bit for bit (`hil-sim/tests/pil.rs`). Recording costs nothing
-//! while nothing is armed or the record is finished (one compare), and a few dozen
-//! instructions per recorded sample while armed.
+//! the simulation's trace, bit for bit (`hil-sim/tests/pil.rs`). Recording costs a compare
+//! while nothing is armed or the record is finished, and ≈ 100–170 instructions per
+//! recorded sample while armed (`cargo xtask qemu`: `cost part:capture_sample`).
+//!
+//! A level trigger fires on the first recorded sample that reaches the level from the other
+//! side — a signal resting exactly on it fires when it leaves (a reference at 0 stepping
+//! up fires `rising` through 0) — and only once the pre-trigger samples are in: a crossing
+//! within the first `pre_samples` samples after arming is not the trigger.
 //!
 //! Configuration apart from state: [`Capture::arm`] validates a [`CaptureSpec`] against the
 //! buffer's depth once; [`Capture::record`] never checks anything.
@@ -212,7 +217,7 @@ impl Signal {
             Signal::DutyA => duty(0),
             Signal::DutyB => duty(1),
             Signal::DutyC => duty(2),
-            Signal::Mode => f32::from(crate::link::schema::mode_code(out.mode)),
+            Signal::Mode => f32::from(out.mode.code()),
         }
     }
 }
@@ -220,9 +225,9 @@ impl Signal {
 /// Which crossing of the trigger level fires.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Edge {
-    /// From below the level to at or above it.
+    /// From below the level to at or above it, or from on it to above it.
     Rising,
-    /// From above the level to at or below it.
+    /// From above the level to at or below it, or from on it to below it.
     Falling,
     /// Either.
     Either,
@@ -301,7 +306,8 @@ impl CaptureState {
 }
 
 /// The capture: its spec (validated when armed), its state and a ring of `DEPTH` samples
-/// (`DEPTH` a multiple of [`CHUNK_SAMPLES`], at most 65 528). `DEPTH · 16` bytes of RAM.
+/// (`DEPTH` a multiple of [`CHUNK_SAMPLES`], at most 2 048: the link's chunk index is a
+/// byte). `DEPTH · 16` bytes of RAM.
 #[derive(Clone, Debug)]
 pub struct Capture<const DEPTH: usize> {
     spec: CaptureSpec,
@@ -332,7 +338,9 @@ impl<const DEPTH: usize> Capture<DEPTH> {
     /// Idle, the ring zeroed.
     pub const fn new() -> Self {
         const {
-            assert!(DEPTH >= CHUNK_SAMPLES && DEPTH.is_multiple_of(CHUNK_SAMPLES) && DEPTH <= 65_528);
+            assert!(
+                DEPTH >= CHUNK_SAMPLES && DEPTH.is_multiple_of(CHUNK_SAMPLES) && DEPTH <= 256 * CHUNK_SAMPLES
+            );
         }
         Self {
             spec: CaptureSpec {
@@ -412,8 +420,8 @@ impl<const DEPTH: usize> Capture<DEPTH> {
                     Trigger::Level { signal, edge, level } => {
                         let (was, now) = (self.last, signal.value(m, out));
                         self.last = now;
-                        let rising = was < level && now >= level;
-                        let falling = was > level && now <= level;
+                        let rising = (was < level && now >= level) || (was == level && now > level);
+                        let falling = (was > level && now <= level) || (was == level && now < level);
                         match edge {
                             Edge::Rising => rising,
                             Edge::Falling => falling,
@@ -561,6 +569,23 @@ mod tests {
             assert_eq!(r[5][0], 2.0, "{edge:?}: {r:?}");
             assert_eq!(r[4][0], 39.0, "{edge:?}");
             assert_eq!(r[0][0], 35.0, "{edge:?}");
+        }
+    }
+
+    /// A reference resting exactly on the level (0 while idle) fires when it leaves it.
+    #[test]
+    fn a_signal_resting_on_the_level_fires_when_it_leaves() {
+        for (edge, step) in [(Edge::Rising, 100.0), (Edge::Falling, -100.0), (Edge::Either, 100.0)] {
+            let mut c = Capture::<8>::new();
+            c.arm(spec(Trigger::Level { signal: Signal::OmegaRef, edge, level: 0.0 }, 2, 1)).unwrap();
+            for k in 0..20 {
+                let (m, o) = period(k as f32, if k >= 10 { step } else { 0.0 });
+                c.record(&m, &o);
+            }
+            assert_eq!(c.state(), CaptureState::Done, "{edge:?}");
+            let r = read(&c);
+            assert_eq!((r[2][0], r[2][2]), (10.0, step), "{edge:?}");
+            assert_eq!(r[1][2], 0.0);
         }
     }
 

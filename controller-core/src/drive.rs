@@ -990,6 +990,64 @@ pub enum Mode {
     Fault(Fault),
 }
 
+impl Mode {
+    /// The mode as one byte: the link's, the capture's (0 Idle, 1 Magnetizing, 2 Running,
+    /// a fault from 10 up).
+    pub fn code(self) -> u8 {
+        match self {
+            Mode::Idle => 0,
+            Mode::Magnetizing => 1,
+            Mode::Running => 2,
+            Mode::Fault(Fault::Overcurrent) => 10,
+            Mode::Fault(Fault::DcBusOvervoltage) => 11,
+            Mode::Fault(Fault::DcBusUndervoltage) => 12,
+            Mode::Fault(Fault::NonFiniteInput) => 13,
+            Mode::Fault(Fault::NonFiniteOutput) => 14,
+            Mode::Fault(Fault::EncoderLoss) => 15,
+            Mode::Fault(Fault::HardwareBreak) => 16,
+            Mode::Fault(Fault::Overspeed) => 17,
+            Mode::Fault(Fault::Stall) => 18,
+            Mode::Fault(Fault::CurrentSensor) => 19,
+            Mode::Fault(Fault::NoMotorCurrent) => 20,
+            Mode::Fault(Fault::LossOfControl) => 21,
+            Mode::Fault(Fault::EncoderImplausible) => 22,
+            Mode::Fault(Fault::OpenPhase) => 23,
+            Mode::Fault(Fault::MotorOverload) => 24,
+            Mode::Fault(Fault::InverterOverload) => 25,
+            Mode::Fault(Fault::FollowingError) => 26,
+            Mode::Fault(Fault::SwitchOpen) => 27,
+        }
+    }
+
+    /// The mode of a [`Mode::code`] (`None` for a byte no mode has).
+    pub fn from_code(c: u8) -> Option<Mode> {
+        Some(match c {
+            0 => Mode::Idle,
+            1 => Mode::Magnetizing,
+            2 => Mode::Running,
+            10 => Mode::Fault(Fault::Overcurrent),
+            11 => Mode::Fault(Fault::DcBusOvervoltage),
+            12 => Mode::Fault(Fault::DcBusUndervoltage),
+            13 => Mode::Fault(Fault::NonFiniteInput),
+            14 => Mode::Fault(Fault::NonFiniteOutput),
+            15 => Mode::Fault(Fault::EncoderLoss),
+            16 => Mode::Fault(Fault::HardwareBreak),
+            17 => Mode::Fault(Fault::Overspeed),
+            18 => Mode::Fault(Fault::Stall),
+            19 => Mode::Fault(Fault::CurrentSensor),
+            20 => Mode::Fault(Fault::NoMotorCurrent),
+            21 => Mode::Fault(Fault::LossOfControl),
+            22 => Mode::Fault(Fault::EncoderImplausible),
+            23 => Mode::Fault(Fault::OpenPhase),
+            24 => Mode::Fault(Fault::MotorOverload),
+            25 => Mode::Fault(Fault::InverterOverload),
+            26 => Mode::Fault(Fault::FollowingError),
+            27 => Mode::Fault(Fault::SwitchOpen),
+            _ => return None,
+        })
+    }
+}
+
 /// Outer-loop reference.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Reference {

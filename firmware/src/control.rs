@@ -9,7 +9,7 @@
 //!  TIM1 break flag ─▶ Drive::trip(HardwareBreak) ─┘                    └─ Off ─▶ MOE = 0
 //! ```
 //!
-//! **Offset calibration** (first thing after start-up and after every reconfiguration):
+//! **Offset calibration** (first thing after start-up; a new configuration keeps its result):
 //! [`CALIBRATION_SAMPLES`] periods with the bridge held off, the three current channels'
 //! mean codes become their zeros (`controller_core::calibration`); a channel too far from
 //! its nominal zero or too noisy latches `Fault::CurrentSensor` and the drive cannot be
@@ -22,6 +22,11 @@
 //! the drive's place in the interrupt until it finishes or refuses; the drive still steps
 //! (Idle: its brake chopper and its hardware-break latch), and a latched fault, a `Stop` or a
 //! `Disable` aborts the sequence — the bridge off for good.
+//!
+//! **Capture** (`controller_core::capture`): after every drive step, and in the bootstrap
+//! pre-charge's periods with the drive's last telemetry and the duties it applies (0: the
+//! low sides on), so that the record's samples stay evenly spaced. During commissioning
+//! it records the drive, which is then Idle, not the sequence.
 //!
 //! Encoder loss: the drive's own jump check (`controller_core::drive`, `Fault::EncoderLoss`)
 //! on the angle the estimator reports — the same code in the simulator.
@@ -356,10 +361,12 @@ impl ControlLoop {
 
     /// Start again from configuration `cfg` (a fresh drive, Idle); on error nothing changes.
     ///
-    /// What depends on the configuration is made anew — the drive, the slow cadence, the
-    /// encoder's estimator; what belongs to the board is kept: the measured current offsets
-    /// and the capture. Field by field, in place: no temporary of the loop's size on the
-    /// control interrupt's stack, where the link's commands are served.
+    /// What depends on the configuration is made anew — the drive, and the slow cadence
+    /// and the encoder's estimator if its period changed; what belongs to the board is kept:
+    /// the measured current offsets, the capture, and the encoder's speed window when its
+    /// period is the same (a gain write: a coasting rotor's speed stays known). Field by
+    /// field, in place: no temporary of the loop's size on the control interrupt's stack,
+    /// where the link's commands are served.
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), ControlError> {
         let divider = cfg.slow_divider();
         let read_period_s = f32::from(divider) * cfg.ts_s();
@@ -369,9 +376,12 @@ impl ControlLoop {
         let idle = self.drive.idle_slow_steps();
         self.drive = Drive::new(cfg);
         self.drive.rotor_driven(idle);
-        (self.encoder_cfg, self.encoder, self.theta_m_rad, self.omega_m_rad_s) =
-            (encoder_cfg, EncoderState::default(), 0.0, 0.0);
-        (self.divider, self.count, self.last, self.precharge_left) = (divider, 0, None, 0);
+        if encoder_cfg != self.encoder_cfg || divider != self.divider {
+            (self.encoder_cfg, self.encoder, self.theta_m_rad, self.omega_m_rad_s) =
+                (encoder_cfg, EncoderState::default(), 0.0, 0.0);
+            (self.divider, self.count) = (divider, 0);
+        }
+        (self.last, self.precharge_left) = (None, 0);
         Ok(())
     }
 
@@ -542,6 +552,10 @@ impl ControlLoop {
         if let Some(o) = self.last.as_mut() {
             o.brake = brake;
             o.mode = self.drive.mode();
+            // The capture's sample of this period: the drive's last telemetry, the duties
+            // applied (the low sides on).
+            let applied = FastOutput { phases: PhaseCommand::Duty(Abc { a: 0.0, b: 0.0, c: 0.0 }), ..*o };
+            self.capture.record(&m, &applied);
         }
         if matches!(self.drive.mode(), Mode::Fault(_)) {
             self.precharge_left = 0;
@@ -803,6 +817,38 @@ mod tests {
         for _ in 0..100 {
             assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         }
+    }
+
+    /// The capture samples every period, the bootstrap pre-charge's too (with the duties
+    /// it applies, 0): an enable inside a record leaves no gap in its time axis.
+    #[test]
+    fn the_capture_records_the_precharge_periods() {
+        use controller_core::capture::{CaptureSpec, CaptureState, Signal, Trigger};
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        c.calibrate_at_rest();
+        let spec = CaptureSpec {
+            signals: [Signal::DutyA, Signal::Mode, Signal::Vdc, Signal::IA],
+            trigger: Trigger::Immediate,
+            pre_samples: 0,
+            decimation: 1,
+        };
+        c.capture_mut().arm(spec).unwrap();
+        for _ in 0..10 {
+            assert_eq!(c.step(&at_rest(0)), Bridge::Off);
+        }
+        enable_through_precharge(&mut c);
+        for _ in 0..(CAPTURE_DEPTH - 10 - 40) {
+            let _ = c.step(&at_rest(0));
+        }
+        assert_eq!(c.capture().state(), CaptureState::Done);
+        let duty = |k: usize| {
+            let b = c.capture().chunk(k / 8).unwrap();
+            let at = (k % 8) * 16;
+            f32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+        };
+        assert!((0..10).all(|k| duty(k).is_nan()), "bridge off: no duty");
+        assert!((10..50).all(|k| duty(k) == 0.0), "the pre-charge: low sides on");
+        assert!(duty(50) > 0.0 && duty(50) < 1.0, "then the drive's own duty: {}", duty(50));
     }
 
     #[test]

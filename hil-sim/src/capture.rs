@@ -19,6 +19,8 @@ pub struct Request {
     pub period_s: f64,
     /// Channels to report: the first `shown` of the spec's.
     pub shown: usize,
+    /// A command sent once the capture is armed (e.g. the speed step it is to see).
+    pub then: Option<Command>,
 }
 
 /// A finished record: the spec it was armed with, its samples (oldest first; sample
@@ -114,6 +116,10 @@ pub fn read(transact: &mut Transact<'_>, req: &Request) -> Result<(CaptureState,
         Reply::Capture { state, samples, .. } => (state, usize::from(samples)),
         r => return Err(format!("unexpected reply to ReadCapture: {r:?}")),
     };
+    let chunk_samples = controller_core::capture::CHUNK_SAMPLES;
+    if depth == 0 || depth % chunk_samples != 0 || depth > 256 * chunk_samples {
+        return Err(format!("the drive reports a record of {depth} samples: not a whole number of chunks"));
+    }
     if state != CaptureState::Done {
         return Ok((state, None));
     }
@@ -132,8 +138,13 @@ pub fn read(transact: &mut Transact<'_>, req: &Request) -> Result<(CaptureState,
                     samples.push(sample);
                 }
             }
+            Reply::Capture { state: CaptureState::Done, chunk: c, .. } => {
+                return Err(format!("asked for chunk {chunk}, got chunk {c}: the link is out of step"));
+            }
             Reply::Capture { state, .. } => {
-                return Err(format!("the record changed while it was read (now {state:?}): re-armed?"));
+                return Err(format!(
+                    "the record changed while it was read (now {state:?}): re-armed by another client?"
+                ));
             }
             r => return Err(format!("unexpected reply to ReadCapture {{ chunk: {chunk} }}: {r:?}")),
         }
@@ -152,6 +163,12 @@ pub fn take(
     progress: &mut dyn FnMut(CaptureState),
 ) -> Result<Record, String> {
     arm(transact, req.spec)?;
+    if let Some(c) = &req.then {
+        match transact(c)? {
+            Reply::Ack => {}
+            r => return Err(format!("the capture is armed, but the drive answered {c:?} with {r:?}")),
+        }
+    }
     let start = Instant::now();
     let mut last = None;
     loop {
@@ -162,6 +179,9 @@ pub fn take(
         }
         if let Some(r) = record {
             return Ok(r);
+        }
+        if state == CaptureState::Idle {
+            return Err("the drive reports no capture armed (was it reset?): nothing written".into());
         }
         if stop() {
             return Err("interrupted: nothing written".into());
@@ -180,6 +200,24 @@ pub fn take(
         }
         std::thread::sleep(poll);
     }
+}
+
+/// The command `--then` sends: `enable`, `disable`, `stop`, or `speed|torque|position V`.
+pub fn parse_then(text: &str) -> Result<Command, String> {
+    use controller_core::drive::Reference;
+    let words: Vec<&str> = text.split_whitespace().collect();
+    let value = |v: &str| -> Result<f32, String> {
+        v.parse::<f32>().ok().filter(|x| x.is_finite()).ok_or_else(|| format!("`{v}` is not a finite number"))
+    };
+    Ok(match words.as_slice() {
+        ["enable"] => Command::Enable,
+        ["disable"] => Command::Disable,
+        ["stop"] => Command::Stop,
+        ["speed", v] => Command::SetReference(Reference::Speed(value(v)?)),
+        ["torque", v] => Command::SetReference(Reference::Torque(value(v)?)),
+        ["position", v] => Command::SetReference(Reference::Position(value(v)?)),
+        _ => return Err(format!("`{text}`: enable, disable, stop, or speed|torque|position VALUE")),
+    })
 }
 
 /// `"omega_ref"` → the signal, or a sentence listing the names.
@@ -244,6 +282,12 @@ mod tests {
             parse_trigger("omega_ref:rising:100"),
             Ok(Trigger::Level { signal: Signal::OmegaRef, edge: Edge::Rising, level: 100.0 })
         );
+        use controller_core::drive::Reference;
+        assert_eq!(parse_then(" speed  50 "), Ok(Command::SetReference(Reference::Speed(50.0))));
+        assert_eq!(parse_then("stop"), Ok(Command::Stop));
+        for bad in ["speed", "speed fast", "speed inf", "jump 3", ""] {
+            assert!(parse_then(bad).is_err(), "{bad}");
+        }
         for bad in [
             "omega_ref:up:1",
             "omega_ref:rising",
@@ -292,7 +336,7 @@ mod tests {
             decimation: 2,
         };
         let mut states = Vec::new();
-        let req = Request { spec, period_s: 5e-5, shown: 2 };
+        let req = Request { spec, period_s: 5e-5, shown: 2, then: None };
         let r = take(&mut transact, &req, Duration::from_secs(5), Duration::ZERO, &|| false, &mut |s| {
             states.push(s)
         })
@@ -313,6 +357,45 @@ mod tests {
         assert!(arm(&mut transact, bad).unwrap_err().contains("pre-trigger samples (16)"));
     }
 
+    /// `--then`'s command goes out once the capture is armed, and its refusal is named; a
+    /// drive that forgot its capture (reset) fails at once.
+    #[test]
+    fn then_is_sent_after_the_arm_and_a_reset_drive_fails_at_once() {
+        let mut capture = Capture::<8>::new();
+        let mut sent = Vec::new();
+        let mut transact = |c: &Command| -> Result<Reply, String> {
+            sent.push(*c);
+            Ok(match c {
+                Command::ArmCapture(s) => link::arm_capture(&mut capture, *s),
+                Command::ReadCapture { chunk } => {
+                    // The board reset after the arm.
+                    capture = Capture::new();
+                    link::read_capture(&capture, *chunk)
+                }
+                Command::Enable => Reply::Ack,
+                _ => Reply::Nack(NackReason::NotIdle),
+            })
+        };
+        let spec = CaptureSpec {
+            signals: [Signal::IA; 4],
+            trigger: Trigger::Immediate,
+            pre_samples: 0,
+            decimation: 1,
+        };
+        let req = Request { spec, period_s: 5e-5, shown: 1, then: Some(Command::Enable) };
+        let e = take(&mut transact, &req, Duration::from_secs(9), Duration::ZERO, &|| false, &mut |_| {})
+            .unwrap_err();
+        assert!(e.contains("no capture armed"), "{e}");
+        let stop = Request { then: Some(Command::Stop), ..req };
+        let e = take(&mut transact, &stop, Duration::from_secs(9), Duration::ZERO, &|| false, &mut |_| {})
+            .unwrap_err();
+        assert!(e.contains("Stop") && e.contains("NotIdle"), "{e}");
+        assert!(matches!(
+            sent[..],
+            [Command::ArmCapture(_), Command::Enable, Command::ReadCapture { chunk: 0 }, ..]
+        ));
+    }
+
     #[test]
     fn a_capture_that_never_triggers_gives_up_and_says_why() {
         let mut capture = Capture::<8>::new();
@@ -329,7 +412,7 @@ mod tests {
             pre_samples: 0,
             decimation: 1,
         };
-        let req = Request { spec, period_s: 5e-5, shown: 1 };
+        let req = Request { spec, period_s: 5e-5, shown: 1, then: None };
         let e =
             take(&mut transact, &req, Duration::ZERO, Duration::ZERO, &|| false, &mut |_| {}).unwrap_err();
         assert!(e.contains("waiting for its trigger") && e.contains("nothing written"), "{e}");

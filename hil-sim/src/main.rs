@@ -288,7 +288,10 @@ fn link_identify<R: std::io::Read, W: std::io::Write>(
 
 /// The capture's spec from the command line, checked before any port is opened.
 fn capture_spec(a: &LinkCaptureArgs) -> Result<(controller_core::capture::CaptureSpec, usize), String> {
-    use hil_sim::capture::{parse_signals, parse_trigger};
+    use hil_sim::capture::{parse_signals, parse_then, parse_trigger};
+    if let Some(t) = &a.then {
+        parse_then(t).map_err(|e| format!("--then: {e}"))?;
+    }
     let (signals, shown) = parse_signals(&a.signals).map_err(|e| format!("--signals: {e}"))?;
     let trigger = parse_trigger(&a.trigger).map_err(|e| format!("--trigger: {e}"))?;
     let depth = controller_core::capture::RECORD_SAMPLES;
@@ -314,7 +317,12 @@ fn link_capture<R: std::io::Read, W: std::io::Write>(
     let mut transact = |c: &controller_core::link::Command| link.transact(c);
     let record = hil_sim::capture::take(
         &mut transact,
-        &hil_sim::capture::Request { spec, period_s, shown },
+        &hil_sim::capture::Request {
+            spec,
+            period_s,
+            shown,
+            then: a.then.as_deref().map(hil_sim::capture::parse_then).transpose()?,
+        },
         Duration::from_secs_f64(a.wait_s),
         Duration::from_millis(100),
         &|| INTERRUPTED.load(Ordering::Relaxed),
@@ -330,6 +338,9 @@ fn link_capture<R: std::io::Read, W: std::io::Write>(
             );
         },
     )?;
+    if INTERRUPTED.load(Ordering::Relaxed) {
+        return Err("interrupted: nothing written".into());
+    }
     let csv = a.out.join("capture.csv");
     let svg = a.out.join("capture.svg");
     write_text(&csv, &record.csv())?;
@@ -815,6 +826,10 @@ struct LinkCaptureArgs {
     /// One sample every N control periods.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u16).range(1..))]
     every: u16,
+    /// A command to send once the capture is armed — what the capture is to see: enable,
+    /// disable, stop, or speed|torque|position VALUE (e.g. "speed 100").
+    #[arg(long)]
+    then: Option<String>,
     /// Give up when no record is complete after this many seconds.
     #[arg(long, default_value_t = 60.0, value_parser = positive_seconds)]
     wait_s: f64,

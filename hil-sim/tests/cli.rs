@@ -128,6 +128,7 @@ fn capture_arguments_are_checked_before_the_port() {
         (vec!["--trigger", "omega_ref:up:1"], "rising, falling or either"),
         (vec!["--trigger", "omega_ref:rising:NaN"], "not finite"),
         (vec!["--pre", "256"], "below the record's 256"),
+        (vec!["--then", "speed fast"], "--then"),
         (vec!["--drive", "/no/such/drive.toml"], "drive.toml"),
         (vec!["--out", sub.to_str().unwrap()], "cannot create"),
     ] {

@@ -206,7 +206,7 @@ fn pil_capture_of_fig11_equals_the_sil_trace() {
         let mut pil = hil_sim::pil::Pil::start(&PilOptions::default(), &b.spec).unwrap();
         capture::arm(&mut |c| pil.transact(c), spec).unwrap();
         b.simulate(&mut pil, |_| {}, |_| Ok(())).unwrap();
-        let req = capture::Request { spec, period_s: ts, shown: 4 };
+        let req = capture::Request { spec, period_s: ts, shown: 4, then: None };
         let (state, record) = capture::read(&mut |c| pil.transact(c), &req).unwrap();
         assert_eq!(state, CaptureState::Done, "{trigger:?}");
         let record = record.unwrap();

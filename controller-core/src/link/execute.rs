@@ -77,7 +77,7 @@ pub fn read_capture<const DEPTH: usize>(capture: &Capture<DEPTH>, chunk: u8) -> 
     }
     Reply::Capture {
         state: capture.state(),
-        // At most 65 528 (`Capture::new`'s bound).
+        // At most 2 048 (`Capture::new`'s bound).
         samples: DEPTH as u16,
         chunk,
         bytes: capture.chunk(usize::from(chunk)).unwrap_or([0; crate::capture::CHUNK_BYTES]),

@@ -7,7 +7,7 @@ use crate::commission::{CommissionOutput, CommissionSpec, RECORD_BYTES, Record, 
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
-    BrakeChopper, CurrentFrame, DriveSpec, FastOutput, Fault, FaultSet, Measurements, Mode, PhaseCommand,
+    BrakeChopper, CurrentFrame, DriveSpec, FastOutput, FaultSet, Measurements, Mode, PhaseCommand,
     PositionLaw, Protection, Reference, Telemetry, ThermalLimit,
 };
 use crate::frames::{Abc, AlphaBeta};
@@ -581,59 +581,6 @@ fn read_thermal(r: &mut Reader<'_>) -> Result<Option<ThermalLimit>, DecodeError>
     })
 }
 
-pub(crate) fn mode_code(m: Mode) -> u8 {
-    match m {
-        Mode::Idle => 0,
-        Mode::Magnetizing => 1,
-        Mode::Running => 2,
-        Mode::Fault(Fault::Overcurrent) => 10,
-        Mode::Fault(Fault::DcBusOvervoltage) => 11,
-        Mode::Fault(Fault::DcBusUndervoltage) => 12,
-        Mode::Fault(Fault::NonFiniteInput) => 13,
-        Mode::Fault(Fault::NonFiniteOutput) => 14,
-        Mode::Fault(Fault::EncoderLoss) => 15,
-        Mode::Fault(Fault::HardwareBreak) => 16,
-        Mode::Fault(Fault::Overspeed) => 17,
-        Mode::Fault(Fault::Stall) => 18,
-        Mode::Fault(Fault::CurrentSensor) => 19,
-        Mode::Fault(Fault::NoMotorCurrent) => 20,
-        Mode::Fault(Fault::LossOfControl) => 21,
-        Mode::Fault(Fault::EncoderImplausible) => 22,
-        Mode::Fault(Fault::OpenPhase) => 23,
-        Mode::Fault(Fault::MotorOverload) => 24,
-        Mode::Fault(Fault::InverterOverload) => 25,
-        Mode::Fault(Fault::FollowingError) => 26,
-        Mode::Fault(Fault::SwitchOpen) => 27,
-    }
-}
-
-fn mode_from_code(c: u8) -> Result<Mode, DecodeError> {
-    Ok(match c {
-        0 => Mode::Idle,
-        1 => Mode::Magnetizing,
-        2 => Mode::Running,
-        10 => Mode::Fault(Fault::Overcurrent),
-        11 => Mode::Fault(Fault::DcBusOvervoltage),
-        12 => Mode::Fault(Fault::DcBusUndervoltage),
-        13 => Mode::Fault(Fault::NonFiniteInput),
-        14 => Mode::Fault(Fault::NonFiniteOutput),
-        15 => Mode::Fault(Fault::EncoderLoss),
-        16 => Mode::Fault(Fault::HardwareBreak),
-        17 => Mode::Fault(Fault::Overspeed),
-        18 => Mode::Fault(Fault::Stall),
-        19 => Mode::Fault(Fault::CurrentSensor),
-        20 => Mode::Fault(Fault::NoMotorCurrent),
-        21 => Mode::Fault(Fault::LossOfControl),
-        22 => Mode::Fault(Fault::EncoderImplausible),
-        23 => Mode::Fault(Fault::OpenPhase),
-        24 => Mode::Fault(Fault::MotorOverload),
-        25 => Mode::Fault(Fault::InverterOverload),
-        26 => Mode::Fault(Fault::FollowingError),
-        27 => Mode::Fault(Fault::SwitchOpen),
-        _ => return Err(DecodeError::Value),
-    })
-}
-
 /// A stage as (code, refusal code, refusal value, refusal index).
 fn stage_code(s: Stage) -> (u8, u8, f32, u8) {
     let (r, v, i) = match s {
@@ -932,7 +879,7 @@ impl Reply {
             }
             Reply::Output(o) => {
                 w.u8(tag::OUTPUT)?;
-                w.u8(mode_code(o.mode))?;
+                w.u8(o.mode.code())?;
                 w.u8(u8::from(o.brake))?;
                 write_phases(&mut w, o.phases)?;
                 let t = &o.telemetry;
@@ -982,7 +929,7 @@ impl Reply {
             }
             Reply::Status { mode, frames_ok, frame_errors, timing, readings } => {
                 w.u8(tag::STATUS)?;
-                w.u8(mode_code(*mode))?;
+                w.u8(mode.code())?;
                 w.bytes(&frames_ok.to_le_bytes())?;
                 w.bytes(&frame_errors.to_le_bytes())?;
                 w.u32(timing.cycles_max)?;
@@ -1014,7 +961,7 @@ impl Reply {
                 _ => return Err(DecodeError::Value),
             }),
             tag::OUTPUT => {
-                let mode = mode_from_code(r.u8()?)?;
+                let mode = Mode::from_code(r.u8()?).ok_or(DecodeError::Value)?;
                 let brake = match r.u8()? {
                     0 => false,
                     1 => true,
@@ -1054,7 +1001,7 @@ impl Reply {
                 bytes: r.take()?,
             },
             tag::STATUS => Reply::Status {
-                mode: mode_from_code(r.u8()?)?,
+                mode: Mode::from_code(r.u8()?).ok_or(DecodeError::Value)?,
                 frames_ok: u32::from_le_bytes(r.take()?),
                 frame_errors: u32::from_le_bytes(r.take()?),
                 timing: LoopTiming { cycles_max: r.u32()?, overruns: r.u32()? },

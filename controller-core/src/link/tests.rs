@@ -323,3 +323,17 @@ fn capture_specs_and_replies() {
         Reply::Nack(NackReason::Unsupported)
     );
 }
+
+/// Every mode's byte decodes back to it, and no other byte decodes (3 modes and the 18
+/// faults).
+#[test]
+fn mode_codes_round_trip() {
+    let mut modes = 0;
+    for c in 0..=u8::MAX {
+        if let Some(m) = Mode::from_code(c) {
+            assert_eq!(m.code(), c);
+            modes += 1;
+        }
+    }
+    assert_eq!(modes, 3 + 18);
+}
