@@ -26,29 +26,43 @@ mod target {
     use defmt_rtt as _;
     use embassy_executor::Spawner;
     use embassy_stm32::adc::{Adc, AdcChannel as _, Exten, SampleTime};
-    use embassy_stm32::gpio::{AfType, Flex, Level, Output, OutputType, Pull, Speed};
+    use embassy_stm32::gpio::{AfType, AnyPin, Flex, Level, Output, OutputType, Pull, Speed};
     use embassy_stm32::interrupt;
     use embassy_stm32::interrupt::{InterruptExt, Priority};
     use embassy_stm32::mode::Async;
     use embassy_stm32::pac;
+    use embassy_stm32::pac::timer::vals::{Bkp, Ckd, Mms2, Ossi, Ossr};
     use embassy_stm32::pac::timer::vals::{Dir, Ocm, Urs};
     use embassy_stm32::peripherals::{
         IWDG, PA0, PA1, PA2, PA3, PA6, PA8, PA9, PA10, PB5, PB6, PB7, PB13, PB14, PB15, PC0, PC1, TIM1,
     };
-    use embassy_stm32::time::khz;
-    use embassy_stm32::timer::complementary_pwm::{
-        BreakInputPolarity, ComplementaryPwm, ComplementaryPwmPin, Mms2, Ossi, Ossr,
-    };
-    use embassy_stm32::timer::low_level::{CountingMode, FilterValue};
+    use embassy_stm32::timer::low_level::{CountingMode, FilterValue, OutputCompareMode, Timer as LlTimer};
     use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
-    use embassy_stm32::timer::simple_pwm::PwmPin;
-    use embassy_stm32::timer::{BkIn1, BreakInputPin, Channel};
+    use embassy_stm32::timer::{
+        BkIn1, BreakInputPin, Ch1, Ch2, Ch3, Channel, TimerComplementaryPin, TimerPin,
+    };
     use embassy_stm32::usart::{self, RingBufferedUartRx, Uart, UartTx};
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
     use firmware::boundary::{Mailbox, TripleBuffer};
     use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS};
+
+    /// The drive file's dead time as TIM1's DTG code (CKD = 1), at compile time: a dead
+    /// time the generator cannot give stops the build.
+    const DEAD_TIME_DTG: u8 = match firmware::control::dead_time_dtg(DEAD_TIME_TICKS) {
+        Some(code) => code,
+        None => panic!("the drive file's dead time exceeds TIM1's 1 008 ticks"),
+    };
+
+    /// A TIM1 output pin: driven low, then handed to the timer (alternate function `af`,
+    /// push-pull, very high speed — what embassy's `PwmPin::new` does).
+    fn pwm_pin(af: u8, pin: Peri<'static, AnyPin>) -> Flex<'static> {
+        let mut f = Flex::new(pin);
+        f.set_low();
+        f.set_as_af_unchecked(af, AfType::output(OutputType::PushPull, Speed::VeryHigh));
+        f
+    }
     use firmware::control::{
         Calibration, ControlError, ControlLoop, Samples, Snapshot, UPDATE_REPETITION, check_update_timing,
     };
@@ -228,24 +242,32 @@ mod target {
         // The brake gate: a push-pull output, low (resistor out) until the drive asks.
         let brake = Output::new(pins.brake, Level::Low, Speed::Low);
 
-        // TIM1: centre-aligned complementary PWM, outputs off until the drive asks.
-        let mut pwm = ComplementaryPwm::new(
-            p.TIM1,
-            Some(PwmPin::new(pins.pwm_high.0, OutputType::PushPull)),
-            Some(ComplementaryPwmPin::new(pins.pwm_low.0, OutputType::PushPull)),
-            Some(PwmPin::new(pins.pwm_high.1, OutputType::PushPull)),
-            Some(ComplementaryPwmPin::new(pins.pwm_low.1, OutputType::PushPull)),
-            Some(PwmPin::new(pins.pwm_high.2, OutputType::PushPull)),
-            Some(ComplementaryPwmPin::new(pins.pwm_low.2, OutputType::PushPull)),
-            None,
-            None,
-            khz(20),
-            CountingMode::CenterAlignedBothInterrupts,
-        );
-        pwm.set_master_output_enable(false);
+        // TIM1: centre-aligned complementary PWM, outputs off until the drive asks (MOE is
+        // 0 from reset and set only by the output stage's explicit enable). Through embassy's
+        // low-level timer — the register steps of its `ComplementaryPwm::new`, without its
+        // frequency arithmetic (64-bit divisions, ≈ 1.2 KB of flash) and without its setting
+        // MOE: the period and the dead time are the drive file's, in timer ticks.
+        let pwm = LlTimer::new(p.TIM1);
+        let pwm_pins = [
+            pwm_pin(TimerPin::<TIM1, Ch1>::af_num(&*pins.pwm_high.0), pins.pwm_high.0.into()),
+            pwm_pin(TimerComplementaryPin::<TIM1, Ch1>::af_num(&*pins.pwm_low.0), pins.pwm_low.0.into()),
+            pwm_pin(TimerPin::<TIM1, Ch2>::af_num(&*pins.pwm_high.1), pins.pwm_high.1.into()),
+            pwm_pin(TimerComplementaryPin::<TIM1, Ch2>::af_num(&*pins.pwm_low.1), pins.pwm_low.1.into()),
+            pwm_pin(TimerPin::<TIM1, Ch3>::af_num(&*pins.pwm_high.2), pins.pwm_high.2.into()),
+            pwm_pin(TimerComplementaryPin::<TIM1, Ch3>::af_num(&*pins.pwm_low.2), pins.pwm_low.2.into()),
+        ];
+        pwm.set_counting_mode(CountingMode::CenterAlignedBothInterrupts);
+        for ch in [Channel::Ch1, Channel::Ch2, Channel::Ch3, Channel::Ch4] {
+            pwm.set_output_compare_mode(ch, OutputCompareMode::PwmMode1);
+            pwm.set_output_compare_preload(ch, true);
+        }
+        pwm.set_autoreload_preload(true);
         // The period the drive's constants were discretised for: centre-aligned, 2·ARR ticks
-        // (embassy's `khz(20)` programs one tick less). Written, read back, checked.
+        // of the undivided timer clock. Written, read back, checked.
+        pac::TIM1.psc().write_value(0);
         pac::TIM1.arr().write(|w| w.set_arr(BOARD.pwm_period_counts));
+        pwm.generate_update_event();
+        pwm.start();
         let arr_read = pac::TIM1.arr().read().arr();
         if let Err(ControlError::PwmPeriod { read, expected }) =
             firmware::control::check_pwm_period(arr_read, &BOARD)
@@ -257,9 +279,10 @@ mod target {
             );
             halt_safe();
         }
-        pwm.set_dead_time(DEAD_TIME_TICKS);
-        pwm.set_off_state_selection_run(Ossr::IDLE_LEVEL);
-        pwm.set_off_state_selection_idle(Ossi::IDLE_LEVEL);
+        pwm.set_dead_time_clock_division(Ckd::DIV1);
+        pwm.set_dead_time_value(DEAD_TIME_DTG);
+        pwm.set_ossr(Ossr::IDLE_LEVEL);
+        pwm.set_ossi(Ossi::IDLE_LEVEL);
         // Break input: the overcurrent comparator pulls BKIN low → MOE cleared by hardware,
         // latched (no automatic output enable); the control interrupt sees the flag.
         let bkin_pin = pins.bkin;
@@ -267,13 +290,14 @@ mod target {
         let mut bkin = Flex::new(bkin_pin);
         bkin.set_as_af_unchecked(af, AfType::input(Pull::Up));
         pwm.set_break_input_pin_enable(true);
-        pwm.set_break_polarity(BreakInputPolarity::ACTIVE_LOW);
+        pwm.set_break_polarity(Bkp::ACTIVE_LOW);
         pwm.set_break_filter(FilterValue::FCK_INT_N8);
         pwm.set_automatic_output_enable(false);
         pwm.set_break_enable(true);
         for ch in [Channel::Ch1, Channel::Ch2, Channel::Ch3] {
-            pwm.set_duty(ch, u32::from(BOARD.pwm_period_counts / 2));
-            pwm.enable(ch);
+            pwm.set_compare_value(ch, BOARD.pwm_period_counts / 2);
+            pwm.enable_channel(ch, true);
+            pwm.enable_complementary_channel(ch, true);
         }
         // Lock level 1: dead time, idle states and the break configuration (BKE, BKP, AOE)
         // can no longer be written until reset. MOE stays writable.
@@ -285,7 +309,7 @@ mod target {
         let arr = BOARD.pwm_period_counts;
         pac::TIM1.ccmr_output(1).modify(|w| w.set_ocm(1, Ocm::PWM_MODE2));
         pac::TIM1.ccr(3).modify(|w| w.set_ccr(arr - 1));
-        pwm.set_mms2(Mms2::COMPARE_OC4);
+        pwm.set_mms2_selection(Mms2::COMPARE_OC4);
         // Update delay: one period (`control::UPDATE_REPETITION`). The counter stopped, RCR
         // written, an update generated (the repetition counter and the preloads reloaded,
         // the counter back to 0), then started: the update event now falls on every
@@ -374,7 +398,7 @@ mod target {
         // The peripherals' drivers must stay alive.
         loop {
             Timer::after_secs(3600).await;
-            let _ = (&pwm, &bkin, &brake, &_injected, &_encoder);
+            let _ = (&pwm, &pwm_pins, &bkin, &brake, &_injected, &_encoder);
         }
     }
 
@@ -429,10 +453,15 @@ mod target {
         LOOP_TIMER.record(cycles, firmware::control::period_cycles(&BOARD));
     }
 
-    /// Milliseconds since boot, wrapping (the link watchdog's clock).
-    fn now_ms() -> u32 {
-        embassy_time::Instant::now().as_millis() as u32
+    /// Microseconds since boot, wrapping (the link watchdog's clock): embassy's ticks are
+    /// microseconds, so no 64-bit division (a library call on the M4F) makes it.
+    fn now_us() -> u32 {
+        const { assert!(embassy_time::TICK_HZ == 1_000_000) };
+        embassy_time::Instant::now().as_ticks() as u32
     }
+
+    /// The link watchdog's timeout in its clock's unit (3 600 s at most: below 2^32 µs).
+    const LINK_TIMEOUT_US: u32 = LINK_TIMEOUT_MS * 1000;
 
     /// `cmd` executed by the control interrupt (`COMMANDS`): its reply within
     /// [`COMMAND_TIMEOUT_MS`], else none (no control loop, or the interrupt not running; a
@@ -467,12 +496,12 @@ mod target {
         let mut stats = LinkStats::default();
         let mut input = [0u8; 64];
         let mut frame = [0u8; MAX_FRAME];
-        let mut watchdog = server::LinkWatchdog::new(LINK_TIMEOUT_MS, now_ms());
+        let mut watchdog = server::LinkWatchdog::new(LINK_TIMEOUT_US, now_us());
         let mut calibration_logged = false;
         loop {
             // The control loop's state, and requests to it, lock-free (`firmware::boundary`).
             let snapshot = SNAPSHOT.read().unwrap_or(Snapshot::EMPTY);
-            let stopped = watchdog.due(now_ms(), snapshot.bridge_on);
+            let stopped = watchdog.due(now_us(), snapshot.bridge_on);
             if stopped {
                 WATCHDOG_STOP.store(true, Ordering::Relaxed);
             }
@@ -530,7 +559,7 @@ mod target {
             };
             for &b in input.iter().take(n) {
                 let Some(cmd) = decoder.push_board_command(b, &mut stats) else { continue };
-                watchdog.frame(now_ms());
+                watchdog.frame(now_us());
                 // Heavy work (a commissioning configuration) here, not in the interrupt.
                 let prepared = server::prepare(&cmd);
                 let reply = execute(cmd, prepared, stats).await;

@@ -23,33 +23,34 @@ use controller_core::commission::{CommissionConfig, CommissionSpecError};
 use controller_core::drive::Mode;
 use controller_core::link::{self, BoardCommand, Command, LinkStats, NackReason, Reply};
 
-/// The link's watchdog: no valid frame for `timeout_ms` while the bridge is on (Magnetizing
+/// The link's watchdog: no valid frame for `timeout_us` while the bridge is on (Magnetizing
 /// or Running) → one controlled stop ([`controller_core::drive::Drive::controlled_stop`]);
-/// a frame re-arms it. `timeout_ms` = 0: off. Times are a free-running millisecond counter
-/// (wrapping).
+/// a frame re-arms it. `timeout_us` = 0: off. Times are a free-running microsecond counter,
+/// wrapping every 71.6 min (the firmware's: embassy's 1 MHz ticks, no division on the
+/// target), so a timeout must stay below 2^32 µs (the drive file's at most 3 600 s).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LinkWatchdog {
-    timeout_ms: u32,
-    last_ms: u32,
+    timeout_us: u32,
+    last_us: u32,
     fired: bool,
 }
 
 impl LinkWatchdog {
-    /// Armed from `now_ms`.
-    pub const fn new(timeout_ms: u32, now_ms: u32) -> Self {
-        Self { timeout_ms, last_ms: now_ms, fired: false }
+    /// Armed from `now_us`.
+    pub const fn new(timeout_us: u32, now_us: u32) -> Self {
+        Self { timeout_us, last_us: now_us, fired: false }
     }
 
     /// A valid frame arrived.
-    pub fn frame(&mut self, now_ms: u32) {
-        self.last_ms = now_ms;
+    pub fn frame(&mut self, now_us: u32) {
+        self.last_us = now_us;
         self.fired = false;
     }
 
-    /// Check at `now_ms`; stops the drive (once) when the link has been silent too long.
+    /// Check at `now_us`; stops the drive (once) when the link has been silent too long.
     /// Returns whether it did.
-    pub fn poll(&mut self, now_ms: u32, ctl: &mut ControlLoop) -> bool {
-        let due = self.due(now_ms, ctl.snapshot().bridge_on);
+    pub fn poll(&mut self, now_us: u32, ctl: &mut ControlLoop) -> bool {
+        let due = self.due(now_us, ctl.snapshot().bridge_on);
         if due {
             Self::stop(ctl);
         }
@@ -59,11 +60,11 @@ impl LinkWatchdog {
     /// Whether to stop now, with the bridge on or not (`control::Snapshot::bridge_on`): once
     /// per silence, then [`LinkWatchdog::stop`] does it. The firmware's link task asks this
     /// without touching the control loop and takes it only to stop.
-    pub fn due(&mut self, now_ms: u32, bridge_on: bool) -> bool {
-        if self.timeout_ms == 0
+    pub fn due(&mut self, now_us: u32, bridge_on: bool) -> bool {
+        if self.timeout_us == 0
             || self.fired
             || !bridge_on
-            || now_ms.wrapping_sub(self.last_ms) < self.timeout_ms
+            || now_us.wrapping_sub(self.last_us) < self.timeout_us
         {
             return false;
         }
@@ -349,7 +350,7 @@ mod tests {
         assert!(record[4 * 3] < 1.0 && record[4 * 4] >= 1.0);
     }
 
-    /// The watchdog stops a running drive once after `timeout` ms of silence (the drive then
+    /// The watchdog stops a running drive once after `timeout` µs of silence (the drive then
     /// brakes: it is stopping, still Running), not before, not while Idle, and a frame
     /// re-arms it; the counter may wrap.
     #[test]
@@ -372,7 +373,7 @@ mod tests {
         assert!(!w.poll(start.wrapping_add(3999), &mut c));
         assert!(w.poll(start.wrapping_add(4000), &mut c));
         let off = LinkWatchdog::new(0, start);
-        assert_eq!(off, LinkWatchdog { timeout_ms: 0, last_ms: start, fired: false });
+        assert_eq!(off, LinkWatchdog { timeout_us: 0, last_us: start, fired: false });
         assert!(!{ off }.poll(start.wrapping_add(1_000_000), &mut c));
         assert_eq!(certified::LINK_TIMEOUT_MS, 1000, "drive.toml link_timeout_s");
     }
