@@ -12,7 +12,7 @@
 //! [`FastOutput`] ([`Signal`]). The firmware records after every step in the control
 //! interrupt; the processor-in-the-loop server after every `Step`, so a PIL run's capture is
 //! the simulation's trace, bit for bit (`hil-sim/tests/pil.rs`). Recording costs a compare
-//! while nothing is armed or the record is finished, and ≈ 100–170 instructions per
+//! while nothing is armed or the record is finished, and ≈ 110–180 instructions per
 //! recorded sample while armed (`cargo xtask qemu`: `cost part:capture_sample`).
 //!
 //! A level trigger fires on the first recorded sample that reaches the level from the other
