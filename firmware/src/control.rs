@@ -163,6 +163,8 @@ impl LoopTimer {
         controller_core::link::LoopTiming {
             cycles_max: self.max.load(Relaxed),
             overruns: self.overruns.load(Relaxed),
+            // The stack is the task's to measure (`stack::used_bytes`).
+            stack_bytes: 0,
         }
     }
 }
@@ -184,10 +186,10 @@ pub fn check_pwm_period(read: u16, board: &BoardConfig) -> Result<(), ControlErr
 }
 
 /// TIM1's dead-time generator setting (BDTR.DTG, RM0440 §28.6.20) for at least `ticks`
-/// timer clocks with CKD = 1 (t_DTS = t_CK_INT), the least such: DTG[7:5] = 0xx gives
-/// DTG·1 (0 … 127), 10x (64 + DTG[5:0])·2 (128 … 254), 110 (32 + DTG[4:0])·8 (256 … 504),
-/// 111 (32 + DTG[4:0])·16 (512 … 1 008). `None` above 1 008 ticks (5.9 µs at 170 MHz).
-/// Evaluated at compile time for the drive file's `DEAD_TIME_TICKS`.
+/// timer clocks with CKD = 1 (t_DTS = t_CK_INT), the least such: `DTG[7:5]` = 0xx gives
+/// DTG·1 (0 … 127), 10x (64 + `DTG[5:0]`)·2 (128 … 254), 110 (32 + `DTG[4:0]`)·8
+/// (256 … 504), 111 (32 + `DTG[4:0]`)·16 (512 … 1 008). `None` above 1 008 ticks (5.9 µs at
+/// 170 MHz). Evaluated at compile time for the drive file's `DEAD_TIME_TICKS`.
 pub const fn dead_time_dtg(ticks: u16) -> Option<u8> {
     let t = ticks as u32;
     if t <= 127 {
@@ -1054,10 +1056,16 @@ mod tests {
         for c in [900, 1200, 800, 8499] {
             t.record(c, period);
         }
-        assert_eq!(t.read(), controller_core::link::LoopTiming { cycles_max: 8499, overruns: 0 });
+        assert_eq!(
+            t.read(),
+            controller_core::link::LoopTiming { cycles_max: 8499, overruns: 0, stack_bytes: 0 }
+        );
         t.record(8500, period);
         t.record(20_000, period);
         t.record(1000, period);
-        assert_eq!(t.read(), controller_core::link::LoopTiming { cycles_max: 20_000, overruns: 2 });
+        assert_eq!(
+            t.read(),
+            controller_core::link::LoopTiming { cycles_max: 20_000, overruns: 2, stack_bytes: 0 }
+        );
     }
 }

@@ -6,6 +6,7 @@
 //!   trait, host-tested against a model of the timer's break logic;
 //! * [`server`]: the command/telemetry link's command handling;
 //! * [`boundary`]: the lock-free hand-over from the control interrupt to the link task;
+//! * [`stack`]: the main stack's high-water mark, read from cortex-m-rt's paint;
 //! * [`config`]: the drive and board constants, generated from `drive.toml` at build time —
 //!   the pin map is in `main.rs`'s `pins` module, next to the peripherals it names.
 //!
@@ -19,3 +20,4 @@ pub mod config;
 pub mod control;
 pub mod output;
 pub mod server;
+pub mod stack;

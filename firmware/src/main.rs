@@ -19,7 +19,7 @@
 #[cfg(target_os = "none")]
 mod target {
     use controller_core::calibration::CalibrationError;
-    use controller_core::link::{self, BoardCommand, FrameDecoder, LinkStats, MAX_FRAME, Reply};
+    use controller_core::link::{self, BoardCommand, FrameDecoder, LinkStats, LoopTiming, MAX_FRAME, Reply};
     use core::cell::RefCell;
     use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
     use critical_section::Mutex;
@@ -453,6 +453,26 @@ mod target {
         LOOP_TIMER.record(cycles, firmware::control::period_cycles(&BOARD));
     }
 
+    /// The main stack's high-water mark since reset, bytes (`firmware::stack`): the region
+    /// cortex-m-rt painted, `_stack_end` (its bottom) up to `_stack_start` (its top).
+    fn stack_used_bytes() -> u32 {
+        unsafe extern "C" {
+            static _stack_end: u32;
+            static _stack_start: u32;
+        }
+        let bottom = core::ptr::addr_of!(_stack_end);
+        let top = core::ptr::addr_of!(_stack_start) as usize;
+        let words = top.saturating_sub(bottom as usize) / 4;
+        let used = firmware::stack::used_bytes(words, |i| {
+            // SAFETY: `bottom + i` for i < words lies inside the stack region the linker script
+            // defines (below `_stack_start`), word-aligned; a volatile read of a word the
+            // stack may be writing at the same time reads either value — only the paint's
+            // presence matters — and nothing is written.
+            unsafe { core::ptr::read_volatile(bottom.wrapping_add(i)) }
+        });
+        u32::try_from(used).unwrap_or(u32::MAX)
+    }
+
     /// Microseconds since boot, wrapping (the link watchdog's clock): embassy's ticks are
     /// microseconds, so no 64-bit division (a library call on the M4F) makes it.
     fn now_us() -> u32 {
@@ -566,7 +586,8 @@ mod target {
                 // The status carries the interrupt's timing (the link module cannot see it).
                 let reply = reply.map(|r| match r {
                     Reply::Status { mode, frames_ok, frame_errors, readings, .. } => {
-                        Reply::Status { mode, frames_ok, frame_errors, timing: LOOP_TIMER.read(), readings }
+                        let timing = LoopTiming { stack_bytes: stack_used_bytes(), ..LOOP_TIMER.read() };
+                        Reply::Status { mode, frames_ok, frame_errors, timing, readings }
                     }
                     other => other,
                 });

@@ -132,6 +132,7 @@ pub fn format_status(r: &Reply, file: &drive_file::DriveFile) -> Option<String> 
                 1e6 / f_pwm,
                 timing.overruns
             );
+            s += &format!("stack         {} B at most since reset\n", timing.stack_bytes);
             let amps = |c: u16| (f64::from(c) - f64::from(t.current_offset_counts)) * t.current_a_per_count;
             let [a, bb, c] = readings.i_abc_counts;
             s += &format!(
@@ -154,8 +155,8 @@ pub fn format_status(r: &Reply, file: &drive_file::DriveFile) -> Option<String> 
         }
         None => {
             s += &format!(
-                "control step  longest {} cycles, {} overruns\nreadings      {readings:?} (no [board] to scale them)\n",
-                timing.cycles_max, timing.overruns
+                "control step  longest {} cycles, {} overruns\nstack         {} B at most since reset\nreadings      {readings:?} (no [board] to scale them)\n",
+                timing.cycles_max, timing.overruns, timing.stack_bytes
             );
         }
     }
@@ -175,7 +176,7 @@ mod tests {
             mode: controller_core::drive::Mode::Idle,
             frames_ok: 3,
             frame_errors: 1,
-            timing: controller_core::link::LoopTiming { cycles_max: 3400, overruns: 0 },
+            timing: controller_core::link::LoopTiming { cycles_max: 3400, overruns: 0, stack_bytes: 1480 },
             readings: controller_core::link::BoardReadings {
                 i_abc_counts: [2048, 2048 + 124, 2048 - 124],
                 vdc_counts: 3100,
@@ -186,6 +187,7 @@ mod tests {
         assert!(s.contains("20.0 µs of the 50.0 µs period"), "{s}");
         assert!(s.contains("+0.000 +0.999 -0.999 A"), "{s}");
         assert!(s.contains("310.0 V") && s.contains("4096 per revolution"), "{s}");
+        assert!(s.contains("stack         1480 B"), "{s}");
         assert_eq!(format_status(&Reply::Ack, &file), None);
     }
     use controller_core::drive::{FastOutput, Mode, PhaseCommand, Telemetry};

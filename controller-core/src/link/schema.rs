@@ -278,14 +278,17 @@ pub struct BoardReadings {
     pub encoder_counts: u16,
 }
 
-/// The control interrupt's timing on a board (DWT cycle counter): the longest step seen and
-/// the steps that took a whole PWM period or more.
+/// The control loop's resources on a board: the control interrupt's timing (DWT cycle
+/// counter) — the longest step seen and the steps that took a whole PWM period or more — and
+/// the deepest the stack it and the tasks run on has been (zero where not measured: PIL).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LoopTiming {
     /// Most CPU cycles one control interrupt took.
     pub cycles_max: u32,
     /// Control interrupts that took at least a PWM period (their compare values came late).
     pub overruns: u32,
+    /// The main stack's high-water mark since reset, bytes (its painted words overwritten).
+    pub stack_bytes: u32,
 }
 
 pub(crate) mod tag {
@@ -934,6 +937,7 @@ impl Reply {
                 w.bytes(&frame_errors.to_le_bytes())?;
                 w.u32(timing.cycles_max)?;
                 w.u32(timing.overruns)?;
+                w.u32(timing.stack_bytes)?;
                 let [a, b, c] = readings.i_abc_counts;
                 for x in [a, b, c, readings.vdc_counts, readings.encoder_counts] {
                     w.bytes(&x.to_le_bytes())?;
@@ -1004,7 +1008,7 @@ impl Reply {
                 mode: Mode::from_code(r.u8()?).ok_or(DecodeError::Value)?,
                 frames_ok: u32::from_le_bytes(r.take()?),
                 frame_errors: u32::from_le_bytes(r.take()?),
-                timing: LoopTiming { cycles_max: r.u32()?, overruns: r.u32()? },
+                timing: LoopTiming { cycles_max: r.u32()?, overruns: r.u32()?, stack_bytes: r.u32()? },
                 readings: {
                     let mut u = || r.take().map(u16::from_le_bytes);
                     BoardReadings { i_abc_counts: [u()?, u()?, u()?], vdc_counts: u()?, encoder_counts: u()? }

@@ -149,7 +149,7 @@ fn replies_round_trip_bit_exact() {
             mode: Mode::Running,
             frames_ok: 7,
             frame_errors: u32::MAX,
-            timing: super::LoopTiming { cycles_max: 1234, overruns: 2 },
+            timing: super::LoopTiming { cycles_max: 1234, overruns: 2, stack_bytes: 1480 },
             readings: super::BoardReadings {
                 i_abc_counts: [2048, 1, u16::MAX],
                 vdc_counts: 3100,
