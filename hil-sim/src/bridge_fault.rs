@@ -11,6 +11,18 @@
 //! −V_dc·sign(i_s) − R i_s`); what the short then does to a spinning motor (a braking current
 //! from its back-EMF through the two shorted phases) is not modelled.
 //!
+//! **A switch shorted** (failed conducting: a punched-through transistor) shoots the bus
+//! through its leg whenever the leg's healthy switch turns on — with the upper switch
+//! shorted, while the low side conducts (around the top of the count, where the period
+//! starts and ends), with the lower one shorted, while the high side does (its middle):
+//! `L di/dt = V_dc − R i` through the leg's loop (the DC-link capacitor, the two switches,
+//! the low-side shunt), and when the healthy switch turns off — or the bridge does — the
+//! loop's current dies through the diodes against the bus. The low-side shunt carries it
+//! downwards (a negative phase-current reading), the comparator its magnitude; the motor's
+//! terminals are not affected. What the shorted switch does to a spinning motor once the
+//! bridge is off (a braking current through it and the other legs' diodes) is not
+//! modelled, like the short's.
+//!
 //! **Comparator.** Each leg current's magnitude through a first-order filter of time
 //! constant `filter_s` (the board's RC and the comparator's delay); above `trip_a` the
 //! timer's break clears MOE at once — the bridge is off from that instant, within the
@@ -44,11 +56,27 @@ pub struct PhaseShort {
     pub inductance_h: f64,
 }
 
+/// A switch shorted for good: the shoot-through loop through its leg.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SwitchShort {
+    /// Phase index 0…2.
+    pub phase: usize,
+    /// The upper switch (else the lower one).
+    pub upper: bool,
+    /// Resistance of the leg's loop, Ω.
+    pub resistance_ohm: f64,
+    /// Inductance of the leg's loop (DC-link capacitor, switches, shunt), H (> 0).
+    pub inductance_h: f64,
+}
+
 /// The legs' state across periods.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Legs {
     /// The short, if one is injected, and its current (out of the first phase's leg).
     pub short: Option<(PhaseShort, f64)>,
+    /// The shorted switch, if one is injected, and its leg's shoot-through current (≥ 0,
+    /// from the positive rail to the negative one).
+    pub shoot: Option<(SwitchShort, f64)>,
     /// The comparator's filtered |leg current| per phase, A.
     pub filtered_a: [f64; 3],
     /// The comparator has tripped: MOE cleared, the bridge off until reset.
@@ -73,6 +101,12 @@ impl Legs {
             leg[p] += i;
             leg[q] -= i;
         }
+        if let Some((s, i)) = self.shoot
+            && let Some(x) = leg.get_mut(s.phase)
+        {
+            // Downwards through the low-side shunt: a negative phase-current reading.
+            *x -= i;
+        }
         leg
     }
 
@@ -88,7 +122,7 @@ impl Legs {
         ts_s: f64,
     ) -> LegPeriod {
         let mut out = LegPeriod::default();
-        if self.short.is_none() {
+        if self.short.is_none() && self.shoot.is_none() {
             // The legs carry the motor's currents, smooth across the period: their largest
             // magnitude is at an end, and the filter (a time constant of microseconds) has
             // followed it there.
@@ -130,6 +164,26 @@ impl Legs {
                 }
             }
             let w = f64::from(j) / f64::from(SUBSTEPS);
+            if let Some((s, i)) = &mut self.shoot {
+                let (r, l) = (s.resistance_ohm, s.inductance_h);
+                // The healthy switch conducts in this sub-step (its middle): the low side
+                // for the first and last (1 − d)/2 of the period (it starts at the top of
+                // the count), the high side for the d between.
+                let mid = w - 0.5 / f64::from(SUBSTEPS);
+                let healthy_on = driven.and_then(|v| v.get(s.phase).copied()).is_some_and(|v| {
+                    let d = (v / vdc_v + 0.5).clamp(0.0, 1.0);
+                    let low_on = mid < 0.5 * (1.0 - d) || mid > 0.5 * (1.0 + d);
+                    if s.upper { low_on } else { !low_on }
+                });
+                if healthy_on {
+                    let i_ss = if r > 0.0 { vdc_v / r } else { f64::INFINITY };
+                    *i = if r > 0.0 { i_ss + (*i - i_ss) * (-dt * r / l).exp() } else { *i + vdc_v / l * dt };
+                } else {
+                    // Through the diodes against the bus, to zero.
+                    let di = (vdc_v + r * *i) / l * dt;
+                    *i = if *i <= di { 0.0 } else { *i - di };
+                }
+            }
             let motor: [f64; 3] = std::array::from_fn(|k| start[k] + (end[k] - start[k]) * w);
             let leg = self.currents(motor);
             for (k, x) in leg.iter().enumerate() {
@@ -170,6 +224,31 @@ mod tests {
         // Latched: the next period is not driven.
         let p = legs.period(Some(&c), [0.0; 3], [0.0; 3], Some([155.0, -155.0, 0.0]), 310.0, 50e-6);
         assert!(!p.tripped && p.peak_a == 0.0);
+    }
+
+    /// An upper switch shorted: the low side's conduction from the period's start shoots
+    /// the 310 V bus through 20 µH at 15.5 A/µs, and the comparator trips within its filter
+    /// time; a lower switch shorted waits for the high side's turn (at duty 0.5, a quarter
+    /// of the period in). Both then die through the diodes, and the motor is untouched.
+    #[test]
+    fn a_shorted_switch_shoots_through_when_its_partner_turns_on() {
+        let c = Comparator { trip_a: 12.0, filter_s: 1e-6 };
+        for upper in [true, false] {
+            let s = SwitchShort { phase: 1, upper, resistance_ohm: 0.05, inductance_h: 20e-6 };
+            let mut legs = Legs { shoot: Some((s, 0.0)), ..Legs::default() };
+            let motor = [1.0, -0.5, -0.5];
+            let p = legs.period(Some(&c), motor, motor, Some([0.0; 3]), 310.0, 50e-6);
+            assert!(p.tripped && legs.broken, "upper {upper}");
+            assert!(p.peak_a > 12.0 && p.peak_a < 40.0, "{}", p.peak_a);
+            assert_eq!(legs.shoot.map(|(_, i)| i), Some(0.0));
+            assert_eq!(legs.currents(motor), motor, "the motor's currents");
+        }
+        // Without a comparator the loop's current grows while the partner conducts, and the
+        // low-side shunt reads it (negative) at the next sample: the software's overcurrent.
+        let s = SwitchShort { phase: 0, upper: true, resistance_ohm: 0.05, inductance_h: 20e-6 };
+        let mut legs = Legs { shoot: Some((s, 0.0)), ..Legs::default() };
+        let _ = legs.period(None, [0.0; 3], [0.0; 3], Some([0.0; 3]), 310.0, 50e-6);
+        assert!(legs.currents([0.0; 3])[0] < -100.0, "{:?}", legs.currents([0.0; 3]));
     }
 
     /// Without a fault the legs carry the motor's currents, and a comparator above them does

@@ -54,7 +54,9 @@
 //!                                  # scaled — heating, saturation; each default 1),
 //!                                  # "phase_short" (phases = "ab", resistance_ohm,
 //!                                  # inductance_h: two motor terminals shorted),
-//!                                  # "switch_open" (phase, switch = "upper"|"lower")
+//!                                  # "switch_open" (phase, switch = "upper"|"lower"),
+//!                                  # "switch_short" (phase, switch, resistance_ohm,
+//!                                  # inductance_h: the leg's shoot-through loop)
 //! gain = 0.0
 //! offset_a = 0.0
 //!
@@ -273,6 +275,7 @@ enum FaultKind {
     Plant,
     PhaseShort,
     SwitchOpen,
+    SwitchShort,
     BusVoltage,
     LoadSeizure,
 }
@@ -440,9 +443,9 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                         src.check(v > 0.0, &key("vdc_v"), "must be > 0")?;
                         Injection::BusVoltage { vdc_v: v }
                     }
-                    Some(FaultKind::SwitchOpen) => Injection::SwitchOpen {
-                        phase: phase_of()?,
-                        upper: match e.switch.as_deref() {
+                    Some(kind @ (FaultKind::SwitchOpen | FaultKind::SwitchShort)) => {
+                        let phase = phase_of()?;
+                        let upper = match e.switch.as_deref() {
                             Some("upper") => true,
                             Some("lower") => false,
                             _ => {
@@ -450,8 +453,22 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                                     src.error(&key("switch"), "needs switch = \"upper\" or \"lower\"")
                                 );
                             }
-                        },
-                    },
+                        };
+                        if matches!(kind, FaultKind::SwitchOpen) {
+                            Injection::SwitchOpen { phase, upper }
+                        } else {
+                            let r = bounded("resistance_ohm", e.resistance_ohm)?;
+                            let l = bounded("inductance_h", e.inductance_h)?;
+                            src.check(r >= 0.0, &key("resistance_ohm"), "must be ≥ 0")?;
+                            src.check(l > 0.0, &key("inductance_h"), "must be > 0")?;
+                            Injection::SwitchShort(crate::bridge_fault::SwitchShort {
+                                phase,
+                                upper,
+                                resistance_ohm: r,
+                                inductance_h: l,
+                            })
+                        }
+                    }
                     Some(FaultKind::PhaseShort) => {
                         let phases = match e.phases.as_deref() {
                             Some("ab" | "ba") => [0, 1],
@@ -863,7 +880,26 @@ torque_nm = 0.5
             last("fault = \"switch_open\"\nphase = \"c\"\nswitch = \"lower\""),
             Some((1.0, Event::Fault(Injection::SwitchOpen { phase: 2, upper: false })))
         );
+        assert_eq!(
+            last(
+                "fault = \"switch_short\"\nphase = \"b\"\nswitch = \"upper\"\nresistance_ohm = 0.05\ninductance_h = 1e-7"
+            ),
+            Some((
+                1.0,
+                Event::Fault(Injection::SwitchShort(crate::bridge_fault::SwitchShort {
+                    phase: 1,
+                    upper: true,
+                    resistance_ohm: 0.05,
+                    inductance_h: 1e-7
+                }))
+            ))
+        );
         for (ev, k) in [
+            ("fault = \"switch_short\"\nphase = \"a\"\nswitch = \"lower\"", "resistance_ohm"),
+            (
+                "fault = \"switch_short\"\nphase = \"a\"\nswitch = \"lower\"\nresistance_ohm = 0.1\ninductance_h = -1.0",
+                "inductance_h",
+            ),
             ("fault = \"switch_open\"\nphase = \"a\"\nswitch = \"middle\"", "switch"),
             ("fault = \"phase_short\"\nphases = \"aa\"", "phases"),
             (

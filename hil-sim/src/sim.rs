@@ -7,7 +7,7 @@
 //! Sensors: [`SensorModel`] (ideal by default). Loads: a piecewise-constant torque set by
 //! events, plus the [`LoadModel`] (eddy-current brake or locked rotor).
 
-use crate::bridge_fault::{Comparator, Legs, PhaseShort};
+use crate::bridge_fault::{Comparator, Legs, PhaseShort, SwitchShort};
 use crate::inverter::{InverterModel, Segments};
 use crate::sensors::{SensorModel, Sensors};
 use controller_core::drive::{Drive, FastOutput, Measurements, Mode, PhaseCommand, Reference};
@@ -165,6 +165,9 @@ pub enum Injection {
     /// resistance and inductance from leg to leg, which the current sensors and the
     /// comparator see.
     PhaseShort(PhaseShort),
+    /// A switch conducts for good ([`crate::bridge_fault`]): the bus shoots through its leg
+    /// whenever the leg's other switch turns on.
+    SwitchShort(SwitchShort),
     /// A switch of `phase`'s leg never conducts again (a dead gate driver, a bond wire off):
     /// its leg cannot drive the current in that switch's direction, which then flows
     /// through the opposite diode — with the upper switch open, a positive phase current
@@ -624,6 +627,10 @@ pub fn run(
                     }
                     Event::Fault(Injection::PhaseShort(short)) => {
                         legs.short = Some((short, 0.0));
+                        legs_modelled = true;
+                    }
+                    Event::Fault(Injection::SwitchShort(s)) => {
+                        legs.shoot = Some((SwitchShort { phase: s.phase.min(2), ..s }, 0.0));
                         legs_modelled = true;
                     }
                     Event::Fault(Injection::OpenPhase { phase }) => {
