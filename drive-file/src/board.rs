@@ -200,11 +200,14 @@ impl BoardTable {
                 "board.tim_clock_hz/(2·f_pwm) = {arr} must be a whole number of timer ticks in 100…65535"
             ),
         )?;
-        let ticks = self.dead_time_s * f_tim;
+        // Whole ticks, never fewer than asked (a part-per-million of a tick forgiven: 500 ns at
+        // 170 MHz is 85 ticks, not 86 for a rounding error).
+        let ticks = (self.dead_time_s * f_tim - 1e-6).ceil();
         src.check(
-            self.dead_time_s.is_finite() && ticks >= 0.0 && ticks <= 0.05 * (arr + 1.0) && ticks <= 1008.0,
+            self.dead_time_s.is_finite() && ticks >= 1.0 && ticks <= 0.05 * (arr + 1.0) && ticks <= 1008.0,
             "board.dead_time_s",
-            "must be ≥ 0, at most 1008 timer ticks and 5 % of the PWM half-period",
+            "must be > 0 (a leg without dead time shoots through at every edge), at most 1008 timer \
+             ticks and 5 % of the PWM half-period",
         )?;
         for (key, x) in
             [("current_a_per_count", self.current_a_per_count), ("vdc_v_per_count", self.vdc_v_per_count)]
@@ -255,7 +258,7 @@ impl BoardTable {
         Ok(Board {
             table: *self,
             pwm_period_counts: arr.round() as u16,
-            dead_time_ticks: ticks.round() as u16,
+            dead_time_ticks: ticks as u16,
             calibration_limits_counts: (offset_max, noise_max),
             // Saturates at 65 535 periods (0.1 s only above a 655 kHz PWM).
             bootstrap_precharge_periods: (precharge * spec.pwm_frequency_hz).round().min(f64::from(u16::MAX))

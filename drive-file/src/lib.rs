@@ -169,6 +169,16 @@ mod tests {
         // Configured gain outside the writable range.
         let e = err(&replace("speed_kp_writable = [0.02, 0.1]", "speed_kp_writable = [0.06, 0.1]"));
         assert_eq!(e.key.as_deref(), Some("certify.speed_kp_writable"), "{e}");
+        // No dead time (every edge a shoot-through), or more than TIM1's dead-time generator
+        // gives: refused at the key. A dead time between ticks rounds up, never down.
+        for bad in ["0.0", "-1e-9", "7e-6"] {
+            let e = err(&replace("dead_time_s = 5e-7", &format!("dead_time_s = {bad}")));
+            assert_eq!(e.key.as_deref(), Some("board.dead_time_s"), "{bad}: {e}");
+        }
+        let f =
+            DriveFile::parse(Path::new("x.toml"), &replace("dead_time_s = 5e-7", "dead_time_s = 4.97e-7"))
+                .unwrap();
+        assert_eq!(f.board.map(|b| b.dead_time_ticks), Some(85), "84.49 ticks → 85");
         // A bootstrap pre-charge that would hold the low sides on for minutes.
         let e = err(&replace("bootstrap_precharge_s = 2e-3", "bootstrap_precharge_s = 60.0"));
         assert_eq!(e.key.as_deref(), Some("board.bootstrap_precharge_s"), "{e}");

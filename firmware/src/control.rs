@@ -186,7 +186,7 @@ pub fn check_pwm_period(read: u16, board: &BoardConfig) -> Result<(), ControlErr
 }
 
 /// TIM1's dead-time generator setting (BDTR.DTG, RM0440 §28.6.20) for at least `ticks`
-/// timer clocks with CKD = 1 (t_DTS = t_CK_INT), the least such: `DTG[7:5]` = 0xx gives
+/// timer clocks with CKD = 00 (t_DTS = t_CK_INT), the least such: `DTG[7:5]` = 0xx gives
 /// DTG·1 (0 … 127), 10x (64 + `DTG[5:0]`)·2 (128 … 254), 110 (32 + `DTG[4:0]`)·8
 /// (256 … 504), 111 (32 + `DTG[4:0]`)·16 (512 … 1 008). `None` above 1 008 ticks (5.9 µs at
 /// 170 MHz). Evaluated at compile time for the drive file's `DEAD_TIME_TICKS`.
@@ -205,7 +205,7 @@ pub const fn dead_time_dtg(ticks: u16) -> Option<u8> {
     }
 }
 
-/// The dead time a [`dead_time_dtg`] code gives, in timer clocks (CKD = 1).
+/// The dead time a [`dead_time_dtg`] code gives, in timer clocks (CKD = 00).
 pub const fn dead_time_ticks(dtg: u8) -> u16 {
     let d = dtg as u16;
     match dtg >> 5 {

@@ -21,6 +21,7 @@ mod target {
     use controller_core::calibration::CalibrationError;
     use controller_core::link::{self, BoardCommand, FrameDecoder, LinkStats, LoopTiming, MAX_FRAME, Reply};
     use core::cell::RefCell;
+    use core::mem::ManuallyDrop;
     use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
     use critical_section::Mutex;
     use defmt_rtt as _;
@@ -46,7 +47,9 @@ mod target {
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
     use firmware::boundary::{Mailbox, TripleBuffer};
-    use firmware::config::{BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS};
+    use firmware::config::{
+        BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS, TIM_CLOCK_HZ,
+    };
 
     /// The drive file's dead time as TIM1's DTG code (CKD = 1), at compile time: a dead
     /// time the generator cannot give stops the build.
@@ -55,8 +58,8 @@ mod target {
         None => panic!("the drive file's dead time exceeds TIM1's 1 008 ticks"),
     };
 
-    /// A TIM1 output pin: driven low, then handed to the timer (alternate function `af`,
-    /// push-pull, very high speed — what embassy's `PwmPin::new` does).
+    /// A TIM1 output pin handed to the timer (alternate function `af`, push-pull, very high
+    /// speed — what embassy's `PwmPin::new` does; its output register low, as embassy's).
     fn pwm_pin(af: u8, pin: Peri<'static, AnyPin>) -> Flex<'static> {
         let mut f = Flex::new(pin);
         f.set_low();
@@ -246,16 +249,14 @@ mod target {
         // 0 from reset and set only by the output stage's explicit enable). Through embassy's
         // low-level timer — the register steps of its `ComplementaryPwm::new`, without its
         // frequency arithmetic (64-bit divisions, ≈ 1.2 KB of flash) and without its setting
-        // MOE: the period and the dead time are the drive file's, in timer ticks.
-        let pwm = LlTimer::new(p.TIM1);
-        let pwm_pins = [
-            pwm_pin(TimerPin::<TIM1, Ch1>::af_num(&*pins.pwm_high.0), pins.pwm_high.0.into()),
-            pwm_pin(TimerComplementaryPin::<TIM1, Ch1>::af_num(&*pins.pwm_low.0), pins.pwm_low.0.into()),
-            pwm_pin(TimerPin::<TIM1, Ch2>::af_num(&*pins.pwm_high.1), pins.pwm_high.1.into()),
-            pwm_pin(TimerComplementaryPin::<TIM1, Ch2>::af_num(&*pins.pwm_low.1), pins.pwm_low.1.into()),
-            pwm_pin(TimerPin::<TIM1, Ch3>::af_num(&*pins.pwm_high.2), pins.pwm_high.2.into()),
-            pwm_pin(TimerComplementaryPin::<TIM1, Ch3>::af_num(&*pins.pwm_low.2), pins.pwm_low.2.into()),
-        ];
+        // MOE: the period and the dead time are the drive file's, in timer ticks. Never
+        // dropped (`ManuallyDrop`): the timer's drop stops its clock, freezing the outputs.
+        let pwm = ManuallyDrop::new(LlTimer::new(p.TIM1));
+        // The period and dead time in ticks assume the drive file's timer clock: checked.
+        if pwm.get_clock_frequency().0 != TIM_CLOCK_HZ {
+            defmt::error!("TIM1 clock is not the drive file's {=u32} Hz: bridge stays off", TIM_CLOCK_HZ);
+            halt_safe();
+        }
         pwm.set_counting_mode(CountingMode::CenterAlignedBothInterrupts);
         for ch in [Channel::Ch1, Channel::Ch2, Channel::Ch3, Channel::Ch4] {
             pwm.set_output_compare_mode(ch, OutputCompareMode::PwmMode1);
@@ -299,6 +300,19 @@ mod target {
             pwm.enable_channel(ch, true);
             pwm.enable_complementary_channel(ch, true);
         }
+        // Only now the pins go to the timer: with MOE 0, OSSI set and the channels enabled,
+        // it drives them to their idle level (low) from the first instant. Before, from
+        // reset until here, they float: the gate driver's pull-downs hold the switches off
+        // (a hardware requirement: docs/firmware.md's bring-up). Never dropped either (a
+        // dropped pin is disconnected).
+        let pwm_pins = ManuallyDrop::new([
+            pwm_pin(TimerPin::<TIM1, Ch1>::af_num(&*pins.pwm_high.0), pins.pwm_high.0.into()),
+            pwm_pin(TimerComplementaryPin::<TIM1, Ch1>::af_num(&*pins.pwm_low.0), pins.pwm_low.0.into()),
+            pwm_pin(TimerPin::<TIM1, Ch2>::af_num(&*pins.pwm_high.1), pins.pwm_high.1.into()),
+            pwm_pin(TimerComplementaryPin::<TIM1, Ch2>::af_num(&*pins.pwm_low.1), pins.pwm_low.1.into()),
+            pwm_pin(TimerPin::<TIM1, Ch3>::af_num(&*pins.pwm_high.2), pins.pwm_high.2.into()),
+            pwm_pin(TimerComplementaryPin::<TIM1, Ch3>::af_num(&*pins.pwm_low.2), pins.pwm_low.2.into()),
+        ]);
         // Lock level 1: dead time, idle states and the break configuration (BKE, BKP, AOE)
         // can no longer be written until reset. MOE stays writable.
         pac::TIM1.bdtr().modify(|w| w.set_lock(pac::timer::vals::Lock::LEVEL1));
@@ -460,15 +474,19 @@ mod target {
             static _stack_end: u32;
             static _stack_start: u32;
         }
-        let bottom = core::ptr::addr_of!(_stack_end);
+        // The paint `firmware::stack` looks for is cortex-m-rt's: without its `paint-stack`
+        // feature this constant does not exist and the build stops.
+        const { assert!(cortex_m_rt::STACK_PAINT_VALUE == firmware::stack::PAINT) };
+        let bottom = core::ptr::addr_of!(_stack_end) as usize;
         let top = core::ptr::addr_of!(_stack_start) as usize;
-        let words = top.saturating_sub(bottom as usize) / 4;
+        let words = top.saturating_sub(bottom) / 4;
         let used = firmware::stack::used_bytes(words, |i| {
-            // SAFETY: `bottom + i` for i < words lies inside the stack region the linker script
-            // defines (below `_stack_start`), word-aligned; a volatile read of a word the
-            // stack may be writing at the same time reads either value — only the paint's
-            // presence matters — and nothing is written.
-            unsafe { core::ptr::read_volatile(bottom.wrapping_add(i)) }
+            let word = core::ptr::with_exposed_provenance::<u32>(bottom + 4 * i);
+            // SAFETY: `bottom + 4·i` for i < words lies inside the stack region the linker
+            // script defines (RAM, below `_stack_start`), word-aligned; a volatile read of a
+            // word the stack may be writing at the same time reads either value — only the
+            // paint's presence matters — and nothing is written.
+            unsafe { core::ptr::read_volatile(word) }
         });
         u32::try_from(used).unwrap_or(u32::MAX)
     }

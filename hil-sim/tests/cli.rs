@@ -432,7 +432,7 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(res.join("faults.json")).unwrap()).unwrap();
     let rows = json["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 17 * 6);
+    assert_eq!(rows.len(), 19 * 6);
     assert_eq!(json["failed"].as_u64(), Some(0));
     assert!(
         std::fs::read_to_string(res.join("faults.md"))
