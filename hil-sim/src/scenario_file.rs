@@ -417,6 +417,14 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                     Some("c") => Ok(2),
                     _ => Err(src.error(&key("phase"), "needs phase = \"a\", \"b\" or \"c\"")),
                 };
+                // A short's loop (a terminal short's, a shorted switch's): R ≥ 0, L > 0.
+                let loop_of = || -> Result<(f64, f64), FileError> {
+                    let r = bounded("resistance_ohm", e.resistance_ohm)?;
+                    let l = bounded("inductance_h", e.inductance_h)?;
+                    src.check(r >= 0.0, &key("resistance_ohm"), "must be ≥ 0")?;
+                    src.check(l > 0.0, &key("inductance_h"), "must be > 0")?;
+                    Ok((r, l))
+                };
                 match e.fault {
                     None => return Err(src.error(&key("kind"), "a `fault` event needs `fault = \"…\"`")),
                     Some(FaultKind::CurrentSensor) => Injection::CurrentSensor {
@@ -457,10 +465,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                         if matches!(kind, FaultKind::SwitchOpen) {
                             Injection::SwitchOpen { phase, upper }
                         } else {
-                            let r = bounded("resistance_ohm", e.resistance_ohm)?;
-                            let l = bounded("inductance_h", e.inductance_h)?;
-                            src.check(r >= 0.0, &key("resistance_ohm"), "must be ≥ 0")?;
-                            src.check(l > 0.0, &key("inductance_h"), "must be > 0")?;
+                            let (r, l) = loop_of()?;
                             Injection::SwitchShort(crate::bridge_fault::SwitchShort {
                                 phase,
                                 upper,
@@ -480,10 +485,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                                 );
                             }
                         };
-                        let r = bounded("resistance_ohm", e.resistance_ohm)?;
-                        let l = bounded("inductance_h", e.inductance_h)?;
-                        src.check(r >= 0.0, &key("resistance_ohm"), "must be ≥ 0")?;
-                        src.check(l > 0.0, &key("inductance_h"), "must be > 0")?;
+                        let (r, l) = loop_of()?;
                         Injection::PhaseShort(crate::bridge_fault::PhaseShort {
                             phases,
                             resistance_ohm: r,
