@@ -34,6 +34,8 @@ pub const RECORD_SAMPLES: usize = 256;
 /// Samples per chunk of the read-out: 8 samples × 4 channels × 4 bytes = 128 bytes, one
 /// link reply ([`crate::link::RECORD_CHUNK_BYTES`]).
 pub const CHUNK_SAMPLES: usize = 8;
+/// The deepest record the link can read out: its chunk index is a byte.
+pub const MAX_DEPTH: usize = 256 * CHUNK_SAMPLES;
 /// Bytes per chunk: the samples in order, each its channels in order, each an `f32`
 /// little-endian.
 pub const CHUNK_BYTES: usize = CHUNK_SAMPLES * CHANNELS * 4;
@@ -338,9 +340,7 @@ impl<const DEPTH: usize> Capture<DEPTH> {
     /// Idle, the ring zeroed.
     pub const fn new() -> Self {
         const {
-            assert!(
-                DEPTH >= CHUNK_SAMPLES && DEPTH.is_multiple_of(CHUNK_SAMPLES) && DEPTH <= 256 * CHUNK_SAMPLES
-            );
+            assert!(DEPTH >= CHUNK_SAMPLES && DEPTH.is_multiple_of(CHUNK_SAMPLES) && DEPTH <= MAX_DEPTH);
         }
         Self {
             spec: CaptureSpec {

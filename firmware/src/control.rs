@@ -205,17 +205,6 @@ pub const fn dead_time_dtg(ticks: u16) -> Option<u8> {
     }
 }
 
-/// The dead time a [`dead_time_dtg`] code gives, in timer clocks (CKD = 00).
-pub const fn dead_time_ticks(dtg: u8) -> u16 {
-    let d = dtg as u16;
-    match dtg >> 5 {
-        0..=3 => d,
-        4 | 5 => (64 + (d & 0x3F)) * 2,
-        6 => (32 + (d & 0x1F)) * 8,
-        _ => (32 + (d & 0x1F)) * 16,
-    }
-}
-
 /// TIM1's repetition counter: in centre-aligned mode it counts both the overflow (top) and
 /// the underflow (bottom), so 1 gives one update event per period. Written while the
 /// counter is stopped, before its start, the event falls on the overflow (RM0440, the
@@ -882,6 +871,17 @@ mod tests {
         assert!((0..10).all(|k| duty(k).is_nan()), "bridge off: no duty");
         assert!((10..50).all(|k| duty(k) == 0.0), "the pre-charge: low sides on");
         assert!(duty(50) > 0.0 && duty(50) < 1.0, "then the drive's own duty: {}", duty(50));
+    }
+
+    /// The dead time a `dead_time_dtg` code gives, in timer clocks (CKD = 00).
+    fn dead_time_ticks(dtg: u8) -> u16 {
+        let d = dtg as u16;
+        match dtg >> 5 {
+            0..=3 => d,
+            4 | 5 => (64 + (d & 0x3F)) * 2,
+            6 => (32 + (d & 0x1F)) * 8,
+            _ => (32 + (d & 0x1F)) * 16,
+        }
     }
 
     /// Every dead time up to 1 008 ticks gets the least code that gives at least as much,

@@ -51,7 +51,7 @@ mod target {
         BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS, TIM_CLOCK_HZ,
     };
 
-    /// The drive file's dead time as TIM1's DTG code (CKD = 1), at compile time: a dead
+    /// The drive file's dead time as TIM1's DTG code (CKD = 00), at compile time: a dead
     /// time the generator cannot give stops the build.
     const DEAD_TIME_DTG: u8 = match firmware::control::dead_time_dtg(DEAD_TIME_TICKS) {
         Some(code) => code,

@@ -116,14 +116,14 @@ pub fn read(transact: &mut Transact<'_>, req: &Request) -> Result<(CaptureState,
         Reply::Capture { state, samples, .. } => (state, usize::from(samples)),
         r => return Err(format!("unexpected reply to ReadCapture: {r:?}")),
     };
-    let chunk_samples = controller_core::capture::CHUNK_SAMPLES;
-    if depth == 0 || depth % chunk_samples != 0 || depth > 256 * chunk_samples {
+    use controller_core::capture::{CHUNK_SAMPLES, MAX_DEPTH};
+    if depth == 0 || depth % CHUNK_SAMPLES != 0 || depth > MAX_DEPTH {
         return Err(format!("the drive reports a record of {depth} samples: not a whole number of chunks"));
     }
     if state != CaptureState::Done {
         return Ok((state, None));
     }
-    let chunks = depth / controller_core::capture::CHUNK_SAMPLES;
+    let chunks = depth / CHUNK_SAMPLES;
     let mut samples = Vec::with_capacity(depth);
     for k in 0..chunks {
         let chunk =
