@@ -250,6 +250,22 @@ pub const CURRENT_SUM_MEAN_FRACTION: f32 = 0.25;
 
 /// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
 pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
+/// A *pinned phase* for the encoder check: the applied voltage within ≈ 11.5° (cos⁻¹ 0.98)
+/// of one phase's axis, the same axis and direction in every implausible check up to the
+/// trip, while the drive's field turns less than that window's width
+/// ([`PINNED_FIELD_TURN_RAD`]) over the checks. The loops then hold one phase at a rail
+/// and its current does not answer — a switch stuck open (the opposite diode pins the
+/// phase to the other rail), which the check names [`Fault::SwitchOpen`], not the encoder.
+/// Measured on the 36 stuck switches of `stuck_switches_at_every_point`: 0.992–0.998 at the
+/// trip.
+pub const PINNED_PHASE_COS: f32 = 0.98;
+/// … the most the drive's field angle may turn over the encoder check's window for a held
+/// voltage to be a pinned phase, rad: twice cos⁻¹ [`PINNED_PHASE_COS`]. With the field
+/// turning faster the voltage on one axis can be the loops' (an integrator at its clamp
+/// holds the α axis, phase a's): a frozen encoder at top speed, generating, with the jump
+/// and speed checks off, held phase a's axis for 3 of its 20 checks
+/// (`a_frozen_encoder_at_speed_stays_the_encoders_fault`).
+pub const PINNED_FIELD_TURN_RAD: f32 = 0.4;
 
 /// "Not moving" for the stall check: below this fraction of the overspeed level.
 pub const STALL_SPEED_FRACTION: f64 = 0.005;
@@ -944,7 +960,9 @@ pub enum Fault {
     FollowingError,
     /// A phase follows its reference in one direction of current and not in the other: a
     /// bridge switch (or its gate drive) stuck open — its direction of current can only
-    /// flow through the opposite diode, which pins the phase to the other rail.
+    /// flow through the opposite diode, which pins the phase to the other rail. Also the
+    /// encoder check's verdict when the loops held the voltage on one phase's axis
+    /// throughout ([`PINNED_PHASE_COS`]): that phase's current does not answer its voltage.
     SwitchOpen,
 }
 
@@ -1366,6 +1384,10 @@ pub struct Drive {
     saturated_steps: u32,
     /// Consecutive slow periods with an implausible encoder.
     encoder_bad_steps: u32,
+    /// … and of those, the last consecutive ones whose voltage held one phase's axis
+    /// ([`PINNED_PHASE_COS`]), and which axis (phase index, and 3 added when negative).
+    pinned_steps: u32,
+    pinned_axis: u8,
     /// The brake chopper's comparator state.
     brake: bool,
     /// Slow steps left of a controlled stop (`None`: not stopping).
@@ -1465,6 +1487,8 @@ impl Drive {
             following_owed_rad_s: 0.0,
             saturated_steps: 0,
             encoder_bad_steps: 0,
+            pinned_steps: 0,
+            pinned_axis: 0,
             brake: false,
             stop_steps_left: None,
             open_phase: OpenPhaseWindow::default(),
@@ -1561,6 +1585,7 @@ impl Drive {
                 self.following_steps = 0;
                 self.saturated_steps = 0;
                 self.encoder_bad_steps = 0;
+                self.pinned_steps = 0;
                 self.open_phase = OpenPhaseWindow::default();
                 self.switches = SwitchWatch::default();
                 self.flux = FluxCommand::default();
@@ -2115,11 +2140,21 @@ impl Drive {
         // transients into a false trip).
         if residual > ENCODER_RESIDUAL_FRACTION * v_limit {
             self.encoder_bad_steps = self.encoder_bad_steps.saturating_add(1);
+            let window_s =
+                self.cfg.ts_s * f32::from(self.cfg.slow_divider) * self.cfg.encoder_check_steps as f32;
+            let axis = pinned_axis(v_ab).filter(|_| w_e.abs() * window_s <= PINNED_FIELD_TURN_RAD);
+            self.pinned_steps = match axis {
+                Some(a) if self.pinned_steps == 0 || a == self.pinned_axis => self.pinned_steps + 1,
+                _ => 0,
+            };
+            self.pinned_axis = axis.unwrap_or(0);
             if self.encoder_bad_steps >= self.cfg.encoder_check_steps {
-                self.trip(Fault::EncoderImplausible);
+                // Every implausible check on one phase's axis: that phase does not answer.
+                let pinned = self.pinned_steps >= self.encoder_bad_steps;
+                self.trip(if pinned { Fault::SwitchOpen } else { Fault::EncoderImplausible });
             }
         } else {
-            self.encoder_bad_steps = 0;
+            (self.encoder_bad_steps, self.pinned_steps) = (0, 0);
         }
     }
 
@@ -2327,6 +2362,18 @@ impl Drive {
         };
         self.cfg.current.track(&mut self.current, v, v_clamp);
     }
+}
+
+/// The phase axis `v` lies on ([`PINNED_PHASE_COS`]): its index (0, 1, 2 for a, b, c), 3
+/// added when `v` points the negative way; `None` off every axis. The phase voltages of the
+/// amplitude-invariant inverse Clarke transform are the projections of `v` on the axes.
+fn pinned_axis(v: AlphaBeta) -> Option<u8> {
+    let on = PINNED_PHASE_COS * sqrt_f32(v.alpha * v.alpha + v.beta * v.beta);
+    if !(on > 0.0 && on < f32::INFINITY) {
+        return None; // no voltage, or not finite: on no axis
+    }
+    let p = v.inverse_clarke();
+    [p.a, p.b, p.c, -p.a, -p.b, -p.c].iter().position(|&x| x >= on).and_then(|k| u8::try_from(k).ok())
 }
 
 /// `x`'s bits with the sign bit cleared (the bits of |x|).
@@ -2702,6 +2749,30 @@ mod tests {
     }
 
     /// Every fault has its own bit.
+    /// The pinned-phase rule's axes: each phase's, both ways, within cos⁻¹ 0.98 ≈ 11.5°; off
+    /// them, no voltage and a non-finite one: none.
+    #[test]
+    fn a_voltage_on_a_phase_axis_names_it() {
+        let at = |deg: f32, r: f32| {
+            let sc = SinCos::new(deg.to_radians());
+            pinned_axis(AlphaBeta { alpha: r * sc.cos, beta: r * sc.sin })
+        };
+        // Axis k of the six at 60° steps: a, −c, b, −a, c, −b.
+        let axes = [0u8, 5, 1, 3, 2, 4];
+        for (k, &axis) in axes.iter().enumerate() {
+            let centre = 60.0 * k as f32;
+            for off in [-11.0, 0.0, 11.0] {
+                assert_eq!(at(centre + off, 150.0), Some(axis), "{centre} {off}");
+            }
+            for off in [-12.5, 12.5, 30.0] {
+                assert_eq!(at(centre + off, 150.0), None, "{centre} {off}");
+            }
+        }
+        assert_eq!(at(0.0, 0.0), None);
+        assert_eq!(pinned_axis(AlphaBeta { alpha: f32::NAN, beta: 0.0 }), None);
+        assert_eq!(pinned_axis(AlphaBeta { alpha: f32::INFINITY, beta: 0.0 }), None);
+    }
+
     #[test]
     fn fault_bits_are_distinct() {
         let all = Fault::ALL.iter().fold(0u32, |acc, f| {

@@ -402,28 +402,21 @@ impl Matrix {
             // carries none of its current, which is `OpenPhase`; a dead lower switch leaves
             // its low-side shunt without current exactly then, which the current-sum check
             // sees first.
-            Injection::SwitchOpen { upper: true, .. } if at.point != Point::Top => Expect::Gap {
-                fault: Fault::SwitchOpen,
-                bound_s: OPEN_PHASE_BOUND_S,
-                why: "below top speed a half-wave takes longer than the bound (none at rest): before one the \
-                      other way has been compared, the phase is named by the open-phase check or — when the \
-                      loops saturate against the pinned phase first — by the voltage check, EncoderImplausible \
+            // At mid-speed, motoring, the back-EMF turns the loops' voltage off the dead
+            // phase's axis: the voltage check cannot tell the phase from the encoder.
+            // Elsewhere, where the loops hold the voltage on the phase's axis, it names the
+            // switch (`drive::PINNED_PHASE_COS`).
+            Injection::SwitchOpen { upper: true, .. } if at.point == Point::Mid && at.motoring => {
+                Expect::Gap {
+                    fault: Fault::SwitchOpen,
+                    bound_s: OPEN_PHASE_BOUND_S,
+                    why: "at mid-speed, motoring, a half-wave takes longer than the bound, and the loops saturate \
+                      against the pinned phase before the open-phase check sees it: with the back-EMF the \
+                      voltage is off the phase's axis, and the voltage check names it EncoderImplausible \
                       (within 15 ms of the switch's first use, but by a name that blames the encoder)",
-                caught: SWITCH_CAUGHT,
-            },
-            // At rest the field's slow turn decides when a dead lower switch's direction is
-            // needed and whether its shunt reads zero first; where the loops saturate against
-            // the pinned phase before, the voltage check names it (the 36-run survey in
-            // docs/protection.md: two of the six standstill injections, 13–15 ms after the
-            // switch was first needed).
-            Injection::SwitchOpen { upper: false, .. } if rest && at.motoring => Expect::Gap {
-                fault: Fault::SwitchOpen,
-                bound_s: OPEN_PHASE_BOUND_S,
-                why: "at rest, when the loops saturate against the pinned phase before its low-side shunt reads \
-                      zero, the voltage check names it EncoderImplausible (within 15 ms of the switch's first \
-                      use, but by a name that blames the encoder)",
-                caught: SWITCH_CAUGHT,
-            },
+                    caught: SWITCH_CAUGHT,
+                }
+            }
             Injection::SwitchOpen { .. } => Expect::Either {
                 faults: &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor],
                 bound_s: OPEN_PHASE_BOUND_S,

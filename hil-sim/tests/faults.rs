@@ -69,13 +69,13 @@ fn a_gap_that_closes_fails_its_row() {
     assert!(o.failures.iter().any(|f| f.contains("tripped")), "{:?}", o.failures);
 }
 
-/// A gap that must still be caught fails its row when nothing catches it: the stuck lower
-/// switch at rest, motoring (a stated gap: named `EncoderImplausible`) with the voltage
+/// A gap that must still be caught fails its row when nothing catches it: the stuck upper
+/// switch at mid-speed, motoring (a stated gap: named `EncoderImplausible`) with the voltage
 /// check's window at 1e6 s and the open-phase check's too — the bridge would keep switching.
 #[test]
 fn a_switch_gap_that_nothing_catches_fails_its_row() {
     let mut m = shipped();
-    let (c, at) = (case(&m, "switch a lower stuck open"), point(&m, Point::Standstill, true));
+    let (c, at) = (case(&m, "switch a upper stuck open"), point(&m, Point::Mid, true));
     let expect = m.expect(&c, &at);
     assert!(matches!(expect, Expect::Gap { caught, .. } if caught.contains(&Fault::EncoderImplausible)));
     assert_eq!(m.run_one(4, &c, &at, expect, &AtomicBool::new(false)).unwrap().verdict(), "gap");
@@ -85,6 +85,55 @@ fn a_switch_gap_that_nothing_catches_fails_its_row() {
     m.spec.protection.current_sum_max_a = 7.9;
     let o = m.run_one(4, &c, &at, expect, &AtomicBool::new(false)).unwrap();
     assert_eq!(o.verdict(), "FAIL", "{:?} {:?}", o.detected, o.failures);
+}
+
+/// A switch stuck open at rest: the loops hold the voltage on the dead phase's axis, and
+/// the voltage check names the switch (`drive::PINNED_PHASE_COS`), not the encoder — the
+/// upper switch at rest both ways and the lower one at rest, motoring (before the rule:
+/// `EncoderImplausible` 10–14 ms after the switch was first needed), each within the open
+/// phase's 50 ms of its first use, the bridge off from the next period.
+#[test]
+fn a_pinned_phase_is_named_a_stuck_switch_not_the_encoder() {
+    let m = shipped();
+    for (name, motoring) in [
+        ("switch a upper stuck open", true),
+        ("switch a upper stuck open", false),
+        ("switch a lower stuck open", true),
+    ] {
+        let (c, at) = (case(&m, name), point(&m, Point::Standstill, motoring));
+        let o = m.run_one(5, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+        assert!(o.passed(), "{name} {motoring}: {:?}", o.failures);
+        let (f, t) = o.detected.unwrap();
+        // The lower switch's shunt may read zero first (the sensors' noise decides): the
+        // current-sum check's name, which the row accepts too.
+        let named = if name.contains("upper") {
+            &[Fault::SwitchOpen][..]
+        } else {
+            &[Fault::SwitchOpen, Fault::CurrentSensor]
+        };
+        assert!(named.contains(&f), "{name} {motoring}: {f:?}");
+        let needed = o.acting_after_s.unwrap();
+        assert!(t - needed <= 0.050, "{name} {motoring}: {t} s, needed from {needed} s");
+        assert_eq!(o.off_after_periods, Some(0));
+    }
+}
+
+/// A frozen encoder at top speed, generating, with the jump and speed checks out of the way
+/// (at mid-speed and motoring nothing then catches it within the row): the voltage check
+/// catches it after its 10 ms, by the encoder's name — with the loops' voltage on phase a's
+/// axis (the α integrator at its clamp) for 3 of the 20 checks, and the field turning
+/// (the pinned-phase rule, `drive::PINNED_PHASE_COS`, must not rename it).
+#[test]
+fn a_frozen_encoder_at_speed_stays_the_encoders_fault() {
+    let mut m = shipped();
+    m.spec.protection.encoder_jump_rad = 1e6;
+    m.spec.protection.stall_time_s = 1e6;
+    m.spec.protection.following_time_s = 1e6;
+    let (c, at) = (case(&m, "encoder stuck"), point(&m, Point::Top, false));
+    let o = m.run_one(6, &c, &at, Expect::RideThrough, &AtomicBool::new(false)).unwrap();
+    let (f, t) = o.detected.unwrap();
+    assert_eq!(f, Fault::EncoderImplausible);
+    assert!((0.010..=0.030).contains(&t), "{t}");
 }
 
 /// An interrupt stops a row with an error (the CLI then writes nothing).
@@ -184,6 +233,9 @@ fn the_gap_list_names_its_operating_points() {
     let o = m.run_one(6, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
     assert_eq!(o.verdict(), "gap");
     let md = hil_sim::faults::markdown(&m, &[o]);
-    assert!(md.contains("- **switch a upper stuck open** (mid-speed motoring): below top speed"), "{md}");
+    assert!(
+        md.contains("- **switch a upper stuck open** (mid-speed motoring): at mid-speed, motoring"),
+        "{md}"
+    );
     assert!(!md.contains("at standstill:"), "{md}");
 }
