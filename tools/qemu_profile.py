@@ -1,0 +1,140 @@
+#!/usr/bin/env python3
+"""Where the Cortex-M4F's instructions go inside one function of a target program: an
+executed-instruction profile under QEMU, attributed to source lines through the debug info.
+
+    python3 tools/qemu_profile.py [--skip N] [--calls N] [ELF] [SYMBOL]
+
+Defaults: `qemu-target/target/thumbv7em-none-eabihf/firmware/cost` (build it first:
+`cd qemu-target && cargo build --target thumbv7em-none-eabihf --profile firmware --bin cost`,
+the shipped profile) and `Drive::step` (the control interrupt's body; the slow step is a
+function of its own, so this is the fast step with whatever is inlined into it).
+
+Runs the program on `mps2-an386` one instruction per translation block (`-singlestep`),
+logging only the executions inside SYMBOL's address range (`-d exec,nochain -dfilter`),
+counts each address, drops the first `--skip` calls (the cost program's drive magnetizes
+first: 2 761 steps that are not the Running step it measures) and stops after
+`--calls` more. Calls are counted at SYMBOL's first instruction. Each address is mapped
+with `llvm-addr2line -i` and its count charged to (a) the innermost function the compiler
+inlined there and (b) the line of SYMBOL's own body (or of the function inlined into it
+that the fast step calls, `Drive::fast_step`) it belongs to. Prints instructions per call.
+
+It counts instructions inside the range only: out-of-line callees (the slow step, the
+`#[inline(never)]` checks) are not in it, nor is what the caller does around the call
+(ADC scaling, compare values) — `cost`'s `fast_step` figure is the whole period less a
+tenth of the slow step. Slow: QEMU single-steps the whole program, ≈ 10 000 logged
+instructions per second on this machine. Needs qemu-system-arm, llvm-nm, llvm-addr2line;
+not run by CI.
+"""
+import argparse
+import collections
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DEFAULT_ELF = ROOT / "qemu-target/target/thumbv7em-none-eabihf/firmware/cost"
+HASH = re.compile(r"::h[0-9a-f]{16}$")
+
+
+def symbol_range(elf: Path, symbol: str) -> tuple[int, int]:
+    """Start and size of the one function whose demangled name ends with `symbol`."""
+    out = subprocess.run(["llvm-nm", "-S", "-C", str(elf)], check=True, capture_output=True, text=True).stdout
+    hits = []
+    for line in out.splitlines():
+        parts = line.split(maxsplit=3)
+        if len(parts) == 4 and parts[2] in "tT" and HASH.sub("", parts[3]).endswith(symbol):
+            hits.append((int(parts[0], 16) & ~1, int(parts[1], 16), parts[3]))
+    if len(hits) != 1:
+        sys.exit(f"qemu_profile: {len(hits)} functions match {symbol!r}: {[h[2] for h in hits]}")
+    return hits[0][0], hits[0][1]
+
+
+def profile(elf: Path, start: int, size: int, skip: int, calls: int) -> tuple[collections.Counter, int]:
+    """Executions per address over `calls` calls after the first `skip`."""
+    with tempfile.TemporaryDirectory() as tmp:
+        fifo = Path(tmp) / "exec.log"
+        subprocess.run(["mkfifo", str(fifo)], check=True)
+        qemu = subprocess.Popen(
+            ["qemu-system-arm", "-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic",
+             "-semihosting-config", "enable=on,target=native", "-singlestep",
+             "-d", "exec,nochain", "-dfilter", f"{start:#x}+{size:#x}", "-D", str(fifo),
+             "-kernel", str(elf)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        counts: collections.Counter = collections.Counter()
+        seen = 0
+        pc = re.compile(r"\[[0-9a-f]+/([0-9a-f]+)/")
+        try:
+            with open(fifo) as log:
+                for line in log:
+                    m = pc.search(line)
+                    if not m:
+                        continue
+                    addr = int(m.group(1), 16)
+                    if addr == start:
+                        seen += 1
+                        if seen > skip + calls:
+                            break
+                        if seen % 500 == 0:
+                            print(f"qemu_profile: {seen} calls", file=sys.stderr)
+                    if seen > skip:
+                        counts[addr] += 1
+        finally:
+            qemu.kill()
+            qemu.wait()
+        done = max(0, min(seen, skip + calls) - skip)
+        if done == 0:
+            sys.exit(f"qemu_profile: no call after the first {skip} (the program made {seen})")
+        return counts, done
+
+
+def attribute(elf: Path, counts: collections.Counter, outer: tuple[str, ...]):
+    addrs = sorted(counts)
+    out = subprocess.run(["llvm-addr2line", "-e", str(elf), "-f", "-C", "-i", "-a"],
+                         input="".join(f"{a:#x}\n" for a in addrs), check=True,
+                         capture_output=True, text=True).stdout
+    inner: collections.Counter = collections.Counter()
+    lines: collections.Counter = collections.Counter()
+    for block in out.split("0x")[1:]:
+        rows = block.strip().split("\n")
+        addr = int(rows[0], 16)
+        frames = [(HASH.sub("", rows[i]), rows[i + 1].split("/src/")[-1]) for i in range(1, len(rows) - 1, 2)]
+        c = counts.get(addr, 0)
+        inner[frames[0][0]] += c
+        for fn, loc in frames:
+            if fn.endswith(outer):
+                lines[f"{fn.split('::')[-1]} {loc}"] += c
+                break
+        else:
+            lines[f"{frames[-1][0]} {frames[-1][1]}"] += c
+    return inner, lines
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("elf", nargs="?", default=str(DEFAULT_ELF))
+    ap.add_argument("symbol", nargs="?", default="Drive::step")
+    ap.add_argument("--skip", type=int, default=2761, help="calls to leave out first (the cost program magnetizes its drive in 2 761)")
+    ap.add_argument("--calls", type=int, default=4096, help="calls to count (the cost program then runs 4 096 periods)")
+    ap.add_argument("--top", type=int, default=25)
+    a = ap.parse_args()
+    elf = Path(a.elf)
+    if not elf.exists():
+        sys.exit(f"qemu_profile: {elf} not found (build it first: see the module docs)")
+    start, size = symbol_range(elf, a.symbol)
+    counts, calls = profile(elf, start, size, a.skip, a.calls)
+    total = sum(counts.values())
+    print(f"{a.symbol}: {size} B at {start:#x}; {calls} calls after {a.skip}; "
+          f"{total / calls:.1f} instructions per call inside it")
+    inner, lines = attribute(elf, counts, ("Drive::fast_step", "Drive::step"))
+    print("\nper call, by the innermost (inlined) function:")
+    for fn, c in inner.most_common(a.top):
+        print(f"{c / calls:8.1f}  {fn}")
+    print("\nper call, by the line of the step's own body:")
+    for loc, c in lines.most_common(a.top):
+        print(f"{c / calls:8.1f}  {loc}")
+
+
+if __name__ == "__main__":
+    main()
