@@ -2748,7 +2748,6 @@ mod tests {
         assert_eq!(DriveConfig::new(&spec), Err(DriveError::Protection));
     }
 
-    /// Every fault has its own bit.
     /// The pinned-phase rule's axes: each phase's, both ways, within cos⁻¹ 0.98 ≈ 11.5°; off
     /// them, no voltage and a non-finite one: none.
     #[test]
@@ -2773,6 +2772,7 @@ mod tests {
         assert_eq!(pinned_axis(AlphaBeta { alpha: f32::INFINITY, beta: 0.0 }), None);
     }
 
+    /// Every fault has its own bit.
     #[test]
     fn fault_bits_are_distinct() {
         let all = Fault::ALL.iter().fold(0u32, |acc, f| {

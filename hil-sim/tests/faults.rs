@@ -91,7 +91,9 @@ fn a_switch_gap_that_nothing_catches_fails_its_row() {
 /// the voltage check names the switch (`drive::PINNED_PHASE_COS`), not the encoder — the
 /// upper switch at rest both ways and the lower one at rest, motoring (before the rule:
 /// `EncoderImplausible` 10–14 ms after the switch was first needed), each within the open
-/// phase's 50 ms of its first use, the bridge off from the next period.
+/// phase's 50 ms of its first use, the bridge off from the next period. With this test's
+/// sensor noise the lower switch's shunt reads zero first (`CurrentSensor`, accepted); the
+/// matrix's own row, which no longer accepts `EncoderImplausible`, is `SwitchOpen`.
 #[test]
 fn a_pinned_phase_is_named_a_stuck_switch_not_the_encoder() {
     let m = shipped();
