@@ -12,7 +12,7 @@ function of its own, so this is the fast step with whatever is inlined into it).
 Runs the program on `mps2-an386` one instruction per translation block (`-singlestep`),
 logging only the executions inside SYMBOL's address range (`-d exec,nochain -dfilter`),
 counts each address, drops the first `--skip` calls (the cost program's drive magnetizes
-first: 2 761 steps that are not the Running step it measures) and stops after
+first: 2 741 steps that are not the Running step it measures) and stops after
 `--calls` more. Calls are counted at SYMBOL's first instruction. Each address is mapped
 with `llvm-addr2line -i` and its count charged to (a) the innermost function the compiler
 inlined there and (b) the line of SYMBOL's own body (or of the function inlined into it
@@ -51,8 +51,35 @@ def symbol_range(elf: Path, symbol: str) -> tuple[int, int]:
     return hits[0][0], hits[0][1]
 
 
-def profile(elf: Path, start: int, size: int, skip: int, calls: int) -> tuple[collections.Counter, int]:
-    """Executions per address over `calls` calls after the first `skip`."""
+def text_range(elf: Path) -> tuple[int, int]:
+    """Start and size of the program's `.text` section."""
+    out = subprocess.run(["llvm-size", "-A", "-x", str(elf)], check=True, capture_output=True, text=True).stdout
+    for line in out.splitlines():
+        parts = line.split()
+        if parts and parts[0] == ".text":
+            return int(parts[2], 16), int(parts[1], 16)
+    sys.exit(f"qemu_profile: no .text in {elf}")
+
+
+def functions(elf: Path) -> list[tuple[int, int, str]]:
+    """Every function symbol: start, size, demangled name (hash removed)."""
+    out = subprocess.run(["llvm-nm", "-S", "-C", str(elf)], check=True, capture_output=True, text=True).stdout
+    fns = []
+    for line in out.splitlines():
+        parts = line.split(maxsplit=3)
+        if len(parts) == 4 and parts[2] in "tT":
+            fns.append((int(parts[0], 16) & ~1, int(parts[1], 16), HASH.sub("", parts[3])))
+    return sorted(fns)
+
+
+def profile(elf: Path, start: int, size: int, skip: int, calls: int, entry: int | None = None
+            ) -> tuple[collections.Counter, int]:
+    """Executions per address over `calls` calls after the first `skip`; with `entry`, every
+    address in the range is logged and calls are counted at `entry`: the counts then cover
+    `calls - 1` whole periods from one call's entry to the next's (callees and the caller's
+    own work included)."""
+    whole = entry is not None
+    entry = start if entry is None else entry
     with tempfile.TemporaryDirectory() as tmp:
         fifo = Path(tmp) / "exec.log"
         subprocess.run(["mkfifo", str(fifo)], check=True)
@@ -72,9 +99,9 @@ def profile(elf: Path, start: int, size: int, skip: int, calls: int) -> tuple[co
                     if not m:
                         continue
                     addr = int(m.group(1), 16)
-                    if addr == start:
+                    if addr == entry:
                         seen += 1
-                        if seen > skip + calls:
+                        if seen > skip + calls or (whole and seen == skip + calls):
                             break
                         if seen % 500 == 0:
                             print(f"qemu_profile: {seen} calls", file=sys.stderr)
@@ -83,7 +110,7 @@ def profile(elf: Path, start: int, size: int, skip: int, calls: int) -> tuple[co
         finally:
             qemu.kill()
             qemu.wait()
-        done = max(0, min(seen, skip + calls) - skip)
+        done = max(0, min(seen, skip + calls) - skip - (1 if whole else 0))
         if done == 0:
             sys.exit(f"qemu_profile: no call after the first {skip} (the program made {seen})")
         return counts, done
@@ -115,14 +142,34 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("elf", nargs="?", default=str(DEFAULT_ELF))
     ap.add_argument("symbol", nargs="?", default="Drive::step")
-    ap.add_argument("--skip", type=int, default=2761, help="calls to leave out first (the cost program magnetizes its drive in 2 761)")
+    ap.add_argument("--skip", type=int, default=2741, help="calls to leave out first (the cost program magnetizes its drive in 2 741)")
     ap.add_argument("--calls", type=int, default=4096, help="calls to count (the cost program then runs 4 096 periods)")
     ap.add_argument("--top", type=int, default=25)
+    ap.add_argument("--whole", action="store_true",
+                    help="count every instruction from one call's entry to the next (callees, the caller's loop), by function")
     a = ap.parse_args()
     elf = Path(a.elf)
     if not elf.exists():
         sys.exit(f"qemu_profile: {elf} not found (build it first: see the module docs)")
     start, size = symbol_range(elf, a.symbol)
+    if a.whole:
+        t0, tsize = text_range(elf)
+        counts, calls = profile(elf, t0, tsize, a.skip, a.calls, entry=start)
+        total = sum(counts.values())
+        print(f"{a.symbol}: {calls} whole periods (entry to entry) after {a.skip}; "
+              f"{total / calls:.1f} instructions per period")
+        fns = functions(elf)
+        per_fn: collections.Counter = collections.Counter()
+        k = 0
+        for addr in sorted(counts):
+            while k + 1 < len(fns) and fns[k + 1][0] <= addr:
+                k += 1
+            f0, fsize, name = fns[k] if fns else (0, 0, "?")
+            per_fn[name if f0 <= addr < f0 + max(fsize, 1) else "?"] += counts[addr]
+        print("\nper period, by function (out of line):")
+        for fn, c in per_fn.most_common(a.top):
+            print(f"{c / calls:8.1f}  {fn}")
+        return
     counts, calls = profile(elf, start, size, a.skip, a.calls)
     total = sum(counts.values())
     print(f"{a.symbol}: {size} B at {start:#x}; {calls} calls after {a.skip}; "

@@ -1447,8 +1447,6 @@ pub struct Drive {
     /// The rotation that advances the output voltage over the delay
     /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed at the last slow step.
     delay_rotation: SinCos,
-    /// Slip speed of the last fast step, electrical rad/s.
-    omega_sl_rad_s: f32,
     /// The speed loop's output was at its limit at the last slow step.
     speed_saturated: bool,
     /// The envelope in use ([`EnvelopeConfig::envelope`]).
@@ -1457,8 +1455,6 @@ pub struct Drive {
     envelope_age: u16,
     /// The current trim added to the loops' references (field frame), A.
     trim: Dq,
-    /// Sum of the field-frame current errors (intended − measured) since the last slow step.
-    trim_error_sum: Dq,
     /// The modulator limited the voltage since the last slow step (the trim holds).
     trim_hold: bool,
 }
@@ -1516,12 +1512,10 @@ impl Drive {
             encoder_reads: 0,
             theta_r_rad: 0.0,
             delay_rotation: SinCos::default(),
-            omega_sl_rad_s: 0.0,
             speed_saturated: false,
             envelope: Envelope::ZERO,
             envelope_age: 0,
             trim: Dq::default(),
-            trim_error_sum: Dq::default(),
             trim_hold: false,
         }
     }
@@ -1599,12 +1593,10 @@ impl Drive {
                 self.magnetizing_steps = 0;
                 self.theta_r_rad = 0.0;
                 self.delay_rotation = SinCos::default();
-                self.omega_sl_rad_s = 0.0;
                 self.speed_saturated = false;
                 self.envelope = Envelope::ZERO;
                 self.envelope_age = 0;
                 self.trim = Dq::default();
-                self.trim_error_sum = Dq::default();
                 self.trim_hold = false;
                 self.mode = Mode::Magnetizing;
                 Ok(())
@@ -1725,6 +1717,29 @@ impl Drive {
     /// ([`EnvelopeConfig::point`] on the envelope remade every [`ENVELOPE_REFRESH_SLOW_STEPS`]:
     /// i_d*, and the torque limited to the envelope).
     pub fn slow_step(&mut self, m: &Measurements) {
+        self.slow_loops(m);
+        if matches!(self.mode, Mode::Magnetizing | Mode::Running) && m.is_finite() {
+            self.plan(m.omega_m_rad_s);
+        }
+    }
+
+    /// The fast steps' plan up to the next slow step ([`IfocConfig::plan`]: the current
+    /// references, the slip and the field's rotation per step), and the rotation that
+    /// advances the output voltage over the delay, from the field speed of that plan.
+    fn plan(&mut self, omega_m_rad_s: f32) {
+        let cfg = &self.cfg;
+        let running = self.mode == Mode::Running;
+        let cmd = if running { self.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
+        cfg.ifoc.plan(&mut self.ifoc, &self.flux, cmd, omega_m_rad_s, self.trim);
+        let omega_e = match self.reference {
+            Reference::RotatingCurrent { omega_rad_s, .. } if running => omega_rad_s,
+            _ => cfg.envelope.pole_pairs() * omega_m_rad_s + self.ifoc.omega_sl_rad_s(),
+        };
+        self.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
+    }
+
+    /// The slow step up to the plan: see [`Drive::slow_step`].
+    fn slow_loops(&mut self, m: &Measurements) {
         let step_rad = self.read_encoder(m.theta_m_rad);
         self.update_thermal(m.i_abc_a);
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
@@ -1747,16 +1762,19 @@ impl Drive {
             }
             self.stop_steps_left = Some(left - 1);
         }
+        // The fast steps since the last slow step: the slip angle and the flux model advance
+        // over them (before the field is anchored, on the slip angle).
+        let (i_mean, n) = self.cfg.ifoc.close_period(&mut self.ifoc);
         self.anchor_field(step_rad);
         // The modulator limited the loops' request since the last slow step (read before
         // the trim clears it).
         let limited = self.trim_hold;
-        if self.mode == Mode::Running || !self.cfg.mras.fit_pending(&self.rotor_fit) {
-            self.update_trim();
-        } else {
-            self.trim_error_sum = Dq::default();
-            self.trim_hold = false;
+        if n > 0 && (self.mode == Mode::Running || !self.cfg.mras.fit_pending(&self.rotor_fit)) {
+            // The period's mean error of the intended references (those of the plan in force).
+            let r = self.ifoc.i_ref_dq();
+            self.update_trim(Dq { d: r.d - i_mean.d, q: r.q - i_mean.q });
         }
+        self.trim_hold = false;
         // The loops' d-axis request over the slow period while magnetizing (read before the
         // budget clears it).
         let (v_d_sum, v_d_steps) = (self.v_d_sum, self.v_req_steps);
@@ -1808,11 +1826,6 @@ impl Drive {
         // would ask for a torque the rated flux can give, and the flux would never fall.
         self.torque_max_nm = op.torque_max_nm;
         self.torque_cmd = TorqueCommand::TorqueNm(torque_nm.limit(-torque_now_nm, torque_now_nm));
-        let omega_e = match self.reference {
-            Reference::RotatingCurrent { omega_rad_s, .. } if running => omega_rad_s,
-            _ => cfg.envelope.pole_pairs() * m.omega_m_rad_s + self.omega_sl_rad_s,
-        };
-        self.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
         if !running {
             // The rotor resistance and the inductance from the building flux
             // ([`MrasConfig::fit`]).
@@ -1830,6 +1843,15 @@ impl Drive {
             if self.magnetizing_steps > self.cfg.magnetizing_steps_max {
                 // The flux model runs on the measured current: none flows.
                 self.trip(Fault::NoMotorCurrent);
+            } else if self.ifoc.psi_r_wb()
+                >= self.cfg.magnetized_fraction * self.ifoc.flux_of(self.flux.i_d_a())
+                && !self.cfg.mras.fit_pending(&self.rotor_fit)
+            {
+                // The flux model runs on the measured current: the motor is magnetized.
+                self.mode = Mode::Running;
+                self.speed = SpeedState::default();
+                self.stall_steps = 0;
+                self.following_steps = 0;
             }
             return;
         }
@@ -1985,19 +2007,16 @@ impl Drive {
         self.envelope_age = 0;
     }
 
-    /// The current trim integrates the mean field-frame error of the last slow period (the
-    /// sums count the same fast steps as the voltage regulator's), unless the modulator
-    /// limited the voltage in it: then the currents cannot follow and the trim holds.
-    fn update_trim(&mut self) {
-        let n = self.v_req_steps;
-        if n > 0 && !self.trim_hold {
-            let k = self.cfg.trim_gain / f32::from(n);
+    /// The current trim integrates `error`, the mean field-frame error (intended − measured)
+    /// of the last slow period, unless the modulator limited the voltage in it: then the
+    /// currents cannot follow and the trim holds.
+    fn update_trim(&mut self, error: Dq) {
+        if !self.trim_hold {
+            let k = self.cfg.trim_gain;
             let lim = CURRENT_TRIM_RANGE * self.cfg.ifoc.i_max_a();
-            self.trim.d = (self.trim.d + k * self.trim_error_sum.d).limit(-lim, lim);
-            self.trim.q = (self.trim.q + k * self.trim_error_sum.q).limit(-lim, lim);
+            self.trim.d = (self.trim.d + k * error.d).limit(-lim, lim);
+            self.trim.q = (self.trim.q + k * error.q).limit(-lim, lim);
         }
-        self.trim_error_sum = Dq::default();
-        self.trim_hold = false;
     }
 
     /// The voltage budget of the current references: the target `voltage_margin·V_dc/√3`
@@ -2181,7 +2200,6 @@ impl Drive {
         }
         let cfg = &self.cfg;
         let i_ab = m.i_abc_a.clarke();
-        let cmd = if running { self.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
         let field = match self.reference {
             Reference::RotatingCurrent { amplitude_a, omega_rad_s } if running => {
                 let a = amplitude_a.limit(0.0, cfg.ifoc.i_max_a());
@@ -2193,18 +2211,13 @@ impl Drive {
                     i_ref_ab: AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin },
                     theta_e_rad: th,
                     field: sc,
+                    i_meas_dq: i_ab.park(sc),
                     omega_sl_rad_s: 0.0,
                 }
             }
-            _ => {
-                let f = cfg.ifoc.update(&mut self.ifoc, &self.flux, cmd, m.omega_m_rad_s, i_ab, self.trim);
-                let i = i_ab.park(f.field);
-                self.trim_error_sum.d += f.i_ref_dq.d - i.d;
-                self.trim_error_sum.q += f.i_ref_dq.q - i.q;
-                f
-            }
+            // The current references at the field angle of the slow step's plan.
+            _ => cfg.ifoc.step(&mut self.ifoc, i_ab),
         };
-        self.omega_sl_rad_s = field.omega_sl_rad_s;
         let i_ref_abc = field.i_ref_ab.inverse_clarke();
         let window = self.open_phase.add(
             i_ref_abc,
@@ -2244,7 +2257,7 @@ impl Drive {
                 // The trimmed references, as in the stationary frame (there the trim is in
                 // `i_ref_ab`); here the loops' own integrators leave it at zero.
                 let r = Dq { d: field.i_ref_dq.d + self.trim.d, q: field.i_ref_dq.q + self.trim.q };
-                let i = i_ab.park(field.field);
+                let i = field.i_meas_dq;
                 let [d, q] = cfg.current.request(&mut self.current, r.d - i.d, r.q - i.q, v_clamp);
                 Dq { d, q }.inverse_park(field.field)
             }
@@ -2280,7 +2293,7 @@ impl Drive {
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
         if running && field_oriented && after_slow {
             self.check_encoder(
-                i_ab.park(field.field),
+                field.i_meas_dq,
                 modulation.v_applied,
                 &field,
                 m.omega_m_rad_s,
@@ -2294,7 +2307,7 @@ impl Drive {
             // The rotor resistance from the reactive power (the loops' own request: not limited).
             let e = &self.model;
             let evidence = Evidence {
-                i: i_ab.park(field.field),
+                i: field.i_meas_dq,
                 v: v_req.park(field.field),
                 w_e_rad_s: e.pole_pairs() * m.omega_m_rad_s + field.omega_sl_rad_s,
                 psi_r_wb: self.ifoc.psi_r_wb(),
@@ -2315,16 +2328,6 @@ impl Drive {
                 v_req
             };
             self.v_d_sum += v.park(field.field).d;
-        }
-        if !running
-            && self.ifoc.psi_r_wb() >= self.cfg.magnetized_fraction * self.ifoc.flux_of(self.flux.i_d_a())
-            && !self.cfg.mras.fit_pending(&self.rotor_fit)
-        {
-            // The flux model runs on the measured current: the motor is magnetized.
-            self.mode = Mode::Running;
-            self.speed = SpeedState::default();
-            self.stall_steps = 0;
-            self.following_steps = 0;
         }
         FastOutput {
             phases: PhaseCommand::Duty(duty),

@@ -64,8 +64,8 @@ impl Default for SinCos {
 
 impl SinCos {
     /// sin and cos of `theta_rad`, in f32 arithmetic only (no f64, no table), for the
-    /// control path: the field angle (the IFOC recomputes its field with it every 16th step and
-    /// rotates it in between, [`SinCos::rotated`]).
+    /// control path: the field angle (the IFOC recomputes its field with it at every slow step and
+    /// turns it in between, [`SinCos::then`]).
     ///
     /// `libm::sincosf` evaluates its kernels in f64, which a Cortex-M4F does in software:
     /// ≈ 2 800 instructions per call (measured, `qemu-target` `cost`). Here: quadrant
@@ -105,28 +105,30 @@ impl SinCos {
 
 impl SinCos {
     /// Largest angle step `|δ|` for which [`SinCos::rotated`] keeps its accuracy, rad.
-    /// The IFOC's field angle advances by `ω_e·T` per step: 0.1 rad is ω_e = 2 000 rad/s
-    /// at 20 kHz.
     pub const MAX_ROTATION_RAD: f32 = 0.1;
 
     /// sin and cos of θ + δ from those of θ, by rotating the unit vector through δ:
     /// `sin(θ+δ) = sin θ·cos δ + cos θ·sin δ`, `cos(θ+δ) = cos θ·cos δ − sin θ·sin δ`, with
     /// `sin δ ≈ δ(1 − δ²/6·(1 − δ²/20))` and `cos δ ≈ 1 − δ²/2·(1 − δ²/12)`. Truncation for
     /// `|δ| ≤` [`SinCos::MAX_ROTATION_RAD`]: ≤ δ⁷/5040 = 2e-11 (sin) and δ⁶/720 = 1.4e-9
-    /// (cos), below the f32 rounding of each rotation (a few 1e-8). The rounding errors
-    /// add up from rotation to rotation, so a caller rotating repeatedly recomputes with
-    /// [`SinCos::new`] now and then (the IFOC every [`crate::ifoc::FIELD_RESYNC_STEPS`] steps).
-    ///
-    /// Why: 16 operations, at most 7 dependent ones from δ to the result, against ≈ 30 and
-    /// ≈ 13 (plus the quadrant select) for [`SinCos::new`] — the field angle's chain was the
-    /// longest of the fast step (`hil-sim bench`: ≈ 50.4 → ≈ 47.1 ns per simulated PWM
-    /// period).
+    /// (cos), below the f32 rounding of each rotation (a few 1e-8). 16 operations, against
+    /// ≈ 30 for [`SinCos::new`] (the drive's delay advance, turned from θ = 0).
     #[inline]
     pub fn rotated(self, delta_rad: f32) -> Self {
         let d2 = delta_rad * delta_rad;
         let sin_d = delta_rad - delta_rad * d2 * ((1.0 / 6.0) - d2 * (1.0 / 120.0));
         let cos_d = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0));
         Self { sin: self.sin * cos_d + self.cos * sin_d, cos: self.cos * cos_d - self.sin * sin_d }
+    }
+}
+
+impl SinCos {
+    /// sin and cos of the sum of the two angles (this one turned by `r`'s): four products.
+    /// The rounding adds up from turn to turn (≈ 1e-7 each): a caller turning repeatedly
+    /// recomputes with [`SinCos::new`] now and then (the IFOC at every slow step).
+    #[inline]
+    pub fn then(self, r: SinCos) -> Self {
+        Self { sin: self.sin * r.cos + self.cos * r.sin, cos: self.cos * r.cos - self.sin * r.sin }
     }
 }
 

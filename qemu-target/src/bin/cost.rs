@@ -166,22 +166,25 @@ mod target {
             }
             Err(_) => f32::NAN,
         };
-        let ifoc = match IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a) {
+        // The IFOC's two rates: its fast step (references, field turn, the flux model's
+        // sum), and its slow-step work (the period closed, then the plan with its two
+        // `SinCos::new`).
+        let (ifoc, ifoc_plan) = match IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a) {
             Ok(c) => {
                 let mut s = c.state(0.9, 1.0);
                 let flux = c.flux_command(0.9);
-                per_call(&ticks, |k| {
-                    black_box(c.update(
-                        &mut s,
-                        &flux,
-                        TorqueCommand::TorqueNm(black_box(0.3)),
-                        k as f32 * 1e-3,
-                        black_box(current(k % 64)).clarke(),
-                        Dq::default(),
-                    ));
-                })
+                let plan = per_call(&ticks, |k| {
+                    black_box(c.close_period(&mut s));
+                    c.plan(&mut s, &flux, TorqueCommand::TorqueNm(black_box(0.3)), k as f32 * 1e-3, Dq::default());
+                });
+                let step = per_call(&ticks, |k| {
+                    black_box(c.step(&mut s, black_box(current(k % 64)).clarke()));
+                }) - per_call(&ticks, |k| {
+                    black_box(black_box(current(k % 64)).clarke());
+                });
+                (step, plan)
             }
-            Err(_) => f32::NAN,
+            Err(_) => (f32::NAN, f32::NAN),
         };
         // The slow step's operating point (issue 17): the envelope's solver, at speeds from
         // standstill to beyond the base speed and torques across the envelope.
@@ -285,7 +288,8 @@ mod target {
         println!("cost part:adc_scaling_4ch {:.1}", adc);
         println!("cost part:clarke {:.1}", clarke);
         println!("cost part:icad_two_axes {:.1}", icad);
-        println!("cost part:ifoc_incl_sincos {:.1}", ifoc);
+        println!("cost part:ifoc_fast {:.1}", ifoc);
+        println!("cost part:ifoc_plan_incl_sincos {:.1}", ifoc_plan);
         println!("cost part:sincos {:.1}", sincos);
         println!("cost part:svpwm {:.1}", svm);
         println!("cost part:compare_3ch {:.1}", compare);
