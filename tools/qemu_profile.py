@@ -12,8 +12,8 @@ function of its own, so this is the fast step with whatever is inlined into it).
 Runs the program on `mps2-an386` one instruction per translation block (`-singlestep`),
 logging only the executions inside SYMBOL's address range (`-d exec,nochain -dfilter`),
 counts each address, drops the first `--skip` calls (the cost program's drive magnetizes
-first: 2 741 steps that are not the Running step it measures) and stops after
-`--calls` more. Calls are counted at SYMBOL's first instruction. Each address is mapped
+first, in the periods it prints as `cost magnetizing_periods`: not the Running step it
+measures; a first plain run reads the count) and stops after `--calls` more. Calls are counted at SYMBOL's first instruction. Each address is mapped
 with `llvm-addr2line -i` and its count charged to (a) the innermost function the compiler
 inlined there and (b) the line of SYMBOL's own body (or of the function inlined into it
 that the fast step calls, `Drive::fast_step`) it belongs to. Prints instructions per call.
@@ -138,11 +138,24 @@ def attribute(elf: Path, counts: collections.Counter, outer: tuple[str, ...]):
     return inner, lines
 
 
+def magnetizing_periods(elf: Path) -> int:
+    """The cost program's own count of the periods it magnetizes in (it prints it)."""
+    out = subprocess.run(["qemu-system-arm", "-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic",
+                          "-semihosting-config", "enable=on,target=native", "-icount", "shift=0",
+                          "-kernel", str(elf)], capture_output=True, text=True, timeout=600).stdout
+    m = re.search(r"^cost magnetizing_periods (\d+)$", out, re.M)
+    if not m:
+        sys.exit("qemu_profile: the program printed no `cost magnetizing_periods`: pass --skip")
+    return int(m.group(1))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("elf", nargs="?", default=str(DEFAULT_ELF))
     ap.add_argument("symbol", nargs="?", default="Drive::step")
-    ap.add_argument("--skip", type=int, default=2741, help="calls to leave out first (the cost program magnetizes its drive in 2 741)")
+    ap.add_argument("--skip", type=int, default=None,
+                    help="calls to leave out first (default: the cost program's magnetizing periods, "
+                         "read from its `cost magnetizing_periods` line in a first, plain run)")
     ap.add_argument("--calls", type=int, default=4096, help="calls to count (the cost program then runs 4 096 periods)")
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--whole", action="store_true",
@@ -152,6 +165,8 @@ def main() -> None:
     if not elf.exists():
         sys.exit(f"qemu_profile: {elf} not found (build it first: see the module docs)")
     start, size = symbol_range(elf, a.symbol)
+    if a.skip is None:
+        a.skip = magnetizing_periods(elf)
     if a.whole:
         t0, tsize = text_range(elf)
         counts, calls = profile(elf, t0, tsize, a.skip, a.calls, entry=start)

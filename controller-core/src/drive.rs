@@ -1707,15 +1707,18 @@ impl Drive {
         self.fast_step(m)
     }
 
-    /// Speed/position loop, the operating point, and the slow supervisor: overspeed (while
-    /// the bridge is active), stall (while Running under a speed or position reference) and
-    /// the magnetizing time. Holds a zero torque command unless Running; ignores non-finite
-    /// measurements (the fast step trips on them).
+    /// Speed/position loop, the operating point, and the slow supervisor: a non-finite
+    /// encoder reading (in every mode), overspeed (while the bridge is active), stall (while
+    /// Running under a speed or position reference) and the magnetizing time. Holds a zero
+    /// torque command unless Running; otherwise ignores non-finite measurements (the fast
+    /// step trips on the currents and the bus).
     ///
-    /// Order: encoder → field angle ([`IfocConfig::anchor`]); voltage regulator; speed loop
-    /// limited to the envelope's torque at the last slow step; operating point
+    /// Order: encoder → the IFOC's period closed ([`IfocConfig::close_period`]: flux model,
+    /// slip angle) → field angle ([`IfocConfig::anchor`]); current trim; voltage regulator;
+    /// speed loop limited to the envelope's torque at the last slow step; operating point
     /// ([`EnvelopeConfig::point`] on the envelope remade every [`ENVELOPE_REFRESH_SLOW_STEPS`]:
-    /// i_d*, and the torque limited to the envelope).
+    /// i_d*, and the torque limited to the envelope); magnetized → Running; the fast steps'
+    /// plan ([`IfocConfig::plan`]).
     pub fn slow_step(&mut self, m: &Measurements) {
         self.slow_loops(m);
         if matches!(self.mode, Mode::Magnetizing | Mode::Running) && m.is_finite() {
@@ -1740,6 +1743,11 @@ impl Drive {
 
     /// The slow step up to the plan: see [`Drive::slow_step`].
     fn slow_loops(&mut self, m: &Measurements) {
+        // The encoder's readings change only here (the fast step checks the currents and
+        // the bus): not finite, in any mode, is the supervisor's non-finite input.
+        if !(m.omega_m_rad_s.is_finite() && m.theta_m_rad.is_finite()) {
+            self.trip(Fault::NonFiniteInput);
+        }
         let step_rad = self.read_encoder(m.theta_m_rad);
         self.update_thermal(m.i_abc_a);
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
@@ -2050,20 +2058,25 @@ impl Drive {
     fn measurements_ok(&self, m: &Measurements) -> bool {
         let i = m.i_abc_a;
         let i_peak_bits = abs_bits(i.a).max(abs_bits(i.b)).max(abs_bits(i.c));
-        let rest_finite = m.vdc_v.is_finite() && m.omega_m_rad_s.is_finite() && m.theta_m_rad.is_finite();
+        // The bus on its bits too, sign included: a negative or NaN reading is above every
+        // positive level, so `bits ≤ max` is "finite, not negative, not above the maximum"
+        // (a negative reading is named undervoltage, in every mode); the minimum (validated
+        // ≥ 0) only while the bridge is active.
+        let vdc_bits = m.vdc_v.to_bits();
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
+        let vdc_min_bits = if active { self.cfg.vdc_min_v.to_bits() } else { 0 };
         i_peak_bits <= self.cfg.i_trip_bits
             && abs_bits(i.a + i.b + i.c) <= self.cfg.i_sum_bits
-            && rest_finite
-            && m.vdc_v <= self.cfg.vdc_max_v
-            && !(active && m.vdc_v < self.cfg.vdc_min_v)
+            && vdc_bits <= self.cfg.vdc_max_v.to_bits()
+            && vdc_bits >= vdc_min_bits
     }
 
-    /// Which supervisor check fails, in order of precedence: non-finite input, overcurrent,
-    /// current-sensor plausibility, bus overvoltage, bus undervoltage (only while the bridge
-    /// is active).
+    /// Which supervisor check of the fast step fails, in order of precedence: non-finite
+    /// current or bus voltage, overcurrent, current-sensor plausibility, bus overvoltage (or
+    /// a negative reading), bus undervoltage (only while the bridge is active). The encoder's
+    /// readings change only at the slow step, which checks them ([`Drive::slow_step`]).
     fn supervise(&self, m: &Measurements) -> Option<Fault> {
-        if !m.is_finite() {
+        if !(m.i_abc_a.is_finite() && m.vdc_v.is_finite()) {
             return Some(Fault::NonFiniteInput);
         }
         let i = m.i_abc_a;
@@ -2077,8 +2090,9 @@ impl Drive {
         if m.vdc_v > self.cfg.vdc_max_v {
             return Some(Fault::DcBusOvervoltage);
         }
+        // Below zero is no bus at all (a sensor's sign or offset wrong): in every mode.
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
-        if active && m.vdc_v < self.cfg.vdc_min_v {
+        if (active && m.vdc_v < self.cfg.vdc_min_v) || m.vdc_v.is_sign_negative() {
             return Some(Fault::DcBusUndervoltage);
         }
         None
@@ -2262,10 +2276,6 @@ impl Drive {
                 Dq { d, q }.inverse_park(field.field)
             }
         };
-        if !(v_req.alpha.is_finite() && v_req.beta.is_finite()) {
-            self.trip(Fault::NonFiniteOutput);
-            return off(self.mode);
-        }
         self.v_req2_sum += v_req.alpha * v_req.alpha + v_req.beta * v_req.beta;
         self.v_req_steps = self.v_req_steps.saturating_add(1);
         // Advanced over the delay to the period it acts in, then the one vector limit: the
@@ -2278,6 +2288,11 @@ impl Drive {
             modulation.duty
         };
         if modulation.saturated {
+            // The modulator's out-of-line path takes every request that is not finite too.
+            if !(v_req.alpha.is_finite() && v_req.beta.is_finite()) {
+                self.trip(Fault::NonFiniteOutput);
+                return off(self.mode);
+            }
             self.track_applied(modulation.v_applied, &field, v_clamp);
             self.trim_hold = true;
             self.saturated_steps = self.saturated_steps.saturating_add(1);
@@ -2441,6 +2456,44 @@ mod tests {
 
     fn meas(vdc: f32) -> Measurements {
         Measurements { vdc_v: vdc, ..Default::default() }
+    }
+
+    /// The encoder's readings are checked at the slow step, where they change: a non-finite
+    /// angle or speed trips `NonFiniteInput` in the period it arrives (`Drive::step` runs the
+    /// slow step before the fast step), idle or running, the bridge off in that period; one
+    /// that arrives between slow steps is read at the next. A negative bus reading is
+    /// `DcBusUndervoltage` in every mode.
+    #[test]
+    fn a_non_finite_encoder_reading_trips_at_the_slow_step() {
+        let bad = [
+            Measurements { theta_m_rad: f32::NAN, ..meas(310.0) },
+            Measurements { omega_m_rad_s: f32::INFINITY, ..meas(310.0) },
+        ];
+        for m in bad {
+            for running in [false, true] {
+                let mut d = if running { running_drive() } else { drive() };
+                while d.steps_to_slow != 0 {
+                    assert!(d.mode() != Mode::Fault(Fault::NonFiniteInput));
+                    d.step(&meas(310.0));
+                }
+                let out = d.step(&m);
+                assert_eq!((out.mode, out.phases), (Mode::Fault(Fault::NonFiniteInput), PhaseCommand::Off));
+                // Between slow steps the fast step does not read them.
+                let mut d = if running { running_drive() } else { drive() };
+                d.step(&meas(310.0));
+                let left = d.steps_to_slow;
+                assert!(left > 0);
+                for _ in 0..left {
+                    assert_eq!(d.step(&m).mode, d.mode());
+                    assert!(!matches!(d.mode(), Mode::Fault(_)));
+                }
+                assert_eq!(d.step(&m).mode, Mode::Fault(Fault::NonFiniteInput));
+            }
+        }
+        for running in [false, true] {
+            let mut d = if running { running_drive() } else { drive() };
+            assert_eq!(d.step(&meas(-1.0)).mode, Mode::Fault(Fault::DcBusUndervoltage));
+        }
     }
 
     /// The brake output: never without a chopper; with one, on above `on_v`, held down to
@@ -3137,7 +3190,7 @@ mod tests {
             };
             let spec = test_spec();
             let p = spec.protection;
-            let float_test = if ![x[0], x[1], x[2], x[3], x[4], x[5]].iter().all(|v| v.is_finite()) {
+            let float_test = if ![x[0], x[1], x[2], x[3]].iter().all(|v| v.is_finite()) {
                 Some(Fault::NonFiniteInput)
             } else if x[0].abs().max(x[1].abs()).max(x[2].abs()) > p.i_trip_a as f32 {
                 Some(Fault::Overcurrent)
@@ -3145,7 +3198,7 @@ mod tests {
                 Some(Fault::CurrentSensor)
             } else if x[3] > p.vdc_max_v as f32 {
                 Some(Fault::DcBusOvervoltage)
-            } else if d.mode() != Mode::Idle && x[3] < p.vdc_min_v as f32 {
+            } else if (d.mode() != Mode::Idle && x[3] < p.vdc_min_v as f32) || x[3].is_sign_negative() {
                 Some(Fault::DcBusUndervoltage)
             } else {
                 None

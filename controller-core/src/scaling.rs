@@ -88,9 +88,24 @@ impl PwmScaling {
     /// Compare value for an f32 duty, rounded to nearest, saturated to `[0, period]`.
     #[inline]
     pub fn compare(&self, duty: f32) -> u16 {
-        // `as u16` saturates and maps NaN to 0: the intended behaviour here.
-        let c = (duty * f32::from(self.period_counts) + 0.5) as u16;
-        c.min(self.period_counts)
+        self.compare_with(f32::from(self.period_counts), duty)
+    }
+
+    /// The three phases' compare values ([`PwmScaling::compare`] each): the period converted
+    /// to f32 once.
+    #[inline]
+    pub fn compare3(&self, duty: crate::frames::Abc) -> [u16; 3] {
+        let p = f32::from(self.period_counts);
+        [self.compare_with(p, duty.a), self.compare_with(p, duty.b), self.compare_with(p, duty.c)]
+    }
+
+    /// `period_f32` is the period in f32. Converted through u32: `as u32` saturates and maps
+    /// NaN to 0 (the intended behaviour here) in the Cortex-M4F's one `vcvt`, where `as u16`
+    /// adds a saturation to 16 bits; the period's bound brings it into u16 range.
+    #[inline]
+    fn compare_with(&self, period_f32: f32, duty: f32) -> u16 {
+        let c = (duty * period_f32 + 0.5) as u32;
+        c.min(u32::from(self.period_counts)) as u16
     }
 
     /// Compare value for a fixed-point duty, rounded to nearest, saturated to `[0, period]`.
@@ -147,6 +162,21 @@ mod tests {
         assert_eq!(p.compare(f32::NAN), 0);
         assert_eq!(p.compare_fixed(U1F15::ONE), 4250);
         assert_eq!(p.compare_fixed(U1F15::MAX), 4250);
+    }
+
+    /// The three-phase form equals the one-phase form, and both saturate to `[0, period]`
+    /// whatever the duty: beyond u32's range, infinite, NaN, negative.
+    #[test]
+    fn compare3_equals_compare_and_saturates() {
+        let p = PwmScaling::new(4250).unwrap();
+        let duties =
+            [0.0, 0.25, 0.5, 0.999_9, 1.0, 1.000_2, 2.0, 1e9, 1e30, f32::INFINITY, -0.0, -1e-9, -1.0, -1e30];
+        for &d in duties.iter().chain([f32::NEG_INFINITY, f32::NAN].iter()) {
+            let [a, b, c] = p.compare3(crate::frames::Abc { a: d, b: 1.0 - d, c: 0.5 * d });
+            assert_eq!([a, b, c], [p.compare(d), p.compare(1.0 - d), p.compare(0.5 * d)], "{d}");
+            assert!(a <= 4250, "{d}: {a}");
+        }
+        assert_eq!((p.compare(1e30), p.compare(f32::INFINITY), p.compare(-1e30)), (4250, 4250, 0));
     }
 
     proptest! {

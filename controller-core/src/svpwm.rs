@@ -58,36 +58,60 @@ pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
 /// `duty_max` (the highest duty whose low-side window still holds a current sample; 1: no
 /// window needed): the span limited to `duty_max·V_dc`, the common mode moved down (module
 /// docs). `duty_max` in `(½, 1]` (the drive's configuration validates it).
+///
+/// Written as `d_x = d_max − (max − v_x)/V_dc` with `d_max = min(½ + ½·span/V_dc, duty_max)`
+/// — the centred duties `½ + (v_x + v_0)/V_dc` of the module docs, less their excess over
+/// `duty_max` — so that no duty needs a clamp: with `s = span/V_dc ≤ duty_max` (as rounded),
+/// `(max − v_x)/V_dc ≤ s` by the monotony of rounding, and `d_max − s ≥ 0` exactly (`d_max ≥ s`
+/// in both of its cases), so every duty lies in `[0, d_max]` (test
+/// `duties_always_in_unit_interval`). Three comparisons find the largest and smallest
+/// phase; a NaN in `v` reaches `span` through them (α NaN: a NaN phase a becomes `lo`, then
+/// `min`; β NaN: phases b and c are NaN, b becomes `hi`, then `max`), an infinite one makes
+/// it infinite. A request beyond the hexagon, a non-finite one and a bad bus take the
+/// out-of-line [`modulate_limited`] (with `saturated` set).
 #[inline]
 pub fn modulate_sampled(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
-    let zero =
-        Modulation { duty: Abc { a: 0.5, b: 0.5, c: 0.5 }, v_applied: AlphaBeta::default(), saturated: true };
-    // Positive and finite (NaN fails both comparisons).
-    if !(vdc_v > 0.0 && vdc_v < f32::INFINITY) {
-        return zero;
-    }
     let abc = v.inverse_clarke();
-    // Finite here (v is checked by the caller; non-finite spans return early below).
-    let max = max_f32(max_f32(abc.a, abc.b), abc.c);
-    let min = min_f32(min_f32(abc.a, abc.b), abc.c);
+    let (hi, lo) = if abc.a > abc.b { (abc.a, abc.b) } else { (abc.b, abc.a) };
+    let max = if abc.c > hi { abc.c } else { hi };
+    let min = if abc.c < lo { abc.c } else { lo };
     let span = max - min;
-    if !span.is_finite() {
-        return zero;
+    let k = 1.0 / vdc_v;
+    let s = span * k;
+    // Inside the (scaled) hexagon on a positive, finite bus: false for a NaN span or bus, a
+    // zero bus (s = ∞ or NaN), a negative one (k < 0) and an infinite one (k = 0).
+    if !(s <= duty_max && k > 0.0) {
+        return modulate_limited(v, abc, max, span, vdc_v, duty_max);
     }
-    let limit = duty_max * vdc_v;
-    let (scale, saturated) = if span > limit { (limit / span, true) } else { (1.0, false) };
-    let v0 = -0.5 * (max + min);
-    let k = scale / vdc_v;
-    // Centred duties reach ½ + ½·span·k: down by their excess over the limit (the lowest
-    // stays ≥ 0, the span being within it).
-    let shift = if duty_max < 1.0 { max_f32(0.5 + 0.5 * span * k - duty_max, 0.0) } else { 0.0 };
-    // Comparisons, not `f32::clamp`: with a limit that is not a constant its panic path (and
-    // core::fmt's float printing, ≈ 15 KB of flash) would be linked.
-    let duty = |x: f32| min_f32(max_f32(0.5 - shift + (x + v0) * k, 0.0), duty_max);
+    let d_max = min_f32(0.5 + 0.5 * s, duty_max);
+    let duty = |x: f32| d_max - (max - x) * k;
     Modulation {
         duty: Abc { a: duty(abc.a), b: duty(abc.b), c: duty(abc.c) },
-        v_applied: v.scale(scale),
-        saturated,
+        v_applied: v,
+        saturated: false,
+    }
+}
+
+/// [`modulate_sampled`] beyond the hexagon: the request scaled down to its boundary by
+/// `duty_max·V_dc/span` (the angle kept), the largest duty at `duty_max`, the smallest at 0
+/// (clamped: `duty_max − span·(duty_max/span)` may round below it); for a bus that is not
+/// positive and finite or a request that is not finite, ½ on every phase (zero voltage).
+#[cold]
+#[inline(never)]
+fn modulate_limited(v: AlphaBeta, abc: Abc, max: f32, span: f32, vdc_v: f32, duty_max: f32) -> Modulation {
+    let zero =
+        Modulation { duty: Abc { a: 0.5, b: 0.5, c: 0.5 }, v_applied: AlphaBeta::default(), saturated: true };
+    if !(vdc_v > 0.0 && vdc_v < f32::INFINITY && span.is_finite() && span > 0.0) {
+        return zero;
+    }
+    let k = duty_max / span;
+    // Comparisons, not `f32::clamp`: with a limit that is not a constant its panic path (and
+    // core::fmt's float printing, ≈ 15 KB of flash) would be linked.
+    let duty = |x: f32| max_f32(duty_max - (max - x) * k, 0.0);
+    Modulation {
+        duty: Abc { a: duty(abc.a), b: duty(abc.b), c: duty(abc.c) },
+        v_applied: v.scale(duty_max * vdc_v / span),
+        saturated: true,
     }
 }
 

@@ -639,18 +639,14 @@ impl ControlLoop {
             }
             return match o.phases {
                 PhaseCommand::Off => Bridge::Off,
-                PhaseCommand::Duty(d) => {
-                    Bridge::Compare([self.pwm.compare(d.a), self.pwm.compare(d.b), self.pwm.compare(d.c)])
-                }
+                PhaseCommand::Duty(d) => Bridge::Compare(self.pwm.compare3(d)),
             };
         }
         match out.phases {
             PhaseCommand::Off => Bridge::Off,
             // The calibration's last period: the bridge stays off until the next one.
             PhaseCommand::Duty(_) if calibrating => Bridge::Off,
-            PhaseCommand::Duty(d) => {
-                Bridge::Compare([self.pwm.compare(d.a), self.pwm.compare(d.b), self.pwm.compare(d.c)])
-            }
+            PhaseCommand::Duty(d) => Bridge::Compare(self.pwm.compare3(d)),
         }
     }
 
