@@ -68,7 +68,7 @@ pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
 /// phase; a NaN in `v` reaches `span` through them (α NaN: a NaN phase a becomes `lo`, then
 /// `min`; β NaN: phases b and c are NaN, b becomes `hi`, then `max`), an infinite one makes
 /// it infinite. A request beyond the hexagon, a non-finite one and a bad bus take the
-/// out-of-line [`modulate_limited`] (with `saturated` set).
+/// out-of-line `modulate_limited` (with `saturated` set).
 #[inline]
 pub fn modulate_sampled(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
     let abc = v.inverse_clarke();
