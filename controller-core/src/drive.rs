@@ -9,25 +9,28 @@
 //! ```
 //!
 //! **Fast step** (every PWM period, [`Drive::fast_step`]): supervisor → Clarke of the measured
-//! phase currents → IFOC (field angle, current references in αβ, the flux model on the
-//! measured d-axis current) → α/β current controllers (or d/q controllers between Park and
+//! phase currents → IFOC's fast part (the slow step's plan: current references in αβ at the
+//! field angle, the field turned by one step, the measured current summed for the flux
+//! model) → α/β current controllers (or d/q controllers between Park and
 //! inverse Park, [`CurrentFrame::Synchronous`]) → their voltage request, advanced by the
 //! delay from sampling to application ([`VOLTAGE_DELAY_PERIODS`]) → SVPWM duties. **One vector
 //! limit**: the modulator scales a request beyond the inverter's hexagon onto it, keeping its
 //! angle, and the loops' integrators then track the voltage applied.
-//! **Slow step** (every N-th period, [`Drive::slow_step`]): the encoder's position anchors the
-//! field angle (rotor angle plus integrated slip); the current trim (a slow integral of the
+//! **Slow step** (every N-th period, [`Drive::slow_step`]): the IFOC's period closed (flux
+//! model, slip angle); the encoder's position anchors the field angle (rotor angle plus
+//! integrated slip); the current trim (a slow integral of the
 //! field-frame current error, [`DriveSpec::current_trim_bandwidth_rad_s`]); the voltage
 //! regulator (the budget `voltage_margin·V_dc/√3`, cut when the loops ask for more); position
 //! loop (if a position reference is active) → speed loop, limited to the torque the bus can
 //! give at this speed → the **operating point** ([`crate::envelope`]: the d-axis current —
 //! rated flux below base speed, weakened above — and the torque limited to the envelope and to
-//! what the flux that is there can drive now), held for the fast steps.
+//! what the flux that is there can drive now) → the IFOC's plan for the fast steps (i_qs*,
+//! slip, the field and its rotation per step); the stuck-switch check.
 //! [`Drive::step`] runs the slow step on every N-th call, then the fast step — what the
 //! firmware's control interrupt and the simulators call.
 //!
-//! **Supervisor** (first thing in the fast step, any mode): any non-finite measurement,
-//! a phase current beyond `i_trip_a`, three phase currents that do not sum to zero within
+//! **Supervisor** (first thing in the fast step, any mode): a non-finite current or bus
+//! voltage (the encoder's readings: in the slow step, where they change), a phase current beyond `i_trip_a`, three phase currents that do not sum to zero within
 //! `current_sum_max_a` (a dead or drifting sensor), a bus voltage above `vdc_max_v`, or —
 //! when the bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases
 //! off in the same step. In the slow step: overspeed (|ω_m| above `overspeed_rad_s` while
@@ -1723,6 +1726,28 @@ impl Drive {
         self.slow_loops(m);
         if matches!(self.mode, Mode::Magnetizing | Mode::Running) && m.is_finite() {
             self.plan(m.omega_m_rad_s);
+            if self.mode == Mode::Running {
+                self.check_switches(m.i_abc_a);
+            }
+        }
+    }
+
+    /// The stuck-switch check once per slow period ([`Fault::SwitchOpen`]): the phase
+    /// currents `i_abc_a` of this period against the references its fast step turns out of
+    /// the plan (the same operations, so the same values) — enough samples of a half-wave up
+    /// to the top speed (≈ 18 per electrical period at 700 rad/s), at a tenth of the
+    /// instructions of every step, and none of them in the fast step.
+    fn check_switches(&mut self, i_abc_a: Abc) {
+        let i_ref_ab = match self.reference {
+            Reference::RotatingCurrent { amplitude_a, .. } => {
+                let a = amplitude_a.limit(0.0, self.cfg.ifoc.i_max_a());
+                let sc = SinCos::new(self.test_angle_rad);
+                AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin }
+            }
+            _ => self.ifoc.i_ref_ab(),
+        };
+        if let Some(f) = self.switches.add(i_ref_ab.inverse_clarke(), i_abc_a, self.cfg.switch_charge_a) {
+            self.trip(f);
         }
     }
 
@@ -2246,17 +2271,9 @@ impl Drive {
             self.trip(f);
             return off(self.mode);
         }
-        // The stuck-switch check once per slow period (the fast step right after the slow
-        // step, as the encoder check): enough samples of a half-wave up to the top speed
-        // (≈ 18 per electrical period at 700 rad/s), at a tenth of the instructions.
+        // The fast step right after the slow step (the stuck-switch check is the slow step's
+        // own: `Drive::check_switches`).
         let after_slow = self.steps_to_slow == cfg.slow_divider.saturating_sub(1);
-        if running
-            && after_slow
-            && let Some(f) = self.switches.add(i_ref_abc, m.i_abc_a, cfg.switch_charge_a)
-        {
-            self.trip(f);
-            return off(self.mode);
-        }
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
         let v_usable = m.vdc_v * cfg.duty_max;
         let v_clamp = v_usable * (2.0 / 3.0);

@@ -152,6 +152,12 @@ impl IfocState {
         self.omega_sl_rad_s
     }
 
+    /// The current references the next fast step returns (the plan's trimmed references at
+    /// the present field angle), A, stationary frame: what [`IfocConfig::step`] computes.
+    pub fn i_ref_ab(&self) -> AlphaBeta {
+        self.i_track_dq.inverse_park(self.field)
+    }
+
     /// The intended current references of the present plan (without the trim), A.
     pub fn i_ref_dq(&self) -> Dq {
         self.i_ref_dq

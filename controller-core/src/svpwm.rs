@@ -278,5 +278,31 @@ mod tests {
                 prop_assert!((0.0..=1.0).contains(&d));
             }
         }
+
+        /// The unclamped duties of `modulate_sampled`: every duty in `[0, duty_max]` exactly
+        /// (no tolerance: the limit is the low-side sampling window), inside the hexagon and
+        /// beyond it, for any window, bus and request — requests near the hexagon's scaled
+        /// boundary, where rounding decides which path runs, included (the radius drawn
+        /// around it), and tiny ones; and the voltage applied the request itself inside.
+        #[test]
+        fn sampled_duties_stay_within_the_window(
+            angle in -4.0f32..4.0,
+            radius in prop_oneof![0.0f32..2.0, 0.999f32..1.001, 0.0f32..1e-6],
+            duty_max in prop_oneof![0.5001f32..1.0, Just(1.0f32), Just(0.9f32)],
+            vdc in prop_oneof![1e-3f32..1e4, Just(310.0f32)],
+        ) {
+            // radius 1: the scaled hexagon's inscribed circle at the worst angle is at
+            // duty_max·V_dc/√3; its vertices at duty_max·2V_dc/3.
+            let sc = crate::frames::SinCos::new(angle);
+            let r = radius * duty_max * vdc * (2.0 / 3.0);
+            let v = AlphaBeta { alpha: r * sc.cos, beta: r * sc.sin };
+            let m = modulate_sampled(v, vdc, duty_max);
+            for d in [m.duty.a, m.duty.b, m.duty.c] {
+                prop_assert!((0.0..=duty_max).contains(&d), "duty {} of {} ({:?})", d, duty_max, m);
+            }
+            if !m.saturated {
+                prop_assert_eq!(m.v_applied, v);
+            }
+        }
     }
 }
