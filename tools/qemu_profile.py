@@ -40,12 +40,7 @@ HASH = re.compile(r"::h[0-9a-f]{16}$")
 
 def symbol_range(elf: Path, symbol: str) -> tuple[int, int]:
     """Start and size of the one function whose demangled name ends with `symbol`."""
-    out = subprocess.run(["llvm-nm", "-S", "-C", str(elf)], check=True, capture_output=True, text=True).stdout
-    hits = []
-    for line in out.splitlines():
-        parts = line.split(maxsplit=3)
-        if len(parts) == 4 and parts[2] in "tT" and HASH.sub("", parts[3]).endswith(symbol):
-            hits.append((int(parts[0], 16) & ~1, int(parts[1], 16), parts[3]))
+    hits = [(start, size, name) for start, size, name in functions(elf) if name.endswith(symbol)]
     if len(hits) != 1:
         sys.exit(f"qemu_profile: {len(hits)} functions match {symbol!r}: {[h[2] for h in hits]}")
     return hits[0][0], hits[0][1]
@@ -164,6 +159,9 @@ def main() -> None:
     elf = Path(a.elf)
     if not elf.exists():
         sys.exit(f"qemu_profile: {elf} not found (build it first: see the module docs)")
+    with open(elf, "rb") as f:
+        if f.read(5) != b"\x7fELF\x01":
+            sys.exit(f"qemu_profile: {elf} is not a 32-bit ELF program (the Cortex-M `cost` build)")
     start, size = symbol_range(elf, a.symbol)
     if a.skip is None:
         a.skip = magnetizing_periods(elf)

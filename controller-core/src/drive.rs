@@ -1739,16 +1739,20 @@ impl Drive {
     /// instructions of every step, and none of them in the fast step.
     fn check_switches(&mut self, i_abc_a: Abc) {
         let i_ref_ab = match self.reference {
-            Reference::RotatingCurrent { amplitude_a, .. } => {
-                let a = amplitude_a.limit(0.0, self.cfg.ifoc.i_max_a());
-                let sc = SinCos::new(self.test_angle_rad);
-                AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin }
-            }
+            Reference::RotatingCurrent { amplitude_a, .. } => self.rotating_current(amplitude_a).2,
             _ => self.ifoc.i_ref_ab(),
         };
         if let Some(f) = self.switches.add(i_ref_ab.inverse_clarke(), i_abc_a, self.cfg.switch_charge_a) {
             self.trip(f);
         }
+    }
+
+    /// The rotating-current test reference at the present test angle: its amplitude
+    /// (limited to the IFOC's current limit), the angle's sin/cos and the αβ reference.
+    fn rotating_current(&self, amplitude_a: f32) -> (f32, SinCos, AlphaBeta) {
+        let a = amplitude_a.limit(0.0, self.cfg.ifoc.i_max_a());
+        let sc = SinCos::new(self.test_angle_rad);
+        (a, sc, AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin })
     }
 
     /// The fast steps' plan up to the next slow step ([`IfocConfig::plan`]: the current
@@ -2097,8 +2101,8 @@ impl Drive {
     }
 
     /// Which supervisor check of the fast step fails, in order of precedence: non-finite
-    /// current or bus voltage, overcurrent, current-sensor plausibility, bus overvoltage (or
-    /// a negative reading), bus undervoltage (only while the bridge is active). The encoder's
+    /// current or bus voltage, overcurrent, current-sensor plausibility, bus overvoltage, bus
+    /// undervoltage (while the bridge is active; a negative reading in every mode). The encoder's
     /// readings change only at the slow step, which checks them ([`Drive::slow_step`]).
     fn supervise(&self, m: &Measurements) -> Option<Fault> {
         if !(m.i_abc_a.is_finite() && m.vdc_v.is_finite()) {
@@ -2241,13 +2245,12 @@ impl Drive {
         let i_ab = m.i_abc_a.clarke();
         let field = match self.reference {
             Reference::RotatingCurrent { amplitude_a, omega_rad_s } if running => {
-                let a = amplitude_a.limit(0.0, cfg.ifoc.i_max_a());
                 let th = self.test_angle_rad;
+                let (a, sc, i_ref_ab) = self.rotating_current(amplitude_a);
                 self.test_angle_rad = wrap_angle(th + omega_rad_s * cfg.ts_s);
-                let sc = SinCos::new(th);
                 IfocOutput {
                     i_ref_dq: Dq { d: a, q: 0.0 },
-                    i_ref_ab: AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin },
+                    i_ref_ab,
                     theta_e_rad: th,
                     field: sc,
                     i_meas_dq: i_ab.park(sc),
@@ -2501,8 +2504,7 @@ mod tests {
                 let left = d.steps_to_slow;
                 assert!(left > 0);
                 for _ in 0..left {
-                    assert_eq!(d.step(&m).mode, d.mode());
-                    assert!(!matches!(d.mode(), Mode::Fault(_)));
+                    assert!(!matches!(d.step(&m).mode, Mode::Fault(_)));
                 }
                 assert_eq!(d.step(&m).mode, Mode::Fault(Fault::NonFiniteInput));
             }

@@ -42,7 +42,6 @@
 use crate::frames::{AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::motor::MotorParams;
 use crate::num::{Scalar, max_f32, sqrt_f32};
-use core::f32::consts::{PI, TAU};
 
 /// Torque-producing command from the speed loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -412,20 +411,12 @@ impl IfocConfig {
     pub fn step(&self, s: &mut IfocState, i_meas: AlphaBeta) -> IfocOutput {
         let field = s.field;
         let theta = s.theta_e_rad;
-        let i_ref_ab = s.i_track_dq.inverse_park(field);
+        let i_ref_ab = s.i_ref_ab();
         let i = i_meas.park(field);
         s.i_sum_dq = Dq { d: s.i_sum_dq.d + i.d, q: s.i_sum_dq.q + i.q };
         s.steps = s.steps.saturating_add(1);
         s.field = field.then(s.rotation);
-        // One wrap: |δ| < π for any speed the sampling can represent.
-        let next = theta + s.step_rad;
-        s.theta_e_rad = if next >= PI {
-            next - TAU
-        } else if next < -PI {
-            next + TAU
-        } else {
-            next
-        };
+        s.theta_e_rad = wrap_angle(theta + s.step_rad);
         IfocOutput {
             i_ref_dq: s.i_ref_dq,
             i_ref_ab,

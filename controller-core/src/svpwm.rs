@@ -64,7 +64,7 @@ pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
 /// `duty_max` — so that no duty needs a clamp: with `s = span/V_dc ≤ duty_max` (as rounded),
 /// `(max − v_x)/V_dc ≤ s` by the monotony of rounding, and `d_max − s ≥ 0` exactly (`d_max ≥ s`
 /// in both of its cases), so every duty lies in `[0, d_max]` (test
-/// `duties_always_in_unit_interval`). Three comparisons find the largest and smallest
+/// `sampled_duties_stay_within_the_window`). Three comparisons find the largest and smallest
 /// phase; a NaN in `v` reaches `span` through them (α NaN: a NaN phase a becomes `lo`, then
 /// `min`; β NaN: phases b and c are NaN, b becomes `hi`, then `max`), an infinite one makes
 /// it infinite. A request beyond the hexagon, a non-finite one and a bad bus take the
