@@ -2,7 +2,7 @@
 """Where the Cortex-M4F's instructions go inside one function of a target program: an
 executed-instruction profile under QEMU, attributed to source lines through the debug info.
 
-    python3 tools/qemu_profile.py [--skip N] [--calls N] [ELF] [SYMBOL]
+    python3 tools/qemu_profile.py [--skip N] [--calls N] [--annotate | --whole] [ELF] [SYMBOL]
 
 Defaults: `qemu-target/target/thumbv7em-none-eabihf/firmware/cost` (build it first:
 `cd qemu-target && cargo build --target thumbv7em-none-eabihf --profile firmware --bin cost`,
@@ -153,6 +153,8 @@ def main() -> None:
                          "read from its `cost magnetizing_periods` line in a first, plain run)")
     ap.add_argument("--calls", type=int, default=4096, help="calls to count (the cost program then runs 4 096 periods)")
     ap.add_argument("--top", type=int, default=25)
+    ap.add_argument("--annotate", action="store_true",
+                    help="also print SYMBOL's executed instructions in address order, each with its executions per call")
     ap.add_argument("--whole", action="store_true",
                     help="count every instruction from one call's entry to the next (callees, the caller's loop), by function")
     a = ap.parse_args()
@@ -194,6 +196,22 @@ def main() -> None:
     print("\nper call, by the line of the step's own body:")
     for loc, c in lines.most_common(a.top):
         print(f"{c / calls:8.1f}  {loc}")
+    if a.annotate:
+        annotate(elf, start, size, counts, calls)
+
+
+def annotate(elf: Path, start: int, size: int, counts: collections.Counter, calls: int) -> None:
+    """SYMBOL's disassembly (llvm-objdump), the executed instructions only, each with its
+    executions per call."""
+    out = subprocess.run(["llvm-objdump", "-d", "--no-show-raw-insn", f"--start-address={start:#x}",
+                          f"--stop-address={start + size:#x}", str(elf)],
+                         check=True, capture_output=True, text=True).stdout
+    print("\nexecuted instructions, per call:")
+    insn = re.compile(r"^\s*([0-9a-f]+):\s*(.*)$")
+    for line in out.splitlines():
+        m = insn.match(line)
+        if m and counts.get(int(m.group(1), 16)):
+            print(f"{counts[int(m.group(1), 16)] / calls:8.2f}  {m.group(1)}  {m.group(2)}")
 
 
 if __name__ == "__main__":
