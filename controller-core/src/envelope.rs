@@ -154,7 +154,8 @@ impl EnvelopeConfig {
 
     /// `i_d,max(r)²` at electrical rotor speed `w_r` (in the motoring direction), for rated
     /// `i_d²`, voltage budget `V²` and current limit `I²`.
-    #[inline]
+    /// Out of line: the envelope's solver calls it in ten places (inlined, 748 B of flash).
+    #[inline(never)]
     fn id2_max(&self, r: f32, w_r: f32, id2_rated: f32, v2: f32, i2: f32) -> f32 {
         let w_e = w_r + r * self.inv_tr_per_s;
         let vd = self.rs_ohm - w_e * self.sigma_ls_h * r;

@@ -75,7 +75,9 @@ impl SinCos {
     /// Absolute error ≤ 1.2e-7 for |θ| ≤ 100 rad (tests; `selftest::sincos_accuracy` on
     /// the target), which includes the f32 rounding of θ itself. Larger angles lose accuracy
     /// with the reduction: the drive always passes a wrapped angle. Non-finite θ gives NaN.
-    #[inline]
+    /// Out of line: no fast step of the drive calls it, and its callers' copies took 580 B
+    /// of flash.
+    #[inline(never)]
     pub fn new(theta_rad: f32) -> Self {
         const FRAC_2_PI: f32 = core::f32::consts::FRAC_2_PI;
         // π/2 = PIO2_HI + PIO2_LO (to 1.7e-13); PIO2_HI has 7 trailing zero bits, so k·PIO2_HI

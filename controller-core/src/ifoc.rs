@@ -319,6 +319,7 @@ impl IfocConfig {
     /// finite, positive scale; anything else is ignored): `ω_sl = scale·L_m·R_r/(L_r·ψ̂)·i_qs*`
     /// (ψ̂ on the inductance in use: the slip `R_r·i_q/(L_r·i_d)` does not depend on it), and
     /// the flux model's rate `1/T̂_r = (R̂_r/R_r)/(L̂/L)/T_r` ([`Self::set_inductance_scale`]).
+    #[inline(never)]
     pub fn set_rotor_resistance_scale(&self, s: &mut IfocState, scale: f32) {
         if !(scale.is_finite() && scale > 0.0) {
             return;

@@ -21,7 +21,7 @@ use crate::control::CommissionRefused;
 use crate::control::ControlLoop;
 use controller_core::commission::{CommissionConfig, CommissionSpecError};
 use controller_core::drive::Mode;
-use controller_core::link::{self, BoardCommand, Command, LinkStats, NackReason, Reply};
+use controller_core::link::{self, BoardCommand, LinkStats, NackReason, Reply};
 
 /// The link's watchdog: no valid frame for `timeout_us` while the bridge is on (Magnetizing
 /// or Running) → one controlled stop ([`controller_core::drive::Drive::controlled_stop`]);
@@ -134,30 +134,28 @@ pub fn handle_board(
             ctl.abort_commissioning();
             Reply::Ack
         }
-        (BoardCommand::GetStatus, _) => handle(ctl, &Command::GetStatus, stats),
         // The capture records the drive's periods whatever runs: served at any time.
-        (BoardCommand::ArmCapture(spec), _) => link::arm_capture(ctl.capture_mut(), *spec),
-        (BoardCommand::ReadCapture { chunk }, _) => link::read_capture(ctl.capture(), *chunk),
+        (BoardCommand::GetStatus | BoardCommand::ArmCapture(_) | BoardCommand::ReadCapture { .. }, _) => {
+            handle(ctl, cmd, stats)
+        }
         _ if ctl.commissioning() => Reply::Nack(NackReason::NotIdle),
-        _ => match cmd.command() {
-            None => Reply::Nack(NackReason::Unsupported),
-            Some(c) => handle(ctl, &c, stats),
-        },
+        _ => handle(ctl, cmd, stats),
     }
 }
 
-/// Answer one command.
-pub fn handle(ctl: &mut ControlLoop, cmd: &Command, stats: &LinkStats) -> Reply {
+/// Answer one command (`Configure` and `Step`, the board's `Refused`: `Nack(Unsupported)`).
+/// Dispatched as the board decodes it: a [`Command`] would be ≈ 500 B on the control
+/// interrupt's stack.
+pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
     match cmd {
-        Command::Step(_) | Command::Configure(_) => Reply::Nack(NackReason::Unsupported),
-        Command::ReadSpeedGains => match ctl.config().speed().saturated_p() {
+        BoardCommand::ReadSpeedGains => match ctl.config().speed().saturated_p() {
             Some((kp, tau_max_nm)) => Reply::SpeedGains { kp, tau_max_nm },
             None => Reply::Nack(NackReason::Unsupported),
         },
-        Command::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
-        Command::ArmCapture(spec) => link::arm_capture(ctl.capture_mut(), *spec),
-        Command::ReadCapture { chunk } => link::read_capture(ctl.capture(), *chunk),
-        other => match link::execute(ctl.drive_mut(), other, stats) {
+        BoardCommand::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
+        BoardCommand::ArmCapture(spec) => link::arm_capture(ctl.capture_mut(), *spec),
+        BoardCommand::ReadCapture { chunk } => link::read_capture(ctl.capture(), *chunk),
+        other => match link::execute_board(ctl.drive_mut(), other, stats) {
             // The board's raw readings (the timing is filled in by the interrupt's owner).
             Reply::Status { mode, frames_ok, frame_errors, timing, .. } => {
                 Reply::Status { mode, frames_ok, frame_errors, timing, readings: ctl.readings() }
@@ -193,6 +191,7 @@ mod tests {
     use super::*;
     use crate::config::{BOARD, DRIVE_CONFIG, drive_spec};
     use controller_core::drive::{Measurements, Reference};
+    use controller_core::link::Command;
 
     #[test]
     fn commands_reach_the_drive_and_step_or_configure_are_refused() {
@@ -200,20 +199,23 @@ mod tests {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
         c.calibrate_at_rest();
         let stats = LinkStats { frames_ok: 5, crc: 2, ..Default::default() };
-        assert_eq!(handle(&mut c, &Command::Enable, &stats), Reply::Ack);
+        assert_eq!(handle(&mut c, &BoardCommand::Enable, &stats), Reply::Ack);
         assert_eq!(c.drive().mode(), Mode::Magnetizing);
         assert_eq!(
-            handle(&mut c, &Command::SetReference(Reference::Speed(f32::NAN)), &stats),
+            handle(&mut c, &BoardCommand::SetReference(Reference::Speed(f32::NAN)), &stats),
             Reply::Nack(NackReason::NonFinite)
         );
-        assert_eq!(handle(&mut c, &Command::SetReference(Reference::Speed(100.0)), &stats), Reply::Ack);
+        assert_eq!(handle(&mut c, &BoardCommand::SetReference(Reference::Speed(100.0)), &stats), Reply::Ack);
         assert_eq!(
-            handle(&mut c, &Command::Step(Measurements::default()), &stats),
+            handle(&mut c, &BoardCommand::of(&Command::Step(Measurements::default())), &stats),
             Reply::Nack(NackReason::Unsupported)
         );
-        assert_eq!(handle(&mut c, &Command::Configure(spec), &stats), Reply::Nack(NackReason::Unsupported));
         assert_eq!(
-            handle(&mut c, &Command::GetStatus, &stats),
+            handle(&mut c, &BoardCommand::of(&Command::Configure(spec)), &stats),
+            Reply::Nack(NackReason::Unsupported)
+        );
+        assert_eq!(
+            handle(&mut c, &BoardCommand::GetStatus, &stats),
             Reply::Status {
                 mode: Mode::Magnetizing,
                 frames_ok: 5,
@@ -227,7 +229,7 @@ mod tests {
                 },
             }
         );
-        assert_eq!(handle(&mut c, &Command::Disable, &stats), Reply::Ack);
+        assert_eq!(handle(&mut c, &BoardCommand::Disable, &stats), Reply::Ack);
         assert_eq!(c.drive().mode(), Mode::Idle);
     }
 
@@ -383,13 +385,13 @@ mod tests {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
         c.calibrate_at_rest();
         let s = LinkStats::default();
-        let read = |c: &mut ControlLoop| handle(c, &Command::ReadSpeedGains, &s);
+        let read = |c: &mut ControlLoop| handle(c, &BoardCommand::ReadSpeedGains, &s);
         assert_eq!(read(&mut c), Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 });
         let (kp_lo, kp_hi) = certified::SPEED_KP;
         let (tau_lo, tau_hi) = certified::SPEED_TAU_MAX_NM;
         assert!((kp_lo, kp_hi, tau_lo, tau_hi) == (0.02, 0.1, 0.1, 2.0), "drive.toml ranges");
         let write = |c: &mut ControlLoop, kp: f32, tau: f32| {
-            handle(c, &Command::WriteSpeedGains { kp, tau_max_nm: tau }, &s)
+            handle(c, &BoardCommand::WriteSpeedGains { kp, tau_max_nm: tau }, &s)
         };
         let out = Reply::Nack(NackReason::OutOfCertifiedRange);
         assert_eq!(write(&mut c, kp_hi * 1.01, 1.0), out);
@@ -400,7 +402,7 @@ mod tests {
         assert_eq!(write(&mut c, kp_hi, 1.5), Reply::Ack);
         assert_eq!(read(&mut c), Reply::SpeedGains { kp: kp_hi, tau_max_nm: 1.5 });
         // Not while the bridge is active.
-        assert_eq!(handle(&mut c, &Command::Enable, &s), Reply::Ack);
+        assert_eq!(handle(&mut c, &BoardCommand::Enable, &s), Reply::Ack);
         assert_eq!(write(&mut c, 0.05, 1.0), Reply::Nack(NackReason::NotIdle));
     }
 

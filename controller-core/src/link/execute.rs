@@ -2,7 +2,7 @@
 //! processor-in-the-loop server and the firmware.
 
 use super::receive::LinkStats;
-use super::schema::{Command, NackReason, Reply};
+use super::schema::{BoardCommand, Command, NackReason, Reply};
 use crate::capture::{Capture, CaptureSpec};
 use crate::drive::{CommandError, Drive, DriveConfig, Mode};
 
@@ -25,22 +25,31 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
                 Err(_) => Reply::Nack(NackReason::Configuration),
             }
         }
-        Command::Enable => command_result(drive.enable()),
-        Command::Disable => {
+        Command::Step(m) => Reply::Output(drive.step(m)),
+        other => execute_board(drive, &BoardCommand::of(other), stats),
+    }
+}
+
+/// [`execute`] for every command but `Configure` and `Step` ([`BoardCommand`], as the board
+/// decodes them; `Refused` is `Nack(Unsupported)`): the firmware's commands, without the
+/// ≈ 500 B [`Command`] built on the control interrupt's stack for them.
+pub fn execute_board(drive: &mut Drive, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
+    match cmd {
+        BoardCommand::Enable => command_result(drive.enable()),
+        BoardCommand::Disable => {
             drive.disable();
             Reply::Ack
         }
-        Command::ClearFault => {
+        BoardCommand::ClearFault => {
             drive.clear_fault();
             Reply::Ack
         }
-        Command::Stop => {
+        BoardCommand::Stop => {
             drive.controlled_stop();
             Reply::Ack
         }
-        Command::SetReference(r) => command_result(drive.set_reference(*r)),
-        Command::Step(m) => Reply::Output(drive.step(m)),
-        Command::GetStatus => {
+        BoardCommand::SetReference(r) => command_result(drive.set_reference(*r)),
+        BoardCommand::GetStatus => {
             // The timing and readings are the board's to fill in (firmware `server`).
             Reply::Status {
                 mode: drive.mode(),
@@ -51,13 +60,18 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
             }
         }
         // Gains live in the specification, which the board keeps (firmware `server`).
-        Command::WriteSpeedGains { .. } | Command::ReadSpeedGains => Reply::Nack(NackReason::Unsupported),
-        // A drive does not commission; the endpoint that can (the PIL server) handles these.
-        Command::Commission(_) | Command::GetCommissionRecord { .. } | Command::GetCommissionStage => {
+        BoardCommand::WriteSpeedGains { .. } | BoardCommand::ReadSpeedGains => {
             Reply::Nack(NackReason::Unsupported)
         }
+        // A drive does not commission; the endpoint that can (the PIL server) handles these.
+        BoardCommand::Commission(_)
+        | BoardCommand::GetCommissionRecord { .. }
+        | BoardCommand::GetCommissionStage => Reply::Nack(NackReason::Unsupported),
         // The capture is the endpoint's, beside the drive ([`arm_capture`], [`read_capture`]).
-        Command::ArmCapture(_) | Command::ReadCapture { .. } => Reply::Nack(NackReason::Unsupported),
+        BoardCommand::ArmCapture(_) | BoardCommand::ReadCapture { .. } => {
+            Reply::Nack(NackReason::Unsupported)
+        }
+        BoardCommand::Refused => Reply::Nack(NackReason::Unsupported),
     }
 }
 

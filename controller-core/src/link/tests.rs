@@ -127,6 +127,46 @@ fn every_command_round_trips() {
     let n = Command::Configure(largest).encode(&mut p).unwrap();
     assert_eq!(n, MAX_PAYLOAD, "MAX_PAYLOAD is the largest Configure");
     assert!(frame_of(&Command::Configure(largest)).len() <= MAX_FRAME);
+    // The board's form: what it decodes is `BoardCommand::of` the command, and back.
+    for c in &cmds {
+        let mut p = [0u8; MAX_PAYLOAD];
+        let n = c.encode(&mut p).unwrap();
+        let board = Command::decode_board(&p[..n]).unwrap();
+        assert_eq!(board, BoardCommand::of(c), "{c:?}");
+        let refused = matches!(c, Command::Configure(_) | Command::Step(_));
+        assert_eq!(board.command(), if refused { None } else { Some(*c) }, "{c:?}");
+    }
+}
+
+/// The board's commands get the same replies from [`execute_board`] as the commands from
+/// [`execute`], through the same sequence of drive states; `Configure` and `Step` (the
+/// board's `Refused`) are `Nack(Unsupported)` there.
+#[test]
+fn the_board_executes_its_commands_as_the_drive_does() {
+    let cfg = crate::drive::DriveConfig::new(&test_spec()).unwrap();
+    let (mut a, mut b) = (crate::drive::Drive::new(cfg), crate::drive::Drive::new(cfg));
+    let stats = LinkStats::default();
+    let cmds = [
+        Command::GetStatus,
+        Command::SetReference(Reference::Speed(f32::NAN)),
+        Command::Enable,
+        Command::SetReference(Reference::Speed(10.0)),
+        Command::ReadSpeedGains,
+        Command::GetStatus,
+        Command::Stop,
+        Command::Disable,
+        Command::ClearFault,
+        Command::GetCommissionStage,
+        Command::ReadCapture { chunk: 0 },
+    ];
+    for c in &cmds {
+        assert_eq!(execute(&mut a, c, &stats), execute_board(&mut b, &BoardCommand::of(c), &stats), "{c:?}");
+        assert_eq!(a.mode(), b.mode(), "{c:?}");
+    }
+    assert_eq!(
+        execute_board(&mut b, &BoardCommand::of(&Command::Configure(test_spec())), &stats),
+        Reply::Nack(NackReason::Unsupported)
+    );
 }
 
 #[test]
