@@ -23,7 +23,7 @@
 //! Configuration apart from state: [`Capture::arm`] validates a [`CaptureSpec`] against the
 //! buffer's depth once; [`Capture::record`] never checks anything.
 
-use crate::drive::{FastOutput, Measurements, PhaseCommand};
+use crate::drive::{FastOutput, Measurements, PhaseCommand, Telemetry};
 
 /// Signals per sample.
 pub const CHANNELS: usize = 4;
@@ -189,8 +189,7 @@ impl Signal {
 
     /// The signal's value in one control period.
     #[inline]
-    pub fn value(self, m: &Measurements, out: &FastOutput) -> f32 {
-        let t = &out.telemetry;
+    pub fn value(self, m: &Measurements, out: &FastOutput, t: &Telemetry) -> f32 {
         let duty = |k: usize| match out.phases {
             PhaseCommand::Duty(d) => [d.a, d.b, d.c].get(k).copied().unwrap_or(f32::NAN),
             PhaseCommand::Off => f32::NAN,
@@ -390,9 +389,11 @@ impl<const DEPTH: usize> Capture<DEPTH> {
         self.spec
     }
 
-    /// One control period's measurements and output (call after every step).
+    /// One control period's measurements and output (call after every step), and its
+    /// signals ([`Drive::telemetry`](crate::drive::Drive::telemetry)), made only for a sample
+    /// that is recorded.
     #[inline]
-    pub fn record(&mut self, m: &Measurements, out: &FastOutput) {
+    pub fn record(&mut self, m: &Measurements, out: &FastOutput, telemetry: impl FnOnce() -> Telemetry) {
         if matches!(self.state, CaptureState::Idle | CaptureState::Done) {
             return;
         }
@@ -400,16 +401,16 @@ impl<const DEPTH: usize> Capture<DEPTH> {
             self.skip -= 1;
             return;
         }
-        self.take(m, out);
+        self.take(m, out, &telemetry());
     }
 
     /// A recorded sample: into the ring, then the trigger or the countdown.
     #[inline(never)]
-    fn take(&mut self, m: &Measurements, out: &FastOutput) {
+    fn take(&mut self, m: &Measurements, out: &FastOutput, t: &Telemetry) {
         let s = &self.spec;
         self.skip = s.decimation.saturating_sub(1);
         if let Some(slot) = self.ring.get_mut(self.head) {
-            *slot = s.signals.map(|x| x.value(m, out));
+            *slot = s.signals.map(|x| x.value(m, out, t));
         }
         self.head = if self.head + 1 >= DEPTH { 0 } else { self.head + 1 };
         self.filled = (self.filled + 1).min(DEPTH);
@@ -418,7 +419,7 @@ impl<const DEPTH: usize> Capture<DEPTH> {
                 let fired = match s.trigger {
                     Trigger::Immediate => true,
                     Trigger::Level { signal, edge, level } => {
-                        let (was, now) = (self.last, signal.value(m, out));
+                        let (was, now) = (self.last, signal.value(m, out, t));
                         self.last = now;
                         let rising = (was < level && now >= level) || (was == level && now > level);
                         let falling = (was > level && now <= level) || (was == level && now < level);
@@ -468,24 +469,19 @@ impl<const DEPTH: usize> Capture<DEPTH> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drive::{Mode, Telemetry};
+    use crate::drive::Mode;
     use crate::frames::Abc;
 
     /// A period whose measured current a is `k` and whose speed reference is `w`.
-    fn period(k: f32, w: f32) -> (Measurements, FastOutput) {
+    fn period(k: f32, w: f32) -> (Measurements, FastOutput, Telemetry) {
         let m = Measurements {
             i_abc_a: Abc { a: k, b: -k, c: 0.0 },
             vdc_v: 300.0,
             omega_m_rad_s: 0.0,
             theta_m_rad: 0.0,
         };
-        let out = FastOutput {
-            phases: PhaseCommand::Off,
-            mode: Mode::Running,
-            brake: false,
-            telemetry: Telemetry { omega_ref_rad_s: w, ..Telemetry::default() },
-        };
-        (m, out)
+        let out = FastOutput { phases: PhaseCommand::Off, mode: Mode::Running, brake: false };
+        (m, out, Telemetry { omega_ref_rad_s: w, ..Telemetry::default() })
     }
 
     fn spec(trigger: Trigger, pre: u16, decimation: u16) -> CaptureSpec {
@@ -515,8 +511,8 @@ mod tests {
         assert_eq!(c.state(), CaptureState::Idle);
         c.arm(spec(Trigger::Immediate, 0, 3)).unwrap();
         for k in 0..100 {
-            let (m, o) = period(k as f32, 0.0);
-            c.record(&m, &o);
+            let (m, o, t) = period(k as f32, 0.0);
+            c.record(&m, &o, || t);
         }
         assert_eq!(c.state(), CaptureState::Done);
         let r = read(&c);
@@ -536,8 +532,8 @@ mod tests {
         // rising trigger ignores); an arm long before it, so the ring wraps many times.
         for k in 0..1000 {
             let w = if (500..700).contains(&k) { 150.0 } else { 0.0 };
-            let (m, o) = period(k as f32, w);
-            c.record(&m, &o);
+            let (m, o, t) = period(k as f32, w);
+            c.record(&m, &o, || t);
             if k < 500 {
                 assert_eq!(c.state(), CaptureState::Armed, "{k}");
             }
@@ -561,8 +557,8 @@ mod tests {
             for k in 0..60 {
                 // Rises 0, 1, …, 39, then falls to 2.
                 let x = if k < 40 { k as f32 } else { 2.0 };
-                let (m, o) = period(x, 0.0);
-                c.record(&m, &o);
+                let (m, o, t) = period(x, 0.0);
+                c.record(&m, &o, || t);
             }
             // Either: too early at the rise, so the fall (39 → 2) fires, as for Falling.
             let r = read(&c);
@@ -579,8 +575,8 @@ mod tests {
             let mut c = Capture::<8>::new();
             c.arm(spec(Trigger::Level { signal: Signal::OmegaRef, edge, level: 0.0 }, 2, 1)).unwrap();
             for k in 0..20 {
-                let (m, o) = period(k as f32, if k >= 10 { step } else { 0.0 });
-                c.record(&m, &o);
+                let (m, o, t) = period(k as f32, if k >= 10 { step } else { 0.0 });
+                c.record(&m, &o, || t);
             }
             assert_eq!(c.state(), CaptureState::Done, "{edge:?}");
             let r = read(&c);
@@ -595,21 +591,21 @@ mod tests {
         let trigger = Trigger::Level { signal: Signal::OmegaRef, edge: Edge::Either, level: 1.0 };
         c.arm(spec(trigger, 0, 1)).unwrap();
         for k in 0..50 {
-            let (m, o) = period(k as f32, 0.0);
-            c.record(&m, &o);
+            let (m, o, t) = period(k as f32, 0.0);
+            c.record(&m, &o, || t);
         }
         assert_eq!(c.state(), CaptureState::Armed);
         assert_eq!(c.chunk(0), None, "nothing to read before the record is done");
         c.arm(spec(Trigger::Immediate, 7, 1)).unwrap();
         for k in 0..8 {
-            let (m, o) = period(100.0 + k as f32, 0.0);
-            c.record(&m, &o);
+            let (m, o, t) = period(100.0 + k as f32, 0.0);
+            c.record(&m, &o, || t);
         }
         assert_eq!(c.state(), CaptureState::Done);
         assert_eq!(read(&c)[0][0], 100.0);
         // Frozen once done.
-        let (m, o) = period(-1.0, 0.0);
-        c.record(&m, &o);
+        let (m, o, t) = period(-1.0, 0.0);
+        c.record(&m, &o, || t);
         assert_eq!(read(&c)[7][0], 107.0);
     }
 

@@ -1162,7 +1162,7 @@ pub struct Telemetry {
     pub l_scale: f32,
 }
 
-/// Output of one fast step.
+/// Output of one fast step (its signals: [`Drive::telemetry`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FastOutput {
     /// Bridge command.
@@ -1172,8 +1172,15 @@ pub struct FastOutput {
     /// Brake chopper on (the bus above the chopper's on level, and not yet below its off
     /// level); always `false` without a chopper.
     pub brake: bool,
-    /// Signals.
-    pub telemetry: Telemetry,
+}
+
+/// What the slow step's checks and the telemetry read of the last fast step (stationary
+/// frame): the measured current, the current references, the voltage applied.
+#[derive(Clone, Copy, Debug, Default)]
+struct StepSignals {
+    i_ab: AlphaBeta,
+    i_ref_ab: AlphaBeta,
+    v_ab: AlphaBeta,
 }
 
 /// The open-phase check's window ([`Protection::open_phase_time_s`]).
@@ -1460,6 +1467,10 @@ pub struct Drive {
     trim: Dq,
     /// The modulator limited the voltage since the last slow step (the trim holds).
     trim_hold: bool,
+    /// The last fast step's signals.
+    last: StepSignals,
+    /// The rotating-current test's angle in the last fast step, rad.
+    last_test_angle_rad: f32,
 }
 
 impl Drive {
@@ -1520,6 +1531,8 @@ impl Drive {
             envelope_age: 0,
             trim: Dq::default(),
             trim_hold: false,
+            last: StepSignals::default(),
+            last_test_angle_rad: 0.0,
         }
     }
 
@@ -2190,10 +2203,9 @@ impl Drive {
     /// currents at the encoder's speed. A frozen encoder at speed leaves the back-EMF in the applied voltage and takes
     /// it out of the model.
     #[inline(never)]
-    fn check_encoder(&mut self, i_dq: Dq, v_ab: AlphaBeta, field: &IfocOutput, omega_m: f32, v_limit: f32) {
+    fn check_encoder(&mut self, i: Dq, v_ab: AlphaBeta, field: SinCos, w_e: f32, v_limit: f32) {
         let e = &self.model;
-        let (i, v) = (i_dq, v_ab.park(field.field));
-        let w_e = e.pole_pairs() * omega_m + field.omega_sl_rad_s;
+        let v = v_ab.park(field);
         let (vd, vq) = e.stator_voltage(i.d, i.q, w_e, self.ifoc.psi_r_wb());
         // Magnitudes, not vectors: a detuned field angle (rotor resistance off by the
         // certified 2×) turns the voltage vector but hardly changes its length, while a
@@ -2237,8 +2249,7 @@ impl Drive {
             self.trip_on(m);
         }
         let brake = self.brake_chopper(m.vdc_v);
-        let off =
-            |mode| FastOutput { phases: PhaseCommand::Off, mode, brake, telemetry: Telemetry::default() };
+        let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, brake };
         let running = self.mode == Mode::Running;
         if !running && self.mode != Mode::Magnetizing {
             return off(self.mode); // Idle or Fault
@@ -2250,10 +2261,10 @@ impl Drive {
                 let th = self.test_angle_rad;
                 let (a, sc, i_ref_ab) = self.rotating_current(amplitude_a);
                 self.test_angle_rad = wrap_angle(th + omega_rad_s * cfg.ts_s);
+                self.last_test_angle_rad = th;
                 IfocOutput {
                     i_ref_dq: Dq { d: a, q: 0.0 },
                     i_ref_ab,
-                    theta_e_rad: th,
                     field: sc,
                     i_meas_dq: i_ab.park(sc),
                     omega_sl_rad_s: 0.0,
@@ -2329,13 +2340,9 @@ impl Drive {
         // the field-oriented references: the encoder against the machine model.
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
         if running && field_oriented && after_slow {
-            self.check_encoder(
-                field.i_meas_dq,
-                modulation.v_applied,
-                &field,
-                m.omega_m_rad_s,
-                svpwm::linear_limit_v(v_usable),
-            );
+            let w_e = self.model.pole_pairs() * m.omega_m_rad_s + field.omega_sl_rad_s;
+            let v_limit = svpwm::linear_limit_v(v_usable);
+            self.check_encoder(field.i_meas_dq, modulation.v_applied, field.field, w_e, v_limit);
             if self.mode != Mode::Running {
                 return off(self.mode);
             }
@@ -2366,23 +2373,41 @@ impl Drive {
             };
             self.v_d_sum += v.park(field.field).d;
         }
-        FastOutput {
-            phases: PhaseCommand::Duty(duty),
-            mode: self.mode,
-            brake,
-            telemetry: Telemetry {
-                i_ab_a: i_ab,
-                i_ref_ab_a: field.i_ref_ab,
-                v_ab_v: modulation.v_applied,
-                theta_e_rad: field.theta_e_rad,
-                omega_sl_rad_s: field.omega_sl_rad_s,
-                psi_r_wb: self.ifoc.psi_r_wb(),
-                psi_ref_wb: self.ifoc.flux_of(self.flux.i_d_a()),
-                i_q_ref_a: field.i_ref_dq.q,
-                omega_ref_rad_s: self.omega_ref_rad_s,
-                rr_scale: self.ifoc.rotor_resistance_scale(),
-                l_scale: self.ifoc.inductance_scale(),
-            },
+        // What the telemetry and the slow step's checks read of this step.
+        self.last = StepSignals { i_ab, i_ref_ab: field.i_ref_ab, v_ab: modulation.v_applied };
+        FastOutput { phases: PhaseCommand::Duty(duty), mode: self.mode, brake }
+    }
+
+    /// The signals of the last fast step, for logs, traces and the capture: made on demand
+    /// from what the step left (its measured current, current references and voltage) and
+    /// the drive's state, not in every step. All zero unless the bridge is active
+    /// (Magnetizing or Running) — as after a step that tripped. Out of line: its callers
+    /// (the firmware's capture and link stream) take it rarely.
+    #[inline(never)]
+    pub fn telemetry(&self) -> Telemetry {
+        if !matches!(self.mode, Mode::Magnetizing | Mode::Running) {
+            return Telemetry::default();
+        }
+        let rotating =
+            matches!(self.reference, Reference::RotatingCurrent { .. }) && self.mode == Mode::Running;
+        let s = &self.ifoc;
+        let (theta_e_rad, omega_sl_rad_s, i_q_ref_a) = if rotating {
+            (self.last_test_angle_rad, 0.0, 0.0)
+        } else {
+            (s.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q)
+        };
+        Telemetry {
+            i_ab_a: self.last.i_ab,
+            i_ref_ab_a: self.last.i_ref_ab,
+            v_ab_v: self.last.v_ab,
+            theta_e_rad,
+            omega_sl_rad_s,
+            psi_r_wb: s.psi_r_wb(),
+            psi_ref_wb: s.flux_of(self.flux.i_d_a()),
+            i_q_ref_a,
+            omega_ref_rad_s: self.omega_ref_rad_s,
+            rr_scale: s.rotor_resistance_scale(),
+            l_scale: s.inductance_scale(),
         }
     }
 
@@ -2959,11 +2984,11 @@ mod tests {
             let spec = DriveSpec { current_frame: frame, ..test_spec() };
             let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
             d.enable().unwrap();
-            let out = run_rl_load(&mut d, 20_000);
+            run_rl_load(&mut d, 20_000);
             assert_eq!(d.mode(), Mode::Running, "{frame:?}");
             // i_ds* = 0.9/1.42 = 0.6338 A; at standstill with zero torque, θ_e stays 0, so the
             // reference is on α: i_α → 0.6338 A, i_β → 0.
-            let t = out.telemetry;
+            let t = d.telemetry();
             assert!((t.i_ref_ab_a.alpha - 0.9 / 1.42).abs() < 1e-4, "{frame:?} {t:?}");
             assert!((t.i_ab_a.alpha - t.i_ref_ab_a.alpha).abs() < 1e-3, "{frame:?} {t:?}");
             assert!(t.i_ab_a.beta.abs() < 1e-3);
@@ -2998,9 +3023,9 @@ mod tests {
         let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
         for _ in 0..2 {
             d.enable().unwrap();
-            let out = run_rl_load(&mut d, 20_000);
+            run_rl_load(&mut d, 20_000);
             assert_eq!(d.mode(), Mode::Running);
-            assert_eq!(out.telemetry.rr_scale, core::f32::consts::SQRT_2);
+            assert_eq!(d.telemetry().rr_scale, core::f32::consts::SQRT_2);
             d.disable();
         }
     }
@@ -3020,7 +3045,7 @@ mod tests {
             if let PhaseCommand::Duty(duty) = out.phases {
                 i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
             }
-            refs.push(out.telemetry.i_ref_ab_a);
+            refs.push(d.telemetry().i_ref_ab_a);
         }
         // Amplitude limited to i_ref_max = 4 A; β lags α by 90°: α = 4 cos θ, β = 4 sin θ.
         for r in &refs {
@@ -3144,7 +3169,7 @@ mod tests {
                         for x in [duty.a, duty.b, duty.c] {
                             prop_assert!((0.0..=1.0).contains(&x));
                         }
-                        let t = out.telemetry;
+                        let t = d.telemetry();
                         let lim = svpwm::linear_limit_v(m.vdc_v) * 2.0 / 1.732_050_8 + 1e-3;
                         prop_assert!(t.v_ab_v.magnitude() <= lim);
                         prop_assert!(t.i_ref_ab_a.magnitude() <= 4.0 + 1e-3);

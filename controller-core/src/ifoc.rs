@@ -81,7 +81,8 @@ pub struct IfocConfig {
 /// IFOC state, made by [`IfocConfig::state`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IfocState {
-    /// Field (rotor-flux) angle θ_e of the next fast step, rad, in `[-π, π)`.
+    /// Field (rotor-flux) angle θ_e of the period's first fast step (set by
+    /// [`IfocConfig::anchor`]), rad, in `[-π, π)`; the k-th fast step's is θ_e + k·δ.
     theta_e_rad: f32,
     /// Slip angle θ_sl = ∫ω_sl dt, rad, in `[-π, π)`: θ_e less the rotor's electrical angle
     /// (at the last [`IfocConfig::close_period`]).
@@ -115,9 +116,16 @@ pub struct IfocState {
 }
 
 impl IfocState {
-    /// Field (rotor-flux) angle θ_e for the next fast step, rad, in `[-π, π)`.
+    /// Field (rotor-flux) angle θ_e for the next fast step, rad, in `[-π, π)`: the period's
+    /// first step's advanced by the plan's step δ per fast step since (the fast step does
+    /// not carry the angle — it turns the field vector; made here, on demand).
     pub fn theta_e_rad(&self) -> f32 {
-        self.theta_e_rad
+        wrap_angle(self.theta_e_rad + f32::from(self.steps) * self.step_rad)
+    }
+
+    /// θ_e of the last fast step (before any: of the next one), rad, in `[-π, π)`.
+    pub fn last_theta_e_rad(&self) -> f32 {
+        wrap_angle(self.theta_e_rad + f32::from(self.steps.saturating_sub(1)) * self.step_rad)
     }
 
     /// Rotor-flux model estimate ψ̂_r, Wb.
@@ -219,9 +227,8 @@ pub struct IfocOutput {
     pub i_ref_dq: Dq,
     /// Current references in the stationary frame, A.
     pub i_ref_ab: AlphaBeta,
-    /// Field angle used for this step, rad, in `[-π, π)`.
-    pub theta_e_rad: f32,
-    /// sin and cos of `theta_e_rad` (for Park and inverse Park in the synchronous frame).
+    /// sin and cos of the field angle of this step ([`IfocState::last_theta_e_rad`] after it;
+    /// for Park and inverse Park in the synchronous frame).
     pub field: SinCos,
     /// The measured current in the field frame (the Park transform at `field`), A.
     pub i_meas_dq: Dq,
@@ -360,7 +367,7 @@ impl IfocConfig {
     }
 
     /// Slow rate, first: the fast steps since the last call close — the slip angle advances
-    /// by their `n·ω_sl·T`, and the flux model (eq. (8), exact ZOH over the n steps) takes the
+    /// by their `n·ω_sl·T`, the field angle by their `n·δ`, and the flux model (eq. (8), exact ZOH over the n steps) takes the
     /// mean of the measured d-axis current over them. Returns that mean measured current,
     /// field frame, A, and n (0: no fast step ran; nothing changes).
     pub fn close_period(&self, s: &mut IfocState) -> (Dq, u16) {
@@ -371,6 +378,9 @@ impl IfocConfig {
         let nf = f32::from(n);
         let mean = Dq { d: s.i_sum_dq.d / nf, q: s.i_sum_dq.q / nf };
         s.theta_sl_rad = wrap_angle(s.theta_sl_rad + nf * s.omega_sl_rad_s * self.ts_s);
+        // The next period's first step's angle (the drive's slow step then anchors it to
+        // the encoder's reading).
+        s.theta_e_rad = wrap_angle(s.theta_e_rad + nf * s.step_rad);
         s.psi_r_wb += one_minus_exp_neg(nf * s.flux_rate) * (s.lm_h * mean.d - s.psi_r_wb);
         (s.i_sum_dq, s.steps) = (Dq::default(), 0);
         (mean, n)
@@ -411,21 +421,12 @@ impl IfocConfig {
     #[inline]
     pub fn step(&self, s: &mut IfocState, i_meas: AlphaBeta) -> IfocOutput {
         let field = s.field;
-        let theta = s.theta_e_rad;
         let i_ref_ab = s.i_ref_ab();
         let i = i_meas.park(field);
         s.i_sum_dq = Dq { d: s.i_sum_dq.d + i.d, q: s.i_sum_dq.q + i.q };
         s.steps = s.steps.saturating_add(1);
         s.field = field.then(s.rotation);
-        s.theta_e_rad = wrap_angle(theta + s.step_rad);
-        IfocOutput {
-            i_ref_dq: s.i_ref_dq,
-            i_ref_ab,
-            i_meas_dq: i,
-            theta_e_rad: theta,
-            field,
-            omega_sl_rad_s: s.omega_sl_rad_s,
-        }
+        IfocOutput { i_ref_dq: s.i_ref_dq, i_ref_ab, i_meas_dq: i, field, omega_sl_rad_s: s.omega_sl_rad_s }
     }
 }
 
@@ -572,12 +573,14 @@ mod tests {
                 c.close_period(&mut s);
                 c.plan(&mut s, &c.flux_command(1.0), TorqueCommand::IqA(0.0), 100.0, Dq::default());
             }
-            let out = c.step(&mut s, AlphaBeta::default());
-            assert!((-core::f32::consts::PI..core::f32::consts::PI).contains(&out.theta_e_rad));
-            if out.theta_e_rad < prev {
+            let theta = s.theta_e_rad();
+            c.step(&mut s, AlphaBeta::default());
+            assert_eq!(s.last_theta_e_rad(), theta);
+            assert!((-core::f32::consts::PI..core::f32::consts::PI).contains(&theta));
+            if theta < prev {
                 wraps += 1;
             }
-            prev = out.theta_e_rad;
+            prev = theta;
         }
         // 1 s at 100 rad/s = 15.9 turns.
         assert_eq!(wraps, 16);
@@ -588,9 +591,9 @@ mod tests {
     /// plans, recomputed at each — from standstill to a field step of 0.4 rad, both
     /// directions, through flux build-up (where the slip is largest) — 40 000 steps (2 s) per
     /// speed, 2 500 field-angle wraps at the highest speed. The bound: the angle θ_e itself
-    /// is an f32 sum, rounded by up to ulp(π)/2 = 1.2e-7 at each step, which the turned
-    /// vector (turned by the unrounded steps) does not follow until the next plan: 10·1.2e-7,
-    /// plus the rotation's own error (≤ 1.2e-7 each, `SinCos::new`) and rounding. Without the
+    /// is the f32 θ_e,0 + k·δ ([`IfocState::theta_e_rad`]), rounded by up to ulp(π)/2 =
+    /// 1.2e-7 (twice, and once more in the wrap), plus the rotation's own error (≤ 1.2e-7
+    /// per turn, `SinCos::new`, up to 9 turns before the next plan) and rounding. Without the
     /// recompute at each plan the gap grows without bound (test
     /// `the_field_drifts_without_the_plans_recompute`).
     #[test]
@@ -612,9 +615,10 @@ mod tests {
                         Dq::default(),
                     );
                 }
+                let theta = s.theta_e_rad();
                 let out = c.step(&mut s, measured);
                 measured = out.i_ref_ab;
-                let (sin, cos) = libm::sincos(f64::from(out.theta_e_rad));
+                let (sin, cos) = libm::sincos(f64::from(theta));
                 let e = (f64::from(out.field.sin) - sin).abs().max((f64::from(out.field.cos) - cos).abs());
                 if e > worst.0 {
                     worst = (e, omega_m);
@@ -634,8 +638,9 @@ mod tests {
         c.plan(&mut s, &c.flux_command(0.9), TorqueCommand::TorqueNm(1.0), 8_000.0, Dq::default());
         let mut worst = 0.0f64;
         for _ in 0..40_000 {
+            let theta = s.theta_e_rad();
             let out = c.step(&mut s, AlphaBeta::default());
-            let (sin, cos) = libm::sincos(f64::from(out.theta_e_rad));
+            let (sin, cos) = libm::sincos(f64::from(theta));
             worst =
                 worst.max((f64::from(out.field.sin) - sin).abs().max((f64::from(out.field.cos) - cos).abs()));
         }

@@ -234,7 +234,8 @@ pub fn drive_magnetizing_time(spec: &DriveSpec) -> Check {
     let mut steps = 0u32;
     while drive.mode() == Mode::Magnetizing && steps < 200_000 {
         let m = Measurements { i_abc_a: i_ab.inverse_clarke(), vdc_v: 310.0, ..Default::default() };
-        i_ab = drive.step(&m).telemetry.i_ref_ab_a;
+        drive.step(&m);
+        i_ab = drive.telemetry().i_ref_ab_a;
         steps += 1;
     }
     let t = f64::from(steps) / spec.pwm_frequency_hz;

@@ -38,7 +38,7 @@ use controller_core::capture::Capture;
 #[cfg(feature = "commissioning")]
 use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::{
-    Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand,
+    Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand, Telemetry,
 };
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
@@ -256,6 +256,8 @@ pub struct ControlLoop {
     divider: u16,
     count: u16,
     last: Option<FastOutput>,
+    /// The drive's signals, made once per slow period for the link's stream ([`Snapshot`]).
+    telemetry: Telemetry,
     /// The last period's bridge output was not `Off`.
     bridge_on: bool,
     /// Pre-charge periods left (0: none under way).
@@ -277,8 +279,10 @@ pub struct ControlLoop {
 /// calibration's state, and whether the bridge is on (the link watchdog's concern).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Snapshot {
-    /// The last step's output (telemetry).
-    pub output: Option<FastOutput>,
+    /// The last step's output, and the drive's signals ([`Drive::telemetry`]) as of the
+    /// last slow period: the link's telemetry stream (made once per slow period, not in
+    /// every step).
+    pub output: Option<(FastOutput, Telemetry)>,
     /// The offset calibration (`None` before the first step).
     pub calibration: Option<Calibration>,
     /// The drive (or a commissioning sequence) has the bridge.
@@ -365,6 +369,7 @@ impl ControlLoop {
             divider,
             count: 0,
             last: None,
+            telemetry: Telemetry::default(),
             bridge_on: false,
             precharge_left: 0,
             readings: BoardReadings::default(),
@@ -430,7 +435,7 @@ impl ControlLoop {
     /// What the link task reads (after each step: [`Snapshot`]).
     pub fn snapshot(&self) -> Snapshot {
         Snapshot {
-            output: self.last,
+            output: self.last.map(|o| (o, self.telemetry)),
             calibration: Some(self.calibration),
             bridge_on: matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running) || self.commissioning(),
         }
@@ -577,7 +582,7 @@ impl ControlLoop {
             // The capture's sample of this period: the drive's last telemetry, the duties
             // applied (the low sides on).
             let applied = FastOutput { phases: PhaseCommand::Duty(Abc { a: 0.0, b: 0.0, c: 0.0 }), ..*o };
-            self.capture.record(&m, &applied);
+            self.capture.record(&m, &applied, || self.drive.telemetry());
         }
         if matches!(self.drive.mode(), Mode::Fault(_)) {
             self.precharge_left = 0;
@@ -602,7 +607,8 @@ impl ControlLoop {
 
     /// The control step proper: encoder, calibration, drive (or commissioning) → bridge.
     fn control(&mut self, s: &Samples) -> Bridge {
-        if self.count == 0 {
+        let slow = self.count == 0;
+        if slow {
             self.read_encoder(s.encoder);
         }
         self.count = if self.count + 1 >= self.divider { 0 } else { self.count + 1 };
@@ -613,7 +619,10 @@ impl ControlLoop {
         let m = self.measurements(s);
         let out = self.drive.step(&m);
         self.last = Some(out);
-        self.capture.record(&m, &out);
+        if slow {
+            self.telemetry = self.drive.telemetry();
+        }
+        self.capture.record(&m, &out, || self.drive.telemetry());
         #[cfg(feature = "commissioning")]
         if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {
             if matches!(out.mode, Mode::Fault(_)) {
@@ -977,7 +986,7 @@ mod tests {
             out = c.step(&Samples { i_abc: zeros, ..at_rest(0) });
         }
         assert!(matches!(out, Bridge::Compare(_)));
-        let i = c.last_output().unwrap().telemetry.i_ab_a;
+        let i = c.drive().telemetry().i_ab_a;
         assert_eq!((i.alpha, i.beta), (0.0, 0.0));
     }
 

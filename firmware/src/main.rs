@@ -588,7 +588,7 @@ mod target {
                     let len = SNAPSHOT
                         .read()
                         .and_then(|s| s.output)
-                        .and_then(|o| link::reply_frame(&Reply::Output(o), &mut frame).ok());
+                        .and_then(|(o, t)| link::reply_frame(&Reply::Output(o, t), &mut frame).ok());
                     if let Some(len) = len {
                         let _ = tx.write(frame.get(..len).unwrap_or(&[])).await;
                     }

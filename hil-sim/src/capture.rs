@@ -314,13 +314,8 @@ mod tests {
                     for _ in 0..10 {
                         let mut m = Measurements::default();
                         m.i_abc_a.a = period as f32;
-                        let out = FastOutput {
-                            phases: PhaseCommand::Off,
-                            mode: Mode::Idle,
-                            brake: false,
-                            telemetry: Telemetry::default(),
-                        };
-                        capture.record(&m, &out);
+                        let out = FastOutput { phases: PhaseCommand::Off, mode: Mode::Idle, brake: false };
+                        capture.record(&m, &out, Telemetry::default);
                         period += 1;
                     }
                     link::read_capture(&capture, *chunk)

@@ -835,6 +835,8 @@ enum Runner {
 struct Sequence {
     runner: Runner,
     stage: Rc<Cell<Stage>>,
+    /// The signals of the last step (its voltage and current reference).
+    telemetry: Telemetry,
 }
 
 impl Sequence {
@@ -895,16 +897,15 @@ impl DriveUnderTest for Sequence {
         };
         let CommissionOutput { phases, stage, v_ab_v, i_ref_alpha_a } = out;
         self.stage.set(stage);
-        FastOutput {
-            phases,
-            mode: if stage.is_over() { Mode::Idle } else { Mode::Running },
-            brake: false,
-            telemetry: Telemetry {
-                v_ab_v,
-                i_ref_ab_a: AlphaBeta { alpha: i_ref_alpha_a, beta: 0.0 },
-                ..Telemetry::default()
-            },
-        }
+        self.telemetry = Telemetry {
+            v_ab_v,
+            i_ref_ab_a: AlphaBeta { alpha: i_ref_alpha_a, beta: 0.0 },
+            ..Telemetry::default()
+        };
+        FastOutput { phases, mode: if stage.is_over() { Mode::Idle } else { Mode::Running }, brake: false }
+    }
+    fn telemetry(&self) -> Telemetry {
+        self.telemetry
     }
     fn take_failure(&mut self) -> Option<String> {
         match &mut self.runner {
@@ -1095,7 +1096,7 @@ pub fn simulate_on(
             Runner::Pil { pil: Box::new(pil), stage: Stage::Offsets, failure: None }
         }
     };
-    let mut seq = Sequence { runner, stage: Rc::clone(&stage) };
+    let mut seq = Sequence { runner, stage: Rc::clone(&stage), telemetry: Telemetry::default() };
     let scenario = Scenario {
         events: setup
             .injections

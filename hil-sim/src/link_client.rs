@@ -70,7 +70,7 @@ impl<R: Read, W: Write> LinkClient<R, W> {
         self.round_trips += 1;
         loop {
             let r = self.next_reply()?;
-            if matches!(cmd, Command::Step(_)) || !matches!(r, Reply::Output(_)) {
+            if matches!(cmd, Command::Step(_)) || !matches!(r, Reply::Output(..)) {
                 return Ok(r);
             }
         }
@@ -204,12 +204,10 @@ mod tests {
 
     #[test]
     fn a_command_reply_skips_streamed_telemetry_and_noise() {
-        let telemetry = Reply::Output(FastOutput {
-            phases: PhaseCommand::Off,
-            mode: Mode::Idle,
-            brake: false,
-            telemetry: Telemetry::default(),
-        });
+        let telemetry = Reply::Output(
+            FastOutput { phases: PhaseCommand::Off, mode: Mode::Idle, brake: false },
+            Telemetry::default(),
+        );
         let mut wire = frames(&[telemetry, telemetry]);
         wire.extend([0x13, 0x37, 0x00]); // noise: a bad frame
         wire.extend(frames(&[Reply::Ack, telemetry]));

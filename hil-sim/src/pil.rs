@@ -85,6 +85,8 @@ pub struct Pil {
     slow_divider: u16,
     /// Error of the last step, until taken ([`DriveUnderTest::take_failure`]).
     failure: Option<String>,
+    /// The signals the target sent with its last `Output`.
+    telemetry: Telemetry,
 }
 
 impl Pil {
@@ -161,6 +163,7 @@ impl Pil {
             link: LinkClient::new(from_mcu, to_mcu),
             slow_divider: 1,
             failure: None,
+            telemetry: Telemetry::default(),
         })
     }
 
@@ -224,17 +227,20 @@ impl DriveUnderTest for Pil {
 
     fn step(&mut self, m: &Measurements) -> FastOutput {
         let failure = match self.transact(&Command::Step(*m)) {
-            Ok(Reply::Output(o)) => return o,
+            Ok(Reply::Output(o, t)) => {
+                self.telemetry = t;
+                return o;
+            }
             Ok(other) => format!("unexpected reply {other:?} to a step"),
             Err(e) => e,
         };
         self.failure = Some(failure);
-        FastOutput {
-            phases: PhaseCommand::Off,
-            mode: Mode::Idle,
-            brake: false,
-            telemetry: Telemetry::default(),
-        }
+        self.telemetry = Telemetry::default();
+        FastOutput { phases: PhaseCommand::Off, mode: Mode::Idle, brake: false }
+    }
+
+    fn telemetry(&self) -> Telemetry {
+        self.telemetry
     }
 
     fn take_failure(&mut self) -> Option<String> {

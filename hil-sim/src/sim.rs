@@ -10,7 +10,7 @@
 use crate::bridge_fault::{Comparator, Legs, PhaseShort, SwitchShort};
 use crate::inverter::{InverterModel, Segments};
 use crate::sensors::{SensorModel, Sensors};
-use controller_core::drive::{Drive, FastOutput, Measurements, Mode, PhaseCommand, Reference};
+use controller_core::drive::{Drive, FastOutput, Measurements, Mode, PhaseCommand, Reference, Telemetry};
 use controller_core::frames::{Abc, AlphaBeta};
 use controller_core::motor::MotorParams;
 use plant::{Machine, MachineState, Rk4Midway};
@@ -35,6 +35,8 @@ pub trait DriveUnderTest {
     fn controlled_stop(&mut self) -> Result<(), String>;
     /// [`Drive::step`]; phases off if the step failed (see [`DriveUnderTest::take_failure`]).
     fn step(&mut self, m: &Measurements) -> FastOutput;
+    /// [`Drive::telemetry`]: the signals of the last step (asked only for the trace's rows).
+    fn telemetry(&self) -> Telemetry;
     /// Why the last [`DriveUnderTest::step`] failed, if it did (taken: asked again, `None`).
     /// The in-process drive cannot fail.
     fn take_failure(&mut self) -> Option<String> {
@@ -74,6 +76,10 @@ impl DriveUnderTest for Drive {
 
     fn step(&mut self, m: &Measurements) -> FastOutput {
         Drive::step(self, m)
+    }
+
+    fn telemetry(&self) -> Telemetry {
+        Drive::telemetry(self)
     }
 
     fn hardware_break(&mut self) -> Result<(), String> {
@@ -764,16 +770,14 @@ pub fn run(
                 return Err(non_finite(k as f64 * ts));
             }
             rows += 1;
+            let telemetry = drive.telemetry();
             sink(&Row {
                 t_s: k as f64 * ts,
                 x: x_at_start,
                 torque_nm: machine.torque_nm(&x_at_start),
                 v_ab_v: v_avg,
-                i_ref_ab_a: [
-                    f64::from(out.telemetry.i_ref_ab_a.alpha),
-                    f64::from(out.telemetry.i_ref_ab_a.beta),
-                ],
-                omega_ref_rad_s: f64::from(out.telemetry.omega_ref_rad_s),
+                i_ref_ab_a: [f64::from(telemetry.i_ref_ab_a.alpha), f64::from(telemetry.i_ref_ab_a.beta)],
+                omega_ref_rad_s: f64::from(telemetry.omega_ref_rad_s),
                 load_nm: load,
                 mode: Some(out.mode),
                 duty: match out.phases {
@@ -788,10 +792,10 @@ pub fn run(
                 i_leg_peak_a: leg_period.peak_a,
                 hw_break: legs.broken,
                 switch_acting,
-                psi_est_wb: f64::from(out.telemetry.psi_r_wb),
-                psi_ref_wb: f64::from(out.telemetry.psi_ref_wb),
-                rr_scale: f64::from(out.telemetry.rr_scale),
-                l_scale: f64::from(out.telemetry.l_scale),
+                psi_est_wb: f64::from(telemetry.psi_r_wb),
+                psi_ref_wb: f64::from(telemetry.psi_ref_wb),
+                rr_scale: f64::from(telemetry.rr_scale),
+                l_scale: f64::from(telemetry.l_scale),
             })?;
         } else {
             to_trace -= 1;
@@ -1003,6 +1007,9 @@ mod tests {
                 self.failure = Some(format!("link broken at step {}", self.steps));
             }
             out
+        }
+        fn telemetry(&self) -> Telemetry {
+            self.drive.telemetry()
         }
         fn take_failure(&mut self) -> Option<String> {
             self.failure.take()

@@ -205,17 +205,19 @@ fn a_switch_stuck_open_at_top_speed_is_named() {
 
 /// Each of the six switches stuck open at the matrix's six points: what the drive names it
 /// and when (docs/protection.md's list; not yet matrix rows). Run with `cargo test --release
-/// -p hil-sim --test faults -- --ignored --nocapture stuck_switches`.
+/// -p hil-sim --test faults -- --ignored --nocapture stuck_switches`; the sensors' noise seed
+/// is 7, or `SURVEY_SEED`'s.
 #[test]
 #[ignore = "prints a table for the docs (36 runs)"]
 fn stuck_switches_at_every_point() {
     let m = shipped();
+    let seed = std::env::var("SURVEY_SEED").map_or(7, |s| s.parse().unwrap());
     for phase in 0..3 {
         for upper in [true, false] {
             let case =
                 Case { name: "switch open", injection: hil_sim::sim::Injection::SwitchOpen { phase, upper } };
             for at in m.points() {
-                let o = m.run_one(7, &case, &at, Expect::RideThrough, &AtomicBool::new(false)).unwrap();
+                let o = m.run_one(seed, &case, &at, Expect::RideThrough, &AtomicBool::new(false)).unwrap();
                 println!(
                     "phase {} {} switch, {:22}: {:36} peak {:.2} A",
                     ["a", "b", "c"][phase],

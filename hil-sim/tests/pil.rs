@@ -74,7 +74,7 @@ fn target_counts_every_malformed_frame_and_keeps_serving() {
     assert_eq!(pil.transact(&Command::Enable).unwrap(), Reply::Ack);
     let m = Measurements { vdc_v: 310.0, ..Default::default() };
     assert!(
-        matches!(pil.transact(&Command::Step(m)).unwrap(), Reply::Output(o) if o.mode == Mode::Magnetizing)
+        matches!(pil.transact(&Command::Step(m)).unwrap(), Reply::Output(o, _) if o.mode == Mode::Magnetizing)
     );
     assert_eq!(pil.stats().errors(), 0);
 }

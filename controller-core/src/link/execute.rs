@@ -25,7 +25,7 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
                 Err(_) => Reply::Nack(NackReason::Configuration),
             }
         }
-        Command::Step(m) => Reply::Output(drive.step(m)),
+        Command::Step(m) => Reply::Output(drive.step(m), drive.telemetry()),
         other => execute_board(drive, &BoardCommand::of(other), stats),
     }
 }

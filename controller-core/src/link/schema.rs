@@ -223,8 +223,9 @@ pub enum Reply {
     Ack,
     /// Command refused.
     Nack(NackReason),
-    /// Result of a `Step`, or streamed telemetry of the board.
-    Output(FastOutput),
+    /// Result of a `Step` and its signals ([`Drive::telemetry`](crate::drive::Drive::telemetry)),
+    /// or streamed telemetry of the board.
+    Output(FastOutput, Telemetry),
     /// The saturated-P speed-loop gains in use.
     SpeedGains {
         /// N·m per rad/s.
@@ -903,12 +904,11 @@ impl Reply {
                     NackReason::NoRecord => 7,
                 })?;
             }
-            Reply::Output(o) => {
+            Reply::Output(o, t) => {
                 w.u8(tag::OUTPUT)?;
                 w.u8(o.mode.code())?;
                 w.u8(u8::from(o.brake))?;
                 write_phases(&mut w, o.phases)?;
-                let t = &o.telemetry;
                 w.ab(t.i_ab_a)?;
                 w.ab(t.i_ref_ab_a)?;
                 w.ab(t.v_ab_v)?;
@@ -1008,7 +1008,7 @@ impl Reply {
                     rr_scale: r.f32()?,
                     l_scale: r.f32()?,
                 };
-                Reply::Output(FastOutput { phases, mode, brake, telemetry })
+                Reply::Output(FastOutput { phases, mode, brake }, telemetry)
             }
             tag::SPEED_GAINS => Reply::SpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
             tag::COMMISSION_OUTPUT => {

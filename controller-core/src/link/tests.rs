@@ -178,13 +178,11 @@ fn replies_round_trip_bit_exact() {
     let replies = [
         Reply::Ack,
         Reply::Nack(NackReason::Configuration),
-        Reply::Output(out),
-        Reply::Output(FastOutput {
-            phases: PhaseCommand::Off,
-            mode: Mode::Fault(Fault::Overcurrent),
-            brake: true,
-            telemetry: Telemetry::default(),
-        }),
+        Reply::Output(out, drive.telemetry()),
+        Reply::Output(
+            FastOutput { phases: PhaseCommand::Off, mode: Mode::Fault(Fault::Overcurrent), brake: true },
+            Telemetry::default(),
+        ),
         Reply::Status {
             mode: Mode::Running,
             frames_ok: 7,

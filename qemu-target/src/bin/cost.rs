@@ -17,7 +17,7 @@ mod target {
     use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
     use controller_core::discretize::Discretization;
     use controller_core::drive::{
-        Drive, DriveConfig, FastOutput, Measurements, Mode, PhaseCommand, Reference, Telemetry,
+        Drive, DriveConfig, FastOutput, Measurements, Mode, PhaseCommand, Reference,
     };
     use controller_core::envelope::EnvelopeConfig;
     use controller_core::frames::{Abc, AlphaBeta, Dq, SinCos};
@@ -105,7 +105,8 @@ mod target {
                 vdc_v: 310.0,
                 ..measure([AdcCode::default(); 4], guard)
             };
-            i_ab = drive.step(&m).telemetry.i_ref_ab_a;
+            drive.step(&m);
+            i_ab = drive.telemetry().i_ref_ab_a;
             guard += 1;
         }
         // The periods below go on from here (the encoder's angle too).
@@ -123,7 +124,8 @@ mod target {
         for (k, c) in (0u32..).zip(codes.iter_mut()) {
             let i = i_ab.inverse_clarke();
             *c = [code(i.a), code(i.b), code(i.c), AdcCode(3100)];
-            i_ab = rehearsal.step(&measure(*c, k0 + k)).telemetry.i_ref_ab_a;
+            rehearsal.step(&measure(*c, k0 + k));
+            i_ab = rehearsal.telemetry().i_ref_ab_a;
         }
         let input = |k: u32| codes.get((k % N) as usize).copied().unwrap_or_default();
 
@@ -257,17 +259,16 @@ mod target {
             black_box(pwm.compare3(Abc { a: d, b: d * 0.5, c: 1.0 - d }));
         });
         // The capture (issue 19), as the firmware calls it after every step: a recorded
-        // sample of four signals (armed on a trigger that never fires, so it records on),
-        // and the call while nothing is armed.
+        // sample of four signals with the drive's telemetry made for it (armed on a trigger
+        // that never fires, so it records on), and the call while nothing is armed.
         let out = FastOutput {
             phases: PhaseCommand::Duty(Abc { a: 0.4, b: 0.5, c: 0.6 }),
             mode: Mode::Running,
             brake: false,
-            telemetry: Telemetry::default(),
         };
         let mut capture = Capture::<RECORD_SAMPLES>::new();
         let capture_idle = per_call(&ticks, |k| {
-            capture.record(black_box(&measure(input(k), k)), black_box(&out));
+            capture.record(black_box(&measure(input(k), k)), black_box(&out), || drive.telemetry());
         }) - adc;
         let never = Trigger::Level { signal: Signal::Vdc, edge: Edge::Rising, level: 1e9 };
         let spec = CaptureSpec {
@@ -279,7 +280,7 @@ mod target {
         let capture_sample = match capture.arm(spec) {
             Ok(()) => {
                 per_call(&ticks, |k| {
-                    capture.record(black_box(&measure(input(k), k)), black_box(&out));
+                    capture.record(black_box(&measure(input(k), k)), black_box(&out), || drive.telemetry());
                 }) - adc
             }
             Err(_) => f32::NAN,

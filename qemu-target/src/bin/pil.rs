@@ -73,8 +73,9 @@ mod target {
                     (_, Command::ReadCapture { chunk }) => link::read_capture(&capture, *chunk),
                     (Endpoint::Drive(d), Command::Step(m)) => {
                         let out = d.step(m);
-                        capture.record(m, &out);
-                        Reply::Output(out)
+                        let telemetry = d.telemetry();
+                        capture.record(m, &out, || telemetry);
+                        Reply::Output(out, telemetry)
                     }
                     (Endpoint::Drive(d), c) => link::execute(d, c, &stats),
                     (_, Command::Configure(spec)) => match DriveConfig::new(spec) {
