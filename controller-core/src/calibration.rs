@@ -138,7 +138,7 @@ impl OffsetCalibration {
             let (s, s2) = (self.sum.get(k).copied().unwrap_or(0), self.sum2.get(k).copied().unwrap_or(0.0));
             let mean_d = s as f32 / n;
             let mean = nominal + mean_d;
-            let rms = crate::num::sqrt_f32((s2 / n - mean_d * mean_d).max(0.0));
+            let rms = crate::num::sqrt_f32(crate::num::max_f32(s2 / n - mean_d * mean_d, 0.0));
             // Both finite: sums of finite codes.
             if mean_d.abs() > cfg.max_offset_error_counts {
                 return Err(CalibrationError::Offset { channel, mean_counts: mean });

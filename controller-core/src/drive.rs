@@ -1981,7 +1981,7 @@ impl Drive {
     fn speed_torque(&mut self, w_ref: f32, w: f32, limit_nm: f32) -> f32 {
         let cfg = &self.cfg;
         let per_a = cfg.ifoc.torque_factor() * self.ifoc.psi_r_wb();
-        let limit = if cfg.speed.is_torque() { limit_nm } else { limit_nm / per_a.max(1e-6) };
+        let limit = if cfg.speed.is_torque() { limit_nm } else { limit_nm / max_f32(per_a, 1e-6) };
         let limit = min_f32(limit, cfg.speed_limit);
         let cmd = cfg.speed.update_limited(&mut self.speed, w_ref, w, limit);
         let (TorqueCommand::TorqueNm(u) | TorqueCommand::IqA(u)) = cmd;

@@ -221,8 +221,10 @@ impl Dq {
 /// Wrap an angle into `[-π, π)`. Exact for |θ| < 3π (one add/subtract of 2π), which is
 /// all that one control step can produce from a wrapped angle; larger inputs take
 /// [`wrap_far`] (out of line: the common case stays a compare or two where it is inlined).
-/// Non-finite input gives NaN (the supervisor trips on it).
-#[inline]
+/// Non-finite input gives NaN (the supervisor trips on it). Out of line: no fast step calls
+/// it since the IFOC's fast step stopped carrying θ_e (issue 19; its slow-step callers'
+/// copies took flash).
+#[inline(never)]
 pub fn wrap_angle(theta_rad: f32) -> f32 {
     let t = if theta_rad >= PI {
         theta_rad - TAU

@@ -275,7 +275,7 @@ impl IfocConfig {
         if !i_d_a.is_finite() {
             return FluxCommand::default();
         }
-        let i_q_max_a = sqrt_f32((self.i_max_a * self.i_max_a - i_d_a * i_d_a).max(0.0));
+        let i_q_max_a = sqrt_f32(max_f32(self.i_max_a * self.i_max_a - i_d_a * i_d_a, 0.0));
         FluxCommand { i_d_a, i_q_max_a }
     }
 

@@ -46,7 +46,9 @@ impl AdcScaling {
         if offset_counts > full_scale_counts {
             return Err(ScalingError::Offset);
         }
-        let gain_fixed = I16F16::from_num(gain);
+        // Rounded to the nearest 2⁻¹⁶ (|gain| < 32 767: in range), without the `fixed`
+        // crate's generic float conversion (≈ 0.3 KB of the firmware's flash).
+        let gain_fixed = I16F16::from_bits(libm::roundf(gain * 65_536.0) as i32);
         if gain_fixed == I16F16::ZERO {
             return Err(ScalingError::Gain);
         }
@@ -149,6 +151,24 @@ mod tests {
         assert_eq!(AdcScaling::new(1e-7, 0, 4095), Err(ScalingError::Gain)); // below I16F16 resolution
         assert_eq!(AdcScaling::new(1.0, 5000, 4095), Err(ScalingError::Offset));
         assert_eq!(PwmScaling::new(0), Err(ScalingError::Period));
+    }
+
+    /// The fixed-point gain is the nearest multiple of 2⁻¹⁶ (what `fixed`'s conversion gives,
+    /// off ties), over gains from the smallest accepted to the largest, both signs; a gain
+    /// that rounds to zero is refused.
+    #[test]
+    fn the_fixed_gain_is_the_nearest() {
+        let mut g = 1.6e-5f32;
+        while g < 32_000.0 {
+            for gain in [g, -g] {
+                let s = AdcScaling::new(gain, 0, 4095).unwrap();
+                let err = (f64::from(s.gain_fixed.to_num::<f32>()) - f64::from(gain)).abs();
+                assert!(err <= 0.5 / 65_536.0, "{gain}: {err:e}");
+                assert_eq!(s.gain_fixed, I16F16::from_num(gain), "{gain}");
+            }
+            g *= 1.37;
+        }
+        assert_eq!(AdcScaling::new(7.0e-6, 0, 4095), Err(ScalingError::Gain));
     }
 
     #[test]

@@ -227,15 +227,20 @@ mod target {
         let control = match ControlLoop::new(&DRIVE_CONFIG, &BOARD) {
             Ok(c) => c,
             Err(e) => {
-                let why = match e {
-                    ControlError::Drive(_) => "drive specification",
-                    ControlError::Scaling(_) => "ADC/PWM scaling",
-                    ControlError::Encoder(_) => "encoder",
-                    ControlError::Calibration(_) => "offset-calibration limits",
-                    ControlError::PwmPeriod { .. } => "PWM period",
-                    ControlError::UpdateTiming { .. } => "PWM update timing",
-                };
-                defmt::error!("configuration rejected ({=str}); bridge stays off", why);
+                // One interned message per reason (a table of strings took flash).
+                match e {
+                    ControlError::Drive(_) => defmt::error!("configuration rejected (drive specification)"),
+                    ControlError::Scaling(_) => defmt::error!("configuration rejected (ADC/PWM scaling)"),
+                    ControlError::Encoder(_) => defmt::error!("configuration rejected (encoder)"),
+                    ControlError::Calibration(_) => {
+                        defmt::error!("configuration rejected (offset-calibration limits)")
+                    }
+                    ControlError::PwmPeriod { .. } => defmt::error!("configuration rejected (PWM period)"),
+                    ControlError::UpdateTiming { .. } => {
+                        defmt::error!("configuration rejected (PWM update timing)")
+                    }
+                }
+                defmt::error!("bridge stays off");
                 halt_safe();
             }
         };
@@ -402,12 +407,9 @@ mod target {
         // writes after this point.
         unsafe { interrupt::ADC1_2.enable() };
 
-        match (link_task(tx, rx), watchdog_task(p.IWDG)) {
-            (Ok(l), Ok(w)) => {
-                spawner.spawn(l);
-                spawner.spawn(w);
-            }
-            _ => halt_safe(),
+        match link_task(tx, rx, p.IWDG) {
+            Ok(l) => spawner.spawn(l),
+            Err(_) => halt_safe(),
         }
         // The peripherals' drivers must stay alive.
         loop {
@@ -529,7 +531,17 @@ mod target {
     /// (`server::LinkWatchdog`): a link silent for `LINK_TIMEOUT_MS` while the bridge is on
     /// stops the drive (a controlled stop).
     #[embassy_executor::task]
-    async fn link_task(mut tx: UartTx<'static, Async>, mut rx: RingBufferedUartRx<'static>) {
+    async fn link_task(
+        mut tx: UartTx<'static, Async>,
+        mut rx: RingBufferedUartRx<'static>,
+        iwdg: Peri<'static, IWDG>,
+    ) {
+        // The independent watchdog (100 ms), fed from this loop — which turns at least every
+        // 10 ms (the read's timeout) — and only while the control interrupt runs: a reset
+        // if either stops (before, a task of its own fed it, which saw the interrupt only).
+        let mut wdg = IndependentWatchdog::new(iwdg, 100_000);
+        wdg.unleash();
+        let mut isr_count = ISR_COUNT.load(Ordering::Relaxed);
         let mut decoder = FrameDecoder::new();
         let mut stats = LinkStats::default();
         let mut input = [0u8; 64];
@@ -537,13 +549,19 @@ mod target {
         let mut watchdog = server::LinkWatchdog::new(LINK_TIMEOUT_US, now_us());
         let mut calibration_logged = false;
         loop {
+            let now = ISR_COUNT.load(Ordering::Relaxed);
+            if now != isr_count {
+                wdg.pet();
+            }
+            isr_count = now;
             // The control loop's state, and requests to it, lock-free (`firmware::boundary`).
-            let snapshot = SNAPSHOT.read().unwrap_or(Snapshot::EMPTY);
-            let stopped = watchdog.due(now_us(), snapshot.bridge_on);
+            // Its fields read from the `Option` (a default `Snapshot` copied in took flash).
+            let snapshot = SNAPSHOT.read();
+            let stopped = watchdog.due(now_us(), snapshot.is_some_and(|s| s.bridge_on));
             if stopped {
                 WATCHDOG_STOP.store(true, Ordering::Relaxed);
             }
-            let calibration = snapshot.calibration;
+            let calibration = snapshot.and_then(|s| s.calibration);
             if stopped {
                 defmt::warn!("link silent for {=u32} ms: controlled stop", LINK_TIMEOUT_MS);
             }
@@ -614,22 +632,6 @@ mod target {
                     let _ = tx.write(frame.get(..len).unwrap_or(&[])).await;
                 }
             }
-        }
-    }
-
-    /// Independent watchdog (100 ms), fed only while the control interrupt runs.
-    #[embassy_executor::task]
-    async fn watchdog_task(iwdg: Peri<'static, IWDG>) {
-        let mut wdg = IndependentWatchdog::new(iwdg, 100_000);
-        wdg.unleash();
-        let mut last = ISR_COUNT.load(Ordering::Relaxed);
-        loop {
-            Timer::after_millis(20).await;
-            let now = ISR_COUNT.load(Ordering::Relaxed);
-            if now != last {
-                wdg.pet();
-            }
-            last = now;
         }
     }
 
