@@ -6,7 +6,7 @@
 //! input → ADC1 injected conversions (three phase currents, bus voltage) triggered by TIM1
 //! TRGO2 = OC4REF just before the counter's top (the centre of the low-side conduction
 //! interval, where low-side shunts carry the phase currents) → TIM4
-//! quadrature encoder → control interrupt → link and watchdog tasks.
+//! quadrature encoder → control interrupt → link task (which also feeds the watchdog).
 //!
 //! Priorities: the control interrupt `ADC1_2` (end of the injected sequence) is the only
 //! one at P0; the time driver (TIM3), the UART and its DMA run at P4 and below; the tasks run
@@ -86,7 +86,7 @@ mod target {
     static CONTROL_CELL: static_cell::StaticCell<ControlLoop> = static_cell::StaticCell::new();
     /// The output stage's state (whether the firmware enabled MOE), the control interrupt's.
     static OUTPUTS: Mutex<core::cell::Cell<Outputs>> = Mutex::new(core::cell::Cell::new(Outputs::new()));
-    /// Control interrupts served; the watchdog task is fed only while this advances.
+    /// Control interrupts served; the link task feeds the watchdog only while this advances.
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
     /// The control interrupt's longest step and overruns (`Status`).
     static LOOP_TIMER: firmware::control::LoopTimer = firmware::control::LoopTimer::new();

@@ -101,7 +101,7 @@ pub fn prepare(cmd: &BoardCommand) -> Prepared {
     }
 }
 
-/// Answer one command as the board decodes it ([`Command::decode_board`]: `Configure` and
+/// Answer one command as the board decodes it ([`Command::decode_board`](controller_core::link::Command::decode_board): `Configure` and
 /// `Step` arrive unparsed, as [`BoardCommand::Refused`]), with what [`prepare`] built.
 pub fn handle_board(
     ctl: &mut ControlLoop,
@@ -144,7 +144,7 @@ pub fn handle_board(
 }
 
 /// Answer one command (`Configure` and `Step`, the board's `Refused`: `Nack(Unsupported)`).
-/// Dispatched as the board decodes it: a [`Command`] would be ≈ 500 B on the control
+/// Dispatched as the board decodes it: a [`Command`](controller_core::link::Command) would be ≈ 500 B on the control
 /// interrupt's stack.
 pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
     match cmd {
