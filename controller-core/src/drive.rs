@@ -228,6 +228,9 @@ pub const OPEN_PHASE_ABSENT_FRACTION: f32 = 0.1;
 pub const OPEN_PHASE_OTHERS_FRACTION: f32 = 0.25;
 /// Consecutive windows an open phase (or no motor current) must persist for.
 pub const OPEN_PHASE_WINDOWS: u8 = 2;
+/// … a phase is judged only while its reference's mean magnitude is at least this share of
+/// the other two's mean (a phase at its zero crossing is not).
+pub const OPEN_PHASE_REF_SHARE: f32 = 0.5;
 
 /// The stuck-switch check ([`Fault::SwitchOpen`]) judges a half-wave of a phase's reference
 /// (a run of one sign) that holds at least this many open-phase windows' worth of the
@@ -1252,7 +1255,12 @@ impl OpenPhaseWindow {
         // must carry clearly more than the sensors' noise.
         let looks_open = |r: f32, i: f32| {
             let others = 0.5 * (i_sum - i);
-            r >= commanded
+            let r_others = 0.5 * (r_sum - r);
+            // Commanded: this phase at the commanded level, or — the motor commanded at all —
+            // as much as half the others' mean (not at its zero crossing): a reference that
+            // shrinks below the level with the open lead (at top speed, ≈ 5 ms after it opens)
+            // stays judged.
+            (r >= commanded || (r_sum >= commanded && r >= OPEN_PHASE_REF_SHARE * r_others))
                 && others >= OPEN_PHASE_OTHERS_FRACTION * commanded
                 && i < OPEN_PHASE_OTHERS_FRACTION * others
                 && i < OPEN_PHASE_ABSENT_FRACTION * r

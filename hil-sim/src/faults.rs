@@ -252,6 +252,9 @@ pub struct Matrix {
     pub vdc_v: f64,
     /// The board's hardware comparator, if the drive file gives one.
     pub comparator: Option<Comparator>,
+    /// The injection this long after [`INJECT_S`], s (0 in the matrix: its time on the fast
+    /// steps' grid — tests move it off the open-phase check's windows).
+    pub inject_delay_s: f64,
 }
 
 /// The short injected: two terminals through 0.05 Ω and 20 µH (a few metres of cable).
@@ -281,7 +284,7 @@ impl Matrix {
         let base = crate::envelope::drive_base_speed_rad_s(&spec, vdc_v);
         let top = (omega_r_max_rad_s / f64::from(m.pole_pairs()))
             .min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
-        Self { spec, top_speed_rad_s: top, vdc_v, comparator: None }
+        Self { spec, top_speed_rad_s: top, vdc_v, comparator: None, inject_delay_s: 0.0 }
     }
 
     /// The six operating points.
@@ -524,9 +527,9 @@ impl Matrix {
                     (0.0, Event::Enable),
                     (REFERENCE_S, Event::Reference(reference)),
                     (REFERENCE_S, Event::LoadNm(at.load_nm)),
-                    (INJECT_S, Event::Fault(injection)),
+                    (INJECT_S + self.inject_delay_s, Event::Fault(injection)),
                 ],
-                duration_s: INJECT_S + OBSERVE_S,
+                duration_s: INJECT_S + self.inject_delay_s + OBSERVE_S,
                 vdc_v: self.vdc_v,
                 substeps: 1,
                 trace_every: 1,
@@ -552,7 +555,7 @@ impl Matrix {
                 if cancel.load(Ordering::Relaxed) {
                     return Err("interrupted".into());
                 }
-                if r.t_s < INJECT_S {
+                if r.t_s < INJECT_S + self.inject_delay_s {
                     if before_injection_fault.is_none() && matches!(r.mode, Some(Mode::Fault(_))) {
                         before_injection_fault = r.mode;
                     }

@@ -40,6 +40,29 @@ fn an_open_phase_row_measures_what_the_issue_names() {
     assert!((o.speed_at_injection_rad_s - at.speed_rad_s).abs() < 15.0);
 }
 
+/// An open lead wherever its injection falls on the check's 2.5 ms windows (the matrix
+/// injects on their grid), with three noise seeds, at all six points: `OpenPhase` within the
+/// issue's 50 ms. Found by trying: at top speed, motoring, the reference shrinks below the
+/// commanded level ≈ 5 ms after the lead opens; 0.6 ms off the grid two windows no longer
+/// closed before that, and the check took 66.85 ms (seed 2). A phase whose reference is at
+/// least half the others' (`OPEN_PHASE_REF_SHARE`) now stays judged (its current still below
+/// 10 % of that reference).
+#[test]
+fn an_open_phase_is_caught_wherever_the_injection_falls_on_the_windows() {
+    let mut m = shipped();
+    let c = case(&m, "open phase");
+    for delay_s in [0.6e-3, 1.3e-3] {
+        m.inject_delay_s = delay_s;
+        for at in m.points() {
+            for seed in 0..3 {
+                let o = m.run_one(seed, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+                assert!(o.passed(), "{} +{delay_s} s seed {seed}: {:?}", at.name(), o.failures);
+                assert_eq!(o.detected.map(|(f, _)| f), Some(Fault::OpenPhase), "{} seed {seed}", at.name());
+            }
+        }
+    }
+}
+
 /// The judge fails a drive that misses a fault: with the current-sum level at the trip level
 /// (so high that a dead sensor's error never reaches it), the dead-sensor row is not
 /// detected as `CurrentSensor` within 10 ms.
