@@ -1243,6 +1243,13 @@ impl OpenPhaseWindow {
         if self.steps < steps {
             return None;
         }
+        self.close(level_a, sum_mean_max_a)
+    }
+
+    /// The window's verdict, at its end (see [`OpenPhaseWindow::add`]): out of line, once
+    /// per window — inlined, it took the fast step's flash.
+    #[inline(never)]
+    fn close(&mut self, level_a: f32, sum_mean_max_a: f32) -> Option<Fault> {
         if self.sum_error > sum_mean_max_a * self.steps as f32 {
             return Some(Fault::CurrentSensor);
         }
