@@ -15,7 +15,10 @@
 //! inverse Park, [`CurrentFrame::Synchronous`]) → their voltage request, advanced by the
 //! delay from sampling to application ([`VOLTAGE_DELAY_PERIODS`]) → SVPWM duties. **One vector
 //! limit**: the modulator scales a request beyond the inverter's hexagon onto it, keeping its
-//! angle, and the loops' integrators then track the voltage applied.
+//! angle, and the loops' integrators then track the voltage applied. The step returns the
+//! bridge command, the mode and the brake chopper's switch; its signals (currents,
+//! references, voltage, field angle, flux) are made on demand by [`Drive::telemetry`] from
+//! what it left — a logger, the capture or the link's stream asks, not every period.
 //! **Slow step** (every N-th period, [`Drive::slow_step`]): the IFOC's period closed (flux
 //! model, slip angle); the encoder's position anchors the field angle (rotor angle plus
 //! integrated slip); the current trim (a slow integral of the
