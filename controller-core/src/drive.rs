@@ -231,8 +231,9 @@ pub const OPEN_PHASE_ABSENT_FRACTION: f32 = 0.1;
 pub const OPEN_PHASE_OTHERS_FRACTION: f32 = 0.25;
 /// Consecutive windows an open phase (or no motor current) must persist for.
 pub const OPEN_PHASE_WINDOWS: u8 = 2;
-/// … a phase is judged only while its reference's mean magnitude is at least this share of
-/// the other two's mean (a phase at its zero crossing is not).
+/// Open-phase check: a phase below the commanded level is still judged while its reference's
+/// mean magnitude is at least this share of the other two's mean (a phase at its zero
+/// crossing is not) and the three references' sum reaches the level.
 pub const OPEN_PHASE_REF_SHARE: f32 = 0.5;
 
 /// The stuck-switch check ([`Fault::SwitchOpen`]) judges a half-wave of a phase's reference
@@ -1180,8 +1181,8 @@ pub struct FastOutput {
     pub brake: bool,
 }
 
-/// What the slow step's checks and the telemetry read of the last fast step (stationary
-/// frame): the measured current, the current references, the voltage applied.
+/// What [`Drive::telemetry`] reads of the last fast step (stationary frame): the measured
+/// current, the current references, the voltage applied.
 #[derive(Clone, Copy, Debug, Default)]
 struct StepSignals {
     i_ab: AlphaBeta,
@@ -1209,7 +1210,8 @@ impl OpenPhaseWindow {
     /// One fast step's reference and measured phase currents. At the end of a window of
     /// `steps` fast steps, with `level_a` the rated magnetizing current:
     /// - a phase *looks open* when it was commanded (mean |i_ref| ≥
-    ///   [`OPEN_PHASE_COMMANDED_FRACTION`]·`level_a`) while the other two carry current (their
+    ///   [`OPEN_PHASE_COMMANDED_FRACTION`]·`level_a`, or at least [`OPEN_PHASE_REF_SHARE`] of
+    ///   the other two's mean while the three references' sum reaches that level) while the other two carry current (their
     ///   mean |i| at least [`OPEN_PHASE_OTHERS_FRACTION`] of that level) but it hardly does:
     ///   its mean |i| below [`OPEN_PHASE_OTHERS_FRACTION`] of theirs and below
     ///   [`OPEN_PHASE_ABSENT_FRACTION`] of its own mean |i_ref| (an open lead carries none,
@@ -2391,7 +2393,7 @@ impl Drive {
             };
             self.v_d_sum += v.park(field.field).d;
         }
-        // What the telemetry and the slow step's checks read of this step.
+        // What the telemetry reads of this step.
         self.last = StepSignals { i_ab, i_ref_ab: field.i_ref_ab, v_ab: modulation.v_applied };
         FastOutput { phases: PhaseCommand::Duty(duty), mode: self.mode, brake }
     }

@@ -367,7 +367,8 @@ impl IfocConfig {
     }
 
     /// Slow rate, first: the fast steps since the last call close — the slip angle advances
-    /// by their `n·ω_sl·T`, the field angle by their `n·δ`, and the flux model (eq. (8), exact ZOH over the n steps) takes the
+    /// by their `n·ω_sl·T`, the field angle by their `n·δ`, and the flux model (eq. (8),
+    /// exact ZOH over the n steps) takes the
     /// mean of the measured d-axis current over them. Returns that mean measured current,
     /// field frame, A, and n (0: no fast step ran; nothing changes).
     pub fn close_period(&self, s: &mut IfocState) -> (Dq, u16) {

@@ -289,11 +289,6 @@ pub struct Snapshot {
     pub bridge_on: bool,
 }
 
-impl Snapshot {
-    /// Before the first step.
-    pub const EMPTY: Self = Self { output: None, calibration: None, bridge_on: false };
-}
-
 /// Why a commissioning sequence was not started.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CommissionRefused {
@@ -524,11 +519,6 @@ impl ControlLoop {
     /// The brake chopper's switch after the last step.
     pub fn brake(&self) -> bool {
         self.last.is_some_and(|o| o.brake)
-    }
-
-    /// Output of the last step (telemetry).
-    pub fn last_output(&self) -> Option<FastOutput> {
-        self.last
     }
 
     /// One PWM period: the control interrupt.

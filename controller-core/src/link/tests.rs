@@ -138,37 +138,6 @@ fn every_command_round_trips() {
     }
 }
 
-/// The board's commands get the same replies from [`execute_board`] as the commands from
-/// [`execute`], through the same sequence of drive states; `Configure` and `Step` (the
-/// board's `Refused`) are `Nack(Unsupported)` there.
-#[test]
-fn the_board_executes_its_commands_as_the_drive_does() {
-    let cfg = crate::drive::DriveConfig::new(&test_spec()).unwrap();
-    let (mut a, mut b) = (crate::drive::Drive::new(cfg), crate::drive::Drive::new(cfg));
-    let stats = LinkStats::default();
-    let cmds = [
-        Command::GetStatus,
-        Command::SetReference(Reference::Speed(f32::NAN)),
-        Command::Enable,
-        Command::SetReference(Reference::Speed(10.0)),
-        Command::ReadSpeedGains,
-        Command::GetStatus,
-        Command::Stop,
-        Command::Disable,
-        Command::ClearFault,
-        Command::GetCommissionStage,
-        Command::ReadCapture { chunk: 0 },
-    ];
-    for c in &cmds {
-        assert_eq!(execute(&mut a, c, &stats), execute_board(&mut b, &BoardCommand::of(c), &stats), "{c:?}");
-        assert_eq!(a.mode(), b.mode(), "{c:?}");
-    }
-    assert_eq!(
-        execute_board(&mut b, &BoardCommand::of(&Command::Configure(test_spec())), &stats),
-        Reply::Nack(NackReason::Unsupported)
-    );
-}
-
 #[test]
 fn replies_round_trip_bit_exact() {
     let mut drive = crate::drive::Drive::new(crate::drive::DriveConfig::new(&test_spec()).unwrap());
