@@ -253,9 +253,16 @@ pub struct Matrix {
     /// The board's hardware comparator, if the drive file gives one.
     pub comparator: Option<Comparator>,
     /// The injection this long after [`INJECT_S`], s (0 in the matrix: its time on the fast
-    /// steps' grid — tests move it off the open-phase check's windows).
+    /// steps' grid — tests move it off the open-phase check's windows; `hil-sim faults
+    /// --inject-delay-ms`).
     pub inject_delay_s: f64,
+    /// Another draw of the sensors' noise (0 in the matrix: [`Matrix::sensor_seed`];
+    /// `hil-sim faults --seed`).
+    pub seed: u64,
 }
+
+/// One row of the matrix: its index (which seeds its sensors), the fault and the point.
+pub type RowSpec = (u64, Case, OperatingPoint);
 
 /// The short injected: two terminals through 0.05 Ω and 20 µH (a few metres of cable).
 pub const SHORT: PhaseShort = PhaseShort { phases: [0, 1], resistance_ohm: 0.05, inductance_h: 20e-6 };
@@ -284,7 +291,7 @@ impl Matrix {
         let base = crate::envelope::drive_base_speed_rad_s(&spec, vdc_v);
         let top = (omega_r_max_rad_s / f64::from(m.pole_pairs()))
             .min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
-        Self { spec, top_speed_rad_s: top, vdc_v, comparator: None, inject_delay_s: 0.0 }
+        Self { spec, top_speed_rad_s: top, vdc_v, comparator: None, inject_delay_s: 0.0, seed: 0 }
     }
 
     /// The six operating points.
@@ -477,20 +484,92 @@ impl Matrix {
         }
     }
 
-    /// Every row (case × point), in parallel on all cores (rayon), in matrix order;
-    /// `progress(done)` after each; `cancel` stops them at the next period.
+    /// Every row (case × point) in matrix order, each with its index.
+    pub fn rows(&self) -> Result<Vec<RowSpec>, String> {
+        let points = self.points();
+        Ok(self
+            .cases()?
+            .into_iter()
+            .flat_map(|c| points.clone().into_iter().map(move |p| (c, p)))
+            .zip(0u64..)
+            .map(|((c, p), k)| (k, c, p))
+            .collect())
+    }
+
+    /// Every row, in parallel on all cores (rayon), in matrix order; `progress(done)`
+    /// after each; `cancel` stops them at the next period.
     pub fn run(&self, progress: impl Fn(usize) + Sync, cancel: &AtomicBool) -> Result<Vec<Outcome>, String> {
-        let rows: Vec<(Case, OperatingPoint)> =
-            self.cases()?.into_iter().flat_map(|c| self.points().into_iter().map(move |p| (c, p))).collect();
+        self.run_rows(&self.rows()?, progress, cancel)
+    }
+
+    /// The rows given (a selection of [`Matrix::rows`], their indices kept: each runs as in
+    /// the whole matrix), in parallel, in the order given.
+    pub fn run_rows(
+        &self,
+        rows: &[RowSpec],
+        progress: impl Fn(usize) + Sync,
+        cancel: &AtomicBool,
+    ) -> Result<Vec<Outcome>, String> {
         let done = std::sync::atomic::AtomicUsize::new(0);
         rows.par_iter()
-            .enumerate()
-            .map(|(k, (case, at))| {
-                let o = self.run_one(k as u64, case, at, self.expect(case, at), cancel);
+            .map(|(k, case, at)| {
+                let o = self.run_one(*k, case, at, self.expect(case, at), cancel);
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1);
                 o
             })
             .collect()
+    }
+
+    /// The seed of row `k`'s sensors (noise, quantisation offsets): the matrix's own for
+    /// [`Matrix::seed`] 0, another draw for each other seed.
+    pub fn sensor_seed(&self, k: u64) -> u64 {
+        (0xFA17 + k).wrapping_add(self.seed << 32)
+    }
+
+    /// The time of the injection, s.
+    pub fn inject_s(&self) -> f64 {
+        INJECT_S + self.inject_delay_s
+    }
+
+    /// Row `k`'s run, `case` at `at`, as a scenario: what [`Matrix::run_one`] judges, and
+    /// what `hil-sim faults --trace` writes out.
+    pub fn scenario(&self, k: u64, case: &Case, at: &OperatingPoint) -> Builtin {
+        let reference = if at.point == Point::Standstill {
+            Reference::Position(0.0)
+        } else {
+            Reference::Speed(at.speed_rad_s as f32)
+        };
+        // An overload acts the way the operating point's load does (against the motion when
+        // motoring, with it when generating).
+        let injection = match case.injection {
+            Injection::LoadStep { torque_nm } => {
+                Injection::LoadStep { torque_nm: torque_nm.copysign(at.load_nm) }
+            }
+            other => other,
+        };
+        Builtin {
+            name: format!("faults-{k}"),
+            about: format!("{} at {}", case.name, at.name()),
+            spec: self.spec,
+            plant: self.spec.motor,
+            scenario: Scenario {
+                events: vec![
+                    (0.0, Event::Enable),
+                    (REFERENCE_S, Event::Reference(reference)),
+                    (REFERENCE_S, Event::LoadNm(at.load_nm)),
+                    (self.inject_s(), Event::Fault(injection)),
+                ],
+                duration_s: self.inject_s() + OBSERVE_S,
+                vdc_v: self.vdc_v,
+                substeps: 1,
+                trace_every: 1,
+                sensors: SensorModel::realistic_for_trip(self.sensor_seed(k), self.spec.protection.i_trip_a),
+                load: LoadModel::Torque,
+                inverter: InverterModel::Average,
+                dc_link: None,
+                comparator: self.comparator,
+            },
+        }
     }
 
     /// One row (`k` seeds its sensors), judged against `expect` (the matrix's own:
@@ -503,43 +582,8 @@ impl Matrix {
         expect: Expect,
         cancel: &AtomicBool,
     ) -> Result<Outcome, String> {
-        let reference = if at.point == Point::Standstill {
-            Reference::Position(0.0)
-        } else {
-            Reference::Speed(at.speed_rad_s as f32)
-        };
+        let b = self.scenario(k, case, at);
         let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
-        // An overload acts the way the operating point's load does (against the motion when
-        // motoring, with it when generating).
-        let injection = match case.injection {
-            Injection::LoadStep { torque_nm } => {
-                Injection::LoadStep { torque_nm: torque_nm.copysign(at.load_nm) }
-            }
-            other => other,
-        };
-        let b = Builtin {
-            name: format!("faults-{k}"),
-            about: String::new(),
-            spec: self.spec,
-            plant: self.spec.motor,
-            scenario: Scenario {
-                events: vec![
-                    (0.0, Event::Enable),
-                    (REFERENCE_S, Event::Reference(reference)),
-                    (REFERENCE_S, Event::LoadNm(at.load_nm)),
-                    (INJECT_S + self.inject_delay_s, Event::Fault(injection)),
-                ],
-                duration_s: INJECT_S + self.inject_delay_s + OBSERVE_S,
-                vdc_v: self.vdc_v,
-                substeps: 1,
-                trace_every: 1,
-                sensors: SensorModel::realistic_for_trip(0xFA17 + k, self.spec.protection.i_trip_a),
-                load: LoadModel::Torque,
-                inverter: InverterModel::Average,
-                dc_link: None,
-                comparator: self.comparator,
-            },
-        };
         let i_trip = self.spec.protection.i_trip_a;
         let mut speed_at_injection = f64::NAN;
         let mut detected: Option<(Fault, f64)> = None;
@@ -555,7 +599,7 @@ impl Matrix {
                 if cancel.load(Ordering::Relaxed) {
                     return Err("interrupted".into());
                 }
-                if r.t_s < INJECT_S + self.inject_delay_s {
+                if r.t_s < self.inject_s() {
                     if before_injection_fault.is_none() && matches!(r.mode, Some(Mode::Fault(_))) {
                         before_injection_fault = r.mode;
                     }
@@ -670,15 +714,18 @@ impl Matrix {
 /// The table as markdown.
 pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
     let mut s = format!(
-        "# Fault-injection matrix\n\n`hil-sim faults`: {} rows, {} V bus, trip level {} A, top speed {:.1} rad/s \
-         (hil_sim::faults). Gaps are stated with their reason below the table.\n\n\
+        "# Fault-injection matrix\n\n`hil-sim faults`: {} rows, {} V bus, trip level {} A, top speed {:.1} rad/s, \
+         faults injected at {:.4} s, noise seed {} (hil_sim::faults). Gaps are stated with their reason below the \
+         table.\n\n\
          | fault injected | operating point | ω at injection (rad/s) | asked | detected as | bridge off after (periods) \
          | peak \\|i\\| (A) | peak / trip | peak leg \\|i\\| (A) | energy into bus (J) | final state | verdict |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|\n",
         rows.len(),
         m.vdc_v,
         m.spec.protection.i_trip_a,
-        m.top_speed_rad_s
+        m.top_speed_rad_s,
+        m.inject_s(),
+        m.seed
     );
     for o in rows {
         let (off, leg, failures) = o.cells();
@@ -739,6 +786,8 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
     serde_json::json!({
         "vdc_v": m.vdc_v,
         "top_speed_rad_s": m.top_speed_rad_s,
+        "inject_s": m.inject_s(),
+        "noise_seed": m.seed,
         "rows": rows.iter().map(row).collect::<Vec<_>>(),
         "passed": rows.iter().filter(|o| o.verdict() == "pass").count(),
         "gaps": rows.iter().filter(|o| o.verdict() == "gap").count(),

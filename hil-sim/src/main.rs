@@ -8,6 +8,7 @@
 
 use clap::{Args, Parser, Subcommand};
 use controller_core::drive::Mode;
+use controller_core::frames::{Abc, AlphaBeta};
 use controller_core::link::{Command, Reply};
 use hil_sim::pil::PilOptions;
 use hil_sim::scenario::{self, Builtin};
@@ -519,6 +520,88 @@ struct FaultsArgs {
     /// Output directory [default: out/faults].
     #[arg(long, value_parser = non_empty_path)]
     out: Option<PathBuf>,
+    /// Inject every fault this long after its time in the matrix (2.5 s), ms: off the fast
+    /// steps' grid and the supervisor's windows (0 … 1000).
+    #[arg(long, default_value_t = 0.0, value_parser = inject_delay_ms)]
+    inject_delay_ms: f64,
+    /// Another draw of the sensors' noise and offsets (0: the matrix's own).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Only the rows whose "fault at operating point" contains this text (any case), e.g.
+    /// "open phase" or "switch a upper stuck open at mid-speed motoring".
+    #[arg(long)]
+    only: Option<String>,
+    /// Also write each row's trace into OUT/rows/<row>/: every PWM period from 50 ms before
+    /// the injection (trace.csv) and plots of the phase currents against their references,
+    /// the speed and the torque. At most 12 rows: select them with --only.
+    #[arg(long)]
+    trace: bool,
+}
+
+/// The most rows `hil-sim faults --trace` writes (each trace ≈ 3 MB of CSV).
+const MAX_TRACED_ROWS: usize = 12;
+/// `--trace` starts this long before the injection, s.
+const TRACE_LEAD_S: f64 = 0.05;
+
+fn inject_delay_ms(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if (0.0..=1000.0).contains(&x) => Ok(x),
+        _ => Err(format!("`{s}` is not a delay in [0, 1000] ms")),
+    }
+}
+
+/// A row's name as a directory name: lower case, every run of other characters one `-`.
+fn slug(name: &str) -> String {
+    let mut s = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() {
+            s.push(c.to_ascii_lowercase());
+        } else if !s.ends_with('-') {
+            s.push('-');
+        }
+    }
+    s.trim_matches('-').to_string()
+}
+
+/// One fault row's run again, traced from [`TRACE_LEAD_S`] before its injection into
+/// `out/trace.csv` (atomic, as `run`'s), with `phases.svg` (the three phase currents and
+/// their references), `speed.svg` and `torque.svg`.
+fn trace_fault_row(
+    m: &hil_sim::faults::Matrix,
+    row: &hil_sim::faults::RowSpec,
+    out: &Path,
+) -> Result<(), String> {
+    use report::plot::{Series, line_plot};
+    let (k, case, at) = row;
+    let b = m.scenario(*k, case, at);
+    let from_s = m.inject_s() - TRACE_LEAD_S;
+    let expected = (b.scenario.duration_s - from_s) * b.spec.pwm_frequency_hz;
+    let (_, trace) = stream_trace(out, true, expected, |sink| {
+        b.run_into(|_| {}, |r| if r.t_s >= from_s { sink(r) } else { Ok(()) })
+    })?;
+    let rows = &trace.plot;
+    let pts = |f: &dyn Fn(&Row) -> f64| rows.iter().map(|r| (r.t_s, f(r))).collect::<Vec<_>>();
+    let abc = |r: &Row| AlphaBeta { alpha: r.x.i_alpha_a, beta: r.x.i_beta_a }.inverse_clarke();
+    let abc_ref = |r: &Row| AlphaBeta { alpha: r.i_ref_ab_a[0], beta: r.i_ref_ab_a[1] }.inverse_clarke();
+    let colors = ["#1f77b4", "#d62728", "#2ca02c"];
+    let names = [("i_a (A)", "i_a ref (A)"), ("i_b (A)", "i_b ref (A)"), ("i_c (A)", "i_c ref (A)")];
+    let mut phases = Vec::new();
+    for (p, ((name, ref_name), color)) in names.iter().zip(colors).enumerate() {
+        let pick = move |v: Abc<f64>| [v.a, v.b, v.c].get(p).copied().unwrap_or(f64::NAN);
+        phases.push(Series::line(name, pts(&|r| pick(abc(r)))).colored(color));
+        phases.push(Series::dots(ref_name, pts(&|r| pick(abc_ref(r)))).colored(color));
+    }
+    let title = format!("{} at {}: phase currents (dots: references)", case.name, at.name());
+    write_text(&out.join("phases.svg"), &line_plot(&title, "t (s)", &phases))?;
+    let speed = [
+        Series::line("ω_m (rad/s)", pts(&|r| r.x.omega_m_rad_s)),
+        Series::line("ω_ref (rad/s)", pts(&|r| r.omega_ref_rad_s)),
+    ];
+    write_text(&out.join("speed.svg"), &line_plot("Rotor speed", "t (s)", &speed))?;
+    let torque =
+        [Series::line("T_e (N·m)", pts(&|r| r.torque_nm)), Series::line("T_L (N·m)", pts(&|r| r.load_nm))];
+    write_text(&out.join("torque.svg"), &line_plot("Torque", "t (s)", &torque))?;
+    Ok(())
 }
 
 fn faults(a: &FaultsArgs) -> Result<(), String> {
@@ -540,16 +623,55 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
         .board
         .and_then(|b| b.table.comparator)
         .map(|c| hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
-    let total = m.cases()?.len() * m.points().len();
+    m.inject_delay_s = 1e-3 * a.inject_delay_ms;
+    m.seed = a.seed;
+    let all = m.rows()?;
+    let selected: Vec<_> = match &a.only {
+        Some(text) => {
+            let text = text.to_lowercase();
+            let rows: Vec<_> = all
+                .iter()
+                .filter(|(_, c, p)| format!("{} at {}", c.name, p.name()).to_lowercase().contains(&text))
+                .cloned()
+                .collect();
+            if rows.is_empty() {
+                let mut names: Vec<&str> = all.iter().map(|(_, c, _)| c.name).collect();
+                names.dedup();
+                let points: Vec<String> = m.points().iter().map(|p| p.name()).collect();
+                return Err(format!(
+                    "--only {text:?} names no row (\"<fault> at <point>\"; faults: {}; points: {})",
+                    names.join(", "),
+                    points.join(", ")
+                ));
+            }
+            rows
+        }
+        None => all,
+    };
+    if a.trace && selected.len() > MAX_TRACED_ROWS {
+        return Err(format!(
+            "--trace writes at most {MAX_TRACED_ROWS} rows' traces (≈ 3 MB of CSV each), and {} rows are selected: \
+             narrow them with --only",
+            selected.len()
+        ));
+    }
+    let total = selected.len();
     eprintln!(
-        "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s)",
+        "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s{}{})",
         a.drive.display(),
         a.vdc,
-        m.top_speed_rad_s
+        m.top_speed_rad_s,
+        if a.inject_delay_ms > 0.0 {
+            format!(", injected {} ms late", a.inject_delay_ms)
+        } else {
+            String::new()
+        },
+        if a.seed != 0 { format!(", noise seed {}", a.seed) } else { String::new() },
     );
     let start = std::time::Instant::now();
     let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let rows = m.run(
+    let rows = m.run_rows(
+        &selected,
         |done| {
             if tty {
                 eprint!("\rhil-sim: {done}/{total} rows");
@@ -605,6 +727,13 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
         rows.len() - failed - gaps
     );
     eprintln!("hil-sim: wrote faults.md, faults.json, faults.svg in {}", out.display());
+    if a.trace {
+        for row in &selected {
+            let dir = out.join("rows").join(slug(&format!("{} at {}", row.1.name, row.2.name())));
+            trace_fault_row(&m, row, &dir)?;
+            eprintln!("hil-sim: wrote trace.csv, phases.svg, speed.svg, torque.svg in {}", dir.display());
+        }
+    }
     if failed == 0 { Ok(()) } else { Err(format!("{failed} of {} rows failed their criterion", rows.len())) }
 }
 

@@ -449,6 +449,53 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     assert!(String::from_utf8_lossy(&st.stderr).contains("outside the drive's bus range"));
 }
 
+/// `hil-sim faults --only … --trace`: the rows named run as in the whole matrix (their
+/// indices kept), optionally late and on another noise draw, and each row's trace from
+/// 50 ms before its injection is written with its plots; a selection that names nothing,
+/// or a trace of too many rows, is refused before any row runs.
+#[test]
+fn faults_runs_the_rows_named_and_traces_them() {
+    let res = tmp("faults-only");
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let st = bin()
+        .args(["faults", drive, "--only", "OPEN PHASE A at mid-speed", "--trace", "--inject-delay-ms", "0.6"])
+        .args(["--seed", "2", "--out"])
+        .arg(&res)
+        .output()
+        .unwrap();
+    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("faults.json")).unwrap()).unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2, "{rows:?}");
+    for (row, point) in rows.iter().zip(["mid-speed-motoring", "mid-speed-generating"]) {
+        assert_eq!(row["detected"].as_str(), Some("OpenPhase"), "{row}");
+        let dir = res.join("rows").join(format!("open-phase-a-at-{point}"));
+        let csv = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
+        let first_t: f64 = csv.lines().nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+        // From 50 ms before the injection, 2.5 s + 0.6 ms, on the 50 µs grid.
+        assert!((first_t - (2.5006 - 0.05)).abs() <= 50e-6, "{first_t}");
+        assert!(csv.lines().last().unwrap().contains("OpenPhase"));
+        assert!(std::fs::read_to_string(dir.join("phases.svg")).unwrap().contains("i_a ref"));
+    }
+    for (args, code, said) in [
+        (&["--only", "meteor"][..], 1, "names no row"),
+        (&["--trace"][..], 1, "at most 12"),
+        (&["--inject-delay-ms", "NaN"][..], 2, "not a delay"),
+        (&["--inject-delay-ms=-1"][..], 2, "not a delay"),
+        (&["--inject-delay-ms", "1500"][..], 2, "not a delay"),
+    ] {
+        let st = bin().args(["faults", drive]).args(args).arg("--out").arg(&res).output().unwrap();
+        assert_eq!(st.status.code(), Some(code), "{args:?}");
+        assert!(
+            String::from_utf8_lossy(&st.stderr).contains(said),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+    }
+    let _ = std::fs::remove_dir_all(&res);
+}
+
 fn refused_path(dir: &std::path::Path) -> PathBuf {
     dir.join("refused.toml")
 }
