@@ -158,7 +158,7 @@ const Q_BUILD_M4_FW: Step = Step::in_qemu_target(
     &["build", "--target", THUMB, "--profile", "firmware", "--bin", "cost"],
 );
 const Q_COST_FW: Step = Step::qemu(
-    "instructions per step as the firmware ships (profile firmware: opt-level z, fat LTO, controller-core at 3)",
+    "instructions per step as the firmware ships (profile firmware: opt-level z, fat LTO, controller-core at 2)",
     &[
         "-cpu",
         "cortex-m4",
