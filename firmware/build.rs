@@ -1,5 +1,5 @@
-//! Puts the workspace's single `memory.x` on the linker search path; for the board target
-//! also links defmt's section script. Generates `config.rs` from the workspace's drive file
+//! With the `board` feature, puts the workspace's single `memory.x` on the linker search
+//! path and, for the board target, links defmt's section script. Generates `config.rs` from the workspace's drive file
 //! (`drive.toml`, read by the `drive-file` crate — the one source of every constant): the
 //! drive specification, the board constants and the certified ranges of the gains writable
 //! over the link. A bad drive file stops the build with its `file:line:column: key: reason`.
@@ -10,12 +10,17 @@ use std::{env, fs, path::PathBuf};
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").unwrap_or_default());
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
-    let src = root.join("memory.x");
-    if let Err(e) = fs::copy(&src, out.join("memory.x")) {
-        println!("cargo::warning=cannot copy {}: {e}", src.display());
+    // The board's memory map only for the board's binary: a search path set here reaches
+    // every program linked with this crate (`qemu-target`'s, on QEMU's own maps).
+    let board = env::var_os("CARGO_FEATURE_BOARD").is_some();
+    if board {
+        let src = root.join("memory.x");
+        if let Err(e) = fs::copy(&src, out.join("memory.x")) {
+            println!("cargo::warning=cannot copy {}: {e}", src.display());
+        }
+        println!("cargo::rustc-link-search={}", out.display());
+        println!("cargo::rerun-if-changed={}", src.display());
     }
-    println!("cargo::rustc-link-search={}", out.display());
-    println!("cargo::rerun-if-changed={}", src.display());
     println!("cargo::rerun-if-env-changed=FIRMWARE_DRIVE_FILE");
     let name = env::var("FIRMWARE_DRIVE_FILE").unwrap_or_else(|_| "drive.toml".into());
     let drive = root.join(&name);
@@ -31,7 +36,7 @@ fn main() {
         }
         Err(e) => println!("cargo::error={e}"),
     }
-    if env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "none") {
+    if board && env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "none") {
         println!("cargo::rustc-link-arg-bins=-Tdefmt.x");
     }
 }

@@ -48,6 +48,67 @@ mod target {
         (with.saturating_sub(base) * INSTRUCTIONS_PER_TICK) as f32 / N as f32
     }
 
+    /// Instructions per period of the firmware's `ControlLoop::step` on `raw` (the board's
+    /// scalings, `firmware::config::BOARD`): calibrated at rest, enabled, pre-charged and
+    /// magnetized, then Running under a 150 rad/s speed reference; NaN if it never runs. Also
+    /// the calls before the measured ones (calibration, pre-charge, magnetizing and the
+    /// rehearsal's: `tools/qemu_profile.py --skip`).
+    fn control_loop_period(
+        ticks: &Ticks,
+        raw: &controller_core::raw::RawDriveConfig,
+        ts_s: f32,
+    ) -> (f32, u32) {
+        use firmware::config::BOARD;
+        use firmware::control::{CALIBRATION_SAMPLES, ControlLoop, Samples};
+        let Ok(mut c) = ControlLoop::new(raw, &BOARD) else { return (f32::NAN, 0) };
+        let zero = BOARD.current_offset_counts;
+        let code = |i: f32| {
+            let x = f32::from(zero) + i / BOARD.current_a_per_count;
+            x.clamp(0.0, f32::from(BOARD.adc_full_scale)) as u16
+        };
+        // The encoder at 10 rad/s once Running: counts per PWM period.
+        let counts = 4.0 * BOARD.encoder_lines as f32 / core::f32::consts::TAU * 10.0 * ts_s;
+        let sample = |i: AlphaBeta, k: u32| {
+            let i = i.inverse_clarke();
+            Samples {
+                i_abc: [code(i.a), code(i.b), code(i.c)],
+                vdc: 3100,
+                encoder: (k as f32 * counts) as u32 as u16,
+                hardware_break: false,
+            }
+        };
+        for _ in 0..=CALIBRATION_SAMPLES {
+            c.step(&sample(AlphaBeta::default(), 0));
+        }
+        if c.drive_mut().enable().is_err() {
+            return (f32::NAN, 0);
+        }
+        let mut i_ab = AlphaBeta::default();
+        let mut k = 0u32;
+        // At rest until Running (the pre-charge and the magnetizing).
+        while c.drive().mode() != Mode::Running && k < 100_000 {
+            c.step(&sample(i_ab, 0));
+            i_ab = c.drive().telemetry().i_ref_ab_a;
+            k += 1;
+        }
+        if c.drive_mut().set_reference(Reference::Speed(150.0)).is_err() {
+            return (f32::NAN, 0);
+        }
+        let mut samples = [Samples::default(); N as usize];
+        let mut rehearsal = c.clone();
+        for (j, s) in (0u32..).zip(samples.iter_mut()) {
+            *s = sample(i_ab, j);
+            rehearsal.step(s);
+            i_ab = rehearsal.drive().telemetry().i_ref_ab_a;
+        }
+        let period = per_call(ticks, |j| {
+            let s = samples.get((j % N) as usize).copied().unwrap_or_default();
+            black_box(c.step(&black_box(s)));
+        });
+        let before = CALIBRATION_SAMPLES + 1 + k + N;
+        (if c.drive().mode() == Mode::Running { period } else { f32::NAN }, before)
+    }
+
     /// A 12-bit ADC code of a phase current (±16.5 A full scale, offset 2048).
     fn code(i_a: f32) -> AdcCode {
         AdcCode((2048.0 + i_a * (2048.0 / 16.5)) as u16)
@@ -148,6 +209,18 @@ mod target {
         let slow = per_call(&ticks, |k| drive.slow_step(&measure(black_box(input(k)), k0 + N + divider * k)));
         let running = drive.mode() == Mode::Running;
         let fast = period - slow / divider as f32;
+
+        // The firmware's own control-interrupt body, `firmware::control::ControlLoop::step`:
+        // raw samples in (ADC codes, the encoder's counter), the bridge's compare values out,
+        // with what the firmware does around the drive — the pre-charge and calibration
+        // checks, the encoder read at the slow step, the capture's call, the snapshot of the
+        // last output. Only the register accesses (`firmware::output`, board only) are not in
+        // it. The same drive and protection as above, the same kind of currents (what ideal
+        // loops measure, rehearsed on a copy), the encoder turning at 10 rad/s.
+        let (isr, isr_calls_before) = match DriveConfig::new(&spec).map(|c| c.to_raw()) {
+            Ok(raw) => control_loop_period(&ticks, &raw, ts as f32),
+            Err(_) => (f32::NAN, 0),
+        };
 
         // Components alone.
         let adc = per_call(&ticks, |k| {
@@ -301,6 +374,9 @@ mod target {
         println!("cost period {:.1}", period);
         println!("cost fast_step {:.1}", fast);
         println!("cost slow_step {:.1}", slow);
+        println!("cost control_loop_calls_before {isr_calls_before}");
+        println!("cost control_loop_period {:.1}", isr);
+        println!("cost control_loop_fast_step {:.1}", isr - slow / divider as f32);
         println!("cost part:adc_scaling_4ch {:.1}", adc);
         println!("cost part:clarke {:.1}", clarke);
         println!("cost part:icad_two_axes {:.1}", icad);
