@@ -514,9 +514,10 @@ struct FaultsArgs {
     /// A drive file (its [certify] omega_r_max_rad_s sets the top speed, if it has one).
     #[arg(default_value = "drive.toml")]
     drive: PathBuf,
-    /// DC-bus voltage, V.
-    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
-    vdc: f64,
+    /// DC-bus voltage, V [default: 310, or the middle of the drive's bus range
+    /// (`[protection]` vdc_min_v … vdc_max_v) when 310 V lies outside it].
+    #[arg(long, value_parser = positive_volts)]
+    vdc: Option<f64>,
     /// Output directory [default: out/faults].
     #[arg(long, value_parser = non_empty_path)]
     out: Option<PathBuf>,
@@ -538,6 +539,8 @@ struct FaultsArgs {
     trace: bool,
 }
 
+/// The bus `hil-sim faults` runs on without `--vdc`, when the drive's range holds it, V.
+const DEFAULT_VDC_V: f64 = 310.0;
 /// The most rows `hil-sim faults --trace` writes (each trace ≈ 3 MB of CSV).
 const MAX_TRACED_ROWS: usize = 12;
 /// `--trace` starts this long before the injection, s.
@@ -608,17 +611,30 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     use hil_sim::faults::Matrix;
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
     let p = &file.spec.protection;
-    if !(a.vdc > p.vdc_min_v && a.vdc < p.vdc_max_v) {
-        return Err(format!(
-            "--vdc {} V lies outside the drive's bus range ({} … {} V of [protection]): every row would trip before its fault",
-            a.vdc, p.vdc_min_v, p.vdc_max_v
-        ));
-    }
+    let inside = |v: f64| v > p.vdc_min_v && v < p.vdc_max_v;
+    let vdc = match a.vdc {
+        Some(v) if !inside(v) => {
+            return Err(format!(
+                "--vdc {v} V lies outside the drive's bus range ({} … {} V of [protection]): every row would trip before its fault",
+                p.vdc_min_v, p.vdc_max_v
+            ));
+        }
+        Some(v) => v,
+        None if inside(DEFAULT_VDC_V) => DEFAULT_VDC_V,
+        None => {
+            let v = 0.5 * (p.vdc_min_v + p.vdc_max_v);
+            eprintln!(
+                "hil-sim: {DEFAULT_VDC_V} V lies outside the drive's bus range ({} … {} V): the matrix runs on {v} V (--vdc to choose)",
+                p.vdc_min_v, p.vdc_max_v
+            );
+            v
+        }
+    };
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/faults"));
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     // Without [certify], the top speed is twice the base speed (the field-weakening range).
     let omega_r_max = file.certify.map_or(f64::INFINITY, |c| c.omega_r_max_rad_s);
-    let mut m = Matrix::new(file.spec, omega_r_max, a.vdc);
+    let mut m = Matrix::new(file.spec, omega_r_max, vdc);
     m.comparator = file
         .board
         .and_then(|b| b.table.comparator)
@@ -659,7 +675,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     eprintln!(
         "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s{}{})",
         a.drive.display(),
-        a.vdc,
+        vdc,
         m.top_speed_rad_s,
         if a.inject_delay_ms > 0.0 {
             format!(", injected {} ms late", a.inject_delay_ms)
