@@ -264,6 +264,11 @@ pub struct Matrix {
 /// One row of the matrix: its index (which seeds its sensors), the fault and the point.
 pub type RowSpec = (u64, Case, OperatingPoint);
 
+/// A row's name, "<fault> at <operating point>" (what `hil-sim faults --only` matches).
+pub fn row_name(case: &Case, at: &OperatingPoint) -> String {
+    format!("{} at {}", case.name, at.name())
+}
+
 /// The short injected: two terminals through 0.05 Ω and 20 µH (a few metres of cable).
 pub const SHORT: PhaseShort = PhaseShort { phases: [0, 1], resistance_ohm: 0.05, inductance_h: 20e-6 };
 
@@ -549,7 +554,7 @@ impl Matrix {
         };
         Builtin {
             name: format!("faults-{k}"),
-            about: format!("{} at {}", case.name, at.name()),
+            about: row_name(case, at),
             spec: self.spec,
             plant: self.spec.motor,
             scenario: Scenario {

@@ -647,7 +647,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
             let text = text.to_lowercase();
             let rows: Vec<_> = all
                 .iter()
-                .filter(|(_, c, p)| format!("{} at {}", c.name, p.name()).to_lowercase().contains(&text))
+                .filter(|(_, c, p)| hil_sim::faults::row_name(c, p).to_lowercase().contains(&text))
                 .cloned()
                 .collect();
             if rows.is_empty() {
@@ -745,7 +745,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     eprintln!("hil-sim: wrote faults.md, faults.json, faults.svg in {}", out.display());
     if a.trace {
         for row in &selected {
-            let dir = out.join("rows").join(slug(&format!("{} at {}", row.1.name, row.2.name())));
+            let dir = out.join("rows").join(slug(&hil_sim::faults::row_name(&row.1, &row.2)));
             trace_fault_row(&m, row, &dir)?;
             eprintln!("hil-sim: wrote trace.csv, phases.svg, speed.svg, torque.svg in {}", dir.display());
         }

@@ -136,6 +136,8 @@ mod target {
         spec.protection.following_time_s = 1e6;
         spec.protection.stall_time_s = 1e6;
         let Ok(cfg) = DriveConfig::new(&spec) else { sh::exit(false) };
+        // The same configuration for the firmware's loop below, as the firmware embeds it.
+        let raw = cfg.to_raw();
         let ts = 1.0 / spec.pwm_frequency_hz;
         // Inputs: a 1.5 A current vector rotating at 0.01 rad per sample.
         let current = |k: u32| {
@@ -217,10 +219,7 @@ mod target {
         // last output. Only the register accesses (`firmware::output`, board only) are not in
         // it. The same drive and protection as above, the same kind of currents (what ideal
         // loops measure, rehearsed on a copy), the encoder turning at 10 rad/s.
-        let (isr, isr_calls_before) = match DriveConfig::new(&spec).map(|c| c.to_raw()) {
-            Ok(raw) => control_loop_period(&ticks, &raw, ts as f32),
-            Err(_) => (f32::NAN, 0),
-        };
+        let (isr, isr_calls_before) = control_loop_period(&ticks, &raw, ts as f32);
 
         // Components alone.
         let adc = per_call(&ticks, |k| {
