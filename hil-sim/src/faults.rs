@@ -264,7 +264,7 @@ pub struct Matrix {
 /// One row of the matrix: its index (which seeds its sensors), the fault and the point.
 pub type RowSpec = (u64, Case, OperatingPoint);
 
-/// A row's name, "<fault> at <operating point>" (what `hil-sim faults --only` matches).
+/// A row's name, `"<fault> at <operating point>"` (what `hil-sim faults --only` matches).
 pub fn row_name(case: &Case, at: &OperatingPoint) -> String {
     format!("{} at {}", case.name, at.name())
 }
