@@ -37,8 +37,8 @@
 //! `current_sum_max_a` (a dead or drifting sensor), a bus voltage above `vdc_max_v`, or —
 //! when the bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases
 //! off in the same step. In the slow step: overspeed (|ω_m| above `overspeed_rad_s` while
-//! active) and stall (the speed loop's output at its limit with the rotor below 0.5 % of the
-//! overspeed level for `stall_time_s`), speed-following error (the speed loop at its limit
+//! active) and stall (the speed loop's output at its limit, or a speed reference above 5 %
+//! of the overspeed level, with the rotor below 0.5 % of it for `stall_time_s`), speed-following error (the speed loop at its limit
 //! for `following_time_s` while the speed moved *against* the commanded torque by more than
 //! a tenth of what that torque would do to the drive's inertia: a load beyond the drive
 //! drags the motor away from its reference); after the modulator, loss of control (the current
@@ -75,7 +75,8 @@ pub struct Protection {
     pub vdc_max_v: f64,
     /// Overspeed trip: |ω_m| above this while the bridge is active, mechanical rad/s.
     pub overspeed_rad_s: f64,
-    /// Stall trip: the speed loop's output at its limit while |ω_m| stays below
+    /// Stall trip: the speed loop's output at its limit, or a speed reference at least
+    /// [`STALL_REFERENCE_FACTOR`] × the "not moving" level, while |ω_m| stays below
     /// [`STALL_SPEED_FRACTION`] of `overspeed_rad_s` for this long, s.
     pub stall_time_s: f64,
     /// Speed-following error ([`Fault::FollowingError`]): the speed loop at its limit, the
@@ -279,6 +280,17 @@ pub const PINNED_FIELD_TURN_RAD: f32 = 0.4;
 
 /// "Not moving" for the stall check: below this fraction of the overspeed level.
 pub const STALL_SPEED_FRACTION: f64 = 0.005;
+
+/// The stall check's "asked to move": the speed loop at its limit, or a speed reference at
+/// least this multiple of the "not moving" level ([`STALL_SPEED_FRACTION`]: 5 % of the
+/// overspeed level). The limit alone missed a seized rotor under a soft proportional law
+/// (drives/em-synergy-24v.toml: 0.001 N·m per rad/s saturates only 120 rad/s from its
+/// reference, and its mid-speed point is 109 rad/s) — found by its fault matrix. A speed
+/// reference only: a position hold under a load asks its speed loop for the speed whose
+/// torque holds the load (30 rad/s for that law under a quarter of its τ_max) with the rotor
+/// rightly at rest — that tripped; a seized rotor under a position command saturates the
+/// loop once the position loop's speed reference reaches its limit.
+pub const STALL_REFERENCE_FACTOR: f32 = 10.0;
 
 /// The following-error check's margin: over a window of `following_time_s` at the speed
 /// loop's limit, the speed may move against the commanded torque by at most this fraction
@@ -1926,7 +1938,12 @@ impl Drive {
             return;
         }
         let commanding_motion = matches!(self.reference, Reference::Speed(_) | Reference::Position(_));
-        if commanding_motion && self.speed_saturated && m.omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
+        // Asked to move: the loop at its limit, or a speed reference well above "not moving"
+        // (a proportional law too soft to saturate still commands a seized rotor to turn).
+        let asked = self.speed_saturated
+            || matches!(self.reference, Reference::Speed(w)
+                if w.abs() >= STALL_REFERENCE_FACTOR * self.cfg.stall_speed_rad_s);
+        if commanding_motion && asked && m.omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
             self.stall_steps = self.stall_steps.saturating_add(1);
             if self.stall_steps >= self.cfg.stall_slow_steps {
                 self.trip(Fault::Stall);

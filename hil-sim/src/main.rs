@@ -651,7 +651,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
                 .cloned()
                 .collect();
             if rows.is_empty() {
-                let mut names: Vec<&str> = all.iter().map(|(_, c, _)| c.name).collect();
+                let mut names: Vec<String> = all.iter().map(|(_, c, _)| c.title()).collect();
                 names.dedup();
                 let points: Vec<String> = m.points().iter().map(|p| p.name()).collect();
                 return Err(format!(
@@ -724,7 +724,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
         let (off, leg, failures) = o.cells();
         println!(
             "{:<30} {:<22} {:>8.1} {:<40} {:<30} {off:>4} {:>7.2} {leg:>7} {:>9.3} {:<22} {}{failures}",
-            o.case.name,
+            o.case.title(),
             o.at.name(),
             o.speed_at_injection_rad_s,
             o.asked(),

@@ -270,3 +270,78 @@ fn the_gap_list_names_its_operating_points() {
     );
     assert!(!md.contains("at standstill:"), "{md}");
 }
+
+fn drive_file(name: &str, vdc_v: f64) -> Matrix {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(name);
+    let d = drive_file::DriveFile::load(&path).unwrap();
+    Matrix::new(d.spec, d.certify.unwrap().omega_r_max_rad_s, vdc_v)
+}
+
+/// The matrix's times come from the drive: the shipped drive keeps 0.25 s and 2.5 s (its
+/// rotor magnetizes in 1.25 × T_r·ln 20 = 0.24 s, its slowest point settles within 1.72 s
+/// on the ideal loop); the 3 300 V drive's rotor (T_r 0.78 s) would still be magnetizing
+/// at 0.25 s — its standstill hold drifted to 58 rad/s under a load that came with the
+/// torque held at zero —, so its reference waits 1.25 × T_r·ln 20 and its injection the
+/// slowest point's settling time more, plus half a second.
+#[test]
+fn the_matrix_times_each_drive_from_its_rotor_and_its_speed_law() {
+    let m = shipped();
+    assert_eq!((m.reference_s(), m.inject_s()), (0.25, 2.5));
+    let k = drive_file("drives/krause-3300v.toml", 3300.0);
+    let magnetizing_s = 1.25 * k.spec.motor.tr_s() * 20f64.ln();
+    assert!(magnetizing_s > 1.0, "{magnetizing_s}");
+    assert!((k.reference_s() - magnetizing_s).abs() < 1e-12, "{}", k.reference_s());
+    let settle_s = k.points().iter().map(|p| k.approach(p).unwrap().settle_s).fold(0.0, f64::max);
+    assert!(settle_s > 1.0, "{settle_s}");
+    assert!((k.inject_s() - (magnetizing_s + settle_s + 0.5)).abs() < 1e-12, "{}", k.inject_s());
+}
+
+/// A point the drive has not reached at the injection is a failed row with its reason —
+/// the whole matrix used to stop at it. Here the shipped drive's mid-speed fault comes
+/// 0.1 s after its reference, while it still accelerates.
+#[test]
+fn a_point_not_reached_is_a_failed_row() {
+    let mut m = shipped();
+    m.inject_delay_s = 0.35 - m.inject_s();
+    let (c, at) = (case(&m, "encoder glitch"), point(&m, Point::Mid, true));
+    let o = m.run_one(1, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+    assert_eq!(o.verdict(), "FAIL");
+    assert!(o.failures[0].starts_with("the operating point was not reached"), "{:?}", o.failures);
+    assert!(o.speed_at_injection_rad_s < 0.5 * at.speed_rad_s, "{}", o.speed_at_injection_rad_s);
+}
+
+/// The bus and sensor cases are the drive's levels: the shipped drive's (sag to 150 V,
+/// surge to 450 V from its 200/400 V limits, a sensor stuck at 1 A or drifting by 0.5 A of
+/// its 8 A trip level) and the 24 V drive's, which "sag to 150 V" would have overvolted.
+#[test]
+fn the_bus_and_sensor_cases_scale_with_the_drive() {
+    let titles = |m: &Matrix| -> Vec<String> { m.cases().unwrap().iter().map(Case::title).collect() };
+    let shipped = titles(&shipped());
+    for t in ["bus sag to 150 V", "bus surge to 450 V", "sensor b stuck at 1 A", "sensor b offset +0.5 A"] {
+        assert!(shipped.iter().any(|s| s == t), "{t} in {shipped:?}");
+    }
+    let small = titles(&drive_file("drives/em-synergy-24v.toml", 24.0));
+    for t in ["bus sag to 14 V", "bus surge to 34 V"] {
+        assert!(small.iter().any(|s| s == t), "{t} in {small:?}");
+    }
+}
+
+/// A rotor seized at mid-speed under the 24 V drive's soft speed law (0.001 N·m per rad/s,
+/// τ_max 0.12 N·m: saturated only 120 rad/s below its reference) ran on, Running, with no
+/// trip: the stall check asked for the loop at its limit. Now a speed reference well above
+/// "not moving" counts: `Stall` within the 0.5 s (`drive::STALL_REFERENCE_FACTOR`).
+#[test]
+fn a_seized_rotor_under_a_soft_speed_law_is_a_stall() {
+    let m = drive_file("drives/em-synergy-24v.toml", 24.0);
+    let (c, at) = (case(&m, "load seizure"), point(&m, Point::Mid, true));
+    let o = m.run_one(1, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+    assert!(o.passed(), "{:?}", o.failures);
+    let (f, t) = o.detected.unwrap();
+    assert_eq!(f, Fault::Stall);
+    assert!(t <= 0.5, "{t}");
+    // A position hold under its load asks that law for 30 rad/s with the rotor rightly at
+    // rest: no stall (the speed reference of a position hold does not count).
+    let (c, at) = (case(&m, "R_r step"), point(&m, Point::Standstill, true));
+    let o = m.run_one(2, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+    assert!(o.passed(), "{:?}", o.failures);
+}
