@@ -215,6 +215,8 @@ pub struct Outcome {
     /// first use (`None`: never within the observation), a short's first period above the
     /// trip level (the injection if never); other faults 0.
     pub acting_after_s: Option<f64>,
+    /// A fault latched before the injection (a failed row): its time, s from the start.
+    pub tripped_before_s: Option<f64>,
     /// PWM periods from the detection to the bridge off (0: off from the next period).
     pub off_after_periods: Option<u64>,
     /// Peak true phase current after the injection, A.
@@ -724,7 +726,7 @@ impl Matrix {
         let mut detected: Option<(Fault, f64)> = None;
         let mut off_after: Option<u64> = None;
         let (mut peak, mut peak_leg, mut energy) = (0.0f64, 0.0f64, 0.0f64);
-        let mut before_injection_fault: Option<Mode> = None;
+        let mut before_injection_fault: Option<(Mode, f64)> = None;
         let mut mode_at_reference: Option<Mode> = None;
         let mut acting_at: Option<f64> = None;
         // The first period a phase's or a leg's current was above the trip level.
@@ -741,8 +743,10 @@ impl Matrix {
                     mode_at_reference = r.mode;
                 }
                 if r.t_s < self.inject_s() {
-                    if before_injection_fault.is_none() && matches!(r.mode, Some(Mode::Fault(_))) {
-                        before_injection_fault = r.mode;
+                    if before_injection_fault.is_none()
+                        && let Some(mode @ Mode::Fault(_)) = r.mode
+                    {
+                        before_injection_fault = Some((mode, r.t_s));
                     }
                     return Ok(());
                 }
@@ -778,8 +782,8 @@ impl Matrix {
         // A row whose point the drive did not reach is a failed row with its reason (the
         // judgement below still runs: what it shows is stated, not trusted).
         let mut failures = Vec::new();
-        if let Some(mode) = before_injection_fault {
-            failures.push(format!("{mode:?} before the injection"));
+        if let Some((mode, t)) = before_injection_fault {
+            failures.push(format!("{mode:?} before the injection (at {t:.4} s)"));
         }
         if let Some(mode) = mode_at_reference.filter(|m| *m != Mode::Running) {
             failures.push(format!("{mode:?}, not Running, when the reference came"));
@@ -859,6 +863,7 @@ impl Matrix {
             speed_at_injection_rad_s: speed_at_injection,
             detected,
             acting_after_s,
+            tripped_before_s: before_injection_fault.map(|(_, t)| t),
             off_after_periods: off_after,
             peak_current_a: peak,
             peak_leg_a: peak_leg,
@@ -931,6 +936,7 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
             "detected": o.detected.map(|(f, _)| format!("{f:?}")),
             "detection_time_s": o.detected.map(|(_, t)| t),
             "bound_from_s": o.acting_after_s,
+            "tripped_before_injection_at_s": o.tripped_before_s,
             "bridge_off_after_periods": o.off_after_periods,
             "peak_current_a": o.peak_current_a,
             "peak_leg_current_a": o.peak_leg_a,

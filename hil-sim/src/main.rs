@@ -533,7 +533,7 @@ struct FaultsArgs {
     #[arg(long)]
     only: Option<String>,
     /// Also write each row's trace into OUT/rows/<row>/: every PWM period from 50 ms before
-    /// the injection (trace.csv) and plots of the phase currents against their references,
+    /// the injection, or before a fault latched earlier (trace.csv), and plots of the phase currents against their references,
     /// the speed and the torque. At most 12 rows: select them with --only.
     #[arg(long)]
     trace: bool,
@@ -543,7 +543,7 @@ struct FaultsArgs {
 const DEFAULT_VDC_V: f64 = 310.0;
 /// The most rows `hil-sim faults --trace` writes (each trace ≈ 3 MB of CSV).
 const MAX_TRACED_ROWS: usize = 12;
-/// `--trace` starts this long before the injection, s.
+/// `--trace` starts this long before the injection (or an earlier fault), s.
 const TRACE_LEAD_S: f64 = 0.05;
 
 fn inject_delay_ms(s: &str) -> Result<f64, String> {
@@ -566,18 +566,20 @@ fn slug(name: &str) -> String {
     s.trim_matches('-').to_string()
 }
 
-/// One fault row's run again, traced from [`TRACE_LEAD_S`] before its injection into
+/// One fault row's run again, traced from [`TRACE_LEAD_S`] before its injection — or before
+/// the fault its first run latched earlier (`tripped_before_s`: a failed row) — into
 /// `out/trace.csv` (atomic, as `run`'s), with `phases.svg` (the three phase currents and
 /// their references), `speed.svg` and `torque.svg`.
 fn trace_fault_row(
     m: &hil_sim::faults::Matrix,
     row: &hil_sim::faults::RowSpec,
+    tripped_before_s: Option<f64>,
     out: &Path,
 ) -> Result<(), String> {
     use report::plot::{Series, line_plot};
     let (k, case, at) = row;
     let b = m.scenario(*k, case, at);
-    let from_s = m.inject_s() - TRACE_LEAD_S;
+    let from_s = tripped_before_s.unwrap_or(f64::INFINITY).min(m.inject_s()) - TRACE_LEAD_S;
     let expected = (b.scenario.duration_s - from_s) * b.spec.pwm_frequency_hz;
     let (_, trace) = stream_trace(out, true, expected, |sink| {
         b.run_into(|_| {}, |r| if r.t_s >= from_s { sink(r) } else { Ok(()) })
@@ -594,7 +596,7 @@ fn trace_fault_row(
         phases.push(Series::line(name, pts(&|r| pick(abc(r)))).colored(color));
         phases.push(Series::dots(ref_name, pts(&|r| pick(abc_ref(r)))).colored(color));
     }
-    let title = format!("{} at {}: phase currents (dots: references)", case.name, at.name());
+    let title = format!("{}: phase currents (dots: references)", hil_sim::faults::row_name(case, at));
     write_text(&out.join("phases.svg"), &line_plot(&title, "t (s)", &phases))?;
     let speed = [
         Series::line("ω_m (rad/s)", pts(&|r| r.x.omega_m_rad_s)),
@@ -744,9 +746,9 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     );
     eprintln!("hil-sim: wrote faults.md, faults.json, faults.svg in {}", out.display());
     if a.trace {
-        for row in &selected {
+        for (row, o) in selected.iter().zip(&rows) {
             let dir = out.join("rows").join(slug(&hil_sim::faults::row_name(&row.1, &row.2)));
-            trace_fault_row(&m, row, &dir)?;
+            trace_fault_row(&m, row, o.tripped_before_s, &dir)?;
             eprintln!("hil-sim: wrote trace.csv, phases.svg, speed.svg, torque.svg in {}", dir.display());
         }
     }

@@ -478,8 +478,7 @@ fn faults_runs_the_rows_named_and_traces_them() {
         assert!(csv.lines().last().unwrap().contains("OpenPhase"));
         assert!(std::fs::read_to_string(dir.join("phases.svg")).unwrap().contains("i_a ref"));
     }
-    // A drive whose bus range excludes the default 310 V runs on the middle of its range (at
-    // rest: its mid and top speeds are not reached within the matrix's 2.25 s, issue 18 note).
+    // A drive whose bus range excludes the default 310 V runs on the middle of its range.
     let small = concat!(env!("CARGO_MANIFEST_DIR"), "/../drives/em-synergy-24v.toml");
     let st = bin()
         .args(["faults", small, "--only", "sensor b dead at standstill", "--out"])
@@ -506,6 +505,45 @@ fn faults_runs_the_rows_named_and_traces_them() {
             String::from_utf8_lossy(&st.stderr)
         );
     }
+    let _ = std::fs::remove_dir_all(&res);
+}
+
+/// A row that latches a fault before its injection is a failed row (exit 1, the time said),
+/// and its trace starts 50 ms before that fault, not before the injection, where it would
+/// show only the bridge off. Here the shipped drive with its overspeed level at 250 rad/s,
+/// below its 331.2 rad/s top-speed point: `Overspeed` on the way there.
+#[test]
+fn faults_traces_a_row_that_trips_before_its_injection_from_that_trip() {
+    let res = tmp("faults-early");
+    std::fs::create_dir_all(&res).unwrap();
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml")).unwrap();
+    let low = text.replace("[protection]\n", "[protection]\noverspeed_rad_s = 250.0\n");
+    assert_ne!(low, text);
+    let drive = res.join("low-overspeed.toml");
+    std::fs::write(&drive, low).unwrap();
+    let st = bin()
+        .arg("faults")
+        .arg(&drive)
+        .args(["--only", "encoder glitch 100 counts at top speed motoring", "--trace", "--out"])
+        .arg(&res)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1), "{}", String::from_utf8_lossy(&st.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("faults.json")).unwrap()).unwrap();
+    let row = &json["rows"][0];
+    let tripped = row["tripped_before_injection_at_s"].as_f64().unwrap();
+    assert!(tripped > 0.25 && tripped < 2.5, "{row}");
+    assert!(
+        row["failures"][0].as_str().unwrap().starts_with("Fault(Overspeed) before the injection"),
+        "{row}"
+    );
+    let csv = std::fs::read_to_string(
+        res.join("rows").join("encoder-glitch-100-counts-at-top-speed-motoring").join("trace.csv"),
+    )
+    .unwrap();
+    let first_t: f64 = csv.lines().nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+    assert!((first_t - (tripped - 0.05)).abs() <= 50e-6, "{first_t} against {tripped}");
     let _ = std::fs::remove_dir_all(&res);
 }
 
