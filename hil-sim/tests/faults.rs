@@ -336,6 +336,16 @@ fn a_seized_rotor_under_a_soft_speed_law_is_a_stall() {
     let (c, at) = (case(&m, "load seizure"), point(&m, Point::Mid, true));
     let o = m.run_one(1, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
     assert!(o.passed(), "{:?}", o.failures);
+    // The point is where that law settles under the quarter load on the ideal loop (65.3
+    // of 108.6 rad/s): within 1 rad/s of it, 43 rad/s below the reference the matrix once
+    // judged it against.
+    let settles = m.approach(&at).unwrap().final_rad_s;
+    assert!(
+        (o.speed_at_injection_rad_s - settles).abs() < 1.0,
+        "{} vs {settles}",
+        o.speed_at_injection_rad_s
+    );
+    assert!(at.speed_rad_s - o.speed_at_injection_rad_s > 40.0, "{}", o.speed_at_injection_rad_s);
     let (f, t) = o.detected.unwrap();
     assert_eq!(f, Fault::Stall);
     assert!(t <= 0.5, "{t}");
