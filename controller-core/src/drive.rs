@@ -38,10 +38,11 @@
 //! when the bridge is active — below `vdc_min_v`, latches a [`Fault`] and turns all phases
 //! off in the same step. In the slow step: overspeed (|ω_m| above `overspeed_rad_s` while
 //! active) and stall (the speed loop's output at its limit, or a speed reference above 5 %
-//! of the overspeed level, with the rotor below 0.5 % of it for `stall_time_s`), speed-following error (the speed loop at its limit
-//! for `following_time_s` while the speed moved *against* the commanded torque by more than
-//! a tenth of what that torque would do to the drive's inertia: a load beyond the drive
-//! drags the motor away from its reference); after the modulator, loss of control (the current
+//! of the overspeed level, with the rotor below 0.5 % of it for `stall_time_s`),
+//! speed-following error (the speed loop at its limit for `following_time_s` while the
+//! speed moved *against* the commanded torque by more than a tenth of what that torque would
+//! do to the drive's inertia: a load beyond the drive drags the motor away from its
+//! reference); after the modulator, loss of control (the current
 //! loops at their voltage limit for `saturation_time_s`), and once per slow period the
 //! encoder against the machine model ([`Fault::EncoderImplausible`]). Magnetizing ends when the
 //! flux model — on the measured current — reaches the running flux; if it has not within twice

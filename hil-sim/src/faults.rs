@@ -312,6 +312,9 @@ pub struct Matrix {
     /// The reference's time and the injection's (before its delay), s: made once by
     /// [`Matrix::new`] from the drive ([`Matrix::reference_s`], [`Matrix::inject_s`]).
     times_s: (f64, f64),
+    /// The six points' [`Approach`]es, made once by [`Matrix::new`] (the times and every
+    /// row's "reached" read them).
+    approaches: Vec<(OperatingPoint, Result<Approach, String>)>,
 }
 
 /// What the drive's speed law does on an ideal torque actuator from rest under an operating
@@ -369,14 +372,16 @@ impl Matrix {
             inject_delay_s: 0.0,
             seed: 0,
             times_s: (REFERENCE_S, INJECT_S),
+            approaches: Vec::new(),
         };
         // The flux model's time to the magnetized fraction on its reference current.
         let f = spec.magnetized_fraction;
         let magnetizing_s = MAGNETIZING_MARGIN * m.spec.motor.tr_s() * (1.0 / (1.0 - f)).ln();
         let reference_s = REFERENCE_S.max(magnetizing_s);
+        m.approaches = m.points().into_iter().map(|p| (p, m.ideal_approach(&p))).collect();
         // A law that does not run on the ideal loop: the rows say so (`Matrix::run_one`).
         let settle_s =
-            m.points().iter().filter_map(|p| m.approach(p).ok()).map(|a| a.settle_s).fold(0.0, f64::max);
+            m.approaches.iter().filter_map(|(_, a)| a.as_ref().ok()).map(|a| a.settle_s).fold(0.0, f64::max);
         m.times_s = (reference_s, INJECT_S.max(reference_s + settle_s + SETTLE_EXTRA_S));
         m
     }
@@ -390,8 +395,17 @@ impl Matrix {
         self.times_s.0
     }
 
-    /// `at`'s [`Approach`] (standstill, a position hold: at rest at once).
+    /// `at`'s [`Approach`] (standstill, a position hold: at rest at once): one of the six
+    /// points' made by [`Matrix::new`], another point's worked out now.
     pub fn approach(&self, at: &OperatingPoint) -> Result<Approach, String> {
+        match self.approaches.iter().find(|(p, _)| p == at) {
+            Some((_, a)) => a.clone(),
+            None => self.ideal_approach(at),
+        }
+    }
+
+    /// [`Matrix::approach`] worked out: the drive's speed law on the ideal loop from rest.
+    fn ideal_approach(&self, at: &OperatingPoint) -> Result<Approach, String> {
         if at.point == Point::Standstill {
             return Ok(Approach { final_rad_s: 0.0, settle_s: 0.0 });
         }
@@ -755,10 +769,10 @@ impl Matrix {
                     speed_at_injection = r.x.omega_m_rad_s;
                 }
                 let i = AlphaBeta { alpha: r.x.i_alpha_a, beta: r.x.i_beta_a }.inverse_clarke();
-                peak = peak.max(i.a.abs()).max(i.b.abs()).max(i.c.abs());
+                let phase_peak = i.a.abs().max(i.b.abs()).max(i.c.abs());
+                peak = peak.max(phase_peak);
                 peak_leg = peak_leg.max(r.i_leg_peak_a);
-                let row_peak = i.a.abs().max(i.b.abs()).max(i.c.abs()).max(r.i_leg_peak_a);
-                if over_trip_at.is_none() && row_peak > i_trip {
+                if over_trip_at.is_none() && phase_peak.max(r.i_leg_peak_a) > i_trip {
                     over_trip_at = Some(r.t_s - t0);
                 }
                 if acting_at.is_none() && r.switch_acting {

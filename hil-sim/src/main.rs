@@ -521,8 +521,9 @@ struct FaultsArgs {
     /// Output directory [default: out/faults].
     #[arg(long, value_parser = non_empty_path)]
     out: Option<PathBuf>,
-    /// Inject every fault this long after its time in the matrix (2.5 s), ms: off the fast
-    /// steps' grid and the supervisor's windows (0 … 1000).
+    /// Inject every fault this long after its time in the matrix (2.5 s, later for a drive
+    /// slower to magnetize or to settle), ms: off the fast steps' grid and the supervisor's
+    /// windows (0 … 1000).
     #[arg(long, default_value_t = 0.0, value_parser = inject_delay_ms)]
     inject_delay_ms: f64,
     /// Another draw of the sensors' noise and offsets (0: the matrix's own).
@@ -533,8 +534,9 @@ struct FaultsArgs {
     #[arg(long)]
     only: Option<String>,
     /// Also write each row's trace into OUT/rows/<row>/: every PWM period from 50 ms before
-    /// the injection, or before a fault latched earlier (trace.csv), and plots of the phase currents against their references,
-    /// the speed and the torque. At most 12 rows: select them with --only.
+    /// the injection, or before a fault latched earlier (trace.csv), and plots of the phase
+    /// currents against their references, the speed and the torque. At most 12 rows: select
+    /// them with --only.
     #[arg(long)]
     trace: bool,
 }
