@@ -892,7 +892,7 @@ impl Matrix {
 pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
     let mut s = format!(
         "# Fault-injection matrix\n\n`hil-sim faults`: {} rows, {} V bus, trip level {} A, top speed {:.1} rad/s, \
-         faults injected at {:.4} s, noise seed {} (hil_sim::faults). Gaps are stated with their reason below the \
+         references at {:.4} s, faults injected at {:.4} s, noise seed {} (hil_sim::faults). Gaps are stated with their reason below the \
          table.\n\n\
          | fault injected | operating point | ω at injection (rad/s) | asked | detected as | bridge off after (periods) \
          | peak \\|i\\| (A) | peak / trip | peak leg \\|i\\| (A) | energy into bus (J) | final state | verdict |\n\
@@ -901,6 +901,7 @@ pub fn markdown(m: &Matrix, rows: &[Outcome]) -> String {
         m.vdc_v,
         m.spec.protection.i_trip_a,
         m.top_speed_rad_s,
+        m.reference_s(),
         m.inject_s(),
         m.seed
     );
@@ -949,6 +950,7 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
             "asked": o.asked(),
             "detected": o.detected.map(|(f, _)| format!("{f:?}")),
             "detection_time_s": o.detected.map(|(_, t)| t),
+            "settles_at_rad_s": m.approach(&o.at).ok().map(|a| a.final_rad_s),
             "bound_from_s": o.acting_after_s,
             "tripped_before_injection_at_s": o.tripped_before_s,
             "bridge_off_after_periods": o.off_after_periods,
@@ -964,6 +966,7 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
     serde_json::json!({
         "vdc_v": m.vdc_v,
         "top_speed_rad_s": m.top_speed_rad_s,
+        "reference_s": m.reference_s(),
         "inject_s": m.inject_s(),
         "noise_seed": m.seed,
         "rows": rows.iter().map(row).collect::<Vec<_>>(),

@@ -490,6 +490,10 @@ fn faults_runs_the_rows_named_and_traces_them() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(res.join("faults.json")).unwrap()).unwrap();
     assert_eq!(json["vdc_v"].as_f64(), Some(24.0));
+    // Its times (its rotor magnetizes within 0.25 s, its points settle by 2.5 s) and the
+    // standstill point's settled speed, a position hold's.
+    assert_eq!((json["reference_s"].as_f64(), json["inject_s"].as_f64()), (Some(0.25), Some(2.5)));
+    assert_eq!(json["rows"][0]["settles_at_rad_s"].as_f64(), Some(0.0));
     for (args, code, said) in [
         (&["--only", "meteor"][..], 1, "names no row"),
         (&["--trace"][..], 1, "at most 12"),
