@@ -75,6 +75,40 @@ impl AdcScaling {
     }
 }
 
+/// The dead-time generator's setting (STM32 advanced timers' BDTR.DTG, RM0440 §28.6.20) for
+/// at least `ticks` timer clocks with CKD = 00 (t_DTS = t_CK_INT), the least such:
+/// `DTG[7:5]` = 0xx gives DTG·1 (0 … 127), 10x (64 + `DTG[5:0]`)·2 (128 … 254), 110
+/// (32 + `DTG[4:0]`)·8 (256 … 504), 111 (32 + `DTG[4:0]`)·16 (512 … 1 008). `None` above
+/// 1 008 ticks (5.9 µs at 170 MHz). The firmware evaluates it at compile time for the drive
+/// file's dead time; the drive file compensates what it gives ([`dead_time_dtg_ticks`]).
+pub const fn dead_time_dtg(ticks: u16) -> Option<u8> {
+    let t = ticks as u32;
+    if t <= 127 {
+        Some(t as u8)
+    } else if t <= 254 {
+        Some(0b1000_0000 | (t.div_ceil(2) - 64) as u8)
+    } else if t <= 504 {
+        Some(0b1100_0000 | (t.div_ceil(8) - 32) as u8)
+    } else if t <= 1008 {
+        Some(0b1110_0000 | (t.div_ceil(16) - 32) as u8)
+    } else {
+        None
+    }
+}
+
+/// The dead time a [`dead_time_dtg`] code gives, timer clocks (CKD = 00): above 127 ticks
+/// the generator's steps are 2, 8 and 16 ticks, so the dead time the bridge gets — the one
+/// to compensate — can be up to 15 ticks longer than asked.
+pub const fn dead_time_dtg_ticks(dtg: u8) -> u16 {
+    let d = dtg as u16;
+    match dtg >> 5 {
+        0..=3 => d,
+        4 | 5 => (64 + (d & 0x3F)) * 2,
+        6 => (32 + (d & 0x1F)) * 8,
+        _ => (32 + (d & 0x1F)) * 16,
+    }
+}
+
 /// Centre-aligned PWM compare scaling: compare = duty·period.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PwmScaling {
@@ -129,6 +163,34 @@ impl PwmScaling {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// RM0440's ends of each DTG range decode to the manual's dead times; every dead time up
+    /// to 1 008 ticks gets the least code that gives at least as much, and that code gives less
+    /// than one of its range's steps more; the shipped 85 ticks are code 85.
+    #[test]
+    fn dead_time_codes_round_up_to_the_next_setting() {
+        for (code, ticks) in [(0, 0), (127, 127), (0b1000_0000, 128), (0b1011_1111, 254), (0b1100_0000, 256)]
+            .into_iter()
+            .chain([(0b1101_1111, 504), (0b1110_0000, 512), (0b1111_1111, 1008)])
+        {
+            assert_eq!(dead_time_dtg_ticks(code), ticks, "{code:#010b}");
+        }
+        assert_eq!(dead_time_dtg(85), Some(85));
+        assert_eq!(dead_time_dtg(1009), None);
+        for t in 0..=1008u16 {
+            let code = dead_time_dtg(t).unwrap();
+            let got = dead_time_dtg_ticks(code);
+            let step = match t {
+                0..=127 => 1,
+                128..=254 => 2,
+                255..=504 => 8,
+                _ => 16,
+            };
+            assert!(got >= t && got < t + step, "{t} ticks: code {code:#010b} gives {got}");
+            // No smaller code gives enough.
+            assert!((0..code).all(|c| dead_time_dtg_ticks(c) < t || dead_time_dtg_ticks(c) > got), "{t}");
+        }
+    }
 
     /// NUCLEO-style front end: 12-bit ADC at 3.3 V, 0.01 Ω shunt, gain 10 amplifier with
     /// mid-scale offset: 3.3/4096/(0.01·10) = 8.057e-3 A/count.

@@ -3,6 +3,7 @@
 
 use crate::source::{FileError, Source};
 use controller_core::drive::DriveSpec;
+use controller_core::scaling::{dead_time_dtg, dead_time_dtg_ticks};
 use serde::Deserialize;
 
 /// `[board]` as written.
@@ -11,7 +12,8 @@ use serde::Deserialize;
 pub struct BoardTable {
     /// Clock of the PWM timer, Hz.
     pub tim_clock_hz: u32,
-    /// Dead time between complementary switches, s.
+    /// Dead time between complementary switches, s (the timer gives it rounded up to its
+    /// ticks and its dead-time generator's steps: [`BoardTable::realised_dead_time_s`]).
     pub dead_time_s: f64,
     /// ADC full-scale code (4095 for 12 bits).
     pub adc_full_scale: u16,
@@ -147,7 +149,8 @@ pub struct Board {
     /// Centre-aligned PWM (the counter up to ARR and down, a period of 2·ARR ticks):
     /// ARR = f_tim/(2·f_pwm).
     pub pwm_period_counts: u16,
-    /// Dead time in timer ticks.
+    /// Dead time in timer ticks: what the dead-time generator gives
+    /// ([`BoardTable::realised_dead_time_s`]).
     pub dead_time_ticks: u16,
     /// Offset calibration limits (defaults applied), counts: largest zero error, largest
     /// RMS noise.
@@ -157,9 +160,36 @@ pub struct Board {
 }
 
 impl BoardTable {
-    /// [`BoardTable::sample_window_s`] or its default.
+    /// [`BoardTable::sample_window_s`] or its default (the dead time the timer gives, then the
+    /// settling).
     pub fn sample_window_s(&self) -> f64 {
-        self.sample_window_s.unwrap_or(self.dead_time_s + DEFAULT_SAMPLE_SETTLE_S)
+        self.sample_window_s.unwrap_or(self.realised_dead_time_s() + DEFAULT_SAMPLE_SETTLE_S)
+    }
+
+    /// The dead time in whole timer ticks, never fewer than asked (a part-per-million of a
+    /// tick forgiven: 500 ns at 170 MHz is 85 ticks, not 86 for a rounding error), and the
+    /// ticks the dead-time generator gives for it (`controller_core::scaling::dead_time_dtg`:
+    /// above 127 ticks its steps are 2, 8 and 16 ticks). `None` when it cannot (validated
+    /// in [`BoardTable::validate`]).
+    fn dead_time_ticks(&self) -> Option<(f64, u16)> {
+        let ticks = (self.dead_time_s * f64::from(self.tim_clock_hz) - 1e-6).ceil();
+        if !(ticks >= 0.0 && ticks <= f64::from(u16::MAX)) {
+            return None;
+        }
+        let code = dead_time_dtg(ticks as u16)?;
+        Some((ticks, dead_time_dtg_ticks(code)))
+    }
+
+    /// The dead time the bridge gets, s: `dead_time_s` rounded up to the timer's ticks and to
+    /// the dead-time generator's steps — what the modulator compensates and the sampling
+    /// window waits out (1.5 µs at 170 MHz is 255 ticks, which the generator gives as 256:
+    /// 1.506 µs). `dead_time_s` itself when the board cannot give it (an error of
+    /// [`BoardTable::validate`]).
+    pub fn realised_dead_time_s(&self) -> f64 {
+        match self.dead_time_ticks() {
+            Some((_, ticks)) if self.tim_clock_hz > 0 => f64::from(ticks) / f64::from(self.tim_clock_hz),
+            _ => self.dead_time_s,
+        }
     }
 
     /// The inverter's rating (the drive's I²t default is built from it before the rest of
@@ -200,15 +230,16 @@ impl BoardTable {
                 "board.tim_clock_hz/(2·f_pwm) = {arr} must be a whole number of timer ticks in 100…65535"
             ),
         )?;
-        // Whole ticks, never fewer than asked (a part-per-million of a tick forgiven: 500 ns at
-        // 170 MHz is 85 ticks, not 86 for a rounding error).
-        let ticks = (self.dead_time_s * f_tim - 1e-6).ceil();
-        src.check(
-            self.dead_time_s.is_finite() && ticks >= 1.0 && ticks <= 0.05 * (arr + 1.0) && ticks <= 1008.0,
-            "board.dead_time_s",
-            "must be > 0 (a leg without dead time shoots through at every edge), at most 1008 timer \
-             ticks and 5 % of the PWM half-period",
-        )?;
+        let ticks = self.dead_time_ticks().filter(|&(asked, given)| {
+            self.dead_time_s.is_finite() && asked >= 1.0 && f64::from(given) <= 0.05 * (arr + 1.0)
+        });
+        let Some((_, ticks)) = ticks else {
+            return Err(src.error(
+                "board.dead_time_s",
+                "must be > 0 (a leg without dead time shoots through at every edge), at most 1008 timer \
+                 ticks and 5 % of the PWM half-period",
+            ));
+        };
         for (key, x) in
             [("current_a_per_count", self.current_a_per_count), ("vdc_v_per_count", self.vdc_v_per_count)]
         {
@@ -258,7 +289,7 @@ impl BoardTable {
         Ok(Board {
             table: *self,
             pwm_period_counts: arr.round() as u16,
-            dead_time_ticks: ticks as u16,
+            dead_time_ticks: ticks,
             calibration_limits_counts: (offset_max, noise_max),
             // Saturates at 65 535 periods (0.1 s only above a 655 kHz PWM).
             bootstrap_precharge_periods: (precharge * spec.pwm_frequency_hz).round().min(f64::from(u16::MAX))

@@ -67,7 +67,8 @@ pub struct ControllerTable {
     /// [`DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S`]).
     #[serde(default = "default_current_trim")]
     pub current_trim_bandwidth_rad_s: f64,
-    /// Compensate the board's dead time (`[board] dead_time_s`) in the modulator (default
+    /// Compensate the board's dead time (`[board] dead_time_s` as its timer gives it:
+    /// `BoardTable::realised_dead_time_s`) in the modulator (default
     /// false: the simulator's average inverter has no dead time to compensate; turn it on
     /// for a board, and for the switching inverter model).
     #[serde(default)]
@@ -593,7 +594,7 @@ impl DriveTables {
     pub fn validate(&self, src: &Source<'_>) -> Result<DriveFile, FileError> {
         let dead_time_s = match (self.controller.dead_time_compensation, &self.board) {
             (false, _) => 0.0,
-            (true, Some(b)) => b.dead_time_s,
+            (true, Some(b)) => b.realised_dead_time_s(),
             (true, None) => {
                 return Err(src.error(
                     "controller.dead_time_compensation",

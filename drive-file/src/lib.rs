@@ -305,6 +305,27 @@ mod tests {
         );
         let d = DriveFile::parse(Path::new("d.toml"), &on).unwrap();
         assert_eq!(d.spec.dead_time_compensation_s, d.board.unwrap().table.dead_time_s);
+        // What the timer gives: 1.19 µs at 170 MHz is 203 ticks (202.3 rounded up), which the
+        // dead-time generator gives in steps of 2 above 127 ticks: 204 ticks, 1.2 µs —
+        // compensated, and waited out by the default sampling window; the firmware's ticks
+        // are those.
+        let slow = on.replace("dead_time_s = 5e-7", "dead_time_s = 1.19e-6");
+        let d = DriveFile::parse(Path::new("d.toml"), &slow).unwrap();
+        let b = d.board.unwrap();
+        assert_eq!(b.dead_time_ticks, 204);
+        assert_eq!(d.spec.dead_time_compensation_s, 204.0 / 170e6);
+        let default_window = board::BoardTable { sample_window_s: None, ..b.table };
+        assert_eq!(default_window.sample_window_s(), 204.0 / 170e6 + board::DEFAULT_SAMPLE_SETTLE_S);
+        // Beyond 5 % of the half-period (212 ticks at 20 kHz) as given, not only as asked:
+        // 211.7 ticks asked are 212, given as 212 — accepted; 213 asked are given as 214.
+        let edge = |s: f64| {
+            DriveFile::parse(
+                Path::new("d.toml"),
+                &on.replace("dead_time_s = 5e-7", &format!("dead_time_s = {s:e}")),
+            )
+        };
+        assert_eq!(edge(212.0 / 170e6).map(|d| d.board.map(|b| b.dead_time_ticks)), Ok(Some(212)));
+        assert_eq!(edge(213.0 / 170e6).map_err(|e| e.key), Err(Some("board.dead_time_s".into())));
         let no_board = on.split("[board]").next().unwrap().to_string();
         let e = err(&no_board);
         assert_eq!(e.key.as_deref(), Some("controller.dead_time_compensation"), "{e}");

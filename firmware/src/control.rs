@@ -185,26 +185,6 @@ pub fn check_pwm_period(read: u16, board: &BoardConfig) -> Result<(), ControlErr
     }
 }
 
-/// TIM1's dead-time generator setting (BDTR.DTG, RM0440 §28.6.20) for at least `ticks`
-/// timer clocks with CKD = 00 (t_DTS = t_CK_INT), the least such: `DTG[7:5]` = 0xx gives
-/// DTG·1 (0 … 127), 10x (64 + `DTG[5:0]`)·2 (128 … 254), 110 (32 + `DTG[4:0]`)·8
-/// (256 … 504), 111 (32 + `DTG[4:0]`)·16 (512 … 1 008). `None` above 1 008 ticks (5.9 µs at
-/// 170 MHz). Evaluated at compile time for the drive file's `DEAD_TIME_TICKS`.
-pub const fn dead_time_dtg(ticks: u16) -> Option<u8> {
-    let t = ticks as u32;
-    if t <= 127 {
-        Some(t as u8)
-    } else if t <= 254 {
-        Some(0b1000_0000 | (t.div_ceil(2) - 64) as u8)
-    } else if t <= 504 {
-        Some(0b1100_0000 | (t.div_ceil(8) - 32) as u8)
-    } else if t <= 1008 {
-        Some(0b1110_0000 | (t.div_ceil(16) - 32) as u8)
-    } else {
-        None
-    }
-}
-
 /// TIM1's repetition counter: in centre-aligned mode it counts both the overflow (top) and
 /// the underflow (bottom), so 1 gives one update event per period. Written while the
 /// counter is stopped, before its start, the event falls on the overflow (RM0440, the
@@ -866,38 +846,6 @@ mod tests {
         assert!((0..10).all(|k| duty(k).is_nan()), "bridge off: no duty");
         assert!((10..50).all(|k| duty(k) == 0.0), "the pre-charge: low sides on");
         assert!(duty(50) > 0.0 && duty(50) < 1.0, "then the drive's own duty: {}", duty(50));
-    }
-
-    /// The dead time a `dead_time_dtg` code gives, in timer clocks (CKD = 00).
-    fn dead_time_ticks(dtg: u8) -> u16 {
-        let d = dtg as u16;
-        match dtg >> 5 {
-            0..=3 => d,
-            4 | 5 => (64 + (d & 0x3F)) * 2,
-            6 => (32 + (d & 0x1F)) * 8,
-            _ => (32 + (d & 0x1F)) * 16,
-        }
-    }
-
-    /// Every dead time up to 1 008 ticks gets the least code that gives at least as much,
-    /// and every code decodes within one step of it; the shipped 85 ticks are code 85.
-    #[test]
-    fn dead_time_codes_round_up_to_the_next_setting() {
-        assert_eq!(dead_time_dtg(85), Some(85));
-        assert_eq!(dead_time_dtg(1009), None);
-        for t in 0..=1008u16 {
-            let code = dead_time_dtg(t).unwrap();
-            let got = dead_time_ticks(code);
-            let step = match t {
-                0..=127 => 1,
-                128..=254 => 2,
-                255..=504 => 8,
-                _ => 16,
-            };
-            assert!(got >= t && got < t + step, "{t} ticks: code {code:#010b} gives {got}");
-            // No smaller code gives enough.
-            assert!((0..code).all(|c| dead_time_ticks(c) < t || dead_time_ticks(c) > got), "{t}");
-        }
     }
 
     #[test]

@@ -53,7 +53,7 @@ mod target {
 
     /// The drive file's dead time as TIM1's DTG code (CKD = 00), at compile time: a dead
     /// time the generator cannot give stops the build.
-    const DEAD_TIME_DTG: u8 = match firmware::control::dead_time_dtg(DEAD_TIME_TICKS) {
+    const DEAD_TIME_DTG: u8 = match controller_core::scaling::dead_time_dtg(DEAD_TIME_TICKS) {
         Some(code) => code,
         None => panic!("the drive file's dead time exceeds TIM1's 1 008 ticks"),
     };
