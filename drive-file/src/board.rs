@@ -182,8 +182,8 @@ impl BoardTable {
 
     /// The dead time the bridge gets, s: `dead_time_s` rounded up to the timer's ticks and to
     /// the dead-time generator's steps — what the modulator compensates and the sampling
-    /// window waits out (1.5 µs at 170 MHz is 255 ticks, which the generator gives as 256:
-    /// 1.506 µs). `dead_time_s` itself when the board cannot give it (an error of
+    /// window waits out (1.19 µs at 170 MHz is 203 ticks, which the generator gives as 204:
+    /// 1.2 µs). `dead_time_s` itself when the board cannot give it (an error of
     /// [`BoardTable::validate`]).
     pub fn realised_dead_time_s(&self) -> f64 {
         match self.dead_time_ticks() {
@@ -230,9 +230,10 @@ impl BoardTable {
                 "board.tim_clock_hz/(2·f_pwm) = {arr} must be a whole number of timer ticks in 100…65535"
             ),
         )?;
-        let ticks = self.dead_time_ticks().filter(|&(asked, given)| {
-            self.dead_time_s.is_finite() && asked >= 1.0 && f64::from(given) <= 0.05 * (arr + 1.0)
-        });
+        // (Not finite, negative or beyond the generator's 1 008 ticks: `None` already.)
+        let ticks = self
+            .dead_time_ticks()
+            .filter(|&(asked, given)| asked >= 1.0 && f64::from(given) <= 0.05 * (arr + 1.0));
         let Some((_, ticks)) = ticks else {
             return Err(src.error(
                 "board.dead_time_s",

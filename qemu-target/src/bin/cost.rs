@@ -1,8 +1,11 @@
 //! Executed instructions per fast and slow step on the Cortex-M4F, measured under QEMU with
 //! `-icount shift=0` (deterministic: 1 instruction = 1 ns of virtual time; SysTick at 25 MHz
 //! → 40 instructions per tick). Each figure is the average over 4096 calls with inputs
-//! varying along a rotating current vector, minus the same loop without the call (input
-//! generation, loop and timer reads), so the resolution is 40/4096 ≈ 0.01 instruction.
+//! varying along a rotating current vector, minus the same loop without the call (its
+//! counter and timer reads), so the resolution is 40/4096 ≈ 0.01 instruction. The firmware's
+//! loop (`control_loop_*`) is also less the benchmark's fetch of each period's samples from
+//! its table; the drive's `period` and `fast_step` still include fetching each period's ADC
+//! codes from theirs (the parts measured alone subtract what they say).
 //!
 //! The fast step is the firmware's interrupt body: ADC codes → amperes and volts
 //! (`AdcScaling`) → `Drive::fast_step` (supervisor, Clarke, the IFOC's fast part, two ICAD
