@@ -2,7 +2,7 @@
 """Where the Cortex-M4F's instructions go inside one function of a target program: an
 executed-instruction profile under QEMU, attributed to source lines through the debug info.
 
-    python3 tools/qemu_profile.py [--skip N] [--calls N] [--annotate | --whole] [ELF] [SYMBOL]
+    python3 tools/qemu_profile.py [--skip N] [--calls N] [--annotate | --whole] [ELF] [SYMBOL | 0xADDR]
 
 Defaults: `qemu-target/target/thumbv7em-none-eabihf/firmware/cost` (build it first:
 `cd qemu-target && cargo build --target thumbv7em-none-eabihf --profile firmware --bin cost`,
@@ -17,6 +17,8 @@ measures; a first plain run reads the count) and stops after `--calls` more. Cal
 with `llvm-addr2line -i` and its count charged to (a) the innermost function the compiler
 inlined there and (b) the line of SYMBOL's own body (or of the function inlined into it
 that the fast step calls, `Drive::fast_step`) it belongs to. Prints instructions per call.
+A function that shares its name with others (closures) is named by its start address
+(`0x…`, from `llvm-nm -C`).
 
 It counts instructions inside the range only: out-of-line callees (the slow step, the
 `#[inline(never)]` checks) are not in it, nor is what the caller does around the call
@@ -39,8 +41,13 @@ HASH = re.compile(r"::h[0-9a-f]{16}$")
 
 
 def symbol_range(elf: Path, symbol: str) -> tuple[int, int]:
-    """Start and size of the one function whose demangled name ends with `symbol`."""
-    hits = [(start, size, name) for start, size, name in functions(elf) if name.endswith(symbol)]
+    """Start and size of the one function whose demangled name ends with `symbol`, or that
+    starts at address `symbol` (`0x…`: closures share one name)."""
+    if symbol.startswith("0x"):
+        at = int(symbol, 16) & ~1
+        hits = [(start, size, name) for start, size, name in functions(elf) if start == at]
+    else:
+        hits = [(start, size, name) for start, size, name in functions(elf) if name.endswith(symbol)]
     if len(hits) != 1:
         sys.exit(f"qemu_profile: {len(hits)} functions match {symbol!r}: {[h[2] for h in hits]}")
     return hits[0][0], hits[0][1]

@@ -1,8 +1,9 @@
 //! The link task ↔ control interrupt boundary, lock-free: a triple buffer out of the
 //! interrupt, a one-slot mailbox into it.
 //!
-//! **Out** ([`TripleBuffer`]): the interrupt (the only writer) publishes a copy of what the task needs — the last
-//! output, the calibration's state, whether the bridge is on — after every step; the task
+//! **Out** ([`TripleBuffer`]): the interrupt (the only writer) publishes a copy of what the
+//! task needs — the last output, the calibration's state, whether the bridge is on — after
+//! a step when the task has asked for one (`crate::interrupt::Shared`); the task
 //! (the only reader) takes the newest without masking the interrupt. Three slots: the one
 //! the writer fills, the one the reader holds, and the one in between; an atomic swap hands
 //! a slot from one side to the other, so the two never touch the same slot and no read is

@@ -236,8 +236,6 @@ pub struct ControlLoop {
     divider: u16,
     count: u16,
     last: Option<FastOutput>,
-    /// The drive's signals, made once per slow period for the link's stream ([`Snapshot`]).
-    telemetry: Telemetry,
     /// The last period's bridge output was not `Off`.
     bridge_on: bool,
     /// Pre-charge periods left (0: none under way).
@@ -254,14 +252,14 @@ pub struct ControlLoop {
     commission_precharge_left: u16,
 }
 
-/// What the link task needs from the control interrupt, published after every step through
-/// a [`crate::boundary::TripleBuffer`] (no critical section): the last output, the offset
+/// What the link task needs from the control interrupt, published after a step through a
+/// [`crate::boundary::TripleBuffer`] (no critical section) when the task asks for it
+/// ([`crate::interrupt::Shared::request_snapshot`]): the last output, the offset
 /// calibration's state, and whether the bridge is on (the link watchdog's concern).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Snapshot {
-    /// The last step's output, and the drive's signals ([`Drive::telemetry`]) as of the
-    /// last slow period: the link's telemetry stream (made once per slow period, not in
-    /// every step).
+    /// The last step's output, and the drive's signals ([`Drive::telemetry`]) after it:
+    /// the link's telemetry stream.
     pub output: Option<(FastOutput, Telemetry)>,
     /// The offset calibration (`None` before the first step).
     pub calibration: Option<Calibration>,
@@ -344,7 +342,6 @@ impl ControlLoop {
             divider,
             count: 0,
             last: None,
-            telemetry: Telemetry::default(),
             bridge_on: false,
             precharge_left: 0,
             readings: BoardReadings::default(),
@@ -407,10 +404,10 @@ impl ControlLoop {
         &mut self.drive
     }
 
-    /// What the link task reads (after each step: [`Snapshot`]).
+    /// What the link task reads ([`Snapshot`]), made on demand: the drive's telemetry too.
     pub fn snapshot(&self) -> Snapshot {
         Snapshot {
-            output: self.last.map(|o| (o, self.telemetry)),
+            output: self.last.map(|o| (o, self.drive.telemetry())),
             calibration: Some(self.calibration),
             bridge_on: matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running) || self.commissioning(),
         }
@@ -589,9 +586,6 @@ impl ControlLoop {
         let m = self.measurements(s);
         let out = self.drive.step(&m);
         self.last = Some(out);
-        if slow {
-            self.telemetry = self.drive.telemetry();
-        }
         self.capture.record(&m, &out, || self.drive.telemetry());
         #[cfg(feature = "commissioning")]
         if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {

@@ -2,6 +2,9 @@
 //!
 //! * [`control`]: the control interrupt's body — ADC codes and encoder counter in, compare
 //!   values out — around `controller_core::drive::Drive`;
+//! * [`interrupt`]: the control interrupt's body once its samples are read — the output
+//!   stage around the control step, the link's requests, the snapshot — and what it shares
+//!   with the link task;
 //! * [`output`]: the output stage — MOE, the break flag and the compare registers behind a
 //!   trait, host-tested against a model of the timer's break logic;
 //! * [`server`]: the command/telemetry link's command handling;
@@ -18,6 +21,7 @@
 pub mod boundary;
 pub mod config;
 pub mod control;
+pub mod interrupt;
 pub mod output;
 pub mod server;
 pub mod stack;

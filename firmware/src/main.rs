@@ -22,7 +22,7 @@ mod target {
     use controller_core::link::{self, BoardCommand, FrameDecoder, LinkStats, LoopTiming, MAX_FRAME, Reply};
     use core::cell::RefCell;
     use core::mem::ManuallyDrop;
-    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+    use core::sync::atomic::{AtomicU32, Ordering};
     use critical_section::Mutex;
     use defmt_rtt as _;
     use embassy_executor::Spawner;
@@ -46,10 +46,10 @@ mod target {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{Config, Peri, bind_interrupts, dma, peripherals};
     use embassy_time::{Duration, Timer, with_timeout};
-    use firmware::boundary::{Mailbox, TripleBuffer};
     use firmware::config::{
         BOARD, DEAD_TIME_TICKS, DRIVE_CONFIG, ENCODER_FILTER, LINK_TIMEOUT_MS, TIM_CLOCK_HZ,
     };
+    use firmware::interrupt::Shared;
 
     /// The drive file's dead time as TIM1's DTG code (CKD = 00), at compile time: a dead
     /// time the generator cannot give stops the build.
@@ -67,7 +67,7 @@ mod target {
         f
     }
     use firmware::control::{
-        Calibration, ControlError, ControlLoop, Samples, Snapshot, UPDATE_REPETITION, check_update_timing,
+        Calibration, ControlError, ControlLoop, Samples, UPDATE_REPETITION, check_update_timing,
     };
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
@@ -79,7 +79,7 @@ mod target {
     });
 
     /// The control loop: put in place at start-up, then the control interrupt's alone (the
-    /// link task reaches it through `SNAPSHOT`, `COMMANDS` and `WATCHDOG_STOP`).
+    /// link task reaches it through `SHARED`).
     static CONTROL: Mutex<RefCell<Option<&'static mut ControlLoop>>> = Mutex::new(RefCell::new(None));
     /// Where the control loop lives: zero-initialised (`.bss`), so its ≈ 900 B take no flash
     /// for an initial image, as an `Option<ControlLoop>` static did.
@@ -90,14 +90,9 @@ mod target {
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
     /// The control interrupt's longest step and overruns (`Status`).
     static LOOP_TIMER: firmware::control::LoopTimer = firmware::control::LoopTimer::new();
-    /// What the link task reads of the control loop (telemetry, calibration, bridge on),
-    /// published by the control interrupt after every step without a critical section.
-    static SNAPSHOT: TripleBuffer<Snapshot> = TripleBuffer::new();
-    /// Commands into the control interrupt, which executes them after its step and leaves
-    /// the reply: the link task never masks it.
-    static COMMANDS: Mailbox<(BoardCommand, server::Prepared, LinkStats), Reply> = Mailbox::new();
-    /// The link watchdog's stop, for the control interrupt to carry out.
-    static WATCHDOG_STOP: AtomicBool = AtomicBool::new(false);
+    /// What the control interrupt and the link task share, lock-free: the snapshot of the
+    /// control loop (published by the interrupt), commands in, the link watchdog's stop.
+    static SHARED: Shared = Shared::new();
 
     /// TIM1 and the brake pin as the control interrupt's output stage (`firmware::output`,
     /// host-tested against a model of this logic).
@@ -451,15 +446,8 @@ mod target {
             match CONTROL.borrow_ref_mut(cs).as_mut() {
                 Some(ctl) => {
                     let mut o = outputs.get();
-                    o.period(&mut Tim1, ctl, samples);
+                    SHARED.control_period(&mut o, &mut Tim1, ctl, samples);
                     outputs.set(o);
-                    // The link task's requests, after the period's outputs are written: a
-                    // command takes effect from the next period.
-                    if WATCHDOG_STOP.swap(false, Ordering::Relaxed) {
-                        server::LinkWatchdog::stop(ctl);
-                    }
-                    COMMANDS.serve(|(cmd, prepared, stats)| server::handle_board(ctl, cmd, *prepared, stats));
-                    SNAPSHOT.write(ctl.snapshot());
                 }
                 None => Tim1.disable_outputs(),
             }
@@ -503,17 +491,17 @@ mod target {
     /// The link watchdog's timeout in its clock's unit (3 600 s at most: below 2^32 µs).
     const LINK_TIMEOUT_US: u32 = LINK_TIMEOUT_MS * 1000;
 
-    /// `cmd` executed by the control interrupt (`COMMANDS`): its reply within
+    /// `cmd` executed by the control interrupt (`SHARED.commands`): its reply within
     /// [`COMMAND_TIMEOUT_MS`], else none (no control loop, or the interrupt not running; a
     /// late reply is dropped before the next command).
     async fn execute(cmd: BoardCommand, prepared: server::Prepared, stats: LinkStats) -> Option<Reply> {
-        let _ = COMMANDS.take();
-        if !COMMANDS.post((cmd, prepared, stats)) {
+        let _ = SHARED.commands.take();
+        if !SHARED.commands.post((cmd, prepared, stats)) {
             return None;
         }
         let t0 = embassy_time::Instant::now();
         loop {
-            if let Some(r) = COMMANDS.take() {
+            if let Some(r) = SHARED.commands.take() {
                 return Some(r);
             }
             if t0.elapsed() > Duration::from_millis(COMMAND_TIMEOUT_MS) {
@@ -554,12 +542,16 @@ mod target {
                 wdg.pet();
             }
             isr_count = now;
-            // The control loop's state, and requests to it, lock-free (`firmware::boundary`).
-            // Its fields read from the `Option` (a default `Snapshot` copied in took flash).
-            let snapshot = SNAPSHOT.read();
+            // The control loop's state, and requests to it, lock-free (`firmware::boundary`):
+            // the snapshot the interrupt published after the last turn's request (an older
+            // one if no period has passed since), and a fresh one asked for the stream below
+            // and the next turn. Its fields read from the
+            // `Option` (a default `Snapshot` copied in took flash).
+            let snapshot = SHARED.snapshot.read();
+            SHARED.request_snapshot();
             let stopped = watchdog.due(now_us(), snapshot.is_some_and(|s| s.bridge_on));
             if stopped {
-                WATCHDOG_STOP.store(true, Ordering::Relaxed);
+                SHARED.watchdog_stop.store(true, Ordering::Relaxed);
             }
             let calibration = snapshot.and_then(|s| s.calibration);
             if stopped {
@@ -603,7 +595,8 @@ mod target {
                     // Quiet for 10 ms: stream telemetry. The frame is encoded in a statement
                     // of its own: no message lives across the `await` (the task's state
                     // would hold it, and moving it there linked a `memmove`).
-                    let len = SNAPSHOT
+                    let len = SHARED
+                        .snapshot
                         .read()
                         .and_then(|s| s.output)
                         .and_then(|(o, t)| link::reply_frame(&Reply::Output(o, t), &mut frame).ok());

@@ -3,14 +3,18 @@
 //! → 40 instructions per tick). Each figure is the average over 4096 calls with inputs
 //! varying along a rotating current vector, minus the same loop without the call (its
 //! counter and timer reads), so the resolution is 40/4096 ≈ 0.01 instruction. The firmware's
-//! loop (`control_loop_*`) is also less the benchmark's fetch of each period's samples from
-//! its table; the drive's `period` and `fast_step` still include fetching each period's ADC
-//! codes from theirs (the parts measured alone subtract what they say).
+//! interrupt body (`interrupt_*`) is also less the benchmark's fetch of each period's samples
+//! from its table; the drive's `period` and `fast_step` still include fetching each period's
+//! ADC codes from theirs (the parts measured alone subtract what they say).
 //!
-//! The fast step is the firmware's interrupt body: ADC codes → amperes and volts
-//! (`AdcScaling`) → `Drive::fast_step` (supervisor, Clarke, the IFOC's fast part, two ICAD
-//! channels, SVPWM) → compare values (`PwmScaling`); whole periods with the slow step. The components are
-//! also measured alone to show what dominates. Output: `cost <name> <instructions>` lines,
+//! `interrupt_period` is the firmware's control interrupt once its samples are read
+//! (`firmware::interrupt::Shared::control_period`): the break check, ADC codes → amperes and
+//! volts (`AdcScaling`) → `Drive::step` (the slow step every N-th period; the fast step:
+//! supervisor, Clarke, the IFOC's fast part, two ICAD channels, SVPWM) → compare values
+//! (`PwmScaling`) and MOE, the link's requests; `interrupt_fast_step` is a period less the
+//! drive's slow step's share — the figure issue 19's budget applies to. `period` and
+//! `fast_step` are the drive's own. The components are also measured alone to show what
+//! dominates. Output: `cost <name> <instructions>` lines,
 //! then the stack depth of `Drive::step` (`qemu_target::stack`: painted, then scanned).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -51,20 +55,76 @@ mod target {
         (with.saturating_sub(base) * INSTRUCTIONS_PER_TICK) as f32 / N as f32
     }
 
-    /// Instructions per period of the firmware's `ControlLoop::step` on `raw` (the board's
-    /// scalings, `firmware::config::BOARD`): calibrated at rest, enabled, pre-charged and
+    /// TIM1's registers and the brake pin as plain memory: each access one volatile load or
+    /// store, as the firmware's are (their addresses aside); no break ever.
+    #[derive(Default)]
+    struct Registers {
+        sr: u32,
+        bdtr: u32,
+        ccr: [u32; 3],
+        bsrr: u32,
+    }
+
+    impl firmware::output::OutputStage for Registers {
+        fn break_flag(&mut self) -> bool {
+            // SAFETY: a field of `self`, aligned and initialised.
+            let sr = unsafe { core::ptr::read_volatile(&self.sr) };
+            sr & (1 << 7) != 0
+        }
+        fn clear_break_flag(&mut self) {
+            // SAFETY: as above.
+            unsafe { core::ptr::write_volatile(&mut self.sr, !(1 << 7)) }
+        }
+        fn outputs_enabled(&mut self) -> bool {
+            // SAFETY: as above.
+            let bdtr = unsafe { core::ptr::read_volatile(&self.bdtr) };
+            bdtr & (1 << 15) != 0
+        }
+        fn set_compare(&mut self, [a, b, c]: [u16; 3]) {
+            let [ra, rb, rc] = &mut self.ccr;
+            // SAFETY: as above.
+            unsafe {
+                core::ptr::write_volatile(ra, u32::from(a));
+                core::ptr::write_volatile(rb, u32::from(b));
+                core::ptr::write_volatile(rc, u32::from(c));
+            }
+        }
+        fn enable_outputs(&mut self) {
+            // SAFETY: as above (a read-modify-write, as the firmware's `modify`).
+            unsafe {
+                core::ptr::write_volatile(&mut self.bdtr, core::ptr::read_volatile(&self.bdtr) | (1 << 15))
+            }
+        }
+        fn disable_outputs(&mut self) {
+            // SAFETY: as above.
+            unsafe {
+                core::ptr::write_volatile(&mut self.bdtr, core::ptr::read_volatile(&self.bdtr) & !(1 << 15))
+            }
+        }
+        fn set_brake(&mut self, on: bool) {
+            // SAFETY: as above.
+            unsafe { core::ptr::write_volatile(&mut self.bsrr, if on { 1 << 5 } else { 1 << 21 }) }
+        }
+    }
+
+    /// Instructions per period of the firmware's control-interrupt body once its samples
+    /// are read (`firmware::interrupt::Shared::control_period`: the output stage's break
+    /// check, `ControlLoop::step`, the compare values and MOE, the link's requests, the
+    /// snapshot for the link task) on `raw` (the board's scalings, `firmware::config::BOARD`),
+    /// TIM1 as plain memory ([`Registers`]): calibrated at rest, enabled, pre-charged and
     /// magnetized, then Running under a 150 rad/s speed reference, less the benchmark's own
-    /// fetch of the samples from its table; NaN if it never runs. Also
-    /// the calls before the measured ones (calibration, pre-charge, magnetizing and the
-    /// rehearsal's: `tools/qemu_profile.py --skip`).
-    fn control_loop_period(
-        ticks: &Ticks,
-        raw: &controller_core::raw::RawDriveConfig,
-        ts_s: f32,
-    ) -> (f32, u32) {
+    /// fetch of the samples from its table; NaN if it never runs. Also the calls before the
+    /// measured ones (calibration, pre-charge, magnetizing and the rehearsal's:
+    /// `tools/qemu_profile.py --skip`).
+    fn interrupt_period(ticks: &Ticks, raw: &controller_core::raw::RawDriveConfig, ts_s: f32) -> (f32, u32) {
         use firmware::config::BOARD;
         use firmware::control::{CALIBRATION_SAMPLES, ControlLoop, Samples};
+        use firmware::interrupt::Shared;
+        use firmware::output::Outputs;
         let Ok(mut c) = ControlLoop::new(raw, &BOARD) else { return (f32::NAN, 0) };
+        let shared = Shared::new();
+        let mut outputs = Outputs::new();
+        let mut tim1 = Registers::default();
         let zero = BOARD.current_offset_counts;
         let code = |i: f32| {
             let x = f32::from(zero) + i / BOARD.current_a_per_count;
@@ -72,17 +132,22 @@ mod target {
         };
         // The encoder at 10 rad/s once Running: counts per PWM period.
         let counts = 4.0 * BOARD.encoder_lines as f32 / core::f32::consts::TAU * 10.0 * ts_s;
-        let sample = |i: AlphaBeta, k: u32| {
+        // A period's conversions and counter, as the interrupt reads them: five half-words.
+        let codes = |i: AlphaBeta, k: u32| {
             let i = i.inverse_clarke();
-            Samples {
-                i_abc: [code(i.a), code(i.b), code(i.c)],
-                vdc: 3100,
-                encoder: (k as f32 * counts) as u32 as u16,
-                hardware_break: false,
-            }
+            [code(i.a), code(i.b), code(i.c), 3100, (k as f32 * counts) as u32 as u16]
+        };
+        let samples = |[a, b, cc, vdc, encoder]: [u16; 5]| Samples {
+            i_abc: [a, b, cc],
+            vdc,
+            encoder,
+            hardware_break: false,
+        };
+        let mut step = |c: &mut ControlLoop, s: Samples| {
+            shared.control_period(&mut outputs, &mut tim1, c, s);
         };
         for _ in 0..=CALIBRATION_SAMPLES {
-            c.step(&sample(AlphaBeta::default(), 0));
+            step(&mut c, samples(codes(AlphaBeta::default(), 0)));
         }
         if c.drive_mut().enable().is_err() {
             return (f32::NAN, 0);
@@ -91,28 +156,28 @@ mod target {
         let mut k = 0u32;
         // At rest until Running (the pre-charge and the magnetizing).
         while c.drive().mode() != Mode::Running && k < 100_000 {
-            c.step(&sample(i_ab, 0));
+            step(&mut c, samples(codes(i_ab, 0)));
             i_ab = c.drive().telemetry().i_ref_ab_a;
             k += 1;
         }
         if c.drive_mut().set_reference(Reference::Speed(150.0)).is_err() {
             return (f32::NAN, 0);
         }
-        let mut samples = [Samples::default(); N as usize];
+        let mut table = [[0u16; 5]; N as usize];
         let mut rehearsal = c.clone();
-        for (j, s) in (0u32..).zip(samples.iter_mut()) {
-            *s = sample(i_ab, j);
-            rehearsal.step(s);
+        for (j, t) in (0u32..).zip(table.iter_mut()) {
+            *t = codes(i_ab, j);
+            rehearsal.step(&samples(*t));
             i_ab = rehearsal.drive().telemetry().i_ref_ab_a;
         }
-        let sample = |j: u32| samples.get((j % N) as usize).copied().unwrap_or_default();
+        let fetch = |j: u32| samples(table.get((j % N) as usize).copied().unwrap_or_default());
         let period = per_call(ticks, |j| {
-            black_box(c.step(&black_box(sample(j))));
+            step(&mut c, black_box(fetch(j)));
         });
         // The benchmark's own fetch of each period's samples from its table (the firmware
         // reads them from the ADC's and the timer's registers, outside this body).
         let fetch = per_call(ticks, |j| {
-            black_box(sample(j));
+            black_box(fetch(j));
         });
         let before = CALIBRATION_SAMPLES + 1 + k + N;
         (if c.drive().mode() == Mode::Running { period - fetch } else { f32::NAN }, before)
@@ -221,14 +286,14 @@ mod target {
         let running = drive.mode() == Mode::Running;
         let fast = period - slow / divider as f32;
 
-        // The firmware's own control-interrupt body, `firmware::control::ControlLoop::step`:
-        // raw samples in (ADC codes, the encoder's counter), the bridge's compare values out,
-        // with what the firmware does around the drive — the pre-charge and calibration
-        // checks, the encoder read at the slow step, the capture's call, the snapshot of the
-        // last output. Only the register accesses (`firmware::output`, board only) are not in
-        // it. The same drive and protection as above, the same kind of currents (what ideal
-        // loops measure, rehearsed on a copy), the encoder turning at 10 rad/s.
-        let (isr, isr_calls_before) = control_loop_period(&ticks, &raw, ts as f32);
+        // The firmware's own control-interrupt body, `firmware::interrupt::Shared::
+        // control_period`: raw samples in (ADC codes, the encoder's counter), the bridge's
+        // compare values out, with what the firmware does around the drive — the break
+        // check, the pre-charge and calibration checks, the encoder read at the slow step,
+        // the capture's call, the link's requests. TIM1's registers are plain memory here
+        // ([`Registers`]). The same drive and protection as above, the same kind of currents
+        // (what ideal loops measure, rehearsed on a copy), the encoder turning at 10 rad/s.
+        let (isr, isr_calls_before) = interrupt_period(&ticks, &raw, ts as f32);
 
         // Components alone.
         let adc = per_call(&ticks, |k| {
@@ -382,9 +447,9 @@ mod target {
         println!("cost period {:.1}", period);
         println!("cost fast_step {:.1}", fast);
         println!("cost slow_step {:.1}", slow);
-        println!("cost control_loop_calls_before {isr_calls_before}");
-        println!("cost control_loop_period {:.1}", isr);
-        println!("cost control_loop_fast_step {:.1}", isr - slow / divider as f32);
+        println!("cost interrupt_calls_before {isr_calls_before}");
+        println!("cost interrupt_period {:.1}", isr);
+        println!("cost interrupt_fast_step {:.1}", isr - slow / divider as f32);
         println!("cost part:adc_scaling_4ch {:.1}", adc);
         println!("cost part:clarke {:.1}", clarke);
         println!("cost part:icad_two_axes {:.1}", icad);

@@ -1,0 +1,158 @@
+//! The control interrupt's body once its samples are read, and what it shares with the link
+//! task — free of the registers (those are behind [`OutputStage`]), so that the code the
+//! board runs every period is the code QEMU counts (`qemu-target`'s `cost
+//! interrupt_period`) and the host tests.
+//!
+//! ```text
+//!  Samples ─▶ Outputs::period (break flag → ControlLoop::step → compare values, MOE)
+//!          ─▶ the link watchdog's stop, a posted command (Mailbox)
+//!          ─▶ the snapshot for the link task (TripleBuffer), when it asks for one
+//! ```
+
+use crate::boundary::{Mailbox, TripleBuffer};
+use crate::control::{Bridge, ControlLoop, Samples, Snapshot};
+use crate::output::{OutputStage, Outputs};
+use crate::server::{self, Prepared};
+use controller_core::link::{BoardCommand, LinkStats, Reply};
+use core::sync::atomic::{AtomicBool, Ordering};
+
+/// A command for the control interrupt: the command, its preparation (made by the link
+/// task: nothing heavy runs in the interrupt) and the link's counters for `Status`.
+pub type Request = (BoardCommand, Prepared, LinkStats);
+
+/// What the control interrupt and the link task share, lock-free: neither side ever masks
+/// the other.
+#[derive(Debug, Default)]
+pub struct Shared {
+    /// The control loop's state for the link task (telemetry, calibration, bridge on).
+    pub snapshot: TripleBuffer<Snapshot>,
+    /// Commands in; the interrupt executes one after its step and leaves the reply.
+    pub commands: Mailbox<Request, Reply>,
+    /// The link watchdog's stop, for the interrupt to carry out.
+    pub watchdog_stop: AtomicBool,
+    /// The link task wants a fresh snapshot: the interrupt publishes one after its next
+    /// step (a snapshot of every period, ≈ 200 B copied twice, cost the interrupt more
+    /// than its control step did; the task reads one every 10 ms at most).
+    snapshot_wanted: AtomicBool,
+}
+
+impl Shared {
+    /// Nothing published, nothing posted (zero-initialised: a static of it takes no flash).
+    pub const fn new() -> Self {
+        Self {
+            snapshot: TripleBuffer::new(),
+            commands: Mailbox::new(),
+            watchdog_stop: AtomicBool::new(false),
+            snapshot_wanted: AtomicBool::new(false),
+        }
+    }
+
+    /// The link task: have the interrupt publish a snapshot after its next step (read it
+    /// from [`Shared::snapshot`] a period or more later).
+    pub fn request_snapshot(&self) {
+        self.snapshot_wanted.store(true, Ordering::Relaxed);
+    }
+
+    /// One control period after the samples are read: the output stage around the control
+    /// step ([`Outputs::period`]), then the link's requests — the watchdog's stop and a
+    /// posted command take effect from the next period — and the snapshot, if the link task
+    /// asked for one.
+    pub fn control_period(
+        &self,
+        outputs: &mut Outputs,
+        hw: &mut impl OutputStage,
+        ctl: &mut ControlLoop,
+        samples: Samples,
+    ) -> Bridge {
+        let bridge = outputs.period(hw, ctl, samples);
+        // Only this side clears the flags and the task only sets them (on one core: the
+        // task cannot run between the load and the store), so a load and a store do what
+        // a swap's exclusive-access loop would.
+        if self.watchdog_stop.load(Ordering::Relaxed) {
+            self.watchdog_stop.store(false, Ordering::Relaxed);
+            server::LinkWatchdog::stop(ctl);
+        }
+        self.commands.serve(|(cmd, prepared, stats)| server::handle_board(ctl, cmd, *prepared, stats));
+        if self.snapshot_wanted.load(Ordering::Relaxed) {
+            self.snapshot_wanted.store(false, Ordering::Relaxed);
+            self.snapshot.write(ctl.snapshot());
+        }
+        bridge
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controller_core::drive::Mode;
+
+    /// TIM1 and the brake pin as the interrupt sees them when nothing breaks.
+    #[derive(Debug, Default)]
+    struct Timer {
+        moe: bool,
+        ccr: [u16; 3],
+    }
+
+    impl OutputStage for Timer {
+        fn break_flag(&mut self) -> bool {
+            false
+        }
+        fn clear_break_flag(&mut self) {}
+        fn outputs_enabled(&mut self) -> bool {
+            self.moe
+        }
+        fn set_compare(&mut self, ccr: [u16; 3]) {
+            self.ccr = ccr;
+        }
+        fn enable_outputs(&mut self) {
+            self.moe = true;
+        }
+        fn disable_outputs(&mut self) {
+            self.moe = false;
+        }
+        fn set_brake(&mut self, _: bool) {}
+    }
+
+    fn at_rest() -> Samples {
+        Samples { i_abc: [2048; 3], vdc: 3100, encoder: 0, hardware_break: false }
+    }
+
+    #[test]
+    fn a_snapshot_is_published_after_the_period_that_follows_a_request_only() {
+        let shared = Shared::new();
+        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
+        let mut ctl = ControlLoop::at_rest_for_tests();
+        for _ in 0..3 {
+            shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        }
+        assert_eq!(shared.snapshot.read(), None, "nothing asked, nothing published");
+        shared.request_snapshot();
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        assert_eq!(shared.snapshot.read(), Some(ctl.snapshot()));
+        // The request is spent: the drive moves on, the snapshot read stays the one taken.
+        ctl.drive_mut().enable().unwrap();
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        let held = shared.snapshot.read().unwrap();
+        assert!(!held.bridge_on && ctl.snapshot().bridge_on);
+        shared.request_snapshot();
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        assert!(shared.snapshot.read().unwrap().bridge_on);
+    }
+
+    #[test]
+    fn the_watchdogs_stop_and_a_posted_command_act_in_the_next_period() {
+        let shared = Shared::new();
+        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
+        let mut ctl = ControlLoop::at_rest_for_tests();
+        assert!(shared.commands.post((BoardCommand::Enable, Prepared::Nothing, LinkStats::default())));
+        assert_eq!(shared.commands.take(), None, "not served before a period");
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        assert_eq!(shared.commands.take(), Some(Reply::Ack));
+        assert_eq!(ctl.drive().mode(), Mode::Magnetizing);
+        // Magnetizing, the watchdog's controlled stop is the bridge off at once.
+        shared.watchdog_stop.store(true, Ordering::Relaxed);
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        assert_eq!(ctl.drive().mode(), Mode::Idle);
+        assert!(!shared.watchdog_stop.load(Ordering::Relaxed), "the stop is carried out once");
+    }
+}
