@@ -29,11 +29,13 @@ mod target {
     use controller_core::envelope::EnvelopeConfig;
     use controller_core::frames::{Abc, AlphaBeta, Dq, SinCos};
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
+    use controller_core::link::{BoardCommand, LinkStats};
     use controller_core::mras::{Evidence, MrasConfig, RotorFit};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
     use controller_core::svpwm;
     use core::hint::black_box;
     use cortex_m_rt::entry;
+    use firmware::server::Prepared;
     use qemu_target::clock::{INSTRUCTIONS_PER_TICK, Ticks};
     use qemu_target::{println, sh};
 
@@ -107,6 +109,20 @@ mod target {
         }
     }
 
+    /// [`interrupt_period`]'s figures.
+    struct Interrupt {
+        /// Instructions per period (NaN: the drive did not run).
+        period: f32,
+        /// Calls of the body before the measured ones.
+        calls_before: u32,
+        /// The deepest stack of a period, bytes (0: a command was not served).
+        stack_bytes: usize,
+    }
+
+    impl Interrupt {
+        const FAILED: Self = Self { period: f32::NAN, calls_before: 0, stack_bytes: 0 };
+    }
+
     /// Instructions per period of the firmware's control-interrupt body once its samples
     /// are read (`firmware::interrupt::Shared::control_period`: the output stage's break
     /// check, `ControlLoop::step`, the compare values and MOE, the link's requests, the
@@ -115,13 +131,14 @@ mod target {
     /// magnetized, then Running under a 150 rad/s speed reference, less the benchmark's own
     /// fetch of the samples from its table; NaN if it never runs. Also the calls before the
     /// measured ones (calibration, pre-charge, magnetizing and the rehearsal's:
-    /// `tools/qemu_profile.py --skip`).
-    fn interrupt_period(ticks: &Ticks, raw: &controller_core::raw::RawDriveConfig, ts_s: f32) -> (f32, u32) {
+    /// `tools/qemu_profile.py --skip`), and the body's deepest stack, a command served in
+    /// the period (each the link can post, in turn) and a snapshot published.
+    fn interrupt_period(ticks: &Ticks, raw: &controller_core::raw::RawDriveConfig, ts_s: f32) -> Interrupt {
         use firmware::config::BOARD;
         use firmware::control::{CALIBRATION_SAMPLES, ControlLoop, Samples};
         use firmware::interrupt::Shared;
         use firmware::output::Outputs;
-        let Ok(mut c) = ControlLoop::new(raw, &BOARD) else { return (f32::NAN, 0) };
+        let Ok(mut c) = ControlLoop::new(raw, &BOARD) else { return Interrupt::FAILED };
         let shared = Shared::new();
         let mut outputs = Outputs::new();
         let mut tim1 = Registers::default();
@@ -150,7 +167,7 @@ mod target {
             step(&mut c, samples(codes(AlphaBeta::default(), 0)));
         }
         if c.drive_mut().enable().is_err() {
-            return (f32::NAN, 0);
+            return Interrupt::FAILED;
         }
         let mut i_ab = AlphaBeta::default();
         let mut k = 0u32;
@@ -161,7 +178,7 @@ mod target {
             k += 1;
         }
         if c.drive_mut().set_reference(Reference::Speed(150.0)).is_err() {
-            return (f32::NAN, 0);
+            return Interrupt::FAILED;
         }
         let mut table = [[0u16; 5]; N as usize];
         let mut rehearsal = c.clone();
@@ -176,11 +193,48 @@ mod target {
         });
         // The benchmark's own fetch of each period's samples from its table (the firmware
         // reads them from the ADC's and the timer's registers, outside this body).
-        let fetch = per_call(ticks, |j| {
+        let fetch_cost = per_call(ticks, |j| {
             black_box(fetch(j));
         });
         let before = CALIBRATION_SAMPLES + 1 + k + N;
-        (if c.drive().mode() == Mode::Running { period - fetch } else { f32::NAN }, before)
+        let running = c.drive().mode() == Mode::Running;
+        // The interrupt's deepest stack: a period serving each command the link can post,
+        // with a snapshot asked for (the stop and the disable last), from a painted stack.
+        let gains = c.config().speed().saturated_p().unwrap_or((0.0, 0.0));
+        let spec = CaptureSpec {
+            signals: [Signal::IA, Signal::IAlpha, Signal::OmegaRef, Signal::DutyA],
+            trigger: Trigger::Immediate,
+            pre_samples: 0,
+            decimation: 1,
+        };
+        let commands = [
+            BoardCommand::GetStatus,
+            BoardCommand::ReadSpeedGains,
+            BoardCommand::WriteSpeedGains { kp: gains.0, tau_max_nm: gains.1 },
+            BoardCommand::SetReference(Reference::Speed(150.0)),
+            BoardCommand::ArmCapture(spec),
+            BoardCommand::ReadCapture { chunk: 0 },
+            BoardCommand::ClearFault,
+            BoardCommand::Refused,
+            BoardCommand::Stop,
+            BoardCommand::Enable,
+            BoardCommand::Disable,
+        ];
+        let sp = qemu_target::stack::pointer();
+        let top = qemu_target::stack::paint();
+        let mut served = true;
+        for (j, cmd) in (N..).zip(commands) {
+            served &= shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()));
+            shared.request_snapshot();
+            step(&mut c, black_box(fetch(j)));
+            served &= shared.commands.take().is_some();
+        }
+        let stack = qemu_target::stack::depth_below(sp, top);
+        Interrupt {
+            period: if running { period - fetch_cost } else { f32::NAN },
+            calls_before: before,
+            stack_bytes: if served { stack } else { 0 },
+        }
     }
 
     /// A 12-bit ADC code of a phase current (±16.5 A full scale, offset 2048).
@@ -293,7 +347,7 @@ mod target {
         // the capture's call, the link's requests. TIM1's registers are plain memory here
         // ([`Registers`]). The same drive and protection as above, the same kind of currents
         // (what ideal loops measure, rehearsed on a copy), the encoder turning at 10 rad/s.
-        let (isr, isr_calls_before) = interrupt_period(&ticks, &raw, ts as f32);
+        let isr = interrupt_period(&ticks, &raw, ts as f32);
 
         // Components alone.
         let adc = per_call(&ticks, |k| {
@@ -447,9 +501,9 @@ mod target {
         println!("cost period {:.1}", period);
         println!("cost fast_step {:.1}", fast);
         println!("cost slow_step {:.1}", slow);
-        println!("cost interrupt_calls_before {isr_calls_before}");
-        println!("cost interrupt_period {:.1}", isr);
-        println!("cost interrupt_fast_step {:.1}", isr - slow / divider as f32);
+        println!("cost interrupt_calls_before {}", isr.calls_before);
+        println!("cost interrupt_period {:.1}", isr.period);
+        println!("cost interrupt_fast_step {:.1}", isr.period - slow / divider as f32);
         println!("cost part:adc_scaling_4ch {:.1}", adc);
         println!("cost part:clarke {:.1}", clarke);
         println!("cost part:icad_two_axes {:.1}", icad);
@@ -467,11 +521,11 @@ mod target {
         println!("cost part:rotor_resistance_fit {:.1}", fit);
         println!("stack drive_step_bytes {stack}");
         println!(
-            "stack interrupt_bytes {} (with the {} B exception frame)",
-            stack + qemu_target::stack::EXCEPTION_FRAME_FP_BYTES,
+            "stack interrupt_bytes {} (the firmware's body serving a command, with the {} B exception frame)",
+            isr.stack_bytes + qemu_target::stack::EXCEPTION_FRAME_FP_BYTES,
             qemu_target::stack::EXCEPTION_FRAME_FP_BYTES
         );
-        sh::exit(running)
+        sh::exit(running && isr.stack_bytes > 0)
     }
 }
 
