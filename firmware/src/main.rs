@@ -545,8 +545,8 @@ mod target {
             // The control loop's state, and requests to it, lock-free (`firmware::boundary`):
             // the snapshot the interrupt published after the last turn's request (an older
             // one if no period has passed since), and a fresh one asked for the stream below
-            // and the next turn. Its fields read from the
-            // `Option` (a default `Snapshot` copied in took flash).
+            // and the next turn. Its fields read from the `Option` (a default `Snapshot`
+            // copied in took flash).
             let snapshot = SHARED.snapshot.read();
             SHARED.request_snapshot();
             let stopped = watchdog.due(now_us(), snapshot.is_some_and(|s| s.bridge_on));

@@ -14,8 +14,9 @@
 //! (`PwmScaling`) and MOE, the link's requests; `interrupt_fast_step` is a period less the
 //! drive's slow step's share — the figure issue 19's budget applies to. `period` and
 //! `fast_step` are the drive's own. The components are also measured alone to show what
-//! dominates. Output: `cost <name> <instructions>` lines,
-//! then the stack depth of `Drive::step` (`qemu_target::stack`: painted, then scanned).
+//! dominates. Output: `cost <name> <instructions>` lines, then the stack depths
+//! (`qemu_target::stack`: painted, then scanned) of `Drive::step` and of the interrupt's
+//! body serving each command the link can post.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
