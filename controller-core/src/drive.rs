@@ -107,7 +107,8 @@ pub struct Protection {
     pub stop_time_s: f64,
     /// Open phase: the window, s, of the open-phase and no-motor-current check (a phase
     /// commanded a current but carrying none while the others do, for two windows in a row:
-    /// [`Fault::OpenPhase`]; no phase carrying its current: [`Fault::NoMotorCurrent`]).
+    /// [`Fault::OpenPhase`]; no phase carrying its current: [`Fault::NoMotorCurrent`]),
+    /// sampled once per slow period; at least one slow period.
     pub open_phase_time_s: f64,
     /// The board's brake chopper (a resistor switched across the DC link), if it has one:
     /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
@@ -572,8 +573,9 @@ pub struct DriveConfig {
     stop_on: FaultSet,
     /// Slow steps a controlled stop may take before the bridge goes off anyway.
     stop_slow_steps: u32,
-    /// Fast steps of the open-phase check's window.
-    open_phase_steps: u32,
+    /// Slow steps of the open-phase check's window (it samples the currents once per slow
+    /// period, with the stuck-switch check).
+    open_phase_slow_steps: u32,
     /// The least Σ|i_ref| of a half-wave the stuck-switch check judges, A, summed over its
     /// samples (one per slow period): [`SWITCH_CHARGE_WINDOWS`] open-phase windows of the
     /// commanded level.
@@ -753,7 +755,7 @@ impl DriveConfig {
             },
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
-            open_phase_steps,
+            open_phase_slow_steps: open_phase_steps.div_ceil(u32::from(spec.slow_divider)),
             switch_charge_a: SWITCH_CHARGE_WINDOWS
                 * OPEN_PHASE_COMMANDED_FRACTION
                 * i_d_rated_a
@@ -825,7 +827,7 @@ impl DriveConfig {
             self.saturation_steps,
             self.encoder_check_steps,
             self.stop_slow_steps,
-            self.open_phase_steps,
+            self.open_phase_slow_steps,
             self.stop_on.0,
         ] {
             w.u(x);
@@ -890,7 +892,7 @@ impl DriveConfig {
             saturation_steps: r.u(),
             encoder_check_steps: r.u(),
             stop_slow_steps: r.u(),
-            open_phase_steps: r.u(),
+            open_phase_slow_steps: r.u(),
             stop_on: FaultSet(r.u()),
         };
         let counts = [
@@ -901,7 +903,7 @@ impl DriveConfig {
             cfg.saturation_steps,
             cfg.encoder_check_steps,
             cfg.stop_slow_steps,
-            cfg.open_phase_steps,
+            cfg.open_phase_slow_steps,
         ];
         if r.bad || !cfg.mras.is_valid() || counts.contains(&0) || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
         {
@@ -1220,8 +1222,9 @@ struct OpenPhaseWindow {
 }
 
 impl OpenPhaseWindow {
-    /// One fast step's reference and measured phase currents. At the end of a window of
-    /// `steps` fast steps, with `level_a` the rated magnetizing current:
+    /// One sample (a slow step's: [`Drive::check_phases`]) of the reference and measured
+    /// phase currents. At the end of a window of `steps` samples, with `level_a` the rated
+    /// magnetizing current:
     /// - a phase *looks open* when it was commanded (mean |i_ref| ≥
     ///   [`OPEN_PHASE_COMMANDED_FRACTION`]·`level_a`, or at least [`OPEN_PHASE_REF_SHARE`] of
     ///   the other two's mean while the three references' sum reaches that level) while the other two carry current (their
@@ -1274,22 +1277,7 @@ impl OpenPhaseWindow {
         let commanded = OPEN_PHASE_COMMANDED_FRACTION * level_a * self.steps as f32;
         let (r, i) = (self.reference, self.measured);
         let (r_sum, i_sum) = (r.a + r.b + r.c, i.a + i.b + i.c);
-        // Absent against the other two phases' current *and* against its own reference: a
-        // phase at its reference's zero crossing (slow rotation: generating near synchronism,
-        // standstill) legitimately carries little, and so does its reference; the other two
-        // must carry clearly more than the sensors' noise.
-        let looks_open = |r: f32, i: f32| {
-            let others = 0.5 * (i_sum - i);
-            let r_others = 0.5 * (r_sum - r);
-            // Commanded: this phase at the commanded level, or — the motor commanded at all —
-            // as much as half the others' mean (not at its zero crossing): a reference that
-            // shrinks below the level with the open lead (at top speed, ≈ 5 ms after it opens)
-            // stays judged.
-            (r >= commanded || (r_sum >= commanded && r >= OPEN_PHASE_REF_SHARE * r_others))
-                && others >= OPEN_PHASE_OTHERS_FRACTION * commanded
-                && i < OPEN_PHASE_OTHERS_FRACTION * others
-                && i < OPEN_PHASE_ABSENT_FRACTION * r
-        };
+        let looks_open = |r: f32, i: f32| looks_open(commanded, [r_sum, i_sum], r, i);
         let count = |n: u8, now: bool| if now { n.saturating_add(1) } else { 0 };
         let [sa, sb, sc] = self.suspect;
         let suspect = [
@@ -1308,6 +1296,26 @@ impl OpenPhaseWindow {
             None
         }
     }
+}
+
+/// One phase of the open-phase window's verdict ([`OpenPhaseWindow::add`]): its sums `r`
+/// (Σ|i_ref|) and `i` (Σ|i|) against the three phases' `[r_sum, i_sum]` and the commanded
+/// level's sum `commanded`. Absent against the other two phases' current *and* against its
+/// own reference: a phase at its reference's zero crossing (slow rotation: generating near
+/// synchronism, standstill) legitimately carries little, and so does its reference; the other
+/// two must carry clearly more than the sensors' noise. Out of line: one copy for the three
+/// phases (inlined three times: 192 B more flash), once per window.
+#[inline(never)]
+fn looks_open(commanded: f32, [r_sum, i_sum]: [f32; 2], r: f32, i: f32) -> bool {
+    let others = 0.5 * (i_sum - i);
+    let r_others = 0.5 * (r_sum - r);
+    // Commanded: this phase at the commanded level, or — the motor commanded at all — as
+    // much as half the others' mean (not at its zero crossing): a reference that shrinks
+    // below the level with the open lead (at top speed, ≈ 5 ms after it opens) stays judged.
+    (r >= commanded || (r_sum >= commanded && r >= OPEN_PHASE_REF_SHARE * r_others))
+        && others >= OPEN_PHASE_OTHERS_FRACTION * commanded
+        && i < OPEN_PHASE_OTHERS_FRACTION * others
+        && i < OPEN_PHASE_ABSENT_FRACTION * r
 }
 
 /// The stuck-switch check ([`Fault::SwitchOpen`]) of one phase: the present half-wave of the
@@ -1767,28 +1775,45 @@ impl Drive {
     /// speed loop limited to the envelope's torque at the last slow step; operating point
     /// ([`EnvelopeConfig::point`] on the envelope remade every [`ENVELOPE_REFRESH_SLOW_STEPS`]:
     /// i_d*, and the torque limited to the envelope); magnetized → Running; the fast steps'
-    /// plan ([`IfocConfig::plan`]).
+    /// plan ([`IfocConfig::plan`]); the phase checks (open phase, no motor current, the
+    /// windowed current sum; a stuck switch while Running).
     pub fn slow_step(&mut self, m: &Measurements) {
         self.slow_loops(m);
         if matches!(self.mode, Mode::Magnetizing | Mode::Running) && m.is_finite() {
             self.plan(m.omega_m_rad_s);
-            if self.mode == Mode::Running {
-                self.check_switches(m.i_abc_a);
-            }
+            self.check_phases(m.i_abc_a);
         }
     }
 
-    /// The stuck-switch check once per slow period ([`Fault::SwitchOpen`]): the phase
-    /// currents `i_abc_a` of this period against the references its fast step turns out of
-    /// the plan (the same operations, so the same values) — enough samples of a half-wave up
-    /// to the top speed (≈ 18 per electrical period at 700 rad/s), at a tenth of the
-    /// instructions of every step, and none of them in the fast step.
-    fn check_switches(&mut self, i_abc_a: Abc) {
+    /// The phase checks once per slow period: the open-phase window ([`Fault::OpenPhase`],
+    /// [`Fault::NoMotorCurrent`], the windowed current sum's [`Fault::CurrentSensor`];
+    /// Magnetizing and Running) and the stuck-switch check ([`Fault::SwitchOpen`]; Running),
+    /// on the phase currents `i_abc_a` of this period against the references its fast step
+    /// turns out of the plan (the same operations, so the same values) — enough samples of a
+    /// half-wave up to the top speed (≈ 18 per electrical period at 700 rad/s), at a tenth of
+    /// the instructions of every step, and none of them in the fast step (the window sampled
+    /// every fast step cost 49 instructions per fast step, `cost interrupt_fast_step`).
+    /// A fault latched here turns the bridge off in this period: the fast step that follows
+    /// finds it.
+    fn check_phases(&mut self, i_abc_a: Abc) {
+        let running = self.mode == Mode::Running;
         let i_ref_ab = match self.reference {
-            Reference::RotatingCurrent { amplitude_a, .. } => self.rotating_current(amplitude_a).2,
+            Reference::RotatingCurrent { amplitude_a, .. } if running => self.rotating_current(amplitude_a).2,
             _ => self.ifoc.i_ref_ab(),
         };
-        if let Some(f) = self.switches.add(i_ref_ab.inverse_clarke(), i_abc_a, self.cfg.switch_charge_a) {
+        let i_ref_abc = i_ref_ab.inverse_clarke();
+        let cfg = &self.cfg;
+        let window = self.open_phase.add(
+            i_ref_abc,
+            i_abc_a,
+            cfg.open_phase_slow_steps,
+            // The motor file's magnetizing current, as the stuck-switch check's charge: a
+            // saturated machine's (×1/ℓ̂) is larger, so its phases pass the level sooner.
+            cfg.i_d_rated_a,
+            CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
+        );
+        let switch = |s: &mut SwitchWatch| s.add(i_ref_abc, i_abc_a, cfg.switch_charge_a);
+        if let Some(f) = window.or_else(|| if running { switch(&mut self.switches) } else { None }) {
             self.trip(f);
         }
     }
@@ -2311,20 +2336,6 @@ impl Drive {
             // The current references at the field angle of the slow step's plan.
             _ => cfg.ifoc.step(&mut self.ifoc, i_ab),
         };
-        let i_ref_abc = field.i_ref_ab.inverse_clarke();
-        let window = self.open_phase.add(
-            i_ref_abc,
-            m.i_abc_a,
-            cfg.open_phase_steps,
-            // The motor file's magnetizing current, as the stuck-switch check's charge: a
-            // saturated machine's (×1/ℓ̂) is larger, so its phases pass the level sooner.
-            cfg.i_d_rated_a,
-            CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
-        );
-        if let Some(f) = window {
-            self.trip(f);
-            return off(self.mode);
-        }
         // The fast step right after the slow step (the stuck-switch check is the slow step's
         // own: `Drive::check_switches`).
         let after_slow = self.steps_to_slow == cfg.slow_divider.saturating_sub(1);
@@ -2353,7 +2364,7 @@ impl Drive {
         // modulator's hexagon.
         let modulation = svpwm::modulate_sampled(v_req.rotate(self.delay_rotation), m.vdc_v, cfg.duty_max);
         let duty = if cfg.dead_time_duty > 0.0 {
-            let i_ref = i_ref_abc;
+            let i_ref = field.i_ref_ab.inverse_clarke();
             svpwm::compensate_dead_time(modulation.duty, i_ref, cfg.dead_time_duty, cfg.dead_time_band_a)
         } else {
             modulation.duty
@@ -2737,6 +2748,8 @@ mod tests {
             let mut r = running_drive();
             // Already running: the jump from its readings at rest is not this test's.
             r.cfg.encoder_jump_rad = f32::MAX;
+            // Slow steps alone, no current: the open-phase check's window never closes.
+            r.cfg.open_phase_slow_steps = u32::MAX;
             let mut first = 0.0;
             for k in 0..40 {
                 d.slow_step(&wrapped(start + f64::from(k) * step));

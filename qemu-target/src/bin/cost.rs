@@ -336,8 +336,19 @@ mod target {
         });
         // The slow steps alone, the encoder going on where the periods left it, at the same
         // increment per read (a jump back would be `EncoderLoss`).
+        // Its currents are the plan's references, rehearsed on a copy as above (the
+        // open-phase and stuck-switch checks compare the two there).
         let divider = u32::from(drive.config().slow_divider());
-        let slow = per_call(&ticks, |k| drive.slow_step(&measure(black_box(input(k)), k0 + N + divider * k)));
+        let mut slow_codes = [[AdcCode::default(); 4]; N as usize];
+        let mut rehearsal = drive;
+        for (k, c) in (0u32..).zip(slow_codes.iter_mut()) {
+            let i = rehearsal.ifoc_state().i_ref_ab().inverse_clarke();
+            *c = [code(i.a), code(i.b), code(i.c), AdcCode(3100)];
+            rehearsal.slow_step(&measure(*c, k0 + N + divider * k));
+        }
+        let slow_input = |k: u32| slow_codes.get((k % N) as usize).copied().unwrap_or_default();
+        let slow =
+            per_call(&ticks, |k| drive.slow_step(&measure(black_box(slow_input(k)), k0 + N + divider * k)));
         let running = drive.mode() == Mode::Running;
         let fast = period - slow / divider as f32;
 
