@@ -45,6 +45,7 @@ use controller_core::frames::Abc;
 use controller_core::link::BoardReadings;
 use controller_core::raw::RawDriveConfig;
 use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling, ScalingError};
+use core::mem::MaybeUninit;
 
 /// Samples of the offset calibration (51 ms at 20 kHz; issue 19: at least 1 024).
 pub const CALIBRATION_SAMPLES: u32 = controller_core::calibration::MIN_SAMPLES;
@@ -267,6 +268,39 @@ pub struct Snapshot {
     pub bridge_on: bool,
 }
 
+/// What [`ControlLoop`] validates of the board and the drive's cadence before it is made.
+struct Parts {
+    divider: u16,
+    current: AdcScaling,
+    calibration_cfg: CalibrationConfig,
+    vdc: AdcScaling,
+    pwm: PwmScaling,
+    encoder_cfg: EncoderConfig<ENCODER_WINDOW>,
+}
+
+impl Parts {
+    fn new(cfg: &DriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
+        let divider = cfg.slow_divider();
+        let current =
+            AdcScaling::new(board.current_a_per_count, board.current_offset_counts, board.adc_full_scale)
+                .map_err(ControlError::Scaling)?;
+        let calibration_cfg = CalibrationConfig::new(
+            CALIBRATION_SAMPLES,
+            board.current_offset_counts,
+            board.current_offset_max_error_counts,
+            board.current_noise_max_counts,
+        )
+        .map_err(ControlError::Calibration)?;
+        let vdc =
+            AdcScaling::new(board.vdc_v_per_count, 0, board.adc_full_scale).map_err(ControlError::Scaling)?;
+        let pwm = PwmScaling::new(board.pwm_period_counts).map_err(ControlError::Scaling)?;
+        let read_period_s = f32::from(divider) * cfg.ts_s();
+        let encoder_cfg =
+            EncoderConfig::new(board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
+        Ok(Self { divider, current, calibration_cfg, vdc, pwm, encoder_cfg })
+    }
+}
+
 /// Why a commissioning sequence was not started.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CommissionRefused {
@@ -282,6 +316,20 @@ impl ControlLoop {
     pub fn new(raw: &RawDriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
         let cfg = DriveConfig::from_raw(raw).map_err(ControlError::Drive)?;
         Self::with_config(cfg, board)
+    }
+
+    /// [`ControlLoop::new`] written into `slot` (the firmware's static cell): everything
+    /// validated first, then the loop made in its place — built by value and moved, its
+    /// 4 KiB capture ring was copied three times through a 10 KiB stack frame at start-up.
+    /// On error `slot` is left as it was.
+    pub fn init<'a>(
+        slot: &'a mut MaybeUninit<Self>,
+        raw: &RawDriveConfig,
+        board: &BoardConfig,
+    ) -> Result<&'a mut Self, ControlError> {
+        let cfg = DriveConfig::from_raw(raw).map_err(ControlError::Drive)?;
+        let parts = Parts::new(&cfg, board)?;
+        Ok(slot.write(Self::assemble(cfg, board, parts)))
     }
 
     /// The shipped configuration without the checks that compare the measured currents with
@@ -310,36 +358,26 @@ impl ControlLoop {
     }
 
     fn with_config(cfg: DriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
-        let divider = cfg.slow_divider();
-        let current =
-            AdcScaling::new(board.current_a_per_count, board.current_offset_counts, board.adc_full_scale)
-                .map_err(ControlError::Scaling)?;
-        let calibration_cfg = CalibrationConfig::new(
-            CALIBRATION_SAMPLES,
-            board.current_offset_counts,
-            board.current_offset_max_error_counts,
-            board.current_noise_max_counts,
-        )
-        .map_err(ControlError::Calibration)?;
-        let vdc =
-            AdcScaling::new(board.vdc_v_per_count, 0, board.adc_full_scale).map_err(ControlError::Scaling)?;
-        let pwm = PwmScaling::new(board.pwm_period_counts).map_err(ControlError::Scaling)?;
-        let read_period_s = f32::from(divider) * cfg.ts_s();
-        let encoder_cfg =
-            EncoderConfig::new(board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
-        Ok(Self {
+        let parts = Parts::new(&cfg, board)?;
+        Ok(Self::assemble(cfg, board, parts))
+    }
+
+    /// The loop from validated parts, at rest: calibration under way, the capture idle.
+    #[inline(always)]
+    fn assemble(cfg: DriveConfig, board: &BoardConfig, p: Parts) -> Self {
+        Self {
             board: *board,
             drive: Drive::new(cfg),
-            current: [current; 3],
-            calibration_cfg,
+            current: [p.current; 3],
+            calibration_cfg: p.calibration_cfg,
             calibration: Calibration::Running(OffsetCalibration::default()),
-            vdc,
-            pwm,
-            encoder_cfg,
+            vdc: p.vdc,
+            pwm: p.pwm,
+            encoder_cfg: p.encoder_cfg,
             encoder: EncoderState::default(),
             theta_m_rad: 0.0,
             omega_m_rad_s: 0.0,
-            divider,
+            divider: p.divider,
             count: 0,
             last: None,
             bridge_on: false,
@@ -350,7 +388,7 @@ impl ControlLoop {
             commission: None,
             #[cfg(feature = "commissioning")]
             commission_precharge_left: 0,
-        })
+        }
     }
 
     /// The drive configuration in use.
@@ -949,6 +987,33 @@ mod tests {
             assert!(c.drive_mut().enable().is_err());
             assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         }
+    }
+
+    /// The firmware's construction in its static cell ([`ControlLoop::init`]) refuses what
+    /// [`ControlLoop::new`] refuses, and otherwise makes the same loop: calibrating at rest,
+    /// then stepping as `new`'s does, period for period.
+    #[test]
+    fn the_loop_made_in_place_is_the_loop_made_by_value() {
+        let bad = BoardConfig { pwm_period_counts: 0, ..board() };
+        let mut slot = MaybeUninit::uninit();
+        assert_eq!(
+            ControlLoop::init(&mut slot, &DRIVE_CONFIG, &bad).err(),
+            Some(ControlError::Scaling(ScalingError::Period))
+        );
+        let mut by_value = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let in_place = ControlLoop::init(&mut slot, &DRIVE_CONFIG, &board()).unwrap();
+        assert!(matches!(in_place.calibration(), Calibration::Running(_)));
+        assert_eq!(in_place.snapshot(), by_value.snapshot());
+        for k in 0..(CALIBRATION_SAMPLES + 200) {
+            let s = Samples { i_abc: [2048 + (k % 5) as u16, 2047, 2049], ..at_rest(k as u16) };
+            assert_eq!(in_place.step(&s), by_value.step(&s), "period {k}");
+            if k == CALIBRATION_SAMPLES + 10 {
+                in_place.drive_mut().enable().unwrap();
+                by_value.drive_mut().enable().unwrap();
+            }
+        }
+        assert_eq!(in_place.snapshot(), by_value.snapshot());
+        assert_eq!(in_place.drive().mode(), by_value.drive().mode());
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! STM32G474RE drive firmware (NUCLEO-G474RE + three-phase inverter board).
 //!
 //! Start-up: clocks (170 MHz from HSI16 via the PLL, boost mode) → drive configuration
-//! validated ([`firmware::control::ControlLoop::new`]; an invalid one never enables the
+//! validated ([`firmware::control::ControlLoop::init`]; an invalid one never enables the
 //! bridge) → TIM1 centre-aligned complementary PWM at 20 kHz with dead time and the break
 //! input → ADC1 injected conversions (three phase currents, bus voltage) triggered by TIM1
 //! TRGO2 = OC4REF just before the counter's top (the centre of the low-side conduction
@@ -219,7 +219,7 @@ mod target {
         defmt::info!("drive firmware: 170 MHz, validating the drive configuration");
 
         // Validate at construction: with an invalid configuration nothing is enabled.
-        let control = match ControlLoop::new(&DRIVE_CONFIG, &BOARD) {
+        let control = match ControlLoop::init(CONTROL_CELL.uninit(), &DRIVE_CONFIG, &BOARD) {
             Ok(c) => c,
             Err(e) => {
                 // One interned message per reason (a table of strings took flash).
@@ -239,7 +239,6 @@ mod target {
                 halt_safe();
             }
         };
-        let control: &'static mut ControlLoop = CONTROL_CELL.init(control);
         critical_section::with(|cs| CONTROL.borrow(cs).replace(Some(control)));
 
         // The brake gate: a push-pull output, low (resistor out) until the drive asks.
