@@ -101,9 +101,9 @@ fn a_switch_gap_that_nothing_catches_fails_its_row() {
     let (c, at) = (case(&m, "switch a upper stuck open"), point(&m, Point::Mid, true));
     let expect = m.expect(&c, &at);
     assert!(matches!(expect, Expect::Gap { caught, .. } if caught.contains(&Fault::EncoderImplausible)));
-    // Seed 3: the row's outcome depends on the sensors' noise — of seeds 0–11, five are
-    // `EncoderImplausible` after 10.5 ms, the others `OpenPhase` after 37.5–52.5 ms (the
-    // same spread before the IFOC's two rates; docs/protection.md).
+    // Seed 3: the row's outcome depends on the sensors' noise — of the matrix's seeds 0–11
+    // (`hil-sim faults --seed N`), two are `EncoderImplausible` (10.5 and 57.5 ms), the
+    // others `OpenPhase` after 7.0–54.5 ms (docs/protection.md).
     let o = m.run_one(3, &c, &at, expect, &AtomicBool::new(false)).unwrap();
     assert_eq!(o.verdict(), "gap", "{:?} {:?}", o.detected, o.failures);
     m.spec.protection.encoder_check_time_s = 1e6;
