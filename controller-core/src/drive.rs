@@ -1812,8 +1812,10 @@ impl Drive {
             cfg.i_d_rated_a,
             CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
         );
-        let switch = |s: &mut SwitchWatch| s.add(i_ref_abc, i_abc_a, cfg.switch_charge_a);
-        if let Some(f) = window.or_else(|| if running { switch(&mut self.switches) } else { None }) {
+        let fault = window.or_else(|| {
+            if running { self.switches.add(i_ref_abc, i_abc_a, cfg.switch_charge_a) } else { None }
+        });
+        if let Some(f) = fault {
             self.trip(f);
         }
     }

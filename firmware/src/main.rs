@@ -81,7 +81,7 @@ mod target {
     /// The control loop: put in place at start-up, then the control interrupt's alone (the
     /// link task reaches it through `SHARED`).
     static CONTROL: Mutex<RefCell<Option<&'static mut ControlLoop>>> = Mutex::new(RefCell::new(None));
-    /// Where the control loop lives: zero-initialised (`.bss`), so its ≈ 900 B take no flash
+    /// Where the control loop lives: zero-initialised (`.bss`), so its ≈ 5.2 KiB take no flash
     /// for an initial image, as an `Option<ControlLoop>` static did.
     static CONTROL_CELL: static_cell::StaticCell<ControlLoop> = static_cell::StaticCell::new();
     /// The output stage's state (whether the firmware enabled MOE), the control interrupt's.
