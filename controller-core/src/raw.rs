@@ -11,7 +11,7 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 69;
+pub const FLOATS: usize = 71;
 /// Integers in a raw drive configuration.
 pub const INTEGERS: usize = 17;
 

@@ -82,11 +82,6 @@ pub const SENSOR_BOUND_S: f64 = 0.010;
 /// … open phase, s.
 pub const OPEN_PHASE_BOUND_S: f64 = 0.050;
 
-/// What must still catch a stuck switch where naming it is a stated gap: a bridge fault's
-/// names, or the voltage check's (it blames the encoder) — within the open phase's bound
-/// from the switch's first use, the bridge off in a period.
-pub const SWITCH_CAUGHT: &[Fault] =
-    &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor, Fault::EncoderImplausible];
 /// … stall, s.
 pub const STALL_BOUND_S: f64 = 0.5;
 /// The overload case's load, a multiple of the torque limit (with the operating point's
@@ -183,9 +178,7 @@ pub enum Expect {
     /// No trip: the drive must ride through it.
     RideThrough,
     /// A stated gap: what the issue asks (`fault` within `bound_s`) does not hold here, for
-    /// the reason given. The row fails if it starts to hold — and, where `caught` names
-    /// codes, unless one of them latches within `bound_s` with the bridge off in a period (a
-    /// fault named otherwise is still caught; nothing at all is not).
+    /// the reason given. The row fails if it starts to hold.
     Gap {
         /// The code the issue asks for.
         fault: Fault,
@@ -193,8 +186,6 @@ pub enum Expect {
         bound_s: f64,
         /// Why it does not hold.
         why: &'static str,
-        /// The codes that must still catch it (empty: nothing is required).
-        caught: &'static [Fault],
     },
 }
 
@@ -552,30 +543,14 @@ impl Matrix {
                 bound_s: pwm_s,
                 why: "without the board's comparator a shorted lower switch's shoot-through flows only while \
                       the high side conducts, between the samples: only the comparator can see it",
-                caught: &[],
             },
             // A switch stuck open does nothing until its direction of current is needed: the
             // bound runs from the first period it mattered ([`Outcome::acting_after_s`]).
-            // The phase then cannot follow one way: `SwitchOpen` once a half-wave the other
-            // way has followed; before that (or when the reference hardly reverses) the phase
-            // carries none of its current, which is `OpenPhase`; a dead lower switch leaves
-            // its low-side shunt without current exactly then, which the current-sum check
-            // sees first.
-            // At mid-speed, motoring, the back-EMF turns the loops' voltage off the dead
-            // phase's axis: the voltage check cannot tell the phase from the encoder.
-            // Elsewhere, where the loops hold the voltage on the phase's axis, it names the
-            // switch (`drive::PINNED_PHASE_COS`).
-            Injection::SwitchOpen { upper: true, .. } if at.point == Point::Mid && at.motoring => {
-                Expect::Gap {
-                    fault: Fault::SwitchOpen,
-                    bound_s: OPEN_PHASE_BOUND_S,
-                    why: "at mid-speed, motoring, a half-wave takes longer than the bound, and the loops saturate \
-                      against the pinned phase before the open-phase check sees it: with the back-EMF the \
-                      voltage is off the phase's axis, and the voltage check names it EncoderImplausible \
-                      (within 15 ms of the switch's first use, but by a name that blames the encoder)",
-                    caught: SWITCH_CAUGHT,
-                }
-            }
+            // The phase then cannot follow one way: `SwitchOpen` once the other way has carried
+            // since (`drive::SWITCH_MISSING_SHARE`); before that (or when the reference hardly
+            // reverses) the phase carries none of its current, which is `OpenPhase`; a dead
+            // lower switch leaves its low-side shunt without current exactly then, which the
+            // current-sum check sees first.
             Injection::SwitchOpen { .. } => Expect::Either {
                 faults: &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor],
                 bound_s: OPEN_PHASE_BOUND_S,
@@ -586,26 +561,22 @@ impl Matrix {
                 fault: Fault::CurrentSensor,
                 bound_s: SENSOR_BOUND_S,
                 why: "swapped current channels are an installation error, refused by commissioning",
-                caught: &[],
             },
             Injection::EncoderReversed => Expect::Gap {
                 fault: Fault::EncoderImplausible,
                 bound_s: encoder_s,
                 why: "a reversed encoder is an installation error, refused by commissioning",
-                caught: &[],
             },
             Injection::EncoderStuck if rest => Expect::Gap {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,
                 why: "at rest a stuck counter reads what a healthy one reads; the load then turns the rotor \
                       unseen (needs a speed observer from the electrical quantities)",
-                caught: &[],
             },
             Injection::EncoderLines { .. } if rest => Expect::Gap {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,
                 why: "at rest a wrong line count changes no reading",
-                caught: &[],
             },
             Injection::EncoderStuck | Injection::EncoderGlitch { .. } | Injection::EncoderLines { .. } => {
                 Expect::Fault { fault: Fault::EncoderLoss, bound_s: encoder_s }
@@ -852,10 +823,7 @@ impl Matrix {
                     failures.push(format!("tripped: {f:?} after {}", ms(t)));
                 }
             }
-            Expect::Gap { fault, bound_s, caught, .. } => {
-                if !caught.is_empty() {
-                    judge(caught, bound_s, &mut failures);
-                }
+            Expect::Gap { fault, bound_s, .. } => {
                 let mut would = Vec::new();
                 judge(&[fault], bound_s, &mut would);
                 if would.is_empty() && peak <= PEAK_CURRENT_FRACTION * i_trip {
