@@ -595,7 +595,9 @@ pub struct DriveConfig {
     /// Slow steps of the open-phase check's window (it samples the currents once per slow
     /// period, with the stuck-switch check).
     open_phase_slow_steps: u32,
-    /// The open-phase check's commanded level, A, for the stuck-switch check.
+    /// The open-phase check's commanded level, A, for the stuck-switch check
+    /// ([`OPEN_PHASE_COMMANDED_FRACTION`] × `i_d_rated_a`: derived in the slow step instead,
+    /// the firmware took 196 B more flash).
     switch_level_a: f32,
     /// The stuck-switch check's weights of a new sample, 1 − exp(−T_slow/τ) with τ
     /// [`SWITCH_WINDOWS`] and [`SWITCH_FOLLOWING_WINDOWS`] open-phase windows.
@@ -1407,10 +1409,11 @@ impl PhaseDirections {
     fn add(&mut self, r: f32, m: f32, level: f32, commanded: f32, gains: [f32; 2]) -> bool {
         let Self { positive, negative, open } = self;
         let (this, other, d) = if r >= 0.0 { (positive, negative, 1.0) } else { (negative, positive, -1.0) };
-        if d * r < level {
+        let magnitude = d * r;
+        if magnitude < level {
             return false;
         }
-        let missed = d * (r - m) > SWITCH_SHORTFALL_MISSING * d * r;
+        let missed = d * (r - m) > SWITCH_SHORTFALL_MISSING * magnitude;
         if missed && !this.lapsed() {
             // A miss in good standing: the other way must carry anew (an open lead misses
             // both ways from the same moment). Further misses of a direction already out of
@@ -1426,11 +1429,12 @@ impl PhaseDirections {
         this.missed += g * (x - this.missed);
         this.seen_long += g_long * (1.0 - this.seen_long);
         this.missed_long += g_long * (x - this.missed_long);
-        this.dead |= this.missing();
+        let missing = this.missing();
+        this.dead |= missing;
         // The other way, dead, answered by this sample: carried here, the switch is stuck.
         let answered = core::mem::take(&mut other.dead) && carried && this.following();
-        *open = this.missing() && other.missing();
-        answered || (this.missing() && other.following() && other.fresh)
+        *open = missing && other.missing();
+        answered || (missing && other.following() && other.fresh)
     }
 }
 
@@ -1876,8 +1880,8 @@ impl Drive {
             i_ref_abc,
             i_abc_a,
             cfg.open_phase_slow_steps,
-            // The motor file's magnetizing current, as the stuck-switch check's charge: a
-            // saturated machine's (×1/ℓ̂) is larger, so its phases pass the level sooner.
+            // The motor file's magnetizing current, as the window's level: a saturated
+            // machine's (×1/ℓ̂) is larger, so its phases would pass the level sooner.
             cfg.i_d_rated_a,
             CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
         );
@@ -2363,7 +2367,8 @@ impl Drive {
             };
             self.pinned_axis = axis.unwrap_or(0);
             if self.encoder_bad_steps >= self.cfg.encoder_check_steps {
-                // Every implausible check on one phase's axis: that phase does not answer.
+                // The last half of the implausible checks on one phase's axis: that phase
+                // does not answer.
                 let pinned = 2 * self.pinned_steps >= self.encoder_bad_steps;
                 // A phase's current that misses one way (or both) is the bridge's, not the
                 // encoder's: a wrong field angle turns the references, the loops still
@@ -2419,8 +2424,8 @@ impl Drive {
             // The current references at the field angle of the slow step's plan.
             _ => cfg.ifoc.step(&mut self.ifoc, i_ab),
         };
-        // The fast step right after the slow step (the stuck-switch check is the slow step's
-        // own: `Drive::check_switches`).
+        // The fast step right after the slow step (the phase checks are the slow step's own:
+        // `Drive::check_phases`).
         let after_slow = self.steps_to_slow == cfg.slow_divider.saturating_sub(1);
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
         let v_usable = m.vdc_v * cfg.duty_max;
@@ -3234,8 +3239,8 @@ mod tests {
 
     /// The stuck-switch check on synthetic slow samples (100 per electrical period, the
     /// shipped drive's at ≈ 60 rad/s electrical; unit amplitude, commanded level 0.1 A, a
-    /// 2.5 ms window): a phase whose positive direction carries nothing from a quarter
-    /// period on while its negative one follows is `SwitchOpen` once the negative direction
+    /// 2.5 ms window): a phase whose positive direction carries nothing from its positive
+    /// peak on while its negative one follows is `SwitchOpen` once the negative direction
     /// carries again — where its reference passes half the amplitude after the zero crossing
     /// (¼ period + 30° after the fault), not before — and, in between, [`SwitchWatch::suspect`]
     /// names it for another check's verdict; an open lead (the other two phases sharing one
