@@ -501,9 +501,10 @@ struct CampaignArgs {
     /// the whole campaign's.
     #[arg(long, default_value = "0/1", value_parser = shard)]
     shard: (u64, u64),
-    /// DC-bus voltage, V.
-    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
-    vdc: f64,
+    /// DC-bus voltage, V [default: 310, or the middle of the drive's bus range
+    /// (`[protection]` vdc_min_v … vdc_max_v) when 310 V lies outside it].
+    #[arg(long, value_parser = positive_volts)]
+    vdc: Option<f64>,
     /// Output directory [default: out/campaign].
     #[arg(long, value_parser = non_empty_path)]
     out: Option<PathBuf>,
@@ -541,8 +542,36 @@ struct FaultsArgs {
     trace: bool,
 }
 
-/// The bus `hil-sim faults` runs on without `--vdc`, when the drive's range holds it, V.
+/// The bus `faults`, `campaign` and `envelope` run on without `--vdc`, when the drive's
+/// range holds it, V.
 const DEFAULT_VDC_V: f64 = 310.0;
+
+/// The bus a command runs `what` on: `asked` (`--vdc`), refused outside the drive's bus range
+/// (`[protection]`: every run would trip on it), else [`DEFAULT_VDC_V`], or the middle of the
+/// range when that lies outside it (said on stderr).
+fn bus_voltage(
+    asked: Option<f64>,
+    p: &controller_core::drive::Protection,
+    what: &str,
+) -> Result<f64, String> {
+    let inside = |v: f64| v > p.vdc_min_v && v < p.vdc_max_v;
+    match asked {
+        Some(v) if !inside(v) => Err(format!(
+            "--vdc {v} V lies outside the drive's bus range ({} … {} V of [protection]): every run would trip on it",
+            p.vdc_min_v, p.vdc_max_v
+        )),
+        Some(v) => Ok(v),
+        None if inside(DEFAULT_VDC_V) => Ok(DEFAULT_VDC_V),
+        None => {
+            let v = 0.5 * (p.vdc_min_v + p.vdc_max_v);
+            eprintln!(
+                "hil-sim: {DEFAULT_VDC_V} V lies outside the drive's bus range ({} … {} V): {what} runs on {v} V (--vdc to choose)",
+                p.vdc_min_v, p.vdc_max_v
+            );
+            Ok(v)
+        }
+    }
+}
 /// The most rows `hil-sim faults --trace` writes (each trace ≈ 3 MB of CSV).
 const MAX_TRACED_ROWS: usize = 12;
 /// `--trace` starts this long before the injection (or an earlier fault), s.
@@ -614,26 +643,7 @@ fn trace_fault_row(
 fn faults(a: &FaultsArgs) -> Result<(), String> {
     use hil_sim::faults::Matrix;
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
-    let p = &file.spec.protection;
-    let inside = |v: f64| v > p.vdc_min_v && v < p.vdc_max_v;
-    let vdc = match a.vdc {
-        Some(v) if !inside(v) => {
-            return Err(format!(
-                "--vdc {v} V lies outside the drive's bus range ({} … {} V of [protection]): every row would trip before its fault",
-                p.vdc_min_v, p.vdc_max_v
-            ));
-        }
-        Some(v) => v,
-        None if inside(DEFAULT_VDC_V) => DEFAULT_VDC_V,
-        None => {
-            let v = 0.5 * (p.vdc_min_v + p.vdc_max_v);
-            eprintln!(
-                "hil-sim: {DEFAULT_VDC_V} V lies outside the drive's bus range ({} … {} V): the matrix runs on {v} V (--vdc to choose)",
-                p.vdc_min_v, p.vdc_max_v
-            );
-            v
-        }
-    };
+    let vdc = bus_voltage(a.vdc, &file.spec.protection, "the matrix")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/faults"));
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     // Without [certify], the top speed is twice the base speed (the field-weakening range).
@@ -777,12 +787,13 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     let certify = file.certify.ok_or_else(|| {
         format!("{}: no [certify] table: the campaign samples its parameter box", a.drive.display())
     })?;
+    let vdc = bus_voltage(a.vdc, &file.spec.protection, "the campaign")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/campaign"));
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let c = Campaign {
         spec: file.spec,
         certify,
-        vdc_v: a.vdc,
+        vdc_v: vdc,
         duration_s: a.duration,
         runs: a.runs,
         seed: a.seed,
@@ -793,7 +804,7 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     eprintln!(
         "hil-sim: campaign of {} on {} V: {total} run(s) of {} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
         a.drive.display(),
-        a.vdc,
+        vdc,
         a.duration,
         a.shard.0,
         a.shard.1,
@@ -882,9 +893,10 @@ struct EnvelopeArgs {
     /// A drive file.
     #[arg(default_value = "drive.toml")]
     drive: PathBuf,
-    /// DC-bus voltage, V.
-    #[arg(long, default_value_t = 310.0, value_parser = positive_volts)]
-    vdc: f64,
+    /// DC-bus voltage, V [default: 310, or the middle of the drive's bus range
+    /// (`[protection]` vdc_min_v … vdc_max_v) when 310 V lies outside it].
+    #[arg(long, value_parser = positive_volts)]
+    vdc: Option<f64>,
     /// Speeds measured, evenly from 0.2× to 2× the no-load base speed.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(2..=200))]
     points: u32,
@@ -1017,11 +1029,12 @@ const ENVELOPE_TOLERANCE: f64 = 0.05;
 fn envelope(a: &EnvelopeArgs) -> Result<(), String> {
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
     let spec = file.spec;
+    let vdc = bus_voltage(a.vdc, &spec.protection, "the envelope")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/envelope"));
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let base = hil_sim::envelope::drive_base_speed_rad_s(&spec, a.vdc);
+    let base = hil_sim::envelope::drive_base_speed_rad_s(&spec, vdc);
     if base <= 0.0 {
-        return Err(format!("the rated flux needs more than the {} V bus has even at standstill", a.vdc));
+        return Err(format!("the rated flux needs more than the {} V bus has even at standstill", vdc));
     }
     let n = f64::from(a.points - 1);
     let speeds: Vec<f64> = (0..a.points).map(|k| base * (0.2 + 1.8 * f64::from(k) / n)).collect();
@@ -1029,12 +1042,12 @@ fn envelope(a: &EnvelopeArgs) -> Result<(), String> {
     eprintln!(
         "hil-sim: envelope of {} on {} V, {} speeds from {:.1} to {:.1} rad/s (no-load base speed {base:.1} rad/s)",
         a.drive.display(),
-        a.vdc,
+        vdc,
         speeds.len(),
         speeds.first().copied().unwrap_or(0.0),
         speeds.last().copied().unwrap_or(0.0)
     );
-    let points = hil_sim::envelope::measure(&spec, &spec.motor, a.vdc, &speeds, sign)?;
+    let points = hil_sim::envelope::measure(&spec, &spec.motor, vdc, &speeds, sign)?;
     let mut csv =
         String::from("omega_m_rad_s,measured_nm,analytic_nm,relative_error,ripple_nm,flux_wb,mode\n");
     println!(
@@ -1063,13 +1076,10 @@ fn envelope(a: &EnvelopeArgs) -> Result<(), String> {
         }
     }
     write_text(&out.join("envelope.csv"), &csv)?;
-    write_text(
-        &out.join("envelope.svg"),
-        &hil_sim::envelope::plot(&spec, &spec.motor, a.vdc, &points, sign),
-    )?;
+    write_text(&out.join("envelope.svg"), &hil_sim::envelope::plot(&spec, &spec.motor, vdc, &points, sign))?;
     let summary = serde_json::json!({
         "drive": a.drive.display().to_string(),
-        "vdc_v": a.vdc,
+        "vdc_v": vdc,
         "base_speed_rad_s": base,
         "direction": if a.generating { "generating" } else { "motoring" },
         "tolerance": ENVELOPE_TOLERANCE,

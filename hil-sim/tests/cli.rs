@@ -391,6 +391,49 @@ fn campaign_writes_its_table_and_judges_every_run() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
+/// A drive whose bus range excludes 310 V: `campaign` and `envelope` without `--vdc` run on
+/// the middle of its range, as `faults` does, and refuse a `--vdc` outside it. Found by
+/// trying: the 24 V drive's campaign ran on 310 V — 1 000 of 1 000 runs
+/// `DcBusOvervoltage` — and its envelope measured a 5 690 rad/s base speed into `Overspeed`.
+#[test]
+fn campaign_and_envelope_run_on_the_drives_own_bus() {
+    let out = tmp("own-bus");
+    let small = concat!(env!("CARGO_MANIFEST_DIR"), "/../drives/em-synergy-24v.toml");
+    let res = out.join("campaign");
+    let st = bin()
+        .args(["campaign", small, "--runs", "64", "--shard", "0/32", "--duration", "0.5", "--out"])
+        .arg(&res)
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8_lossy(&st.stderr).contains("runs on 24 V"),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["vdc_v"].as_f64(), Some(24.0));
+    let csv = std::fs::read_to_string(res.join("campaign.csv")).unwrap();
+    assert!(!csv.contains("DcBusOvervoltage"), "{csv}");
+    let res = out.join("envelope");
+    let st = bin().args(["envelope", small, "--points", "2", "--out"]).arg(&res).output().unwrap();
+    assert!(
+        String::from_utf8_lossy(&st.stderr).contains("runs on 24 V"),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["vdc_v"].as_f64(), Some(24.0));
+    for cmd in ["campaign", "envelope"] {
+        let st = bin().args([cmd, small, "--vdc", "310", "--out"]).arg(out.join("refused")).output().unwrap();
+        assert_eq!(st.status.code(), Some(1), "{cmd}");
+        assert!(String::from_utf8_lossy(&st.stderr).contains("outside the drive's bus range"), "{cmd}");
+        assert!(!out.join("refused").exists(), "{cmd}");
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 /// Ctrl-C during a campaign: the runs stop, nothing is written, exit 1 naming the interrupt.
 #[test]
 fn interrupted_campaign_writes_nothing() {
