@@ -287,7 +287,11 @@ pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
 /// trip, while the drive's field turns less than that window's width
 /// ([`PINNED_FIELD_TURN_RAD`]) over the checks. The loops then hold one phase at a rail
 /// and its current does not answer — a switch stuck open (the opposite diode pins the
-/// phase to the other rail), which the check names [`Fault::SwitchOpen`], not the encoder.
+/// phase to the other rail) or an open lead, which the check names [`Fault::OpenPhase`],
+/// not the encoder: until the reference reverses, the two give the same currents (named
+/// [`Fault::SwitchOpen`] instead when the stuck-switch check saw one direction of a phase
+/// go missing, `SwitchWatch::suspect`). Naming the switch here misnamed an open lead at standstill,
+/// generating, on three of the fault matrix's seeds 0–11 (docs/protection.md).
 /// Measured on the 36 stuck switches of `stuck_switches_at_every_point`: 0.992–0.998 at the
 /// trip.
 pub const PINNED_PHASE_COS: f32 = 0.98;
@@ -998,7 +1002,10 @@ pub enum Fault {
     /// a motor that is not there, dead current sensors).
     NoMotorCurrent,
     /// A phase is commanded a current but carries none, over `open_phase_time_s` (a broken
-    /// lead or connector).
+    /// lead or connector). Also the encoder check's verdict when the loops held the voltage
+    /// on one phase's axis throughout ([`PINNED_PHASE_COS`]): that phase's current does not
+    /// answer its voltage — an open lead, or a switch stuck open before the reference has
+    /// reversed (until then the two are the same currents).
     OpenPhase,
     /// The motor's I²t thermal model reached its limit ([`Protection::motor_thermal`]).
     MotorOverload,
@@ -1010,9 +1017,7 @@ pub enum Fault {
     FollowingError,
     /// A phase follows its reference in one direction of current and not in the other: a
     /// bridge switch (or its gate drive) stuck open — its direction of current can only
-    /// flow through the opposite diode, which pins the phase to the other rail. Also the
-    /// encoder check's verdict when the loops held the voltage on one phase's axis
-    /// throughout ([`PINNED_PHASE_COS`]): that phase's current does not answer its voltage.
+    /// flow through the opposite diode, which pins the phase to the other rail.
     SwitchOpen,
 }
 
@@ -1255,8 +1260,9 @@ impl OpenPhaseWindow {
     ///   the other two's mean while the three references' sum reaches that level) while the other two carry current (their
     ///   mean |i| at least [`OPEN_PHASE_OTHERS_FRACTION`] of that level) but it hardly does:
     ///   its mean |i| below [`OPEN_PHASE_OTHERS_FRACTION`] of theirs and below
-    ///   [`OPEN_PHASE_ABSENT_FRACTION`] of its own mean |i_ref| (an open lead carries none,
-    ///   the other two equal and opposite currents);
+    ///   [`OPEN_PHASE_ABSENT_FRACTION`] of its own mean |i_ref| or of the commanded level,
+    ///   whichever is larger (an open lead carries none, the other two equal and opposite
+    ///   currents; its reading is the sensor's noise);
     /// - the motor *carries no current* when the reference does (the sum of the mean
     ///   |i_ref| at least twice the commanded level) and the measured sum is below
     ///   [`OPEN_PHASE_ABSENT_FRACTION`] of it (no lead connected, or every sensor dead: the
@@ -1339,7 +1345,10 @@ fn looks_open(commanded: f32, [r_sum, i_sum]: [f32; 2], r: f32, i: f32) -> bool 
     (r >= commanded || (r_sum >= commanded && r >= OPEN_PHASE_REF_SHARE * r_others))
         && others >= OPEN_PHASE_OTHERS_FRACTION * commanded
         && i < OPEN_PHASE_OTHERS_FRACTION * others
-        && i < OPEN_PHASE_ABSENT_FRACTION * r
+        // Against its reference, or the commanded level when the reference is below it: a
+        // tenth of a reference the voltage regulator shrank with the fault (top speed) lies
+        // under the sensors' noise, which an open lead's reading is.
+        && i < OPEN_PHASE_ABSENT_FRACTION * max_f32(r, commanded)
 }
 
 /// The stuck-switch check ([`Fault::SwitchOpen`]) of one phase in one direction of its
@@ -2368,7 +2377,8 @@ impl Drive {
             self.pinned_axis = axis.unwrap_or(0);
             if self.encoder_bad_steps >= self.cfg.encoder_check_steps {
                 // The last half of the implausible checks on one phase's axis: that phase
-                // does not answer.
+                // does not answer (its lead or a switch: the same currents until the
+                // reference reverses).
                 let pinned = 2 * self.pinned_steps >= self.encoder_bad_steps;
                 // A phase's current that misses one way (or both) is the bridge's, not the
                 // encoder's: a wrong field angle turns the references, the loops still
@@ -2376,7 +2386,7 @@ impl Drive {
                 let bridge = self.switches.suspect();
                 self.trip(match bridge {
                     Some(f) => f,
-                    None if pinned => Fault::SwitchOpen,
+                    None if pinned => Fault::OpenPhase,
                     None => Fault::EncoderImplausible,
                 });
             }
