@@ -290,8 +290,8 @@ pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
 /// phase to the other rail) or an open lead, which the check names [`Fault::OpenPhase`],
 /// not the encoder: until the reference reverses, the two give the same currents (named
 /// [`Fault::SwitchOpen`] instead when the stuck-switch check saw one direction of a phase
-/// go missing, `SwitchWatch::suspect`). Naming the switch here misnamed an open lead at standstill,
-/// generating, on three of the fault matrix's seeds 0–11 (docs/protection.md).
+/// go missing, `SwitchWatch::suspect`). Naming the switch here misnamed an open lead at
+/// standstill, generating, on three of the fault matrix's seeds 0–11 (docs/protection.md).
 /// Measured on the 36 stuck switches of `stuck_switches_at_every_point`: 0.992–0.998 at the
 /// trip.
 pub const PINNED_PHASE_COS: f32 = 0.98;

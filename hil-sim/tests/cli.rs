@@ -400,31 +400,25 @@ fn campaign_and_envelope_run_on_the_drives_own_bus() {
     let out = tmp("own-bus");
     let small = concat!(env!("CARGO_MANIFEST_DIR"), "/../drives/em-synergy-24v.toml");
     let res = out.join("campaign");
+    // The command says so, and its summary records the bus it ran on.
+    let on_24_v = |st: &std::process::Output, res: &std::path::Path| {
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert!(err.contains("runs on 24 V"), "{err}");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(summary["vdc_v"].as_f64(), Some(24.0));
+    };
     let st = bin()
         .args(["campaign", small, "--runs", "64", "--shard", "0/32", "--duration", "0.5", "--out"])
         .arg(&res)
         .output()
         .unwrap();
-    assert!(
-        String::from_utf8_lossy(&st.stderr).contains("runs on 24 V"),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
-    assert_eq!(summary["vdc_v"].as_f64(), Some(24.0));
+    on_24_v(&st, &res);
     let csv = std::fs::read_to_string(res.join("campaign.csv")).unwrap();
     assert!(!csv.contains("DcBusOvervoltage"), "{csv}");
     let res = out.join("envelope");
     let st = bin().args(["envelope", small, "--points", "2", "--out"]).arg(&res).output().unwrap();
-    assert!(
-        String::from_utf8_lossy(&st.stderr).contains("runs on 24 V"),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
-    );
-    let summary: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
-    assert_eq!(summary["vdc_v"].as_f64(), Some(24.0));
+    on_24_v(&st, &res);
     for cmd in ["campaign", "envelope"] {
         let st = bin().args([cmd, small, "--vdc", "310", "--out"]).arg(out.join("refused")).output().unwrap();
         assert_eq!(st.status.code(), Some(1), "{cmd}");
