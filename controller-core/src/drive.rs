@@ -1684,6 +1684,13 @@ impl Drive {
         &self.ifoc
     }
 
+    /// The next [`Drive::step`] runs the slow step, which reads the measurements' encoder
+    /// values (the one cadence: a caller that reads the encoder every N-th period reads it
+    /// for this step).
+    pub fn slow_step_due(&self) -> bool {
+        self.steps_to_slow == 0
+    }
+
     /// Slow steps since a bridge last drove the rotor (saturating; `u32::MAX` from power-up):
     /// what decides whether the next enable measures the inductances
     /// ([`MrasConfig::demagnetized_after`]).
