@@ -146,6 +146,17 @@ fn campaign_result(
     {
         return Err(format!("{shown}: the campaign's box differs from the file's [certify]"));
     }
+    // Every corner of the box through every manoeuvre (the campaign's first runs): a
+    // campaign of fewer runs certifies nothing about the corners it left out.
+    let corner_runs = at("/corner_runs").as_u64().filter(|&n| n > 0).ok_or_else(|| {
+        format!("{shown}: the summary does not say which runs take the box's corners (an older hil-sim): run `hil-sim campaign` again")
+    })?;
+    let campaign_runs = at("/campaign_runs").as_u64().unwrap_or(0);
+    if campaign_runs < corner_runs {
+        return Err(format!(
+            "{shown}: a campaign of {campaign_runs} runs, fewer than the {corner_runs} that take every corner of the box through every manoeuvre: run `hil-sim campaign` with --runs {corner_runs} or more"
+        ));
+    }
     let (runs, passed) = (at("/runs").as_u64().unwrap_or(0), at("/passed").as_u64().unwrap_or(0));
     let ok = runs > 0 && runs == passed && at("/campaign_runs").as_u64() == Some(runs);
     let mut record = serde_json::Map::new();

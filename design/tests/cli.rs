@@ -357,7 +357,7 @@ fn certificate_records_linear_and_nonlinear_results() {
     let summary = |fingerprint: &str, shard: &str, failed: &[u64]| {
         serde_json::json!({
             "drive": {"file": "drive.toml", "fingerprint": fingerprint},
-            "shard": shard, "runs": 64, "campaign_runs": 64, "passed": 64 - failed.len() as u64, "failed": failed,
+            "shard": shard, "runs": 64, "campaign_runs": 64, "corner_runs": 64, "passed": 64 - failed.len() as u64, "failed": failed,
             "seed": 1, "duration_s": 1.0, "vdc_v": 310.0, "omega_s_rad_s": 45.0,
             "box": {"rs_factor": [1.0, 1.5], "rr_factor": [1.0, 2.0], "inductance_factor": [0.6, 1.0], "j_factor": [1.0, 2.0]},
             "criteria": {}, "per_manoeuvre": [],
@@ -383,9 +383,17 @@ fn certificate_records_linear_and_nonlinear_results() {
     let (code, _, err) = run(&["certify", drive, "--campaign", &failed]);
     assert_eq!(code, Some(1));
     assert!(err.contains("the campaign passed 62 of 64 runs"), "{err}");
+    // A campaign too short to take every corner through every manoeuvre (found by trying:
+    // `hil-sim campaign --runs 1` certified the file), and a summary that does not say.
+    let mut short = summary(&fp, "0/1", &[]);
+    (short["runs"], short["campaign_runs"], short["passed"]) = (1.into(), 1.into(), 1.into());
+    let mut unsaid = summary(&fp, "0/1", &[]);
+    unsaid.as_object_mut().unwrap().remove("corner_runs");
     for (name, v, why) in [
         ("other.json", summary("0123456789abcdef", "0/1", &[]), "another drive file"),
         ("shard.json", summary(&fp, "1/4", &[]), "one shard"),
+        ("short.json", short, "a campaign of 1 runs, fewer than the 64"),
+        ("unsaid.json", unsaid, "does not say which runs take the box's corners"),
     ] {
         let p = write(name, v);
         let (code, _, err) = run(&["certify", drive, "--campaign", &p]);

@@ -65,6 +65,9 @@ pub const RIPPLE_WINDOW_S: f64 = 0.05;
 pub const RIPPLE_FRACTION: f64 = 0.1;
 /// The 16 corners of (R_s, R_r, L, J).
 pub const CORNERS: u64 = 16;
+/// The runs that take every corner through every manoeuvre: a campaign's first runs, the
+/// fewest `design certify --campaign` accepts (its summary's `corner_runs`).
+pub const CORNER_RUNS: u64 = CORNERS * Manoeuvre::ALL.len() as u64;
 
 /// A run's manoeuvre (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -196,8 +199,7 @@ impl Campaign {
     /// Parameters of run `k`.
     pub fn sample(&self, k: u64) -> Sample {
         let c = &self.certify;
-        let corner_runs = CORNERS * 4;
-        if k < corner_runs {
+        if k < CORNER_RUNS {
             let corner = k / 4;
             let pick = |iv: [f64; 2], bit: u64| if corner >> bit & 1 == 0 { iv[0] } else { iv[1] };
             return Sample {
@@ -542,6 +544,7 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
         "passed": verdicts.iter().filter(|v| v.passed()).count(),
         "failed": verdicts.iter().filter(|v| !v.passed()).map(|v| v.k).collect::<Vec<_>>(),
         "campaign_runs": c.runs,
+        "corner_runs": CORNER_RUNS,
         "shard": format!("{}/{}", c.shard.0, c.shard.1),
         "seed": c.seed,
         "duration_s": c.duration_s,

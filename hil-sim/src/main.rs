@@ -789,7 +789,6 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     })?;
     let vdc = bus_voltage(a.vdc, &file.spec.protection, "the campaign")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/campaign"));
-    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let c = Campaign {
         spec: file.spec,
         certify,
@@ -801,6 +800,20 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     };
     c.check_duration()?;
     let total = c.indices().count() as u64;
+    if total == 0 {
+        return Err(format!(
+            "shard {}/{} of a {}-run campaign has no runs (its runs are those with k mod {} = {}): take fewer shards",
+            a.shard.0, a.shard.1, a.runs, a.shard.1, a.shard.0
+        ));
+    }
+    if a.runs < hil_sim::campaign::CORNER_RUNS {
+        eprintln!(
+            "hil-sim: {} runs leave corners of the box without every manoeuvre: `design certify --campaign` asks for {} or more",
+            a.runs,
+            hil_sim::campaign::CORNER_RUNS
+        );
+    }
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     eprintln!(
         "hil-sim: campaign of {} on {} V: {total} run(s) of {} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
         a.drive.display(),

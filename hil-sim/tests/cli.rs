@@ -376,6 +376,21 @@ fn campaign_writes_its_table_and_judges_every_run() {
     let st = bin().arg("campaign").arg(&no_certify).args(["--out"]).arg(&res).output().unwrap();
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("no [certify] table"));
+    // A shard that holds none of its campaign's runs is an error, not a campaign of none
+    // that passed (found by trying: `--runs 20 --shard 25/30` wrote its files, exit 0).
+    let empty = out.join("empty");
+    let st = bin()
+        .args(["campaign", drive, "--runs", "20", "--shard", "25/30", "--out"])
+        .arg(&empty)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&st.stderr).contains("has no runs"),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    assert!(!empty.exists(), "nothing written");
     // A campaign beyond 1e6 runs (every verdict is kept in memory) is refused, not run out of
     // memory: 1e8 runs was accepted and would have needed gigabytes.
     for bad in [
