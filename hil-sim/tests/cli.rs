@@ -192,10 +192,17 @@ fn diverged_run_fails_and_writes_nothing() {
 }
 
 /// Ctrl-C left `trace.csv.partial` (up to hundreds of MB) behind: now the run stops, says
-/// so, exits 1 and removes it.
+/// so, exits 1 and removes it — on SIGTERM and SIGHUP too (`timeout`, `kill`, a cancelled CI
+/// job, a closed terminal: found by trying, they left a 200 MB partial trace).
 #[test]
 fn interrupted_run_cleans_up() {
-    let dir = tmp("sigint");
+    for signal in ["-INT", "-TERM", "-HUP"] {
+        interrupt_a_run(signal);
+    }
+}
+
+fn interrupt_a_run(signal: &str) {
+    let dir = tmp(&format!("sig{signal}"));
     std::fs::create_dir_all(&dir).unwrap();
     let long =
         std::fs::read_to_string(SCENARIO).unwrap().replacen("duration_s = 1.0", "duration_s = 400.0", 1);
@@ -219,12 +226,12 @@ fn interrupted_run_cleans_up() {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     std::thread::sleep(std::time::Duration::from_millis(200));
-    let st = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    let st = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
     assert!(st.success());
     let done = child.wait_with_output().unwrap();
-    assert_eq!(done.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"));
-    assert!(!partial.exists() && !out.join("trace.csv").exists());
+    assert_eq!(done.status.code(), Some(1), "{signal}");
+    assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"), "{signal}");
+    assert!(!partial.exists() && !out.join("trace.csv").exists(), "{signal}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
