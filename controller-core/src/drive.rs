@@ -496,7 +496,8 @@ pub enum DriveError {
     RotorResistanceRange,
     /// `inductance_range` not `0 < min ≤ max ≤ 10·min`, finite.
     InductanceRange,
-    /// Flux reference not finite and positive, or `flux_floor_wb` not below it.
+    /// Flux reference not finite and positive, `flux_floor_wb` not below it, or its
+    /// magnetizing current ψ*/L_m not below `i_ref_max_a`.
     FluxReference,
     /// `magnetized_fraction` not in (0, 1).
     MagnetizedFraction,
@@ -628,6 +629,19 @@ impl DriveConfig {
             return Err(DriveError::SlowDivider);
         }
         let ts = 1.0 / f;
+        // Before the protection, whose defaults are derived from the flux's magnetizing
+        // current: a bad flux is named as such. Its magnetizing current ψ*/L_m must leave
+        // current for torque below the current limit — above it the references are clamped:
+        // a flux the drive never reaches and no torque (`design certify` certified ψ* = 50 Wb
+        // on a 4 A drive).
+        let i_d_rated_a = spec.flux_ref_wb / spec.motor.lm_h();
+        if !(spec.flux_ref_wb.is_finite()
+            && spec.flux_ref_wb > 0.0
+            && spec.flux_floor_wb < spec.flux_ref_wb
+            && i_d_rated_a < spec.i_ref_max_a)
+        {
+            return Err(DriveError::FluxReference);
+        }
         let p = &spec.protection;
         let finite = [
             p.i_trip_a,
@@ -670,10 +684,6 @@ impl DriveConfig {
             }
             Some(_) => return Err(DriveError::BrakeChopper),
         };
-        if !(spec.flux_ref_wb.is_finite() && spec.flux_ref_wb > 0.0 && spec.flux_floor_wb < spec.flux_ref_wb)
-        {
-            return Err(DriveError::FluxReference);
-        }
         let mf = spec.magnetized_fraction;
         if !(mf > 0.0 && mf < 1.0) {
             return Err(DriveError::MagnetizedFraction);

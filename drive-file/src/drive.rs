@@ -818,9 +818,15 @@ pub fn drive_spec(
         DriveError::Speed(e) => src.error("controller.speed", format!("rejected: {e:?}")),
         DriveError::Position(e) => src.error("controller.position", format!("rejected: {e:?}")),
         DriveError::Ifoc(e) => src.error("controller", format!("IFOC parameters rejected: {e:?}")),
-        DriveError::FluxReference => {
-            src.error("controller.flux_ref_wb", "must be > 0 and above controller.flux_floor_wb")
-        }
+        DriveError::FluxReference => src.error(
+            "controller.flux_ref_wb",
+            format!(
+                "must be > 0, above controller.flux_floor_wb, and need a magnetizing current ψ*/L_m \
+                     below controller.i_ref_max_a = {} A (L_m = {} H)",
+                c.i_ref_max_a,
+                spec.motor.lm_h()
+            ),
+        ),
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
         DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
         DriveError::RotorResistanceRange => {

@@ -207,6 +207,15 @@ mod tests {
         // Trip level below the current limit.
         let e = err(&replace("i_trip_a = 8.0", "i_trip_a = 3.0"));
         assert_eq!((e.key.as_deref(), e.at), (Some("protection.i_trip_a"), Some(pos(s, "8.0"))), "{e}");
+        // A flux reference whose magnetizing current ψ*/L_m the current limit cannot give
+        // (found by trying: `design certify` certified 50 Wb on the 4 A drive), and one of
+        // zero: named at the flux, not at the protection derived from it (0 named i_trip_a).
+        for bad in ["50.0", "1e300", "0.0", "-0.9"] {
+            let e = err(&replace("flux_ref_wb = 0.9", &format!("flux_ref_wb = {bad}")));
+            assert_eq!(e.key.as_deref(), Some("controller.flux_ref_wb"), "{bad}: {e}");
+        }
+        let e = err(&replace("flux_ref_wb = 0.9", "flux_ref_wb = 50.0"));
+        assert!(e.reason.contains("ψ*/L_m below controller.i_ref_max_a = 4 A"), "{e}");
         // Negative resistance, in the motor table.
         let e = err(&replace("rs_ohm = 16.2", "rs_ohm = -16.2"));
         assert_eq!(e.key.as_deref(), Some("motor.rs_ohm"), "{e}");
