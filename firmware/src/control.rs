@@ -234,7 +234,9 @@ pub struct ControlLoop {
     encoder: EncoderState<ENCODER_WINDOW>,
     theta_m_rad: f32,
     omega_m_rad_s: f32,
-    /// The drive's slow divider: the encoder's read period.
+    /// The drive's slow divider, the encoder's read period: what `reconfigure` compares
+    /// (the drive's configuration has it too; read from there, the build took 328 B more
+    /// flash, over issue 19's budget).
     divider: u16,
     last: Option<FastOutput>,
     /// The last period's bridge output was not `Off`.

@@ -86,7 +86,7 @@ impl Manoeuvre {
     const ALL: [Manoeuvre; 4] = [Self::Motoring, Self::Reverse, Self::Generating, Self::Reversal];
 
     fn of(k: u64) -> Self {
-        Self::ALL[(k % 4) as usize]
+        Self::ALL[(k % Self::ALL.len() as u64) as usize]
     }
 
     /// Name in the CSV.
@@ -200,7 +200,7 @@ impl Campaign {
     pub fn sample(&self, k: u64) -> Sample {
         let c = &self.certify;
         if k < CORNER_RUNS {
-            let corner = k / 4;
+            let corner = k / Manoeuvre::ALL.len() as u64;
             let pick = |iv: [f64; 2], bit: u64| if corner >> bit & 1 == 0 { iv[0] } else { iv[1] };
             return Sample {
                 rs: pick(c.rs_factor, 0),
