@@ -245,9 +245,7 @@ impl Campaign {
     /// corner's — reaches `magnetized_fraction` of its target, `−T_r·ln(1 − f)` (3 T_r at
     /// 0.95): 0.19 s for the DeLorenzo machine, 2.3 s for the 500 hp Krause machine.
     pub fn step_s(&self) -> f64 {
-        let m = &self.spec.motor;
-        let t_mag = -(m.lr_h() / m.rr_ohm()) * (1.0 - self.spec.magnetized_fraction).ln();
-        STEP_S.max(1.1 * t_mag)
+        STEP_S.max(1.1 * crate::sim::magnetizing_time_s(&self.spec))
     }
 
     /// The runs are long enough for this motor: at least [`MIN_AFTER_STEP_S`] after the step

@@ -365,9 +365,7 @@ impl Matrix {
             times_s: (REFERENCE_S, INJECT_S),
             approaches: Vec::new(),
         };
-        // The flux model's time to the magnetized fraction on its reference current.
-        let f = spec.magnetized_fraction;
-        let magnetizing_s = MAGNETIZING_MARGIN * m.spec.motor.tr_s() * (1.0 / (1.0 - f)).ln();
+        let magnetizing_s = MAGNETIZING_MARGIN * crate::sim::magnetizing_time_s(&m.spec);
         let reference_s = REFERENCE_S.max(magnetizing_s);
         m.approaches = m.points().into_iter().map(|p| (p, m.ideal_approach(&p))).collect();
         // A law that does not run on the ideal loop: the rows say so (`Matrix::run_one`).

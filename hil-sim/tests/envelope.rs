@@ -177,6 +177,25 @@ fn torque_speed_envelope_within_5_percent_of_the_analytic_one() {
     }
 }
 
+/// The envelope of a large, slow rotor is measured where the drive runs, at the torque it
+/// can give: found by trying `hil-sim envelope` on the 500 hp Krause drive, its points were
+/// still magnetizing at the end of their 2 s runs (T_r·ln 20 = 2.3 s) and asked for 1 kN·m,
+/// below its 2.8 kN·m envelope, so it "measured" 3–33 % of it. At 35.7 rad/s, below base
+/// speed on its template's placeholder current gains: Running, within 10 % of the envelope
+/// (−7.4 %: those gains hold the flux at 4.44 Wb of 4.8; the 5 % acceptance is the shipped
+/// drive's, above) and not above it.
+#[test]
+fn a_slow_rotors_envelope_is_measured_magnetized_at_its_own_torque() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../drives/krause-3300v.toml");
+    let spec = drive_file::DriveFile::load(&path).unwrap().spec;
+    assert!(hil_sim::envelope::run_s(&spec) > hil_sim::sim::magnetizing_time_s(&spec) + 1.0);
+    let p = measure(&spec, &spec.motor, 3300.0, &[35.7], 1.0).unwrap()[0];
+    eprintln!("{p:?}");
+    assert_eq!(p.mode, Mode::Running);
+    assert!(p.analytic_nm > 1e3, "{p:?}");
+    assert!(p.relative_error() > -0.1 && p.relative_error() < 0.01, "{p:?}");
+}
+
 /// Dead-time compensation: the switching inverter with 1 µs dead time at 10 rad/s, where the
 /// dead time's voltage error (V_dc·t_d/T = 6.2 V per phase) is large against the ≈ 12 V the
 /// motor needs. The current's distortion — the RMS of its deviation from its mean in the
