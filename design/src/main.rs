@@ -205,6 +205,14 @@ struct TuneArgs {
 }
 
 fn tune(a: &TuneArgs) -> Result<bool, String> {
+    // The template is the engineer's own file (its comments, its sources): not rewritten.
+    let same = |p: &std::path::Path| std::fs::canonicalize(p).ok();
+    if same(&a.out).is_some() && same(&a.out) == same(&a.template) {
+        return Err(format!(
+            "--out {} is the template: tuning writes a new file (the template keeps its comments); choose another --out",
+            a.out.display()
+        ));
+    }
     let motor = drive_file::motor::load(&a.motor).map_err(|e| e.to_string())?;
     let intervals = if std::path::Path::new(&a.motor).is_file() {
         let text = drive_file::source::read(std::path::Path::new(&a.motor)).map_err(|e| e.to_string())?;

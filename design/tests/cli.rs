@@ -342,6 +342,17 @@ fn tune_writes_a_certified_drive_file_or_nothing() {
     assert_eq!(code, Some(2));
     assert!(err.contains("cannot magnetize"), "{err}");
     assert!(!refused.exists());
+    // `--out` onto the template itself is refused and the template kept (found by trying:
+    // it was overwritten, its comments gone).
+    let own = dir.join("own.toml");
+    let text = std::fs::read_to_string(template).unwrap();
+    std::fs::write(&own, &text).unwrap();
+    let own_s = own.to_str().unwrap();
+    let (code, _, err) =
+        run(&["tune", "--motor", "delorenzo-perturbed", "--template", own_s, "--out", own_s]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("is the template"), "{err}");
+    assert_eq!(std::fs::read_to_string(&own).unwrap(), text);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
