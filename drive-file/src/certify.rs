@@ -71,6 +71,26 @@ impl CertifyTable {
             "certify.omega_r_max_rad_s",
             &format!("is {}; must lie in [0, {OMEGA_R_MAX_RAD_S}] rad/s", num(w)),
         )?;
+        // A certificate short of base speed leaves the current loops unchecked where the
+        // drive runs at full flux (and the fault matrix's and the campaign's top speed, which
+        // it caps, at a standstill for 0: found by trying).
+        let base = crate::drive::no_load_base_speed_el_rad_s(
+            &spec.motor,
+            spec.flux_ref_wb,
+            spec.protection.vdc_min_v,
+        );
+        src.check(
+            w >= base,
+            "certify.omega_r_max_rad_s",
+            &format!(
+                "is {} rad/s, below the drive's no-load base speed on its lowest bus \
+                 (protection.vdc_min_v = {} V): {} rad/s electrical; the certificate must cover \
+                 the speeds the drive runs at",
+                num(w),
+                num(spec.protection.vdc_min_v),
+                num((base * 10.0).ceil() / 10.0),
+            ),
+        )?;
         for (key, i) in [
             ("rs_factor", self.rs_factor),
             ("rr_factor", self.rr_factor),

@@ -163,6 +163,13 @@ mod tests {
         // A speed range the sweep could not finish (was a hang).
         let e = err(&replace("omega_r_max_rad_s = 400.0", "omega_r_max_rad_s = 1e9"));
         assert_eq!(e.key.as_deref(), Some("certify.omega_r_max_rad_s"), "{e}");
+        // A certificate at standstill only (was accepted: the fault matrix and the campaign
+        // then ran their "top speed" at rest), or short of base speed on the lowest bus.
+        for short in ["0.0", "100.0"] {
+            let e = err(&replace("omega_r_max_rad_s = 400.0", &format!("omega_r_max_rad_s = {short}")));
+            assert_eq!(e.key.as_deref(), Some("certify.omega_r_max_rad_s"), "{e}");
+            assert!(e.reason.contains("below the drive's no-load base speed"), "{e}");
+        }
         // Reversed interval.
         let e = err(&replace("rr_factor = [1.0, 2.0]", "rr_factor = [2.0, 1.0]"));
         assert_eq!(e.key.as_deref(), Some("certify.rr_factor"), "{e}");
