@@ -71,6 +71,15 @@ pub enum CurrentError {
     Lag(DesignError),
 }
 
+impl core::fmt::Display for CurrentError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Pi(e) => write!(f, "PI section: {e}"),
+            Self::Lag(e) => write!(f, "lag section: {e}"),
+        }
+    }
+}
+
 /// Discrete current controller configuration for one axis (shared by α and β).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurrentControllerConfig<T> {

@@ -57,6 +57,16 @@ pub enum DesignError {
     Coefficient,
 }
 
+impl core::fmt::Display for DesignError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::SamplePeriod => "the sample period is not finite and positive",
+            Self::PrewarpFrequency => "the prewarp frequency is not between 0 and the Nyquist frequency",
+            Self::Coefficient => "a coefficient is not finite, or the leading denominator coefficient is 0",
+        })
+    }
+}
+
 impl Discretization {
     /// The Tustin constant `K` for sample period `ts_s`.
     pub fn k(self, ts_s: f64) -> Result<f64, DesignError> {

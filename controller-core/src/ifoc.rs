@@ -63,6 +63,16 @@ pub enum IfocError {
     CurrentLimit,
 }
 
+impl core::fmt::Display for IfocError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::SamplePeriod => "the sample period is not finite and positive",
+            Self::FluxFloor => "the flux floor is not finite and positive",
+            Self::CurrentLimit => "the current limit is not finite and positive",
+        })
+    }
+}
+
 /// IFOC configuration (derived from the motor at construction).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct IfocConfig {

@@ -49,6 +49,16 @@ pub enum PiError {
     Design(DesignError),
 }
 
+impl core::fmt::Display for PiError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Gain => f.write_str("a PI gain is negative or not finite"),
+            Self::Limits => f.write_str("the PI's output limits are not finite, or not min < max"),
+            Self::Design(e) => write!(f, "the PI's discretisation: {e}"),
+        }
+    }
+}
+
 /// PI state. `p_term` and `i_term` of the last update are exposed for telemetry.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PiState<T> {

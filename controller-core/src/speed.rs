@@ -63,6 +63,16 @@ pub enum SpeedError {
     Limit,
 }
 
+impl core::fmt::Display for SpeedError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Pi(e) => write!(f, "{e}"),
+            Self::Gain => f.write_str("the gain is negative or not finite"),
+            Self::Limit => f.write_str("the limit is not finite and positive"),
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Law {
     Pi { pi: PiConfig<f32>, torque: bool },

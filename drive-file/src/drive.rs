@@ -635,8 +635,13 @@ impl DriveTables {
     }
 }
 
+/// `x` is finite, also in the controller's `f32` (`vdc_max_v = 1e300` was "finite", then
+/// infinite in the core and blamed on `controller.current`: found by trying).
 fn finite(src: &Source<'_>, key: &str, x: f64) -> Result<(), FileError> {
-    src.check(x.is_finite(), key, &format!("is {x}; must be a finite number"))
+    src.check(x.is_finite(), key, &format!("is {}; must be a finite number", num(x)))?;
+    #[allow(clippy::cast_possible_truncation)] // the question asked: does f32 hold it?
+    let in_f32 = (x as f32).is_finite();
+    src.check(in_f32, key, &format!("is {}; beyond the controller's f32 range (±{:e})", num(x), f32::MAX))
 }
 
 /// Build and validate a [`DriveSpec`] from its tables (a drive file's, or those a scenario
@@ -827,10 +832,10 @@ pub fn drive_spec(
     DriveConfig::new(&spec).map_err(|e| match e {
         DriveError::PwmFrequency => src.error("pwm.frequency_hz", "must be finite and > 0"),
         DriveError::SlowDivider => src.error("pwm.slow_divider", "must be ≥ 1"),
-        DriveError::Current(e) => src.error("controller.current", format!("rejected: {e:?}")),
-        DriveError::Speed(e) => src.error("controller.speed", format!("rejected: {e:?}")),
-        DriveError::Position(e) => src.error("controller.position", format!("rejected: {e:?}")),
-        DriveError::Ifoc(e) => src.error("controller", format!("IFOC parameters rejected: {e:?}")),
+        DriveError::Current(e) => src.error("controller.current", format!("rejected: {e}")),
+        DriveError::Speed(e) => src.error("controller.speed", format!("rejected: {e}")),
+        DriveError::Position(e) => src.error("controller.position", format!("rejected: {e}")),
+        DriveError::Ifoc(e) => src.error("controller", format!("IFOC parameters rejected: {e}")),
         DriveError::FluxReference => src.error(
             "controller.flux_ref_wb",
             format!(
@@ -861,10 +866,22 @@ pub fn drive_spec(
         ),
         // Only `DriveConfig::from_raw` returns it.
         DriveError::Raw => src.error("controller", "configuration rejected"),
-        DriveError::CurrentTrim => src.error(
-            "controller.current_trim_bandwidth_rad_s",
-            "must be ≥ 0 and below a tenth of the slow loop's rate (rad/s)",
-        ),
+        DriveError::CurrentTrim => {
+            // With its numbers: a slow PWM (`frequency_hz = 1`) reads as a trim too fast.
+            let t_slow_s = f64::from(pwm.slow_divider) / pwm.frequency_hz;
+            src.error(
+                "controller.current_trim_bandwidth_rad_s",
+                format!(
+                    "is {} rad/s; must be ≥ 0 and below 0.1/T_slow = {} rad/s, the slow period \
+                     T_slow = pwm.slow_divider/pwm.frequency_hz = {}/{} Hz = {} s",
+                    num(c.current_trim_bandwidth_rad_s),
+                    num(0.1 / t_slow_s),
+                    pwm.slow_divider,
+                    num(pwm.frequency_hz),
+                    num(t_slow_s)
+                ),
+            )
+        }
         DriveError::Protection => {
             let p = protection;
             if !(p.vdc_min_v >= 0.0 && p.vdc_min_v < p.vdc_max_v) {

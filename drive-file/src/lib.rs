@@ -245,6 +245,20 @@ mod tests {
         // A timer that cannot make the PWM rate.
         let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 19999.0"));
         assert_eq!(e.key.as_deref(), Some("pwm.frequency_hz"), "{e}");
+        // Found by trying: a 1 Hz PWM was blamed on the current trim without a number, a bus
+        // the core's f32 cannot hold on `controller.current` as "rejected: Pi(Limits)", a
+        // negative speed gain as "rejected: Gain".
+        let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 1.0"));
+        assert_eq!(e.key.as_deref(), Some("controller.current_trim_bandwidth_rad_s"), "{e}");
+        assert!(
+            e.reason.contains("below 0.1/T_slow = 0.01 rad/s") && e.reason.contains("10/1 Hz = 10 s"),
+            "{e}"
+        );
+        let e = err(&replace("vdc_max_v = 400.0", "vdc_max_v = 1e300"));
+        assert_eq!(e.key.as_deref(), Some("protection.vdc_max_v"), "{e}");
+        assert!(e.reason.contains("beyond the controller's f32 range"), "{e}");
+        let e = err(&replace("kind = \"saturated_p\", kp = 0.05", "kind = \"saturated_p\", kp = -0.05"));
+        assert!(!e.reason.contains("Gain") && !e.reason.contains('('), "{e}");
     }
 
     /// The derived protection defaults of the shipped drive, and the stall time's condition

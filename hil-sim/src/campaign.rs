@@ -486,12 +486,13 @@ pub struct ManoeuvreStats {
     pub runs: usize,
     /// Runs that passed.
     pub passed: usize,
-    /// Largest tracking error, rad/s.
-    pub worst_tracking_error_rad_s: f64,
-    /// Largest torque ripple, N·m.
-    pub worst_ripple_nm: f64,
-    /// Smallest and largest flux ratio.
-    pub flux_ratio: [f64; 2],
+    /// Largest tracking error, rad/s (`None`: no runs).
+    pub worst_tracking_error_rad_s: Option<f64>,
+    /// Largest torque ripple, N·m (`None`: no runs).
+    pub worst_ripple_nm: Option<f64>,
+    /// Smallest and largest flux ratio (`None`: no runs — the table showed "inf … 0.000" for
+    /// a shard without the manoeuvre: found by trying).
+    pub flux_ratio: Option<[f64; 2]>,
 }
 
 /// [`ManoeuvreStats`] of each manoeuvre.
@@ -500,16 +501,21 @@ pub fn per_manoeuvre(verdicts: &[Verdict]) -> Vec<ManoeuvreStats> {
         .iter()
         .map(|&m| {
             let of: Vec<&Verdict> = verdicts.iter().filter(|v| v.manoeuvre == m).collect();
+            let some = |x: f64| (!of.is_empty()).then_some(x);
             ManoeuvreStats {
                 manoeuvre: m,
                 runs: of.len(),
                 passed: of.iter().filter(|v| v.passed()).count(),
-                worst_tracking_error_rad_s: of.iter().map(|v| v.tracking_error_rad_s).fold(0.0, f64::max),
-                worst_ripple_nm: of.iter().map(|v| v.ripple_nm).fold(0.0, f64::max),
-                flux_ratio: [
-                    of.iter().map(|v| v.flux_ratio[0]).fold(f64::INFINITY, f64::min),
-                    of.iter().map(|v| v.flux_ratio[1]).fold(0.0, f64::max),
-                ],
+                worst_tracking_error_rad_s: some(
+                    of.iter().map(|v| v.tracking_error_rad_s).fold(0.0, f64::max),
+                ),
+                worst_ripple_nm: some(of.iter().map(|v| v.ripple_nm).fold(0.0, f64::max)),
+                flux_ratio: (!of.is_empty()).then(|| {
+                    [
+                        of.iter().map(|v| v.flux_ratio[0]).fold(f64::INFINITY, f64::min),
+                        of.iter().map(|v| v.flux_ratio[1]).fold(0.0, f64::max),
+                    ]
+                }),
             }
         })
         .collect()
@@ -532,8 +538,8 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
                 "passed": m.passed,
                 "worst_tracking_error_rad_s": m.worst_tracking_error_rad_s,
                 "worst_ripple_nm": m.worst_ripple_nm,
-                "flux_ratio_min": m.flux_ratio[0],
-                "flux_ratio_max": m.flux_ratio[1],
+                "flux_ratio_min": m.flux_ratio.map(|r| r[0]),
+                "flux_ratio_max": m.flux_ratio.map(|r| r[1]),
             })
         })
         .collect();

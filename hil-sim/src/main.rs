@@ -557,7 +557,8 @@ fn bus_voltage(
     let inside = |v: f64| v > p.vdc_min_v && v < p.vdc_max_v;
     match asked {
         Some(v) if !inside(v) => Err(format!(
-            "--vdc {v} V lies outside the drive's bus range ({} … {} V of [protection]): every run would trip on it",
+            "--vdc {v} V must lie strictly between the drive's bus trip levels, {} and {} V of [protection]: \
+             on or beyond one every run trips (the sensors' noise crosses it)",
             p.vdc_min_v, p.vdc_max_v
         )),
         Some(v) => Ok(v),
@@ -872,16 +873,23 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
         "manoeuvre", "runs", "passed", "worst tracking", "worst ripple", "flux / model"
     );
     for m in hil_sim::campaign::per_manoeuvre(&verdicts) {
-        println!(
-            "{:<12} {:>6} {:>7} {:>11.3} rad/s {:>10.4} Nm {:>8.3} … {:.3}",
-            m.manoeuvre.name(),
-            m.runs,
-            m.passed,
-            m.worst_tracking_error_rad_s,
-            m.worst_ripple_nm,
-            m.flux_ratio[0],
-            m.flux_ratio[1],
-        );
+        match (m.worst_tracking_error_rad_s, m.worst_ripple_nm, m.flux_ratio) {
+            (Some(tracking), Some(ripple), Some([lo, hi])) => println!(
+                "{:<12} {:>6} {:>7} {tracking:>11.3} rad/s {ripple:>10.4} Nm {lo:>8.3} … {hi:.3}",
+                m.manoeuvre.name(),
+                m.runs,
+                m.passed,
+            ),
+            _ => println!(
+                "{:<12} {:>6} {:>7} {:>17} {:>13} {:>16}",
+                m.manoeuvre.name(),
+                m.runs,
+                m.passed,
+                "—",
+                "—",
+                "—"
+            ),
+        }
     }
     let failed: Vec<&Verdict> = verdicts.iter().filter(|v| !v.passed()).collect();
     for v in failed.iter().take(20) {
@@ -1214,13 +1222,15 @@ fn write_row(f: &mut dyn Write, r: &Row, closed_loop: bool) -> std::io::Result<(
 
 /// Stream the rows `run` makes into `out/trace.csv` through the one atomic writer
 /// (`report::write`): the file is created before the run (an unusable directory fails at
-/// once) and takes its name only complete; a failed or interrupted run leaves nothing.
+/// once) and takes its name only complete; a failed or interrupted run leaves nothing — nor
+/// the directory, when this call made it (an empty one was left: found by trying).
 fn stream_trace<T>(
     out: &Path,
     closed_loop: bool,
     expected_rows: f64,
     run: impl FnOnce(&mut dyn FnMut(&Row) -> Result<(), String>) -> Result<T, String>,
 ) -> Result<(T, TraceStats), String> {
+    let made_dir = !out.exists();
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let mut stats = TraceStats::new(closed_loop, expected_rows);
     let mut outcome = None;
@@ -1244,12 +1254,17 @@ fn stream_trace<T>(
         outcome = Some(result);
         if failed { Err(std::io::Error::other("the run failed")) } else { Ok(()) }
     });
-    match (outcome, written) {
+    let result = match (outcome, written) {
         (Some(Err(e)), _) => Err(e),
         (_, Err(e)) => Err(e),
         (Some(Ok(value)), Ok(())) => Ok((value, stats)),
         (None, Ok(())) => Err("the run did not start".into()),
+    };
+    if result.is_err() && made_dir {
+        // `remove_dir` takes only an empty directory: nothing anyone put there is lost.
+        let _ = std::fs::remove_dir(out);
     }
+    result
 }
 
 fn progress_bar(fraction: f64) {

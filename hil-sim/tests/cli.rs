@@ -186,8 +186,8 @@ fn diverged_run_fails_and_writes_nothing() {
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("no longer finite at t ="), "{err}");
-    assert!(!out.join("trace.csv").exists() && !out.join("trace.csv.partial").exists());
-    assert!(!out.join("summary.json").exists());
+    // Not even the directory the run made (an empty one was left: found by trying).
+    assert!(!out.exists(), "{out:?} left behind");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -232,6 +232,7 @@ fn interrupt_a_run(signal: &str) {
     assert_eq!(done.status.code(), Some(1), "{signal}");
     assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"), "{signal}");
     assert!(!partial.exists() && !out.join("trace.csv").exists(), "{signal}");
+    assert!(!out.exists(), "{signal}: the directory the run made is left behind");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -376,7 +377,15 @@ fn campaign_writes_its_table_and_judges_every_run() {
         .output()
         .unwrap();
     assert_eq!(st.status.code(), Some(1), "{}", String::from_utf8_lossy(&st.stdout));
-    assert!(String::from_utf8_lossy(&st.stdout).contains("FAIL run 0: tracking"));
+    let stdout = String::from_utf8_lossy(&st.stdout);
+    assert!(stdout.contains("FAIL run 0: tracking"));
+    // One run: three manoeuvres without one show no worst values (they showed "inf … 0.000").
+    assert!(!stdout.contains("inf"), "{stdout}");
+    assert_eq!(stdout.lines().filter(|l| l.ends_with('—') && l.contains(" 0 ")).count(), 3, "{stdout}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
+    let per = summary["per_manoeuvre"].as_array().unwrap();
+    assert_eq!(per.iter().filter(|m| m["runs"] == 0 && m["flux_ratio_min"].is_null()).count(), 3);
     let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
     let no_certify = out.join("plain.toml");
     std::fs::write(&no_certify, &shipped[..shipped.find("[certify]").unwrap()]).unwrap();
@@ -444,7 +453,10 @@ fn campaign_and_envelope_run_on_the_drives_own_bus() {
     for cmd in ["campaign", "envelope"] {
         let st = bin().args([cmd, small, "--vdc", "310", "--out"]).arg(out.join("refused")).output().unwrap();
         assert_eq!(st.status.code(), Some(1), "{cmd}");
-        assert!(String::from_utf8_lossy(&st.stderr).contains("outside the drive's bus range"), "{cmd}");
+        assert!(
+            String::from_utf8_lossy(&st.stderr).contains("strictly between the drive's bus trip levels"),
+            "{cmd}"
+        );
         assert!(!out.join("refused").exists(), "{cmd}");
     }
     let _ = std::fs::remove_dir_all(&out);
@@ -503,9 +515,17 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("no-such-drive.toml"));
     // A bus outside the drive's range: said before any row runs.
-    let st = bin().args(["faults", drive, "--vdc", "1000", "--out"]).arg(&res).output().unwrap();
-    assert_eq!(st.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&st.stderr).contains("outside the drive's bus range"));
+    // A bus on a trip level is refused too, and the message says the range is open (it read
+    // "200 … 400 V" for a refused 200: found by trying).
+    for vdc in ["1000", "200"] {
+        let st = bin().args(["faults", drive, "--vdc", vdc, "--out"]).arg(&res).output().unwrap();
+        assert_eq!(st.status.code(), Some(1), "{vdc}");
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert!(
+            err.contains("must lie strictly between the drive's bus trip levels, 200 and 400 V"),
+            "{err}"
+        );
+    }
 }
 
 /// `hil-sim faults --only … --trace`: the rows named run as in the whole matrix (their
