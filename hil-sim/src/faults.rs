@@ -660,10 +660,19 @@ impl Matrix {
             Reference::Speed(at.speed_rad_s as f32)
         };
         // An overload acts the way the operating point's load does (against the motion when
-        // motoring, with it when generating).
+        // motoring, with it when generating). Generating at speed, it also carries the
+        // motor's friction at the overspeed level: a load the drive's brake and the friction
+        // b·ω hold below overspeed is not a runaway but a droop (found on the 24 V drive,
+        // whose 1.5 × τ_max settled at 383 rad/s, 35 % over its reference, with the
+        // saturated-P loop short of its limit — a row the matrix failed as "not detected").
         let injection = match case.injection {
             Injection::LoadStep { torque_nm } => {
-                Injection::LoadStep { torque_nm: torque_nm.copysign(at.load_nm) }
+                let runaway = if at.motoring || at.point == Point::Standstill {
+                    0.0
+                } else {
+                    self.spec.motor.b_nms() * self.spec.protection.overspeed_rad_s
+                };
+                Injection::LoadStep { torque_nm: (torque_nm + runaway).copysign(at.load_nm) }
             }
             other => other,
         };
