@@ -256,6 +256,12 @@ pub const SWITCH_FLOOR_SHARE: f32 = 0.5;
 /// more than this fraction of it *misses*; one that does not, with the current at the
 /// commanded level or more (clear of the sensors' noise and offsets), *carries* …
 pub const SWITCH_SHORTFALL_MISSING: f32 = 0.6;
+/// The voltage check's verdict names a phase the loops do not drive the bridge's
+/// ([`Fault::SwitchOpen`]) when, in the stuck-switch check's last sample, its reference is
+/// at least this share of the reference vector's magnitude — clear of its zero crossings,
+/// where the sensors' noise and a lagging current miss any reference — and its current
+/// misses it ([`SWITCH_SHORTFALL_MISSING`]).
+pub const UNDRIVEN_REFERENCE_SHARE: f32 = 0.25;
 /// … a direction is judged once its weighted count of samples reaches this (1: a long run;
 /// 0.5: 3.5 samples) …
 pub const SWITCH_SEEN: f32 = 0.5;
@@ -1410,6 +1416,10 @@ struct PhaseDirections {
     /// Both directions miss: the phase carries nothing (an open lead, the open-phase
     /// check's), as of its last counted sample.
     open: bool,
+    /// The last sample's current fell short of a reference of at least
+    /// [`UNDRIVEN_REFERENCE_SHARE`] of the magnitude, counted or not: the loops do not drive
+    /// the phase (the voltage check's verdict reads it: [`SwitchWatch::undriven`]).
+    short: bool,
 }
 
 impl PhaseDirections {
@@ -1426,13 +1436,14 @@ impl PhaseDirections {
     /// Out of line: one copy for the three phases, once per slow period.
     #[inline(never)]
     fn add(&mut self, r: f32, m: f32, level: f32, commanded: f32, gains: [f32; 2]) -> bool {
-        let Self { positive, negative, open } = self;
+        let Self { positive, negative, open, short } = self;
         let (this, other, d) = if r >= 0.0 { (positive, negative, 1.0) } else { (negative, positive, -1.0) };
         let magnitude = d * r;
+        let missed = d * (r - m) > SWITCH_SHORTFALL_MISSING * magnitude;
+        *short = missed && magnitude >= (UNDRIVEN_REFERENCE_SHARE / SWITCH_LEVEL_SHARE) * level;
         if magnitude < level {
             return false;
         }
-        let missed = d * (r - m) > SWITCH_SHORTFALL_MISSING * magnitude;
         if missed && !this.lapsed() {
             // A miss in good standing: the other way must carry anew (an open lead misses
             // both ways from the same moment). Further misses of a direction already out of
@@ -1476,6 +1487,15 @@ impl SwitchWatch {
         }
     }
 
+    /// A phase the loops do not drive in the last sample ([`PhaseDirections::short`]): a
+    /// wrong field angle turns the references and the loops still follow them; a switch
+    /// stuck open at standstill leaves its phase pinned at a rail, short of a reference still
+    /// below [`SWITCH_LEVEL_SHARE`] of the magnitude (the 24 V drive's upper switch, named
+    /// `EncoderImplausible` 16 ms after it was first needed).
+    fn undriven(&self) -> bool {
+        self.0.iter().any(|p| p.short)
+    }
+
     /// One sample (a slow period) of the phase references `reference` and currents
     /// `measured`, A: a phase's sample counts where its reference reaches
     /// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (away from its zero
@@ -1489,6 +1509,9 @@ impl SwitchWatch {
         let r = reference;
         let amplitude = sqrt_f32((2.0 / 3.0) * (r.a * r.a + r.b * r.b + r.c * r.c));
         if amplitude < SWITCH_FLOOR_SHARE * commanded {
+            for p in &mut self.0 {
+                p.short = false; // no sample: none stale
+            }
             return None;
         }
         let level = SWITCH_LEVEL_SHARE * amplitude;
@@ -2404,6 +2427,7 @@ impl Drive {
                 self.trip(match bridge {
                     Some(f) => f,
                     None if pinned => Fault::OpenPhase,
+                    None if self.switches.undriven() => Fault::SwitchOpen,
                     None => Fault::EncoderImplausible,
                 });
             }

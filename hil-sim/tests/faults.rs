@@ -425,3 +425,28 @@ fn a_generating_overload_is_a_runaway_beyond_the_motors_friction() {
     assert!(matches!(f, Fault::FollowingError | Fault::Overspeed), "{f:?}");
     assert!(t <= 0.5, "{t}");
 }
+
+/// The 24 V drive's upper switch of phase a stuck open at standstill: the loops pin phase a
+/// at its duty limit (and b at 0) while its reference still rises through 38 % of the
+/// magnitude, below the stuck-switch check's level, and the voltage check's verdict came
+/// first — `EncoderImplausible` 16 ms after the switch was first needed. The verdict now
+/// asks whether the loops drive every phase (`drive::undriven_phase`): `SwitchOpen`, at the
+/// same time, within the 50 ms. (A frozen encoder keeps its name:
+/// `a_frozen_encoder_at_speed_stays_the_encoders_fault`.)
+#[test]
+fn a_stuck_switch_at_standstill_is_named_by_the_phase_the_loops_cannot_drive() {
+    let m = drive_file("drives/em-synergy-24v.toml", 24.0);
+    let (k, c, at) = m
+        .rows()
+        .unwrap()
+        .into_iter()
+        .find(|(_, c, at)| {
+            c.title() == "switch a upper stuck open" && at.point == Point::Standstill && at.motoring
+        })
+        .unwrap();
+    let o = m.run_one(k, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+    assert!(o.passed(), "{:?}", o.failures);
+    let (f, t) = o.detected.unwrap();
+    assert_eq!(f, Fault::SwitchOpen);
+    assert!(t - o.acting_after_s.unwrap() <= 0.05, "{t} {:?}", o.acting_after_s);
+}
