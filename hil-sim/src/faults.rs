@@ -204,7 +204,9 @@ pub struct Outcome {
     pub detected: Option<(Fault, f64)>,
     /// Where the detection bound runs from, after the injection, s: a switch stuck open's
     /// first use (`None`: never within the observation), a short's first period above the
-    /// trip level (the injection if never); other faults 0.
+    /// trip level (the injection if never), a current sensor's first period whose reading's
+    /// error reaches the current-sum check's windowed level (`None`: never — a gain error on
+    /// a phase near its zero crossing); other faults 0.
     pub acting_after_s: Option<f64>,
     /// A fault latched before the injection (a failed row): its time, s from the start.
     pub tripped_before_s: Option<f64>,
@@ -273,6 +275,10 @@ impl Outcome {
             (Injection::PhaseShort(_) | Injection::SwitchShort(_), Some(t)) if t > 0.0 => {
                 format!("{seen} (over the trip level from {})", ms(t))
             }
+            (Injection::CurrentSensor { .. }, Some(t)) if t > 0.0 => {
+                format!("{seen} (its error at the check's level from {})", ms(t))
+            }
+            (Injection::CurrentSensor { .. }, None) => format!("{seen} (its error below the check's level)"),
             _ => seen,
         }
     }
@@ -721,6 +727,24 @@ impl Matrix {
         let mut before_injection_fault: Option<(Mode, f64)> = None;
         let mut mode_at_reference: Option<Mode> = None;
         let mut acting_at: Option<f64> = None;
+        // A current sensor's fault: its channel, the reading's error it makes at a current
+        // (its gain and offset against the healthy channel's), and the level from which that
+        // error counts — the current-sum check's windowed level (a gain error on a phase
+        // carrying no current makes no error: the bound runs from the period it reaches it).
+        let sensor_fault = match case.injection {
+            Injection::CurrentSensor { phase, gain, offset_a } => {
+                let m = &b.scenario.sensors;
+                let healthy = |v: &[f64; 3], or: f64| v.get(phase).copied().unwrap_or(or);
+                Some((
+                    phase,
+                    gain - healthy(&m.current_gain, 1.0),
+                    offset_a - healthy(&m.current_offset_a, 0.0),
+                ))
+            }
+            _ => None,
+        };
+        let sensor_level_a = f64::from(controller_core::drive::CURRENT_SUM_MEAN_FRACTION)
+            * self.spec.protection.current_sum_max_a;
         // The first period a phase's or a leg's current was above the trip level.
         let mut over_trip_at: Option<f64> = None;
         // The first row at or after the injection (the event loop's own comparison).
@@ -754,6 +778,13 @@ impl Matrix {
                     over_trip_at = Some(r.t_s - t0);
                 }
                 if acting_at.is_none() && r.switch_acting {
+                    acting_at = Some(r.t_s - t0);
+                }
+                if let Some((phase, gain_error, offset_error_a)) = sensor_fault
+                    && acting_at.is_none()
+                    && let Some(i_phase) = [i.a, i.b, i.c].get(phase)
+                    && (gain_error * i_phase + offset_error_a).abs() >= sensor_level_a
+                {
                     acting_at = Some(r.t_s - t0);
                 }
                 energy -= 1.5 * (r.v_ab_v[0] * r.x.i_alpha_a + r.v_ab_v[1] * r.x.i_beta_a) * pwm_s;
@@ -799,16 +830,18 @@ impl Matrix {
         // crosses the trip level"; on a low bus, or with the legs' voltages alike at rest, a
         // short's current takes periods to get there).
         let acting_after_s = match case.injection {
-            Injection::SwitchOpen { .. } => acting_at,
+            Injection::SwitchOpen { .. } | Injection::CurrentSensor { .. } => acting_at,
             Injection::PhaseShort(_) | Injection::SwitchShort(_) => Some(over_trip_at.unwrap_or(0.0)),
             _ => Some(0.0),
         };
         let latent = acting_after_s.is_none();
-        let from_origin = detected.map(|(f, t)| (f, t - acting_after_s.unwrap_or(0.0)));
+        // A sensor's error below the check's level is still its fault: named early, it is
+        // judged by its name (a switch that never mattered must not trip anything).
+        let sensor = sensor_fault.is_some();
+        let from_origin = detected.map(|(f, t)| (f, t - acting_after_s.unwrap_or(t)));
         let judge = |accept: &[Fault], bound_s: f64, failures: &mut Vec<String>| match from_origin {
-            // A switch that never mattered must not trip anything.
             None if latent => {}
-            Some((f, t)) if latent => {
+            Some((f, t)) if latent && !sensor => {
                 failures.push(format!("{f:?} after {} although the switch never mattered", ms(t)))
             }
             Some((f, t)) if accept.contains(&f) && t <= bound_s + 0.5 * pwm_s => {
