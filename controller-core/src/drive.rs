@@ -257,7 +257,9 @@ pub const SWITCH_FLOOR_SHARE: f32 = 0.5;
 /// commanded level or more (clear of the sensors' noise and offsets), *carries* …
 pub const SWITCH_SHORTFALL_MISSING: f32 = 0.6;
 /// The voltage check's verdict names a phase the loops do not drive the bridge's
-/// ([`Fault::SwitchOpen`]) when, in the stuck-switch check's last sample, its reference is
+/// ([`Fault::OpenPhase`]: no current in a phase that is commanded — an open lead or a switch
+/// stuck open in the direction needed, the same currents until the reference reverses)
+/// when, in the stuck-switch check's last sample, its reference is
 /// at least this share of the reference vector's magnitude — clear of its zero crossings,
 /// where the sensors' noise and a lagging current miss any reference — and its current
 /// misses it ([`SWITCH_SHORTFALL_MISSING`]).
@@ -2427,7 +2429,7 @@ impl Drive {
                 self.trip(match bridge {
                     Some(f) => f,
                     None if pinned => Fault::OpenPhase,
-                    None if self.switches.undriven() => Fault::SwitchOpen,
+                    None if self.switches.undriven() => Fault::OpenPhase,
                     None => Fault::EncoderImplausible,
                 });
             }

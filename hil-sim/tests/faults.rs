@@ -430,9 +430,10 @@ fn a_generating_overload_is_a_runaway_beyond_the_motors_friction() {
 /// at its duty limit (and b at 0) while its reference still rises through 38 % of the
 /// magnitude, below the stuck-switch check's level, and the voltage check's verdict came
 /// first — `EncoderImplausible` 16 ms after the switch was first needed. The verdict now
-/// asks whether the loops drive every phase (`drive::undriven_phase`): `SwitchOpen`, at the
-/// same time, within the 50 ms. (A frozen encoder keeps its name:
-/// `a_frozen_encoder_at_speed_stays_the_encoders_fault`.)
+/// asks whether the loops drive every phase (`drive::UNDRIVEN_REFERENCE_SHARE`): `OpenPhase`
+/// (no current in a commanded phase; an open lead gives the same currents until the
+/// reference reverses), at the same time, within the 50 ms. (A frozen encoder keeps
+/// its name: `a_frozen_encoder_at_speed_stays_the_encoders_fault`.)
 #[test]
 fn a_stuck_switch_at_standstill_is_named_by_the_phase_the_loops_cannot_drive() {
     let m = drive_file("drives/em-synergy-24v.toml", 24.0);
@@ -447,7 +448,7 @@ fn a_stuck_switch_at_standstill_is_named_by_the_phase_the_loops_cannot_drive() {
     let o = m.run_one(k, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
     assert!(o.passed(), "{:?}", o.failures);
     let (f, t) = o.detected.unwrap();
-    assert_eq!(f, Fault::SwitchOpen);
+    assert_eq!(f, Fault::OpenPhase);
     assert!(t - o.acting_after_s.unwrap() <= 0.05, "{t} {:?}", o.acting_after_s);
 }
 
