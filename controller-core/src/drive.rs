@@ -264,6 +264,15 @@ pub const SWITCH_SHORTFALL_MISSING: f32 = 0.6;
 /// where the sensors' noise and a lagging current miss any reference — and its current
 /// misses it ([`SWITCH_SHORTFALL_MISSING`]).
 pub const UNDRIVEN_REFERENCE_SHARE: f32 = 0.25;
+/// … in this many samples in a row, and only while the field turned less than
+/// [`PINNED_FIELD_TURN_RAD`] over the voltage check's window (as for a pinned phase): a
+/// healthy current lagging its reference by φ ≈ ω/ω_c falls short near each zero crossing
+/// for about 1/(ω_c·T_slow) samples whatever the speed (6 in a row for loops of 340 rad/s,
+/// 20° behind at 125 rad/s: `a_phase_that_follows_one_way_only_is_a_stuck_switch`), but a
+/// field that hardly turns has no lag to speak of. The 24 V drive's switches stuck open at
+/// standstill fall short for 3 or more in a row before the verdict on seeds 0–11 (6 missed
+/// seeds 0 and 1).
+pub const UNDRIVEN_SAMPLES: u8 = 3;
 /// … a direction is judged once its weighted count of samples reaches this (1: a long run;
 /// 0.5: 3.5 samples) …
 pub const SWITCH_SEEN: f32 = 0.5;
@@ -1418,10 +1427,11 @@ struct PhaseDirections {
     /// Both directions miss: the phase carries nothing (an open lead, the open-phase
     /// check's), as of its last counted sample.
     open: bool,
-    /// The last sample's current fell short of a reference of at least
-    /// [`UNDRIVEN_REFERENCE_SHARE`] of the magnitude, counted or not: the loops do not drive
-    /// the phase (the voltage check's verdict reads it: [`SwitchWatch::undriven`]).
-    short: bool,
+    /// Consecutive samples whose current fell short of a reference of at least
+    /// [`UNDRIVEN_REFERENCE_SHARE`] of the magnitude, counted or not; from
+    /// [`UNDRIVEN_SAMPLES`] on, the loops do not drive the phase (the voltage check's
+    /// verdict reads it: [`SwitchWatch::undriven`]).
+    short: u8,
 }
 
 impl PhaseDirections {
@@ -1442,7 +1452,8 @@ impl PhaseDirections {
         let (this, other, d) = if r >= 0.0 { (positive, negative, 1.0) } else { (negative, positive, -1.0) };
         let magnitude = d * r;
         let missed = d * (r - m) > SWITCH_SHORTFALL_MISSING * magnitude;
-        *short = missed && magnitude >= (UNDRIVEN_REFERENCE_SHARE / SWITCH_LEVEL_SHARE) * level;
+        let fell_short = missed && magnitude >= (UNDRIVEN_REFERENCE_SHARE / SWITCH_LEVEL_SHARE) * level;
+        *short = if fell_short { short.saturating_add(1) } else { 0 };
         if magnitude < level {
             return false;
         }
@@ -1475,27 +1486,25 @@ impl PhaseDirections {
 struct SwitchWatch([PhaseDirections; 3]);
 
 impl SwitchWatch {
-    /// What the phases' directions say now, for another check's verdict: a phase missing
-    /// both ways is [`Fault::OpenPhase`]; a direction that went missing, not yet answered
-    /// the other way, [`Fault::SwitchOpen`]. Out of line: the voltage check's rare path.
+    /// A phase the loops do not drive, for another check's verdict (the voltage check's):
+    /// one missing both ways, a direction that went missing and was not yet answered the
+    /// other way, or [`UNDRIVEN_SAMPLES`] samples in a row short of a reference of at least
+    /// [`UNDRIVEN_REFERENCE_SHARE`] of the magnitude ([`PhaseDirections::short`]) — a switch
+    /// stuck open at standstill pins its phase at a rail while the reference still rises
+    /// below [`SWITCH_LEVEL_SHARE`] of it (the 24 V drive's upper switch, named
+    /// `EncoderImplausible` 16 ms after it was first needed). That is [`Fault::OpenPhase`],
+    /// no current in a commanded phase: until the reference reverses, an open lead and a
+    /// switch stuck open in the direction needed give the same currents, so the verdict
+    /// claims no switch ([`Fault::SwitchOpen`] is the stuck-switch check's own, once the
+    /// other way has carried); a wrong field angle turns the references and the loops still
+    /// follow them. Out of line: the voltage check's rare path.
+    /// `turning`: the field turned more than [`PINNED_FIELD_TURN_RAD`] over the voltage
+    /// check's window, where a lagging current falls short near its zero crossings — the
+    /// short samples do not count.
     #[inline(never)]
-    fn suspect(&self) -> Option<Fault> {
-        if self.0.iter().any(|p| p.open) {
-            Some(Fault::OpenPhase)
-        } else if self.0.iter().any(|p| p.positive.dead || p.negative.dead) {
-            Some(Fault::SwitchOpen)
-        } else {
-            None
-        }
-    }
-
-    /// A phase the loops do not drive in the last sample ([`PhaseDirections::short`]): a
-    /// wrong field angle turns the references and the loops still follow them; a switch
-    /// stuck open at standstill leaves its phase pinned at a rail, short of a reference still
-    /// below [`SWITCH_LEVEL_SHARE`] of the magnitude (the 24 V drive's upper switch, named
-    /// `EncoderImplausible` 16 ms after it was first needed).
-    fn undriven(&self) -> bool {
-        self.0.iter().any(|p| p.short)
+    fn undriven(&self, turning: bool) -> bool {
+        let short = |p: &PhaseDirections| !turning && p.short >= UNDRIVEN_SAMPLES;
+        self.0.iter().any(|p| p.open || p.positive.dead || p.negative.dead || short(p))
     }
 
     /// One sample (a slow period) of the phase references `reference` and currents
@@ -1512,7 +1521,7 @@ impl SwitchWatch {
         let amplitude = sqrt_f32((2.0 / 3.0) * (r.a * r.a + r.b * r.b + r.c * r.c));
         if amplitude < SWITCH_FLOOR_SHARE * commanded {
             for p in &mut self.0 {
-                p.short = false; // no sample: none stale
+                p.short = 0; // no sample: none stale
             }
             return None;
         }
@@ -2411,7 +2420,8 @@ impl Drive {
             self.encoder_bad_steps = self.encoder_bad_steps.saturating_add(1);
             let window_s =
                 self.cfg.ts_s * f32::from(self.cfg.slow_divider) * self.cfg.encoder_check_steps as f32;
-            let axis = pinned_axis(v_ab).filter(|_| w_e.abs() * window_s <= PINNED_FIELD_TURN_RAD);
+            let turning = w_e.abs() * window_s > PINNED_FIELD_TURN_RAD;
+            let axis = pinned_axis(v_ab).filter(|_| !turning);
             self.pinned_steps = match axis {
                 Some(a) if self.pinned_steps == 0 || a == self.pinned_axis => self.pinned_steps + 1,
                 _ => 0,
@@ -2425,13 +2435,8 @@ impl Drive {
                 // A phase's current that misses one way (or both) is the bridge's, not the
                 // encoder's: a wrong field angle turns the references, the loops still
                 // follow them.
-                let bridge = self.switches.suspect();
-                self.trip(match bridge {
-                    Some(f) => f,
-                    None if pinned => Fault::OpenPhase,
-                    None if self.switches.undriven() => Fault::OpenPhase,
-                    None => Fault::EncoderImplausible,
-                });
+                let bridge = pinned || self.switches.undriven(turning);
+                self.trip(if bridge { Fault::OpenPhase } else { Fault::EncoderImplausible });
             }
         } else {
             (self.encoder_bad_steps, self.pinned_steps) = (0, 0);
@@ -3314,15 +3319,19 @@ mod tests {
             let th = core::f32::consts::TAU * n as f32 / per_period as f32 - lag;
             Abc { a: libm::cosf(th), b: libm::cosf(th - third), c: libm::cosf(th + third) }
         };
-        let run = |measure: &dyn Fn(usize, Abc) -> Abc, n_max: usize, suspects: &mut Vec<(usize, Fault)>| {
+        // The samples after which the voltage check's verdict would find a phase undriven:
+        // with the field at rest, and turning.
+        let run = |measure: &dyn Fn(usize, Abc) -> Abc, n_max: usize, found: &mut [Vec<usize>; 2]| {
             let mut w = SwitchWatch::default();
             for n in 0..n_max {
                 let r = refs(n, 1.0);
                 if let Some(f) = w.add(r, measure(n, r), 0.1, gain) {
                     return Some((f, n));
                 }
-                if let Some(f) = w.suspect() {
-                    suspects.push((n, f));
+                for (turning, list) in [false, true].into_iter().zip(found.iter_mut()) {
+                    if w.undriven(turning) {
+                        list.push(n);
+                    }
                 }
             }
             None
@@ -3334,15 +3343,18 @@ mod tests {
             let m = lagging(n, 0.05);
             if n >= dead_from { Abc { a: m.a.min(0.0), ..m } } else { m }
         };
-        let mut suspects = Vec::new();
-        let (f, n) = run(&stuck, 4 * per_period, &mut suspects).unwrap();
+        let mut found = [Vec::new(), Vec::new()];
+        let (f, n) = run(&stuck, 4 * per_period, &mut found).unwrap();
         assert_eq!(f, Fault::SwitchOpen);
         // The negative half-wave from 1¼ periods; its samples count from |cos| ≥ ½, 30°
         // (8.3 samples) later.
         let answer = per_period + per_period / 4 + 9;
         assert!((answer..=answer + 2).contains(&n), "{n} vs {answer}");
-        let first = suspects.first().unwrap();
-        assert!(first.0 > dead_from && first.0 < answer && first.1 == Fault::SwitchOpen, "{suspects:?}");
+        // Before the other way answers, the verdict would find the phase undriven (named
+        // `OpenPhase`: a dead direction alone is also an open lead's), turning or not.
+        for list in &found {
+            assert!(list.first().is_some_and(|&k| k > dead_from && k < answer), "{found:?}");
+        }
         // An open lead on phase a: b and c share one current.
         let open = |n: usize, r: Abc| {
             if n < dead_from {
@@ -3351,12 +3363,15 @@ mod tests {
             let i_bc = 0.5 * (r.b - r.c);
             Abc { a: 0.0, b: i_bc, c: -i_bc }
         };
-        let mut suspects = Vec::new();
-        assert_eq!(run(&open, 4 * per_period, &mut suspects), None);
-        assert_eq!(suspects.last().map(|s| s.1), Some(Fault::OpenPhase), "{suspects:?}");
-        // Healthy, 20° behind; a standing field; a ×5 step two samples late.
-        let mut none = Vec::new();
-        assert_eq!(run(&|n, _| lagging(n, 0.35), 6 * per_period, &mut none), None);
+        let mut found = [Vec::new(), Vec::new()];
+        assert_eq!(run(&open, 4 * per_period, &mut found), None);
+        assert!(found[1].last().is_some_and(|&n| n + 1 == 4 * per_period), "{found:?}");
+        // Healthy, 20° behind: short near each zero crossing, 6 samples in a row — an
+        // undriven phase only if the field's turning were ignored; a standing field; a ×5
+        // step two samples late.
+        let mut lag = [Vec::new(), Vec::new()];
+        assert_eq!(run(&|n, _| lagging(n, 0.35), 6 * per_period, &mut lag), None);
+        assert!(!lag[0].is_empty() && lag[1].is_empty(), "{lag:?}");
         let (mut w, mut standing) = (SwitchWatch::default(), SwitchWatch::default());
         for n in 0..4 * per_period {
             let dc = refs(0, 1.0);
@@ -3367,7 +3382,6 @@ mod tests {
             let m = if late { refs(n, 0.2) } else { r };
             assert_eq!(w.add(r, m, 0.1, gain), None, "step {n}");
         }
-        assert!(none.is_empty(), "{none:?}");
     }
 
     proptest! {

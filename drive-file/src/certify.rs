@@ -74,7 +74,7 @@ impl CertifyTable {
         // A certificate short of base speed leaves the current loops unchecked where the
         // drive runs at full flux (and the fault matrix's and the campaign's top speed, which
         // it caps, at a standstill for 0: found by trying).
-        let base = crate::drive::no_load_base_speed_el_rad_s(
+        let base = crate::motor::no_load_base_speed_el_rad_s(
             &spec.motor,
             spec.flux_ref_wb,
             spec.protection.vdc_min_v,

