@@ -157,6 +157,14 @@ fn campaign_result(
             "{shown}: a campaign of {campaign_runs} runs, fewer than the {corner_runs} that take every corner of the box through every manoeuvre: run `hil-sim campaign` with --runs {corner_runs} or more"
         ));
     }
+    // A campaign whose speed steps went nowhere judged nothing (a drive that cannot
+    // magnetize its motor on the bus stepped to ±0 rad/s and passed: found by trying).
+    if !at("/omega_s_rad_s").as_f64().is_some_and(|w| w > 0.0) {
+        return Err(format!(
+            "{shown}: the campaign's speed step is {} rad/s: it judged no motion (the drive has no speed range on its bus)",
+            at("/omega_s_rad_s")
+        ));
+    }
     let (runs, passed) = (at("/runs").as_u64().unwrap_or(0), at("/passed").as_u64().unwrap_or(0));
     let ok = runs > 0 && runs == passed && campaign_runs == runs;
     let mut record = serde_json::Map::new();

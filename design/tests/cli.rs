@@ -400,11 +400,16 @@ fn certificate_records_linear_and_nonlinear_results() {
     (short["runs"], short["campaign_runs"], short["passed"]) = (1.into(), 1.into(), 1.into());
     let mut unsaid = summary(&fp, "0/1", &[]);
     unsaid.as_object_mut().unwrap().remove("corner_runs");
+    // Speed steps to 0 rad/s: a drive without a speed range on its bus passed every run
+    // (found by trying).
+    let mut still = summary(&fp, "0/1", &[]);
+    still["omega_s_rad_s"] = 0.0.into();
     for (name, v, why) in [
         ("other.json", summary("0123456789abcdef", "0/1", &[]), "another drive file"),
         ("shard.json", summary(&fp, "1/4", &[]), "one shard"),
         ("short.json", short, "a campaign of 1 runs, fewer than the 64"),
         ("unsaid.json", unsaid, "does not say which runs take the box's corners"),
+        ("still.json", still, "speed step is 0.0 rad/s: it judged no motion"),
     ] {
         let p = write(name, v);
         let (code, _, err) = run(&["certify", drive, "--campaign", &p]);

@@ -248,26 +248,36 @@ impl Campaign {
         STEP_S.max(1.1 * crate::sim::magnetizing_time_s(&self.spec))
     }
 
-    /// The runs are long enough for this motor: at least [`MIN_AFTER_STEP_S`] after the step
-    /// (else every run would end magnetizing, or be judged on a step it had no time for).
-    pub fn check_duration(&self) -> Result<(), String> {
+    /// The campaign can judge this drive: it has a speed range on the campaign's bus (a
+    /// drive whose rated flux needs more voltage than the bus has even at standstill has
+    /// none, and its steps to ±0 rad/s passed every run: found by trying), and the runs are
+    /// long enough for this motor: at least [`MIN_AFTER_STEP_S`] after the step (else every
+    /// run would end magnetizing, or be judged on a step it had no time for).
+    pub fn check(&self) -> Result<(), String> {
         let least = self.step_s() + MIN_AFTER_STEP_S;
-        if self.duration_s >= least {
-            return Ok(());
+        if self.duration_s < least {
+            let m = &self.spec.motor;
+            return Err(format!(
+                "runs of {} s are too short for this motor: the drive magnetizes it (T_r = {:.3} s) before the speed \
+                 step at {:.2} s, and a run needs {MIN_AFTER_STEP_S} s after it — take a duration of at least {:.2} s",
+                self.duration_s,
+                m.lr_h() / m.rr_ohm(),
+                self.step_s(),
+                least
+            ));
         }
-        let m = &self.spec.motor;
-        Err(format!(
-            "runs of {} s are too short for this motor: the drive magnetizes it (T_r = {:.3} s) before the speed \
-             step at {:.2} s, and a run needs {MIN_AFTER_STEP_S} s after it — take a duration of at least {:.2} s",
-            self.duration_s,
-            m.lr_h() / m.rr_ohm(),
-            self.step_s(),
-            least
-        ))
+        if !(self.omega_s_rad_s() > 0.0) {
+            return Err(format!(
+                "the drive has no speed range on the {} V bus: its rated flux (controller.flux_ref_wb = {}) needs more \
+                 voltage than the bus gives even at standstill (`hil-sim envelope` shows it) — nothing to step the speed to",
+                self.vdc_v, self.spec.flux_ref_wb
+            ));
+        }
+        Ok(())
     }
 
     pub fn run_one(&self, k: u64, cancel: &AtomicBool) -> Result<Verdict, String> {
-        self.check_duration()?;
+        self.check()?;
         let step_s = self.step_s();
         let sample = self.sample(k);
         let manoeuvre = Manoeuvre::of(k);
@@ -362,7 +372,7 @@ impl Campaign {
     /// Every run of this shard, in parallel on all cores (rayon), in index order;
     /// `progress(done)` after each; the first error (an interrupt: `cancel`) stops them all.
     pub fn run(&self, progress: impl Fn(u64) + Sync, cancel: &AtomicBool) -> Result<Vec<Verdict>, String> {
-        self.check_duration()?;
+        self.check()?;
         let done = AtomicU64::new(0);
         let indices: Vec<u64> = self.indices().collect();
         indices

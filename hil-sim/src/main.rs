@@ -799,7 +799,7 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
         seed: a.seed,
         shard: a.shard,
     };
-    c.check_duration()?;
+    c.check()?;
     let total = c.indices().count() as u64;
     if total == 0 {
         return Err(format!(
@@ -1052,11 +1052,11 @@ fn envelope(a: &EnvelopeArgs) -> Result<(), String> {
     let spec = file.spec;
     let vdc = bus_voltage(a.vdc, &spec.protection, "the envelope")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/envelope"));
-    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let base = hil_sim::envelope::drive_base_speed_rad_s(&spec, vdc);
     if base <= 0.0 {
         return Err(format!("the rated flux needs more than the {} V bus has even at standstill", vdc));
     }
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let n = f64::from(a.points - 1);
     let speeds: Vec<f64> = (0..a.points).map(|k| base * (0.2 + 1.8 * f64::from(k) / n)).collect();
     let sign = if a.generating { -1.0 } else { 1.0 };

@@ -135,5 +135,30 @@ fn runs_too_short_to_magnetize_are_refused() {
     let e = c.run(|_| {}, &AtomicBool::new(false)).unwrap_err();
     assert!(e.contains("take a duration of at least 2.38 s"), "{e}");
     c.duration_s = 2.4;
-    assert!(c.check_duration().is_ok());
+    assert!(c.check().is_ok());
+}
+
+/// A drive whose rated flux needs more voltage than its bus gives even at standstill has no
+/// speed range: its campaign stepped the speed to ±0 rad/s and passed every run, and
+/// `design certify --campaign` certified it (found by trying, on the 24 V motor with
+/// R_s = 19.9 Ω). Now refused, naming the bus and the flux.
+#[test]
+fn a_drive_without_a_speed_range_on_its_bus_is_refused() {
+    let mut c = shipped(4);
+    // The shipped motor's magnetizing current, 0.63 A, through 10 kΩ: 6.3 kV at standstill.
+    let m = c.spec.motor;
+    c.spec.motor = controller_core::motor::MotorParams::new(
+        1e4,
+        m.rr_ohm(),
+        m.ls_h(),
+        m.lr_h(),
+        m.lm_h(),
+        m.pole_pairs(),
+        m.j_kgm2(),
+        m.b_nms(),
+    )
+    .unwrap();
+    assert!(c.omega_s_rad_s() <= 0.0, "{}", c.omega_s_rad_s());
+    let e = c.run(|_| {}, &AtomicBool::new(false)).unwrap_err();
+    assert!(e.contains("no speed range on the") && e.contains("controller.flux_ref_wb"), "{e}");
 }
