@@ -266,7 +266,8 @@ impl Campaign {
                 least
             ));
         }
-        if !(self.omega_s_rad_s() > 0.0) {
+        let w = self.omega_s_rad_s();
+        if w.is_nan() || w <= 0.0 {
             return Err(format!(
                 "the drive has no speed range on the {} V bus: its rated flux (controller.flux_ref_wb = {}) needs more \
                  voltage than the bus gives even at standstill (`hil-sim envelope` shows it) — nothing to step the speed to",
