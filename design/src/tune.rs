@@ -463,8 +463,7 @@ pub fn tune(
         ));
     }
     let j = motor.j_kgm2();
-    let lines =
-        file.board.as_ref().map_or(drive_file::drive::DEFAULT_ENCODER_LINES, |b| b.table.encoder_lines);
+    let lines = file.encoder_lines();
     let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
     let kp_noise = encoder_kp_limit(tau_max, lines, t_slow);
     let mut omega_s = (omega_c / SPEED_BELOW_CURRENT).min(kp_noise / j);
@@ -844,6 +843,7 @@ mod tests {
             runs: 64,
             seed: 1,
             shard: (0, 1),
+            encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
         };
         let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
         let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
@@ -970,6 +970,7 @@ mod tests {
                 runs: 200,
                 seed: 1,
                 shard: (0, 1),
+                encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
             };
             // A long rotor time constant magnetizes later: 0.75 s after the step as at 1 s.
             c.duration_s = c.duration_s.max(c.step_s() + (1.0 - STEP_S));

@@ -589,6 +589,14 @@ pub struct DriveFile {
     pub board: Option<crate::board::Board>,
 }
 
+impl DriveFile {
+    /// The encoder's lines per revolution: the board's, [`DEFAULT_ENCODER_LINES`] without one
+    /// (what the drive's defaults are derived from, and what the simulator's encoder has).
+    pub fn encoder_lines(&self) -> u32 {
+        self.board.map_or(DEFAULT_ENCODER_LINES, |b| b.table.encoder_lines)
+    }
+}
+
 impl DriveTables {
     /// Validate everything; errors point at the offending value in `src`.
     pub fn validate(&self, src: &Source<'_>) -> Result<DriveFile, FileError> {

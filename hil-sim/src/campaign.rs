@@ -117,6 +117,10 @@ pub struct Campaign {
     pub seed: u64,
     /// This shard: runs with k mod `shard.1` = `shard.0`.
     pub shard: (u64, u64),
+    /// The board's encoder lines, which the simulated encoder has
+    /// ([`drive_file::drive::DriveFile::encoder_lines`]; it had 1 024 whatever the file
+    /// said: a 13 000-line board's campaign tripped `EncoderLoss` at standstill).
+    pub encoder_lines: u32,
 }
 
 /// The parameter factors of one run.
@@ -307,7 +311,10 @@ impl Campaign {
                 substeps: 1,
                 // One row per slow period: the ideal loop runs on the rows.
                 trace_every: u32::from(divider),
-                sensors: SensorModel::realistic_for_trip(mix(self.seed ^ k), self.spec.protection.i_trip_a),
+                sensors: SensorModel {
+                    encoder_lines: Some(self.encoder_lines),
+                    ..SensorModel::realistic_for_trip(mix(self.seed ^ k), self.spec.protection.i_trip_a)
+                },
                 load: LoadModel::Torque,
                 inverter: InverterModel::Average,
                 dc_link: None,
@@ -615,6 +622,7 @@ mod tests {
             runs,
             seed: 1,
             shard: (0, 1),
+            encoder_lines: f.encoder_lines(),
         }
     }
 

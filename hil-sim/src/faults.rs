@@ -153,6 +153,8 @@ impl Case {
             Injection::CurrentSensor { gain: 1.0, offset_a, .. } => {
                 format!("{} {offset_a:+} A", self.name)
             }
+            // Half the board's lines ([`Matrix::encoder_lines`]).
+            Injection::EncoderLines { lines } => format!("encoder {lines} lines ({} set)", 2 * lines),
             _ => self.name.into(),
         }
     }
@@ -299,6 +301,12 @@ pub struct Matrix {
     pub vdc_v: f64,
     /// The board's hardware comparator, if the drive file gives one.
     pub comparator: Option<Comparator>,
+    /// The board's encoder lines, which the simulated encoder has (the matrix's own
+    /// 1 024 whatever the file said, until found by trying: a 13 000-line board's drive then
+    /// tripped `EncoderLoss` in its campaign, and a 512-line board's "half the lines" row
+    /// injected no change). [`drive_file::drive::DEFAULT_ENCODER_LINES`] from
+    /// [`Matrix::new`]; the CLI sets the file's.
+    pub encoder_lines: u32,
     /// The injection this long after [`INJECT_S`], s (0 in the matrix: its time on the fast
     /// steps' grid — tests move it off the open-phase check's windows; `hil-sim faults
     /// --inject-delay-ms`).
@@ -366,6 +374,7 @@ impl Matrix {
             top_speed_rad_s: top,
             vdc_v,
             comparator: None,
+            encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
             inject_delay_s: 0.0,
             seed: 0,
             times_s: (REFERENCE_S, INJECT_S),
@@ -472,7 +481,10 @@ impl Matrix {
             Case { name: "switch a lower shorted", injection: Injection::SwitchShort(switch_short(false)) },
             Case { name: "encoder stuck", injection: Injection::EncoderStuck },
             Case { name: "encoder glitch 100 counts", injection: Injection::EncoderGlitch { counts: 100 } },
-            Case { name: "encoder 512 lines (1024 set)", injection: Injection::EncoderLines { lines: 512 } },
+            Case {
+                name: "encoder at half its lines",
+                injection: Injection::EncoderLines { lines: (self.encoder_lines / 2).max(1) },
+            },
             Case {
                 name: "sensor b dead",
                 injection: Injection::CurrentSensor { phase: 1, gain: 0.0, offset_a: 0.0 },
@@ -698,7 +710,10 @@ impl Matrix {
                 vdc_v: self.vdc_v,
                 substeps: 1,
                 trace_every: 1,
-                sensors: SensorModel::realistic_for_trip(self.sensor_seed(k), self.spec.protection.i_trip_a),
+                sensors: SensorModel {
+                    encoder_lines: Some(self.encoder_lines),
+                    ..SensorModel::realistic_for_trip(self.sensor_seed(k), self.spec.protection.i_trip_a)
+                },
                 load: LoadModel::Torque,
                 inverter: InverterModel::Average,
                 dc_link: None,

@@ -650,6 +650,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     // Without [certify], the top speed is twice the base speed (the field-weakening range).
     let omega_r_max = file.certify.map_or(f64::INFINITY, |c| c.omega_r_max_rad_s);
     let mut m = Matrix::new(file.spec, omega_r_max, vdc);
+    m.encoder_lines = file.encoder_lines();
     m.comparator = file
         .board
         .and_then(|b| b.table.comparator)
@@ -798,6 +799,7 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
         runs: a.runs,
         seed: a.seed,
         shard: a.shard,
+        encoder_lines: file.encoder_lines(),
     };
     c.check()?;
     let total = c.indices().count() as u64;

@@ -15,6 +15,7 @@ fn shipped(runs: u64) -> Campaign {
         runs,
         seed: 1,
         shard: (0, 1),
+        encoder_lines: f.encoder_lines(),
     }
 }
 
@@ -161,4 +162,30 @@ fn a_drive_without_a_speed_range_on_its_bus_is_refused() {
     assert!(c.omega_s_rad_s() <= 0.0, "{}", c.omega_s_rad_s());
     let e = c.run(|_| {}, &AtomicBool::new(false)).unwrap_err();
     assert!(e.contains("no speed range on the") && e.contains("controller.flux_ref_wb"), "{e}");
+}
+
+/// The simulated encoder is the board's: the campaign's sensors had 1 024 lines whatever
+/// `[board] encoder_lines` said, so a 13 000-line board's drive — its encoder-jump limit
+/// derived from 13 000 lines — tripped `EncoderLoss` at standstill in 16 of 64 runs (found by
+/// trying). On the board's own encoder every run passes.
+#[test]
+fn the_campaign_simulates_the_boards_encoder() {
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml"))
+        .unwrap()
+        .replace("encoder_lines = 1024", "encoder_lines = 13000");
+    let f = drive_file::DriveFile::parse(std::path::Path::new("fine.toml"), &text).unwrap();
+    assert_eq!(f.encoder_lines(), 13000);
+    let c = Campaign {
+        spec: f.spec,
+        certify: f.certify.unwrap(),
+        encoder_lines: f.encoder_lines(),
+        duration_s: 0.5,
+        runs: 64,
+        ..shipped(64)
+    };
+    let bad: Vec<String> = run(&c).iter().filter(|v| !v.passed()).map(Verdict::csv).collect();
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+    // The 1 024-line encoder under that drive: what the campaign ran before.
+    let old = Campaign { encoder_lines: 1024, ..c };
+    assert!(run(&old).iter().any(|v| !v.passed()));
 }

@@ -490,3 +490,18 @@ fn a_sensor_gain_error_is_judged_from_the_period_its_error_reaches_the_checks_le
     assert_eq!(o.acting_after_s, Some(0.0));
     assert!(o.passed(), "{:?}", o.failures);
 }
+
+/// The matrix's encoder is the board's too, and its wrong-line-count row injects half the
+/// board's lines: on a 512-line board "encoder 512 lines (1024 set)" injected no change
+/// and passed (found by trying).
+#[test]
+fn the_wrong_line_count_row_halves_the_boards_lines() {
+    let mut m = shipped();
+    m.encoder_lines = 512;
+    let c = case(&m, "encoder at half its lines");
+    assert_eq!(c.title(), "encoder 256 lines (512 set)");
+    let at = point(&m, Point::Mid, true);
+    let o = m.run_one(3, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+    assert!(o.passed(), "{:?}", o.failures);
+    assert_eq!(o.detected.map(|(f, _)| f), Some(Fault::EncoderLoss));
+}
