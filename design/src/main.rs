@@ -243,7 +243,7 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
             l.num[0], l.num[1], l.num[2], l.den[0], l.den[1], l.den[2]
         )
     });
-    println!(
+    report::outln!(
         "current loops: {} kp {:.4} V/A, ki {:.1} V/(A·s){lag} — crossover {:.0} rad/s on the nominal motor, \
          smallest margin {:.3}× its minimum over the box",
         if law.lag.is_some() { "ICAD" } else { "PI" },
@@ -253,18 +253,18 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         t.current_robustness
     );
     match t.spec.speed_law {
-        controller_core::speed::SpeedLaw::SaturatedP { kp, tau_max_nm } => println!(
+        controller_core::speed::SpeedLaw::SaturatedP { kp, tau_max_nm } => report::outln!(
             "speed loop: saturated P kp {kp:.5} N·m·s/rad, τ_max {tau_max_nm:.3} N·m — crossover {:.1} rad/s",
             t.omega_s_rad_s
         ),
-        controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit } => println!(
+        controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit } => report::outln!(
             "speed loop: PI kp {kp:.5} N·m·s/rad, ki {ki:.5} N·m/rad, limit {limit:.3} N·m — seed 000's regions, \
              bandwidth ≥ {:.1} rad/s on every inertia",
             design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify)
         ),
         controller_core::speed::SpeedLaw::PiIq { .. } => {}
     }
-    println!(
+    report::outln!(
         "position loop: k {:.4} 1/s (the speed loop's {:.2} rad/s on the heaviest inertia / {}), ω_max {} rad/s",
         t.spec.position.k_per_s,
         design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify),
@@ -272,7 +272,7 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         t.spec.position.omega_max_rad_s
     );
     let c = &t.certify;
-    println!(
+    report::outln!(
         "box: Rs×{:?} Rr×{:?} L×{:?} J×{:?}; writable kp {:?}; certified: {} checks pass",
         c.rs_factor,
         c.rr_factor,
@@ -354,10 +354,10 @@ fn icad(a: &IcadArgs) -> Result<bool, String> {
         "sampled_stable_omega_r_max_rad_s": sampled_range,
     });
     if json {
-        println!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
+        report::outln!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
     } else if let Some(obj) = v.as_object() {
         for (k, val) in obj {
-            println!("{k:<36} {val}");
+            report::outln!("{k:<36} {val}");
         }
     }
     Ok(stable_here)
@@ -388,7 +388,7 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
         eprintln!("design: wrote the certificate to {}", out.display());
     }
     if let Some(n) = &nonlinear {
-        println!(
+        report::outln!(
             "campaign: {} of {} runs passed{}",
             n.passed,
             n.runs,
@@ -408,11 +408,11 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             .map(|c| serde_json::json!({"check": c.name, "corner": c.corner, "value": c.value, "limit": c.limit, "pass": c.pass}))
             .collect();
         let out = serde_json::json!({"file": path, "certified": ok, "checks": v});
-        println!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
+        report::outln!("{}", serde_json::to_string_pretty(&out).map_err(|e| e.to_string())?);
     } else {
         for ch in &checks {
             let value = ch.value.map_or_else(|| "none".to_string(), |v| format!("{v:.3}"));
-            println!(
+            report::outln!(
                 "{:<5} {:<56} {:<22} {:>10}  limit {}",
                 if ch.pass { "ok" } else { "FAIL" },
                 ch.name,
@@ -421,7 +421,7 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
                 ch.limit
             );
         }
-        println!("{path}: {}", if ok { "certified" } else { "NOT certified" });
+        report::outln!("{path}: {}", if ok { "certified" } else { "NOT certified" });
     }
     if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
         eprintln!("design certify: {path}: the campaign passed {} of {} runs", n.passed, n.runs);

@@ -429,3 +429,39 @@ fn certificate_records_linear_and_nonlinear_results() {
     assert_eq!(code, Some(0), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Standard output whose reader has gone (`design certify --json | head`): `println!`
+/// panicked with a backtrace, exit 101, and `design tune` never wrote its file (found by
+/// trying). Now the text is dropped and the work goes on: the same exit status, the file
+/// written, no panic.
+#[test]
+fn a_reader_that_left_loses_the_text_not_the_work() {
+    let closed = || {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader); // every write to `writer` now fails with EPIPE
+        writer
+    };
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_design"))
+        .args(["certify", drive, "--json"])
+        .stdout(closed())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    let dir = std::env::temp_dir().join(format!("design-epipe-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("tuned.toml");
+    let template = concat!(env!("CARGO_MANIFEST_DIR"), "/../drives/em-synergy-24v.toml");
+    let o = Command::new(env!("CARGO_BIN_EXE_design"))
+        .args(["tune", "--motor", "em-synergy-m800006", "--template", template, "--out"])
+        .arg(&out)
+        .stdout(closed())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(!err.contains("panicked") && out.exists(), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

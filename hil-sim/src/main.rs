@@ -277,7 +277,7 @@ fn link_identify<R: std::io::Read, W: std::io::Write>(
     let m = &file.spec.motor;
     let id = identify::estimate(&config, &record, m.pole_pairs())?;
     if let Some(n) = &id.no_load {
-        println!("{}", identify::describe_no_load(n));
+        report::outln!("{}", identify::describe_no_load(n));
     }
     let about = format!(
         "Commissioned on the board over its link (hil-sim link … identify: test current {} A, drive file {}).",
@@ -346,7 +346,7 @@ fn link_capture<R: std::io::Read, W: std::io::Write>(
     let svg = a.out.join("capture.svg");
     write_text(&csv, &record.csv())?;
     write_text(&svg, &record.svg(&format!("capture ({})", a.trigger)))?;
-    println!("{} samples: {} and {}", record.samples.len(), csv.display(), svg.display());
+    report::outln!("{} samples: {} and {}", record.samples.len(), csv.display(), svg.display());
     Ok(())
 }
 
@@ -406,13 +406,17 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
     let (l_sigma, l_mm, r_rr, tr) = identify::inverse_gamma(&motor);
     let tm = id.t_model(a.run.leakage_ratio);
     let truth = identify::t_model(motor.rs_ohm(), l_sigma, l_mm, r_rr, a.run.leakage_ratio);
-    println!(
+    report::outln!(
         "motor time {t:.1} s; against the simulated motor (T-model under L_lr/L_ls = {}):",
         a.run.leakage_ratio
     );
-    println!(
+    report::outln!(
         "{:<12} {:>12} {:>26} {:>12} {:>8}",
-        "parameter", "identified", "interval", "simulated", "error"
+        "parameter",
+        "identified",
+        "interval",
+        "simulated",
+        "error"
     );
     let rows: [(&str, &identify::Estimate, f64); 5] = [
         ("R_s Ω", &id.rs_ohm, motor.rs_ohm()),
@@ -424,7 +428,7 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
     let g = |x: f64| format!("{x:.5}");
     for (name, e, x) in rows {
         let iv = format!("[{}, {}]", g(e.interval[0]), g(e.interval[1]));
-        println!(
+        report::outln!(
             "{name:<12} {:>12} {iv:>26} {:>12} {:>+7.2}%",
             g(e.value),
             g(x),
@@ -438,17 +442,17 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
         ("L_m H", tm.lm_h, truth.lm_h),
     ];
     for (name, v, x) in t_rows {
-        println!("{name:<12} {:>12} {:>26} {:>12} {:>+7.2}%", g(v), "", g(x), 100.0 * (v / x - 1.0));
+        report::outln!("{name:<12} {:>12} {:>26} {:>12} {:>+7.2}%", g(v), "", g(x), 100.0 * (v / x - 1.0));
     }
     let ve = a.vdc * 1e-6 * a.pwm_hz;
-    println!(
+    report::outln!(
         "inverter voltage error {} V per phase (the simulated 1 µs dead time: {} V); offsets {:?} A",
         g(id.inverter_error_v.value),
         g(ve),
         id.offsets_a.map(|o| (o * 1e5).round() / 1e5)
     );
     if let Some(r) = &id.rotation {
-        println!(
+        report::outln!(
             "rotating field: the rotor turned {:.4}× the field ({:.2} rad/s); J {} kg·m² [{}, {}] (simulated {}), \
              B {} N·m·s/rad [{}, {}] (simulated {})",
             r.ratio,
@@ -464,7 +468,7 @@ fn identify(a: &IdentifyArgs) -> Result<(), String> {
         );
     }
     if let Some(n) = &id.no_load {
-        println!("{}", hil_sim::identify::describe_no_load(n));
+        report::outln!("{}", hil_sim::identify::describe_no_load(n));
     }
     let about = format!(
         "Simulated commissioning of `{}` (hil-sim identify: {} V bus, {} Hz PWM, test current {} A, seed {}).",
@@ -723,7 +727,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     let json = serde_json::to_string_pretty(&hil_sim::faults::json(&m, &rows)).map_err(|e| e.to_string())?;
     write_text(&out.join("faults.json"), &format!("{json}\n"))?;
     write_text(&out.join("faults.svg"), &hil_sim::faults::svg(&m, &rows))?;
-    println!(
+    report::outln!(
         "{:<30} {:<22} {:>8} {:<40} {:<30} {:>4} {:>7} {:>7} {:>9} {:<22} verdict",
         "fault injected",
         "operating point",
@@ -738,7 +742,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     );
     for o in &rows {
         let (off, leg, failures) = o.cells();
-        println!(
+        report::outln!(
             "{:<30} {:<22} {:>8.1} {:<40} {:<30} {off:>4} {:>7.2} {leg:>7} {:>9.3} {:<22} {}{failures}",
             o.case.title(),
             o.at.name(),
@@ -753,7 +757,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     }
     let (failed, gaps) =
         (rows.iter().filter(|o| !o.passed()).count(), rows.iter().filter(|o| o.verdict() == "gap").count());
-    println!(
+    report::outln!(
         "{} rows in {elapsed:.2} s: {} pass, {gaps} stated gaps, {failed} fail",
         rows.len(),
         rows.len() - failed - gaps
@@ -870,19 +874,24 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     }
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     write_text(&out.join("summary.json"), &format!("{text}\n"))?;
-    println!(
+    report::outln!(
         "{:<12} {:>6} {:>7} {:>17} {:>13} {:>16}",
-        "manoeuvre", "runs", "passed", "worst tracking", "worst ripple", "flux / model"
+        "manoeuvre",
+        "runs",
+        "passed",
+        "worst tracking",
+        "worst ripple",
+        "flux / model"
     );
     for m in hil_sim::campaign::per_manoeuvre(&verdicts) {
         match (m.worst_tracking_error_rad_s, m.worst_ripple_nm, m.flux_ratio) {
-            (Some(tracking), Some(ripple), Some([lo, hi])) => println!(
+            (Some(tracking), Some(ripple), Some([lo, hi])) => report::outln!(
                 "{:<12} {:>6} {:>7} {tracking:>11.3} rad/s {ripple:>10.4} Nm {lo:>8.3} … {hi:.3}",
                 m.manoeuvre.name(),
                 m.runs,
                 m.passed,
             ),
-            _ => println!(
+            _ => report::outln!(
                 "{:<12} {:>6} {:>7} {:>17} {:>13} {:>16}",
                 m.manoeuvre.name(),
                 m.runs,
@@ -895,9 +904,9 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     }
     let failed: Vec<&Verdict> = verdicts.iter().filter(|v| !v.passed()).collect();
     for v in failed.iter().take(20) {
-        println!("FAIL run {}: {} ({})", v.k, v.failures.join(", "), v.csv());
+        report::outln!("FAIL run {}: {} ({})", v.k, v.failures.join(", "), v.csv());
     }
-    println!(
+    report::outln!(
         "{} runs in {elapsed:.2} s ({:.1} ns per simulated PWM period, {:.0} runs/s)",
         verdicts.len(),
         hil_sim::campaign::ns_per_period(&c, verdicts.len(), elapsed),
@@ -1073,14 +1082,19 @@ fn envelope(a: &EnvelopeArgs) -> Result<(), String> {
     let points = hil_sim::envelope::measure(&spec, &spec.motor, vdc, &speeds, sign)?;
     let mut csv =
         String::from("omega_m_rad_s,measured_nm,analytic_nm,relative_error,ripple_nm,flux_wb,mode\n");
-    println!(
+    report::outln!(
         "{:>10} {:>12} {:>12} {:>8} {:>10} {:>8}  mode",
-        "ω (rad/s)", "measured", "analytic", "error", "ripple", "ψ_r"
+        "ω (rad/s)",
+        "measured",
+        "analytic",
+        "error",
+        "ripple",
+        "ψ_r"
     );
     let mut failed = Vec::new();
     for p in &points {
         let e = p.relative_error();
-        println!(
+        report::outln!(
             "{:>10.1} {:>10.4} Nm {:>9.4} Nm {:>+7.2}% {:>7.4} Nm {:>7.3}  {:?}",
             p.omega_m_rad_s,
             p.measured_nm,
@@ -1320,7 +1334,7 @@ fn finish(
     write_plots(out, &trace.plot, trace.closed_loop)?;
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
     write_text(&out.join("summary.json"), &format!("{text}\n"))?;
-    println!("{text}");
+    report::outln!("{text}");
     eprintln!(
         "hil-sim: wrote trace.csv, summary.json, speed.svg, currents.svg, torque.svg in {}",
         out.display()
@@ -1448,7 +1462,7 @@ fn bench(builtins: &[Builtin], name: &str, runs: u32) -> Result<(), String> {
         "median_ns_per_pwm_period": median * 1e9 / periods,
         "best_ns_per_pwm_period": best * 1e9 / periods,
     });
-    println!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
+    report::outln!("{}", serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?);
     Ok(())
 }
 
@@ -1461,7 +1475,7 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
             eprintln!("hil-sim: no serial ports found");
         }
         for p in ports {
-            println!("{}", p.port_name);
+            report::outln!("{}", p.port_name);
         }
         return Ok(());
     }
@@ -1514,18 +1528,18 @@ fn board_link(a: &LinkArgs) -> Result<(), String> {
         (Some(c), LinkCmd::Status { .. }) if let Some(file) = &status_file => {
             let r = link.transact(&c)?;
             match hil_sim::link_client::format_status(&r, file) {
-                Some(text) => print!("{text}"),
-                None => println!("{r:?}"),
+                Some(text) => report::out!("{text}"),
+                None => report::outln!("{r:?}"),
             }
         }
-        (Some(c), _) => println!("{:?}", link.transact(&c)?),
+        (Some(c), _) => report::outln!("{:?}", link.transact(&c)?),
         (None, LinkCmd::Telemetry { n }) => {
             // Each status request keeps the board's link watchdog (`[board] link_timeout_s`)
             // from stopping the drive while we watch; the board streams an output after 10 ms
             // of quiet.
             for _ in 0..n {
-                println!("{:?}", link.transact(&Command::GetStatus)?);
-                println!("{:?}", link.next_reply()?);
+                report::outln!("{:?}", link.transact(&Command::GetStatus)?);
+                report::outln!("{:?}", link.next_reply()?);
             }
         }
         (None, _) => {}
@@ -1539,7 +1553,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Cmd::List => builtins().map(|bs| {
             for b in &bs {
-                println!("{:<20} {}", b.name, b.about);
+                report::outln!("{:<20} {}", b.name, b.about);
             }
         }),
         Cmd::Run(args) => builtins().and_then(|bs| {

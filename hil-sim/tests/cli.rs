@@ -747,3 +747,24 @@ fn identify_writes_a_motor_file_or_nothing() {
     assert!(!refused.exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Standard output whose reader has gone (`hil-sim faults … | true`): exit 101 with a
+/// panic's backtrace until found by trying; now the rows run, the files are written and the
+/// exit status is the matrix's.
+#[test]
+fn a_reader_that_left_loses_the_text_not_the_work() {
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = tmp("epipe");
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let o = bin()
+        .args(["faults", drive, "--only", "open phase a at mid-speed motoring", "--out"])
+        .arg(&out)
+        .stdout(writer)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(!err.contains("panicked") && out.join("faults.json").exists(), "{err}");
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -80,6 +80,6 @@ pub fn run() -> Result<bool, String> {
             "rows_kp_major": by_poles,
         },
     });
-    println!("{}", serde_json::to_string(&v).map_err(|e| e.to_string())?);
+    report::outln!("{}", serde_json::to_string(&v).map_err(|e| e.to_string())?);
     Ok(true)
 }

@@ -282,12 +282,12 @@ pub fn run(a: &KharitonovArgs) -> Result<bool, String> {
                 o.insert("bandwidth".into(), bw_v);
             }
         }
-        println!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
+        report::outln!("{}", serde_json::to_string_pretty(&v).map_err(|e| e.to_string())?);
     } else {
-        println!("PI ({kp}·s + {ki})/s on the 16 Kharitonov plants");
+        report::outln!("PI ({kp}·s + {ki})/s on the 16 Kharitonov plants");
         let opt = |x: Option<f64>| x.map_or_else(|| "none".to_string(), |v| format!("{v:.2}"));
         for ((i, j, re), m) in r.per_plant.iter().zip(&margins) {
-            println!(
+            report::outln!(
                 "  N{i}/D{j}: max Re(pole) = {re:.6}  crossover {} rad/s  PM {}°  GM +{} / −{} dB",
                 opt(m.crossover_rad_s),
                 opt(m.phase_margin_deg),
@@ -295,9 +295,9 @@ pub fn run(a: &KharitonovArgs) -> Result<bool, String> {
                 opt(m.gain_margin_reduction_db)
             );
         }
-        println!("robust_stable = {}, worst_pole_re = {:.6}", r.robust_stable, r.worst_pole_re);
+        report::outln!("robust_stable = {}, worst_pole_re = {:.6}", r.robust_stable, r.worst_pole_re);
         if let (Some(t), Some(g)) = (gpm, &gpm_r) {
-            println!(
+            report::outln!(
                 "gain-phase tester A = {}, φ = {:.1}°: robust member = {} (failing plants {:?})",
                 t.gain,
                 t.phase_rad.to_degrees(),
@@ -306,9 +306,10 @@ pub fn run(a: &KharitonovArgs) -> Result<bool, String> {
             );
         }
         if let (Some(wb), Some(b)) = (bandwidth, &bw_r) {
-            println!(
+            report::outln!(
                 "bandwidth ω_B = {wb} rad/s: robust member = {} (min |T(jω_B)| = {:.4}, need ≥ 0.7071)",
-                b.bandwidth_member, b.min_closed_loop_gain_at_omega_b
+                b.bandwidth_member,
+                b.min_closed_loop_gain_at_omega_b
             );
         }
     }

@@ -40,7 +40,7 @@ pub fn run(a: &RecycleArgs) -> Result<bool, String> {
         eprintln!("design: wrote the recycle plots to {dir}");
     }
     if json {
-        println!("{}", serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?);
+        report::outln!("{}", serde_json::to_string_pretty(&r).map_err(|e| e.to_string())?);
     } else {
         print_text(&r);
     }
@@ -55,20 +55,22 @@ fn yes(b: bool) -> &'static str {
 }
 
 fn print_text(r: &Report) {
-    println!("Recycle process (seed 001): k ∈ [1, 3], τ = 1, k_R = 1.6, τ_R = 1");
-    println!("ITAE nominal PI: k1 = {:.4}, k2 = {:.4}; unit-1 poles:", r.itae.k1, r.itae.k2);
+    report::outln!("Recycle process (seed 001): k ∈ [1, 3], τ = 1, k_R = 1.6, τ_R = 1");
+    report::outln!("ITAE nominal PI: k1 = {:.4}, k2 = {:.4}; unit-1 poles:", r.itae.k1, r.itae.k2);
     for [re, im] in &r.itae_unit1_poles {
-        println!("  {re:.4} {im:+.4}j");
+        report::outln!("  {re:.4} {im:+.4}j");
     }
-    println!("unit 1 alone stable for all k: {}", yes(r.itae_unit1_robust));
+    report::outln!("unit 1 alone stable for all k: {}", yes(r.itae_unit1_robust));
     match r.itae_recycle_loss_of_stability_k {
-        Some(k) => println!("with the recycle the ITAE PI loses stability at k = {k:.4}"),
-        None => println!("with the recycle the ITAE PI stays stable over the range"),
+        Some(k) => report::outln!("with the recycle the ITAE PI loses stability at k = {k:.4}"),
+        None => report::outln!("with the recycle the ITAE PI stays stable over the range"),
     }
-    println!("\nTable I   k1      k2      cost    printed(16)  L2.1 L2.2 Kharitonov family  worst Re (at k)");
+    report::outln!(
+        "\nTable I   k1      k2      cost    printed(16)  L2.1 L2.2 Kharitonov family  worst Re (at k)"
+    );
     for row in &r.table_i {
         let v = &row.verdict;
-        println!(
+        report::outln!(
             "set {}   {:.4}  {:.4}  {:.4}  {:<11}  {:<4} {:<4} {:<10} {:<6}  {:.4} ({:.3})",
             row.set,
             row.pi.k1,
@@ -83,9 +85,12 @@ fn print_text(r: &Report) {
             v.worst_at_k
         );
     }
-    println!("\nNLP (18) optima (decay margin {} 1/s for the Kharitonov and family sets)", r.decay_1_per_s);
+    report::outln!(
+        "\nNLP (18) optima (decay margin {} 1/s for the Kharitonov and family sets)",
+        r.decay_1_per_s
+    );
     for o in &r.optima {
-        println!(
+        report::outln!(
             "{:<14} k1 = {:.4}, k2 = {:.4}, cost {:.4}; Kharitonov {}, family stable {}, worst Re {:.4} at k = {:.3}",
             format!("{:?}", o.constraints),
             o.pi.k1,

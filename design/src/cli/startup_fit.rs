@@ -116,11 +116,11 @@ pub fn run(a: &StartupFitArgs) -> Result<bool, String> {
         },
     });
     if json {
-        println!("{}", serde_json::to_string_pretty(&v).map_err(|er| er.to_string())?);
+        report::outln!("{}", serde_json::to_string_pretty(&v).map_err(|er| er.to_string())?);
     } else {
-        println!("start-up of {motor}: {} segments", segs.len());
+        report::outln!("start-up of {motor}: {} segments", segs.len());
         for s in &segs {
-            println!(
+            report::outln!(
                 "  {:.3}–{:.3} s  mean ω_r {:7.1} rad/s  replay error {:5.2} %",
                 s.t_s.0,
                 s.t_s.1,
@@ -129,12 +129,12 @@ pub fn run(a: &StartupFitArgs) -> Result<bool, String> {
             );
         }
         let fmt = |v: &[f64]| v.iter().map(|x| format!("{x:.4e}")).collect::<Vec<_>>().join(", ");
-        println!(
+        report::outln!(
             "interval g11 numerator   lo [{}]\n                         hi [{}]",
             fmt(plant.num.lo()),
             fmt(plant.num.hi())
         );
-        println!(
+        report::outln!(
             "interval g11 denominator lo [{}]\n                         hi [{}]",
             fmt(plant.den.lo()),
             fmt(plant.den.hi())
