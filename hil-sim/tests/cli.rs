@@ -161,9 +161,9 @@ fn unusable_output_directory_fails_before_the_run() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A run whose states go non-finite exited 0 with `peak_stator_current_a: 0.0`: now it
-/// fails, names the time, and leaves no trace behind. (A motor with a 0.2 ns stator time
-/// constant under a 10 µs RK4 step: numerically unstable.)
+/// A run whose states go non-finite exited 0 with `peak_stator_current_a: 0.0`: then it
+/// failed naming the time; now a machine that stiff (a 0.2 ns stator time constant under a
+/// 10 µs RK4 step) is refused before it runs. Either way it leaves no trace behind.
 #[test]
 fn diverged_run_fails_and_writes_nothing() {
     let dir = tmp("diverge");
@@ -185,7 +185,9 @@ fn diverged_run_fails_and_writes_nothing() {
     let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
-    assert!(err.contains("no longer finite at t ="), "{err}");
+    // Refused before it starts since the step follows the machine's fastest mode: it
+    // diverged at t = 1.3e-5 s before.
+    assert!(err.contains("too stiff to integrate"), "{err}");
     // Not even the directory the run made (an empty one was left: found by trying).
     assert!(!out.exists(), "{out:?} left behind");
     let _ = std::fs::remove_dir_all(&dir);
@@ -767,4 +769,30 @@ fn a_reader_that_left_loses_the_text_not_the_work() {
     assert_eq!(o.status.code(), Some(0), "{err}");
     assert!(!err.contains("panicked") && out.join("faults.json").exists(), "{err}");
     let _ = std::fs::remove_dir_all(&out);
+}
+
+/// A machine too stiff for the RK4 step: R_s = 10 kΩ (the motor file accepts it) ran on
+/// 50 µs steps into an `Overcurrent` at 813 A the motor never carried, with exit 0 (found by
+/// trying). Now refused before the run, with the substeps it needs; with them it runs.
+#[test]
+fn a_machine_too_stiff_for_the_step_is_refused_with_the_substeps_it_needs() {
+    let dir = tmp("stiff");
+    std::fs::create_dir_all(&dir).unwrap();
+    let fig16 = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/fig16-icad.toml");
+    let text =
+        std::fs::read_to_string(fig16).unwrap().replace("\"../../drive.toml\"", "\"../../../drive.toml\"");
+    assert!(text.contains("rs_ohm = 16.2"), "the scenario embeds its motor");
+    let stiff = text.replacen("rs_ohm = 16.2", "rs_ohm = 10000.0", 1);
+    let file = dir.join("stiff.toml");
+    std::fs::write(&file, &stiff).unwrap();
+    let out = dir.join("out");
+    let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("too stiff for the integration step") && err.contains("rk4_substeps = 3"), "{err}");
+    assert!(!out.exists());
+    std::fs::write(&file, format!("rk4_substeps = 3\n{stiff}")).unwrap();
+    let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
+    assert_eq!(st.status.code(), Some(0), "{}", String::from_utf8_lossy(&st.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
 }

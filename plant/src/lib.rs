@@ -344,6 +344,19 @@ impl Machine {
         )
     }
 
+    /// The fastest electrical mode's rate, 1/s: the magnitude of the most negative eigenvalue
+    /// of [`Machine::electrical_matrices`] at standstill (there one axis decouples into a
+    /// real 2×2 — trace `a − R_r/L_r`, determinant `−a·R_r/L_r − b·(R_r/L_r)·L_m·R_r/L_r`;
+    /// turning adds ±jω_r, which RK4's region covers far beyond any speed run). An explicit
+    /// RK4 step `h` is stable for `rate·h` up to ≈ 2.785 on the negative real axis.
+    pub fn fastest_rate_per_s(&self) -> f64 {
+        let (m, _) = self.electrical_matrices(0.0);
+        let [[a11, _, a13, _], _, [a31, _, a33, _], _] = m;
+        let half_trace = 0.5 * (a11 + a33);
+        let det = a11 * a33 - a13 * a31;
+        -half_trace + (half_trace * half_trace - det).max(0.0).sqrt()
+    }
+
     /// The stator voltage at which the stator current would neither flow nor change: the
     /// back-EMF of the rotor flux, `(L_m/L_r)·dψ_r/dt` with `i_s = 0`, i.e.
     /// `−(L_m/L_r)·((R_r/L_r)·ψ_r − ω_r·J·ψ_r)` (eq. (1)'s current rows solved for `v` at
@@ -432,6 +445,30 @@ impl Machine {
 
 #[cfg(test)]
 mod tests {
+
+    /// The fastest electrical rate is an eigenvalue of the standstill matrix (the full 4×4's
+    /// characteristic polynomial vanishes there) and the largest in magnitude; the DeLorenzo
+    /// motor's is 395 1/s (rate·50 µs = 0.02, far inside RK4's region), R_s = 10 kΩ's
+    /// 1.05·10⁵ 1/s (5.2: outside).
+    #[test]
+    fn fastest_rate_is_the_standstill_matrixs_largest_eigenvalue() {
+        let char_poly = |m: &Machine, l: f64| {
+            let (a, _) = m.electrical_matrices(0.0);
+            // One decoupled axis: (a11 − λ)(a33 − λ) − a13·a31.
+            let [[a11, _, a13, _], _, [a31, _, a33, _], _] = a;
+            ((a11 - l) * (a33 - l) - a13 * a31, a11 + a33, a11 * a33 - a13 * a31)
+        };
+        for (rs, expect) in [(16.2, (390.0, 400.0)), (1e4, (1.0e5, 1.1e5))] {
+            let m = Machine::new(&MotorParams::new(rs, 23.2, 1.44, 1.5, 1.42, 1, 0.005, 0.0).unwrap());
+            let rate = m.fastest_rate_per_s();
+            let (at_root, trace, det) = char_poly(&m, -rate);
+            assert!(at_root.abs() <= 1e-9 * det.abs().max(rate * rate), "{at_root} at −{rate}");
+            // The other root, trace − λ, is the slower one.
+            assert!((trace + rate).abs() <= rate, "{trace}");
+            assert!((expect.0..expect.1).contains(&rate), "{rate}");
+        }
+    }
+
     use super::*;
 
     /// The open-circuit voltage holds a zero stator current at zero: one 1 µs RK4 step from
