@@ -585,6 +585,19 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
                 |key: &str, x: f64| src.check(x.is_finite() && x > 0.0, key, "must be finite and > 0");
             positive("dc_link.capacitance_f", l.capacitance_f)?;
             positive("dc_link.resistance_ohm", l.resistance_ohm)?;
+            // The inverter model averages over a PWM period on a bus that holds: at the trip
+            // current for one period the capacitor must not swing by the whole bus (a 1 pF
+            // link read 1.3·10¹⁰ V: found by trying).
+            let least_f = spec.protection.i_trip_a / (spec.pwm_frequency_hz * f.vdc_v);
+            src.check(
+                l.capacitance_f >= least_f,
+                "dc_link.capacitance_f",
+                &format!(
+                    "is {:e} F: below {least_f:.3e} F, which the trip current (protection.i_trip_a = {} A) \
+                     would swing by the whole {} V bus within one PWM period",
+                    l.capacitance_f, spec.protection.i_trip_a, f.vdc_v
+                ),
+            )?;
             let chopper = match &l.chopper {
                 None => None,
                 Some(c) => {
@@ -955,6 +968,11 @@ torque_nm = 0.5
         assert_eq!((b.on_v, b.off_v), (360.0, 350.0));
         let e = err(&with(&link.replace("470e-6", "0.0")));
         assert_eq!(e.key.as_deref(), Some("dc_link.capacitance_f"), "{e}");
+        // A link the trip current would swing by the whole bus within a period (a 1 pF link
+        // read 1.3·10¹⁰ V: found by trying): 8 A · 50 µs / 310 V = 1.29 µF at least.
+        let e = err(&with(&link.replace("470e-6", "1e-12")));
+        assert!(e.to_string().contains("below 1.290e-6 F"), "{e}");
+        assert!(parse_closed_loop(Path::new("c.toml"), &with(&link.replace("470e-6", "1.3e-6"))).is_ok());
         // Thresholds the wrong way round, or above the over-voltage trip, point at the drive's key.
         for bad in ["{ on_v = 350.0, off_v = 360.0 }", "{ on_v = 450.0, off_v = 360.0 }"] {
             let e = err(&replace(FIG16, thresholds, &format!("brake_chopper = {bad}")));
