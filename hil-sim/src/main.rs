@@ -1182,7 +1182,8 @@ impl TraceStats {
     }
 
     fn add(&mut self, r: &Row) {
-        self.peak_a = self.peak_a.max(r.x.i_alpha_a.hypot(r.x.i_beta_a));
+        // Every period's, not only the trace's rows ([`Row::i_peak_a`]).
+        self.peak_a = self.peak_a.max(r.i_peak_a).max(r.x.i_alpha_a.hypot(r.x.i_beta_a));
         if self.count.is_multiple_of(self.plot_every) {
             self.plot.push(*r);
         }

@@ -438,6 +438,11 @@ pub struct Row {
     pub i_leg_peak_a: f64,
     /// The hardware comparator has broken the bridge (MOE cleared, latched).
     pub hw_break: bool,
+    /// Largest stator current magnitude |i_s| (αβ) at the periods' (the open loop: the RK4
+    /// steps') boundaries since the previous row, this row's included, A: a trace thinned
+    /// to every n-th period keeps its peak (the summary's peak was the thinned rows': 0.955
+    /// against 0.984 A at 1 ms sampling — found by trying).
+    pub i_peak_a: f64,
     /// A switch stuck open mattered in this period: its direction of current was needed
     /// and the duty it would have switched (at least [`SWITCH_ACTING_DUTY`]) went through
     /// the opposite diode instead.
@@ -639,6 +644,8 @@ pub fn run(
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
     let mut next_event_k = first_period_of(events.peek());
     let mut rows = 0u64;
+    // The largest |i_s|² since the last row ([`Row::i_peak_a`]).
+    let mut peak2_since_row = 0.0f64;
     // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
     let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
     // A stiff bus (no DC link model) is measured once, until a bus fault; with a link model
@@ -747,6 +754,7 @@ pub fn run(
         // so with the average inverter the plant's first RK4 stages are issued before the
         // drive's step: the processor then runs both dependent chains side by side.
         let x_at_start = x;
+        peak2_since_row = peak2_since_row.max(x.i_alpha_a * x.i_alpha_a + x.i_beta_a * x.i_beta_a);
         let mut switch_acting = false;
         if let Some((p, upper)) = switch_open
             && bridge_on
@@ -841,6 +849,7 @@ pub fn run(
                 brake: out.brake,
                 i_leg_peak_a: leg_period.peak_a,
                 hw_break: legs.broken,
+                i_peak_a: core::mem::take(&mut peak2_since_row).sqrt(),
                 switch_acting,
                 psi_est_wb: f64::from(telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(telemetry.psi_ref_wb),
@@ -974,25 +983,30 @@ pub fn run_open_loop(
     let h = sc.sample_period_s / substeps;
     let n = (sc.duration_s / sc.sample_period_s).round() as u64;
     let mut x = MachineState::default();
-    let row = |t: f64, x: MachineState| Row {
+    let row = |t: f64, x: MachineState, peak2: f64| Row {
         t_s: t,
         x,
         torque_nm: machine.torque_nm(&x),
         v_ab_v: source(t),
         load_nm: sc.load_nm,
+        i_peak_a: peak2.sqrt(),
         ..Row::default()
     };
+    let magnitude2 = |x: &MachineState| x.i_alpha_a * x.i_alpha_a + x.i_beta_a * x.i_beta_a;
+    let mut peak2 = 0.0f64;
     for k in 0..=n {
         let t0 = k as f64 * sc.sample_period_s;
         if !x.is_finite() {
             return Err(non_finite(t0));
         }
-        sink(&row(t0, x))?;
+        sink(&row(t0, x, peak2.max(magnitude2(&x))))?;
         if k == n {
             break;
         }
+        peak2 = 0.0;
         for j in 0..substeps as u64 {
             x = machine.rk4_source(&x, t0 + j as f64 * h, h, source, sc.load_nm);
+            peak2 = peak2.max(magnitude2(&x));
         }
         if k % 1000 == 0 {
             progress(k as f64 / n as f64);
