@@ -248,6 +248,27 @@ fn startup_fit_writes_a_plant_kharitonov_reads() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
+/// `design startup-fit --motor <another motor>` started it on seed 000's 2 300 V, 60 Hz
+/// supply (a 24 V motor), failed its fit with no word and wrote the failed interval plant
+/// (found by trying). Another motor now needs its supply named; a fit that misses is said,
+/// segment by segment, and writes no plant.
+#[test]
+fn startup_fit_asks_another_motor_for_its_supply_and_writes_no_failed_plant() {
+    let dir = std::env::temp_dir().join(format!("design-startup-supply-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let plant = dir.join("plant.toml");
+    let (code, _, err) = run(&["startup-fit", "--motor", "em-synergy-m800006"]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("--line-voltage-v") && err.contains("--frequency-hz"), "{err}");
+    let args =
+        ["startup-fit", "--motor", "em-synergy-m800006", "--line-voltage-v", "2300", "--frequency-hz", "60"];
+    let (code, _, err) = run(&[&args[..], &["--plant-out", plant.to_str().unwrap()]].concat());
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("worse than 5 % RMS") && err.contains("the interval plant is not written"), "{err}");
+    assert!(!plant.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--help` on every subcommand, `--version`, and an unknown argument is named.
 #[test]
 fn help_on_every_subcommand() {
