@@ -102,6 +102,21 @@ fn icad_json_contract() {
         run(&["icad", "--motor", "delorenzo-eq13", "--omega-r", "375", "--controller", "lqr"]);
     assert_eq!(code, Some(2));
     assert!(err.contains("lqr"));
+    // Stable as a continuous loop, unstable sampled at 100 Hz: exit 1 (it exited 0 on the
+    // continuous verdict alone — found by trying); a negative gain is said in words.
+    let slow = ["icad", "--motor", "delorenzo-eq13", "--omega-r", "375", "--controller", "icad20"];
+    let (code, out, err) = run(&[&slow[..], &["--pwm-hz", "100", "--json"]].concat());
+    assert_eq!(code, Some(1), "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(
+        (v["stable_at_omega_r"].as_bool(), v["sampled_stable_at_omega_r"].as_bool()),
+        (Some(true), Some(false))
+    );
+    assert!(err.contains("not sampled at 100 Hz"), "{err}");
+    let (code, _, err) =
+        run(&["icad", "--motor", "delorenzo-eq13", "--omega-r", "375", "--controller", "pi:-1,5"]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("a PI gain is negative or not finite"), "{err}");
     let (code, out, _) = run(&[
         "icad",
         "--motor",
