@@ -650,7 +650,6 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
     let vdc = bus_voltage(a.vdc, &file.spec.protection, "the matrix")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/faults"));
-    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     // Without [certify], the top speed is twice the base speed (the field-weakening range).
     let omega_r_max = file.certify.map_or(f64::INFINITY, |c| c.omega_r_max_rad_s);
     let mut m = Matrix::new(file.spec, omega_r_max, vdc);
@@ -691,6 +690,9 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
             selected.len()
         ));
     }
+    // Made once the arguments are known to be good (a bad --only or --trace left an empty
+    // directory: found by trying), and removed if the matrix is interrupted.
+    let made = make_out_dir(&out)?;
     let total = selected.len();
     eprintln!(
         "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s{}{})",
@@ -720,7 +722,7 @@ fn faults(a: &FaultsArgs) -> Result<(), String> {
     if tty {
         eprintln!();
     }
-    let rows = rows?;
+    let rows = rows.inspect_err(|_| unmake_out_dir(&out, made))?;
     let elapsed = start.elapsed().as_secs_f64();
     let md = hil_sim::faults::markdown(&m, &rows);
     write_text(&out.join("faults.md"), &md)?;
@@ -820,7 +822,7 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
             hil_sim::campaign::CORNER_RUNS
         );
     }
-    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let made = make_out_dir(&out)?;
     eprintln!(
         "hil-sim: campaign of {} on {} V: {total} run(s) of {} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
         a.drive.display(),
@@ -850,7 +852,8 @@ fn campaign(a: &CampaignArgs) -> Result<(), String> {
     if tty {
         eprintln!();
     }
-    let verdicts = verdicts?;
+    // Interrupted (Ctrl-C): nothing written, nor the directory this made.
+    let verdicts = verdicts.inspect_err(|_| unmake_out_dir(&out, made))?;
     let elapsed = start.elapsed().as_secs_f64();
     let mut csv = String::from(Verdict::CSV_HEADER);
     csv.push('\n');
@@ -1237,6 +1240,22 @@ fn write_row(f: &mut dyn Write, r: &Row, closed_loop: bool) -> std::io::Result<(
     writeln!(f)
 }
 
+/// Make the output directory `out` (and its parents); `true` when this call made `out`.
+fn make_out_dir(out: &Path) -> Result<bool, String> {
+    let made = !out.exists();
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    Ok(made)
+}
+
+/// After a failed or interrupted command: `out` removed when the command made it
+/// ([`make_out_dir`]) and it is still empty — `remove_dir` takes only an empty directory, so
+/// nothing anyone put there is lost (failures left empty directories: found by trying).
+fn unmake_out_dir(out: &Path, made: bool) {
+    if made {
+        let _ = std::fs::remove_dir(out);
+    }
+}
+
 /// Stream the rows `run` makes into `out/trace.csv` through the one atomic writer
 /// (`report::write`): the file is created before the run (an unusable directory fails at
 /// once) and takes its name only complete; a failed or interrupted run leaves nothing — nor
@@ -1247,8 +1266,7 @@ fn stream_trace<T>(
     expected_rows: f64,
     run: impl FnOnce(&mut dyn FnMut(&Row) -> Result<(), String>) -> Result<T, String>,
 ) -> Result<(T, TraceStats), String> {
-    let made_dir = !out.exists();
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let made_dir = make_out_dir(out)?;
     let mut stats = TraceStats::new(closed_loop, expected_rows);
     let mut outcome = None;
     let written = write_atomic(&out.join("trace.csv"), |w| {
@@ -1277,9 +1295,8 @@ fn stream_trace<T>(
         (Some(Ok(value)), Ok(())) => Ok((value, stats)),
         (None, Ok(())) => Err("the run did not start".into()),
     };
-    if result.is_err() && made_dir {
-        // `remove_dir` takes only an empty directory: nothing anyone put there is lost.
-        let _ = std::fs::remove_dir(out);
+    if result.is_err() {
+        unmake_out_dir(out, made_dir);
     }
     result
 }

@@ -582,13 +582,17 @@ fn faults_runs_the_rows_named_and_traces_them() {
         (&["--inject-delay-ms=-1"][..], 2, "not a delay"),
         (&["--inject-delay-ms", "1500"][..], 2, "not a delay"),
     ] {
-        let st = bin().args(["faults", drive]).args(args).arg("--out").arg(&res).output().unwrap();
+        // Into a directory that does not exist: refused arguments make none (an empty one
+        // was left: found by trying).
+        let fresh = res.join("fresh");
+        let st = bin().args(["faults", drive]).args(args).arg("--out").arg(&fresh).output().unwrap();
         assert_eq!(st.status.code(), Some(code), "{args:?}");
         assert!(
             String::from_utf8_lossy(&st.stderr).contains(said),
             "{args:?}: {}",
             String::from_utf8_lossy(&st.stderr)
         );
+        assert!(!fresh.exists(), "{args:?} left {fresh:?}");
     }
     let _ = std::fs::remove_dir_all(&res);
 }
@@ -824,5 +828,33 @@ fn the_peak_current_does_not_depend_on_the_trace_sampling() {
     let (coarse, fine) = (peak("1e-3"), peak("5e-5"));
     assert!(fine > 0.98, "{fine}");
     assert!((coarse - fine).abs() < 1e-12, "{coarse} vs {fine}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Ctrl-C during a campaign: it stops, says so, exits 1 and leaves nothing — not even the
+/// directory it made (an empty one was left: found by trying).
+#[test]
+fn an_interrupted_campaign_leaves_nothing() {
+    let dir = tmp("campaign-int");
+    let out = dir.join("fresh");
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let child = bin()
+        .args(["campaign", drive, "--runs", "200000", "--duration", "1.0", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = std::time::Instant::now();
+    while !out.exists() && t0.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(out.exists(), "the campaign never started");
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
+    let done = child.wait_with_output().unwrap();
+    assert_eq!(done.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"));
+    assert!(!out.exists(), "{out:?} left behind");
     let _ = std::fs::remove_dir_all(&dir);
 }
