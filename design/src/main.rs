@@ -380,6 +380,7 @@ fn icad(a: &IcadArgs) -> Result<bool, String> {
 
 fn certify(a: &CertifyArgs) -> Result<bool, String> {
     let (path, json) = (a.drive.clone(), a.json);
+    a.plot_dir.as_deref().map(report::write::check_dir).transpose()?;
     let drive_text = drive_file::source::read(std::path::Path::new(&path)).map_err(|e| e.to_string())?;
     let (spec, c) = design::certify::parse(std::path::Path::new(&path), &drive_text)?;
     let checks = design::certify::certify(&spec, &c)?;

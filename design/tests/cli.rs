@@ -501,3 +501,20 @@ fn a_reader_that_left_loses_the_text_not_the_work() {
     assert!(!err.contains("panicked") && out.exists(), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--plot-dir` naming a file is refused before anything is written: the certificate was
+/// written, then the command exited 2 with "File exists (os error 17)" (found by trying).
+#[test]
+fn a_plot_dir_that_is_a_file_is_refused_before_anything_is_written() {
+    let dir = std::env::temp_dir().join(format!("design-plotdir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (file, cert) = (dir.join("a-file"), dir.join("c.json"));
+    std::fs::write(&file, "x").unwrap();
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let (code, _, err) =
+        run(&["certify", drive, "--out", cert.to_str().unwrap(), "--plot-dir", file.to_str().unwrap()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("exists and is not a directory"), "{err}");
+    assert!(!cert.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

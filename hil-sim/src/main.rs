@@ -359,6 +359,17 @@ fn stop_on_ctrl_c() {
 fn identify(a: &IdentifyArgs) -> Result<(), String> {
     use controller_core::commission::Stage;
     use hil_sim::identify::{self, Setup};
+    // Before anything runs: a plot directory that is a file, and --out onto the motor file
+    // simulated (it replaced the motor silently; `design tune` refuses its own template: both
+    // found by trying).
+    a.plot_dir.as_deref().map(report::write::check_dir).transpose()?;
+    let same = |p: &Path| std::fs::canonicalize(p).ok();
+    if same(&a.run.out).is_some() && same(&a.run.out) == same(Path::new(&a.motor)) {
+        return Err(format!(
+            "--out {} is the motor simulated: identification writes a new motor file; choose another --out",
+            a.run.out.display()
+        ));
+    }
     let motor = drive_file::motor::load(&a.motor).map_err(|e| e.to_string())?;
     let config = a.run.config(a.pwm_hz, (0.8 * a.vdc, 1.2 * a.vdc))?;
     let mut setup = Setup::realistic(motor, config, a.vdc, a.seed);
@@ -1242,6 +1253,7 @@ fn write_row(f: &mut dyn Write, r: &Row, closed_loop: bool) -> std::io::Result<(
 
 /// Make the output directory `out` (and its parents); `true` when this call made `out`.
 fn make_out_dir(out: &Path) -> Result<bool, String> {
+    report::write::check_dir(out)?;
     let made = !out.exists();
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     Ok(made)

@@ -858,3 +858,48 @@ fn an_interrupted_campaign_leaves_nothing() {
     assert!(!out.exists(), "{out:?} left behind");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Checked before anything runs (found by trying): `identify --out` onto the motor file it
+/// simulates replaced that file; `--plot-dir` naming a file wrote the motor file, then
+/// failed; an output directory that is a file said "File exists (os error 17)".
+#[test]
+fn outputs_that_cannot_be_are_refused_before_anything_is_written() {
+    let dir = tmp("outputs");
+    std::fs::create_dir_all(&dir).unwrap();
+    let motor = dir.join("motor.toml");
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../motors/delorenzo-appendix.toml"))
+            .unwrap();
+    std::fs::write(&motor, &text).unwrap();
+    let st = bin()
+        .args(["identify"])
+        .arg(&motor)
+        .args(["--test-current", "1.24", "--out"])
+        .arg(&motor)
+        .output()
+        .unwrap();
+    assert_ne!(st.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("is the motor simulated"), "{st:?}");
+    assert_eq!(std::fs::read_to_string(&motor).unwrap(), text, "the motor file was replaced");
+    let (file, out) = (dir.join("a-file"), dir.join("identified.toml"));
+    std::fs::write(&file, "x").unwrap();
+    let st = bin()
+        .args(["identify", "delorenzo-appendix", "--test-current", "1.24", "--out"])
+        .arg(&out)
+        .arg("--plot-dir")
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert_ne!(st.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("exists and is not a directory"), "{st:?}");
+    assert!(!out.exists());
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let st = bin()
+        .args(["faults", drive, "--only", "open phase a at mid-speed motoring", "--out"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("exists and is not a directory"), "{st:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
