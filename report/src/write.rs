@@ -34,6 +34,18 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), String> {
     write_atomic(path, |w| w.write_all(text.as_bytes()))
 }
 
+/// `dir` can be an output directory: it does not exist yet, or it is one. Checked before a
+/// command writes anything, so that a directory argument naming a file fails first — not
+/// after the command's other files were written, with "File exists (os error 17)" (found by
+/// trying: `design certify --out c.json --plot-dir <a file>` wrote the certificate, then
+/// exited 2).
+pub fn check_dir(dir: &Path) -> Result<(), String> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(format!("{} exists and is not a directory", dir.display()));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -53,16 +65,4 @@ mod tests {
         assert!(write_text(&dir.join("no/such/dir/x"), "x").unwrap_err().contains("no/such/dir"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
-}
-
-/// `dir` can be an output directory: it does not exist yet, or it is one. Checked before a
-/// command writes anything, so that a directory argument naming a file fails first — not
-/// after the command's other files were written, with "File exists (os error 17)" (found by
-/// trying: `design certify --out c.json --plot-dir <a file>` wrote the certificate, then
-/// exited 2).
-pub fn check_dir(dir: &Path) -> Result<(), String> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(format!("{} exists and is not a directory", dir.display()));
-    }
-    Ok(())
 }
