@@ -444,10 +444,9 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
     }
     if !ok {
         for ch in checks.iter().filter(|c| !c.pass) {
-            eprintln!(
-                "design certify: {path}: {} at {} is {:?}, limit {}",
-                ch.name, ch.corner, ch.value, ch.limit
-            );
+            // The value as a number, or "none" (it printed "Some(44.17…)": found by trying).
+            let value = ch.value.map_or_else(|| "none".to_string(), |v| format!("{v:.4}"));
+            eprintln!("design certify: {path}: {} at {} is {value}, limit {}", ch.name, ch.corner, ch.limit);
         }
     }
     Ok(ok)

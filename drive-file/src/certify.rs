@@ -11,6 +11,10 @@ use serde::Deserialize;
 /// pole pair): beyond any induction motor, and it bounds the sweep's length.
 pub const OMEGA_R_MAX_RAD_S: f64 = 20_000.0;
 
+/// The range a `[certify]` parameter factor may take: a decade either way of the motor
+/// file's value (beyond it the file describes another motor; identify it again).
+pub const PARAMETER_FACTOR_RANGE: [f64; 2] = [0.1, 10.0];
+
 /// `[certify]` as written.
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -102,7 +106,26 @@ impl CertifyTable {
             src.check(
                 i.is_ordered() && i.lo > 0.0,
                 &format!("certify.{key}"),
-                &format!("is [{}, {}]; needs finite 0 < lo ≤ hi", i.lo, i.hi),
+                &format!("is [{}, {}]; needs finite 0 < lo ≤ hi", num(i.lo), num(i.hi)),
+            )?;
+        }
+        // The parameter factors: a box wider than a decade each way is no longer one motor
+        // (`rs_factor = [1.0, 1e300]` was accepted: found by trying).
+        for (key, i) in [
+            ("rs_factor", self.rs_factor),
+            ("rr_factor", self.rr_factor),
+            ("inductance_factor", self.inductance_factor),
+            ("j_factor", self.j_factor),
+        ] {
+            let [lo, hi] = PARAMETER_FACTOR_RANGE;
+            src.check(
+                i.lo >= lo && i.hi <= hi,
+                &format!("certify.{key}"),
+                &format!(
+                    "is [{}, {}]; a factor of the motor file's value must lie in [{lo}, {hi}]",
+                    num(i.lo),
+                    num(i.hi)
+                ),
             )?;
         }
         for (key, x) in [

@@ -173,6 +173,14 @@ mod tests {
         // Reversed interval.
         let e = err(&replace("rr_factor = [1.0, 2.0]", "rr_factor = [2.0, 1.0]"));
         assert_eq!(e.key.as_deref(), Some("certify.rr_factor"), "{e}");
+        // A box of another motor (`[1.0, 1e300]` was accepted and printed with 300 digits:
+        // found by trying).
+        let e = err(&replace("rs_factor = [1.0, 1.5]", "rs_factor = [1.0, 1e300]"));
+        assert_eq!(e.key.as_deref(), Some("certify.rs_factor"), "{e}");
+        assert!(
+            e.reason.contains("is [1, 1e300]; a factor of the motor file's value must lie in [0.1, 10]"),
+            "{e}"
+        );
         // Configured gain outside the writable range.
         let e = err(&replace("speed_kp_writable = [0.02, 0.1]", "speed_kp_writable = [0.06, 0.1]"));
         assert_eq!(e.key.as_deref(), Some("certify.speed_kp_writable"), "{e}");

@@ -948,7 +948,18 @@ pub fn describe(r: &Refusal) -> String {
         Refusal::BusOutOfRange(v) => format!("the bus reads {v} V, outside the accepted range"),
         Refusal::BusUnsteady(v) => format!("the bus varied by {v} V with the bridge off"),
         Refusal::OffsetTooLarge { channel, offset_a } => {
-            format!("current channel {} reads {offset_a} A with the bridge off", phase_name(*channel))
+            // The limit and the way out (it read as a sensor fault at a small test current:
+            // found by trying).
+            let share = controller_core::commission::OFFSET_SHARE_MAX;
+            format!(
+                "current channel {} reads {offset_a} A with the bridge off, more than {:.0} % of the test current: \
+                 an offset the calibration cannot trust — or a test current too small for this board's sensors \
+                 (take a test current above {:.3} A, {:.0}× that reading)",
+                phase_name(*channel),
+                100.0 * share,
+                offset_a.abs() / share,
+                1.0 / share
+            )
         }
         Refusal::NoCurrent => {
             "the current rose by less than a quarter of the test current after the largest voltage pulse \

@@ -903,3 +903,24 @@ fn outputs_that_cannot_be_are_refused_before_anything_is_written() {
     assert!(String::from_utf8_lossy(&st.stderr).contains("exists and is not a directory"), "{st:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A test current too small for the board's sensors is refused with the limit and the way
+/// out, not as a bare sensor reading (found by trying: "current channel b reads
+/// 0.020074725 A with the bridge off").
+#[test]
+fn a_test_current_too_small_for_the_sensors_says_what_to_take() {
+    let out = tmp("small-current").join("m.toml");
+    let st = bin()
+        .args(["identify", "delorenzo-appendix", "--test-current", "0.2", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(
+        err.contains("more than 10 % of the test current")
+            && err.contains("take a test current above 0.201 A"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

@@ -280,6 +280,10 @@ impl CommissionConfig {
     }
 }
 
+/// The largest offset a current channel may read with the bridge off, as a share of the
+/// test current: beyond it the sequence's small currents would be the offset's.
+pub const OFFSET_SHARE_MAX: f32 = 0.1;
+
 /// Why the sequence stopped (the bridge is off).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Refusal {
@@ -287,7 +291,8 @@ pub enum Refusal {
     BusOutOfRange(f32),
     /// The bus varied by more than [`BUS_RIPPLE_MAX`] of its mean, V (max − min).
     BusUnsteady(f32),
-    /// A current channel read more than a tenth of the test current with the bridge off, A.
+    /// A current channel read more than [`OFFSET_SHARE_MAX`] of the test current with the
+    /// bridge off, A.
     OffsetTooLarge {
         /// Channel (0 = a).
         channel: u8,
@@ -747,7 +752,7 @@ impl Commissioning {
         {
             *off = s / n;
             *noise = crate::num::sqrt_f32((s2 / n - *off * *off).max(0.0));
-            if off.abs() > 0.1 * self.cfg.spec.test_current_a {
+            if off.abs() > OFFSET_SHARE_MAX * self.cfg.spec.test_current_a {
                 let offset_a = *off;
                 self.refuse(Refusal::OffsetTooLarge { channel: ch as u8, offset_a });
                 return;
