@@ -21,14 +21,14 @@ pub fn write(args: std::fmt::Arguments<'_>, newline: bool) {
     }
 }
 
-/// `println!` that does not panic when the reader has gone ([`write`]).
+/// `println!` that does not panic when the reader has gone ([`write()`](crate::stdout::write)).
 #[macro_export]
 macro_rules! outln {
     () => { $crate::stdout::write(format_args!(""), true) };
     ($($arg:tt)*) => { $crate::stdout::write(format_args!($($arg)*), true) };
 }
 
-/// `print!` that does not panic when the reader has gone ([`write`]).
+/// `print!` that does not panic when the reader has gone ([`write()`](crate::stdout::write)).
 #[macro_export]
 macro_rules! out {
     ($($arg:tt)*) => { $crate::stdout::write(format_args!($($arg)*), false) };
