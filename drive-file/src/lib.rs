@@ -85,6 +85,15 @@ impl DriveFile {
     /// Parse and validate drive-file text read from `path`.
     pub fn parse(path: &Path, text: &str) -> Result<Self, FileError> {
         let src = Source::parse(path, text)?;
+        // A scenario file given for a drive file: said as such (it read "duration_s: unknown
+        // field", found by trying).
+        if src.has("duration_s") {
+            return Err(FileError::file(
+                path,
+                "this is a scenario file (it has duration_s): this command takes a drive file ([pwm], [motor], \
+                 [controller], [protection], [certify]) — `hil-sim run` takes scenario files",
+            ));
+        }
         src.deserialize::<DriveTables>()?.validate(&src)
     }
 

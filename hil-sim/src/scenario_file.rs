@@ -697,6 +697,16 @@ pub fn parse_open_loop(file: &Path, text: &str) -> Result<OpenLoop, FileError> {
 pub fn load(file: &Path) -> Result<ScenarioFileKind, FileError> {
     let text = drive_file::source::read(file)?;
     let src = Source::parse(file, &text)?;
+    // A drive file given for a scenario: said as such (it read "missing field `duration_s`",
+    // found by trying).
+    if !src.has("duration_s") && (src.has("certify") || src.has("board") || src.has("protection")) {
+        return Err(FileError::file(
+            file,
+            "this is a drive file: `hil-sim run` takes a scenario file — `drive = \"path/to/drive.toml\"`, \
+             duration_s, sample_period_s, vdc_v and [[events]] (e.g. hil-sim/scenarios/fig16-icad.toml) — or a \
+             built-in scenario's name (hil-sim list)",
+        ));
+    }
     if src.has("controller") || (src.has("drive") && !src.has("source")) {
         parse_closed_loop(file, &text).map(|b| ScenarioFileKind::ClosedLoop(Box::new(b)))
     } else {

@@ -924,3 +924,19 @@ fn a_test_current_too_small_for_the_sensors_says_what_to_take() {
     );
     assert!(!out.exists());
 }
+
+/// A drive file given to `run`, and a scenario file given where a drive file is asked for,
+/// are said as such (they read "missing field `duration_s`" and "duration_s: unknown field":
+/// found by trying).
+#[test]
+fn a_drive_file_and_a_scenario_file_are_told_apart() {
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let st = bin().args(["run", drive, "--out"]).arg(tmp("mixup")).output().unwrap();
+    assert_ne!(st.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("this is a drive file"), "{st:?}");
+    let scenario = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/fig16-icad.toml");
+    let st = bin().args(["faults", scenario, "--out"]).arg(tmp("mixup")).output().unwrap();
+    assert_ne!(st.status.code(), Some(0));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("this is a scenario file"), "{st:?}");
+    assert!(!tmp("mixup").exists());
+}
