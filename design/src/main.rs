@@ -265,10 +265,13 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         ),
         controller_core::speed::SpeedLaw::PiIq { .. } => {}
     }
+    let quarter = design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify)
+        / design::tune::POSITION_BELOW_SPEED;
     report::outln!(
-        "position loop: k {:.4} 1/s (the speed loop's {:.2} rad/s on the heaviest inertia / {}), ω_max {} rad/s",
+        "position loop: k {:.4} 1/s ({}the speed loop's {:.2} rad/s on the heaviest inertia / {}), ω_max {} rad/s",
         t.spec.position.k_per_s,
-        design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify),
+        if t.spec.position.k_per_s < quarter { "lowered for the sampled certificate from " } else { "" },
+        quarter * design::tune::POSITION_BELOW_SPEED,
         design::tune::POSITION_BELOW_SPEED,
         t.spec.position.omega_max_rad_s
     );
