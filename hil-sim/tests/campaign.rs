@@ -147,18 +147,7 @@ fn runs_too_short_to_magnetize_are_refused() {
 fn a_drive_without_a_speed_range_on_its_bus_is_refused() {
     let mut c = shipped(4);
     // The shipped motor's magnetizing current, 0.63 A, through 10 kΩ: 6.3 kV at standstill.
-    let m = c.spec.motor;
-    c.spec.motor = controller_core::motor::MotorParams::new(
-        1e4,
-        m.rr_ohm(),
-        m.ls_h(),
-        m.lr_h(),
-        m.lm_h(),
-        m.pole_pairs(),
-        m.j_kgm2(),
-        m.b_nms(),
-    )
-    .unwrap();
+    c.spec.motor = c.spec.motor.scaled(1e4 / c.spec.motor.rs_ohm(), 1.0, 1.0, 1.0).unwrap();
     assert!(c.omega_s_rad_s() <= 0.0, "{}", c.omega_s_rad_s());
     let e = c.run(|_| {}, &AtomicBool::new(false)).unwrap_err();
     assert!(e.contains("no speed range on the") && e.contains("controller.flux_ref_wb"), "{e}");
