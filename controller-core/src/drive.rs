@@ -1498,6 +1498,7 @@ impl SwitchWatch {
     /// claims no switch ([`Fault::SwitchOpen`] is the stuck-switch check's own, once the
     /// other way has carried); a wrong field angle turns the references and the loops still
     /// follow them. Out of line: the voltage check's rare path.
+    ///
     /// `turning`: the field turned more than [`PINNED_FIELD_TURN_RAD`] over the voltage
     /// check's window, where a lagging current falls short near its zero crossings — the
     /// short samples do not count.

@@ -252,11 +252,11 @@ impl Campaign {
         STEP_S.max(1.1 * crate::sim::magnetizing_time_s(&self.spec))
     }
 
-    /// The campaign can judge this drive: it has a speed range on the campaign's bus (a
-    /// drive whose rated flux needs more voltage than the bus has even at standstill has
-    /// none, and its steps to ±0 rad/s passed every run: found by trying), and the runs are
-    /// long enough for this motor: at least [`MIN_AFTER_STEP_S`] after the step (else every
-    /// run would end magnetizing, or be judged on a step it had no time for).
+    /// The campaign can judge this drive: the runs are long enough for this motor, at least
+    /// [`MIN_AFTER_STEP_S`] after the step (else every run would end magnetizing, or be
+    /// judged on a step it had no time for), and it has a speed range on the campaign's bus
+    /// (a drive whose rated flux needs more voltage than the bus has even at standstill has
+    /// none, and its steps to ±0 rad/s passed every run: found by trying).
     pub fn check(&self) -> Result<(), String> {
         let least = self.step_s() + MIN_AFTER_STEP_S;
         if self.duration_s < least {

@@ -306,14 +306,18 @@ impl LinkState {
         };
         let g_src = 1.0 / link.resistance_ohm;
         let c = link.capacitance_f;
+        // `C·dv/dt = u − g·v` with the source conducting or not: (g, u).
+        let coefficients = |conducting: bool| {
+            if conducting { (g_src + g_ch, g_src * source_v - i_dc_a) } else { (g_ch, -i_dc_a) }
+        };
         // `t` s from `v`, the source conducting or not: the voltage then.
         let relax = |v: f64, conducting: bool, t: f64| {
-            let (g, u) = if conducting { (g_src + g_ch, g_src * source_v - i_dc_a) } else { (g_ch, -i_dc_a) };
+            let (g, u) = coefficients(conducting);
             if g > 0.0 { u / g + (v - u / g) * (-g * t / c).exp() } else { v + t * u / c }
         };
         // When, from `v` over `t` s in that state, the bus reaches the source's voltage.
         let crossing = |v: f64, conducting: bool, t: f64| {
-            let (g, u) = if conducting { (g_src + g_ch, g_src * source_v - i_dc_a) } else { (g_ch, -i_dc_a) };
+            let (g, u) = coefficients(conducting);
             let tc = if g > 0.0 {
                 let end = u / g;
                 -(c / g) * ((source_v - end) / (v - end)).ln()

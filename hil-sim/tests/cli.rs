@@ -203,6 +203,21 @@ fn interrupted_run_cleans_up() {
     }
 }
 
+/// Start `command`, send it `signal` (`kill`'s `-INT` …) 200 ms after `started` exists,
+/// and collect what it did.
+fn interrupt(command: &mut Command, started: &std::path::Path, signal: &str) -> std::process::Output {
+    let child =
+        command.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let t0 = std::time::Instant::now();
+    while !started.exists() && t0.elapsed().as_secs() < 30 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(started.exists(), "{started:?} never appeared");
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    assert!(Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap().success());
+    child.wait_with_output().unwrap()
+}
+
 fn interrupt_a_run(signal: &str) {
     let dir = tmp(&format!("sig{signal}"));
     std::fs::create_dir_all(&dir).unwrap();
@@ -212,25 +227,9 @@ fn interrupt_a_run(signal: &str) {
     let file = dir.join("long.toml");
     std::fs::write(&file, long).unwrap();
     let out = dir.join("out");
-    let child = bin()
-        .args(["run"])
-        .arg(&file)
-        .arg("--out")
-        .arg(&out)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait until the trace is being written, then interrupt.
+    // Once the trace is being written.
     let partial = out.join("trace.csv.partial");
-    let t0 = std::time::Instant::now();
-    while !partial.exists() && t0.elapsed().as_secs() < 30 {
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    std::thread::sleep(std::time::Duration::from_millis(200));
-    let st = Command::new("kill").args([signal, &child.id().to_string()]).status().unwrap();
-    assert!(st.success());
-    let done = child.wait_with_output().unwrap();
+    let done = interrupt(bin().args(["run"]).arg(&file).arg("--out").arg(&out), &partial, signal);
     assert_eq!(done.status.code(), Some(1), "{signal}");
     assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"), "{signal}");
     assert!(!partial.exists() && !out.join("trace.csv").exists(), "{signal}");
@@ -838,21 +837,8 @@ fn an_interrupted_campaign_leaves_nothing() {
     let dir = tmp("campaign-int");
     let out = dir.join("fresh");
     let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
-    let child = bin()
-        .args(["campaign", drive, "--runs", "200000", "--duration", "1.0", "--out"])
-        .arg(&out)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    let t0 = std::time::Instant::now();
-    while !out.exists() && t0.elapsed().as_secs() < 30 {
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    assert!(out.exists(), "the campaign never started");
-    std::thread::sleep(std::time::Duration::from_millis(300));
-    assert!(Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap().success());
-    let done = child.wait_with_output().unwrap();
+    let campaign = ["campaign", drive, "--runs", "200000", "--duration", "1.0", "--out"];
+    let done = interrupt(bin().args(campaign).arg(&out), &out, "-INT");
     assert_eq!(done.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&done.stderr).contains("interrupted"));
     assert!(!out.exists(), "{out:?} left behind");
