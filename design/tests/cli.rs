@@ -275,6 +275,11 @@ fn startup_fit_asks_another_motor_for_its_supply_and_writes_no_failed_plant() {
     let (code, _, err) = run(&["startup-fit", "--motor", "em-synergy-m800006"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("--line-voltage-v") && err.contains("--frequency-hz"), "{err}");
+    let huge =
+        ["startup-fit", "--motor", "em-synergy-m800006", "--line-voltage-v", "1e300", "--frequency-hz", "50"];
+    let (code, _, err) = run(&huge);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("must lie in (0, 100000] V"), "{err}");
     let args =
         ["startup-fit", "--motor", "em-synergy-m800006", "--line-voltage-v", "2300", "--frequency-hz", "60"];
     let (code, _, err) = run(&[&args[..], &["--plant-out", plant.to_str().unwrap()]].concat());

@@ -39,6 +39,11 @@ pub struct StartupFitArgs {
 /// The seed's motor, whose supply the experiment is ([`Experiment::krause_2300v`]).
 const SEED000_MOTOR: &str = "krause-2300v-500hp";
 
+/// The highest supply `--line-voltage-v` and `--frequency-hz` accept: beyond any
+/// induction motor's.
+const LINE_VOLTAGE_MAX_V: f64 = 100e3;
+const FREQUENCY_MAX_HZ: f64 = 10e3;
+
 /// A fitted model holds when it replays its segment's i_sα within this RMS fraction.
 const REPLAY_ERROR_MAX: f64 = 0.05;
 
@@ -57,8 +62,17 @@ pub fn run(a: &StartupFitArgs) -> Result<bool, String> {
     // plant was written all the same — found by trying).
     match (a.line_voltage_v, a.frequency_hz) {
         (Some(v), Some(f)) => {
-            if !(v.is_finite() && v > 0.0 && f.is_finite() && f > 0.0) {
-                return Err(format!("--line-voltage-v {v} and --frequency-hz {f} must be finite and > 0"));
+            // A supply beyond any motor's (1e300 V overflowed the machine's state and read as
+            // "time constants too short": found by trying).
+            if !((0.0..=LINE_VOLTAGE_MAX_V).contains(&v)
+                && v > 0.0
+                && (0.0..=FREQUENCY_MAX_HZ).contains(&f)
+                && f > 0.0)
+            {
+                return Err(format!(
+                    "--line-voltage-v {v} and --frequency-hz {f} must lie in (0, {LINE_VOLTAGE_MAX_V}] V and \
+                     (0, {FREQUENCY_MAX_HZ}] Hz"
+                ));
             }
             (e.v_peak_v, e.f_hz) = (v * std::f64::consts::SQRT_2 / 3f64.sqrt(), f);
         }
