@@ -356,6 +356,18 @@ pub const FOLLOWING_PROGRESS_FRACTION: f64 = 0.1;
 /// the budget, and by at most [`VOLTAGE_REGULATOR_RANGE`].
 pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
 
+/// The longest the rotor flux takes to fall to a lower reference while Running, s: the
+/// field-weakening voltage regulator's time constant (1/[`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]),
+/// so that the flux follows the budget the regulator sets. A rotor slower than that (T_r
+/// above 0.1 s) has its d-axis current lowered below the envelope's, to zero at most, while
+/// its flux is above the envelope's ([`IfocConfig::falling_flux_current`]); the shipped
+/// (T_r 65 ms) and 24 V (14 ms) motors never are. The 500 hp machine (T_r 0.78 s),
+/// accelerating at its 2 000 N·m (≈ 180 rad/s²), enters field weakening faster than its
+/// flux falls by itself: the voltage left for torque fell to a quarter near 175 rad/s and it
+/// was not within 1 % of its 319 rad/s 5 s after the step; with the flux forced down, 2.37 s
+/// (`hil-sim` test `a_slow_rotor_weakens_its_field_in_time`).
+pub const FLUX_FALL_TIME_S: f64 = 1.0 / VOLTAGE_REGULATOR_BANDWIDTH_RAD_S;
+
 /// The dead-time compensation ramps from −t_d/T to +t_d/T across ± this fraction of the
 /// current-reference limit around zero current (0.1 %: 4 mA on the shipped drive). It acts on
 /// the *reference* currents, which carry no sensor noise, so the ramp can be narrow; a wider
@@ -1427,16 +1439,23 @@ struct PhaseDirections {
     /// Both directions miss: the phase carries nothing (an open lead, the open-phase
     /// check's), as of its last counted sample.
     open: bool,
-    /// Consecutive samples whose current fell short of a reference of at least
-    /// [`UNDRIVEN_REFERENCE_SHARE`] of the magnitude, counted or not; from
+    /// Consecutive samples whose current fell short of a *tracked* reference (what the
+    /// phase's loop pushes for: the intended one plus the current trim) of at least
+    /// [`UNDRIVEN_REFERENCE_SHARE`] of the tracked magnitude, counted or not; from
     /// [`UNDRIVEN_SAMPLES`] on, the loops do not drive the phase (the voltage check's
     /// verdict reads it: [`SwitchWatch::undriven`]).
     short: u8,
 }
 
 impl PhaseDirections {
-    /// One sample of the phase's reference `r` and measured current `m`, A: a reference at
-    /// `level` or more goes into its direction with `gains` (the other direction holds).
+    /// One sample of the phase's intended reference `r`, its tracked reference `tracked` and
+    /// measured current `m`, A: [`PhaseDirections::short`] counts against `tracked` at
+    /// `floor` or more; a reference `r` at `level` or more goes into its direction with
+    /// `gains` (the other direction holds). The directions judge the intended reference —
+    /// what the plan asks of the machine —, not the tracked one: the current trim makes up a
+    /// stationary-frame PI's steady error at speed (≈ E/k_p), so the tracked reference
+    /// exceeds what a healthy phase carries (the tuned 3 300 V drive's 27 A of ≈ 60 A at
+    /// top speed, read as dead directions before its injection).
     /// `true`: a stuck switch — one direction missing while the other follows and has
     /// carried (the current at the `commanded` level or more: clear of the sensors' noise
     /// and offsets) since the first began to miss, or, the first gone missing, the other's
@@ -1447,13 +1466,20 @@ impl PhaseDirections {
     ///
     /// Out of line: one copy for the three phases, once per slow period.
     #[inline(never)]
-    fn add(&mut self, r: f32, m: f32, level: f32, commanded: f32, gains: [f32; 2]) -> bool {
+    fn add(
+        &mut self,
+        [r, tracked]: [f32; 2],
+        m: f32,
+        [level, floor]: [f32; 2],
+        commanded: f32,
+        gains: [f32; 2],
+    ) -> bool {
         let Self { positive, negative, open, short } = self;
+        let fell_short = tracked.abs() >= floor && misses(tracked, m);
+        *short = if fell_short { short.saturating_add(1) } else { 0 };
         let (this, other, d) = if r >= 0.0 { (positive, negative, 1.0) } else { (negative, positive, -1.0) };
         let magnitude = d * r;
-        let missed = d * (r - m) > SWITCH_SHORTFALL_MISSING * magnitude;
-        let fell_short = missed && magnitude >= (UNDRIVEN_REFERENCE_SHARE / SWITCH_LEVEL_SHARE) * level;
-        *short = if fell_short { short.saturating_add(1) } else { 0 };
+        let missed = misses(r, m);
         if magnitude < level {
             return false;
         }
@@ -1479,6 +1505,14 @@ impl PhaseDirections {
         *open = missing && other.missing();
         answered || (missing && other.following() && other.fresh)
     }
+}
+
+/// A current `m` short of its reference `r` (in the reference's direction) by more than
+/// [`SWITCH_SHORTFALL_MISSING`] of it: the sample *misses*.
+#[inline]
+fn misses(r: f32, m: f32) -> bool {
+    let d = if r >= 0.0 { 1.0 } else { -1.0 };
+    d * (r - m) > SWITCH_SHORTFALL_MISSING * d * r
 }
 
 /// [`PhaseDirections`] of the three phases.
@@ -1508,15 +1542,22 @@ impl SwitchWatch {
         self.0.iter().any(|p| p.open || p.positive.dead || p.negative.dead || short(p))
     }
 
-    /// One sample (a slow period) of the phase references `reference` and currents
-    /// `measured`, A: a phase's sample counts where its reference reaches
+    /// One sample (a slow period) of the phase references `reference` (intended) and
+    /// `tracked` (with the current trim) and currents `measured`, A
+    /// ([`PhaseDirections::add`]): a phase's sample counts where its reference reaches
     /// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (away from its zero
     /// crossings), with that magnitude at least [`SWITCH_FLOOR_SHARE`] of the `commanded`
     /// level; `gains` weigh it ([`DriveConfig`]'s). [`Fault::SwitchOpen`] when a phase's
     /// directions say so and no phase misses both ways. Out of line: once per slow period
     /// (inlined, the interrupt took ≈ 850 B more flash).
     #[inline(never)]
-    fn add(&mut self, reference: Abc, measured: Abc, commanded: f32, gains: [f32; 2]) -> Option<Fault> {
+    fn add(
+        &mut self,
+        [reference, tracked]: [Abc; 2],
+        measured: Abc,
+        commanded: f32,
+        gains: [f32; 2],
+    ) -> Option<Fault> {
         // The reference vector's magnitude from its phases (their sum zero): √(⅔ Σ r²).
         let r = reference;
         let amplitude = sqrt_f32((2.0 / 3.0) * (r.a * r.a + r.b * r.b + r.c * r.c));
@@ -1526,11 +1567,13 @@ impl SwitchWatch {
             }
             return None;
         }
+        let floor = UNDRIVEN_REFERENCE_SHARE * amplitude;
         let level = SWITCH_LEVEL_SHARE * amplitude;
         let [a, b, c] = &mut self.0;
-        let stuck = a.add(r.a, measured.a, level, commanded, gains)
-            | b.add(r.b, measured.b, level, commanded, gains)
-            | c.add(r.c, measured.c, level, commanded, gains);
+        let levels = [level, floor];
+        let stuck = a.add([reference.a, tracked.a], measured.a, levels, commanded, gains)
+            | b.add([reference.b, tracked.b], measured.b, levels, commanded, gains)
+            | c.add([reference.c, tracked.c], measured.c, levels, commanded, gains);
         // No phase misses both ways: a lead open on one phase leaves the other two one
         // current between them, which one of them may follow one way only.
         (stuck && !(a.open || b.open || c.open)).then_some(Fault::SwitchOpen)
@@ -1576,6 +1619,9 @@ pub struct Drive {
     switches: SwitchWatch,
     /// The flux (d-axis current) command of the present operating point.
     flux: FluxCommand,
+    /// The envelope's d-axis current of the last slow step, A: the flux reference's
+    /// (`flux` holds it lowered while the flux falls: [`FLUX_FALL_TIME_S`]).
+    i_d_target_a: f32,
     /// Σ of the RMS phase current squared, A², over the slow steps since the thermal models'
     /// last update, and their count.
     thermal_sum_a2: f32,
@@ -1672,6 +1718,7 @@ impl Drive {
             open_phase: OpenPhaseWindow::default(),
             switches: SwitchWatch::default(),
             flux: FluxCommand::default(),
+            i_d_target_a: 0.0,
             thermal_sum_a2: 0.0,
             thermal_steps: 0,
             theta_motor: 0.0,
@@ -1931,14 +1978,16 @@ impl Drive {
     /// finds it.
     fn check_phases(&mut self, i_abc_a: Abc) {
         let running = self.mode == Mode::Running;
-        let i_ref_ab = match self.reference {
-            Reference::RotatingCurrent { amplitude_a, .. } if running => self.rotating_current(amplitude_a).2,
-            _ => self.ifoc.i_ref_ab(),
+        let [i_ref_ab, i_track_ab] = match self.reference {
+            Reference::RotatingCurrent { amplitude_a, .. } if running => {
+                [self.rotating_current(amplitude_a).2; 2]
+            }
+            _ => [self.ifoc.i_intended_ab(), self.ifoc.i_ref_ab()],
         };
-        let i_ref_abc = i_ref_ab.inverse_clarke();
+        let (i_ref_abc, i_track_abc) = (i_ref_ab.inverse_clarke(), i_track_ab.inverse_clarke());
         let cfg = &self.cfg;
         let window = self.open_phase.add(
-            i_ref_abc,
+            i_track_abc,
             i_abc_a,
             cfg.open_phase_slow_steps,
             // The motor file's magnetizing current, as the window's level: a saturated
@@ -1948,7 +1997,7 @@ impl Drive {
         );
         let fault = window.or_else(|| {
             if running {
-                self.switches.add(i_ref_abc, i_abc_a, cfg.switch_level_a, cfg.switch_gains)
+                self.switches.add([i_ref_abc, i_track_abc], i_abc_a, cfg.switch_level_a, cfg.switch_gains)
             } else {
                 None
             }
@@ -2057,13 +2106,22 @@ impl Drive {
         }
         self.envelope_age -= 1;
         let op = self.model.point(&self.envelope, torque_nm, w, self.i_d_rated_a, v_budget, i_max);
-        self.flux = cfg.ifoc.d_current_command(op.i_d_a);
+        // Running, a flux above the envelope's falls within FLUX_FALL_TIME_S, however slow the
+        // rotor (magnetizing, the rotor fit reads the flux building at its own T_r).
+        self.i_d_target_a = op.i_d_a;
+        let i_d_a = if running {
+            let fall_rate = cfg.ts_s * (1.0 / FLUX_FALL_TIME_S) as f32;
+            cfg.ifoc.falling_flux_current(&self.ifoc, op.i_d_a, fall_rate)
+        } else {
+            op.i_d_a
+        };
+        self.flux = cfg.ifoc.d_current_command(i_d_a);
         // What the bus drives now, with the flux that is there (it follows i_d* with T_r):
         // only worked out when the torque asked for needs more than fits.
         let psi = self.ifoc.psi_r_wb();
         let per_a = cfg.ifoc.torque_factor() * max_f32(psi, 1e-3);
         let needed = min_f32(self.flux.i_q_max_a(), torque_nm.abs() / per_a);
-        let i_q_now = self.model.i_q_max_at_flux(psi, op.i_d_a, w, v_budget, needed, sign);
+        let i_q_now = self.model.i_q_max_at_flux(psi, i_d_a, w, v_budget, needed, sign);
         let mut torque_now_nm = min_f32(op.torque_max_nm, per_a * i_q_now);
         if torque_nm * m.omega_m_rad_s < 0.0 {
             // Generating: no more than the DC link can take (REGEN_LIMIT_START/END).
@@ -2599,7 +2657,7 @@ impl Drive {
             theta_e_rad,
             omega_sl_rad_s,
             psi_r_wb: s.psi_r_wb(),
-            psi_ref_wb: s.flux_of(self.flux.i_d_a()),
+            psi_ref_wb: s.flux_of(self.i_d_target_a),
             i_q_ref_a,
             omega_ref_rad_s: self.omega_ref_rad_s,
             rr_scale: s.rotor_resistance_scale(),
@@ -3326,7 +3384,7 @@ mod tests {
             let mut w = SwitchWatch::default();
             for n in 0..n_max {
                 let r = refs(n, 1.0);
-                if let Some(f) = w.add(r, measure(n, r), 0.1, gain) {
+                if let Some(f) = w.add([r; 2], measure(n, r), 0.1, gain) {
                     return Some((f, n));
                 }
                 for (turning, list) in [false, true].into_iter().zip(found.iter_mut()) {
@@ -3376,12 +3434,12 @@ mod tests {
         let (mut w, mut standing) = (SwitchWatch::default(), SwitchWatch::default());
         for n in 0..4 * per_period {
             let dc = refs(0, 1.0);
-            assert_eq!(standing.add(dc, dc, 0.1, gain), None);
+            assert_eq!(standing.add([dc; 2], dc, 0.1, gain), None);
             let k = if n < 2 * per_period + 10 { 0.2 } else { 1.0 };
             let late = (2 * per_period + 10..2 * per_period + 12).contains(&n);
             let r = refs(n, k);
             let m = if late { refs(n, 0.2) } else { r };
-            assert_eq!(w.add(r, m, 0.1, gain), None, "step {n}");
+            assert_eq!(w.add([r; 2], m, 0.1, gain), None, "step {n}");
         }
     }
 

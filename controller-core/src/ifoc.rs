@@ -175,6 +175,12 @@ impl IfocState {
         self.i_track_dq.inverse_park(self.field)
     }
 
+    /// The intended current references of the present plan at the present field angle
+    /// (without the trim: what the plan asks of the machine), A, stationary frame.
+    pub fn i_intended_ab(&self) -> AlphaBeta {
+        self.i_ref_dq.inverse_park(self.field)
+    }
+
     /// The intended current references of the present plan (without the trim), A.
     pub fn i_ref_dq(&self) -> Dq {
         self.i_ref_dq
@@ -287,6 +293,29 @@ impl IfocConfig {
         }
         let i_q_max_a = sqrt_f32(max_f32(self.i_max_a * self.i_max_a - i_d_a * i_d_a, 0.0));
         FluxCommand { i_d_a, i_q_max_a }
+    }
+
+    /// The d-axis current reference that brings the rotor flux down to the steady flux of
+    /// `i_d_a` (A, ≥ 0) with time constant τ_f = T_s/`fall_rate` (`fall_rate`: per fast step)
+    /// where the rotor's own T̂_r is slower — the flux model (eq. (8),
+    /// `dψ_r/dt = (L̂_m·i_ds − ψ_r)/T̂_r`) solved for the `i_ds` that gives
+    /// `dψ_r/dt = (L̂_m·i_d − ψ̂_r)/τ_f`:
+    ///
+    /// ```text
+    /// i_ds* = i_ψ + (T̂_r/τ_f)·(i_d − i_ψ),   i_ψ = ψ̂_r/L̂_m,   T̂_r/τ_f at least 1
+    /// ```
+    ///
+    /// limited to `[0, i_d]`: down to no current at most (the flux then falls with T̂_r, the
+    /// fastest without reversing the current), and never above `i_d` — a flux forced
+    /// upwards asks for voltage that a machine in field weakening does not have (forced both
+    /// ways, the 3 300 V drive's loops sat at the modulator's limit at top speed, the flux
+    /// model below its target on the current they could not drive). A flux at or below its
+    /// target gets `i_d` itself. Both speeds are the model's: with `fall_rate` ≥
+    /// `flux_rate` nothing is forced.
+    pub fn falling_flux_current(&self, s: &IfocState, i_d_a: f32, fall_rate: f32) -> f32 {
+        let i_psi = s.psi_r_wb / s.lm_h;
+        let k = max_f32(fall_rate / s.flux_rate, 1.0);
+        (i_psi + k * (i_d_a - i_psi)).limit(0.0, i_d_a)
     }
 
     /// The steady-state rotor flux of d-axis current `i_d_a` on the motor's inductance,
@@ -709,6 +738,37 @@ mod tests {
     /// model is the scaled machine's — target ℓ·L_m·i_d, time constant ℓ·T_r/r — and the slip
     /// is the machine's `r·R_r·i_q/(ℓ·L_r·i_d)` at the flux it builds; the estimate is
     /// rescaled with ℓ; bad scales are ignored.
+    /// [`IfocConfig::falling_flux_current`]: a flux at or below its target gets the target's
+    /// current, and so does any flux when the fall time is no faster than the rotor's T_r;
+    /// a flux well above it gets no current (never a negative one); and a flux a little
+    /// above it (no limit reached) falls to 1/e of its excess in the fall time — 10 ms here,
+    /// where the DeLorenzo rotor's own T_r is 64.7 ms — on the flux model's exact update.
+    #[test]
+    fn a_flux_above_its_target_falls_within_the_fall_time() {
+        let c = cfg();
+        let (ts, fall_s) = (5e-5f32, 0.01f32);
+        let fall_rate = ts / fall_s;
+        let target = 0.5 * 0.9 / 1.42; // half the rated flux's current, A
+        let psi_target = c.flux_of(target);
+        let at = |psi: f32| c.state(psi, 1.0);
+        assert_eq!(c.falling_flux_current(&at(psi_target), target, fall_rate), target);
+        assert_eq!(c.falling_flux_current(&at(0.5 * psi_target), target, fall_rate), target);
+        assert_eq!(c.falling_flux_current(&at(2.0 * psi_target), target, ts / 0.1), target);
+        assert_eq!(c.falling_flux_current(&at(2.0 * psi_target), target, fall_rate), 0.0);
+        let mut s = at(1.05 * psi_target);
+        let (mut t_s, t_slow) = (0.0f32, N as f32 * ts);
+        let excess0 = s.psi_r_wb() - psi_target;
+        while s.psi_r_wb() - psi_target > excess0 / core::f32::consts::E {
+            let i_d = c.falling_flux_current(&s, target, fall_rate);
+            assert!(i_d > 0.0 && i_d < target, "{i_d}");
+            s.i_sum_dq = Dq { d: N as f32 * i_d, q: 0.0 };
+            s.steps = N as u16;
+            c.close_period(&mut s);
+            t_s += t_slow;
+        }
+        assert!((t_s - fall_s).abs() <= t_slow, "{t_s}");
+    }
+
     #[test]
     fn the_inductance_scales_the_flux_model() {
         let m = MotorParams::delorenzo_dl10115a1().unwrap();

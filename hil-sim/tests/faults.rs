@@ -505,3 +505,36 @@ fn the_wrong_line_count_row_halves_the_boards_lines() {
     assert!(o.passed(), "{:?}", o.failures);
     assert_eq!(o.detected.map(|(f, _)| f), Some(Fault::EncoderLoss));
 }
+
+/// The 500 hp machine tuned by `design tune` on its 3 300 V template (stationary-frame PI,
+/// kp 55.5 V/A) rides to its top-speed points, motoring and generating, and names the frozen
+/// encoder there. Until this stop all 38 of its top-speed rows tripped a false `SwitchOpen`
+/// before their injection (at 3.9–4.2 s, ≈ 160–195 rad/s): its flux fell with T_r = 0.78 s
+/// behind the envelope's (fixed by `drive::FLUX_FALL_TIME_S`), and the stuck-switch check
+/// judged the currents against the *trimmed* references — the intended ones plus the
+/// current trim, which makes up a stationary-frame PI's steady error (≈ E/kp: 27 A of a
+/// ≈ 1 500 V back-EMF at top speed) and so exceeds what the currents, rightly, carry. The
+/// check now reads the intended references (its undriven count, the voltage check's verdict,
+/// and the open-phase window keep the trimmed ones: what the loops push for).
+#[test]
+fn the_tuned_3300_v_drive_reaches_its_top_speed_points() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let template = root.join("drives/krause-3300v.toml");
+    let motor =
+        drive_file::motor::load(root.join("motors/krause-2300v-500hp.toml").to_str().unwrap()).unwrap();
+    let text = std::fs::read_to_string(&template).unwrap();
+    let tuned =
+        design::tune::tune(&template, &text, &motor, None, design::tune::Structure::default()).unwrap();
+    let file = drive_file::DriveFile::parse(&template, &tuned.text).unwrap();
+    let mut m = Matrix::new(file.spec, tuned.certify.omega_r_max_rad_s, 3300.0);
+    m.encoder_lines = file.encoder_lines();
+    let c = file.board.unwrap().table.comparator.unwrap();
+    m.comparator = Some(hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
+    let c = case(&m, "encoder stuck");
+    for motoring in [true, false] {
+        let at = point(&m, Point::Top, motoring);
+        let o = m.run_one(0, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+        eprintln!("{}: {} at {:.1} rad/s", at.name(), o.seen(), o.speed_at_injection_rad_s);
+        assert!(o.passed(), "{}: {:?}", at.name(), o.failures);
+    }
+}
