@@ -680,8 +680,12 @@ fn write(
     } else {
         "PI current loops with their zero\n# on the stator's pole (the fastest the certificate passes on every corner)"
     };
+    let frame = match spec.current_frame {
+        CurrentFrame::Stationary => "stationary",
+        CurrentFrame::Synchronous => "synchronous",
+    };
     Ok(format!(
-        "# Tuned by `design tune` from the template {} (design::tune): stationary-frame {current},\n\
+        "# Tuned by `design tune` from the template {} (design::tune): {frame}-frame {current},\n\
          # crossover {omega_c:.0} rad/s on the nominal motor; {speed_loop}. `design certify` this file.\n{body}",
         template_path.display()
     ))
@@ -1037,6 +1041,9 @@ mod tests {
         assert!(t.checks.iter().any(|c| c.name.starts_with("sampled current: worst")));
         let written = drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap();
         assert_eq!(written.spec.current_frame, CurrentFrame::Synchronous);
+        // The header names the frame (it said "stationary-frame" whatever the template's).
+        assert!(t.text.starts_with("# Tuned by") && t.text.contains("synchronous-frame PI"), "{}", t.text);
+        assert!(!t.text.contains("stationary"), "{}", t.text);
         println!("synchronous PI: ω_c {:.0} rad/s, {} checks", t.omega_c_rad_s, t.checks.len());
         let icad = Structure { current: CurrentDesign::Icad, ..Default::default() };
         let e = tune(Path::new("sync.toml"), &sync, &m, None, icad).unwrap_err();

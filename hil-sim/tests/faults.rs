@@ -506,8 +506,8 @@ fn the_wrong_line_count_row_halves_the_boards_lines() {
     assert_eq!(o.detected.map(|(f, _)| f), Some(Fault::EncoderLoss));
 }
 
-/// The 500 hp machine tuned by `design tune` on its 3 300 V template (stationary-frame PI,
-/// kp 55.5 V/A) rides to its top-speed points, motoring and generating, and names the frozen
+/// The 500 hp machine tuned by `design tune` on its 3 300 V template with stationary-frame
+/// loops (PI, kp 55.5 V/A) rides to its top-speed points, motoring and generating, and names the frozen
 /// encoder there. Until this stop all 38 of its top-speed rows tripped a false `SwitchOpen`
 /// before their injection (at 3.9–4.2 s, ≈ 160–195 rad/s): its flux fell with T_r = 0.78 s
 /// behind the envelope's (fixed by `drive::FLUX_FALL_TIME_S`), and the stuck-switch check
@@ -522,9 +522,14 @@ fn the_tuned_3300_v_drive_reaches_its_top_speed_points() {
     let template = root.join("drives/krause-3300v.toml");
     let motor =
         drive_file::motor::load(root.join("motors/krause-2300v-500hp.toml").to_str().unwrap()).unwrap();
-    let text = std::fs::read_to_string(&template).unwrap();
+    // Stationary-frame loops (the template's are synchronous, as seed 000's: there the trim
+    // is zero and the intended and trimmed references are one).
+    let text = std::fs::read_to_string(&template)
+        .unwrap()
+        .replace("current_frame = \"synchronous\"", "current_frame = \"stationary\"");
     let tuned =
         design::tune::tune(&template, &text, &motor, None, design::tune::Structure::default()).unwrap();
+    assert_eq!(tuned.spec.current_frame, controller_core::drive::CurrentFrame::Stationary);
     let file = drive_file::DriveFile::parse(&template, &tuned.text).unwrap();
     let mut m = Matrix::new(file.spec, tuned.certify.omega_r_max_rad_s, 3300.0);
     m.encoder_lines = file.encoder_lines();
