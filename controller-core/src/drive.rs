@@ -59,7 +59,7 @@ use crate::frames::{Abc, AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::ifoc::{FluxCommand, IfocConfig, IfocError, IfocOutput, IfocState, TorqueCommand};
 use crate::motor::MotorParams;
 use crate::mras::{Evidence, MrasConfig, MrasError, RotorFit};
-use crate::num::{Scalar, max_f32, min_f32, sqrt_f32};
+use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
 use crate::raw::{self, RawDriveConfig};
 use crate::speed::{PositionConfig, SpeedControllerConfig, SpeedError, SpeedLaw, SpeedState};
 use crate::svpwm;
@@ -985,7 +985,11 @@ impl DriveConfig {
     /// `None` for another law or bad gains ([`SpeedControllerConfig::with_saturated_p`]).
     pub fn with_saturated_p(&self, kp: f32, tau_max_nm: f32) -> Option<Self> {
         let speed = self.speed.with_saturated_p(kp, tau_max_nm)?;
-        Some(Self { speed, speed_limit: speed.output_limit(), ..*self })
+        // Copied whole, then the two fields set: the struct update syntax (`..*self`) copied
+        // it field by field, inlined into the firmware's `WriteSpeedGains` (388 B of flash).
+        let mut cfg = *self;
+        (cfg.speed, cfg.speed_limit) = (speed, speed.output_limit());
+        Some(cfg)
     }
 
     /// The speed loop.
@@ -1516,8 +1520,21 @@ fn misses(r: f32, m: f32) -> bool {
 }
 
 /// [`PhaseDirections`] of the three phases.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct SwitchWatch([PhaseDirections; 3]);
+
+/// No samples yet: a constant, which the drive's two resets ([`Drive::new`],
+/// [`Drive::enable`]) write in one go (the derived `Default` built each phase's directions
+/// apart and copied them in: 264 B of flash).
+impl Default for SwitchWatch {
+    fn default() -> Self {
+        const NONE: Direction =
+            Direction { seen: 0.0, missed: 0.0, seen_long: 0.0, missed_long: 0.0, fresh: false, dead: false };
+        const NEW: SwitchWatch =
+            SwitchWatch([PhaseDirections { positive: NONE, negative: NONE, open: false, short: 0 }; 3]);
+        NEW
+    }
+}
 
 impl SwitchWatch {
     /// A phase the loops do not drive, for another check's verdict (the voltage check's):
@@ -1531,15 +1548,21 @@ impl SwitchWatch {
     /// switch stuck open in the direction needed give the same currents, so the verdict
     /// claims no switch ([`Fault::SwitchOpen`] is the stuck-switch check's own, once the
     /// other way has carried); a wrong field angle turns the references and the loops still
-    /// follow them. Out of line: the voltage check's rare path.
+    /// follow them.
     ///
     /// `turning`: the field turned more than [`PINNED_FIELD_TURN_RAD`] over the voltage
     /// check's window, where a lagging current falls short near its zero crossings — the
     /// short samples do not count.
-    #[inline(never)]
+    ///
+    /// A phase missing both ways needs no test of its own: [`PhaseDirections::add`] sets
+    /// `open` only with the missing direction's `dead`, which only the phase's next counted
+    /// sample (that sets `open` anew) or a reset clears. The flags or'ed, not short-circuited,
+    /// and inlined into its one caller, [`Drive::check_encoder`] (out of line, with `open`
+    /// tested and `||`, 178 B: 88 B more flash).
     fn undriven(&self, turning: bool) -> bool {
-        let short = |p: &PhaseDirections| !turning && p.short >= UNDRIVEN_SAMPLES;
-        self.0.iter().any(|p| p.open || p.positive.dead || p.negative.dead || short(p))
+        let short = |p: &PhaseDirections| p.short >= UNDRIVEN_SAMPLES;
+        let dead = |p: &PhaseDirections| p.positive.dead | p.negative.dead;
+        self.0.iter().fold(false, |u, p| u | dead(p) | (short(p) & !turning))
     }
 
     /// One sample (a slow period) of the phase references `reference` (intended) and
@@ -2309,7 +2332,7 @@ impl Drive {
     /// magnetizing until the flux model reaches it. The envelope is remade at the next slow
     /// step.
     fn set_inductance_scale(&mut self, l: f32) {
-        if !(l.is_finite() && l > 0.0) || l == self.ifoc.inductance_scale() {
+        if !finite_positive(l) || l == self.ifoc.inductance_scale() {
             return;
         }
         self.cfg.ifoc.set_inductance_scale(&mut self.ifoc, l);
@@ -2688,7 +2711,7 @@ impl Drive {
 /// amplitude-invariant inverse Clarke transform are the projections of `v` on the axes.
 fn pinned_axis(v: AlphaBeta) -> Option<u8> {
     let on = PINNED_PHASE_COS * sqrt_f32(v.alpha * v.alpha + v.beta * v.beta);
-    if !(on > 0.0 && on < f32::INFINITY) {
+    if !finite_positive(on) {
         return None; // no voltage, or not finite: on no axis
     }
     let p = v.inverse_clarke();

@@ -76,7 +76,7 @@ impl<const N: usize> EncoderConfig<N> {
         if lines == 0 || lines > MAX_LINES || N == 0 {
             return Err(EncoderError::Lines);
         }
-        if !(read_period_s.is_finite() && read_period_s > 0.0) {
+        if !crate::num::finite_positive(read_period_s) {
             return Err(EncoderError::Period);
         }
         // 4·lines ≤ 2^24 is exact in f32.

@@ -55,7 +55,7 @@
 //! where one of them binds.
 
 use crate::motor::MotorParams;
-use crate::num::{Scalar, min_f32};
+use crate::num::{Scalar, finite_positive, min_f32};
 
 /// Points of the coarse scan of T(r) over `(0, 2/σ]` that brackets the envelope's maximum.
 /// T(r) is not unimodal when generating: towards zero stator frequency the voltage bound
@@ -183,7 +183,7 @@ impl EnvelopeConfig {
         v_max_v: f32,
         i_max_a: f32,
     ) -> Option<(f32, f32, f32, f32)> {
-        let ok = |x: f32| x > 0.0 && x < f32::INFINITY; // false for NaN
+        let ok = finite_positive; // false for NaN
         if !(ok(i_d_rated_a) && ok(v_max_v) && ok(i_max_a) && omega_m_rad_s.is_finite()) {
             return None;
         }

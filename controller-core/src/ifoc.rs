@@ -41,7 +41,7 @@
 
 use crate::frames::{AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::motor::MotorParams;
-use crate::num::{Scalar, max_f32, sqrt_f32};
+use crate::num::{Scalar, finite_positive, max_f32, sqrt_f32};
 
 /// Torque-producing command from the speed loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -194,7 +194,7 @@ impl IfocState {
 /// `one_minus_exp_neg_is_accurate`: within 1e-6 of f64 from 1e-9 to 100). Non-finite or
 /// negative `y`: 0 (the flux model holds).
 fn one_minus_exp_neg(y: f32) -> f32 {
-    if !(y > 0.0 && y < f32::INFINITY) {
+    if !finite_positive(y) {
         return 0.0;
     }
     let (mut y, mut halvings) = (y, 0u8);
@@ -367,7 +367,7 @@ impl IfocConfig {
     /// the flux model's rate `1/T̂_r = (R̂_r/R_r)/(L̂/L)/T_r` ([`Self::set_inductance_scale`]).
     #[inline(never)]
     pub fn set_rotor_resistance_scale(&self, s: &mut IfocState, scale: f32) {
-        if !(scale.is_finite() && scale > 0.0) {
+        if !finite_positive(scale) {
             return;
         }
         s.rr_scale = scale;
@@ -380,7 +380,7 @@ impl IfocConfig {
     /// time constant `T̂_r = L̂_r/R̂_r`. The estimate ψ̂_r is rescaled with it (it is `L̂_m` times
     /// the filtered current), so that a flux measured with the old inductance is not lost.
     pub fn set_inductance_scale(&self, s: &mut IfocState, scale: f32) {
-        if !(scale.is_finite() && scale > 0.0) {
+        if !finite_positive(scale) {
             return;
         }
         s.psi_r_wb *= scale / s.l_scale;

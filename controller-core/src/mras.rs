@@ -83,7 +83,7 @@
 use crate::envelope::EnvelopeConfig;
 use crate::frames::Dq;
 use crate::motor::MotorParams;
-use crate::num::{Scalar, sqrt_f32};
+use crate::num::{Scalar, finite_positive, sqrt_f32};
 
 /// The least load ratio `|i_q|/i_d` the law listens at: the slope `s(a) = 2a²/(1 + a²)²` is
 /// 0.32 there, 64 % of its peak (0.5 at a = 1).
@@ -339,7 +339,7 @@ impl MrasConfig {
         // r̂/ℓ̂ = T_r,motor/T̂_r; a ratio at or below 1 (the middle window's step the smaller)
         // is noise, not a fit.
         let rate = self.tr_over_window * crate::num::ln_f32(d0 / d1);
-        if !(rate.is_finite() && rate > 0.0) {
+        if !finite_positive(rate) {
             return None;
         }
         let l = if f.demagnetized && self.l_max > self.l_min && f.i_d_a > 0.0 {
@@ -362,7 +362,7 @@ impl MrasConfig {
         let c = (f.sums[0] - b) / self.fit_window_steps as f32;
         let volt_steps = f.pre_sum - c * f.pre_steps as f32 + self.slow_divider * b / (1.0 - q);
         let l = self.t_fast_over_ls * volt_steps / f.i_d_a;
-        if l.is_finite() && l > 0.0 { Some(l.limit(self.l_min, self.l_max)) } else { None }
+        if finite_positive(l) { Some(l.limit(self.l_min, self.l_max)) } else { None }
     }
 
     /// Estimating anything at all (either range is not a single value).

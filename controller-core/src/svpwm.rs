@@ -27,7 +27,7 @@
 //! docs/firmware.md.)
 
 use crate::frames::{Abc, AlphaBeta};
-use crate::num::{max_f32, min_f32};
+use crate::num::{finite_positive, max_f32, min_f32};
 
 /// Result of one modulation.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -101,7 +101,7 @@ pub fn modulate_sampled(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
 fn modulate_limited(v: AlphaBeta, abc: Abc, max: f32, span: f32, vdc_v: f32, duty_max: f32) -> Modulation {
     let zero =
         Modulation { duty: Abc { a: 0.5, b: 0.5, c: 0.5 }, v_applied: AlphaBeta::default(), saturated: true };
-    if !(vdc_v > 0.0 && vdc_v < f32::INFINITY && span.is_finite() && span > 0.0) {
+    if !(finite_positive(vdc_v) && finite_positive(span)) {
         return zero;
     }
     let k = duty_max / span;
