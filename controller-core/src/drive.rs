@@ -210,9 +210,12 @@ impl ThermalConfig {
 pub const THERMAL_UPDATE_SLOW_STEPS: u16 = 1000;
 
 /// Brake-chopper thresholds: on above `on_v`, off again below `off_v`
-/// (0 < `off_v` < `on_v` < `vdc_max_v`). With `on_v` below the regeneration limit's start
-/// ([`REGEN_LIMIT_START`]·`vdc_max_v`) the chopper takes the braking energy and the limit acts
-/// only if the chopper cannot (a resistor too large for the power, or none connected).
+/// (0 < `off_v` < `on_v` < [`REGEN_LIMIT_START`]·`vdc_max_v`). With `on_v` below the
+/// regeneration limit's start the chopper takes the braking energy and the limit acts only if
+/// the chopper cannot (a resistor too large for the power, or none connected). Above it the
+/// drive cuts its braking torque before the chopper switches on, and the chopper takes
+/// little: found by trying the 3 300 V template (on at 3 700 V, the cut from 3 515 V), which
+/// braked from 320 rad/s at 50–460 of its 2 000 N·m, still at 160 rad/s 8 s later.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BrakeChopper {
     /// Switch on above this bus voltage, V.
@@ -399,6 +402,20 @@ pub const CURRENT_TRIM_RANGE: f32 = 0.25;
 /// loss-of-control check (issue 21's campaign: R_s × 1.5, R_r × 1.2 tripped at 111 rad/s).
 pub const VOLTAGE_REGULATOR_LIMITED_GAIN: f32 = 10.0;
 
+/// The largest excess of the loops' request over the voltage target the regulator takes in
+/// one slow period, as a fraction of the target: a model error asks for tens of per cent
+/// more (R_s ×1.5 at full current, a saturated inductance), a current step several times
+/// the target for a period or two (the proportional path's k_p·Δi: σL_s·ω_c·Δi ≈ 11 kV for
+/// the 500 hp machine's 197 A at its 8 763 rad/s crossover). Taken whole, at the limited
+/// gain, that step cut the budget by half in four slow periods, the flux then left no
+/// voltage for any torque, and the drive oscillated between full and none
+/// (`hil-sim envelope krause-tuned.toml --generating`: a false `SwitchOpen` at its base
+/// speed). Capped at 0.25, 0.5 or 1 the drive brakes there alike (−10.1 %); a frozen encoder
+/// at top speed with the jump check off saturates the loops long enough for `LossOfControl`
+/// with any of them (hil-sim test `a_frozen_encoder_at_speed_stays_the_encoders_fault`):
+/// the largest, the nearest to what the regulator did before.
+pub const VOLTAGE_REGULATOR_EXCESS_MAX: f32 = 1.0;
+
 /// The deepest the voltage regulator may cut the budget, as a fraction of V_dc/√3.
 pub const VOLTAGE_REGULATOR_RANGE: f32 = 0.5;
 
@@ -547,7 +564,7 @@ pub enum DriveError {
     /// Protection thresholds inconsistent: need 0 ≤ vdc_min < vdc_max,
     /// i_trip > i_ref_max > 0, and positive finite overspeed, stall time and current sum.
     Protection,
-    /// Brake-chopper thresholds not 0 < off < on < vdc_max.
+    /// Brake-chopper thresholds not 0 < off < on < [`REGEN_LIMIT_START`]·vdc_max.
     BrakeChopper,
 }
 
@@ -708,7 +725,7 @@ impl DriveConfig {
         }
         let (brake_on_v, brake_off_v) = match p.brake_chopper {
             None => (f32::MAX, f32::MAX),
-            Some(b) if b.off_v > 0.0 && b.off_v < b.on_v && b.on_v < p.vdc_max_v => {
+            Some(b) if b.off_v > 0.0 && b.off_v < b.on_v && b.on_v < REGEN_LIMIT_START * p.vdc_max_v => {
                 (b.on_v as f32, b.off_v as f32)
             }
             Some(_) => return Err(DriveError::BrakeChopper),
@@ -2365,7 +2382,8 @@ impl Drive {
             let floor = -VOLTAGE_REGULATOR_RANGE * svpwm::linear_limit_v(vdc_v);
             let gain =
                 if limited { VOLTAGE_REGULATOR_LIMITED_GAIN * cfg.voltage_gain } else { cfg.voltage_gain };
-            self.v_cut_v = (self.v_cut_v + gain * (target - v_req)).limit(floor, 0.0);
+            let error = max_f32(target - v_req, -VOLTAGE_REGULATOR_EXCESS_MAX * target);
+            self.v_cut_v = (self.v_cut_v + gain * error).limit(floor, 0.0);
         }
         self.v_req2_sum = 0.0;
         self.v_req_steps = 0;
@@ -2846,7 +2864,8 @@ mod tests {
         assert!(d.step(&meas(401.0)).brake);
         assert!(d.step(&meas(355.0)).brake);
         assert!(!d.step(&meas(340.0)).brake);
-        for bad in [(350.0, 360.0), (400.0, 350.0), (360.0, 0.0), (f64::NAN, 350.0)] {
+        // (380, 350): on above the regeneration limit's start, 0.925 × 400 = 370 V.
+        for bad in [(350.0, 360.0), (400.0, 350.0), (380.0, 350.0), (360.0, 0.0), (f64::NAN, 350.0)] {
             spec.protection.brake_chopper = Some(BrakeChopper { on_v: bad.0, off_v: bad.1 });
             assert_eq!(DriveConfig::new(&spec), Err(DriveError::BrakeChopper), "{bad:?}");
         }

@@ -761,6 +761,19 @@ pub fn drive_spec(
                 num(protection.vdc_max_v)
             ),
         )?;
+        let cut_v = controller_core::drive::REGEN_LIMIT_START * protection.vdc_max_v;
+        src.check(
+            b.on_v < cut_v,
+            "protection.brake_chopper",
+            &format!(
+                "on_v = {} lies above {} V, where the drive starts cutting its braking torque ({} × \
+                 protection.vdc_max_v): the chopper would take little of the energy; switch it on \
+                 below that",
+                num(b.on_v),
+                num(cut_v),
+                controller_core::drive::REGEN_LIMIT_START
+            ),
+        )?;
     }
     let spec = DriveSpec {
         motor,
@@ -891,9 +904,10 @@ pub fn drive_spec(
             }
         }
         // Checked above, with the file's own words.
-        DriveError::BrakeChopper => {
-            src.error("protection.brake_chopper", "need 0 < off_v < on_v < vdc_max_v")
-        }
+        DriveError::BrakeChopper => src.error(
+            "protection.brake_chopper",
+            format!("need 0 < off_v < on_v < {} × vdc_max_v", controller_core::drive::REGEN_LIMIT_START),
+        ),
     })?;
     Ok(spec)
 }

@@ -179,6 +179,15 @@ mod tests {
             assert_eq!(e.key.as_deref(), Some("certify.omega_r_max_rad_s"), "{e}");
             assert!(e.reason.contains("below the drive's no-load base speed"), "{e}");
         }
+        // A brake chopper above where the drive cuts its braking torque (0.925 × 400 V): the
+        // cut came first (the 3 300 V template's, found by trying, braked at 50–460 N·m of
+        // 2 000).
+        let e = err(&replace(
+            "brake_chopper = { on_v = 360.0, off_v = 350.0 }",
+            "brake_chopper = { on_v = 380.0, off_v = 350.0 }",
+        ));
+        assert_eq!(e.key.as_deref(), Some("protection.brake_chopper"), "{e}");
+        assert!(e.reason.contains("on_v = 380 lies above 370 V, where the drive starts cutting"), "{e}");
         // Reversed interval.
         let e = err(&replace("rr_factor = [1.0, 2.0]", "rr_factor = [2.0, 1.0]"));
         assert_eq!(e.key.as_deref(), Some("certify.rr_factor"), "{e}");

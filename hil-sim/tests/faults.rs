@@ -195,8 +195,10 @@ fn open_lead_on_seeds_0_to_11(p: Point, motoring: bool) {
     }
 }
 
-/// A frozen encoder at top speed, generating, with the jump and speed checks out of the way
-/// (at mid-speed and motoring nothing then catches it within the row): the voltage check
+/// A frozen encoder at top speed, generating, with the jump, speed and loss-of-control checks
+/// out of the way (at mid-speed and motoring nothing then catches it within the row; since
+/// the voltage regulator takes at most its target's worth of excess per period,
+/// `drive::VOLTAGE_REGULATOR_EXCESS_MAX`, `LossOfControl` comes first here): the voltage check
 /// catches it after its 10 ms, by the encoder's name — with the loops' voltage on phase a's
 /// axis (the α integrator at its clamp) for 3 of the 20 checks, and the field turning
 /// (the pinned-phase rule, `drive::PINNED_PHASE_COS`, must not rename it).
@@ -206,6 +208,7 @@ fn a_frozen_encoder_at_speed_stays_the_encoders_fault() {
     m.spec.protection.encoder_jump_rad = 1e6;
     m.spec.protection.stall_time_s = 1e6;
     m.spec.protection.following_time_s = 1e6;
+    m.spec.protection.saturation_time_s = 1e6;
     let (c, at) = (case(&m, "encoder stuck"), point(&m, Point::Top, false));
     let o = m.run_one(6, &c, &at, Expect::RideThrough, &AtomicBool::new(false)).unwrap();
     let (f, t) = o.detected.unwrap();
