@@ -926,3 +926,34 @@ fn a_drive_file_and_a_scenario_file_are_told_apart() {
     assert!(String::from_utf8_lossy(&st.stderr).contains("this is a scenario file"), "{st:?}");
     assert!(!tmp("mixup").exists());
 }
+
+/// A scenario whose bus lies outside the drive's range runs (it may mean to trip) but says
+/// so: a 310 V scenario on the 3 300 V template tripped `DcBusUndervoltage` at once and
+/// exited 0 without a word (found by trying).
+#[test]
+fn a_bus_outside_the_drives_range_is_said() {
+    let dir = tmp("bus-range");
+    std::fs::create_dir_all(&dir).unwrap();
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drives/krause-3300v.toml");
+    let scenario = dir.join("s.toml");
+    let text = |vdc: f64| {
+        format!(
+            "drive = \"{drive}\"\nduration_s = 0.01\nsample_period_s = 1e-3\nvdc_v = {vdc:.1}\n\
+             [[events]]\nt_s = 0.0\nkind = \"enable\"\n"
+        )
+    };
+    std::fs::write(&scenario, text(310.0)).unwrap();
+    let st = bin().args(["run"]).arg(&scenario).arg("--out").arg(dir.join("out")).output().unwrap();
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(st.status.success(), "{err}");
+    assert!(
+        err.contains("the scenario's bus, 310 V, lies outside the drive's range (2800 … 3800 V)"),
+        "{err}"
+    );
+    std::fs::write(&scenario, text(3300.0)).unwrap();
+    let st = bin().args(["run"]).arg(&scenario).arg("--out").arg(dir.join("out2")).output().unwrap();
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(st.status.success(), "{err}");
+    assert!(!err.contains("lies outside the drive's range"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
