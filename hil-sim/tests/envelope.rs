@@ -538,6 +538,17 @@ fn a_stiff_supply_holds_the_bus() {
     assert!(rows.iter().any(|r| r.i_source_a < -0.1), "the supply sinks the braking current");
 }
 
+/// The 500 hp Krause machine tuned by `design tune` on its 3 300 V template (what
+/// `design tune --template drives/krause-3300v.toml --motor krause-2300v-500hp` writes).
+fn tuned_krause() -> design::tune::Tuned {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let template = root.join("drives/krause-3300v.toml");
+    let motor =
+        drive_file::motor::load(root.join("motors/krause-2300v-500hp.toml").to_str().unwrap()).unwrap();
+    let text = std::fs::read_to_string(&template).unwrap();
+    design::tune::tune(&template, &text, &motor, None, design::tune::Structure::default()).unwrap()
+}
+
 /// A rotor slower than the field-weakening voltage regulator has its flux brought down
 /// (`controller_core::drive::FLUX_FALL_TIME_S`): the 500 hp Krause machine (T_r 0.78 s)
 /// tuned by `design tune` on its 3 300 V template, magnetized at rest, then 0 → 320 rad/s
@@ -554,13 +565,7 @@ fn a_stiff_supply_holds_the_bus() {
 /// reference's rate).
 #[test]
 fn a_slow_rotor_weakens_its_field_in_time() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let template = root.join("drives/krause-3300v.toml");
-    let motor =
-        drive_file::motor::load(root.join("motors/krause-2300v-500hp.toml").to_str().unwrap()).unwrap();
-    let text = std::fs::read_to_string(&template).unwrap();
-    let tuned =
-        design::tune::tune(&template, &text, &motor, None, design::tune::Structure::default()).unwrap();
+    let tuned = tuned_krause();
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("a_slow_rotor_weakens_its_field_in_time");
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("tuned.toml"), &tuned.text).unwrap();
@@ -608,13 +613,7 @@ fn a_slow_rotor_weakens_its_field_in_time() {
 /// flying start's rotor-resistance guess), a ripple below 1 % of it.
 #[test]
 fn the_tuned_3300_v_drive_brakes_at_its_base_speed() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let template = root.join("drives/krause-3300v.toml");
-    let motor =
-        drive_file::motor::load(root.join("motors/krause-2300v-500hp.toml").to_str().unwrap()).unwrap();
-    let text = std::fs::read_to_string(&template).unwrap();
-    let tuned =
-        design::tune::tune(&template, &text, &motor, None, design::tune::Structure::default()).unwrap();
+    let tuned = tuned_krause();
     let spec = tuned.spec;
     let base = drive_base_speed_rad_s(&spec, 3300.0);
     assert!((base - 178.6).abs() < 0.05, "{base}");
