@@ -213,6 +213,20 @@ struct TuneArgs {
     speed: design::tune::SpeedDesign,
 }
 
+/// An interval for the tune summary, to six significant digits (the file keeps every digit):
+/// `[65.18986469044033, 260.7594587617613]` read as noise (found by a helper).
+fn interval([lo, hi]: [f64; 2]) -> String {
+    let sig = |x: f64| {
+        if x == 0.0 || !x.is_finite() {
+            return format!("{x}");
+        }
+        let decimals = (5 - x.abs().log10().floor() as i32).clamp(0, 15) as usize;
+        let s = format!("{x:.decimals$}");
+        if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+    };
+    format!("[{}, {}]", sig(lo), sig(hi))
+}
+
 fn tune(a: &TuneArgs) -> Result<bool, String> {
     // The template is the engineer's own file (its comments, its sources): not rewritten.
     let same = |p: &std::path::Path| std::fs::canonicalize(p).ok();
@@ -277,12 +291,12 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
     );
     let c = &t.certify;
     report::outln!(
-        "box: Rs×{:?} Rr×{:?} L×{:?} J×{:?}; writable kp {:?}; certified: {} checks pass",
-        c.rs_factor,
-        c.rr_factor,
-        c.inductance_factor,
-        c.j_factor,
-        c.speed_kp_writable,
+        "box: Rs×{} Rr×{} L×{} J×{}; writable kp {}; certified: {} checks pass",
+        interval(c.rs_factor),
+        interval(c.rr_factor),
+        interval(c.inductance_factor),
+        interval(c.j_factor),
+        interval(c.speed_kp_writable),
         t.checks.len()
     );
     cli::write_atomic(&a.out, &t.text)?;

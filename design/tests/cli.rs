@@ -545,6 +545,12 @@ fn tune_lowers_a_position_gain_the_certificate_refuses() {
     ]);
     assert_eq!(code, Some(0), "{err}");
     assert!(stdout.contains("lowered for the sampled certificate"), "{stdout}");
+    // The summary's intervals to six significant digits (they printed 16: found by trying).
+    let boxed = stdout.lines().find(|l| l.starts_with("box: ")).unwrap();
+    for token in boxed.split(|c: char| !(c.is_ascii_digit() || c == '.')).filter(|t| t.contains('.')) {
+        let significant = token.trim_start_matches(['0', '.']).chars().filter(char::is_ascii_digit).count();
+        assert!(significant <= 6, "{token} in {boxed}");
+    }
     let (code, _, err) = run(&["certify", out.to_str().unwrap()]);
     assert_eq!(code, Some(0), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
