@@ -3,7 +3,8 @@
 //! With the d axis on the rotor flux (`ψ_qr = 0`, `ψ_dr = ψ_r`, eq. (6)):
 //!
 //! * flux reference → `i_ds* = ψ_r*/L_m` (eq. (9), steady state of eq. (8); the drive divides
-//!   by the inductance scale in use, [`IfocConfig::set_inductance_scale`]);
+//!   by the inductance scale in use, [`IfocConfig::set_inductance_scale`], and lowers it while
+//!   Running and a slow rotor's flux falls, [`IfocConfig::falling_flux_current`]);
 //! * rotor-flux model, eq. (8) `ψ_r = L_m/(1 + s·T_r)·i_ds`, discretised exactly (ZOH) — on
 //!   the estimated `L̂_m` and `T̂_r` ([`IfocConfig::set_inductance_scale`],
 //!   [`IfocConfig::set_rotor_resistance_scale`]; the motor's when not estimated), driven
@@ -297,7 +298,7 @@ impl IfocConfig {
 
     /// The d-axis current reference that brings the rotor flux down to the steady flux of
     /// `i_d_a` (A, ≥ 0) with time constant τ_f = T_s/`fall_rate` (`fall_rate`: per fast step)
-    /// where the rotor's own T̂_r is slower — the flux model (eq. (8),
+    /// where the rotor's own T̂_r is slower — the flux model ([`IfocConfig::close_period`],
     /// `dψ_r/dt = (L̂_m·i_ds − ψ_r)/T̂_r`) solved for the `i_ds` that gives
     /// `dψ_r/dt = (L̂_m·i_d − ψ̂_r)/τ_f`:
     ///
@@ -734,10 +735,6 @@ mod tests {
         }
     }
 
-    /// On the inductances ×ℓ (L_s, L_r, L_m alike) with the rotor resistance ×r, the flux
-    /// model is the scaled machine's — target ℓ·L_m·i_d, time constant ℓ·T_r/r — and the slip
-    /// is the machine's `r·R_r·i_q/(ℓ·L_r·i_d)` at the flux it builds; the estimate is
-    /// rescaled with ℓ; bad scales are ignored.
     /// [`IfocConfig::falling_flux_current`]: a flux at or below its target gets the target's
     /// current, and so does any flux when the fall time is no faster than the rotor's T_r;
     /// a flux well above it gets no current (never a negative one); and a flux a little
@@ -769,6 +766,10 @@ mod tests {
         assert!((t_s - fall_s).abs() <= t_slow, "{t_s}");
     }
 
+    /// On the inductances ×ℓ (L_s, L_r, L_m alike) with the rotor resistance ×r, the flux
+    /// model is the scaled machine's — target ℓ·L_m·i_d, time constant ℓ·T_r/r — and the slip
+    /// is the machine's `r·R_r·i_q/(ℓ·L_r·i_d)` at the flux it builds; the estimate is
+    /// rescaled with ℓ; bad scales are ignored.
     #[test]
     fn the_inductance_scales_the_flux_model() {
         let m = MotorParams::delorenzo_dl10115a1().unwrap();

@@ -44,7 +44,9 @@
 //!
 //! **Box**: the template's factors, widened to hold the motor file's `[identification]`
 //! intervals (relative to its nominal values; L_s, L_r and L_m's widest together) and the
-//! rotor-resistance range the drive's estimate may take (`rotor_resistance_range`).
+//! rotor-resistance range the drive's estimate may take (`rotor_resistance_range`); that R_r
+//! hull is written back as the file's `rotor_resistance_range` (unless the estimate is off:
+//! a range of one value).
 
 use crate::certify::{CertifySpec, Check, certify, certify_current, certify_speed};
 use crate::pi_region::SpeedRegions;
@@ -413,10 +415,13 @@ pub fn tune(
     // template's box [1, 1.2] left its flying start's guess, the estimate range's middle
     // ×1.22, outside what the certificate covered; and the walkthrough's identified motor
     // widened the box down to ×0.921 where the estimate stopped at ×1, so that corner ran
-    // detuned and missed the campaign's tracking bound (5.80 of 5.78 rad/s).
+    // detuned and missed the campaign's tracking bound (5.80 of 5.78 rad/s). A range of one
+    // value is the estimate switched off: the box holds that value, the range stays.
     let [lo, hi] = spec.rotor_resistance_range;
     cert.rr_factor = [cert.rr_factor[0].min(lo), cert.rr_factor[1].max(hi)];
-    spec.rotor_resistance_range = cert.rr_factor;
+    if lo < hi {
+        spec.rotor_resistance_range = cert.rr_factor;
+    }
     // The stator seen below the rotor's corner.
     let k = motor.lm_h() / motor.lr_h();
     let sigma_ls = motor.ls_h() - motor.lm_h() * k;

@@ -187,7 +187,12 @@ mod tests {
             "brake_chopper = { on_v = 380.0, off_v = 350.0 }",
         ));
         assert_eq!(e.key.as_deref(), Some("protection.brake_chopper"), "{e}");
-        assert!(e.reason.contains("on_v = 380 lies above 370 V, where the drive starts cutting"), "{e}");
+        assert!(
+            e.reason.contains(
+                "on_v = 380, off_v = 350: need 0 < off_v < on_v < 370 V, where the drive starts cutting"
+            ),
+            "{e}"
+        );
         // Reversed interval.
         let e = err(&replace("rr_factor = [1.0, 2.0]", "rr_factor = [2.0, 1.0]"));
         assert_eq!(e.key.as_deref(), Some("certify.rr_factor"), "{e}");

@@ -1379,10 +1379,10 @@ fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<(), 
         eprintln!("hil-sim: {} — {}", b.name, b.about);
         // Not refused (a scenario may mean to trip), but said: found by trying a 310 V
         // scenario on the 3 300 V template, which tripped at once and exited 0.
-        let (vdc, p) = (b.scenario.vdc_v, &b.spec.protection);
-        if !(vdc >= p.vdc_min_v && vdc <= p.vdc_max_v) {
+        let (vdc_v, p) = (b.scenario.vdc_v, &b.spec.protection);
+        if !(vdc_v >= p.vdc_min_v && vdc_v <= p.vdc_max_v) {
             eprintln!(
-                "hil-sim: note: the scenario's bus, {vdc} V, lies outside the drive's range ({} … {} V): \
+                "hil-sim: note: the scenario's bus, {vdc_v} V, lies outside the drive's range ({} … {} V): \
                  its supervisor trips on it (DcBusUndervoltage below, DcBusOvervoltage above)",
                 p.vdc_min_v, p.vdc_max_v
             );
