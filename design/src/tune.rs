@@ -919,6 +919,14 @@ mod tests {
         assert_eq!(t.certify.rr_factor, controller_core::mras::DEFAULT_RANGE);
         let written = drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap();
         assert_eq!(written.certify.unwrap().rr_factor, controller_core::mras::DEFAULT_RANGE);
+        // A range of one value is the estimate switched off: it stays so (the box holds it).
+        let off = template.replace("[controller]\n", "[controller]\nrotor_resistance_range = [1.0, 1.0]\n");
+        assert_ne!(off, template);
+        let t = tune(Path::new("off.toml"), &off, &m, None, Structure::default()).unwrap();
+        assert_eq!(t.spec.rotor_resistance_range, [1.0, 1.0]);
+        assert_eq!(t.certify.rr_factor, [1.0, 1.2]);
+        let written = drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap();
+        assert_eq!(written.spec.rotor_resistance_range, [1.0, 1.0]);
     }
 
     /// A template sized for motor `m` on a 310 V bus: rated flux 0.9·(V_dc/√3)/(2π·50 Hz),
