@@ -1560,9 +1560,10 @@ struct SwitchWatch([PhaseDirections; 3]);
 /// apart and copied them in: 264 B of flash).
 impl Default for SwitchWatch {
     fn default() -> Self {
-        const NONE: Direction = Direction::NONE;
-        const NEW: SwitchWatch =
-            SwitchWatch([PhaseDirections { positive: NONE, negative: NONE, open: false, short: 0 }; 3]);
+        const NEW: SwitchWatch = SwitchWatch(
+            [PhaseDirections { positive: Direction::NONE, negative: Direction::NONE, open: false, short: 0 };
+                3],
+        );
         NEW
     }
 }
