@@ -1992,13 +1992,14 @@ impl Drive {
 
     /// One PWM period: the slow step on every N-th call, then the fast step.
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
-        if self.steps_to_slow == 0 {
+        let after_slow = self.steps_to_slow == 0;
+        if after_slow {
             self.slow_step(m);
             self.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
         } else {
             self.steps_to_slow -= 1;
         }
-        self.fast_step(m)
+        self.fast(m, after_slow)
     }
 
     /// Speed/position loop, the operating point, and the slow supervisor: a non-finite
@@ -2570,6 +2571,15 @@ impl Drive {
 
     /// Current loop. See the module docs for the signal flow.
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
+        // The fast step right after the slow step (the phase checks are the slow step's own:
+        // `Drive::check_phases`).
+        let after_slow = self.steps_to_slow == self.cfg.slow_divider.saturating_sub(1);
+        self.fast(m, after_slow)
+    }
+
+    /// [`Drive::fast_step`], told whether it follows the slow step ([`Drive::step`] knows).
+    #[inline(always)]
+    fn fast(&mut self, m: &Measurements, after_slow: bool) -> FastOutput {
         if !self.measurements_ok(m) {
             self.trip_on(m);
         }
@@ -2598,9 +2608,10 @@ impl Drive {
             // The current references at the field angle of the slow step's plan.
             _ => cfg.ifoc.step(&mut self.ifoc, i_ab),
         };
-        // The fast step right after the slow step (the phase checks are the slow step's own:
-        // `Drive::check_phases`).
-        let after_slow = self.steps_to_slow == cfg.slow_divider.saturating_sub(1);
+        // What the telemetry reads of this step, stored now (not held to the step's end; the
+        // voltage applied at the end). A step that trips leaves the bridge off, and the
+        // telemetry reads nothing of it ([`Drive::telemetry`]).
+        (self.last.i_ab, self.last.i_ref_ab) = (i_ab, field.i_ref_ab);
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
         let v_usable = m.vdc_v * cfg.duty_max;
         let v_clamp = v_usable * (2.0 / 3.0);
@@ -2623,42 +2634,25 @@ impl Drive {
         self.v_req2_sum += v_req.alpha * v_req.alpha + v_req.beta * v_req.beta;
         self.v_req_steps = self.v_req_steps.saturating_add(1);
         // Advanced over the delay to the period it acts in, then the one vector limit: the
-        // modulator's hexagon.
-        let modulation = svpwm::modulate_sampled(v_req.rotate(self.delay_rotation), m.vdc_v, cfg.duty_max);
-        let duty = if cfg.dead_time_duty > 0.0 {
-            let i_ref = field.i_ref_ab.inverse_clarke();
-            svpwm::compensate_dead_time(modulation.duty, i_ref, cfg.dead_time_duty, cfg.dead_time_band_a)
-        } else {
-            modulation.duty
+        // modulator's hexagon, beyond which the rare path takes over.
+        let v_applied = v_req.rotate(self.delay_rotation);
+        let Some(duty) = svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_max) else {
+            return self.fast_step_limited(m, field.field, i_ab, v_req, after_slow);
         };
-        if modulation.saturated {
-            // The modulator's out-of-line path takes every request that is not finite too.
-            if !(v_req.alpha.is_finite() && v_req.beta.is_finite()) {
-                self.trip(Fault::NonFiniteOutput);
-                return off(self.mode);
-            }
-            self.track_applied(modulation.v_applied, &field, v_clamp);
-            self.trim_hold = true;
-            self.saturated_steps = self.saturated_steps.saturating_add(1);
-            if self.saturated_steps >= self.cfg.saturation_steps {
-                self.trip(Fault::LossOfControl);
-                return off(self.mode);
-            }
-        } else {
-            self.saturated_steps = 0;
+        self.saturated_steps = 0;
+        if !self.check_encoder_after_slow(
+            m,
+            field.field,
+            field.i_meas_dq,
+            v_applied,
+            v_usable,
+            running,
+            after_slow,
+        ) {
+            return off(self.mode);
         }
-        // Once per slow period (the fast step right after the slow step), while Running on
-        // the field-oriented references: the encoder against the machine model.
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
         if running && field_oriented && after_slow {
-            let w_e = self.model.pole_pairs() * m.omega_m_rad_s + field.omega_sl_rad_s;
-            let v_limit = svpwm::linear_limit_v(v_usable);
-            self.check_encoder(field.i_meas_dq, modulation.v_applied, field.field, w_e, v_limit);
-            if self.mode != Mode::Running {
-                return off(self.mode);
-            }
-        }
-        if running && field_oriented && after_slow && !modulation.saturated {
             // The rotor resistance from the reactive power (the loops' own request: not limited).
             let e = &self.model;
             let evidence = Evidence {
@@ -2673,19 +2667,100 @@ impl Drive {
         }
         if !running {
             // The magnetizing fit's voltage, in the field frame of this step (at speed the
-            // field turns within a slow period): what the machine gets — the request, or the
-            // modulator's limit of it at the current's step, back in the request's frame (the
-            // flux linkage the fit reads is the volt-seconds applied).
-            let v = if modulation.saturated {
-                let r = self.delay_rotation;
-                modulation.v_applied.rotate(SinCos { sin: -r.sin, cos: r.cos })
-            } else {
-                v_req
-            };
-            self.v_d_sum += v.park(field.field).d;
+            // field turns within a slow period): what the machine gets, the request.
+            self.v_d_sum += v_req.park(field.field).d;
         }
-        // What the telemetry reads of this step.
-        self.last = StepSignals { i_ab, i_ref_ab: field.i_ref_ab, v_ab: modulation.v_applied };
+        self.finish_fast_step(duty, v_applied, brake)
+    }
+
+    /// The rare path of the fast step: the modulator limited the request (beyond the hexagon,
+    /// not finite, or a bad bus). The loops' integrators track what it applied; a request
+    /// that is not finite trips [`Fault::NonFiniteOutput`], one held at the limit for
+    /// `saturation_time_s` [`Fault::LossOfControl`]; the rotor-resistance law does not listen
+    /// (its evidence is the loops' unlimited request).
+    #[cold]
+    #[inline(never)]
+    fn fast_step_limited(
+        &mut self,
+        m: &Measurements,
+        field: SinCos,
+        i_ab: AlphaBeta,
+        v_req: AlphaBeta,
+        after_slow: bool,
+    ) -> FastOutput {
+        // The common path's values, made again (the same operations): few of them held
+        // across its body, none through memory.
+        let (brake, running) = (self.brake, self.mode == Mode::Running);
+        let i_meas_dq = i_ab.park(field);
+        let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, brake };
+        let v_usable = m.vdc_v * self.cfg.duty_max;
+        let v_clamp = v_usable * (2.0 / 3.0);
+        let modulation =
+            svpwm::modulate_limited(v_req.rotate(self.delay_rotation), m.vdc_v, self.cfg.duty_max);
+        if !(v_req.alpha.is_finite() && v_req.beta.is_finite()) {
+            self.trip(Fault::NonFiniteOutput);
+            return off(self.mode);
+        }
+        self.track_applied(modulation.v_applied, field, v_clamp);
+        self.trim_hold = true;
+        self.saturated_steps = self.saturated_steps.saturating_add(1);
+        if self.saturated_steps >= self.cfg.saturation_steps {
+            self.trip(Fault::LossOfControl);
+            return off(self.mode);
+        }
+        let applied = modulation.v_applied;
+        if !self.check_encoder_after_slow(m, field, i_meas_dq, applied, v_usable, running, after_slow) {
+            return off(self.mode);
+        }
+        if !running {
+            // The magnetizing fit's voltage: the modulator's limit of the request at the
+            // current's step, back in the request's frame (the flux linkage the fit reads is
+            // the volt-seconds applied).
+            let r = self.delay_rotation;
+            let v = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
+            self.v_d_sum += v.park(field).d;
+        }
+        self.finish_fast_step(modulation.duty, applied, brake)
+    }
+
+    /// Once per slow period (the fast step right after the slow step), while Running on the
+    /// field-oriented references: the encoder against the machine model, on the voltage
+    /// `v_applied` the modulator applies. False when that check tripped (the bridge off).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn check_encoder_after_slow(
+        &mut self,
+        m: &Measurements,
+        field: SinCos,
+        i_meas_dq: Dq,
+        v_applied: AlphaBeta,
+        v_usable: f32,
+        running: bool,
+        after_slow: bool,
+    ) -> bool {
+        let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
+        if !(running && field_oriented && after_slow) {
+            return true;
+        }
+        let w_e = self.model.pole_pairs() * m.omega_m_rad_s + self.ifoc.omega_sl_rad_s();
+        let v_limit = svpwm::linear_limit_v(v_usable);
+        self.check_encoder(i_meas_dq, v_applied, field, w_e, v_limit);
+        self.mode == Mode::Running
+    }
+
+    /// The fast step's end on either path: the dead-time compensation of the duties, what
+    /// the telemetry reads of this step, the output.
+    #[inline(always)]
+    fn finish_fast_step(&mut self, duty: Abc, v_applied: AlphaBeta, brake: bool) -> FastOutput {
+        let cfg = &self.cfg;
+        let duty = if cfg.dead_time_duty > 0.0 {
+            // This step's references (stored by the step).
+            let i_ref = self.last.i_ref_ab.inverse_clarke();
+            svpwm::compensate_dead_time(duty, i_ref, cfg.dead_time_duty, cfg.dead_time_band_a)
+        } else {
+            duty
+        };
+        self.last.v_ab = v_applied;
         FastOutput { phases: PhaseCommand::Duty(duty), mode: self.mode, brake }
     }
 
@@ -2726,13 +2801,13 @@ impl Drive {
     /// advance): back into the loops' frame, and their integrators track it.
     #[cold]
     #[inline(never)]
-    fn track_applied(&mut self, applied: AlphaBeta, field: &IfocOutput, v_clamp: f32) {
+    fn track_applied(&mut self, applied: AlphaBeta, field: SinCos, v_clamp: f32) {
         let r = self.delay_rotation;
         let back = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
         let v = match self.cfg.current_frame {
             CurrentFrame::Stationary => [back.alpha, back.beta],
             CurrentFrame::Synchronous => {
-                let dq = back.park(field.field);
+                let dq = back.park(field);
                 [dq.d, dq.q]
             }
         };

@@ -133,6 +133,14 @@ pub trait Scalar:
         let x = if self < lo { lo } else { self };
         if x > hi { hi } else { x }
     }
+
+    /// `self.limit(-l, l)`, the same value for every input: f32 tests `|self| ≤ l` first
+    /// and limits only when it fails (out of line — an integrator at its clamp is the rare
+    /// case): 4 instructions instead of 8 on the Cortex-M4F, whose FPU has no min/max.
+    #[inline]
+    fn limit_symmetric(self, l: Self) -> Self {
+        self.limit(-l, l)
+    }
 }
 
 impl Scalar for f32 {
@@ -146,6 +154,19 @@ impl Scalar for f32 {
     fn to_f64(self) -> f64 {
         f64::from(self)
     }
+    #[inline]
+    fn limit_symmetric(self, l: Self) -> Self {
+        // |x| ≤ l leaves `limit(−l, l)` nothing to do (l ≥ |x| ≥ 0); its failure — beyond the
+        // limit, a NaN x or l, a negative l — takes the general limit.
+        if self.abs() <= l { self } else { limit_symmetric_rare(self, l) }
+    }
+}
+
+/// [`Scalar::limit_symmetric`]'s rare path for f32.
+#[cold]
+#[inline(never)]
+fn limit_symmetric_rare(x: f32, l: f32) -> f32 {
+    x.limit(-l, l)
 }
 
 impl Scalar for f64 {
@@ -256,6 +277,36 @@ mod tests {
         let bits = (0..=u32::MAX).step_by(65_521).map(f32::from_bits);
         for x in special.chain(bits) {
             assert_eq!(finite_positive(x), x.is_finite() && x > 0.0, "{x:e} ({:#x})", x.to_bits());
+        }
+    }
+
+    #[test]
+    fn limit_symmetric_is_limit_for_every_input() {
+        let values = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            0.5,
+            -0.5,
+            2.0,
+            -2.0,
+            1e-45,
+            -1e-45,
+            3.4e38,
+            -3.4e38,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            -f32::NAN,
+            1.0000001,
+            -1.0000001,
+        ];
+        for x in values {
+            for l in values {
+                let (fast, slow) = (x.limit_symmetric(l), x.limit(-l, l));
+                assert_eq!(fast.to_bits(), slow.to_bits(), "x {x:e}, l {l:e}");
+            }
         }
     }
 

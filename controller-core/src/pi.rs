@@ -140,7 +140,7 @@ impl<T: Scalar> PiConfig<T> {
     #[inline]
     pub fn update_unlimited(&self, s: &mut PiState<T>, e: T, limit: T) -> T {
         let p = self.kp * e;
-        s.i_term = (s.i_term + self.ki_over_k * (e + s.e_prev)).limit(-limit, limit);
+        s.i_term = (s.i_term + self.ki_over_k * (e + s.e_prev)).limit_symmetric(limit);
         s.p_term = p;
         s.e_prev = e;
         p + s.i_term

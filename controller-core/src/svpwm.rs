@@ -71,25 +71,43 @@ pub fn modulate(v: AlphaBeta, vdc_v: f32) -> Modulation {
 /// out-of-line `modulate_limited` (with `saturated` set).
 #[inline]
 pub fn modulate_sampled(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
+    match duties_within(v, vdc_v, duty_max) {
+        Some(duty) => Modulation { duty, v_applied: v, saturated: false },
+        None => modulate_limited(v, vdc_v, duty_max),
+    }
+}
+
+/// [`modulate_sampled`]'s duties when `v` lies inside the hexagon on a positive, finite
+/// bus (then the voltage applied is `v`); `None` otherwise — a request beyond the hexagon,
+/// a non-finite one or a bad bus, for the caller's out-of-line path
+/// ([`modulate_sampled`]'s `modulate_limited`). The drive's fast step calls it directly, so
+/// that its common path keeps the duties in registers (merged with the limited path's
+/// result, they went through the stack: 11 instructions per fast step).
+#[inline]
+pub fn duties_within(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Option<Abc> {
     let abc = v.inverse_clarke();
-    let (hi, lo) = if abc.a > abc.b { (abc.a, abc.b) } else { (abc.b, abc.a) };
-    let max = if abc.c > hi { abc.c } else { hi };
-    let min = if abc.c < lo { abc.c } else { lo };
+    let (max, min) = extremes(abc);
     let span = max - min;
     let k = 1.0 / vdc_v;
     let s = span * k;
     // Inside the (scaled) hexagon on a positive, finite bus: false for a NaN span or bus, a
     // zero bus (s = ∞ or NaN), a negative one (k < 0) and an infinite one (k = 0).
     if !(s <= duty_max && k > 0.0) {
-        return modulate_limited(v, abc, max, span, vdc_v, duty_max);
+        return None;
     }
     let d_max = min_f32(0.5 + 0.5 * s, duty_max);
     let duty = |x: f32| d_max - (max - x) * k;
-    Modulation {
-        duty: Abc { a: duty(abc.a), b: duty(abc.b), c: duty(abc.c) },
-        v_applied: v,
-        saturated: false,
-    }
+    Some(Abc { a: duty(abc.a), b: duty(abc.b), c: duty(abc.c) })
+}
+
+/// The largest and the smallest phase of `abc`, by three comparisons (a NaN reaches the
+/// span `max − min`: see [`modulate_sampled`]).
+#[inline(always)]
+fn extremes(abc: Abc) -> (f32, f32) {
+    let (hi, lo) = if abc.a > abc.b { (abc.a, abc.b) } else { (abc.b, abc.a) };
+    let max = if abc.c > hi { abc.c } else { hi };
+    let min = if abc.c < lo { abc.c } else { lo };
+    (max, min)
 }
 
 /// [`modulate_sampled`] beyond the hexagon: the request scaled down to its boundary by
@@ -98,7 +116,11 @@ pub fn modulate_sampled(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
 /// positive and finite or a request that is not finite, ½ on every phase (zero voltage).
 #[cold]
 #[inline(never)]
-fn modulate_limited(v: AlphaBeta, abc: Abc, max: f32, span: f32, vdc_v: f32, duty_max: f32) -> Modulation {
+pub fn modulate_limited(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
+    // The same operations as `duties_within`'s, so the same values.
+    let abc = v.inverse_clarke();
+    let (max, min) = extremes(abc);
+    let span = max - min;
     let zero =
         Modulation { duty: Abc { a: 0.5, b: 0.5, c: 0.5 }, v_applied: AlphaBeta::default(), saturated: true };
     if !(finite_positive(vdc_v) && finite_positive(span)) {

@@ -600,7 +600,7 @@ impl ControlLoop {
     }
 
     /// The samples in SI units, with the encoder's last reading.
-    #[inline]
+    #[inline(always)]
     fn measurements(&self, s: &Samples) -> Measurements {
         let [a, b, c] = s.i_abc;
         let [sa, sb, sc] = &self.current;
