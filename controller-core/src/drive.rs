@@ -994,7 +994,14 @@ impl DriveConfig {
             cfg.stop_slow_steps,
             cfg.open_phase_slow_steps,
         ];
-        if r.bad || !cfg.mras.is_valid() || counts.contains(&0) || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
+        // The bus range as `new` validates it (the fast step's supervisor tests it as one
+        // unsigned range, `Drive::measurements_ok`).
+        let bus = cfg.vdc_min_v >= 0.0 && cfg.vdc_min_v < cfg.vdc_max_v;
+        if r.bad
+            || !bus
+            || !cfg.mras.is_valid()
+            || counts.contains(&0)
+            || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
         {
             return Err(DriveError::Raw);
         }
@@ -2423,13 +2430,14 @@ impl Drive {
         // positive level, so `bits ≤ max` is "finite, not negative, not above the maximum"
         // (a negative reading is named undervoltage, in every mode); the minimum (validated
         // ≥ 0) only while the bridge is active.
+        // `min ≤ bits ≤ max` as one unsigned comparison, `bits − min ≤ max − min` (the
+        // configuration has 0 ≤ min < max, `DriveConfig::new` and `from_raw`).
         let vdc_bits = m.vdc_v.to_bits();
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         let vdc_min_bits = if active { self.cfg.vdc_min_v.to_bits() } else { 0 };
         i_peak_bits <= self.cfg.i_trip_bits
             && abs_bits(i.a + i.b + i.c) <= self.cfg.i_sum_bits
-            && vdc_bits <= self.cfg.vdc_max_v.to_bits()
-            && vdc_bits >= vdc_min_bits
+            && vdc_bits.wrapping_sub(vdc_min_bits) <= self.cfg.vdc_max_v.to_bits().wrapping_sub(vdc_min_bits)
     }
 
     /// Which supervisor check of the fast step fails, in order of precedence: non-finite
@@ -2640,30 +2648,9 @@ impl Drive {
             return self.fast_step_limited(m, field.field, i_ab, v_req, after_slow);
         };
         self.saturated_steps = 0;
-        if !self.check_encoder_after_slow(
-            m,
-            field.field,
-            field.i_meas_dq,
-            v_applied,
-            v_usable,
-            running,
-            after_slow,
-        ) {
+        if after_slow && !self.after_slow_checks(m, field.field, field.i_meas_dq, v_applied, v_req, v_usable)
+        {
             return off(self.mode);
-        }
-        let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
-        if running && field_oriented && after_slow {
-            // The rotor resistance from the reactive power (the loops' own request: not limited).
-            let e = &self.model;
-            let evidence = Evidence {
-                i: field.i_meas_dq,
-                v: v_req.park(field.field),
-                w_e_rad_s: e.pole_pairs() * m.omega_m_rad_s + field.omega_sl_rad_s,
-                psi_r_wb: self.ifoc.psi_r_wb(),
-                v_limit_v: svpwm::linear_limit_v(v_usable),
-            };
-            let r = self.cfg.mras.update(self.ifoc.rotor_resistance_scale(), e, &evidence);
-            self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, r);
         }
         if !running {
             // The magnetizing fit's voltage, in the field frame of this step (at speed the
@@ -2721,6 +2708,42 @@ impl Drive {
             self.v_d_sum += v.park(field).d;
         }
         self.finish_fast_step(modulation.duty, applied, brake)
+    }
+
+    /// The common path's once-per-slow-period work, on the fast step right after the slow
+    /// step (out of line: one test per fast step): the encoder against the machine model on
+    /// the voltage applied, `v_applied`, then — Running on the field-oriented references —
+    /// the rotor-resistance law on the loops' request `v_req` (not limited here). False when
+    /// the encoder check tripped (the bridge off).
+    #[inline(never)]
+    fn after_slow_checks(
+        &mut self,
+        m: &Measurements,
+        field: SinCos,
+        i_meas_dq: Dq,
+        v_applied: AlphaBeta,
+        v_req: AlphaBeta,
+        v_usable: f32,
+    ) -> bool {
+        let running = self.mode == Mode::Running;
+        if !self.check_encoder_after_slow(m, field, i_meas_dq, v_applied, v_usable, running, true) {
+            return false;
+        }
+        let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
+        if running && field_oriented {
+            // The rotor resistance from the reactive power (the loops' own request).
+            let e = &self.model;
+            let evidence = Evidence {
+                i: i_meas_dq,
+                v: v_req.park(field),
+                w_e_rad_s: e.pole_pairs() * m.omega_m_rad_s + self.ifoc.omega_sl_rad_s(),
+                psi_r_wb: self.ifoc.psi_r_wb(),
+                v_limit_v: svpwm::linear_limit_v(v_usable),
+            };
+            let r = self.cfg.mras.update(self.ifoc.rotor_resistance_scale(), e, &evidence);
+            self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, r);
+        }
+        true
     }
 
     /// Once per slow period (the fast step right after the slow step), while Running on the
@@ -3010,6 +3033,16 @@ mod tests {
         let mut bad = raw;
         bad.u[raw::INTEGERS - 1] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+        // The bus range: 0 ≤ min < max, which the supervisor's one unsigned range test needs.
+        let at = |v: f32| raw.f.iter().position(|&x| x == v).unwrap();
+        let (min, max) = (at(cfg.vdc_min_v), at(cfg.vdc_max_v));
+        for (lo, hi) in
+            [(cfg.vdc_max_v, cfg.vdc_min_v), (cfg.vdc_max_v, cfg.vdc_max_v), (-1.0, cfg.vdc_max_v)]
+        {
+            let mut bad = raw;
+            (bad.f[min], bad.f[max]) = (lo, hi);
+            assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "bus {lo} … {hi}");
+        }
         // New speed gains in f32 equal a rebuild from the design values.
         let moved = cfg.with_saturated_p(0.08, 1.5).unwrap();
         let spec = DriveSpec { speed_law: SpeedLaw::SaturatedP { kp: 0.08, tau_max_nm: 1.5 }, ..test_spec() };

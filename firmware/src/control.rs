@@ -544,7 +544,9 @@ impl ControlLoop {
         if s.hardware_break {
             self.drive.trip(Fault::HardwareBreak);
         }
-        let bridge = match self.precharge(s) {
+        // Running with the bridge on (the common case) needs no pre-charge check.
+        let precharge = if self.bridge_on && self.precharge_left == 0 { None } else { self.precharge(s) };
+        let bridge = match precharge {
             Some(b) => b,
             None => self.control(s),
         };
