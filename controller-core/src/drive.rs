@@ -713,6 +713,8 @@ impl DriveConfig {
         if !(finite
             && p.vdc_min_v >= 0.0
             && p.vdc_min_v < p.vdc_max_v
+            // As stored: two limits that round to one f32 would be refused by `from_raw`.
+            && (p.vdc_min_v as f32) < (p.vdc_max_v as f32)
             && spec.i_ref_max_a > 0.0
             && p.i_trip_a > spec.i_ref_max_a
             && p.overspeed_rad_s > 0.0
@@ -816,7 +818,8 @@ impl DriveConfig {
             // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
             i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
             i_sum_bits: abs_bits((p.current_sum_max_a as f32).min(f32::MAX)),
-            vdc_min_v: p.vdc_min_v as f32,
+            // −0 as +0 (the same limit): the supervisor's bit test needs the sign bit clear.
+            vdc_min_v: if p.vdc_min_v == 0.0 { 0.0 } else { p.vdc_min_v as f32 },
             vdc_max_v: p.vdc_max_v as f32,
             overspeed_rad_s: p.overspeed_rad_s as f32,
             stall_speed_rad_s: (STALL_SPEED_FRACTION * p.overspeed_rad_s) as f32,
@@ -925,7 +928,9 @@ impl DriveConfig {
 
     /// The configuration from [`DriveConfig::to_raw`]'s numbers, checked without any design
     /// arithmetic: every float finite, the variant tags known, the divider and the step
-    /// counts at least 1. [`DriveError::Raw`] otherwise.
+    /// counts at least 1, the bus range `+0 ≤ min < max`, the rotor-resistance law's
+    /// configuration valid, the controlled stop's faults stoppable. [`DriveError::Raw`]
+    /// otherwise.
     pub fn from_raw(raw: &RawDriveConfig) -> Result<Self, DriveError> {
         let mut r = raw::Reader::new(raw);
         let current = CurrentControllerConfig::get(&mut r);
@@ -994,9 +999,9 @@ impl DriveConfig {
             cfg.stop_slow_steps,
             cfg.open_phase_slow_steps,
         ];
-        // The bus range as `new` validates it (the fast step's supervisor tests it as one
-        // unsigned range, `Drive::measurements_ok`).
-        let bus = cfg.vdc_min_v >= 0.0 && cfg.vdc_min_v < cfg.vdc_max_v;
+        // The bus range as `new` makes it, +0 for a zero minimum (the fast step's supervisor
+        // tests it as one unsigned range of the bits, `Drive::measurements_ok`).
+        let bus = cfg.vdc_min_v.is_sign_positive() && cfg.vdc_min_v < cfg.vdc_max_v;
         if r.bad
             || !bus
             || !cfg.mras.is_valid()
@@ -1899,6 +1904,9 @@ impl Drive {
                 self.envelope_age = 0;
                 self.trim = Dq::default();
                 self.trim_hold = false;
+                // Nothing of the steps before (the telemetry of the pre-charge's periods,
+                // before the first fast step).
+                self.last = StepSignals::default();
                 self.mode = Mode::Magnetizing;
                 Ok(())
             }
@@ -2430,8 +2438,10 @@ impl Drive {
         // positive level, so `bits ≤ max` is "finite, not negative, not above the maximum"
         // (a negative reading is named undervoltage, in every mode); the minimum (validated
         // ≥ 0) only while the bridge is active.
-        // `min ≤ bits ≤ max` as one unsigned comparison, `bits − min ≤ max − min` (the
-        // configuration has 0 ≤ min < max, `DriveConfig::new` and `from_raw`).
+        // `min ≤ bits ≤ max` as one unsigned comparison, `bits − min ≤ max − min` (H. S.
+        // Warren, Hacker's Delight, 2nd ed., §4-1), which needs `min ≤ max` as integers: the
+        // configuration has `+0 ≤ min < max` (`DriveConfig::new` stores a zero minimum as +0,
+        // `from_raw` refuses −0), so both bit patterns have the sign bit clear.
         let vdc_bits = m.vdc_v.to_bits();
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         let vdc_min_bits = if active { self.cfg.vdc_min_v.to_bits() } else { 0 };
@@ -2618,7 +2628,7 @@ impl Drive {
         };
         // What the telemetry reads of this step, stored now (not held to the step's end; the
         // voltage applied at the end). A step that trips leaves the bridge off, and the
-        // telemetry reads nothing of it ([`Drive::telemetry`]).
+        // telemetry reads nothing while it is off ([`Drive::telemetry`]); `enable` clears it.
         (self.last.i_ab, self.last.i_ref_ab) = (i_ab, field.i_ref_ab);
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
         let v_usable = m.vdc_v * cfg.duty_max;
@@ -2723,10 +2733,10 @@ impl Drive {
         i_meas_dq: Dq,
         v_applied: AlphaBeta,
         v_req: AlphaBeta,
-        v_usable: f32,
+        v_usable_v: f32,
     ) -> bool {
         let running = self.mode == Mode::Running;
-        if !self.check_encoder_after_slow(m, field, i_meas_dq, v_applied, v_usable, running, true) {
+        if !self.check_encoder_after_slow(m, field, i_meas_dq, v_applied, v_usable_v, running, true) {
             return false;
         }
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
@@ -2738,7 +2748,7 @@ impl Drive {
                 v: v_req.park(field),
                 w_e_rad_s: e.pole_pairs() * m.omega_m_rad_s + self.ifoc.omega_sl_rad_s(),
                 psi_r_wb: self.ifoc.psi_r_wb(),
-                v_limit_v: svpwm::linear_limit_v(v_usable),
+                v_limit_v: svpwm::linear_limit_v(v_usable_v),
             };
             let r = self.cfg.mras.update(self.ifoc.rotor_resistance_scale(), e, &evidence);
             self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, r);
@@ -2757,7 +2767,7 @@ impl Drive {
         field: SinCos,
         i_meas_dq: Dq,
         v_applied: AlphaBeta,
-        v_usable: f32,
+        v_usable_v: f32,
         running: bool,
         after_slow: bool,
     ) -> bool {
@@ -2766,7 +2776,7 @@ impl Drive {
             return true;
         }
         let w_e = self.model.pole_pairs() * m.omega_m_rad_s + self.ifoc.omega_sl_rad_s();
-        let v_limit = svpwm::linear_limit_v(v_usable);
+        let v_limit = svpwm::linear_limit_v(v_usable_v);
         self.check_encoder(i_meas_dq, v_applied, field, w_e, v_limit);
         self.mode == Mode::Running
     }
@@ -2997,8 +3007,35 @@ mod tests {
         Abc { a: step(i.a, v.a), b: step(i.b, v.b), c: step(i.c, v.c) }
     }
 
+    /// A zero bus minimum, written +0 or −0, is tested as the float comparisons test it: the
+    /// constructor stores +0 (−0's sign bit made the supervisor's unsigned range pass every
+    /// negative reading while the bridge was active), and two limits that one f32 holds are
+    /// refused by the constructor, not only by `from_raw`.
+    #[test]
+    fn a_zero_bus_minimum_is_tested_as_the_floats_are() {
+        for zero in [0.0, -0.0] {
+            let mut spec = test_spec();
+            spec.protection.vdc_min_v = zero;
+            let cfg = DriveConfig::new(&spec).unwrap();
+            assert_eq!(cfg.vdc_min_v.to_bits(), 0, "{zero}");
+            assert_eq!(DriveConfig::from_raw(&cfg.to_raw()), Ok(cfg));
+            let mut d = Drive::new(cfg);
+            d.enable().unwrap();
+            for vdc in [-5.0, -0.0, 0.0, 1e-30, 310.0, 399.0, 401.0, f32::NAN, -f32::NAN, f32::NEG_INFINITY] {
+                let m = Measurements { vdc_v: vdc, ..Default::default() };
+                assert_eq!(d.measurements_ok(&m), d.supervise(&m).is_none(), "min {zero}, bus {vdc}");
+            }
+            assert!(!d.measurements_ok(&Measurements { vdc_v: -5.0, ..Default::default() }));
+        }
+        let mut spec = test_spec();
+        (spec.protection.vdc_min_v, spec.protection.vdc_max_v) = (400.0, 400.00001);
+        assert_eq!(DriveConfig::new(&spec).err(), Some(DriveError::Protection), "one f32 for both limits");
+    }
+
     /// The raw form round-trips every field, fills its arrays exactly, and refuses a
-    /// non-finite number, an unknown variant and a zero divider.
+    /// non-finite number, an unknown variant, a zero divider, a controlled stop for a fault
+    /// that cannot have one, a bus range the supervisor's bit test cannot take and brake
+    /// thresholds out of order.
     #[test]
     fn raw_configuration_round_trips() {
         for frame in [CurrentFrame::Stationary, CurrentFrame::Synchronous] {
@@ -3033,16 +3070,25 @@ mod tests {
         let mut bad = raw;
         bad.u[raw::INTEGERS - 1] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
-        // The bus range: 0 ≤ min < max, which the supervisor's one unsigned range test needs.
-        let at = |v: f32| raw.f.iter().position(|&x| x == v).unwrap();
+        // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.
+        let at = |v: f32| {
+            assert_eq!(raw.f.iter().filter(|&&x| x == v).count(), 1, "{v} is one field's alone");
+            raw.f.iter().position(|&x| x == v).unwrap()
+        };
         let (min, max) = (at(cfg.vdc_min_v), at(cfg.vdc_max_v));
-        for (lo, hi) in
-            [(cfg.vdc_max_v, cfg.vdc_min_v), (cfg.vdc_max_v, cfg.vdc_max_v), (-1.0, cfg.vdc_max_v)]
-        {
+        for (lo, hi) in [
+            (cfg.vdc_max_v, cfg.vdc_min_v),
+            (cfg.vdc_max_v, cfg.vdc_max_v),
+            (-1.0, cfg.vdc_max_v),
+            (-0.0, cfg.vdc_max_v),
+        ] {
             let mut bad = raw;
             (bad.f[min], bad.f[max]) = (lo, hi);
             assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "bus {lo} … {hi}");
         }
+        let mut zero = raw;
+        zero.f[min] = 0.0;
+        assert!(DriveConfig::from_raw(&zero).is_ok(), "a zero minimum");
         // New speed gains in f32 equal a rebuild from the design values.
         let moved = cfg.with_saturated_p(0.08, 1.5).unwrap();
         let spec = DriveSpec { speed_law: SpeedLaw::SaturatedP { kp: 0.08, tau_max_nm: 1.5 }, ..test_spec() };

@@ -84,7 +84,7 @@ pub fn modulate_sampled(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
 /// that its common path keeps the duties in registers (merged with the limited path's
 /// result, they went through the stack: 11 instructions per fast step).
 #[inline]
-pub fn duties_within(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Option<Abc> {
+pub(crate) fn duties_within(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Option<Abc> {
     let abc = v.inverse_clarke();
     let (max, min) = extremes(abc);
     let span = max - min;
@@ -114,9 +114,11 @@ fn extremes(abc: Abc) -> (f32, f32) {
 /// `duty_max·V_dc/span` (the angle kept), the largest duty at `duty_max`, the smallest at 0
 /// (clamped: `duty_max − span·(duty_max/span)` may round below it); for a bus that is not
 /// positive and finite or a request that is not finite, ½ on every phase (zero voltage).
+/// Only for a request [`duties_within`] refused: one inside the hexagon it would scale *up*
+/// to the boundary.
 #[cold]
 #[inline(never)]
-pub fn modulate_limited(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
+pub(crate) fn modulate_limited(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modulation {
     // The same operations as `duties_within`'s, so the same values.
     let abc = v.inverse_clarke();
     let (max, min) = extremes(abc);

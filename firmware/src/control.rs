@@ -570,9 +570,7 @@ impl ControlLoop {
             self.precharge_left = 0;
             return None;
         }
-        if self.bridge_on && self.precharge_left == 0 {
-            return None; // running: the common case
-        }
+        // (Running with the bridge on, the common case, does not come here: `step`.)
         if matches!(self.calibration, Calibration::Running(_)) {
             return None; // the calibration undoes the enable
         }
