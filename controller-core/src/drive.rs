@@ -1850,6 +1850,14 @@ impl Drive {
         self.steps_to_slow == 0
     }
 
+    /// The last [`Drive::step`] ran the slow step, and the cadence has periods without one
+    /// (a slow divider above 1): the firmware leaves the link's requests to a period without
+    /// it, so that the longest period is the slow step's or a request's, not both.
+    pub fn slow_step_ran(&self) -> bool {
+        let divider = self.cfg.slow_divider;
+        divider > 1 && self.steps_to_slow == divider - 1
+    }
+
     /// Slow steps since a bridge last drove the rotor (saturating; `u32::MAX` from power-up):
     /// what decides whether the next enable measures the inductances
     /// ([`MrasConfig::demagnetized_after`]).
@@ -3030,6 +3038,25 @@ mod tests {
         let mut spec = test_spec();
         (spec.protection.vdc_min_v, spec.protection.vdc_max_v) = (400.0, 400.00001);
         assert_eq!(DriveConfig::new(&spec).err(), Some(DriveError::Protection), "one f32 for both limits");
+    }
+
+    /// `slow_step_ran`: after the period whose step ran the slow step, once in every
+    /// `slow_divider` periods; never with a divider of 1 (every period has the slow step, and
+    /// the firmware would never serve the link).
+    #[test]
+    fn the_slow_steps_period_is_known() {
+        for divider in [1u16, 2, 10] {
+            let mut d =
+                Drive::new(DriveConfig::new(&DriveSpec { slow_divider: divider, ..test_spec() }).unwrap());
+            let mut ran = 0;
+            for _ in 0..100 {
+                let due = d.slow_step_due();
+                d.step(&meas(310.0));
+                assert_eq!(d.slow_step_ran(), due && divider > 1, "divider {divider}");
+                ran += u32::from(d.slow_step_ran());
+            }
+            assert_eq!(ran, if divider > 1 { 100 / u32::from(divider) } else { 0 });
+        }
     }
 
     /// The raw form round-trips every field, fills its arrays exactly, and refuses a

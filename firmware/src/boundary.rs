@@ -157,15 +157,16 @@ impl<Q: Copy, A: Copy> Mailbox<Q, A> {
         true
     }
 
-    /// The interrupt: answer a posted request with `f` (nothing to do otherwise: one
-    /// atomic load).
-    pub fn serve(&self, f: impl FnOnce(&Q) -> A) {
+    /// The interrupt: answer a posted request with `f`'s reply, or leave it posted for a
+    /// later call when `f` gives none (nothing to do without a request: one atomic load).
+    pub fn serve(&self, f: impl FnOnce(&Q) -> Option<A>) {
         if self.state.load(Ordering::Acquire) != REQUEST {
             return;
         }
-        // SAFETY: REQUEST: the interrupt owns both slots, and `post` wrote the request.
+        // SAFETY: REQUEST: the interrupt owns both slots, and `post` wrote the request (a
+        // copy is read: the slot keeps it for a later call).
         let q = unsafe { (*self.request.get()).assume_init_read() };
-        let a = f(&q);
+        let Some(a) = f(&q) else { return };
         // SAFETY: as above.
         unsafe { (*self.reply.get()).write(a) };
         self.state.store(REPLY, Ordering::Release);
@@ -238,26 +239,29 @@ mod tests {
     }
 
     /// Post → serve → take; a second post waits for the reply to be taken; serving with
-    /// nothing posted does nothing.
+    /// nothing posted does nothing; a request the interrupt leaves stays posted.
     #[test]
     fn the_mailbox_answers_one_request_at_a_time() {
         let m: Mailbox<u32, u64> = Mailbox::new();
         let mut served = 0;
         m.serve(|_| {
             served += 1;
-            0
+            Some(0)
         });
         assert_eq!((served, m.take()), (0, None));
         assert!(m.post(7));
         assert!(!m.post(8), "busy until served and taken");
         assert_eq!(m.take(), None, "not served yet");
-        m.serve(|q| u64::from(*q) * 10);
+        m.serve(|_| None);
+        assert_eq!(m.take(), None, "left posted");
+        assert!(!m.post(8), "still busy");
+        m.serve(|q| Some(u64::from(*q) * 10));
         assert!(!m.post(9), "a reply waits");
         m.serve(|_| unreachable!("served once"));
         assert_eq!(m.take(), Some(70));
         assert_eq!(m.take(), None);
         assert!(m.post(9));
-        m.serve(|q| u64::from(*q));
+        m.serve(|q| Some(u64::from(*q)));
         assert_eq!(m.take(), Some(9));
     }
 }

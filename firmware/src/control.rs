@@ -533,6 +533,13 @@ impl ControlLoop {
         self.commission.as_ref().and_then(|(c, _)| c.record())
     }
 
+    /// The period just stepped ran the drive's slow step (not during the bootstrap
+    /// pre-charge, which holds the drive's cadence): [`crate::interrupt::Shared`] serves the
+    /// link's requests in the next period instead ([`Drive::slow_step_ran`]).
+    pub fn slow_period(&self) -> bool {
+        self.precharge_left == 0 && self.drive.slow_step_ran()
+    }
+
     /// The brake chopper's switch after the last step.
     pub fn brake(&self) -> bool {
         self.last.is_some_and(|o| o.brake)

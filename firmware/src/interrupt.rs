@@ -56,7 +56,10 @@ impl Shared {
     /// One control period after the samples are read: the output stage around the control
     /// step ([`Outputs::period`]), then the link's requests — the watchdog's stop and a
     /// posted command take effect from the next period — and the snapshot, if the link task
-    /// asked for one.
+    /// asked for one. A command and the snapshot wait for a period without the drive's slow
+    /// step ([`ControlLoop::slow_period`]: a period later at most), so that the longest
+    /// period is the slow step's or theirs, not the sum (`cost interrupt_worst_period`,
+    /// `cost interrupt_worst_command_period`); the watchdog's stop does not wait.
     pub fn control_period(
         &self,
         outputs: &mut Outputs,
@@ -72,8 +75,11 @@ impl Shared {
             self.watchdog_stop.store(false, Ordering::Relaxed);
             server::LinkWatchdog::stop(ctl);
         }
-        self.commands.serve(|(cmd, prepared, stats)| server::handle_board(ctl, cmd, *prepared, stats));
-        if self.snapshot_wanted.load(Ordering::Relaxed) {
+        // (`slow_period` is asked only with a request: nothing added to a period without.)
+        self.commands.serve(|(cmd, prepared, stats)| {
+            (!ctl.slow_period()).then(|| server::handle_board(ctl, cmd, *prepared, stats))
+        });
+        if self.snapshot_wanted.load(Ordering::Relaxed) && !ctl.slow_period() {
             self.snapshot_wanted.store(false, Ordering::Relaxed);
             self.snapshot.write(ctl.snapshot());
         }
@@ -137,6 +143,41 @@ mod tests {
         shared.request_snapshot();
         shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
         assert!(shared.snapshot.read().unwrap().bridge_on);
+    }
+
+    /// A command and a snapshot request that find the drive's slow step in their period
+    /// wait for the next one (the longest period is then the slow step's alone); the
+    /// watchdog's stop does not wait.
+    #[test]
+    fn the_links_requests_wait_for_a_period_without_the_slow_step() {
+        let shared = Shared::new();
+        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
+        let mut ctl = ControlLoop::at_rest_for_tests();
+        ctl.drive_mut().enable().unwrap();
+        let mut guard = 0;
+        while !(ctl.drive().slow_step_due() && ctl.drive().mode() == Mode::Magnetizing) && guard < 100 {
+            shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+            guard += 1;
+        }
+        assert!(guard < 100, "the pre-charge ends and a slow step comes");
+        assert!(shared.commands.post((BoardCommand::GetStatus, Prepared::Nothing, LinkStats::default())));
+        shared.request_snapshot();
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        assert!(ctl.slow_period());
+        assert_eq!(shared.commands.take(), None, "not served in the slow step's period");
+        assert_eq!(shared.snapshot.read(), None, "nor published");
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        assert!(!ctl.slow_period());
+        assert!(matches!(shared.commands.take(), Some(Reply::Status { .. })));
+        assert!(shared.snapshot.read().is_some());
+        // The watchdog's stop in a slow step's period: carried out in it.
+        while !ctl.drive().slow_step_due() {
+            shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        }
+        shared.watchdog_stop.store(true, Ordering::Relaxed);
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        assert!(ctl.slow_period());
+        assert_eq!(ctl.drive().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
     }
 
     #[test]

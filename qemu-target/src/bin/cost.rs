@@ -118,10 +118,32 @@ mod target {
         calls_before: u32,
         /// The deepest stack of a period, bytes (0: a command was not served).
         stack_bytes: usize,
+        /// The longest of [`N`] more periods, each timed alone, and of the periods serving a
+        /// command, in instructions (`WORST_RESOLUTION`; NaN: the drive did not run).
+        worst_period: f32,
+        /// The longest period serving a command.
+        worst_command_period: f32,
     }
 
     impl Interrupt {
-        const FAILED: Self = Self { period: f32::NAN, calls_before: 0, stack_bytes: 0 };
+        const FAILED: Self = Self {
+            period: f32::NAN,
+            calls_before: 0,
+            stack_bytes: 0,
+            worst_period: f32::NAN,
+            worst_command_period: f32::NAN,
+        };
+    }
+
+    /// A single call timed alone: SysTick's resolution, 40 instructions.
+    const WORST_RESOLUTION: u32 = INSTRUCTIONS_PER_TICK;
+
+    /// Instructions of one call of `f`, timed alone (less the timing's own, also measured
+    /// alone), to [`WORST_RESOLUTION`].
+    fn timed(ticks: &Ticks, f: impl FnOnce()) -> u32 {
+        let t0 = ticks.now();
+        f();
+        Ticks::elapsed(t0, ticks.now()) * INSTRUCTIONS_PER_TICK
     }
 
     /// Instructions per period of the firmware's control-interrupt body once its samples
@@ -189,6 +211,8 @@ mod target {
             i_ab = rehearsal.drive().telemetry().i_ref_ab_a;
         }
         let fetch = |j: u32| samples(table.get((j % N) as usize).copied().unwrap_or_default());
+        // The same periods again below, each timed alone, from here.
+        let mut again = c.clone();
         let period = per_call(ticks, |j| {
             step(&mut c, black_box(fetch(j)));
         });
@@ -197,6 +221,17 @@ mod target {
         let fetch_cost = per_call(ticks, |j| {
             black_box(fetch(j));
         });
+        // The longest period: the same N periods again, from a copy of the loop as it was
+        // before them, each timed alone. The average above is the processor's load; this is
+        // the 50 µs period's margin (a board's DWT reads the same: `Status`'s timing).
+        let empty = (0..8).map(|_| timed(ticks, || ())).min().unwrap_or(0);
+        let mut worst = 0;
+        for j in 0..N {
+            let s = black_box(fetch(j));
+            worst = worst.max(timed(ticks, || step(&mut again, s)));
+        }
+        let worst = worst.saturating_sub(empty);
+        let running_again = again.drive().mode() == Mode::Running;
         let before = CALIBRATION_SAMPLES + 1 + k + N;
         let running = c.drive().mode() == Mode::Running;
         // The interrupt's deepest stack: a period serving each command the link can post,
@@ -224,17 +259,33 @@ mod target {
         let sp = qemu_target::stack::pointer();
         let top = qemu_target::stack::paint();
         let mut served = true;
-        for (j, cmd) in (N..).zip(commands) {
+        let mut worst_command = 0;
+        let mut j = N;
+        for cmd in commands {
             served &= shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()));
             shared.request_snapshot();
-            step(&mut c, black_box(fetch(j)));
-            served &= shared.commands.take().is_some();
+            // Served in the period it is posted for, or in the next when that one has the
+            // drive's slow step (`Shared::control_period`).
+            let mut reply = None;
+            for _ in 0..2 {
+                let s = black_box(fetch(j));
+                j += 1;
+                worst_command = worst_command.max(timed(ticks, || step(&mut c, s)));
+                reply = shared.commands.take();
+                if reply.is_some() {
+                    break;
+                }
+            }
+            served &= reply.is_some();
         }
+        let worst_command = worst_command.saturating_sub(empty);
         let stack = qemu_target::stack::depth_below(sp, top);
         Interrupt {
             period: if running { period - fetch_cost } else { f32::NAN },
             calls_before: before,
             stack_bytes: if served { stack } else { 0 },
+            worst_period: if running && running_again { worst as f32 } else { f32::NAN },
+            worst_command_period: if running && served { worst_command as f32 } else { f32::NAN },
         }
     }
 
@@ -516,6 +567,14 @@ mod target {
         println!("cost interrupt_calls_before {}", isr.calls_before);
         println!("cost interrupt_period {:.1}", isr.period);
         println!("cost interrupt_fast_step {:.1}", isr.period - slow / divider as f32);
+        println!(
+            "cost interrupt_worst_period {:.0} (the longest of {N} periods, each timed alone, ±{WORST_RESOLUTION})",
+            isr.worst_period
+        );
+        println!(
+            "cost interrupt_worst_command_period {:.0} (the longest period serving a command the link posts, ±{WORST_RESOLUTION})",
+            isr.worst_command_period
+        );
         println!("cost part:adc_scaling_4ch {:.1}", adc);
         println!("cost part:clarke {:.1}", clarke);
         println!("cost part:icad_two_axes {:.1}", icad);
