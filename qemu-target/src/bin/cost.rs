@@ -12,8 +12,10 @@
 //! volts (`AdcScaling`) → `Drive::step` (the slow step every N-th period; the fast step:
 //! supervisor, Clarke, the IFOC's fast part, two ICAD channels, SVPWM) → compare values
 //! (`PwmScaling`) and MOE, the link's requests; `interrupt_fast_step` is a period less the
-//! drive's slow step's share — the figure issue 19's budget applies to. `period` and
-//! `fast_step` are the drive's own. The components are also measured alone to show what
+//! drive's slow step's share — the figure issue 19's budget applies to;
+//! `interrupt_worst_period` and `interrupt_worst_command_period` are the longest single
+//! periods (each timed alone, to SysTick's 40 instructions): the 50 µs period's margin, where
+//! the averages are the processor's load. `period` and `fast_step` are the drive's own. The components are also measured alone to show what
 //! dominates. Output: `cost <name> <instructions>` lines, then the stack depths
 //! (`qemu_target::stack`: painted, then scanned) of `Drive::step` and of the interrupt's
 //! body serving each command the link can post.
@@ -223,7 +225,7 @@ mod target {
         });
         // The longest period: the same N periods again, from a copy of the loop as it was
         // before them, each timed alone. The average above is the processor's load; this is
-        // the 50 µs period's margin (a board's DWT reads the same: `Status`'s timing).
+        // the 50 µs period's margin (a board's DWT reads it in cycles: `Status`'s timing).
         let empty = (0..8).map(|_| timed(ticks, || ())).min().unwrap_or(0);
         let mut worst = 0;
         for j in 0..N {
