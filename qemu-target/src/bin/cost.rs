@@ -598,7 +598,12 @@ mod target {
             isr.stack_bytes + qemu_target::stack::EXCEPTION_FRAME_FP_BYTES,
             qemu_target::stack::EXCEPTION_FRAME_FP_BYTES
         );
-        sh::exit(running && isr.stack_bytes > 0)
+        sh::exit(
+            running
+                && isr.stack_bytes > 0
+                && isr.worst_period.is_finite()
+                && isr.worst_command_period.is_finite(),
+        )
     }
 }
 
