@@ -109,6 +109,11 @@ impl OffsetCalibration {
     /// One conversion of the three channels (bridge off). `None` until `cfg.samples()`
     /// have been taken, then the verdict (and again for every further call: start a new
     /// calibration with `OffsetCalibration::default()`).
+    ///
+    /// `#[inline]` (and the verdict's): compiled in the caller's crate, so at the firmware's
+    /// opt-level "z" — the calibration runs once at start-up, and at controller-core's
+    /// opt-level 2 its verdict was unrolled over the three channels (−116 B of flash).
+    #[inline]
     pub fn add(
         &mut self,
         cfg: &CalibrationConfig,
@@ -129,6 +134,7 @@ impl OffsetCalibration {
         (self.n >= cfg.samples).then(|| self.verdict(cfg))
     }
 
+    #[inline]
     fn verdict(&self, cfg: &CalibrationConfig) -> Result<Offsets, CalibrationError> {
         let n = self.n.max(1) as f32;
         let nominal = f32::from(cfg.nominal_counts);
