@@ -886,7 +886,8 @@ impl BoardCommand {
 }
 
 impl Reply {
-    /// Serialise into `buf`. Returns the payload length.
+    /// Serialise into `buf`. Returns the payload length. `#[inline]`, as [`reply_frame`].
+    #[inline]
     pub fn encode(&self, buf: &mut [u8]) -> Result<usize, BufferFull> {
         let mut w = Writer::new(buf);
         match self {
@@ -1052,6 +1053,11 @@ pub fn command_frame(c: &Command, out: &mut [u8]) -> Result<usize, BufferFull> {
 }
 
 /// Encode a reply as a complete frame into `out`.
+///
+/// `#[inline]` (and [`Reply::encode`]): compiled in the caller's crate — in the firmware at
+/// its opt-level "z" rather than controller-core's 2, for the link task's replies, where
+/// speed does not matter (−136 B of flash).
+#[inline]
 pub fn reply_frame(r: &Reply, out: &mut [u8]) -> Result<usize, BufferFull> {
     let mut p = [0u8; MAX_PAYLOAD];
     let n = r.encode(&mut p)?;
