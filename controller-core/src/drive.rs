@@ -2680,7 +2680,7 @@ impl Drive {
             // field turns within a slow period): what the machine gets, the request.
             self.v_d_sum += v_req.park(field.field).d;
         }
-        self.finish_fast_step(duty, v_applied, brake)
+        self.finish_fast_step::<false>(duty, v_applied, brake)
     }
 
     /// The rare path of the fast step: the modulator limited the request (beyond the hexagon,
@@ -2730,7 +2730,7 @@ impl Drive {
             let v = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
             self.v_d_sum += v.park(field).d;
         }
-        self.finish_fast_step(modulation.duty, applied, brake)
+        self.finish_fast_step::<true>(modulation.duty, applied, brake)
     }
 
     /// The common path's once-per-slow-period work, on the fast step right after the slow
@@ -2796,13 +2796,25 @@ impl Drive {
 
     /// The fast step's end on either path: the dead-time compensation of the duties, what
     /// the telemetry reads of this step, the output.
+    /// `RARE`: on the rare path, whose dead-time compensation is made out of line
+    /// ([`svpwm::compensate_dead_time_rare`], the same values).
     #[inline(always)]
-    fn finish_fast_step(&mut self, duty: Abc, v_applied: AlphaBeta, brake: bool) -> FastOutput {
+    fn finish_fast_step<const RARE: bool>(
+        &mut self,
+        duty: Abc,
+        v_applied: AlphaBeta,
+        brake: bool,
+    ) -> FastOutput {
         let cfg = &self.cfg;
         let duty = if cfg.dead_time_duty > 0.0 {
             // This step's references (stored by the step).
             let i_ref = self.last.i_ref_ab.inverse_clarke();
-            svpwm::compensate_dead_time(duty, i_ref, cfg.dead_time_duty, cfg.dead_time_band_a)
+            let (dead, band) = (cfg.dead_time_duty, cfg.dead_time_band_a);
+            if RARE {
+                svpwm::compensate_dead_time_rare(duty, i_ref, dead, band)
+            } else {
+                svpwm::compensate_dead_time(duty, i_ref, dead, band)
+            }
         } else {
             duty
         };
