@@ -163,10 +163,11 @@ impl<Q: Copy, A: Copy> Mailbox<Q, A> {
         if self.state.load(Ordering::Acquire) != REQUEST {
             return;
         }
-        // SAFETY: REQUEST: the interrupt owns both slots, and `post` wrote the request (a
-        // copy is read: the slot keeps it for a later call).
-        let q = unsafe { (*self.request.get()).assume_init_read() };
-        let Some(a) = f(&q) else { return };
+        // SAFETY: REQUEST: the interrupt owns both slots (the task writes the request only
+        // in EMPTY), and `post` wrote the request; it is only read here, in place — not
+        // copied first: a request left posted costs no copy.
+        let q = unsafe { (*self.request.get()).assume_init_ref() };
+        let Some(a) = f(q) else { return };
         // SAFETY: as above.
         unsafe { (*self.reply.get()).write(a) };
         self.state.store(REPLY, Ordering::Release);

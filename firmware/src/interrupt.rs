@@ -26,13 +26,15 @@ pub type Request = (BoardCommand, Prepared, LinkStats);
 pub struct Shared {
     /// The control loop's state for the link task (telemetry, calibration, bridge on).
     pub snapshot: TripleBuffer<Snapshot>,
-    /// Commands in; the interrupt executes one after its step and leaves the reply.
+    /// Commands in; the interrupt executes one after its step — the first step without the
+    /// drive's slow step — and leaves the reply.
     pub commands: Mailbox<Request, Reply>,
     /// The link watchdog's stop, for the interrupt to carry out.
     pub watchdog_stop: AtomicBool,
     /// The link task wants a fresh snapshot: the interrupt publishes one after its next
-    /// step (a snapshot of every period, ≈ 200 B copied twice, cost the interrupt more
-    /// than its control step did; the task reads one every 10 ms at most).
+    /// step without the drive's slow step (a snapshot of every period, ≈ 200 B copied
+    /// twice, cost the interrupt more than its control step did; the task reads one every
+    /// 10 ms at most).
     snapshot_wanted: AtomicBool,
 }
 
@@ -47,8 +49,8 @@ impl Shared {
         }
     }
 
-    /// The link task: have the interrupt publish a snapshot after its next step (read it
-    /// from [`Shared::snapshot`] a period or more later).
+    /// The link task: have the interrupt publish a snapshot after its next step without the
+    /// slow step (read it from [`Shared::snapshot`] a period or two later).
     pub fn request_snapshot(&self) {
         self.snapshot_wanted.store(true, Ordering::Relaxed);
     }
@@ -56,10 +58,11 @@ impl Shared {
     /// One control period after the samples are read: the output stage around the control
     /// step ([`Outputs::period`]), then the link's requests — the watchdog's stop and a
     /// posted command take effect from the next period — and the snapshot, if the link task
-    /// asked for one. A command and the snapshot wait for a period without the drive's slow
-    /// step ([`ControlLoop::slow_period`]: a period later at most), so that the longest
-    /// period is the slow step's or theirs, not the sum (`cost interrupt_worst_period`,
-    /// `cost interrupt_worst_command_period`); the watchdog's stop does not wait.
+    /// asked for one. With a slow divider above 1, a command and the snapshot wait for a
+    /// period without the drive's slow step ([`ControlLoop::slow_period`]: a period later at
+    /// most), so that the longest period is the slow step's or theirs, not the sum (`cost
+    /// interrupt_worst_period`, `cost interrupt_worst_command_period`); the watchdog's stop
+    /// does not wait.
     pub fn control_period(
         &self,
         outputs: &mut Outputs,

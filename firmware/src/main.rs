@@ -511,7 +511,7 @@ mod target {
     }
 
     /// How long the link task waits for the control interrupt to execute a command, ms (the
-    /// interrupt serves one each 50 µs period).
+    /// interrupt serves one within two 50 µs periods: not in the drive's slow step's).
     const COMMAND_TIMEOUT_MS: u64 = 10;
 
     /// Commands in, replies and telemetry (every 10 ms) out; the link watchdog
@@ -543,8 +543,8 @@ mod target {
             isr_count = now;
             // The control loop's state, and requests to it, lock-free (`firmware::boundary`):
             // the snapshot the interrupt published after the last turn's request (an older
-            // one if no period has passed since), and a fresh one asked for the stream below
-            // and the next turn. Its fields read from the `Option` (a default `Snapshot`
+            // one if no period without the drive's slow step has passed since), and a fresh
+            // one asked for the stream below and the next turn. Its fields read from the `Option` (a default `Snapshot`
             // copied in took flash).
             let snapshot = SHARED.snapshot.read();
             SHARED.request_snapshot();

@@ -120,11 +120,14 @@ mod target {
         calls_before: u32,
         /// The deepest stack of a period, bytes (0: a command was not served).
         stack_bytes: usize,
-        /// The longest of [`N`] more periods, each timed alone, and of the periods serving a
-        /// command, in instructions (`WORST_RESOLUTION`; NaN: the drive did not run).
+        /// The longest of the [`N`] measured periods, run again from a copy of the loop and
+        /// each timed alone, in instructions (to `WORST_RESOLUTION`; NaN: the drive did not
+        /// run): no command posted, the capture idle.
         worst_period: f32,
-        /// The longest period serving a command.
+        /// The longest period serving a command (each the link can post, in turn), and its
+        /// command.
         worst_command_period: f32,
+        worst_command: &'static str,
     }
 
     impl Interrupt {
@@ -134,6 +137,7 @@ mod target {
             stack_bytes: 0,
             worst_period: f32::NAN,
             worst_command_period: f32::NAN,
+            worst_command: "",
         };
     }
 
@@ -143,8 +147,11 @@ mod target {
     /// Instructions of one call of `f`, timed alone (less the timing's own, also measured
     /// alone), to [`WORST_RESOLUTION`].
     fn timed(ticks: &Ticks, f: impl FnOnce()) -> u32 {
+        use core::sync::atomic::{Ordering::SeqCst, compiler_fence};
         let t0 = ticks.now();
+        compiler_fence(SeqCst);
         f();
+        compiler_fence(SeqCst);
         Ticks::elapsed(t0, ticks.now()) * INSTRUCTIONS_PER_TICK
     }
 
@@ -245,41 +252,52 @@ mod target {
             pre_samples: 0,
             decimation: 1,
         };
+        // Running, then (after the disable) Idle: a gain write that rebuilds the drive, and
+        // an enable that starts it.
+        let write_gains = BoardCommand::WriteSpeedGains { kp: gains.0, tau_max_nm: gains.1 };
         let commands = [
-            BoardCommand::GetStatus,
-            BoardCommand::ReadSpeedGains,
-            BoardCommand::WriteSpeedGains { kp: gains.0, tau_max_nm: gains.1 },
-            BoardCommand::SetReference(Reference::Speed(150.0)),
-            BoardCommand::ArmCapture(spec),
-            BoardCommand::ReadCapture { chunk: 0 },
-            BoardCommand::ClearFault,
-            BoardCommand::Refused,
-            BoardCommand::Stop,
-            BoardCommand::Enable,
-            BoardCommand::Disable,
+            ("GetStatus", BoardCommand::GetStatus),
+            ("ReadSpeedGains", BoardCommand::ReadSpeedGains),
+            ("WriteSpeedGains (refused: Running)", write_gains),
+            ("SetReference", BoardCommand::SetReference(Reference::Speed(150.0))),
+            ("ArmCapture", BoardCommand::ArmCapture(spec)),
+            ("ReadCapture", BoardCommand::ReadCapture { chunk: 0 }),
+            ("ClearFault", BoardCommand::ClearFault),
+            ("Refused", BoardCommand::Refused),
+            ("Stop", BoardCommand::Stop),
+            ("Enable (Running)", BoardCommand::Enable),
+            ("Disable", BoardCommand::Disable),
+            ("WriteSpeedGains (Idle)", write_gains),
+            ("Enable (Idle)", BoardCommand::Enable),
         ];
         let sp = qemu_target::stack::pointer();
         let top = qemu_target::stack::paint();
         let mut served = true;
-        let mut worst_command = 0;
+        let (mut worst_command, mut worst_name) = (0, "");
         let mut j = N;
-        for cmd in commands {
+        for (name, cmd) in commands {
             served &= shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()));
             shared.request_snapshot();
             // Served in the period it is posted for, or in the next when that one has the
-            // drive's slow step (`Shared::control_period`).
+            // drive's slow step (`Shared::control_period`): the period that served it timed.
             let mut reply = None;
             for _ in 0..2 {
                 let s = black_box(fetch(j));
                 j += 1;
-                worst_command = worst_command.max(timed(ticks, || step(&mut c, s)));
+                let t = timed(ticks, || step(&mut c, s));
                 reply = shared.commands.take();
                 if reply.is_some() {
+                    if t > worst_command {
+                        (worst_command, worst_name) = (t, name);
+                    }
                     break;
                 }
+                // Left posted: only in a period with the slow step.
+                served &= c.slow_period();
             }
             served &= reply.is_some();
         }
+        served &= c.drive().mode() == Mode::Magnetizing;
         let worst_command = worst_command.saturating_sub(empty);
         let stack = qemu_target::stack::depth_below(sp, top);
         Interrupt {
@@ -288,6 +306,7 @@ mod target {
             stack_bytes: if served { stack } else { 0 },
             worst_period: if running && running_again { worst as f32 } else { f32::NAN },
             worst_command_period: if running && served { worst_command as f32 } else { f32::NAN },
+            worst_command: worst_name,
         }
     }
 
@@ -574,8 +593,8 @@ mod target {
             isr.worst_period
         );
         println!(
-            "cost interrupt_worst_command_period {:.0} (the longest period serving a command the link posts, ±{WORST_RESOLUTION})",
-            isr.worst_command_period
+            "cost interrupt_worst_command_period {:.0} (the longest period serving a command the link posts: {}, ±{WORST_RESOLUTION})",
+            isr.worst_command_period, isr.worst_command
         );
         println!("cost part:adc_scaling_4ch {:.1}", adc);
         println!("cost part:clarke {:.1}", clarke);
