@@ -126,6 +126,19 @@ mod tests {
         Samples { i_abc: [2048; 3], vdc: 3100, encoder: 0, hardware_break: false }
     }
 
+    /// Periods at rest until the next one has no slow step of the drive (in which the link's
+    /// requests are served: `Shared::control_period`).
+    fn to_a_period_without_the_slow_step(
+        shared: &Shared,
+        outputs: &mut Outputs,
+        tim: &mut Timer,
+        ctl: &mut ControlLoop,
+    ) {
+        while ctl.drive().slow_step_due() {
+            shared.control_period(outputs, tim, ctl, at_rest());
+        }
+    }
+
     #[test]
     fn a_snapshot_is_published_after_the_period_that_follows_a_request_only() {
         let shared = Shared::new();
@@ -135,6 +148,7 @@ mod tests {
             shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
         }
         assert_eq!(shared.snapshot.read(), None, "nothing asked, nothing published");
+        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
         shared.request_snapshot();
         shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
         assert_eq!(shared.snapshot.read(), Some(ctl.snapshot()));
@@ -143,6 +157,7 @@ mod tests {
         shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
         let held = shared.snapshot.read().unwrap();
         assert!(!held.bridge_on && ctl.snapshot().bridge_on);
+        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
         shared.request_snapshot();
         shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
         assert!(shared.snapshot.read().unwrap().bridge_on);
@@ -188,6 +203,7 @@ mod tests {
         let shared = Shared::new();
         let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
         let mut ctl = ControlLoop::at_rest_for_tests();
+        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
         assert!(shared.commands.post((BoardCommand::Enable, Prepared::Nothing, LinkStats::default())));
         assert_eq!(shared.commands.take(), None, "not served before a period");
         shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
