@@ -534,8 +534,10 @@ impl ControlLoop {
     }
 
     /// The period just stepped ran the drive's slow step (not during the bootstrap
-    /// pre-charge, which holds the drive's cadence): [`crate::interrupt::Shared`] serves the
-    /// link's requests in the next period instead ([`Drive::slow_step_ran`]).
+    /// pre-charge, which holds the drive's cadence; its last period, and one a fault ends,
+    /// read the drive's last step — at worst a request waits one period it need not):
+    /// [`crate::interrupt::Shared`] serves the link's requests in the next period instead
+    /// ([`Drive::slow_step_ran`]).
     pub fn slow_period(&self) -> bool {
         self.precharge_left == 0 && self.drive.slow_step_ran()
     }
