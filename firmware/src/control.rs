@@ -243,7 +243,8 @@ pub struct ControlLoop {
     bridge_on: bool,
     /// Pre-charge periods left (0: none under way).
     precharge_left: u16,
-    /// The last period's samples, raw (the link's status reports them).
+    /// The raw samples of the period that served the last command (the link's `Status`
+    /// reports them): noted by the interrupt when it serves one, not in every period.
     readings: BoardReadings,
     /// The scope: the drive's measurements and output of chosen periods.
     capture: Capture<CAPTURE_DEPTH>,
@@ -453,9 +454,16 @@ impl ControlLoop {
         }
     }
 
-    /// The last period's raw samples.
+    /// The raw samples of the period that served the last command ([`Self::note_readings`]).
     pub fn readings(&self) -> BoardReadings {
         self.readings
+    }
+
+    /// Note this period's raw samples for the command about to be served (`Status` reports
+    /// them). Called by the interrupt only when it serves a command: stored in every period,
+    /// they cost 10 instructions of each.
+    pub fn note_readings(&mut self, s: &Samples) {
+        self.readings = BoardReadings { i_abc_counts: s.i_abc, vdc_counts: s.vdc, encoder_counts: s.encoder };
     }
 
     /// Where the offset calibration stands.
@@ -549,7 +557,6 @@ impl ControlLoop {
 
     /// One PWM period: the control interrupt.
     pub fn step(&mut self, s: &Samples) -> Bridge {
-        self.readings = BoardReadings { i_abc_counts: s.i_abc, vdc_counts: s.vdc, encoder_counts: s.encoder };
         if s.hardware_break {
             self.drive.trip(Fault::HardwareBreak);
         }

@@ -68,9 +68,11 @@ impl Shared {
         outputs: &mut Outputs,
         hw: &mut impl OutputStage,
         ctl: &mut ControlLoop,
-        samples: Samples,
+        mut samples: Samples,
     ) -> Bridge {
-        let bridge = outputs.period(hw, ctl, samples);
+        // By reference: kept for a command's `Status` below (moved in, at opt-level "z" its
+        // copy was a `memcpy` call in every period).
+        let bridge = outputs.period(hw, ctl, &mut samples);
         // Only this side clears the flags and the task only sets them (on one core: the
         // task cannot run between the load and the store), so a load and a store do what
         // a swap's exclusive-access loop would.
@@ -80,7 +82,10 @@ impl Shared {
         }
         // (`slow_period` is asked only with a request: nothing added to a period without.)
         self.commands.serve(|(cmd, prepared, stats)| {
-            (!ctl.slow_period()).then(|| server::handle_board(ctl, cmd, *prepared, stats))
+            (!ctl.slow_period()).then(|| {
+                ctl.note_readings(&samples);
+                server::handle_board(ctl, cmd, *prepared, stats)
+            })
         });
         if self.snapshot_wanted.load(Ordering::Relaxed) && !ctl.slow_period() {
             self.snapshot_wanted.store(false, Ordering::Relaxed);
@@ -196,6 +201,24 @@ mod tests {
         shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
         assert!(ctl.slow_period());
         assert_eq!(ctl.drive().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
+    }
+
+    /// `Status` reports the raw samples of the period that serves it (noted then, not in
+    /// every period).
+    #[test]
+    fn status_reports_the_samples_of_the_period_that_serves_it() {
+        let shared = Shared::new();
+        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
+        let mut ctl = ControlLoop::at_rest_for_tests();
+        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
+        assert!(shared.commands.post((BoardCommand::GetStatus, Prepared::Nothing, LinkStats::default())));
+        let s = Samples { i_abc: [2050, 2047, 2046], vdc: 3105, encoder: 12, hardware_break: false };
+        shared.control_period(&mut outputs, &mut tim, &mut ctl, s);
+        let Some(Reply::Status { readings, .. }) = shared.commands.take() else { panic!("a status") };
+        assert_eq!(
+            (readings.i_abc_counts, readings.vdc_counts, readings.encoder_counts),
+            (s.i_abc, s.vdc, s.encoder)
+        );
     }
 
     #[test]

@@ -51,7 +51,7 @@ impl Outputs {
         &mut self,
         hw: &mut impl OutputStage,
         ctl: &mut ControlLoop,
-        mut samples: Samples,
+        samples: &mut Samples,
     ) -> Bridge {
         let flagged = hw.break_flag();
         let lost = self.armed && !hw.outputs_enabled();
@@ -59,7 +59,7 @@ impl Outputs {
             hw.clear_break_flag();
         }
         samples.hardware_break |= flagged || lost;
-        let bridge = ctl.step(&samples);
+        let bridge = ctl.step(samples);
         hw.set_brake(ctl.brake());
         match bridge {
             Bridge::Compare(ccr) => {
@@ -173,7 +173,7 @@ mod tests {
                 (Outputs::new(), ModelTimer { pulse_at: Some(pulse_op), ..Default::default() });
             let mut fired_in = None;
             for k in 0..8 {
-                out.period(&mut hw, &mut ctl, at_rest());
+                out.period(&mut hw, &mut ctl, &mut at_rest());
                 if hw.fired && fired_in.is_none() {
                     fired_in = Some(k);
                 }
@@ -200,7 +200,7 @@ mod tests {
         ctl.calibrate_at_rest();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
         let bus = |out: &mut Outputs, hw: &mut ModelTimer, ctl: &mut ControlLoop, code: u16| {
-            out.period(hw, ctl, Samples { vdc: code, ..at_rest() });
+            out.period(hw, ctl, &mut Samples { vdc: code, ..at_rest() });
             hw.brake
         };
         let sweep = [(3590, false), (3601, true), (3550, true), (3501, true), (3499, false), (3550, false)];
@@ -251,17 +251,17 @@ mod tests {
         let mut ctl = ControlLoop::at_rest_for_tests();
         let (mut out, mut hw) = (Outputs::new(), Count::default());
         for _ in 0..10 {
-            assert_eq!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Off);
+            assert_eq!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Off);
         }
         ctl.drive_mut().enable().unwrap();
         for _ in 0..100 {
-            assert!(matches!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Compare(_)));
+            assert!(matches!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Compare(_)));
         }
         assert_eq!(hw.1, 1);
         assert!(hw.0.moe);
         // MOE cleared behind the firmware's back (a break whose flag was lost): a fault.
         hw.0.moe = false;
-        assert_eq!(out.period(&mut hw, &mut ctl, at_rest()), Bridge::Off);
+        assert_eq!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Off);
         assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak));
         assert_eq!(hw.1, 1);
     }
@@ -276,12 +276,12 @@ mod tests {
         ctl.drive_mut().enable().unwrap();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
         for _ in 0..10 {
-            out.period(&mut hw, &mut ctl, at_rest());
+            out.period(&mut hw, &mut ctl, &mut at_rest());
         }
         assert!(hw.moe);
         // The bus above the shipped chopper's 360 V: the brake is on when the stop comes.
-        let high_bus = Samples { vdc: 3700, ..at_rest() };
-        out.period(&mut hw, &mut ctl, high_bus);
+        let mut high_bus = Samples { vdc: 3700, ..at_rest() };
+        out.period(&mut hw, &mut ctl, &mut high_bus);
         assert!(hw.brake && hw.moe);
         let mut masked = false;
         stop_for_good(|| masked = true, &mut hw);
@@ -289,7 +289,7 @@ mod tests {
         hw.interrupts_masked = masked;
         for _ in 0..1000 {
             if !hw.interrupts_masked {
-                out.period(&mut hw, &mut ctl, high_bus);
+                out.period(&mut hw, &mut ctl, &mut high_bus);
             }
             assert!(!hw.moe && !hw.brake);
         }
@@ -297,7 +297,7 @@ mod tests {
         // through an explicit enable: the drive is still Running, so `armed` finds MOE = 0
         // and latches a fault instead — the defence in depth the rules above give.
         hw.interrupts_masked = false;
-        out.period(&mut hw, &mut ctl, at_rest());
+        out.period(&mut hw, &mut ctl, &mut at_rest());
         assert!(!hw.moe);
         assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak));
     }

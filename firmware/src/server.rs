@@ -214,6 +214,13 @@ mod tests {
             handle(&mut c, &BoardCommand::of(&Command::Configure(spec)), &stats),
             Reply::Nack(NackReason::Unsupported)
         );
+        // The interrupt notes the raw samples of the period that serves a command.
+        c.note_readings(&crate::control::Samples {
+            i_abc: [2048; 3],
+            vdc: 3100,
+            encoder: 7,
+            hardware_break: false,
+        });
         assert_eq!(
             handle(&mut c, &BoardCommand::GetStatus, &stats),
             Reply::Status {
@@ -221,11 +228,10 @@ mod tests {
                 frames_ok: 5,
                 frame_errors: 2,
                 timing: Default::default(),
-                // The calibration's last sample: codes at the nominal zero, 310 V, encoder 0.
                 readings: link::BoardReadings {
                     i_abc_counts: [2048; 3],
                     vdc_counts: 3100,
-                    encoder_counts: 0
+                    encoder_counts: 7
                 },
             }
         );
