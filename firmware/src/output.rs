@@ -46,7 +46,9 @@ impl Outputs {
         Self { armed: false }
     }
 
-    /// One control period: break detection, the control step, the output stage.
+    /// One control period: break detection, the control step, the output stage. The break
+    /// flag or a lost MOE is added to `samples.hardware_break` (by reference: the caller keeps
+    /// the samples for a command's `Status`).
     pub fn period(
         &mut self,
         hw: &mut impl OutputStage,
