@@ -2671,7 +2671,8 @@ impl Drive {
             return self.fast_step_limited(m, field.field, i_ab, v_req, after_slow);
         };
         self.saturated_steps = 0;
-        if after_slow && !self.after_slow_checks(m, field.field, field.i_meas_dq, v_applied, v_req, v_usable)
+        if after_slow
+            && !self.after_slow_checks(m, field.field, field.i_meas_dq, v_applied, Some(v_req), v_usable)
         {
             return off(self.mode);
         }
@@ -2719,7 +2720,7 @@ impl Drive {
             return off(self.mode);
         }
         let applied = modulation.v_applied;
-        if !self.check_encoder_after_slow(m, field, i_meas_dq, applied, v_usable, running, after_slow) {
+        if after_slow && !self.after_slow_checks(m, field, i_meas_dq, applied, None, v_usable) {
             return off(self.mode);
         }
         if !running {
@@ -2733,11 +2734,12 @@ impl Drive {
         self.finish_fast_step::<true>(modulation.duty, applied, brake)
     }
 
-    /// The common path's once-per-slow-period work, on the fast step right after the slow
-    /// step (out of line: one test per fast step): the encoder against the machine model on
-    /// the voltage applied, `v_applied`, then — Running on the field-oriented references —
-    /// the rotor-resistance law on the loops' request `v_req` (not limited here). False when
-    /// the encoder check tripped (the bridge off).
+    /// The once-per-slow-period work, on the fast step right after the slow step (out of
+    /// line: one test per fast step), while Running on the field-oriented references: the
+    /// encoder against the machine model on the voltage applied, `v_applied`, then the
+    /// rotor-resistance law on the loops' request `v_req` — `None` when the modulator limited
+    /// it (the law listens to the unlimited request only). False when the encoder check
+    /// tripped (the bridge off).
     #[inline(never)]
     fn after_slow_checks(
         &mut self,
@@ -2745,53 +2747,32 @@ impl Drive {
         field: SinCos,
         i_meas_dq: Dq,
         v_applied: AlphaBeta,
-        v_req: AlphaBeta,
+        v_req: Option<AlphaBeta>,
         v_usable_v: f32,
     ) -> bool {
-        let running = self.mode == Mode::Running;
-        if !self.check_encoder_after_slow(m, field, i_meas_dq, v_applied, v_usable_v, running, true) {
+        let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
+        if !(self.mode == Mode::Running && field_oriented) {
+            return true;
+        }
+        let w_e_rad_s = self.model.pole_pairs() * m.omega_m_rad_s + self.ifoc.omega_sl_rad_s();
+        let v_limit_v = svpwm::linear_limit_v(v_usable_v);
+        self.check_encoder(i_meas_dq, v_applied, field, w_e_rad_s, v_limit_v);
+        if self.mode != Mode::Running {
             return false;
         }
-        let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
-        if running && field_oriented {
+        if let Some(v_req) = v_req {
             // The rotor resistance from the reactive power (the loops' own request).
-            let e = &self.model;
             let evidence = Evidence {
                 i: i_meas_dq,
                 v: v_req.park(field),
-                w_e_rad_s: e.pole_pairs() * m.omega_m_rad_s + self.ifoc.omega_sl_rad_s(),
+                w_e_rad_s,
                 psi_r_wb: self.ifoc.psi_r_wb(),
-                v_limit_v: svpwm::linear_limit_v(v_usable_v),
+                v_limit_v,
             };
-            let r = self.cfg.mras.update(self.ifoc.rotor_resistance_scale(), e, &evidence);
+            let r = self.cfg.mras.update(self.ifoc.rotor_resistance_scale(), &self.model, &evidence);
             self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, r);
         }
         true
-    }
-
-    /// Once per slow period (the fast step right after the slow step), while Running on the
-    /// field-oriented references: the encoder against the machine model, on the voltage
-    /// `v_applied` the modulator applies. False when that check tripped (the bridge off).
-    #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn check_encoder_after_slow(
-        &mut self,
-        m: &Measurements,
-        field: SinCos,
-        i_meas_dq: Dq,
-        v_applied: AlphaBeta,
-        v_usable_v: f32,
-        running: bool,
-        after_slow: bool,
-    ) -> bool {
-        let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
-        if !(running && field_oriented && after_slow) {
-            return true;
-        }
-        let w_e = self.model.pole_pairs() * m.omega_m_rad_s + self.ifoc.omega_sl_rad_s();
-        let v_limit = svpwm::linear_limit_v(v_usable_v);
-        self.check_encoder(i_meas_dq, v_applied, field, w_e, v_limit);
-        self.mode == Mode::Running
     }
 
     /// The fast step's end on either path: the dead-time compensation of the duties, what
