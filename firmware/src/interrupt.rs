@@ -131,41 +131,59 @@ mod tests {
         Samples { i_abc: [2048; 3], vdc: 3100, encoder: 0, hardware_break: false }
     }
 
-    /// Periods at rest until the next one has no slow step of the drive (in which the link's
-    /// requests are served: `Shared::control_period`).
-    fn to_a_period_without_the_slow_step(
-        shared: &Shared,
-        outputs: &mut Outputs,
-        tim: &mut Timer,
-        ctl: &mut ControlLoop,
-    ) {
-        while ctl.drive().slow_step_due() {
-            shared.control_period(outputs, tim, ctl, at_rest());
+    /// The interrupt's body with its shared state, a timer and the control loop (calibrated
+    /// at rest).
+    struct Rig {
+        shared: Shared,
+        outputs: Outputs,
+        tim: Timer,
+        ctl: ControlLoop,
+    }
+
+    impl Rig {
+        fn new() -> Self {
+            let (outputs, tim) = (Outputs::new(), Timer::default());
+            Self { shared: Shared::new(), outputs, tim, ctl: ControlLoop::at_rest_for_tests() }
+        }
+
+        /// One control period on samples `s`.
+        fn period(&mut self, s: Samples) {
+            self.shared.control_period(&mut self.outputs, &mut self.tim, &mut self.ctl, s);
+        }
+
+        /// Periods at rest until the next one has no slow step of the drive (in which the
+        /// link's requests are served: `Shared::control_period`).
+        fn step_to_a_period_without_the_slow_step(&mut self) {
+            while self.ctl.drive().slow_step_due() {
+                self.period(at_rest());
+            }
+        }
+
+        fn post(&self, cmd: BoardCommand) -> bool {
+            self.shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()))
         }
     }
 
     #[test]
     fn a_snapshot_is_published_after_the_period_that_follows_a_request_only() {
-        let shared = Shared::new();
-        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
-        let mut ctl = ControlLoop::at_rest_for_tests();
+        let mut r = Rig::new();
         for _ in 0..3 {
-            shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+            r.period(at_rest());
         }
-        assert_eq!(shared.snapshot.read(), None, "nothing asked, nothing published");
-        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
-        shared.request_snapshot();
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        assert_eq!(shared.snapshot.read(), Some(ctl.snapshot()));
+        assert_eq!(r.shared.snapshot.read(), None, "nothing asked, nothing published");
+        r.step_to_a_period_without_the_slow_step();
+        r.shared.request_snapshot();
+        r.period(at_rest());
+        assert_eq!(r.shared.snapshot.read(), Some(r.ctl.snapshot()));
         // The request is spent: the drive moves on, the snapshot read stays the one taken.
-        ctl.drive_mut().enable().unwrap();
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        let held = shared.snapshot.read().unwrap();
-        assert!(!held.bridge_on && ctl.snapshot().bridge_on);
-        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
-        shared.request_snapshot();
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        assert!(shared.snapshot.read().unwrap().bridge_on);
+        r.ctl.drive_mut().enable().unwrap();
+        r.period(at_rest());
+        let held = r.shared.snapshot.read().unwrap();
+        assert!(!held.bridge_on && r.ctl.snapshot().bridge_on);
+        r.step_to_a_period_without_the_slow_step();
+        r.shared.request_snapshot();
+        r.period(at_rest());
+        assert!(r.shared.snapshot.read().unwrap().bridge_on);
     }
 
     /// A command and a snapshot request that find the drive's slow step in their period
@@ -173,48 +191,44 @@ mod tests {
     /// watchdog's stop does not wait.
     #[test]
     fn the_links_requests_wait_for_a_period_without_the_slow_step() {
-        let shared = Shared::new();
-        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
-        let mut ctl = ControlLoop::at_rest_for_tests();
-        ctl.drive_mut().enable().unwrap();
+        let mut r = Rig::new();
+        r.ctl.drive_mut().enable().unwrap();
         let mut guard = 0;
-        while !(ctl.drive().slow_step_due() && ctl.drive().mode() == Mode::Magnetizing) && guard < 100 {
-            shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        while !(r.ctl.drive().slow_step_due() && r.ctl.drive().mode() == Mode::Magnetizing) && guard < 100 {
+            r.period(at_rest());
             guard += 1;
         }
         assert!(guard < 100, "the pre-charge ends and a slow step comes");
-        assert!(shared.commands.post((BoardCommand::GetStatus, Prepared::Nothing, LinkStats::default())));
-        shared.request_snapshot();
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        assert!(ctl.slow_period());
-        assert_eq!(shared.commands.take(), None, "not served in the slow step's period");
-        assert_eq!(shared.snapshot.read(), None, "nor published");
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        assert!(!ctl.slow_period());
-        assert!(matches!(shared.commands.take(), Some(Reply::Status { .. })));
-        assert!(shared.snapshot.read().is_some());
+        assert!(r.post(BoardCommand::GetStatus));
+        r.shared.request_snapshot();
+        r.period(at_rest());
+        assert!(r.ctl.slow_period());
+        assert_eq!(r.shared.commands.take(), None, "not served in the slow step's period");
+        assert_eq!(r.shared.snapshot.read(), None, "nor published");
+        r.period(at_rest());
+        assert!(!r.ctl.slow_period());
+        assert!(matches!(r.shared.commands.take(), Some(Reply::Status { .. })));
+        assert!(r.shared.snapshot.read().is_some());
         // The watchdog's stop in a slow step's period: carried out in it.
-        while !ctl.drive().slow_step_due() {
-            shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
+        while !r.ctl.drive().slow_step_due() {
+            r.period(at_rest());
         }
-        shared.watchdog_stop.store(true, Ordering::Relaxed);
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        assert!(ctl.slow_period());
-        assert_eq!(ctl.drive().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
+        r.shared.watchdog_stop.store(true, Ordering::Relaxed);
+        r.period(at_rest());
+        assert!(r.ctl.slow_period());
+        assert_eq!(r.ctl.drive().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
     }
 
     /// `Status` reports the raw samples of the period that serves it (noted then, not in
     /// every period).
     #[test]
     fn status_reports_the_samples_of_the_period_that_serves_it() {
-        let shared = Shared::new();
-        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
-        let mut ctl = ControlLoop::at_rest_for_tests();
-        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
-        assert!(shared.commands.post((BoardCommand::GetStatus, Prepared::Nothing, LinkStats::default())));
+        let mut r = Rig::new();
+        r.step_to_a_period_without_the_slow_step();
+        assert!(r.post(BoardCommand::GetStatus));
         let s = Samples { i_abc: [2050, 2047, 2046], vdc: 3105, encoder: 12, hardware_break: false };
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, s);
-        let Some(Reply::Status { readings, .. }) = shared.commands.take() else { panic!("a status") };
+        r.period(s);
+        let Some(Reply::Status { readings, .. }) = r.shared.commands.take() else { panic!("a status") };
         assert_eq!(
             (readings.i_abc_counts, readings.vdc_counts, readings.encoder_counts),
             (s.i_abc, s.vdc, s.encoder)
@@ -223,19 +237,17 @@ mod tests {
 
     #[test]
     fn the_watchdogs_stop_and_a_posted_command_act_in_the_next_period() {
-        let shared = Shared::new();
-        let (mut outputs, mut tim) = (Outputs::new(), Timer::default());
-        let mut ctl = ControlLoop::at_rest_for_tests();
-        to_a_period_without_the_slow_step(&shared, &mut outputs, &mut tim, &mut ctl);
-        assert!(shared.commands.post((BoardCommand::Enable, Prepared::Nothing, LinkStats::default())));
-        assert_eq!(shared.commands.take(), None, "not served before a period");
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        assert_eq!(shared.commands.take(), Some(Reply::Ack));
-        assert_eq!(ctl.drive().mode(), Mode::Magnetizing);
+        let mut r = Rig::new();
+        r.step_to_a_period_without_the_slow_step();
+        assert!(r.post(BoardCommand::Enable));
+        assert_eq!(r.shared.commands.take(), None, "not served before a period");
+        r.period(at_rest());
+        assert_eq!(r.shared.commands.take(), Some(Reply::Ack));
+        assert_eq!(r.ctl.drive().mode(), Mode::Magnetizing);
         // Magnetizing, the watchdog's controlled stop is the bridge off at once.
-        shared.watchdog_stop.store(true, Ordering::Relaxed);
-        shared.control_period(&mut outputs, &mut tim, &mut ctl, at_rest());
-        assert_eq!(ctl.drive().mode(), Mode::Idle);
-        assert!(!shared.watchdog_stop.load(Ordering::Relaxed), "the stop is carried out once");
+        r.shared.watchdog_stop.store(true, Ordering::Relaxed);
+        r.period(at_rest());
+        assert_eq!(r.ctl.drive().mode(), Mode::Idle);
+        assert!(!r.shared.watchdog_stop.load(Ordering::Relaxed), "the stop is carried out once");
     }
 }
