@@ -1,0 +1,483 @@
+//! The validated, discretised configuration ([`DriveConfig`]): made from a [`DriveSpec`] on
+//! the host, carried to the target as plain numbers ([`crate::raw`]) and checked there
+//! without design arithmetic.
+
+use super::spec::*;
+use crate::current::CurrentControllerConfig;
+use crate::envelope::EnvelopeConfig;
+use crate::fault::FaultSet;
+use crate::ifoc::IfocConfig;
+use crate::mras::{MrasConfig, MrasError};
+use crate::raw::{self, RawDriveConfig};
+use crate::speed::{PositionConfig, SpeedControllerConfig};
+use crate::supervisor::limits::abs_bits;
+use crate::supervisor::motion::{FOLLOWING_PROGRESS_FRACTION, STALL_SPEED_FRACTION};
+use crate::supervisor::phases::{OPEN_PHASE_COMMANDED_FRACTION, SWITCH_FOLLOWING_WINDOWS, SWITCH_WINDOWS};
+use crate::supervisor::thermal::ThermalConfig;
+use crate::svpwm;
+
+/// Validated, discretised drive configuration.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveConfig {
+    pub(super) current: CurrentControllerConfig<f32>,
+    pub(super) current_frame: CurrentFrame,
+    pub(super) ifoc: IfocConfig,
+    /// The rotor-resistance adaptation.
+    pub(super) mras: MrasConfig,
+    pub(super) speed: SpeedControllerConfig,
+    pub(super) position: PositionConfig,
+    pub(super) envelope: EnvelopeConfig,
+    /// d-axis current of the rated flux ψ_r*/L_m (limited to the current limit), A.
+    pub(super) i_d_rated_a: f32,
+    /// Running when ψ̂_r reaches this fraction of L_m·i_d*.
+    pub(super) magnetized_fraction: f32,
+    /// Slow steps of Magnetizing without reaching the running flux before
+    /// [`Fault::NoMotorCurrent`].
+    pub(super) magnetizing_steps_max: u32,
+    /// The field-weakening voltage target as a fraction of V_dc/√3.
+    pub(super) voltage_margin: f32,
+    /// The current trim's integral gain per slow step, 1 (bandwidth·T_slow).
+    pub(super) trim_gain: f32,
+    /// Dead time as a fraction of the PWM period (0: no compensation).
+    pub(super) dead_time_duty: f32,
+    /// The highest duty the modulator gives a phase, `1 − 2·window/T` less the dead-time
+    /// compensation added after it (1: no sampling window): also the fraction of the
+    /// measured bus the loops, the envelope and the checks count on.
+    pub(super) duty_max: f32,
+    /// Bus voltage at which the regeneration limit starts ([`REGEN_LIMIT_START`]), V.
+    pub(super) regen_start_v: f32,
+    /// Reciprocal of the regeneration limit's span, 1/V.
+    pub(super) inv_regen_span_v: f32,
+    /// Half-width of the dead-time compensation's ramp around zero current, A.
+    pub(super) dead_time_band_a: f32,
+    /// The voltage-margin regulator's integral gain per slow step, 1
+    /// ([`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]·T_slow).
+    pub(super) voltage_gain: f32,
+    /// The field angle is advanced by ω_e times this for the delay between sampling and the
+    /// voltage's application, s ([`VOLTAGE_DELAY_PERIODS`]·T).
+    pub(super) delay_s: f32,
+    pub(super) ts_s: f32,
+    pub(super) slow_divider: u16,
+    /// Bits of the phase-current trip level (finite, positive): see
+    /// [`Drive::measurements_ok`]; [`Drive::supervise`] reads the level back from them.
+    pub(super) i_trip_bits: u32,
+    /// Bits of `current_sum_max_a` (compared like `i_trip_bits`).
+    pub(super) i_sum_bits: u32,
+    pub(super) vdc_min_v: f32,
+    pub(super) vdc_max_v: f32,
+    pub(super) overspeed_rad_s: f32,
+    pub(super) stall_speed_rad_s: f32,
+    /// Slow steps of stall before the trip.
+    pub(super) stall_slow_steps: u32,
+    /// Slow steps of a following-error window.
+    pub(super) following_slow_steps: u32,
+    /// [`FOLLOWING_PROGRESS_FRACTION`]·T_slow/J, rad/s per N·m: the least progress per slow
+    /// step at the torque commanded.
+    pub(super) following_gain: f32,
+    /// The speed loop's output limit (saturation test of the stall check).
+    pub(super) speed_limit: f32,
+    /// Fast steps with the voltage request outside the hexagon before the trip.
+    pub(super) saturation_steps: u32,
+    /// Slow periods of implausible encoder before the trip.
+    pub(super) encoder_check_steps: u32,
+    /// Largest plausible change of the encoder's per-read increment, mechanical rad.
+    pub(super) encoder_jump_rad: f32,
+    /// Thermal models: 1/I_rated² (per A² of |i_αβ|²/2, the RMS phase current squared), the
+    /// update gain `1 − e^(−N·T_slow/τ)` and the trip level `overload_factor²` (`f32::MAX`
+    /// without a limit) — motor, then inverter.
+    pub(super) motor_thermal: ThermalConfig,
+    pub(super) inverter_thermal: ThermalConfig,
+    /// The faults answered by a controlled stop.
+    pub(super) stop_on: FaultSet,
+    /// Slow steps a controlled stop may take before the bridge goes off anyway.
+    pub(super) stop_slow_steps: u32,
+    /// Slow steps of the open-phase check's window (it samples the currents once per slow
+    /// period, with the stuck-switch check).
+    pub(super) open_phase_slow_steps: u32,
+    /// The open-phase check's commanded level, A, for the stuck-switch check
+    /// ([`OPEN_PHASE_COMMANDED_FRACTION`] × `i_d_rated_a`: derived in the slow step instead,
+    /// the firmware took 196 B more flash).
+    pub(super) switch_level_a: f32,
+    /// The stuck-switch check's weights of a new sample, 1 − exp(−T_slow/τ) with τ
+    /// [`SWITCH_WINDOWS`] and [`SWITCH_FOLLOWING_WINDOWS`] open-phase windows.
+    pub(super) switch_gains: [f32; 2],
+    /// Brake chopper on above this bus voltage (`f32::MAX` without a chopper: never), V.
+    pub(super) brake_on_v: f32,
+    /// … and off below this one, V.
+    pub(super) brake_off_v: f32,
+}
+
+impl DriveConfig {
+    /// The slow loop runs every `slow_divider()`-th fast step.
+    pub fn slow_divider(&self) -> u16 {
+        self.slow_divider
+    }
+
+    /// Validate and discretise.
+    pub fn new(spec: &DriveSpec) -> Result<Self, DriveError> {
+        let f = spec.pwm_frequency_hz;
+        if !(f.is_finite() && f > 0.0) {
+            return Err(DriveError::PwmFrequency);
+        }
+        if spec.slow_divider == 0 {
+            return Err(DriveError::SlowDivider);
+        }
+        let ts = 1.0 / f;
+        // Before the protection, whose defaults are derived from the flux's magnetizing
+        // current: a bad flux is named as such. Its magnetizing current ψ*/L_m must leave
+        // current for torque below the current limit — above it the references are clamped:
+        // a flux the drive never reaches and no torque (`design certify` certified ψ* = 50 Wb
+        // on a 4 A drive).
+        let i_d_rated_a = spec.flux_ref_wb / spec.motor.lm_h();
+        if !(spec.flux_ref_wb.is_finite()
+            && spec.flux_ref_wb > 0.0
+            && spec.flux_floor_wb < spec.flux_ref_wb
+            && i_d_rated_a < spec.i_ref_max_a)
+        {
+            return Err(DriveError::FluxReference);
+        }
+        let p = &spec.protection;
+        let finite = [
+            p.i_trip_a,
+            p.vdc_min_v,
+            p.vdc_max_v,
+            spec.i_ref_max_a,
+            p.overspeed_rad_s,
+            p.stall_time_s,
+            p.following_time_s,
+            p.current_sum_max_a,
+            p.saturation_time_s,
+            p.encoder_check_time_s,
+            p.encoder_jump_rad,
+            p.stop_time_s,
+            p.open_phase_time_s,
+        ]
+        .iter()
+        .all(|x| x.is_finite());
+        if !(finite
+            && p.vdc_min_v >= 0.0
+            && p.vdc_min_v < p.vdc_max_v
+            // As stored: two limits that round to one f32 would be refused by `from_raw`.
+            && (p.vdc_min_v as f32) < (p.vdc_max_v as f32)
+            && spec.i_ref_max_a > 0.0
+            && p.i_trip_a > spec.i_ref_max_a
+            && p.overspeed_rad_s > 0.0
+            && p.stall_time_s > 0.0
+            && p.following_time_s > 0.0
+            && p.current_sum_max_a > 0.0
+            && p.saturation_time_s > 0.0
+            && p.encoder_check_time_s > 0.0
+            && p.encoder_jump_rad > 0.0
+            && p.stop_time_s > 0.0
+            && p.open_phase_time_s > 0.0)
+        {
+            return Err(DriveError::Protection);
+        }
+        let (brake_on_v, brake_off_v) = match p.brake_chopper {
+            None => (f32::MAX, f32::MAX),
+            Some(b) if b.off_v > 0.0 && b.off_v < b.on_v && b.on_v < REGEN_LIMIT_START * p.vdc_max_v => {
+                (b.on_v as f32, b.off_v as f32)
+            }
+            Some(_) => return Err(DriveError::BrakeChopper),
+        };
+        let mf = spec.magnetized_fraction;
+        if !(mf > 0.0 && mf < 1.0) {
+            return Err(DriveError::MagnetizedFraction);
+        }
+        if !(spec.voltage_margin > 0.0 && spec.voltage_margin <= 1.0) {
+            return Err(DriveError::VoltageMargin);
+        }
+        let t_slow = ts * f64::from(spec.slow_divider);
+        let trim_bw = spec.current_trim_bandwidth_rad_s;
+        if !(trim_bw >= 0.0 && trim_bw * t_slow < 0.1) {
+            return Err(DriveError::CurrentTrim);
+        }
+        let dead_duty = spec.dead_time_compensation_s / ts;
+        if !(0.0..0.1).contains(&dead_duty) {
+            return Err(DriveError::DeadTime);
+        }
+        let duty_max = spec.duty_max();
+        if !(spec.sample_window_s >= 0.0 && duty_max >= DUTY_MAX_MIN) {
+            return Err(DriveError::SampleWindow);
+        }
+        // The flux model reaches mf·ψ* in T_r·ln(1/(1 − mf)) on the reference current; twice
+        // that, plus 20 ms for the current loops, is the most magnetizing may take. Counted
+        // in slow steps of the model's decay (no logarithm on the target: 640 B of flash).
+        let decay = libm::exp(-t_slow / spec.motor.tr_s());
+        let (mut left, mut steps) = (1.0f64, 0u32);
+        while left > 1.0 - mf && steps < 100_000_000 {
+            left *= decay;
+            steps += 1;
+        }
+        let magnetizing_s = 2.0 * f64::from(steps) * t_slow + 0.02;
+        // Static limit of the current controllers: the largest bus voltage we run on.
+        let current = CurrentControllerConfig::new(
+            &spec.current_law,
+            ts,
+            spec.discretization,
+            svpwm::linear_limit_v(p.vdc_max_v as f32) as f64,
+        )
+        .map_err(DriveError::Current)?;
+        let ifoc = IfocConfig::new(&spec.motor, ts, spec.flux_floor_wb, spec.i_ref_max_a)
+            .map_err(DriveError::Ifoc)?;
+        let mras = MrasConfig::new(
+            &spec.motor,
+            ts,
+            spec.slow_divider,
+            spec.rotor_resistance_range,
+            spec.inductance_range,
+        )
+        .map_err(|e| match e {
+            MrasError::InductanceRange => DriveError::InductanceRange,
+            MrasError::Range | MrasError::Rate => DriveError::RotorResistanceRange,
+        })?;
+        let speed = SpeedControllerConfig::new(&spec.speed_law, ts * f64::from(spec.slow_divider))
+            .map_err(DriveError::Speed)?;
+        let position = PositionConfig::new(spec.position.k_per_s, spec.position.omega_max_rad_s)
+            .map_err(DriveError::Position)?;
+        let i_d_rated_a = ifoc.flux_command(spec.flux_ref_wb as f32).i_d_a();
+        let open_phase_steps = libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32;
+        Ok(Self {
+            current,
+            current_frame: spec.current_frame,
+            ifoc,
+            mras,
+            speed,
+            position,
+            envelope: EnvelopeConfig::new(&spec.motor),
+            i_d_rated_a,
+            magnetized_fraction: mf as f32,
+            magnetizing_steps_max: libm::ceil(magnetizing_s / t_slow).clamp(1.0, 4e9) as u32,
+            voltage_margin: spec.voltage_margin as f32,
+            voltage_gain: (VOLTAGE_REGULATOR_BANDWIDTH_RAD_S * t_slow) as f32,
+            trim_gain: (trim_bw * t_slow) as f32,
+            dead_time_duty: dead_duty as f32,
+            duty_max: duty_max as f32,
+            regen_start_v: (REGEN_LIMIT_START * p.vdc_max_v) as f32,
+            inv_regen_span_v: (1.0 / ((REGEN_LIMIT_END - REGEN_LIMIT_START) * p.vdc_max_v)) as f32,
+            dead_time_band_a: (DEAD_TIME_BAND_FRACTION * spec.i_ref_max_a) as f32,
+            delay_s: (VOLTAGE_DELAY_PERIODS * ts) as f32,
+            ts_s: ts as f32,
+            slow_divider: spec.slow_divider,
+            // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
+            i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
+            i_sum_bits: abs_bits((p.current_sum_max_a as f32).min(f32::MAX)),
+            // −0 as +0 (the same limit): the supervisor's bit test needs the sign bit clear.
+            vdc_min_v: if p.vdc_min_v == 0.0 { 0.0 } else { p.vdc_min_v as f32 },
+            vdc_max_v: p.vdc_max_v as f32,
+            overspeed_rad_s: p.overspeed_rad_s as f32,
+            stall_speed_rad_s: (STALL_SPEED_FRACTION * p.overspeed_rad_s) as f32,
+            // At least one slow step; saturating for absurdly long times.
+            stall_slow_steps: libm::ceil(p.stall_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
+                as u32,
+            following_slow_steps: libm::ceil(p.following_time_s * f / f64::from(spec.slow_divider))
+                .clamp(1.0, 4e9) as u32,
+            following_gain: (FOLLOWING_PROGRESS_FRACTION * t_slow / spec.motor.j_kgm2()) as f32,
+            speed_limit: speed.output_limit(),
+            saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
+            encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
+                .clamp(1.0, 4e9) as u32,
+            // Finite in f32 too.
+            encoder_jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
+            motor_thermal: ThermalConfig::new(p.motor_thermal.as_ref(), t_slow)
+                .ok_or(DriveError::Protection)?,
+            inverter_thermal: ThermalConfig::new(p.inverter_thermal.as_ref(), t_slow)
+                .ok_or(DriveError::Protection)?,
+            stop_on: if p.stop_on.0 & !FaultSet::STOPPABLE.0 == 0 {
+                p.stop_on
+            } else {
+                return Err(DriveError::Protection);
+            },
+            stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
+                as u32,
+            open_phase_slow_steps: open_phase_steps.div_ceil(u32::from(spec.slow_divider)),
+            switch_level_a: OPEN_PHASE_COMMANDED_FRACTION * i_d_rated_a,
+            switch_gains: [SWITCH_WINDOWS, SWITCH_FOLLOWING_WINDOWS].map(|windows| {
+                (1.0 - libm::exp(-f64::from(spec.slow_divider) / (windows * open_phase_steps as f64))) as f32
+            }),
+            brake_on_v,
+            brake_off_v,
+        })
+    }
+}
+
+impl DriveConfig {
+    /// The configuration as plain numbers ([`crate::raw`]): what a host computes and the
+    /// firmware embeds.
+    pub fn to_raw(&self) -> RawDriveConfig {
+        self.write_raw().finish().0
+    }
+
+    pub(super) fn write_raw(&self) -> raw::Writer {
+        let mut w = raw::Writer::new();
+        self.current.put(&mut w);
+        w.u(match self.current_frame {
+            CurrentFrame::Stationary => 0,
+            CurrentFrame::Synchronous => 1,
+        });
+        self.ifoc.put(&mut w);
+        self.mras.put(&mut w);
+        self.speed.put(&mut w);
+        self.position.put(&mut w);
+        self.envelope.put(&mut w);
+        for x in [
+            self.i_d_rated_a,
+            self.magnetized_fraction,
+            self.voltage_margin,
+            self.trim_gain,
+            self.dead_time_duty,
+            self.duty_max,
+            self.switch_level_a,
+            self.switch_gains[0],
+            self.switch_gains[1],
+            self.dead_time_band_a,
+            self.regen_start_v,
+            self.inv_regen_span_v,
+            self.voltage_gain,
+            self.delay_s,
+            self.ts_s,
+            self.vdc_min_v,
+            self.vdc_max_v,
+            self.overspeed_rad_s,
+            self.stall_speed_rad_s,
+            self.following_gain,
+            self.speed_limit,
+            self.brake_on_v,
+            self.brake_off_v,
+            self.encoder_jump_rad,
+            self.motor_thermal.inv_rated2,
+            self.motor_thermal.gain,
+            self.motor_thermal.limit,
+            self.inverter_thermal.inv_rated2,
+            self.inverter_thermal.gain,
+            self.inverter_thermal.limit,
+        ] {
+            w.f(x);
+        }
+        for x in [
+            self.magnetizing_steps_max,
+            u32::from(self.slow_divider),
+            self.i_trip_bits,
+            self.i_sum_bits,
+            self.stall_slow_steps,
+            self.following_slow_steps,
+            self.saturation_steps,
+            self.encoder_check_steps,
+            self.stop_slow_steps,
+            self.open_phase_slow_steps,
+            self.stop_on.0,
+        ] {
+            w.u(x);
+        }
+        w
+    }
+
+    /// The configuration from [`DriveConfig::to_raw`]'s numbers, checked without any design
+    /// arithmetic: every float finite, the variant tags known, the divider and the step
+    /// counts at least 1, the bus range `+0 ≤ min < max`, the rotor-resistance law's
+    /// configuration valid, the controlled stop's faults stoppable. [`DriveError::Raw`]
+    /// otherwise.
+    pub fn from_raw(raw: &RawDriveConfig) -> Result<Self, DriveError> {
+        let mut r = raw::Reader::new(raw);
+        let current = CurrentControllerConfig::get(&mut r);
+        let current_frame = match r.u() {
+            0 => CurrentFrame::Stationary,
+            1 => CurrentFrame::Synchronous,
+            _ => return Err(DriveError::Raw),
+        };
+        let ifoc = IfocConfig::get(&mut r);
+        let mras = MrasConfig::get(&mut r);
+        let speed = SpeedControllerConfig::get(&mut r).ok_or(DriveError::Raw)?;
+        let position = PositionConfig::get(&mut r);
+        let envelope = EnvelopeConfig::get(&mut r);
+        let cfg = Self {
+            current,
+            current_frame,
+            ifoc,
+            mras,
+            speed,
+            position,
+            envelope,
+            i_d_rated_a: r.f(),
+            magnetized_fraction: r.f(),
+            voltage_margin: r.f(),
+            trim_gain: r.f(),
+            dead_time_duty: r.f(),
+            duty_max: r.f(),
+            switch_level_a: r.f(),
+            switch_gains: [r.f(), r.f()],
+            dead_time_band_a: r.f(),
+            regen_start_v: r.f(),
+            inv_regen_span_v: r.f(),
+            voltage_gain: r.f(),
+            delay_s: r.f(),
+            ts_s: r.f(),
+            vdc_min_v: r.f(),
+            vdc_max_v: r.f(),
+            overspeed_rad_s: r.f(),
+            stall_speed_rad_s: r.f(),
+            following_gain: r.f(),
+            speed_limit: r.f(),
+            brake_on_v: r.f(),
+            brake_off_v: r.f(),
+            encoder_jump_rad: r.f(),
+            motor_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
+            inverter_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
+            magnetizing_steps_max: r.u(),
+            slow_divider: u16::try_from(r.u()).map_err(|_| DriveError::Raw)?,
+            i_trip_bits: r.u(),
+            i_sum_bits: r.u(),
+            stall_slow_steps: r.u(),
+            following_slow_steps: r.u(),
+            saturation_steps: r.u(),
+            encoder_check_steps: r.u(),
+            stop_slow_steps: r.u(),
+            open_phase_slow_steps: r.u(),
+            stop_on: FaultSet(r.u()),
+        };
+        let counts = [
+            u32::from(cfg.slow_divider),
+            cfg.magnetizing_steps_max,
+            cfg.stall_slow_steps,
+            cfg.following_slow_steps,
+            cfg.saturation_steps,
+            cfg.encoder_check_steps,
+            cfg.stop_slow_steps,
+            cfg.open_phase_slow_steps,
+        ];
+        // The bus range as `new` makes it, +0 for a zero minimum (the fast step's supervisor
+        // tests it as one unsigned range of the bits, `Drive::measurements_ok`).
+        let bus = cfg.vdc_min_v.is_sign_positive() && cfg.vdc_min_v < cfg.vdc_max_v;
+        if r.bad
+            || !bus
+            || !cfg.mras.is_valid()
+            || counts.contains(&0)
+            || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
+        {
+            return Err(DriveError::Raw);
+        }
+        Ok(cfg)
+    }
+
+    /// The same drive with new gains of its saturated-P speed law (seed 002 eq. (21)), in
+    /// f32 — the firmware's `WriteSpeedGains` — the stall check's limit following τ_max.
+    /// `None` for another law or bad gains ([`SpeedControllerConfig::with_saturated_p`]).
+    pub fn with_saturated_p(&self, kp: f32, tau_max_nm: f32) -> Option<Self> {
+        let speed = self.speed.with_saturated_p(kp, tau_max_nm)?;
+        // Copied whole, then the two fields set: the struct update syntax (`..*self`) copied
+        // it field by field, inlined into the firmware's `WriteSpeedGains` (388 B of flash).
+        let mut cfg = *self;
+        (cfg.speed, cfg.speed_limit) = (speed, speed.output_limit());
+        Some(cfg)
+    }
+
+    /// The speed loop.
+    pub fn speed(&self) -> &SpeedControllerConfig {
+        &self.speed
+    }
+
+    /// The fast-loop period, s.
+    pub fn ts_s(&self) -> f32 {
+        self.ts_s
+    }
+}

@@ -1,0 +1,239 @@
+//! The drive specification in design units ([`DriveSpec`]), why one is refused
+//! ([`DriveError`]), and the drive's own design constants (the voltage regulator, the
+//! modulator's limits, the regeneration limit, the delay advance).
+
+use crate::current::{CurrentError, CurrentLaw};
+use crate::discretize::Discretization;
+#[cfg(doc)]
+use crate::ifoc::IfocConfig;
+use crate::ifoc::IfocError;
+use crate::motor::MotorParams;
+use crate::speed::{SpeedError, SpeedLaw};
+use crate::supervisor::Protection;
+#[cfg(doc)]
+use crate::{drive::DriveConfig, svpwm};
+
+/// Bandwidth of the field-weakening voltage regulator, rad/s: an integrator on the
+/// difference between the voltage target and the voltage the current loops ask for, which
+/// lowers the voltage budget of the current references ([`crate::envelope`]) when the
+/// machine needs more voltage than its model says. Slow against the current loops (≈ 1 000
+/// rad/s), so that it corrects the model's steady-state error, not the loops' transients; of
+/// the order of the flux's 1/T_r (≈ 15 rad/s on the DeLorenzo motor) and of the current trim,
+/// with which it settles without sustained oscillation in the field-weakening acceptance run
+/// (`hil-sim/tests/envelope.rs`). It measures the quadratic mean over a slow period of the
+/// magnitude of the loops' request (peak phase volts, before the hexagon), only ever lowers
+/// the budget, and by at most [`VOLTAGE_REGULATOR_RANGE`].
+pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
+
+/// The longest the rotor flux takes to fall to a lower reference while Running, s: the
+/// field-weakening voltage regulator's time constant (1/[`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]),
+/// so that the flux follows the budget the regulator sets. A rotor slower than that (T_r
+/// above 0.1 s) has its d-axis current lowered below the envelope's, to zero at most, while
+/// its flux is above the envelope's ([`IfocConfig::falling_flux_current`]); the shipped
+/// (T_r 65 ms) and 24 V (14 ms) motors never are. The 500 hp machine (T_r 0.78 s),
+/// accelerating at its 2 000 N·m (≈ 180 rad/s²), enters field weakening faster than its
+/// flux falls by itself: the voltage left for torque fell to a quarter near 175 rad/s and it
+/// was not within 1 % of its 319 rad/s 5 s after the step; with the flux forced down, 2.34 s
+/// (2.37 s with stationary loops; `hil-sim` test `a_slow_rotor_weakens_its_field_in_time`).
+/// The rotor-resistance law keeps listening while the flux is forced down, although its
+/// model holds the flux (`MrasConfig::update`): kept from it then, the tuned 500 hp drive's
+/// envelope above base speed fell from −11.5 … −18.5 % to −13.6 … −19.2 % of the analytic
+/// one, and its matrix still missed one row on two seeds of twelve (others than without).
+pub const FLUX_FALL_TIME_S: f64 = 1.0 / VOLTAGE_REGULATOR_BANDWIDTH_RAD_S;
+
+/// The dead-time compensation ramps from −t_d/T to +t_d/T across ± this fraction of the
+/// current-reference limit around zero current (0.1 %: 4 mA on the shipped drive). It acts on
+/// the *reference* currents, which carry no sensor noise, so the ramp can be narrow; a wider
+/// one under-compensates around each zero crossing, where the inverter's error flips at once
+/// (`hil-sim` test `dead_time_compensation_reduces_the_current_distortion`).
+pub const DEAD_TIME_BAND_FRACTION: f64 = 0.001;
+
+/// The lowest duty limit a sampling window may leave ([`DriveSpec::sample_window_s`], less
+/// the dead-time compensation): beyond 20 % of the voltage lost the board's window, not the
+/// modulator, is what needs fixing (a window of up to 5 µs at 20 kHz).
+pub const DUTY_MAX_MIN: f64 = 0.8;
+
+/// Regeneration limit: generating torque is reduced linearly from full at this fraction of
+/// `vdc_max_v` (370 V of the shipped 400 V trip) …
+pub const REGEN_LIMIT_START: f64 = 0.925;
+/// … to zero at this one (390 V): without a brake chopper the energy a braking motor returns
+/// charges the DC link, and the drive brakes only as hard as the bus can take, instead of
+/// tripping on over-voltage. A chopper set below the start never lets it act.
+pub const REGEN_LIMIT_END: f64 = 0.975;
+
+/// The largest current trim on each axis, as a fraction of the current limit: the trim
+/// corrects the loops' steady tracking error of a few per cent, not a missing current.
+pub const CURRENT_TRIM_RANGE: f32 = 0.25;
+
+/// While the modulator limits the loops' request (the machine needs more voltage than the
+/// bus gives: a hot motor's R_s, saturation, an acceleration into the limit), the voltage
+/// regulator cuts this many times faster than its bandwidth: at 10 rad/s it took ≈ 100 ms to
+/// lower the budget by the excess, while the loops lost their current in the 20 ms of the
+/// loss-of-control check (issue 21's campaign: R_s × 1.5, R_r × 1.2 tripped at 111 rad/s).
+pub const VOLTAGE_REGULATOR_LIMITED_GAIN: f32 = 10.0;
+
+/// The largest excess of the loops' request over the voltage target the regulator takes in
+/// one slow period, as a fraction of the target: a model error asks for tens of per cent
+/// more (R_s ×1.5 at full current, a saturated inductance), a current step several times
+/// the target for a period or two (the proportional path's k_p·Δi: σL_s·ω_c·Δi ≈ 11 kV for
+/// the 500 hp machine's 197 A at its 8 763 rad/s crossover). Taken whole, at the limited
+/// gain, that step cut the budget by half in four slow periods, the flux then left no
+/// voltage for any torque, and the drive oscillated between full and none
+/// (`hil-sim envelope krause-tuned.toml --generating`: a false `SwitchOpen` at its base
+/// speed). Capped at 0.25, 0.5 or 1 the drive brakes there alike (−10.1 %); a frozen encoder
+/// at top speed with the jump check off saturates the loops long enough for `LossOfControl`
+/// with any of them (hil-sim test `a_frozen_encoder_at_speed_stays_the_encoders_fault`):
+/// the largest, the nearest to what the regulator did before.
+pub const VOLTAGE_REGULATOR_EXCESS_MAX: f32 = 1.0;
+
+/// The deepest the voltage regulator may cut the budget, as a fraction of V_dc/√3.
+pub const VOLTAGE_REGULATOR_RANGE: f32 = 0.5;
+
+/// Delay from sampling the currents to the middle of the period in which the voltage
+/// computed from them is applied, in PWM periods: one period of computation (duties
+/// computed in period k act in period k + 1, as the simulator and the firmware's preload
+/// do) plus half a period for the average of that period. The field angle of the output
+/// voltage is advanced by ω_e times this delay.
+pub const VOLTAGE_DELAY_PERIODS: f64 = 1.5;
+
+/// Position loop parameters (P law with speed saturation).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PositionLaw {
+    /// Speed reference per rad of position error, 1/s.
+    pub k_per_s: f64,
+    /// Speed-reference limit, mechanical rad/s.
+    pub omega_max_rad_s: f64,
+}
+
+/// Reference frame of the current loops.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CurrentFrame {
+    /// α/β loops on sinusoidal references (seed 002; ICAD eq. (20)).
+    #[default]
+    Stationary,
+    /// d/q loops on the field-oriented frame (seed 000 PI1/PI3): Park of the measured
+    /// currents at θ_e, the controllers on d and q errors, inverse Park of the voltage.
+    Synchronous,
+}
+
+/// Everything a drive needs, in design units (f64). [`DriveConfig::new`] validates it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveSpec {
+    /// Motor.
+    pub motor: MotorParams,
+    /// Fast-loop (PWM) frequency, Hz.
+    pub pwm_frequency_hz: f64,
+    /// The slow loop runs every `slow_divider`-th fast step (≥ 1).
+    pub slow_divider: u16,
+    /// Current law (ICAD or PI).
+    pub current_law: CurrentLaw,
+    /// Discretisation of the current law.
+    pub discretization: Discretization,
+    /// Frame of the current loops.
+    pub current_frame: CurrentFrame,
+    /// Speed law.
+    pub speed_law: SpeedLaw,
+    /// Position loop.
+    pub position: PositionLaw,
+    /// Rotor-flux reference ψ_r*, Wb.
+    pub flux_ref_wb: f64,
+    /// Flux floor of the IFOC guard, Wb.
+    pub flux_floor_wb: f64,
+    /// Magnitude limit of the current reference vector, A.
+    pub i_ref_max_a: f64,
+    /// Magnetizing → Running when ψ̂_r ≥ this fraction of ψ_r* (in (0, 1)).
+    pub magnetized_fraction: f64,
+    /// Field weakening: the voltage the current references may ask for in steady state, as
+    /// a fraction of the linear limit `V_dc/√3` (in (0, 1]); the rest is the current loops'
+    /// headroom for transients ([`crate::envelope`]).
+    pub voltage_margin: f64,
+    /// Bandwidth of the current trim, rad/s (0: off): a slow integral of the field-frame
+    /// current error, added to the references the current loops track. The stationary-frame
+    /// loops (seed 002) have integral action at DC only, so at an electrical frequency ω_e
+    /// their sinusoidal references are followed with a small amplitude and phase error; in the
+    /// field frame that is a constant error, which the trim removes — so that the flux and the
+    /// torque are what the references say (field weakening relies on it).
+    pub current_trim_bandwidth_rad_s: f64,
+    /// Dead time the modulator compensates, s (0: none): the board's, when its inverter has
+    /// one ([`svpwm::compensate_dead_time`]).
+    pub dead_time_compensation_s: f64,
+    /// The low-side conduction each phase's current sample needs on either side of the top
+    /// of the count, s (0: current sensors that need none, e.g. in-line). The modulator keeps
+    /// every duty at most `1 − 2·window/T` (less the dead time's compensation), so all three
+    /// phases are measured in every period, and the drive treats that fraction of the bus as
+    /// what it has ([`svpwm::modulate_sampled`]). The board's (`[board] sample_window_s`).
+    pub sample_window_s: f64,
+    /// The range of the rotor resistance, × the motor's `R_r` (`[1, 1]`: the motor's, fixed):
+    /// the rotor-resistance adaptation ([`crate::mras`]) keeps its estimate within it and
+    /// starts from its geometric middle.
+    pub rotor_resistance_range: [f64; 2],
+    /// The range of the inductances, × the motor's `L_s`, `L_r`, `L_m` alike (`[1, 1]`: the
+    /// motor's, fixed): the magnetizing fit ([`crate::mras`]) measures them at every enable
+    /// of a demagnetized rotor at rest within it; the drive starts from the motor's, limited
+    /// to it.
+    pub inductance_range: [f64; 2],
+    /// Trip thresholds.
+    pub protection: Protection,
+}
+
+impl DriveSpec {
+    /// The highest duty the modulator gives a phase: `1 − 2·sample_window_s·f_pwm` less the
+    /// dead-time compensation, 1 without a sampling window — also the fraction of the bus
+    /// voltage the drive counts on (its current loops, envelope and checks; the envelope a
+    /// host computes for this drive: `hil_sim::envelope`). Validated by [`DriveConfig::new`]
+    /// (at least [`DUTY_MAX_MIN`]).
+    pub fn duty_max(&self) -> f64 {
+        if self.sample_window_s > 0.0 {
+            let f = self.pwm_frequency_hz;
+            1.0 - 2.0 * self.sample_window_s * f - self.dead_time_compensation_s * f
+        } else {
+            1.0
+        }
+    }
+}
+
+/// Why a drive specification was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DriveError {
+    /// PWM frequency not finite and positive.
+    PwmFrequency,
+    /// `slow_divider` is 0.
+    SlowDivider,
+    /// Current law rejected.
+    Current(CurrentError),
+    /// Speed law rejected.
+    Speed(SpeedError),
+    /// Position law rejected.
+    Position(SpeedError),
+    /// IFOC parameters rejected.
+    Ifoc(IfocError),
+    /// `rotor_resistance_range` not `0 < min ≤ max ≤ 10·min`, finite
+    /// ([`crate::mras::RANGE_RATIO_MAX`]).
+    RotorResistanceRange,
+    /// `inductance_range` not `0 < min ≤ max ≤ 10·min`, finite.
+    InductanceRange,
+    /// Flux reference not finite and positive, `flux_floor_wb` not below it, or its
+    /// magnetizing current ψ*/L_m not below `i_ref_max_a`.
+    FluxReference,
+    /// `magnetized_fraction` not in (0, 1).
+    MagnetizedFraction,
+    /// `voltage_margin` not in (0, 1].
+    VoltageMargin,
+    /// `dead_time_compensation_s` negative, not finite, or not below a tenth of the PWM
+    /// period.
+    DeadTime,
+    /// `sample_window_s` negative or not finite, or so long (with the dead time's
+    /// compensation) that the highest duty is below [`DUTY_MAX_MIN`].
+    SampleWindow,
+    /// A raw configuration ([`DriveConfig::from_raw`]) with a non-finite number, an unknown
+    /// variant or a zero count.
+    Raw,
+    /// `current_trim_bandwidth_rad_s` negative, not finite, or not below a tenth of the slow
+    /// loop's rate (in rad/s).
+    CurrentTrim,
+    /// Protection thresholds inconsistent: need 0 ≤ vdc_min < vdc_max,
+    /// i_trip > i_ref_max > 0, and positive finite overspeed, stall time and current sum.
+    Protection,
+    /// Brake-chopper thresholds not 0 < off < on < [`REGEN_LIMIT_START`]·vdc_max.
+    BrakeChopper,
+}

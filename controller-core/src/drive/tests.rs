@@ -1,0 +1,912 @@
+use super::*;
+use crate::current::CurrentLaw;
+use crate::discretize::Discretization;
+use crate::frames::{Abc, wrap_angle};
+use crate::motor::MotorParams;
+use crate::raw;
+use crate::speed::{SpeedError, SpeedLaw};
+use crate::supervisor::encoder::pinned_axis;
+use crate::supervisor::phases::SwitchWatch;
+use crate::svpwm;
+use proptest::prelude::*;
+
+/// Test data: the DeLorenzo DL10115A1 drive of seed 002 (ICAD eq. (20), saturated-P speed
+/// loop eq. (21), 20 kHz, ψ_r* = 0.9 Wb). Not the shipped configuration — that is the
+/// workspace's `drive.toml`, read by the `drive-file` crate; nothing keeps the two equal.
+pub(crate) fn test_spec() -> DriveSpec {
+    DriveSpec {
+        motor: MotorParams::new(16.2, 23.2, 1.44, 1.5, 1.42, 1, 0.005, 0.0005).unwrap(),
+        pwm_frequency_hz: 20_000.0,
+        slow_divider: 10,
+        current_law: CurrentLaw::ICAD_EQ20,
+        discretization: Discretization::Tustin,
+        current_frame: CurrentFrame::Stationary,
+        speed_law: SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 2.0 },
+        position: PositionLaw { k_per_s: 10.0, omega_max_rad_s: 150.0 },
+        flux_ref_wb: 0.9,
+        flux_floor_wb: 0.05,
+        i_ref_max_a: 4.0,
+        magnetized_fraction: 0.95,
+        voltage_margin: 0.97,
+        current_trim_bandwidth_rad_s: 20.0,
+        dead_time_compensation_s: 0.0,
+        sample_window_s: 0.0,
+        rotor_resistance_range: [1.0, 1.0],
+        inductance_range: [1.0, 1.0],
+        protection: Protection {
+            i_trip_a: 8.0,
+            vdc_min_v: 200.0,
+            vdc_max_v: 400.0,
+            overspeed_rad_s: 450.0,
+            stall_time_s: 0.3,
+            following_time_s: 0.3,
+            current_sum_max_a: 0.4,
+            saturation_time_s: 0.02,
+            encoder_check_time_s: 0.01,
+            encoder_jump_rad: 8.7e-3,
+            motor_thermal: None,
+            inverter_thermal: None,
+            stop_on: FaultSet::EMPTY,
+            stop_time_s: 5.0,
+            open_phase_time_s: 0.0025,
+            brake_chopper: None,
+        },
+    }
+}
+
+fn drive() -> Drive {
+    Drive::new(DriveConfig::new(&test_spec()).unwrap())
+}
+
+fn meas(vdc: f32) -> Measurements {
+    Measurements { vdc_v: vdc, ..Default::default() }
+}
+
+/// The encoder's readings are checked at the slow step, where they change: a non-finite
+/// angle or speed trips `NonFiniteInput` in the period it arrives (`Drive::step` runs the
+/// slow step before the fast step), idle or running, the bridge off in that period; one
+/// that arrives between slow steps is read at the next. A negative bus reading is
+/// `DcBusUndervoltage` in every mode.
+#[test]
+fn a_non_finite_encoder_reading_trips_at_the_slow_step() {
+    let bad = [
+        Measurements { theta_m_rad: f32::NAN, ..meas(310.0) },
+        Measurements { omega_m_rad_s: f32::INFINITY, ..meas(310.0) },
+    ];
+    for m in bad {
+        for running in [false, true] {
+            let mut d = if running { running_drive() } else { drive() };
+            while d.steps_to_slow != 0 {
+                assert!(d.mode() != Mode::Fault(Fault::NonFiniteInput));
+                d.step(&meas(310.0));
+            }
+            let out = d.step(&m);
+            assert_eq!((out.mode, out.phases), (Mode::Fault(Fault::NonFiniteInput), PhaseCommand::Off));
+            // Between slow steps the fast step does not read them.
+            let mut d = if running { running_drive() } else { drive() };
+            d.step(&meas(310.0));
+            let left = d.steps_to_slow;
+            assert!(left > 0);
+            for _ in 0..left {
+                assert!(!matches!(d.step(&m).mode, Mode::Fault(_)));
+            }
+            assert_eq!(d.step(&m).mode, Mode::Fault(Fault::NonFiniteInput));
+        }
+    }
+    for running in [false, true] {
+        let mut d = if running { running_drive() } else { drive() };
+        assert_eq!(d.step(&meas(-1.0)).mode, Mode::Fault(Fault::DcBusUndervoltage));
+    }
+}
+
+/// The brake output: never without a chopper; with one, on above `on_v`, held down to
+/// `off_v`, off below it and on a non-finite reading — in every mode, a fault included.
+#[test]
+fn brake_chopper_hysteresis() {
+    let mut d = drive();
+    for v in [0.0, 360.0, 399.0, f32::NAN] {
+        assert!(!d.step(&meas(v)).brake, "{v}");
+    }
+    let mut spec = test_spec();
+    spec.protection.brake_chopper = Some(BrakeChopper { on_v: 360.0, off_v: 350.0 });
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    let sweep = [(359.0, false), (361.0, true), (355.0, true), (350.0, true), (349.0, false), (355.0, false)];
+    for (v, on) in sweep {
+        assert_eq!(d.step(&meas(v)).brake, on, "idle at {v} V");
+    }
+    d.enable().unwrap();
+    for (v, on) in sweep {
+        assert_eq!(d.step(&meas(v)).brake, on, "enabled at {v} V");
+    }
+    assert!(d.step(&meas(361.0)).brake);
+    assert!(!d.step(&meas(f32::NAN)).brake);
+    assert_eq!(d.mode(), Mode::Fault(Fault::NonFiniteInput));
+    // Latched in a fault, the chopper still regulates the bus.
+    assert!(d.step(&meas(401.0)).brake);
+    assert!(d.step(&meas(355.0)).brake);
+    assert!(!d.step(&meas(340.0)).brake);
+    // (380, 350): on above the regeneration limit's start, 0.925 × 400 = 370 V.
+    for bad in [(350.0, 360.0), (400.0, 350.0), (380.0, 350.0), (360.0, 0.0), (f64::NAN, 350.0)] {
+        spec.protection.brake_chopper = Some(BrakeChopper { on_v: bad.0, off_v: bad.1 });
+        assert_eq!(DriveConfig::new(&spec), Err(DriveError::BrakeChopper), "{bad:?}");
+    }
+}
+
+/// Per-phase R-L load standing in for a locked-rotor machine (seen from the stator at
+/// high frequency: R_s and σL_s). Returns the current after applying `duty` for one
+/// period on `vdc` (exact ZOH of di/dt = (v − R i)/L per phase, star point floating:
+/// the common-mode voltage is removed).
+fn rl_step(i: Abc, duty: Abc, vdc: f32, r: f32, l: f32, ts: f32) -> Abc {
+    let v = Abc { a: (duty.a - 0.5) * vdc, b: (duty.b - 0.5) * vdc, c: (duty.c - 0.5) * vdc };
+    let v0 = (v.a + v.b + v.c) / 3.0;
+    let a = libm::expf(-r / l * ts);
+    let step = |i: f32, v: f32| a * i + (1.0 - a) * (v - v0) / r;
+    Abc { a: step(i.a, v.a), b: step(i.b, v.b), c: step(i.c, v.c) }
+}
+
+/// A zero bus minimum, written +0 or −0, is tested as the float comparisons test it: the
+/// constructor stores +0 (−0's sign bit made the supervisor's unsigned range pass every
+/// negative reading while the bridge was active), and two limits that one f32 holds are
+/// refused by the constructor, not only by `from_raw`.
+#[test]
+fn a_zero_bus_minimum_is_tested_as_the_floats_are() {
+    for zero in [0.0, -0.0] {
+        let mut spec = test_spec();
+        spec.protection.vdc_min_v = zero;
+        let cfg = DriveConfig::new(&spec).unwrap();
+        assert_eq!(cfg.vdc_min_v.to_bits(), 0, "{zero}");
+        assert_eq!(DriveConfig::from_raw(&cfg.to_raw()), Ok(cfg));
+        let mut d = Drive::new(cfg);
+        d.enable().unwrap();
+        for vdc in [-5.0, -0.0, 0.0, 1e-30, 310.0, 399.0, 401.0, f32::NAN, -f32::NAN, f32::NEG_INFINITY] {
+            let m = Measurements { vdc_v: vdc, ..Default::default() };
+            assert_eq!(d.measurements_ok(&m), d.supervise(&m).is_none(), "min {zero}, bus {vdc}");
+        }
+        assert!(!d.measurements_ok(&Measurements { vdc_v: -5.0, ..Default::default() }));
+    }
+    let mut spec = test_spec();
+    (spec.protection.vdc_min_v, spec.protection.vdc_max_v) = (400.0, 400.00001);
+    assert_eq!(DriveConfig::new(&spec).err(), Some(DriveError::Protection), "one f32 for both limits");
+}
+
+/// `slow_step_ran`: after the period whose step ran the slow step, once in every
+/// `slow_divider` periods; never with a divider of 1 (every period has the slow step, and
+/// the firmware would never serve the link).
+#[test]
+fn the_slow_steps_period_is_known() {
+    for divider in [1u16, 2, 10] {
+        let mut d =
+            Drive::new(DriveConfig::new(&DriveSpec { slow_divider: divider, ..test_spec() }).unwrap());
+        let mut ran = 0;
+        for _ in 0..100 {
+            let due = d.slow_step_due();
+            d.step(&meas(310.0));
+            assert_eq!(d.slow_step_ran(), due && divider > 1, "divider {divider}");
+            ran += u32::from(d.slow_step_ran());
+        }
+        assert_eq!(ran, if divider > 1 { 100 / u32::from(divider) } else { 0 });
+    }
+}
+
+/// The raw form round-trips every field, fills its arrays exactly, and refuses a
+/// non-finite number, an unknown variant, a zero divider, a controlled stop for a fault
+/// that cannot have one, a bus range the supervisor's bit test cannot take and brake
+/// thresholds out of order.
+#[test]
+fn raw_configuration_round_trips() {
+    for frame in [CurrentFrame::Stationary, CurrentFrame::Synchronous] {
+        for speed_law in [
+            SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 2.0 },
+            SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0 },
+            SpeedLaw::pi2_seed000(3.0),
+        ] {
+            for current_law in [CurrentLaw::ICAD_EQ20, CurrentLaw::PI_SEED002] {
+                let spec = DriveSpec { current_frame: frame, speed_law, current_law, ..test_spec() };
+                let cfg = DriveConfig::new(&spec).unwrap();
+                // Exactly full: the size constants are the field counts.
+                let w = cfg.write_raw();
+                assert!(!w.overflow);
+                let (raw, nf, nu) = w.finish();
+                assert_eq!((nf, nu), (raw::FLOATS, raw::INTEGERS));
+                assert_eq!(DriveConfig::from_raw(&raw), Ok(cfg));
+            }
+        }
+    }
+    let cfg = DriveConfig::new(&test_spec()).unwrap();
+    let raw = cfg.to_raw();
+    let mut bad = raw;
+    bad.f[3] = f32::NAN;
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    let mut bad = raw;
+    bad.u[1] = 7; // the current frame's tag
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    let mut bad = raw;
+    bad.u[raw::INTEGERS - 10] = 0; // the slow divider
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    let mut bad = raw;
+    bad.u[raw::INTEGERS - 1] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.
+    let at = |v: f32| {
+        assert_eq!(raw.f.iter().filter(|&&x| x == v).count(), 1, "{v} is one field's alone");
+        raw.f.iter().position(|&x| x == v).unwrap()
+    };
+    let (min, max) = (at(cfg.vdc_min_v), at(cfg.vdc_max_v));
+    for (lo, hi) in [
+        (cfg.vdc_max_v, cfg.vdc_min_v),
+        (cfg.vdc_max_v, cfg.vdc_max_v),
+        (-1.0, cfg.vdc_max_v),
+        (-0.0, cfg.vdc_max_v),
+    ] {
+        let mut bad = raw;
+        (bad.f[min], bad.f[max]) = (lo, hi);
+        assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "bus {lo} … {hi}");
+    }
+    let mut zero = raw;
+    zero.f[min] = 0.0;
+    assert!(DriveConfig::from_raw(&zero).is_ok(), "a zero minimum");
+    // New speed gains in f32 equal a rebuild from the design values.
+    let moved = cfg.with_saturated_p(0.08, 1.5).unwrap();
+    let spec = DriveSpec { speed_law: SpeedLaw::SaturatedP { kp: 0.08, tau_max_nm: 1.5 }, ..test_spec() };
+    assert_eq!(moved, DriveConfig::new(&spec).unwrap());
+    assert_eq!(cfg.with_saturated_p(f32::NAN, 1.0), None);
+}
+
+#[test]
+fn rejects_inconsistent_specs() {
+    let ok = test_spec();
+    let bad = |f: &dyn Fn(&mut DriveSpec)| {
+        let mut s = ok;
+        f(&mut s);
+        DriveConfig::new(&s).err()
+    };
+    assert_eq!(bad(&|s| s.pwm_frequency_hz = 0.0), Some(DriveError::PwmFrequency));
+    assert_eq!(bad(&|s| s.slow_divider = 0), Some(DriveError::SlowDivider));
+    assert_eq!(bad(&|s| s.protection.i_trip_a = 3.0), Some(DriveError::Protection));
+    assert_eq!(bad(&|s| s.protection.vdc_min_v = 500.0), Some(DriveError::Protection));
+    assert_eq!(bad(&|s| s.flux_ref_wb = f64::NAN), Some(DriveError::FluxReference));
+    assert_eq!(bad(&|s| s.magnetized_fraction = 1.0), Some(DriveError::MagnetizedFraction));
+    assert_eq!(
+        bad(&|s| s.speed_law = SpeedLaw::SaturatedP { kp: 1.0, tau_max_nm: -1.0 }),
+        Some(DriveError::Speed(SpeedError::Limit))
+    );
+    assert!(bad(&|_| ()).is_none());
+}
+
+#[test]
+fn state_machine_and_fault_latching() {
+    let mut d = drive();
+    assert_eq!(d.fast_step(&meas(310.0)).phases, PhaseCommand::Off);
+    d.enable().unwrap();
+    assert_eq!(d.mode(), Mode::Magnetizing);
+    assert!(matches!(d.fast_step(&meas(310.0)).phases, PhaseCommand::Duty(_)));
+    // Undervoltage while active trips; phases off in the same step.
+    let out = d.fast_step(&meas(100.0));
+    assert_eq!(out.mode, Mode::Fault(Fault::DcBusUndervoltage));
+    assert_eq!(out.phases, PhaseCommand::Off);
+    // Latched: enable refused, a later overcurrent does not overwrite the first cause.
+    assert_eq!(d.enable(), Err(CommandError::Faulted));
+    let over = Measurements { i_abc_a: Abc { a: 9.0, b: -4.5, c: -4.5 }, ..meas(310.0) };
+    assert_eq!(d.fast_step(&over).mode, Mode::Fault(Fault::DcBusUndervoltage));
+    d.disable();
+    assert!(matches!(d.mode(), Mode::Fault(_)));
+    d.clear_fault();
+    assert_eq!(d.mode(), Mode::Idle);
+    // Undervoltage is not a fault while idle (bus not yet charged); overvoltage is.
+    assert_eq!(d.fast_step(&meas(0.0)).mode, Mode::Idle);
+    assert_eq!(d.fast_step(&meas(450.0)).mode, Mode::Fault(Fault::DcBusOvervoltage));
+    assert_eq!(d.set_reference(Reference::Speed(f32::NAN)), Err(CommandError::NonFinite));
+}
+
+/// A drive brought to Running on the R-L load (computed once, then copied).
+/// The wrapped encoder angle of a motion `turns_before` revolutions into a run at
+/// `step_rad` per read (what the encoder estimator or the simulator reports: the f64
+/// angle wrapped into [-π, π), then f32).
+fn wrapped(theta_rad: f64) -> Measurements {
+    let t = theta_rad - core::f64::consts::TAU * (theta_rad / core::f64::consts::TAU).round();
+    Measurements { vdc_v: 310.0, theta_m_rad: t as f32, ..Default::default() }
+}
+
+/// Hours at speed: the turn count and the angle within the turn keep the field angle's
+/// increments exact however far the motor has turned (a multi-turn f32 angle had an ulp
+/// of 0.125 rad after an hour at 376 rad/s), and the position loop's position counts
+/// the turns. 10⁶ rad into the run, 0.0752 rad per read (150 rad/s at 2 kHz), the
+/// field angle advances as it does at the start of the run.
+#[test]
+fn the_encoder_angle_stays_exact_far_from_zero() {
+    let step = 0.0752;
+    // The field is anchored while active; the position is counted in every mode.
+    let field_after = |start: f64| {
+        let mut d = drive();
+        let mut r = running_drive();
+        // Already running: the jump from its readings at rest is not this test's.
+        r.cfg.encoder_jump_rad = f32::MAX;
+        // Slow steps alone, no current: the open-phase check's window never closes.
+        r.cfg.open_phase_slow_steps = u32::MAX;
+        let mut first = 0.0;
+        for k in 0..40 {
+            d.slow_step(&wrapped(start + f64::from(k) * step));
+            r.slow_step(&wrapped(start + f64::from(k) * step));
+            if k == 0 {
+                first = r.theta_r_rad;
+            }
+        }
+        assert_eq!((d.mode(), r.mode()), (Mode::Idle, Mode::Running), "no jump");
+        (wrap_angle(r.theta_r_rad - first), d.position_rad())
+    };
+    let (near, pos_near) = field_after(0.0);
+    let (far, pos_far) = field_after(1e6);
+    assert!((near - far).abs() < 1e-4, "{near} vs {far}");
+    assert!((f64::from(near) - 39.0 * step).abs() < 1e-4, "{near}");
+    // The position counts the turns: 39 steps from the first reading.
+    assert!((f64::from(pos_near) - 39.0 * step).abs() < 1e-5, "{pos_near}");
+    let first = f64::from(wrapped(1e6).theta_m_rad);
+    assert!((f64::from(pos_far) - (first + 39.0 * step)).abs() < 1e-5, "{pos_far}");
+    // Backwards through many turns.
+    let mut d = drive();
+    for k in 0..2000 {
+        d.slow_step(&wrapped(-f64::from(k) * step));
+    }
+    assert!((f64::from(d.position_rad()) + 1999.0 * step).abs() < 1e-3, "{}", d.position_rad());
+}
+
+/// The jump check: a reading whose change departs from the last change by more than
+/// `encoder_jump_rad` latches `EncoderLoss` (a glitch; a counter that stops at speed); a
+/// steady speed and an acceleration within the level do not; the check runs in Idle too
+/// (a drive must not start on a broken encoder), but not before two changes are known.
+#[test]
+fn an_encoder_jump_is_encoder_loss() {
+    let level = test_spec().protection.encoder_jump_rad;
+    let mut d = drive();
+    // The first reading may be anything; then a steady 0.0752 rad per read with an
+    // acceleration just inside the level.
+    let mut theta = 2.0;
+    let mut step = 0.0752;
+    for _ in 0..50 {
+        d.slow_step(&wrapped(theta));
+        theta += step;
+        step += 0.9 * level;
+    }
+    assert_eq!(d.mode(), Mode::Idle);
+    // A counter that stops: the change falls from ≈ 0.46 rad to 0.
+    d.slow_step(&wrapped(theta));
+    d.slow_step(&wrapped(theta));
+    assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+    // A glitch of 1.2 × the level at standstill, while running.
+    let mut d = running_drive();
+    for _ in 0..3 {
+        d.slow_step(&wrapped(0.0));
+    }
+    assert_eq!(d.mode(), Mode::Running);
+    d.slow_step(&wrapped(1.2 * level));
+    assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+}
+
+/// The I²t model: a constant current of k × rated from cold trips after
+/// `τ·ln(k²/(k² − sf²))` (to one update period), the model on the RMS phase current of
+/// the amplitude-invariant Clarke transform; below sf × rated it never trips; it cools in
+/// Idle.
+#[test]
+fn i2t_trips_when_the_thermal_model_says() {
+    let limit = ThermalLimit { rated_current_a: 1.0, time_constant_s: 20.0, overload_factor: 1.15 };
+    let mut spec = test_spec();
+    spec.protection.motor_thermal = Some(limit);
+    let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    let update_s = f64::from(THERMAL_UPDATE_SLOW_STEPS) * t_slow;
+    // Balanced currents of 2 A RMS (peak 2√2): k = 2.
+    let peak = 2.0 * core::f32::consts::SQRT_2;
+    let at = |k: u32| {
+        let th = k as f32 * 0.3;
+        Measurements {
+            i_abc_a: Abc {
+                a: peak * libm::cosf(th),
+                b: peak * libm::cosf(th - 2.094_395_2),
+                c: peak * libm::cosf(th + 2.094_395_2),
+            },
+            vdc_v: 310.0,
+            ..Default::default()
+        }
+    };
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    let mut k = 0;
+    while d.mode() == Mode::Idle && k < 10_000_000 {
+        d.slow_step(&at(k));
+        k += 1;
+    }
+    assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
+    let t = f64::from(k) * t_slow;
+    let expected = 20.0 * libm::log(4.0 / (4.0 - 1.15 * 1.15));
+    assert!((t - expected).abs() <= update_s, "{t} vs {expected}");
+    // 1.1 A RMS (below 1.15) for ten time constants: no trip.
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    let small = |k| {
+        let m = at(k);
+        Measurements {
+            i_abc_a: Abc { a: m.i_abc_a.a * 0.55, b: m.i_abc_a.b * 0.55, c: m.i_abc_a.c * 0.55 },
+            ..m
+        }
+    };
+    for k in 0..(10.0 * 20.0 / t_slow) as u32 {
+        d.slow_step(&small(k));
+    }
+    assert_eq!(d.mode(), Mode::Idle);
+    let (hot, _) = d.thermal_state();
+    assert!((hot - 1.21).abs() < 0.01, "{hot}");
+    // It cools without current.
+    for _ in 0..(20.0 / t_slow) as u32 {
+        d.slow_step(&Measurements { vdc_v: 310.0, ..Default::default() });
+    }
+    let (cool, _) = d.thermal_state();
+    assert!((cool / hot - libm::expf(-1.0)).abs() < 0.02, "{cool}");
+}
+
+/// A fault in `stop_on`: Running, a controlled stop (speed reference 0, a new reference
+/// refused), the fault latched when the stop ends; a hard fault meanwhile latches the
+/// first one with the bridge off at once; outside Running, the bridge off at once.
+#[test]
+fn a_stoppable_fault_stops_then_latches() {
+    let mut spec = test_spec();
+    spec.protection.stop_on = FaultSet::EMPTY.with(Fault::MotorOverload);
+    let cfg = DriveConfig::new(&spec).unwrap();
+    let mut d = running_drive();
+    d.cfg = cfg;
+    d.fault_reaction(Fault::MotorOverload);
+    assert_eq!((d.mode(), d.pending_fault()), (Mode::Running, Some(Fault::MotorOverload)));
+    assert!(d.is_stopping());
+    assert_eq!(d.set_reference(Reference::Speed(100.0)), Err(CommandError::Faulted));
+    // At rest: the stop ends at the next slow step, and the fault latches.
+    d.slow_step(&Measurements { vdc_v: 310.0, ..Default::default() });
+    assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
+    assert_eq!(d.pending_fault(), None);
+    // A hard fault during the stop: bridge off now, the first fault latched.
+    let mut d = running_drive();
+    d.cfg = cfg;
+    d.fault_reaction(Fault::MotorOverload);
+    d.trip(Fault::Overcurrent);
+    assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
+    // Not in stop_on (or not Running): at once.
+    let mut d = running_drive();
+    d.cfg = cfg;
+    d.fault_reaction(Fault::InverterOverload);
+    assert_eq!(d.mode(), Mode::Fault(Fault::InverterOverload));
+    // A fault that leaves nothing to control with cannot be configured as a stop.
+    spec.protection.stop_on = FaultSet::EMPTY.with(Fault::EncoderLoss);
+    assert_eq!(DriveConfig::new(&spec), Err(DriveError::Protection));
+}
+
+/// The pinned-phase rule's axes: each phase's, both ways, within cos⁻¹ 0.98 ≈ 11.5°; off
+/// them, no voltage and a non-finite one: none.
+#[test]
+fn a_voltage_on_a_phase_axis_names_it() {
+    let at = |deg: f32, r: f32| {
+        let sc = SinCos::new(deg.to_radians());
+        pinned_axis(AlphaBeta { alpha: r * sc.cos, beta: r * sc.sin })
+    };
+    // Axis k of the six at 60° steps: a, −c, b, −a, c, −b.
+    let axes = [0u8, 5, 1, 3, 2, 4];
+    for (k, &axis) in axes.iter().enumerate() {
+        let centre = 60.0 * k as f32;
+        for off in [-11.0, 0.0, 11.0] {
+            assert_eq!(at(centre + off, 150.0), Some(axis), "{centre} {off}");
+        }
+        for off in [-12.5, 12.5, 30.0] {
+            assert_eq!(at(centre + off, 150.0), None, "{centre} {off}");
+        }
+    }
+    assert_eq!(at(0.0, 0.0), None);
+    assert_eq!(pinned_axis(AlphaBeta { alpha: f32::NAN, beta: 0.0 }), None);
+    assert_eq!(pinned_axis(AlphaBeta { alpha: f32::INFINITY, beta: 0.0 }), None);
+}
+
+/// Every fault has its own bit.
+#[test]
+fn fault_bits_are_distinct() {
+    let all = Fault::ALL.iter().fold(0u32, |acc, f| {
+        assert_eq!(acc & f.bit(), 0, "{f:?}");
+        acc | f.bit()
+    });
+    assert_eq!(all.count_ones() as usize, Fault::ALL.len());
+}
+
+/// Overspeed trips while the bridge is active (in the slow step), never while Idle.
+#[test]
+fn overspeed_trips_only_while_active() {
+    let limit = test_spec().protection.overspeed_rad_s as f32;
+    let fast = Measurements { vdc_v: 310.0, omega_m_rad_s: 1.01 * limit, ..Default::default() };
+    let mut d = drive();
+    d.step(&fast);
+    assert_eq!(d.mode(), Mode::Idle);
+    let mut d = running_drive();
+    let ok = Measurements { omega_m_rad_s: 0.99 * limit, ..fast };
+    for _ in 0..20 {
+        d.step(&ok);
+    }
+    assert_eq!(d.mode(), Mode::Running);
+    let mut d = running_drive();
+    d.slow_step(&Measurements { omega_m_rad_s: -1.01 * limit, ..fast });
+    assert_eq!(d.mode(), Mode::Fault(Fault::Overspeed));
+}
+
+/// With no measured current the flux model alone cannot take the drive to Running (the
+/// second line of defence: with the default saturation time, `LossOfControl` comes
+/// first, so it is set long here).
+#[test]
+fn magnetizing_without_current_is_no_motor_current() {
+    let mut spec = test_spec();
+    spec.protection.saturation_time_s = 10.0;
+    // The open-phase check's "no motor current" would come first too.
+    spec.protection.open_phase_time_s = 10.0;
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    d.enable().unwrap();
+    let m = Measurements { vdc_v: 310.0, ..Default::default() };
+    let mut k = 0;
+    while d.mode() == Mode::Magnetizing && k < 100_000 {
+        d.step(&m);
+        k += 1;
+    }
+    assert_eq!(d.mode(), Mode::Fault(Fault::NoMotorCurrent));
+    // The flux model on the measured (zero) current never reaches the running flux; the
+    // most magnetizing may take is 2·T_r·ln(1/(1 − 0.95)) + 20 ms = 0.408 s.
+    assert!((k as f64 / 20_000.0 - 0.408).abs() < 0.002, "{k}");
+}
+
+fn running_drive() -> Drive {
+    static RUNNING: std::sync::OnceLock<Drive> = std::sync::OnceLock::new();
+    *RUNNING.get_or_init(|| {
+        let mut d = drive();
+        d.enable().unwrap();
+        let mut i = Abc::default();
+        while d.mode() != Mode::Running {
+            if let PhaseCommand::Duty(duty) =
+                d.step(&Measurements { i_abc_a: i, vdc_v: 310.0, ..Default::default() }).phases
+            {
+                i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+            }
+        }
+        d
+    })
+}
+
+/// The following check's windows (`following_slow_steps` slow steps each): a rotor dragged
+/// back while the speed loop saturates at its configured limit trips; at a zero torque
+/// (a limit of 0 reads as saturated too — the regeneration limit with the bus at its end)
+/// nothing is owed, however fast the rotor slows: its sign was ±1 of ±0.0 and the
+/// motoring rule owed 1.1·τ_max.
+#[test]
+fn the_following_check_owes_nothing_at_zero_torque() {
+    let run = |torque_nm: f32, decel_rad_s_per_step: f32| {
+        let mut d = running_drive();
+        d.reference = Reference::Speed(100.0);
+        d.speed_saturated = true;
+        d.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
+        for k in 0..=d.cfg.following_slow_steps {
+            d.check_following(true, 200.0 - decel_rad_s_per_step * k as f32);
+        }
+        d.mode()
+    };
+    // Motoring at the 2 N·m limit, the rotor slowing as a 2.5 N·m load would (J = 0.005
+    // kg·m², T_slow = 0.5 ms): beyond 1.1·τ_max.
+    let limit = running_drive().cfg.speed_limit;
+    let d_steps = || running_drive().cfg.following_slow_steps;
+    let decel = (2.5 - limit) / 0.005 * 5e-4 + 0.01;
+    assert_eq!(run(limit, decel), Mode::Fault(Fault::FollowingError));
+    // The rotor slowing as a 3 N·m load would, with no torque to hold it (the window
+    // stays above the stall band: 200 → 20 rad/s).
+    let fast = 3.0 / 0.005 * 5e-4;
+    assert!(200.0 - fast * d_steps() as f32 > 10.0);
+    assert_eq!(run(0.0, fast), Mode::Running);
+    assert_eq!(run(-0.0, fast), Mode::Running);
+}
+
+/// Wiring check of the whole fast path (Clarke → IFOC → current loops → SVPWM → duty →
+/// volts), in both current-loop frames: on an R-L load the d-current settles at
+/// ψ_r*/L_m, the flux model reaches the running threshold, and the drive moves to
+/// Running by itself.
+#[test]
+fn magnetizes_an_rl_load_and_enters_running() {
+    for frame in [CurrentFrame::Stationary, CurrentFrame::Synchronous] {
+        let spec = DriveSpec { current_frame: frame, ..test_spec() };
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        d.enable().unwrap();
+        run_rl_load(&mut d, 20_000);
+        assert_eq!(d.mode(), Mode::Running, "{frame:?}");
+        // i_ds* = 0.9/1.42 = 0.6338 A; at standstill with zero torque, θ_e stays 0, so the
+        // reference is on α: i_α → 0.6338 A, i_β → 0.
+        let t = d.telemetry();
+        assert!((t.i_ref_ab_a.alpha - 0.9 / 1.42).abs() < 1e-4, "{frame:?} {t:?}");
+        assert!((t.i_ab_a.alpha - t.i_ref_ab_a.alpha).abs() < 1e-3, "{frame:?} {t:?}");
+        assert!(t.i_ab_a.beta.abs() < 1e-3);
+        // In steady state the d (= α here) voltage R·i comes from the integrator.
+        let pi = d.current_state().axis1.pi;
+        assert!((pi.i_term - 16.2 * t.i_ab_a.alpha).abs() < 0.05, "{frame:?} {pi:?}");
+        assert!(pi.p_term.abs() < 0.5);
+    }
+}
+
+/// `steps` periods of `d` on a star-connected RL load (16.2 Ω, 0.1 H) from zero current
+/// on a 310 V bus; the last period's output.
+fn run_rl_load(d: &mut Drive, steps: usize) -> FastOutput {
+    let (r, l, ts, vdc) = (16.2f32, 0.1f32, 5e-5f32, 310.0f32);
+    let mut i = Abc::default();
+    let mut out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+    for _ in 0..steps {
+        if let PhaseCommand::Duty(duty) = out.phases {
+            i = rl_step(i, duty, vdc, r, l, ts);
+        }
+        out = d.step(&Measurements { i_abc_a: i, vdc_v: vdc, ..Default::default() });
+    }
+    out
+}
+
+/// With the rotor-resistance adaptation on, an RL load (no rotor: the magnetizing
+/// voltage does not decay) gives the fit nothing to read: the drive still enters Running,
+/// on the range's middle, and keeps that estimate across disable/enable.
+#[test]
+fn an_rl_load_leaves_the_rotor_estimate_where_it_was() {
+    let spec = DriveSpec { rotor_resistance_range: [1.0, 2.0], ..test_spec() };
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    for _ in 0..2 {
+        d.enable().unwrap();
+        run_rl_load(&mut d, 20_000);
+        assert_eq!(d.mode(), Mode::Running);
+        assert_eq!(d.telemetry().rr_scale, core::f32::consts::SQRT_2);
+        d.disable();
+    }
+}
+
+#[test]
+fn rotating_current_reference() {
+    let mut d = running_drive();
+    d.set_reference(Reference::RotatingCurrent { amplitude_a: 100.0, omega_rad_s: 300.0 }).unwrap();
+    let mut refs = std::vec::Vec::new();
+    // On an R-L load the loops track the 4 A vector with voltage to spare (4 A·|16.2 +
+    // j·300·0.1| Ω = 136 V < 179 V): with no current at all they would sit at their
+    // limit and trip `LossOfControl`.
+    let mut i = Abc::default();
+    for _ in 0..2000 {
+        let out = d.step(&Measurements { i_abc_a: i, ..meas(310.0) });
+        assert_eq!(out.mode, Mode::Running);
+        if let PhaseCommand::Duty(duty) = out.phases {
+            i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+        }
+        refs.push(d.telemetry().i_ref_ab_a);
+    }
+    // Amplitude limited to i_ref_max = 4 A; β lags α by 90°: α = 4 cos θ, β = 4 sin θ.
+    for r in &refs {
+        assert!((r.magnitude() - 4.0).abs() < 1e-4);
+    }
+    // 2000 steps at 300 rad/s · 50 µs: the angle advanced by 30 rad.
+    let (a, b) = (refs.first().unwrap(), refs.last().unwrap());
+    let turned = libm::atan2f(b.beta, b.alpha) - libm::atan2f(a.beta, a.alpha);
+    let expected = crate::frames::wrap_angle(1999.0 * 300.0 * 5e-5);
+    assert!((crate::frames::wrap_angle(turned - expected)).abs() < 1e-3);
+    assert_eq!(
+        d.set_reference(Reference::RotatingCurrent { amplitude_a: 1.0, omega_rad_s: f32::INFINITY }),
+        Err(CommandError::NonFinite)
+    );
+}
+
+fn finite_meas() -> impl Strategy<Value = Measurements> {
+    (-20.0f32..20.0, -20.0f32..20.0, -20.0f32..20.0, 0.0f32..600.0, -1e4f32..1e4, -1e6f32..1e6).prop_map(
+        |(a, b, c, vdc_v, w, th)| Measurements {
+            i_abc_a: Abc { a, b, c },
+            vdc_v,
+            omega_m_rad_s: w,
+            theta_m_rad: th,
+        },
+    )
+}
+
+/// Any float, weighted towards the trip levels (±8 A; 200 and 400 V) and the specials.
+fn any_measured() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        any::<u32>().prop_map(f32::from_bits),
+        -20.0f32..20.0,
+        150.0f32..450.0,
+        proptest::sample::select(vec![8.0f32, -8.0, 200.0, 400.0, 0.0, -0.0, f32::MAX, f32::MIN_POSITIVE]),
+        proptest::sample::select(vec![8.0f32.next_up(), (-8.0f32).next_down(), 8.0f32.next_down()]),
+        non_finite(),
+    ]
+}
+
+fn non_finite() -> impl Strategy<Value = f32> {
+    prop_oneof![Just(f32::NAN), Just(f32::INFINITY), Just(f32::NEG_INFINITY)]
+}
+
+/// The stuck-switch check on synthetic slow samples (100 per electrical period, the
+/// shipped drive's at ≈ 60 rad/s electrical; unit amplitude, commanded level 0.1 A, a
+/// 2.5 ms window): a phase whose positive direction carries nothing from its positive
+/// peak on while its negative one follows is `SwitchOpen` once the negative direction
+/// carries again — where its reference passes half the amplitude after the zero crossing
+/// (¼ period + 30° after the fault), not before — and, in between, [`SwitchWatch::suspect`]
+/// names it for another check's verdict; an open lead (the other two phases sharing one
+/// current) is not a stuck switch but, once both its directions missed, `OpenPhase` to
+/// `suspect`; a healthy phase lagging its reference by 20°, a reference step whose
+/// current waits two samples, and a standing (DC) field are nothing.
+#[test]
+fn a_phase_that_follows_one_way_only_is_a_stuck_switch() {
+    use std::vec::Vec;
+    let per_period = 100;
+    let gain = [1.0 - libm::expf(-1.0 / 5.0), 1.0 - libm::expf(-1.0 / 20.0)];
+    let third = core::f32::consts::TAU / 3.0;
+    let refs = |n: usize, k: f32| {
+        let th = core::f32::consts::TAU * n as f32 / per_period as f32;
+        Abc { a: k * libm::cosf(th), b: k * libm::cosf(th - third), c: k * libm::cosf(th + third) }
+    };
+    let lagging = |n: usize, lag: f32| {
+        let th = core::f32::consts::TAU * n as f32 / per_period as f32 - lag;
+        Abc { a: libm::cosf(th), b: libm::cosf(th - third), c: libm::cosf(th + third) }
+    };
+    // The samples after which the voltage check's verdict would find a phase undriven:
+    // with the field at rest, and turning.
+    let run = |measure: &dyn Fn(usize, Abc) -> Abc, n_max: usize, found: &mut [Vec<usize>; 2]| {
+        let mut w = SwitchWatch::default();
+        for n in 0..n_max {
+            let r = refs(n, 1.0);
+            if let Some(f) = w.add([r; 2], measure(n, r), 0.1, gain) {
+                return Some((f, n));
+            }
+            for (turning, list) in [false, true].into_iter().zip(found.iter_mut()) {
+                if w.undriven(turning) {
+                    list.push(n);
+                }
+            }
+        }
+        None
+    };
+    // Phase a's upper switch dead from the second period on (phase a's reference at its
+    // positive peak, positive until 1¼ periods).
+    let dead_from = per_period;
+    let stuck = |n: usize, _: Abc| {
+        let m = lagging(n, 0.05);
+        if n >= dead_from { Abc { a: m.a.min(0.0), ..m } } else { m }
+    };
+    let mut found = [Vec::new(), Vec::new()];
+    let (f, n) = run(&stuck, 4 * per_period, &mut found).unwrap();
+    assert_eq!(f, Fault::SwitchOpen);
+    // The negative half-wave from 1¼ periods; its samples count from |cos| ≥ ½, 30°
+    // (8.3 samples) later.
+    let answer = per_period + per_period / 4 + 9;
+    assert!((answer..=answer + 2).contains(&n), "{n} vs {answer}");
+    // Before the other way answers, the verdict would find the phase undriven (named
+    // `OpenPhase`: a dead direction alone is also an open lead's), turning or not.
+    for list in &found {
+        assert!(list.first().is_some_and(|&k| k > dead_from && k < answer), "{found:?}");
+    }
+    // An open lead on phase a: b and c share one current.
+    let open = |n: usize, r: Abc| {
+        if n < dead_from {
+            return r;
+        }
+        let i_bc = 0.5 * (r.b - r.c);
+        Abc { a: 0.0, b: i_bc, c: -i_bc }
+    };
+    let mut found = [Vec::new(), Vec::new()];
+    assert_eq!(run(&open, 4 * per_period, &mut found), None);
+    assert!(found[1].last().is_some_and(|&n| n + 1 == 4 * per_period), "{found:?}");
+    // Healthy, 20° behind: short near each zero crossing, 6 samples in a row — an
+    // undriven phase only if the field's turning were ignored; a standing field; a ×5
+    // step two samples late.
+    let mut lag = [Vec::new(), Vec::new()];
+    assert_eq!(run(&|n, _| lagging(n, 0.35), 6 * per_period, &mut lag), None);
+    assert!(!lag[0].is_empty() && lag[1].is_empty(), "{lag:?}");
+    let (mut w, mut standing) = (SwitchWatch::default(), SwitchWatch::default());
+    for n in 0..4 * per_period {
+        let dc = refs(0, 1.0);
+        assert_eq!(standing.add([dc; 2], dc, 0.1, gain), None);
+        let k = if n < 2 * per_period + 10 { 0.2 } else { 1.0 };
+        let late = (2 * per_period + 10..2 * per_period + 12).contains(&n);
+        let r = refs(n, k);
+        let m = if late { refs(n, 0.2) } else { r };
+        assert_eq!(w.add([r; 2], m, 0.1, gain), None, "step {n}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// Any finite inputs: outputs finite and inside their limits, whatever the mode.
+    #[test]
+    fn finite_inputs_give_bounded_outputs(seq in proptest::collection::vec(finite_meas(), 1..200),
+                                          r in -1e3f32..1e3, which in 0u8..4, start_running: bool) {
+        let mut d = if start_running { running_drive() } else { drive() };
+        let reference = match which {
+            0 => Reference::Speed(r),
+            1 => Reference::Position(r),
+            2 => Reference::Torque(r),
+            _ => Reference::RotatingCurrent { amplitude_a: r, omega_rad_s: r },
+        };
+        d.set_reference(reference).unwrap();
+        d.enable().unwrap();
+        for m in &seq {
+            let out = d.step(m);
+            match out.phases {
+                PhaseCommand::Off => prop_assert!(!matches!(out.mode, Mode::Magnetizing | Mode::Running)),
+                PhaseCommand::Duty(duty) => {
+                    for x in [duty.a, duty.b, duty.c] {
+                        prop_assert!((0.0..=1.0).contains(&x));
+                    }
+                    let t = d.telemetry();
+                    let lim = svpwm::linear_limit_v(m.vdc_v) * 2.0 / 1.732_050_8 + 1e-3;
+                    prop_assert!(t.v_ab_v.magnitude() <= lim);
+                    prop_assert!(t.i_ref_ab_a.magnitude() <= 4.0 + 1e-3);
+                    prop_assert!(t.theta_e_rad.is_finite() && t.psi_r_wb.is_finite());
+                }
+            }
+        }
+    }
+
+    /// Any NaN/inf in any input field: Fault within one fast step, phases off.
+    #[test]
+    fn non_finite_input_trips_in_one_step(warm in proptest::collection::vec(finite_meas(), 0..50),
+                                          mut bad in finite_meas(), field in 0u8..6, x in non_finite()) {
+        let mut d = running_drive();
+        for m in &warm {
+            d.step(m);
+        }
+        match field {
+            0 => bad.i_abc_a.a = x,
+            1 => bad.i_abc_a.b = x,
+            2 => bad.i_abc_a.c = x,
+            3 => bad.vdc_v = x,
+            4 => bad.omega_m_rad_s = x,
+            _ => bad.theta_m_rad = x,
+        }
+        let out = d.step(&bad);
+        prop_assert_eq!(out.phases, PhaseCommand::Off);
+        prop_assert!(matches!(out.mode, Mode::Fault(_)));
+    }
+}
+
+proptest! {
+    // Cheap cases; many, so that the exact trip levels come up.
+    #![proptest_config(ProptestConfig::with_cases(4096))]
+
+    /// `Drive::measurements_ok` (bit patterns) passes exactly when `Drive::supervise` and
+    /// the float comparisons written out here find no fault, in every mode.
+    #[test]
+    fn supervisor_bit_test_equals_float_test(
+        base in (-4.0f32..=4.0, -4.0f32..=4.0, -0.6f32..=0.6, 200.0f32..=400.0, -1e4f32..1e4, -1e6f32..1e6),
+        changes in proptest::collection::vec((0usize..6, any_measured()), 0..3),
+        mode in 0u8..3,
+    ) {
+        let mut d = drive();
+        match mode {
+            0 => {}
+            1 => d.enable().unwrap(),
+            _ => d = running_drive(),
+        }
+        // A measurement whose currents sum to about zero (the third phase closes the sum to
+        // within ±0.6 A, across the 0.4 A plausibility level), with up to two fields
+        // replaced by anything.
+        let mut x = [base.0, base.1, -(base.0 + base.1) + base.2, base.3, base.4, base.5];
+        for (field, value) in changes {
+            if let Some(v) = x.get_mut(field) {
+                *v = value;
+            }
+        }
+        let m = Measurements {
+            i_abc_a: Abc { a: x[0], b: x[1], c: x[2] },
+            vdc_v: x[3],
+            omega_m_rad_s: x[4],
+            theta_m_rad: x[5],
+        };
+        let spec = test_spec();
+        let p = spec.protection;
+        let float_test = if ![x[0], x[1], x[2], x[3]].iter().all(|v| v.is_finite()) {
+            Some(Fault::NonFiniteInput)
+        } else if x[0].abs().max(x[1].abs()).max(x[2].abs()) > p.i_trip_a as f32 {
+            Some(Fault::Overcurrent)
+        } else if (x[0] + x[1] + x[2]).abs() > p.current_sum_max_a as f32 {
+            Some(Fault::CurrentSensor)
+        } else if x[3] > p.vdc_max_v as f32 {
+            Some(Fault::DcBusOvervoltage)
+        } else if (d.mode() != Mode::Idle && x[3] < p.vdc_min_v as f32) || x[3].is_sign_negative() {
+            Some(Fault::DcBusUndervoltage)
+        } else {
+            None
+        };
+        prop_assert_eq!(d.supervise(&m), float_test);
+        prop_assert_eq!(d.measurements_ok(&m), float_test.is_none());
+    }
+}

@@ -1,0 +1,239 @@
+//! Faults and modes: what the supervisor latches ([`Fault`]), sets of them ([`FaultSet`]) and
+//! the drive's state machine ([`Mode`]). A fault's bit ([`Fault::bit`]) and a mode's byte
+//! ([`Mode::code`]) are wire contracts (the link, the capture, the firmware's generated
+//! configuration): pinned by golden tests below.
+
+#[cfg(doc)]
+use crate::{
+    drive::Drive,
+    supervisor::{Protection, encoder::PINNED_PHASE_COS},
+};
+
+/// Latched fault causes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// A phase current exceeded `i_trip_a`.
+    Overcurrent,
+    /// DC bus above `vdc_max_v`.
+    DcBusOvervoltage,
+    /// DC bus below `vdc_min_v` while the bridge was active.
+    DcBusUndervoltage,
+    /// A measurement was NaN or infinite.
+    NonFiniteInput,
+    /// A controller output was not finite.
+    NonFiniteOutput,
+    /// The encoder's position jumped: its change over a read departs from the previous
+    /// read's by more than `encoder_jump_rad` (a glitch, a counter that stopped at speed, lost
+    /// counts, a line count that changed).
+    EncoderLoss,
+    /// The inverter's hardware break input fired (the timer already turned the bridge off;
+    /// reported by the firmware through [`Drive::trip`]).
+    HardwareBreak,
+    /// |ω_m| above `overspeed_rad_s` (a runaway: the load overpowers the drive, or the
+    /// speed loop lost control).
+    Overspeed,
+    /// The speed loop's output at its limit while the rotor does not turn, for
+    /// `stall_time_s` (a locked rotor under a speed or position command).
+    Stall,
+    /// The current loops asked for more voltage than the bridge has for
+    /// `saturation_time_s`: they no longer control the current (dead sensors, a voltage
+    /// limit reached at speed, an open phase).
+    LossOfControl,
+    /// The applied voltage does not fit the motor at the encoder's speed for
+    /// `encoder_check_time_s` (a frozen or lost encoder, a wrong line count).
+    EncoderImplausible,
+    /// The three measured phase currents do not sum to zero (a dead, stuck or drifting
+    /// current sensor).
+    CurrentSensor,
+    /// No phase carries the current it is commanded over `open_phase_time_s`, or
+    /// magnetizing takes more than twice the time the reference current needs (the flux
+    /// model, on the measured current, does not build): no motor current flows (open leads,
+    /// a motor that is not there, dead current sensors).
+    NoMotorCurrent,
+    /// A phase is commanded a current but carries none, over `open_phase_time_s` (a broken
+    /// lead or connector). Also the encoder check's verdict when the loops held the voltage
+    /// on one phase's axis throughout ([`PINNED_PHASE_COS`]): that phase's current does not
+    /// answer its voltage — an open lead, or a switch stuck open before the reference has
+    /// reversed (until then the two are the same currents).
+    OpenPhase,
+    /// The motor's I²t thermal model reached its limit ([`Protection::motor_thermal`]).
+    MotorOverload,
+    /// The inverter's I²t thermal model reached its limit ([`Protection::inverter_thermal`]).
+    InverterOverload,
+    /// The speed loop at its limit with the rotor turning, for `following_time_s`, while the
+    /// speed error did not shrink as the commanded torque would make it (a load beyond the
+    /// drive's torque: the motor is dragged away from its reference).
+    FollowingError,
+    /// A phase follows its reference in one direction of current and not in the other: a
+    /// bridge switch (or its gate drive) stuck open — its direction of current can only
+    /// flow through the opposite diode, which pins the phase to the other rail.
+    SwitchOpen,
+}
+
+impl Fault {
+    /// Every fault.
+    pub const ALL: [Fault; 18] = [
+        Fault::Overcurrent,
+        Fault::DcBusOvervoltage,
+        Fault::DcBusUndervoltage,
+        Fault::NonFiniteInput,
+        Fault::NonFiniteOutput,
+        Fault::EncoderLoss,
+        Fault::HardwareBreak,
+        Fault::Overspeed,
+        Fault::Stall,
+        Fault::LossOfControl,
+        Fault::EncoderImplausible,
+        Fault::CurrentSensor,
+        Fault::NoMotorCurrent,
+        Fault::OpenPhase,
+        Fault::MotorOverload,
+        Fault::InverterOverload,
+        Fault::FollowingError,
+        Fault::SwitchOpen,
+    ];
+
+    /// The fault's bit in a [`FaultSet`].
+    pub const fn bit(self) -> u32 {
+        1 << (self as u32)
+    }
+}
+
+/// Drive state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Bridge off, waiting for `enable`.
+    Idle,
+    /// Building rotor flux with zero torque.
+    Magnetizing,
+    /// Speed/position/torque control.
+    Running,
+    /// Latched fault, bridge off.
+    Fault(Fault),
+}
+
+impl Mode {
+    /// The mode as one byte: the link's, the capture's (0 Idle, 1 Magnetizing, 2 Running,
+    /// a fault from 10 up).
+    pub fn code(self) -> u8 {
+        match self {
+            Mode::Idle => 0,
+            Mode::Magnetizing => 1,
+            Mode::Running => 2,
+            Mode::Fault(Fault::Overcurrent) => 10,
+            Mode::Fault(Fault::DcBusOvervoltage) => 11,
+            Mode::Fault(Fault::DcBusUndervoltage) => 12,
+            Mode::Fault(Fault::NonFiniteInput) => 13,
+            Mode::Fault(Fault::NonFiniteOutput) => 14,
+            Mode::Fault(Fault::EncoderLoss) => 15,
+            Mode::Fault(Fault::HardwareBreak) => 16,
+            Mode::Fault(Fault::Overspeed) => 17,
+            Mode::Fault(Fault::Stall) => 18,
+            Mode::Fault(Fault::CurrentSensor) => 19,
+            Mode::Fault(Fault::NoMotorCurrent) => 20,
+            Mode::Fault(Fault::LossOfControl) => 21,
+            Mode::Fault(Fault::EncoderImplausible) => 22,
+            Mode::Fault(Fault::OpenPhase) => 23,
+            Mode::Fault(Fault::MotorOverload) => 24,
+            Mode::Fault(Fault::InverterOverload) => 25,
+            Mode::Fault(Fault::FollowingError) => 26,
+            Mode::Fault(Fault::SwitchOpen) => 27,
+        }
+    }
+
+    /// The mode of a [`Mode::code`] (`None` for a byte no mode has).
+    pub fn from_code(c: u8) -> Option<Mode> {
+        Some(match c {
+            0 => Mode::Idle,
+            1 => Mode::Magnetizing,
+            2 => Mode::Running,
+            10 => Mode::Fault(Fault::Overcurrent),
+            11 => Mode::Fault(Fault::DcBusOvervoltage),
+            12 => Mode::Fault(Fault::DcBusUndervoltage),
+            13 => Mode::Fault(Fault::NonFiniteInput),
+            14 => Mode::Fault(Fault::NonFiniteOutput),
+            15 => Mode::Fault(Fault::EncoderLoss),
+            16 => Mode::Fault(Fault::HardwareBreak),
+            17 => Mode::Fault(Fault::Overspeed),
+            18 => Mode::Fault(Fault::Stall),
+            19 => Mode::Fault(Fault::CurrentSensor),
+            20 => Mode::Fault(Fault::NoMotorCurrent),
+            21 => Mode::Fault(Fault::LossOfControl),
+            22 => Mode::Fault(Fault::EncoderImplausible),
+            23 => Mode::Fault(Fault::OpenPhase),
+            24 => Mode::Fault(Fault::MotorOverload),
+            25 => Mode::Fault(Fault::InverterOverload),
+            26 => Mode::Fault(Fault::FollowingError),
+            27 => Mode::Fault(Fault::SwitchOpen),
+            _ => return None,
+        })
+    }
+}
+
+/// A set of [`Fault`]s (a bit per fault, [`Fault::bit`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FaultSet(pub u32);
+
+impl FaultSet {
+    /// No fault.
+    pub const EMPTY: Self = Self(0);
+    /// The faults a controlled stop may answer: the drive still measures, senses and
+    /// controls the motor after them (thermal overloads; an overspeed, if the load does not
+    /// overpower the drive — otherwise the stop time ends it).
+    pub const STOPPABLE: Self =
+        Self(Fault::MotorOverload.bit() | Fault::InverterOverload.bit() | Fault::Overspeed.bit());
+
+    /// `f` is in the set.
+    pub const fn contains(self, f: Fault) -> bool {
+        self.0 & f.bit() != 0
+    }
+
+    /// The set with `f`.
+    pub const fn with(self, f: Fault) -> Self {
+        Self(self.0 | f.bit())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The wire contracts, pinned: a fault's bit in a [`FaultSet`] (the drive file's
+    /// `stop_on`, the firmware's generated configuration) and a mode's byte (the link, the
+    /// capture). A new fault takes the next bit and the next code; none moves.
+    #[test]
+    fn fault_bits_and_mode_codes_are_the_wire_contract() {
+        let golden: [(Fault, u32, u8); 18] = [
+            (Fault::Overcurrent, 1 << 0, 10),
+            (Fault::DcBusOvervoltage, 1 << 1, 11),
+            (Fault::DcBusUndervoltage, 1 << 2, 12),
+            (Fault::NonFiniteInput, 1 << 3, 13),
+            (Fault::NonFiniteOutput, 1 << 4, 14),
+            (Fault::EncoderLoss, 1 << 5, 15),
+            (Fault::HardwareBreak, 1 << 6, 16),
+            (Fault::Overspeed, 1 << 7, 17),
+            (Fault::Stall, 1 << 8, 18),
+            (Fault::LossOfControl, 1 << 9, 21),
+            (Fault::EncoderImplausible, 1 << 10, 22),
+            (Fault::CurrentSensor, 1 << 11, 19),
+            (Fault::NoMotorCurrent, 1 << 12, 20),
+            (Fault::OpenPhase, 1 << 13, 23),
+            (Fault::MotorOverload, 1 << 14, 24),
+            (Fault::InverterOverload, 1 << 15, 25),
+            (Fault::FollowingError, 1 << 16, 26),
+            (Fault::SwitchOpen, 1 << 17, 27),
+        ];
+        assert_eq!(golden.map(|(f, ..)| f), Fault::ALL, "Fault::ALL in bit order");
+        for (f, bit, code) in golden {
+            assert_eq!(f.bit(), bit, "{f:?}");
+            assert_eq!(Mode::Fault(f).code(), code, "{f:?}");
+            assert_eq!(Mode::from_code(code), Some(Mode::Fault(f)), "{f:?}");
+        }
+        for (m, code) in [(Mode::Idle, 0), (Mode::Magnetizing, 1), (Mode::Running, 2)] {
+            assert_eq!((m.code(), Mode::from_code(code)), (code, Some(m)));
+        }
+        let used = (0..=u8::MAX).filter(|&c| Mode::from_code(c).is_some()).count();
+        assert_eq!(used, 3 + Fault::ALL.len(), "no other byte is a mode");
+        assert_eq!(FaultSet::STOPPABLE.0, (1 << 14) | (1 << 15) | (1 << 7));
+    }
+}

@@ -1,0 +1,421 @@
+//! The phase checks, once per slow period: the open-phase window ([`Fault::OpenPhase`],
+//! [`Fault::NoMotorCurrent`], the windowed current sum's [`Fault::CurrentSensor`]) and the
+//! stuck-switch check ([`Fault::SwitchOpen`]).
+
+#[cfg(doc)]
+use super::{Protection, encoder::PINNED_FIELD_TURN_RAD};
+use crate::fault::Fault;
+use crate::frames::Abc;
+use crate::num::{max_f32, sqrt_f32};
+
+/// Open-phase check: a phase is *commanded* over a window when the mean magnitude of its
+/// reference current is at least this fraction of the rated magnetizing current …
+pub const OPEN_PHASE_COMMANDED_FRACTION: f32 = 0.2;
+/// … and *absent* when its measured current's mean magnitude is below this fraction of its
+/// reference's (and every phase absent when their sum is below this fraction of the
+/// references' sum); see `OpenPhaseWindow::add`.
+pub const OPEN_PHASE_ABSENT_FRACTION: f32 = 0.1;
+/// … and below this fraction of the mean magnitude of the other two phases' currents, which
+/// must themselves reach this fraction of the commanded level (sensor noise of 0.01 A RMS
+/// averages to 0.008 A, a quarter of that level at the shipped motor's 0.63 A).
+pub const OPEN_PHASE_OTHERS_FRACTION: f32 = 0.25;
+/// Consecutive windows an open phase (or no motor current) must persist for.
+pub const OPEN_PHASE_WINDOWS: u8 = 2;
+/// Open-phase check: a phase below the commanded level is still judged while its reference's
+/// mean magnitude is at least this share of the other two's mean (a phase at its zero
+/// crossing is not) and the three references' sum reaches the level.
+pub const OPEN_PHASE_REF_SHARE: f32 = 0.5;
+
+/// The stuck-switch check ([`Fault::SwitchOpen`], `PhaseDirections::add`) weighs each
+/// direction of a phase's reference over that direction's recent samples (one per slow
+/// period), with a time constant of this many open-phase windows
+/// ([`Protection::open_phase_time_s`]; 2.5 ms shipped: a sample's weight is 0.18) …
+pub const SWITCH_WINDOWS: f64 = 1.0;
+/// … counting the samples where the phase's reference reaches this share of the reference
+/// vector's magnitude (away from its zero crossings: 30° each side, where a lagging current
+/// would miss) …
+pub const SWITCH_LEVEL_SHARE: f32 = 0.5;
+/// … while that magnitude reaches this share of the open-phase check's commanded level
+/// ([`OPEN_PHASE_COMMANDED_FRACTION`] of the rated magnetizing current: at top speed the
+/// voltage regulator shrinks the references after a fault) …
+pub const SWITCH_FLOOR_SHARE: f32 = 0.5;
+/// … a sample whose current falls short of its reference (in the reference's direction) by
+/// more than this fraction of it *misses*; one that does not, with the current at the
+/// commanded level or more (clear of the sensors' noise and offsets), *carries* …
+pub const SWITCH_SHORTFALL_MISSING: f32 = 0.6;
+/// The voltage check's verdict names a phase the loops do not drive the bridge's
+/// ([`Fault::OpenPhase`]: no current in a phase that is commanded — an open lead or a switch
+/// stuck open in the direction needed, the same currents until the reference reverses)
+/// when, in the stuck-switch check's last sample, its reference is
+/// at least this share of the reference vector's magnitude — clear of its zero crossings,
+/// where the sensors' noise and a lagging current miss any reference — and its current
+/// misses it ([`SWITCH_SHORTFALL_MISSING`]).
+pub const UNDRIVEN_REFERENCE_SHARE: f32 = 0.25;
+/// … in this many samples in a row, and only while the field turned less than
+/// [`PINNED_FIELD_TURN_RAD`] over the voltage check's window (as for a pinned phase): a
+/// healthy current lagging its reference by φ ≈ ω/ω_c falls short near each zero crossing
+/// for about 1/(ω_c·T_slow) samples whatever the speed (6 in a row for loops of 340 rad/s,
+/// 20° behind at 125 rad/s: `a_phase_that_follows_one_way_only_is_a_stuck_switch`), but a
+/// field that hardly turns has no lag to speak of. The 24 V drive's switches stuck open at
+/// standstill fall short for 3 or more in a row before the verdict on seeds 0–11 (6 missed
+/// seeds 0 and 1).
+pub const UNDRIVEN_SAMPLES: u8 = 3;
+/// … a direction is judged once its weighted count of samples reaches this (1: a long run;
+/// 0.5: 3.5 samples) …
+pub const SWITCH_SEEN: f32 = 0.5;
+/// … and it is dead when more than this share of them missed (from a direction that
+/// followed: 7 misses in a row) …
+pub const SWITCH_MISSING_SHARE: f32 = 0.75;
+/// … a stuck switch when the other direction follows (less than this share missed) and has
+/// carried since the dead one began to miss, and no phase misses both ways (an open lead's:
+/// the other two phases then share one current, one of them following one way only).
+pub const SWITCH_FOLLOWING_SHARE: f32 = 0.25;
+/// … "follows" judged over this many open-phase windows: a current lagging its reference
+/// misses the first part of every half-wave and carries the rest, which the shorter window
+/// reads as a dead direction followed by a live one (the 3 300 V drive's loops, 90° behind
+/// at mid-speed: `SwitchOpen` before any fault with one window).
+pub const SWITCH_FOLLOWING_WINDOWS: f64 = 4.0;
+/// The current-sum check's windowed level, as a fraction of `current_sum_max_a`: the mean
+/// |i_a + i_b + i_c| over one open-phase window above it is [`Fault::CurrentSensor`]. The
+/// instantaneous check (the full level) catches a large error at once; the mean, a sensor
+/// whose error stays below the full level (a gain fault at a light load): healthy sensors
+/// leave a mean of a few tens of mA (three channels of 10 mA RMS noise: 14 mA; a 20 mA offset;
+/// a 0.5 % gain error: 20 mA at 4 A), a gain of 0.5 on a phase carrying 0.75 A leaves
+/// 0.24 A.
+pub const CURRENT_SUM_MEAN_FRACTION: f32 = 0.25;
+
+/// The open-phase check's window ([`Protection::open_phase_time_s`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct OpenPhaseWindow {
+    /// Σ|i_ref| per phase, A.
+    reference: Abc,
+    /// Σ|i| per phase, A.
+    measured: Abc,
+    /// Σ|i_a + i_b + i_c|, A.
+    sum_error: f32,
+    steps: u32,
+    /// Consecutive windows in which each phase looked open.
+    suspect: [u8; 3],
+    /// Consecutive windows without any motor current.
+    no_current: u8,
+}
+
+impl OpenPhaseWindow {
+    /// One sample (a slow step's: [`Drive::check_phases`]) of the reference and measured
+    /// phase currents. At the end of a window of `steps` samples, with `level_a` the rated
+    /// magnetizing current:
+    /// - a phase *looks open* when it was commanded (mean |i_ref| ≥
+    ///   [`OPEN_PHASE_COMMANDED_FRACTION`]·`level_a`, or at least [`OPEN_PHASE_REF_SHARE`] of
+    ///   the other two's mean while the three references' sum reaches that level) while the other two carry current (their
+    ///   mean |i| at least [`OPEN_PHASE_OTHERS_FRACTION`] of that level) but it hardly does:
+    ///   its mean |i| below [`OPEN_PHASE_OTHERS_FRACTION`] of theirs and below
+    ///   [`OPEN_PHASE_ABSENT_FRACTION`] of its own mean |i_ref| or of the commanded level,
+    ///   whichever is larger (an open lead carries none, the other two equal and opposite
+    ///   currents; its reading is the sensor's noise);
+    /// - the motor *carries no current* when the reference does (the sum of the mean
+    ///   |i_ref| at least twice the commanded level) and the measured sum is below
+    ///   [`OPEN_PHASE_ABSENT_FRACTION`] of it (no lead connected, or every sensor dead: the
+    ///   current-sum check cannot see three sensors reading zero).
+    ///
+    /// Either must hold for [`OPEN_PHASE_WINDOWS`] windows in a row — a healthy phase passes
+    /// its zero crossing, and slow current loops (seed 000's) catch up, within one — to give
+    /// [`Fault::OpenPhase`] or [`Fault::NoMotorCurrent`]. Then a new window.
+    ///
+    /// Also, in one window: the mean |i_a + i_b + i_c| above `sum_mean_max_a` is
+    /// [`Fault::CurrentSensor`] ([`CURRENT_SUM_MEAN_FRACTION`]).
+    pub(crate) fn add(
+        &mut self,
+        reference: Abc,
+        measured: Abc,
+        steps: u32,
+        level_a: f32,
+        sum_mean_max_a: f32,
+    ) -> Option<Fault> {
+        let (r, i) = (&mut self.reference, &mut self.measured);
+        r.a += reference.a.abs();
+        r.b += reference.b.abs();
+        r.c += reference.c.abs();
+        i.a += measured.a.abs();
+        i.b += measured.b.abs();
+        i.c += measured.c.abs();
+        self.sum_error += (measured.a + measured.b + measured.c).abs();
+        self.steps += 1;
+        if self.steps < steps {
+            return None;
+        }
+        self.close(level_a, sum_mean_max_a)
+    }
+
+    /// The window's verdict, at its end (see [`OpenPhaseWindow::add`]): out of line, once
+    /// per window — inlined, it took the fast step's flash.
+    #[inline(never)]
+    fn close(&mut self, level_a: f32, sum_mean_max_a: f32) -> Option<Fault> {
+        if self.sum_error > sum_mean_max_a * self.steps as f32 {
+            return Some(Fault::CurrentSensor);
+        }
+        let commanded = OPEN_PHASE_COMMANDED_FRACTION * level_a * self.steps as f32;
+        let (r, i) = (self.reference, self.measured);
+        let (r_sum, i_sum) = (r.a + r.b + r.c, i.a + i.b + i.c);
+        let looks_open = |r: f32, i: f32| looks_open(commanded, [r_sum, i_sum], r, i);
+        let count = |n: u8, now: bool| if now { n.saturating_add(1) } else { 0 };
+        let [sa, sb, sc] = self.suspect;
+        let suspect = [
+            count(sa, looks_open(r.a, i.a)),
+            count(sb, looks_open(r.b, i.b)),
+            count(sc, looks_open(r.c, i.c)),
+        ];
+        let no_current =
+            count(self.no_current, r_sum >= 2.0 * commanded && i_sum < OPEN_PHASE_ABSENT_FRACTION * r_sum);
+        *self = Self { suspect, no_current, ..Self::default() };
+        if no_current >= OPEN_PHASE_WINDOWS {
+            Some(Fault::NoMotorCurrent)
+        } else if suspect.iter().any(|&n| n >= OPEN_PHASE_WINDOWS) {
+            Some(Fault::OpenPhase)
+        } else {
+            None
+        }
+    }
+}
+
+/// One phase of the open-phase window's verdict ([`OpenPhaseWindow::add`]): its sums `r`
+/// (Σ|i_ref|) and `i` (Σ|i|) against the three phases' `[r_sum, i_sum]` and the commanded
+/// level's sum `commanded`. Absent against the other two phases' current *and* against its
+/// own reference: a phase at its reference's zero crossing (slow rotation: generating near
+/// synchronism, standstill) legitimately carries little, and so does its reference; the other
+/// two must carry clearly more than the sensors' noise. Out of line: one copy for the three
+/// phases (inlined three times: 192 B more flash), once per window.
+#[inline(never)]
+fn looks_open(commanded: f32, [r_sum, i_sum]: [f32; 2], r: f32, i: f32) -> bool {
+    let others = 0.5 * (i_sum - i);
+    let r_others = 0.5 * (r_sum - r);
+    // Commanded: this phase at the commanded level, or — the motor commanded at all — as
+    // much as half the others' mean (not at its zero crossing): a reference that shrinks
+    // below the level with the open lead (at top speed, ≈ 5 ms after it opens) stays judged.
+    (r >= commanded || (r_sum >= commanded && r >= OPEN_PHASE_REF_SHARE * r_others))
+        && others >= OPEN_PHASE_OTHERS_FRACTION * commanded
+        && i < OPEN_PHASE_OTHERS_FRACTION * others
+        // Against its reference, or the commanded level when the reference is below it: a
+        // tenth of a reference the voltage regulator shrank with the fault (top speed) lies
+        // under the sensors' noise, which an open lead's reading is.
+        && i < OPEN_PHASE_ABSENT_FRACTION * max_f32(r, commanded)
+}
+
+/// The stuck-switch check ([`Fault::SwitchOpen`]) of one phase in one direction of its
+/// reference: exponentially weighted over that direction's recent samples (one per slow
+/// period where the reference reaches the level), how many there were (`seen`, towards 1)
+/// and how many of them *missed* (the current short of its reference by more than
+/// [`SWITCH_SHORTFALL_MISSING`] of it), over two windows. Counts, not amperes: a reference
+/// step the loops take two samples to follow is two samples, however large.
+#[derive(Clone, Copy, Debug)]
+struct Direction {
+    seen: f32,
+    missed: f32,
+    /// `seen` and `missed` over [`SWITCH_FOLLOWING_WINDOWS`] (a whole half-wave of a
+    /// lagging current holds misses).
+    seen_long: f32,
+    missed_long: f32,
+    /// A sample of this direction carried since the other direction last missed in good
+    /// standing.
+    fresh: bool,
+    /// This direction went missing: the other direction's next sample decides.
+    dead: bool,
+}
+
+impl Default for Direction {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+impl Direction {
+    /// No samples yet.
+    const NONE: Self =
+        Self { seen: 0.0, missed: 0.0, seen_long: 0.0, missed_long: 0.0, fresh: false, dead: false };
+
+    /// Judged (at least [`SWITCH_SEEN`] of a window's samples) and missing in more than
+    /// [`SWITCH_MISSING_SHARE`] of them.
+    fn missing(&self) -> bool {
+        self.seen >= SWITCH_SEEN && self.missed > SWITCH_MISSING_SHARE * self.seen
+    }
+
+    /// Judged and missing in [`SWITCH_FOLLOWING_SHARE`] of them or more: out of good
+    /// standing.
+    fn lapsed(&self) -> bool {
+        self.seen >= SWITCH_SEEN && self.missed >= SWITCH_FOLLOWING_SHARE * self.seen
+    }
+
+    /// Judged over the longer window and missing in less than [`SWITCH_FOLLOWING_SHARE`]
+    /// of its samples.
+    fn following(&self) -> bool {
+        self.seen_long >= SWITCH_SEEN && self.missed_long < SWITCH_FOLLOWING_SHARE * self.seen_long
+    }
+}
+
+/// [`Direction`]s of one phase.
+#[derive(Clone, Copy, Debug, Default)]
+struct PhaseDirections {
+    positive: Direction,
+    negative: Direction,
+    /// Both directions miss: the phase carries nothing (an open lead, the open-phase
+    /// check's), as of its last counted sample.
+    open: bool,
+    /// Consecutive samples whose current fell short of a *tracked* reference (what the
+    /// phase's loop pushes for: the intended one plus the current trim) of at least
+    /// [`UNDRIVEN_REFERENCE_SHARE`] of the intended reference vector's magnitude, counted or
+    /// not; from
+    /// [`UNDRIVEN_SAMPLES`] on, the loops do not drive the phase (the voltage check's
+    /// verdict reads it: [`SwitchWatch::undriven`]).
+    short: u8,
+}
+
+impl PhaseDirections {
+    /// One sample of the phase's intended reference `r`, its tracked reference `tracked` and
+    /// measured current `m`, A: [`PhaseDirections::short`] counts against `tracked` at
+    /// `floor` or more; a reference `r` at `level` or more goes into its direction with
+    /// `gains` (the other direction holds). The directions judge the intended reference —
+    /// what the plan asks of the machine —, not the tracked one: the current trim makes up a
+    /// stationary-frame PI's steady error at speed (≈ E/k_p), so the tracked reference
+    /// exceeds what a healthy phase carries (the tuned 3 300 V drive's 27 A of ≈ 60 A at
+    /// top speed, read as dead directions before its injection).
+    /// `true`: a stuck switch — one direction missing while the other follows and has
+    /// carried (the current at the `commanded` level or more: clear of the sensors' noise
+    /// and offsets) since the first began to miss, or, the first gone missing, the other's
+    /// next sample carries. Its current then flows through the opposite diode and pins the
+    /// phase to the other rail. An open lead misses both ways, loops that cannot follow miss
+    /// both ways in every phase, and a lagging current misses the start of every half-wave
+    /// both ways: none of them is a stuck switch.
+    ///
+    /// Out of line: one copy for the three phases, once per slow period.
+    #[inline(never)]
+    fn add(
+        &mut self,
+        [r, tracked]: [f32; 2],
+        m: f32,
+        [level, floor]: [f32; 2],
+        commanded: f32,
+        gains: [f32; 2],
+    ) -> bool {
+        let Self { positive, negative, open, short } = self;
+        let fell_short = tracked.abs() >= floor && misses(tracked, m);
+        *short = if fell_short { short.saturating_add(1) } else { 0 };
+        let (this, other, d) = if r >= 0.0 { (positive, negative, 1.0) } else { (negative, positive, -1.0) };
+        let magnitude = d * r;
+        let missed = misses(r, m);
+        if magnitude < level {
+            return false;
+        }
+        if missed && !this.lapsed() {
+            // A miss in good standing: the other way must carry anew (an open lead misses
+            // both ways from the same moment). Further misses of a direction already out of
+            // standing keep what the other way showed since (a stuck switch's dead direction
+            // may carry a little, through the opposite diode, late in its half-wave).
+            other.fresh = false;
+        }
+        let carried = !missed && d * m >= commanded;
+        this.fresh |= carried;
+        let x = if missed { 1.0 } else { 0.0 };
+        let [g, g_long] = gains;
+        this.seen += g * (1.0 - this.seen);
+        this.missed += g * (x - this.missed);
+        this.seen_long += g_long * (1.0 - this.seen_long);
+        this.missed_long += g_long * (x - this.missed_long);
+        let missing = this.missing();
+        this.dead |= missing;
+        // The other way, dead, answered by this sample: carried here, the switch is stuck.
+        let answered = core::mem::take(&mut other.dead) && carried && this.following();
+        *open = missing && other.missing();
+        answered || (missing && other.following() && other.fresh)
+    }
+}
+
+/// A current `m` short of its reference `r` (in the reference's direction) by more than
+/// [`SWITCH_SHORTFALL_MISSING`] of it: the sample *misses*.
+#[inline]
+fn misses(r: f32, m: f32) -> bool {
+    let d = if r >= 0.0 { 1.0 } else { -1.0 };
+    d * (r - m) > SWITCH_SHORTFALL_MISSING * d * r
+}
+
+/// [`PhaseDirections`] of the three phases.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SwitchWatch([PhaseDirections; 3]);
+
+/// No samples yet: a constant, which the drive's two resets ([`Drive::new`],
+/// [`Drive::enable`]) write in one go (the derived `Default` built each phase's directions
+/// apart and copied them in: 264 B of flash).
+impl Default for SwitchWatch {
+    fn default() -> Self {
+        const NEW: SwitchWatch = SwitchWatch(
+            [PhaseDirections { positive: Direction::NONE, negative: Direction::NONE, open: false, short: 0 };
+                3],
+        );
+        NEW
+    }
+}
+
+impl SwitchWatch {
+    /// A phase the loops do not drive, for another check's verdict (the voltage check's):
+    /// one missing both ways, a direction that went missing and was not yet answered the
+    /// other way, or [`UNDRIVEN_SAMPLES`] samples in a row short of a reference of at least
+    /// [`UNDRIVEN_REFERENCE_SHARE`] of the magnitude ([`PhaseDirections::short`]) — a switch
+    /// stuck open at standstill pins its phase at a rail while the reference still rises
+    /// below [`SWITCH_LEVEL_SHARE`] of it (the 24 V drive's upper switch, named
+    /// `EncoderImplausible` 16 ms after it was first needed). That is [`Fault::OpenPhase`],
+    /// no current in a commanded phase: until the reference reverses, an open lead and a
+    /// switch stuck open in the direction needed give the same currents, so the verdict
+    /// claims no switch ([`Fault::SwitchOpen`] is the stuck-switch check's own, once the
+    /// other way has carried); a wrong field angle turns the references and the loops still
+    /// follow them.
+    ///
+    /// `turning`: the field turned more than [`PINNED_FIELD_TURN_RAD`] over the voltage
+    /// check's window, where a lagging current falls short near its zero crossings — the
+    /// short samples do not count.
+    ///
+    /// A phase missing both ways needs no test of its own: [`PhaseDirections::add`] sets
+    /// `open` only with the missing direction's `dead`, which only the phase's next counted
+    /// sample (that sets `open` anew) or a reset clears. The flags or'ed, not short-circuited,
+    /// and inlined into its one caller, [`Drive::check_encoder`] (out of line, with `open`
+    /// tested and `||`, 178 B: 88 B more flash).
+    pub(crate) fn undriven(&self, turning: bool) -> bool {
+        let short = |p: &PhaseDirections| p.short >= UNDRIVEN_SAMPLES;
+        let dead = |p: &PhaseDirections| p.positive.dead | p.negative.dead;
+        self.0.iter().fold(false, |u, p| u | dead(p) | (short(p) & !turning))
+    }
+
+    /// One sample (a slow period) of the phase references `reference` (intended) and
+    /// `tracked` (with the current trim) and currents `measured`, A
+    /// ([`PhaseDirections::add`]): a phase's sample counts where its reference reaches
+    /// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (away from its zero
+    /// crossings), with that magnitude at least [`SWITCH_FLOOR_SHARE`] of the `commanded`
+    /// level; `gains` weigh it ([`DriveConfig`]'s). [`Fault::SwitchOpen`] when a phase's
+    /// directions say so and no phase misses both ways. Out of line: once per slow period
+    /// (inlined, the interrupt took ≈ 850 B more flash).
+    #[inline(never)]
+    pub(crate) fn add(
+        &mut self,
+        [reference, tracked]: [Abc; 2],
+        measured: Abc,
+        commanded: f32,
+        gains: [f32; 2],
+    ) -> Option<Fault> {
+        // The reference vector's magnitude from its phases (their sum zero): √(⅔ Σ r²).
+        let r = reference;
+        let amplitude = sqrt_f32((2.0 / 3.0) * (r.a * r.a + r.b * r.b + r.c * r.c));
+        if amplitude < SWITCH_FLOOR_SHARE * commanded {
+            for p in &mut self.0 {
+                p.short = 0; // no sample: none stale
+            }
+            return None;
+        }
+        let floor = UNDRIVEN_REFERENCE_SHARE * amplitude;
+        let level = SWITCH_LEVEL_SHARE * amplitude;
+        let [a, b, c] = &mut self.0;
+        let levels = [level, floor];
+        let stuck = a.add([reference.a, tracked.a], measured.a, levels, commanded, gains)
+            | b.add([reference.b, tracked.b], measured.b, levels, commanded, gains)
+            | c.add([reference.c, tracked.c], measured.c, levels, commanded, gains);
+        // No phase misses both ways: a lead open on one phase leaves the other two one
+        // current between them, which one of them may follow one way only.
+        (stuck && !(a.open || b.open || c.open)).then_some(Fault::SwitchOpen)
+    }
+}
