@@ -3,12 +3,6 @@
 //! ([`Mode::code`]) are wire contracts (the link, the capture, the firmware's generated
 //! configuration): pinned by golden tests below.
 
-#[cfg(doc)]
-use crate::{
-    drive::Drive,
-    supervisor::{Protection, encoder::PINNED_PHASE_COS},
-};
-
 /// Latched fault causes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Fault {
@@ -27,7 +21,7 @@ pub enum Fault {
     /// counts, a line count that changed).
     EncoderLoss,
     /// The inverter's hardware break input fired (the timer already turned the bridge off;
-    /// reported by the firmware through [`Drive::trip`]).
+    /// reported by the firmware through `Drive::trip`).
     HardwareBreak,
     /// |ω_m| above `overspeed_rad_s` (a runaway: the load overpowers the drive, or the
     /// speed loop lost control).
@@ -52,13 +46,13 @@ pub enum Fault {
     NoMotorCurrent,
     /// A phase is commanded a current but carries none, over `open_phase_time_s` (a broken
     /// lead or connector). Also the encoder check's verdict when the loops held the voltage
-    /// on one phase's axis throughout ([`PINNED_PHASE_COS`]): that phase's current does not
+    /// on one phase's axis throughout (`PINNED_PHASE_COS`): that phase's current does not
     /// answer its voltage — an open lead, or a switch stuck open before the reference has
     /// reversed (until then the two are the same currents).
     OpenPhase,
-    /// The motor's I²t thermal model reached its limit ([`Protection::motor_thermal`]).
+    /// The motor's I²t thermal model reached its limit (`Protection::motor_thermal`).
     MotorOverload,
-    /// The inverter's I²t thermal model reached its limit ([`Protection::inverter_thermal`]).
+    /// The inverter's I²t thermal model reached its limit (`Protection::inverter_thermal`).
     InverterOverload,
     /// The speed loop at its limit with the rotor turning, for `following_time_s`, while the
     /// speed error did not shrink as the commanded torque would make it (a load beyond the
@@ -113,6 +107,12 @@ pub enum Mode {
 }
 
 impl Mode {
+    /// The bridge is the drive's: Magnetizing or Running.
+    #[inline]
+    pub fn is_active(self) -> bool {
+        matches!(self, Mode::Magnetizing | Mode::Running)
+    }
+
     /// The mode as one byte: the link's, the capture's (0 Idle, 1 Magnetizing, 2 Running,
     /// a fault from 10 up).
     pub fn code(self) -> u8 {

@@ -2,8 +2,6 @@
 //! user's reference ([`Reference`]), the bridge command and the step's output
 //! ([`PhaseCommand`], [`FastOutput`]), the signals for logs ([`Telemetry`]).
 
-#[cfg(doc)]
-use crate::drive::Drive;
 use crate::fault::Mode;
 use crate::frames::{Abc, AlphaBeta};
 
@@ -35,6 +33,8 @@ pub enum CommandError {
     Faulted,
     /// The reference value is NaN or infinite.
     NonFinite,
+    /// Not while the bridge is active (Magnetizing or Running): disable first.
+    Active,
 }
 
 /// Sampled inputs of one PWM period.
@@ -100,7 +100,7 @@ pub struct Telemetry {
     pub l_scale: f32,
 }
 
-/// Output of one fast step (its signals: [`Drive::telemetry`]).
+/// Output of one fast step (its signals: `Drive::telemetry`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FastOutput {
     /// Bridge command.

@@ -108,6 +108,8 @@ pub struct BoardConfig {
 pub enum ControlError {
     /// Drive specification rejected.
     Drive(DriveError),
+    /// A new configuration while the bridge is the drive's (Magnetizing or Running).
+    BridgeActive,
     /// ADC or PWM scaling rejected.
     Scaling(ScalingError),
     /// Encoder configuration rejected.
@@ -399,23 +401,22 @@ impl ControlLoop {
         self.drive.config()
     }
 
-    /// Start again from configuration `cfg` (a fresh drive, Idle); on error nothing changes.
+    /// Swap the configuration for `cfg` while the bridge is off; on error nothing changes.
     ///
-    /// What depends on the configuration is made anew — the drive, and the slow cadence
-    /// and the encoder's estimator if its period changed; what belongs to the board is kept:
-    /// the measured current offsets, the capture, and the encoder's speed window when its
-    /// period is the same (a gain write: a coasting rotor's speed stays known). Field by
-    /// field, in place: no temporary of the loop's size on the control interrupt's stack,
-    /// where the link's commands are served.
+    /// The drive swaps its configuration and keeps the machine's state ([`Drive::reconfigure`]:
+    /// the motor's and the inverter's I²t temperature, the shaft's position, how long ago the
+    /// rotor was driven, the estimates), so a gain write cannot cool a hot motor's
+    /// protection; the slow cadence and the encoder's estimator are made anew if its period
+    /// changed. What belongs to the board is kept: the measured current offsets, the
+    /// capture, and the encoder's speed window when its period is the same (a gain write: a
+    /// coasting rotor's speed stays known). In place: no temporary of the loop's size on the
+    /// control interrupt's stack, where the link's commands are served.
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), ControlError> {
         let divider = cfg.slow_divider();
         let read_period_s = f32::from(divider) * cfg.ts_s();
         let encoder_cfg =
             EncoderConfig::new(self.board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
-        // The rotor is the same: how long ago it was driven carries over (its flux).
-        let idle = self.drive.idle_slow_steps();
-        self.drive = Drive::new(cfg);
-        self.drive.rotor_driven(idle);
+        self.drive.reconfigure(cfg).map_err(|_| ControlError::BridgeActive)?;
         if encoder_cfg != self.encoder_cfg || divider != self.divider {
             (self.encoder_cfg, self.encoder, self.theta_m_rad, self.omega_m_rad_s) =
                 (encoder_cfg, EncoderState::default(), 0.0, 0.0);

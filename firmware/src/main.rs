@@ -224,7 +224,10 @@ mod target {
             Err(e) => {
                 // One interned message per reason (a table of strings took flash).
                 match e {
-                    ControlError::Drive(_) => defmt::error!("configuration rejected (drive specification)"),
+                    // `BridgeActive` is a reconfiguration's, never the start's.
+                    ControlError::Drive(_) | ControlError::BridgeActive => {
+                        defmt::error!("configuration rejected (drive specification)")
+                    }
                     ControlError::Scaling(_) => defmt::error!("configuration rejected (ADC/PWM scaling)"),
                     ControlError::Encoder(_) => defmt::error!("configuration rejected (encoder)"),
                     ControlError::Calibration(_) => {

@@ -412,6 +412,48 @@ mod tests {
         assert_eq!(write(&mut c, 0.05, 1.0), Reply::Nack(NackReason::NotIdle));
     }
 
+    /// A gain write is a new configuration for the same motor on the same board: the motor's
+    /// and the inverter's I²t state (their temperature) and the encoder's turn count carry
+    /// over. Found by reading (issue 48): the write rebuilt the drive, and a user could cool
+    /// a hot motor's protection by writing gains.
+    #[test]
+    fn a_gain_write_keeps_the_thermal_state_and_the_position() {
+        use crate::control::Samples;
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
+        let s = LinkStats::default();
+        // 2 A in phase a and back through b, with the bridge off (the models integrate the
+        // measured current in every mode): 1.9 × the motor's rated RMS current for ten thermal
+        // updates (5 s of its 900 s time constant: θ ≈ 0.019), and the shaft turned by a
+        // revolution and a bit.
+        let zero = BOARD.current_offset_counts;
+        let counts = (2.0 / BOARD.current_a_per_count) as u16;
+        let lines = 4 * BOARD.encoder_lines;
+        let periods = 10 * 1000 * u32::from(c.config().slow_divider());
+        for k in 0..periods {
+            let encoder = (k * (lines + 17) / periods) as u16;
+            let hot = Samples {
+                i_abc: [zero + counts, zero - counts, zero],
+                vdc: 3100,
+                encoder,
+                hardware_break: false,
+            };
+            let _ = c.step(&hot);
+        }
+        assert_eq!(c.drive().mode(), Mode::Idle);
+        let (motor, inverter) = c.drive().thermal_state();
+        assert!(motor > 0.015 && inverter > 0.005, "heated: {motor} {inverter}");
+        let position = c.drive().position_rad();
+        assert!(position > core::f32::consts::TAU, "one turn and more: {position}");
+        assert_eq!(
+            handle(&mut c, &BoardCommand::WriteSpeedGains { kp: 0.08, tau_max_nm: 1.5 }, &s),
+            Reply::Ack
+        );
+        assert_eq!(c.config().speed().saturated_p(), Some((0.08, 1.5)), "the gains written");
+        assert_eq!(c.drive().thermal_state(), (motor, inverter), "the motor is as hot as before");
+        assert_eq!(c.drive().position_rad(), position, "the shaft is where it was");
+    }
+
     /// Commissioning on the board (feature `commissioning`): refused until the offsets are
     /// calibrated, then the sequence takes the bridge (off during its own offsets, switching
     /// from its first pulse), reports its stage, refuses other commands, and a hardware

@@ -1,5 +1,9 @@
 //! Project automation: `cargo xtask <task>`.
 //!
+//! * `ci --setup` — the README's test command, what `.ci/run` calls: first installs what the
+//!   checks need and a fresh machine lacks ([`setup`]: the thumbv7em/thumbv7m targets,
+//!   rustfmt, clippy and llvm-tools, QEMU, `cargo-fuzz`, `flip-link`, `defmt-print`, the
+//!   Python cross-checks' packages), then runs `ci`.
 //! * `ci` — everything CI checks, in order, reporting every failure (not only the first):
 //!   fmt check, clippy `-D warnings` (host, all targets), rustdoc with warnings as errors,
 //!   host tests, `design certify drive.toml`, a thumbv7em build of
@@ -92,6 +96,33 @@ const FAULTS: Step = Step::cargo(
     ],
 );
 const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
+/// The Python cross-checks (docs/verification.md; their packages: [`PYTHON_PACKAGES`]).
+const PY_GEM_DOL: Step = Step {
+    name: "independent plant cross-check (gym-electric-motor + scipy)",
+    program: "python3",
+    pre_args: &[],
+    dir: "",
+    args: &["tools/gem_dol.py"],
+    env: &[],
+};
+const PY_GEM_SPEED: Step = Step {
+    name: "simulation speed: hil-sim vs gym-electric-motor, same run",
+    program: "python3",
+    pre_args: &[],
+    dir: "",
+    args: &["tools/gem_speed.py"],
+    env: &[],
+};
+const PY_CONTROL: Step = Step {
+    name: "design toolkit vs python-control, same work, same run",
+    program: "python3",
+    pre_args: &[],
+    dir: "",
+    args: &["tools/control_bench.py"],
+    env: &[],
+};
+/// The versions the docs quote (docs/verification.md).
+const PYTHON_PACKAGES: [&str; 3] = ["gym-electric-motor==3.0.3", "scipy==1.17.1", "control==0.10.2"];
 const CORE_M4: Step =
     Step::cargo("build-core-m4", &["build", "--package", "controller-core", "--target", THUMB, "--release"]);
 const FW: Step =
@@ -558,10 +589,78 @@ fn module_cycles() -> bool {
     ok
 }
 
+/// Run `program args` for the set-up, its output passed through; `Err` says what failed.
+fn run_setup(program: &str, args: &[&str]) -> Result<(), String> {
+    eprintln!("\n=== xtask setup: {program} {} ===", args.join(" "));
+    match Command::new(program).args(args).status() {
+        Ok(s) if s.success() => Ok(()),
+        Ok(s) => Err(format!("`{program} {}` failed with {s}", args.join(" "))),
+        Err(e) => Err(format!("cannot start `{program}`: {e}")),
+    }
+}
+
+/// `program` answers `--version` (it is on the PATH).
+fn on_path(program: &str) -> bool {
+    Command::new(program).arg("--version").output().is_ok_and(|o| o.status.success())
+}
+
+/// Install what `ci` needs and a fresh machine lacks (`ci --setup`; what `.ci/run` did
+/// itself until the README's command did it): the targets and components through rustup,
+/// QEMU through apt-get (as root; otherwise it says what to install), the cargo tools with
+/// `--locked`, the Python packages at the versions the docs quote. What is there already is
+/// left alone, so a second run costs seconds.
+fn setup() -> Result<(), String> {
+    run_setup("rustup", &["target", "add", THUMB, M3])?;
+    run_setup("rustup", &["component", "add", "rustfmt", "clippy", "llvm-tools"])?;
+    if !on_path("qemu-system-arm") {
+        let root = Command::new("id").arg("-u").output().is_ok_and(|o| o.stdout.starts_with(b"0\n"));
+        if !(root && on_path("apt-get")) {
+            return Err("QEMU is missing: install qemu-system-arm (Debian/Ubuntu: \
+                        `sudo apt-get install qemu-system-arm`), then run this again"
+                .into());
+        }
+        run_setup("apt-get", &["update", "-qq"])?;
+        run_setup("apt-get", &["install", "-y", "-qq", "qemu-system-arm"])?;
+    }
+    for (tool, krate) in
+        [("cargo-fuzz", "cargo-fuzz"), ("flip-link", "flip-link"), ("defmt-print", "defmt-print")]
+    {
+        // cargo-fuzz answers `cargo fuzz --version`, not `cargo-fuzz --version`.
+        let there = if tool == "cargo-fuzz" {
+            Command::new("cargo").args(["fuzz", "--version"]).output().is_ok_and(|o| o.status.success())
+        } else {
+            on_path(tool)
+        };
+        if !there {
+            run_setup("cargo", &["install", krate, "--locked", "--quiet"])?;
+        }
+    }
+    let mut pip = vec!["-m", "pip", "install", "--quiet", "--disable-pip-version-check"];
+    pip.extend(PYTHON_PACKAGES);
+    run_setup("python3", &pip)
+}
+
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
+    let options: Vec<String> = std::env::args().skip(2).collect();
+    match (task.as_str(), options.as_slice()) {
+        ("ci", [o]) if o == "--setup" => {
+            if let Err(e) = setup() {
+                eprintln!("xtask: set-up failed: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+        (_, []) => {}
+        _ => {
+            eprintln!("xtask: unknown options {options:?} (only `ci --setup` takes one)");
+            return ExitCode::from(2);
+        }
+    }
     let steps: Vec<&Step> = match task.as_str() {
         "ci" => [
+            &PY_GEM_DOL,
+            &PY_GEM_SPEED,
+            &PY_CONTROL,
             &FMT,
             &CLIPPY,
             &CLIPPY_FW,
@@ -589,7 +688,7 @@ fn main() -> ExitCode {
         "faults" => vec![&FAULTS],
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci | lint | modules | test-host | certify | faults | build-core-m4 | build-fw | qemu | fuzz>"
+                "usage: cargo xtask <ci [--setup] | lint | modules | test-host | certify | faults | build-core-m4 | build-fw | qemu | fuzz>"
             );
             return ExitCode::from(2);
         }

@@ -10,7 +10,8 @@ use crate::ifoc::IfocConfig;
 use crate::mras::{MrasConfig, MrasError};
 use crate::raw::{self, RawDriveConfig};
 use crate::speed::{PositionConfig, SpeedControllerConfig};
-use crate::supervisor::limits::abs_bits;
+use crate::supervisor::limits::{BrakeLevels, Limits, abs_bits};
+use crate::supervisor::motion::MotionLimits;
 use crate::supervisor::motion::{FOLLOWING_PROGRESS_FRACTION, STALL_SPEED_FRACTION};
 use crate::supervisor::phases::{OPEN_PHASE_COMMANDED_FRACTION, SWITCH_FOLLOWING_WINDOWS, SWITCH_WINDOWS};
 use crate::supervisor::thermal::ThermalConfig;
@@ -58,24 +59,10 @@ pub struct DriveConfig {
     pub(super) delay_s: f32,
     pub(super) ts_s: f32,
     pub(super) slow_divider: u16,
-    /// Bits of the phase-current trip level (finite, positive): see
-    /// [`Drive::measurements_ok`]; [`Drive::supervise`] reads the level back from them.
-    pub(super) i_trip_bits: u32,
-    /// Bits of `current_sum_max_a` (compared like `i_trip_bits`).
-    pub(super) i_sum_bits: u32,
-    pub(super) vdc_min_v: f32,
-    pub(super) vdc_max_v: f32,
-    pub(super) overspeed_rad_s: f32,
-    pub(super) stall_speed_rad_s: f32,
-    /// Slow steps of stall before the trip.
-    pub(super) stall_slow_steps: u32,
-    /// Slow steps of a following-error window.
-    pub(super) following_slow_steps: u32,
-    /// [`FOLLOWING_PROGRESS_FRACTION`]·T_slow/J, rad/s per N·m: the least progress per slow
-    /// step at the torque commanded.
-    pub(super) following_gain: f32,
-    /// The speed loop's output limit (saturation test of the stall check).
-    pub(super) speed_limit: f32,
+    /// The instant limits ([`crate::supervisor::limits`]).
+    pub(super) limits: Limits,
+    /// The motion checks' levels ([`crate::supervisor::motion`]).
+    pub(super) motion: MotionLimits,
     /// Fast steps with the voltage request outside the hexagon before the trip.
     pub(super) saturation_steps: u32,
     /// Slow periods of implausible encoder before the trip.
@@ -101,10 +88,8 @@ pub struct DriveConfig {
     /// The stuck-switch check's weights of a new sample, 1 − exp(−T_slow/τ) with τ
     /// [`SWITCH_WINDOWS`] and [`SWITCH_FOLLOWING_WINDOWS`] open-phase windows.
     pub(super) switch_gains: [f32; 2],
-    /// Brake chopper on above this bus voltage (`f32::MAX` without a chopper: never), V.
-    pub(super) brake_on_v: f32,
-    /// … and off below this one, V.
-    pub(super) brake_off_v: f32,
+    /// The brake chopper's levels (`f32::MAX` without a chopper: never on).
+    pub(super) brake: BrakeLevels,
 }
 
 impl DriveConfig {
@@ -259,21 +244,25 @@ impl DriveConfig {
             delay_s: (VOLTAGE_DELAY_PERIODS * ts) as f32,
             ts_s: ts as f32,
             slow_divider: spec.slow_divider,
-            // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
-            i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
-            i_sum_bits: abs_bits((p.current_sum_max_a as f32).min(f32::MAX)),
-            // −0 as +0 (the same limit): the supervisor's bit test needs the sign bit clear.
-            vdc_min_v: if p.vdc_min_v == 0.0 { 0.0 } else { p.vdc_min_v as f32 },
-            vdc_max_v: p.vdc_max_v as f32,
-            overspeed_rad_s: p.overspeed_rad_s as f32,
-            stall_speed_rad_s: (STALL_SPEED_FRACTION * p.overspeed_rad_s) as f32,
-            // At least one slow step; saturating for absurdly long times.
-            stall_slow_steps: libm::ceil(p.stall_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
-                as u32,
-            following_slow_steps: libm::ceil(p.following_time_s * f / f64::from(spec.slow_divider))
-                .clamp(1.0, 4e9) as u32,
-            following_gain: (FOLLOWING_PROGRESS_FRACTION * t_slow / spec.motor.j_kgm2()) as f32,
-            speed_limit: speed.output_limit(),
+            limits: Limits {
+                // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
+                i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
+                i_sum_bits: abs_bits((p.current_sum_max_a as f32).min(f32::MAX)),
+                // −0 as +0 (the same limit): the supervisor's bit test needs the sign bit clear.
+                vdc_min_v: if p.vdc_min_v == 0.0 { 0.0 } else { p.vdc_min_v as f32 },
+                vdc_max_v: p.vdc_max_v as f32,
+            },
+            motion: MotionLimits {
+                overspeed_rad_s: p.overspeed_rad_s as f32,
+                stall_speed_rad_s: (STALL_SPEED_FRACTION * p.overspeed_rad_s) as f32,
+                // At least one slow step; saturating for absurdly long times.
+                stall_slow_steps: libm::ceil(p.stall_time_s * f / f64::from(spec.slow_divider))
+                    .clamp(1.0, 4e9) as u32,
+                following_slow_steps: libm::ceil(p.following_time_s * f / f64::from(spec.slow_divider))
+                    .clamp(1.0, 4e9) as u32,
+                following_gain: (FOLLOWING_PROGRESS_FRACTION * t_slow / spec.motor.j_kgm2()) as f32,
+                speed_limit: speed.output_limit(),
+            },
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                 .clamp(1.0, 4e9) as u32,
@@ -295,8 +284,7 @@ impl DriveConfig {
             switch_gains: [SWITCH_WINDOWS, SWITCH_FOLLOWING_WINDOWS].map(|windows| {
                 (1.0 - libm::exp(-f64::from(spec.slow_divider) / (windows * open_phase_steps as f64))) as f32
             }),
-            brake_on_v,
-            brake_off_v,
+            brake: BrakeLevels { on_v: brake_on_v, off_v: brake_off_v },
         })
     }
 }
@@ -336,14 +324,14 @@ impl DriveConfig {
             self.voltage_gain,
             self.delay_s,
             self.ts_s,
-            self.vdc_min_v,
-            self.vdc_max_v,
-            self.overspeed_rad_s,
-            self.stall_speed_rad_s,
-            self.following_gain,
-            self.speed_limit,
-            self.brake_on_v,
-            self.brake_off_v,
+            self.limits.vdc_min_v,
+            self.limits.vdc_max_v,
+            self.motion.overspeed_rad_s,
+            self.motion.stall_speed_rad_s,
+            self.motion.following_gain,
+            self.motion.speed_limit,
+            self.brake.on_v,
+            self.brake.off_v,
             self.encoder_jump_rad,
             self.motor_thermal.inv_rated2,
             self.motor_thermal.gain,
@@ -357,10 +345,10 @@ impl DriveConfig {
         for x in [
             self.magnetizing_steps_max,
             u32::from(self.slow_divider),
-            self.i_trip_bits,
-            self.i_sum_bits,
-            self.stall_slow_steps,
-            self.following_slow_steps,
+            self.limits.i_trip_bits,
+            self.limits.i_sum_bits,
+            self.motion.stall_slow_steps,
+            self.motion.following_slow_steps,
             self.saturation_steps,
             self.encoder_check_steps,
             self.stop_slow_steps,
@@ -390,7 +378,10 @@ impl DriveConfig {
         let speed = SpeedControllerConfig::get(&mut r).ok_or(DriveError::Raw)?;
         let position = PositionConfig::get(&mut r);
         let envelope = EnvelopeConfig::get(&mut r);
-        let cfg = Self {
+        // In the order `write_raw` puts them: the floats, then the integers (a struct
+        // literal evaluates its fields in the order written; the groups' integers are read
+        // after it, in their turn).
+        let mut cfg = Self {
             current,
             current_frame,
             ifoc,
@@ -412,42 +403,49 @@ impl DriveConfig {
             voltage_gain: r.f(),
             delay_s: r.f(),
             ts_s: r.f(),
-            vdc_min_v: r.f(),
-            vdc_max_v: r.f(),
-            overspeed_rad_s: r.f(),
-            stall_speed_rad_s: r.f(),
-            following_gain: r.f(),
-            speed_limit: r.f(),
-            brake_on_v: r.f(),
-            brake_off_v: r.f(),
+            limits: Limits { vdc_min_v: r.f(), vdc_max_v: r.f(), i_trip_bits: 0, i_sum_bits: 0 },
+            motion: MotionLimits {
+                overspeed_rad_s: r.f(),
+                stall_speed_rad_s: r.f(),
+                following_gain: r.f(),
+                speed_limit: r.f(),
+                stall_slow_steps: 0,
+                following_slow_steps: 0,
+            },
+            brake: BrakeLevels { on_v: r.f(), off_v: r.f() },
             encoder_jump_rad: r.f(),
             motor_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
             inverter_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
             magnetizing_steps_max: r.u(),
             slow_divider: u16::try_from(r.u()).map_err(|_| DriveError::Raw)?,
-            i_trip_bits: r.u(),
-            i_sum_bits: r.u(),
-            stall_slow_steps: r.u(),
-            following_slow_steps: r.u(),
-            saturation_steps: r.u(),
-            encoder_check_steps: r.u(),
-            stop_slow_steps: r.u(),
-            open_phase_slow_steps: r.u(),
-            stop_on: FaultSet(r.u()),
+            saturation_steps: 0,
+            encoder_check_steps: 0,
+            stop_slow_steps: 0,
+            open_phase_slow_steps: 0,
+            stop_on: FaultSet::EMPTY,
         };
+        cfg.limits.i_trip_bits = r.u();
+        cfg.limits.i_sum_bits = r.u();
+        cfg.motion.stall_slow_steps = r.u();
+        cfg.motion.following_slow_steps = r.u();
+        cfg.saturation_steps = r.u();
+        cfg.encoder_check_steps = r.u();
+        cfg.stop_slow_steps = r.u();
+        cfg.open_phase_slow_steps = r.u();
+        cfg.stop_on = FaultSet(r.u());
         let counts = [
             u32::from(cfg.slow_divider),
             cfg.magnetizing_steps_max,
-            cfg.stall_slow_steps,
-            cfg.following_slow_steps,
+            cfg.motion.stall_slow_steps,
+            cfg.motion.following_slow_steps,
             cfg.saturation_steps,
             cfg.encoder_check_steps,
             cfg.stop_slow_steps,
             cfg.open_phase_slow_steps,
         ];
         // The bus range as `new` makes it, +0 for a zero minimum (the fast step's supervisor
-        // tests it as one unsigned range of the bits, `Drive::measurements_ok`).
-        let bus = cfg.vdc_min_v.is_sign_positive() && cfg.vdc_min_v < cfg.vdc_max_v;
+        // tests it as one unsigned range of the bits, `Limits::ok`).
+        let bus = cfg.limits.vdc_min_v.is_sign_positive() && cfg.limits.vdc_min_v < cfg.limits.vdc_max_v;
         if r.bad
             || !bus
             || !cfg.mras.is_valid()
@@ -467,7 +465,7 @@ impl DriveConfig {
         // Copied whole, then the two fields set: the struct update syntax (`..*self`) copied
         // it field by field, inlined into the firmware's `WriteSpeedGains` (388 B of flash).
         let mut cfg = *self;
-        (cfg.speed, cfg.speed_limit) = (speed, speed.output_limit());
+        (cfg.speed, cfg.motion.speed_limit) = (speed, speed.output_limit());
         Some(cfg)
     }
 

@@ -74,9 +74,12 @@ use crate::ifoc::{FluxCommand, IfocState, TorqueCommand};
 #[cfg(doc)]
 use crate::mras::MrasConfig;
 use crate::mras::RotorFit;
+use crate::num::Scalar;
 use crate::speed::SpeedState;
+use crate::supervisor::encoder::{EncoderTrack, VoltageCheck};
+use crate::supervisor::motion::MotionChecks;
 use crate::supervisor::phases::{OpenPhaseWindow, SwitchWatch};
-use core::f32::consts::TAU;
+use crate::supervisor::thermal::ThermalState;
 
 /// What [`Drive::telemetry`] reads of the last fast step (stationary frame): the measured
 /// current, the current references, the voltage applied.
@@ -87,39 +90,79 @@ struct StepSignals {
     v_ab: AlphaBeta,
 }
 
-/// A drive: configuration plus all loop states.
+/// A drive: its configuration and its state, grouped by lifetime and owner — the rule of
+/// what survives what is written in these types:
+///
+/// | group | what | made afresh by |
+/// |---|---|---|
+/// | the commands (these fields) | mode, reference, a controlled stop under way | [`Drive::new`]; a reconfiguration keeps the mode (a fault stays latched) and starts the reference at rest |
+/// | `machine`: `MachineState` | the motor's and the inverter's temperature (I²t), the shaft's position and turns, how long the rotor has been left, the brake chopper's comparator | [`Drive::new`] only (power-up): kept by [`Drive::enable`] and by [`Drive::reconfigure`] |
+/// | `run`: `RunState` | one run of the bridge: the loops, the field, the plan, the checks' counts; and the estimates it runs on (R_r, the inductances) | [`Drive::enable`] and [`Drive::reconfigure`], which carry the estimates into the new run |
+///
+/// The board's own state (the current sensors' offsets, the encoder's speed window, the
+/// capture) is the firmware's, beside the drive (`firmware::control::ControlLoop`).
 #[derive(Clone, Copy, Debug)]
 pub struct Drive {
     cfg: DriveConfig,
     mode: Mode,
     reference: Reference,
-    torque_cmd: TorqueCommand,
+    /// Speed reference of the speed loop at the last slow step (telemetry), rad/s.
     omega_ref_rad_s: f32,
-    /// Fast steps until the next slow step (0: this one).
+    /// A fault answered by a controlled stop ([`Protection::stop_on`]), latched when the stop
+    /// ends.
+    pending_fault: Option<Fault>,
+    /// Slow steps left of a controlled stop (`None`: not stopping).
+    stop_steps_left: Option<u32>,
+    /// Fast steps until the next slow step (0: this one): the cadence whoever reads the
+    /// encoder every N-th period keeps in step with.
     steps_to_slow: u16,
+    machine: MachineState,
+    run: RunState,
+}
+
+/// What belongs to the machine and the board, not to a run or a configuration: kept by
+/// [`Drive::enable`] and [`Drive::reconfigure`] (a gain write must not cool a hot motor's
+/// protection, nor lose the shaft's position).
+#[derive(Clone, Copy, Debug, Default)]
+struct MachineState {
+    /// The I²t models ([`crate::supervisor::thermal`]).
+    thermal: ThermalState,
+    /// The encoder's readings: the shaft's position and turns, the jump check's last change.
+    encoder: EncoderTrack,
+    /// Slow steps with the bridge off (saturating): whether the rotor has lost its flux
+    /// ([`MrasConfig::demagnetized_after`]).
+    idle_slow_steps: u32,
+    /// The brake chopper's comparator state.
+    brake: bool,
+}
+
+impl MachineState {
+    /// At power-up: cold, nothing read, nothing has driven the rotor.
+    const POWER_UP: Self = Self {
+        thermal: ThermalState::COLD,
+        encoder: EncoderTrack::NONE,
+        idle_slow_steps: u32::MAX,
+        brake: false,
+    };
+}
+
+/// One run of the bridge, from an enable: made afresh by [`Drive::enable`] and
+/// [`Drive::reconfigure`] ([`RunState::new`]), on the estimates the last run left.
+#[derive(Clone, Copy, Debug)]
+struct RunState {
+    torque_cmd: TorqueCommand,
     current: CurrentState<f32>,
+    /// The field orientation's state; it holds the estimates the run is on (R_r, the
+    /// inductances: [`IfocState::rotor_resistance_scale`], [`IfocState::inductance_scale`]).
     ifoc: IfocState,
     speed: SpeedState,
     test_angle_rad: f32,
-    /// Consecutive slow steps with the stall condition.
-    stall_steps: u32,
-    /// Slow steps into the present following-error window, the speed at its start (rad/s)
-    /// and the margin since, signed as the torque (rad/s).
-    following_steps: u32,
-    following_w0_rad_s: f32,
-    following_owed_rad_s: f32,
+    /// The stall and following-error checks ([`crate::supervisor::motion`]).
+    motion: MotionChecks,
     /// Consecutive fast steps with the voltage request outside the hexagon.
     saturated_steps: u32,
-    /// Consecutive slow periods with an implausible encoder.
-    encoder_bad_steps: u32,
-    /// … and of those, the last consecutive ones whose voltage held one phase's axis
-    /// ([`PINNED_PHASE_COS`]), and which axis (phase index, and 3 added when negative).
-    pinned_steps: u32,
-    pinned_axis: u8,
-    /// The brake chopper's comparator state.
-    brake: bool,
-    /// Slow steps left of a controlled stop (`None`: not stopping).
-    stop_steps_left: Option<u32>,
+    /// The encoder-against-the-model check ([`crate::supervisor::encoder`]).
+    voltage_check: VoltageCheck,
     /// The open-phase check's window: Σ|i_ref| and Σ|i| per phase, and its steps so far.
     open_phase: OpenPhaseWindow,
     /// The stuck-switch check's half-waves.
@@ -129,17 +172,6 @@ pub struct Drive {
     /// The envelope's d-axis current of the last slow step, A: the flux reference's
     /// (`flux` holds it lowered while the flux falls: [`FLUX_FALL_TIME_S`]).
     i_d_target_a: f32,
-    /// Σ of the RMS phase current squared, A², over the slow steps since the thermal models'
-    /// last update, and their count.
-    thermal_sum_a2: f32,
-    thermal_steps: u16,
-    /// The thermal models' states (1 = the steady rise at the rated current): motor,
-    /// inverter. They carry on through every mode (the motor cools while the bridge is off).
-    theta_motor: f32,
-    theta_inverter: f32,
-    /// A fault answered by a controlled stop ([`Protection::stop_on`]), latched when the stop
-    /// ends.
-    pending_fault: Option<Fault>,
     /// Largest steady torque of the envelope at the last slow step, N·m (the speed loop's
     /// limit).
     torque_max_nm: f32,
@@ -154,9 +186,6 @@ pub struct Drive {
     v_d_sum: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,
-    /// Slow steps with the bridge off (saturating): whether the rotor has lost its flux
-    /// ([`MrasConfig::demagnetized_after`]).
-    idle_slow_steps: u32,
     /// The machine model on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]):
     /// the envelope's, the encoder check's and the rotor-resistance law's.
     model: EnvelopeConfig,
@@ -164,15 +193,6 @@ pub struct Drive {
     i_d_rated_a: f32,
     /// Slow steps spent magnetizing.
     magnetizing_steps: u32,
-    /// Encoder angle at the last slow step, mechanical rad, within a revolution.
-    theta_m_prev_rad: f32,
-    /// Whole turns counted from the encoder's readings (the position loop's position is
-    /// `turns·2π + theta_m_prev_rad`).
-    turns: i32,
-    /// The encoder's change over the last read, mechanical rad.
-    encoder_step_rad: f32,
-    /// Readings taken so far, up to 2 (the jump check needs two changes).
-    encoder_reads: u8,
     /// The rotor's electrical angle from the encoder, rad, in `[-π, π)`.
     theta_r_rad: f32,
     /// The rotation that advances the output voltage over the delay
@@ -194,60 +214,39 @@ pub struct Drive {
     last_test_angle_rad: f32,
 }
 
-impl Drive {
-    /// A drive in `Idle` with a zero speed reference. `#[inline]`: compiled in the caller's
-    /// crate — in the firmware at its opt-level "z" (start-up and a gain write; −20 B).
-    #[inline]
-    pub fn new(cfg: DriveConfig) -> Self {
+impl RunState {
+    /// A run of `cfg` from rest (no flux, no torque, every count at zero) on the rotor
+    /// resistance `rr_scale` and the inductances `l_scale` × the motor's, with the
+    /// magnetizing fit `rotor_fit`. Out of line: one copy for power-up, an enable and a
+    /// reconfiguration (inlined into each, the firmware took ≈ 1.2 KB more flash).
+    #[inline(never)]
+    fn new(cfg: &DriveConfig, rr_scale: f32, l_scale: f32, rotor_fit: RotorFit) -> Self {
         Self {
-            cfg,
-            mode: Mode::Idle,
-            reference: Reference::Speed(0.0),
             torque_cmd: TorqueCommand::TorqueNm(0.0),
-            omega_ref_rad_s: 0.0,
-            steps_to_slow: 0,
             current: CurrentState::default(),
             ifoc: {
-                let mut s = cfg.ifoc.state(0.0, cfg.mras.initial_scale());
-                cfg.ifoc.set_inductance_scale(&mut s, cfg.mras.initial_inductance_scale());
+                let mut s = cfg.ifoc.state(0.0, rr_scale);
+                cfg.ifoc.set_inductance_scale(&mut s, l_scale);
                 s
             },
             speed: SpeedState::default(),
             test_angle_rad: 0.0,
-            stall_steps: 0,
-            following_steps: 0,
-            following_w0_rad_s: 0.0,
-            following_owed_rad_s: 0.0,
+            motion: MotionChecks::default(),
             saturated_steps: 0,
-            encoder_bad_steps: 0,
-            pinned_steps: 0,
-            pinned_axis: 0,
-            brake: false,
-            stop_steps_left: None,
+            voltage_check: VoltageCheck::default(),
             open_phase: OpenPhaseWindow::default(),
             switches: SwitchWatch::default(),
             flux: FluxCommand::default(),
             i_d_target_a: 0.0,
-            thermal_sum_a2: 0.0,
-            thermal_steps: 0,
-            theta_motor: 0.0,
-            theta_inverter: 0.0,
-            pending_fault: None,
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
             v_req2_sum: 0.0,
             v_req_steps: 0,
             v_d_sum: 0.0,
-            rotor_fit: RotorFit::default(),
-            // Powered up: nothing has driven the rotor.
-            idle_slow_steps: u32::MAX,
-            model: cfg.envelope.with_inductance_scale(cfg.mras.initial_inductance_scale()),
-            i_d_rated_a: cfg.i_d_rated_a / cfg.mras.initial_inductance_scale(),
+            rotor_fit,
+            model: cfg.envelope.with_inductance_scale(l_scale),
+            i_d_rated_a: cfg.i_d_rated_a / l_scale,
             magnetizing_steps: 0,
-            theta_m_prev_rad: 0.0,
-            turns: 0,
-            encoder_step_rad: 0.0,
-            encoder_reads: 0,
             theta_r_rad: 0.0,
             delay_rotation: SinCos::default(),
             speed_saturated: false,
@@ -258,6 +257,69 @@ impl Drive {
             last: StepSignals::default(),
             last_test_angle_rad: 0.0,
         }
+    }
+}
+
+impl Drive {
+    /// A drive in `Idle` with a zero speed reference, at power-up: a cold machine, nothing
+    /// read of the encoder, the estimates at the configuration's initial values.
+    /// `#[inline]`: compiled in the caller's crate — in the firmware at its opt-level "z"
+    /// (start-up; out of line at controller-core's 2, +72 B).
+    #[inline]
+    pub fn new(cfg: DriveConfig) -> Self {
+        let run = RunState::new(
+            &cfg,
+            cfg.mras.initial_scale(),
+            cfg.mras.initial_inductance_scale(),
+            RotorFit::default(),
+        );
+        Self {
+            cfg,
+            mode: Mode::Idle,
+            reference: Reference::Speed(0.0),
+            omega_ref_rad_s: 0.0,
+            pending_fault: None,
+            stop_steps_left: None,
+            steps_to_slow: 0,
+            machine: MachineState::POWER_UP,
+            run,
+        }
+    }
+
+    /// Swap the configuration for `cfg` — new gains (the firmware's `WriteSpeedGains`), or a
+    /// new drive file for the same machine — keeping the machine's state: the motor's and
+    /// the inverter's I²t temperature (θ rescaled if the rated current changed,
+    /// [`ThermalLimit`]), the encoder's position and turns, how long the rotor has been
+    /// left, the brake chopper's state. The estimates (R_r, the inductances, × the motor
+    /// file's) carry over, limited to `cfg`'s ranges — an estimate inside them is one `cfg`'s
+    /// certificate covers. The run starts afresh, the reference at rest (`Speed(0)`), a
+    /// latched fault stays latched, and the slow cadence keeps its phase unless the divider
+    /// changed. As in stabilizer and idsp: the configuration is swapped, the state is kept.
+    /// Another machine is another drive ([`Drive::new`]).
+    ///
+    /// Refused while the bridge is active ([`CommandError::Active`]): the drive is left as
+    /// it was. Out of line: a rare command, kept out of the control interrupt's code.
+    #[inline(never)]
+    pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
+        if self.mode.is_active() {
+            return Err(CommandError::Active);
+        }
+        let old = &self.cfg;
+        let [rr_min, rr_max] = cfg.mras.range();
+        let [l_min, l_max] = cfg.mras.inductance_range();
+        let rr = self.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
+        let l = self.run.ifoc.inductance_scale().limit(l_min, l_max);
+        let thermal = &mut self.machine.thermal;
+        thermal.motor = old.motor_thermal.carry(thermal.motor, &cfg.motor_thermal);
+        thermal.inverter = old.inverter_thermal.carry(thermal.inverter, &cfg.inverter_thermal);
+        if cfg.slow_divider != old.slow_divider {
+            self.steps_to_slow = 0;
+        }
+        self.run = RunState::new(&cfg, rr, l, RotorFit::default());
+        (self.reference, self.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
+        (self.pending_fault, self.stop_steps_left) = (None, None);
+        self.cfg = cfg;
+        Ok(())
     }
 
     /// Present mode.
@@ -272,17 +334,17 @@ impl Drive {
 
     /// Current-loop states (their PI `p_term`/`i_term` are telemetry).
     pub fn current_state(&self) -> &CurrentState<f32> {
-        &self.current
+        &self.run.current
     }
 
     /// Speed-loop state (PI `p_term`/`i_term` when a PI law is configured).
     pub fn speed_state(&self) -> &SpeedState {
-        &self.speed
+        &self.run.speed
     }
 
     /// IFOC state: field angle and rotor-flux estimate.
     pub fn ifoc_state(&self) -> &IfocState {
-        &self.ifoc
+        &self.run.ifoc
     }
 
     /// The next [`Drive::step`] runs the slow step, which reads the measurements' encoder
@@ -304,62 +366,32 @@ impl Drive {
     /// what decides whether the next enable measures the inductances
     /// ([`MrasConfig::demagnetized_after`]).
     pub fn idle_slow_steps(&self) -> u32 {
-        self.idle_slow_steps
+        self.machine.idle_slow_steps
     }
 
     /// The rotor was driven by something else `idle_slow_steps` slow steps ago (0: now) — a
     /// commissioning sequence in the drive's place, or the drive this one replaces (a new
     /// configuration): its flux may still be there at the next enable.
     pub fn rotor_driven(&mut self, idle_slow_steps: u32) {
-        self.idle_slow_steps = idle_slow_steps;
+        self.machine.idle_slow_steps = idle_slow_steps;
     }
 
-    /// Idle → Magnetizing with fresh loop states. No effect when already active.
-    /// `#[inline]`: compiled in the caller's crate — in the firmware, with its commands at
-    /// opt-level "z" (−148 B of flash), not at controller-core's 2.
+    /// Idle → Magnetizing with a fresh run (`RunState`: the loops, the field, the checks'
+    /// counts), on the estimates the last run left: the rotor resistance's estimate is the
+    /// rotor's temperature, the inductance's the machine's. The machine's state carries on
+    /// (`MachineState`), and so does the slow cadence: whoever reads the encoder every
+    /// N-th period (the firmware, the simulator) stays in step with the slow step. No effect
+    /// when already active. `#[inline]`: compiled in the caller's crate — in the firmware,
+    /// with its commands at opt-level "z" (−148 B of flash), not at controller-core's 2.
     #[inline]
     pub fn enable(&mut self) -> Result<(), CommandError> {
         match self.mode {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
-                self.current = CurrentState::default();
-                // The rotor resistance's estimate is the rotor's temperature, the inductance's
-                // the machine's: they carry over.
-                let l = self.ifoc.inductance_scale();
-                self.ifoc = self.cfg.ifoc.state(0.0, self.ifoc.rotor_resistance_scale());
-                self.cfg.ifoc.set_inductance_scale(&mut self.ifoc, l);
-                self.speed = SpeedState::default();
-                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
-                // The slow cadence is not restarted: whoever reads the encoder every N-th
-                // period (the firmware, the simulator) stays in step with the slow step.
-                self.test_angle_rad = 0.0;
-                self.stall_steps = 0;
-                self.following_steps = 0;
-                self.saturated_steps = 0;
-                self.encoder_bad_steps = 0;
-                self.pinned_steps = 0;
-                self.open_phase = OpenPhaseWindow::default();
-                self.switches = SwitchWatch::default();
-                self.flux = FluxCommand::default();
-                self.i_d_target_a = 0.0;
-                self.torque_max_nm = 0.0;
-                self.v_cut_v = 0.0;
-                self.v_req2_sum = 0.0;
-                self.v_req_steps = 0;
-                self.v_d_sum = 0.0;
-                self.rotor_fit = RotorFit::new(self.cfg.mras.demagnetized_after(self.idle_slow_steps));
-                self.idle_slow_steps = 0;
-                self.magnetizing_steps = 0;
-                self.theta_r_rad = 0.0;
-                self.delay_rotation = SinCos::default();
-                self.speed_saturated = false;
-                self.envelope = Envelope::ZERO;
-                self.envelope_age = 0;
-                self.trim = Dq::default();
-                self.trim_hold = false;
-                // Nothing of the steps before (the telemetry of the pre-charge's periods,
-                // before the first fast step).
-                self.last = StepSignals::default();
+                let fit = RotorFit::new(self.cfg.mras.demagnetized_after(self.machine.idle_slow_steps));
+                let (rr, l) = (self.run.ifoc.rotor_resistance_scale(), self.run.ifoc.inductance_scale());
+                self.run = RunState::new(&self.cfg, rr, l, fit);
+                self.machine.idle_slow_steps = 0;
                 self.mode = Mode::Magnetizing;
                 Ok(())
             }
@@ -388,7 +420,7 @@ impl Drive {
     /// The thermal models' states, motor and inverter (1 = the steady temperature rise at
     /// the rated current; the limit is `overload_factor²`; 0 without a limit).
     pub fn thermal_state(&self) -> (f32, f32) {
-        (self.theta_motor, self.theta_inverter)
+        (self.machine.thermal.motor, self.machine.thermal.inverter)
     }
 
     /// React to fault `f`: a controlled stop, the fault latched when it ends, if `f` is in
@@ -482,12 +514,10 @@ impl Drive {
         }
     }
 
-    /// Multi-turn mechanical position from the encoder, rad (the position loop's): turns
-    /// counted since the first reading plus the angle within the turn. In f32, its
-    /// resolution is that of a position of this size (1e-3 rad at ±4 000 turns); the field
-    /// angle does not use it.
+    /// Multi-turn mechanical position from the encoder, rad (the position loop's;
+    /// `EncoderTrack::position_rad`).
     pub fn position_rad(&self) -> f32 {
-        self.turns as f32 * TAU + self.theta_m_prev_rad
+        self.machine.encoder.position_rad()
     }
 
     /// The signals of the last fast step, for logs, traces and the capture: made on demand
@@ -502,20 +532,20 @@ impl Drive {
         }
         let rotating =
             matches!(self.reference, Reference::RotatingCurrent { .. }) && self.mode == Mode::Running;
-        let s = &self.ifoc;
+        let s = &self.run.ifoc;
         let (theta_e_rad, omega_sl_rad_s, i_q_ref_a) = if rotating {
-            (self.last_test_angle_rad, 0.0, 0.0)
+            (self.run.last_test_angle_rad, 0.0, 0.0)
         } else {
             (s.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q)
         };
         Telemetry {
-            i_ab_a: self.last.i_ab,
-            i_ref_ab_a: self.last.i_ref_ab,
-            v_ab_v: self.last.v_ab,
+            i_ab_a: self.run.last.i_ab,
+            i_ref_ab_a: self.run.last.i_ref_ab,
+            v_ab_v: self.run.last.v_ab,
             theta_e_rad,
             omega_sl_rad_s,
             psi_r_wb: s.psi_r_wb(),
-            psi_ref_wb: s.flux_of(self.i_d_target_a),
+            psi_ref_wb: s.flux_of(self.run.i_d_target_a),
             i_q_ref_a,
             omega_ref_rad_s: self.omega_ref_rad_s,
             rr_scale: s.rotor_resistance_scale(),

@@ -11,7 +11,6 @@ use crate::ifoc::IfocConfig;
 use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
 use crate::supervisor::phases::CURRENT_SUM_MEAN_FRACTION;
 use crate::svpwm;
-use core::f32::consts::PI;
 
 impl Drive {
     /// Speed/position loop, the operating point, and the slow supervisor: a non-finite
@@ -45,44 +44,44 @@ impl Drive {
         let step_rad = self.read_encoder(m.theta_m_rad);
         self.update_thermal(m.i_abc_a);
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
-        if active && m.omega_m_rad_s.abs() > self.cfg.overspeed_rad_s {
+        if active && m.omega_m_rad_s.abs() > self.cfg.motion.overspeed_rad_s {
             self.trip(Fault::Overspeed);
         }
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         if !active {
-            self.idle_slow_steps = self.idle_slow_steps.saturating_add(1);
+            self.machine.idle_slow_steps = self.machine.idle_slow_steps.saturating_add(1);
         }
         if !active || !m.is_finite() {
-            self.torque_cmd = TorqueCommand::TorqueNm(0.0);
+            self.run.torque_cmd = TorqueCommand::TorqueNm(0.0);
             return;
         }
         if let Some(left) = self.stop_steps_left {
-            if left == 0 || m.omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
+            if left == 0 || m.omega_m_rad_s.abs() < self.cfg.motion.stall_speed_rad_s {
                 self.disable();
-                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
+                self.run.torque_cmd = TorqueCommand::TorqueNm(0.0);
                 return;
             }
             self.stop_steps_left = Some(left - 1);
         }
         // The fast steps since the last slow step: the slip angle and the flux model advance
         // over them (before the field is anchored, on the slip angle).
-        let (i_mean, n) = self.cfg.ifoc.close_period(&mut self.ifoc);
+        let (i_mean, n) = self.cfg.ifoc.close_period(&mut self.run.ifoc);
         self.anchor_field(step_rad);
         // The modulator limited the loops' request since the last slow step (read before
         // the trim clears it).
-        let limited = self.trim_hold;
-        if n > 0 && (self.mode == Mode::Running || !self.cfg.mras.fit_pending(&self.rotor_fit)) {
+        let limited = self.run.trim_hold;
+        if n > 0 && (self.mode == Mode::Running || !self.cfg.mras.fit_pending(&self.run.rotor_fit)) {
             // The period's mean error of the intended references (those of the plan in force).
-            let r = self.ifoc.i_ref_dq();
+            let r = self.run.ifoc.i_ref_dq();
             self.update_trim(Dq { d: r.d - i_mean.d, q: r.q - i_mean.q });
         }
-        self.trim_hold = false;
+        self.run.trim_hold = false;
         // The loops' d-axis request over the slow period while magnetizing (read before the
         // budget clears it).
-        let (v_d_sum, v_d_steps) = (self.v_d_sum, self.v_req_steps);
+        let (v_d_sum, v_d_steps) = (self.run.v_d_sum, self.run.v_req_steps);
         let v_budget = self.voltage_budget(m.vdc_v * self.cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
-        let limit = self.torque_max_nm;
+        let limit = self.run.torque_max_nm;
         let torque_nm = if !running {
             0.0
         } else {
@@ -105,28 +104,29 @@ impl Drive {
         let sign = if torque_nm < 0.0 { -1.0 } else { 1.0 };
         // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
         // torque changes direction.
-        if self.envelope_age == 0 || self.envelope.sign() != sign {
-            self.envelope = self.model.envelope(sign, w, self.i_d_rated_a, v_budget, i_max);
-            self.envelope_age = ENVELOPE_REFRESH_SLOW_STEPS;
+        if self.run.envelope_age == 0 || self.run.envelope.sign() != sign {
+            self.run.envelope = self.run.model.envelope(sign, w, self.run.i_d_rated_a, v_budget, i_max);
+            self.run.envelope_age = ENVELOPE_REFRESH_SLOW_STEPS;
         }
-        self.envelope_age -= 1;
-        let op = self.model.point(&self.envelope, torque_nm, w, self.i_d_rated_a, v_budget, i_max);
+        self.run.envelope_age -= 1;
+        let op =
+            self.run.model.point(&self.run.envelope, torque_nm, w, self.run.i_d_rated_a, v_budget, i_max);
         // Running, a flux above the envelope's falls within FLUX_FALL_TIME_S, however slow the
         // rotor (magnetizing, the rotor fit reads the flux building at its own T_r).
-        self.i_d_target_a = op.i_d_a;
+        self.run.i_d_target_a = op.i_d_a;
         let i_d_a = if running {
             let fall_rate = cfg.ts_s * (1.0 / FLUX_FALL_TIME_S) as f32;
-            cfg.ifoc.falling_flux_current(&self.ifoc, op.i_d_a, fall_rate)
+            cfg.ifoc.falling_flux_current(&self.run.ifoc, op.i_d_a, fall_rate)
         } else {
             op.i_d_a
         };
-        self.flux = cfg.ifoc.d_current_command(i_d_a);
+        self.run.flux = cfg.ifoc.d_current_command(i_d_a);
         // What the bus drives now, with the flux that is there (it follows i_d* with T_r):
         // only worked out when the torque asked for needs more than fits.
-        let psi = self.ifoc.psi_r_wb();
+        let psi = self.run.ifoc.psi_r_wb();
         let per_a = cfg.ifoc.torque_factor() * max_f32(psi, 1e-3);
-        let needed = min_f32(self.flux.i_q_max_a(), torque_nm.abs() / per_a);
-        let i_q_now = self.model.i_q_max_at_flux(psi, i_d_a, w, v_budget, needed, sign);
+        let needed = min_f32(self.run.flux.i_q_max_a(), torque_nm.abs() / per_a);
+        let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w, v_budget, needed, sign);
         let mut torque_now_nm = min_f32(op.torque_max_nm, per_a * i_q_now);
         if torque_nm * m.omega_m_rad_s < 0.0 {
             // Generating: no more than the DC link can take (REGEN_LIMIT_START/END).
@@ -135,107 +135,78 @@ impl Drive {
         }
         // The speed loop's limit is the steady envelope: limited by the present flux too, it
         // would ask for a torque the rated flux can give, and the flux would never fall.
-        self.torque_max_nm = op.torque_max_nm;
-        self.torque_cmd = TorqueCommand::TorqueNm(torque_nm.limit(-torque_now_nm, torque_now_nm));
+        self.run.torque_max_nm = op.torque_max_nm;
+        self.run.torque_cmd = TorqueCommand::TorqueNm(torque_nm.limit(-torque_now_nm, torque_now_nm));
         if !running {
             // The rotor resistance and the inductance from the building flux
             // ([`MrasConfig::fit`]).
-            let l_now = self.ifoc.inductance_scale();
-            if m.omega_m_rad_s.abs() >= self.cfg.stall_speed_rad_s {
-                self.rotor_fit.turning();
+            let l_now = self.run.ifoc.inductance_scale();
+            if m.omega_m_rad_s.abs() >= self.cfg.motion.stall_speed_rad_s {
+                self.run.rotor_fit.turning();
             }
             if let Some(fit) =
-                self.cfg.mras.fit(&mut self.rotor_fit, v_d_sum, v_d_steps, self.flux.i_d_a(), l_now)
+                self.cfg.mras.fit(&mut self.run.rotor_fit, v_d_sum, v_d_steps, self.run.flux.i_d_a(), l_now)
             {
                 self.set_inductance_scale(fit.inductance_scale);
-                self.cfg.ifoc.set_rotor_resistance_scale(&mut self.ifoc, fit.rr_scale);
+                self.cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
             }
-            self.magnetizing_steps = self.magnetizing_steps.saturating_add(1);
-            if self.magnetizing_steps > self.cfg.magnetizing_steps_max {
+            self.run.magnetizing_steps = self.run.magnetizing_steps.saturating_add(1);
+            if self.run.magnetizing_steps > self.cfg.magnetizing_steps_max {
                 // The flux model runs on the measured current: none flows.
                 self.trip(Fault::NoMotorCurrent);
-            } else if self.ifoc.psi_r_wb()
-                >= self.cfg.magnetized_fraction * self.ifoc.flux_of(self.flux.i_d_a())
-                && !self.cfg.mras.fit_pending(&self.rotor_fit)
+            } else if self.run.ifoc.psi_r_wb()
+                >= self.cfg.magnetized_fraction * self.run.ifoc.flux_of(self.run.flux.i_d_a())
+                && !self.cfg.mras.fit_pending(&self.run.rotor_fit)
             {
                 // The flux model runs on the measured current: the motor is magnetized.
                 self.mode = Mode::Running;
-                self.speed = SpeedState::default();
-                self.stall_steps = 0;
-                self.following_steps = 0;
+                self.run.speed = SpeedState::default();
+                self.run.motion.restart();
             }
             return;
         }
         let commanding_motion = matches!(self.reference, Reference::Speed(_) | Reference::Position(_));
         // Asked to move: the loop at its limit, or a speed reference well above "not moving"
         // (a proportional law too soft to saturate still commands a seized rotor to turn).
-        let asked = self.speed_saturated
+        let asked = self.run.speed_saturated
             || matches!(self.reference, Reference::Speed(w)
-                if w.abs() >= STALL_REFERENCE_FACTOR * self.cfg.stall_speed_rad_s);
-        if commanding_motion && asked && m.omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
-            self.stall_steps = self.stall_steps.saturating_add(1);
-            if self.stall_steps >= self.cfg.stall_slow_steps {
-                self.trip(Fault::Stall);
-                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
-            }
-        } else {
-            self.stall_steps = 0;
+                if w.abs() >= STALL_REFERENCE_FACTOR * self.cfg.motion.stall_speed_rad_s);
+        if self.run.motion.stall(&self.cfg.motion, commanding_motion && asked, m.omega_m_rad_s) {
+            self.trip(Fault::Stall);
+            self.run.torque_cmd = TorqueCommand::TorqueNm(0.0);
         }
         self.check_following(commanding_motion, m.omega_m_rad_s);
     }
 
     /// One encoder reading, in every mode (the turn count must not miss a turn made while
-    /// the bridge is off): returns the change since the last reading, mechanical rad (the
-    /// wrapped difference of two angles within a revolution: exact in f32 however far the
-    /// motor has turned; 0 for the first reading or a non-finite one), and counts the turns.
-    ///
-    /// **Jump check** ([`Fault::EncoderLoss`]): a change that departs from the previous one by
-    /// more than `encoder_jump_rad`. For motion the mechanics allow, the second difference of
-    /// the readings is `α·T²` plus at most two counts of quantisation; a glitch, a counter
-    /// that stops at speed or a line count that changes exceed it at the first or second read.
-    /// (Below the speed at which one read's change is smaller than the level — ≈ 17 rad/s
-    /// for the shipped drive — a stopped counter looks like a stop: the stall check
-    /// catches it.)
+    /// the bridge is off): the change since the last reading, mechanical rad; a jump
+    /// ([`EncoderTrack::read`]) trips [`Fault::EncoderLoss`] unless a fault is latched.
     pub(super) fn read_encoder(&mut self, theta_m_rad: f32) -> f32 {
-        if !theta_m_rad.is_finite() {
-            return 0.0;
-        }
-        let step =
-            if self.encoder_reads == 0 { 0.0 } else { wrap_angle(theta_m_rad - self.theta_m_prev_rad) };
-        // The angle wrapped past ±π: a turn.
-        let raw = theta_m_rad - self.theta_m_prev_rad;
-        if self.encoder_reads > 0 && (raw - step).abs() > PI {
-            self.turns = self.turns.saturating_add(if raw < step { 1 } else { -1 });
-        }
-        if self.encoder_reads >= 2
-            && !matches!(self.mode, Mode::Fault(_))
-            && (step - self.encoder_step_rad).abs() > self.cfg.encoder_jump_rad
-        {
+        let judge = !matches!(self.mode, Mode::Fault(_));
+        let (step, jumped) = self.machine.encoder.read(theta_m_rad, self.cfg.encoder_jump_rad, judge);
+        if jumped {
             self.trip(Fault::EncoderLoss);
         }
-        self.encoder_step_rad = step;
-        self.theta_m_prev_rad = theta_m_rad;
-        self.encoder_reads = self.encoder_reads.saturating_add(1).min(2);
         step
     }
 
     /// The rotor's electrical angle advances by p·Δθ_m (the encoder's change over the read),
     /// and the field angle is re-anchored on it.
     pub(super) fn anchor_field(&mut self, step_rad: f32) {
-        self.theta_r_rad =
-            wrap_angle(self.theta_r_rad + wrap_angle(self.cfg.envelope.pole_pairs() * step_rad));
-        self.cfg.ifoc.anchor(&mut self.ifoc, self.theta_r_rad);
+        self.run.theta_r_rad =
+            wrap_angle(self.run.theta_r_rad + wrap_angle(self.cfg.envelope.pole_pairs() * step_rad));
+        self.cfg.ifoc.anchor(&mut self.run.ifoc, self.run.theta_r_rad);
     }
 
     /// The current trim integrates `error`, the mean field-frame error (intended − measured)
     /// of the last slow period, unless the modulator limited the voltage in it: then the
     /// currents cannot follow and the trim holds.
     pub(super) fn update_trim(&mut self, error: Dq) {
-        if !self.trim_hold {
+        if !self.run.trim_hold {
             let k = self.cfg.trim_gain;
             let lim = CURRENT_TRIM_RANGE * self.cfg.ifoc.i_max_a();
-            self.trim.d = (self.trim.d + k * error.d).limit(-lim, lim);
-            self.trim.q = (self.trim.q + k * error.q).limit(-lim, lim);
+            self.run.trim.d = (self.run.trim.d + k * error.d).limit(-lim, lim);
+            self.run.trim.q = (self.run.trim.q + k * error.q).limit(-lim, lim);
         }
     }
 
@@ -246,18 +217,18 @@ impl Drive {
     pub(super) fn voltage_budget(&mut self, vdc_v: f32, limited: bool) -> f32 {
         let cfg = &self.cfg;
         let target = cfg.voltage_margin * svpwm::linear_limit_v(vdc_v);
-        if self.v_req_steps > 0 {
-            let v_req = sqrt_f32(self.v_req2_sum / f32::from(self.v_req_steps));
+        if self.run.v_req_steps > 0 {
+            let v_req = sqrt_f32(self.run.v_req2_sum / f32::from(self.run.v_req_steps));
             let floor = -VOLTAGE_REGULATOR_RANGE * svpwm::linear_limit_v(vdc_v);
             let gain =
                 if limited { VOLTAGE_REGULATOR_LIMITED_GAIN * cfg.voltage_gain } else { cfg.voltage_gain };
             let error = max_f32(target - v_req, -VOLTAGE_REGULATOR_EXCESS_MAX * target);
-            self.v_cut_v = (self.v_cut_v + gain * error).limit(floor, 0.0);
+            self.run.v_cut_v = (self.run.v_cut_v + gain * error).limit(floor, 0.0);
         }
-        self.v_req2_sum = 0.0;
-        self.v_req_steps = 0;
-        self.v_d_sum = 0.0;
-        target + self.v_cut_v
+        self.run.v_req2_sum = 0.0;
+        self.run.v_req_steps = 0;
+        self.run.v_d_sum = 0.0;
+        target + self.run.v_cut_v
     }
 
     /// The speed loop's torque for speed reference `w_ref` at speed `w`, its output limited
@@ -266,12 +237,12 @@ impl Drive {
     /// with the flux estimate.
     pub(super) fn speed_torque(&mut self, w_ref: f32, w: f32, limit_nm: f32) -> f32 {
         let cfg = &self.cfg;
-        let per_a = cfg.ifoc.torque_factor() * self.ifoc.psi_r_wb();
+        let per_a = cfg.ifoc.torque_factor() * self.run.ifoc.psi_r_wb();
         let limit = if cfg.speed.is_torque() { limit_nm } else { limit_nm / max_f32(per_a, 1e-6) };
-        let limit = min_f32(limit, cfg.speed_limit);
-        let cmd = cfg.speed.update_limited(&mut self.speed, w_ref, w, limit);
+        let limit = min_f32(limit, cfg.motion.speed_limit);
+        let cmd = cfg.speed.update_limited(&mut self.run.speed, w_ref, w, limit);
         let (TorqueCommand::TorqueNm(u) | TorqueCommand::IqA(u)) = cmd;
-        self.speed_saturated = u.abs() >= 0.999 * limit;
+        self.run.speed_saturated = u.abs() >= 0.999 * limit;
         match cmd {
             TorqueCommand::TorqueNm(t) => t,
             TorqueCommand::IqA(i) => i * per_a,
@@ -284,20 +255,20 @@ impl Drive {
     pub(super) fn plan(&mut self, omega_m_rad_s: f32) {
         let cfg = &self.cfg;
         let running = self.mode == Mode::Running;
-        let cmd = if running { self.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
-        cfg.ifoc.plan(&mut self.ifoc, &self.flux, cmd, omega_m_rad_s, self.trim);
+        let cmd = if running { self.run.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
+        cfg.ifoc.plan(&mut self.run.ifoc, &self.run.flux, cmd, omega_m_rad_s, self.run.trim);
         let omega_e = match self.reference {
             Reference::RotatingCurrent { omega_rad_s, .. } if running => omega_rad_s,
-            _ => cfg.envelope.pole_pairs() * omega_m_rad_s + self.ifoc.omega_sl_rad_s(),
+            _ => cfg.envelope.pole_pairs() * omega_m_rad_s + self.run.ifoc.omega_sl_rad_s(),
         };
-        self.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
+        self.run.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
     }
 
     /// The rotating-current test reference at the present test angle: its amplitude
     /// (limited to the IFOC's current limit), the angle's sin/cos and the αβ reference.
     pub(super) fn rotating_current(&self, amplitude_a: f32) -> (f32, SinCos, AlphaBeta) {
         let a = amplitude_a.limit(0.0, self.cfg.ifoc.i_max_a());
-        let sc = SinCos::new(self.test_angle_rad);
+        let sc = SinCos::new(self.run.test_angle_rad);
         (a, sc, AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin })
     }
 
@@ -306,13 +277,13 @@ impl Drive {
     /// magnetizing until the flux model reaches it. The envelope is remade at the next slow
     /// step.
     pub(super) fn set_inductance_scale(&mut self, l: f32) {
-        if !finite_positive(l) || l == self.ifoc.inductance_scale() {
+        if !finite_positive(l) || l == self.run.ifoc.inductance_scale() {
             return;
         }
-        self.cfg.ifoc.set_inductance_scale(&mut self.ifoc, l);
-        self.model = self.cfg.envelope.with_inductance_scale(l);
-        self.i_d_rated_a = self.cfg.i_d_rated_a / l;
-        self.envelope_age = 0;
+        self.cfg.ifoc.set_inductance_scale(&mut self.run.ifoc, l);
+        self.run.model = self.cfg.envelope.with_inductance_scale(l);
+        self.run.i_d_rated_a = self.cfg.i_d_rated_a / l;
+        self.run.envelope_age = 0;
     }
 
     /// The phase checks once per slow period: the open-phase window ([`Fault::OpenPhase`],
@@ -331,22 +302,22 @@ impl Drive {
             Reference::RotatingCurrent { amplitude_a, .. } if running => {
                 [self.rotating_current(amplitude_a).2; 2]
             }
-            _ => [self.ifoc.i_intended_ab(), self.ifoc.i_ref_ab()],
+            _ => [self.run.ifoc.i_intended_ab(), self.run.ifoc.i_ref_ab()],
         };
         let (i_ref_abc, i_track_abc) = (i_ref_ab.inverse_clarke(), i_track_ab.inverse_clarke());
         let cfg = &self.cfg;
-        let window = self.open_phase.add(
+        let window = self.run.open_phase.add(
             i_track_abc,
             i_abc_a,
             cfg.open_phase_slow_steps,
             // The motor file's magnetizing current, as the window's level: a saturated
             // machine's (×1/ℓ̂) is larger, so its phases would pass the level sooner.
             cfg.i_d_rated_a,
-            CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.i_sum_bits),
+            CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.limits.i_sum_bits),
         );
         let fault = window.or_else(|| {
             if running {
-                self.switches.add([i_ref_abc, i_track_abc], i_abc_a, cfg.switch_level_a, cfg.switch_gains)
+                self.run.switches.add([i_ref_abc, i_track_abc], i_abc_a, cfg.switch_level_a, cfg.switch_gains)
             } else {
                 None
             }
@@ -356,59 +327,19 @@ impl Drive {
         }
     }
 
-    /// The speed-following check ([`Fault::FollowingError`]): while the speed loop is at its
-    /// limit (a rotor at rest pauses the window: that is the stall check's; one passing
-    /// through zero, dragged backwards, keeps it), windows of `following_time_s`; a window in
-    /// which the speed moved against the torque by more than it owes trips, any other starts
-    /// the next. Owed, with `f` = [`FOLLOWING_PROGRESS_FRACTION`] and J the drive's inertia:
-    /// generating (a load driving the motor against the brake: a runaway), `f·Σ τ_cmd·T_slow/J`
-    /// — a load beyond `(1 + f)·τ_cmd`; motoring, `Σ ((1 + f)·τ_max − |τ_cmd|)·T_slow/J` — a
-    /// load beyond `(1 + f)` of the configured limit τ_max, which no speed can hold (at the
-    /// limit the two agree). A motoring motor held below its reference by the envelope's
-    /// smaller torque in field weakening slows to where the torque holds the load, which is no
-    /// fault, unless the load is beyond what any speed gives: that is caught at once instead of
-    /// once the motor has slowed to base speed. Speed laws with an i_q output (no torque
-    /// limit to compare) count only while generating.
+    /// The speed-following check ([`MotionChecks::following`]): [`Fault::FollowingError`]
+    /// with the torque command at zero.
     pub(super) fn check_following(&mut self, commanding_motion: bool, omega_m_rad_s: f32) {
-        if !(commanding_motion && self.speed_saturated) {
-            self.following_steps = 0;
-            return;
-        }
-        if omega_m_rad_s.abs() < self.cfg.stall_speed_rad_s {
-            return;
-        }
         // The slow step commands a torque (an i_q command owes nothing: no trip from it).
-        let torque_nm = match self.torque_cmd {
+        let torque_nm = match self.run.torque_cmd {
             TorqueCommand::TorqueNm(t) => t,
             TorqueCommand::IqA(_) => 0.0,
         };
-        let generating = torque_nm * omega_m_rad_s < 0.0;
-        // No torque owes nothing (a zero limit still reads as saturated).
-        if torque_nm == 0.0 || !(generating || self.cfg.speed.is_torque()) {
-            self.following_steps = 0;
-            return;
-        }
-        if self.following_steps == 0 {
-            (self.following_w0_rad_s, self.following_owed_rad_s) = (omega_m_rad_s, 0.0);
-        }
-        let f = FOLLOWING_PROGRESS_FRACTION as f32;
-        self.following_owed_rad_s += if generating {
-            self.cfg.following_gain * torque_nm
-        } else {
-            // following_gain = f·T_slow/J.
-            let beyond = (1.0 + f) * self.cfg.speed_limit - torque_nm.abs();
-            self.cfg.following_gain * (1.0 / f) * beyond * torque_nm.signum()
-        };
-        self.following_steps += 1;
-        if self.following_steps >= self.cfg.following_slow_steps {
-            let owed = self.following_owed_rad_s;
-            let moved = omega_m_rad_s - self.following_w0_rad_s;
-            // Dragged against the torque by more than the margin.
-            if owed != 0.0 && moved * owed.signum() < -owed.abs() {
-                self.trip(Fault::FollowingError);
-                self.torque_cmd = TorqueCommand::TorqueNm(0.0);
-            }
-            self.following_steps = 0;
+        let at_limit = commanding_motion && self.run.speed_saturated;
+        let torque_law = self.cfg.speed.is_torque();
+        if self.run.motion.following(&self.cfg.motion, at_limit, omega_m_rad_s, torque_nm, torque_law) {
+            self.trip(Fault::FollowingError);
+            self.run.torque_cmd = TorqueCommand::TorqueNm(0.0);
         }
     }
 
@@ -418,21 +349,12 @@ impl Drive {
     /// [`Fault::MotorOverload`] or [`Fault::InverterOverload`] ([`Drive::fault_reaction`]).
     #[inline(never)]
     pub(super) fn update_thermal(&mut self, i_abc: Abc) {
-        let i = i_abc.clarke();
-        let i2 = 0.5 * (i.alpha * i.alpha + i.beta * i.beta);
-        if i2.is_finite() {
-            self.thermal_sum_a2 += i2;
-        }
-        self.thermal_steps += 1;
-        if self.thermal_steps < THERMAL_UPDATE_SLOW_STEPS {
-            return;
-        }
-        let mean = self.thermal_sum_a2 * (1.0 / THERMAL_UPDATE_SLOW_STEPS as f32);
-        (self.thermal_sum_a2, self.thermal_steps) = (0.0, 0);
-        if self.cfg.motor_thermal.update(&mut self.theta_motor, mean) {
+        let cfg = &self.cfg;
+        let [motor, inverter] = self.machine.thermal.update(&cfg.motor_thermal, &cfg.inverter_thermal, i_abc);
+        if motor {
             self.fault_reaction(Fault::MotorOverload);
         }
-        if self.cfg.inverter_thermal.update(&mut self.theta_inverter, mean) {
+        if inverter {
             self.fault_reaction(Fault::InverterOverload);
         }
     }

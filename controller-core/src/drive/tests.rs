@@ -154,7 +154,7 @@ fn a_zero_bus_minimum_is_tested_as_the_floats_are() {
         let mut spec = test_spec();
         spec.protection.vdc_min_v = zero;
         let cfg = DriveConfig::new(&spec).unwrap();
-        assert_eq!(cfg.vdc_min_v.to_bits(), 0, "{zero}");
+        assert_eq!(cfg.limits.vdc_min_v.to_bits(), 0, "{zero}");
         assert_eq!(DriveConfig::from_raw(&cfg.to_raw()), Ok(cfg));
         let mut d = Drive::new(cfg);
         d.enable().unwrap();
@@ -231,12 +231,12 @@ fn raw_configuration_round_trips() {
         assert_eq!(raw.f.iter().filter(|&&x| x == v).count(), 1, "{v} is one field's alone");
         raw.f.iter().position(|&x| x == v).unwrap()
     };
-    let (min, max) = (at(cfg.vdc_min_v), at(cfg.vdc_max_v));
+    let (min, max) = (at(cfg.limits.vdc_min_v), at(cfg.limits.vdc_max_v));
     for (lo, hi) in [
-        (cfg.vdc_max_v, cfg.vdc_min_v),
-        (cfg.vdc_max_v, cfg.vdc_max_v),
-        (-1.0, cfg.vdc_max_v),
-        (-0.0, cfg.vdc_max_v),
+        (cfg.limits.vdc_max_v, cfg.limits.vdc_min_v),
+        (cfg.limits.vdc_max_v, cfg.limits.vdc_max_v),
+        (-1.0, cfg.limits.vdc_max_v),
+        (-0.0, cfg.limits.vdc_max_v),
     ] {
         let mut bad = raw;
         (bad.f[min], bad.f[max]) = (lo, hi);
@@ -328,11 +328,11 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
             d.slow_step(&wrapped(start + f64::from(k) * step));
             r.slow_step(&wrapped(start + f64::from(k) * step));
             if k == 0 {
-                first = r.theta_r_rad;
+                first = r.run.theta_r_rad;
             }
         }
         assert_eq!((d.mode(), r.mode()), (Mode::Idle, Mode::Running), "no jump");
-        (wrap_angle(r.theta_r_rad - first), d.position_rad())
+        (wrap_angle(r.run.theta_r_rad - first), d.position_rad())
     };
     let (near, pos_near) = field_after(0.0);
     let (far, pos_far) = field_after(1e6);
@@ -577,17 +577,17 @@ fn the_following_check_owes_nothing_at_zero_torque() {
     let run = |torque_nm: f32, decel_rad_s_per_step: f32| {
         let mut d = running_drive();
         d.reference = Reference::Speed(100.0);
-        d.speed_saturated = true;
-        d.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
-        for k in 0..=d.cfg.following_slow_steps {
+        d.run.speed_saturated = true;
+        d.run.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
+        for k in 0..=d.cfg.motion.following_slow_steps {
             d.check_following(true, 200.0 - decel_rad_s_per_step * k as f32);
         }
         d.mode()
     };
     // Motoring at the 2 N·m limit, the rotor slowing as a 2.5 N·m load would (J = 0.005
     // kg·m², T_slow = 0.5 ms): beyond 1.1·τ_max.
-    let limit = running_drive().cfg.speed_limit;
-    let d_steps = || running_drive().cfg.following_slow_steps;
+    let limit = running_drive().cfg.motion.speed_limit;
+    let d_steps = || running_drive().cfg.motion.following_slow_steps;
     let decel = (2.5 - limit) / 0.005 * 5e-4 + 0.01;
     assert_eq!(run(limit, decel), Mode::Fault(Fault::FollowingError));
     // The rotor slowing as a 3 N·m load would, with no torque to hold it (the window
@@ -909,4 +909,80 @@ proptest! {
         prop_assert_eq!(d.supervise(&m), float_test);
         prop_assert_eq!(d.measurements_ok(&m), float_test.is_none());
     }
+}
+
+/// A reconfiguration swaps the configuration and keeps the machine's state (issue 48: a
+/// gain write rebuilt the drive, which cooled a hot motor's I²t model, lost the shaft's
+/// turns and reset the estimates): the thermal state, the position and the estimates carry
+/// over, the estimates limited to the new ranges; the run starts afresh at a zero reference;
+/// a latched fault stays latched; refused while the bridge is active, nothing changed.
+#[test]
+fn a_reconfiguration_keeps_the_machines_state() {
+    let mut spec = test_spec();
+    spec.rotor_resistance_range = [1.0, 2.0];
+    spec.inductance_range = [0.6, 1.0];
+    spec.protection.motor_thermal =
+        Some(ThermalLimit { rated_current_a: 1.0, time_constant_s: 100.0, overload_factor: 1.15 });
+    let cfg = DriveConfig::new(&spec).unwrap();
+    let mut d = Drive::new(cfg);
+    // Hot, turned, estimated.
+    let hot = Measurements { i_abc_a: Abc { a: 1.0, b: -1.0, c: 0.0 }, vdc_v: 310.0, ..Default::default() };
+    let div = u32::from(cfg.slow_divider());
+    for k in 0..2 * u32::from(THERMAL_UPDATE_SLOW_STEPS) * div {
+        let theta_m_rad = wrap_angle(k as f32 * 1e-3);
+        d.step(&Measurements { theta_m_rad, ..hot });
+    }
+    d.set_inductance_scale(0.8);
+    d.cfg.ifoc.set_rotor_resistance_scale(&mut d.run.ifoc, 1.7);
+    d.set_reference(Reference::Speed(50.0)).unwrap();
+    let (theta, position) = (d.thermal_state(), d.position_rad());
+    assert!(theta.0 > 0.005 && position > 10.0, "{theta:?} {position}");
+    let estimates = |d: &Drive| (d.ifoc_state().rotor_resistance_scale(), d.ifoc_state().inductance_scale());
+    assert_eq!(estimates(&d), (1.7, 0.8));
+
+    // New speed gains: everything the machine has carries over.
+    let gains = cfg.with_saturated_p(0.08, 1.5).unwrap();
+    d.reconfigure(gains).unwrap();
+    assert_eq!(d.config(), &gains);
+    assert_eq!((d.thermal_state(), d.position_rad(), estimates(&d)), (theta, position, (1.7, 0.8)));
+    assert_eq!((d.mode(), d.reference), (Mode::Idle, Reference::Speed(0.0)));
+    // The new run is on those estimates: its model and rated current follow the inductance.
+    assert_eq!(d.run.i_d_rated_a, gains.i_d_rated_a / 0.8);
+
+    // Narrower ranges limit the estimates; a rated current twice as large rescales θ (the
+    // same temperature rise is a quarter of the new rated one's).
+    let mut narrow = spec;
+    narrow.rotor_resistance_range = [1.0, 1.5];
+    narrow.inductance_range = [0.9, 1.0];
+    narrow.protection.motor_thermal =
+        Some(ThermalLimit { rated_current_a: 2.0, time_constant_s: 100.0, overload_factor: 1.15 });
+    d.reconfigure(DriveConfig::new(&narrow).unwrap()).unwrap();
+    assert_eq!(estimates(&d), (1.5, 0.9));
+    assert_eq!(d.thermal_state().0, theta.0 * 0.25);
+
+    // Not while the bridge is active; a latched fault stays latched.
+    d.enable().unwrap();
+    assert_eq!(d.reconfigure(gains), Err(CommandError::Active));
+    assert_eq!(d.mode(), Mode::Magnetizing);
+    d.trip(Fault::HardwareBreak);
+    d.reconfigure(gains).unwrap();
+    assert_eq!(d.mode(), Mode::Fault(Fault::HardwareBreak));
+}
+
+/// An enable starts a fresh run and keeps the machine's state: the I²t temperature and the
+/// shaft's position are the same after it.
+#[test]
+fn an_enable_keeps_the_machines_state() {
+    let mut spec = test_spec();
+    spec.protection.motor_thermal =
+        Some(ThermalLimit { rated_current_a: 1.0, time_constant_s: 100.0, overload_factor: 1.15 });
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    let hot = Measurements { i_abc_a: Abc { a: 1.0, b: -1.0, c: 0.0 }, vdc_v: 310.0, ..Default::default() };
+    for k in 0..u32::from(THERMAL_UPDATE_SLOW_STEPS) * u32::from(spec.slow_divider) {
+        d.step(&Measurements { theta_m_rad: wrap_angle(k as f32 * 1e-3), ..hot });
+    }
+    let (theta, position) = (d.thermal_state(), d.position_rad());
+    assert!(theta.0 > 0.0 && position > 5.0, "{theta:?} {position}");
+    d.enable().unwrap();
+    assert_eq!((d.thermal_state(), d.position_rad()), (theta, position));
 }

@@ -4,24 +4,22 @@
 use super::receive::LinkStats;
 use super::schema::{BoardCommand, Command, NackReason, Reply};
 use crate::capture::{Capture, CaptureSpec};
-use crate::drive::{CommandError, Drive, DriveConfig, Mode};
+use crate::drive::{CommandError, Drive, DriveConfig};
 
 /// Carry out `cmd` on `drive` and say how it went — the command handling shared by the
 /// processor-in-the-loop server and the firmware (which refuses `Step` itself: on the board
 /// the measurements come from the ADC, and handles the speed-gain commands, which need the
-/// specification and the certified ranges it keeps). `Configure` replaces the drive only while it is
-/// Idle or faulted, with a configuration validated by [`DriveConfig::new`].
+/// specification and the certified ranges it keeps). `Configure` swaps the configuration only while the drive
+/// is Idle or faulted, for one validated by [`DriveConfig::new`], keeping the machine's state
+/// ([`Drive::reconfigure`]: its temperature, position and estimates; a fault stays latched).
 pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
     match cmd {
         Command::Configure(spec) => {
-            if matches!(drive.mode(), Mode::Magnetizing | Mode::Running) {
+            if drive.mode().is_active() {
                 return Reply::Nack(NackReason::NotIdle);
             }
             match DriveConfig::new(spec) {
-                Ok(cfg) => {
-                    *drive = Drive::new(cfg);
-                    Reply::Ack
-                }
+                Ok(cfg) => command_result(drive.reconfigure(cfg)),
                 Err(_) => Reply::Nack(NackReason::Configuration),
             }
         }
@@ -106,5 +104,6 @@ fn command_result(r: Result<(), CommandError>) -> Reply {
         Ok(()) => Reply::Ack,
         Err(CommandError::Faulted) => Reply::Nack(NackReason::Faulted),
         Err(CommandError::NonFinite) => Reply::Nack(NackReason::NonFinite),
+        Err(CommandError::Active) => Reply::Nack(NackReason::NotIdle),
     }
 }

@@ -2,10 +2,10 @@
 //! and the encoder against the machine model ([`Fault::EncoderImplausible`], once per slow
 //! period), whose verdict names a phase the loops do not drive ([`Fault::OpenPhase`]).
 
-#[cfg(doc)]
 use crate::fault::Fault;
-use crate::frames::AlphaBeta;
+use crate::frames::{AlphaBeta, wrap_angle};
 use crate::num::{finite_positive, sqrt_f32};
+use core::f32::consts::{PI, TAU};
 
 /// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
 pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
@@ -40,4 +40,111 @@ pub(crate) fn pinned_axis(v: AlphaBeta) -> Option<u8> {
     }
     let p = v.inverse_clarke();
     [p.a, p.b, p.c, -p.a, -p.b, -p.c].iter().position(|&x| x >= on).and_then(|k| u8::try_from(k).ok())
+}
+
+/// The encoder's readings as the slow step takes them: the last angle, the whole turns
+/// counted and the last change. The shaft's, so they carry on through every mode, an enable
+/// and a reconfiguration (a turn made while the bridge is off is still a turn).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct EncoderTrack {
+    /// Encoder angle at the last read, mechanical rad, within a revolution.
+    theta_m_prev_rad: f32,
+    /// Whole turns counted from the readings.
+    turns: i32,
+    /// The change over the last read, mechanical rad.
+    step_rad: f32,
+    /// Readings taken so far, up to 2 (the jump check needs two changes).
+    reads: u8,
+}
+
+impl EncoderTrack {
+    /// Nothing read yet.
+    pub(crate) const NONE: Self = Self { theta_m_prev_rad: 0.0, turns: 0, step_rad: 0.0, reads: 0 };
+
+    /// One reading `theta_m_rad`: the change since the last reading, mechanical rad (the
+    /// wrapped difference of two angles within a revolution: exact in f32 however far the
+    /// motor has turned; 0 for the first reading or a non-finite one), and whether it
+    /// *jumped* (judged when `judge`).
+    ///
+    /// **Jump check** ([`Fault::EncoderLoss`]): a change that departs from the previous one by
+    /// more than `jump_rad` (`encoder_jump_rad`). For motion the mechanics allow, the second
+    /// difference of the readings is `α·T²` plus at most two counts of quantisation; a
+    /// glitch, a counter that stops at speed or a line count that changes exceed it at the
+    /// first or second read. (Below the speed at which one read's change is smaller than the
+    /// level — ≈ 17 rad/s for the shipped drive — a stopped counter looks like a stop: the
+    /// stall check catches it.)
+    #[inline]
+    pub(crate) fn read(&mut self, theta_m_rad: f32, jump_rad: f32, judge: bool) -> (f32, bool) {
+        if !theta_m_rad.is_finite() {
+            return (0.0, false);
+        }
+        let step = if self.reads == 0 { 0.0 } else { wrap_angle(theta_m_rad - self.theta_m_prev_rad) };
+        // The angle wrapped past ±π: a turn.
+        let raw = theta_m_rad - self.theta_m_prev_rad;
+        if self.reads > 0 && (raw - step).abs() > PI {
+            self.turns = self.turns.saturating_add(if raw < step { 1 } else { -1 });
+        }
+        let jumped = self.reads >= 2 && judge && (step - self.step_rad).abs() > jump_rad;
+        self.step_rad = step;
+        self.theta_m_prev_rad = theta_m_rad;
+        self.reads = self.reads.saturating_add(1).min(2);
+        (step, jumped)
+    }
+
+    /// Multi-turn mechanical position, rad: the turns counted since the first reading plus
+    /// the angle within the turn. In f32, its resolution is that of a position of this size
+    /// (1e-3 rad at ±4 000 turns); the field angle does not use it.
+    pub(crate) fn position_rad(&self) -> f32 {
+        self.turns as f32 * TAU + self.theta_m_prev_rad
+    }
+}
+
+/// The encoder-against-the-model check's counts: one run's (an enable starts them afresh).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct VoltageCheck {
+    /// Consecutive slow periods with an implausible encoder.
+    bad_steps: u32,
+    /// … and of those, the last consecutive ones whose voltage held one phase's axis
+    /// ([`PINNED_PHASE_COS`]), and which axis (phase index, and 3 added when negative).
+    pinned_steps: u32,
+    pinned_axis: u8,
+}
+
+impl VoltageCheck {
+    /// A plausible check: the counts start again.
+    #[inline]
+    pub(crate) fn plausible(&mut self) {
+        (self.bad_steps, self.pinned_steps) = (0, 0);
+    }
+
+    /// An implausible check (the applied voltage `v_ab`'s magnitude off the model's by more
+    /// than [`ENCODER_RESIDUAL_FRACTION`] of the linear limit), `turning`: the field turned
+    /// more than [`PINNED_FIELD_TURN_RAD`] over the check's window. After `steps` in a row
+    /// the verdict: [`Fault::OpenPhase`] when the last half of them held one phase's axis
+    /// (that phase does not answer: its lead or a switch, the same currents until the
+    /// reference reverses) or `undriven` says a phase misses (the stuck-switch check's
+    /// [`super::phases::SwitchWatch::undriven`]: a phase's current that misses is the
+    /// bridge's, not the encoder's — a wrong field angle turns the references, the loops
+    /// still follow them); [`Fault::EncoderImplausible`] otherwise.
+    #[inline]
+    pub(crate) fn implausible(
+        &mut self,
+        v_ab: AlphaBeta,
+        turning: bool,
+        steps: u32,
+        undriven: impl FnOnce() -> bool,
+    ) -> Option<Fault> {
+        self.bad_steps = self.bad_steps.saturating_add(1);
+        let axis = pinned_axis(v_ab).filter(|_| !turning);
+        self.pinned_steps = match axis {
+            Some(a) if self.pinned_steps == 0 || a == self.pinned_axis => self.pinned_steps + 1,
+            _ => 0,
+        };
+        self.pinned_axis = axis.unwrap_or(0);
+        if self.bad_steps < steps {
+            return None;
+        }
+        let pinned = 2 * self.pinned_steps >= self.bad_steps;
+        Some(if pinned || undriven() { Fault::OpenPhase } else { Fault::EncoderImplausible })
+    }
 }

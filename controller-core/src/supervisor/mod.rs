@@ -10,7 +10,7 @@
 //! | [`thermal`] | the motor's and the inverter's I²t | every [`thermal::THERMAL_UPDATE_SLOW_STEPS`] slow steps |
 //!
 //! Loss of control (the loops at their voltage limit), a non-finite controller output and
-//! the magnetizing time are the drive's own (`crate::drive`): they read the loops.
+//! the magnetizing time are the drive's own (the drive module): they read the loops.
 //!
 //! **Instant limits** (first thing in the fast step, any mode): a non-finite current or bus
 //! voltage (the encoder's readings: in the slow step, where they change), a phase current
@@ -30,7 +30,7 @@
 //! reference current needs, [`Fault::NoMotorCurrent`]. A non-finite controller output
 //! (impossible for finite inputs, checked anyway) trips too.
 //!
-//! The checks' states are the drive's ([`crate::drive::Drive`]), grouped by lifetime there;
+//! The checks' states are the drive's (the `Drive`'s), grouped by lifetime there;
 //! their thresholds are [`Protection`] (the drive file's `[protection]`) and the constants of
 //! each module.
 
@@ -40,8 +40,6 @@ pub mod motion;
 pub mod phases;
 pub mod thermal;
 
-#[cfg(doc)]
-use crate::drive::{Drive, DriveError, REGEN_LIMIT_START};
 #[cfg(doc)]
 use crate::fault::Fault;
 use crate::fault::FaultSet;
@@ -89,7 +87,7 @@ pub struct Protection {
     /// glitch, a counter that stopped at speed, or an encoder that lost counts
     /// ([`Fault::EncoderLoss`], within two reads).
     pub encoder_jump_rad: f64,
-    /// A controlled stop ([`Drive::controlled_stop`]: the speed loop brakes to standstill,
+    /// A controlled stop (`Drive::controlled_stop`: the speed loop brakes to standstill,
     /// then the bridge goes off) takes at most this long before the bridge goes off anyway, s.
     pub stop_time_s: f64,
     /// Open phase: the window, s, of the open-phase and no-motor-current check (a phase
@@ -128,10 +126,10 @@ pub struct ThermalLimit {
 }
 
 /// Brake-chopper thresholds: on above `on_v`, off again below `off_v`
-/// (0 < `off_v` < `on_v` < [`REGEN_LIMIT_START`]·`vdc_max_v`). With `on_v` below the
+/// (0 < `off_v` < `on_v` < `REGEN_LIMIT_START`·`vdc_max_v`). With `on_v` below the
 /// regeneration limit's start the chopper takes the braking energy and the limit acts only if
 /// the chopper cannot (a resistor too large for the power, or none connected). At or above it
-/// is refused ([`DriveError::BrakeChopper`]): the drive would cut its braking torque before
+/// is refused (`DriveError::BrakeChopper`): the drive would cut its braking torque before
 /// the chopper switched on, and the chopper take little — found by trying the 3 300 V template (on at 3 700 V, the cut from 3 515 V), which
 /// braked from 320 rad/s at 50–460 of its 2 000 N·m, still at 160 rad/s 8 s later.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -101,7 +101,7 @@ pub(crate) struct OpenPhaseWindow {
 }
 
 impl OpenPhaseWindow {
-    /// One sample (a slow step's: [`Drive::check_phases`]) of the reference and measured
+    /// One sample (a slow step's: `Drive::check_phases`) of the reference and measured
     /// phase currents. At the end of a window of `steps` samples, with `level_a` the rated
     /// magnetizing current:
     /// - a phase *looks open* when it was commanded (mean |i_ref| ≥
@@ -340,8 +340,8 @@ fn misses(r: f32, m: f32) -> bool {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct SwitchWatch([PhaseDirections; 3]);
 
-/// No samples yet: a constant, which the drive's two resets ([`Drive::new`],
-/// [`Drive::enable`]) write in one go (the derived `Default` built each phase's directions
+/// No samples yet: a constant, which the drive's two resets (`Drive::new`,
+/// `Drive::enable`) write in one go (the derived `Default` built each phase's directions
 /// apart and copied them in: 264 B of flash).
 impl Default for SwitchWatch {
     fn default() -> Self {
@@ -374,7 +374,7 @@ impl SwitchWatch {
     /// A phase missing both ways needs no test of its own: [`PhaseDirections::add`] sets
     /// `open` only with the missing direction's `dead`, which only the phase's next counted
     /// sample (that sets `open` anew) or a reset clears. The flags or'ed, not short-circuited,
-    /// and inlined into its one caller, [`Drive::check_encoder`] (out of line, with `open`
+    /// and inlined into its one caller, `Drive::check_encoder` (out of line, with `open`
     /// tested and `||`, 178 B: 88 B more flash).
     pub(crate) fn undriven(&self, turning: bool) -> bool {
         let short = |p: &PhaseDirections| p.short >= UNDRIVEN_SAMPLES;
@@ -387,7 +387,7 @@ impl SwitchWatch {
     /// ([`PhaseDirections::add`]): a phase's sample counts where its reference reaches
     /// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (away from its zero
     /// crossings), with that magnitude at least [`SWITCH_FLOOR_SHARE`] of the `commanded`
-    /// level; `gains` weigh it ([`DriveConfig`]'s). [`Fault::SwitchOpen`] when a phase's
+    /// level; `gains` weigh it (`DriveConfig`'s). [`Fault::SwitchOpen`] when a phase's
     /// directions say so and no phase misses both ways. Out of line: once per slow period
     /// (inlined, the interrupt took ≈ 850 B more flash).
     #[inline(never)]
