@@ -92,6 +92,15 @@ pub struct DriveConfig {
     pub(super) brake: BrakeLevels,
 }
 
+/// What a thermal limit needs ([`crate::supervisor::thermal::ThermalConfig::new`]).
+const THERMAL_NEED: &str =
+    "needs rated_current_a > 0, time_constant_s > 0 and 1 ≤ overload_factor ≤ 10, finite";
+
+/// `x` finite and positive.
+fn finite_positive_f64(x: f64) -> bool {
+    x.is_finite() && x > 0.0
+}
+
 impl DriveConfig {
     /// The slow loop runs every `slow_divider()`-th fast step.
     pub fn slow_divider(&self) -> u16 {
@@ -122,41 +131,38 @@ impl DriveConfig {
             return Err(DriveError::FluxReference);
         }
         let p = &spec.protection;
-        let finite = [
-            p.i_trip_a,
-            p.vdc_min_v,
-            p.vdc_max_v,
-            spec.i_ref_max_a,
-            p.overspeed_rad_s,
-            p.stall_time_s,
-            p.following_time_s,
-            p.current_sum_max_a,
-            p.saturation_time_s,
-            p.encoder_check_time_s,
-            p.encoder_jump_rad,
-            p.stop_time_s,
-            p.open_phase_time_s,
-        ]
-        .iter()
-        .all(|x| x.is_finite());
-        if !(finite
-            && p.vdc_min_v >= 0.0
-            && p.vdc_min_v < p.vdc_max_v
-            // As stored: two limits that round to one f32 would be refused by `from_raw`.
-            && (p.vdc_min_v as f32) < (p.vdc_max_v as f32)
-            && spec.i_ref_max_a > 0.0
-            && p.i_trip_a > spec.i_ref_max_a
-            && p.overspeed_rad_s > 0.0
-            && p.stall_time_s > 0.0
-            && p.following_time_s > 0.0
-            && p.current_sum_max_a > 0.0
-            && p.saturation_time_s > 0.0
-            && p.encoder_check_time_s > 0.0
-            && p.encoder_jump_rad > 0.0
-            && p.stop_time_s > 0.0
-            && p.open_phase_time_s > 0.0)
-        {
-            return Err(DriveError::Protection);
+        // Each threshold with what it needs, in the order they are judged: the first that
+        // fails is named.
+        const POSITIVE: &str = "must be finite and > 0";
+        let checks = [
+            ("i_ref_max_a", spec.i_ref_max_a.is_finite() && spec.i_ref_max_a > 0.0, POSITIVE),
+            (
+                "protection.i_trip_a",
+                p.i_trip_a.is_finite() && p.i_trip_a > spec.i_ref_max_a,
+                "must be finite and above i_ref_max_a (the references' limit must not trip)",
+            ),
+            ("protection.vdc_max_v", p.vdc_max_v.is_finite(), "must be finite"),
+            (
+                "protection.vdc_min_v",
+                // As stored: two limits that round to one f32 would be refused by `from_raw`.
+                p.vdc_min_v.is_finite()
+                    && p.vdc_min_v >= 0.0
+                    && p.vdc_min_v < p.vdc_max_v
+                    && (p.vdc_min_v as f32) < (p.vdc_max_v as f32),
+                "must be finite, ≥ 0 and below protection.vdc_max_v (in f32 too)",
+            ),
+            ("protection.overspeed_rad_s", finite_positive_f64(p.overspeed_rad_s), POSITIVE),
+            ("protection.stall_time_s", finite_positive_f64(p.stall_time_s), POSITIVE),
+            ("protection.following_time_s", finite_positive_f64(p.following_time_s), POSITIVE),
+            ("protection.current_sum_max_a", finite_positive_f64(p.current_sum_max_a), POSITIVE),
+            ("protection.saturation_time_s", finite_positive_f64(p.saturation_time_s), POSITIVE),
+            ("protection.encoder_check_time_s", finite_positive_f64(p.encoder_check_time_s), POSITIVE),
+            ("protection.encoder_jump_rad", finite_positive_f64(p.encoder_jump_rad), POSITIVE),
+            ("protection.stop_time_s", finite_positive_f64(p.stop_time_s), POSITIVE),
+            ("protection.open_phase_time_s", finite_positive_f64(p.open_phase_time_s), POSITIVE),
+        ];
+        if let Some(&(field, _, need)) = checks.iter().find(|(_, ok, _)| !ok) {
+            return Err(DriveError::Protection { field, need });
         }
         let (brake_on_v, brake_off_v) = match p.brake_chopper {
             None => (f32::MAX, f32::MAX),
@@ -269,13 +275,17 @@ impl DriveConfig {
             // Finite in f32 too.
             encoder_jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
             motor_thermal: ThermalConfig::new(p.motor_thermal.as_ref(), t_slow)
-                .ok_or(DriveError::Protection)?,
+                .ok_or(DriveError::Protection { field: "protection.motor_thermal", need: THERMAL_NEED })?,
             inverter_thermal: ThermalConfig::new(p.inverter_thermal.as_ref(), t_slow)
-                .ok_or(DriveError::Protection)?,
+                .ok_or(DriveError::Protection { field: "protection.inverter_thermal", need: THERMAL_NEED })?,
             stop_on: if p.stop_on.0 & !FaultSet::STOPPABLE.0 == 0 {
                 p.stop_on
             } else {
-                return Err(DriveError::Protection);
+                return Err(DriveError::Protection {
+                    field: "protection.stop_on",
+                    need: "only faults after which the drive still controls the motor (FaultSet::STOPPABLE: \
+                           the thermal overloads and overspeed)",
+                });
             },
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,

@@ -231,9 +231,59 @@ pub enum DriveError {
     /// `current_trim_bandwidth_rad_s` negative, not finite, or not below a tenth of the slow
     /// loop's rate (in rad/s).
     CurrentTrim,
-    /// Protection thresholds inconsistent: need 0 ≤ vdc_min < vdc_max,
-    /// i_trip > i_ref_max > 0, and positive finite overspeed, stall time and current sum.
-    Protection,
+    /// A protection threshold (or the current limit it is judged against) out of its range:
+    /// `field`, the [`DriveSpec`] field's path (`protection.stall_time_s`, `i_ref_max_a`; the
+    /// drive file's keys under `[protection]` are the same), and what it needs.
+    Protection {
+        /// The field, as `DriveSpec`'s path.
+        field: &'static str,
+        /// What it needs.
+        need: &'static str,
+    },
     /// Brake-chopper thresholds not 0 < off < on < [`REGEN_LIMIT_START`]·vdc_max.
     BrakeChopper,
+}
+
+impl core::fmt::Display for DriveError {
+    /// The field refused, as the [`DriveSpec`] path, and what it needs.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::PwmFrequency => f.write_str("pwm_frequency_hz: must be finite and > 0"),
+            Self::SlowDivider => f.write_str("slow_divider: must be ≥ 1"),
+            Self::Current(e) => write!(f, "current_law: {e}"),
+            Self::Speed(e) => write!(f, "speed_law: {e}"),
+            Self::Position(e) => write!(f, "position: {e}"),
+            Self::Ifoc(e) => write!(f, "motor, flux_floor_wb or i_ref_max_a (the field orientation): {e}"),
+            Self::RotorResistanceRange => {
+                f.write_str("rotor_resistance_range: needs 0 < min ≤ max ≤ 10·min, finite")
+            }
+            Self::InductanceRange => f.write_str("inductance_range: needs 0 < min ≤ max ≤ 10·min, finite"),
+            Self::FluxReference => f.write_str(
+                "flux_ref_wb: must be finite and > 0, above flux_floor_wb, with its magnetizing current \
+                 ψ*/L_m below i_ref_max_a",
+            ),
+            Self::MagnetizedFraction => f.write_str("magnetized_fraction: must lie in (0, 1)"),
+            Self::VoltageMargin => f.write_str("voltage_margin: must lie in (0, 1]"),
+            Self::DeadTime => f.write_str(
+                "dead_time_compensation_s: must be finite, ≥ 0 and below a tenth of the PWM period",
+            ),
+            Self::SampleWindow => write!(
+                f,
+                "sample_window_s: must be finite and ≥ 0, and leave a highest duty of at least {DUTY_MAX_MIN} \
+                 with the dead time's compensation"
+            ),
+            Self::Raw => f.write_str(
+                "the raw configuration: a number not finite, an unknown variant, a zero count, a bus range \
+                 not +0 ≤ min < max, or a controlled stop for a fault that is not stoppable",
+            ),
+            Self::CurrentTrim => f.write_str(
+                "current_trim_bandwidth_rad_s: must be finite, ≥ 0 and below a tenth of the slow loop's rate",
+            ),
+            Self::Protection { field, need } => write!(f, "{field}: {need}"),
+            Self::BrakeChopper => write!(
+                f,
+                "protection.brake_chopper: needs 0 < off_v < on_v < {REGEN_LIMIT_START} × protection.vdc_max_v"
+            ),
+        }
+    }
 }

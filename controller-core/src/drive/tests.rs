@@ -166,7 +166,10 @@ fn a_zero_bus_minimum_is_tested_as_the_floats_are() {
     }
     let mut spec = test_spec();
     (spec.protection.vdc_min_v, spec.protection.vdc_max_v) = (400.0, 400.00001);
-    assert_eq!(DriveConfig::new(&spec).err(), Some(DriveError::Protection), "one f32 for both limits");
+    assert!(
+        matches!(DriveConfig::new(&spec), Err(DriveError::Protection { field: "protection.vdc_min_v", .. })),
+        "one f32 for both limits"
+    );
 }
 
 /// `slow_step_ran`: after the period whose step ran the slow step, once in every
@@ -262,8 +265,14 @@ fn rejects_inconsistent_specs() {
     };
     assert_eq!(bad(&|s| s.pwm_frequency_hz = 0.0), Some(DriveError::PwmFrequency));
     assert_eq!(bad(&|s| s.slow_divider = 0), Some(DriveError::SlowDivider));
-    assert_eq!(bad(&|s| s.protection.i_trip_a = 3.0), Some(DriveError::Protection));
-    assert_eq!(bad(&|s| s.protection.vdc_min_v = 500.0), Some(DriveError::Protection));
+    assert!(matches!(
+        bad(&|s| s.protection.i_trip_a = 3.0),
+        Some(DriveError::Protection { field: "protection.i_trip_a", .. })
+    ));
+    assert!(matches!(
+        bad(&|s| s.protection.vdc_min_v = 500.0),
+        Some(DriveError::Protection { field: "protection.vdc_min_v", .. })
+    ));
     assert_eq!(bad(&|s| s.flux_ref_wb = f64::NAN), Some(DriveError::FluxReference));
     assert_eq!(bad(&|s| s.magnetized_fraction = 1.0), Some(DriveError::MagnetizedFraction));
     assert_eq!(
@@ -471,7 +480,10 @@ fn a_stoppable_fault_stops_then_latches() {
     assert_eq!(d.mode(), Mode::Fault(Fault::InverterOverload));
     // A fault that leaves nothing to control with cannot be configured as a stop.
     spec.protection.stop_on = FaultSet::EMPTY.with(Fault::EncoderLoss);
-    assert_eq!(DriveConfig::new(&spec), Err(DriveError::Protection));
+    assert!(matches!(
+        DriveConfig::new(&spec),
+        Err(DriveError::Protection { field: "protection.stop_on", .. })
+    ));
 }
 
 /// The pinned-phase rule's axes: each phase's, both ways, within cos⁻¹ 0.98 ≈ 11.5°; off
@@ -985,4 +997,46 @@ fn an_enable_keeps_the_machines_state() {
     assert!(theta.0 > 0.0 && position > 5.0, "{theta:?} {position}");
     d.enable().unwrap();
     assert_eq!((d.thermal_state(), d.position_rad()), (theta, position));
+}
+
+/// Every refusal names the field it refuses, as the specification's path: each protection
+/// threshold out of its range by its own name (the first that fails), and the error's
+/// `Display` starts with that path.
+#[test]
+fn a_refused_specification_names_its_field() {
+    use std::string::ToString;
+    type Break = fn(&mut DriveSpec);
+    let cases: [(&str, Break); 16] = [
+        ("i_ref_max_a", |s| s.i_ref_max_a = f64::INFINITY),
+        ("protection.i_trip_a", |s| s.protection.i_trip_a = 1.0),
+        ("protection.vdc_max_v", |s| s.protection.vdc_max_v = f64::INFINITY),
+        ("protection.vdc_min_v", |s| s.protection.vdc_min_v = -1.0),
+        ("protection.overspeed_rad_s", |s| s.protection.overspeed_rad_s = 0.0),
+        ("protection.stall_time_s", |s| s.protection.stall_time_s = -1.0),
+        ("protection.following_time_s", |s| s.protection.following_time_s = f64::NAN),
+        ("protection.current_sum_max_a", |s| s.protection.current_sum_max_a = 0.0),
+        ("protection.saturation_time_s", |s| s.protection.saturation_time_s = 0.0),
+        ("protection.encoder_check_time_s", |s| s.protection.encoder_check_time_s = 0.0),
+        ("protection.encoder_jump_rad", |s| s.protection.encoder_jump_rad = 0.0),
+        ("protection.stop_time_s", |s| s.protection.stop_time_s = 0.0),
+        ("protection.open_phase_time_s", |s| s.protection.open_phase_time_s = 0.0),
+        ("protection.motor_thermal", |s| {
+            s.protection.motor_thermal =
+                Some(ThermalLimit { rated_current_a: 1.0, time_constant_s: 10.0, overload_factor: 0.5 })
+        }),
+        ("protection.inverter_thermal", |s| {
+            s.protection.inverter_thermal =
+                Some(ThermalLimit { rated_current_a: 0.0, time_constant_s: 10.0, overload_factor: 1.0 })
+        }),
+        ("protection.stop_on", |s| s.protection.stop_on = FaultSet::EMPTY.with(Fault::Overcurrent)),
+    ];
+    for (field, break_it) in cases {
+        let mut spec = test_spec();
+        break_it(&mut spec);
+        let e = DriveConfig::new(&spec).unwrap_err();
+        assert!(matches!(e, DriveError::Protection { field: f, .. } if f == field), "{field}: {e:?}");
+        assert!(e.to_string().starts_with(field), "{e}");
+    }
+    let e = DriveConfig::new(&DriveSpec { pwm_frequency_hz: 0.0, ..test_spec() }).unwrap_err();
+    assert!(e.to_string().starts_with("pwm_frequency_hz:"), "{e}");
 }
