@@ -3,90 +3,100 @@
 //! ([`Mode::code`]) are wire contracts (the link, the capture, the firmware's generated
 //! configuration): pinned by golden tests below.
 
-/// Latched fault causes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Fault {
+/// Declares the faults once, in bit order, each with its mode byte: the [`Fault`] enum (a
+/// fault's bit is its place here), [`Fault::ALL`], [`Mode::code`] and [`Mode::from_code`].
+/// A new fault is one line at the end, with the next free byte; none moves (the golden test
+/// `fault_bits_and_mode_codes_are_the_wire_contract` pins them).
+macro_rules! faults {
+    ($($(#[$doc:meta])* $name:ident = $code:literal,)*) => {
+        /// Latched fault causes.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum Fault {
+            $($(#[$doc])* $name,)*
+        }
+
+        impl Fault {
+            /// Every fault, in bit order.
+            pub const ALL: [Fault; [$($code),*].len()] = [$(Fault::$name),*];
+
+            /// The fault's byte as a [`Mode::Fault`] ([`Mode::code`]).
+            const fn code(self) -> u8 {
+                match self {
+                    $(Fault::$name => $code,)*
+                }
+            }
+
+            /// The fault of a mode byte.
+            const fn of_code(c: u8) -> Option<Fault> {
+                match c {
+                    $($code => Some(Fault::$name),)*
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
+faults! {
     /// A phase current exceeded `i_trip_a`.
-    Overcurrent,
+    Overcurrent = 10,
     /// DC bus above `vdc_max_v`.
-    DcBusOvervoltage,
+    DcBusOvervoltage = 11,
     /// DC bus below `vdc_min_v` while the bridge was active.
-    DcBusUndervoltage,
+    DcBusUndervoltage = 12,
     /// A measurement was NaN or infinite.
-    NonFiniteInput,
+    NonFiniteInput = 13,
     /// A controller output was not finite.
-    NonFiniteOutput,
+    NonFiniteOutput = 14,
     /// The encoder's position jumped: its change over a read departs from the previous
     /// read's by more than `encoder_jump_rad` (a glitch, a counter that stopped at speed, lost
     /// counts, a line count that changed).
-    EncoderLoss,
+    EncoderLoss = 15,
     /// The inverter's hardware break input fired (the timer already turned the bridge off;
     /// reported by the firmware through `Drive::trip`).
-    HardwareBreak,
+    HardwareBreak = 16,
     /// |ω_m| above `overspeed_rad_s` (a runaway: the load overpowers the drive, or the
     /// speed loop lost control).
-    Overspeed,
+    Overspeed = 17,
     /// The speed loop's output at its limit while the rotor does not turn, for
     /// `stall_time_s` (a locked rotor under a speed or position command).
-    Stall,
+    Stall = 18,
     /// The current loops asked for more voltage than the bridge has for
     /// `saturation_time_s`: they no longer control the current (dead sensors, a voltage
     /// limit reached at speed, an open phase).
-    LossOfControl,
+    LossOfControl = 21,
     /// The applied voltage does not fit the motor at the encoder's speed for
     /// `encoder_check_time_s` (a frozen or lost encoder, a wrong line count).
-    EncoderImplausible,
+    EncoderImplausible = 22,
     /// The three measured phase currents do not sum to zero (a dead, stuck or drifting
     /// current sensor).
-    CurrentSensor,
+    CurrentSensor = 19,
     /// No phase carries the current it is commanded over `open_phase_time_s`, or
     /// magnetizing takes more than twice the time the reference current needs (the flux
     /// model, on the measured current, does not build): no motor current flows (open leads,
     /// a motor that is not there, dead current sensors).
-    NoMotorCurrent,
+    NoMotorCurrent = 20,
     /// A phase is commanded a current but carries none, over `open_phase_time_s` (a broken
     /// lead or connector). Also the encoder check's verdict when the loops held the voltage
     /// on one phase's axis throughout (`PINNED_PHASE_COS`): that phase's current does not
     /// answer its voltage — an open lead, or a switch stuck open before the reference has
     /// reversed (until then the two are the same currents).
-    OpenPhase,
+    OpenPhase = 23,
     /// The motor's I²t thermal model reached its limit (`Protection::motor_thermal`).
-    MotorOverload,
+    MotorOverload = 24,
     /// The inverter's I²t thermal model reached its limit (`Protection::inverter_thermal`).
-    InverterOverload,
+    InverterOverload = 25,
     /// The speed loop at its limit with the rotor turning, for `following_time_s`, while the
     /// speed error did not shrink as the commanded torque would make it (a load beyond the
     /// drive's torque: the motor is dragged away from its reference).
-    FollowingError,
+    FollowingError = 26,
     /// A phase follows its reference in one direction of current and not in the other: a
     /// bridge switch (or its gate drive) stuck open — its direction of current can only
     /// flow through the opposite diode, which pins the phase to the other rail.
-    SwitchOpen,
+    SwitchOpen = 27,
 }
 
 impl Fault {
-    /// Every fault.
-    pub const ALL: [Fault; 18] = [
-        Fault::Overcurrent,
-        Fault::DcBusOvervoltage,
-        Fault::DcBusUndervoltage,
-        Fault::NonFiniteInput,
-        Fault::NonFiniteOutput,
-        Fault::EncoderLoss,
-        Fault::HardwareBreak,
-        Fault::Overspeed,
-        Fault::Stall,
-        Fault::LossOfControl,
-        Fault::EncoderImplausible,
-        Fault::CurrentSensor,
-        Fault::NoMotorCurrent,
-        Fault::OpenPhase,
-        Fault::MotorOverload,
-        Fault::InverterOverload,
-        Fault::FollowingError,
-        Fault::SwitchOpen,
-    ];
-
     /// The fault's bit in a [`FaultSet`].
     pub const fn bit(self) -> u32 {
         1 << (self as u32)
@@ -112,61 +122,28 @@ impl Mode {
     pub fn is_active(self) -> bool {
         matches!(self, Mode::Magnetizing | Mode::Running)
     }
+}
 
+impl Mode {
     /// The mode as one byte: the link's, the capture's (0 Idle, 1 Magnetizing, 2 Running,
-    /// a fault from 10 up).
+    /// a fault from 10 up: its byte in the `faults!` table).
     pub fn code(self) -> u8 {
         match self {
             Mode::Idle => 0,
             Mode::Magnetizing => 1,
             Mode::Running => 2,
-            Mode::Fault(Fault::Overcurrent) => 10,
-            Mode::Fault(Fault::DcBusOvervoltage) => 11,
-            Mode::Fault(Fault::DcBusUndervoltage) => 12,
-            Mode::Fault(Fault::NonFiniteInput) => 13,
-            Mode::Fault(Fault::NonFiniteOutput) => 14,
-            Mode::Fault(Fault::EncoderLoss) => 15,
-            Mode::Fault(Fault::HardwareBreak) => 16,
-            Mode::Fault(Fault::Overspeed) => 17,
-            Mode::Fault(Fault::Stall) => 18,
-            Mode::Fault(Fault::CurrentSensor) => 19,
-            Mode::Fault(Fault::NoMotorCurrent) => 20,
-            Mode::Fault(Fault::LossOfControl) => 21,
-            Mode::Fault(Fault::EncoderImplausible) => 22,
-            Mode::Fault(Fault::OpenPhase) => 23,
-            Mode::Fault(Fault::MotorOverload) => 24,
-            Mode::Fault(Fault::InverterOverload) => 25,
-            Mode::Fault(Fault::FollowingError) => 26,
-            Mode::Fault(Fault::SwitchOpen) => 27,
+            Mode::Fault(f) => f.code(),
         }
     }
 
     /// The mode of a [`Mode::code`] (`None` for a byte no mode has).
     pub fn from_code(c: u8) -> Option<Mode> {
-        Some(match c {
-            0 => Mode::Idle,
-            1 => Mode::Magnetizing,
-            2 => Mode::Running,
-            10 => Mode::Fault(Fault::Overcurrent),
-            11 => Mode::Fault(Fault::DcBusOvervoltage),
-            12 => Mode::Fault(Fault::DcBusUndervoltage),
-            13 => Mode::Fault(Fault::NonFiniteInput),
-            14 => Mode::Fault(Fault::NonFiniteOutput),
-            15 => Mode::Fault(Fault::EncoderLoss),
-            16 => Mode::Fault(Fault::HardwareBreak),
-            17 => Mode::Fault(Fault::Overspeed),
-            18 => Mode::Fault(Fault::Stall),
-            19 => Mode::Fault(Fault::CurrentSensor),
-            20 => Mode::Fault(Fault::NoMotorCurrent),
-            21 => Mode::Fault(Fault::LossOfControl),
-            22 => Mode::Fault(Fault::EncoderImplausible),
-            23 => Mode::Fault(Fault::OpenPhase),
-            24 => Mode::Fault(Fault::MotorOverload),
-            25 => Mode::Fault(Fault::InverterOverload),
-            26 => Mode::Fault(Fault::FollowingError),
-            27 => Mode::Fault(Fault::SwitchOpen),
-            _ => return None,
-        })
+        match c {
+            0 => Some(Mode::Idle),
+            1 => Some(Mode::Magnetizing),
+            2 => Some(Mode::Running),
+            c => Fault::of_code(c).map(Mode::Fault),
+        }
     }
 }
 

@@ -98,3 +98,84 @@ impl<'a> Reader<'a> {
         })
     }
 }
+
+/// A value of the raw configuration: its numbers, in order, on the floats' and the
+/// integers' sequences (each has its own cursor). A struct declared with [`raw_struct!`]
+/// is one: its fields in their order of declaration — the struct is the one source of its
+/// place on the raw wire.
+pub(crate) trait Field: Sized {
+    /// Write the value's numbers.
+    fn put(&self, w: &mut Writer);
+    /// Read them back; a number that does not fit sets [`Reader::bad`] (the value is then a
+    /// placeholder: the caller refuses the configuration).
+    fn get(r: &mut Reader<'_>) -> Self;
+}
+
+impl Field for f32 {
+    fn put(&self, w: &mut Writer) {
+        w.f(*self);
+    }
+    fn get(r: &mut Reader<'_>) -> Self {
+        r.f()
+    }
+}
+
+impl Field for u32 {
+    fn put(&self, w: &mut Writer) {
+        w.u(*self);
+    }
+    fn get(r: &mut Reader<'_>) -> Self {
+        r.u()
+    }
+}
+
+impl Field for u16 {
+    fn put(&self, w: &mut Writer) {
+        w.u(u32::from(*self));
+    }
+    fn get(r: &mut Reader<'_>) -> Self {
+        let x = r.u();
+        u16::try_from(x).unwrap_or_else(|_| {
+            r.bad = true;
+            0
+        })
+    }
+}
+
+impl<T: Field, const N: usize> Field for [T; N] {
+    fn put(&self, w: &mut Writer) {
+        for x in self {
+            x.put(w);
+        }
+    }
+    fn get(r: &mut Reader<'_>) -> Self {
+        core::array::from_fn(|_| T::get(r))
+    }
+}
+
+/// Declares a struct whose fields are [`Field`]s and makes it one: `put` writes its fields
+/// in their order of declaration, `get` reads them back in the same order. The struct
+/// declaration is then the one source of its raw layout — a new field is its one line.
+macro_rules! raw_struct {
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident {
+            $($(#[$fmeta:meta])* $fvis:vis $field:ident: $ty:ty,)*
+        }
+    ) => {
+        $(#[$meta])*
+        $vis struct $name {
+            $($(#[$fmeta])* $fvis $field: $ty,)*
+        }
+
+        impl $crate::raw::Field for $name {
+            fn put(&self, w: &mut $crate::raw::Writer) {
+                $($crate::raw::Field::put(&self.$field, w);)*
+            }
+            fn get(r: &mut $crate::raw::Reader<'_>) -> Self {
+                Self { $($field: $crate::raw::Field::get(r),)* }
+            }
+        }
+    };
+}
+pub(crate) use raw_struct;

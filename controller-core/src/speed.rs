@@ -200,7 +200,9 @@ impl SpeedControllerConfig {
     }
 
     /// `None` for an unknown law tag.
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Option<Self> {
+    /// The law from [`Self::put`]'s numbers; an unknown tag sets the reader's `bad` (the
+    /// configuration is refused).
+    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         let tag = r.u();
         // The same four slots: a PI's (kp, ki/K, u_min, u_max), or the P law's (kp, τ_max, 0, 0).
         let pi = PiConfig::get(r);
@@ -208,9 +210,12 @@ impl SpeedControllerConfig {
             0 => Law::Pi { pi, torque: true },
             1 => Law::Pi { pi, torque: false },
             2 => Law::SaturatedP { kp: pi.kp(), tau_max: pi.ki_over_k() },
-            _ => return None,
+            _ => {
+                r.bad = true;
+                Law::Pi { pi, torque: true }
+            }
         };
-        Some(Self { law })
+        Self { law }
     }
 
     /// The saturated-P law (seed 002 eq. (21)) with new gains, checked in f32 (what the

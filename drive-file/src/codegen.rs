@@ -6,7 +6,7 @@
 use crate::DriveFile;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::Discretization;
-use controller_core::drive::{CurrentFrame, DriveSpec};
+use controller_core::drive::{CurrentFrame, DriveSpec, Protection};
 use controller_core::speed::SpeedLaw;
 use std::fmt::Write;
 
@@ -51,6 +51,14 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
             "controller_core::discretize::Discretization::TustinPrewarped {{ omega_rad_s: {omega_rad_s:?} }}"
         ),
     };
+    // The scalar thresholds by name (`Protection::THRESHOLDS`: one declaration for the
+    // struct, the wire and this code).
+    let thresholds = Protection::THRESHOLDS
+        .iter()
+        .zip(p.thresholds())
+        .map(|(name, v)| format!("{name}: {v:?}"))
+        .collect::<Vec<_>>()
+        .join(", ");
     let frame = match spec.current_frame {
         CurrentFrame::Stationary => "Stationary",
         CurrentFrame::Synchronous => "Synchronous",
@@ -77,8 +85,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       sample_window_s: {:?},\n\
          \x20       rotor_resistance_range: {:?},\n\
          \x20       inductance_range: {:?},\n\
-         \x20       protection: controller_core::drive::Protection {{ i_trip_a: {:?}, vdc_min_v: {:?}, vdc_max_v: {:?}, \
-         overspeed_rad_s: {:?}, stall_time_s: {:?}, following_time_s: {:?}, current_sum_max_a: {:?}, saturation_time_s: {:?}, encoder_check_time_s: {:?}, encoder_jump_rad: {:?}, stop_time_s: {:?}, open_phase_time_s: {:?}, brake_chopper: {}, motor_thermal: {}, inverter_thermal: {}, stop_on: controller_core::drive::FaultSet({}) }},\n\
+         \x20       protection: controller_core::drive::Protection {{ {thresholds}, brake_chopper: {}, motor_thermal: {}, inverter_thermal: {}, stop_on: controller_core::drive::FaultSet({}) }},\n\
          \x20   }})\n\
          }}\n",
         m.rs_ohm(),
@@ -105,18 +112,6 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         spec.sample_window_s,
         spec.rotor_resistance_range,
         spec.inductance_range,
-        p.i_trip_a,
-        p.vdc_min_v,
-        p.vdc_max_v,
-        p.overspeed_rad_s,
-        p.stall_time_s,
-        p.following_time_s,
-        p.current_sum_max_a,
-        p.saturation_time_s,
-        p.encoder_check_time_s,
-        p.encoder_jump_rad,
-        p.stop_time_s,
-        p.open_phase_time_s,
         match p.brake_chopper {
             None => "None".to_string(),
             Some(b) => format!(

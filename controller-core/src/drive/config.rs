@@ -17,79 +17,133 @@ use crate::supervisor::phases::{OPEN_PHASE_COMMANDED_FRACTION, SWITCH_FOLLOWING_
 use crate::supervisor::thermal::ThermalConfig;
 use crate::svpwm;
 
-/// Validated, discretised drive configuration.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DriveConfig {
-    pub(super) current: CurrentControllerConfig<f32>,
-    pub(super) current_frame: CurrentFrame,
-    pub(super) ifoc: IfocConfig,
-    /// The rotor-resistance adaptation.
-    pub(super) mras: MrasConfig,
-    pub(super) speed: SpeedControllerConfig,
-    pub(super) position: PositionConfig,
-    pub(super) envelope: EnvelopeConfig,
-    /// d-axis current of the rated flux ψ_r*/L_m (limited to the current limit), A.
-    pub(super) i_d_rated_a: f32,
-    /// Running when ψ̂_r reaches this fraction of L_m·i_d*.
-    pub(super) magnetized_fraction: f32,
-    /// Slow steps of Magnetizing without reaching the running flux before
-    /// [`Fault::NoMotorCurrent`].
-    pub(super) magnetizing_steps_max: u32,
-    /// The field-weakening voltage target as a fraction of V_dc/√3.
-    pub(super) voltage_margin: f32,
-    /// The current trim's integral gain per slow step, 1 (bandwidth·T_slow).
-    pub(super) trim_gain: f32,
-    /// Dead time as a fraction of the PWM period (0: no compensation).
-    pub(super) dead_time_duty: f32,
-    /// The highest duty the modulator gives a phase, `1 − 2·window/T` less the dead-time
-    /// compensation added after it (1: no sampling window): also the fraction of the
-    /// measured bus the loops, the envelope and the checks count on.
-    pub(super) duty_max: f32,
-    /// Bus voltage at which the regeneration limit starts ([`REGEN_LIMIT_START`]), V.
-    pub(super) regen_start_v: f32,
-    /// Reciprocal of the regeneration limit's span, 1/V.
-    pub(super) inv_regen_span_v: f32,
-    /// Half-width of the dead-time compensation's ramp around zero current, A.
-    pub(super) dead_time_band_a: f32,
-    /// The voltage-margin regulator's integral gain per slow step, 1
-    /// ([`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]·T_slow).
-    pub(super) voltage_gain: f32,
-    /// The field angle is advanced by ω_e times this for the delay between sampling and the
-    /// voltage's application, s ([`VOLTAGE_DELAY_PERIODS`]·T).
-    pub(super) delay_s: f32,
-    pub(super) ts_s: f32,
-    pub(super) slow_divider: u16,
-    /// The instant limits ([`crate::supervisor::limits`]).
-    pub(super) limits: Limits,
-    /// The motion checks' levels ([`crate::supervisor::motion`]).
-    pub(super) motion: MotionLimits,
-    /// Fast steps with the voltage request outside the hexagon before the trip.
-    pub(super) saturation_steps: u32,
-    /// Slow periods of implausible encoder before the trip.
-    pub(super) encoder_check_steps: u32,
-    /// Largest plausible change of the encoder's per-read increment, mechanical rad.
-    pub(super) encoder_jump_rad: f32,
-    /// Thermal models: 1/I_rated² (per A² of |i_αβ|²/2, the RMS phase current squared), the
-    /// update gain `1 − e^(−N·T_slow/τ)` and the trip level `overload_factor²` (`f32::MAX`
-    /// without a limit) — motor, then inverter.
-    pub(super) motor_thermal: ThermalConfig,
-    pub(super) inverter_thermal: ThermalConfig,
-    /// The faults answered by a controlled stop.
-    pub(super) stop_on: FaultSet,
-    /// Slow steps a controlled stop may take before the bridge goes off anyway.
-    pub(super) stop_slow_steps: u32,
-    /// Slow steps of the open-phase check's window (it samples the currents once per slow
-    /// period, with the stuck-switch check).
-    pub(super) open_phase_slow_steps: u32,
-    /// The open-phase check's commanded level, A, for the stuck-switch check
-    /// ([`OPEN_PHASE_COMMANDED_FRACTION`] × `i_d_rated_a`: derived in the slow step instead,
-    /// the firmware took 196 B more flash).
-    pub(super) switch_level_a: f32,
-    /// The stuck-switch check's weights of a new sample, 1 − exp(−T_slow/τ) with τ
-    /// [`SWITCH_WINDOWS`] and [`SWITCH_FOLLOWING_WINDOWS`] open-phase windows.
-    pub(super) switch_gains: [f32; 2],
-    /// The brake chopper's levels (`f32::MAX` without a chopper: never on).
-    pub(super) brake: BrakeLevels,
+crate::raw::raw_struct! {
+    /// Validated, discretised drive configuration. Its fields' order is its raw layout
+    /// ([`crate::raw`]: each field's numbers in turn, the floats and the integers on their own
+    /// sequences): a new field is its one line here and its value in [`DriveConfig::new`].
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct DriveConfig {
+        pub(super) current: CurrentControllerConfig<f32>,
+        pub(super) current_frame: CurrentFrame,
+        pub(super) ifoc: IfocConfig,
+        /// The rotor-resistance adaptation.
+        pub(super) mras: MrasConfig,
+        pub(super) speed: SpeedControllerConfig,
+        pub(super) position: PositionConfig,
+        pub(super) envelope: EnvelopeConfig,
+        /// d-axis current of the rated flux ψ_r*/L_m (limited to the current limit), A.
+        pub(super) i_d_rated_a: f32,
+        /// Running when ψ̂_r reaches this fraction of L_m·i_d*.
+        pub(super) magnetized_fraction: f32,
+        /// The field-weakening voltage target as a fraction of V_dc/√3.
+        pub(super) voltage_margin: f32,
+        /// The current trim's integral gain per slow step, 1 (bandwidth·T_slow).
+        pub(super) trim_gain: f32,
+        /// Dead time as a fraction of the PWM period (0: no compensation).
+        pub(super) dead_time_duty: f32,
+        /// The highest duty the modulator gives a phase, `1 − 2·window/T` less the dead-time
+        /// compensation added after it (1: no sampling window): also the fraction of the
+        /// measured bus the loops, the envelope and the checks count on.
+        pub(super) duty_max: f32,
+        /// The open-phase check's commanded level, A, for the stuck-switch check
+        /// ([`OPEN_PHASE_COMMANDED_FRACTION`] × `i_d_rated_a`: derived in the slow step instead,
+        /// the firmware took 196 B more flash).
+        pub(super) switch_level_a: f32,
+        /// The stuck-switch check's weights of a new sample, 1 − exp(−T_slow/τ) with τ
+        /// [`SWITCH_WINDOWS`] and [`SWITCH_FOLLOWING_WINDOWS`] open-phase windows.
+        pub(super) switch_gains: [f32; 2],
+        /// Half-width of the dead-time compensation's ramp around zero current, A.
+        pub(super) dead_time_band_a: f32,
+        /// Bus voltage at which the regeneration limit starts ([`REGEN_LIMIT_START`]), V.
+        pub(super) regen_start_v: f32,
+        /// Reciprocal of the regeneration limit's span, 1/V.
+        pub(super) inv_regen_span_v: f32,
+        /// The voltage-margin regulator's integral gain per slow step, 1
+        /// ([`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]·T_slow).
+        pub(super) voltage_gain: f32,
+        /// The field angle is advanced by ω_e times this for the delay between sampling and the
+        /// voltage's application, s ([`VOLTAGE_DELAY_PERIODS`]·T).
+        pub(super) delay_s: f32,
+        pub(super) ts_s: f32,
+        /// Slow steps of Magnetizing without reaching the running flux before
+        /// [`Fault::NoMotorCurrent`].
+        pub(super) magnetizing_steps_max: u32,
+        pub(super) slow_divider: u16,
+        /// The instant limits ([`crate::supervisor::limits`]).
+        pub(super) limits: Limits,
+        /// The motion checks' levels ([`crate::supervisor::motion`]).
+        pub(super) motion: MotionLimits,
+        /// The brake chopper's levels (`f32::MAX` without a chopper: never on).
+        pub(super) brake: BrakeLevels,
+        /// Largest plausible change of the encoder's per-read increment, mechanical rad.
+        pub(super) encoder_jump_rad: f32,
+        /// Thermal models: 1/I_rated² (per A² of |i_αβ|²/2, the RMS phase current squared), the
+        /// update gain `1 − e^(−N·T_slow/τ)` and the trip level `overload_factor²` (`f32::MAX`
+        /// without a limit) — motor, then inverter.
+        pub(super) motor_thermal: ThermalConfig,
+        pub(super) inverter_thermal: ThermalConfig,
+        /// Fast steps with the voltage request outside the hexagon before the trip.
+        pub(super) saturation_steps: u32,
+        /// Slow periods of implausible encoder before the trip.
+        pub(super) encoder_check_steps: u32,
+        /// Slow steps a controlled stop may take before the bridge goes off anyway.
+        pub(super) stop_slow_steps: u32,
+        /// Slow steps of the open-phase check's window (it samples the currents once per slow
+        /// period, with the stuck-switch check).
+        pub(super) open_phase_slow_steps: u32,
+        /// The faults answered by a controlled stop.
+        pub(super) stop_on: FaultSet,
+    }
+}
+
+/// The laws' configurations on the raw wire: their own layouts (`put`, `get`).
+macro_rules! law_fields {
+    ($($ty:ty),*) => {$(
+        impl raw::Field for $ty {
+            fn put(&self, w: &mut raw::Writer) {
+                <$ty>::put(self, w);
+            }
+            fn get(r: &mut raw::Reader<'_>) -> Self {
+                <$ty>::get(r)
+            }
+        }
+    )*};
+}
+law_fields!(
+    CurrentControllerConfig<f32>,
+    IfocConfig,
+    MrasConfig,
+    SpeedControllerConfig,
+    PositionConfig,
+    EnvelopeConfig
+);
+
+impl raw::Field for CurrentFrame {
+    fn put(&self, w: &mut raw::Writer) {
+        w.u(match self {
+            CurrentFrame::Stationary => 0,
+            CurrentFrame::Synchronous => 1,
+        });
+    }
+    fn get(r: &mut raw::Reader<'_>) -> Self {
+        match r.u() {
+            0 => CurrentFrame::Stationary,
+            1 => CurrentFrame::Synchronous,
+            _ => {
+                r.bad = true;
+                CurrentFrame::Stationary
+            }
+        }
+    }
+}
+
+impl raw::Field for FaultSet {
+    fn put(&self, w: &mut raw::Writer) {
+        w.u(self.0);
+    }
+    fn get(r: &mut raw::Reader<'_>) -> Self {
+        FaultSet(r.u())
+    }
 }
 
 /// What a thermal limit needs ([`crate::supervisor::thermal::ThermalConfig::new`]).
@@ -308,65 +362,7 @@ impl DriveConfig {
 
     pub(super) fn write_raw(&self) -> raw::Writer {
         let mut w = raw::Writer::new();
-        self.current.put(&mut w);
-        w.u(match self.current_frame {
-            CurrentFrame::Stationary => 0,
-            CurrentFrame::Synchronous => 1,
-        });
-        self.ifoc.put(&mut w);
-        self.mras.put(&mut w);
-        self.speed.put(&mut w);
-        self.position.put(&mut w);
-        self.envelope.put(&mut w);
-        for x in [
-            self.i_d_rated_a,
-            self.magnetized_fraction,
-            self.voltage_margin,
-            self.trim_gain,
-            self.dead_time_duty,
-            self.duty_max,
-            self.switch_level_a,
-            self.switch_gains[0],
-            self.switch_gains[1],
-            self.dead_time_band_a,
-            self.regen_start_v,
-            self.inv_regen_span_v,
-            self.voltage_gain,
-            self.delay_s,
-            self.ts_s,
-            self.limits.vdc_min_v,
-            self.limits.vdc_max_v,
-            self.motion.overspeed_rad_s,
-            self.motion.stall_speed_rad_s,
-            self.motion.following_gain,
-            self.motion.speed_limit,
-            self.brake.on_v,
-            self.brake.off_v,
-            self.encoder_jump_rad,
-            self.motor_thermal.inv_rated2,
-            self.motor_thermal.gain,
-            self.motor_thermal.limit,
-            self.inverter_thermal.inv_rated2,
-            self.inverter_thermal.gain,
-            self.inverter_thermal.limit,
-        ] {
-            w.f(x);
-        }
-        for x in [
-            self.magnetizing_steps_max,
-            u32::from(self.slow_divider),
-            self.limits.i_trip_bits,
-            self.limits.i_sum_bits,
-            self.motion.stall_slow_steps,
-            self.motion.following_slow_steps,
-            self.saturation_steps,
-            self.encoder_check_steps,
-            self.stop_slow_steps,
-            self.open_phase_slow_steps,
-            self.stop_on.0,
-        ] {
-            w.u(x);
-        }
+        raw::Field::put(self, &mut w);
         w
     }
 
@@ -377,72 +373,7 @@ impl DriveConfig {
     /// otherwise.
     pub fn from_raw(raw: &RawDriveConfig) -> Result<Self, DriveError> {
         let mut r = raw::Reader::new(raw);
-        let current = CurrentControllerConfig::get(&mut r);
-        let current_frame = match r.u() {
-            0 => CurrentFrame::Stationary,
-            1 => CurrentFrame::Synchronous,
-            _ => return Err(DriveError::Raw),
-        };
-        let ifoc = IfocConfig::get(&mut r);
-        let mras = MrasConfig::get(&mut r);
-        let speed = SpeedControllerConfig::get(&mut r).ok_or(DriveError::Raw)?;
-        let position = PositionConfig::get(&mut r);
-        let envelope = EnvelopeConfig::get(&mut r);
-        // In the order `write_raw` puts them: the floats, then the integers (a struct
-        // literal evaluates its fields in the order written; the groups' integers are read
-        // after it, in their turn).
-        let mut cfg = Self {
-            current,
-            current_frame,
-            ifoc,
-            mras,
-            speed,
-            position,
-            envelope,
-            i_d_rated_a: r.f(),
-            magnetized_fraction: r.f(),
-            voltage_margin: r.f(),
-            trim_gain: r.f(),
-            dead_time_duty: r.f(),
-            duty_max: r.f(),
-            switch_level_a: r.f(),
-            switch_gains: [r.f(), r.f()],
-            dead_time_band_a: r.f(),
-            regen_start_v: r.f(),
-            inv_regen_span_v: r.f(),
-            voltage_gain: r.f(),
-            delay_s: r.f(),
-            ts_s: r.f(),
-            limits: Limits { vdc_min_v: r.f(), vdc_max_v: r.f(), i_trip_bits: 0, i_sum_bits: 0 },
-            motion: MotionLimits {
-                overspeed_rad_s: r.f(),
-                stall_speed_rad_s: r.f(),
-                following_gain: r.f(),
-                speed_limit: r.f(),
-                stall_slow_steps: 0,
-                following_slow_steps: 0,
-            },
-            brake: BrakeLevels { on_v: r.f(), off_v: r.f() },
-            encoder_jump_rad: r.f(),
-            motor_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
-            inverter_thermal: ThermalConfig { inv_rated2: r.f(), gain: r.f(), limit: r.f() },
-            magnetizing_steps_max: r.u(),
-            slow_divider: u16::try_from(r.u()).map_err(|_| DriveError::Raw)?,
-            saturation_steps: 0,
-            encoder_check_steps: 0,
-            stop_slow_steps: 0,
-            open_phase_slow_steps: 0,
-            stop_on: FaultSet::EMPTY,
-        };
-        cfg.limits.i_trip_bits = r.u();
-        cfg.limits.i_sum_bits = r.u();
-        cfg.motion.stall_slow_steps = r.u();
-        cfg.motion.following_slow_steps = r.u();
-        cfg.saturation_steps = r.u();
-        cfg.encoder_check_steps = r.u();
-        cfg.stop_slow_steps = r.u();
-        cfg.open_phase_slow_steps = r.u();
-        cfg.stop_on = FaultSet(r.u());
+        let cfg = <Self as raw::Field>::get(&mut r);
         let counts = [
             u32::from(cfg.slow_divider),
             cfg.magnetizing_steps_max,

@@ -13,6 +13,7 @@ use crate::drive::{
 use crate::frames::{Abc, AlphaBeta};
 use crate::motor::MotorParams;
 use crate::speed::SpeedLaw;
+use crate::supervisor::THRESHOLD_COUNT;
 
 /// Message-level errors.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -454,20 +455,7 @@ fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), BufferFull> {
         w.f64(v)?;
     }
     let p = &s.protection;
-    for v in [
-        p.i_trip_a,
-        p.vdc_min_v,
-        p.vdc_max_v,
-        p.overspeed_rad_s,
-        p.stall_time_s,
-        p.following_time_s,
-        p.current_sum_max_a,
-        p.saturation_time_s,
-        p.encoder_check_time_s,
-        p.encoder_jump_rad,
-        p.stop_time_s,
-        p.open_phase_time_s,
-    ] {
+    for v in p.thresholds() {
         w.f64(v)?;
     }
     match p.brake_chopper {
@@ -531,28 +519,23 @@ fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
     let rotor_resistance_range = [r.f64()?, r.f64()?];
     let inductance_range = [r.f64()?, r.f64()?];
-    let protection = Protection {
-        i_trip_a: r.f64()?,
-        vdc_min_v: r.f64()?,
-        vdc_max_v: r.f64()?,
-        overspeed_rad_s: r.f64()?,
-        stall_time_s: r.f64()?,
-        following_time_s: r.f64()?,
-        current_sum_max_a: r.f64()?,
-        saturation_time_s: r.f64()?,
-        encoder_check_time_s: r.f64()?,
-        encoder_jump_rad: r.f64()?,
-        stop_time_s: r.f64()?,
-        open_phase_time_s: r.f64()?,
-        brake_chopper: match r.u8()? {
-            0 => None,
-            1 => Some(BrakeChopper { on_v: r.f64()?, off_v: r.f64()? }),
-            _ => return Err(DecodeError::Value),
-        },
-        motor_thermal: read_thermal(r)?,
-        inverter_thermal: read_thermal(r)?,
-        stop_on: FaultSet(r.u32()?),
+    let mut thresholds = [0.0; THRESHOLD_COUNT];
+    for t in &mut thresholds {
+        *t = r.f64()?;
+    }
+    let brake_chopper = match r.u8()? {
+        0 => None,
+        1 => Some(BrakeChopper { on_v: r.f64()?, off_v: r.f64()? }),
+        _ => return Err(DecodeError::Value),
     };
+    let (motor_thermal, inverter_thermal) = (read_thermal(r)?, read_thermal(r)?);
+    let protection = Protection::with_thresholds(
+        thresholds,
+        brake_chopper,
+        motor_thermal,
+        inverter_thermal,
+        FaultSet(r.u32()?),
+    );
     Ok(DriveSpec {
         motor,
         pwm_frequency_hz,

@@ -6,19 +6,21 @@ use crate::fault::Fault;
 use crate::io::Measurements;
 use crate::num::max_f32;
 
-/// The instant limits, as the fast step tests them (the drive configuration's).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Limits {
-    /// Bits of the phase-current trip level `i_trip_a` (finite, positive): see
-    /// [`Limits::ok`]; [`Limits::fault`] reads the level back from them.
-    pub(crate) i_trip_bits: u32,
-    /// Bits of `current_sum_max_a` (compared like `i_trip_bits`).
-    pub(crate) i_sum_bits: u32,
-    /// Bus undervoltage level while the bridge is active, V (+0 for none: the bit test needs
-    /// the sign bit clear).
-    pub(crate) vdc_min_v: f32,
-    /// Bus overvoltage level, V.
-    pub(crate) vdc_max_v: f32,
+crate::raw::raw_struct! {
+    /// The instant limits, as the fast step tests them (the drive configuration's).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub(crate) struct Limits {
+        /// Bus undervoltage level while the bridge is active, V (+0 for none: the bit test needs
+        /// the sign bit clear).
+        pub(crate) vdc_min_v: f32,
+        /// Bus overvoltage level, V.
+        pub(crate) vdc_max_v: f32,
+        /// Bits of the phase-current trip level `i_trip_a` (finite, positive): see
+        /// [`Limits::ok`]; [`Limits::fault`] reads the level back from them.
+        pub(crate) i_trip_bits: u32,
+        /// Bits of `current_sum_max_a` (compared like `i_trip_bits`).
+        pub(crate) i_sum_bits: u32,
+    }
 }
 
 impl Limits {
@@ -76,13 +78,15 @@ impl Limits {
     }
 }
 
-/// The brake chopper's levels ([`super::BrakeChopper`], `f32::MAX` both without one).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct BrakeLevels {
-    /// On above this bus voltage, V.
-    pub(crate) on_v: f32,
-    /// … and off below this one, V.
-    pub(crate) off_v: f32,
+crate::raw::raw_struct! {
+    /// The brake chopper's levels ([`super::BrakeChopper`], `f32::MAX` both without one).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub(crate) struct BrakeLevels {
+        /// On above this bus voltage, V.
+        pub(crate) on_v: f32,
+        /// … and off below this one, V.
+        pub(crate) off_v: f32,
+    }
 }
 
 impl BrakeLevels {

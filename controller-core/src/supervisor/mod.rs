@@ -49,65 +49,106 @@ use {
     motion::{FOLLOWING_PROGRESS_FRACTION, STALL_REFERENCE_FACTOR, STALL_SPEED_FRACTION},
 };
 
-/// Protection thresholds. The drive file derives defaults for the last three from the motor
-/// and the other limits (`drive_file::drive`, where the reasoning is written down).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Protection {
+/// Declares the protection's scalar thresholds once: each line is a field of [`Protection`]
+/// (f64, in design units), its place on the link's wire (`Configure`, in this order) and its
+/// line in the firmware's generated configuration ([`Protection::THRESHOLDS`],
+/// [`Protection::thresholds`], [`Protection::with_thresholds`]). A new timed check's
+/// threshold is one line here.
+macro_rules! protection {
+    ($($(#[$doc:meta])* $name:ident,)*) => {
+        /// Protection thresholds. The drive file derives defaults for most of them from the
+        /// motor and the other limits (`drive_file::drive`, where the reasoning is written
+        /// down).
+        #[derive(Clone, Copy, Debug, PartialEq)]
+        pub struct Protection {
+            $($(#[$doc])* pub $name: f64,)*
+            /// The board's brake chopper (a resistor switched across the DC link), if it has one:
+            /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
+            /// every mode (it protects the link whether or not the bridge is active).
+            pub brake_chopper: Option<BrakeChopper>,
+            /// The motor's I²t thermal limit ([`Fault::MotorOverload`]), if the motor's rated current
+            /// and thermal time constant are known.
+            pub motor_thermal: Option<ThermalLimit>,
+            /// The inverter's I²t thermal limit ([`Fault::InverterOverload`]), from the board data.
+            pub inverter_thermal: Option<ThermalLimit>,
+            /// The faults answered by a controlled stop and then the bridge off (the fault latched
+            /// once the stop ends), instead of the bridge off at once; only those after which the
+            /// drive still controls the motor ([`FaultSet::STOPPABLE`]).
+            pub stop_on: FaultSet,
+        }
+
+        impl Protection {
+            /// The scalar thresholds' names, in their order (the wire's, the generated
+            /// code's): the fields of the drive file's `[protection]` table of those names.
+            pub const THRESHOLDS: [&'static str; THRESHOLD_COUNT] = [$(stringify!($name)),*];
+
+            /// The scalar thresholds' values, in the order of [`Protection::THRESHOLDS`].
+            pub fn thresholds(&self) -> [f64; THRESHOLD_COUNT] {
+                [$(self.$name),*]
+            }
+
+            /// The protection of the scalar thresholds `t` (in the order of
+            /// [`Protection::THRESHOLDS`]) and the structured rest.
+            pub fn with_thresholds(
+                t: [f64; THRESHOLD_COUNT],
+                brake_chopper: Option<BrakeChopper>,
+                motor_thermal: Option<ThermalLimit>,
+                inverter_thermal: Option<ThermalLimit>,
+                stop_on: FaultSet,
+            ) -> Self {
+                let [$($name),*] = t;
+                Self { $($name,)* brake_chopper, motor_thermal, inverter_thermal, stop_on }
+            }
+        }
+
+        /// How many scalar thresholds [`Protection`] has.
+        pub const THRESHOLD_COUNT: usize = [$(stringify!($name)),*].len();
+    };
+}
+
+protection! {
     /// Phase-current trip level (absolute instantaneous value), A.
-    pub i_trip_a: f64,
+    i_trip_a,
     /// DC-bus undervoltage trip (checked while the bridge is active), V.
-    pub vdc_min_v: f64,
+    vdc_min_v,
     /// DC-bus overvoltage trip, V.
-    pub vdc_max_v: f64,
+    vdc_max_v,
     /// Overspeed trip: |ω_m| above this while the bridge is active, mechanical rad/s.
-    pub overspeed_rad_s: f64,
+    overspeed_rad_s,
     /// Stall trip: the speed loop's output at its limit, or a speed reference at least
     /// [`STALL_REFERENCE_FACTOR`] × the "not moving" level, while |ω_m| stays below
     /// [`STALL_SPEED_FRACTION`] of `overspeed_rad_s` for this long, s.
-    pub stall_time_s: f64,
+    stall_time_s,
     /// Speed-following error ([`Fault::FollowingError`]): the speed loop at its limit, the
     /// rotor turning (steps below the stall check's "not moving" level not counted), for this
     /// long while the speed moved against the commanded torque by more than
     /// [`FOLLOWING_PROGRESS_FRACTION`] of what that torque alone would have done to the drive's
     /// inertia, s.
-    pub following_time_s: f64,
+    following_time_s,
     /// Current-sensor plausibility: |i_a + i_b + i_c| of the three measured phase currents
     /// (zero for any star-connected motor) above this trips, A.
-    pub current_sum_max_a: f64,
+    current_sum_max_a,
     /// Loss of control: the current loops at their voltage limit (an axis clamped, or the
     /// request outside the bridge's hexagon) for this long without a break, s.
-    pub saturation_time_s: f64,
+    saturation_time_s,
     /// Encoder against the machine model: the applied voltage departs from the voltage the
     /// motor needs at the encoder's speed by more than [`ENCODER_RESIDUAL_FRACTION`] of the
     /// linear voltage limit, at every slow-step check for this long, s.
-    pub encoder_check_time_s: f64,
+    encoder_check_time_s,
     /// Encoder jump: the position's change between two slow-loop reads may differ from the
     /// previous read's change by at most this, mechanical rad — the count quantisation plus
     /// the largest acceleration the mechanics allow over a read period squared. More is a
     /// glitch, a counter that stopped at speed, or an encoder that lost counts
     /// ([`Fault::EncoderLoss`], within two reads).
-    pub encoder_jump_rad: f64,
+    encoder_jump_rad,
     /// A controlled stop (`Drive::controlled_stop`: the speed loop brakes to standstill,
     /// then the bridge goes off) takes at most this long before the bridge goes off anyway, s.
-    pub stop_time_s: f64,
+    stop_time_s,
     /// Open phase: the window, s, of the open-phase and no-motor-current check (a phase
     /// commanded a current but carrying none while the others do, for two windows in a row:
     /// [`Fault::OpenPhase`]; no phase carrying its current: [`Fault::NoMotorCurrent`]),
     /// sampled once per slow period; at least one slow period.
-    pub open_phase_time_s: f64,
-    /// The board's brake chopper (a resistor switched across the DC link), if it has one:
-    /// the drive switches it with a hysteresis comparator on the measured bus voltage, in
-    /// every mode (it protects the link whether or not the bridge is active).
-    pub brake_chopper: Option<BrakeChopper>,
-    /// The motor's I²t thermal limit ([`Fault::MotorOverload`]), if the motor's rated current
-    /// and thermal time constant are known.
-    pub motor_thermal: Option<ThermalLimit>,
-    /// The inverter's I²t thermal limit ([`Fault::InverterOverload`]), from the board data.
-    pub inverter_thermal: Option<ThermalLimit>,
-    /// The faults answered by a controlled stop and then the bridge off (the fault latched
-    /// once the stop ends), instead of the bridge off at once; only those after which the
-    /// drive still controls the motor ([`FaultSet::STOPPABLE`]).
-    pub stop_on: FaultSet,
+    open_phase_time_s,
 }
 
 /// An I²t thermal limit: a first-order thermal model, `dθ/dt = (I²/I_rated² − θ)/τ` with

@@ -28,23 +28,25 @@ pub const STALL_REFERENCE_FACTOR: f32 = 10.0;
 /// its speed reference faster than the torque limit lets the motor follow.
 pub const FOLLOWING_PROGRESS_FRACTION: f64 = 0.1;
 
-/// The motion checks' levels (the drive configuration's).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct MotionLimits {
-    /// Overspeed: |ω_m| above this while the bridge is active, rad/s.
-    pub(crate) overspeed_rad_s: f32,
-    /// "Not moving": [`STALL_SPEED_FRACTION`] of the overspeed level, rad/s.
-    pub(crate) stall_speed_rad_s: f32,
-    /// Slow steps of stall before the trip.
-    pub(crate) stall_slow_steps: u32,
-    /// Slow steps of a following-error window.
-    pub(crate) following_slow_steps: u32,
-    /// [`FOLLOWING_PROGRESS_FRACTION`]·T_slow/J, rad/s per N·m: the least progress per slow
-    /// step at the torque commanded.
-    pub(crate) following_gain: f32,
-    /// The speed loop's output limit (saturation test of the stall check; the following
-    /// check's τ_max).
-    pub(crate) speed_limit: f32,
+crate::raw::raw_struct! {
+    /// The motion checks' levels (the drive configuration's).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub(crate) struct MotionLimits {
+        /// Overspeed: |ω_m| above this while the bridge is active, rad/s.
+        pub(crate) overspeed_rad_s: f32,
+        /// "Not moving": [`STALL_SPEED_FRACTION`] of the overspeed level, rad/s.
+        pub(crate) stall_speed_rad_s: f32,
+        /// Slow steps of stall before the trip.
+        pub(crate) stall_slow_steps: u32,
+        /// Slow steps of a following-error window.
+        pub(crate) following_slow_steps: u32,
+        /// [`FOLLOWING_PROGRESS_FRACTION`]·T_slow/J, rad/s per N·m: the least progress per slow
+        /// step at the torque commanded.
+        pub(crate) following_gain: f32,
+        /// The speed loop's output limit (saturation test of the stall check; the following
+        /// check's τ_max).
+        pub(crate) speed_limit: f32,
+    }
 }
 
 /// The stall and following-error checks' counts: one run's (an enable starts them afresh).

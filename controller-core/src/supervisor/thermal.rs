@@ -6,15 +6,17 @@ use super::ThermalLimit;
 use crate::fault::Fault;
 use crate::frames::Abc;
 
-/// A thermal limit, discretised ([`ThermalLimit`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct ThermalConfig {
-    /// 1/I_rated², 1/A².
-    pub(crate) inv_rated2: f32,
-    /// θ += (x − θ)·gain every [`THERMAL_UPDATE_SLOW_STEPS`].
-    pub(crate) gain: f32,
-    /// Trip at θ ≥ this (`f32::MAX`: no limit).
-    pub(crate) limit: f32,
+crate::raw::raw_struct! {
+    /// A thermal limit, discretised ([`ThermalLimit`]).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub(crate) struct ThermalConfig {
+        /// 1/I_rated², 1/A².
+        pub(crate) inv_rated2: f32,
+        /// θ += (x − θ)·gain every [`THERMAL_UPDATE_SLOW_STEPS`].
+        pub(crate) gain: f32,
+        /// Trip at θ ≥ this (`f32::MAX`: no limit).
+        pub(crate) limit: f32,
+    }
 }
 
 impl ThermalConfig {
