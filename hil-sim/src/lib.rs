@@ -12,7 +12,11 @@
 //!   the simulated motor, in process or on QEMU) and the motor's estimation;
 //! * [`scenario`]: the papers' experiments as built-ins, on the shipped drive file;
 //!   [`scenario_file`]: scenario files (a drive file plus a run); plots and
-//!   file writing: the `report` crate.
+//!   file writing: the `report` crate;
+//! * [`trace`]: the trace of a run (`trace.csv`: its columns and units, the streaming
+//!   writer, the output directory, the plots and the summary);
+//! * [`commands`]: the bodies of the `hil-sim` commands, each taking plain options (the
+//!   binary, `src/main.rs`, only parses the command line and calls them).
 #![forbid(unsafe_code)]
 // Host simulator, not the control path: fixed-size state arrays are indexed inside
 // `array::from_fn` with indices bounded by the array length.
@@ -22,6 +26,7 @@
 pub mod bridge_fault;
 pub mod campaign;
 pub mod capture;
+pub mod commands;
 pub mod envelope;
 pub mod faults;
 pub mod identify;
@@ -32,3 +37,4 @@ pub mod scenario;
 pub mod scenario_file;
 pub mod sensors;
 pub mod sim;
+pub mod trace;

@@ -1,0 +1,198 @@
+//! `hil-sim campaign`: the nonlinear campaign over a drive file's `[certify]` box
+//! ([`crate::campaign`]), its table, plot and summary.
+
+use super::{INTERRUPTED, bus_voltage};
+use crate::trace::{make_out_dir, unmake_out_dir};
+use report::write::write_text;
+use std::path::PathBuf;
+
+/// What `campaign` is asked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CampaignOptions {
+    /// A drive file with a `[certify]` table.
+    pub drive: PathBuf,
+    /// Runs in the whole campaign (the corners' come first).
+    pub runs: u64,
+    /// Length of each run, s.
+    pub duration: f64,
+    /// Seed of the random samples (and of the sensors' noise).
+    pub seed: u64,
+    /// Run only the shard i of N (`(i, N)`: runs with k mod N = i).
+    pub shard: (u64, u64),
+    /// DC-bus voltage, V (`None`: [`bus_voltage`]'s choice).
+    pub vdc: Option<f64>,
+    /// Output directory (`None`: `out/campaign`).
+    pub out: Option<PathBuf>,
+}
+
+/// `hil-sim campaign`: runs the shard in parallel (Ctrl-C stops it and writes nothing),
+/// prints the per-manoeuvre table, writes `campaign.csv`, `campaign.svg` and `summary.json`
+/// (with the drive file's fingerprint); `Err` if any run fails.
+pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
+    let (i, n) = a.shard;
+    if n == 0 || i >= n {
+        return Err(format!("shard {i}/{n}: a shard i/N needs 0 ≤ i < N"));
+    }
+    use crate::campaign::{Campaign, Verdict};
+    let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
+    let certify = file.certify.ok_or_else(|| {
+        format!("{}: no [certify] table: the campaign samples its parameter box", a.drive.display())
+    })?;
+    let vdc = bus_voltage(a.vdc, &file.spec.protection, "the campaign")?;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/campaign"));
+    let c = Campaign {
+        spec: file.spec,
+        certify,
+        vdc_v: vdc,
+        duration_s: a.duration,
+        runs: a.runs,
+        seed: a.seed,
+        shard: a.shard,
+        encoder_lines: file.encoder_lines(),
+    };
+    c.check()?;
+    let total = c.indices().count() as u64;
+    if total == 0 {
+        return Err(format!(
+            "shard {}/{} of a {}-run campaign has no runs (its runs are those with k mod {} = {}): take fewer shards",
+            a.shard.0, a.shard.1, a.runs, a.shard.1, a.shard.0
+        ));
+    }
+    if a.runs < crate::campaign::CORNER_RUNS {
+        eprintln!(
+            "hil-sim: {} runs leave corners of the box without every manoeuvre: `design certify --campaign` asks for {} or more",
+            a.runs,
+            crate::campaign::CORNER_RUNS
+        );
+    }
+    let made = make_out_dir(&out)?;
+    eprintln!(
+        "hil-sim: campaign of {} on {} V: {total} run(s) of {} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
+        a.drive.display(),
+        vdc,
+        a.duration,
+        a.shard.0,
+        a.shard.1,
+        a.runs,
+        c.omega_s_rad_s()
+    );
+    let start = std::time::Instant::now();
+    // Progress: one line rewritten on a terminal, a line per 10 % otherwise (a CI log).
+    let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let step = (total / if tty { 100 } else { 10 }).max(1);
+    let verdicts = c.run(
+        |done| {
+            if done % step == 0 || done == total {
+                if tty {
+                    eprint!("\rhil-sim: {done}/{total} runs");
+                } else {
+                    eprintln!("hil-sim: {done}/{total} runs");
+                }
+            }
+        },
+        &INTERRUPTED,
+    );
+    if tty {
+        eprintln!();
+    }
+    // Interrupted (Ctrl-C): nothing written, nor the directory this made.
+    let verdicts = verdicts.inspect_err(|_| unmake_out_dir(&out, made))?;
+    let elapsed = start.elapsed().as_secs_f64();
+    let mut csv = String::from(Verdict::CSV_HEADER);
+    csv.push('\n');
+    for v in &verdicts {
+        csv.push_str(&v.csv());
+        csv.push('\n');
+    }
+    write_text(&out.join("campaign.csv"), &csv)?;
+    write_text(&out.join("campaign.svg"), &crate::campaign::plot(&c, &verdicts))?;
+    let mut summary = crate::campaign::summary(&c, &verdicts, elapsed);
+    // Which file exactly: `design certify --campaign` refuses a summary of another one.
+    let drive_text = drive_file::source::read(&a.drive).map_err(|e| e.to_string())?;
+    if let Some(o) = summary.as_object_mut() {
+        o.insert(
+            "drive".into(),
+            serde_json::json!({
+                "file": a.drive.display().to_string(),
+                "fingerprint": drive_file::source::fingerprint(&drive_text),
+            }),
+        );
+    }
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    write_text(&out.join("summary.json"), &format!("{text}\n"))?;
+    report::outln!(
+        "{:<12} {:>6} {:>7} {:>17} {:>13} {:>16}",
+        "manoeuvre",
+        "runs",
+        "passed",
+        "worst tracking",
+        "worst ripple",
+        "flux / model"
+    );
+    for m in crate::campaign::per_manoeuvre(&verdicts) {
+        match (m.worst_tracking_error_rad_s, m.worst_ripple_nm, m.flux_ratio) {
+            (Some(tracking), Some(ripple), Some([lo, hi])) => report::outln!(
+                "{:<12} {:>6} {:>7} {tracking:>11.3} rad/s {ripple:>10.4} Nm {lo:>8.3} … {hi:.3}",
+                m.manoeuvre.name(),
+                m.runs,
+                m.passed,
+            ),
+            _ => report::outln!(
+                "{:<12} {:>6} {:>7} {:>17} {:>13} {:>16}",
+                m.manoeuvre.name(),
+                m.runs,
+                m.passed,
+                "—",
+                "—",
+                "—"
+            ),
+        }
+    }
+    let failed: Vec<&Verdict> = verdicts.iter().filter(|v| !v.passed()).collect();
+    for v in failed.iter().take(20) {
+        report::outln!("FAIL run {}: {} ({})", v.k, v.failures.join(", "), v.csv());
+    }
+    report::outln!(
+        "{} runs in {elapsed:.2} s ({:.1} ns per simulated PWM period, {:.0} runs/s)",
+        verdicts.len(),
+        crate::campaign::ns_per_period(&c, verdicts.len(), elapsed),
+        verdicts.len() as f64 / elapsed
+    );
+    eprintln!("hil-sim: wrote campaign.csv, campaign.svg, summary.json in {}", out.display());
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("{} of {} runs failed their criteria", failed.len(), verdicts.len()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn options(shard: (u64, u64), out: &std::path::Path) -> CampaignOptions {
+        CampaignOptions {
+            drive: PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml")),
+            runs: 4,
+            duration: 1.0,
+            seed: 1,
+            shard,
+            vdc: None,
+            out: Some(out.to_path_buf()),
+        }
+    }
+
+    /// A shard that is not one (N = 0 divided by zero), or one with no runs, is an error
+    /// before the output directory is made.
+    #[test]
+    fn bad_shards_are_errors() {
+        let out = std::env::temp_dir().join(format!("hil-sim-campaign-{}", std::process::id()));
+        for shard in [(0, 0), (3, 3)] {
+            let e = campaign(&options(shard, &out)).unwrap_err();
+            assert!(e.contains("0 ≤ i < N"), "{shard:?}: {e}");
+        }
+        let e = campaign(&options((5, 6), &out)).unwrap_err();
+        assert!(e.contains("has no runs"), "{e}");
+        assert!(!out.exists());
+    }
+}

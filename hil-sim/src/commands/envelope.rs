@@ -1,0 +1,133 @@
+//! `hil-sim envelope`: the drive file's torque–speed envelope measured in software in the
+//! loop ([`crate::envelope`]) against the analytic one.
+
+use super::bus_voltage;
+use controller_core::drive::Mode;
+use report::write::write_text;
+use std::path::PathBuf;
+
+/// What `envelope` is asked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EnvelopeOptions {
+    /// The drive file.
+    pub drive: PathBuf,
+    /// DC-bus voltage, V (`None`: [`bus_voltage`]'s choice).
+    pub vdc: Option<f64>,
+    /// Speeds measured, at least 2, evenly from 0.2× to 2× the no-load base speed.
+    pub points: u32,
+    /// Braking (generating) torque instead of motoring.
+    pub generating: bool,
+    /// Output directory (`None`: `out/envelope`).
+    pub out: Option<PathBuf>,
+}
+
+/// The envelope's acceptance: measured within this fraction of the analytic envelope.
+pub const ENVELOPE_TOLERANCE: f64 = 0.05;
+
+/// `hil-sim envelope`: prints the table, writes `envelope.csv`, `envelope.svg` and
+/// `summary.json`; `Err` if a point is more than [`ENVELOPE_TOLERANCE`] off or the drive
+/// faulted.
+pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
+    if a.points < 2 {
+        return Err(format!("{} points: the envelope needs at least 2", a.points));
+    }
+    let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
+    let spec = file.spec;
+    let vdc = bus_voltage(a.vdc, &spec.protection, "the envelope")?;
+    let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/envelope"));
+    let base = crate::envelope::drive_base_speed_rad_s(&spec, vdc);
+    if base <= 0.0 {
+        return Err(format!("the rated flux needs more than the {} V bus has even at standstill", vdc));
+    }
+    std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let n = f64::from(a.points - 1);
+    let speeds: Vec<f64> = (0..a.points).map(|k| base * (0.2 + 1.8 * f64::from(k) / n)).collect();
+    let sign = if a.generating { -1.0 } else { 1.0 };
+    eprintln!(
+        "hil-sim: envelope of {} on {} V, {} speeds from {:.1} to {:.1} rad/s (no-load base speed {base:.1} rad/s)",
+        a.drive.display(),
+        vdc,
+        speeds.len(),
+        speeds.first().copied().unwrap_or(0.0),
+        speeds.last().copied().unwrap_or(0.0)
+    );
+    let points = crate::envelope::measure(&spec, &spec.motor, vdc, &speeds, sign)?;
+    let mut csv =
+        String::from("omega_m_rad_s,measured_nm,analytic_nm,relative_error,ripple_nm,flux_wb,mode\n");
+    report::outln!(
+        "{:>10} {:>12} {:>12} {:>8} {:>10} {:>8}  mode",
+        "ω (rad/s)",
+        "measured",
+        "analytic",
+        "error",
+        "ripple",
+        "ψ_r"
+    );
+    let mut failed = Vec::new();
+    for p in &points {
+        let e = p.relative_error();
+        report::outln!(
+            "{:>10.1} {:>10.4} Nm {:>9.4} Nm {:>+7.2}% {:>7.4} Nm {:>7.3}  {:?}",
+            p.omega_m_rad_s,
+            p.measured_nm,
+            p.analytic_nm,
+            100.0 * e,
+            p.ripple_nm,
+            p.flux_wb,
+            p.mode
+        );
+        csv.push_str(&format!(
+            "{:.4},{:.6},{:.6},{:.6},{:.6},{:.5},{:?}\n",
+            p.omega_m_rad_s, p.measured_nm, p.analytic_nm, e, p.ripple_nm, p.flux_wb, p.mode
+        ));
+        if e.abs() > ENVELOPE_TOLERANCE || p.mode != Mode::Running {
+            failed.push(p.omega_m_rad_s);
+        }
+    }
+    write_text(&out.join("envelope.csv"), &csv)?;
+    write_text(&out.join("envelope.svg"), &crate::envelope::plot(&spec, &spec.motor, vdc, &points, sign))?;
+    let summary = serde_json::json!({
+        "drive": a.drive.display().to_string(),
+        "vdc_v": vdc,
+        "base_speed_rad_s": base,
+        "direction": if a.generating { "generating" } else { "motoring" },
+        "tolerance": ENVELOPE_TOLERANCE,
+        "worst_relative_error": points.iter().map(|p| p.relative_error().abs()).fold(0.0, f64::max),
+        "points_outside": failed.len(),
+    });
+    let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
+    write_text(&out.join("summary.json"), &format!("{text}\n"))?;
+    eprintln!("hil-sim: wrote envelope.csv, envelope.svg, summary.json in {}", out.display());
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} point(s) more than {:.0} % off the envelope or faulted, at {failed:.1?} rad/s",
+            failed.len(),
+            100.0 * ENVELOPE_TOLERANCE
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Refused before anything is written: too few points, a drive file that is not there.
+    #[test]
+    fn bad_options_are_errors() {
+        let out = std::env::temp_dir().join(format!("hil-sim-envelope-{}", std::process::id()));
+        let options = |points, drive: &str| EnvelopeOptions {
+            drive: PathBuf::from(drive),
+            vdc: None,
+            points,
+            generating: false,
+            out: Some(out.clone()),
+        };
+        let e = envelope(&options(1, "drive.toml")).unwrap_err();
+        assert!(e.contains("at least 2"), "{e}");
+        let e = envelope(&options(3, "no-such-drive.toml")).unwrap_err();
+        assert!(e.contains("no-such-drive.toml"), "{e}");
+        assert!(!out.exists());
+    }
+}
