@@ -12,6 +12,7 @@ use controller_core::drive::{
 };
 use controller_core::mras::RANGE_RATIO_MAX;
 use controller_core::speed::SpeedLaw;
+use controller_core::supervisor::THRESHOLD_COUNT;
 use serde::Deserialize;
 
 /// `[pwm]`: the fast loop runs once per PWM period, the slow loops every `slow_divider`-th.
@@ -204,11 +205,13 @@ impl Default for PositionTable {
     }
 }
 
-/// `[protection]` table. The last four keys default to values derived from the drive
-/// ([`default_overspeed_rad_s`], [`DEFAULT_STALL_TIME_S`], [`DEFAULT_CURRENT_SUM_FRACTION`],
-/// [`DEFAULT_SATURATION_TIME_S`]).
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
+/// `[protection]` table. `i_trip_a`, `vdc_min_v` and `vdc_max_v` are required; every other
+/// scalar threshold of [`Protection::THRESHOLDS`] may be set by its name and otherwise takes
+/// the value derived from the drive ([`protection_with_defaults`]: [`default_overspeed_rad_s`],
+/// [`DEFAULT_STALL_TIME_S`], …). The thresholds' keys are controller-core's declaration
+/// (`Protection::THRESHOLDS`), not a list of this crate's: a new threshold is a key here
+/// without a line of this crate, but its default.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ProtectionTable {
     /// Phase-current trip level, A.
     pub i_trip_a: f64,
@@ -216,24 +219,9 @@ pub struct ProtectionTable {
     pub vdc_min_v: f64,
     /// Bus over-voltage trip, V.
     pub vdc_max_v: f64,
-    /// Overspeed trip, mechanical rad/s.
-    pub overspeed_rad_s: Option<f64>,
-    /// Stall trip time, s.
-    pub stall_time_s: Option<f64>,
-    /// Speed-following-error window, s.
-    pub following_time_s: Option<f64>,
-    /// Current-sum plausibility limit, A.
-    pub current_sum_max_a: Option<f64>,
-    /// Loss-of-control time, s.
-    pub saturation_time_s: Option<f64>,
-    /// Encoder-against-model time, s.
-    pub encoder_check_time_s: Option<f64>,
-    /// Largest plausible change of the encoder's per-read position change, mechanical rad.
-    pub encoder_jump_rad: Option<f64>,
-    /// Longest controlled stop before the bridge goes off anyway, s.
-    pub stop_time_s: Option<f64>,
-    /// Open-phase check window, s.
-    pub open_phase_time_s: Option<f64>,
+    /// The thresholds the file sets, by their place in [`Protection::THRESHOLDS`] (`None`:
+    /// the derived default; the three above are never here).
+    pub thresholds: [Option<f64>; THRESHOLD_COUNT],
     /// The board's brake chopper, if it has one: `{ on_v, off_v }`, the bus voltages at
     /// which the drive switches its resistor in and out (0 < off_v < on_v < vdc_max_v).
     pub brake_chopper: Option<BrakeChopperTable>,
@@ -243,6 +231,130 @@ pub struct ProtectionTable {
     pub inverter_thermal: Option<ThermalTable>,
     /// The reaction to each fault that allows a choice (default: [`DEFAULT_REACTION`]).
     pub reaction: Option<ReactionTable>,
+}
+
+impl ProtectionTable {
+    /// The threshold `name` as the file sets it (`None`: not set, or no such threshold).
+    pub fn threshold(&self, name: &str) -> Option<f64> {
+        match name {
+            "i_trip_a" => Some(self.i_trip_a),
+            "vdc_min_v" => Some(self.vdc_min_v),
+            "vdc_max_v" => Some(self.vdc_max_v),
+            _ => {
+                let k = Protection::THRESHOLDS.iter().position(|t| *t == name)?;
+                self.thresholds.get(k).copied().flatten()
+            }
+        }
+    }
+
+    /// The protection of `defaults` (the derived one) with what the file sets.
+    fn over(&self, defaults: &Protection) -> Protection {
+        let mut t = defaults.thresholds();
+        for (v, set) in t.iter_mut().zip(self.thresholds) {
+            if let Some(x) = set {
+                *v = x;
+            }
+        }
+        Protection::with_thresholds(
+            t,
+            self.brake_chopper.map(|b| BrakeChopper { on_v: b.on_v, off_v: b.off_v }),
+            self.motor_thermal.map(ThermalTable::limit).or(defaults.motor_thermal),
+            self.inverter_thermal.map(ThermalTable::limit).or(defaults.inverter_thermal),
+            self.reaction.map_or(defaults.stop_on, |r| r.stop_on()),
+        )
+    }
+}
+
+/// Read as a map: the structured keys by name, the scalar thresholds by
+/// [`Protection::THRESHOLDS`], anything else an unknown key (serde's error, with the key's
+/// span: `deny_unknown_fields` as a derived table has it).
+impl<'de> Deserialize<'de> for ProtectionTable {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::{Error, MapAccess, Visitor};
+        const STRUCTURED: [&str; 4] = ["brake_chopper", "motor_thermal", "inverter_thermal", "reaction"];
+        /// A key of the table, judged as it is read (an unknown one's error then carries the
+        /// key's span, as a derived table's does).
+        enum Key {
+            Threshold(usize),
+            Structured(usize),
+        }
+        impl<'de> Deserialize<'de> for Key {
+            fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                struct Name;
+                impl Visitor<'_> for Name {
+                    type Value = Key;
+                    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                        f.write_str("a [protection] key")
+                    }
+                    fn visit_str<E: Error>(self, name: &str) -> Result<Key, E> {
+                        if let Some(k) = Protection::THRESHOLDS.iter().position(|t| *t == name) {
+                            return Ok(Key::Threshold(k));
+                        }
+                        if let Some(k) = STRUCTURED.iter().position(|t| *t == name) {
+                            return Ok(Key::Structured(k));
+                        }
+                        let known: Vec<String> = Protection::THRESHOLDS
+                            .iter()
+                            .chain(&STRUCTURED)
+                            .map(|k| format!("`{k}`"))
+                            .collect();
+                        Err(E::custom(format!(
+                            "unknown field `{name}`, expected one of {}",
+                            known.join(", ")
+                        )))
+                    }
+                }
+                d.deserialize_str(Name)
+            }
+        }
+        struct Table;
+        impl<'de> Visitor<'de> for Table {
+            type Value = ProtectionTable;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("the [protection] table")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<ProtectionTable, A::Error> {
+                let (mut brake_chopper, mut motor_thermal, mut inverter_thermal, mut reaction) =
+                    (None, None, None, None);
+                let mut thresholds = [None; THRESHOLD_COUNT];
+                while let Some(key) = map.next_key::<Key>()? {
+                    match key {
+                        Key::Structured(0) => brake_chopper = Some(map.next_value()?),
+                        Key::Structured(1) => motor_thermal = Some(map.next_value()?),
+                        Key::Structured(2) => inverter_thermal = Some(map.next_value()?),
+                        Key::Structured(_) => reaction = Some(map.next_value()?),
+                        Key::Threshold(k) => {
+                            let x = map.next_value::<f64>()?;
+                            if let Some(slot) = thresholds.get_mut(k) {
+                                *slot = Some(x);
+                            }
+                        }
+                    }
+                }
+                let mut take = |name: &'static str| {
+                    Protection::THRESHOLDS
+                        .iter()
+                        .position(|t| *t == name)
+                        .and_then(|k| thresholds.get_mut(k))
+                        .and_then(Option::take)
+                        .ok_or_else(|| A::Error::missing_field(name))
+                };
+                let (i_trip_a, vdc_min_v, vdc_max_v) =
+                    (take("i_trip_a")?, take("vdc_min_v")?, take("vdc_max_v")?);
+                Ok(ProtectionTable {
+                    i_trip_a,
+                    vdc_min_v,
+                    vdc_max_v,
+                    thresholds,
+                    brake_chopper,
+                    motor_thermal,
+                    inverter_thermal,
+                    reaction,
+                })
+            }
+        }
+        d.deserialize_map(Table)
+    }
 }
 
 /// `motor_thermal = { rated_current_a = 0.9, time_constant_s = 900.0, overload_factor = 1.15 }`.
@@ -778,24 +890,7 @@ pub fn drive_spec(
                 protection.vdc_min_v,
                 protection.vdc_max_v,
             );
-            Protection {
-                overspeed_rad_s: protection.overspeed_rad_s.unwrap_or(d.overspeed_rad_s),
-                stall_time_s: protection.stall_time_s.unwrap_or(d.stall_time_s),
-                following_time_s: protection.following_time_s.unwrap_or(d.following_time_s),
-                current_sum_max_a: protection.current_sum_max_a.unwrap_or(d.current_sum_max_a),
-                saturation_time_s: protection.saturation_time_s.unwrap_or(d.saturation_time_s),
-                encoder_check_time_s: protection.encoder_check_time_s.unwrap_or(d.encoder_check_time_s),
-                encoder_jump_rad: protection.encoder_jump_rad.unwrap_or(d.encoder_jump_rad),
-                stop_time_s: protection.stop_time_s.unwrap_or(d.stop_time_s),
-                open_phase_time_s: protection.open_phase_time_s.unwrap_or(d.open_phase_time_s),
-                brake_chopper: protection
-                    .brake_chopper
-                    .map(|b| BrakeChopper { on_v: b.on_v, off_v: b.off_v }),
-                motor_thermal: protection.motor_thermal.map(ThermalTable::limit).or(d.motor_thermal),
-                inverter_thermal: protection.inverter_thermal.map(ThermalTable::limit).or(d.inverter_thermal),
-                stop_on: protection.reaction.map_or(d.stop_on, |r| r.stop_on()),
-                ..d
-            }
+            protection.over(&d)
         },
     };
     DriveConfig::new(&spec).map_err(|e| match e {

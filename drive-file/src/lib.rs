@@ -356,6 +356,45 @@ mod tests {
         assert_eq!(e.key.as_deref(), Some("protection.stall_time_s"), "{e}");
     }
 
+    /// `[protection]`'s scalar keys are controller-core's declaration
+    /// (`Protection::THRESHOLDS`): each one the file sets wins over its derived default, the
+    /// others keep theirs; an unknown key names itself at its own line, with the known ones;
+    /// a required one missing is named.
+    #[test]
+    fn protection_keys_are_the_cores_thresholds() {
+        use controller_core::drive::Protection;
+        let shipped = DriveFile::parse(Path::new("d.toml"), SHIPPED).unwrap().spec.protection;
+        for (k, name) in Protection::THRESHOLDS.iter().enumerate() {
+            let mut expected = shipped.thresholds();
+            let v = expected[k] * 1.5;
+            expected[k] = v;
+            let t = if SHIPPED.contains(&format!("\n{name} = ")) {
+                SHIPPED.replace(&format!("\n{name} = "), &format!("\n{name} = {v:?}\n# was: "))
+            } else {
+                SHIPPED.replace("vdc_max_v = 400.0", &format!("vdc_max_v = 400.0\n{name} = {v:?}"))
+            };
+            match DriveFile::parse(Path::new("d.toml"), &t) {
+                // The three required ones are the others' basis (the current sum's default
+                // follows i_trip_a): only the one set is compared for them.
+                Ok(f) if k < 3 => assert_eq!(f.spec.protection.thresholds()[k], v, "{name}"),
+                Ok(f) => assert_eq!(f.spec.protection.thresholds(), expected, "{name}"),
+                // Some are judged against the others (i_trip_a × 1.5 is fine; a bus minimum
+                // × 1.5 = 300 V is still below 400 V): none here is refused.
+                Err(e) => panic!("{name} = {v}: {e}"),
+            }
+        }
+        let t = SHIPPED.replace("vdc_max_v = 400.0", "vdc_max_v = 400.0\nstal_time_s = 0.3");
+        let e = err(&t);
+        assert_eq!(
+            (e.key.as_deref(), e.at),
+            (Some("protection.stal_time_s"), Some(pos(&t, "stal_time_s"))),
+            "{e}"
+        );
+        assert!(e.to_string().contains("`stall_time_s`"), "{e}");
+        let e = err(&SHIPPED.replace("i_trip_a = 8.0", ""));
+        assert!(e.to_string().contains("missing field `i_trip_a`"), "{e}");
+    }
+
     /// Dead-time compensation takes the board's dead time, and needs a board.
     #[test]
     fn dead_time_compensation_takes_the_boards_dead_time() {
