@@ -1,0 +1,503 @@
+//! The estimates from a finished sequence's [`Record`] (the equations: the `identify`
+//! module's docs, "Estimation"), and the thresholds that refuse a record: the DC levels'
+//! decays, the injections' impedance, the rotating field's mechanics and the no-load test.
+
+use super::{DecayFit, Estimate, Identified, MARGIN, NoLoad, Rotation};
+use controller_core::commission::{BLOCKS, CommissionConfig, Record};
+
+/// Relative margin on J and B, beyond three standard errors of their fit.
+pub const MECHANICS_MARGIN: f64 = 0.10;
+
+/// How well the slip during the hold is known, as a fraction of the field's frequency (the
+/// hold's speed ratio scatters by ≈ 0.2 % between runs: the encoder's sampling at the hold's
+/// ends and its speed estimate's lag). B rests on the small torque of that slip: the error
+/// `k_τ·δω_sl/ω` it allows (k_τ = 1.5·p·L_M·I²·T_r, the torque per slip of an impressed
+/// current) widens B's interval — for a large machine with little friction, B is then
+/// hardly known, and its interval says so.
+pub const SLIP_RESOLUTION: f64 = 0.002;
+
+/// The rotor may turn this much slower than the field's mechanical speed (slip), or this
+/// little faster (the encoder's and the fit's resolution), before the encoder's line count
+/// or the pole pairs are taken to be wrong.
+pub const ROTATION_RATIO_RANGE: [f64; 2] = [0.7, 1.05];
+
+/// The rotating field's estimates (module docs; `Err` names a wrong encoder).
+///
+/// The field's angle is recomputed as the sequence made it; the rotor's from the recorded
+/// encoder turning at each block's end (exact to a count). The direction and line count:
+/// the rotor's turning over the field's mechanical turning during the second half of the
+/// hold. The mechanics: the flux of the impressed current through the identified rotor
+/// (`dψ/dt = R_R·i − ψ/T_r + j·p·ω·ψ`, ω from the encoder) gives the torque
+/// `τ = 1.5·p·(ψ × i)`; from rest, `J·ω(t) + B·θ(t) = ∫₀ᵗ τ` at every block's middle (ω the
+/// block's mean speed, θ the turning so far), solved for J and B by least squares.
+///
+/// The torque is that of a small slip, and a speed error δω moves it by `k_τ·p·δω`: the
+/// stiffer the machine (large k_τ, long T_r), the more J rests on the encoder's resolution
+/// — within 10 % on every motor of `tests/identify.rs` (0.1 % on the DeLorenzo machine,
+/// 4 % on the 500 hp Krause machine).
+fn rotation(
+    cfg: &CommissionConfig,
+    rec: &Record,
+    pole_pairs: u8,
+    l_mm: f64,
+    r_rr: f64,
+) -> Result<Rotation, String> {
+    use controller_core::commission::{ROTATION_HOLD_S, ROTATION_HZ, ROTATION_RAMP_S};
+    let r = &rec.rotation;
+    let p = f64::from(pole_pairs);
+    let pwm = f64::from(cfg.spec().pwm_hz);
+    let ts = 1.0 / pwm;
+    let ramp = (f64::from(ROTATION_RAMP_S) * pwm).floor();
+    let w_max = 2.0 * std::f64::consts::PI * f64::from(ROTATION_HZ);
+    let per_block = f64::from(r.periods_per_block);
+    let blocks = r.theta_m_rad.len();
+    let dt_block = per_block * ts;
+    let theta_m: Vec<f64> = std::iter::once(0.0).chain(r.theta_m_rad.iter().map(|x| f64::from(*x))).collect();
+    // A record from elsewhere (a board's) is checked before it is used: no blocks, or blocks
+    // that do not fit the ramp and the hold, are an empty record, not a panic.
+    let pwm_f32 = cfg.spec().pwm_hz;
+    // As the sequence computes it (controller_core::commission, in f32 and u32).
+    let expected =
+        f64::from(((ROTATION_RAMP_S * pwm_f32) as u32 + (ROTATION_HOLD_S * pwm_f32) as u32) / blocks as u32);
+    if per_block <= 0.0 || per_block != expected {
+        return Err(format!(
+            "the rotating field's record is empty or not this sequence's ({per_block} periods per block, expected {expected})"
+        ));
+    }
+    // The second half of the hold: the field turns at w_max there.
+    let hold_blocks = (f64::from(ROTATION_HOLD_S) / dt_block).round() as usize;
+    let from = blocks.saturating_sub(hold_blocks / 2).min(blocks - 1);
+    let ratio = p * (theta_m[blocks] - theta_m[from]) / (w_max * (blocks - from) as f64 * dt_block);
+    if !ratio.is_finite() {
+        return Err("the rotating field's record is empty".into());
+    }
+    if ratio < 0.0 {
+        return Err(format!(
+            "the encoder counts against the rotating field (the rotor turned {ratio:.3}× the field): its A and B \
+             channels, or two motor leads, are swapped"
+        ));
+    }
+    let [lo, hi] = ROTATION_RATIO_RANGE;
+    if !(lo..=hi).contains(&ratio) {
+        return Err(format!(
+            "the encoder saw the rotor turn {ratio:.3}× the field's mechanical speed (expected {lo} … {hi}): \
+             a wrong encoder line count, or {pole_pairs} pole pairs is wrong"
+        ));
+    }
+    // Mean speed of each block, and its middle's turning so far.
+    let omega: Vec<f64> = (0..blocks).map(|b| (theta_m[b + 1] - theta_m[b]) / dt_block).collect();
+    let theta_mid: Vec<f64> = (0..blocks).map(|b| 0.5 * (theta_m[b] + theta_m[b + 1])).collect();
+    let omega_at = |k: f64| {
+        // Piecewise linear through the block means at the block middles, from rest.
+        let x = k / per_block - 0.5;
+        if x <= 0.0 {
+            return omega[0] * (k / (0.5 * per_block)).clamp(0.0, 1.0);
+        }
+        let b = (x.floor() as usize).min(blocks - 2);
+        omega[b] + (omega[b + 1] - omega[b]) * (x - b as f64).clamp(0.0, 1.0)
+    };
+    let amp = f64::from(r.amplitude_a);
+    let tr = l_mm / r_rr;
+    // The flux the rotation starts from: the last level's step down from I to I/2 still
+    // decaying (the injections ride on I/2 and average out).
+    let injections: u32 = controller_core::commission::INJECTION_PERIODS
+        .iter()
+        .map(|n| {
+            n * (controller_core::commission::INJECTION_SETTLE_CYCLES
+                + controller_core::commission::INJECTION_CYCLES)
+        })
+        .sum();
+    let since_s = (f64::from(cfg.level_periods()) + f64::from(injections)) * ts;
+    let step_a = f64::from(rec.levels[1].i_ref_a - rec.levels[2].i_ref_a);
+    let psi0 = l_mm * (amp + step_a * (-since_s / tr).exp());
+    let (mut psi, mut theta_e) = ([psi0, 0.0], 0.0f64);
+    let n = blocks * r.periods_per_block as usize;
+    let mut torque_int = 0.0;
+    let mut torque_at_mid = vec![0.0; blocks];
+    let half = r.periods_per_block as usize / 2;
+    for k in 0..n {
+        let kf = k as f64;
+        let w = if kf < ramp { w_max * kf / ramp } else { w_max };
+        let i = [amp * theta_e.cos(), amp * theta_e.sin()];
+        let wr = p * omega_at(kf);
+        let f = |psi: [f64; 2]| {
+            [r_rr * i[0] - psi[0] / tr - wr * psi[1], r_rr * i[1] - psi[1] / tr + wr * psi[0]]
+        };
+        let k1 = f(psi);
+        let k2 = f([psi[0] + 0.5 * ts * k1[0], psi[1] + 0.5 * ts * k1[1]]);
+        torque_int += 1.5 * p * (psi[0] * i[1] - psi[1] * i[0]) * ts;
+        psi = [psi[0] + ts * k2[0], psi[1] + ts * k2[1]];
+        theta_e += w * ts;
+        if k % r.periods_per_block as usize == half
+            && let Some(t) = torque_at_mid.get_mut(k / r.periods_per_block as usize)
+        {
+            *t = torque_int;
+        }
+    }
+    let (mut a11, mut a12, mut a22, mut y1, mut y2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for b in 0..blocks {
+        let (x1, x2, y) = (omega[b], theta_mid[b], torque_at_mid[b]);
+        a11 += x1 * x1;
+        a12 += x1 * x2;
+        a22 += x2 * x2;
+        y1 += x1 * y;
+        y2 += x2 * y;
+    }
+    let det = a11 * a22 - a12 * a12;
+    if det.abs() <= 1e-300 {
+        return Err("the rotor did not accelerate: no inertia to fit".into());
+    }
+    let j = (a22 * y1 - a12 * y2) / det;
+    let b = (a11 * y2 - a12 * y1) / det;
+    let ssr: f64 = (0..blocks).map(|k| (torque_at_mid[k] - j * omega[k] - b * theta_mid[k]).powi(2)).sum();
+    let s2 = ssr / (blocks as f64 - 2.0);
+    let (sj, sb) = ((s2 * a22 / det).sqrt(), (s2 * a11 / det).sqrt());
+    if !(j.is_finite() && j > 0.0) {
+        return Err(format!("the rotating field gives no positive inertia ({j} kg·m²)"));
+    }
+    let widen = |x: f64, s: f64| {
+        let m = MECHANICS_MARGIN * x.abs();
+        Estimate { value: x, interval: [(x - 3.0 * s - m).max(0.0), x + 3.0 * s + m], spread: s / x.abs() }
+    };
+    let omega_hold = (theta_m[blocks] - theta_m[from]) / ((blocks - from) as f64 * dt_block);
+    let k_tau = 1.5 * p * l_mm * amp * amp * tr;
+    let b_slip = k_tau * SLIP_RESOLUTION * w_max / omega_hold.abs().max(1e-9);
+    let mut b_est = widen(b.max(0.0), sb);
+    b_est.interval = [(b_est.interval[0] - b_slip).max(0.0), b_est.interval[1] + b_slip];
+    Ok(Rotation { ratio, omega_hold_rad_s: omega_hold, j_kgm2: widen(j, sj), b_nms: b_est })
+}
+
+/// Mean over periods `a..e` of `q^(k − k0)`.
+fn block_mean(q: f64, a: f64, e: f64, k0: f64) -> f64 {
+    let n = e - a;
+    if (1.0 - q).abs() < 1e-12 {
+        return q.powf(a - k0);
+    }
+    q.powf(a - k0) * (1.0 - q.powf(n)) / (n * (1.0 - q))
+}
+
+/// Weighted least squares of `y ≈ c + A·g` for fixed g: (c, A, Σw·r²).
+fn fit_linear(w: &[f64], g: &[f64], y: &[f64]) -> (f64, f64, f64) {
+    let (mut s, mut sg, mut sgg, mut sy, mut sgy) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for ((w, g), y) in w.iter().zip(g).zip(y) {
+        s += w;
+        sg += w * g;
+        sgg += w * g * g;
+        sy += w * y;
+        sgy += w * g * y;
+    }
+    let det = s * sgg - sg * sg;
+    if det.abs() < 1e-300 {
+        let c = sy / s;
+        return (c, 0.0, w.iter().zip(y).map(|(w, y)| w * (y - c).powi(2)).sum());
+    }
+    let c = (sgg * sy - sg * sgy) / det;
+    let a = (s * sgy - sg * sy) / det;
+    let ssr = w.iter().zip(g).zip(y).map(|((w, g), y)| w * (y - c - a * g).powi(2)).sum();
+    (c, a, ssr)
+}
+
+/// Periods of the loop's transient after a step left out of the decay fit: ten time
+/// constants of the current loop (`1/ω_c` is `LOOP_BANDWIDTH_DIVIDER/2π` periods).
+pub(super) fn skip_periods() -> f64 {
+    10.0 * f64::from(controller_core::commission::LOOP_BANDWIDTH_DIVIDER) / (2.0 * std::f64::consts::PI)
+}
+
+/// Fits one level's record (see the module docs).
+fn fit_decay(cfg: &CommissionConfig, rec: &Record, level: usize) -> Result<DecayFit, String> {
+    let lv = rec.levels.get(level).ok_or("no such level")?;
+    let ts = f64::from(cfg.ts_s());
+    let ends: Vec<f64> = cfg.block_end().iter().map(|&e| f64::from(e)).collect();
+    let starts: Vec<f64> = std::iter::once(0.0).chain(ends.iter().copied()).take(BLOCKS).collect();
+    let settled = |x: &[f32; BLOCKS]| -> f64 {
+        // The last three blocks, weighted by length.
+        let (mut s, mut n) = (0.0, 0.0);
+        for b in BLOCKS - 3..BLOCKS {
+            let len = ends[b] - starts[b];
+            s += f64::from(x[b]) * len;
+            n += len;
+        }
+        s / n
+    };
+    let i_now = settled(&lv.i_alpha_a);
+    let i_before = if level == 0 { 0.0 } else { settled(&rec.levels[level - 1].i_alpha_a) };
+    let ref_before = if level == 0 { 0.0 } else { f64::from(rec.levels[level - 1].i_ref_a) };
+    let step_ref = f64::from(lv.i_ref_a) - ref_before;
+    let lag = if step_ref.abs() > 0.0 { f64::from(lv.lag_a_periods) / step_ref } else { 0.0 };
+    let k0 = lag - 1.5;
+    let skip = skip_periods();
+    let keep: Vec<usize> = (0..BLOCKS).filter(|&b| starts[b] >= skip).collect();
+    let w: Vec<f64> = keep.iter().map(|&b| ends[b] - starts[b]).collect();
+    let y: Vec<f64> = keep.iter().map(|&b| f64::from(lv.v_alpha_v[b])).collect();
+    let ssr_at = |tau: f64| {
+        let q = (-1.0 / (tau / ts)).exp();
+        let g: Vec<f64> = keep.iter().map(|&b| block_mean(q, starts[b], ends[b], k0)).collect();
+        let (c, a, ssr) = fit_linear(&w, &g, &y);
+        (ssr, c, a)
+    };
+    // Logarithmic grid from 2 periods to 10 levels, then golden section on ln τ.
+    let level_s = f64::from(cfg.level_periods()) * ts;
+    let (lo, hi) = ((2.0 * ts).ln(), (10.0 * level_s).ln());
+    let grid = 200;
+    let x_at = |j: usize| lo + (hi - lo) * j as f64 / grid as f64;
+    let best = (0..=grid)
+        .map(|j| (j, ssr_at(x_at(j).exp()).0))
+        .fold((0, f64::INFINITY), |acc, (j, s)| if s < acc.1 { (j, s) } else { acc })
+        .0;
+    let (mut a, mut b) = (x_at(best.saturating_sub(1)), x_at((best + 1).min(grid)));
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..80 {
+        let (x1, x2) = (b - g * (b - a), a + g * (b - a));
+        if ssr_at(x1.exp()).0 < ssr_at(x2.exp()).0 {
+            b = x2;
+        } else {
+            a = x1;
+        }
+    }
+    let tau = (0.5 * (a + b)).exp();
+    let (ssr, c, amp) = ssr_at(tau);
+    let wsum: f64 = w.iter().sum();
+    if tau > 0.5 * level_s {
+        return Err(format!(
+            "level {level}: the rotor time constant ({tau:.3} s) is longer than half a level ({:.3} s): \
+             hold the levels longer (--level-time ≥ {:.1} s)",
+            0.5 * level_s,
+            4.0 * tau
+        ));
+    }
+    if !(i_now - i_before).is_finite() || (i_now - i_before).abs() < 1e-9 {
+        return Err(format!("level {level}: the current did not step"));
+    }
+    Ok(DecayFit { c_v: c, a_v: amp, tau_s: tau, rms_v: (ssr / wsum).sqrt(), i_a: i_now })
+}
+
+/// Estimates the motor from a finished sequence's record (see the module docs);
+/// `pole_pairs` (the nameplate's) checks the encoder against the rotating field.
+pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<Identified, String> {
+    let ts = f64::from(cfg.ts_s());
+    let decays = [fit_decay(cfg, rec, 0)?, fit_decay(cfg, rec, 1)?, fit_decay(cfg, rec, 2)?];
+    let [d0, d1, d2] = decays;
+    // R_s from the two level pairs; the voltage error from each level's line.
+    let rs = [(d1.c_v - d0.c_v) / (d1.i_a - d0.i_a), (d1.c_v - d2.c_v) / (d1.i_a - d2.i_a)];
+    let rs_mean = 0.5 * (rs[0] + rs[1]);
+    let e: Vec<f64> = decays.iter().map(|d| 0.75 * (d.c_v - rs_mean * d.i_a)).collect();
+    // Each step: R_R = A/ΔI, T_r = τ.
+    let steps = [(d0, 0.0), (d1, d0.i_a), (d2, d1.i_a)];
+    let r_rr: Vec<f64> = steps.iter().map(|(d, before)| d.a_v / (d.i_a - before)).collect();
+    let tr: Vec<f64> = decays.iter().map(|d| d.tau_s).collect();
+    if r_rr.iter().chain(&tr).chain(&rs).any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(format!(
+            "the DC levels do not fit an induction machine (R_s {rs:?} Ω, R_R {r_rr:?} Ω, T_r {tr:?} s)"
+        ));
+    }
+    let rs_est = Estimate::of(&rs, MARGIN.rs);
+    let rr_est = Estimate::of(&r_rr, MARGIN.rr);
+    let tr_est = Estimate::of(&tr, MARGIN.tr);
+    let l_mm: Vec<f64> = r_rr.iter().zip(&tr).map(|(r, t)| r * t).collect();
+    let lmm_est = Estimate::of(&l_mm, MARGIN.lm);
+    // σL_s from each injection.
+    let mut impedance = [(0.0, 0.0, 0.0); 2];
+    let mut l_sigma = Vec::new();
+    for (slot, j) in impedance.iter_mut().zip(&rec.injections) {
+        let n = f64::from(j.periods_per_cycle);
+        let w = 2.0 * std::f64::consts::PI / (n * ts);
+        // x = X_s·sin φ + X_c·cos φ = Re((X_c − jX_s)·e^{jφ}).
+        let phasor = |sc: [f32; 2]| (f64::from(sc[1]), -f64::from(sc[0]));
+        let (vr, vi) = phasor(j.v_sin_cos);
+        let (ir, ii) = phasor(j.i_sin_cos);
+        let half = 0.5 * w * ts;
+        let (dr, di) = ((-3.0 * half).cos(), (-3.0 * half).sin());
+        let sinc = half.sin() / half;
+        let (var, vai) = ((vr * dr - vi * di) * sinc, (vr * di + vi * dr) * sinc);
+        let den = ir * ir + ii * ii;
+        if den.is_nan() || den <= 0.0 {
+            return Err("no current answered the injection".into());
+        }
+        let (zr, zi) = ((var * ir + vai * ii) / den, (vai * ir - var * ii) / den);
+        *slot = (w, zr, zi);
+        // Rotor branch jωL_M·R_R/(jωL_M + R_R): imaginary part ω·L_M·R_R²/(R_R² + ω²L_M²).
+        let (lm, rr) = (lmm_est.value, rr_est.value);
+        let zb_im = w * lm * rr * rr / (rr * rr + w * w * lm * lm);
+        l_sigma.push((zi - zb_im) / w);
+    }
+    if l_sigma.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+        return Err(format!("the injections give no positive transient inductance ({l_sigma:?} H)"));
+    }
+    let offsets_a = rec.offsets_a.map(f64::from);
+    let l_sigma_est = Estimate::of(&l_sigma, MARGIN.l_sigma);
+    let e_est = Estimate::of(&e, 0.0);
+    let (rotation, no_load) = if cfg.spec().rotate {
+        let rot = rotation(cfg, rec, pole_pairs, lmm_est.value, rr_est.value)?;
+        let terminals = Terminals { rs: rs_est.value, l_sigma: l_sigma_est.value, v_e: e_est.value };
+        (Some(rot), Some(no_load(cfg, rec, pole_pairs, terminals, lmm_est)?))
+    } else {
+        (None, None)
+    };
+    Ok(Identified {
+        rs_ohm: rs_est,
+        l_sigma_h: l_sigma_est,
+        tr_s: tr_est,
+        r_rr_ohm: rr_est,
+        l_mm_h: no_load.map_or(lmm_est, |n| n.l_mm_h),
+        inverter_error_v: e_est,
+        offsets_a,
+        vdc_v: f64::from(rec.vdc_v),
+        decays,
+        impedance,
+        rotation,
+        no_load,
+    })
+}
+
+/// The standstill estimates the no-load test's impedance is corrected with.
+#[derive(Clone, Copy, Debug)]
+struct Terminals {
+    /// R_s, Ω.
+    rs: f64,
+    /// L_σ, H.
+    l_sigma: f64,
+    /// The inverter's voltage error per phase, V.
+    v_e: f64,
+}
+
+/// The no-load test's estimates (`controller_core::commission::no_load`).
+///
+/// Per window, in the frame of the current reference: the commanded voltage acts 1.5
+/// periods later and held (`V = V̂·e^{−j1.5ωT}·sinc(ωT/2)`, as for the injections), less the
+/// inverter's error — each phase's `−sign(i)·V_e` square wave has the fundamental
+/// `(4/π)·V_e` along the current, which the loops make up. Then `Z = V/I`, the rotor branch
+/// `Z_R = Z − R_s − jωL_σ` and its admittance `Y_R = 1/(jωL_M) + s/R_R` (s the slip):
+/// `L_M = −1/(ω·Im Y_R)`, whatever the slip (it only adds a real part). The stator flux
+/// reached is `|V − R_s·I|/ω`.
+fn no_load(
+    cfg: &CommissionConfig,
+    rec: &Record,
+    pole_pairs: u8,
+    t: Terminals,
+    standstill: Estimate,
+) -> Result<NoLoad, String> {
+    let n = &rec.no_load;
+    let ts = f64::from(cfg.ts_s());
+    let w = f64::from(n.omega_e_rad_s);
+    let periods = f64::from(n.periods_per_window);
+    if !(w > 0.0 && w.is_finite() && periods > 0.0) {
+        return Err("the no-load test did not run (the rotor did not follow the slow field)".into());
+    }
+    let half = 0.5 * w * ts;
+    let delay = num_complex::Complex64::from_polar(half.sin() / half, -3.0 * half);
+    let mut l_mm = Vec::new();
+    let (mut flux, mut slip) = (0.0, 0.0);
+    for win in &n.windows {
+        let v = num_complex::Complex64::new(f64::from(win.v_dq_v[0]), f64::from(win.v_dq_v[1])) * delay;
+        let i = num_complex::Complex64::new(f64::from(win.i_dq_a[0]), f64::from(win.i_dq_a[1]));
+        if i.norm().is_nan() || i.norm() <= 0.0 {
+            return Err("no current in the no-load test's record".into());
+        }
+        let v = v - i / i.norm() * (4.0 / std::f64::consts::PI * t.v_e);
+        let z_r = v / i - t.rs - num_complex::Complex64::new(0.0, w * t.l_sigma);
+        let l = -1.0 / (w * (1.0 / z_r).im);
+        if !(l.is_finite() && l > 0.0) {
+            return Err(format!("the no-load test gives no positive magnetizing inductance ({l} H)"));
+        }
+        l_mm.push(l);
+        flux += (v - i * t.rs).norm() / w;
+        slip += w - f64::from(pole_pairs) * f64::from(win.theta_m_rad) / (periods * ts);
+    }
+    let k = n.windows.len() as f64;
+    let rated = f64::from(cfg.spec().rated_flux_wb);
+    if flux / k < NO_LOAD_FLUX_MIN * rated {
+        let spec = cfg.spec();
+        let capped = f64::from(n.amplitude_a) >= 0.999 * f64::from(spec.test_current_a);
+        let lowered = w < 0.999 * 2.0 * std::f64::consts::PI * f64::from(spec.no_load_hz);
+        let why = match (capped, lowered) {
+            (true, true) => "the test current capped the current and the bus the frequency",
+            (true, false) => "the test current capped the current (raise --test-current)",
+            (false, true) => "the bus could not give it at the test frequency, lowered to its floor",
+            (false, false) => "the flux correction reached its limit (a strongly saturating motor?)",
+        };
+        return Err(format!(
+            "the no-load test reached only {:.1} % of the rated flux {rated:.4} Wb ({why}): check the nameplate \
+             (--rated-voltage, --rated-frequency); nothing measured at rated flux",
+            100.0 * flux / k / rated
+        ));
+    }
+    Ok(NoLoad {
+        l_mm_h: Estimate::of(&l_mm, MARGIN.lm),
+        standstill_l_mm_h: standstill,
+        flux_wb: flux / k,
+        rated_flux_wb: f64::from(cfg.spec().rated_flux_wb),
+        omega_e_rad_s: w,
+        amplitude_a: f64::from(n.amplitude_a),
+        slip_rad_s: slip / k,
+    })
+}
+
+/// The no-load test must reach this fraction of the rated flux, or the estimate is refused
+/// (its L_m would not be the rated flux's; a wrong nameplate, or a test current too small).
+pub const NO_LOAD_FLUX_MIN: f64 = 0.95;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Any record — every word random bits, as a broken link or board could deliver — is
+    /// estimated or refused, never a panic.
+    #[test]
+    fn random_records_never_panic() {
+        use controller_core::commission::{CommissionSpec, RECORD_BYTES};
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        for rotate in [false, true] {
+            let spec = CommissionSpec {
+                pwm_hz: 20_000.0,
+                test_current_a: 1.0,
+                current_limit_a: 2.0,
+                vdc_min_v: 250.0,
+                vdc_max_v: 370.0,
+                level_time_s: 1.0,
+                rotate,
+                rated_flux_wb: 0.823,
+                no_load_hz: 15.0,
+            };
+            let cfg = CommissionConfig::new(spec).unwrap();
+            for _ in 0..100 {
+                let bytes: Vec<u8> = (0..RECORD_BYTES)
+                    .map(|_| {
+                        x ^= x << 13;
+                        x ^= x >> 7;
+                        x ^= x << 17;
+                        x as u8
+                    })
+                    .collect();
+                let rec = Record::read_bytes(&bytes).unwrap();
+                let _ = estimate(&cfg, &rec, 1);
+            }
+        }
+    }
+
+    /// A record that did not come from this sequence (a board's, corrupted) is refused, not
+    /// a panic: the rotating field's blocks empty or of another length.
+    #[test]
+    fn a_foreign_rotation_record_is_refused() {
+        use controller_core::commission::CommissionSpec;
+        let spec = CommissionSpec {
+            pwm_hz: 20_000.0,
+            test_current_a: 1.0,
+            current_limit_a: 2.0,
+            vdc_min_v: 250.0,
+            vdc_max_v: 370.0,
+            level_time_s: 1.0,
+            rotate: true,
+            rated_flux_wb: 0.823,
+            no_load_hz: 15.0,
+        };
+        let cfg = CommissionConfig::new(spec).unwrap();
+        let mut rec = Record::default();
+        for periods in [0, 1, 999, 1001, u32::MAX] {
+            rec.rotation.periods_per_block = periods;
+            let e = rotation(&cfg, &rec, 1, 1.34, 20.8).unwrap_err();
+            assert!(e.contains("empty or not this sequence's"), "{periods}: {e}");
+        }
+        rec.rotation.periods_per_block = 1000;
+        assert!(rotation(&cfg, &rec, 1, 1.34, 20.8).is_err(), "a rotor that never turned");
+    }
+}

@@ -1,0 +1,180 @@
+//! What an identification writes: the motor file with its intervals, the pictures of a run
+//! and the no-load test's line.
+
+use super::estimation::skip_periods;
+use super::{Estimate, Identified, NoLoad};
+use controller_core::commission::{BLOCKS, CommissionConfig, Record};
+
+/// One line on the no-load test's result.
+pub fn describe_no_load(n: &NoLoad) -> String {
+    format!(
+        "no-load test: stator flux {:.4} Wb ({:.1} % of rated {:.4} Wb) at {:.2} Hz with {:.4} A, slip {:.3} rad/s; \
+         L_M {:.5} H [{:.5}, {:.5}] (DC levels: {:.5} H)",
+        n.flux_wb,
+        100.0 * n.flux_wb / n.rated_flux_wb,
+        n.rated_flux_wb,
+        n.omega_e_rad_s / (2.0 * std::f64::consts::PI),
+        n.amplitude_a,
+        n.slip_rad_s,
+        n.l_mm_h.value,
+        n.l_mm_h.interval[0],
+        n.l_mm_h.interval[1],
+        n.standstill_l_mm_h.value,
+    )
+}
+
+/// The pictures of a run: `decays.svg` — each DC level's recorded voltage above its settled
+/// value, over its fitted amplitude, against time over its fitted T_r: all three on
+/// `e^{−t/T_r}` when the model holds; and, with the rotating field, `rotation.svg` — the
+/// encoder's speed against the field's mechanical speed. (name, SVG) pairs.
+pub fn plots(
+    cfg: &CommissionConfig,
+    rec: &Record,
+    id: &Identified,
+    pole_pairs: u8,
+) -> Vec<(&'static str, String)> {
+    use report::plot::{Series, line_plot};
+    let ts = f64::from(cfg.ts_s());
+    let ends = cfg.block_end();
+    let mut series = Vec::new();
+    let labels = ["0 → I/2", "I/2 → I", "I → I/2"];
+    for ((level, fit), label) in rec.levels.iter().zip(&id.decays).zip(labels) {
+        let pts = (0..BLOCKS)
+            .filter_map(|b| {
+                let start = if b == 0 { 0.0 } else { f64::from(ends[b - 1]) };
+                let mid = 0.5 * (start + f64::from(ends[b])) * ts;
+                let x = mid / fit.tau_s;
+                let y = (f64::from(level.v_alpha_v[b]) - fit.c_v) / fit.a_v;
+                (x <= 5.0 && start >= skip_periods()).then_some((x, y))
+            })
+            .collect();
+        series.push(Series::dots(label, pts));
+    }
+    let model = (0..=200).map(|k| k as f64 * 5.0 / 200.0).map(|x| (x, (-x).exp())).collect();
+    series.push(Series::line("e^(−t/T_r)", model));
+    let mut out = vec![(
+        "decays.svg",
+        line_plot("DC levels: (v − v_settled)/A against t/T_r", "t / T_r (each step's fitted T_r)", &series),
+    )];
+    if let Some(rot) = &id.rotation {
+        let r = &rec.rotation;
+        let dt = f64::from(r.periods_per_block) * ts;
+        let mut prev = 0.0;
+        let speed: Vec<(f64, f64)> = r
+            .theta_m_rad
+            .iter()
+            .enumerate()
+            .map(|(b, th)| {
+                let w = (f64::from(*th) - prev) / dt;
+                prev = f64::from(*th);
+                ((b as f64 + 0.5) * dt, w)
+            })
+            .collect();
+        let ramp = f64::from(controller_core::commission::ROTATION_RAMP_S);
+        let w_max = 2.0 * std::f64::consts::PI * f64::from(controller_core::commission::ROTATION_HZ)
+            / f64::from(pole_pairs);
+        let t_end = speed.last().map_or(0.0, |p| p.0 + 0.5 * dt);
+        let field = vec![(0.0, 0.0), (ramp, w_max), (t_end, w_max)];
+        let title = format!(
+            "Rotating field: J = {:.4} kg·m², B = {:.4} N·m·s/rad, rotor/field {:.4}",
+            rot.j_kgm2.value, rot.b_nms.value, rot.ratio
+        );
+        out.push((
+            "rotation.svg",
+            line_plot(
+                &title,
+                "t, s (from the field's start)",
+                &[Series::line("field / p, rad/s", field), Series::dots("encoder, rad/s", speed)],
+            ),
+        ));
+    }
+    out
+}
+
+/// The motor file: `[motor]` at the nominal values under `ratio`, with `pole_pairs` as given,
+/// J and B identified by the rotating field if it ran (else `j_kgm2`, `b_nms` as given), and
+/// `[identification]` with the intervals and the inverter's error.
+pub fn motor_file(
+    id: &Identified,
+    ratio: f64,
+    pole_pairs: u8,
+    j_kgm2: f64,
+    b_nms: f64,
+    about: &str,
+) -> String {
+    let t = id.t_model(ratio);
+    let (j_kgm2, b_nms, mechanics) = match &id.rotation {
+        Some(r) => (r.j_kgm2.value, r.b_nms.value, "j_kgm2 and b_nms by the slow rotating field"),
+        None => (j_kgm2, b_nms, "j_kgm2 and b_nms are as given (the motor was not allowed to turn)"),
+    };
+    let n = drive_file::source::num;
+    let iv = |e: &Estimate| format!("[{}, {}]", n(e.interval[0]), n(e.interval[1]));
+    let magnetizing = match &id.no_load {
+        Some(nl) => format!(
+            "L_M (so L_m, L_s, L_r) by the no-load test at {:.4} Wb stator flux ({:.1} % of the rated\n\
+             # {:.4} Wb), {:.2} Hz, {:.4} A; the DC levels gave L_M = {:.5} H",
+            nl.flux_wb,
+            100.0 * nl.flux_wb / nl.rated_flux_wb,
+            nl.rated_flux_wb,
+            nl.omega_e_rad_s / (2.0 * std::f64::consts::PI),
+            nl.amplitude_a,
+            nl.standstill_l_mm_h.value
+        ),
+        None => "L_M (so L_m, L_s, L_r) by the DC levels (the motor was not allowed to turn)".into(),
+    };
+    let mut s = String::new();
+    for line in about.lines() {
+        s.push_str(&format!("# {line}\n"));
+    }
+    s.push_str(&format!(
+        "# Identified by controller-core's commissioning sequence (hil_sim::identify).\n\
+         # The leakage split L_lr/L_ls = {} is assumed (the terminals cannot tell it; control does not\n\
+         # depend on it). pole_pairs is as given; {mechanics}.\n\
+         # {magnetizing}.\n\
+         [motor]\n\
+         rs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = {}\nlm_h = {}\npole_pairs = {pole_pairs}\nj_kgm2 = {}\nb_nms = {}\n\n",
+        n(ratio),
+        n(t.rs_ohm),
+        n(t.rr_ohm),
+        n(t.ls_h),
+        n(t.lr_h),
+        n(t.lm_h),
+        n(j_kgm2),
+        n(b_nms),
+    ));
+    s.push_str(
+        "# Intervals: the repeats' span widened by the stated margins (hil_sim::identify::MARGIN).\n\
+         [identification]\n",
+    );
+    s.push_str(&format!("leakage_ratio = {}\n", n(ratio)));
+    for (key, e) in id.t_intervals(ratio) {
+        s.push_str(&format!("{key} = {}\n", iv(&e)));
+    }
+    s.push_str(&format!(
+        "sigma_ls_h = {}\ntr_s = {}\nl_mm_h = {}\nr_rr_ohm = {}\n",
+        iv(&id.l_sigma_h),
+        iv(&id.tr_s),
+        iv(&id.l_mm_h),
+        iv(&id.r_rr_ohm)
+    ));
+    if let Some(r) = &id.rotation {
+        s.push_str(&format!(
+            "j_kgm2 = {}\nb_nms = {}\n# The rotor turned {}× the field's mechanical speed (1 − slip) at {} rad/s.\n",
+            iv(&r.j_kgm2),
+            iv(&r.b_nms),
+            n(r.ratio),
+            n(r.omega_hold_rad_s)
+        ));
+    }
+    s.push_str(&format!(
+        "# Inverter voltage error per phase (dead time and switch drops) at {} V, and its share of the bus:\n\
+         inverter_error_v = {}\ndead_time_duty = {}\ncurrent_offsets_a = [{}, {}, {}]\n",
+        n(id.vdc_v),
+        n(id.inverter_error_v.value),
+        n(id.inverter_error_v.value / id.vdc_v),
+        n(id.offsets_a[0]),
+        n(id.offsets_a[1]),
+        n(id.offsets_a[2]),
+    ));
+    s
+}
