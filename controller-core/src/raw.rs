@@ -11,9 +11,9 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 71;
+pub const FLOATS: usize = 72;
 /// Integers in a raw drive configuration.
-pub const INTEGERS: usize = 17;
+pub const INTEGERS: usize = 18;
 
 /// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
 /// expression: what the firmware's build script writes.

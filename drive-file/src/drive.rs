@@ -536,6 +536,25 @@ pub fn default_encoder_jump_rad(
     ENCODER_JUMP_COUNTS * count_rad + accel_rad_s2 * read_period_s * read_period_s
 }
 
+/// Default window of the rotor-at-rest check, s (`controller_core::supervisor::rest`): long
+/// enough for the encoder to resolve the rest speed `ω_rest = REST_SPEED_TR/(p·T_r)` to a
+/// quarter — [`REST_COUNTS`] counts at that speed — and at least two slow periods. Shipped
+/// drive (1 024 lines, T_r = 64.7 ms): ω_rest = 0.773 rad/s, 4·1.53e-3/0.773 = 7.9 ms.
+pub fn default_rest_time_s(
+    motor: &controller_core::motor::MotorParams,
+    encoder_lines: u32,
+    slow_period_s: f64,
+) -> f64 {
+    let count_rad = core::f64::consts::TAU / (4.0 * f64::from(encoder_lines.max(1)));
+    let rest_rad_s =
+        controller_core::supervisor::rest::REST_SPEED_TR / (f64::from(motor.pole_pairs()) * motor.tr_s());
+    (REST_COUNTS * count_rad / rest_rad_s).max(2.0 * slow_period_s)
+}
+
+/// See [`default_rest_time_s`]: the window holds this many counts at the rest speed, so
+/// that a count of quantisation is a quarter of it.
+pub const REST_COUNTS: f64 = 4.0;
+
 /// See [`default_encoder_jump_rad`]: the floor quantisation of the three readings a second
 /// difference takes makes it err by less than 2 counts; 2 more allow one count of edge
 /// chatter on two of them.
@@ -615,6 +634,7 @@ pub fn protection_with_defaults(
         ),
         stop_time_s: default_stop_time_s(motor, flux_ref_wb, vdc_max_v),
         open_phase_time_s: DEFAULT_OPEN_PHASE_TIME_S,
+        rest_time_s: default_rest_time_s(motor, basis.encoder_lines, basis.slow_period_s),
         brake_chopper: None,
         motor_thermal: basis.motor_thermal,
         inverter_thermal: basis.inverter_thermal,

@@ -39,7 +39,7 @@
 //! vdc_min_v = 200.0
 //! vdc_max_v = 400.0
 //! # overspeed_rad_s, stall_time_s, following_time_s, current_sum_max_a, saturation_time_s,
-//! # encoder_check_time_s, encoder_jump_rad, stop_time_s, open_phase_time_s: derived
+//! # encoder_check_time_s, encoder_jump_rad, stop_time_s, open_phase_time_s, rest_time_s: derived
 //! # defaults (drive::protection_with_defaults; the encoder's from [board] encoder_lines)
 //! brake_chopper = { on_v = 360.0, off_v = 350.0 }   # optional: the board's brake chopper
 //!

@@ -313,6 +313,8 @@ pub enum CommissionRefused {
     NotIdle,
     /// The offset calibration has not finished (or failed).
     NotCalibrated,
+    /// The rotor turns ([`Drive::rotor_at_rest`]): the standstill tests would misread it.
+    RotorTurning,
 }
 
 impl ControlLoop {
@@ -506,6 +508,9 @@ impl ControlLoop {
         }
         if !matches!(self.calibration, Calibration::Done(_)) {
             return Err(CommissionRefused::NotCalibrated);
+        }
+        if !self.drive.rotor_at_rest() {
+            return Err(CommissionRefused::RotorTurning);
         }
         self.commission = Some((Commissioning::new(cfg), None));
         // The sequence's first stage measures the offsets with the bridge off; its pulses

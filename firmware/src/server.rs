@@ -116,6 +116,7 @@ pub fn handle_board(
                 Ok(Ok(())) => Reply::Ack,
                 Ok(Err(CommissionRefused::NotIdle)) => Reply::Nack(NackReason::NotIdle),
                 Ok(Err(CommissionRefused::NotCalibrated)) => Reply::Nack(NackReason::NotConfigured),
+                Ok(Err(CommissionRefused::RotorTurning)) => Reply::Nack(NackReason::NotAtRest),
                 Err(_) => Reply::Nack(NackReason::Configuration),
             }
         }
@@ -452,6 +453,55 @@ mod tests {
         assert_eq!(c.config().speed().saturated_p(), Some((0.08, 1.5)), "the gains written");
         assert_eq!(c.drive().thermal_state(), (motor, inverter), "the motor is as hot as before");
         assert_eq!(c.drive().position_rad(), position, "the shaft is where it was");
+    }
+
+    /// The rotor-at-rest check before commissioning (`controller_core::supervisor::rest`):
+    /// a coasting rotor — the encoder turning at twice the rest speed `0.05/(p·T_r)` — is
+    /// refused `NotAtRest`; once it has stood still for the check's windows, the same command
+    /// starts the sequence. The rotor turning slower than the rest speed is at rest.
+    #[cfg(feature = "commissioning")]
+    #[test]
+    fn commissioning_is_refused_while_the_rotor_turns() {
+        use crate::control::Samples;
+        use controller_core::commission::CommissionSpec;
+        use controller_core::supervisor::rest::REST_SPEED_TR;
+        let spec = CommissionSpec {
+            pwm_hz: 20_000.0,
+            test_current_a: 1.0,
+            current_limit_a: 2.0,
+            vdc_min_v: 250.0,
+            vdc_max_v: 370.0,
+            level_time_s: 1.0,
+            rotate: false,
+            rated_flux_wb: 0.823,
+            no_load_hz: 15.0,
+        };
+        let cmd = BoardCommand::Commission(spec);
+        let stats = LinkStats::default();
+        let motor = drive_spec().unwrap().motor;
+        let rest_rad_s = REST_SPEED_TR / (f64::from(motor.pole_pairs()) * motor.tr_s());
+        let counts_per_rad = 4.0 * f64::from(BOARD.encoder_lines) / core::f64::consts::TAU;
+        let zero = BOARD.current_offset_counts;
+        // `periods` PWM periods of the encoder turning at `w_rad_s` from `counts0`.
+        let turn = |c: &mut ControlLoop, counts0: f64, w_rad_s: f64, periods: u32| {
+            let mut counts = counts0;
+            for _ in 0..periods {
+                counts += w_rad_s * counts_per_rad / spec.pwm_hz as f64;
+                let encoder = (counts.rem_euclid(65_536.0)) as u16;
+                let _ = c.step(&Samples { i_abc: [zero; 3], vdc: 3100, encoder, hardware_break: false });
+            }
+            counts
+        };
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        c.calibrate_at_rest();
+        let counts = turn(&mut c, 0.0, 2.0 * rest_rad_s, 20_000);
+        assert!(!c.drive().rotor_at_rest());
+        assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Nack(NackReason::NotAtRest));
+        assert!(!c.commissioning());
+        turn(&mut c, counts, 0.5 * rest_rad_s, 20_000);
+        assert!(c.drive().rotor_at_rest(), "creeping at half the rest speed");
+        assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Ack);
+        assert!(c.commissioning());
     }
 
     /// Commissioning on the board (feature `commissioning`): refused until the offsets are

@@ -14,6 +14,7 @@ use crate::supervisor::limits::{BrakeLevels, Limits, abs_bits};
 use crate::supervisor::motion::MotionLimits;
 use crate::supervisor::motion::{FOLLOWING_PROGRESS_FRACTION, STALL_SPEED_FRACTION};
 use crate::supervisor::phases::{OPEN_PHASE_COMMANDED_FRACTION, SWITCH_FOLLOWING_WINDOWS, SWITCH_WINDOWS};
+use crate::supervisor::rest::RestLimits;
 use crate::supervisor::thermal::ThermalConfig;
 use crate::svpwm;
 
@@ -93,6 +94,8 @@ crate::raw::raw_struct! {
         pub(super) open_phase_slow_steps: u32,
         /// The faults answered by a controlled stop.
         pub(super) stop_on: FaultSet,
+        /// The rotor at rest ([`crate::supervisor::rest`]).
+        pub(super) rest: RestLimits,
     }
 }
 
@@ -214,6 +217,7 @@ impl DriveConfig {
             ("protection.encoder_jump_rad", finite_positive_f64(p.encoder_jump_rad), POSITIVE),
             ("protection.stop_time_s", finite_positive_f64(p.stop_time_s), POSITIVE),
             ("protection.open_phase_time_s", finite_positive_f64(p.open_phase_time_s), POSITIVE),
+            ("protection.rest_time_s", finite_positive_f64(p.rest_time_s), POSITIVE),
         ];
         if let Some(&(field, _, need)) = checks.iter().find(|(_, ok, _)| !ok) {
             return Err(DriveError::Protection { field, need });
@@ -349,6 +353,8 @@ impl DriveConfig {
                 (1.0 - libm::exp(-f64::from(spec.slow_divider) / (windows * open_phase_steps as f64))) as f32
             }),
             brake: BrakeLevels { on_v: brake_on_v, off_v: brake_off_v },
+            rest: RestLimits::new(p.rest_time_s, t_slow, spec.motor.pole_pairs(), spec.motor.tr_s())
+                .ok_or(DriveError::Protection { field: "protection.rest_time_s", need: POSITIVE })?,
         })
     }
 }
@@ -383,6 +389,7 @@ impl DriveConfig {
             cfg.encoder_check_steps,
             cfg.stop_slow_steps,
             cfg.open_phase_slow_steps,
+            cfg.rest.window_slow_steps,
         ];
         // The bus range as `new` makes it, +0 for a zero minimum (the fast step's supervisor
         // tests it as one unsigned range of the bits, `Limits::ok`).

@@ -79,6 +79,7 @@ use crate::speed::SpeedState;
 use crate::supervisor::encoder::{EncoderTrack, VoltageCheck};
 use crate::supervisor::motion::MotionChecks;
 use crate::supervisor::phases::{OpenPhaseWindow, SwitchWatch};
+use crate::supervisor::rest::RestWatch;
 use crate::supervisor::thermal::ThermalState;
 
 /// What [`Drive::telemetry`] reads of the last fast step (stationary frame): the measured
@@ -96,7 +97,7 @@ struct StepSignals {
 /// | group | what | made afresh by |
 /// |---|---|---|
 /// | the commands (these fields) | mode, reference, a controlled stop under way | [`Drive::new`]; a reconfiguration keeps the mode (a fault stays latched) and starts the reference at rest |
-/// | `machine`: `MachineState` | the motor's and the inverter's temperature (I²t), the shaft's position and turns, how long the rotor has been left, the brake chopper's comparator | [`Drive::new`] only (power-up): kept by [`Drive::enable`] and by [`Drive::reconfigure`] |
+/// | `machine`: `MachineState` | the motor's and the inverter's temperature (I²t), the shaft's position and turns, whether it is at rest, how long the rotor has been left, the brake chopper's comparator | [`Drive::new`] only (power-up): kept by [`Drive::enable`] and by [`Drive::reconfigure`] |
 /// | `run`: `RunState` | one run of the bridge: the loops, the field, the plan, the checks' counts; and the estimates it runs on (R_r, the inductances) | [`Drive::enable`] and [`Drive::reconfigure`], which carry the estimates into the new run |
 ///
 /// The board's own state (the current sensors' offsets, the encoder's speed window, the
@@ -123,12 +124,14 @@ pub struct Drive {
 /// What belongs to the machine and the board, not to a run or a configuration: kept by
 /// [`Drive::enable`] and [`Drive::reconfigure`] (a gain write must not cool a hot motor's
 /// protection, nor lose the shaft's position).
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct MachineState {
     /// The I²t models ([`crate::supervisor::thermal`]).
     thermal: ThermalState,
     /// The encoder's readings: the shaft's position and turns, the jump check's last change.
     encoder: EncoderTrack,
+    /// The rotor at rest ([`crate::supervisor::rest`]).
+    rest: RestWatch,
     /// Slow steps with the bridge off (saturating): whether the rotor has lost its flux
     /// ([`MrasConfig::demagnetized_after`]).
     idle_slow_steps: u32,
@@ -141,6 +144,7 @@ impl MachineState {
     const POWER_UP: Self = Self {
         thermal: ThermalState::COLD,
         encoder: EncoderTrack::NONE,
+        rest: RestWatch::NONE,
         idle_slow_steps: u32::MAX,
         brake: false,
     };
@@ -512,6 +516,14 @@ impl Drive {
             self.mode = Mode::Fault(self.pending_fault.take().unwrap_or(f));
             self.stop_steps_left = None;
         }
+    }
+
+    /// The rotor has been at rest over the rest check's last windows
+    /// ([`crate::supervisor::rest`]: `p·|ω_m|·T_r` at most 0.05 over `rest_time_s`, twice in
+    /// a row): what commissioning's standstill tests need before they start. Watched in every
+    /// mode; `false` from power-up until the windows have passed.
+    pub fn rotor_at_rest(&self) -> bool {
+        self.machine.rest.at_rest()
     }
 
     /// Multi-turn mechanical position from the encoder, rad (the position loop's;

@@ -49,6 +49,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             stop_on: FaultSet::EMPTY,
             stop_time_s: 5.0,
             open_phase_time_s: 0.0025,
+            rest_time_s: 0.01,
             brake_chopper: None,
         },
     }
@@ -224,10 +225,10 @@ fn raw_configuration_round_trips() {
     bad.u[1] = 7; // the current frame's tag
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 10] = 0; // the slow divider
+    bad.u[raw::INTEGERS - 11] = 0; // the slow divider
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 1] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
+    bad.u[raw::INTEGERS - 2] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.
     let at = |v: f32| {
@@ -1039,4 +1040,50 @@ fn a_refused_specification_names_its_field() {
     }
     let e = DriveConfig::new(&DriveSpec { pwm_frequency_hz: 0.0, ..test_spec() }).unwrap_err();
     assert!(e.to_string().starts_with("pwm_frequency_hz:"), "{e}");
+}
+
+/// The rotor at rest (`supervisor::rest`): at rest once the shaft has turned less than
+/// `REST_SPEED_TR/(p·T_r)` over two windows of `rest_time_s` in a row, in any mode; a rotor
+/// coasting at twice that speed is not, at half of it is; a swing that returns within a
+/// window is caught by the next one; an enable and a reconfiguration keep the answer.
+#[test]
+fn the_rotor_is_at_rest_only_below_its_own_time_constants_speed() {
+    use crate::supervisor::rest::REST_SPEED_TR;
+    let spec = test_spec();
+    let rest_rad_s = (REST_SPEED_TR / (f64::from(spec.motor.pole_pairs()) * spec.motor.tr_s())) as f32;
+    let t_slow = f32::from(spec.slow_divider) / spec.pwm_frequency_hz as f32;
+    let window = (spec.protection.rest_time_s / f64::from(t_slow)).ceil() as u32;
+    // `slow_steps` slow steps of a shaft turning at `w` rad/s from `theta0`.
+    let turn = |d: &mut Drive, theta0: f32, w: f32, slow_steps: u32| {
+        let mut theta = theta0;
+        for _ in 0..slow_steps * u32::from(spec.slow_divider) {
+            if d.slow_step_due() {
+                theta += w * t_slow;
+            }
+            d.step(&Measurements { vdc_v: 310.0, theta_m_rad: wrap_angle(theta), ..Default::default() });
+        }
+        theta
+    };
+    let mut d = drive();
+    assert!(!d.rotor_at_rest(), "not judged at power-up");
+    turn(&mut d, 0.3, 0.0, 3 * window);
+    assert!(d.rotor_at_rest(), "still for three windows");
+    let theta = turn(&mut d, 0.3, 2.0 * rest_rad_s, 2 * window);
+    assert!(!d.rotor_at_rest(), "coasting at twice the rest speed");
+    let theta = turn(&mut d, theta, 0.5 * rest_rad_s, 3 * window);
+    assert!(d.rotor_at_rest(), "creeping at half of it");
+    // A swing out and back within one window's length, across a window's end (a quarter
+    // of a window off the grid): the window it ends in is not quiet.
+    turn(&mut d, theta, 0.0, window / 4);
+    let out = turn(&mut d, theta, 8.0 * rest_rad_s, window / 2);
+    turn(&mut d, out, -8.0 * rest_rad_s, window / 2);
+    assert!(!d.rotor_at_rest(), "a swing");
+    turn(&mut d, theta, 0.0, 3 * window);
+    assert!(d.rotor_at_rest());
+    // The shaft's: an enable and a reconfiguration keep it.
+    d.enable().unwrap();
+    assert!(d.rotor_at_rest());
+    d.disable();
+    d.reconfigure(d.cfg.with_saturated_p(0.08, 1.5).unwrap()).unwrap();
+    assert!(d.rotor_at_rest());
 }

@@ -8,6 +8,7 @@
 //! | [`encoder`] | the encoder's jump, the encoder against the machine model (a pinned phase) | slow step / once per slow period |
 //! | [`motion`] | overspeed, stall, speed-following error | slow step |
 //! | [`thermal`] | the motor's and the inverter's I²t | every [`thermal::THERMAL_UPDATE_SLOW_STEPS`] slow steps |
+//! | [`rest`] | the rotor at rest (what commissioning needs before it starts; no fault) | slow step |
 //!
 //! Loss of control (the loops at their voltage limit), a non-finite controller output and
 //! the magnetizing time are the drive's own (the drive module): they read the loops.
@@ -38,6 +39,7 @@ pub mod encoder;
 pub mod limits;
 pub mod motion;
 pub mod phases;
+pub mod rest;
 pub mod thermal;
 
 #[cfg(doc)]
@@ -149,6 +151,9 @@ protection! {
     /// [`Fault::OpenPhase`]; no phase carrying its current: [`Fault::NoMotorCurrent`]),
     /// sampled once per slow period; at least one slow period.
     open_phase_time_s,
+    /// The rotor at rest ([`rest`]): the window, s, over which the shaft's displacement is
+    /// judged (at least one slow period).
+    rest_time_s,
 }
 
 /// An I²t thermal limit: a first-order thermal model, `dθ/dt = (I²/I_rated² − θ)/τ` with

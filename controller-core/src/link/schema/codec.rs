@@ -159,6 +159,7 @@ impl Reply {
                     NackReason::NotConfigured => 5,
                     NackReason::OutOfCertifiedRange => 6,
                     NackReason::NoRecord => 7,
+                    NackReason::NotAtRest => 8,
                 })?;
             }
             Reply::Output(o, t) => {
@@ -242,6 +243,7 @@ impl Reply {
                 5 => NackReason::NotConfigured,
                 6 => NackReason::OutOfCertifiedRange,
                 7 => NackReason::NoRecord,
+                8 => NackReason::NotAtRest,
                 _ => return Err(DecodeError::Value),
             }),
             tag::OUTPUT => {

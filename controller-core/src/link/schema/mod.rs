@@ -215,6 +215,9 @@ pub enum NackReason {
     OutOfCertifiedRange,
     /// No finished commissioning record (or no such part of it).
     NoRecord,
+    /// The rotor turns: commissioning's standstill tests need it at rest
+    /// (`Drive::rotor_at_rest`).
+    NotAtRest,
 }
 
 /// Drive → host.
