@@ -302,8 +302,9 @@ impl Drive {
     /// Another machine is another drive ([`Drive::new`]).
     ///
     /// Refused while the bridge is active ([`CommandError::Active`]): the drive is left as
-    /// it was. Out of line: a rare command, kept out of the control interrupt's code.
-    #[inline(never)]
+    /// it was. `#[inline]`: compiled in the caller's crate — in the firmware at its
+    /// opt-level "z" (a gain write).
+    #[inline]
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
         if self.mode.is_active() {
             return Err(CommandError::Active);
