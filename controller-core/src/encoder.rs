@@ -60,6 +60,16 @@ impl<const N: usize> Default for EncoderState<N> {
     }
 }
 
+impl<const N: usize> EncoderState<N> {
+    /// Start the speed window again (a new read period: the window's displacement is
+    /// counted in reads) and keep the angle: the position stays continuous, the speed reads
+    /// 0 until the window has filled again.
+    pub fn restart_window(&mut self) {
+        self.history = [self.counts; N];
+        self.head = 0;
+    }
+}
+
 /// Position (rad, within a revolution) and speed (rad/s).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct EncoderReading {

@@ -247,13 +247,18 @@ impl ProtectionTable {
         }
     }
 
-    /// The protection of `defaults` (the derived one) with what the file sets.
+    /// The protection of `defaults` (the derived one) with what the file sets; the three
+    /// required thresholds are this table's own fields (a value in their slots of
+    /// `thresholds` is ignored).
     fn over(&self, defaults: &Protection) -> Protection {
         let mut t = defaults.thresholds();
-        for (v, set) in t.iter_mut().zip(self.thresholds) {
-            if let Some(x) = set {
-                *v = x;
-            }
+        for ((v, set), name) in t.iter_mut().zip(self.thresholds).zip(Protection::THRESHOLDS) {
+            *v = match name {
+                "i_trip_a" => self.i_trip_a,
+                "vdc_min_v" => self.vdc_min_v,
+                "vdc_max_v" => self.vdc_max_v,
+                _ => set.unwrap_or(*v),
+            };
         }
         Protection::with_thresholds(
             t,

@@ -3,7 +3,7 @@
 //! * `ci --setup` — the README's test command, what `.ci/run` calls: first installs what the
 //!   checks need and a fresh machine lacks ([`setup`]: the thumbv7em/thumbv7m targets,
 //!   rustfmt, clippy and llvm-tools, QEMU, `cargo-fuzz`, `flip-link`, `defmt-print`, the
-//!   Python cross-checks' packages), then runs `ci`.
+//!   Python cross-checks' packages in a venv, `target/ci-venv`), then runs `ci`.
 //! * `ci` — everything CI checks, in order, reporting every failure (not only the first):
 //!   fmt check, clippy `-D warnings` (host, all targets), rustdoc with warnings as errors,
 //!   host tests, `design certify drive.toml`, a thumbv7em build of
@@ -285,6 +285,8 @@ fn run_counting(step: &Step, totals: &mut Totals) -> bool {
     eprintln!("\n=== xtask: {} ({} {}) ===", step.name, step.program, all_args.join(" "));
     let program = match step.program {
         "cargo" => std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()),
+        // The set-up's venv when there is one (its packages), else the PATH's python3.
+        "python3" if std::path::Path::new(VENV_PYTHON).exists() => VENV_PYTHON.into(),
         other => other.into(),
     };
     let mut cmd = Command::new(program);
@@ -635,10 +637,23 @@ fn setup() -> Result<(), String> {
             run_setup("cargo", &["install", krate, "--locked", "--quiet"])?;
         }
     }
+    // A venv of the workspace's own (`target/ci-venv`): a distribution's python3 is
+    // "externally managed" (PEP 668) and refuses pip installs into it.
+    if !std::path::Path::new(VENV_PYTHON).exists() {
+        run_setup("python3", &["-m", "venv", VENV_DIR]).map_err(|e| {
+            format!("{e} (Debian/Ubuntu: `sudo apt-get install python3-venv`, then run this again)")
+        })?;
+    }
     let mut pip = vec!["-m", "pip", "install", "--quiet", "--disable-pip-version-check"];
     pip.extend(PYTHON_PACKAGES);
-    run_setup("python3", &pip)
+    run_setup(VENV_PYTHON, &pip)
 }
+
+/// The set-up's Python environment (the cross-checks' packages), in the workspace's target
+/// directory.
+const VENV_DIR: &str = "target/ci-venv";
+/// … its interpreter: what the Python steps run when it exists.
+const VENV_PYTHON: &str = "target/ci-venv/bin/python3";
 
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());

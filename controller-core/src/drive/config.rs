@@ -417,6 +417,13 @@ impl DriveConfig {
         Some(cfg)
     }
 
+    /// `other` drives the same motor: the same field orientation and machine model, both
+    /// made from the motor's parameters (`Drive::reconfigure` keeps the machine's state for
+    /// it; another motor is another drive).
+    pub fn same_motor(&self, other: &DriveConfig) -> bool {
+        self.ifoc == other.ifoc && self.envelope == other.envelope
+    }
+
     /// The speed loop.
     pub fn speed(&self) -> &SpeedControllerConfig {
         &self.speed

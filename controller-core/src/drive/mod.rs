@@ -298,8 +298,9 @@ impl Drive {
     /// file's) carry over, limited to `cfg`'s ranges — an estimate inside them is one `cfg`'s
     /// certificate covers. The run starts afresh, the reference at rest (`Speed(0)`), a
     /// latched fault stays latched, and the slow cadence keeps its phase unless the divider
-    /// changed. As in stabilizer and idsp: the configuration is swapped, the state is kept.
-    /// Another machine is another drive ([`Drive::new`]).
+    /// changed (then the encoder's jump check starts again at the new read period). As in
+    /// stabilizer and idsp: the configuration is swapped, the state is kept. Another machine
+    /// is another drive ([`Drive::new`]; the link's `Configure` tells them apart).
     ///
     /// Refused while the bridge is active ([`CommandError::Active`]): the drive is left as
     /// it was. `#[inline]`: compiled in the caller's crate — in the firmware at its
@@ -319,6 +320,7 @@ impl Drive {
         thermal.inverter = old.inverter_thermal.carry(thermal.inverter, &cfg.inverter_thermal);
         if cfg.slow_divider != old.slow_divider {
             self.steps_to_slow = 0;
+            self.machine.encoder.restart_jump_check();
         }
         self.run = RunState::new(&cfg, rr, l, RotorFit::default());
         (self.reference, self.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);

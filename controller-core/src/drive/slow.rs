@@ -42,7 +42,7 @@ impl Drive {
             self.trip(Fault::NonFiniteInput);
         }
         let step_rad = self.read_encoder(m.theta_m_rad);
-        self.machine.rest.update(&self.cfg.rest, self.machine.encoder.position_rad());
+        self.machine.rest.update(&self.cfg.rest, step_rad);
         self.update_thermal(m.i_abc_a);
         let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
         if active && m.omega_m_rad_s.abs() > self.cfg.motion.overspeed_rad_s {

@@ -1007,7 +1007,7 @@ fn an_enable_keeps_the_machines_state() {
 fn a_refused_specification_names_its_field() {
     use std::string::ToString;
     type Break = fn(&mut DriveSpec);
-    let cases: [(&str, Break); 16] = [
+    let cases: [(&str, Break); 17] = [
         ("i_ref_max_a", |s| s.i_ref_max_a = f64::INFINITY),
         ("protection.i_trip_a", |s| s.protection.i_trip_a = 1.0),
         ("protection.vdc_max_v", |s| s.protection.vdc_max_v = f64::INFINITY),
@@ -1021,6 +1021,7 @@ fn a_refused_specification_names_its_field() {
         ("protection.encoder_jump_rad", |s| s.protection.encoder_jump_rad = 0.0),
         ("protection.stop_time_s", |s| s.protection.stop_time_s = 0.0),
         ("protection.open_phase_time_s", |s| s.protection.open_phase_time_s = 0.0),
+        ("protection.rest_time_s", |s| s.protection.rest_time_s = f64::NAN),
         ("protection.motor_thermal", |s| {
             s.protection.motor_thermal =
                 Some(ThermalLimit { rated_current_a: 1.0, time_constant_s: 10.0, overload_factor: 0.5 })
@@ -1086,4 +1087,68 @@ fn the_rotor_is_at_rest_only_below_its_own_time_constants_speed() {
     d.disable();
     d.reconfigure(d.cfg.with_saturated_p(0.08, 1.5).unwrap()).unwrap();
     assert!(d.rotor_at_rest());
+}
+
+/// The rest check judges the shaft's displacement from the encoder's per-read changes, not
+/// from a difference of multi-turn positions: 20 000 turns out (≈ 125 700 rad, where an f32
+/// position's step, 7.8e-3 rad, exceeds the window's 7.7e-3 rad), a rotor creeping at twice
+/// the rest speed is still not at rest, at half of it is (found by a review: with positions,
+/// it read "at rest" in 750 of 3 599 slow steps after 3e5 rad of travel).
+#[test]
+fn the_rest_check_holds_after_a_long_travel() {
+    use crate::supervisor::encoder::EncoderTrack;
+    use crate::supervisor::rest::REST_SPEED_TR;
+    let spec = test_spec();
+    let rest_rad_s = (REST_SPEED_TR / (f64::from(spec.motor.pole_pairs()) * spec.motor.tr_s())) as f32;
+    let t_slow = f32::from(spec.slow_divider) / spec.pwm_frequency_hz as f32;
+    let window = (spec.protection.rest_time_s / f64::from(t_slow)).ceil() as u32;
+    for (w, at_rest) in [(2.0 * rest_rad_s, false), (0.5 * rest_rad_s, true)] {
+        let mut d = drive();
+        d.machine.encoder = EncoderTrack::with_turns(20_000);
+        assert!(d.position_rad() > 125_000.0);
+        let mut theta = 0.3f32;
+        let mut seen = [0u32; 2];
+        for _ in 0..12 * window * u32::from(spec.slow_divider) {
+            if d.slow_step_due() {
+                theta = wrap_angle(theta + w * t_slow);
+            }
+            d.step(&Measurements { vdc_v: 310.0, theta_m_rad: theta, ..Default::default() });
+            seen[usize::from(d.rotor_at_rest())] += 1;
+        }
+        assert_eq!(d.mode(), Mode::Idle);
+        assert_eq!(d.rotor_at_rest(), at_rest, "{w} rad/s");
+        if !at_rest {
+            assert_eq!(seen[1], 0, "never at rest at {w} rad/s: {seen:?}");
+        }
+    }
+}
+
+/// A reconfiguration to another slow divider, with the shaft coasting: the encoder's jump
+/// check starts again at the new read period (it compared a change read at the old period
+/// with one at the new: a false `EncoderLoss` at 50 and 150 rad/s, found by a review), and
+/// the position carries on.
+#[test]
+fn a_new_slow_divider_while_coasting_is_no_encoder_fault() {
+    for w in [20.0f32, 50.0, 150.0] {
+        let mut d = drive();
+        let ts = 1.0 / test_spec().pwm_frequency_hz as f32;
+        let mut theta = 0.0f32;
+        let mut run = |d: &mut Drive, periods: u32| {
+            for _ in 0..periods {
+                theta += w * ts;
+                d.step(&Measurements { vdc_v: 310.0, theta_m_rad: wrap_angle(theta), ..Default::default() });
+            }
+        };
+        run(&mut d, 1000);
+        let halved = DriveConfig::new(&DriveSpec { slow_divider: 5, ..test_spec() }).unwrap();
+        d.reconfigure(halved).unwrap();
+        run(&mut d, 1000);
+        assert_eq!(d.mode(), Mode::Idle, "{w} rad/s");
+        // The position follows the shaft to within a read's turning.
+        assert!(
+            (d.position_rad() - theta).abs() < w * 10.0 * ts,
+            "{w}: {} against {theta}",
+            d.position_rad()
+        );
+    }
 }

@@ -10,8 +10,9 @@ use crate::drive::{CommandError, Drive, DriveConfig};
 /// processor-in-the-loop server and the firmware (which refuses `Step` itself: on the board
 /// the measurements come from the ADC, and handles the speed-gain commands, which need the
 /// specification and the certified ranges it keeps). `Configure` swaps the configuration only while the drive
-/// is Idle or faulted, for one validated by [`DriveConfig::new`], keeping the machine's state
-/// ([`Drive::reconfigure`]: its temperature, position and estimates; a fault stays latched).
+/// is Idle or faulted, for one validated by [`DriveConfig::new`]: for the same motor keeping
+/// the machine's state ([`Drive::reconfigure`]: its temperature, position and estimates; a
+/// fault stays latched), for another a new drive (Idle).
 pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
     match cmd {
         Command::Configure(spec) => {
@@ -19,7 +20,15 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
                 return Reply::Nack(NackReason::NotIdle);
             }
             match DriveConfig::new(spec) {
-                Ok(cfg) => command_result(drive.reconfigure(cfg)),
+                // The same motor (its field orientation and machine model): its state carries
+                // over. Another: another drive, which only knows how long the rotor was left.
+                Ok(cfg) if cfg.same_motor(drive.config()) => command_result(drive.reconfigure(cfg)),
+                Ok(cfg) => {
+                    let idle = drive.idle_slow_steps();
+                    *drive = Drive::new(cfg);
+                    drive.rotor_driven(idle);
+                    Reply::Ack
+                }
                 Err(_) => Reply::Nack(NackReason::Configuration),
             }
         }

@@ -166,6 +166,7 @@ fn replies_round_trip_bit_exact() {
         Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 },
         Reply::Nack(NackReason::OutOfCertifiedRange),
         Reply::Nack(NackReason::NoRecord),
+        Reply::Nack(NackReason::NotAtRest),
         Reply::CommissionRecord { chunk: 3, bytes: core::array::from_fn(|k| k as u8) },
         Reply::Capture {
             state: crate::capture::CaptureState::Triggered,
@@ -343,4 +344,37 @@ fn mode_codes_round_trip() {
         }
     }
     assert_eq!(modes, 3 + 18);
+}
+
+/// `Configure` on the same motor keeps the machine's state and a latched fault (the drive
+/// swaps its configuration: `Drive::reconfigure`); on another motor it makes another drive,
+/// Idle and cold. Refused while the bridge is active.
+#[test]
+fn configure_keeps_the_same_motors_state_and_not_anothers() {
+    use crate::drive::{Drive, DriveConfig, Fault, Mode, ThermalLimit};
+    let stats = LinkStats::default();
+    let mut spec = test_spec();
+    spec.protection.motor_thermal =
+        Some(ThermalLimit { rated_current_a: 1.0, time_constant_s: 100.0, overload_factor: 1.15 });
+    let mut drive = Drive::new(DriveConfig::new(&spec).unwrap());
+    let hot = Measurements { i_abc_a: Abc { a: 1.0, b: -1.0, c: 0.0 }, vdc_v: 310.0, ..Default::default() };
+    for _ in 0..2 * 1000 * u32::from(spec.slow_divider) {
+        drive.step(&hot);
+    }
+    let theta = drive.thermal_state();
+    assert!(theta.0 > 0.0);
+    drive.trip(Fault::HardwareBreak);
+    let gains = crate::drive::DriveSpec {
+        speed_law: crate::speed::SpeedLaw::SaturatedP { kp: 0.08, tau_max_nm: 1.5 },
+        ..spec
+    };
+    assert_eq!(execute(&mut drive, &Command::Configure(gains), &stats), Reply::Ack);
+    assert_eq!((drive.thermal_state(), drive.mode()), (theta, Mode::Fault(Fault::HardwareBreak)));
+    let mut other = gains;
+    other.motor = crate::motor::MotorParams::new(8.0, 12.0, 0.7, 0.75, 0.7, 2, 0.01, 0.001).unwrap();
+    other.flux_ref_wb = 0.5;
+    assert_eq!(execute(&mut drive, &Command::Configure(other), &stats), Reply::Ack);
+    assert_eq!((drive.thermal_state(), drive.mode()), ((0.0, 0.0), Mode::Idle));
+    drive.enable().unwrap();
+    assert_eq!(execute(&mut drive, &Command::Configure(gains), &stats), Reply::Nack(NackReason::NotIdle));
 }

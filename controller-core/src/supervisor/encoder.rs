@@ -55,11 +55,14 @@ pub(crate) struct EncoderTrack {
     step_rad: f32,
     /// Readings taken so far, up to 2 (the jump check needs two changes).
     reads: u8,
+    /// The read period changed: the next change is the last across it, not a reference.
+    rebase: bool,
 }
 
 impl EncoderTrack {
     /// Nothing read yet.
-    pub(crate) const NONE: Self = Self { theta_m_prev_rad: 0.0, turns: 0, step_rad: 0.0, reads: 0 };
+    pub(crate) const NONE: Self =
+        Self { theta_m_prev_rad: 0.0, turns: 0, step_rad: 0.0, reads: 0, rebase: false };
 
     /// One reading `theta_m_rad`: the change since the last reading, mechanical rad (the
     /// wrapped difference of two angles within a revolution: exact in f32 however far the
@@ -87,8 +90,25 @@ impl EncoderTrack {
         let jumped = self.reads >= 2 && judge && (step - self.step_rad).abs() > jump_rad;
         self.step_rad = step;
         self.theta_m_prev_rad = theta_m_rad;
-        self.reads = self.reads.saturating_add(1).min(2);
+        // After a change of the read period, the change across it counts turns but is no
+        // reference: the check judges from the second change at the new period.
+        self.reads = if self.rebase { 1 } else { self.reads.saturating_add(1).min(2) };
+        self.rebase = false;
         (step, jumped)
+    }
+
+    /// A track `turns` whole turns out (tests of what a long travel does to the checks).
+    #[cfg(test)]
+    pub(crate) fn with_turns(turns: i32) -> Self {
+        Self { turns, ..Self::NONE }
+    }
+
+    /// The read period changes (a new slow divider): the jump check, a second difference of
+    /// the readings, judges again from the second change at the new period; the angle and
+    /// the turns carry on.
+    pub(crate) fn restart_jump_check(&mut self) {
+        self.reads = self.reads.min(1);
+        self.rebase = true;
     }
 
     /// Multi-turn mechanical position, rad: the turns counted since the first reading plus

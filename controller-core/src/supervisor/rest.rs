@@ -49,9 +49,11 @@ impl RestLimits {
 /// The rest check's state: the shaft's (kept by an enable and a reconfiguration).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct RestWatch {
-    /// The position at the window's start, mechanical rad (NaN before the first window: it
-    /// is not judged).
-    start_rad: f32,
+    /// The shaft's displacement since the window's start, mechanical rad: the sum of the
+    /// encoder's wrapped changes per read (exact however far the shaft has turned, which a
+    /// difference of multi-turn positions in f32 is not: above 65 536 rad its step exceeds
+    /// the shipped window's 6.2e-3 rad).
+    moved_rad: f32,
     /// Slow steps into the window.
     steps: u32,
     /// Consecutive windows at rest (saturating).
@@ -60,19 +62,20 @@ pub(crate) struct RestWatch {
 
 impl RestWatch {
     /// Nothing watched yet.
-    pub(crate) const NONE: Self = Self { start_rad: f32::NAN, steps: 0, quiet: 0 };
+    pub(crate) const NONE: Self = Self { moved_rad: 0.0, steps: 0, quiet: 0 };
 
-    /// One slow step at the multi-turn position `position_rad`: at the window's end, at rest
-    /// if the shaft turned at most `angle_rad` over it.
+    /// One slow step in which the shaft turned by `step_rad` (the encoder's change over the
+    /// read): at the window's end, at rest if it turned at most `angle_rad` over it.
     #[inline]
-    pub(crate) fn update(&mut self, limits: &RestLimits, position_rad: f32) {
+    pub(crate) fn update(&mut self, limits: &RestLimits, step_rad: f32) {
+        self.moved_rad += step_rad;
         self.steps += 1;
         if self.steps < limits.window_slow_steps {
             return;
         }
-        let still = (position_rad - self.start_rad).abs() <= limits.angle_rad;
+        let still = self.moved_rad.abs() <= limits.angle_rad;
         self.quiet = if still { self.quiet.saturating_add(1) } else { 0 };
-        (self.start_rad, self.steps) = (position_rad, 0);
+        (self.moved_rad, self.steps) = (0.0, 0);
     }
 
     /// At rest over the last [`REST_WINDOWS`] windows.
