@@ -1090,10 +1090,10 @@ fn the_rotor_is_at_rest_only_below_its_own_time_constants_speed() {
 }
 
 /// The rest check judges the shaft's displacement from the encoder's per-read changes, not
-/// from a difference of multi-turn positions: 20 000 turns out (≈ 125 700 rad, where an f32
-/// position's step, 7.8e-3 rad, exceeds the window's 7.7e-3 rad), a rotor creeping at twice
-/// the rest speed is still not at rest, at half of it is (found by a review: with positions,
-/// it read "at rest" in 750 of 3 599 slow steps after 3e5 rad of travel).
+/// from a difference of multi-turn positions: 160 000 turns out (≈ 1e6 rad, where an f32
+/// position's step, 0.0625 rad, is eight times the window's 7.7e-3 rad), a rotor creeping at
+/// twice the rest speed is still not at rest, at half of it is (found by a review: with
+/// positions, it read "at rest" in 750 of 3 599 slow steps after 3e5 rad of travel).
 #[test]
 fn the_rest_check_holds_after_a_long_travel() {
     use crate::supervisor::encoder::EncoderTrack;
@@ -1104,8 +1104,8 @@ fn the_rest_check_holds_after_a_long_travel() {
     let window = (spec.protection.rest_time_s / f64::from(t_slow)).ceil() as u32;
     for (w, at_rest) in [(2.0 * rest_rad_s, false), (0.5 * rest_rad_s, true)] {
         let mut d = drive();
-        d.machine.encoder = EncoderTrack::with_turns(20_000);
-        assert!(d.position_rad() > 125_000.0);
+        d.machine.encoder = EncoderTrack::with_turns(160_000);
+        assert!(d.position_rad() > 1.0e6);
         let mut theta = 0.3f32;
         let mut seen = [0u32; 2];
         for _ in 0..12 * window * u32::from(spec.slow_divider) {
