@@ -670,6 +670,23 @@ mod target {
             cortex_m::asm::nop();
         }
     }
+
+    /// Every exception and interrupt without a handler of its own — the NMI among them (the
+    /// clock security system's, a flash ECC double error's), and any interrupt enabled by
+    /// mistake — stops the same way: interrupts masked, the bridge off for good. cortex-m-rt's
+    /// default (`b .`) left MOE set and the PWM switching its frozen duties until the
+    /// watchdog reset (issue 54). `cargo xtask build-fw` checks that `cpsid` comes first.
+    #[cortex_m_rt::exception]
+    // SAFETY: (of the attribute's contract, which for the NMI asks that the handler touch no
+    // data a critical section protects) the handler never returns and touches only TIM1's
+    // BDTR and the brake pin's output register through the PAC, after masking interrupts:
+    // the same as the HardFault handler.
+    unsafe fn DefaultHandler(_irqn: i16) -> ! {
+        stop_for_good(cortex_m::interrupt::disable, &mut Tim1);
+        loop {
+            cortex_m::asm::nop();
+        }
+    }
 }
 
 /// On the host: build and flash for the board (`cargo run -p firmware --release`).

@@ -437,27 +437,46 @@ fn first_effect(dis: &str, name_suffix: &str) -> Option<String> {
 /// control interrupt can run again and set MOE.
 fn check_fault_handlers() -> bool {
     let elf = std::path::Path::new("target").join(THUMB).join("firmware").join("firmware");
-    let dis = llvm_objdump().and_then(|od| {
-        let o = Command::new(od)
-            .args(["-d", "--no-show-raw-insn"])
-            .arg(&elf)
-            .output()
-            .map_err(|e| format!("llvm-objdump: {e}"))?;
-        Ok(String::from_utf8_lossy(&o.stdout).into_owned())
-    });
-    let dis = match dis {
-        Ok(d) => d,
-        Err(e) => {
+    let objdump = |args: &[&str]| {
+        llvm_objdump().and_then(|od| {
+            let o =
+                Command::new(od).args(args).arg(&elf).output().map_err(|e| format!("llvm-objdump: {e}"))?;
+            Ok(String::from_utf8_lossy(&o.stdout).into_owned())
+        })
+    };
+    let (dis, syms) = match (objdump(&["-d", "--no-show-raw-insn"]), objdump(&["-t"])) {
+        (Ok(d), Ok(s)) => (d, s),
+        (Err(e), _) | (_, Err(e)) => {
             eprintln!("xtask: fault handlers: {e}");
             return false;
         }
     };
+    // The default handler's trampoline shares its address with the vectors it serves, and
+    // the disassembly labels it with one of their names: found by the symbol's address.
+    let default_label = syms
+        .lines()
+        .find(|l| l.split_whitespace().last() == Some("DefaultHandler"))
+        .and_then(|l| l.split_whitespace().next())
+        .map(|addr| format!("{addr} <"));
     let mut ok = true;
-    for (what, suffix) in
-        [("panic handler", "rust_begin_unwind>:"), ("HardFault handler", "__cortex_m_rt_HardFault")]
-    {
-        match first_effect(&dis, suffix) {
-            Some(first) if first.contains("cpsid") => {
+    for (what, label) in [
+        ("panic handler", Some("rust_begin_unwind>:".to_string())),
+        ("HardFault handler", Some("__cortex_m_rt_HardFault".to_string())),
+        // Every other exception and interrupt without a handler, the NMI among them: its
+        // trampoline reads the IRQ number and calls the handler's body (the linker may fold
+        // it with the HardFault handler's, which is the same code).
+        ("default handler (NMI, unused vectors)", default_label),
+    ] {
+        let first = label.as_deref().and_then(|l| first_effect(&dis, l));
+        let first = match first {
+            Some(f) if f.contains("\tbl\t") => {
+                let target = f.split('<').nth(1).and_then(|t| t.split('>').next()).map(|t| format!("<{t}>:"));
+                target.and_then(|t| first_effect(&dis, &t)).map(|g| format!("{f} → {g}"))
+            }
+            other => other,
+        };
+        match first {
+            Some(first) if first.split(" → ").last().is_some_and(|l| l.contains("cpsid")) => {
                 println!("fault handlers: {what} masks interrupts first ({first})")
             }
             Some(first) => {
