@@ -234,19 +234,6 @@ pub struct ProtectionTable {
 }
 
 impl ProtectionTable {
-    /// The threshold `name` as the file sets it (`None`: not set, or no such threshold).
-    pub fn threshold(&self, name: &str) -> Option<f64> {
-        match name {
-            "i_trip_a" => Some(self.i_trip_a),
-            "vdc_min_v" => Some(self.vdc_min_v),
-            "vdc_max_v" => Some(self.vdc_max_v),
-            _ => {
-                let k = Protection::THRESHOLDS.iter().position(|t| *t == name)?;
-                self.thresholds.get(k).copied().flatten()
-            }
-        }
-    }
-
     /// The protection of `defaults` (the derived one) with what the file sets; the three
     /// required thresholds are this table's own fields (a value in their slots of
     /// `thresholds` is ignored).
@@ -281,7 +268,10 @@ impl<'de> Deserialize<'de> for ProtectionTable {
         /// key's span, as a derived table's does).
         enum Key {
             Threshold(usize),
-            Structured(usize),
+            BrakeChopper,
+            MotorThermal,
+            InverterThermal,
+            Reaction,
         }
         impl<'de> Deserialize<'de> for Key {
             fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
@@ -295,8 +285,12 @@ impl<'de> Deserialize<'de> for ProtectionTable {
                         if let Some(k) = Protection::THRESHOLDS.iter().position(|t| *t == name) {
                             return Ok(Key::Threshold(k));
                         }
-                        if let Some(k) = STRUCTURED.iter().position(|t| *t == name) {
-                            return Ok(Key::Structured(k));
+                        match name {
+                            "brake_chopper" => return Ok(Key::BrakeChopper),
+                            "motor_thermal" => return Ok(Key::MotorThermal),
+                            "inverter_thermal" => return Ok(Key::InverterThermal),
+                            "reaction" => return Ok(Key::Reaction),
+                            _ => {}
                         }
                         let known: Vec<String> = Protection::THRESHOLDS
                             .iter()
@@ -324,10 +318,10 @@ impl<'de> Deserialize<'de> for ProtectionTable {
                 let mut thresholds = [None; THRESHOLD_COUNT];
                 while let Some(key) = map.next_key::<Key>()? {
                     match key {
-                        Key::Structured(0) => brake_chopper = Some(map.next_value()?),
-                        Key::Structured(1) => motor_thermal = Some(map.next_value()?),
-                        Key::Structured(2) => inverter_thermal = Some(map.next_value()?),
-                        Key::Structured(_) => reaction = Some(map.next_value()?),
+                        Key::BrakeChopper => brake_chopper = Some(map.next_value()?),
+                        Key::MotorThermal => motor_thermal = Some(map.next_value()?),
+                        Key::InverterThermal => inverter_thermal = Some(map.next_value()?),
+                        Key::Reaction => reaction = Some(map.next_value()?),
                         Key::Threshold(k) => {
                             let x = map.next_value::<f64>()?;
                             if let Some(slot) = thresholds.get_mut(k) {

@@ -454,7 +454,7 @@ impl ControlLoop {
         Snapshot {
             output: self.last.map(|o| (o, self.drive.telemetry())),
             calibration: Some(self.calibration),
-            bridge_on: matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running) || self.commissioning(),
+            bridge_on: self.drive.mode().is_active() || self.commissioning(),
         }
     }
 
@@ -481,7 +481,7 @@ impl ControlLoop {
     #[inline(never)]
     fn calibrate(&mut self, codes: [u16; 3]) {
         let Calibration::Running(mut cal) = self.calibration else { return };
-        if matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running) {
+        if self.drive.mode().is_active() {
             self.drive.disable();
         }
         self.calibration = match cal.add(&self.calibration_cfg, codes) {
@@ -588,7 +588,7 @@ impl ControlLoop {
     /// commissioning sequence gets its own, after its offsets and before its first pulse
     /// ([`ControlLoop::start_commissioning`]).
     fn precharge(&mut self, s: &Samples) -> Option<Bridge> {
-        let wants_bridge = matches!(self.drive.mode(), Mode::Magnetizing | Mode::Running);
+        let wants_bridge = self.drive.mode().is_active();
         if !wants_bridge {
             self.precharge_left = 0;
             return None;

@@ -455,17 +455,10 @@ mod tests {
         assert_eq!(c.drive().position_rad(), position, "the shaft is where it was");
     }
 
-    /// The rotor-at-rest check before commissioning (`controller_core::supervisor::rest`):
-    /// a coasting rotor — the encoder turning at twice the rest speed `0.05/(p·T_r)` — is
-    /// refused `NotAtRest`; once it has stood still for the check's windows, the same command
-    /// starts the sequence. The rotor turning slower than the rest speed is at rest.
+    /// A standstill commissioning of the shipped motor on its board (the tests' request).
     #[cfg(feature = "commissioning")]
-    #[test]
-    fn commissioning_is_refused_while_the_rotor_turns() {
-        use crate::control::Samples;
-        use controller_core::commission::CommissionSpec;
-        use controller_core::supervisor::rest::REST_SPEED_TR;
-        let spec = CommissionSpec {
+    fn commission_spec() -> controller_core::commission::CommissionSpec {
+        controller_core::commission::CommissionSpec {
             pwm_hz: 20_000.0,
             test_current_a: 1.0,
             current_limit_a: 2.0,
@@ -475,7 +468,19 @@ mod tests {
             rotate: false,
             rated_flux_wb: 0.823,
             no_load_hz: 15.0,
-        };
+        }
+    }
+
+    /// The rotor-at-rest check before commissioning (`controller_core::supervisor::rest`):
+    /// a coasting rotor — the encoder turning at twice the rest speed `0.05/(p·T_r)` — is
+    /// refused `NotAtRest`; once it has stood still for the check's windows, the same command
+    /// starts the sequence. The rotor turning slower than the rest speed is at rest.
+    #[cfg(feature = "commissioning")]
+    #[test]
+    fn commissioning_is_refused_while_the_rotor_turns() {
+        use crate::control::Samples;
+        use controller_core::supervisor::rest::REST_SPEED_TR;
+        let spec = commission_spec();
         let cmd = BoardCommand::Commission(spec);
         let stats = LinkStats::default();
         let motor = drive_spec().unwrap().motor;
@@ -513,17 +518,7 @@ mod tests {
     fn commissioning_takes_the_bridge_and_a_break_or_stop_ends_it() {
         use crate::control::{Bridge, Samples};
         use controller_core::commission::{CommissionSpec, Refusal, Stage};
-        let spec = CommissionSpec {
-            pwm_hz: 20_000.0,
-            test_current_a: 1.0,
-            current_limit_a: 2.0,
-            vdc_min_v: 250.0,
-            vdc_max_v: 370.0,
-            level_time_s: 1.0,
-            rotate: false,
-            rated_flux_wb: 0.823,
-            no_load_hz: 15.0,
-        };
+        let spec = commission_spec();
         let cmd = BoardCommand::Commission(spec);
         let stats = LinkStats::default();
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();

@@ -47,6 +47,10 @@ impl Step {
     const fn in_qemu_target(name: &'static str, args: &'static [&'static str]) -> Self {
         Step { name, program: "cargo", pre_args: &[], dir: "qemu-target", args, env: &[] }
     }
+    /// A Python script (the set-up's venv's interpreter when there is one: `run_counting`).
+    const fn python(name: &'static str, args: &'static [&'static str]) -> Self {
+        Step { name, program: "python3", pre_args: &[], dir: "", args, env: &[] }
+    }
     /// A `qemu-target` program under QEMU with semihosting; exit status = the program's.
     const fn qemu(name: &'static str, args: &'static [&'static str]) -> Self {
         const COMMON: &[&str] = &["-nographic", "-semihosting-config", "enable=on,target=native"];
@@ -97,30 +101,12 @@ const FAULTS: Step = Step::cargo(
 );
 const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
 /// The Python cross-checks (docs/verification.md; their packages: [`PYTHON_PACKAGES`]).
-const PY_GEM_DOL: Step = Step {
-    name: "independent plant cross-check (gym-electric-motor + scipy)",
-    program: "python3",
-    pre_args: &[],
-    dir: "",
-    args: &["tools/gem_dol.py"],
-    env: &[],
-};
-const PY_GEM_SPEED: Step = Step {
-    name: "simulation speed: hil-sim vs gym-electric-motor, same run",
-    program: "python3",
-    pre_args: &[],
-    dir: "",
-    args: &["tools/gem_speed.py"],
-    env: &[],
-};
-const PY_CONTROL: Step = Step {
-    name: "design toolkit vs python-control, same work, same run",
-    program: "python3",
-    pre_args: &[],
-    dir: "",
-    args: &["tools/control_bench.py"],
-    env: &[],
-};
+const PY_GEM_DOL: Step =
+    Step::python("independent plant cross-check (gym-electric-motor + scipy)", &["tools/gem_dol.py"]);
+const PY_GEM_SPEED: Step =
+    Step::python("simulation speed: hil-sim vs gym-electric-motor, same run", &["tools/gem_speed.py"]);
+const PY_CONTROL: Step =
+    Step::python("design toolkit vs python-control, same work, same run", &["tools/control_bench.py"]);
 /// The versions the docs quote (docs/verification.md).
 const PYTHON_PACKAGES: [&str; 3] = ["gym-electric-motor==3.0.3", "scipy==1.17.1", "control==0.10.2"];
 const CORE_M4: Step =

@@ -353,8 +353,7 @@ impl DriveConfig {
                 (1.0 - libm::exp(-f64::from(spec.slow_divider) / (windows * open_phase_steps as f64))) as f32
             }),
             brake: BrakeLevels { on_v: brake_on_v, off_v: brake_off_v },
-            rest: RestLimits::new(p.rest_time_s, t_slow, spec.motor.pole_pairs(), spec.motor.tr_s())
-                .ok_or(DriveError::Protection { field: "protection.rest_time_s", need: POSITIVE })?,
+            rest: RestLimits::new(p.rest_time_s, t_slow, spec.motor.pole_pairs(), spec.motor.tr_s()),
         })
     }
 }

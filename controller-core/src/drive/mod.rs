@@ -542,7 +542,7 @@ impl Drive {
     /// (the firmware's capture and link stream) take it rarely.
     #[inline(never)]
     pub fn telemetry(&self) -> Telemetry {
-        if !matches!(self.mode, Mode::Magnetizing | Mode::Running) {
+        if !self.mode.is_active() {
             return Telemetry::default();
         }
         let rotating =

@@ -28,7 +28,7 @@ impl Drive {
     /// windowed current sum; a stuck switch while Running).
     pub fn slow_step(&mut self, m: &Measurements) {
         self.slow_loops(m);
-        if matches!(self.mode, Mode::Magnetizing | Mode::Running) && m.is_finite() {
+        if self.mode.is_active() && m.is_finite() {
             self.plan(m.omega_m_rad_s);
             self.check_phases(m.i_abc_a);
         }
@@ -44,11 +44,11 @@ impl Drive {
         let step_rad = self.read_encoder(m.theta_m_rad);
         self.machine.rest.update(&self.cfg.rest, step_rad);
         self.update_thermal(m.i_abc_a);
-        let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
+        let active = self.mode.is_active();
         if active && m.omega_m_rad_s.abs() > self.cfg.motion.overspeed_rad_s {
             self.trip(Fault::Overspeed);
         }
-        let active = matches!(self.mode, Mode::Magnetizing | Mode::Running);
+        let active = self.mode.is_active();
         if !active {
             self.machine.idle_slow_steps = self.machine.idle_slow_steps.saturating_add(1);
         }

@@ -33,16 +33,13 @@ raw_struct! {
 }
 
 impl RestLimits {
-    /// The levels of a window of `rest_time_s` on a slow period of `t_slow_s`, for a motor of
-    /// `pole_pairs` and rotor time constant `tr_s`; `None` for a window that is not finite
-    /// and positive.
-    pub(crate) fn new(rest_time_s: f64, t_slow_s: f64, pole_pairs: u8, tr_s: f64) -> Option<Self> {
-        if !(rest_time_s.is_finite() && rest_time_s > 0.0) {
-            return None;
-        }
+    /// The levels of a window of `rest_time_s` (finite and positive: `DriveConfig::new`
+    /// checks it first) on a slow period of `t_slow_s`, for a motor of `pole_pairs` and rotor
+    /// time constant `tr_s`.
+    pub(crate) fn new(rest_time_s: f64, t_slow_s: f64, pole_pairs: u8, tr_s: f64) -> Self {
         let steps = libm::ceil(rest_time_s / t_slow_s).clamp(1.0, 4e9);
         let rest_rad_s = REST_SPEED_TR / (f64::from(pole_pairs) * tr_s);
-        Some(Self { window_slow_steps: steps as u32, angle_rad: (rest_rad_s * steps * t_slow_s) as f32 })
+        Self { window_slow_steps: steps as u32, angle_rad: (rest_rad_s * steps * t_slow_s) as f32 }
     }
 }
 
