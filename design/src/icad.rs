@@ -226,7 +226,9 @@ pub fn closed_loop_abscissa_in(m: &MotorParams, law: &CurrentLaw, omega_r: f64, 
             a[(off + i, axis)] = -bk[(i, 0)];
         }
     }
-    a.complex_eigenvalues().iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max)
+    // Unknown eigenvalues (iterations that do not converge) are not proven stable: +∞.
+    crate::eig::eigenvalues(&a)
+        .map_or(f64::INFINITY, |e| e.iter().map(|z| z.re).fold(f64::NEG_INFINITY, f64::max))
 }
 
 /// Largest ω_r (searched up to `limit` in steps of `step`) such that the full loop is stable

@@ -10,6 +10,7 @@
 #![allow(clippy::indexing_slicing)]
 
 pub mod certify;
+pub mod eig;
 pub mod icad;
 pub mod im;
 pub mod kharitonov;

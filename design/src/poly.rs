@@ -70,11 +70,12 @@ impl Poly {
         Poly::new(&self.c.iter().map(|x| x * k).collect::<Vec<_>>())
     }
 
-    /// Roots (eigenvalues of the companion matrix). A degree-0 polynomial has none.
-    pub fn roots(&self) -> Vec<Complex64> {
+    /// Roots (eigenvalues of the companion matrix, [`crate::eig::eigenvalues`]). A degree-0
+    /// polynomial has none; `None` if the eigenvalue iterations do not converge.
+    pub fn roots(&self) -> Option<Vec<Complex64>> {
         let n = self.degree();
         if n == 0 {
-            return Vec::new();
+            return Some(Vec::new());
         }
         let lead = self.c.first().copied().unwrap_or(1.0);
         let mut m = DMatrix::<f64>::zeros(n, n);
@@ -84,12 +85,13 @@ impl Poly {
         for i in 1..n {
             m[(i, i - 1)] = 1.0;
         }
-        m.complex_eigenvalues().iter().copied().collect()
+        crate::eig::eigenvalues(&m)
     }
 
-    /// Largest real part of the roots (−∞ for constants): the stability abscissa.
+    /// Largest real part of the roots (−∞ for constants): the stability abscissa (+∞ when
+    /// the roots are unknown: not proven stable).
     pub fn max_real_root(&self) -> f64 {
-        self.roots().iter().map(|r| r.re).fold(f64::NEG_INFINITY, f64::max)
+        self.roots().map_or(f64::INFINITY, |r| r.iter().map(|r| r.re).fold(f64::NEG_INFINITY, f64::max))
     }
 
     /// `q(s) = p(s − σ)`: the roots move right by `σ`, so `q` is Hurwitz iff every root
@@ -162,7 +164,7 @@ pub fn segment_is_hurwitz(a: &Poly, b: &Poly) -> bool {
         return false; // a Hurwitz polynomial has a non-singular Hurwitz matrix
     };
     let scale = m.iter().fold(1.0_f64, |acc, x| acc.max(x.abs()));
-    !m.complex_eigenvalues().iter().any(|z| z.im.abs() <= 1e-9 * scale && z.re <= 0.0)
+    crate::eig::eigenvalues(&m).is_some_and(|e| !e.iter().any(|z| z.im.abs() <= 1e-9 * scale && z.re <= 0.0))
 }
 
 #[cfg(test)]
@@ -173,7 +175,7 @@ mod tests {
     fn roots_of_known_polynomials() {
         // (s + 1)(s + 2)(s² + 2s + 5): roots −1, −2, −1 ± 2j
         let p = Poly::new(&[1.0, 1.0]).mul(&Poly::new(&[1.0, 2.0])).mul(&Poly::new(&[1.0, 2.0, 5.0]));
-        let r = p.roots();
+        let r = p.roots().unwrap();
         assert_eq!(r.len(), 4);
         let want = [
             Complex64::new(-2.0, 0.0),
@@ -209,7 +211,7 @@ mod tests {
         for k in 1..=15 {
             p = p.mul(&Poly::new(&[1.0, f64::from(k)]));
         }
-        let r = p.roots();
+        let r = p.roots().unwrap();
         assert_eq!(r.len(), 15);
         for z in &r {
             // relative residual through the factored form

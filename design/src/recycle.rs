@@ -434,8 +434,13 @@ pub fn report(p: &RecycleProcess, decay: f64) -> Result<Report, String> {
         return Err(format!("decay must be a finite non-negative rate, got {decay}"));
     }
     let itae = p.itae();
-    let mut poles: Vec<[f64; 2]> =
-        p.unit1_characteristic(p.k_nominal, &itae).roots().iter().map(|z| [z.re, z.im]).collect();
+    let mut poles: Vec<[f64; 2]> = p
+        .unit1_characteristic(p.k_nominal, &itae)
+        .roots()
+        .ok_or("the ITAE loop's closed-loop poles did not converge")?
+        .iter()
+        .map(|z| [z.re, z.im])
+        .collect();
     poles.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     let table_i = TABLE_I
         .iter()
@@ -483,7 +488,7 @@ mod tests {
     fn itae_nominal_design() {
         let pi = p().itae();
         assert!((pi.k1 - 0.9041).abs() < 5e-5 && (pi.k2 - 0.7464).abs() < 5e-5, "{pi:?}");
-        let r = p().unit1_characteristic(2.0, &pi).roots();
+        let r = p().unit1_characteristic(2.0, &pi).roots().unwrap();
         let real = r.iter().find(|z| z.im.abs() < 1e-9).unwrap();
         let cplx = r.iter().find(|z| z.im > 0.0).unwrap();
         assert!((real.re + 0.8093).abs() < 5e-5, "{real}");

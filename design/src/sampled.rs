@@ -176,12 +176,12 @@ pub fn current_loop_matrix_in(
     mm
 }
 
-/// Largest eigenvalue magnitude of `m` (∞ if not finite).
+/// Largest eigenvalue magnitude of `m` (∞ if not finite or unknown: not proven stable).
 pub fn spectral_radius(m: &DMatrix<f64>) -> f64 {
     if !m.iter().all(|x| x.is_finite()) {
         return f64::INFINITY;
     }
-    m.complex_eigenvalues().iter().map(|z| z.norm()).fold(0.0, f64::max)
+    crate::eig::eigenvalues(m).map_or(f64::INFINITY, |e| e.iter().map(|z| z.norm()).fold(0.0, f64::max))
 }
 
 /// The worst spectral radius of the sampled current loop over `0…omega_r_max` in steps of

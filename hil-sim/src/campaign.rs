@@ -31,6 +31,7 @@
 //!   [`RIPPLE_WINDOW_S`] below [`RIPPLE_FRACTION`]·τ_max.
 
 use crate::inverter::InverterModel;
+use crate::rng::mix;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, LoadModel, Row, Scenario};
@@ -189,14 +190,6 @@ impl Verdict {
             self.failures.join(" ")
         )
     }
-}
-
-/// splitmix64 of `x`.
-fn mix(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
 }
 
 impl Campaign {

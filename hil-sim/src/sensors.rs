@@ -2,6 +2,7 @@
 //! quantisation), DC-bus measurement (quantisation) and an incremental encoder whose counts
 //! go through the same estimator the firmware uses ([`controller_core::encoder`]).
 
+use crate::rng::Rng;
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderReading, EncoderState};
 use controller_core::frames::Abc;
 use std::f64::consts::TAU;
@@ -87,29 +88,6 @@ impl SensorModel {
             current_noise_rms_a: r.current_noise_rms_a * k,
             ..r
         }
-    }
-}
-
-/// splitmix64: small, seeded, reproducible.
-#[derive(Clone, Copy, Debug)]
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in (0, 1].
-    fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 1.0) / (1u64 << 53) as f64
-    }
-    /// Standard normal (Box–Muller).
-    fn normal(&mut self) -> f64 {
-        let (u1, u2) = (self.uniform(), self.uniform());
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     }
 }
 
