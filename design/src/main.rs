@@ -258,9 +258,24 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
             l.num[0], l.num[1], l.num[2], l.den[0], l.den[1], l.den[2]
         )
     });
+    let template_frame = drive_file::DriveFile::parse(&a.template, &template)
+        .map(|f| f.spec.current_frame)
+        .map_err(|e| e.to_string())?;
+    let frame = |f: controller_core::drive::CurrentFrame| match f {
+        controller_core::drive::CurrentFrame::Stationary => "stationary",
+        controller_core::drive::CurrentFrame::Synchronous => "synchronous",
+    };
+    if t.spec.current_frame != template_frame {
+        report::outln!(
+            "current frame: {} (the template's {} frame passes with no crossover of the search)",
+            frame(t.spec.current_frame),
+            frame(template_frame)
+        );
+    }
     report::outln!(
-        "current loops: {} kp {:.4} V/A, ki {:.1} V/(A·s){lag} — crossover {:.0} rad/s on the nominal motor, \
+        "current loops: {} {} kp {:.4} V/A, ki {:.1} V/(A·s){lag} — crossover {:.0} rad/s on the nominal motor, \
          smallest margin {:.3}× its minimum over the box",
+        frame(t.spec.current_frame),
         if law.lag.is_some() { "ICAD" } else { "PI" },
         law.kp_v_per_a,
         law.ki_v_per_as,

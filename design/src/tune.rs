@@ -21,7 +21,10 @@
 //! `k_i = ω_c·(R_s + R_R)`, an integrator loop of crossover ω_c on the nominal motor. ω_c
 //! is the largest of a geometric search from 2π·f_pwm/5 down (ratio [`SEARCH_RATIO`]) for
 //! which every current check of the certificate passes on every corner of the box — the
-//! sampled ones (delay, ZOH, the f32 coefficients) bound it from above.
+//! sampled ones (delay, ZOH, the f32 coefficients) bound it from above. The search runs in
+//! the template's frame (`current_frame`), then, if nothing passes there, in the other: the
+//! field frame passes where the stationary frame's phase error at the top electrical speed
+//! fails (a 3 hp 220 V motor at 10 kHz, issue 49), and the file records the frame taken.
 //!
 //! **Speed loop**: saturated P (seed 002 eq. (21)), `k_p = J·ω_s`: the speed loop's
 //! crossover ω_s on the nominal inertia, at most ω_c/[`SPEED_BELOW_CURRENT`], and at most
@@ -430,25 +433,39 @@ pub fn tune(
     let bottom = top / 100.0;
     let omega_c = match structure.current {
         CurrentDesign::Pi => {
-            let mut omega_c = top;
+            // The template's frame first, then the other: a stationary-frame PI tracks the
+            // field's rotation only through its gain (its phase error grows with ω_e/ω_c), a
+            // field-frame PI sees constant currents but its decoupling error grows with ω_e
+            // times the PWM delay — which one passes depends on the motor and the PWM rate.
+            let law = |omega_c: f64| CurrentLaw {
+                kp_v_per_a: omega_c * sigma_ls,
+                ki_v_per_as: omega_c * r,
+                lag: None,
+            };
+            let first = spec.current_frame;
             let mut found = None;
-            while omega_c >= bottom {
-                spec.current_law =
-                    CurrentLaw { kp_v_per_a: omega_c * sigma_ls, ki_v_per_as: omega_c * r, lag: None };
-                if certify_current(&spec, &cert)?.iter().all(|c| c.pass) {
-                    found = Some(omega_c);
+            for frame in [first, other_frame(first)] {
+                spec.current_frame = frame;
+                let mut omega_c = top;
+                while omega_c >= bottom {
+                    spec.current_law = law(omega_c);
+                    if certify_current(&spec, &cert)?.iter().all(|c| c.pass) {
+                        found = Some(omega_c);
+                        break;
+                    }
+                    omega_c *= SEARCH_RATIO;
+                }
+                if found.is_some() {
                     break;
                 }
-                omega_c *= SEARCH_RATIO;
             }
             let omega_c = found.ok_or_else(|| {
                 format!(
                     "no current-loop crossover from {top:.0} down to {bottom:.0} rad/s passes the certificate on \
-                     every corner (the box or the PWM rate asks too much)"
+                     every corner in either frame (the box or the PWM rate asks too much)"
                 )
             })?;
-            spec.current_law =
-                CurrentLaw { kp_v_per_a: omega_c * sigma_ls, ki_v_per_as: omega_c * r, lag: None };
+            spec.current_law = law(omega_c);
             omega_c
         }
         CurrentDesign::Icad => {
@@ -610,6 +627,14 @@ fn icad_gain(
     Ok(kp)
 }
 
+/// The current loops' other frame.
+fn other_frame(f: CurrentFrame) -> CurrentFrame {
+    match f {
+        CurrentFrame::Stationary => CurrentFrame::Synchronous,
+        CurrentFrame::Synchronous => CurrentFrame::Stationary,
+    }
+}
+
 /// The template's tables with `[motor]`, the gains and `[certify]`'s box and writable
 /// ranges replaced (comments are not kept: the header says where the file came from).
 fn write(
@@ -649,6 +674,11 @@ fn write(
         current.insert("lag_den".into(), triple(lag.den));
     }
     controller.insert("current".into(), Value::Table(current));
+    let frame = match spec.current_frame {
+        CurrentFrame::Stationary => "stationary",
+        CurrentFrame::Synchronous => "synchronous",
+    };
+    controller.insert("current_frame".into(), Value::String(frame.into()));
     let mut speed = toml::Table::new();
     match spec.speed_law {
         SpeedLaw::SaturatedP { kp, tau_max_nm } => {
@@ -1080,6 +1110,31 @@ mod tests {
         let icad = Structure { current: CurrentDesign::Icad, ..Default::default() };
         let e = tune(Path::new("sync.toml"), &sync, &m, None, icad).unwrap_err();
         assert!(e.contains("synchronous") && e.contains("--current pi"), "{e}");
+    }
+
+    /// The frame is tune's choice (issue 49: it never tried the other one): the shipped
+    /// board at 10 kHz passes no stationary-frame crossover of the search on the DeLorenzo
+    /// motor — the stationary PI's phase error at the top electrical speed — and the
+    /// field-frame PI passes; the file records the frame taken.
+    #[test]
+    fn tune_takes_the_field_frame_when_the_stationary_frame_fails() {
+        let at_10k = TEMPLATE
+            .replace("frequency_hz = 20000.0", "frequency_hz = 10000.0")
+            .replace("slow_divider = 10", "slow_divider = 5");
+        assert_ne!(at_10k, TEMPLATE);
+        let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+        let t = tune(Path::new("10k.toml"), &at_10k, &m, None, Structure::default()).unwrap();
+        assert_eq!(t.spec.current_frame, CurrentFrame::Synchronous);
+        assert!(t.checks.iter().all(|c| c.pass));
+        let written = drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap();
+        assert_eq!(written.spec.current_frame, CurrentFrame::Synchronous);
+        // The same gains in the stationary frame fail the template's own box.
+        let mut spec = drive_file::DriveFile::parse(Path::new("10k.toml"), &at_10k).unwrap().spec;
+        spec.motor = m;
+        let cert = drive_file::DriveFile::parse(Path::new("10k.toml"), &at_10k).unwrap().certify.unwrap();
+        spec.current_law = t.spec.current_law;
+        assert_eq!(spec.current_frame, CurrentFrame::Stationary);
+        assert!(!certify_current(&spec, &cert).unwrap().iter().all(|c| c.pass));
     }
 
     #[test]

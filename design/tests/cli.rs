@@ -367,7 +367,10 @@ fn tune_writes_a_certified_drive_file_or_nothing() {
     let (code, stdout, err) =
         run(&["tune", "--motor", "delorenzo-perturbed", "--template", template, "--out", out_s]);
     assert_eq!(code, Some(0), "{err}");
-    assert!(stdout.contains("current loops: PI") && stdout.contains("certified: 67 checks pass"), "{stdout}");
+    assert!(
+        stdout.contains("current loops: stationary PI") && stdout.contains("certified: 67 checks pass"),
+        "{stdout}"
+    );
     let (code, stdout, _) = run(&["certify", out_s]);
     assert_eq!(code, Some(0), "{stdout}");
     let refused = dir.join("refused.toml");

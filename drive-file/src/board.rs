@@ -216,6 +216,59 @@ impl BoardTable {
         )
     }
 
+    /// The board's ratings against the rest of the file (each accepted silently until issue
+    /// 49): a level the drive trips at must be one its channel can read, the comparator must
+    /// leave the current limit's torque, and the inverter must carry the motor's rated
+    /// current. The error names both keys.
+    fn validate_against_drive(&self, src: &Source<'_>, spec: &DriveSpec) -> Result<(), FileError> {
+        let p = &spec.protection;
+        let full_scale = f64::from(self.adc_full_scale);
+        let vdc_read_v = full_scale * self.vdc_v_per_count;
+        src.check(
+            vdc_read_v > p.vdc_max_v,
+            "board.vdc_v_per_count",
+            &format!(
+                "the bus channel reads at most {vdc_read_v} V (adc_full_scale × vdc_v_per_count), not above \
+                 protection.vdc_max_v = {} V: the overvoltage trip could never see its level",
+                p.vdc_max_v
+            ),
+        )?;
+        let offset = f64::from(self.current_offset_counts);
+        let current_read_a = offset.min(full_scale - offset) * self.current_a_per_count;
+        src.check(
+            current_read_a > p.i_trip_a,
+            "board.current_a_per_count",
+            &format!(
+                "the current channels read ±{current_read_a} A (the offset's distance to the ADC's ends × \
+                 current_a_per_count), not above protection.i_trip_a = {} A: the trip could never see its level",
+                p.i_trip_a
+            ),
+        )?;
+        if let Some(c) = self.comparator {
+            src.check(
+                c.trip_a > spec.i_ref_max_a,
+                "board.comparator",
+                &format!(
+                    "trip_a = {} A is not above controller.i_ref_max_a = {} A: the hardware comparator would trip \
+                     on the drive's own current limit",
+                    c.trip_a, spec.i_ref_max_a
+                ),
+            )?;
+        }
+        if let (Some(inverter), Some(motor)) = (self.inverter_rated_current_a, p.motor_thermal) {
+            src.check(
+                inverter >= motor.rated_current_a,
+                "board.inverter_rated_current_a",
+                &format!(
+                    "{inverter} A is below motor.rated_current_a = {} A: the inverter's I²t would trip at the \
+                     motor's continuous duty (a smaller motor, or a larger inverter)",
+                    motor.rated_current_a
+                ),
+            )?;
+        }
+        Ok(())
+    }
+
     /// Validate against the drive; errors point at the value.
     pub fn validate(&self, src: &Source<'_>, spec: &DriveSpec) -> Result<Board, FileError> {
         src.check(self.tim_clock_hz > 0, "board.tim_clock_hz", "must be > 0")?;
@@ -281,6 +334,7 @@ impl BoardTable {
                 "must lie in [0.02, 3600] s (the link task wakes every 10 ms)",
             )?;
         }
+        self.validate_against_drive(src, spec)?;
         let precharge = self.bootstrap_precharge_s.unwrap_or(DEFAULT_BOOTSTRAP_PRECHARGE_S);
         src.check(
             precharge.is_finite() && (0.0..=BOOTSTRAP_PRECHARGE_MAX_S).contains(&precharge),

@@ -366,7 +366,8 @@ mod tests {
         let shipped = DriveFile::parse(Path::new("d.toml"), SHIPPED).unwrap().spec.protection;
         for (k, name) in Protection::THRESHOLDS.iter().enumerate() {
             let mut expected = shipped.thresholds();
-            let v = expected[k] * 1.5;
+            // × 1.5, but the bus trip × 1.02: the board's bus channel reads 409.5 V at most.
+            let v = expected[k] * if *name == "vdc_max_v" { 1.02 } else { 1.5 };
             expected[k] = v;
             let t = if SHIPPED.contains(&format!("\n{name} = ")) {
                 SHIPPED.replace(&format!("\n{name} = "), &format!("\n{name} = {v:?}\n# was: "))
@@ -378,8 +379,9 @@ mod tests {
                 // follows i_trip_a): only the one set is compared for them.
                 Ok(f) if k < 3 => assert_eq!(f.spec.protection.thresholds()[k], v, "{name}"),
                 Ok(f) => assert_eq!(f.spec.protection.thresholds(), expected, "{name}"),
-                // Some are judged against the others (i_trip_a × 1.5 is fine; a bus minimum
-                // × 1.5 = 300 V is still below 400 V): none here is refused.
+                // Some are judged against the others (i_trip_a × 1.5 is within the current
+                // channels' ±16.5 A; a bus minimum × 1.5 = 300 V is still below 400 V): none
+                // here is refused.
                 Err(e) => panic!("{name} = {v}: {e}"),
             }
         }
@@ -393,6 +395,45 @@ mod tests {
         assert!(e.to_string().contains("`stall_time_s`"), "{e}");
         let e = err(&SHIPPED.replace("i_trip_a = 8.0", ""));
         assert!(e.to_string().contains("missing field `i_trip_a`"), "{e}");
+    }
+
+    /// The board against the rest of the file (issue 49: each was accepted silently): the
+    /// error names the board's key and the one it contradicts, at the board's line.
+    #[test]
+    fn board_ratings_that_contradict_the_drive_are_refused_naming_both_keys() {
+        let cases = [
+            // 4095 × 0.09 = 368.6 V read, against a 400 V trip.
+            (
+                "vdc_v_per_count = 0.1 ",
+                "vdc_v_per_count = 0.09 ",
+                "board.vdc_v_per_count",
+                "protection.vdc_max_v",
+            ),
+            // ±2048 × 0.0039 = ±7.99 A read, against an 8 A trip.
+            (
+                "current_a_per_count = 0.008056640625",
+                "current_a_per_count = 0.0039",
+                "board.current_a_per_count",
+                "protection.i_trip_a",
+            ),
+            // A comparator at the current limit.
+            ("trip_a = 12.0", "trip_a = 4.0", "board.comparator", "controller.i_ref_max_a"),
+            // An inverter rated below the motor's 0.88 A.
+            (
+                "inverter_rated_current_a = 4.0",
+                "inverter_rated_current_a = 0.8",
+                "board.inverter_rated_current_a",
+                "motor.rated_current_a",
+            ),
+        ];
+        for (from, to, key, other) in cases {
+            let text = SHIPPED.replace(from, to);
+            assert_ne!(text, SHIPPED, "{from}");
+            let e = err(&text);
+            assert_eq!(e.key.as_deref(), Some(key), "{e}");
+            assert!(e.to_string().contains(other), "{e}");
+            assert_eq!(e.at.map(|(line, _)| line), Some(pos(&text, to).0), "{e}");
+        }
     }
 
     /// Dead-time compensation takes the board's dead time, and needs a board.

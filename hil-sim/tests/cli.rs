@@ -276,7 +276,10 @@ fn closed_loop_trace_has_mode_fault_duties_bus_and_flux() {
     std::fs::write(&file, text).unwrap();
     let out = dir.join("out");
     let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    // A run that ends in a fault fails like a test, its outputs written (issue 49).
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{err}");
+    assert!(err.contains("the drive ended in Fault(DcBusUndervoltage), latched at 0.4"), "{err}");
     let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
     let mut lines = trace.lines();
     assert!(
@@ -796,7 +799,11 @@ fn a_machine_too_stiff_for_the_step_is_refused_with_the_substeps_it_needs() {
     assert!(!out.exists());
     std::fs::write(&file, format!("rk4_substeps = 3\n{stiff}")).unwrap();
     let st = bin().args(["run"]).arg(&file).arg("--out").arg(&out).output().unwrap();
-    assert_eq!(st.status.code(), Some(0), "{}", String::from_utf8_lossy(&st.stderr));
+    // It runs to its end; a 10 kΩ stator makes no torque, so the drive stalls — a run that
+    // ends in a fault fails like a test, its outputs written (issue 49).
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{err}");
+    assert!(err.contains("the drive ended in Fault(Stall)") && out.join("trace.csv").is_file(), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -945,7 +952,9 @@ fn a_bus_outside_the_drives_range_is_said() {
     std::fs::write(&scenario, text(310.0)).unwrap();
     let st = bin().args(["run"]).arg(&scenario).arg("--out").arg(dir.join("out")).output().unwrap();
     let err = String::from_utf8_lossy(&st.stderr);
-    assert!(st.status.success(), "{err}");
+    // It trips, and now fails like a test (issue 49).
+    assert_eq!(st.status.code(), Some(1), "{err}");
+    assert!(err.contains("the drive ended in Fault(DcBusUndervoltage)"), "{err}");
     assert!(
         err.contains("the scenario's bus, 310 V, lies outside the drive's range (2800 … 3800 V)"),
         "{err}"

@@ -452,7 +452,8 @@ mod tests {
             let m = draw(1, i, None).unwrap();
             let text = m.template().unwrap();
             let path = std::path::Path::new("member.toml");
-            let file = drive_file::DriveFile::parse(path, &text).unwrap_or_else(|e| panic!("{}: {e}\n{text}", m.name));
+            let file = drive_file::DriveFile::parse(path, &text)
+                .unwrap_or_else(|e| panic!("{}: {e}\n{text}", m.name));
             assert_eq!(file.spec.motor, m.motor);
             let (n, b) = (m.nameplate.unwrap(), m.board.unwrap());
             assert!((POWER_RANGE_W[0]..=POWER_RANGE_W[1]).contains(&n.power_w));
@@ -487,8 +488,12 @@ mod tests {
         for p in 1..=4 {
             assert!(plates.iter().any(|n| n.pole_pairs == p), "{p} pole pairs");
         }
-        assert!(all.iter().any(|m| m.name.ends_with("-load")) && all.iter().any(|m| !m.name.ends_with("-load")));
-        assert!(boards.iter().any(|b| b.dead_time_s < 0.4e-6) && boards.iter().any(|b| b.dead_time_s > 2.5e-6));
+        assert!(
+            all.iter().any(|m| m.name.ends_with("-load")) && all.iter().any(|m| !m.name.ends_with("-load"))
+        );
+        assert!(
+            boards.iter().any(|b| b.dead_time_s < 0.4e-6) && boards.iter().any(|b| b.dead_time_s > 2.5e-6)
+        );
         assert!(boards.iter().any(|b| b.pwm_hz < 5e3) && boards.iter().any(|b| b.pwm_hz > 16e3));
     }
 }

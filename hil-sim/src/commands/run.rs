@@ -42,11 +42,24 @@ pub fn run_or_pil(builtins: &[Builtin], args: &RunOptions, pil: Option<PilOption
 }
 
 /// A closed-loop scenario (a built-in, or a scenario file's) into `out`, the drive in this
-/// process or (`pil`) on QEMU.
+/// process or (`pil`) on QEMU. Like a test, it fails (`Err`, after the trace, the summary
+/// and the plots are written) when the drive ends in a fault; the summary records the fault
+/// and when it latched (`fault`, `fault_time_s`).
 pub fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<(), String> {
     let rows = b.scenario.duration_s * b.spec.pwm_frequency_hz / f64::from(b.scenario.trace_every.max(1));
     let wall = std::time::Instant::now();
+    let mut latched: Option<(f64, controller_core::fault::Fault)> = None;
     let ((mode, link), trace) = stream_trace(out, true, rows, &INTERRUPTED, |sink| {
+        // Every period passes here (the trace keeps every `trace_every`-th): the first
+        // faulted one is when the fault latched.
+        let latched = &mut latched;
+        let mut sink = |r: &crate::sim::Row| {
+            if let (None, Some(controller_core::fault::Mode::Fault(f))) = (*latched, r.mode) {
+                *latched = Some((r.t_s, f));
+            }
+            sink(r)
+        };
+        let sink = &mut sink;
         eprintln!("hil-sim: {} — {}", b.name, b.about);
         // Not refused (a scenario may mean to trip), but said: found by trying a 310 V
         // scenario on the 3 300 V template, which tripped at once and exited 0.
@@ -79,6 +92,8 @@ pub fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<
             "final_omega_ref_rad_s": last.omega_ref_rad_s,
             "peak_stator_current_a": peak,
             "drive_mode": mode,
+            "fault": latched.map(|(_, f)| format!("{f:?}")),
+            "fault_time_s": latched.map(|(t, _)| t),
             "rk4_substeps_per_pwm_period": b.scenario.substeps,
             "wall_time_s": secs,
             "real_time_factor": b.scenario.duration_s / secs,
@@ -91,7 +106,14 @@ pub fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<
             obj.insert("pinned_to_one_cpu".into(), link.pinned().into());
         }
         summary
-    })
+    })?;
+    match latched {
+        Some((t, f)) => Err(format!(
+            "the drive ended in Fault({f:?}), latched at {t:.4} s (trace, summary and plots written in {})",
+            out.display()
+        )),
+        None => Ok(()),
+    }
 }
 
 /// A scenario file into `out`: a closed-loop one through [`run_builtin`], an open-loop one
@@ -163,6 +185,41 @@ mod tests {
         for svg in ["speed.svg", "currents.svg", "torque.svg"] {
             assert!(out.join(svg).is_file(), "{svg}");
         }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A run that ends in a fault fails like a test (it exited 0: issue 49), after writing
+    /// its outputs; the summary says which fault and when. Here the bus sits below the
+    /// drive's undervoltage trip, so the drive trips in its first active period.
+    #[test]
+    fn a_run_that_ends_in_a_fault_fails_and_says_when() {
+        let mut b = crate::scenario::speed_step().unwrap();
+        b.scenario.duration_s = 0.05;
+        b.scenario.vdc_v = 0.5 * b.spec.protection.vdc_min_v;
+        let dir = tmp("faulted");
+        let out = dir.join("speed-step");
+        let e = run_builtin(&b, &out, None).unwrap_err();
+        assert!(e.contains("Fault(DcBusUndervoltage)"), "{e}");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(summary["fault"], "DcBusUndervoltage");
+        let t = summary["fault_time_s"].as_f64().unwrap();
+        assert!((0.0..0.05).contains(&t), "{t}");
+        assert!(out.join("speed.svg").is_file());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A healthy run's summary has no fault.
+    #[test]
+    fn a_healthy_run_records_no_fault() {
+        let mut b = crate::scenario::speed_step().unwrap();
+        b.scenario.duration_s = 0.02;
+        let dir = tmp("healthy");
+        let out = dir.join("speed-step");
+        run_builtin(&b, &out, None).unwrap();
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        assert!(summary["fault"].is_null() && summary["fault_time_s"].is_null(), "{summary}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 
