@@ -492,14 +492,39 @@ pub const FIELD_WEAKENING_RANGE: f64 = 2.0;
 /// small torque limit.
 pub const DEFAULT_STALL_TIME_S: f64 = 0.3;
 
-/// Default speed-following-error window, s. A load beyond the drive (the rotor dragged away
-/// from its reference) is to be named within issue 18's bound for a stall, 0.5 s, and the
-/// window only starts when the speed loop saturates — on the shipped saturated-P law at
-/// 40 rad/s of error, 0.2 s after a 1.5 × τ_max overload at 200 rad/s²: so 0.2 s. It needs
-/// to be long only against the speed measurement's noise: the progress it owes, a tenth of
-/// `τ_cmd·T/J` (`controller_core::drive::FOLLOWING_PROGRESS_FRACTION`), is 8 rad/s at the
-/// shipped drive's 2 N·m, against an encoder speed resolved to a fraction of a rad/s.
-pub const DEFAULT_FOLLOWING_TIME_S: f64 = 0.2;
+/// Default speed-following-error window, s: the shortest in which the check can judge —
+/// the progress it owes at the speed loop's torque limit, `f·τ_max·T/J` (f =
+/// `controller_core::drive::FOLLOWING_PROGRESS_FRACTION`), reaches
+/// [`FOLLOWING_SPEED_QUANTA`] of the encoder speed's resolution `Δω_q = 2π/(4·lines)/(n·T_slow)`
+/// (one count over the estimate's window of n = `SPEED_WINDOW_READS` reads), and at least
+/// that window: `T = max(Q·Δω_q·J/(f·τ_max), n·T_slow)`.
+///
+/// Short, because the check must speak before the load drags the rotor to the bridge's
+/// voltage limit, where the currents collapse and other checks (loss of control, a switch,
+/// the encoder against the model) would name the wrong fault: a 1.5 × τ_max overload drags
+/// a rotor at `0.5·τ_max/J`, through its base speed in `2·J·ω_b/τ_max`. It was a fixed 0.2 s,
+/// fitted to the shipped motor (J·ω_b/τ_max ≈ 1.5 s there); an 895 W 4-pole motor of the
+/// population (issue 49) has 0.08 s and its overload rows named `SwitchOpen`. Shipped drive:
+/// 10·0.3835·0.005/(0.1·2) = 0.096 s.
+pub fn default_following_time_s(
+    motor: &controller_core::motor::MotorParams,
+    speed_limit_nm: f64,
+    encoder_lines: u32,
+    slow_period_s: f64,
+) -> f64 {
+    let reads = controller_core::encoder::SPEED_WINDOW_READS as f64;
+    let window_s = reads * slow_period_s;
+    let quantum_rad_s = core::f64::consts::TAU / (4.0 * f64::from(encoder_lines.max(1))) / window_s;
+    let owed_rad_s2 =
+        controller_core::supervisor::motion::FOLLOWING_PROGRESS_FRACTION * speed_limit_nm / motor.j_kgm2();
+    let t = FOLLOWING_SPEED_QUANTA * quantum_rad_s / owed_rad_s2;
+    if t.is_finite() { t.max(window_s) } else { window_s }
+}
+
+/// See [`default_following_time_s`]: the progress owed over the window, in counts of the
+/// encoder speed's resolution — far above the estimate's ±1-count quantisation and the
+/// sensors' edge chatter.
+pub const FOLLOWING_SPEED_QUANTA: f64 = 10.0;
 
 /// Default loss-of-control time, s: long against the current loops' settling, so a transient
 /// at the voltage limit (a large current step at speed) passes, and short enough that a loop
@@ -575,6 +600,9 @@ pub struct DefaultsBasis {
     pub flux_ref_wb: f64,
     /// Largest current reference, A.
     pub i_ref_max_a: f64,
+    /// The speed loop's torque limit, N·m (an i_q law's limit as torque at the flux
+    /// reference).
+    pub speed_limit_nm: f64,
     /// Encoder lines per revolution.
     pub encoder_lines: u32,
     /// Slow-loop (encoder read) period, s.
@@ -620,7 +648,12 @@ pub fn protection_with_defaults(
         vdc_max_v,
         overspeed_rad_s: default_overspeed_rad_s(motor, flux_ref_wb, vdc_max_v),
         stall_time_s: DEFAULT_STALL_TIME_S,
-        following_time_s: DEFAULT_FOLLOWING_TIME_S,
+        following_time_s: default_following_time_s(
+            motor,
+            basis.speed_limit_nm,
+            basis.encoder_lines,
+            basis.slow_period_s,
+        ),
         current_sum_max_a: default_current_sum_a(i_trip_a, basis.current_lsb_a),
         saturation_time_s: DEFAULT_SATURATION_TIME_S,
         encoder_check_time_s: DEFAULT_ENCODER_CHECK_TIME_S,
@@ -893,6 +926,11 @@ pub fn drive_spec(
             let basis = DefaultsBasis {
                 flux_ref_wb: c.flux_ref_wb,
                 i_ref_max_a: c.i_ref_max_a,
+                speed_limit_nm: match speed_law {
+                    SpeedLaw::SaturatedP { tau_max_nm, .. } => tau_max_nm,
+                    SpeedLaw::PiTorque { limit, .. } => limit,
+                    SpeedLaw::PiIq { limit, .. } => motor.torque_factor() * c.flux_ref_wb * limit,
+                },
                 encoder_lines: board.encoder_lines,
                 slow_period_s: f64::from(pwm.slow_divider) / pwm.frequency_hz,
                 motor_thermal: default_motor_thermal(

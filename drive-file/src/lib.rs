@@ -302,7 +302,16 @@ mod tests {
         // 1.2 · 2 · (400 V/√3) / (0.9 Wb · 1.44/1.42) / 1: 20 % beyond a 2:1 field-weakening
         // range above the no-load base speed on the highest bus.
         assert!((p.overspeed_rad_s - 607.286).abs() < 1e-3, "{}", p.overspeed_rad_s);
-        assert_eq!((p.stall_time_s, p.following_time_s, p.current_sum_max_a), (0.3, 0.2, 0.4));
+        assert_eq!((p.stall_time_s, p.current_sum_max_a), (0.3, 0.4));
+        // The following window (drive::default_following_time_s): 10 counts of the encoder
+        // speed's resolution (2π/4096 over 8 reads of 0.5 ms: 0.3835 rad/s) owed at a tenth
+        // of τ_max/J = 2/0.005: 10·0.3835·0.005/(0.1·2) = 0.0959 s — and a lighter rotor, a
+        // shorter window, down to the estimate's own 4 ms.
+        assert!((p.following_time_s - 0.09587).abs() < 1e-4, "{}", p.following_time_s);
+        let light = SHIPPED.replace("j_kgm2 = 0.005", "j_kgm2 = 0.0001");
+        assert_ne!(light, SHIPPED);
+        let t = DriveFile::parse(Path::new("d.toml"), &light).unwrap().spec.protection.following_time_s;
+        assert!((t - 0.004).abs() < 1e-12, "{t}");
         // The current-sum limit: 5 % of the 8 A trip level on the shipped board (20 of its
         // 8.06 mA counts are 0.16 A); on a 100 A front end (48.8 mA counts) 20 counts, 0.98 A.
         let coarse =

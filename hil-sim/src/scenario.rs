@@ -265,6 +265,13 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     b.spec.protection.motor_thermal = None;
     b.spec.protection.inverter_thermal = None;
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
+    // The following window follows the torque limit (drive_file's default rule).
+    b.spec.protection.following_time_s = drive_file::drive::default_following_time_s(
+        &b.spec.motor,
+        0.4,
+        drive_file::drive::DEFAULT_ENCODER_LINES,
+        f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz,
+    );
     // The paper's loops alone: the current trim would correct the stationary loops' tracking
     // error at ω_e — the very error this figure compares (the PI's reaches 366 rad/s with it).
     b.spec.current_trim_bandwidth_rad_s = 0.0;
@@ -323,6 +330,11 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     let basis = drive_file::drive::DefaultsBasis {
         flux_ref_wb: 4.5,
         i_ref_max_a: 260.0,
+        speed_limit_nm: match b.spec.speed_law {
+            SpeedLaw::SaturatedP { tau_max_nm, .. } => tau_max_nm,
+            SpeedLaw::PiTorque { limit, .. } => limit,
+            SpeedLaw::PiIq { limit, .. } => motor.torque_factor() * 4.5 * limit,
+        },
         encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
         slow_period_s: f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz,
         // The 500 hp machine's thermal data are not in the paper.

@@ -37,7 +37,7 @@
 //! breakdown torque of [`BREAKDOWN_MIN`]…[`BREAKDOWN_MAX`] × rated (IEC 60034-12 design
 //! N asks ≥ 1.6; general-purpose machines reach 2–3.5) and a power factor of
 //! [`POWER_FACTOR_RANGE`]: what any real machine of that size satisfies. A draw outside is
-//! drawn again (how often is counted: [`crate::member::Sample::redraws`]).
+//! drawn again (how often is counted: `redraws` of [`crate::member::Origin::Drawn`]).
 
 use num_complex::Complex64;
 use std::f64::consts::{PI, SQRT_2};

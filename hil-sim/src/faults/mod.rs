@@ -521,7 +521,13 @@ impl Matrix {
                 Expect::Either { faults: &[Fault::FollowingError, Fault::Overspeed], bound_s: STALL_BOUND_S }
             }
             Injection::LoadSeizure { .. } if rest => Expect::RideThrough,
-            Injection::LoadSeizure { .. } => Expect::Fault { fault: Fault::Stall, bound_s: STALL_BOUND_S },
+            // At speed, a seizure first decelerates the rotor against the drive's full torque:
+            // until it stops, that is a load beyond the drive dragging the speed against the
+            // torque — the following-error check's — and once stopped, a stall. The following
+            // window derived from the mechanics (issue 49) names the first on a light rotor.
+            Injection::LoadSeizure { .. } => {
+                Expect::Either { faults: &[Fault::Stall, Fault::FollowingError], bound_s: STALL_BOUND_S }
+            }
         }
     }
 
