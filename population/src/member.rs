@@ -338,21 +338,17 @@ impl Member {
             b.dead_time_s * 1e6
         );
         let _ = writeln!(t, "\n[pwm]\nfrequency_hz = {:?}\nslow_divider = {divider}", b.pwm_hz);
-        let _ = writeln!(
-            t,
-            "\n[motor]\nrs_ohm = {:?}\nrr_ohm = {:?}\nls_h = {:?}\nlr_h = {:?}\nlm_h = {:?}\npole_pairs = {}\n\
-             j_kgm2 = {:?}\nb_nms = {:?}\nrated_current_a = {:?}\nthermal_time_constant_s = {:?}",
-            m.rs_ohm(),
-            m.rr_ohm(),
-            m.ls_h(),
-            m.lr_h(),
-            m.lm_h(),
-            m.pole_pairs(),
-            m.j_kgm2(),
-            m.b_nms(),
-            plate.current_a,
-            self.thermal_time_constant_s
-        );
+        // The motor as drive-file writes motor files (drive_file::motor::MotorTable).
+        #[derive(serde::Serialize)]
+        struct MotorFile {
+            motor: drive_file::motor::MotorTable,
+        }
+        let motor = drive_file::motor::MotorTable {
+            rated_current_a: Some(plate.current_a),
+            thermal_time_constant_s: Some(self.thermal_time_constant_s),
+            ..drive_file::motor::MotorTable::from_params(m)
+        };
+        let _ = writeln!(t, "\n{}", toml::to_string(&MotorFile { motor }).ok()?.trim_end());
         let _ = writeln!(
             t,
             "\n[controller]\ncurrent = {{ kind = \"pi\", kp = {:?}, ki = {:?} }}\ncurrent_frame = \"stationary\"\n\
