@@ -181,6 +181,10 @@ fn judge(
     cancel: &AtomicBool,
     report: &mut Report,
 ) -> Result<Verdict, String> {
+    // Ctrl-C: the members not yet started are not tuned (tune itself cannot be stopped).
+    if cancel.load(std::sync::atomic::Ordering::Relaxed) {
+        return Err("interrupted".into());
+    }
     let (path, text, vdc) = inputs(member, pwm_hz, root)?;
     report.vdc_v = vdc;
     let path = Path::new(&path);
