@@ -267,7 +267,7 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
     };
     if t.spec.current_frame != template_frame {
         report::outln!(
-            "current frame: {} (the template's {} frame passes with no crossover of the search)",
+            "current frame: {} (the template's {} frame passes no crossover of the search as fast)",
             frame(t.spec.current_frame),
             frame(template_frame)
         );
