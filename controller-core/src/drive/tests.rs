@@ -611,6 +611,37 @@ fn the_following_check_owes_nothing_at_zero_torque() {
     assert_eq!(run(-0.0, fast), Mode::Running);
 }
 
+/// Within a window, a drag beyond what is owed so far plus a whole window's owing at the
+/// limit trips at once: a seizure (10 × τ_max against τ_max: 9·τ_max/J) at speed is named
+/// within a few slow steps, not a window later — on a heavy rotor the window outlasted
+/// the seizure's stop, and the stall check's own time came on top (6.7 kW 8-pole member
+/// with a coupled load, issue 49: 507 ms against the matrix's 500). A drag of twice the
+/// owing rate stays quiet until its excess reaches the margin, half a window in.
+#[test]
+fn a_seizure_at_speed_is_named_while_it_drags() {
+    let first_trip = |decel_rad_s_per_step: f32| {
+        let mut d = running_drive();
+        d.reference = Reference::Speed(300.0);
+        d.run.speed_saturated = true;
+        d.run.torque_cmd = TorqueCommand::TorqueNm(d.cfg.motion.speed_limit);
+        (0..=d.cfg.motion.following_slow_steps).find(|&k| {
+            d.check_following(true, 250.0 - decel_rad_s_per_step * k as f32);
+            d.mode() == Mode::Fault(Fault::FollowingError)
+        })
+    };
+    let limit = running_drive().cfg.motion.speed_limit;
+    let steps = running_drive().cfg.motion.following_slow_steps;
+    let seizure = 9.0 * limit / 0.005 * 5e-4;
+    let k = first_trip(seizure).unwrap();
+    assert!(k <= steps / 20, "tripped at slow step {k} of a {steps}-step window");
+    // Owed per step at the limit: f·τ_max·T_slow/J; a drag at twice that rate (3.1·τ_max
+    // of load) exceeds owed + margin once k·f·τ·T/J > N·f·τ·T/J: at step N, the window's
+    // end — the window's own verdict.
+    let owing = crate::supervisor::motion::FOLLOWING_PROGRESS_FRACTION as f32 * limit / 0.005 * 5e-4;
+    let k = first_trip(2.0 * owing + 1e-4).unwrap();
+    assert!(k + 2 >= steps, "a slow drag tripped at step {k} of {steps}");
+}
+
 /// Wiring check of the whole fast path (Clarke → IFOC → current loops → SVPWM → duty →
 /// volts), in both current-loop frames: on an R-L load the d-current settles at
 /// ψ_r*/L_m, the flux model reaches the running threshold, and the drive moves to

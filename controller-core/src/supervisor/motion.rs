@@ -88,7 +88,9 @@ impl MotionChecks {
     /// output is a torque. While the speed loop is at its limit (a rotor at rest pauses the
     /// window: that is the stall check's; one passing through zero, dragged backwards, keeps
     /// it), windows of `following_time_s`; a window in which the speed moved against the
-    /// torque by more than it owes trips, any other starts the next. Owed, with `f` =
+    /// torque by more than it owes trips, any other starts the next — and within a window, a
+    /// drag beyond what it owes so far plus a whole window's owing at the limit trips at
+    /// once (a seizure at speed). Owed, with `f` =
     /// [`FOLLOWING_PROGRESS_FRACTION`] and J the drive's inertia: generating (a load driving
     /// the motor against the brake: a runaway), `f·Σ τ_cmd·T_slow/J` — a load beyond
     /// `(1 + f)·τ_cmd`; motoring, `Σ ((1 + f)·τ_max − |τ_cmd|)·T_slow/J` — a load beyond
@@ -131,12 +133,20 @@ impl MotionChecks {
             limits.following_gain * (1.0 / f) * beyond * torque_nm.signum()
         };
         self.following_steps += 1;
-        let mut dragged = false;
+        let owed = self.following_owed_rad_s;
+        let moved = omega_m_rad_s - self.following_w0_rad_s;
+        let against = -moved * owed.signum();
+        // Dragged at once: against the torque by more than what is owed so far plus a whole
+        // window's progress at the limit — the margin the window's length was chosen for
+        // (`f·τ_max·T_window/J`: the encoder speed's quanta the default window holds), so a
+        // seizure at speed (a load ten times the torque: the rotor stops within a window on a
+        // heavy rotor, and the stall check then needed its own time on top) is named while it
+        // drags, not a window later.
+        let margin = limits.following_gain * limits.speed_limit * limits.following_slow_steps as f32;
+        let mut dragged = owed != 0.0 && against > owed.abs() + margin;
         if self.following_steps >= limits.following_slow_steps {
-            let owed = self.following_owed_rad_s;
-            let moved = omega_m_rad_s - self.following_w0_rad_s;
             // Dragged against the torque by more than the margin.
-            dragged = owed != 0.0 && moved * owed.signum() < -owed.abs();
+            dragged |= owed != 0.0 && against > owed.abs();
             self.following_steps = 0;
         }
         dragged
