@@ -1,7 +1,7 @@
 //! Issue 18's fault-injection matrix (`hil_sim::faults`, `hil-sim faults`): single rows with
 //! their measured quantities, and the judge failing what it must fail. The whole matrix runs
 //! in `cargo xtask ci` (release: 114 rows in ≈ 0.9 s).
-#![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+#![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
 
 use controller_core::drive::{Fault, Mode};
 use hil_sim::faults::{Case, Expect, Matrix, OperatingPoint, Point};
@@ -545,4 +545,54 @@ fn the_tuned_3300_v_drive_reaches_its_top_speed_points() {
         eprintln!("{}: {} at {:.1} rad/s", at.name(), o.seen(), o.speed_at_injection_rad_s);
         assert!(o.passed(), "{}: {:?}", at.name(), o.failures);
     }
+}
+
+/// An open lead at rest may be named `NoMotorCurrent`: the vector stands where the hold left
+/// it, and along the open phase's axis the other two phases are asked equal currents, which
+/// the open lead holds at zero between them (a 270 W 34 V member of the population, issue
+/// 49). At speed the vector turns through every phase: `OpenPhase` only.
+#[test]
+fn an_open_lead_at_rest_may_be_named_no_motor_current() {
+    let m = shipped();
+    let c = case(&m, "open phase");
+    for motoring in [true, false] {
+        let rest = m.expect(&c, &point(&m, Point::Standstill, motoring));
+        assert!(
+            matches!(rest, Expect::Either { faults, .. } if faults == [Fault::OpenPhase, Fault::NoMotorCurrent]),
+            "{rest:?}"
+        );
+        for p in [Point::Mid, Point::Top] {
+            let e = m.expect(&c, &point(&m, p, motoring));
+            assert!(matches!(e, Expect::Fault { fault: Fault::OpenPhase, .. }), "{e:?}");
+        }
+    }
+}
+
+/// A stuck switch's bound runs from its direction's peak: 50 ms plus a quarter of the
+/// field's period, measured on the reference vector before the injection. At mid-speed
+/// (81 rad/s, one pole pair: ω_e ≈ 81 rad/s plus the slip) that adds 19 ms or less; at
+/// rest, where the field turns at the slip frequency only, at most
+/// `SWITCH_QUARTER_TURN_MAX_S`.
+#[test]
+fn a_stuck_switchs_bound_runs_from_its_directions_peak() {
+    use hil_sim::faults::{OPEN_PHASE_BOUND_S, SWITCH_QUARTER_TURN_MAX_S, quarter_turn_s};
+    assert!((quarter_turn_s(100.0) - std::f64::consts::FRAC_PI_2 / 100.0).abs() < 1e-12);
+    assert_eq!(quarter_turn_s(-1e-9), SWITCH_QUARTER_TURN_MAX_S);
+    assert_eq!(quarter_turn_s(f64::NAN), SWITCH_QUARTER_TURN_MAX_S);
+    let m = shipped();
+    let c = case(&m, "switch a upper stuck open");
+    let bound = |p: Point| {
+        let at = point(&m, p, true);
+        let o = m.run_one(1, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+        match o.expect {
+            Expect::Either { bound_s, .. } => bound_s - OPEN_PHASE_BOUND_S,
+            e => panic!("{e:?}"),
+        }
+    };
+    let mid = bound(Point::Mid);
+    // ω_e at 81.2 rad/s with one pole pair, its slip (≤ 10 rad/s at a quarter of τ_max) on top.
+    let (fast, slow) = (quarter_turn_s(81.0 + 15.0), quarter_turn_s(81.0));
+    assert!((fast..=slow).contains(&mid), "{mid} s not in [{fast}, {slow}]");
+    let rest = bound(Point::Standstill);
+    assert!(rest > 0.1 && rest <= SWITCH_QUARTER_TURN_MAX_S, "{rest} s");
 }

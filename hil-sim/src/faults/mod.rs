@@ -88,6 +88,25 @@ pub const OPEN_PHASE_BOUND_S: f64 = 0.050;
 
 /// … stall, s.
 pub const STALL_BOUND_S: f64 = 0.5;
+/// A switch stuck open ([`Injection::SwitchOpen`]) takes one direction of its phase's current
+/// away. From the period that direction is first needed, the phase's reference in it grows
+/// with the field's turn as `A·sin(ω_e·t)`, and reaches its peak a quarter of the field's
+/// period later: before, the missing current is a fraction of the amplitude — at rest, where
+/// the field turns at the slip frequency (a fraction of a hertz), a few per cent of it for
+/// tens of milliseconds, below what the current checks resolve. The bound is
+/// [`OPEN_PHASE_BOUND_S`] from that peak, at most this much later than from the first need, s
+/// (a field that hardly turns: the dead direction is needed and missed as an open phase).
+pub const SWITCH_QUARTER_TURN_MAX_S: f64 = 0.5;
+/// The field's speed ω_e at the injection is measured on the reference current vector over
+/// this long before it, s.
+pub const FIELD_TURN_WINDOW_S: f64 = 0.02;
+
+/// A quarter of the field's period at `omega_e_rad_s`, at most [`SWITCH_QUARTER_TURN_MAX_S`]
+/// (and that, for a speed not measured).
+pub fn quarter_turn_s(omega_e_rad_s: f64) -> f64 {
+    let t = std::f64::consts::FRAC_PI_2 / omega_e_rad_s.abs();
+    if t.is_nan() { SWITCH_QUARTER_TURN_MAX_S } else { t.min(SWITCH_QUARTER_TURN_MAX_S) }
+}
 /// The overload case's load, a multiple of the torque limit (with the operating point's
 /// load direction).
 pub const OVERLOAD_FACTOR: f64 = 1.5;
@@ -440,6 +459,16 @@ impl Matrix {
         let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
         let rest = at.point == Point::Standstill;
         match case.injection {
+            // At rest the current vector stands still, wherever the position hold left it:
+            // along the open phase's axis it asks the other two phases equal currents, which
+            // the open lead holds at zero between them — the motor carries no current at all,
+            // which `NoMotorCurrent` names (a 270 W 34 V member, the 3 300 V drive: the vector
+            // within a few degrees of phase a). Telling it from three open leads would take a
+            // probe current the plan does not ask for; the bridge goes off either way.
+            Injection::OpenPhase { .. } if rest => Expect::Either {
+                faults: &[Fault::OpenPhase, Fault::NoMotorCurrent],
+                bound_s: OPEN_PHASE_BOUND_S,
+            },
             Injection::OpenPhase { .. } => {
                 Expect::Fault { fault: Fault::OpenPhase, bound_s: OPEN_PHASE_BOUND_S }
             }
@@ -466,7 +495,9 @@ impl Matrix {
                       the high side conducts, between the samples: only the comparator can see it",
             },
             // A switch stuck open does nothing until its direction of current is needed: the
-            // bound runs from the first period it mattered ([`Outcome::acting_after_s`]).
+            // bound runs from the first period it mattered ([`Outcome::acting_after_s`]),
+            // lengthened by a quarter of the field's period ([`quarter_turn_s`]: the run
+            // measures it, `Matrix::run_one`).
             // The phase then cannot follow one way: `SwitchOpen` once the other way has carried
             // since (`drive::SWITCH_MISSING_SHARE`); before that (or when the reference hardly
             // reverses) the phase carries none of its current, which is `OpenPhase`; a dead
@@ -675,6 +706,9 @@ impl Matrix {
         let mut over_trip_at: Option<f64> = None;
         // The first row at or after the injection (the event loop's own comparison).
         let mut injected_at: Option<f64> = None;
+        // The reference vector's turn over the last FIELD_TURN_WINDOW_S before the injection:
+        // [its angle at the last row, the angle turned, the time], rad and s.
+        let mut turn: Option<[f64; 3]> = None;
         let final_mode = b.run_into(
             |_| {},
             |r: &Row| {
@@ -685,6 +719,13 @@ impl Matrix {
                     mode_at_reference = r.mode;
                 }
                 if r.t_s < self.inject_s() {
+                    if r.t_s >= self.inject_s() - FIELD_TURN_WINDOW_S {
+                        let angle = r.i_ref_ab_a[1].atan2(r.i_ref_ab_a[0]);
+                        let [last, turned, time] = turn.unwrap_or([angle, 0.0, 0.0]);
+                        let step = (angle - last + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                            - std::f64::consts::PI;
+                        turn = Some([angle, turned + step.abs(), time + pwm_s]);
+                    }
                     if before_injection_fault.is_none()
                         && let Some(mode @ Mode::Fault(_)) = r.mode
                     {
@@ -761,6 +802,15 @@ impl Matrix {
             _ => Some(0.0),
         };
         let latent = acting_after_s.is_none();
+        // A stuck switch's bound runs from the reference's peak in its dead direction: a
+        // quarter of the field's period after that direction was first needed.
+        let expect = match (case.injection, expect) {
+            (Injection::SwitchOpen { .. }, Expect::Either { faults, bound_s }) => {
+                let omega_e = turn.map_or(f64::NAN, |[_, turned, time]| turned / time);
+                Expect::Either { faults, bound_s: bound_s + quarter_turn_s(omega_e) }
+            }
+            (_, e) => e,
+        };
         // A sensor's error below the check's level is still its fault: named early, it is
         // judged by its name (a switch that never mattered must not trip anything).
         let sensor = sensor_fault.is_some();
