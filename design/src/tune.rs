@@ -281,7 +281,7 @@ pub fn robustness(checks: &[Check]) -> (f64, Option<&Check>) {
 
 /// Each candidate crossover is this fraction of the last.
 pub const SEARCH_RATIO: f64 = 0.9;
-/// The searches first try every this many candidates ([`search_down`]).
+/// The searches first try every this many candidates (`search_down`).
 pub const SEARCH_STRIDE: usize = 4;
 
 /// The candidates of a geometric search: `top`, then each [`SEARCH_RATIO`] of the last

@@ -208,7 +208,7 @@ impl Default for PositionTable {
 /// `[protection]` table. `i_trip_a`, `vdc_min_v` and `vdc_max_v` are required; every other
 /// scalar threshold of [`Protection::THRESHOLDS`] may be set by its name and otherwise takes
 /// the value derived from the drive ([`protection_with_defaults`]: [`default_overspeed_rad_s`],
-/// [`DEFAULT_STALL_TIME_S`], …). The thresholds' keys are controller-core's declaration
+/// [`default_stall_time_s`], …). The thresholds' keys are controller-core's declaration
 /// (`Protection::THRESHOLDS`), not a list of this crate's: a new threshold is a key here
 /// without a line of this crate, but its default.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -485,12 +485,29 @@ pub fn default_overspeed_rad_s(
 pub const FIELD_WEAKENING_RANGE: f64 = 2.0;
 
 /// Default stall time, s: a locked rotor under a speed command is caught within this. A
-/// start at the torque limit must leave the "not moving" band (0.5 % of the overspeed level,
-/// `controller_core::drive::STALL_SPEED_FRACTION`) well before it: J·ω_band/τ_limit ≪ this
-/// (checked for the shipped drive at its largest certified inertia by the test
-/// `derived_protection_defaults`). Set it explicitly for a drive with a large inertia and a
-/// small torque limit.
-pub const DEFAULT_STALL_TIME_S: f64 = 0.3;
+/// healthy start at the torque limit must leave the "not moving" band (ω_band =
+/// `controller_core::supervisor::motion::STALL_SPEED_FRACTION` of the overspeed level) well
+/// before it: it takes `J·ω_band/(τ_max − τ_L)` against a load τ_L. The stall time is
+/// [`STALL_LEAVE_FACTOR`] times the unloaded `J·ω_band/τ_max` — a start against a load of
+/// 0.9·τ_max on twice the inertia (the top of a certified box) still leaves the band within
+/// it — and at least the speed estimate's window (`SPEED_WINDOW_READS` slow periods). It was
+/// a fixed 0.3 s, fitted to the shipped motor. Shipped drive:
+/// 20·0.005·(0.005·607.3)/2 = 0.152 s.
+pub fn default_stall_time_s(
+    motor: &controller_core::motor::MotorParams,
+    speed_limit_nm: f64,
+    overspeed_rad_s: f64,
+    slow_period_s: f64,
+) -> f64 {
+    let window_s = controller_core::encoder::SPEED_WINDOW_READS as f64 * slow_period_s;
+    let band_rad_s = controller_core::supervisor::motion::STALL_SPEED_FRACTION * overspeed_rad_s;
+    let t = STALL_LEAVE_FACTOR * motor.j_kgm2() * band_rad_s / speed_limit_nm;
+    if t.is_finite() { t.max(window_s) } else { window_s }
+}
+
+/// See [`default_stall_time_s`]: 1/(1 − 0.9) for a load of 0.9·τ_max, × 2 for twice the
+/// inertia.
+pub const STALL_LEAVE_FACTOR: f64 = 20.0;
 
 /// Default speed-following-error window, s: the shortest in which the check can judge —
 /// the progress it owes at the speed loop's torque limit, `f·τ_max·T/J` (f =
@@ -647,7 +664,12 @@ pub fn protection_with_defaults(
         vdc_min_v,
         vdc_max_v,
         overspeed_rad_s: default_overspeed_rad_s(motor, flux_ref_wb, vdc_max_v),
-        stall_time_s: DEFAULT_STALL_TIME_S,
+        stall_time_s: default_stall_time_s(
+            motor,
+            basis.speed_limit_nm,
+            default_overspeed_rad_s(motor, flux_ref_wb, vdc_max_v),
+            basis.slow_period_s,
+        ),
         following_time_s: default_following_time_s(
             motor,
             basis.speed_limit_nm,
@@ -940,13 +962,17 @@ pub fn drive_spec(
                 inverter_thermal: board.inverter_thermal,
                 current_lsb_a: board.current_lsb_a,
             };
-            let d = protection_with_defaults(
+            let mut d = protection_with_defaults(
                 &motor,
                 &basis,
                 protection.i_trip_a,
                 protection.vdc_min_v,
                 protection.vdc_max_v,
             );
+            // The stall time's band is the overspeed level's: the file's, if it sets one.
+            let overspeed = protection.over(&d).overspeed_rad_s;
+            d.stall_time_s =
+                default_stall_time_s(&motor, basis.speed_limit_nm, overspeed, basis.slow_period_s);
             protection.over(&d)
         },
     };

@@ -265,12 +265,20 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     b.spec.protection.motor_thermal = None;
     b.spec.protection.inverter_thermal = None;
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
-    // The following window follows the torque limit (drive_file's default rule).
+    // The following window and the stall time follow the torque limit (and the stall time
+    // the overspeed level: drive_file's default rules).
+    let slow_period_s = f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz;
     b.spec.protection.following_time_s = drive_file::drive::default_following_time_s(
         &b.spec.motor,
         0.4,
         drive_file::drive::DEFAULT_ENCODER_LINES,
-        f64::from(b.spec.slow_divider) / b.spec.pwm_frequency_hz,
+        slow_period_s,
+    );
+    b.spec.protection.stall_time_s = drive_file::drive::default_stall_time_s(
+        &b.spec.motor,
+        0.4,
+        b.spec.protection.overspeed_rad_s,
+        slow_period_s,
     );
     // The paper's loops alone: the current trim would correct the stationary loops' tracking
     // error at ω_e — the very error this figure compares (the PI's reaches 366 rad/s with it).
