@@ -549,10 +549,17 @@ pub const FOLLOWING_SPEED_QUANTA: f64 = 10.0;
 /// (`hil-sim/tests/supervisor.rs`).
 pub const DEFAULT_SATURATION_TIME_S: f64 = 0.02;
 
-/// Default encoder-check time, s: twenty slow periods at the shipped rate, several times the
-/// current loops' settling and the encoder estimator's 8-read window, so a current step (whose
-/// σL_s·di/dt the steady-state model leaves out) or a speed transient passes.
-pub const DEFAULT_ENCODER_CHECK_TIME_S: f64 = 0.01;
+/// Default encoder-check time, s: [`ENCODER_CHECK_SLOW_PERIODS`] slow periods — the check
+/// runs once per slow period, on the encoder estimate's 8-read window —, several times the
+/// current loops' settling and that window, so a current step (whose σL_s·di/dt the
+/// steady-state model leaves out) or a speed transient passes. 10 ms shipped (0.5 ms slow
+/// period); a fixed 10 ms before issue 49, whatever the slow rate.
+pub fn default_encoder_check_time_s(slow_period_s: f64) -> f64 {
+    ENCODER_CHECK_SLOW_PERIODS * slow_period_s
+}
+
+/// See [`default_encoder_check_time_s`].
+pub const ENCODER_CHECK_SLOW_PERIODS: f64 = 20.0;
 
 /// Default encoder jump level, mechanical rad: [`ENCODER_JUMP_COUNTS`] counts of the
 /// encoder plus the position change that [`ENCODER_ACCEL_FACTOR`] times the drive's peak
@@ -678,7 +685,7 @@ pub fn protection_with_defaults(
         ),
         current_sum_max_a: default_current_sum_a(i_trip_a, basis.current_lsb_a),
         saturation_time_s: DEFAULT_SATURATION_TIME_S,
-        encoder_check_time_s: DEFAULT_ENCODER_CHECK_TIME_S,
+        encoder_check_time_s: default_encoder_check_time_s(basis.slow_period_s),
         encoder_jump_rad: default_encoder_jump_rad(
             motor,
             flux_ref_wb,
@@ -687,7 +694,7 @@ pub fn protection_with_defaults(
             basis.slow_period_s,
         ),
         stop_time_s: default_stop_time_s(motor, flux_ref_wb, vdc_max_v),
-        open_phase_time_s: DEFAULT_OPEN_PHASE_TIME_S,
+        open_phase_time_s: default_open_phase_time_s(basis.slow_period_s),
         rest_time_s: default_rest_time_s(motor, basis.encoder_lines, basis.slow_period_s),
         brake_chopper: None,
         motor_thermal: basis.motor_thermal,
@@ -713,12 +720,20 @@ pub fn default_stop_time_s(
     (motor.j_kgm2() * default_overspeed_rad_s(motor, flux_ref_wb, vdc_max_v) / tau_stop_nm).max(1.0)
 }
 
-/// Default open-phase window, s: 50 PWM periods at 20 kHz. Short enough that a phase whose
-/// reference sits near a zero crossing for a window (|cos| < 0.19 for 0.375 rad of the
-/// field's turn at ω_e = 150 rad/s) is judged again within a few milliseconds, and that the
-/// check comes before the encoder check (10 ms), which an open lead's saturated loops also
-/// upset; long enough to average the sensors' noise (0.01 A RMS) far below the 10 % level.
-pub const DEFAULT_OPEN_PHASE_TIME_S: f64 = 0.0025;
+/// Default open-phase window, s: [`OPEN_PHASE_WINDOW_SLOW_PERIODS`] slow periods — the check
+/// takes one sample per slow period. Short enough that a phase whose reference sits near a
+/// zero crossing for a window (|cos| < 0.19 for 0.375 rad of the field's turn at
+/// ω_e = 150 rad/s and a 0.5 ms slow period) is judged again within a few samples, and that
+/// its verdict (two windows) comes before the encoder check's (four times as many
+/// samples, [`ENCODER_CHECK_SLOW_PERIODS`]), which an open lead's saturated loops also
+/// upset; long enough to average the sensors' noise (0.01 A RMS) far below the 10 % level
+/// (5 samples: σ/√5). 2.5 ms shipped; a fixed 2.5 ms before issue 49, whatever the slow rate.
+pub fn default_open_phase_time_s(slow_period_s: f64) -> f64 {
+    OPEN_PHASE_WINDOW_SLOW_PERIODS * slow_period_s
+}
+
+/// See [`default_open_phase_time_s`].
+pub const OPEN_PHASE_WINDOW_SLOW_PERIODS: f64 = 5.0;
 
 /// See [`default_stop_time_s`].
 pub const STOP_TORQUE_FRACTION: f64 = 0.5;

@@ -306,6 +306,15 @@ mod tests {
         // of the overspeed level: 20·0.005·(0.005·607.286)/2 = 0.1518 s.
         assert!((p.stall_time_s - 0.151_82).abs() < 1e-5, "{}", p.stall_time_s);
         assert_eq!(p.current_sum_max_a, 0.4);
+        // The sample-counted windows: the open-phase window 5 slow periods, the encoder check
+        // 20 (2.5 and 10 ms at the shipped 0.5 ms); a slower slow loop, longer windows.
+        assert!(
+            (p.open_phase_time_s - 0.0025).abs() < 1e-12 && (p.encoder_check_time_s - 0.01).abs() < 1e-12
+        );
+        let slow = SHIPPED.replace("slow_divider = 10", "slow_divider = 20");
+        assert_ne!(slow, SHIPPED);
+        let q = DriveFile::parse(Path::new("d.toml"), &slow).unwrap().spec.protection;
+        assert!((q.open_phase_time_s - 0.005).abs() < 1e-12 && (q.encoder_check_time_s - 0.02).abs() < 1e-12);
         // The following window (drive::default_following_time_s): 10 counts of the encoder
         // speed's resolution (2π/4096 over 8 reads of 0.5 ms: 0.3835 rad/s) owed at a tenth
         // of τ_max/J = 2/0.005: 10·0.3835·0.005/(0.1·2) = 0.0959 s — and a lighter rotor, a
