@@ -208,7 +208,8 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
     let elapsed = start.elapsed().as_secs_f64();
     let count = |w: &str| reports.iter().filter(|r| r.verdict.word() == w).count();
     let (pass, refuse, fail, error) = (count("pass"), count("refuse"), count("FAIL"), count("ERROR"));
-    let md = table(&reports);
+    let families = population::run::families(&reports);
+    let md = format!("{}\n{}", table(&reports), population::run::families_table(&families));
     outln!("{md}");
     outln!(
         "{} drive(s) in {elapsed:.1} s on {} thread(s): {pass} pass, {refuse} refuse, {fail} FAIL, {error} ERROR",
@@ -225,6 +226,7 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         "matrix": !a.no_matrix,
         "elapsed_s": elapsed,
         "counts": { "pass": pass, "refuse": refuse, "fail": fail, "error": error },
+        "families": families,
         "reports": reports,
     });
     let text = serde_json::to_string_pretty(&json).map_err(|e| e.to_string())?;

@@ -261,6 +261,89 @@ fn judge(
     })
 }
 
+/// One kind of failure over a population's drives: what failed, in how many matrix rows
+/// or campaign runs, on how many drives.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct Family {
+    /// "matrix: <case>: <how>" or "campaign: <criterion>".
+    pub name: String,
+    /// Failing matrix rows or campaign runs.
+    pub count: u64,
+    /// Drives (member × PWM rate) with at least one.
+    pub drives: u64,
+}
+
+/// The failures of `reports` grouped by family, the largest first: a matrix row by its case
+/// and how it failed (a healthy drive that tripped before the injection, or an operating
+/// point not reached, is its own family whatever the case), a campaign run by each
+/// criterion it failed.
+pub fn families(reports: &[Report]) -> Vec<Family> {
+    let mut out: Vec<(String, u64, Vec<usize>)> = Vec::new();
+    let mut add = |name: String, n: u64, drive: usize| match out.iter_mut().find(|(k, _, _)| *k == name) {
+        Some((_, count, drives)) => {
+            *count += n;
+            if !drives.contains(&drive) {
+                drives.push(drive);
+            }
+        }
+        None => out.push((name, n, vec![drive])),
+    };
+    for (d, r) in reports.iter().enumerate() {
+        for f in &r.matrix_failures {
+            add(matrix_family(f), 1, d);
+        }
+        for (kind, n) in &r.campaign_failures {
+            // "<manoeuvre> <criterion>+<criterion>…"
+            let criteria = kind.split_once(' ').map_or(kind.as_str(), |(_, c)| c);
+            for c in criteria.split('+') {
+                add(format!("campaign: {c}"), *n, d);
+            }
+        }
+    }
+    let mut families: Vec<Family> = out
+        .into_iter()
+        .map(|(name, count, drives)| Family { name, count, drives: drives.len() as u64 })
+        .collect();
+    families.sort_by(|a, b| b.count.cmp(&a.count).then_with(|| a.name.cmp(&b.name)));
+    families
+}
+
+/// A matrix failure's family (see [`families`]): `failure` is "<case> at <point>: <what>".
+fn matrix_family(failure: &str) -> String {
+    let (row, what) = failure.split_once(": ").unwrap_or((failure, ""));
+    if let Some(at) = what.find(") before the injection")
+        && let Some(open) = what.get(..at).and_then(|w| w.rfind("Fault("))
+    {
+        let fault = what.get(open + "Fault(".len()..at).unwrap_or("?");
+        return format!("matrix: a healthy drive tripped ({fault}) before the injection");
+    }
+    if what.contains("operating point was not reached") {
+        return "matrix: the operating point not reached".into();
+    }
+    let case = row.split_once(" at ").map_or(row, |(c, _)| c);
+    let how = if what.starts_with("not detected") {
+        "missed"
+    } else if what.starts_with("detected as") {
+        "misnamed"
+    } else if what.starts_with("tripped") {
+        "tripped (a ride-through row)"
+    } else if what.contains("bound") {
+        "late"
+    } else {
+        "other"
+    };
+    format!("matrix: {case}: {how}")
+}
+
+/// [`families`] as a markdown table.
+pub fn families_table(families: &[Family]) -> String {
+    let mut s = String::from("| failure family | rows / runs | drives |\n|---|---|---|\n");
+    for f in families {
+        s.push_str(&format!("| {} | {} | {} |\n", f.name.replace('|', "/"), f.count, f.drives));
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -283,5 +366,47 @@ mod tests {
         assert_eq!(r.campaign.map(|c| c[1]), Some(64), "{:?}", r.verdict);
         let tripped: Vec<_> = r.campaign_failures.iter().filter(|(k, _)| k.contains("fault")).collect();
         assert!(tripped.is_empty(), "healthy runs tripped: {tripped:?}");
+    }
+
+    /// Failures group by family: a trip before the injection and an unreached point are
+    /// families of their own, other rows by case and how, campaign runs per criterion.
+    #[test]
+    fn failures_group_by_family() {
+        let report = |matrix: &[&str], campaign: &[(&str, u64)]| Report {
+            member: "m".into(),
+            power_w: None,
+            pwm_hz: 4000.0,
+            vdc_v: 310.0,
+            omega_c_rad_s: None,
+            campaign: None,
+            campaign_failures: campaign.iter().map(|(k, n)| ((*k).into(), *n)).collect(),
+            matrix: None,
+            matrix_failures: matrix.iter().map(|s| (*s).into()).collect(),
+            verdict: Verdict::Pass,
+            elapsed_s: 0.0,
+        };
+        let reports = [
+            report(
+                &[
+                    "open phase a at top speed generating: Fault(SwitchOpen) before the injection (at 0.7680 s); \
+                     the operating point was not reached (283.6 rad/s, …)",
+                    "switch a upper stuck open at mid-speed generating: SwitchOpen after 69.00 ms, bound 64.62 ms",
+                ],
+                &[("generating fault+tracking", 7), ("motoring tracking", 50)],
+            ),
+            report(
+                &["switch a upper stuck open at standstill motoring: not detected (Running at the end)"],
+                &[("reversal tracking", 3)],
+            ),
+        ];
+        let f = families(&reports);
+        let get = |name: &str| f.iter().find(|x| x.name == name).map(|x| (x.count, x.drives));
+        assert_eq!(get("campaign: tracking"), Some((60, 2)));
+        assert_eq!(get("campaign: fault"), Some((7, 1)));
+        assert_eq!(get("matrix: a healthy drive tripped (SwitchOpen) before the injection"), Some((1, 1)));
+        assert_eq!(get("matrix: switch a upper stuck open: late"), Some((1, 1)));
+        assert_eq!(get("matrix: switch a upper stuck open: missed"), Some((1, 1)));
+        assert_eq!(f.first().map(|x| x.count), Some(60));
+        assert!(families_table(&f).contains("| campaign: tracking | 60 | 2 |"));
     }
 }
