@@ -31,6 +31,10 @@ pub struct BoardTable {
     pub current_noise_max_counts: Option<f64>,
     /// Volts per ADC count of the bus channel.
     pub vdc_v_per_count: f64,
+    /// The bus the drive is built for, V (optional): what every command runs on without
+    /// `--vdc` (`hil-sim campaign`, `faults`, `envelope`; the population). Strictly between
+    /// `protection.vdc_min_v` and `vdc_max_v`.
+    pub vdc_rated_v: Option<f64>,
     /// Encoder lines per revolution.
     pub encoder_lines: u32,
     /// Link watchdog: no valid frame for this long while the bridge is on → a controlled
@@ -233,6 +237,17 @@ impl BoardTable {
                 p.vdc_max_v
             ),
         )?;
+        if let Some(v) = self.vdc_rated_v {
+            src.check(
+                v.is_finite() && v > p.vdc_min_v && v < p.vdc_max_v,
+                "board.vdc_rated_v",
+                &format!(
+                    "{v} V must lie strictly between protection.vdc_min_v = {} V and protection.vdc_max_v = {} V: \
+                     on or beyond a trip level the drive trips at its own rated bus",
+                    p.vdc_min_v, p.vdc_max_v
+                ),
+            )?;
+        }
         let offset = f64::from(self.current_offset_counts);
         let current_read_a = offset.min(full_scale - offset) * self.current_a_per_count;
         src.check(

@@ -796,6 +796,11 @@ impl DriveFile {
     pub fn encoder_lines(&self) -> u32 {
         self.board.map_or(DEFAULT_ENCODER_LINES, |b| b.table.encoder_lines)
     }
+
+    /// The bus the drive is built for, V: the board's `vdc_rated_v`, if the file states it.
+    pub fn rated_bus_v(&self) -> Option<f64> {
+        self.board.and_then(|b| b.table.vdc_rated_v)
+    }
 }
 
 impl DriveTables {

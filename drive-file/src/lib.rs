@@ -436,6 +436,9 @@ mod tests {
                 "board.vdc_v_per_count",
                 "protection.vdc_max_v",
             ),
+            // A rated bus on the overvoltage trip level: the drive trips at its own bus.
+            ("vdc_rated_v = 310.0", "vdc_rated_v = 400.0", "board.vdc_rated_v", "protection.vdc_max_v"),
+            ("vdc_rated_v = 310.0", "vdc_rated_v = 150.0", "board.vdc_rated_v", "protection.vdc_min_v"),
             // ±2048 × 0.0039 = ±7.99 A read, against an 8 A trip.
             (
                 "current_a_per_count = 0.008056640625",

@@ -427,9 +427,10 @@ fn campaign_writes_its_table_and_judges_every_run() {
 }
 
 /// A drive whose bus range excludes 310 V: `campaign` and `envelope` without `--vdc` run on
-/// the middle of its range, as `faults` does, and refuse a `--vdc` outside it. Found by
-/// trying: the 24 V drive's campaign ran on 310 V — 1 000 of 1 000 runs
-/// `DcBusOvervoltage` — and its envelope measured a 5 690 rad/s base speed into `Overspeed`.
+/// its rated bus (`[board] vdc_rated_v`; a file without one on the middle of its range:
+/// `commands::tests`), as `faults` does, and refuse a `--vdc` outside it. Found by trying:
+/// the 24 V drive's campaign ran on 310 V — 1 000 of 1 000 runs `DcBusOvervoltage` — and its
+/// envelope measured a 5 690 rad/s base speed into `Overspeed`.
 #[test]
 fn campaign_and_envelope_run_on_the_drives_own_bus() {
     let out = tmp("own-bus");
@@ -561,7 +562,7 @@ fn faults_runs_the_rows_named_and_traces_them() {
         assert!(csv.lines().last().unwrap().contains("OpenPhase"));
         assert!(std::fs::read_to_string(dir.join("phases.svg")).unwrap().contains("i_a ref"));
     }
-    // A drive whose bus range excludes the default 310 V runs on the middle of its range.
+    // A drive whose bus range excludes the default 310 V runs on its rated bus.
     let small = concat!(env!("CARGO_MANIFEST_DIR"), "/../drives/em-synergy-24v.toml");
     let st = bin()
         .args(["faults", small, "--only", "sensor b dead at standstill", "--out"])

@@ -388,13 +388,14 @@ impl Member {
         let _ = writeln!(
             t,
             "\n[board]\ntim_clock_hz = {:.0}\ndead_time_s = {:?}\nadc_full_scale = 4095\n\
-             current_a_per_count = {:?}\ncurrent_offset_counts = 2048\nvdc_v_per_count = {:?}\n\
+             current_a_per_count = {:?}\ncurrent_offset_counts = 2048\nvdc_v_per_count = {:?}\nvdc_rated_v = {:?}\n\
              encoder_lines = {}\nlink_timeout_s = 1.0\ninverter_rated_current_a = {:?}\n\
              inverter_overload = {{ factor = 1.5, time_s = 60.0 }}\ncomparator = {{ trip_a = {:?}, filter_s = 1e-6 }}",
             TIM_CLOCK_HZ,
             b.dead_time_s,
             b.current_full_scale_a / 2048.0,
             b.vdc_full_scale_v / 4095.0,
+            b.vdc_v,
             b.encoder_lines,
             b.inverter_rated_a,
             b.comparator_a
@@ -452,6 +453,8 @@ mod tests {
                 .unwrap_or_else(|e| panic!("{}: {e}\n{text}", m.name));
             assert_eq!(file.spec.motor, m.motor);
             let (n, b) = (m.nameplate.unwrap(), m.board.unwrap());
+            // The bus it was drawn with is the file's rated bus: every command runs on it.
+            assert_eq!(file.rated_bus_v(), Some(b.vdc_v));
             assert!((POWER_RANGE_W[0]..=POWER_RANGE_W[1]).contains(&n.power_w));
             // The rated point again, from the model the template holds.
             let omega_e = 2.0 * PI * n.frequency_hz;

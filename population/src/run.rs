@@ -96,7 +96,7 @@ pub fn inputs(member: &Member, pwm_hz: Option<f64>, root: &Path) -> Result<(Stri
                 None => text,
             };
             let file = DriveFile::parse(&path, &text).map_err(|e| e.to_string())?;
-            let vdc = hil_sim::commands::bus_voltage(None, &file.spec.protection, "the population")?;
+            let vdc = hil_sim::commands::bus_voltage(None, &file, "the population")?;
             Ok((path.display().to_string(), text, vdc))
         }
         (Origin::Drawn { .. }, Some(text)) => {
@@ -265,7 +265,7 @@ fn judge(
 /// or campaign runs, on how many drives.
 #[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct Family {
-    /// "matrix: <case>: <how>" or "campaign: <criterion>".
+    /// `matrix: <case>: <how>` or `campaign: <criterion>`.
     pub name: String,
     /// Failing matrix rows or campaign runs.
     pub count: u64,
@@ -308,7 +308,7 @@ pub fn families(reports: &[Report]) -> Vec<Family> {
     families
 }
 
-/// A matrix failure's family (see [`families`]): `failure` is "<case> at <point>: <what>".
+/// A matrix failure's family (see [`families`]): `failure` is `<case> at <point>: <what>`.
 fn matrix_family(failure: &str) -> String {
     let (row, what) = failure.split_once(": ").unwrap_or((failure, ""));
     if let Some(at) = what.find(") before the injection")

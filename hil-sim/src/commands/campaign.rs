@@ -38,7 +38,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     let certify = file.certify.ok_or_else(|| {
         format!("{}: no [certify] table: the campaign samples its parameter box", a.drive.display())
     })?;
-    let vdc = bus_voltage(a.vdc, &file.spec.protection, "the campaign")?;
+    let vdc = bus_voltage(a.vdc, &file, "the campaign")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/campaign"));
     let c = Campaign {
         spec: file.spec,

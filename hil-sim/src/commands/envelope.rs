@@ -33,7 +33,7 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
     }
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
     let spec = file.spec;
-    let vdc = bus_voltage(a.vdc, &spec.protection, "the envelope")?;
+    let vdc = bus_voltage(a.vdc, &file, "the envelope")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/envelope"));
     let base = crate::envelope::drive_base_speed_rad_s(&spec, vdc);
     if base <= 0.0 {

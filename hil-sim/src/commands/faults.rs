@@ -94,7 +94,7 @@ pub fn trace_fault_row(
 pub fn faults(a: &FaultsOptions) -> Result<(), String> {
     use crate::faults::Matrix;
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
-    let vdc = bus_voltage(a.vdc, &file.spec.protection, "the matrix")?;
+    let vdc = bus_voltage(a.vdc, &file, "the matrix")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/faults"));
     // Without [certify], the top speed is twice the base speed (the field-weakening range).
     let omega_r_max = file.certify.map_or(f64::INFINITY, |c| c.omega_r_max_rad_s);

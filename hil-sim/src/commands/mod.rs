@@ -76,26 +76,31 @@ pub fn pil_options(elf: Option<&Path>, no_pin: bool) -> Result<PilOptions, Strin
 pub const DEFAULT_VDC_V: f64 = 310.0;
 
 /// The bus a command runs `what` on: `asked` (`--vdc`), refused outside the drive's bus range
-/// (`[protection]`: every run would trip on it), else [`DEFAULT_VDC_V`], or the middle of the
-/// range when that lies outside it (said on stderr).
-pub fn bus_voltage(
-    asked: Option<f64>,
-    p: &controller_core::drive::Protection,
-    what: &str,
-) -> Result<f64, String> {
+/// (`[protection]`: every run would trip on it), else the file's rated bus (`[board]
+/// vdc_rated_v`, checked inside the range when the file was read), else [`DEFAULT_VDC_V`], or
+/// the middle of the range when that lies outside it (said on stderr).
+pub fn bus_voltage(asked: Option<f64>, file: &drive_file::DriveFile, what: &str) -> Result<f64, String> {
+    let p = &file.spec.protection;
     let inside = |v: f64| v > p.vdc_min_v && v < p.vdc_max_v;
-    match asked {
-        Some(v) if !inside(v) => Err(format!(
+    match asked.map(|v| (v, true)).or(file.rated_bus_v().map(|v| (v, false))) {
+        Some((v, true)) if !inside(v) => Err(format!(
             "--vdc {v} V must lie strictly between the drive's bus trip levels, {} and {} V of [protection]: \
              on or beyond one every run trips (the sensors' noise crosses it)",
             p.vdc_min_v, p.vdc_max_v
         )),
-        Some(v) => Ok(v),
+        Some((v, true)) => Ok(v),
+        Some((v, false)) => {
+            eprintln!(
+                "hil-sim: {what} runs on {v} V, the file's rated bus ([board] vdc_rated_v; --vdc to choose)"
+            );
+            Ok(v)
+        }
         None if inside(DEFAULT_VDC_V) => Ok(DEFAULT_VDC_V),
         None => {
             let v = 0.5 * (p.vdc_min_v + p.vdc_max_v);
             eprintln!(
-                "hil-sim: {DEFAULT_VDC_V} V lies outside the drive's bus range ({} … {} V): {what} runs on {v} V (--vdc to choose)",
+                "hil-sim: {DEFAULT_VDC_V} V lies outside the drive's bus range ({} … {} V) and the file states no \
+                 [board] vdc_rated_v: {what} runs on {v} V (--vdc to choose)",
                 p.vdc_min_v, p.vdc_max_v
             );
             Ok(v)
@@ -107,17 +112,23 @@ pub fn bus_voltage(
 mod tests {
     use super::*;
 
-    /// The shipped drive's range holds 310 V; a range that does not gets its middle; a
-    /// `--vdc` on a trip level is refused, one inside taken.
+    /// The file's rated bus when it states one; else 310 V inside the range, or the range's
+    /// middle; a `--vdc` on a trip level is refused, one inside taken.
     #[test]
-    fn the_bus_is_the_default_the_middle_or_the_one_asked() {
-        let mut p = drive_file::DriveFile::shipped().unwrap().spec.protection;
-        assert_eq!(bus_voltage(None, &p, "test"), Ok(DEFAULT_VDC_V));
-        assert_eq!(bus_voltage(Some(300.0), &p, "test"), Ok(300.0));
-        let e = bus_voltage(Some(p.vdc_max_v), &p, "test").unwrap_err();
+    fn the_bus_is_the_rated_the_default_the_middle_or_the_one_asked() {
+        let parse = |t: &str| drive_file::DriveFile::parse(Path::new("d.toml"), t).unwrap();
+        let rated = drive_file::SHIPPED;
+        assert!(rated.contains("vdc_rated_v = 310.0"));
+        let f = parse(&rated.replace("vdc_rated_v = 310.0", "vdc_rated_v = 330.0"));
+        assert_eq!(bus_voltage(None, &f, "test"), Ok(330.0));
+        assert_eq!(bus_voltage(Some(300.0), &f, "test"), Ok(300.0));
+        let e = bus_voltage(Some(f.spec.protection.vdc_max_v), &f, "test").unwrap_err();
         assert!(e.contains("strictly between"), "{e}");
-        (p.vdc_min_v, p.vdc_max_v) = (20.0, 40.0);
-        assert_eq!(bus_voltage(None, &p, "test"), Ok(30.0));
+        let unrated = rated.replace("vdc_rated_v = 310.0", "");
+        assert_eq!(bus_voltage(None, &parse(&unrated), "test"), Ok(DEFAULT_VDC_V));
+        let low = unrated.replace("vdc_min_v = 200.0", "vdc_min_v = 320.0");
+        assert_ne!(low, unrated);
+        assert_eq!(bus_voltage(None, &parse(&low), "test"), Ok(360.0));
     }
 
     #[test]
