@@ -80,12 +80,25 @@ impl<'a> Source<'a> {
     pub fn parse(path: &'a Path, text: &'a str) -> Result<Self, FileError> {
         match DeTable::parse(text) {
             Ok(doc) => Ok(Self { path, text, doc: doc.into_inner() }),
-            Err(e) => Err(FileError {
-                file: path.to_path_buf(),
-                at: e.span().map(|s| line_col(text, s.start)),
-                key: None,
-                reason: first_line(e.message()),
-            }),
+            Err(e) => {
+                let mut reason = first_line(e.message());
+                // toml's "duplicate key" points at the key but does not name it.
+                if reason.starts_with("duplicate key")
+                    && let Some(k) = e.span().and_then(|s| text.get(s)).map(str::trim)
+                    && !k.is_empty()
+                    && !reason.contains(k)
+                {
+                    reason = format!(
+                        "duplicate key `{k}`: written twice (TOML takes each key, and each [table], once)"
+                    );
+                }
+                Err(FileError {
+                    file: path.to_path_buf(),
+                    at: e.span().map(|s| line_col(text, s.start)),
+                    key: None,
+                    reason,
+                })
+            }
         }
     }
 
@@ -242,6 +255,16 @@ mod tests {
 
     use super::*;
     use serde::Deserialize;
+
+    /// A key set twice is named, at its second line (toml's own message, "duplicate key",
+    /// named none: issue 49).
+    #[test]
+    fn a_duplicate_key_names_itself() {
+        let text = "[motor]\nrs_ohm = 16.2\nrr_ohm = 1.0\nrs_ohm = 17.0\n";
+        let e = Source::parse(Path::new("d.toml"), text).unwrap_err();
+        assert!(e.reason.contains("`rs_ohm`"), "{e}");
+        assert_eq!(e.at.map(|(line, _)| line), Some(4), "{e}");
+    }
 
     #[derive(Debug, Deserialize)]
     #[serde(deny_unknown_fields)]
