@@ -1023,6 +1023,19 @@ pub fn drive_spec(
         DriveError::DeadTime => {
             src.error("board.dead_time_s", "must be ≥ 0 and below a tenth of the PWM period to compensate it")
         }
+        DriveError::SampleWindow if !src.contains("board.sample_window_s") => src.error(
+            "board.dead_time_s",
+            format!(
+                "with pwm.frequency_hz = {} Hz the default sample window (board.sample_window_s is not set: \
+                 the dead time + {} s of settling = {} s) leaves the phases a duty below {} \
+                 (1 − 2·window·f_pwm − dead time·f_pwm): a shorter dead time, a lower PWM rate, or \
+                 board.sample_window_s",
+                num(pwm.frequency_hz),
+                num(crate::board::DEFAULT_SAMPLE_SETTLE_S),
+                num(sample_window_s),
+                controller_core::drive::DUTY_MAX_MIN
+            ),
+        ),
         DriveError::SampleWindow => src.error(
             "board.sample_window_s",
             format!(
@@ -1036,18 +1049,33 @@ pub fn drive_spec(
         DriveError::CurrentTrim => {
             // With its numbers: a slow PWM (`frequency_hz = 1`) reads as a trim too fast.
             let t_slow_s = f64::from(pwm.slow_divider) / pwm.frequency_hz;
-            src.error(
-                "controller.current_trim_bandwidth_rad_s",
-                format!(
-                    "is {} rad/s; must be ≥ 0 and below 0.1/T_slow = {} rad/s, the slow period \
-                     T_slow = pwm.slow_divider/pwm.frequency_hz = {}/{} Hz = {} s",
-                    num(c.current_trim_bandwidth_rad_s),
-                    num(0.1 / t_slow_s),
-                    pwm.slow_divider,
-                    num(pwm.frequency_hz),
-                    num(t_slow_s)
-                ),
-            )
+            // A default the file does not hold is not the file's error: the slow period is.
+            let (trim, limit, d, f, t) = (
+                num(c.current_trim_bandwidth_rad_s),
+                num(0.1 / t_slow_s),
+                pwm.slow_divider,
+                num(pwm.frequency_hz),
+                num(t_slow_s),
+            );
+            if src.contains("controller.current_trim_bandwidth_rad_s") {
+                src.error(
+                    "controller.current_trim_bandwidth_rad_s",
+                    format!(
+                        "is {trim} rad/s; must be ≥ 0 and below 0.1/T_slow = {limit} rad/s, the slow period \
+                         T_slow = pwm.slow_divider/pwm.frequency_hz = {d}/{f} Hz = {t} s"
+                    ),
+                )
+            } else {
+                src.error(
+                    "pwm.frequency_hz",
+                    format!(
+                        "the slow period T_slow = pwm.slow_divider/pwm.frequency_hz = {d}/{f} Hz = {t} s is too long \
+                         for the default current trim of {trim} rad/s (controller.current_trim_bandwidth_rad_s, not \
+                         set, must lie below 0.1/T_slow = {limit} rad/s): a faster slow loop, or a slower trim set \
+                         in the file"
+                    ),
+                )
+            }
         }
         // The specification's path is the file's key, but for the current limit.
         DriveError::Protection { field, need } => {

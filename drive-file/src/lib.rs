@@ -276,15 +276,33 @@ mod tests {
         // A timer that cannot make the PWM rate.
         let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 19999.0"));
         assert_eq!(e.key.as_deref(), Some("pwm.frequency_hz"), "{e}");
-        // Found by trying: a 1 Hz PWM was blamed on the current trim without a number, a bus
+        // Found by trying: a 1 Hz PWM was blamed on the current trim without a number (and,
+        // issue 49, on a trim the file does not set: the PWM rate is what it sets), a bus
         // the core's f32 cannot hold on `controller.current` as "rejected: Pi(Limits)", a
         // negative speed gain as "rejected: Gain".
-        let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 1.0"));
-        assert_eq!(e.key.as_deref(), Some("controller.current_trim_bandwidth_rad_s"), "{e}");
+        let slow_pwm = replace("frequency_hz = 20000.0", "frequency_hz = 1.0");
+        assert!(!slow_pwm.contains("current_trim_bandwidth_rad_s ="));
+        let e = err(&slow_pwm);
+        assert_eq!(e.key.as_deref(), Some("pwm.frequency_hz"), "{e}");
         assert!(
-            e.reason.contains("below 0.1/T_slow = 0.01 rad/s") && e.reason.contains("10/1 Hz = 10 s"),
+            e.reason.contains("below 0.1/T_slow = 0.01 rad/s")
+                && e.reason.contains("10/1 Hz = 10 s")
+                && e.reason.contains("not set"),
             "{e}"
         );
+        // A default sample window (dead time + settling) that leaves too little duty at
+        // 68 kHz blames the dead time the file sets, not the window it does not.
+        let fast = replace("frequency_hz = 20000.0", "frequency_hz = 68000.0");
+        let window_line = fast.lines().find(|l| l.starts_with("sample_window_s")).unwrap().to_string();
+        let e = err(&fast.replace(&format!("{window_line}\n"), ""));
+        assert_eq!(e.key.as_deref(), Some("board.dead_time_s"), "{e}");
+        assert!(e.reason.contains("not set") && e.reason.contains("68000 Hz"), "{e}");
+        let e = err(&fast);
+        assert_eq!(e.key.as_deref(), Some("board.sample_window_s"), "{e}");
+        // Set in the file, the trim is the key blamed.
+        let e =
+            err(&slow_pwm.replace("[controller]\n", "[controller]\ncurrent_trim_bandwidth_rad_s = 20.0\n"));
+        assert_eq!(e.key.as_deref(), Some("controller.current_trim_bandwidth_rad_s"), "{e}");
         let e = err(&replace("vdc_max_v = 400.0", "vdc_max_v = 1e300"));
         assert_eq!(e.key.as_deref(), Some("protection.vdc_max_v"), "{e}");
         assert!(e.reason.contains("beyond the controller's f32 range"), "{e}");

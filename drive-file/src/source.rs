@@ -148,6 +148,20 @@ impl<'a> Source<'a> {
         }
     }
 
+    /// Does the file set the dotted `key` (not a default)?
+    pub fn contains(&self, key: &str) -> bool {
+        let mut table = &self.doc;
+        let mut keys = key.split('.').peekable();
+        while let Some(k) = keys.next() {
+            let Some((_, v)) = table.iter().find(|(n, _)| n.get_ref().as_ref() == k) else { return false };
+            match v.get_ref() {
+                DeValue::Table(t) => table = t,
+                _ => return keys.peek().is_none(),
+            }
+        }
+        true
+    }
+
     /// `Ok(())` if `ok`, else [`Source::error`].
     pub fn check(&self, ok: bool, key: &str, reason: &str) -> Result<(), FileError> {
         if ok { Ok(()) } else { Err(self.error(key, reason)) }
@@ -255,6 +269,15 @@ mod tests {
 
     use super::*;
     use serde::Deserialize;
+
+    /// `contains`: a key the file sets, not one it leaves to its default.
+    #[test]
+    fn contains_names_only_what_the_file_sets() {
+        let src = Source::parse(Path::new("d.toml"), "[board]\ndead_time_s = 1e-6\n[pwm]\n").unwrap();
+        assert!(src.contains("board.dead_time_s") && src.contains("board") && src.contains("pwm"));
+        assert!(!src.contains("board.sample_window_s") && !src.contains("board.dead_time_s.x"));
+        assert!(!src.contains("controller.current_trim_bandwidth_rad_s"));
+    }
 
     /// A key set twice is named, at its second line (toml's own message, "duplicate key",
     /// named none: issue 49).
