@@ -499,10 +499,23 @@ pub fn default_stall_time_s(
     overspeed_rad_s: f64,
     slow_period_s: f64,
 ) -> f64 {
-    let window_s = controller_core::encoder::SPEED_WINDOW_READS as f64 * slow_period_s;
     let band_rad_s = controller_core::supervisor::motion::STALL_SPEED_FRACTION * overspeed_rad_s;
-    let t = STALL_LEAVE_FACTOR * motor.j_kgm2() * band_rad_s / speed_limit_nm;
-    if t.is_finite() { t.max(window_s) } else { window_s }
+    at_least_the_speed_window(
+        STALL_LEAVE_FACTOR * motor.j_kgm2() * band_rad_s / speed_limit_nm,
+        slow_period_s,
+    )
+}
+
+/// `t_s`, at least the speed estimate's window (`SPEED_WINDOW_READS` slow periods), and that
+/// window for a `t_s` that is not finite: the motion checks judge nothing shorter.
+fn at_least_the_speed_window(t_s: f64, slow_period_s: f64) -> f64 {
+    let window_s = speed_window_s(slow_period_s);
+    if t_s.is_finite() { t_s.max(window_s) } else { window_s }
+}
+
+/// The encoder speed estimate's window, `SPEED_WINDOW_READS` slow periods, s.
+fn speed_window_s(slow_period_s: f64) -> f64 {
+    controller_core::encoder::SPEED_WINDOW_READS as f64 * slow_period_s
 }
 
 /// See [`default_stall_time_s`]: 1/(1 − 0.9) for a load of 0.9·τ_max, × 2 for twice the
@@ -529,13 +542,11 @@ pub fn default_following_time_s(
     encoder_lines: u32,
     slow_period_s: f64,
 ) -> f64 {
-    let reads = controller_core::encoder::SPEED_WINDOW_READS as f64;
-    let window_s = reads * slow_period_s;
-    let quantum_rad_s = core::f64::consts::TAU / (4.0 * f64::from(encoder_lines.max(1))) / window_s;
+    let quantum_rad_s =
+        core::f64::consts::TAU / (4.0 * f64::from(encoder_lines.max(1))) / speed_window_s(slow_period_s);
     let owed_rad_s2 =
         controller_core::supervisor::motion::FOLLOWING_PROGRESS_FRACTION * speed_limit_nm / motor.j_kgm2();
-    let t = FOLLOWING_SPEED_QUANTA * quantum_rad_s / owed_rad_s2;
-    if t.is_finite() { t.max(window_s) } else { window_s }
+    at_least_the_speed_window(FOLLOWING_SPEED_QUANTA * quantum_rad_s / owed_rad_s2, slow_period_s)
 }
 
 /// See [`default_following_time_s`]: the progress owed over the window, in counts of the

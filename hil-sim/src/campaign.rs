@@ -16,7 +16,8 @@
 //! τ_max at ω_s in that direction on the bus and the current limit (its envelope, the
 //! [`IdealLoop`]'s): a load beyond what the motor can hold there tests the motor, not the
 //! drive — 0.8·τ_max generating at twice base speed drove the rotor away from every
-//! 8-pole 1.3 kW member's reference (`FollowingError`, rightly, in 50 of 50 runs). ω_s is the top speed of the box — the certified
+//! 8-pole 1.3 kW member's reference (`FollowingError`, rightly, in 50 of 50 runs).
+//! ω_s is the top speed of the box — the certified
 //! ω_r,max/p, at most twice the no-load base speed on the bus (field weakening) — or what
 //! the weakest corner (largest J) can reach at τ_max in [`REACH_FRACTION`] of the first half:
 //! short runs stay below base speed, long ones reach into field weakening.

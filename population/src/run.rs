@@ -278,15 +278,12 @@ pub struct Family {
 /// point not reached, is its own family whatever the case), a campaign run by each
 /// criterion it failed.
 pub fn families(reports: &[Report]) -> Vec<Family> {
-    let mut out: Vec<(String, u64, Vec<usize>)> = Vec::new();
-    let mut add = |name: String, n: u64, drive: usize| match out.iter_mut().find(|(k, _, _)| *k == name) {
-        Some((_, count, drives)) => {
-            *count += n;
-            if !drives.contains(&drive) {
-                drives.push(drive);
-            }
-        }
-        None => out.push((name, n, vec![drive])),
+    use std::collections::{BTreeMap, BTreeSet};
+    let mut by_name: BTreeMap<String, (u64, BTreeSet<usize>)> = BTreeMap::new();
+    let mut add = |name: String, n: u64, drive: usize| {
+        let (count, drives) = by_name.entry(name).or_default();
+        *count += n;
+        drives.insert(drive);
     };
     for (d, r) in reports.iter().enumerate() {
         for f in &r.matrix_failures {
@@ -300,11 +297,12 @@ pub fn families(reports: &[Report]) -> Vec<Family> {
             }
         }
     }
-    let mut families: Vec<Family> = out
+    let mut families: Vec<Family> = by_name
         .into_iter()
-        .map(|(name, count, drives)| Family { name, count, drives: drives.len() as u64 })
+        .map(|(name, (count, drives))| Family { name, count, drives: drives.len() as u64 })
         .collect();
-    families.sort_by(|a, b| b.count.cmp(&a.count).then_with(|| a.name.cmp(&b.name)));
+    // Largest first; the map's order (by name) breaks ties.
+    families.sort_by_key(|f| std::cmp::Reverse(f.count));
     families
 }
 
