@@ -548,13 +548,11 @@ impl ControlLoop {
         self.commission.as_ref().and_then(|(c, _)| c.record())
     }
 
-    /// The period just stepped ran the drive's slow step (not during the bootstrap
-    /// pre-charge, which holds the drive's cadence; its last period, and one a fault ends,
-    /// read the drive's last step — at worst a request waits one period it need not):
-    /// [`crate::interrupt::Shared`] serves the link's requests in the next period instead
-    /// ([`Drive::slow_step_ran`]).
+    /// The period just stepped ran the drive's slow step, or during the bootstrap pre-charge
+    /// its shaft's stage ([`Drive::hold_step`]): [`crate::interrupt::Shared`] serves the
+    /// link's requests in the next period instead ([`Drive::slow_step_ran`]).
     pub fn slow_period(&self) -> bool {
-        self.precharge_left == 0 && self.drive.slow_step_ran()
+        self.drive.slow_step_ran()
     }
 
     /// The brake chopper's switch after the last step.
@@ -581,10 +579,11 @@ impl ControlLoop {
     /// while the bridge was off first gets `bootstrap_precharge_periods` with all three low
     /// sides on (compare 0: the zero vector, no voltage on the motor), so that the high-side
     /// gate drivers' bootstrap capacitors are charged before its first period. Meanwhile the
-    /// drive's supervisor runs on every sample ([`Drive::supervise_only`]: a fault ends the
-    /// pre-charge with the bridge off) and nothing else of it moves — neither its control
-    /// state nor its slow cadence (the encoder is not read either), so its first period
-    /// afterwards is the one it would have had without. A disable meanwhile ends it. A
+    /// drive's supervisor runs on every sample and its cadence runs on, the encoder read in
+    /// its slow periods ([`Drive::hold_step`]: a fault ends the pre-charge with the bridge
+    /// off; a rotor that turns keeps its speed and its jump check's reference), and its
+    /// control state does not move, so its first period afterwards is the one it would have
+    /// had without. A disable meanwhile ends it. A
     /// commissioning sequence gets its own, after its offsets and before its first pulse
     /// ([`ControlLoop::start_commissioning`]).
     fn precharge(&mut self, s: &Samples) -> Option<Bridge> {
@@ -604,8 +603,11 @@ impl ControlLoop {
             return None;
         }
         self.precharge_left -= 1;
+        if self.drive.slow_step_due() {
+            self.read_encoder(s.encoder);
+        }
         let m = self.measurements(s);
-        let brake = self.drive.supervise_only(&m);
+        let brake = self.drive.hold_step(&m);
         if let Some(o) = self.last.as_mut() {
             o.brake = brake;
             o.mode = self.drive.mode();
@@ -925,6 +927,61 @@ mod tests {
             let read_rad = w_rad_s * f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
             let error = f64::from(c.drive().position_rad()) - turned;
             assert!(error.abs() < 2.0 * read_rad, "{w_rad_s}: {} against {turned}", c.drive().position_rad());
+        }
+    }
+
+    /// Issue 54: an enable on a rotor that turns (coasting, or driven by its load). The
+    /// pre-charge froze the drive's cadence and skipped the encoder, so the first read after
+    /// it spanned the pre-charge's 40 periods plus a slow period against the one period
+    /// before: `EncoderLoss` above ≈ 4.3 rad/s. Now the encoder is read on the drive's
+    /// cadence through the pre-charge: no fault, and the speed the drive reads at the end of
+    /// the pre-charge is the shaft's within one count per read.
+    #[test]
+    fn an_enable_on_a_turning_rotor_keeps_the_encoder() {
+        let spec = drive_spec().unwrap();
+        let counts_per_rad = 4.0 * f64::from(crate::config::BOARD.encoder_lines) / core::f64::consts::TAU;
+        let read_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+        for w_rad_s in [-100.0f64, -20.0, 5.0, 20.0, 100.0] {
+            // Every start phase of the drive's cadence against the enable, the rotor brought
+            // to speed at 1 000 rad/s² first (a plausible motion for the jump check).
+            let ramp = (w_rad_s.abs() / 1000.0 * spec.pwm_frequency_hz) as u32;
+            for enable_at in ramp + 100..ramp + 100 + u32::from(spec.slow_divider) {
+                // (The samples carry no current: the checks that expect one are off.)
+                let mut c = ControlLoop::at_rest_for_tests();
+                let (mut counts, mut k) = (0.0f64, 0);
+                let mut step = |c: &mut ControlLoop| {
+                    k += 1;
+                    let w = w_rad_s * f64::from(k.min(ramp)) / f64::from(ramp);
+                    counts += w * counts_per_rad / spec.pwm_frequency_hz;
+                    c.step(&at_rest(counts.rem_euclid(65_536.0) as u16))
+                };
+                for _ in 0..enable_at {
+                    let _ = step(&mut c);
+                }
+                assert_eq!(c.drive().mode(), Mode::Idle, "{w_rad_s} rad/s before the enable");
+                c.drive_mut().enable().unwrap();
+                for k in 0..c.board.bootstrap_precharge_periods {
+                    assert_eq!(
+                        step(&mut c),
+                        Bridge::Compare([0; 3]),
+                        "{w_rad_s} rad/s: pre-charge period {k}"
+                    );
+                }
+                let error_rad_s = f64::from(c.omega_m_rad_s) - w_rad_s;
+                assert!(
+                    error_rad_s.abs() <= 1.0 / (counts_per_rad * read_s),
+                    "{w_rad_s}: read {}",
+                    c.omega_m_rad_s
+                );
+                for k in 0..10 * u32::from(spec.slow_divider) {
+                    let _ = step(&mut c);
+                    assert!(
+                        !matches!(c.drive().mode(), Mode::Fault(_)),
+                        "{w_rad_s} rad/s, enabled at {enable_at}: {:?} {k} periods after the pre-charge",
+                        c.drive().mode()
+                    );
+                }
+            }
         }
     }
 

@@ -9,6 +9,8 @@
 //!   trait, host-tested against a model of the timer's break logic;
 //! * [`server`]: the command/telemetry link's command handling;
 //! * [`boundary`]: the lock-free hand-over from the control interrupt to the link task;
+//! * [`safety`]: the microcontroller's own failures (lockup, SRAM parity, supply, flash
+//!   ECC) linked to the bridge's break — the words written at start-up and their check;
 //! * [`stack`]: the main stack's high-water mark, read from cortex-m-rt's paint;
 //! * [`config`]: the drive and board constants, generated from `drive.toml` at build time —
 //!   the pin map is in `main.rs`'s `pins` module, next to the peripherals it names.
@@ -23,5 +25,6 @@ pub mod config;
 pub mod control;
 pub mod interrupt;
 pub mod output;
+pub mod safety;
 pub mod server;
 pub mod stack;

@@ -20,10 +20,8 @@
 mod target {
     use controller_core::calibration::CalibrationError;
     use controller_core::link::{self, BoardCommand, FrameDecoder, LinkStats, LoopTiming, MAX_FRAME, Reply};
-    use core::cell::RefCell;
     use core::mem::ManuallyDrop;
-    use core::sync::atomic::{AtomicU32, Ordering};
-    use critical_section::Mutex;
+    use core::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
     use defmt_rtt as _;
     use embassy_executor::Spawner;
     use embassy_stm32::adc::{Adc, AdcChannel as _, Exten, SampleTime};
@@ -35,7 +33,7 @@ mod target {
     use embassy_stm32::pac::timer::vals::{Bkp, Ckd, Mms2, Ossi, Ossr};
     use embassy_stm32::pac::timer::vals::{Dir, Ocm, Urs};
     use embassy_stm32::peripherals::{
-        IWDG, PA0, PA1, PA2, PA3, PA6, PA8, PA9, PA10, PB5, PB6, PB7, PB13, PB14, PB15, PC0, PC1, TIM1,
+        IWDG, PA0, PA1, PA2, PA3, PA6, PA8, PA9, PA10, PB6, PB7, PB13, PB14, PB15, PC0, PC1, TIM1,
     };
     use embassy_stm32::timer::low_level::{CountingMode, FilterValue, OutputCompareMode, Timer as LlTimer};
     use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
@@ -78,14 +76,13 @@ mod target {
         DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
     });
 
-    /// The control loop: put in place at start-up, then the control interrupt's alone (the
-    /// link task reaches it through `SHARED`).
-    static CONTROL: Mutex<RefCell<Option<&'static mut ControlLoop>>> = Mutex::new(RefCell::new(None));
+    /// The control loop, handed over once: stored at start-up, taken by the control
+    /// interrupt at its first run ([`take_control`]), then the interrupt's alone (the link
+    /// task reaches it through `SHARED`). No critical section on either side.
+    static CONTROL: AtomicPtr<ControlLoop> = AtomicPtr::new(core::ptr::null_mut());
     /// Where the control loop lives: zero-initialised (`.bss`), so its ≈ 5.2 KiB take no flash
     /// for an initial image, as an `Option<ControlLoop>` static did.
     static CONTROL_CELL: static_cell::StaticCell<ControlLoop> = static_cell::StaticCell::new();
-    /// The output stage's state (whether the firmware enabled MOE), the control interrupt's.
-    static OUTPUTS: Mutex<core::cell::Cell<Outputs>> = Mutex::new(core::cell::Cell::new(Outputs::new()));
     /// Control interrupts served; the link task feeds the watchdog only while this advances.
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
     /// The control interrupt's longest step and overruns (`Status`).
@@ -185,20 +182,37 @@ mod target {
         /// LPUART1 TX/RX: the NUCLEO's ST-LINK virtual COM port.
         link_tx: Peri<'static, PA2>,
         link_rx: Peri<'static, PA3>,
-        /// The power board's brake-chopper gate (high: resistor across the DC link), driven
-        /// low at start; the control interrupt writes it ([`BRAKE_PIN`]).
-        brake: Peri<'static, PB5>,
     }
 
     #[embassy_executor::main]
     async fn main(spawner: Spawner) {
         let p = embassy_stm32::init(clocks());
+        // The brake gate first: a push-pull output, low (resistor out) until the drive asks.
+        // From reset until here the pin floats (an input): the power board's pull-down holds
+        // the chopper off (docs/firmware.md's bring-up).
+        let brake = Output::new(p.PB5, Level::Low, Speed::Low);
+        // Flash prefetch (off from reset; the ART caches are on): instruction fetches from
+        // flash at 4 wait states stall less on straight code (its effect is a board
+        // measurement: docs/firmware.md's bring-up).
+        pac::FLASH.acr().modify(|w| w.set_prften(true));
         // A breakpoint stops TIM1 (outputs frozen in their idle state by the break logic's
         // OSSI) and the independent watchdog with the core, instead of leaving the PWM running.
         pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
         pac::DBGMCU.apb1lfzr().modify(|w| w.set_iwdg(true));
-        // A core lockup (e.g. a fault inside the HardFault handler) is a TIM1 break input.
-        pac::SYSCFG.cfgr2().modify(|w| w.set_cll(true));
+        // The microcontroller's own failures are TIM1 break inputs (`firmware::safety`): a
+        // core lockup (a fault inside the HardFault handler), an SRAM parity error, the
+        // supply below the PVD's level, a flash ECC double error. The PVD first (its level
+        // and enable are locked by PVDL), then the links, read back.
+        pac::RCC.apb1enr1().modify(|w| w.set_pwren(true));
+        pac::PWR.cr2().modify(|w| {
+            w.set_pls(firmware::safety::PVD_LEVEL_CODE);
+            w.set_pvde(true);
+        });
+        pac::SYSCFG.cfgr2().write_value(pac::syscfg::regs::Cfgr2(firmware::safety::BREAK_LINKS));
+        if let Err(e) = firmware::safety::check_break_links(pac::SYSCFG.cfgr2().read().0) {
+            defmt::error!("SYSCFG_CFGR2 reads {=u32:#x}, not every break link: bridge stays off", e.read);
+            halt_safe();
+        }
         // The cycle counter the control interrupt times itself with (`Status`). Taken once
         // here; nothing else uses the core peripherals (the time driver is TIM3).
         if let Some(mut cp) = cortex_m::Peripherals::take() {
@@ -214,7 +228,6 @@ mod target {
             encoder: (p.PB6, p.PB7),
             link_tx: p.PA2,
             link_rx: p.PA3,
-            brake: p.PB5,
         };
         defmt::info!("drive firmware: 170 MHz, validating the drive configuration");
 
@@ -242,10 +255,9 @@ mod target {
                 halt_safe();
             }
         };
-        critical_section::with(|cs| CONTROL.borrow(cs).replace(Some(control)));
-
-        // The brake gate: a push-pull output, low (resistor out) until the drive asks.
-        let brake = Output::new(pins.brake, Level::Low, Speed::Low);
+        // Handed to the control interrupt, which takes it at its first run (Release: the
+        // loop's initialisation is seen there).
+        CONTROL.store(control, Ordering::Release);
 
         // TIM1: centre-aligned complementary PWM, outputs off until the drive asks (MOE is
         // 0 from reset and set only by the output stage's explicit enable). Through embassy's
@@ -399,8 +411,8 @@ mod target {
         interrupt::LPUART1.set_priority(Priority::P5);
         interrupt::ADC1_2.set_priority(Priority::P0);
         interrupt::ADC1_2.unpend();
-        // SAFETY: the handler only touches CONTROL (through a critical section), the
-        // lock-free boundary statics and the TIM1/ADC1/TIM4 registers that nothing else
+        // SAFETY: the handler only touches the control loop (handed over once through
+        // CONTROL), its own `static mut` state, the lock-free boundary statics and the TIM1/ADC1/TIM4 registers that nothing else
         // writes after this point.
         unsafe { interrupt::ADC1_2.enable() };
 
@@ -428,6 +440,10 @@ mod target {
     /// delay the simulator and the certificate model.
     #[interrupt]
     fn ADC1_2() {
+        // The interrupt's own state, which nothing else reaches: cortex-m-rt makes these
+        // `&mut` to this handler (no critical section around the body, issue 54).
+        static mut CONTROL_LOOP: Option<&'static mut ControlLoop> = None;
+        static mut OUTPUTS: Outputs = Outputs::new();
         let t0 = cortex_m::peripheral::DWT::cycle_count();
         let adc = pac::ADC1;
         if !adc.isr().read().jeos() {
@@ -442,21 +458,30 @@ mod target {
         };
         adc.isr().write(|w| w.set_jeos(true));
         // Break detection → control step → compare values (preloaded: they take effect at
-        // the next update) and MOE, set only on an explicit enable.
-        critical_section::with(|cs| {
-            let outputs = OUTPUTS.borrow(cs);
-            match CONTROL.borrow_ref_mut(cs).as_mut() {
-                Some(ctl) => {
-                    let mut o = outputs.get();
-                    SHARED.control_period(&mut o, &mut Tim1, ctl, samples);
-                    outputs.set(o);
-                }
-                None => Tim1.disable_outputs(),
+        // the next update) and MOE, set only on an explicit enable, a period after them.
+        if CONTROL_LOOP.is_none() {
+            *CONTROL_LOOP = take_control();
+        }
+        match CONTROL_LOOP.as_deref_mut() {
+            Some(ctl) => {
+                SHARED.control_period(OUTPUTS, &mut Tim1, ctl, samples);
             }
-        });
+            None => Tim1.disable_outputs(),
+        }
         ISR_COUNT.fetch_add(1, Ordering::Relaxed);
         let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
         LOOP_TIMER.record(cycles, firmware::control::period_cycles(&BOARD));
+    }
+
+    /// The control loop [`CONTROL`] holds, taken out (`None` if none was stored, or it was
+    /// taken before).
+    fn take_control() -> Option<&'static mut ControlLoop> {
+        let p = CONTROL.swap(core::ptr::null_mut(), Ordering::Acquire);
+        // SAFETY: a non-null pointer in `CONTROL` is the `&'static mut` start-up stored, once
+        // (from the static cell's single initialisation); the swap leaves null behind, so it
+        // is taken once, here, by the control interrupt — which nothing re-enters (the only
+        // interrupt at its priority) — and no other reference to the loop exists.
+        unsafe { p.as_mut() }
     }
 
     /// The main stack's high-water mark since reset, bytes (`firmware::stack`): the region

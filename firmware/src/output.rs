@@ -13,6 +13,12 @@
 //!   clear flags set between the read and the write).
 //! - After the explicit enable the flag is read once more: a break that fell between the
 //!   first read and the write of MOE is in BIF, and the outputs go off again at once.
+//! - MOE is set one period after the compare values that are to drive the bridge were
+//!   written (issue 54): they are preloaded, and the update event that makes them active
+//!   comes between this period's write and the next. Set in the same period, the bridge
+//!   first switched the values left active — 50 % on every phase after reset, a stopped
+//!   run's last duties after a re-enable — for the rest of the period (≈ 48 µs at 20 kHz)
+//!   instead of the pre-charge's zero vector.
 
 use crate::control::{Bridge, ControlLoop, Samples};
 
@@ -34,16 +40,29 @@ pub trait OutputStage {
     fn set_brake(&mut self, on: bool);
 }
 
+/// Where the output stage is on the way from off to switching.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Stage {
+    /// MOE 0, nothing written for the bridge.
+    #[default]
+    Off,
+    /// The first compare values written (preloaded: active from the next update event);
+    /// MOE still 0.
+    Loaded,
+    /// MOE set by the firmware, which so expects it at 1.
+    Armed,
+}
+
 /// Whether the firmware has enabled the outputs (and so expects MOE = 1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Outputs {
-    armed: bool,
+    stage: Stage,
 }
 
 impl Outputs {
     /// Outputs off, as after reset.
     pub const fn new() -> Self {
-        Self { armed: false }
+        Self { stage: Stage::Off }
     }
 
     /// One control period: break detection, the control step, the output stage. The break
@@ -56,7 +75,7 @@ impl Outputs {
         samples: &mut Samples,
     ) -> Bridge {
         let flagged = hw.break_flag();
-        let lost = self.armed && !hw.outputs_enabled();
+        let lost = self.stage == Stage::Armed && !hw.outputs_enabled();
         if flagged {
             hw.clear_break_flag();
         }
@@ -66,19 +85,25 @@ impl Outputs {
         match bridge {
             Bridge::Compare(ccr) => {
                 hw.set_compare(ccr);
-                if !self.armed {
-                    hw.enable_outputs();
-                    self.armed = true;
-                    if hw.break_flag() {
-                        // The break fell between the first read and the enable: off again.
-                        // The next period finds MOE = 0 while armed and latches the fault.
-                        hw.disable_outputs();
+                match self.stage {
+                    Stage::Armed => {}
+                    // The values active now are the ones written last period: MOE on.
+                    Stage::Loaded => {
+                        hw.enable_outputs();
+                        self.stage = Stage::Armed;
+                        if hw.break_flag() {
+                            // The break fell between the first read and the enable: off
+                            // again. The next period finds MOE = 0 while armed and latches
+                            // the fault.
+                            hw.disable_outputs();
+                        }
                     }
+                    Stage::Off => self.stage = Stage::Loaded,
                 }
             }
             Bridge::Off => {
                 hw.disable_outputs();
-                self.armed = false;
+                self.stage = Stage::Off;
             }
         }
         bridge
@@ -98,9 +123,11 @@ pub fn stop_for_good(mask_interrupts: impl FnOnce(), hw: &mut impl OutputStage) 
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use crate::config::{BOARD, DRIVE_CONFIG};
     use controller_core::drive::{Fault, Mode};
+    use std::vec::Vec;
 
     /// TIM1's main output and break logic: a break pulse clears MOE and sets BIF in hardware;
     /// MOE cannot be set while the break input is active. `pulse_at` injects a one-operation
@@ -219,6 +246,99 @@ mod tests {
         assert!(!hw.moe);
         assert!(bus(&mut out, &mut hw, &mut ctl, 3550));
         assert!(!bus(&mut out, &mut hw, &mut ctl, 3400));
+    }
+
+    /// TIM1's compare registers with preload: a write goes to the preload register, the
+    /// update event between two control periods makes it active.
+    #[derive(Debug, Default)]
+    struct Preloaded {
+        timer: ModelTimer,
+        preload: [u16; 3],
+        active: [u16; 3],
+        /// The active values while MOE was 1, at any register operation.
+        switched: Vec<[u16; 3]>,
+    }
+
+    impl Preloaded {
+        /// After reset: the start-up's 50 % in both registers.
+        fn after_reset() -> Self {
+            let half = BOARD.pwm_period_counts / 2;
+            Self { preload: [half; 3], active: [half; 3], ..Default::default() }
+        }
+        fn update_event(&mut self) {
+            self.active = self.preload;
+        }
+        fn note(&mut self) {
+            if self.timer.moe {
+                self.switched.push(self.active);
+            }
+        }
+    }
+
+    impl OutputStage for Preloaded {
+        fn break_flag(&mut self) -> bool {
+            self.note();
+            self.timer.break_flag()
+        }
+        fn clear_break_flag(&mut self) {
+            self.timer.clear_break_flag();
+        }
+        fn outputs_enabled(&mut self) -> bool {
+            self.timer.outputs_enabled()
+        }
+        fn set_compare(&mut self, c: [u16; 3]) {
+            self.note();
+            self.preload = c;
+        }
+        fn enable_outputs(&mut self) {
+            self.timer.enable_outputs();
+            self.note();
+        }
+        fn disable_outputs(&mut self) {
+            self.timer.disable_outputs();
+        }
+        fn set_brake(&mut self, on: bool) {
+            self.timer.set_brake(on);
+        }
+    }
+
+    /// Issue 54: from the instant MOE is set until the drive's first own period is active,
+    /// the bridge switches the pre-charge's zero vector (compare 0: all low sides on) — at
+    /// the first enable after reset (the start-up's 50 % left active) and at a re-enable
+    /// after a run (its last duties left active) alike. Set in the period that wrote the
+    /// pre-charge's values, MOE switched the values left active for the rest of it.
+    #[test]
+    fn the_bridge_switches_the_precharge_pattern_from_the_first_instant() {
+        let mut ctl = ControlLoop::at_rest_for_tests();
+        let (mut out, mut hw) = (Outputs::new(), Preloaded::after_reset());
+        let period = |out: &mut Outputs, hw: &mut Preloaded, ctl: &mut ControlLoop| {
+            let b = out.period(hw, ctl, &mut at_rest());
+            hw.update_event();
+            hw.note();
+            b
+        };
+        for run in 0..2 {
+            ctl.drive_mut().enable().unwrap();
+            for _ in 0..BOARD.bootstrap_precharge_periods {
+                assert_eq!(period(&mut out, &mut hw, &mut ctl), Bridge::Compare([0; 3]));
+            }
+            assert!(hw.timer.moe, "run {run}: the bridge is on by the pre-charge's end");
+            assert!(!hw.switched.is_empty());
+            assert!(
+                hw.switched.iter().all(|&c| c == [0; 3]),
+                "run {run}: the bridge switched {:?} during the pre-charge",
+                hw.switched.iter().find(|&&c| c != [0; 3])
+            );
+            // The drive's own duties, then a stop: they stay in the registers.
+            for _ in 0..20 {
+                assert!(matches!(period(&mut out, &mut hw, &mut ctl), Bridge::Compare(_)));
+            }
+            assert_ne!(hw.active, [0; 3], "the drive switches its own duties");
+            ctl.drive_mut().disable();
+            assert_eq!(period(&mut out, &mut hw, &mut ctl), Bridge::Off);
+            assert!(!hw.timer.moe);
+            hw.switched.clear();
+        }
     }
 
     /// The outputs are enabled once, on the drive's request, and not re-written while on.

@@ -233,11 +233,25 @@ impl Drive {
         self.cfg.current.track(&mut self.run.current, v, v_clamp);
     }
 
-    /// The fast step's supervisor and brake chopper alone, for a period in which the
-    /// firmware holds the bridge itself (the bootstrap pre-charge, all low sides on): a
-    /// failing check latches its fault as in [`Drive::fast_step`]; the control state does not
-    /// move. Returns the brake chopper's switch.
-    pub fn supervise_only(&mut self, m: &Measurements) -> bool {
+    /// A period in which the firmware holds the bridge itself (the bootstrap pre-charge, all
+    /// low sides on): the fast step's supervisor and brake chopper — a failing check latches
+    /// its fault as in [`Drive::fast_step`] — and the cadence with the shaft's stage of its
+    /// slow periods (`Drive::track_shaft`: the encoder read and its jump check, the rest
+    /// detector, the thermal models; the rotor angle follows the shaft). The control state
+    /// (loops, flux model, plan, the magnetizing time) does not move. Returns the brake
+    /// chopper's switch.
+    ///
+    /// The cadence runs on (issue 54): frozen, with the encoder unread, the first read after
+    /// a 40-period pre-charge spanned five slow periods against the one before it, and an
+    /// enable on a rotor turning faster than ≈ 4.3 rad/s tripped [`Fault::EncoderLoss`].
+    pub fn hold_step(&mut self, m: &Measurements) -> bool {
+        if self.steps_to_slow == 0 {
+            let step_rad = self.track_shaft(m);
+            self.anchor_field(step_rad);
+            self.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
+        } else {
+            self.steps_to_slow -= 1;
+        }
         if !self.measurements_ok(m) {
             self.trip_on(m);
         }

@@ -470,10 +470,14 @@ impl Drive {
         self.stop_steps_left.is_some()
     }
 
-    /// Fault → Idle.
+    /// Fault → Idle (the encoder's jump check judges again from the second change after,
+    /// [`Fault::EncoderLoss`]'s jump being no reference).
     pub fn clear_fault(&mut self) {
         if matches!(self.mode, Mode::Fault(_)) {
             self.mode = Mode::Idle;
+            // The encoder's last change may be the jump that latched `EncoderLoss`: no
+            // reference for the next one.
+            self.machine.encoder.forget_last_change();
         }
     }
 

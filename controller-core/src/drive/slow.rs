@@ -34,8 +34,12 @@ impl Drive {
         }
     }
 
-    /// The slow step up to the plan: see [`Drive::slow_step`].
-    pub(super) fn slow_loops(&mut self, m: &Measurements) {
+    /// The slow step's first stage, the shaft's and the machine's, which runs whatever the
+    /// bridge does (a slow period of [`Drive::hold_step`] too): the encoder read (its
+    /// non-finite and jump checks), the rest detector, the thermal models. Returns the
+    /// encoder's change, mechanical rad.
+    #[inline]
+    pub(super) fn track_shaft(&mut self, m: &Measurements) -> f32 {
         // The encoder's readings change only here (the fast step checks the currents and
         // the bus): not finite, in any mode, is the supervisor's non-finite input.
         if !(m.omega_m_rad_s.is_finite() && m.theta_m_rad.is_finite()) {
@@ -44,6 +48,12 @@ impl Drive {
         let step_rad = self.read_encoder(m.theta_m_rad);
         self.machine.rest.update(&self.cfg.rest, step_rad);
         self.update_thermal(m.i_abc_a);
+        step_rad
+    }
+
+    /// The slow step up to the plan: see [`Drive::slow_step`].
+    pub(super) fn slow_loops(&mut self, m: &Measurements) {
+        let step_rad = self.track_shaft(m);
         let active = self.mode.is_active();
         if active && m.omega_m_rad_s.abs() > self.cfg.motion.overspeed_rad_s {
             self.trip(Fault::Overspeed);

@@ -392,6 +392,30 @@ fn an_encoder_jump_is_encoder_loss() {
     assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
 }
 
+/// A cleared `EncoderLoss` does not trip again on the change that latched it (found by
+/// `cost`'s command sequence, issue 54: a `ClearFault` before the next read left the jump
+/// as the reference, and the next ordinary change departed from it by the jump itself —
+/// clearing an encoder fault took two tries). The check judges again from the second
+/// change after the clear, and still catches a jump then.
+#[test]
+fn a_cleared_encoder_loss_does_not_trip_on_its_own_jump() {
+    let level = test_spec().protection.encoder_jump_rad;
+    let mut d = drive();
+    for _ in 0..3 {
+        d.slow_step(&wrapped(0.0));
+    }
+    // The counter disturbed once (an interference pulse): it moves by 3 levels and stays.
+    d.slow_step(&wrapped(3.0 * level));
+    assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+    d.clear_fault();
+    for k in 0..5 {
+        d.slow_step(&wrapped(3.0 * level));
+        assert_eq!(d.mode(), Mode::Idle, "read {k} after the clear");
+    }
+    d.slow_step(&wrapped(4.2 * level));
+    assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss), "a jump after the clear is still one");
+}
+
 /// The I²t model: a constant current of k × rated from cold trips after
 /// `τ·ln(k²/(k² − sf²))` (to one update period), the model on the RMS phase current of
 /// the amplitude-invariant Clarke transform; below sf × rated it never trips; it cools in

@@ -97,6 +97,13 @@ impl EncoderTrack {
         (step, jumped)
     }
 
+    /// The last change is no reference (a cleared fault's: it may be the jump that latched
+    /// it): the jump check judges again from the second change after this.
+    #[inline]
+    pub(crate) fn forget_last_change(&mut self) {
+        self.reads = self.reads.min(1);
+    }
+
     /// A track `turns` whole turns out (tests of what a long travel does to the checks).
     #[cfg(test)]
     pub(crate) fn with_turns(turns: i32) -> Self {

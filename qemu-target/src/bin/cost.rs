@@ -219,7 +219,13 @@ mod target {
             rehearsal.step(&samples(*t));
             i_ab = rehearsal.drive().telemetry().i_ref_ab_a;
         }
-        let fetch = |j: u32| samples(table.get((j % N) as usize).copied().unwrap_or_default());
+        // The table's currents over and over, the encoder turning on past its end (a
+        // counter that fell back to the table's first count tripped `EncoderLoss`, and the
+        // commands below, meant to be served while Running, were served in a fault).
+        let fetch = |j: u32| Samples {
+            encoder: (j as f32 * counts) as u32 as u16,
+            ..samples(table.get((j % N) as usize).copied().unwrap_or_default())
+        };
         // The same periods again below, each timed alone, from here.
         let mut again = c.clone();
         let period = per_call(ticks, |j| {
@@ -276,6 +282,10 @@ mod target {
         let (mut worst_command, mut worst_name) = (0, "");
         let mut j = N;
         for (name, cmd) in commands {
+            if matches!(cmd, BoardCommand::Stop) {
+                // The commands before it were served while Running.
+                served &= c.drive().mode() == Mode::Running;
+            }
             served &= shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()));
             shared.request_snapshot();
             // Served in the period it is posted for, or in the next when that one has the
