@@ -6,6 +6,7 @@ use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
 use controller_core::current::CurrentLaw;
 use controller_core::drive::{CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference};
+use controller_core::fault::Fault;
 use controller_core::motor::{MotorError, MotorParams};
 use controller_core::speed::SpeedLaw;
 use drive_file::{DriveFile, FileError};
@@ -55,6 +56,9 @@ pub struct Builtin {
     pub spec: DriveSpec,
     /// The simulated machine (differs from `spec.motor` in perturbed-plant scenarios).
     pub plant: MotorParams,
+    /// The fault the run is meant to end in (a scenario that tests a protection): then the
+    /// run passes only if the drive latches it, and fails without it or with another.
+    pub expect_fault: Option<Fault>,
     /// Events and timing.
     pub scenario: Scenario,
 }
@@ -134,6 +138,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
         about: "IFOC + ICAD, speed step to 150 rad/s, 1 N·m load applied at 1.5 s and removed at 2.5 s"
             .into(),
         plant: spec.motor,
+        expect_fault: None,
         spec,
         scenario: Scenario {
             events: vec![

@@ -10,6 +10,9 @@
 //! sample_period_s = 1e-3          # trace sample period (a multiple of the PWM period)
 //! vdc_v = 310.0
 //! rk4_substeps = 1                # default 1 (see tests/substeps.rs)
+//! expect_fault = "DcBusUndervoltage"   # optional: the run tests a protection — it passes
+//!                                  # only if the drive latches this fault (`hil-sim run`
+//!                                  # otherwise fails when the drive ends in any fault)
 //!
 //! # [plant]                        # optional: the simulated machine, if not [motor]
 //!
@@ -39,7 +42,11 @@
 //! kind = "enable"
 //! [[events]]
 //! t_s = 0.3
-//! kind = "speed"                   # speed (rad/s), position (rad), torque (N·m), load (N·m);
+//! kind = "speed"                   # speed (rad/s), position (rad), torque (N·m), load (N·m:
+//!                                  # an active load, which drives a tripped rotor too);
+//!                                  # a passive load coupled from then on, added to what is
+//!                                  # there: "friction" (N·m, dry), "fan" (N·m at
+//!                                  # omega_rad_s, square law), "inertia" (kg·m²);
 //!                                  # "stop": a controlled stop (brake to rest, bridge off)
 //! value = 150.0                    # or kind = "rotating_current", amplitude_a, omega_rad_s
 //! [[events]]                       # a fault injected into the simulated hardware:
@@ -88,8 +95,9 @@
 use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
-use crate::sim::{Event, Injection, LoadModel, OpenLoop, Scenario};
+use crate::sim::{Event, Injection, LoadModel, OpenLoop, PassiveLoad, Scenario};
 use controller_core::drive::{DriveSpec, Reference};
+use controller_core::fault::Fault;
 use drive_file::board::BoardTable;
 use drive_file::certify::CertifyTable;
 use drive_file::drive::{ControllerTable, ProtectionTable, PwmTable};
@@ -164,6 +172,8 @@ struct ClosedLoopFile {
     comparator: Option<ComparatorTable>,
     #[serde(default)]
     sensors: SensorsTable,
+    /// The fault the run is meant to end in, by its name (`"DcBusUndervoltage"`).
+    expect_fault: Option<String>,
     events: Vec<EventTable>,
 }
 
@@ -260,6 +270,9 @@ enum EventKind {
     Position,
     Torque,
     Load,
+    Friction,
+    Fan,
+    Inertia,
     RotatingCurrent,
     Fault,
 }
@@ -406,6 +419,25 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             EventKind::Torque => Event::Reference(Reference::Torque(bounded("value", e.value)? as f32)),
             // The load is the plant's: f64, as written (it was rounded to f32 before).
             EventKind::Load => Event::LoadNm(bounded("value", e.value)?),
+            // Passive loads, coupled from then on (a tripped rotor coasts to rest under them).
+            EventKind::Friction | EventKind::Fan | EventKind::Inertia => {
+                let value = bounded("value", e.value)?;
+                src.check(value >= 0.0, &key("value"), &format!("is {}; a passive load is ≥ 0", num(value)))?;
+                Event::Coupling(match e.kind {
+                    EventKind::Friction => PassiveLoad::Friction { friction_nm: value },
+                    EventKind::Inertia => PassiveLoad::Inertia { j_kgm2: value },
+                    _ => {
+                        // The fan's torque `value` at speed `omega_rad_s`: k = T/ω².
+                        let w = bounded("omega_rad_s", e.omega_rad_s)?;
+                        src.check(
+                            w.abs() > 0.0,
+                            &key("omega_rad_s"),
+                            "is 0; the speed at which the fan takes `value` N·m must not be",
+                        )?;
+                        PassiveLoad::Fan { k_nm_s2: value / (w * w) }
+                    }
+                })
+            }
             EventKind::RotatingCurrent => Event::Reference(Reference::RotatingCurrent {
                 amplitude_a: bounded("amplitude_a", e.amplitude_a)? as f32,
                 omega_rad_s: bounded("omega_rad_s", e.omega_rad_s)? as f32,
@@ -634,11 +666,19 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         }
     };
     let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let expect_fault = match f.expect_fault.as_deref() {
+        None => None,
+        Some(name) => Some(Fault::ALL.into_iter().find(|x| format!("{x:?}") == name).ok_or_else(|| {
+            let names: Vec<String> = Fault::ALL.iter().map(|x| format!("{x:?}")).collect();
+            src.error("expect_fault", format!("is \"{name}\"; a fault is one of {}", names.join(", ")))
+        })?),
+    };
     Ok(Builtin {
         name: stem,
         about: format!("closed-loop scenario file {}", file.display()),
         spec,
         plant,
+        expect_fault,
         scenario: Scenario {
             events,
             duration_s: f.duration_s,
@@ -941,6 +981,72 @@ torque_nm = 0.5
             let e = err(&with(ev));
             assert_eq!(e.key.as_deref(), Some(format!("events[2].{k}").as_str()), "{e}");
         }
+    }
+
+    /// Issue 49: a passive load — here a fan taking 0.2 N·m at 100 rad/s — lets a tripped
+    /// rotor coast down (its speed falls, never reverses), where an active load of the same
+    /// torque drives it backwards; a coupled inertia slows the coast-down. A negative
+    /// passive load and a fan without its speed are refused by key.
+    #[test]
+    fn a_passive_load_lets_a_tripped_rotor_coast_to_rest() {
+        let run = |load: &str| {
+            let text = format!(
+                "drive = \"../../drive.toml\"\nduration_s = 3.0\nsample_period_s = 1e-3\nvdc_v = 310.0\n\
+                 [[events]]\nt_s = 0.0\nkind = \"enable\"\n\
+                 [[events]]\nt_s = 0.3\nkind = \"speed\"\nvalue = 100.0\n\
+                 {load}\n\
+                 [[events]]\nt_s = 0.8\nkind = \"fault\"\nfault = \"bus_voltage\"\nvdc_v = 100.0\n"
+            );
+            let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios/passive.toml");
+            let b = parse_closed_loop(&path, &text).unwrap();
+            let mut rows = Vec::new();
+            let mode = b
+                .run_into(
+                    |_| {},
+                    |r| {
+                        rows.push((r.t_s, r.x.omega_m_rad_s));
+                        Ok(())
+                    },
+                )
+                .unwrap();
+            assert_eq!(
+                mode,
+                controller_core::drive::Mode::Fault(controller_core::fault::Fault::DcBusUndervoltage)
+            );
+            rows
+        };
+        let after =
+            |rows: &[(f64, f64)]| rows.iter().filter(|(t, _)| *t >= 0.8).map(|&(_, w)| w).collect::<Vec<_>>();
+        let fan = "[[events]]\nt_s = 0.5\nkind = \"fan\"\nvalue = 0.2\nomega_rad_s = 100.0";
+        let coasting = after(&run(fan));
+        let first = coasting.first().copied().unwrap();
+        assert!(first > 80.0, "at speed when it trips: {first}");
+        assert!(coasting.windows(2).all(|w| w[1] <= w[0] + 1e-9), "a coast-down only falls");
+        let last = coasting.last().copied().unwrap();
+        assert!(last > 0.0 && last < 0.8 * first, "{first} → {last} rad/s");
+        // The same torque as an active load drives the tripped rotor backwards.
+        let active = after(&run("[[events]]\nt_s = 0.5\nkind = \"load\"\nvalue = 0.2"));
+        assert!(active.last().copied().unwrap() < 0.0, "{:?}", active.last());
+        // More inertia on the shaft: the same fan slows it less in the same time.
+        let heavy = after(&run(&format!("{fan}\n[[events]]\nt_s = 0.5\nkind = \"inertia\"\nvalue = 0.01")));
+        assert!(heavy.last().copied().unwrap() > last, "{heavy:?}");
+        let e = err(&format!("{FIG16}\n[[events]]\nt_s = 0.5\nkind = \"friction\"\nvalue = -1.0\n"));
+        assert_eq!(e.key.as_deref(), Some("events[2].value"), "{e}");
+        let e = err(&format!("{FIG16}\n[[events]]\nt_s = 0.5\nkind = \"fan\"\nvalue = 1.0\n"));
+        assert_eq!(e.key.as_deref(), Some("events[2].omega_rad_s"), "{e}");
+    }
+
+    /// `expect_fault` names a fault by its name; an unknown one is refused by key, listing
+    /// the names.
+    #[test]
+    fn a_scenario_may_expect_a_fault_by_name() {
+        let f = parse_closed_loop(Path::new("c.toml"), &format!("expect_fault = \"Overspeed\"\n{FIG16}"))
+            .unwrap();
+        assert_eq!(f.expect_fault, Some(Fault::Overspeed));
+        assert_eq!(parse_closed_loop(Path::new("c.toml"), FIG16).unwrap().expect_fault, None);
+        let e = err(&format!("expect_fault = \"overspeed\"\n{FIG16}"));
+        assert_eq!(e.key.as_deref(), Some("expect_fault"));
+        assert!(e.to_string().contains("Overspeed") && e.to_string().contains("SwitchOpen"), "{e}");
     }
 
     #[test]

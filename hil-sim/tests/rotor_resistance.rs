@@ -30,6 +30,7 @@ fn run(
         about: String::new(),
         spec,
         plant,
+        expect_fault: None,
         scenario: Scenario {
             events,
             duration_s,

@@ -107,12 +107,32 @@ pub fn run_builtin(b: &Builtin, out: &Path, pil: Option<&PilOptions>) -> Result<
         }
         summary
     })?;
-    match latched {
-        Some((t, f)) => Err(format!(
-            "the drive ended in Fault({f:?}), latched at {t:.4} s (trace, summary and plots written in {})",
-            out.display()
+    verdict(b.expect_fault, latched, out)
+}
+
+/// A closed-loop run's verdict, like a test's: with no fault expected it passes without a
+/// fault; with one expected (`expect_fault`) it passes only if the drive latched that one.
+fn verdict(
+    expected: Option<controller_core::fault::Fault>,
+    latched: Option<(f64, controller_core::fault::Fault)>,
+    out: &Path,
+) -> Result<(), String> {
+    let written = format!("trace, summary and plots written in {}", out.display());
+    match (expected, latched) {
+        (None, None) => Ok(()),
+        (Some(e), Some((t, f))) if e == f => {
+            eprintln!("hil-sim: the drive latched Fault({f:?}) at {t:.4} s, as the scenario expects");
+            Ok(())
+        }
+        (None, Some((t, f))) => {
+            Err(format!("the drive ended in Fault({f:?}), latched at {t:.4} s ({written})"))
+        }
+        (Some(e), Some((t, f))) => Err(format!(
+            "the scenario expects Fault({e:?}); the drive latched Fault({f:?}) at {t:.4} s ({written})"
         )),
-        None => Ok(()),
+        (Some(e), None) => {
+            Err(format!("the scenario expects Fault({e:?}); the drive latched none ({written})"))
+        }
     }
 }
 
@@ -206,6 +226,30 @@ mod tests {
         let t = summary["fault_time_s"].as_f64().unwrap();
         assert!((0.0..0.05).contains(&t), "{t}");
         assert!(out.join("speed.svg").is_file());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A scenario that expects a fault passes when the drive latches it, and fails when it
+    /// latches another or none (the bus below the undervoltage trip, as above).
+    #[test]
+    fn a_run_that_expects_a_fault_passes_only_with_that_fault() {
+        use controller_core::fault::Fault;
+        let mut b = crate::scenario::speed_step().unwrap();
+        b.scenario.duration_s = 0.05;
+        b.scenario.vdc_v = 0.5 * b.spec.protection.vdc_min_v;
+        let dir = tmp("expected");
+        let out = dir.join("speed-step");
+        b.expect_fault = Some(Fault::DcBusUndervoltage);
+        run_builtin(&b, &out, None).unwrap();
+        b.expect_fault = Some(Fault::Overcurrent);
+        let e = run_builtin(&b, &out, None).unwrap_err();
+        assert!(
+            e.contains("expects Fault(Overcurrent)") && e.contains("latched Fault(DcBusUndervoltage)"),
+            "{e}"
+        );
+        b.scenario.vdc_v = 310.0;
+        let e = run_builtin(&b, &out, None).unwrap_err();
+        assert!(e.contains("latched none"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 

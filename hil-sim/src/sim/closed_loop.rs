@@ -6,7 +6,9 @@ use super::dc_link::LinkState;
 use super::integrate::{
     BRIDGE_OFF_SUBSTEPS, PHASE_AXES, check_rk4_step, integrate_bridge_off, integrate_segments,
 };
-use super::{DriveUnderTest, Event, Injection, LoadModel, Row, SWITCH_ACTING_DUTY, Scenario, non_finite};
+use super::{
+    DriveUnderTest, Event, Injection, LoadModel, PassiveLoad, Row, SWITCH_ACTING_DUTY, Scenario, non_finite,
+};
 use crate::bridge_fault::{Legs, SwitchShort};
 use crate::inverter::InverterModel;
 use crate::sensors::Sensors;
@@ -105,6 +107,17 @@ pub fn run(
                     Event::Reference(r) => drive.set_reference(r)?,
                     Event::Stop => drive.controlled_stop()?,
                     Event::LoadNm(l) => load = l,
+                    Event::Coupling(c) => {
+                        machine = match c {
+                            PassiveLoad::Friction { friction_nm } => {
+                                machine.with_coulomb_friction(machine.coulomb_nm() + friction_nm.abs())
+                            }
+                            PassiveLoad::Fan { k_nm_s2 } => machine.with_fan(k_nm_s2),
+                            PassiveLoad::Inertia { j_kgm2 } => machine.with_added_inertia(j_kgm2),
+                        };
+                        rk4 = machine.rk4_stepper(h);
+                        rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
+                    }
                     Event::Fault(Injection::CurrentSensor { phase, gain, offset_a }) => {
                         sensors.fail_current_channel(phase, gain, offset_a);
                     }

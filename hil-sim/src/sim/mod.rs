@@ -113,12 +113,37 @@ pub enum Event {
     Enable,
     /// New outer-loop reference.
     Reference(Reference),
-    /// New load torque, N·m.
+    /// New load torque, N·m: an *active* load (a hoist's weight, a dynamometer's command),
+    /// which drives the shaft whatever it does — a tripped rotor too.
     LoadNm(f64),
+    /// A *passive* load coupled from now on, added to what is there: it only takes the
+    /// energy the shaft gives it (or stores it), so a tripped rotor coasts to rest.
+    Coupling(PassiveLoad),
     /// A controlled stop ([`Drive::controlled_stop`]).
     Stop,
     /// A fault of the plant, inverter or sensors from this time on.
     Fault(Injection),
+}
+
+/// A passive mechanical load ([`Event::Coupling`]), the kinds a driven machine presents.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PassiveLoad {
+    /// Dry friction of `friction_nm` against the motion, holding up to it at rest (a
+    /// conveyor's belt, a brake pad).
+    Friction {
+        /// N·m.
+        friction_nm: f64,
+    },
+    /// A fan or a centrifugal pump: `k_nm_s2`·ω·|ω| against the motion.
+    Fan {
+        /// N·m·s²/rad².
+        k_nm_s2: f64,
+    },
+    /// Inertia alone (a flywheel, a drum), kg·m².
+    Inertia {
+        /// kg·m².
+        j_kgm2: f64,
+    },
 }
 
 /// A fault injected into the simulated hardware (issue 18's campaign): what the drive must
