@@ -94,6 +94,10 @@ faults! {
     /// bridge switch (or its gate drive) stuck open — its direction of current can only
     /// flow through the opposite diode, which pins the phase to the other rail.
     SwitchOpen = 27,
+    /// The control interrupt finished past the next update event in two periods running:
+    /// the duties it computed missed the period they were for (the firmware's loop timer;
+    /// reported through `Drive::trip`, the bridge already off).
+    Overrun = 28,
 }
 
 impl Fault {
@@ -180,7 +184,7 @@ mod tests {
     /// capture). A new fault takes the next bit and the next code; none moves.
     #[test]
     fn fault_bits_and_mode_codes_are_the_wire_contract() {
-        let golden: [(Fault, u32, u8); 18] = [
+        let golden: [(Fault, u32, u8); 19] = [
             (Fault::Overcurrent, 1 << 0, 10),
             (Fault::DcBusOvervoltage, 1 << 1, 11),
             (Fault::DcBusUndervoltage, 1 << 2, 12),
@@ -199,6 +203,7 @@ mod tests {
             (Fault::InverterOverload, 1 << 15, 25),
             (Fault::FollowingError, 1 << 16, 26),
             (Fault::SwitchOpen, 1 << 17, 27),
+            (Fault::Overrun, 1 << 18, 28),
         ];
         assert_eq!(golden.map(|(f, ..)| f), Fault::ALL, "Fault::ALL in bit order");
         for (f, bit, code) in golden {

@@ -136,28 +136,44 @@ pub enum ControlError {
     },
 }
 
-/// The control interrupt's timing (issue 19): the longest step in CPU cycles (DWT CYCCNT on
-/// the board) and the steps that took a whole PWM period or more — their compare values
-/// missed the update they were for. Atomics: the interrupt writes, the link task reads.
+/// The control interrupt's timing (issue 19): the longest period's work in CPU cycles, from
+/// the update event that started the period (the sampling instant) to the end of the
+/// handler — the time the compare values must be written in — and the periods whose work
+/// took a whole PWM period or more: their compare values missed the update they were for.
+/// Two such periods running are [`Fault::Overrun`] (issue 54: overruns were only counted).
+/// Atomics: the interrupt writes, the link task reads.
 #[derive(Debug, Default)]
 pub struct LoopTimer {
     max: core::sync::atomic::AtomicU32,
     overruns: core::sync::atomic::AtomicU32,
+    /// The last period overran.
+    overran: core::sync::atomic::AtomicBool,
 }
 
 impl LoopTimer {
     /// Nothing recorded.
     pub const fn new() -> Self {
-        Self { max: core::sync::atomic::AtomicU32::new(0), overruns: core::sync::atomic::AtomicU32::new(0) }
+        Self {
+            max: core::sync::atomic::AtomicU32::new(0),
+            overruns: core::sync::atomic::AtomicU32::new(0),
+            overran: core::sync::atomic::AtomicBool::new(false),
+        }
     }
 
-    /// One step took `cycles`; a PWM period is `period_cycles`.
-    pub fn record(&self, cycles: u32, period_cycles: u32) {
+    /// One period's work took `cycles` from its update event; a PWM period is
+    /// `period_cycles`. `true`: this period and the one before it overran — the drive must
+    /// stop ([`crate::output::Outputs::overrun`]).
+    pub fn record(&self, cycles: u32, period_cycles: u32) -> bool {
         use core::sync::atomic::Ordering::Relaxed;
         self.max.fetch_max(cycles, Relaxed);
-        if cycles >= period_cycles {
+        let overran = cycles >= period_cycles;
+        if overran {
             self.overruns.fetch_add(1, Relaxed);
         }
+        // Only the interrupt writes it: a load and a store, no read-modify-write needed.
+        let twice = overran && self.overran.load(Relaxed);
+        self.overran.store(overran, Relaxed);
+        twice
     }
 
     /// What the link's `Status` reports.
@@ -176,6 +192,17 @@ impl LoopTimer {
 /// centre-aligned, 2·ARR ticks a period.
 pub fn period_cycles(board: &BoardConfig) -> u32 {
     2 * u32::from(board.pwm_period_counts)
+}
+
+/// The ticks since the period's update event (the top of the centre-aligned count, where
+/// the currents were sampled), from TIM1's counter `cnt` and direction read at the control
+/// interrupt's entry: counting down, `ARR − CNT`; up again (past the bottom), `ARR + CNT`.
+/// TIM1 runs on the CPU clock, so the ticks are cycles: added to the handler's own DWT count
+/// they time the period's work from its sample — the ADC's conversions, the interrupt's
+/// latency and its prologue included, which a count started in the handler missed.
+pub fn ticks_since_update(cnt: u16, counting_down: bool, arr: u16) -> u32 {
+    let (cnt, arr) = (u32::from(cnt.min(arr)), u32::from(arr));
+    if counting_down { arr - cnt } else { arr + cnt }
 }
 
 /// The PWM period check at start: TIM1's ARR, read back after its configuration, must be the
@@ -1187,21 +1214,48 @@ mod tests {
 
     /// The interrupt's timing: the longest step kept, a step of a whole period or more an
     /// overrun (8 500 cycles at 170 MHz and 20 kHz).
+    /// Issue 54: two periods running that overran are an overrun fault; one alone, or two
+    /// apart, only counted.
+    #[test]
+    fn two_overruns_running_stop_the_drive_and_one_does_not() {
+        let t = LoopTimer::new();
+        let p = 8500;
+        assert!(!t.record(9000, p), "one overrun");
+        assert!(!t.record(1000, p));
+        assert!(!t.record(8500, p), "one again, not running");
+        assert!(t.record(8600, p), "the second running");
+        assert_eq!(t.read().overruns, 3);
+    }
+
+    /// The period's work is timed from its update event: at the top the counter turns down
+    /// (0 ticks), at the bottom half a period has passed (ARR), counting up again beyond.
+    #[test]
+    fn the_period_is_timed_from_its_update_event() {
+        let arr = 4250;
+        assert_eq!(ticks_since_update(arr, true, arr), 0);
+        assert_eq!(ticks_since_update(arr - 200, true, arr), 200);
+        assert_eq!(ticks_since_update(0, true, arr), u32::from(arr));
+        assert_eq!(ticks_since_update(0, false, arr), u32::from(arr));
+        assert_eq!(ticks_since_update(300, false, arr), u32::from(arr) + 300);
+        // A counter read above ARR (not possible with the preload) reads as the top.
+        assert_eq!(ticks_since_update(u16::MAX, true, arr), 0);
+    }
+
     #[test]
     fn the_loop_timer_keeps_the_longest_step_and_counts_overruns() {
         let period = period_cycles(&crate::config::BOARD);
         assert_eq!(period, 8500);
         let t = LoopTimer::new();
         for c in [900, 1200, 800, 8499] {
-            t.record(c, period);
+            assert!(!t.record(c, period));
         }
         assert_eq!(
             t.read(),
             controller_core::link::LoopTiming { cycles_max: 8499, overruns: 0, stack_bytes: 0 }
         );
-        t.record(8500, period);
-        t.record(20_000, period);
-        t.record(1000, period);
+        assert!(!t.record(8500, period));
+        assert!(t.record(20_000, period));
+        assert!(!t.record(1000, period));
         assert_eq!(
             t.read(),
             controller_core::link::LoopTiming { cycles_max: 20_000, overruns: 2, stack_bytes: 0 }

@@ -433,8 +433,10 @@ mod target {
     /// instructions per fast and slow step are counted under QEMU (`cargo xtask qemu`,
     /// `qemu-target/src/bin/cost.rs`; the figures in docs/performance.md): about a tenth of
     /// the period at one cycle per instruction. The real cycle count (FPU divide latency, flash wait states)
-    /// the board measures itself: DWT CYCCNT around this handler, the longest step and the
-    /// steps of a period or more in the link's `Status` (`control::LoopTimer`). The compare values
+    /// the board measures itself, from the period's update event (TIM1's counter at entry)
+    /// to the end of this handler (DWT CYCCNT): the longest and the periods of a period or
+    /// more in the link's `Status` (`control::LoopTimer`); two of those running latch
+    /// `Fault::Overrun` with the bridge off (`Outputs::overrun`). The compare values
     /// written here take effect at the next update event (preload), which is at the next
     /// sample's instant (`control::UPDATE_REPETITION`): one period after sampling — the
     /// delay the simulator and the certificate model.
@@ -445,6 +447,11 @@ mod target {
         static mut CONTROL_LOOP: Option<&'static mut ControlLoop> = None;
         static mut OUTPUTS: Outputs = Outputs::new();
         let t0 = cortex_m::peripheral::DWT::cycle_count();
+        // Where the period was when the handler began: its work is timed from the update
+        // event (the sample), not from here (`control::ticks_since_update`).
+        let (cnt, cr1) = (pac::TIM1.cnt().read().cnt(), pac::TIM1.cr1().read());
+        let since_update =
+            firmware::control::ticks_since_update(cnt, cr1.dir() == Dir::DOWN, BOARD.pwm_period_counts);
         let adc = pac::ADC1;
         if !adc.isr().read().jeos() {
             return;
@@ -469,8 +476,13 @@ mod target {
             None => Tim1.disable_outputs(),
         }
         ISR_COUNT.fetch_add(1, Ordering::Relaxed);
-        let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0);
-        LOOP_TIMER.record(cycles, firmware::control::period_cycles(&BOARD));
+        let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(t0).saturating_add(since_update);
+        if LOOP_TIMER.record(cycles, firmware::control::period_cycles(&BOARD)) {
+            match CONTROL_LOOP.as_deref_mut() {
+                Some(ctl) => OUTPUTS.overrun(&mut Tim1, ctl),
+                None => Tim1.disable_outputs(),
+            }
+        }
     }
 
     /// The control loop [`CONTROL`] holds, taken out (`None` if none was stored, or it was

@@ -21,6 +21,7 @@
 //!   instead of the pre-charge's zero vector.
 
 use crate::control::{Bridge, ControlLoop, Samples};
+use controller_core::fault::Fault;
 
 /// The control interrupt's register actions on the PWM timer.
 pub trait OutputStage {
@@ -110,6 +111,19 @@ impl Outputs {
     }
 }
 
+impl Outputs {
+    /// Two periods running overran ([`crate::control::LoopTimer::record`]): the drive latches
+    /// [`Fault::Overrun`] and the bridge goes off now, not at the next period's step (which
+    /// then finds the fault latched and keeps it off). Out of line: a fault's path.
+    #[cold]
+    #[inline(never)]
+    pub fn overrun(&mut self, hw: &mut impl OutputStage, ctl: &mut ControlLoop) {
+        ctl.drive_mut().trip(Fault::Overrun);
+        hw.disable_outputs();
+        self.stage = Stage::Off;
+    }
+}
+
 /// What the panic and HardFault handlers do, in this order: mask every interrupt (so no
 /// control interrupt can run again and touch MOE), then clear MOE and switch the brake
 /// chopper off (nothing regulates the bus any more: a resistor left across a rectifier-fed
@@ -126,7 +140,7 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::config::{BOARD, DRIVE_CONFIG};
-    use controller_core::drive::{Fault, Mode};
+    use controller_core::drive::Mode;
     use std::vec::Vec;
 
     /// TIM1's main output and break logic: a break pulse clears MOE and sets BIF in hardware;
@@ -339,6 +353,34 @@ mod tests {
             assert!(!hw.timer.moe);
             hw.switched.clear();
         }
+    }
+
+    /// Issue 54: an overrun stops the bridge at once and for good — the drive latches
+    /// `Overrun` (the first fault: the MOE the firmware finds cleared in the next period is
+    /// no second one), no later period sets MOE, and only `ClearFault` and an enable start
+    /// it again.
+    #[test]
+    fn an_overrun_turns_the_bridge_off_and_latches() {
+        let mut ctl = ControlLoop::at_rest_for_tests();
+        let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
+        ctl.drive_mut().enable().unwrap();
+        for _ in 0..60 {
+            out.period(&mut hw, &mut ctl, &mut at_rest());
+        }
+        assert!(hw.moe);
+        out.overrun(&mut hw, &mut ctl);
+        assert!(!hw.moe);
+        for _ in 0..100 {
+            assert_eq!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Off);
+            assert!(!hw.moe);
+        }
+        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::Overrun));
+        ctl.drive_mut().clear_fault();
+        ctl.drive_mut().enable().unwrap();
+        for _ in 0..60 {
+            out.period(&mut hw, &mut ctl, &mut at_rest());
+        }
+        assert!(hw.moe, "a new enable runs again");
     }
 
     /// The outputs are enabled once, on the drive's request, and not re-written while on.

@@ -332,7 +332,7 @@ fn capture_specs_and_replies() {
     );
 }
 
-/// Every mode's byte decodes back to it, and no other byte decodes (3 modes and the 18
+/// Every mode's byte decodes back to it, and no other byte decodes (3 modes and the 19
 /// faults).
 #[test]
 fn mode_codes_round_trip() {
@@ -343,7 +343,7 @@ fn mode_codes_round_trip() {
             modes += 1;
         }
     }
-    assert_eq!(modes, 3 + 18);
+    assert_eq!(modes, 3 + 19);
 }
 
 /// `Configure` on the same motor keeps the machine's state and a latched fault (the drive
