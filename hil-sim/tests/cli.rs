@@ -262,6 +262,56 @@ fn bench_reports_consistent_figures_and_rejects_bad_arguments() {
     }
 }
 
+/// The shipped protection scenario `trip-coast-fan.toml`: it expects `DcBusUndervoltage`,
+/// so the run that latches it exits 0 and says so; the summary records the fault; after
+/// the trip the rotor coasts down under its fan and never reverses. The same file expecting
+/// another fault exits 1.
+#[test]
+fn trip_coast_fan_expects_its_fault_and_coasts() {
+    let file = concat!(env!("CARGO_MANIFEST_DIR"), "/scenarios/trip-coast-fan.toml");
+    let out = tmp("coast");
+    let st = bin().args(["run", file, "--out"]).arg(&out).output().unwrap();
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(st.status.success(), "{err}");
+    assert!(
+        err.contains("latched Fault(DcBusUndervoltage) at 0.8") && err.contains("as the scenario expects"),
+        "{err}"
+    );
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["fault"], "DcBusUndervoltage");
+    let trace = std::fs::read_to_string(out.join("trace.csv")).unwrap();
+    let speeds: Vec<(f64, f64)> = trace
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            (c[0].parse().unwrap(), c[5].parse().unwrap())
+        })
+        .filter(|&(t, _)| t >= 0.81)
+        .collect();
+    let (first, last) = (speeds[0].1, speeds[speeds.len() - 1].1);
+    assert!(first > 80.0 && last > 0.0 && last < 0.8 * first, "{first} → {last}");
+    assert!(speeds.windows(2).all(|w| w[1].1 <= w[0].1 + 1e-3), "a coast-down only falls");
+    // Expecting another fault: the same run fails.
+    let dir = tmp("coast-other");
+    std::fs::create_dir_all(&dir).unwrap();
+    let other = dir.join("other.toml");
+    let text = std::fs::read_to_string(file)
+        .unwrap()
+        .replace("../../drive.toml", &format!("{}/../drive.toml", env!("CARGO_MANIFEST_DIR")));
+    std::fs::write(
+        &other,
+        text.replace("expect_fault = \"DcBusUndervoltage\"", "expect_fault = \"Overspeed\""),
+    )
+    .unwrap();
+    let st = bin().args(["run"]).arg(&other).arg("--out").arg(dir.join("out")).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("expects Fault(Overspeed)"));
+    let _ = std::fs::remove_dir_all(&out);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// A closed-loop trace carries the drive's mode, the fault, the duties and the bus voltage:
 /// a bus sag injected at 0.4 s shows as `Fault,DcBusUndervoltage` with the duties empty.
 #[test]
