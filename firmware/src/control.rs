@@ -960,7 +960,7 @@ mod tests {
     /// Issue 54: an enable on a rotor that turns (coasting, or driven by its load). The
     /// pre-charge froze the drive's cadence and skipped the encoder, so the first read after
     /// it spanned the pre-charge's 40 periods plus a slow period against the one period
-    /// before: `EncoderLoss` above ≈ 4.3 rad/s. Now the encoder is read on the drive's
+    /// before: `EncoderLoss` at every speed here, from 5 rad/s. Now the encoder is read on the drive's
     /// cadence through the pre-charge: no fault, and the speed the drive reads at the end of
     /// the pre-charge is the shaft's within one count per read.
     #[test]
@@ -1212,8 +1212,6 @@ mod tests {
         }
     }
 
-    /// The interrupt's timing: the longest step kept, a step of a whole period or more an
-    /// overrun (8 500 cycles at 170 MHz and 20 kHz).
     /// Issue 54: two periods running that overran are an overrun fault; one alone, or two
     /// apart, only counted.
     #[test]
@@ -1241,6 +1239,8 @@ mod tests {
         assert_eq!(ticks_since_update(u16::MAX, true, arr), 0);
     }
 
+    /// The interrupt's timing: the longest step kept, a step of a whole period or more an
+    /// overrun (8 500 cycles at 170 MHz and 20 kHz).
     #[test]
     fn the_loop_timer_keeps_the_longest_step_and_counts_overruns() {
         let period = period_cycles(&crate::config::BOARD);

@@ -17,8 +17,8 @@
 //!   written (issue 54): they are preloaded, and the update event that makes them active
 //!   comes between this period's write and the next. Set in the same period, the bridge
 //!   first switched the values left active — 50 % on every phase after reset, a stopped
-//!   run's last duties after a re-enable — for the rest of the period (≈ 48 µs at 20 kHz)
-//!   instead of the pre-charge's zero vector.
+//!   run's last duties after a re-enable — for the rest of that period (nearly all of its
+//!   50 µs at 20 kHz) instead of the pre-charge's zero vector.
 
 use crate::control::{Bridge, ControlLoop, Samples};
 use controller_core::fault::Fault;

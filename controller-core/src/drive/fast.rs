@@ -243,7 +243,8 @@ impl Drive {
     ///
     /// The cadence runs on (issue 54): frozen, with the encoder unread, the first read after
     /// a 40-period pre-charge spanned five slow periods against the one before it, and an
-    /// enable on a rotor turning faster than ≈ 4.3 rad/s tripped [`Fault::EncoderLoss`].
+    /// enable on a rotor turning at 5 rad/s or more tripped [`Fault::EncoderLoss`] (the
+    /// firmware's `an_enable_on_a_turning_rotor_keeps_the_encoder`).
     pub fn hold_step(&mut self, m: &Measurements) -> bool {
         if self.steps_to_slow == 0 {
             let step_rad = self.track_shaft(m);

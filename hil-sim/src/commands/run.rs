@@ -211,11 +211,18 @@ mod tests {
     /// A run that ends in a fault fails like a test (it exited 0: issue 49), after writing
     /// its outputs; the summary says which fault and when. Here the bus sits below the
     /// drive's undervoltage trip, so the drive trips in its first active period.
-    #[test]
-    fn a_run_that_ends_in_a_fault_fails_and_says_when() {
+    /// 50 ms of the speed step on a bus at half the drive's undervoltage trip: the drive
+    /// trips in its first active period.
+    fn below_the_undervoltage_trip() -> crate::scenario::Builtin {
         let mut b = crate::scenario::speed_step().unwrap();
         b.scenario.duration_s = 0.05;
         b.scenario.vdc_v = 0.5 * b.spec.protection.vdc_min_v;
+        b
+    }
+
+    #[test]
+    fn a_run_that_ends_in_a_fault_fails_and_says_when() {
+        let b = below_the_undervoltage_trip();
         let dir = tmp("faulted");
         let out = dir.join("speed-step");
         let e = run_builtin(&b, &out, None).unwrap_err();
@@ -234,9 +241,7 @@ mod tests {
     #[test]
     fn a_run_that_expects_a_fault_passes_only_with_that_fault() {
         use controller_core::fault::Fault;
-        let mut b = crate::scenario::speed_step().unwrap();
-        b.scenario.duration_s = 0.05;
-        b.scenario.vdc_v = 0.5 * b.spec.protection.vdc_min_v;
+        let mut b = below_the_undervoltage_trip();
         let dir = tmp("expected");
         let out = dir.join("speed-step");
         b.expect_fault = Some(Fault::DcBusUndervoltage);
