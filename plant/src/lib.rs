@@ -208,6 +208,23 @@ impl Rk4 {
         self.begin(x, v0, v_mid, v1, load_nm).finish(self)
     }
 
+    /// The fan's torque for this step, from its start ([`Machine::with_fan`]), at most the
+    /// torque that stops the rotor within the step, J·|ω_m|/h: held over the step, a stiffer
+    /// fan's would reverse the rotor, and the stages' speeds (and with them the back-EMF)
+    /// would grow without bound — a 1e6 N·m-at-1 rad/s fan in a scenario file ended "the
+    /// run diverged". A fan a step can integrate (2k·|ω|·h/J ≪ 1) is far below the cap.
+    #[inline]
+    fn fan_torque_nm(&self, x: &MachineState) -> f64 {
+        let t = self.machine.fan_torque_nm(x);
+        if self.machine.inv_j > 0.0 {
+            let stop_nm = x.omega_m_rad_s.abs() / (self.machine.inv_j * self.h_s);
+            // (Not `clamp`: a state gone non-finite reaches the run's own check, not a panic.)
+            t.max(-stop_nm).min(stop_nm)
+        } else {
+            t
+        }
+    }
+
     /// The first half of [`Rk4::step`] (stages 1 and 2); [`Rk4Midway::finish`] does the
     /// rest. `step` is `begin_step` then `finish`, so the results are identical. The split
     /// lets a caller put independent work between the halves (the simulator: the drive's
@@ -226,7 +243,7 @@ impl Rk4 {
             psi: Pair(x.psi_alpha_wb, x.psi_beta_wb),
             w: Pair::splat(x.omega_m_rad_s),
         };
-        let passive = self.machine.coulomb_torque_nm(x, load_nm) + self.machine.fan_torque_nm(x);
+        let passive = self.machine.coulomb_torque_nm(x, load_nm) + self.fan_torque_nm(x);
         let t_l = Pair::splat(load_nm + passive);
         let (k1, x2) = self.half.stage(&x0, x0, v0, t_l);
         let (k2, x3) = self.half.stage(&x0, x2, v_mid, t_l);
@@ -285,8 +302,10 @@ impl Rk4Midway {
             omega_m_rad_s: w,
             theta_m_rad: theta,
         };
-        // Kinetic friction would reverse the rotor within this step: it stops instead.
-        if rk4.machine.coulomb_nm > 0.0 && x0.w.0 * x1.omega_m_rad_s < 0.0 {
+        // A passive load (dry friction, a fan: held over the step from its start) would
+        // reverse the rotor within this step: it stops instead.
+        let passive = rk4.machine.coulomb_nm > 0.0 || rk4.machine.fan_nm_s2 > 0.0;
+        if passive && x0.w.0 * x1.omega_m_rad_s < 0.0 {
             x1.omega_m_rad_s = 0.0;
         }
         x1
@@ -414,9 +433,10 @@ impl Machine {
 
     /// The same machine driving a fan or a centrifugal pump: T_L = k·ω_m·|ω_m| against the
     /// motion, `k_nm_s2` N·m·s²/rad² (the torque at a speed ω over ω²), added to any fan
-    /// already coupled. Evaluated at each RK4 step's start, as the Coulomb friction is: a
-    /// step h changes it by a fraction 2k·|ω|·h/J, far below one at any speed a step can
-    /// integrate.
+    /// already coupled. Evaluated at each RK4 step's start, as the Coulomb friction is (a
+    /// step h changes it by a fraction 2k·|ω|·h/J), and like it, a step in which it would
+    /// reverse the rotor ends at rest: a fan too stiff for the step stops the rotor instead
+    /// of driving it backwards without bound.
     pub fn with_fan(&self, k_nm_s2: f64) -> Self {
         Self { fan_nm_s2: self.fan_nm_s2 + k_nm_s2.abs(), ..*self }
     }
@@ -562,6 +582,28 @@ mod tests {
         let (alone, doubled) = (accel(&Machine::new(&mp)), accel(&coupled));
         assert!((alone / doubled - 2.0).abs() < 1e-9, "{alone} {doubled}");
         assert_eq!(Machine::new(&mp).speed_locked().with_added_inertia(1.0).inv_j, 0.0);
+    }
+
+    /// A fan far stiffer than a step can integrate (1e6 N·m at 1 rad/s on J = 0.005: held
+    /// over a 50 µs step its torque would reverse the rotor and grow without bound — found
+    /// trying a scenario file, the run "diverged"): the rotor stops within the step instead
+    /// (to rounding), never reversing, and stays at rest, finite.
+    #[test]
+    fn a_fan_too_stiff_for_the_step_stops_the_rotor_instead_of_reversing_it() {
+        let mp = MotorParams::new(16.2, 23.2, 1.44, 1.5, 1.42, 1, 0.005, 0.0).unwrap();
+        let m = Machine::new(&mp).with_fan(1e6);
+        for w0 in [100.0, -100.0] {
+            let mut x = MachineState { omega_m_rad_s: w0, ..Default::default() };
+            for _ in 0..100 {
+                x = m.rk4(&x, [0.0, 0.0], 0.0, 5e-5);
+                assert!(
+                    x.omega_m_rad_s.is_finite() && x.omega_m_rad_s * w0 >= 0.0,
+                    "{w0}: {}",
+                    x.omega_m_rad_s
+                );
+            }
+            assert!(x.omega_m_rad_s.abs() < 1e-9, "{w0}: {}", x.omega_m_rad_s);
+        }
     }
 
     /// Coulomb friction T_c = 0.1 N·m, no viscous friction, J = 0.005: coast-down from
