@@ -22,6 +22,7 @@ pub mod frames;
 pub mod ifoc;
 pub mod io;
 pub mod link;
+pub mod magnetics;
 pub mod motor;
 pub mod mras;
 pub mod num;

@@ -772,7 +772,7 @@ pub fn default_current_sum_a(i_trip_a: f64, lsb_a: Option<f64>) -> f64 {
 }
 
 /// The tables that make a drive, as written.
-#[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct DriveTables {
     /// `[pwm]` (optional: defaults).

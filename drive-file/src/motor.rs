@@ -6,24 +6,70 @@
 //! accepts each of them, and the shipped motors by name ([`BUILTIN`]).
 
 use crate::source::{self, FileError, Source, num};
+use controller_core::magnetics::{CURVE_POINTS_MAX, CurveError, Form, MagnetizingCurve, Saturation};
 use controller_core::motor::{MotorError, MotorField, MotorParams};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+/// The equivalent circuit a `[motor]` table is written in (`form`).
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq, Eq, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum MotorForm {
+    /// The T model: `ls_h`, `lr_h`, `lm_h` (self-inductances and the magnetizing one).
+    #[default]
+    T,
+    /// The Γ model (textbooks, motulator's `InductionMachinePars`): `lm_h` the magnetizing
+    /// inductance at the stator terminals (= L_s), `l_sigma_h` the leakage on the rotor
+    /// side, `rr_ohm` the Γ rotor resistance.
+    Gamma,
+    /// The inverse-Γ model (drive vendors, motulator's `InductionMachineInvGammaPars`):
+    /// `lm_h` = L_M at the rotor, `l_sigma_h` = L_σ on the stator side, `rr_ohm` = R_R.
+    InverseGamma,
+}
+
+/// `[motor.saturation]`: the magnetizing branch's curve, either motulator's law
+/// `L(ψ) = lm_h/(1 + (beta_per_wb·ψ)^exponent)` or points of the curve (`flux_wb`, the
+/// branch's flux, against `current_a`, its current; space-vector peaks, as a no-load test
+/// gives them: √2·the phase RMS values).
+#[derive(Debug, Clone, Default, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SaturationTable {
+    /// β of the law, 1/Wb.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub beta_per_wb: Option<f64>,
+    /// S of the law.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exponent: Option<f64>,
+    /// The curve's currents, A (peak).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub current_a: Option<Vec<f64>>,
+    /// The curve's fluxes, Wb (peak).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flux_wb: Option<Vec<f64>>,
+}
+
 /// `[motor]` table as written.
-#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq)]
+#[derive(Debug, Clone, Deserialize, Serialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct MotorTable {
+    /// The equivalent circuit the values are written in ([`MotorForm`]; T when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub form: Option<MotorForm>,
     /// Stator resistance, Ω.
     pub rs_ohm: f64,
-    /// Rotor resistance referred to the stator, Ω.
+    /// Rotor resistance referred to the stator (in the form's referral), Ω.
     pub rr_ohm: f64,
-    /// Stator self-inductance, H.
-    pub ls_h: f64,
-    /// Rotor self-inductance, H.
-    pub lr_h: f64,
-    /// Magnetising inductance, H.
+    /// Stator self-inductance, H (T form).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ls_h: Option<f64>,
+    /// Rotor self-inductance, H (T form).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lr_h: Option<f64>,
+    /// Magnetising inductance, H (the unsaturated L_u of a saturating branch's law).
     pub lm_h: f64,
+    /// The leakage inductance of the Γ and inverse-Γ forms, H.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub l_sigma_h: Option<f64>,
     /// Pole pairs.
     pub pole_pairs: u8,
     /// Inertia, kg·m².
@@ -37,18 +83,23 @@ pub struct MotorTable {
     /// Thermal time constant of the winding, s (optional, see `rated_current_a`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub thermal_time_constant_s: Option<f64>,
+    /// The magnetizing branch's saturation (Γ and inverse-Γ forms): the simulated plant's;
+    /// the drive's model stays linear at `lm_h`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub saturation: Option<SaturationTable>,
 }
 
 /// Accepted magnitude of each value. The bounds are wide — from a 10 W servo motor to a
 /// 10 MW machine with margin — and exist so that a typo (`1e300`, a value in mH written
 /// as H × 1e6) is an input error instead of a simulation that never ends or a design that
 /// divides by zero.
-pub const RANGES: [(&str, f64, f64, &str); 7] = [
+pub const RANGES: [(&str, f64, f64, &str); 8] = [
     ("rs_ohm", 1e-5, 1e4, "Ω"),
     ("rr_ohm", 1e-5, 1e4, "Ω"),
     ("ls_h", 1e-6, 1e3, "H"),
     ("lr_h", 1e-6, 1e3, "H"),
     ("lm_h", 1e-6, 1e3, "H"),
+    ("l_sigma_h", 1e-7, 1e3, "H"),
     ("j_kgm2", 1e-8, 1e5, "kg·m²"),
     ("b_nms", 0.0, 1e4, "N·m·s/rad"),
 ];
@@ -57,90 +108,204 @@ pub const RANGES: [(&str, f64, f64, &str); 7] = [
 pub const POLE_PAIRS_MAX: u8 = 64;
 
 impl MotorTable {
-    /// The table of validated parameters (for writing a motor file).
+    /// The table of validated parameters (for writing a motor file), in the T form.
     pub fn from_params(m: &MotorParams) -> Self {
         Self {
+            form: None,
             rs_ohm: m.rs_ohm(),
             rr_ohm: m.rr_ohm(),
-            ls_h: m.ls_h(),
-            lr_h: m.lr_h(),
+            ls_h: Some(m.ls_h()),
+            lr_h: Some(m.lr_h()),
             lm_h: m.lm_h(),
+            l_sigma_h: None,
             pole_pairs: m.pole_pairs(),
             j_kgm2: m.j_kgm2(),
             b_nms: m.b_nms(),
             rated_current_a: None,
             thermal_time_constant_s: None,
+            saturation: None,
         }
     }
 
-    fn value(&self, key: &str) -> f64 {
+    fn value(&self, key: &str) -> Option<f64> {
         match key {
-            "rs_ohm" => self.rs_ohm,
-            "rr_ohm" => self.rr_ohm,
+            "rs_ohm" => Some(self.rs_ohm),
+            "rr_ohm" => Some(self.rr_ohm),
             "ls_h" => self.ls_h,
             "lr_h" => self.lr_h,
-            "lm_h" => self.lm_h,
-            "j_kgm2" => self.j_kgm2,
-            _ => self.b_nms,
+            "lm_h" => Some(self.lm_h),
+            "l_sigma_h" => self.l_sigma_h,
+            "j_kgm2" => Some(self.j_kgm2),
+            _ => Some(self.b_nms),
         }
     }
 
-    /// Validate into [`MotorParams`]; errors point at `table.key` in `src`.
+    /// Validate into [`MotorParams`]; errors point at `table.key` in `src`. A saturating
+    /// motor's are its linear T model at `lm_h` (see [`MotorTable::validate_model`]).
     pub fn validate(&self, src: &Source<'_>, table: &str) -> Result<MotorParams, FileError> {
-        for (key, lo, hi, unit) in RANGES {
-            let x = self.value(key);
-            src.check(
-                x.is_finite() && x >= lo && x <= hi && (lo > 0.0 || x >= 0.0),
-                &format!("{table}.{key}"),
-                &format!("is {}; must lie in [{}, {}] {unit}", num(x), num(lo), num(hi)),
-            )?;
-        }
-        src.check(
-            (1..=POLE_PAIRS_MAX).contains(&self.pole_pairs),
-            &format!("{table}.pole_pairs"),
-            &format!("must lie in 1…{POLE_PAIRS_MAX}"),
-        )?;
-        for (key, x) in [
-            ("rated_current_a", self.rated_current_a),
-            ("thermal_time_constant_s", self.thermal_time_constant_s),
-        ] {
-            if let Some(x) = x {
+        self.validate_model(src, table).map(|(m, _)| m)
+    }
+
+    /// Validate into [`MotorParams`] — the form written as a T model (Γ: L_s = L_m =
+    /// `lm_h`, L_r = L_m + `l_sigma_h`; inverse-Γ: L_r = L_m = `lm_h`, L_s = L_m +
+    /// `l_sigma_h`), exactly the same machine while linear — and the magnetizing branch's
+    /// saturation when the table has one.
+    pub fn validate_model(
+        &self,
+        src: &Source<'_>,
+        table: &str,
+    ) -> Result<(MotorParams, Option<Saturation>), FileError> {
+        let key = |k: &str| format!("{table}.{k}");
+        for (k, lo, hi, unit) in RANGES {
+            if let Some(x) = self.value(k) {
                 src.check(
-                    x.is_finite() && x > 0.0 && x <= 1e6,
-                    &format!("{table}.{key}"),
-                    "must lie in (0, 1e6]",
+                    x.is_finite() && x >= lo && x <= hi && (lo > 0.0 || x >= 0.0),
+                    &key(k),
+                    &format!("is {}; must lie in [{}, {}] {unit}", num(x), num(lo), num(hi)),
                 )?;
             }
         }
         src.check(
+            (1..=POLE_PAIRS_MAX).contains(&self.pole_pairs),
+            &key("pole_pairs"),
+            &format!("must lie in 1…{POLE_PAIRS_MAX}"),
+        )?;
+        for (k, x) in [
+            ("rated_current_a", self.rated_current_a),
+            ("thermal_time_constant_s", self.thermal_time_constant_s),
+        ] {
+            if let Some(x) = x {
+                src.check(x.is_finite() && x > 0.0 && x <= 1e6, &key(k), "must lie in (0, 1e6]")?;
+            }
+        }
+        src.check(
             self.rated_current_a.is_some() == self.thermal_time_constant_s.is_some(),
-            &format!("{table}.thermal_time_constant_s"),
+            &key("thermal_time_constant_s"),
             "give both rated_current_a and thermal_time_constant_s (the motor's I²t limit), or neither",
         )?;
-        for (key, l) in [("ls_h", self.ls_h), ("lr_h", self.lr_h)] {
-            src.check(
-                self.lm_h < l,
-                &format!("{table}.lm_h"),
-                &format!("L_m = {} H must be below {key} = {l} H (leakage > 0)", self.lm_h),
-            )?;
-        }
-        MotorParams::new(
+        let form = self.form.unwrap_or_default();
+        let (ls, lr) = match (form, self.ls_h, self.lr_h, self.l_sigma_h) {
+            (MotorForm::T, Some(ls), Some(lr), None) => {
+                for (k, l) in [("ls_h", ls), ("lr_h", lr)] {
+                    src.check(
+                        self.lm_h < l,
+                        &key("lm_h"),
+                        &format!(
+                            "L_m = {} H must be below {k} = {l} H (leakage > 0); a motor without stator or rotor \
+                             leakage is written in the gamma or inverse_gamma form (form = \"gamma\", lm_h, l_sigma_h)",
+                            self.lm_h
+                        ),
+                    )?;
+                }
+                (ls, lr)
+            }
+            (MotorForm::T, ls, _, None) => {
+                let missing = if ls.is_none() { "ls_h" } else { "lr_h" };
+                return Err(src.error(
+                    table,
+                    format!("the T form needs {missing} (or write form = \"gamma\" with l_sigma_h)"),
+                ));
+            }
+            (MotorForm::T, _, _, Some(_)) => {
+                return Err(src.error(
+                    &key("l_sigma_h"),
+                    "belongs to the gamma and inverse_gamma forms: write form = \"gamma\" or \"inverse_gamma\", \
+                     or give the T form's ls_h and lr_h instead",
+                ));
+            }
+            (_, Some(_), _, _) | (_, _, Some(_), _) => {
+                let k = if self.ls_h.is_some() { "ls_h" } else { "lr_h" };
+                return Err(src.error(
+                    &key(k),
+                    format!("belongs to the T form; the {} form takes lm_h and l_sigma_h", form_name(form)),
+                ));
+            }
+            (_, None, None, None) => {
+                return Err(src.error(
+                    table,
+                    format!("the {} form needs l_sigma_h (its leakage inductance)", form_name(form)),
+                ));
+            }
+            (MotorForm::Gamma, None, None, Some(l)) => (self.lm_h, self.lm_h + l),
+            (MotorForm::InverseGamma, None, None, Some(l)) => (self.lm_h + l, self.lm_h),
+        };
+        let params = MotorParams::new(
             self.rs_ohm,
             self.rr_ohm,
-            self.ls_h,
-            self.lr_h,
+            ls,
+            lr,
             self.lm_h,
             self.pole_pairs,
             self.j_kgm2,
             self.b_nms,
         )
         .map_err(|e| match e {
-            MotorError::NotPositive(f) => src.error(&format!("{table}.{}", field_key(f)), "must be > 0"),
+            MotorError::NotPositive(f) => src.error(&key(field_key(f)), "must be > 0"),
             MotorError::Leakage => src.error(
-                &format!("{table}.lm_h"),
+                &key("lm_h"),
                 "leakage coefficient σ = 1 − L_m²/(L_s·L_r) must lie in (0, 1): need L_m² < L_s·L_r",
             ),
-        })
+        })?;
+        let saturation = match &self.saturation {
+            None => None,
+            Some(t) => Some(self.saturation_of(t, form, src, table)?),
+        };
+        Ok((params, saturation))
+    }
+
+    /// The `[motor.saturation]` table as the branch's curve.
+    fn saturation_of(
+        &self,
+        t: &SaturationTable,
+        form: MotorForm,
+        src: &Source<'_>,
+        table: &str,
+    ) -> Result<Saturation, FileError> {
+        let key = |k: &str| format!("{table}.saturation.{k}");
+        let form = match form {
+            MotorForm::Gamma => Form::Gamma,
+            MotorForm::InverseGamma => Form::InverseGamma,
+            MotorForm::T => {
+                return Err(src.error(
+                    &format!("{table}.saturation"),
+                    "needs the gamma or inverse_gamma form: with both leakages the T model does not say which \
+                     flux saturates the branch; write the motor in the form its curve was measured in \
+                     (form = \"gamma\" for a no-load test at the terminals)",
+                ));
+            }
+        };
+        let curve = match (t.beta_per_wb, t.exponent, &t.current_a, &t.flux_wb) {
+            (Some(beta), Some(s), None, None) => MagnetizingCurve::law(self.lm_h, beta, s).map_err(|_| {
+                let k = if beta.is_finite() && beta > 0.0 { "exponent" } else { "beta_per_wb" };
+                src.error(&key(k), "beta_per_wb must be finite and > 0 and exponent finite and ≥ 1")
+            })?,
+            (None, None, Some(i), Some(psi)) => MagnetizingCurve::points(psi, i).map_err(|e| match e {
+                CurveError::NotRising(k) => src.error(
+                    &format!("{table}.saturation.flux_wb[{k}]"),
+                    "flux_wb and current_a must both rise strictly from the origin (point 0 after (0, 0))",
+                ),
+                _ => src.error(
+                    &key("flux_wb"),
+                    format!("flux_wb and current_a must have the same length, 2…{CURVE_POINTS_MAX} points"),
+                ),
+            })?,
+            _ => {
+                return Err(src.error(
+                    &format!("{table}.saturation"),
+                    "give either beta_per_wb and exponent (L = lm_h/(1 + (β·ψ)^S)) or current_a and flux_wb \
+                     (points of the curve), not a mix",
+                ));
+            }
+        };
+        Ok(Saturation { form, curve })
+    }
+}
+
+fn form_name(f: MotorForm) -> &'static str {
+    match f {
+        MotorForm::T => "t",
+        MotorForm::Gamma => "gamma",
+        MotorForm::InverseGamma => "inverse_gamma",
     }
 }
 
@@ -175,6 +340,12 @@ struct MotorOnly {
 
 /// The `[motor]` table of a file's text.
 pub fn parse(path: &Path, text: &str) -> Result<MotorParams, FileError> {
+    parse_model(path, text).map(|(m, _)| m)
+}
+
+/// The `[motor]` table of a file's text, with its magnetizing branch's saturation
+/// ([`MotorTable::validate_model`]).
+pub fn parse_model(path: &Path, text: &str) -> Result<(MotorParams, Option<Saturation>), FileError> {
     let src = Source::parse(path, text)?;
     if !src.has("motor") {
         // A scenario that references its drive file: the motor is that file's.
@@ -185,18 +356,23 @@ pub fn parse(path: &Path, text: &str) -> Result<MotorParams, FileError> {
         return Err(FileError::file(path, "no [motor] table (a motor, drive or scenario file has one)"));
     }
     let raw: MotorOnly = src.deserialize()?;
-    raw.motor.validate(&src, "motor")
+    raw.motor.validate_model(&src, "motor")
 }
 
-fn load_path(path: &Path) -> Result<MotorParams, FileError> {
+fn load_path(path: &Path) -> Result<(MotorParams, Option<Saturation>), FileError> {
     let text = source::read(path)?;
-    parse(path, &text)
+    parse_model(path, &text)
 }
 
 /// A shipped motor by name ([`BUILTIN`]), or the `[motor]` table of a file.
 pub fn load(name_or_path: &str) -> Result<MotorParams, FileError> {
+    load_model(name_or_path).map(|(m, _)| m)
+}
+
+/// [`load`], with the magnetizing branch's saturation ([`MotorTable::validate_model`]).
+pub fn load_model(name_or_path: &str) -> Result<(MotorParams, Option<Saturation>), FileError> {
     if let Some((name, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
-        return parse(Path::new(&format!("<builtin {name}>")), text);
+        return parse_model(Path::new(&format!("<builtin {name}>")), text);
     }
     if name_or_path.is_empty() {
         return Err(FileError::file(Path::new(""), "empty motor name"));
@@ -281,6 +457,73 @@ mod tests {
         assert!(motor_err("x = 1").reason.contains("no [motor] table"));
         // σ < 1 is the last check: L_m² < L_s·L_r with L_m below both always holds.
         assert!(parse(Path::new("m.toml"), &GOOD.replace("lm_h = 1.42", "lm_h = 1.4399")).is_ok());
+    }
+
+    const GAMMA: &str = "[motor]\nform = \"gamma\"\nrs_ohm = 3.7\nrr_ohm = 2.5\nlm_h = 0.34\nl_sigma_h = 0.023\n\
+                         pole_pairs = 2\nj_kgm2 = 0.015\nb_nms = 0.0\n";
+
+    fn model(text: &str) -> Result<(MotorParams, Option<Saturation>), FileError> {
+        parse_model(Path::new("m.toml"), text)
+    }
+
+    /// The Γ and inverse-Γ forms are their T models with the stator (Γ) or the rotor
+    /// (inverse-Γ) leakage zero; the law and the points become the branch's curve.
+    #[test]
+    fn the_gamma_and_inverse_gamma_forms_are_their_t_models() {
+        let (m, sat) = model(GAMMA).unwrap();
+        assert_eq!((m.ls_h(), m.lr_h(), m.lm_h(), m.rr_ohm()), (0.34, 0.34 + 0.023, 0.34, 2.5));
+        assert_eq!(sat, None);
+        let inv = GAMMA
+            .replace("\"gamma\"", "\"inverse_gamma\"")
+            .replace("0.34", "0.224")
+            .replace("0.023", "0.021");
+        let (m, _) = model(&inv).unwrap();
+        assert_eq!((m.ls_h(), m.lr_h(), m.lm_h()), (0.224 + 0.021, 0.224, 0.224));
+        let law = format!("{GAMMA}[motor.saturation]\nbeta_per_wb = 0.84\nexponent = 7.0\n");
+        let (_, sat) = model(&law).unwrap();
+        let want = MagnetizingCurve::law(0.34, 0.84, 7.0).unwrap();
+        assert_eq!(sat, Some(Saturation { form: Form::Gamma, curve: want }));
+        let points =
+            format!("{GAMMA}[motor.saturation]\nflux_wb = [0.5, 1.0, 1.2]\ncurrent_a = [1.6, 3.8, 7.0]\n");
+        let (_, sat) = model(&points).unwrap();
+        let want = MagnetizingCurve::points(&[0.5, 1.0, 1.2], &[1.6, 3.8, 7.0]).unwrap();
+        assert_eq!(sat, Some(Saturation { form: Form::Gamma, curve: want }));
+    }
+
+    /// Each contradiction names its key and says what to write instead.
+    #[test]
+    fn a_form_and_its_keys_must_agree() {
+        let err = |text: &str| model(text).unwrap_err();
+        // An inverse-Γ machine written as a T (L_r = L_m): the error names the form to use.
+        let e = err(&GOOD.replace("lr_h = 1.5", "lr_h = 1.42"));
+        assert!(e.key.as_deref() == Some("motor.lm_h") && e.reason.contains("inverse_gamma"), "{e}");
+        let e = err(&GOOD.replace("b_nms", "l_sigma_h = 0.01\nb_nms"));
+        assert!(e.key.as_deref() == Some("motor.l_sigma_h") && e.reason.contains("form"), "{e}");
+        let e = err(&GAMMA.replace("l_sigma_h = 0.023", "l_sigma_h = 0.023\nls_h = 0.36"));
+        assert!(e.key.as_deref() == Some("motor.ls_h") && e.reason.contains("gamma"), "{e}");
+        let e = err(&GAMMA.replace("l_sigma_h = 0.023\n", ""));
+        assert!(e.reason.contains("l_sigma_h"), "{e}");
+        let e = err(&GAMMA.replace("l_sigma_h = 0.023", "l_sigma_h = -0.023"));
+        assert_eq!(e.key.as_deref(), Some("motor.l_sigma_h"), "{e}");
+        let e = err(&GAMMA.replace("\"gamma\"", "\"pi\""));
+        assert!(e.to_string().contains("form"), "{e}");
+        let sat = |t: &str| format!("{GAMMA}[motor.saturation]\n{t}\n");
+        let e = err(&format!("{GOOD}[motor.saturation]\nbeta_per_wb = 0.84\nexponent = 7.0\n"));
+        assert!(e.key.as_deref() == Some("motor.saturation") && e.reason.contains("gamma"), "{e}");
+        let e = err(&sat("beta_per_wb = 0.84"));
+        assert!(e.key.as_deref() == Some("motor.saturation") && e.reason.contains("exponent"), "{e}");
+        let e = err(&sat("beta_per_wb = 0.84\nexponent = 7.0\nflux_wb = [1.0, 2.0]"));
+        assert!(e.reason.contains("not a mix"), "{e}");
+        let e = err(&sat("beta_per_wb = 0.84\nexponent = 0.5"));
+        assert_eq!(e.key.as_deref(), Some("motor.saturation.exponent"), "{e}");
+        let e = err(&sat("beta_per_wb = -1\nexponent = 7"));
+        assert_eq!(e.key.as_deref(), Some("motor.saturation.beta_per_wb"), "{e}");
+        let e = err(&sat("flux_wb = [0.5, 1.0, 0.9]\ncurrent_a = [1.0, 2.0, 3.0]"));
+        assert_eq!(e.key.as_deref(), Some("motor.saturation.flux_wb[2]"), "{e}");
+        let e = err(&sat("flux_wb = [0.5, 1.0]\ncurrent_a = [1.0, 2.0, 3.0]"));
+        assert!(e.key.as_deref() == Some("motor.saturation.flux_wb") && e.reason.contains("length"), "{e}");
+        let e = err(&sat("beta = 0.84"));
+        assert!(e.to_string().contains("beta"), "{e}");
     }
 
     #[test]

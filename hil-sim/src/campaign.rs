@@ -310,6 +310,7 @@ impl Campaign {
             about: String::new(),
             spec: self.spec,
             plant,
+            plant_saturation: None,
             expect_fault: None,
             scenario: Scenario {
                 events: vec![(0.0, Event::Enable), (step_s, first), (t2, second)],

@@ -141,6 +141,7 @@ fn point(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, w: f64, sign: f32) -
         about: String::new(),
         spec: *spec,
         plant: *plant,
+        plant_saturation: None,
         expect_fault: None,
         scenario: Scenario {
             events: vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Torque(sign * asked_nm)))],

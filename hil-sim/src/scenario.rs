@@ -7,6 +7,7 @@ use crate::sim::{self, Event, LoadModel, Row, Scenario};
 use controller_core::current::CurrentLaw;
 use controller_core::drive::{CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference};
 use controller_core::fault::Fault;
+use controller_core::magnetics::Saturation;
 use controller_core::motor::{MotorError, MotorParams};
 use controller_core::speed::SpeedLaw;
 use drive_file::{DriveFile, FileError};
@@ -56,6 +57,8 @@ pub struct Builtin {
     pub spec: DriveSpec,
     /// The simulated machine (differs from `spec.motor` in perturbed-plant scenarios).
     pub plant: MotorParams,
+    /// Its magnetizing branch's saturation (`plant` is then its form's T model).
+    pub plant_saturation: Option<Saturation>,
     /// The fault the run is meant to end in (a scenario that tests a protection): then the
     /// run passes only if the drive latches it, and fails without it or with another.
     pub expect_fault: Option<Fault>,
@@ -124,7 +127,13 @@ impl Builtin {
         // The sensors sample in the board's window unless the scenario says otherwise.
         let mut sc = self.scenario.clone();
         sc.sensors.low_side_window_s.get_or_insert(self.spec.sample_window_s);
-        sim::run(dut, &Machine::new(&self.plant), self.spec.pwm_frequency_hz, &sc, progress, sink)
+        let machine = match &self.plant_saturation {
+            Some(s) => {
+                Machine::saturated(&self.plant, s).map_err(|e| format!("the simulated machine: {e}"))?
+            }
+            None => Machine::new(&self.plant),
+        };
+        sim::run(dut, &machine, self.spec.pwm_frequency_hz, &sc, progress, sink)
     }
 }
 
@@ -138,6 +147,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
         about: "IFOC + ICAD, speed step to 150 rad/s, 1 N·m load applied at 1.5 s and removed at 2.5 s"
             .into(),
         plant: spec.motor,
+        plant_saturation: None,
         expect_fault: None,
         spec,
         scenario: Scenario {

@@ -121,7 +121,7 @@ pub const MAX_EVENT_VALUE: f64 = 1e6;
 #[derive(Debug, Clone)]
 pub enum ScenarioFileKind {
     /// Plant fed by an ideal source (`[source]`).
-    OpenLoop(OpenLoop),
+    OpenLoop(Box<OpenLoop>),
     /// Drive against the plant.
     ClosedLoop(Box<Builtin>),
 }
@@ -364,7 +364,7 @@ fn drive_of(src: &Source<'_>, f: &ClosedLoopFile) -> Result<DriveSpec, FileError
         |t: &str| src.error(t, format!("a closed-loop scenario needs `drive = \"file\"` or a [{t}] table"));
     let tables = drive_file::DriveTables {
         pwm: f.pwm.unwrap_or_default(),
-        motor: f.motor.ok_or_else(|| missing("motor"))?,
+        motor: f.motor.clone().ok_or_else(|| missing("motor"))?,
         controller: f.controller.ok_or_else(|| missing("controller"))?,
         protection: f.protection.ok_or_else(|| missing("protection"))?,
         certify: f.certify,
@@ -387,9 +387,12 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         &format!("must be a whole number of PWM periods (is {periods:.4})"),
     )?;
     src.check((1..=1000).contains(&f.rk4_substeps), "rk4_substeps", "must lie in 1…1000")?;
-    let plant = match &f.plant {
-        Some(p) => p.validate(&src, "plant")?,
-        None => spec.motor,
+    // The simulated machine: [plant] when given, else the motor; it saturates when its
+    // table has a [*.saturation] (the drive's model stays linear).
+    let (plant, plant_saturation) = match (&f.plant, &f.motor) {
+        (Some(p), _) => p.validate_model(&src, "plant")?,
+        (None, Some(m)) => (spec.motor, m.validate_model(&src, "motor")?.1),
+        (None, None) => (spec.motor, None),
     };
     let mut events = Vec::with_capacity(f.events.len());
     for (n, e) in f.events.iter().enumerate() {
@@ -678,6 +681,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         about: format!("closed-loop scenario file {}", file.display()),
         spec,
         plant,
+        plant_saturation,
         expect_fault,
         scenario: Scenario {
             events,
@@ -699,9 +703,11 @@ pub fn parse_open_loop(file: &Path, text: &str) -> Result<OpenLoop, FileError> {
     let src = Source::parse(file, text)?;
     let raw: OpenLoopFile = src.deserialize()?;
     check_timing(&src, raw.duration_s, raw.sample_period_s)?;
-    let motor = match (&raw.motor, &raw.drive) {
-        (Some(m), None) => m.validate(&src, "motor")?,
-        (None, Some(d)) => drive_file::motor::load(&drive_file::relative_to(file, d).to_string_lossy())?,
+    let (motor, saturation) = match (&raw.motor, &raw.drive) {
+        (Some(m), None) => m.validate_model(&src, "motor")?,
+        (None, Some(d)) => {
+            drive_file::motor::load_model(&drive_file::relative_to(file, d).to_string_lossy())?
+        }
         (Some(_), Some(_)) => return Err(src.error("motor", "`drive = …` and a [motor] table: give one")),
         (None, None) => return Err(src.error("motor", "needs a [motor] table or `drive = \"file\"`")),
     };
@@ -727,6 +733,7 @@ pub fn parse_open_loop(file: &Path, text: &str) -> Result<OpenLoop, FileError> {
         duration_s: raw.duration_s,
         sample_period_s: raw.sample_period_s,
         motor,
+        saturation,
         amplitude_v,
         frequency_hz,
         load_nm,
@@ -750,7 +757,7 @@ pub fn load(file: &Path) -> Result<ScenarioFileKind, FileError> {
     if src.has("controller") || (src.has("drive") && !src.has("source")) {
         parse_closed_loop(file, &text).map(|b| ScenarioFileKind::ClosedLoop(Box::new(b)))
     } else {
-        parse_open_loop(file, &text).map(ScenarioFileKind::OpenLoop)
+        parse_open_loop(file, &text).map(|o| ScenarioFileKind::OpenLoop(Box::new(o)))
     }
 }
 
@@ -1111,5 +1118,40 @@ torque_nm = 0.5
         let s = parse_open_loop(Path::new("s.toml"), OPEN).unwrap();
         assert_eq!(s.load_nm, 0.5);
         assert_eq!(s.motor.pole_pairs(), 1);
+    }
+
+    /// The shipped saturating scenario file is motulator's machine: run open loop, its
+    /// trace matches motulator's own simulation (the plant's reference file, written by
+    /// `tools/motulator_dol.py --write`) to 1e-8 of each signal's peak — rounding and RK4's
+    /// 10 µs step — where the saturation issue asks 0.5 %.
+    #[test]
+    fn the_shipped_saturating_dol_is_motulators() {
+        const FILE: &str = include_str!("../scenarios/dol-motulator-2kw-sat.toml");
+        const REFERENCE: &str = include_str!("../../plant/tests/data/motulator_dol_2kw_sat.csv");
+        let sc = parse_open_loop(Path::new("dol-motulator-2kw-sat.toml"), FILE).unwrap();
+        assert!(sc.saturation.is_some());
+        let mut rows = Vec::new();
+        crate::sim::run_open_loop(
+            &sc,
+            crate::sim::OPEN_LOOP_MAX_STEP_S,
+            |_| {},
+            |r| {
+                rows.push([r.x.i_alpha_a, r.x.i_beta_a, r.x.omega_m_rad_s, r.torque_nm]);
+                Ok(())
+            },
+        )
+        .unwrap();
+        let reference: Vec<Vec<f64>> = REFERENCE
+            .lines()
+            .filter(|l| !l.starts_with('#') && !l.starts_with('t'))
+            .map(|l| l.split(',').skip(1).map(|x| x.parse().unwrap()).collect())
+            .collect();
+        assert_eq!(rows.len(), reference.len());
+        for s in 0..4 {
+            let peak = reference.iter().map(|r| r[s].abs()).fold(0.0, f64::max);
+            let ms = rows.iter().zip(&reference).map(|(a, b)| (a[s] - b[s]).powi(2)).sum::<f64>()
+                / rows.len() as f64;
+            assert!(ms.sqrt() < 1e-8 * peak, "signal {s}: {} of {peak}", ms.sqrt());
+        }
     }
 }

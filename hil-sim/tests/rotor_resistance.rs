@@ -30,6 +30,7 @@ fn run(
         about: String::new(),
         spec,
         plant,
+        plant_saturation: None,
         expect_fault: None,
         scenario: Scenario {
             events,

@@ -20,7 +20,11 @@
 #![allow(clippy::indexing_slicing)]
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
+use controller_core::magnetics::Saturation;
 use controller_core::motor::MotorParams;
+
+pub mod saturated;
+use saturated::{Saturated, SaturationError};
 
 /// Plant state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -86,7 +90,7 @@ impl Pair {
 /// derivative). ω_m is carried on both lanes: it multiplies both lanes of the rotation
 /// terms, and the torque term below comes out on both lanes too, so no stage moves a value
 /// between lanes.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Coupled {
     i: Pair,
     psi: Pair,
@@ -244,6 +248,19 @@ impl Rk4 {
             w: Pair::splat(x.omega_m_rad_s),
         };
         let passive = self.machine.coulomb_torque_nm(x, load_nm) + self.fan_torque_nm(x);
+        if let Some(sat) = &self.machine.saturation {
+            let m = &self.machine;
+            let v = [[v0.0, v0.1], [v_mid.0, v_mid.1], [v1.0, v1.1]];
+            let mut x1 = sat.step(m.inv_j, m.b_nms, x, v, load_nm + passive, self.h_s);
+            m.stop_a_reversing_passive_load(x.omega_m_rad_s, &mut x1);
+            // Carried whole in the fields `finish` would otherwise complete.
+            let x3 = Coupled {
+                i: Pair(x1.i_alpha_a, x1.i_beta_a),
+                psi: Pair(x1.psi_alpha_wb, x1.psi_beta_wb),
+                w: Pair::splat(x1.omega_m_rad_s),
+            };
+            return Rk4Midway { x3, theta0: x1.theta_m_rad, whole: true, ..Rk4Midway::default() };
+        }
         let t_l = Pair::splat(load_nm + passive);
         let (k1, x2) = self.half.stage(&x0, x0, v0, t_l);
         let (k2, x3) = self.half.stage(&x0, x2, v_mid, t_l);
@@ -257,12 +274,13 @@ impl Rk4 {
             v1,
             k12: Coupled { i: sum2(k1.i, k2.i), psi: sum2(k1.psi, k2.psi), w: sum2(k1.w, k2.w) },
             w2: x2.w.0,
+            whole: false,
         }
     }
 }
 
 /// An RK4 step after its first two stages ([`Rk4::begin_step`]).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct Rk4Midway {
     /// θ_m at the step's start (ω_m, i and ψ are in `x0`).
     theta0: f64,
@@ -275,12 +293,26 @@ pub struct Rk4Midway {
     k12: Coupled,
     /// ω_m at stage 2.
     w2: f64,
+    /// A saturating machine's step, done whole (its stages are not split): the state is
+    /// `x3` with the angle in `theta0`.
+    whole: bool,
 }
 
 impl Rk4Midway {
     /// Stages 3 and 4 and the step's result (`rk4` is the stepper that began it).
     #[inline]
     pub fn finish(&self, rk4: &Rk4) -> MachineState {
+        if self.whole {
+            let x = self.x3;
+            return MachineState {
+                i_alpha_a: x.i.0,
+                i_beta_a: x.i.1,
+                psi_alpha_wb: x.psi.0,
+                psi_beta_wb: x.psi.1,
+                omega_m_rad_s: x.w.0,
+                theta_m_rad: self.theta0,
+            };
+        }
         let (x0, x3, t_l) = (&self.x0, self.x3, self.t_l);
         let (k3, x4) = rk4.full.stage(x0, x3, self.v_mid, t_l);
         // What stage 4 does not change is summed while it runs.
@@ -302,12 +334,7 @@ impl Rk4Midway {
             omega_m_rad_s: w,
             theta_m_rad: theta,
         };
-        // A passive load (dry friction, a fan: held over the step from its start) would
-        // reverse the rotor within this step: it stops instead.
-        let passive = rk4.machine.coulomb_nm > 0.0 || rk4.machine.fan_nm_s2 > 0.0;
-        if passive && x0.w.0 * x1.omega_m_rad_s < 0.0 {
-            x1.omega_m_rad_s = 0.0;
-        }
+        rk4.machine.stop_a_reversing_passive_load(x0.w.0, &mut x1);
         x1
     }
 }
@@ -326,6 +353,9 @@ pub struct Machine {
     b_nms: f64,
     /// Coulomb (dry) friction torque magnitude, N·m.
     coulomb_nm: f64,
+    /// A saturating magnetizing branch ([`Machine::saturated`]); the coefficients above are
+    /// then the unsaturated machine's, for [`Machine::electrical_matrices`].
+    saturation: Option<Saturated>,
     /// A fan's (or pump's) torque per speed squared, N·m·s²/rad²: k·ω_m·|ω_m| against the
     /// motion.
     fan_nm_s2: f64,
@@ -348,6 +378,29 @@ impl Machine {
             b_nms: m.b_nms(),
             coulomb_nm: 0.0,
             fan_nm_s2: 0.0,
+            saturation: None,
+        }
+    }
+
+    /// The machine `m` with the saturating magnetizing branch `sat` ([`crate::saturated`]): `m`
+    /// is the form written as a T model (Γ: L_s = L_m; inverse-Γ: L_r = L_m), its L_m
+    /// replaced by the curve.
+    pub fn saturated(m: &MotorParams, sat: &Saturation) -> Result<Self, SaturationError> {
+        Ok(Self { saturation: Some(Saturated::new(m, sat)?), ..Self::new(m) })
+    }
+
+    /// Whether the magnetizing branch saturates.
+    pub fn is_saturating(&self) -> bool {
+        self.saturation.is_some()
+    }
+
+    /// A passive load (dry friction, a fan: held over the step from its start) would have
+    /// reversed the rotor within the step that began at `w0_rad_s`: it stops instead.
+    #[inline(always)]
+    fn stop_a_reversing_passive_load(&self, w0_rad_s: f64, x1: &mut MachineState) {
+        let passive = self.coulomb_nm > 0.0 || self.fan_nm_s2 > 0.0;
+        if passive && w0_rad_s * x1.omega_m_rad_s < 0.0 {
+            x1.omega_m_rad_s = 0.0;
         }
     }
 
@@ -355,6 +408,7 @@ impl Machine {
     /// A(ω_r) (row-major, states i_sα, i_sβ, ψ_rα, ψ_rβ) and the input gain 1/(σL_s)
     /// (B = diag(1/(σL_s), 1/(σL_s)) on the current rows). The same coefficients drive
     /// [`Machine::rk4`], so the analysis in `design` and the simulation share one eq. (1).
+    /// A saturating machine's are those of its T model at the unsaturated L_m.
     pub fn electrical_matrices(&self, omega_r: f64) -> ([[f64; 4]; 4], f64) {
         let (k1, k2) = (self.b * self.rr_lr, self.b * omega_r);
         (
@@ -373,7 +427,13 @@ impl Machine {
     /// real 2×2 — trace `a − R_r/L_r`, determinant `−a·R_r/L_r − b·(R_r/L_r)·L_m·R_r/L_r`;
     /// turning adds ±jω_r, which RK4's region covers far beyond any speed run). An explicit
     /// RK4 step `h` is stable for `rate·h` up to ≈ 2.785 on the negative real axis.
+    /// A saturating machine's: that of the linear machine with the branch's incremental
+    /// inductance deep in saturation (`MagnetizingCurve::deep_flux_wb`), where it is
+    /// fastest.
     pub fn fastest_rate_per_s(&self) -> f64 {
+        if let Some(s) = &self.saturation {
+            return s.fastest_rate_per_s();
+        }
         let (m, _) = self.electrical_matrices(0.0);
         let [[a11, _, a13, _], _, [a31, _, a33, _], _] = m;
         let half_trace = 0.5 * (a11 + a33);
@@ -386,6 +446,9 @@ impl Machine {
     /// `−(L_m/L_r)·((R_r/L_r)·ψ_r − ω_r·J·ψ_r)` (eq. (1)'s current rows solved for `v` at
     /// `i = 0`, `di/dt = 0`; J the 90° rotation). What an open stator's terminals show, αβ, V.
     pub fn open_circuit_voltage(&self, x: &MachineState) -> [f64; 2] {
+        if let Some(s) = &self.saturation {
+            return s.open_circuit_voltage(x);
+        }
         let k = self.b / self.inv_sigma_ls; // L_m/L_r
         let w = self.p * x.omega_m_rad_s;
         let (pa, pb) = (x.psi_alpha_wb, x.psi_beta_wb);
@@ -394,6 +457,9 @@ impl Machine {
 
     /// Electromagnetic torque, N·m.
     pub fn torque_nm(&self, x: &MachineState) -> f64 {
+        if let Some(s) = &self.saturation {
+            return s.torque_nm(x);
+        }
         self.torque_factor * (x.psi_alpha_wb * x.i_beta_a - x.psi_beta_wb * x.i_alpha_a)
     }
 
@@ -406,15 +472,21 @@ impl Machine {
     /// The same mechanics (inertia, friction, a locked rotor) with the electrical
     /// parameters of `m` (a parameter change mid-run: the rotor heating, the magnetizing
     /// inductance saturating); the state carries over as it is (currents and rotor flux).
-    pub fn with_electrical(&self, m: &MotorParams) -> Self {
-        let e = Self::new(m);
-        Self {
+    /// A saturating branch keeps its curve, its inductances scaled as `m`'s L_m changed;
+    /// `m` must keep the form (an error otherwise).
+    pub fn with_electrical(&self, m: &MotorParams) -> Result<Self, SaturationError> {
+        let saturation = match &self.saturation {
+            Some(s) => Some(s.with_electrical(m)?),
+            None => None,
+        };
+        let e = Self { saturation, ..Self::new(m) };
+        Ok(Self {
             inv_j: self.inv_j,
             b_nms: self.b_nms,
             coulomb_nm: self.coulomb_nm,
             fan_nm_s2: self.fan_nm_s2,
             ..e
-        }
+        })
     }
 
     /// The same machine with Coulomb friction of magnitude `t_c_nm`: −T_c·sign(ω_m) while

@@ -641,6 +641,7 @@ impl Matrix {
             about: row_name(case, at),
             spec: self.spec,
             plant: self.spec.motor,
+            plant_saturation: None,
             expect_fault: None,
             scenario: Scenario {
                 events: vec![

@@ -17,6 +17,9 @@ use controller_core::frames::AlphaBeta;
 use plant::{Machine, MachineState, Rk4Midway};
 
 /// The plant's side of one period in [`run`].
+// One on the stack per period, never stored: boxing the large variant would allocate in
+// the simulator's hot loop.
+#[allow(clippy::large_enum_variant)]
 enum Period {
     /// Average inverter: the held stator voltage and the step begun with it.
     Average([f64; 2], Rk4Midway),
@@ -159,7 +162,8 @@ pub fn run(
                         rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
                     }
                     Event::Fault(Injection::Plant { motor }) => {
-                        machine = machine.with_electrical(&motor);
+                        // Checked before the run (`check_rk4_step`).
+                        machine = machine.with_electrical(&motor).map_err(|e| e.to_string())?;
                         rk4 = machine.rk4_stepper(h);
                         rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
                     }

@@ -137,11 +137,13 @@ pub const RK4_RATE_STEP_MAX: f64 = 2.5;
 /// never had: R_s = 10 kΩ (which the motor file accepts) ran on 50 µs steps into
 /// `Overcurrent` at 813 A with exit 0 (found by trying).
 pub(super) fn check_rk4_step(machine: &Machine, sc: &Scenario, h: f64) -> Result<(), String> {
-    let injected = sc.events.iter().filter_map(|(_, e)| match e {
-        Event::Fault(Injection::Plant { motor }) => Some(Machine::new(motor).fastest_rate_per_s()),
-        _ => None,
-    });
-    let rate = injected.fold(machine.fastest_rate_per_s(), f64::max);
+    let mut rate = machine.fastest_rate_per_s();
+    for (_, e) in &sc.events {
+        if let Event::Fault(Injection::Plant { motor }) = e {
+            let injected = machine.with_electrical(motor).map_err(|e| format!("a plant step: {e}"))?;
+            rate = rate.max(injected.fastest_rate_per_s());
+        }
+    }
     if rate.is_finite() && rate * h <= RK4_RATE_STEP_MAX {
         return Ok(());
     }

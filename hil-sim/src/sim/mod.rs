@@ -322,6 +322,8 @@ pub struct OpenLoop {
     pub sample_period_s: f64,
     /// Motor.
     pub motor: MotorParams,
+    /// Its magnetizing branch's saturation, if it has one.
+    pub saturation: Option<controller_core::magnetics::Saturation>,
     /// Phase peak voltage, V.
     pub amplitude_v: f64,
     /// Source frequency, Hz.

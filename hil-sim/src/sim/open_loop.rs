@@ -24,7 +24,10 @@ pub fn run_open_loop(
     mut progress: impl FnMut(f64),
     mut sink: impl FnMut(&Row) -> Result<(), String>,
 ) -> Result<u64, String> {
-    let machine = Machine::new(&sc.motor);
+    let machine = match &sc.saturation {
+        Some(sat) => Machine::saturated(&sc.motor, sat).map_err(|e| e.to_string())?,
+        None => Machine::new(&sc.motor),
+    };
     let w = 2.0 * std::f64::consts::PI * sc.frequency_hz;
     let amp = sc.amplitude_v;
     let source = move |t: f64| [amp * (w * t).cos(), amp * (w * t).sin()];
@@ -85,6 +88,7 @@ mod tests {
             duration_s: 0.5,
             sample_period_s: 1e-3,
             motor: MotorParams::delorenzo_dl10115a1().unwrap(),
+            saturation: None,
             amplitude_v: 180.0,
             frequency_hz: 50.0,
             load_nm: 0.2,
