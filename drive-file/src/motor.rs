@@ -108,16 +108,24 @@ pub const RANGES: [(&str, f64, f64, &str); 8] = [
 pub const POLE_PAIRS_MAX: u8 = 64;
 
 impl MotorTable {
-    /// The table of validated parameters (for writing a motor file), in the T form.
+    /// The table of validated parameters (for writing a motor file): the T form, or the Γ
+    /// (inverse-Γ) form when the stator (rotor) leakage is zero — the form that holds them.
     pub fn from_params(m: &MotorParams) -> Self {
+        let (form, ls_h, lr_h, l_sigma_h) = if m.ls_h() == m.lm_h() {
+            (Some(MotorForm::Gamma), None, None, Some(m.lr_h() - m.lm_h()))
+        } else if m.lr_h() == m.lm_h() {
+            (Some(MotorForm::InverseGamma), None, None, Some(m.ls_h() - m.lm_h()))
+        } else {
+            (None, Some(m.ls_h()), Some(m.lr_h()), None)
+        };
         Self {
-            form: None,
+            form,
             rs_ohm: m.rs_ohm(),
             rr_ohm: m.rr_ohm(),
-            ls_h: Some(m.ls_h()),
-            lr_h: Some(m.lr_h()),
+            ls_h,
+            lr_h,
             lm_h: m.lm_h(),
-            l_sigma_h: None,
+            l_sigma_h,
             pole_pairs: m.pole_pairs(),
             j_kgm2: m.j_kgm2(),
             b_nms: m.b_nms(),
@@ -324,12 +332,13 @@ fn field_key(f: MotorField) -> &'static str {
 
 /// `(name, TOML text)` of every shipped motor (`motors/*.toml`; the comments in each file
 /// say where every number comes from).
-pub const BUILTIN: [(&str, &str); 5] = [
+pub const BUILTIN: [(&str, &str); 6] = [
     ("delorenzo-appendix", include_str!("../../motors/delorenzo-appendix.toml")),
     ("delorenzo-eq13", include_str!("../../motors/delorenzo-eq13.toml")),
     ("delorenzo-perturbed", include_str!("../../motors/delorenzo-perturbed.toml")),
     ("krause-2300v-500hp", include_str!("../../motors/krause-2300v-500hp.toml")),
     ("em-synergy-m800006", include_str!("../../motors/em-synergy-m800006.toml")),
+    ("delorenzo-saturating", include_str!("../../motors/delorenzo-saturating.toml")),
 ];
 
 /// Only the `[motor]` table of a file; other tables (a drive's, a scenario's) are ignored.

@@ -256,6 +256,11 @@ struct FaultsArgs {
     /// them with --only.
     #[arg(long)]
     trace: bool,
+    /// Simulate this motor instead of the drive's own: a shipped motor's name or any file
+    /// with a [motor] table — a saturating one (form = "gamma", [motor.saturation]) puts the
+    /// drive on a plant richer than its model.
+    #[arg(long)]
+    plant: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -371,7 +376,7 @@ options_from_args! {
     RunArgs => RunOptions { scenario, out }
     EnvelopeArgs => EnvelopeOptions { drive, vdc, points, generating, out }
     CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out }
-    FaultsArgs => FaultsOptions { drive, vdc, out, inject_delay_ms, seed, only, trace }
+    FaultsArgs => FaultsOptions { drive, vdc, out, inject_delay_ms, seed, only, trace, plant }
     CommissionArgs => CommissionOptions {
         out, test_current, current_limit, level_time, leakage_ratio, rotate, rated_voltage, rated_frequency,
         no_load_frequency,

@@ -583,6 +583,23 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     }
 }
 
+/// `hil-sim faults --plant`: a plant the drive could not run (other pole pairs), or no
+/// motor at all, is refused before any row runs, naming it.
+#[test]
+fn faults_refuses_a_plant_it_cannot_run() {
+    let res = tmp("faults-plant");
+    let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
+    let st =
+        bin().args(["faults", drive, "--plant", "krause-2300v-500hp", "--out"]).arg(&res).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("--plant krause-2300v-500hp: 2 pole pairs, the drive's motor 1"), "{err}");
+    let st = bin().args(["faults", drive, "--plant", "no-such-motor", "--out"]).arg(&res).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("no-such-motor"));
+    assert!(!res.join("faults.json").exists());
+}
+
 /// `hil-sim faults --only … --trace`: the rows named run as in the whole matrix (their
 /// indices kept), optionally late and on another noise draw, and each row's trace from
 /// 50 ms before its injection is written with its plots; a selection that names nothing,

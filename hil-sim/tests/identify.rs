@@ -112,13 +112,19 @@ fn check(name: &str, m: &MotorParams, s: &Setup) -> String {
     )
 }
 
-/// Every shipped motor, each on its bus: the DeLorenzo machines on 310 V at 1.24 A (rated
+/// Every shipped linear motor, each on its bus: the DeLorenzo machines on 310 V at 1.24 A (rated
 /// 380 V, 60 Hz), the 500 hp Krause machine on a 2300 V-class bus (3 250 V) at 100 A (2 300 V,
 /// 60 Hz), the EM_Synergy motor on 24 V at 2.6 A, its rated peak current (14.85 V, 50 Hz).
 #[test]
 fn every_shipped_motor_is_identified_within_the_bounds() {
     for (name, _) in drive_file::motor::BUILTIN {
-        let m = drive_file::motor::load(name).unwrap();
+        let (m, saturation) = drive_file::motor::load_model(name).unwrap();
+        // A saturating motor is a curve, not one L_m: identifying it is the saturation
+        // issue's deliverable 4 (this sequence would meet its linear T model at the
+        // unsaturated inductance, a machine that does not exist).
+        if saturation.is_some() {
+            continue;
+        }
         let (i, vdc, (v, hz)) = match name {
             "krause-2300v-500hp" => (100.0, 3250.0, (2300.0, 60.0)),
             "em-synergy-m800006" => (2.6, 24.0, (14.85, 50.0)),

@@ -33,7 +33,8 @@ fn bench(c: &mut Criterion) {
 
     let t = MotorParams::new(3.7, 2.5, 0.34, 0.363, 0.34, 2, 0.015, 0.0).unwrap();
     let curve = MagnetizingCurve::law(0.34, 0.84, 7.0).unwrap();
-    let saturated = Machine::saturated(&t, &Saturation { form: Form::Gamma, curve }).unwrap().rk4_stepper(5e-5);
+    let saturated =
+        Machine::saturated(&t, &Saturation { form: Form::Gamma, curve }).unwrap().rk4_stepper(5e-5);
     let linear = Machine::new(&t).rk4_stepper(5e-5);
     // 400 V 50 Hz, one voltage per 50 µs step (a period of 400 steps); each machine first
     // runs 1 s on it against 14.6 N·m, to its rated operating point (the saturated one at
@@ -45,7 +46,8 @@ fn bench(c: &mut Criterion) {
             [amp * th.cos(), amp * th.sin()]
         })
         .collect();
-    for (name, m) in [("rk4_step_saturated_2kw_chained", saturated), ("rk4_step_linear_2kw_chained", linear)] {
+    for (name, m) in [("rk4_step_saturated_2kw_chained", saturated), ("rk4_step_linear_2kw_chained", linear)]
+    {
         let mut x = MachineState::default();
         let mut source = v.iter().copied().cycle();
         for v in source.by_ref().take(20_000) {

@@ -25,6 +25,9 @@ pub struct FaultsOptions {
     pub only: Option<String>,
     /// Also write each row's trace into `OUT/rows/<row>/` ([`trace_fault_row`]).
     pub trace: bool,
+    /// Simulate this motor (a shipped motor's name or a file with a `[motor]` table, its
+    /// saturation included) instead of the drive's own.
+    pub plant: Option<String>,
 }
 
 /// The most rows `hil-sim faults --trace` writes (each trace ≈ 3 MB of CSV).
@@ -106,6 +109,17 @@ pub fn faults(a: &FaultsOptions) -> Result<(), String> {
         .map(|c| crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
     m.inject_delay_s = 1e-3 * a.inject_delay_ms;
     m.seed = a.seed;
+    if let Some(plant) = &a.plant {
+        let (motor, saturation) = drive_file::motor::load_model(plant).map_err(|e| e.to_string())?;
+        if motor.pole_pairs() != file.spec.motor.pole_pairs() {
+            return Err(format!(
+                "--plant {plant}: {} pole pairs, the drive's motor {}: the drive could not run it",
+                motor.pole_pairs(),
+                file.spec.motor.pole_pairs()
+            ));
+        }
+        m.plant = Some((motor, saturation));
+    }
     let all = m.rows()?;
     let selected: Vec<_> = match &a.only {
         Some(text) => {
@@ -237,6 +251,7 @@ mod tests {
     fn bad_selections_are_errors_before_anything_is_made() {
         let out = std::env::temp_dir().join(format!("hil-sim-faults-{}", std::process::id()));
         let options = |only: &str, trace| FaultsOptions {
+            plant: None,
             drive: PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml")),
             vdc: None,
             out: Some(out.clone()),

@@ -36,6 +36,8 @@ use crate::sensors::SensorModel;
 use crate::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
 use controller_core::drive::{DriveSpec, Fault, Mode, Reference};
 use controller_core::frames::AlphaBeta;
+use controller_core::magnetics::Saturation;
+use controller_core::motor::MotorParams;
 use rayon::prelude::*;
 
 mod report;
@@ -238,6 +240,9 @@ pub struct Matrix {
     /// Another draw of the sensors' noise (0 in the matrix: [`Matrix::sensor_seed`];
     /// `hil-sim faults --seed`).
     pub seed: u64,
+    /// The simulated machine when it is not the drive's own motor (`hil-sim faults
+    /// --plant`): its T model and its magnetizing branch's saturation.
+    pub plant: Option<(MotorParams, Option<Saturation>)>,
     /// The reference's time and the injection's (before its delay), s: made once by
     /// [`Matrix::new`] from the drive ([`Matrix::reference_s`], [`Matrix::inject_s`]).
     times_s: (f64, f64),
@@ -301,6 +306,7 @@ impl Matrix {
             encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
             inject_delay_s: 0.0,
             seed: 0,
+            plant: None,
             times_s: (REFERENCE_S, INJECT_S),
             approaches: Vec::new(),
         };
@@ -383,9 +389,10 @@ impl Matrix {
         v
     }
 
-    /// The faults injected (the plant's parameter changes act on `spec.motor`).
+    /// The faults injected (the plant's parameter changes act on the simulated motor:
+    /// [`Matrix::plant`]'s, else `spec.motor`).
     pub fn cases(&self) -> Result<Vec<Case>, String> {
-        let m = &self.spec.motor;
+        let m = self.plant.as_ref().map_or(&self.spec.motor, |(m, _)| m);
         let hot = scaled_plant(m, 1.0, 1.5, 1.0).ok_or("R_r × 1.5 is not a valid motor")?;
         let saturated = scaled_plant(m, 1.0, 1.0, 0.8).ok_or("L_m × 0.8 is not a valid motor")?;
         // Rounded to the milliampere: the names print it.
@@ -640,8 +647,8 @@ impl Matrix {
             name: format!("faults-{k}"),
             about: row_name(case, at),
             spec: self.spec,
-            plant: self.spec.motor,
-            plant_saturation: None,
+            plant: self.plant.map_or(self.spec.motor, |(m, _)| m),
+            plant_saturation: self.plant.and_then(|(_, s)| s),
             expect_fault: None,
             scenario: Scenario {
                 events: vec![
