@@ -22,6 +22,7 @@
 
 use controller_core::magnetics::Saturation;
 use controller_core::motor::MotorParams;
+use core::cell::Cell;
 
 pub mod saturated;
 use saturated::{Saturated, SaturationError};
@@ -173,12 +174,17 @@ impl Scaled {
 /// Classical RK4 of eq. (1)–(2) at a fixed step, with the coefficients pre-scaled for its
 /// half and full stages ([`Machine::rk4_stepper`]). Made once per run: the closed-loop
 /// simulator takes one step per PWM period.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Rk4 {
     machine: Machine,
     half: Scaled,
     full: Scaled,
     h_s: f64,
+    /// A saturating machine's last step: its result's stator current and rotor flux, and
+    /// the stator flux it integrated to. A step from exactly that state takes the flux
+    /// instead of recovering it by Newton ([`Machine::saturated`]); any other state (the
+    /// diodes' projection of the current, a new run) recovers it.
+    last_stator_flux: Cell<Option<([f64; 4], [f64; 2])>>,
 }
 
 impl Rk4 {
@@ -251,7 +257,13 @@ impl Rk4 {
         if let Some(sat) = &self.machine.saturation {
             let m = &self.machine;
             let v = [[v0.0, v0.1], [v_mid.0, v_mid.1], [v1.0, v1.1]];
-            let mut x1 = sat.step(m.inv_j, m.b_nms, x, v, load_nm + passive, self.h_s);
+            let key = |x: &MachineState| [x.i_alpha_a, x.i_beta_a, x.psi_alpha_wb, x.psi_beta_wb];
+            let psi_s = match self.last_stator_flux.get() {
+                Some((k, psi_s)) if k == key(x) => psi_s,
+                _ => sat.stator_flux(x),
+            };
+            let (mut x1, psi_s1) = sat.step(m.inv_j, m.b_nms, x, psi_s, v, load_nm + passive, self.h_s);
+            self.last_stator_flux.set(Some((key(&x1), psi_s1)));
             m.stop_a_reversing_passive_load(x.omega_m_rad_s, &mut x1);
             // Carried whole in the fields `finish` would otherwise complete.
             let x3 = Coupled {
@@ -554,7 +566,13 @@ impl Machine {
 
     /// RK4 at the fixed step `h_s` (coefficients scaled once; see [`Rk4`]).
     pub fn rk4_stepper(&self, h_s: f64) -> Rk4 {
-        Rk4 { machine: *self, half: Scaled::new(self, h_s / 2.0), full: Scaled::new(self, h_s), h_s }
+        Rk4 {
+            machine: *self,
+            half: Scaled::new(self, h_s / 2.0),
+            full: Scaled::new(self, h_s),
+            h_s,
+            last_stator_flux: Cell::new(None),
+        }
     }
 
     /// One RK4 step of `h_s` seconds with stator voltage `v_ab_v` and load torque held

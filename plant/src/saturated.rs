@@ -228,21 +228,22 @@ impl Saturated {
         }
     }
 
-    /// One classical RK4 step of `h_s` with the voltage at the step's start, middle and end
+    /// One classical RK4 step of `h_s` from `x` and its stator flux `psi_s`
+    /// ([`Saturated::stator_flux`]) with the voltage at the step's start, middle and end
     /// and the load (with the passive torques) held; the state's angle by the stages'
-    /// speeds, as the linear step does.
+    /// speeds, as the linear step does. Returns the state and its stator flux.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn step(
         &self,
         inv_j: f64,
         b_nms: f64,
         x: &MachineState,
+        psi_s: V2,
         v: [V2; 3],
         t_l: f64,
         h_s: f64,
-    ) -> MachineState {
-        let x0 =
-            Fluxes { psi_s: self.stator_flux(x), psi_r: [x.psi_alpha_wb, x.psi_beta_wb], w: x.omega_m_rad_s };
+    ) -> (MachineState, V2) {
+        let x0 = Fluxes { psi_s, psi_r: [x.psi_alpha_wb, x.psi_beta_wb], w: x.omega_m_rad_s };
         let at = |k: &Fluxes, s: f64| Fluxes {
             psi_s: add(x0.psi_s, scale(s, k.psi_s)),
             psi_r: add(x0.psi_r, scale(s, k.psi_r)),
@@ -260,14 +261,15 @@ impl Saturated {
         let psi_s = [0, 1].map(|n| x0.psi_s[n] + sum(k1.psi_s[n], k2.psi_s[n], k3.psi_s[n], k4.psi_s[n]));
         let psi_r = [0, 1].map(|n| x0.psi_r[n] + sum(k1.psi_r[n], k2.psi_r[n], k3.psi_r[n], k4.psi_r[n]));
         let (i_s, _) = self.currents(psi_s, psi_r);
-        MachineState {
+        let x1 = MachineState {
             i_alpha_a: i_s[0],
             i_beta_a: i_s[1],
             psi_alpha_wb: psi_r[0],
             psi_beta_wb: psi_r[1],
             omega_m_rad_s: x0.w + sum(k1.w, k2.w, k3.w, k4.w),
             theta_m_rad: x.theta_m_rad + sum(x0.w, x2.w, x3.w, x4.w),
-        }
+        };
+        (x1, psi_s)
     }
 
     /// The magnetic energy stored in the machine, J: the branch's (3/2)·∫f and the
@@ -444,6 +446,29 @@ mod tests {
             let shorted = mag(&machine.rk4(&x, [0.0, 0.0], 0.0, 1e-6));
             assert!(held < 1e-3 * shorted, "{form:?}: {held} vs {shorted}");
         }
+    }
+
+    /// A stepper takes its last step's stator flux only for exactly that step's result: a
+    /// chained run equals fresh steppers' (which recover the flux by Newton) to rounding,
+    /// and a state changed between steps (the diodes' projection of the current) is
+    /// recovered, not taken from the cache.
+    #[test]
+    fn a_stepper_reuses_its_stator_flux_only_for_its_own_result() {
+        let machine =
+            Machine::saturated(&gamma_2kw(), &Saturation { form: Form::Gamma, curve: law() }).unwrap();
+        let rk4 = machine.rk4_stepper(5e-5);
+        let mut x = MachineState { psi_alpha_wb: 1.0, omega_m_rad_s: 140.0, ..Default::default() };
+        for _ in 0..200 {
+            let fresh = machine.rk4_stepper(5e-5).step(&x, [300.0, 100.0], 5.0);
+            x = rk4.step(&x, [300.0, 100.0], 5.0);
+            assert!(
+                (x.i_alpha_a - fresh.i_alpha_a).abs() < 1e-9 * (1.0 + fresh.i_alpha_a.abs()),
+                "{x:?} {fresh:?}"
+            );
+        }
+        let changed = MachineState { i_alpha_a: x.i_alpha_a + 3.0, ..x };
+        let fresh = machine.rk4_stepper(5e-5).step(&changed, [300.0, 100.0], 5.0);
+        assert_eq!(rk4.step(&changed, [300.0, 100.0], 5.0), fresh);
     }
 
     #[test]
