@@ -957,6 +957,7 @@ mod tests {
             seed: 1,
             shard: (0, 1),
             encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
+            plant: None,
         };
         let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
         let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
@@ -1099,6 +1100,7 @@ mod tests {
                 seed: 1,
                 shard: (0, 1),
                 encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
+                plant: None,
             };
             // A long rotor time constant magnetizes later: 0.75 s after the step as at 1 s.
             c.duration_s = c.duration_s.max(c.step_s() + (1.0 - STEP_S));

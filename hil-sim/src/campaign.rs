@@ -43,6 +43,7 @@ use crate::sim::{Event, LoadModel, Row, Scenario};
 use controller_core::drive::{DriveSpec, Mode, Reference};
 use controller_core::envelope::EnvelopeConfig;
 use controller_core::ifoc::TorqueCommand;
+use controller_core::magnetics::Saturation;
 use controller_core::motor::MotorParams;
 use controller_core::speed::{SpeedControllerConfig, SpeedLaw, SpeedState};
 use drive_file::certify::Certify;
@@ -127,6 +128,11 @@ pub struct Campaign {
     /// ([`drive_file::drive::DriveFile::encoder_lines`]; it had 1 024 whatever the file
     /// said: a 13 000-line board's campaign tripped `EncoderLoss` at standstill).
     pub encoder_lines: u32,
+    /// The simulated machine's nominal point when it is not the drive's motor (`hil-sim
+    /// campaign --plant`): its T model and its magnetizing branch's saturation. Each run
+    /// scales it by the run's sample (a saturating curve's inductances by the sample's L
+    /// factor), as it would the drive's motor.
+    pub plant: Option<(MotorParams, Option<Saturation>)>,
 }
 
 /// The parameter factors of one run.
@@ -284,12 +290,26 @@ impl Campaign {
         let step_s = self.step_s();
         let sample = self.sample(k);
         let manoeuvre = Manoeuvre::of(k);
-        let plant = (self.spec.motor.scaled(sample.rs, sample.rr, sample.l, sample.j))
-            .map_err(|e| format!("run {k}: sample motor rejected: {e:?}"))?;
+        let scaled = |m: &MotorParams| {
+            m.scaled(sample.rs, sample.rr, sample.l, sample.j)
+                .map_err(|e| format!("run {k}: sample motor rejected: {e:?}"))
+        };
+        let model = scaled(&self.spec.motor)?;
+        let (plant, plant_saturation) = match &self.plant {
+            Some((m, saturation)) => (
+                scaled(m)?,
+                saturation.map(|s| Saturation { curve: s.curve.with_inductance_scaled(sample.l), ..s }),
+            ),
+            None => (model, None),
+        };
+        // The ideal loop's envelope is the plant's steady state: a linear plant's own; for a
+        // saturating one, whose T model holds the unsaturated inductance, the drive's model
+        // at the run's sample.
+        let envelope_plant = if plant_saturation.is_some() { model } else { plant };
         let w = self.omega_s_rad_s();
         let divider = self.spec.slow_divider;
         let t_row = f64::from(divider) / self.spec.pwm_frequency_hz;
-        let mut ideal = IdealLoop::new(&self.spec, &plant, self.vdc_v, t_row)?;
+        let mut ideal = IdealLoop::new(&self.spec, &envelope_plant, self.vdc_v, t_row)?;
         // The load: LOAD_FRACTION of what this plant can give at the speed it loads, in the
         // direction the drive then pushes — τ_max, or the envelope's less in field weakening.
         let load = |omega_m: f64, torque_sign: f64| {
@@ -310,7 +330,7 @@ impl Campaign {
             about: String::new(),
             spec: self.spec,
             plant,
-            plant_saturation: None,
+            plant_saturation,
             expect_fault: None,
             scenario: Scenario {
                 events: vec![(0.0, Event::Enable), (step_s, first), (t2, second)],
@@ -636,6 +656,7 @@ mod tests {
             seed: 1,
             shard: (0, 1),
             encoder_lines: f.encoder_lines(),
+            plant: None,
         }
     }
 

@@ -224,6 +224,11 @@ struct CampaignArgs {
     /// Output directory [default: out/campaign].
     #[arg(long, value_parser = non_empty_path)]
     out: Option<PathBuf>,
+    /// Simulate this motor at the box's points instead of the drive's own: a shipped motor's
+    /// name or any file with a [motor] table — a saturating one (form = "gamma",
+    /// [motor.saturation]) puts the drive on a plant richer than its model.
+    #[arg(long)]
+    plant: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -375,7 +380,7 @@ macro_rules! options_from_args {
 options_from_args! {
     RunArgs => RunOptions { scenario, out }
     EnvelopeArgs => EnvelopeOptions { drive, vdc, points, generating, out }
-    CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out }
+    CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out, plant }
     FaultsArgs => FaultsOptions { drive, vdc, out, inject_delay_ms, seed, only, trace, plant }
     CommissionArgs => CommissionOptions {
         out, test_current, current_limit, level_time, leakage_ratio, rotate, rated_voltage, rated_frequency,

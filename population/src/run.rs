@@ -208,6 +208,7 @@ fn judge(
         seed: plan.seed,
         shard: (0, 1),
         encoder_lines: file.encoder_lines(),
+        plant: None,
     };
     c.duration_s = c.duration_s.max(c.step_s() + 2.0 * MIN_AFTER_STEP_S);
     c.check()?;

@@ -23,6 +23,9 @@ pub struct CampaignOptions {
     pub vdc: Option<f64>,
     /// Output directory (`None`: `out/campaign`).
     pub out: Option<PathBuf>,
+    /// Simulate this motor (a shipped motor's name or a file with a `[motor]` table, its
+    /// saturation included) at the box's points instead of the drive's own.
+    pub plant: Option<String>,
 }
 
 /// `hil-sim campaign`: runs the shard in parallel (Ctrl-C stops it and writes nothing),
@@ -49,6 +52,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
         seed: a.seed,
         shard: a.shard,
         encoder_lines: file.encoder_lines(),
+        plant: a.plant.as_deref().map(|p| super::plant_model(p, &file.spec)).transpose()?,
     };
     c.check()?;
     let total = c.indices().count() as u64;
@@ -179,6 +183,7 @@ mod tests {
             shard,
             vdc: None,
             out: Some(out.to_path_buf()),
+            plant: None,
         }
     }
 

@@ -110,15 +110,7 @@ pub fn faults(a: &FaultsOptions) -> Result<(), String> {
     m.inject_delay_s = 1e-3 * a.inject_delay_ms;
     m.seed = a.seed;
     if let Some(plant) = &a.plant {
-        let (motor, saturation) = drive_file::motor::load_model(plant).map_err(|e| e.to_string())?;
-        if motor.pole_pairs() != file.spec.motor.pole_pairs() {
-            return Err(format!(
-                "--plant {plant}: {} pole pairs, the drive's motor {}: the drive could not run it",
-                motor.pole_pairs(),
-                file.spec.motor.pole_pairs()
-            ));
-        }
-        m.plant = Some((motor, saturation));
+        m.plant = Some(super::plant_model(plant, &file.spec)?);
     }
     let all = m.rows()?;
     let selected: Vec<_> = match &a.only {

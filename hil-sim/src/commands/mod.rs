@@ -75,6 +75,24 @@ pub fn pil_options(elf: Option<&Path>, no_pin: bool) -> Result<PilOptions, Strin
 /// range holds it, V.
 pub const DEFAULT_VDC_V: f64 = 310.0;
 
+/// `--plant NAME|FILE`: the machine a command simulates instead of the drive's own motor (a
+/// shipped motor's name or a file with a `[motor]` table, its saturation included); one the
+/// drive could not run (other pole pairs) is refused, naming both.
+pub fn plant_model(
+    plant: &str,
+    drive: &controller_core::drive::DriveSpec,
+) -> Result<(controller_core::motor::MotorParams, Option<controller_core::magnetics::Saturation>), String> {
+    let (motor, saturation) = drive_file::motor::load_model(plant).map_err(|e| e.to_string())?;
+    if motor.pole_pairs() != drive.motor.pole_pairs() {
+        return Err(format!(
+            "--plant {plant}: {} pole pairs, the drive's motor {}: the drive could not run it",
+            motor.pole_pairs(),
+            drive.motor.pole_pairs()
+        ));
+    }
+    Ok((motor, saturation))
+}
+
 /// The bus a command runs `what` on: `asked` (`--vdc`), refused outside the drive's bus range
 /// (`[protection]`: every run would trip on it), else the file's rated bus (`[board]
 /// vdc_rated_v`, checked inside the range when the file was read), else [`DEFAULT_VDC_V`], or
