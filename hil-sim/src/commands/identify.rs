@@ -135,9 +135,10 @@ pub fn identify(a: &IdentifyOptions) -> Result<(), String> {
             a.run.out.display()
         ));
     }
-    let motor = drive_file::motor::load(&a.motor).map_err(|e| e.to_string())?;
+    let (motor, saturation) = drive_file::motor::load_model(&a.motor).map_err(|e| e.to_string())?;
     let config = a.run.config(a.pwm_hz, (0.8 * a.vdc, 1.2 * a.vdc))?;
     let mut setup = Setup::realistic(motor, config, a.vdc, a.seed);
+    setup.saturation = saturation;
     if a.swap_current_channels {
         setup.injections.push(crate::sim::Injection::CurrentChannelsSwapped { first: 1, second: 2 });
     }

@@ -421,6 +421,14 @@ fn no_load(
             100.0 * flux / k / rated
         ));
     }
+    if flux / k > NO_LOAD_FLUX_MAX * rated {
+        return Err(format!(
+            "the no-load test overshot the rated flux {rated:.4} Wb: it ran at {:.1} % of it, where the magnetizing \
+             inductance is not the rated flux's (its current was set from the DC levels' inductance: a motor that \
+             saturates needs less current for its rated flux than they predict); nothing measured at rated flux",
+            100.0 * flux / k / rated
+        ));
+    }
     Ok(NoLoad {
         l_mm_h: Estimate::of(&l_mm, MARGIN.lm),
         standstill_l_mm_h: standstill,
@@ -435,6 +443,12 @@ fn no_load(
 /// The no-load test must reach this fraction of the rated flux, or the estimate is refused
 /// (its L_m would not be the rated flux's; a wrong nameplate, or a test current too small).
 pub const NO_LOAD_FLUX_MIN: f64 = 0.95;
+/// … and at most this fraction: beyond it a saturating branch's inductance is far from the
+/// rated flux's (1.38× the rated value at half flux, 0.8× at 1.1× on the shipped saturating
+/// motor's curve), and the file would carry it as the rated one. Found by trying `hil-sim
+/// identify delorenzo-saturating`: the test ran at 124.8 % and the file was written with
+/// L_M 49 % below the curve's unsaturated value and T_r 64 % short.
+pub const NO_LOAD_FLUX_MAX: f64 = 1.05;
 
 #[cfg(test)]
 mod tests {

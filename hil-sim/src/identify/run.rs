@@ -22,6 +22,9 @@ use std::rc::Rc;
 pub struct Setup {
     /// The motor the simulator runs (unknown to the sequence).
     pub motor: MotorParams,
+    /// Its magnetizing branch's saturation, if it has one (`motor` is then its form's T
+    /// model at the unsaturated inductance).
+    pub saturation: Option<controller_core::magnetics::Saturation>,
     /// The sequence's configuration.
     pub config: CommissionConfig,
     /// Bus voltage, V.
@@ -49,6 +52,7 @@ impl Setup {
         sensors.current_offset_a = sensors.current_offset_a.map(|o| o * scale);
         Self {
             motor,
+            saturation: None,
             config,
             vdc_v,
             sensors,
@@ -369,7 +373,11 @@ pub fn simulate_on(
         dc_link: None,
         comparator: None,
     };
-    let machine = Machine::new(&setup.motor);
+    let machine = match &setup.saturation {
+        Some(s) => Machine::saturated(&setup.motor, s)
+            .map_err(|e| RunError::Simulation(format!("the simulated motor: {e}")))?,
+        None => Machine::new(&setup.motor),
+    };
     let mut last_t = 0.0;
     let result = sim::run(
         &mut seq,
