@@ -74,6 +74,8 @@ pub struct Point {
     pub ripple_nm: f64,
     /// The analytic envelope at this speed, N·m.
     pub analytic_nm: f64,
+    /// The motor's physical limit at this speed ([`physical_limit_nm`]), N·m.
+    pub physical_nm: f64,
     /// Mean rotor flux magnitude of the machine model over the window, Wb.
     pub flux_wb: f64,
     /// The drive's mode at the end (Running unless something tripped).
@@ -169,9 +171,84 @@ fn point(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, w: f64, sign: f32) -
         measured_nm: mean.abs(),
         ripple_nm: hi - lo,
         analytic_nm: analytic,
+        physical_nm: physical_limit_nm(
+            plant,
+            w,
+            f64::from(sign),
+            spec.flux_ref_wb,
+            vdc_v / 3f64.sqrt(),
+            spec.i_ref_max_a,
+        ),
         flux_wb: flux,
         mode,
     })
+}
+
+/// Slip frequencies [`physical_limit_nm`] tries, geometric over [`PHYSICAL_SLIP_RANGE`] of
+/// the rotor's R_r/L_r.
+pub const PHYSICAL_SLIP_POINTS: u32 = 4000;
+/// The slip frequencies searched, in units of R_r/L_r (1 is a current-fed machine's
+/// breakdown; a voltage-limited one's lies below it at speed, a leakage-limited one's
+/// above).
+pub const PHYSICAL_SLIP_RANGE: [f64; 2] = [1e-4, 1e3];
+
+/// The most torque the motor can give at mechanical speed `omega_m_rad_s` in the direction
+/// `sign` (+1 motoring at a positive speed, −1 braking), N·m — its **physical limit**, from
+/// the motor alone: the T-equivalent circuit at steady state (no drive, no model of one),
+/// with the stator current's peak at most `i_max_a`, the rotor flux at most `flux_max_wb` and
+/// the phase voltage's peak at most `v_max_v` (V_dc/√3: the full linear circle). In the
+/// synchronous frame at slip frequency ω_sl, per ampere of stator current along the real
+/// axis: the rotor's `0 = R_r·I_r + jω_sl·ψ_r` with `ψ_r = L_m·I + L_r·I_r` gives
+/// `ψ_r = L_m·R_r/(R_r + jω_sl·L_r)`, `I_r = −jω_sl·L_m/(R_r + jω_sl·L_r)`; the stator's
+/// `ψ_s = L_s + L_m·I_r`, `V = R_s + jω_e·ψ_s` (ω_e = p·ω_m + ω_sl) and
+/// `T = −(3/2)·p·Im ψ_s` per A². Each limit bounds the current at that slip — `i =
+/// min(I, V/|V₁|, Ψ/|ψ_r₁|)`, everything scaling with it — and the limit is the largest
+/// `T₁·i²` over [`PHYSICAL_SLIP_POINTS`] slips, refined by golden sections around the best.
+/// Unlike the drive's own envelope it caps no flux at its no-load value: what the drive
+/// leaves unused shows against it (issue 52).
+pub fn physical_limit_nm(
+    m: &MotorParams,
+    omega_m_rad_s: f64,
+    sign: f64,
+    flux_max_wb: f64,
+    v_max_v: f64,
+    i_max_a: f64,
+) -> f64 {
+    use num_complex::Complex64 as C;
+    let (rs, rr, ls, lr, lm) = (m.rs_ohm(), m.rr_ohm(), m.ls_h(), m.lr_h(), m.lm_h());
+    let p = f64::from(m.pole_pairs());
+    let torque_at = |w_sl: f64| {
+        let den = C::new(rr, w_sl * lr);
+        let psi_r = C::new(lm * rr, 0.0) / den;
+        let i_r = C::new(0.0, -w_sl * lm) / den;
+        let psi_s = C::new(ls, 0.0) + i_r * lm;
+        let v = C::new(rs, 0.0) + C::new(0.0, p * omega_m_rad_s + w_sl) * psi_s;
+        let t1 = -1.5 * p * psi_s.im;
+        let i = i_max_a.min(v_max_v / v.norm()).min(flux_max_wb / psi_r.norm());
+        t1 * i * i
+    };
+    let unit = rr / lr;
+    let [lo, hi] = PHYSICAL_SLIP_RANGE;
+    let at = |k: f64| sign * unit * lo * (hi / lo).powf(k / f64::from(PHYSICAL_SLIP_POINTS));
+    let (mut best_k, mut best) = (0.0, f64::NEG_INFINITY);
+    for k in 0..=PHYSICAL_SLIP_POINTS {
+        let t = sign * torque_at(at(f64::from(k)));
+        if t > best {
+            (best_k, best) = (f64::from(k), t);
+        }
+    }
+    // Golden sections on the grid's neighbours of the best.
+    let (mut a, mut b) = (best_k - 1.0, best_k + 1.0);
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..40 {
+        let (c, d) = (b - g * (b - a), a + g * (b - a));
+        if sign * torque_at(at(c)) > sign * torque_at(at(d)) {
+            b = d;
+        } else {
+            a = c;
+        }
+    }
+    best.max(sign * torque_at(at(0.5 * (a + b)))).max(0.0)
 }
 
 /// The envelope plot: the analytic curve on a fine grid of speeds and the measured points.
@@ -188,6 +265,13 @@ pub fn plot(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, points: &[Point],
             (w, t)
         })
         .collect();
+    let physical: Vec<(f64, f64)> = (0..=200)
+        .map(|k| {
+            let w = top * f64::from(k) / 200.0;
+            let v = vdc_v / 3f64.sqrt();
+            (w, physical_limit_nm(plant, w, f64::from(sign), spec.flux_ref_wb, v, spec.i_ref_max_a))
+        })
+        .collect();
     let measured: Vec<(f64, f64)> = points.iter().map(|p| (p.omega_m_rad_s, p.measured_nm)).collect();
     let title = format!(
         "Torque–speed envelope ({}, {vdc_v} V bus)",
@@ -198,7 +282,47 @@ pub fn plot(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, points: &[Point],
         "ω_m (rad/s)",
         &[
             Series::line("analytic: current- and voltage-limited steady state (N·m)", curve),
+            Series::line(
+                "physical limit: the motor alone, |v| ≤ V_dc/√3, ψ_r ≤ ψ_r*, |i| ≤ I_max (N·m)",
+                physical,
+            ),
             Series::markers("measured in SIL (N·m)", measured),
         ],
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The physical limit against two references it shares no code with. At standstill,
+    /// current- and flux-limited (the bus far away): in the rotor-flux frame ψ_r = L_m·i_d,
+    /// so T = (3/2)·p·(L_m/L_r)·Ψ·√(I² − (Ψ/L_m)²) — 5.0474 N·m for the shipped drive, to
+    /// 1e-6. Motoring at 1.5 and 2× base speed, where the drive's no-load flux cap does not
+    /// bind (motoring never needs more flux than no load: controller-core's envelope docs):
+    /// the dq model's dense-grid envelope (`envelope_by_grid`) on the same full circle, to
+    /// 1e-3 (its grid's resolution). Generating above base speed the physical limit is
+    /// above that envelope: the cap's cost (issue 52).
+    #[test]
+    fn the_physical_limit_meets_its_closed_form_and_the_dq_envelope() {
+        let spec = drive_file::DriveFile::shipped().unwrap().spec;
+        let m = spec.motor;
+        let (psi, i) = (spec.flux_ref_wb, spec.i_ref_max_a);
+        let id = psi / m.lm_h();
+        let closed = 1.5 * f64::from(m.pole_pairs()) * m.lm_h() / m.lr_h() * psi * (i * i - id * id).sqrt();
+        for sign in [1.0, -1.0] {
+            let t = physical_limit_nm(&m, 0.0, sign, psi, 1e6, i);
+            assert!((t / closed - 1.0).abs() < 1e-6, "{t} vs {closed}");
+        }
+        let v = 310.0 / 3f64.sqrt();
+        let base = base_speed_rad_s(&m, psi, 310.0);
+        for k in [1.5, 2.0] {
+            let w = k * base;
+            let (dq, _, _) = envelope_by_grid(&m, w, id, v, i, 200_000);
+            let t = physical_limit_nm(&m, w, 1.0, psi, v, i);
+            assert!((t / dq - 1.0).abs() < 1e-3, "{k}× base: {t} vs {dq}");
+            let (dq_gen, _, _) = envelope_by_grid(&m, -w, id, v, i, 200_000);
+            assert!(physical_limit_nm(&m, w, -1.0, psi, v, i) > 1.2 * dq_gen, "{k}× base generating");
+        }
+    }
 }

@@ -374,12 +374,16 @@ fn envelope_writes_its_table_and_plot() {
     assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
     let csv = std::fs::read_to_string(out.join("envelope.csv")).unwrap();
     assert_eq!(csv.lines().count(), 4, "{csv}");
-    assert!(csv.starts_with("omega_m_rad_s,measured_nm,analytic_nm,relative_error"));
-    assert!(std::fs::read_to_string(out.join("envelope.svg")).unwrap().contains("<svg"));
+    assert!(csv.starts_with("omega_m_rad_s,measured_nm,analytic_nm,relative_error,physical_nm,of_physical"));
+    assert!(std::fs::read_to_string(out.join("envelope.svg")).unwrap().contains("physical limit"));
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     assert!((summary["base_speed_rad_s"].as_f64().unwrap() - 184.0).abs() < 0.05);
     assert_eq!(summary["points_outside"], 0);
+    // What the drive leaves unused of the motor's physical limit: motoring, at most 0.95 of
+    // it is reached (the modulator's 0.94-duty circle, no overmodulation: issue 52).
+    let least = summary["least_of_physical_limit"].as_f64().unwrap();
+    assert!((0.5..0.95).contains(&least), "{least}");
     let st = bin().args(["envelope", "/nonexistent/drive.toml", "--out"]).arg(&out).output().unwrap();
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("/nonexistent/drive.toml"));

@@ -52,33 +52,47 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
         speeds.last().copied().unwrap_or(0.0)
     );
     let points = crate::envelope::measure(&spec, &spec.motor, vdc, &speeds, sign)?;
-    let mut csv =
-        String::from("omega_m_rad_s,measured_nm,analytic_nm,relative_error,ripple_nm,flux_wb,mode\n");
+    let mut csv = String::from(
+        "omega_m_rad_s,measured_nm,analytic_nm,relative_error,physical_nm,of_physical,ripple_nm,flux_wb,mode\n",
+    );
     report::outln!(
-        "{:>10} {:>12} {:>12} {:>8} {:>10} {:>8}  mode",
+        "{:>10} {:>12} {:>12} {:>8} {:>12} {:>8} {:>10} {:>8}  mode",
         "ω (rad/s)",
         "measured",
         "analytic",
         "error",
+        "physical",
+        "of it",
         "ripple",
         "ψ_r"
     );
     let mut failed = Vec::new();
     for p in &points {
         let e = p.relative_error();
+        let of_physical = p.measured_nm / p.physical_nm;
         report::outln!(
-            "{:>10.1} {:>10.4} Nm {:>9.4} Nm {:>+7.2}% {:>7.4} Nm {:>7.3}  {:?}",
+            "{:>10.1} {:>10.4} Nm {:>9.4} Nm {:>+7.2}% {:>9.4} Nm {:>8.3} {:>7.4} Nm {:>7.3}  {:?}",
             p.omega_m_rad_s,
             p.measured_nm,
             p.analytic_nm,
             100.0 * e,
+            p.physical_nm,
+            of_physical,
             p.ripple_nm,
             p.flux_wb,
             p.mode
         );
         csv.push_str(&format!(
-            "{:.4},{:.6},{:.6},{:.6},{:.6},{:.5},{:?}\n",
-            p.omega_m_rad_s, p.measured_nm, p.analytic_nm, e, p.ripple_nm, p.flux_wb, p.mode
+            "{:.4},{:.6},{:.6},{:.6},{:.6},{:.5},{:.6},{:.5},{:?}\n",
+            p.omega_m_rad_s,
+            p.measured_nm,
+            p.analytic_nm,
+            e,
+            p.physical_nm,
+            of_physical,
+            p.ripple_nm,
+            p.flux_wb,
+            p.mode
         ));
         if e.abs() > ENVELOPE_TOLERANCE || p.mode != Mode::Running {
             failed.push(p.omega_m_rad_s);
@@ -93,6 +107,7 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
         "direction": if a.generating { "generating" } else { "motoring" },
         "tolerance": ENVELOPE_TOLERANCE,
         "worst_relative_error": points.iter().map(|p| p.relative_error().abs()).fold(0.0, f64::max),
+        "least_of_physical_limit": points.iter().map(|p| p.measured_nm / p.physical_nm).fold(f64::INFINITY, f64::min),
         "points_outside": failed.len(),
     });
     let text = serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?;
