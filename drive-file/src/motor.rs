@@ -104,6 +104,13 @@ pub const RANGES: [(&str, f64, f64, &str); 8] = [
     ("b_nms", 0.0, 1e4, "N·m·s/rad"),
 ];
 
+/// Accepted β of a saturation law, 1/Wb: a knee 1/β from 1 mWb (a 10 W motor's rated flux
+/// is ≈ 5 mWb) to 1 kWb (beyond any machine's ≈ 30 Wb: in effect, no saturation).
+pub const BETA_PER_WB: [f64; 2] = [1e-3, 1e3];
+/// Accepted exponent S of a saturation law: from 1 to 32 (motulator's measured 2.2-kW
+/// machine: 7; beyond 32 the law is a hard limit no RK4 step integrates).
+pub const EXPONENT: [f64; 2] = [1.0, 32.0];
+
 /// Largest accepted number of pole pairs.
 pub const POLE_PAIRS_MAX: u8 = 64;
 
@@ -283,10 +290,17 @@ impl MotorTable {
             }
         };
         let curve = match (t.beta_per_wb, t.exponent, &t.current_a, &t.flux_wb) {
-            (Some(beta), Some(s), None, None) => MagnetizingCurve::law(self.lm_h, beta, s).map_err(|_| {
-                let k = if beta.is_finite() && beta > 0.0 { "exponent" } else { "beta_per_wb" };
-                src.error(&key(k), "beta_per_wb must be finite and > 0 and exponent finite and ≥ 1")
-            })?,
+            (Some(beta), Some(s), None, None) => {
+                for (k, x, [lo, hi]) in [("beta_per_wb", beta, BETA_PER_WB), ("exponent", s, EXPONENT)] {
+                    src.check(
+                        x.is_finite() && (lo..=hi).contains(&x),
+                        &key(k),
+                        &format!("is {}; must lie in [{}, {}]", num(x), num(lo), num(hi)),
+                    )?;
+                }
+                MagnetizingCurve::law(self.lm_h, beta, s)
+                    .map_err(|_| src.error(&key("exponent"), "not a saturation law"))?
+            }
             (None, None, Some(i), Some(psi)) => MagnetizingCurve::points(psi, i).map_err(|e| match e {
                 CurveError::NotRising(k) => src.error(
                     &format!("{table}.saturation.flux_wb[{k}]"),
@@ -527,6 +541,15 @@ mod tests {
         assert_eq!(e.key.as_deref(), Some("motor.saturation.exponent"), "{e}");
         let e = err(&sat("beta_per_wb = -1\nexponent = 7"));
         assert_eq!(e.key.as_deref(), Some("motor.saturation.beta_per_wb"), "{e}");
+        // Found by trying: a knee at 1 µWb diverged the run, S = 33.5 refused it as "too
+        // stiff" — both now refused by their range, naming the key.
+        let e = err(&sat("beta_per_wb = 1e6\nexponent = 7"));
+        assert!(
+            e.to_string().ends_with("motor.saturation.beta_per_wb: is 1e6; must lie in [0.001, 1000]"),
+            "{e}"
+        );
+        let e = err(&sat("beta_per_wb = 0.84\nexponent = 33.5"));
+        assert!(e.to_string().ends_with("motor.saturation.exponent: is 33.5; must lie in [1, 32]"), "{e}");
         let e = err(&sat("flux_wb = [0.5, 1.0, 0.9]\ncurrent_a = [1.0, 2.0, 3.0]"));
         assert_eq!(e.key.as_deref(), Some("motor.saturation.flux_wb[2]"), "{e}");
         let e = err(&sat("flux_wb = [0.5, 1.0]\ncurrent_a = [1.0, 2.0, 3.0]"));

@@ -1154,4 +1154,16 @@ torque_nm = 0.5
             assert!(ms.sqrt() < 1e-8 * peak, "signal {s}: {} of {peak}", ms.sqrt());
         }
     }
+
+    /// A saturating machine driven far past its knee (β = 1000 1/Wb, the largest accepted:
+    /// a knee at 1 mWb under 400 V) diverges, and the error says where to look.
+    #[test]
+    fn a_diverging_saturating_run_names_its_curve() {
+        const FILE: &str = include_str!("../scenarios/dol-motulator-2kw-sat.toml");
+        let text = FILE.replace("beta_per_wb = 0.84", "beta_per_wb = 1000");
+        let sc = parse_open_loop(Path::new("s.toml"), &text).unwrap();
+        let e =
+            crate::sim::run_open_loop(&sc, crate::sim::OPEN_LOOP_MAX_STEP_S, |_| {}, |_| Ok(())).unwrap_err();
+        assert!(e.contains("diverged") && e.contains("[motor.saturation]"), "{e}");
+    }
 }

@@ -282,7 +282,7 @@ pub fn run(
         if to_trace == 0 {
             to_trace = trace_every - 1;
             if !x_at_start.is_finite() {
-                return Err(non_finite(k as f64 * ts));
+                return Err(non_finite(k as f64 * ts, &machine));
             }
             rows += 1;
             let telemetry = drive.telemetry();

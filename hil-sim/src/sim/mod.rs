@@ -393,6 +393,12 @@ pub struct Row {
 /// period to count as one where it mattered ([`Row::switch_acting`]).
 pub const SWITCH_ACTING_DUTY: f64 = 0.02;
 
-fn non_finite(t_s: f64) -> String {
-    format!("the simulated machine's state is no longer finite at t = {t_s} s (the run diverged)")
+fn non_finite(t_s: f64, machine: &plant::Machine) -> String {
+    let why = if machine.is_saturating() {
+        ": a saturating machine driven far past its curve's knee is stiffer than the integration step \
+         (check [motor.saturation]: beta_per_wb is the knee's inverse flux, 1/Wb)"
+    } else {
+        ""
+    };
+    format!("the simulated machine's state is no longer finite at t = {t_s} s (the run diverged){why}")
 }

@@ -59,7 +59,7 @@ pub fn run_open_loop(
     for k in 0..=n {
         let t0 = k as f64 * sc.sample_period_s;
         if !x.is_finite() {
-            return Err(non_finite(t0));
+            return Err(non_finite(t0, &machine));
         }
         sink(&row(t0, x, peak2.max(magnitude2(&x))))?;
         if k == n {
