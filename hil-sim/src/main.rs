@@ -196,6 +196,10 @@ struct EnvelopeArgs {
     /// Output directory [default: out/envelope].
     #[arg(long, value_parser = non_empty_path)]
     out: Option<PathBuf>,
+    /// Simulate this motor instead of the drive's own (a shipped motor's name or a file with a
+    /// [motor] table); the physical limit is then that motor's, its saturation included.
+    #[arg(long)]
+    plant: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -379,7 +383,7 @@ macro_rules! options_from_args {
 
 options_from_args! {
     RunArgs => RunOptions { scenario, out }
-    EnvelopeArgs => EnvelopeOptions { drive, vdc, points, generating, out }
+    EnvelopeArgs => EnvelopeOptions { drive, vdc, points, generating, out, plant }
     CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out, plant }
     FaultsArgs => FaultsOptions { drive, vdc, out, inject_delay_ms, seed, only, trace, plant }
     CommissionArgs => CommissionOptions {

@@ -19,6 +19,9 @@ pub struct EnvelopeOptions {
     pub generating: bool,
     /// Output directory (`None`: `out/envelope`).
     pub out: Option<PathBuf>,
+    /// Simulate this motor (a shipped motor's name or a file with a `[motor]` table, its
+    /// saturation included) instead of the drive's own.
+    pub plant: Option<String>,
 }
 
 /// The envelope's acceptance: measured within this fraction of the analytic envelope.
@@ -51,7 +54,11 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
         speeds.first().copied().unwrap_or(0.0),
         speeds.last().copied().unwrap_or(0.0)
     );
-    let points = crate::envelope::measure(&spec, &spec.motor, vdc, &speeds, sign)?;
+    let (plant, saturation) = match &a.plant {
+        Some(p) => super::plant_model(p, &spec)?,
+        None => (spec.motor, None),
+    };
+    let points = crate::envelope::measure_on(&spec, &plant, saturation.as_ref(), vdc, &speeds, sign)?;
     let mut csv = String::from(
         "omega_m_rad_s,measured_nm,analytic_nm,relative_error,physical_nm,of_physical,ripple_nm,flux_wb,mode\n",
     );
@@ -99,7 +106,10 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
         }
     }
     write_text(&out.join("envelope.csv"), &csv)?;
-    write_text(&out.join("envelope.svg"), &crate::envelope::plot(&spec, &spec.motor, vdc, &points, sign))?;
+    write_text(
+        &out.join("envelope.svg"),
+        &crate::envelope::plot(&spec, &plant, saturation.as_ref(), vdc, &points, sign),
+    )?;
     let summary = serde_json::json!({
         "drive": a.drive.display().to_string(),
         "vdc_v": vdc,
@@ -138,6 +148,7 @@ mod tests {
             points,
             generating: false,
             out: Some(out.clone()),
+            plant: None,
         };
         let e = envelope(&options(1, "drive.toml")).unwrap_err();
         assert!(e.contains("at least 2"), "{e}");
