@@ -201,6 +201,24 @@ fn point(
     })
 }
 
+/// The limits a motor's physical envelope is taken under ([`physical_limit_nm`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// The rotor flux's magnitude at most, Wb (the drive's `flux_ref_wb`).
+    pub flux_max_wb: f64,
+    /// The phase voltage's peak at most, V (V_dc/√3: the whole linear circle).
+    pub v_max_v: f64,
+    /// The stator current's peak at most, A (the drive's `i_ref_max_a`).
+    pub i_max_a: f64,
+}
+
+impl Limits {
+    /// Drive `spec`'s flux and current limits on the whole linear voltage of a `vdc_v` bus.
+    pub fn of(spec: &DriveSpec, vdc_v: f64) -> Self {
+        Self { flux_max_wb: spec.flux_ref_wb, v_max_v: vdc_v / 3f64.sqrt(), i_max_a: spec.i_ref_max_a }
+    }
+}
+
 /// Slip frequencies [`physical_limit_nm`] tries, geometric over [`PHYSICAL_SLIP_RANGE`] of
 /// the rotor's R_r/L_r.
 pub const PHYSICAL_SLIP_POINTS: u32 = 4000;
@@ -212,26 +230,20 @@ pub const PHYSICAL_SLIP_RANGE: [f64; 2] = [1e-4, 1e3];
 /// The most torque the motor can give at mechanical speed `omega_m_rad_s` in the direction
 /// `sign` (+1 motoring at a positive speed, −1 braking), N·m — its **physical limit**, from
 /// the motor alone: the T-equivalent circuit at steady state (no drive, no model of one),
-/// with the stator current's peak at most `i_max_a`, the rotor flux at most `flux_max_wb` and
-/// the phase voltage's peak at most `v_max_v` (V_dc/√3: the full linear circle). In the
+/// within [`Limits`]. In the
 /// synchronous frame at slip frequency ω_sl, per ampere of stator current along the real
 /// axis: the rotor's `0 = R_r·I_r + jω_sl·ψ_r` with `ψ_r = L_m·I + L_r·I_r` gives
 /// `ψ_r = L_m·R_r/(R_r + jω_sl·L_r)`, `I_r = −jω_sl·L_m/(R_r + jω_sl·L_r)`; the stator's
 /// `ψ_s = L_s + L_m·I_r`, `V = R_s + jω_e·ψ_s` (ω_e = p·ω_m + ω_sl) and
 /// `T = −(3/2)·p·Im ψ_s` per A². Each limit bounds the current at that slip — `i =
 /// min(I, V/|V₁|, Ψ/|ψ_r₁|)`, everything scaling with it — and the limit is the largest
-/// `T₁·i²` over [`PHYSICAL_SLIP_POINTS`] slips, refined by golden sections around the best.
+/// `T₁·i²` over [`PHYSICAL_SLIP_POINTS`] slips, refined by golden sections around the best
+/// (`best_over_slips`).
 /// Unlike the drive's own envelope it caps no flux at its no-load value: what the drive
 /// leaves unused shows against it (issue 52).
-pub fn physical_limit_nm(
-    m: &MotorParams,
-    omega_m_rad_s: f64,
-    sign: f64,
-    flux_max_wb: f64,
-    v_max_v: f64,
-    i_max_a: f64,
-) -> f64 {
+pub fn physical_limit_nm(m: &MotorParams, omega_m_rad_s: f64, sign: f64, lim: &Limits) -> f64 {
     use num_complex::Complex64 as C;
+    let Limits { flux_max_wb, v_max_v, i_max_a } = *lim;
     let (rs, rr, ls, lr, lm) = (m.rs_ohm(), m.rr_ohm(), m.ls_h(), m.lr_h(), m.lm_h());
     let p = f64::from(m.pole_pairs());
     let torque_at = |w_sl: f64| {
@@ -244,7 +256,13 @@ pub fn physical_limit_nm(
         let i = i_max_a.min(v_max_v / v.norm()).min(flux_max_wb / psi_r.norm());
         t1 * i * i
     };
-    let unit = rr / lr;
+    best_over_slips(rr / lr, sign, torque_at)
+}
+
+/// The largest `sign·torque_at(ω_sl)` over slip frequencies of the sign `sign`: a geometric
+/// grid of [`PHYSICAL_SLIP_POINTS`] over [`PHYSICAL_SLIP_RANGE`] × `unit` (the rotor's
+/// R_r/L_r), then 40 golden sections between the best point's neighbours; never below 0.
+fn best_over_slips(unit: f64, sign: f64, torque_at: impl Fn(f64) -> f64) -> f64 {
     let [lo, hi] = PHYSICAL_SLIP_RANGE;
     let at = |k: f64| sign * unit * lo * (hi / lo).powf(k / f64::from(PHYSICAL_SLIP_POINTS));
     let (mut best_k, mut best) = (0.0, f64::NEG_INFINITY);
@@ -254,7 +272,6 @@ pub fn physical_limit_nm(
             (best_k, best) = (f64::from(k), t);
         }
     }
-    // Golden sections on the grid's neighbours of the best.
     let (mut a, mut b) = (best_k - 1.0, best_k + 1.0);
     let g = 0.5 * (5f64.sqrt() - 1.0);
     for _ in 0..40 {
@@ -278,18 +295,16 @@ pub fn physical_limit_nm(
 /// `T = (3/2)·p·Im(conj ψ_s·i_s)`, ψ_r = r. The current, voltage and rotor flux rise
 /// with r: the largest r within the limits is found by bisection (60 halvings), its torque
 /// taken, the best over the same slips refined as in [`physical_limit_nm`].
-#[allow(clippy::too_many_arguments)]
 pub fn physical_limit_saturated_nm(
     m: &MotorParams,
     sat: &Saturation,
     omega_m_rad_s: f64,
     sign: f64,
-    flux_max_wb: f64,
-    v_max_v: f64,
-    i_max_a: f64,
+    lim: &Limits,
 ) -> f64 {
     use controller_core::magnetics::Form;
     use num_complex::Complex64 as C;
+    let Limits { flux_max_wb, v_max_v, i_max_a } = *lim;
     let p = f64::from(m.pole_pairs());
     let (rs, rr) = (m.rs_ohm(), m.rr_ohm());
     let curve = sat.curve;
@@ -336,27 +351,7 @@ pub fn physical_limit_saturated_nm(
         }
         point(lo, w_sl).3
     };
-    let unit = rr / m.lr_h();
-    let [lo, hi] = PHYSICAL_SLIP_RANGE;
-    let at = |k: f64| sign * unit * lo * (hi / lo).powf(k / f64::from(PHYSICAL_SLIP_POINTS));
-    let (mut best_k, mut best) = (0.0, f64::NEG_INFINITY);
-    for k in 0..=PHYSICAL_SLIP_POINTS {
-        let t = sign * torque_at(at(f64::from(k)));
-        if t > best {
-            (best_k, best) = (f64::from(k), t);
-        }
-    }
-    let (mut a, mut b) = (best_k - 1.0, best_k + 1.0);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    for _ in 0..40 {
-        let (c, d) = (b - g * (b - a), a + g * (b - a));
-        if sign * torque_at(at(c)) > sign * torque_at(at(d)) {
-            b = d;
-        } else {
-            a = c;
-        }
-    }
-    best.max(sign * torque_at(at(0.5 * (a + b)))).max(0.0)
+    best_over_slips(rr / m.lr_h(), sign, torque_at)
 }
 
 /// The physical limit of the plant (linear or saturating) at speed `w` under drive `spec`'s
@@ -369,10 +364,10 @@ fn physical_limit_of(
     spec: &DriveSpec,
     vdc_v: f64,
 ) -> f64 {
-    let v = vdc_v / 3f64.sqrt();
+    let lim = Limits::of(spec, vdc_v);
     match saturation {
-        Some(s) => physical_limit_saturated_nm(plant, s, w, sign, spec.flux_ref_wb, v, spec.i_ref_max_a),
-        None => physical_limit_nm(plant, w, sign, spec.flux_ref_wb, v, spec.i_ref_max_a),
+        Some(s) => physical_limit_saturated_nm(plant, s, w, sign, &lim),
+        None => physical_limit_nm(plant, w, sign, &lim),
     }
 }
 
@@ -427,6 +422,10 @@ pub fn plot(
 mod tests {
     use super::*;
 
+    fn lim(flux_max_wb: f64, v_max_v: f64, i_max_a: f64) -> Limits {
+        Limits { flux_max_wb, v_max_v, i_max_a }
+    }
+
     /// The physical limit against two references it shares no code with. At standstill,
     /// current- and flux-limited (the bus far away): in the rotor-flux frame ψ_r = L_m·i_d,
     /// so T = (3/2)·p·(L_m/L_r)·Ψ·√(I² − (Ψ/L_m)²) — 5.0474 N·m for the shipped drive, to
@@ -443,7 +442,7 @@ mod tests {
         let id = psi / m.lm_h();
         let closed = 1.5 * f64::from(m.pole_pairs()) * m.lm_h() / m.lr_h() * psi * (i * i - id * id).sqrt();
         for sign in [1.0, -1.0] {
-            let t = physical_limit_nm(&m, 0.0, sign, psi, 1e6, i);
+            let t = physical_limit_nm(&m, 0.0, sign, &lim(psi, 1e6, i));
             assert!((t / closed - 1.0).abs() < 1e-6, "{t} vs {closed}");
         }
         let v = 310.0 / 3f64.sqrt();
@@ -451,10 +450,10 @@ mod tests {
         for k in [1.5, 2.0] {
             let w = k * base;
             let (dq, _, _) = envelope_by_grid(&m, w, id, v, i, 200_000);
-            let t = physical_limit_nm(&m, w, 1.0, psi, v, i);
+            let t = physical_limit_nm(&m, w, 1.0, &lim(psi, v, i));
             assert!((t / dq - 1.0).abs() < 1e-3, "{k}× base: {t} vs {dq}");
             let (dq_gen, _, _) = envelope_by_grid(&m, -w, id, v, i, 200_000);
-            assert!(physical_limit_nm(&m, w, -1.0, psi, v, i) > 1.2 * dq_gen, "{k}× base generating");
+            assert!(physical_limit_nm(&m, w, -1.0, &lim(psi, v, i)) > 1.2 * dq_gen, "{k}× base generating");
         }
     }
 
@@ -476,8 +475,8 @@ mod tests {
             let curve = MagnetizingCurve::points(&line, &line.map(|x| x / m.lm_h())).unwrap();
             let sat = Saturation { form, curve };
             for (w, sign) in [(0.0, 1.0), (100.0, 1.0), (200.0, -1.0), (300.0, 1.0)] {
-                let lin = physical_limit_nm(&m, w, sign, 1.0, 326.6, 7.0);
-                let s = physical_limit_saturated_nm(&m, &sat, w, sign, 1.0, 326.6, 7.0);
+                let lin = physical_limit_nm(&m, w, sign, &lim(1.0, 326.6, 7.0));
+                let s = physical_limit_saturated_nm(&m, &sat, w, sign, &lim(1.0, 326.6, 7.0));
                 assert!((s / lin - 1.0).abs() < 1e-6, "{form:?} {w} {sign}: {s} vs {lin}");
             }
         }
@@ -485,10 +484,10 @@ mod tests {
         let (m_sat, sat) = drive_file::motor::load_model("delorenzo-saturating").unwrap();
         let sat = sat.unwrap();
         let (psi, i, v) = (spec.flux_ref_wb, spec.i_ref_max_a, 310.0 / 3f64.sqrt());
-        let at_rest = physical_limit_saturated_nm(&m_sat, &sat, 0.0, 1.0, psi, v, i);
-        let ratio = at_rest / physical_limit_nm(&spec.motor, 0.0, 1.0, psi, v, i);
+        let at_rest = physical_limit_saturated_nm(&m_sat, &sat, 0.0, 1.0, &lim(psi, v, i));
+        let ratio = at_rest / physical_limit_nm(&spec.motor, 0.0, 1.0, &lim(psi, v, i));
         assert!((0.96..0.99).contains(&ratio), "{at_rest}: {ratio}");
-        let top = physical_limit_saturated_nm(&m_sat, &sat, 368.0, 1.0, psi, v, i);
-        assert!(top > physical_limit_nm(&spec.motor, 368.0, 1.0, psi, v, i), "{top}");
+        let top = physical_limit_saturated_nm(&m_sat, &sat, 368.0, 1.0, &lim(psi, v, i));
+        assert!(top > physical_limit_nm(&spec.motor, 368.0, 1.0, &lim(psi, v, i)), "{top}");
     }
 }
