@@ -168,11 +168,7 @@ impl MagnetizingCurve {
     /// The magnetizing current's magnitude at flux magnitude `psi_wb` ≥ 0, A.
     pub fn current_a(&self, psi_wb: f64) -> f64 {
         match self.0 {
-            Repr::Law { inv_l_unsat_per_h, beta_per_wb, exponent, whole_exponent } => {
-                psi_wb
-                    * (1.0 + Self::saturation_term(beta_per_wb, exponent, whole_exponent, psi_wb))
-                    * inv_l_unsat_per_h
-            }
+            Repr::Law { .. } => psi_wb * self.inverse_inductance_per_h(psi_wb),
             Repr::Points { n, psi_wb: ref p, current_a: ref i } => {
                 let (p0, i0, slope) = Self::segment(n, p, i, psi_wb);
                 i0 + slope * (psi_wb - p0)
@@ -199,8 +195,8 @@ impl MagnetizingCurve {
     /// A flux far into saturation, Wb: where the law's inductance has fallen to a tenth of
     /// its unsaturated value (`(β·ψ)^S = 9`: 1.63 Wb, 1.37× the knee 1/β, on motulator's
     /// 2.2-kW curve, whose rated flux is 1.04 Wb), a tenth past the last point of a measured
-    /// curve. A plant's fastest mode is judged there (its incremental inductance is smaller
-    /// at any flux below); a run driven beyond it ends "diverged", not in a wrong answer.
+    /// curve. A plant's fastest mode is judged there (its incremental inductance is larger
+    /// at any flux below); beyond it the integration step is not proven stable.
     pub fn deep_flux_wb(&self) -> f64 {
         match self.0 {
             Repr::Law { beta_per_wb, exponent, .. } => libm::pow(9.0, 1.0 / exponent) / beta_per_wb,

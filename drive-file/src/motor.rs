@@ -111,6 +111,12 @@ pub const BETA_PER_WB: [f64; 2] = [1e-3, 1e3];
 /// machine: 7; beyond 32 the law is a hard limit no RK4 step integrates).
 pub const EXPONENT: [f64; 2] = [1.0, 32.0];
 
+/// The largest flux a measured curve's point may give, Wb (30 times the largest machine's
+/// rated flux), and its largest current, A: beyond them a typo, not a machine.
+pub const CURVE_FLUX_MAX_WB: f64 = 1e3;
+/// See [`CURVE_FLUX_MAX_WB`].
+pub const CURVE_CURRENT_MAX_A: f64 = 1e6;
+
 /// Largest accepted number of pole pairs.
 pub const POLE_PAIRS_MAX: u8 = 64;
 
@@ -301,7 +307,21 @@ impl MotorTable {
                 MagnetizingCurve::law(self.lm_h, beta, s)
                     .map_err(|_| src.error(&key("exponent"), "not a saturation law"))?
             }
-            (None, None, Some(i), Some(psi)) => MagnetizingCurve::points(psi, i).map_err(|e| match e {
+            (None, None, Some(i), Some(psi)) => {
+                for (k, values, max) in
+                    [("flux_wb", psi, CURVE_FLUX_MAX_WB), ("current_a", i, CURVE_CURRENT_MAX_A)]
+                {
+                    if let Some((n, x)) =
+                        values.iter().enumerate().find(|(_, x)| !x.is_finite() || x.abs() > max)
+                    {
+                        return Err(src.error(
+                            &format!("{table}.saturation.{k}[{n}]"),
+                            format!("is {}; must lie within ±{}", num(*x), num(max)),
+                        ));
+                    }
+                }
+                MagnetizingCurve::points(psi, i).map_err(|e| {
+                    match e {
                 CurveError::NotRising(k) => src.error(
                     &format!("{table}.saturation.flux_wb[{k}]"),
                     "flux_wb and current_a must both rise strictly from the origin (point 0 after (0, 0))",
@@ -310,7 +330,9 @@ impl MotorTable {
                     &key("flux_wb"),
                     format!("flux_wb and current_a must have the same length, 2…{CURVE_POINTS_MAX} points"),
                 ),
-            })?,
+                }
+                })?
+            }
             _ => {
                 return Err(src.error(
                     &format!("{table}.saturation"),
@@ -552,6 +574,11 @@ mod tests {
         assert!(e.to_string().ends_with("motor.saturation.exponent: is 33.5; must lie in [1, 32]"), "{e}");
         let e = err(&sat("flux_wb = [0.5, 1.0, 0.9]\ncurrent_a = [1.0, 2.0, 3.0]"));
         assert_eq!(e.key.as_deref(), Some("motor.saturation.flux_wb[2]"), "{e}");
+        let e = err(&sat("flux_wb = [0.5, 1.0]\ncurrent_a = [1.0, 1e308]"));
+        assert!(
+            e.to_string().ends_with("motor.saturation.current_a[1]: is 1e308; must lie within ±1e6"),
+            "{e}"
+        );
         let e = err(&sat("flux_wb = [0.5, 1.0]\ncurrent_a = [1.0, 2.0, 3.0]"));
         assert!(e.key.as_deref() == Some("motor.saturation.flux_wb") && e.reason.contains("length"), "{e}");
         let e = err(&sat("beta = 0.84"));

@@ -230,16 +230,14 @@ pub const PHYSICAL_SLIP_RANGE: [f64; 2] = [1e-4, 1e3];
 /// The most torque the motor can give at mechanical speed `omega_m_rad_s` in the direction
 /// `sign` (+1 motoring at a positive speed, −1 braking), N·m — its **physical limit**, from
 /// the motor alone: the T-equivalent circuit at steady state (no drive, no model of one),
-/// within [`Limits`]. In the
-/// synchronous frame at slip frequency ω_sl, per ampere of stator current along the real
-/// axis: the rotor's `0 = R_r·I_r + jω_sl·ψ_r` with `ψ_r = L_m·I + L_r·I_r` gives
+/// within [`Limits`]. In the synchronous frame at slip frequency ω_sl, per ampere of
+/// stator current along the real axis: the rotor's `0 = R_r·I_r + jω_sl·ψ_r` with `ψ_r = L_m·I + L_r·I_r` gives
 /// `ψ_r = L_m·R_r/(R_r + jω_sl·L_r)`, `I_r = −jω_sl·L_m/(R_r + jω_sl·L_r)`; the stator's
 /// `ψ_s = L_s + L_m·I_r`, `V = R_s + jω_e·ψ_s` (ω_e = p·ω_m + ω_sl) and
 /// `T = −(3/2)·p·Im ψ_s` per A². Each limit bounds the current at that slip — `i =
 /// min(I, V/|V₁|, Ψ/|ψ_r₁|)`, everything scaling with it — and the limit is the largest
 /// `T₁·i²` over [`PHYSICAL_SLIP_POINTS`] slips, refined by golden sections around the best
-/// (`best_over_slips`).
-/// Unlike the drive's own envelope it caps no flux at its no-load value: what the drive
+/// (`best_over_slips`). Unlike the drive's own envelope it caps no flux at its no-load value: what the drive
 /// leaves unused shows against it (issue 52).
 pub fn physical_limit_nm(m: &MotorParams, omega_m_rad_s: f64, sign: f64, lim: &Limits) -> f64 {
     use num_complex::Complex64 as C;

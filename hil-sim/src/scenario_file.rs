@@ -1156,7 +1156,8 @@ torque_nm = 0.5
     }
 
     /// A saturating machine driven far past its knee (β = 1000 1/Wb, the largest accepted:
-    /// a knee at 1 mWb under 400 V) diverges, and the error says where to look.
+    /// a knee at 1 mWb under 400 V) diverges, and a curve too steep for any step is refused
+    /// before the run: both errors say where to look.
     #[test]
     fn a_diverging_saturating_run_names_its_curve() {
         const FILE: &str = include_str!("../scenarios/dol-motulator-2kw-sat.toml");
@@ -1165,5 +1166,15 @@ torque_nm = 0.5
         let e =
             crate::sim::run_open_loop(&sc, crate::sim::OPEN_LOOP_MAX_STEP_S, |_| {}, |_| Ok(())).unwrap_err();
         assert!(e.contains("diverged") && e.contains("[motor.saturation]"), "{e}");
+        // A measured curve whose last segment no step can integrate: refused before the run,
+        // naming the curve (it named only R_s, R_r and the inductances).
+        let steep = FILE.replace(
+            "beta_per_wb = 0.84\nexponent = 7.0",
+            "flux_wb = [0.5, 1.0, 1.0000001]\ncurrent_a = [1.5, 3.5, 1e6]",
+        );
+        let sc = parse_open_loop(Path::new("s.toml"), &steep).unwrap();
+        let e =
+            crate::sim::run_open_loop(&sc, crate::sim::OPEN_LOOP_MAX_STEP_S, |_| {}, |_| Ok(())).unwrap_err();
+        assert!(e.contains("too stiff") && e.contains("[motor.saturation] curve"), "{e}");
     }
 }

@@ -91,7 +91,7 @@ impl Pair {
 /// derivative). ω_m is carried on both lanes: it multiplies both lanes of the rotation
 /// terms, and the torque term below comes out on both lanes too, so no stage moves a value
 /// between lanes.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct Coupled {
     i: Pair,
     psi: Pair,
@@ -265,19 +265,13 @@ impl Rk4 {
             let (mut x1, psi_s1) = sat.step(m.inv_j, m.b_nms, x, psi_s, v, load_nm + passive, self.h_s);
             self.last_stator_flux.set(Some((key(&x1), psi_s1)));
             m.stop_a_reversing_passive_load(x.omega_m_rad_s, &mut x1);
-            // Carried whole in the fields `finish` would otherwise complete.
-            let x3 = Coupled {
-                i: Pair(x1.i_alpha_a, x1.i_beta_a),
-                psi: Pair(x1.psi_alpha_wb, x1.psi_beta_wb),
-                w: Pair::splat(x1.omega_m_rad_s),
-            };
-            return Rk4Midway { x3, theta0: x1.theta_m_rad, whole: true, ..Rk4Midway::default() };
+            return Rk4Midway(Midway::Whole(x1));
         }
         let t_l = Pair::splat(load_nm + passive);
         let (k1, x2) = self.half.stage(&x0, x0, v0, t_l);
         let (k2, x3) = self.half.stage(&x0, x2, v_mid, t_l);
         let sum2 = |a: Pair, b: Pair| a.add(b.add(b));
-        Rk4Midway {
+        Rk4Midway(Midway::Split(Split {
             theta0: x.theta_m_rad,
             x0,
             x3,
@@ -286,14 +280,26 @@ impl Rk4 {
             v1,
             k12: Coupled { i: sum2(k1.i, k2.i), psi: sum2(k1.psi, k2.psi), w: sum2(k1.w, k2.w) },
             w2: x2.w.0,
-            whole: false,
-        }
+        }))
     }
 }
 
-/// An RK4 step after its first two stages ([`Rk4::begin_step`]).
-#[derive(Clone, Copy, Debug, Default)]
-pub struct Rk4Midway {
+/// An RK4 step after its first two stages ([`Rk4::begin_step`]), or a saturating
+/// machine's step done whole (its stages are not split).
+#[derive(Clone, Copy, Debug)]
+pub struct Rk4Midway(Midway);
+
+#[derive(Clone, Copy, Debug)]
+enum Midway {
+    /// The linear machine's step after stages 1 and 2.
+    Split(Split),
+    /// A saturating machine's step, done.
+    Whole(MachineState),
+}
+
+/// The linear step's values after stages 1 and 2.
+#[derive(Clone, Copy, Debug)]
+struct Split {
     /// θ_m at the step's start (ω_m, i and ψ are in `x0`).
     theta0: f64,
     x0: Coupled,
@@ -305,26 +311,22 @@ pub struct Rk4Midway {
     k12: Coupled,
     /// ω_m at stage 2.
     w2: f64,
-    /// A saturating machine's step, done whole (its stages are not split): the state is
-    /// `x3` with the angle in `theta0`.
-    whole: bool,
 }
 
 impl Rk4Midway {
     /// Stages 3 and 4 and the step's result (`rk4` is the stepper that began it).
     #[inline]
     pub fn finish(&self, rk4: &Rk4) -> MachineState {
-        if self.whole {
-            let x = self.x3;
-            return MachineState {
-                i_alpha_a: x.i.0,
-                i_beta_a: x.i.1,
-                psi_alpha_wb: x.psi.0,
-                psi_beta_wb: x.psi.1,
-                omega_m_rad_s: x.w.0,
-                theta_m_rad: self.theta0,
-            };
+        match &self.0 {
+            Midway::Split(split) => split.finish(rk4),
+            Midway::Whole(x1) => *x1,
         }
+    }
+}
+
+impl Split {
+    #[inline(always)]
+    fn finish(&self, rk4: &Rk4) -> MachineState {
         let (x0, x3, t_l) = (&self.x0, self.x3, self.t_l);
         let (k3, x4) = rk4.full.stage(x0, x3, self.v_mid, t_l);
         // What stage 4 does not change is summed while it runs.

@@ -151,7 +151,8 @@ pub(super) fn check_rk4_step(machine: &Machine, sc: &Scenario, h: f64) -> Result
     Err(format!(
         "the simulated machine is too stiff for the integration step: its fastest electrical mode decays at \
          {rate:.4e} 1/s, and the RK4 step of {h:.3e} s makes rate·step = {:.2} (stable below {RK4_RATE_STEP_MAX}); \
-         set rk4_substeps = {needed} or more in the scenario, or check the motor's R_s, R_r and inductances",
-        rate * h
+         set rk4_substeps = {needed} or more in the scenario, or check {}",
+        rate * h,
+        super::stiffness_culprits(machine)
     ))
 }

@@ -393,6 +393,16 @@ pub struct Row {
 /// period to count as one where it mattered ([`Row::switch_acting`]).
 pub const SWITCH_ACTING_DUTY: f64 = 0.02;
 
+/// What a user checks when `machine` is too stiff to integrate: its parameters, and a
+/// saturating one's curve (its steepest part, deep in saturation, sets the step).
+fn stiffness_culprits(machine: &plant::Machine) -> &'static str {
+    if machine.is_saturating() {
+        "the motor's R_s, R_r, leakage and its [motor.saturation] curve (its steepest part sets the step)"
+    } else {
+        "the motor's R_s, R_r and inductances"
+    }
+}
+
 fn non_finite(t_s: f64, machine: &plant::Machine) -> String {
     let why = if machine.is_saturating() {
         ": a saturating machine driven far past its curve's knee is stiffer than the integration step \

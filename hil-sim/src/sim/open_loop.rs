@@ -37,9 +37,9 @@ pub fn run_open_loop(
     if substeps.is_nan() || substeps > OPEN_LOOP_SUBSTEPS_MAX {
         return Err(format!(
             "the simulated machine is too stiff to integrate: its fastest electrical mode decays at {:.4e} 1/s, \
-             which needs {substeps:.3e} RK4 steps per sample (at most {OPEN_LOOP_SUBSTEPS_MAX}); check the motor's \
-             R_s, R_r and inductances",
-            machine.fastest_rate_per_s()
+             which needs {substeps:.3e} RK4 steps per sample (at most {OPEN_LOOP_SUBSTEPS_MAX}); check {}",
+            machine.fastest_rate_per_s(),
+            super::stiffness_culprits(&machine)
         ));
     }
     let h = sc.sample_period_s / substeps;
