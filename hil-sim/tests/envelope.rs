@@ -8,7 +8,7 @@ use controller_core::drive::{Mode, Reference};
 use hil_sim::envelope::{drive_base_speed_rad_s, measure};
 use hil_sim::scenario::Builtin;
 use hil_sim::scenario_file::{ScenarioFileKind, load};
-use hil_sim::sim::Row;
+use hil_sim::sim::{Event, Row};
 use std::path::Path;
 
 fn scenario(name: &str) -> Builtin {
@@ -148,6 +148,38 @@ fn torque_reversal_at_300_rad_s_without_loss_of_control() {
     assert!((motoring / analytic - 1.0).abs() < 0.05, "{motoring} vs {analytic}");
     assert!((generating + 2.0).abs() < 0.04, "{generating}");
     assert!(reached.is_some_and(|t| t < 0.3), "{reached:?}");
+}
+
+/// Found by trying (issue 52): at 300 rad/s the speed loop's reference 0 brakes at −τ_max on
+/// the braking flux; a torque reference of +0.2 N·m then reverses the torque. The flux's
+/// back-EMF is beyond the bus at no torque: the drive forces it down with a negative i_d the
+/// bus can drive and delivers the torque. Before, the loops saturated with the current
+/// uncontrolled and `LossOfControl` tripped 20 ms after the reversal. Asserted: no fault, the
+/// flux below its braking value within 50 ms (the rotor's own T_r is 65 ms), 0.2 N·m within
+/// 2 % over the last 0.1 s (the motoring envelope at this speed is 0.7 N·m), the current
+/// within the 4 A reference limit throughout (the forcing current is bounded by it).
+#[test]
+fn a_reversal_from_braking_in_field_weakening_forces_the_flux_down() {
+    let mut b = scenario("torque-reversal.toml");
+    b.scenario.events = vec![(0.0, Event::Enable), (0.5, Event::Reference(Reference::Torque(0.2)))];
+    b.scenario.duration_s = 1.0;
+    b.scenario.trace_every = 1;
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    assert_eq!(mode, Mode::Running);
+    let braking = mean(&window(&rows, 0.4, 0.5), |r| r.torque_nm);
+    let flux = |r: &Row| r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb);
+    let psi_braking = mean(&window(&rows, 0.4, 0.5), flux);
+    let forced = rows.iter().find(|r| r.t_s > 0.5 && flux(r) < 0.5 * psi_braking).map(|r| r.t_s - 0.5);
+    let motoring = mean(&window(&rows, 0.9, 1.0), |r| r.torque_nm);
+    let i_peak = rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
+    eprintln!(
+        "braking {braking:.3} N·m on {psi_braking:.3} Wb; after the reversal the flux is halved in {forced:?} s, \
+         {motoring:.4} N·m at the end; peak current {i_peak:.2} A"
+    );
+    assert!(braking < -1.9, "{braking}");
+    assert!(forced.is_some_and(|t| t < 0.05), "{forced:?}");
+    assert!((motoring / 0.2 - 1.0).abs() < 0.02, "{motoring}");
+    assert!(i_peak <= b.spec.i_ref_max_a * 1.02, "{i_peak} A");
 }
 
 /// The torque–speed envelope: at ten speeds from 0.2× to 2× the no-load base speed the

@@ -176,6 +176,9 @@ struct RunState {
     /// The envelope's d-axis current of the last slow step, A: the flux reference's
     /// (`flux` holds it lowered while the flux falls: [`FLUX_FALL_TIME_S`]).
     i_d_target_a: f32,
+    /// The flux is being forced down: its back-EMF went beyond the voltage target, and it
+    /// has not yet fallen to the operating point's flux ([`EnvelopeConfig::d_current_within_voltage`]).
+    flux_forced: bool,
     /// Largest steady torque of the envelope at the last slow step, N·m (the speed loop's
     /// limit).
     torque_max_nm: f32,
@@ -242,6 +245,7 @@ impl RunState {
             switches: SwitchWatch::default(),
             flux: FluxCommand::default(),
             i_d_target_a: 0.0,
+            flux_forced: false,
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
             v_req2_sum: 0.0,

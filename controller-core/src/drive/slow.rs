@@ -90,7 +90,7 @@ impl Drive {
         // The loops' d-axis request over the slow period while magnetizing (read before the
         // budget clears it).
         let (v_d_sum, v_d_steps) = (self.run.v_d_sum, self.run.v_req_steps);
-        let v_budget = self.voltage_budget(m.vdc_v * self.cfg.duty_max, limited);
+        let (v_target, v_budget) = self.voltage_budget(m.vdc_v * self.cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
         let limit = self.run.torque_max_nm;
         let torque_nm = if !running {
@@ -120,30 +120,61 @@ impl Drive {
             self.run.envelope_age = ENVELOPE_REFRESH_SLOW_STEPS;
         }
         self.run.envelope_age -= 1;
+        // Generating: no more than the DC link can take (REGEN_LIMIT_START/END) — the point's
+        // flux too: a braking flux held for a torque the link refuses would leave its
+        // back-EMF beyond the bus.
+        let room = if torque_nm * m.omega_m_rad_s < 0.0 {
+            (1.0 - (m.vdc_v - cfg.regen_start_v) * cfg.inv_regen_span_v).limit(0.0, 1.0)
+        } else {
+            1.0
+        };
+        let torque_nm = torque_nm * room;
         let op =
             self.run.model.point(&self.run.envelope, torque_nm, w, self.run.i_d_rated_a, v_budget, i_max);
         // Running, a flux above the envelope's falls within FLUX_FALL_TIME_S, however slow the
-        // rotor (magnetizing, the rotor fit reads the flux building at its own T_r).
+        // rotor (magnetizing, the rotor fit reads the flux building at its own T_r); where
+        // its back-EMF leaves no voltage even at no torque, it is forced down by a negative
+        // i_d the bus can drive.
         self.run.i_d_target_a = op.i_d_a;
+        let psi = self.run.ifoc.psi_r_wb();
         let i_d_a = if running {
             let fall_rate = cfg.ts_s * (1.0 / FLUX_FALL_TIME_S) as f32;
-            cfg.ifoc.falling_flux_current(&self.run.ifoc, op.i_d_a, fall_rate)
+            let falling = cfg.ifoc.falling_flux_current(&self.run.ifoc, op.i_d_a, fall_rate);
+            // Motoring current only adds voltage: the flux is forced where even none fits.
+            // Braking current subtracts it: judged at the braking current asked.
+            let i_q_a = if torque_nm * w < 0.0 {
+                (torque_nm / (cfg.ifoc.torque_factor() * max_f32(psi, 1e-3))).limit(-i_max, i_max)
+            } else {
+                0.0
+            };
+            // Only a flux above its target is forced: one below it (rising, or a saturated
+            // estimate) is not what leaves no voltage, and forcing it would feed on itself
+            // (less flux, more slip, more voltage). It starts where the flux is beyond the
+            // voltage target itself — a budget the regulator cut for a fault (an open lead at
+            // top speed) would otherwise have it drive amperes into the fault — and goes on,
+            // against the budget (whose cut is the loops' headroom in the transient), until
+            // the flux is down to the point's: stopped where it fits the target, the loops
+            // sat at the modulator's limit on the flux left.
+            let model = &self.run.model;
+            let above = psi > self.run.ifoc.flux_of(op.i_d_a);
+            self.run.flux_forced = above
+                && (self.run.flux_forced
+                    || model.d_current_within_voltage(psi, falling, i_q_a, w, v_target, i_max) < falling);
+            if self.run.flux_forced {
+                model.d_current_within_voltage(psi, falling, i_q_a, w, v_budget, i_max)
+            } else {
+                falling
+            }
         } else {
             op.i_d_a
         };
         self.run.flux = cfg.ifoc.d_current_command(i_d_a);
         // What the bus drives now, with the flux that is there (it follows i_d* with T_r):
         // only worked out when the torque asked for needs more than fits.
-        let psi = self.run.ifoc.psi_r_wb();
         let per_a = cfg.ifoc.torque_factor() * max_f32(psi, 1e-3);
         let needed = min_f32(self.run.flux.i_q_max_a(), torque_nm.abs() / per_a);
         let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w, v_budget, needed, sign);
-        let mut torque_now_nm = min_f32(op.torque_max_nm, per_a * i_q_now);
-        if torque_nm * m.omega_m_rad_s < 0.0 {
-            // Generating: no more than the DC link can take (REGEN_LIMIT_START/END).
-            let room = 1.0 - (m.vdc_v - cfg.regen_start_v) * cfg.inv_regen_span_v;
-            torque_now_nm *= room.limit(0.0, 1.0);
-        }
+        let torque_now_nm = room * min_f32(op.torque_max_nm, per_a * i_q_now);
         // The speed loop's limit is the steady envelope: limited by the present flux too, it
         // would ask for a torque the rated flux can give, and the flux would never fall.
         self.run.torque_max_nm = op.torque_max_nm;
@@ -225,7 +256,8 @@ impl Drive {
     /// less the regulator's cut, which integrates the target's excess over the RMS of the
     /// voltage the loops asked for since the last slow step (only downwards from zero, and
     /// at most [`VOLTAGE_REGULATOR_RANGE`] of the limit).
-    pub(super) fn voltage_budget(&mut self, vdc_v: f32, limited: bool) -> f32 {
+    /// Returns the target and the budget.
+    pub(super) fn voltage_budget(&mut self, vdc_v: f32, limited: bool) -> (f32, f32) {
         let cfg = &self.cfg;
         let target = cfg.voltage_margin * svpwm::linear_limit_v(vdc_v);
         if self.run.v_req_steps > 0 {
@@ -239,7 +271,7 @@ impl Drive {
         self.run.v_req2_sum = 0.0;
         self.run.v_req_steps = 0;
         self.run.v_d_sum = 0.0;
-        target + self.run.v_cut_v
+        (target, target + self.run.v_cut_v)
     }
 
     /// The speed loop's torque for speed reference `w_ref` at speed `w`, its output limited
