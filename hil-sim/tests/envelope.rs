@@ -182,6 +182,47 @@ fn a_reversal_from_braking_in_field_weakening_forces_the_flux_down() {
     assert!(i_peak <= b.spec.i_ref_max_a * 1.02, "{i_peak} A");
 }
 
+/// A full torque reversal at 2× base speed (368 rad/s on a dynamometer): braking at the
+/// envelope (−5 N·m asked, ≈ 4.2 N·m given on the braking flux), then +5 N·m. The flux is
+/// forced from ≈ 0.75 Wb to the motoring point's ≈ 0.26 Wb; the loops follow the forcing
+/// references at the voltage limit for a few milliseconds, which the stuck-switch check read
+/// as a dead direction (`SwitchOpen` 14 ms after the reversal — before the forcing too, when
+/// the real flux rose uncontrolled while the model's fell) until it was kept out of the
+/// forcing. Asserted: no fault, the motoring envelope within 5 % over the last 0.2 s, the
+/// current below 75 % of the trip level throughout.
+#[test]
+fn a_full_reversal_from_braking_at_twice_base_speed_stays_in_control() {
+    let mut b = scenario("torque-reversal.toml");
+    b.scenario.load = hil_sim::sim::LoadModel::Dynamometer { omega_m_rad_s: 368.0 };
+    b.scenario.events = vec![
+        (0.0, Event::Enable),
+        (0.0, Event::Reference(Reference::Torque(-5.0))),
+        (0.8, Event::Reference(Reference::Torque(5.0))),
+    ];
+    b.scenario.duration_s = 1.6;
+    b.scenario.trace_every = 1;
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    assert_eq!(mode, Mode::Running);
+    let braking = mean(&window(&rows, 0.7, 0.8), |r| r.torque_nm);
+    let motoring = mean(&window(&rows, 1.4, 1.6), |r| r.torque_nm);
+    let i_d_rated = b.spec.flux_ref_wb / b.spec.motor.lm_h();
+    let (analytic, _, _) = controller_core::envelope::envelope_by_grid(
+        &b.spec.motor,
+        368.0,
+        i_d_rated,
+        b.spec.duty_max() * b.scenario.vdc_v / 3f64.sqrt(),
+        b.spec.i_ref_max_a,
+        20_000,
+    );
+    let i_peak = rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
+    eprintln!(
+        "368 rad/s: braking {braking:.3} N·m, then motoring {motoring:.4} N·m (envelope {analytic:.4}); peak current {i_peak:.2} A"
+    );
+    assert!(braking < -4.0, "{braking}");
+    assert!((motoring / analytic - 1.0).abs() < 0.05, "{motoring} vs {analytic}");
+    assert!(i_peak <= 0.75 * b.spec.protection.i_trip_a, "{i_peak} A");
+}
+
 /// The torque–speed envelope: at ten speeds from 0.2× to 2× the no-load base speed the
 /// steady torque measured in SIL lies within 5 % of the analytic current- and
 /// voltage-limited envelope of the same machine (`hil-sim envelope` prints the table and

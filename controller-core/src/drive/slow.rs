@@ -358,8 +358,12 @@ impl Drive {
             cfg.i_d_rated_a,
             CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.limits.i_sum_bits),
         );
+        // Not while the flux is forced down: its references step by amperes and the loops
+        // follow them at the voltage limit for a few milliseconds — a lag in every phase, which
+        // the direction counts would read as a dead switch (a reversal from braking at 2×
+        // base speed tripped `SwitchOpen`).
         let fault = window.or_else(|| {
-            if running {
+            if running && !self.run.flux_forced {
                 self.run.switches.add([i_ref_abc, i_track_abc], i_abc_a, cfg.switch_level_a, cfg.switch_gains)
             } else {
                 None
