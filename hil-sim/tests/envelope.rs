@@ -115,6 +115,22 @@ fn field_weakening_to_twice_base_speed_with_a_load_step_at_the_top() {
     }
 }
 
+/// The analytic motoring envelope of `b`'s drive at `omega_m_rad_s` on its scenario's bus and
+/// the modulator's `duty_max` (`envelope_by_grid`, 20 000 slip ratios), N·m.
+fn motoring_envelope_nm(b: &Builtin, omega_m_rad_s: f64) -> f64 {
+    let i_d_rated = b.spec.flux_ref_wb / b.spec.motor.lm_h();
+    let v = b.spec.duty_max() * b.scenario.vdc_v / 3f64.sqrt();
+    controller_core::envelope::envelope_by_grid(
+        &b.spec.motor,
+        omega_m_rad_s,
+        i_d_rated,
+        v,
+        b.spec.i_ref_max_a,
+        20_000,
+    )
+    .0
+}
+
 /// At 300 rad/s (a dynamometer holds it), +τ_max then −τ_max: the drive stays in control.
 /// Motoring it delivers its envelope (≈ 0.8 N·m: the bus cannot drive 2 N·m at this speed),
 /// within 5 % of the analytic one; generating, the full −2 N·m within 2 %, reached within
@@ -131,15 +147,7 @@ fn torque_reversal_at_300_rad_s_without_loss_of_control() {
     let i_peak = rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
     assert!(i_peak <= 0.75 * b.spec.protection.i_trip_a, "{i_peak} A");
     let motoring = mean(&window(&rows, 1.0, 1.2), |r| r.torque_nm);
-    let i_d_rated = b.spec.flux_ref_wb / b.spec.motor.lm_h();
-    let (analytic, _, _) = controller_core::envelope::envelope_by_grid(
-        &b.spec.motor,
-        300.0,
-        i_d_rated,
-        b.spec.duty_max() * b.scenario.vdc_v / 3f64.sqrt(),
-        b.spec.i_ref_max_a,
-        20_000,
-    );
+    let analytic = motoring_envelope_nm(&b, 300.0);
     let generating = mean(&window(&rows, 1.7, 2.0), |r| r.torque_nm);
     let reached = rows.iter().find(|r| r.t_s > 1.2 && r.torque_nm < -1.96).map(|r| r.t_s - 1.2);
     eprintln!(
@@ -205,15 +213,7 @@ fn a_full_reversal_from_braking_at_twice_base_speed_stays_in_control() {
     assert_eq!(mode, Mode::Running);
     let braking = mean(&window(&rows, 0.7, 0.8), |r| r.torque_nm);
     let motoring = mean(&window(&rows, 1.4, 1.6), |r| r.torque_nm);
-    let i_d_rated = b.spec.flux_ref_wb / b.spec.motor.lm_h();
-    let (analytic, _, _) = controller_core::envelope::envelope_by_grid(
-        &b.spec.motor,
-        368.0,
-        i_d_rated,
-        b.spec.duty_max() * b.scenario.vdc_v / 3f64.sqrt(),
-        b.spec.i_ref_max_a,
-        20_000,
-    );
+    let analytic = motoring_envelope_nm(&b, 368.0);
     let i_peak = rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
     eprintln!(
         "368 rad/s: braking {braking:.3} N·m, then motoring {motoring:.4} N·m (envelope {analytic:.4}); peak current {i_peak:.2} A"
