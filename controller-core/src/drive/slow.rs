@@ -141,12 +141,11 @@ impl Drive {
             let fall_rate = cfg.ts_s * (1.0 / FLUX_FALL_TIME_S) as f32;
             let falling = cfg.ifoc.falling_flux_current(&self.run.ifoc, op.i_d_a, fall_rate);
             // Motoring current only adds voltage: the flux is forced where even none fits.
-            // Braking current subtracts it: judged at the braking current asked.
-            let i_q_a = if torque_nm * w < 0.0 {
-                (torque_nm / (cfg.ifoc.torque_factor() * max_f32(psi, 1e-3))).limit(-i_max, i_max)
-            } else {
-                0.0
-            };
+            // Braking current subtracts it: judged at the point's braking current (within the
+            // envelope: the torque asked, converted at the present flux, overstated the slip of
+            // a torque beyond it and forced the 24 V drive's flux down while braking at
+            // 43 rad/s).
+            let i_q_a = if torque_nm * w < 0.0 { op.i_q_a } else { 0.0 };
             // Only a flux above its target is forced: one below it (rising, or a saturated
             // estimate) is not what leaves no voltage, and forcing it would feed on itself
             // (less flux, more slip, more voltage). It starts where the flux is beyond the
