@@ -133,8 +133,8 @@ impl Drive {
             self.run.model.point(&self.run.envelope, torque_nm, w, self.run.i_d_rated_a, v_budget, i_max);
         // Running, a flux above the envelope's falls within FLUX_FALL_TIME_S, however slow the
         // rotor (magnetizing, the rotor fit reads the flux building at its own T_r); where
-        // its back-EMF leaves no voltage even at no torque, it is forced down by a negative
-        // i_d the bus can drive.
+        // its back-EMF leaves no voltage for the current asked, it is forced down by a
+        // negative i_d the bus can drive.
         self.run.i_d_target_a = op.i_d_a;
         let psi = self.run.ifoc.psi_r_wb();
         let i_d_a = if running {
