@@ -180,6 +180,8 @@ fn campaign_result(
         "box",
         "criteria",
         "per_manoeuvre",
+        "requirements",
+        "requirements_missed",
     ] {
         record.insert(k.into(), at(&format!("/{k}")));
     }
@@ -473,6 +475,22 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
     }
     if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
         eprintln!("design certify: {path}: the campaign passed {} of {} runs", n.passed, n.runs);
+        // Each requirement missed, with its worst run: what the user asked and did not get.
+        for r in n.record.get("requirements").and_then(|r| r.as_array()).into_iter().flatten() {
+            let (met, runs) = (r["met"].as_u64().unwrap_or(0), r["runs"].as_u64().unwrap_or(0));
+            if met < runs {
+                let shown =
+                    |v: &serde_json::Value| v.as_f64().map_or_else(|| "∞".to_string(), |x| format!("{x:.4}"));
+                eprintln!(
+                    "design certify: {path}: {} missed in {} of {runs} runs (worst: run {}, {} against {})",
+                    r["requirement"].as_str().unwrap_or("?"),
+                    runs - met,
+                    r["worst_run"],
+                    shown(&r["worst_value"]),
+                    shown(&r["allowed"]),
+                );
+            }
+        }
     }
     if !ok {
         for ch in checks.iter().filter(|c| !c.pass) {

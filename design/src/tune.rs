@@ -937,7 +937,9 @@ mod tests {
     }
 
     /// The speed PI's drive in the nonlinear campaign, on the narrow box (what
-    /// self-commissioning's intervals give): every run passes.
+    /// self-commissioning's intervals give): every run passes the campaign's criteria (the
+    /// requirements drive.toml states for its P law are printed: the PI overshoots its
+    /// torque-limited reversals by ≈ 13 % against 10 %).
     #[test]
     fn speed_pi_passes_the_campaign() {
         use hil_sim::campaign::Campaign;
@@ -958,10 +960,22 @@ mod tests {
             shard: (0, 1),
             encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
             plant: None,
+            requirements: drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap().requirements,
         };
         let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-        let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
+        let bad: Vec<String> =
+            v.iter().filter(|v| !v.criteria_failed().is_empty()).map(|v| v.csv()).collect();
+        println!("speed PI on drive.toml's requirements: missed {}", missed_counts(&v));
         assert!(bad.is_empty(), "{} of {} fail:\n{}", bad.len(), v.len(), bad.join("\n"));
+    }
+
+    /// `requirement ×runs` for each requirement `verdicts` missed.
+    fn missed_counts(verdicts: &[hil_sim::campaign::Verdict]) -> String {
+        let mut n = std::collections::BTreeMap::new();
+        for r in verdicts.iter().flat_map(|v| v.requirements_missed()) {
+            *n.entry(r.key()).or_insert(0) += 1;
+        }
+        n.iter().map(|(k, c)| format!("{k} ×{c}")).collect::<Vec<_>>().join(", ")
     }
 
     /// A PWM rate too slow for the ICAD loops at the top speed: refused, naming the check
@@ -1082,7 +1096,10 @@ mod tests {
     /// drive's trip level), long enough for each motor to magnetize first. Every run passes
     /// (a stated gap — reversals at the R_r ×1.2 corners missing tracking by a little, the
     /// fixed-T_r orientation detuned — closed with the drive's rotor-resistance estimate,
-    /// docs/rotor-resistance.md).
+    /// docs/rotor-resistance.md). The runs are judged on the campaign's own criteria (no
+    /// fault, no flux collapse, no oscillation); the default `[requirements]` — ±1 % speed
+    /// regulation, which the saturated P's droop τ_L/k_p misses by design — are printed, not
+    /// asserted: choosing a speed law that meets them is the tuner's next step (issue 51).
     #[test]
     fn seeded_random_motors_pass_the_campaign() {
         use hil_sim::campaign::{Campaign, STEP_S};
@@ -1101,20 +1118,26 @@ mod tests {
                 shard: (0, 1),
                 encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
                 plant: None,
+                requirements: drive_file::DriveFile::parse(Path::new("t.toml"), &t.text)
+                    .unwrap()
+                    .requirements,
             };
             // A long rotor time constant magnetizes later: 0.75 s after the step as at 1 s.
             c.duration_s = c.duration_s.max(c.step_s() + (1.0 - STEP_S));
             let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-            let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
+            let bad: Vec<String> =
+                v.iter().filter(|v| !v.criteria_failed().is_empty()).map(|v| v.csv()).collect();
             println!(
-                "random {k} (L_m {:.3} H, T_r {:.3} s, J {:.2e} kg·m², i_trip {:.2} A, runs of {:.2} s): {} of {} pass",
+                "random {k} (L_m {:.3} H, T_r {:.3} s, J {:.2e} kg·m², i_trip {:.2} A, runs of {:.2} s): {} of {} pass the criteria, {} meet the default requirements; missed: {}",
                 m.lm_h(),
                 m.lr_h() / m.rr_ohm(),
                 m.j_kgm2(),
                 t.spec.protection.i_trip_a,
                 c.duration_s,
-                v.iter().filter(|v| v.passed()).count(),
+                v.len() - bad.len(),
                 v.len(),
+                v.iter().filter(|v| v.passed()).count(),
+                missed_counts(&v),
             );
             for b in bad.iter().take(5) {
                 println!("  {b}");

@@ -558,3 +558,46 @@ fn tune_lowers_a_position_gain_the_certificate_refuses() {
     assert_eq!(code, Some(0), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Issue 51's acceptance, end to end: drive.toml with the speed gain at 0.02 (inside its
+/// writable range) — its campaign (`hil_sim::campaign`, the summary `hil-sim campaign`
+/// writes) misses the load-step requirement the file states, and `design certify
+/// --campaign` refuses it, naming that requirement with its worst run.
+#[test]
+fn a_campaign_that_misses_a_requirement_is_refused_naming_it() {
+    use hil_sim::campaign::Campaign;
+    let dir = std::env::temp_dir().join(format!("design-req-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = drive_file::SHIPPED.replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0");
+    let drive = dir.join("kp002.toml");
+    std::fs::write(&drive, &text).unwrap();
+    let f = drive_file::DriveFile::parse(&drive, &text).unwrap();
+    let c = Campaign {
+        spec: f.spec,
+        certify: f.certify.unwrap(),
+        vdc_v: 310.0,
+        duration_s: 1.0,
+        runs: 64,
+        seed: 1,
+        shard: (0, 1),
+        encoder_lines: f.encoder_lines(),
+        plant: None,
+        requirements: f.requirements,
+    };
+    let v = c.run(|_| {}, &std::sync::atomic::AtomicBool::new(false)).unwrap();
+    let mut summary = hil_sim::campaign::summary(&c, &v, 0.0);
+    summary["drive"] =
+        serde_json::json!({"file": "kp002.toml", "fingerprint": drive_file::source::fingerprint(&text)});
+    let p = dir.join("summary.json");
+    std::fs::write(&p, summary.to_string()).unwrap();
+    let (code, _, err) = run(&["certify", drive.to_str().unwrap(), "--campaign", p.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("requirements.load_dip_fraction missed in 48 of 48 runs (worst: run"), "{err}");
+    assert_eq!(
+        summary["requirements_missed"]
+            .as_array()
+            .map(|m| m.iter().any(|r| r == "requirements.load_dip_fraction")),
+        Some(true)
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -788,6 +788,9 @@ pub struct DriveTables {
     pub certify: Option<crate::certify::CertifyTable>,
     /// `[board]`.
     pub board: Option<crate::board::BoardTable>,
+    /// `[requirements]` (optional: defaults).
+    #[serde(default)]
+    pub requirements: crate::requirements::RequirementsTable,
 }
 
 /// A validated drive file.
@@ -799,6 +802,8 @@ pub struct DriveFile {
     pub certify: Option<crate::certify::Certify>,
     /// Board scaling, if the file has it.
     pub board: Option<crate::board::Board>,
+    /// What the user asks of the drive (the defaults where the file is silent).
+    pub requirements: crate::requirements::Requirements,
 }
 
 impl DriveFile {
@@ -843,7 +848,8 @@ impl DriveTables {
         let spec = drive_spec(src, &self.pwm, &self.motor, &self.controller, &self.protection, &board)?;
         let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
         let board = self.board.as_ref().map(|b| b.validate(src, &spec)).transpose()?;
-        Ok(DriveFile { spec, certify, board })
+        let requirements = self.requirements.validate(src, spec.pwm_frequency_hz)?;
+        Ok(DriveFile { spec, certify, board, requirements })
     }
 }
 

@@ -45,6 +45,7 @@
 //!
 //! [certify]                   # optional: what `design certify` checks (certify::CertifyTable)
 //! [board]                     # optional: the firmware's board scaling (board::BoardTable)
+//! [requirements]              # optional: what the campaign judges (requirements::RequirementsTable)
 //! ```
 //!
 //! A *motor file* is any file with a `[motor]` table ([`motor::load`]); scenario files
@@ -59,6 +60,7 @@ pub mod certify;
 pub mod codegen;
 pub mod drive;
 pub mod motor;
+pub mod requirements;
 pub mod source;
 pub mod values;
 

@@ -36,17 +36,20 @@
 //!   [`RIPPLE_WINDOW_S`] below [`RIPPLE_FRACTION`]·τ_max.
 
 use crate::inverter::InverterModel;
+use crate::requirements::{self as judge, Measure};
 use crate::rng::mix;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, LoadModel, Row, Scenario};
 use controller_core::drive::{DriveSpec, Mode, Reference};
+use controller_core::encoder::{EncoderConfig, SPEED_WINDOW_READS};
 use controller_core::envelope::EnvelopeConfig;
 use controller_core::ifoc::TorqueCommand;
 use controller_core::magnetics::Saturation;
 use controller_core::motor::MotorParams;
 use controller_core::speed::{SpeedControllerConfig, SpeedLaw, SpeedState};
 use drive_file::certify::Certify;
+use drive_file::requirements::{Requirement, Requirements};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -75,6 +78,54 @@ pub const CORNERS: u64 = 16;
 /// The runs that take every corner through every manoeuvre: a campaign's first runs, the
 /// fewest `design certify --campaign` accepts (its summary's `corner_runs`).
 pub const CORNER_RUNS: u64 = CORNERS * Manoeuvre::ALL.len() as u64;
+
+/// The requirements a campaign run measures (the current loops' bandwidth is the linear
+/// certificate's: `design certify`).
+pub const CAMPAIGN_REQUIREMENTS: [Requirement; 8] = [
+    Requirement::SpeedError,
+    Requirement::SpeedOvershoot,
+    Requirement::SpeedRiseTime,
+    Requirement::SpeedSettlingTime,
+    Requirement::LoadDip,
+    Requirement::LoadRecoveryTime,
+    Requirement::TorqueAccuracy,
+    Requirement::FluxAccuracy,
+];
+
+/// A speed step of a run, planned before it runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct StepPlan {
+    /// Target, mechanical rad/s.
+    to: f64,
+    /// Settling band, × the step.
+    band_fraction: f64,
+    /// Rise time allowed, s.
+    rise_allowed_s: f64,
+    /// Settling time allowed, s.
+    settling_allowed_s: f64,
+}
+
+/// What follows a run's first speed step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Second {
+    /// A load step, and the recovery time allowed after it, s.
+    Load(f64),
+    /// A speed step.
+    Step(StepPlan),
+}
+
+/// Each half of a run (after the speed step) lasts at least this many times the longest
+/// time a requirement allows in it: long enough to see a response settle *and stay*.
+pub const WINDOW_MARGIN: f64 = 1.2;
+
+/// The first speed step's target of `m` at campaign speed `w`, mechanical rad/s.
+fn first_target(m: Manoeuvre, w: f64) -> f64 {
+    match m {
+        Manoeuvre::Motoring | Manoeuvre::Generating => w,
+        Manoeuvre::Reverse => -w,
+        Manoeuvre::Reversal => 0.5 * w,
+    }
+}
 
 /// A run's manoeuvre (module docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -133,6 +184,9 @@ pub struct Campaign {
     /// scales it by the run's sample (a saturating curve's inductances by the sample's L
     /// factor), as it would the drive's motor.
     pub plant: Option<(MotorParams, Option<Saturation>)>,
+    /// What the user asks of the drive (the drive file's `[requirements]`): each run is
+    /// judged against it ([`crate::requirements`]).
+    pub requirements: Requirements,
 }
 
 /// The parameter factors of one run.
@@ -159,7 +213,11 @@ pub struct Verdict {
     pub manoeuvre: Manoeuvre,
     /// Speed step target, mechanical rad/s.
     pub omega_s_rad_s: f64,
-    /// Largest |ω − ω_ideal| after the speed step, rad/s.
+    /// How long the run lasted, s: the campaign's duration, or longer where the requirements
+    /// allow a response more time than half of it ([`WINDOW_MARGIN`]).
+    pub duration_s: f64,
+    /// Largest |ω − ω_ideal| after the speed step, rad/s: a diagnostic (the drive against
+    /// its own speed law on an ideal actuator), not a criterion.
     pub tracking_error_rad_s: f64,
     /// Smallest and largest |ψ_r|/ψ̂_r (the drive's flux model) once magnetized.
     pub flux_ratio: [f64; 2],
@@ -167,24 +225,57 @@ pub struct Verdict {
     pub ripple_nm: f64,
     /// Final mode.
     pub mode: Mode,
-    /// Why it failed (empty: passed).
+    /// Each requirement this run measured, its worst ([`crate::requirements::worst_each`]).
+    pub measures: Vec<Measure>,
+    /// Why it failed (empty: passed): a criterion's name, or a requirement's key.
     pub failures: Vec<&'static str>,
 }
 
 impl Verdict {
-    /// Passed every criterion.
+    /// Passed every criterion and met every requirement.
     pub fn passed(&self) -> bool {
         self.failures.is_empty()
     }
 
-    /// The CSV header of [`Verdict::csv`].
-    pub const CSV_HEADER: &'static str = "k,rs_factor,rr_factor,l_factor,j_factor,manoeuvre,omega_s_rad_s,tracking_error_rad_s,flux_ratio_min,flux_ratio_max,ripple_nm,mode,passed,failures";
+    /// The campaign's own criteria that failed — a fault, a flux collapse, an oscillation:
+    /// what no requirement excuses.
+    pub fn criteria_failed(&self) -> Vec<&'static str> {
+        self.failures
+            .iter()
+            .copied()
+            .filter(|f| self.measures.iter().all(|m| m.requirement.key() != *f))
+            .collect()
+    }
+
+    /// The requirements this run missed.
+    pub fn requirements_missed(&self) -> Vec<Requirement> {
+        self.measures.iter().filter(|m| !m.met()).map(|m| m.requirement).collect()
+    }
+
+    /// The CSV header of [`Verdict::csv`]: the run, its diagnostics, then each requirement's
+    /// measured value and what was allowed (empty where the run does not measure it).
+    pub fn csv_header() -> String {
+        let mut h = String::from(
+            "k,rs_factor,rr_factor,l_factor,j_factor,manoeuvre,omega_s_rad_s,tracking_error_rad_s,flux_ratio_min,flux_ratio_max,ripple_nm,mode,passed,failures",
+        );
+        for r in CAMPAIGN_REQUIREMENTS {
+            h.push_str(&format!(",{0},{0}_allowed", r.key()));
+        }
+        h
+    }
 
     /// One CSV line.
     pub fn csv(&self) -> String {
         let s = &self.sample;
+        let mut measured = String::new();
+        for r in CAMPAIGN_REQUIREMENTS {
+            match self.measures.iter().find(|m| m.requirement == r) {
+                Some(m) => measured.push_str(&format!(",{:.5},{:.5}", m.value, m.allowed)),
+                None => measured.push_str(",,"),
+            }
+        }
         format!(
-            "{},{:.6},{:.6},{:.6},{:.6},{},{:.3},{:.5},{:.4},{:.4},{:.5},{:?},{},{}",
+            "{},{:.6},{:.6},{:.6},{:.6},{},{:.3},{:.5},{:.4},{:.4},{:.5},{:?},{},{}{measured}",
             self.k,
             s.rs,
             s.rr,
@@ -317,9 +408,34 @@ impl Campaign {
                 * LOAD_FRACTION
                 * torque_limit_nm(&self.spec).min(ideal.torque_limit_nm(torque_sign, omega_m))
         };
-        let t2 = step_s + 0.5 * (self.duration_s - step_s);
+        // The requirements' times on this run's motor, and windows long enough to see them:
+        // each half of the run lasts at least WINDOW_MARGIN × the longest time allowed in it.
+        let physical = |omega_m: f64, motoring: bool| {
+            let lim = crate::envelope::Limits::of(&self.spec, self.vdc_v);
+            let sign = if motoring { 1.0 } else { -1.0 };
+            let most = match &plant_saturation {
+                Some(sat) => crate::envelope::physical_limit_saturated_nm(&plant, sat, omega_m, sign, &lim),
+                None => crate::envelope::physical_limit_nm(&plant, omega_m, sign, &lim),
+            };
+            most.min(torque_limit_nm(&self.spec))
+        };
+        let plan = |from: f64, to: f64| self.step_plan(&plant, physical, from, to);
+        let first_step = plan(0.0, first_target(manoeuvre, w));
+        let second = match manoeuvre {
+            Manoeuvre::Reversal => Second::Step(plan(0.5 * w, -0.5 * w)),
+            _ => Second::Load(self.requirements.recovery_time_allowed_s(first_step.settling_allowed_s)),
+        };
+        let second_allowed_s = match second {
+            Second::Step(p) => p.settling_allowed_s.max(p.rise_allowed_s),
+            Second::Load(recovery_s) => recovery_s,
+        };
+        let half = [first_step.settling_allowed_s, first_step.rise_allowed_s, second_allowed_s]
+            .into_iter()
+            .filter(|t| t.is_finite())
+            .fold(0.5 * (self.duration_s - step_s), |h, t| h.max(WINDOW_MARGIN * t));
+        let (t2, duration_s) = (step_s + half, step_s + 2.0 * half);
         let speed = |x: f64| Event::Reference(Reference::Speed(x as f32));
-        let (first, second) = match manoeuvre {
+        let (first, second_event) = match manoeuvre {
             Manoeuvre::Motoring => (speed(w), Event::LoadNm(load(w, 1.0))),
             Manoeuvre::Reverse => (speed(-w), Event::LoadNm(load(-w, -1.0))),
             Manoeuvre::Generating => (speed(w), Event::LoadNm(load(w, -1.0))),
@@ -333,8 +449,8 @@ impl Campaign {
             plant_saturation,
             expect_fault: None,
             scenario: Scenario {
-                events: vec![(0.0, Event::Enable), (step_s, first), (t2, second)],
-                duration_s: self.duration_s,
+                events: vec![(0.0, Event::Enable), (step_s, first), (t2, second_event)],
+                duration_s,
                 vdc_v: self.vdc_v,
                 substeps: 1,
                 // One row per slow period: the ideal loop runs on the rows.
@@ -351,6 +467,8 @@ impl Campaign {
         };
         let (mut track, mut flux, mut faulted) = (0.0f64, [f64::INFINITY, 0.0f64], false);
         let mut window: Vec<(f64, f64)> = Vec::new();
+        let mut samples: Vec<judge::Sample> = Vec::new();
+        let kt = self.spec.motor.torque_factor();
         let mode = b.run_into(
             |_| {},
             |r: &Row| {
@@ -358,14 +476,24 @@ impl Campaign {
                     return Err("interrupted".into());
                 }
                 faulted |= matches!(r.mode, Some(Mode::Fault(_)));
+                let psi_r = r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb);
                 if r.t_s >= step_s && r.mode == Some(Mode::Running) {
                     track = track.max((r.x.omega_m_rad_s - ideal.omega_m_rad_s).abs());
-                    let ratio = r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb) / r.psi_est_wb.max(1e-9);
+                    let ratio = psi_r / r.psi_est_wb.max(1e-9);
                     flux = [flux[0].min(ratio), flux[1].max(ratio)];
                 }
-                if r.t_s >= self.duration_s - RIPPLE_WINDOW_S {
+                if r.t_s >= duration_s - RIPPLE_WINDOW_S {
                     window.push((r.t_s, r.torque_nm));
                 }
+                samples.push(judge::Sample {
+                    t_s: r.t_s,
+                    omega_m_rad_s: r.x.omega_m_rad_s,
+                    omega_ref_rad_s: r.omega_ref_rad_s,
+                    torque_nm: r.torque_nm,
+                    torque_ref_nm: kt * r.psi_est_wb * r.i_q_ref_a,
+                    psi_r_wb: psi_r,
+                    psi_ref_wb: r.psi_ref_wb,
+                });
                 // The ideal loop follows the same reference and load from the speed step on.
                 if r.t_s >= step_s {
                     ideal.step(r.omega_ref_rad_s, r.load_nm);
@@ -380,27 +508,115 @@ impl Campaign {
         if faulted || mode != Mode::Running {
             failures.push("fault");
         }
-        // Written so that a NaN fails.
-        if track.is_nan() || track > TRACKING_FRACTION * w + TRACKING_FLOOR_RAD_S {
-            failures.push("tracking");
-        }
         if !(flux[0] >= FLUX_BOUNDS[0] && flux[1] <= FLUX_BOUNDS[1]) {
             failures.push("flux");
         }
         if ripple.is_nan() || ripple > RIPPLE_FRACTION * torque_limit_nm(&self.spec) {
             failures.push("oscillation");
         }
+        let measures = self.judge(&samples, step_s, t2, &first_step, &second);
+        failures.extend(measures.iter().filter(|m| !m.met()).map(|m| m.requirement.key()));
         Ok(Verdict {
             k,
             sample,
             manoeuvre,
             omega_s_rad_s: w,
+            duration_s,
             tracking_error_rad_s: track,
             flux_ratio: flux,
             ripple_nm: ripple,
             mode,
+            measures,
             failures,
         })
+    }
+
+    /// The scales the requirements are judged in ([`judge::Scales`]): the drive's motor's
+    /// base speed on the campaign's bus, the board's encoder's speed resolution at the slow
+    /// rate, τ_max and the rated flux.
+    pub fn scales(&self) -> judge::Scales {
+        let t_slow = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
+        let quantum = EncoderConfig::<{ SPEED_WINDOW_READS }>::new(self.encoder_lines, t_slow as f32)
+            .map_or(0.0, |e| f64::from(e.speed_resolution_rad_s()));
+        judge::Scales {
+            base_speed_rad_s: crate::envelope::base_speed_rad_s(
+                &self.spec.motor,
+                self.spec.flux_ref_wb,
+                self.vdc_v,
+            ),
+            speed_quantum_rad_s: quantum,
+            tau_max_nm: torque_limit_nm(&self.spec),
+            flux_rated_wb: self.spec.flux_ref_wb,
+        }
+    }
+
+    /// A speed step's plan on `plant` ([`StepPlan`]): its settling band, and the times the
+    /// requirements allow it — stated, or from the physical least with `physical(ω, motoring)`
+    /// the most torque at ω ([`judge::least_step_times`]).
+    fn step_plan(
+        &self,
+        plant: &MotorParams,
+        physical: impl Fn(f64, bool) -> f64,
+        from: f64,
+        to: f64,
+    ) -> StepPlan {
+        let req = &self.requirements;
+        let band_fraction = self.scales().settling_band_fraction(req, to - from);
+        let (rise, settle) =
+            judge::least_step_times(physical, plant.j_kgm2(), plant.b_nms(), from, to, band_fraction);
+        StepPlan {
+            to,
+            band_fraction,
+            rise_allowed_s: req.rise_time_allowed_s(rise),
+            settling_allowed_s: req.settling_time_allowed_s(settle),
+        }
+    }
+
+    /// Each requirement measured on one run's `samples` ([`crate::requirements`]): the first
+    /// speed step (at `step_s`, `first`) until `t2_s`; then the second — a load step (dip,
+    /// recovery) or a speed step — to the end; the steady state (speed, torque, flux).
+    fn judge(
+        &self,
+        samples: &[judge::Sample],
+        step_s: f64,
+        t2_s: f64,
+        first: &StepPlan,
+        second: &Second,
+    ) -> Vec<Measure> {
+        use drive_file::requirements::Requirement as R;
+        let (req, sc) = (&self.requirements, self.scales());
+        let measure = |requirement, value, allowed| Measure { requirement, value, allowed };
+        let speed_at = |t: f64| samples.iter().find(|s| s.t_s >= t).map_or(0.0, |s| s.omega_m_rad_s);
+        let mut out = Vec::new();
+        let mut step = |t0: f64, t_end: f64, p: &StepPlan| {
+            let r = judge::step_response(samples, t0, t_end, speed_at(t0), p.to, p.band_fraction);
+            out.push(measure(R::SpeedRiseTime, r.rise_s, p.rise_allowed_s));
+            out.push(measure(R::SpeedOvershoot, r.overshoot_fraction, req.speed_overshoot_fraction));
+            out.push(measure(R::SpeedSettlingTime, r.settling_s, p.settling_allowed_s));
+        };
+        step(step_s, t2_s, first);
+        let base = sc.base_speed_rad_s;
+        match second {
+            Second::Step(p) => step(t2_s, f64::INFINITY, p),
+            Second::Load(recovery_allowed_s) => {
+                let l = judge::load_response(samples, t2_s, sc.speed_error_allowed_rad_s(req));
+                out.push(measure(R::LoadDip, l.dip_rad_s / base, sc.dip_allowed_rad_s(req) / base));
+                out.push(measure(R::LoadRecoveryTime, l.recovery_s, *recovery_allowed_s));
+            }
+        }
+        let st = judge::steady(samples);
+        out.push(measure(
+            R::SpeedError,
+            st.speed_error_rad_s / base,
+            sc.speed_error_allowed_rad_s(req) / base,
+        ));
+        out.push(measure(
+            R::TorqueAccuracy,
+            st.torque_error_nm / sc.tau_max_nm,
+            req.torque_accuracy_fraction,
+        ));
+        out.push(measure(R::FluxAccuracy, st.flux_error_wb / sc.flux_rated_wb, req.flux_accuracy_fraction));
+        judge::worst_each(out)
     }
 
     /// Every run of this shard, in parallel on all cores (rayon), in index order;
@@ -572,9 +788,49 @@ pub fn per_manoeuvre(verdicts: &[Verdict]) -> Vec<ManoeuvreStats> {
         .collect()
 }
 
-/// Nanoseconds of computation per simulated PWM period (all cores' work in `elapsed_s`).
-pub fn ns_per_period(c: &Campaign, runs: usize, elapsed_s: f64) -> f64 {
-    1e9 * elapsed_s / (runs as f64 * c.duration_s * c.spec.pwm_frequency_hz).max(1.0)
+/// One requirement over a campaign's runs: how many measured it, how many met it, and its
+/// worst run (least margin).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RequirementStats {
+    /// The requirement.
+    pub requirement: Requirement,
+    /// Runs that measured it.
+    pub runs: usize,
+    /// Runs that met it.
+    pub met: usize,
+    /// The worst run's index and measure.
+    pub worst: Option<(u64, Measure)>,
+}
+
+/// [`RequirementStats`] of each requirement the campaign measures
+/// ([`CAMPAIGN_REQUIREMENTS`]).
+pub fn per_requirement(verdicts: &[Verdict]) -> Vec<RequirementStats> {
+    CAMPAIGN_REQUIREMENTS
+        .iter()
+        .map(|&r| {
+            let of: Vec<(u64, Measure)> = verdicts
+                .iter()
+                .filter_map(|v| v.measures.iter().find(|m| m.requirement == r).map(|m| (v.k, *m)))
+                .collect();
+            let worst = of.iter().copied().reduce(|w, x| {
+                let (a, b) = (w.1.margin(), x.1.margin());
+                if b.is_nan() || (!a.is_nan() && b < a) { x } else { w }
+            });
+            RequirementStats {
+                requirement: r,
+                runs: of.len(),
+                met: of.iter().filter(|(_, m)| m.met()).count(),
+                worst,
+            }
+        })
+        .collect()
+}
+
+/// Nanoseconds of computation per simulated PWM period (all cores' work in `elapsed_s`;
+/// each run as long as it lasted: the requirements lengthen some, [`WINDOW_MARGIN`]).
+pub fn ns_per_period(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> f64 {
+    let simulated_s: f64 = verdicts.iter().map(|v| v.duration_s).sum();
+    1e9 * elapsed_s / (simulated_s * c.spec.pwm_frequency_hz).max(1.0)
 }
 
 /// The campaign's summary as JSON: what was run, the criteria, the counts and worst values
@@ -594,7 +850,28 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
             })
         })
         .collect();
+    let requirements: Vec<_> = per_requirement(verdicts)
+        .iter()
+        .map(|r| {
+            serde_json::json!({
+                "requirement": r.requirement.to_string(),
+                "runs": r.runs,
+                "met": r.met,
+                "worst_run": r.worst.map(|(k, _)| k),
+                "worst_value": r.worst.map(|(_, m)| m.value).filter(|x| x.is_finite()),
+                "allowed": r.worst.map(|(_, m)| m.allowed).filter(|x| x.is_finite()),
+                "margin": r.worst.map(|(_, m)| m.margin()).filter(|x| x.is_finite()),
+            })
+        })
+        .collect();
+    let missed: Vec<String> = per_requirement(verdicts)
+        .iter()
+        .filter(|r| r.met < r.runs)
+        .map(|r| r.requirement.to_string())
+        .collect();
     serde_json::json!({
+        "requirements": requirements,
+        "requirements_missed": missed,
         "runs": verdicts.len(),
         "passed": verdicts.iter().filter(|v| v.passed()).count(),
         "failed": verdicts.iter().filter(|v| !v.passed()).map(|v| v.k).collect::<Vec<_>>(),
@@ -618,7 +895,7 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
         },
         "per_manoeuvre": per,
         "elapsed_s": elapsed_s,
-        "ns_per_period": ns_per_period(c, verdicts.len(), elapsed_s),
+        "ns_per_period": ns_per_period(c, verdicts, elapsed_s),
     })
 }
 
@@ -657,6 +934,7 @@ mod tests {
             shard: (0, 1),
             encoder_lines: f.encoder_lines(),
             plant: None,
+            requirements: f.requirements,
         }
     }
 

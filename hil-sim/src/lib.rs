@@ -33,6 +33,7 @@ pub mod identify;
 pub mod inverter;
 pub mod link_client;
 pub mod pil;
+pub mod requirements;
 pub mod rng;
 pub mod scenario;
 pub mod scenario_file;

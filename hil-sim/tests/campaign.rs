@@ -2,7 +2,8 @@
 //! software in the loop over its parameter box, each run judged by the module's criteria.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing)]
 
-use hil_sim::campaign::{Campaign, Verdict};
+use drive_file::requirements::Requirement;
+use hil_sim::campaign::{Campaign, Manoeuvre, Verdict};
 use std::sync::atomic::AtomicBool;
 
 fn shipped(runs: u64) -> Campaign {
@@ -17,6 +18,7 @@ fn shipped(runs: u64) -> Campaign {
         shard: (0, 1),
         encoder_lines: f.encoder_lines(),
         plant: None,
+        requirements: f.requirements,
     }
 }
 
@@ -28,9 +30,9 @@ fn run(c: &Campaign) -> Vec<Verdict> {
 /// `[certify]` box, and the nonlinear campaign's corners over the same box. What the linear
 /// analyses cannot see, the campaign found: at the low-inductance corners (L ×0.6, a
 /// saturated machine) a drive on the motor file's inductances builds 0.6× the flux it
-/// believes, its torque falls short of its command and the speed misses what an ideal torque
-/// actuator gives — every such corner fails on tracking with `inductance_range = [1, 1]`
-/// below. With the inductances measured at the enable (`controller_core::mras`) they pass, as
+/// believes and its torque falls short of its command — every such corner under load misses
+/// `requirements.torque_accuracy_fraction` with `inductance_range = [1, 1]` below (the
+/// torque 23 % short of τ* at the first corner). With the inductances measured at the enable (`controller_core::mras`) they pass, as
 /// the hot-rotor corners (R_r ×2: flux up to 1.66× its model before the rotor resistance was
 /// measured and adapted) do. The test prints each corner's verdict (docs/design-toolkit.md).
 #[test]
@@ -47,8 +49,9 @@ fn the_shipped_box_passes_the_campaign_with_the_inductance_measured() {
     campaign.spec.inductance_range = [1.0, 1.0];
     let small_l = campaign.certify.inductance_factor[0];
     for v in run(&campaign) {
-        if v.sample.l == small_l {
-            assert_eq!(v.failures, ["tracking"], "the motor file's inductances: {}", v.csv());
+        if v.sample.l == small_l && v.manoeuvre != Manoeuvre::Reversal {
+            let torque = v.requirements_missed().contains(&Requirement::TorqueAccuracy);
+            assert!(torque, "the motor file's inductances: {}", v.csv());
         }
     }
 }
@@ -184,8 +187,9 @@ fn the_campaign_simulates_the_boards_encoder() {
 /// `hil-sim campaign --plant`: the runs simulate another machine at the box's samples — here
 /// the shipped motor's saturating twin (`motors/delorenzo-saturating.toml`). The corners at
 /// the nominal inductance pass as on the linear plant; the low-inductance corners (the whole
-/// curve scaled by 0.6) fail on tracking, which docs/verification.md states: the drive's one
-/// measured inductance scale does not follow a curve (the saturation issue's deliverable 5).
+/// curve scaled by 0.6) miss the torque accuracy their requirements ask (13.7 % short at
+/// worst), which docs/verification.md states: the drive's one measured inductance scale does
+/// not follow a curve (the saturation issue's deliverable 5).
 #[test]
 fn the_campaign_runs_on_a_saturating_plant_when_asked() {
     let linear = shipped(64);
@@ -201,5 +205,43 @@ fn the_campaign_runs_on_a_saturating_plant_when_asked() {
             assert!(b.passed(), "{}", b.csv());
         }
     }
-    assert!(sat.iter().any(|v| v.sample.l == small_l && v.failures == ["tracking"]));
+    assert!(sat.iter().any(|v| v.sample.l == small_l
+        && v.criteria_failed().is_empty()
+        && v.requirements_missed().contains(&Requirement::TorqueAccuracy)));
+}
+
+/// Issue 51's acceptance: the shipped drive meets the requirements its file states (the
+/// campaign over the box, every corner through every manoeuvre), and the same file with the
+/// speed gain at 0.02 — inside the link's writable range — is refused, naming the load-step
+/// requirement. A saturated P droops τ_L/k_p under a load τ_L: the campaign's load step is
+/// 0.8·τ_max = 1.6 N·m, so the dip is 1.6/0.02 = 80 rad/s, 0.41 of the 196 rad/s base speed,
+/// against the 0.25 the file allows (the rotor reverses under a 45 rad/s reference). Each
+/// load run's dip (the quantity the requirement names) lies within the first-order loop's
+/// bounds: at most the droop `(τ_L ± B·ω*)/(k_p + B)` (+2 %: no overshoot), at least what
+/// it reaches by the run's end — each half of a run lasts ≥ 1.2 × the 0.6 s rise time the
+/// file allows, 1.48 time constants `J/(k_p + B)` on twice the inertia: 1 − e^−1.48 = 0.77 of
+/// the droop, less what the speed estimate's window delays (0.75 measured): ≥ 0.7.
+#[test]
+fn the_shipped_requirements_hold_and_the_least_writable_gain_misses_the_load_step() {
+    let ok = run(&shipped(64));
+    let missed: Vec<String> = ok.iter().filter(|v| !v.passed()).map(Verdict::csv).collect();
+    assert!(missed.is_empty(), "{missed:#?}");
+    let text = drive_file::SHIPPED.replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0");
+    let f = drive_file::DriveFile::parse(std::path::Path::new("kp002.toml"), &text).unwrap();
+    let c = Campaign { spec: f.spec, ..shipped(64) };
+    let base = c.scales().base_speed_rad_s;
+    let v = run(&c);
+    for r in v.iter().filter(|v| v.manoeuvre != Manoeuvre::Reversal) {
+        let dip = r.measures.iter().find(|m| m.requirement == Requirement::LoadDip).unwrap();
+        let (kp, b, w) = (0.02, f.spec.motor.b_nms(), c.omega_s_rad_s());
+        let droop = |sign: f64| (0.8 * 2.0 + sign * b * w) / (kp + b) / base;
+        let (least, most) = (0.7 * droop(-1.0), 1.02 * droop(1.0));
+        assert!(
+            !dip.met() && dip.value >= least && dip.value <= most,
+            "dip {} not in [{least}, {most}]: {}",
+            dip.value,
+            r.csv()
+        );
+        assert!(r.criteria_failed().is_empty(), "{}", r.csv());
+    }
 }

@@ -209,6 +209,7 @@ fn judge(
         shard: (0, 1),
         encoder_lines: file.encoder_lines(),
         plant: None,
+        requirements: file.requirements,
     };
     c.duration_s = c.duration_s.max(c.step_s() + 2.0 * MIN_AFTER_STEP_S);
     c.check()?;

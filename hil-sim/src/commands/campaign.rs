@@ -53,6 +53,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
         shard: a.shard,
         encoder_lines: file.encoder_lines(),
         plant: a.plant.as_deref().map(|p| super::plant_model(p, &file.spec)).transpose()?,
+        requirements: file.requirements,
     };
     c.check()?;
     let total = c.indices().count() as u64;
@@ -102,7 +103,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     // Interrupted (Ctrl-C): nothing written, nor the directory this made.
     let verdicts = verdicts.inspect_err(|_| unmake_out_dir(&out, made))?;
     let elapsed = start.elapsed().as_secs_f64();
-    let mut csv = String::from(Verdict::CSV_HEADER);
+    let mut csv = Verdict::csv_header();
     csv.push('\n');
     for v in &verdicts {
         csv.push_str(&v.csv());
@@ -152,6 +153,37 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
             ),
         }
     }
+    report::outln!(
+        "{:<36} {:>6} {:>6} {:>12} {:>12} {:>9}",
+        "requirement",
+        "runs",
+        "met",
+        "worst",
+        "allowed",
+        "worst run"
+    );
+    for r in crate::campaign::per_requirement(&verdicts) {
+        match r.worst {
+            Some((k, m)) => report::outln!(
+                "{:<36} {:>6} {:>6} {:>12.4} {:>12.4} {:>9}",
+                r.requirement.to_string(),
+                r.runs,
+                r.met,
+                m.value,
+                m.allowed,
+                k
+            ),
+            None => report::outln!(
+                "{:<36} {:>6} {:>6} {:>12} {:>12} {:>9}",
+                r.requirement.to_string(),
+                0,
+                0,
+                "—",
+                "—",
+                "—"
+            ),
+        }
+    }
     let failed: Vec<&Verdict> = verdicts.iter().filter(|v| !v.passed()).collect();
     for v in failed.iter().take(20) {
         report::outln!("FAIL run {}: {} ({})", v.k, v.failures.join(", "), v.csv());
@@ -159,7 +191,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     report::outln!(
         "{} runs in {elapsed:.2} s ({:.1} ns per simulated PWM period, {:.0} runs/s)",
         verdicts.len(),
-        crate::campaign::ns_per_period(&c, verdicts.len(), elapsed),
+        crate::campaign::ns_per_period(&c, &verdicts, elapsed),
         verdicts.len() as f64 / elapsed
     );
     eprintln!("hil-sim: wrote campaign.csv, campaign.svg, summary.json in {}", out.display());

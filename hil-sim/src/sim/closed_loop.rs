@@ -293,6 +293,7 @@ pub fn run(
                 v_ab_v: v_avg,
                 i_ref_ab_a: [f64::from(telemetry.i_ref_ab_a.alpha), f64::from(telemetry.i_ref_ab_a.beta)],
                 omega_ref_rad_s: f64::from(telemetry.omega_ref_rad_s),
+                i_q_ref_a: f64::from(telemetry.i_q_ref_a),
                 load_nm: load,
                 mode: Some(out.mode),
                 duty: match out.phases {

@@ -347,6 +347,9 @@ pub struct Row {
     pub i_ref_ab_a: [f64; 2],
     /// Speed reference, rad/s.
     pub omega_ref_rad_s: f64,
+    /// The drive's q-axis current reference, A (its torque command over its torque factor
+    /// and flux model).
+    pub i_q_ref_a: f64,
     /// Load torque, N·m.
     pub load_nm: f64,
     /// The drive's mode after this period's step (`None` in open-loop runs).

@@ -1,0 +1,368 @@
+//! The campaign's judge against the user's `[requirements]` (issue 51): each run's speed
+//! steps, load step and steady state measured on the simulated machine (its speed, its
+//! electromagnetic torque, its rotor flux — not the drive's estimates), each against what the
+//! file asks, and the step times against the *physical least*: the run's motor accelerating
+//! at the most torque its T-equivalent circuit gives on the bus and the current limit
+//! ([`crate::envelope::physical_limit_nm`]), at most τ_max — computed from the motor alone,
+//! not from the drive's model of it nor from its speed law.
+//!
+//! Scales (module docs of `drive_file::requirements`): speeds are fractions of the drive's
+//! motor's base speed on the campaign's bus ([`crate::envelope::base_speed_rad_s`], the
+//! whole linear voltage), plus one count of the encoder's speed resolution — the least speed
+//! error the board can see (the speed loop closes on it).
+
+use drive_file::requirements::{Requirement, Requirements, SETTLING_BAND_FRACTION};
+
+/// The last this long of a run is its steady state (speed error, torque and flux accuracy),
+/// s: the same window as the campaign's oscillation criterion.
+pub const STEADY_WINDOW_S: f64 = crate::campaign::RIPPLE_WINDOW_S;
+/// Speed points of the physical least time's integral over a step ([`least_step_times`]):
+/// 100, so that 10 % and 90 % of the step are grid points.
+pub const LEAST_TIME_POINTS: u32 = 100;
+/// Speeds at which [`least_step_times`] asks for the torque, evenly over the step (its ends
+/// included); between them the torque is interpolated linearly. Each ask is a search over
+/// slips (4 000 of them, a bisection each on a saturating machine): asked at every
+/// integration point, a campaign of 10 000 runs spent 4.6× longer per period.
+pub const LEAST_TIME_TORQUE_NODES: u32 = 11;
+
+/// What the judge reads of one row (one slow period) of a run.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sample {
+    /// Time, s.
+    pub t_s: f64,
+    /// The machine's speed, mechanical rad/s.
+    pub omega_m_rad_s: f64,
+    /// The speed reference, mechanical rad/s.
+    pub omega_ref_rad_s: f64,
+    /// The machine's electromagnetic torque, N·m.
+    pub torque_nm: f64,
+    /// The torque the drive commands, N·m.
+    pub torque_ref_nm: f64,
+    /// The machine's rotor-flux magnitude, Wb.
+    pub psi_r_wb: f64,
+    /// The drive's rotor-flux reference, Wb.
+    pub psi_ref_wb: f64,
+}
+
+/// The scales the requirements are stated in, for one campaign.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scales {
+    /// The motor's base speed on the bus, mechanical rad/s.
+    pub base_speed_rad_s: f64,
+    /// One count of the encoder's speed resolution, rad/s.
+    pub speed_quantum_rad_s: f64,
+    /// The drive's torque limit τ_max, N·m.
+    pub tau_max_nm: f64,
+    /// The rated rotor flux (`controller.flux_ref_wb`), Wb.
+    pub flux_rated_wb: f64,
+}
+
+impl Scales {
+    /// The speed error allowed at steady state, rad/s.
+    pub fn speed_error_allowed_rad_s(&self, r: &Requirements) -> f64 {
+        r.speed_error_fraction * self.base_speed_rad_s + self.speed_quantum_rad_s
+    }
+
+    /// The deviation allowed after a load step, rad/s.
+    pub fn dip_allowed_rad_s(&self, r: &Requirements) -> f64 {
+        r.load_dip_fraction * self.base_speed_rad_s + self.speed_quantum_rad_s
+    }
+
+    /// A step of `step_rad_s`'s settling band, × the step: [`SETTLING_BAND_FRACTION`], or the
+    /// speed-error band the requirements allow if that is wider (a drive asked to regulate
+    /// to ±x has settled once within ±x).
+    pub fn settling_band_fraction(&self, r: &Requirements, step_rad_s: f64) -> f64 {
+        SETTLING_BAND_FRACTION
+            .max(self.speed_error_allowed_rad_s(r) / step_rad_s.abs().max(f64::MIN_POSITIVE))
+    }
+}
+
+/// A speed step's response.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepResponse {
+    /// 10 → 90 % of the step, s (∞: not reached before the step's window ended).
+    pub rise_s: f64,
+    /// Largest excursion beyond the target, × the step (0: none).
+    pub overshoot_fraction: f64,
+    /// From the step until the speed stays within the band, s (∞: outside at the window's
+    /// end).
+    pub settling_s: f64,
+}
+
+/// The step from `from` to `to` (rad/s) at `t0_s`, measured on `samples` up to `t_end_s`
+/// (exclusive), with a settling band of `band_fraction` × the step.
+pub fn step_response(
+    samples: &[Sample],
+    t0_s: f64,
+    t_end_s: f64,
+    from: f64,
+    to: f64,
+    band_fraction: f64,
+) -> StepResponse {
+    let step = to - from;
+    let rows: Vec<&Sample> = samples.iter().filter(|s| s.t_s >= t0_s && s.t_s < t_end_s).collect();
+    let progress = |s: &Sample| (s.omega_m_rad_s - from) / step;
+    let first = |fraction: f64| rows.iter().find(|s| progress(s) >= fraction).map(|s| s.t_s);
+    let rise_s = match (first(0.1), first(0.9)) {
+        (Some(a), Some(b)) => b - a,
+        _ => f64::INFINITY,
+    };
+    let overshoot_fraction = rows.iter().map(|s| progress(s) - 1.0).fold(0.0, f64::max);
+    let settling_s = settled_after(&rows, t0_s, |s| beyond((progress(s) - 1.0).abs(), band_fraction));
+    StepResponse { rise_s, overshoot_fraction, settling_s }
+}
+
+/// From `t0_s` until the first of `rows` after the last one `outside` (0: none outside; ∞:
+/// the last row is outside, or there are none).
+fn settled_after(rows: &[&Sample], t0_s: f64, outside: impl Fn(&Sample) -> bool) -> f64 {
+    match rows.iter().rposition(|s| outside(s)) {
+        None if rows.is_empty() => f64::INFINITY,
+        None => 0.0,
+        Some(k) => rows.get(k + 1).map_or(f64::INFINITY, |s| s.t_s - t0_s),
+    }
+}
+
+/// `x` above `limit`, or NaN.
+fn beyond(x: f64, limit: f64) -> bool {
+    x.is_nan() || x > limit
+}
+
+/// A load step's response.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoadResponse {
+    /// Largest |ω − ω*| after the step, rad/s.
+    pub dip_rad_s: f64,
+    /// From the step until |ω − ω*| stays within the band, s (∞: outside at the end).
+    pub recovery_s: f64,
+}
+
+/// The load step at `t0_s`, measured on `samples` from then on, with a band of `band_rad_s`.
+pub fn load_response(samples: &[Sample], t0_s: f64, band_rad_s: f64) -> LoadResponse {
+    let rows: Vec<&Sample> = samples.iter().filter(|s| s.t_s >= t0_s).collect();
+    let error = |s: &Sample| (s.omega_m_rad_s - s.omega_ref_rad_s).abs();
+    // A NaN speed is the largest dip of all.
+    let dip_rad_s = rows
+        .iter()
+        .map(|s| error(s))
+        .fold(0.0, |a: f64, e| if a.is_nan() || e.is_nan() { f64::NAN } else { a.max(e) });
+    let recovery_s = settled_after(&rows, t0_s, |s| beyond(error(s), band_rad_s));
+    LoadResponse { dip_rad_s, recovery_s }
+}
+
+/// The steady state: means over the last [`STEADY_WINDOW_S`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Steady {
+    /// |mean(ω − ω*)|, rad/s.
+    pub speed_error_rad_s: f64,
+    /// |mean(τ − τ*)|, N·m.
+    pub torque_error_nm: f64,
+    /// |mean(|ψ_r| − ψ_r*)|, Wb.
+    pub flux_error_wb: f64,
+}
+
+/// [`Steady`] of `samples` (NaN where the window is empty).
+pub fn steady(samples: &[Sample]) -> Steady {
+    let end = samples.last().map_or(f64::NAN, |s| s.t_s);
+    let w: Vec<&Sample> = samples.iter().filter(|s| s.t_s > end - STEADY_WINDOW_S).collect();
+    let n = w.len() as f64;
+    let mean = |f: &dyn Fn(&Sample) -> f64| (w.iter().map(|s| f(s)).sum::<f64>() / n).abs();
+    Steady {
+        speed_error_rad_s: mean(&|s| s.omega_m_rad_s - s.omega_ref_rad_s),
+        torque_error_nm: mean(&|s| s.torque_nm - s.torque_ref_nm),
+        flux_error_wb: mean(&|s| s.psi_r_wb - s.psi_ref_wb),
+    }
+}
+
+/// The physical least times of a step from `from` to `to` (mechanical rad/s) with no load on
+/// inertia `j_kgm2` and friction `b_nms`: (10 → 90 % rise, time into the band of
+/// `band_fraction` × the step), s. `torque_nm(ω, motoring)` is the most torque the motor
+/// gives at ω (its physical limit, at most τ_max), motoring or braking. `t = ∫ J dω/(T(ω) −
+/// B·ω·sign)` by the midpoint rule over [`LEAST_TIME_POINTS`] speeds; ∞ where the motor
+/// cannot go on.
+pub fn least_step_times(
+    torque_nm: impl Fn(f64, bool) -> f64,
+    j_kgm2: f64,
+    b_nms: f64,
+    from: f64,
+    to: f64,
+    band_fraction: f64,
+) -> (f64, f64) {
+    let n = LEAST_TIME_POINTS;
+    let d = (to - from) / f64::from(n);
+    let dir = d.signum();
+    // The torque at the nodes, each side of zero speed where the step crosses it (motoring
+    // and braking differ there).
+    let m = LEAST_TIME_TORQUE_NODES - 1;
+    let node_speed = |i: u32| from + (to - from) * f64::from(i) / f64::from(m);
+    let nodes: Vec<(f64, f64)> = (0..=m)
+        .map(|i| {
+            let w = node_speed(i);
+            (torque_nm(w.abs(), w * dir >= 0.0), torque_nm(w.abs(), w * dir > 0.0))
+        })
+        .collect();
+    let torque_at = |w: f64| {
+        let x = ((w - from) / (to - from) * f64::from(m)).clamp(0.0, f64::from(m));
+        let i = (x.floor() as usize).min(m as usize - 1);
+        let f = x - i as f64;
+        let motoring = w * dir >= 0.0;
+        let pick = |k: usize| {
+            nodes.get(k).map_or(0.0, |&(at_or_past, past)| if motoring { at_or_past } else { past })
+        };
+        // Across zero speed the two sides are not interpolated into each other.
+        let (a, b) = (pick(i), pick(i + 1));
+        let (wa, wb) = (node_speed(i as u32), node_speed(i as u32 + 1));
+        if wa * dir < 0.0 && wb * dir > 0.0 { torque_nm(w.abs(), motoring) } else { a + f * (b - a) }
+    };
+    let mut t = vec![0.0f64; n as usize + 1];
+    for k in 0..n as usize {
+        let w = from + (k as f64 + 0.5) * d;
+        let accel = torque_at(w) - dir * b_nms * w;
+        let dt = if accel > 0.0 { j_kgm2 * d.abs() / accel } else { f64::INFINITY };
+        t[k + 1] = t[k] + dt;
+    }
+    let at = |fraction: f64| {
+        let x = fraction * f64::from(n);
+        let k = (x.floor() as usize).min(n as usize - 1);
+        let f = x - k as f64;
+        // ∞ beyond a speed the motor cannot pass (and no ∞ − ∞ on a grid point).
+        if f == 0.0 || t[k + 1].is_infinite() {
+            if f == 0.0 { t[k] } else { f64::INFINITY }
+        } else {
+            t[k] + f * (t[k + 1] - t[k])
+        }
+    };
+    let rise = at(0.9) - at(0.1);
+    (rise, at((1.0 - band_fraction).max(0.0)))
+}
+
+/// One requirement judged on one run: its worst measured value and what was allowed there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measure {
+    /// The requirement.
+    pub requirement: Requirement,
+    /// Measured, in the requirement's unit (a fraction, or s).
+    pub value: f64,
+    /// Allowed, in the same unit.
+    pub allowed: f64,
+}
+
+impl Measure {
+    /// Met (a NaN is not).
+    pub fn met(&self) -> bool {
+        self.value <= self.allowed
+    }
+
+    /// `allowed/value`: above 1 met, with that margin; below 1 missed.
+    pub fn margin(&self) -> f64 {
+        if self.value.is_nan() {
+            f64::NAN
+        } else if self.value > 0.0 {
+            self.allowed / self.value
+        } else {
+            f64::INFINITY
+        }
+    }
+}
+
+/// The worst (least margin) of `measures` for each requirement, in [`Requirement::ALL`]'s
+/// order.
+pub fn worst_each(measures: impl IntoIterator<Item = Measure>) -> Vec<Measure> {
+    let mut worst: Vec<Measure> = Vec::new();
+    for m in measures {
+        match worst.iter_mut().find(|w| w.requirement == m.requirement) {
+            Some(w) if m.margin().is_nan() || m.margin() < w.margin() => *w = m,
+            Some(_) => {}
+            None => worst.push(m),
+        }
+    }
+    worst.sort_by_key(|m| m.requirement);
+    worst
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(t0: f64, rise_s: f64, to: f64, overshoot: f64) -> Vec<Sample> {
+        (0..2000)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                let x = ((t - t0) / rise_s).clamp(0.0, 1.0);
+                // A bump of `overshoot` after the ramp, decaying in 50 ms.
+                let bump = if t > t0 + rise_s { overshoot * (-(t - t0 - rise_s) / 0.05).exp() } else { 0.0 };
+                Sample { t_s: t, omega_m_rad_s: to * (x + bump), omega_ref_rad_s: to, ..Sample::default() }
+            })
+            .collect()
+    }
+
+    /// A linear ramp over 0.5 s: 10 → 90 % in 0.4 s; its overshoot and settling measured.
+    #[test]
+    fn a_ramp_step_is_measured() {
+        let s = ramp(0.1, 0.5, 100.0, 0.1);
+        let r = step_response(&s, 0.1, 2.0, 0.0, 100.0, 0.02);
+        assert!((r.rise_s - 0.4).abs() < 2e-3, "{r:?}");
+        assert!((r.overshoot_fraction - 0.1).abs() < 2e-3, "{r:?}");
+        // The bump falls below 2 % after 0.05·ln(5) = 80 ms.
+        assert!((r.settling_s - (0.5 + 0.05 * 5f64.ln())).abs() < 2e-3, "{r:?}");
+        // A window that ends before the ramp does: neither risen nor settled.
+        let short = step_response(&s, 0.1, 0.4, 0.0, 100.0, 0.02);
+        assert!(short.rise_s.is_infinite() && short.settling_s.is_infinite(), "{short:?}");
+    }
+
+    /// A dip of 10 rad/s recovering with a 0.1 s time constant: back within 1 rad/s after
+    /// 0.1·ln 10 s.
+    #[test]
+    fn a_load_dip_is_measured() {
+        let s: Vec<Sample> = (0..1000)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                let e = if t >= 0.5 { 10.0 * (-(t - 0.5) / 0.1).exp() } else { 0.0 };
+                Sample { t_s: t, omega_m_rad_s: 50.0 - e, omega_ref_rad_s: 50.0, ..Sample::default() }
+            })
+            .collect();
+        let r = load_response(&s, 0.5, 1.0);
+        assert!((r.dip_rad_s - 10.0).abs() < 1e-9, "{r:?}");
+        assert!((r.recovery_s - 0.1 * 10f64.ln()).abs() < 2e-3, "{r:?}");
+        // A droop that stays: never recovered.
+        let droop: Vec<Sample> = s.iter().map(|x| Sample { omega_m_rad_s: 45.0, ..*x }).collect();
+        assert!(load_response(&droop, 0.5, 1.0).recovery_s.is_infinite());
+        let nan: Vec<Sample> = s.iter().map(|x| Sample { omega_m_rad_s: f64::NAN, ..*x }).collect();
+        assert!(load_response(&nan, 0.5, 1.0).dip_rad_s.is_nan());
+    }
+
+    /// A constant torque T on J from rest: ω = T·t/J, so 10 → 90 % of a step Δ takes
+    /// 0.8·J·Δ/T and the 2 % band 0.98·J·Δ/T; a torque that vanishes never gets there.
+    #[test]
+    fn least_times_of_a_constant_torque() {
+        let (rise, settle) = least_step_times(|_, _| 2.0, 0.01, 0.0, 0.0, 100.0, 0.02);
+        assert!((rise - 0.8 * 0.01 * 100.0 / 2.0).abs() < 1e-12, "{rise}");
+        assert!((settle - 0.98 * 0.01 * 100.0 / 2.0).abs() < 1e-12, "{settle}");
+        // A reversal: braking torque to 0, motoring beyond, the same magnitude both ways.
+        let (r, _) =
+            least_step_times(|_, motoring| if motoring { 2.0 } else { 1.0 }, 0.01, 0.0, 50.0, -50.0, 0.02);
+        // 10 → 50 % at 1 N·m (braking), 50 → 90 % at 2 N·m.
+        assert!((r - (0.01 * 40.0 / 1.0 + 0.01 * 40.0 / 2.0)).abs() < 1e-12, "{r}");
+        let (r, s) = least_step_times(|w, _| if w < 50.0 { 2.0 } else { 0.0 }, 0.01, 0.0, 0.0, 100.0, 0.02);
+        assert!(r.is_infinite() && s.is_infinite());
+    }
+
+    /// Each requirement's worst is its least margin; a NaN is the worst of all.
+    #[test]
+    fn the_worst_of_each_requirement() {
+        let m = |requirement, value, allowed| Measure { requirement, value, allowed };
+        let w = worst_each([
+            m(Requirement::LoadDip, 1.0, 2.0),
+            m(Requirement::SpeedError, 0.5, 1.0),
+            m(Requirement::LoadDip, 3.0, 2.0),
+            m(Requirement::LoadDip, 2.5, 2.0),
+        ]);
+        assert_eq!(
+            w.iter().map(|x| x.requirement).collect::<Vec<_>>(),
+            [Requirement::SpeedError, Requirement::LoadDip]
+        );
+        assert_eq!(w[1].value, 3.0);
+        assert!(!w[1].met() && w[0].met());
+        let nan = worst_each([m(Requirement::LoadDip, 1.0, 2.0), m(Requirement::LoadDip, f64::NAN, 2.0)]);
+        assert!(nan[0].value.is_nan() && !nan[0].met());
+    }
+}
