@@ -208,10 +208,12 @@ struct TuneArgs {
     /// robust over the box).
     #[arg(long, default_value = "pi")]
     current: design::tune::CurrentDesign,
-    /// The speed controller: `p` (saturated P, seed 002 eq. (21); the link may rewrite its
-    /// gains) or `pi` (PI → torque farthest inside seed 000's stability, gain–phase-margin
-    /// and bandwidth regions over the inertia interval).
-    #[arg(long, default_value = "p")]
+    /// The speed controller: `auto` (the first of p and pi whose predicted response meets
+    /// the template's [requirements] over the box; refused, naming what each misses, when
+    /// neither does), `p` (saturated P, seed 002 eq. (21); the link may rewrite its gains) or
+    /// `pi` (PI → torque farthest inside seed 000's stability, gain–phase-margin and bandwidth
+    /// regions over the inertia interval).
+    #[arg(long, default_value = "auto")]
     speed: design::tune::SpeedDesign,
 }
 
@@ -316,6 +318,19 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         interval(c.speed_kp_writable),
         t.checks.len()
     );
+    if t.predicted_misses.is_empty() {
+        report::outln!(
+            "requirements: met over the box by the speed law alone (predicted; `hil-sim campaign` judges the drive)"
+        );
+    }
+    for (k, m) in &t.predicted_misses {
+        report::outln!(
+            "requirements: {} predicted missed (worst run {k}: {:.4} against {:.4}) — the speed law you chose; `--speed auto` chooses one that meets them",
+            m.requirement,
+            m.value,
+            m.allowed
+        );
+    }
     cli::write_atomic(&a.out, &t.text)?;
     eprintln!("design: wrote {}", a.out.display());
     Ok(true)

@@ -100,6 +100,10 @@ pub enum SpeedDesign {
     SaturatedP,
     /// PI → torque, seed 000's regions ([`speed_pi`]).
     Pi,
+    /// The first of saturated P and PI whose predicted response meets the file's
+    /// `[requirements]` over the box ([`predicted_misses`]); refused, naming what each
+    /// misses, when neither does.
+    Auto,
 }
 
 impl std::str::FromStr for SpeedDesign {
@@ -108,7 +112,8 @@ impl std::str::FromStr for SpeedDesign {
         match s {
             "p" => Ok(Self::SaturatedP),
             "pi" => Ok(Self::Pi),
-            other => Err(format!("`{other}` is neither p nor pi")),
+            "auto" => Ok(Self::Auto),
+            other => Err(format!("`{other}` is none of p, pi, auto")),
         }
     }
 }
@@ -396,6 +401,9 @@ pub struct Tuned {
     pub current_robustness: f64,
     /// The drive file's text.
     pub text: String,
+    /// The requirements the chosen speed law is predicted to miss over the box, each with
+    /// its worst run (empty: all met; only an explicit `--speed` may leave some).
+    pub predicted_misses: Vec<(u64, hil_sim::requirements::Measure)>,
     /// Its drive.
     pub spec: DriveSpec,
     /// Its certificate.
@@ -578,20 +586,57 @@ pub fn tune(
         Ok(position_ok(&certify_speed(&spec, &cert)?))
     })?
     .ok_or("no position-loop gain passes the certificate")?;
-    if structure.speed == SpeedDesign::Pi {
+    // The requirements over the box, predicted from the speed law alone (the campaign then
+    // judges the whole drive): on the drive's rated bus, or 310 V within its range.
+    let vdc = prediction_bus_v(&file);
+    let p_misses = predicted_misses(&spec, &cert, &file, vdc)?;
+    // The link may lower k_p only as far as the requirements still hold (a P law's droop
+    // grows as 1/k_p): the least writable k_p is the lowest of [k_p/2, k_p] that meets them.
+    if p_misses.is_empty() {
+        cert.speed_kp_writable[0] = least_writable_kp(&spec, &cert, &file, vdc)?;
+    }
+    let speed_pi_law = |spec: &DriveSpec| -> Result<SpeedLaw, String> {
         let omega_b = heaviest_speed_bandwidth(omega_s, &cert);
         let js = [j * cert.j_factor[0], j * cert.j_factor[1]];
         let minima = [cert.phase_margin_deg_min, cert.gain_margin_db_min];
         let (kp, ki) = speed_pi(&SpeedRegions::new(js, motor.b_nms(), t_slow, minima)?, omega_b, kp_noise)?;
-        spec.speed_law = SpeedLaw::PiTorque { kp, ki, limit: tau_max };
-        if let Some(c) = certify(&spec, &cert)?.iter().find(|c| !c.pass) {
+        let pi = DriveSpec { speed_law: SpeedLaw::PiTorque { kp, ki, limit: tau_max }, ..*spec };
+        if let Some(c) = certify(&pi, &cert)?.iter().find(|c| !c.pass) {
             return Err(format!(
                 "the speed PI of seed 000's regions (k_p {kp:.4e}, k_i {ki:.4e}) fails `{}` at {}: the Padé model of \
                  the dead time is too coarse here — use `--speed p`",
                 c.name, c.corner
             ));
         }
-    }
+        Ok(pi.speed_law)
+    };
+    let (speed_design, predicted) = match structure.speed {
+        SpeedDesign::SaturatedP => (SpeedDesign::SaturatedP, p_misses),
+        SpeedDesign::Pi => {
+            spec.speed_law = speed_pi_law(&spec)?;
+            (SpeedDesign::Pi, predicted_misses(&spec, &cert, &file, vdc)?)
+        }
+        SpeedDesign::Auto if p_misses.is_empty() => (SpeedDesign::SaturatedP, p_misses),
+        SpeedDesign::Auto => {
+            let pi = DriveSpec { speed_law: speed_pi_law(&spec)?, ..spec };
+            let pi_misses = predicted_misses(&pi, &cert, &file, vdc)?;
+            if !pi_misses.is_empty() {
+                return Err(format!(
+                    "no speed law meets the requirements over the box (predicted on the ideal actuator, {vdc} V): \
+                     saturated P (k_p {:.4e}) misses {}; PI misses {} — relax [requirements], or take a smaller box",
+                    match spec.speed_law {
+                        SpeedLaw::SaturatedP { kp, .. } => kp,
+                        _ => f64::NAN,
+                    },
+                    describe(&p_misses),
+                    describe(&pi_misses)
+                ));
+            }
+            spec.speed_law = pi.speed_law;
+            (SpeedDesign::Pi, pi_misses)
+        }
+    };
+    let structure = Structure { speed: speed_design, ..structure };
     let text = write(template_text, template_path, &spec, &cert, omega_c, omega_s)?;
     // The file as written, read back and certified whole.
     let back =
@@ -603,6 +648,7 @@ pub fn tune(
     }
     Ok(Tuned {
         structure,
+        predicted_misses: predicted,
         current_robustness: robustness(&certify_current(&back.spec, &back_cert)?).0,
         text,
         spec: back.spec,
@@ -611,6 +657,90 @@ pub fn tune(
         omega_s_rad_s: omega_s,
         checks,
     })
+}
+
+/// The bus the requirements are predicted on: the file's rated bus, or the campaign's
+/// default within the drive's bus range ([`hil_sim::commands::default_bus_v`]).
+fn prediction_bus_v(file: &drive_file::DriveFile) -> f64 {
+    hil_sim::commands::default_bus_v(file)
+}
+
+/// The requirements `spec`'s speed law misses over the box `cert`, predicted on the ideal
+/// actuator (`hil_sim::campaign::Campaign::predict`) over the campaign's corner runs (every
+/// corner through every manoeuvre): each missed requirement once, with its worst run.
+pub fn predicted_misses(
+    spec: &DriveSpec,
+    cert: &CertifySpec,
+    file: &drive_file::DriveFile,
+    vdc_v: f64,
+) -> Result<Vec<(u64, hil_sim::requirements::Measure)>, String> {
+    use hil_sim::campaign::{CORNER_RUNS, Campaign, MIN_AFTER_STEP_S};
+    let mut c = Campaign {
+        spec: *spec,
+        certify: *cert,
+        vdc_v,
+        duration_s: 1.0,
+        runs: CORNER_RUNS,
+        seed: 1,
+        shard: (0, 1),
+        encoder_lines: file.encoder_lines(),
+        plant: None,
+        requirements: file.requirements,
+    };
+    // As `population` runs it: long enough for a slow rotor to magnetize first.
+    c.duration_s = c.duration_s.max(c.step_s() + 2.0 * MIN_AFTER_STEP_S);
+    let mut worst: Vec<(u64, hil_sim::requirements::Measure)> = Vec::new();
+    for k in 0..CORNER_RUNS {
+        for m in c.predict(k)?.into_iter().filter(|m| !m.met()) {
+            match worst.iter_mut().find(|(_, w)| w.requirement == m.requirement) {
+                Some(w) if m.margin().is_nan() || m.margin() < w.1.margin() => *w = (k, m),
+                Some(_) => {}
+                None => worst.push((k, m)),
+            }
+        }
+    }
+    worst.sort_by_key(|(_, m)| m.requirement);
+    Ok(worst)
+}
+
+/// `requirements.x (worst run k: value against allowed), …`.
+fn describe(misses: &[(u64, hil_sim::requirements::Measure)]) -> String {
+    misses
+        .iter()
+        .map(|(k, m)| format!("{} (worst run {k}: {:.4} against {:.4})", m.requirement, m.value, m.allowed))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Halvings of the bisection for the least writable saturated-P k_p: within 2^-8 of
+/// [k_p/2, k_p].
+pub const WRITABLE_KP_BISECTIONS: u32 = 8;
+
+/// The least saturated-P k_p in `[k_p/2, k_p]` whose predicted response still meets the
+/// requirements (`spec`'s k_p meets them): k_p/2 if it does, else a bisection (the droop
+/// falls as k_p rises).
+fn least_writable_kp(
+    spec: &DriveSpec,
+    cert: &CertifySpec,
+    file: &drive_file::DriveFile,
+    vdc_v: f64,
+) -> Result<f64, String> {
+    let SpeedLaw::SaturatedP { kp, tau_max_nm } = spec.speed_law else {
+        return Ok(cert.speed_kp_writable[0]);
+    };
+    let meets = |k: f64| -> Result<bool, String> {
+        let at = DriveSpec { speed_law: SpeedLaw::SaturatedP { kp: k, tau_max_nm }, ..*spec };
+        Ok(predicted_misses(&at, cert, file, vdc_v)?.is_empty())
+    };
+    let (mut lo, mut hi) = (0.5 * kp, kp);
+    if meets(lo)? {
+        return Ok(lo);
+    }
+    for _ in 0..WRITABLE_KP_BISECTIONS {
+        let mid = 0.5 * (lo + hi);
+        if meets(mid)? { hi = mid } else { lo = mid }
+    }
+    Ok(hi)
 }
 
 /// The ICAD gain (V/A) of [`icad_law`] at `omega_h` with the largest [`robustness`] of the
@@ -1147,6 +1277,38 @@ mod tests {
             }
         }
         assert!(failed.is_empty(), "random motors {failed:?} fail the campaign");
+    }
+
+    /// Issue 51: the template's `[requirements]` choose the speed law. The 24 V template asks
+    /// ±1 % regulation (the default) and accepts 15 % overshoot: the saturated P's droop
+    /// misses the first, so `auto` takes the PI, predicted to meet them all; `--speed p` keeps
+    /// the P and reports the miss. Asked for 5 % overshoot, neither law meets the requirements
+    /// and the tune is refused, naming each law's misses. drive.toml's own requirements (its
+    /// P law's) keep the P.
+    #[test]
+    fn the_requirements_choose_the_speed_law_or_refuse_naming_them() {
+        let template = include_str!("../../drives/em-synergy-24v.toml");
+        let m = drive_file::motor::load("em-synergy-m800006").unwrap();
+        let auto = Structure { speed: SpeedDesign::Auto, ..Default::default() };
+        let t = tune(Path::new("24v.toml"), template, &m, None, auto).unwrap();
+        assert!(
+            matches!(t.spec.speed_law, SpeedLaw::PiTorque { .. }) && t.structure.speed == SpeedDesign::Pi
+        );
+        assert!(t.predicted_misses.is_empty(), "{:?}", t.predicted_misses);
+        let p = tune(Path::new("24v.toml"), template, &m, None, Structure::default()).unwrap();
+        let missed: Vec<_> = p.predicted_misses.iter().map(|(_, m)| m.requirement.key()).collect();
+        assert!(missed.contains(&"speed_error_fraction"), "{missed:?}");
+        let strict = template.replace("speed_overshoot_fraction = 0.15", "speed_overshoot_fraction = 0.05");
+        let e = tune(Path::new("strict.toml"), &strict, &m, None, auto).unwrap_err();
+        assert!(
+            e.contains("saturated P")
+                && e.contains("misses requirements.speed_error_fraction")
+                && e.contains("PI misses requirements.speed_overshoot_fraction"),
+            "{e}"
+        );
+        let d = drive_file::motor::load("delorenzo-appendix").unwrap();
+        let t = tune(Path::new("drive.toml"), TEMPLATE, &d, None, auto).unwrap();
+        assert!(matches!(t.spec.speed_law, SpeedLaw::SaturatedP { .. }) && t.predicted_misses.is_empty());
     }
 
     /// The walk-through's motor on its 24 V template (docs/walkthrough.md).

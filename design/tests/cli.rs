@@ -499,7 +499,7 @@ fn a_reader_that_left_loses_the_text_not_the_work() {
     let out = dir.join("tuned.toml");
     let template = concat!(env!("CARGO_MANIFEST_DIR"), "/../drives/em-synergy-24v.toml");
     let o = Command::new(env!("CARGO_BIN_EXE_design"))
-        .args(["tune", "--motor", "em-synergy-m800006", "--template", template, "--out"])
+        .args(["tune", "--motor", "em-synergy-m800006", "--template", template, "--speed", "p", "--out"])
         .arg(&out)
         .stdout(closed())
         .output()
@@ -543,6 +543,8 @@ fn tune_lowers_a_position_gain_the_certificate_refuses() {
         "em-synergy-m800006",
         "--template",
         template,
+        "--speed",
+        "p",
         "--out",
         out.to_str().unwrap(),
     ]);

@@ -245,3 +245,34 @@ fn the_shipped_requirements_hold_and_the_least_writable_gain_misses_the_load_ste
         assert!(r.criteria_failed().is_empty(), "{}", r.csv());
     }
 }
+
+/// The speed law alone (`Campaign::predict`, the ideal actuator) predicts the campaign's
+/// speed requirements: the P law's droop and dip within 10 % of what the whole drive does,
+/// and the same verdict on drive.toml (met) and at k_p = 0.02 (the load dip missed).
+#[test]
+fn the_prediction_agrees_with_the_campaign_on_the_speed_requirements() {
+    let c = shipped(64);
+    let text = drive_file::SHIPPED.replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0");
+    let f = drive_file::DriveFile::parse(std::path::Path::new("kp002.toml"), &text).unwrap();
+    let low = Campaign { spec: f.spec, ..shipped(64) };
+    for c in [c, low] {
+        let runs = run(&c);
+        for v in runs.iter().filter(|v| v.manoeuvre != Manoeuvre::Reversal) {
+            let p = c.predict(v.k).unwrap();
+            for r in [Requirement::SpeedError, Requirement::LoadDip] {
+                let (a, b) = (
+                    v.measures.iter().find(|m| m.requirement == r).unwrap(),
+                    p.iter().find(|m| m.requirement == r).unwrap(),
+                );
+                assert!(
+                    (b.value / a.value - 1.0).abs() < 0.1,
+                    "{r}: predicted {} measured {}: {}",
+                    b.value,
+                    a.value,
+                    v.csv()
+                );
+                assert_eq!(a.met(), b.met(), "{r}: {}", v.csv());
+            }
+        }
+    }
+}

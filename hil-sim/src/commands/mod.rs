@@ -93,6 +93,17 @@ pub fn plant_model(
     Ok((motor, saturation))
 }
 
+/// The bus a command runs on when none is asked ([`bus_voltage`], silently): the file's rated
+/// bus, or [`DEFAULT_VDC_V`] within the drive's bus range, or that range's middle.
+pub fn default_bus_v(file: &drive_file::DriveFile) -> f64 {
+    let p = &file.spec.protection;
+    match file.rated_bus_v() {
+        Some(v) => v,
+        None if DEFAULT_VDC_V > p.vdc_min_v && DEFAULT_VDC_V < p.vdc_max_v => DEFAULT_VDC_V,
+        None => 0.5 * (p.vdc_min_v + p.vdc_max_v),
+    }
+}
+
 /// The bus a command runs `what` on: `asked` (`--vdc`), refused outside the drive's bus range
 /// (`[protection]`: every run would trip on it), else the file's rated bus (`[board]
 /// vdc_rated_v`, checked inside the range when the file was read), else [`DEFAULT_VDC_V`], or

@@ -36,6 +36,8 @@
 //!   [`RIPPLE_WINDOW_S`] below [`RIPPLE_FRACTION`]·τ_max.
 
 use crate::inverter::InverterModel;
+mod ideal;
+
 use crate::requirements::{self as judge, Measure};
 use crate::rng::mix;
 use crate::scenario::Builtin;
@@ -43,13 +45,12 @@ use crate::sensors::SensorModel;
 use crate::sim::{Event, LoadModel, Row, Scenario};
 use controller_core::drive::{DriveSpec, Mode, Reference};
 use controller_core::encoder::{EncoderConfig, SPEED_WINDOW_READS};
-use controller_core::envelope::EnvelopeConfig;
-use controller_core::ifoc::TorqueCommand;
 use controller_core::magnetics::Saturation;
 use controller_core::motor::MotorParams;
-use controller_core::speed::{SpeedControllerConfig, SpeedLaw, SpeedState};
+use controller_core::speed::SpeedLaw;
 use drive_file::certify::Certify;
 use drive_file::requirements::{Requirement, Requirements};
+pub use ideal::IdealLoop;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -90,6 +91,43 @@ pub const CAMPAIGN_REQUIREMENTS: [Requirement; 8] = [
     Requirement::LoadRecoveryTime,
     Requirement::TorqueAccuracy,
     Requirement::FluxAccuracy,
+];
+
+/// What run `k` is before it runs ([`Campaign::setup`]).
+struct Setup {
+    sample: Sample,
+    manoeuvre: Manoeuvre,
+    plant: MotorParams,
+    plant_saturation: Option<Saturation>,
+    /// ω_s, mechanical rad/s.
+    w: f64,
+    step_s: f64,
+    t2_s: f64,
+    duration_s: f64,
+    first_step: StepPlan,
+    second: Second,
+    second_event: SecondEvent,
+    ideal: IdealLoop,
+}
+
+/// The second event's value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum SecondEvent {
+    /// A load step to this, N·m.
+    LoadNm(f64),
+    /// A speed step to this, mechanical rad/s.
+    SpeedRadS(f64),
+}
+
+/// The requirements [`Campaign::predict`] predicts: the speed's (the ideal actuator has no
+/// torque or flux error to predict).
+pub const PREDICTED: [Requirement; 6] = [
+    Requirement::SpeedError,
+    Requirement::SpeedOvershoot,
+    Requirement::SpeedRiseTime,
+    Requirement::SpeedSettlingTime,
+    Requirement::LoadDip,
+    Requirement::LoadRecoveryTime,
 ];
 
 /// A speed step of a run, planned before it runs.
@@ -338,7 +376,6 @@ impl Campaign {
         (0..self.runs).filter(|k| k % self.shard.1 == self.shard.0)
     }
 
-    /// Run `k`; stops with an error at the next slow period once `cancel` is set.
     /// When the speed step comes, s: [`STEP_S`], or 10 % after the drive's flux model — which
     /// decides Magnetizing → Running, on the nominal rotor time constant whatever the
     /// corner's — reaches `magnetized_fraction` of its target, `−T_r·ln(1 − f)` (3 T_r at
@@ -376,7 +413,9 @@ impl Campaign {
         Ok(())
     }
 
-    pub fn run_one(&self, k: u64, cancel: &AtomicBool) -> Result<Verdict, String> {
+    /// Everything run `k` is, before it runs: its sample, plant, manoeuvre, the events' times
+    /// and values, and the requirements' step plans.
+    fn setup(&self, k: u64) -> Result<Setup, String> {
         self.check()?;
         let step_s = self.step_s();
         let sample = self.sample(k);
@@ -398,9 +437,7 @@ impl Campaign {
         // at the run's sample.
         let envelope_plant = if plant_saturation.is_some() { model } else { plant };
         let w = self.omega_s_rad_s();
-        let divider = self.spec.slow_divider;
-        let t_row = f64::from(divider) / self.spec.pwm_frequency_hz;
-        let mut ideal = IdealLoop::new(&self.spec, &envelope_plant, self.vdc_v, t_row)?;
+        let ideal = IdealLoop::new(&self.spec, &envelope_plant, self.vdc_v, self.slow_period_s())?;
         // The load: LOAD_FRACTION of what this plant can give at the speed it loads, in the
         // direction the drive then pushes — τ_max, or the envelope's less in field weakening.
         let load = |omega_m: f64, torque_sign: f64| {
@@ -433,13 +470,95 @@ impl Campaign {
             .into_iter()
             .filter(|t| t.is_finite())
             .fold(0.5 * (self.duration_s - step_s), |h, t| h.max(WINDOW_MARGIN * t));
-        let (t2, duration_s) = (step_s + half, step_s + 2.0 * half);
+        let second_event = match manoeuvre {
+            Manoeuvre::Motoring => SecondEvent::LoadNm(load(w, 1.0)),
+            Manoeuvre::Reverse => SecondEvent::LoadNm(load(-w, -1.0)),
+            Manoeuvre::Generating => SecondEvent::LoadNm(load(w, -1.0)),
+            Manoeuvre::Reversal => SecondEvent::SpeedRadS(-0.5 * w),
+        };
+        Ok(Setup {
+            sample,
+            manoeuvre,
+            plant,
+            plant_saturation,
+            w,
+            step_s,
+            t2_s: step_s + half,
+            duration_s: step_s + 2.0 * half,
+            first_step,
+            second,
+            second_event,
+            ideal,
+        })
+    }
+
+    /// The slow loop's period, s (one row of a run).
+    fn slow_period_s(&self) -> f64 {
+        f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz
+    }
+
+    /// What the speed law alone gives on run `k` ([`PREDICTED`] requirements): the run's
+    /// manoeuvre on its [`IdealLoop`] — the law's discrete code driving the sampled mechanics,
+    /// the torque within τ_max and the machine's envelope; no current loops, field orientation
+    /// or sensors. Cheap (the slow rate only, no electrical model): `design tune` chooses the
+    /// speed law by it, before the campaign judges the whole drive.
+    pub fn predict(&self, k: u64) -> Result<Vec<Measure>, String> {
+        let s = self.setup(k)?;
+        let t_row = self.slow_period_s();
+        let mut ideal = s.ideal;
+        let (mut omega_ref, mut load) = (0.0, 0.0);
+        let rows = (s.duration_s / t_row).round() as u64;
+        let mut samples = Vec::with_capacity(rows as usize + 1);
+        for i in 0..=rows {
+            let t_s = i as f64 * t_row;
+            if t_s >= s.step_s {
+                omega_ref = s.first_step.to;
+            }
+            if t_s >= s.t2_s {
+                match s.second_event {
+                    SecondEvent::LoadNm(l) => load = l,
+                    SecondEvent::SpeedRadS(w) => omega_ref = w,
+                }
+            }
+            let flux = self.spec.flux_ref_wb;
+            samples.push(judge::Sample {
+                t_s,
+                omega_m_rad_s: ideal.omega_m_rad_s,
+                omega_ref_rad_s: omega_ref,
+                psi_r_wb: flux,
+                psi_ref_wb: flux,
+                ..judge::Sample::default()
+            });
+            if t_s >= s.step_s {
+                ideal.step(omega_ref, load);
+            }
+        }
+        let measures = self.judge(&samples, s.step_s, s.t2_s, &s.first_step, &s.second);
+        Ok(measures.into_iter().filter(|m| PREDICTED.contains(&m.requirement)).collect())
+    }
+
+    /// Run `k`; stops with an error at the next slow period once `cancel` is set.
+    pub fn run_one(&self, k: u64, cancel: &AtomicBool) -> Result<Verdict, String> {
+        let Setup {
+            sample,
+            manoeuvre,
+            plant,
+            plant_saturation,
+            w,
+            step_s,
+            t2_s: t2,
+            duration_s,
+            first_step,
+            second,
+            second_event,
+            mut ideal,
+        } = self.setup(k)?;
+        let divider = self.spec.slow_divider;
         let speed = |x: f64| Event::Reference(Reference::Speed(x as f32));
-        let (first, second_event) = match manoeuvre {
-            Manoeuvre::Motoring => (speed(w), Event::LoadNm(load(w, 1.0))),
-            Manoeuvre::Reverse => (speed(-w), Event::LoadNm(load(-w, -1.0))),
-            Manoeuvre::Generating => (speed(w), Event::LoadNm(load(w, -1.0))),
-            Manoeuvre::Reversal => (speed(0.5 * w), speed(-0.5 * w)),
+        let first = speed(first_step.to);
+        let second_event = match second_event {
+            SecondEvent::LoadNm(l) => Event::LoadNm(l),
+            SecondEvent::SpeedRadS(x) => speed(x),
         };
         let b = Builtin {
             name: format!("campaign-{k}"),
@@ -661,86 +780,6 @@ pub fn torque_limit_nm(spec: &DriveSpec) -> f64 {
         SpeedLaw::SaturatedP { tau_max_nm, .. } => tau_max_nm,
         SpeedLaw::PiTorque { limit, .. } => limit,
         SpeedLaw::PiIq { limit, .. } => limit * spec.motor.torque_factor() * spec.flux_ref_wb,
-    }
-}
-
-/// The drive's speed law on an ideal torque actuator: the law's own discrete code
-/// (`SpeedControllerConfig`, ideal speed measurement) driving `J dω/dt = τ − Bω − T_L` of
-/// the sampled plant's mechanics, one step per slow period (zero-order hold). The torque is
-/// limited to the steady-state envelope of the *sampled* machine at the present speed
-/// (`controller_core::envelope` with the plant's parameters, the drive's voltage target on
-/// the bus, remade every [`controller_core::envelope::ENVELOPE_REFRESH_SLOW_STEPS`]), so that
-/// above base speed the criterion compares the drive with what the machine it drives allows
-/// — a hot motor's larger R_s leaves less torque at speed for any drive — not with τ_max.
-#[derive(Clone, Copy, Debug)]
-pub struct IdealLoop {
-    law: SpeedControllerConfig,
-    state: SpeedState,
-    kt: f64,
-    a: f64,
-    g: f64,
-    envelope: EnvelopeConfig,
-    /// Rated d-axis current, voltage target and current limit of the envelope.
-    limits: (f32, f32, f32),
-    /// The envelope's torque magnitude (motoring, generating) at the last refresh, N·m.
-    torque_max_nm: (f64, f64),
-    age: u32,
-    /// The ideal loop's speed, mechanical rad/s.
-    pub omega_m_rad_s: f64,
-}
-
-impl IdealLoop {
-    /// For drive `spec` on the mechanics of `plant` and bus `vdc_v`, stepped every `t_s`.
-    pub fn new(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64, t_s: f64) -> Result<Self, String> {
-        let law =
-            SpeedControllerConfig::new(&spec.speed_law, t_s).map_err(|e| format!("speed law: {e:?}"))?;
-        let (j, b) = (plant.j_kgm2(), plant.b_nms());
-        let (a, g) = if b > 0.0 {
-            let a = (-b * t_s / j).exp();
-            (a, (1.0 - a) / b)
-        } else {
-            (1.0, t_s / j)
-        };
-        let i_d_rated = crate::envelope::rated_d_current_a(spec, plant);
-        // The drive's target on the part of the bus its modulator uses (the sampling window).
-        let v_target = spec.voltage_margin * spec.duty_max() * vdc_v / 3f64.sqrt();
-        Ok(Self {
-            law,
-            state: SpeedState::default(),
-            kt: plant.torque_factor() * spec.flux_ref_wb,
-            a,
-            g,
-            envelope: EnvelopeConfig::new(plant),
-            limits: (i_d_rated as f32, v_target as f32, spec.i_ref_max_a as f32),
-            torque_max_nm: (f64::INFINITY, f64::INFINITY),
-            age: 0,
-            omega_m_rad_s: 0.0,
-        })
-    }
-
-    /// The envelope's torque magnitude in the direction `sign` (of the torque) at speed
-    /// `omega_m_rad_s`, N·m: what this plant gives there on the drive's voltage and current
-    /// limits (τ_max aside).
-    pub fn torque_limit_nm(&self, sign: f64, omega_m_rad_s: f64) -> f64 {
-        let (i_d, v, i_max) = self.limits;
-        let s = if sign < 0.0 { -1.0 } else { 1.0 };
-        f64::from(self.envelope.envelope(s, omega_m_rad_s as f32, i_d, v, i_max).torque_max_nm)
-    }
-
-    /// One slow period with reference `omega_ref` and load `load_nm`.
-    pub fn step(&mut self, omega_ref: f64, load_nm: f64) {
-        if self.age == 0 {
-            let w = self.omega_m_rad_s;
-            self.torque_max_nm = (self.torque_limit_nm(1.0, w), self.torque_limit_nm(-1.0, w));
-            self.age = u32::from(controller_core::envelope::ENVELOPE_REFRESH_SLOW_STEPS);
-        }
-        self.age -= 1;
-        let tau = match self.law.update(&mut self.state, omega_ref as f32, self.omega_m_rad_s as f32) {
-            TorqueCommand::TorqueNm(t) => f64::from(t),
-            TorqueCommand::IqA(i) => self.kt * f64::from(i),
-        };
-        let tau = tau.clamp(-self.torque_max_nm.1, self.torque_max_nm.0);
-        self.omega_m_rad_s = self.a * self.omega_m_rad_s + self.g * (tau - load_nm);
     }
 }
 
