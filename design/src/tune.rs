@@ -1284,7 +1284,7 @@ mod tests {
     /// misses the first, so `auto` takes the PI, predicted to meet them all; `--speed p` keeps
     /// the P and reports the miss. Asked for 5 % overshoot, neither law meets the requirements
     /// and the tune is refused, naming each law's misses. drive.toml's own requirements (its
-    /// P law's) keep the P.
+    /// P law's) keep the P; the 3 300 V template is refused on the defaults.
     #[test]
     fn the_requirements_choose_the_speed_law_or_refuse_naming_them() {
         let template = include_str!("../../drives/em-synergy-24v.toml");
@@ -1309,6 +1309,13 @@ mod tests {
         let d = drive_file::motor::load("delorenzo-appendix").unwrap();
         let t = tune(Path::new("drive.toml"), TEMPLATE, &d, None, auto).unwrap();
         assert!(matches!(t.spec.speed_law, SpeedLaw::SaturatedP { .. }) && t.predicted_misses.is_empty());
+        // The 500 hp machine on its 3 300 V template (the default requirements): neither the
+        // P (its droop) nor the PI (its slow, overshooting steps) meets them — refused, named.
+        let k = drive_file::motor::load("krause-2300v-500hp").unwrap();
+        let e =
+            tune(Path::new("krause.toml"), include_str!("../../drives/krause-3300v.toml"), &k, None, auto)
+                .unwrap_err();
+        assert!(e.contains("PI misses requirements.speed_error_fraction"), "{e}");
     }
 
     /// The walk-through's motor on its 24 V template (docs/walkthrough.md).
