@@ -418,6 +418,12 @@ fn campaign_writes_its_table_and_judges_every_run() {
     let ks: Vec<&str> = csv.lines().skip(1).map(|l| l.split(',').next().unwrap()).collect();
     assert_eq!(ks, ["1", "4", "7", "10"]);
     assert!(std::fs::read_to_string(res.join("campaign.svg")).unwrap().contains("<svg"));
+    let picture = std::fs::read_to_string(res.join("requirements.svg")).unwrap();
+    assert!(
+        picture.contains("<svg")
+            && picture.contains("overshoot allowed")
+            && picture.contains("least over the box")
+    );
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
     assert_eq!((summary["runs"].as_u64(), summary["passed"].as_u64()), (Some(4), Some(4)));

@@ -265,6 +265,9 @@ pub struct Verdict {
     pub mode: Mode,
     /// Each requirement this run measured, its worst ([`crate::requirements::worst_each`]).
     pub measures: Vec<Measure>,
+    /// The first speed step's response: (s since the step, the fraction of the step
+    /// covered), at most [`STEP_RESPONSE_POINTS`] points (for [`requirements_plot`]).
+    pub step_response: Vec<(f64, f64)>,
     /// Why it failed (empty: passed): a criterion's name, or a requirement's key.
     pub failures: Vec<&'static str>,
 }
@@ -634,6 +637,14 @@ impl Campaign {
             failures.push("oscillation");
         }
         let measures = self.judge(&samples, step_s, t2, &first_step, &second);
+        let from = samples.iter().find(|s| s.t_s >= step_s).map_or(0.0, |s| s.omega_m_rad_s);
+        let window: Vec<&judge::Sample> = samples.iter().filter(|s| s.t_s >= step_s && s.t_s < t2).collect();
+        let stride = window.len().div_ceil(STEP_RESPONSE_POINTS).max(1);
+        let step_response = window
+            .iter()
+            .step_by(stride)
+            .map(|s| (s.t_s - step_s, (s.omega_m_rad_s - from) / (first_step.to - from)))
+            .collect();
         failures.extend(measures.iter().filter(|m| !m.met()).map(|m| m.requirement.key()));
         Ok(Verdict {
             k,
@@ -646,6 +657,7 @@ impl Campaign {
             ripple_nm: ripple,
             mode,
             measures,
+            step_response,
             failures,
         })
     }
@@ -936,6 +948,65 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
         "elapsed_s": elapsed_s,
         "ns_per_period": ns_per_period(c, verdicts, elapsed_s),
     })
+}
+
+/// Points a run keeps of its first step's response ([`Verdict::step_response`]).
+pub const STEP_RESPONSE_POINTS: usize = 200;
+
+/// The requirements' picture (`requirements.svg`): the band of every run's first speed
+/// step — the least and the most of the step covered at each time, over the box — against
+/// what the requirements allow: the overshoot ceiling, the settling band about the target,
+/// and the least rise and settling times any run was allowed (vertical lines).
+pub fn requirements_plot(c: &Campaign, verdicts: &[Verdict]) -> String {
+    use report::plot::{Series, line_plot};
+    let req = &c.requirements;
+    let end = verdicts.iter().filter_map(|v| v.step_response.last().map(|p| p.0)).fold(0.0, f64::max);
+    let n = STEP_RESPONSE_POINTS;
+    let at = |v: &Verdict, t: f64| {
+        let r = &v.step_response;
+        let k = r.iter().position(|p| p.0 >= t)?;
+        let (b, a) = (r.get(k)?, if k == 0 { r.get(k)? } else { r.get(k - 1)? });
+        let f = if b.0 > a.0 { (t - a.0) / (b.0 - a.0) } else { 0.0 };
+        Some(a.1 + f * (b.1 - a.1))
+    };
+    let (mut lo, mut hi) = (Vec::new(), Vec::new());
+    for i in 0..=n {
+        let t = end * i as f64 / n as f64;
+        let ys: Vec<f64> = verdicts.iter().filter_map(|v| at(v, t)).filter(|y| y.is_finite()).collect();
+        if let (Some(a), Some(b)) = (ys.iter().copied().reduce(f64::min), ys.iter().copied().reduce(f64::max))
+        {
+            lo.push((t, a));
+            hi.push((t, b));
+        }
+    }
+    let least = |r: Requirement| {
+        verdicts
+            .iter()
+            .filter_map(|v| v.measures.iter().find(|m| m.requirement == r).map(|m| m.allowed))
+            .filter(|t| t.is_finite())
+            .reduce(f64::min)
+    };
+    let band = c.scales().settling_band_fraction(req, c.omega_s_rad_s());
+    let flat = |y: f64| vec![(0.0, y), (end, y)];
+    let vertical =
+        |t: Option<f64>| t.filter(|&t| t <= end).map_or_else(Vec::new, |t| vec![(t, 0.0), (t, 1.0)]);
+    line_plot(
+        &format!(
+            "Campaign: the first speed step of {} runs (±{:.1} rad/s) against [requirements]",
+            verdicts.len(),
+            c.omega_s_rad_s()
+        ),
+        "s after the step (y: fraction of the step)",
+        &[
+            Series::line("least over the box", lo),
+            Series::line("most over the box", hi),
+            Series::line("overshoot allowed", flat(1.0 + req.speed_overshoot_fraction)),
+            Series::line("settling band", flat(1.0 - band)),
+            Series::line("settling band (upper)", flat(1.0 + band)),
+            Series::line("rise time allowed (least)", vertical(least(Requirement::SpeedRiseTime))),
+            Series::line("settling time allowed (least)", vertical(least(Requirement::SpeedSettlingTime))),
+        ],
+    )
 }
 
 /// The overview plot: each run's tracking error against its limit (relative), by run index,

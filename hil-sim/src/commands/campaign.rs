@@ -29,7 +29,8 @@ pub struct CampaignOptions {
 }
 
 /// `hil-sim campaign`: runs the shard in parallel (Ctrl-C stops it and writes nothing),
-/// prints the per-manoeuvre table, writes `campaign.csv`, `campaign.svg` and `summary.json`
+/// prints the per-manoeuvre and per-requirement tables, writes `campaign.csv`, `campaign.svg`,
+/// `requirements.svg` ([`crate::campaign::requirements_plot`]) and `summary.json`
 /// (with the drive file's fingerprint); `Err` if any run fails.
 pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     let (i, n) = a.shard;
@@ -111,6 +112,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     }
     write_text(&out.join("campaign.csv"), &csv)?;
     write_text(&out.join("campaign.svg"), &crate::campaign::plot(&c, &verdicts))?;
+    write_text(&out.join("requirements.svg"), &crate::campaign::requirements_plot(&c, &verdicts))?;
     let mut summary = crate::campaign::summary(&c, &verdicts, elapsed);
     // Which file exactly: `design certify --campaign` refuses a summary of another one.
     let drive_text = drive_file::source::read(&a.drive).map_err(|e| e.to_string())?;
@@ -194,7 +196,10 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
         crate::campaign::ns_per_period(&c, &verdicts, elapsed),
         verdicts.len() as f64 / elapsed
     );
-    eprintln!("hil-sim: wrote campaign.csv, campaign.svg, summary.json in {}", out.display());
+    eprintln!(
+        "hil-sim: wrote campaign.csv, campaign.svg, requirements.svg, summary.json in {}",
+        out.display()
+    );
     if failed.is_empty() {
         Ok(())
     } else {
