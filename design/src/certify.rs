@@ -144,6 +144,30 @@ pub fn certify_current(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, 
     Ok(checks)
 }
 
+/// The current loops' bandwidth over the box: the least gain crossover of the sampled
+/// individual channel at ω_r,max over the corners of (R_s, R_r, L), rad/s, and its corner —
+/// what `[requirements] current_bandwidth_hz` asks of every corner (`design certify`).
+pub fn current_bandwidth_rad_s(spec: &DriveSpec, c: &CertifySpec) -> Result<(f64, String), String> {
+    let ts = 1.0 / spec.pwm_frequency_hz;
+    let ctrl = CurrentControllerConfig::<f32>::new(&spec.current_law, ts, spec.discretization, 1.0)
+        .map_err(|e| format!("current law rejected at {} Hz: {e:?}", spec.pwm_frequency_hz))?;
+    let mut least = (f64::INFINITY, String::new());
+    for rs in c.rs_factor {
+        for rr in c.rr_factor {
+            for l in c.inductance_factor {
+                let cm = corner_motor(&spec.motor, rs, rr, l)?;
+                let a = crate::sampled::analyse_in(&cm, &ctrl, ts, c.omega_r_max_rad_s, spec.current_frame);
+                // No crossover: the loop gain never reaches 1 — no bandwidth at all.
+                let w = a.channel.crossover_rad_s.unwrap_or(0.0);
+                if w < least.0 {
+                    least = (w, format!("Rs×{rs} Rr×{rr} L×{l}"));
+                }
+            }
+        }
+    }
+    Ok(least)
+}
+
 /// Phase, gain and γh margins of an ICAD report against the certificate's minima.
 fn margin_checks(checks: &mut Vec<Check>, what: &str, a: &IcadReport, c: &CertifySpec, corner: &str) {
     let pm = a.channel.phase_margin_deg;

@@ -433,7 +433,14 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
     let drive_text = drive_file::source::read(std::path::Path::new(&path)).map_err(|e| e.to_string())?;
     let (spec, c) = design::certify::parse(std::path::Path::new(&path), &drive_text)?;
     let checks = design::certify::certify(&spec, &c)?;
-    let linear_ok = checks.iter().all(|c| c.pass);
+    // The user's current-bandwidth requirement, on every corner (the sampled loops').
+    let requirements = drive_file::DriveFile::parse(std::path::Path::new(&path), &drive_text)
+        .map_err(|e| e.to_string())?
+        .requirements;
+    let (bw_rad_s, bw_corner) = design::certify::current_bandwidth_rad_s(&spec, &c)?;
+    let bw_hz = bw_rad_s / std::f64::consts::TAU;
+    let bw_ok = bw_hz >= requirements.current_bandwidth_hz;
+    let linear_ok = checks.iter().all(|c| c.pass) && bw_ok;
     let nonlinear = a.campaign.as_deref().map(|p| campaign_result(p, &drive_text, &c)).transpose()?;
     let ok = linear_ok && nonlinear.as_ref().is_none_or(|n| n.ok);
     if let Some(out) = &a.out {
@@ -446,6 +453,7 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             "fingerprint": drive_file::source::fingerprint(&drive_text),
             "certified": ok,
             "linear": {"certified": linear_ok, "checks": v},
+            "requirements": {"current_bandwidth_hz": {"least": bw_hz, "corner": bw_corner, "allowed_least": requirements.current_bandwidth_hz, "met": bw_ok}},
             "nonlinear": nonlinear.as_ref().map(|n| n.record.clone()),
         });
         let text = serde_json::to_string_pretty(&cert).map_err(|e| e.to_string())?;
@@ -486,6 +494,14 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
                 ch.limit
             );
         }
+        report::outln!(
+            "{:<5} {:<56} {:<22} {:>10.1}  least {}",
+            if bw_ok { "ok" } else { "FAIL" },
+            "requirements.current_bandwidth_hz: sampled crossover (Hz)",
+            bw_corner,
+            bw_hz,
+            requirements.current_bandwidth_hz
+        );
         report::outln!("{path}: {}", if ok { "certified" } else { "NOT certified" });
     }
     if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
@@ -506,6 +522,12 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
                 );
             }
         }
+    }
+    if !bw_ok {
+        eprintln!(
+            "design certify: {path}: requirements.current_bandwidth_hz missed: the current loops cross over at {bw_hz:.1} Hz at {bw_corner}, the file asks {} Hz",
+            requirements.current_bandwidth_hz
+        );
     }
     if !ok {
         for ch in checks.iter().filter(|c| !c.pass) {

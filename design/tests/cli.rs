@@ -433,6 +433,21 @@ fn certificate_records_linear_and_nonlinear_results() {
     assert_eq!(c["certified"], true);
     assert_eq!(c["fingerprint"], fp.as_str());
     assert_eq!(c["linear"]["checks"].as_array().unwrap().len(), 67);
+    // The current-bandwidth requirement: the ICAD's sampled crossover on its worst corner
+    // (562.4 Hz) against the 500 Hz drive.toml asks.
+    let bw = &c["requirements"]["current_bandwidth_hz"];
+    assert!(bw["met"] == true && (bw["least"].as_f64().unwrap() - 562.4).abs() < 0.5, "{bw}");
+    let slow = temp_file(
+        "fast.toml",
+        &text.replace("current_bandwidth_hz = 500.0", "current_bandwidth_hz = 1000.0"),
+    );
+    let (code, _, err) = run(&["certify", slow.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("requirements.current_bandwidth_hz missed: the current loops cross over at 562.4 Hz"),
+        "{err}"
+    );
+    let _ = std::fs::remove_file(&slow);
     assert_eq!(c["nonlinear"]["passed"], 64);
     let failed = write("failed.json", summary(&fp, "0/1", &[3, 7]));
     let (code, _, err) = run(&["certify", drive, "--campaign", &failed]);
