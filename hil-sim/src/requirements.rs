@@ -14,8 +14,8 @@
 use drive_file::requirements::{Requirement, Requirements, SETTLING_BAND_FRACTION};
 
 /// The last this long of a run is its steady state (speed error, torque and flux accuracy),
-/// s: the same window as the campaign's oscillation criterion.
-pub const STEADY_WINDOW_S: f64 = crate::campaign::RIPPLE_WINDOW_S;
+/// s — also the campaign's oscillation window (`campaign::RIPPLE_WINDOW_S`).
+pub const STEADY_WINDOW_S: f64 = 0.05;
 /// Speed points of the physical least time's integral over a step ([`least_step_times`]):
 /// 100, so that 10 % and 90 % of the step are grid points.
 pub const LEAST_TIME_POINTS: u32 = 100;

@@ -70,8 +70,9 @@ pub const TRACKING_FRACTION: f64 = 0.05;
 pub const TRACKING_FLOOR_RAD_S: f64 = 2.0;
 /// Rotor flux over the drive's flux model ψ̂_r, once magnetized: inside these bounds.
 pub const FLUX_BOUNDS: [f64; 2] = [0.5, 1.3];
-/// Torque ripple is measured over the last this long of the run, s.
-pub const RIPPLE_WINDOW_S: f64 = 0.05;
+/// Torque ripple is measured over the last this long of the run, s: the requirements'
+/// steady-state window.
+pub const RIPPLE_WINDOW_S: f64 = judge::STEADY_WINDOW_S;
 /// Torque ripple limit as a fraction of τ_max.
 pub const RIPPLE_FRACTION: f64 = 0.1;
 /// The 16 corners of (R_s, R_r, L, J).
