@@ -355,9 +355,11 @@ mod tests {
     #[test]
     fn a_100_hz_loop_is_refused_by_the_sampled_certificate_alone() {
         // The drive file itself refuses parts of it: the current trim's 20 rad/s default at a
-        // 10 Hz slow rate, and the board's 16-bit PWM timer (so: no [board] table here).
+        // 10 Hz slow rate, the board's 16-bit PWM timer (so: no [board] table here), and a
+        // current bandwidth of 500 Hz above the 50 Hz Nyquist rate (so: the default's).
         let slow = GAINS
             .replace("frequency_hz = 20000.0", "frequency_hz = 100.0")
+            .replace("current_bandwidth_hz = 500.0\n", "")
             .replace("[controller]\n", "[controller]\ncurrent_trim_bandwidth_rad_s = 0.0\n");
         let slow = slow.get(..slow.find("[board]").unwrap()).unwrap();
         let bad = failed(slow);
