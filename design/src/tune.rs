@@ -689,18 +689,11 @@ pub fn predicted_misses(
     };
     // As `population` runs it: long enough for a slow rotor to magnetize first.
     c.duration_s = c.duration_s.max(c.step_s() + 2.0 * MIN_AFTER_STEP_S);
-    let mut worst: Vec<(u64, hil_sim::requirements::Measure)> = Vec::new();
+    let mut missed = Vec::new();
     for k in 0..CORNER_RUNS {
-        for m in c.predict(k)?.into_iter().filter(|m| !m.met()) {
-            match worst.iter_mut().find(|(_, w)| w.requirement == m.requirement) {
-                Some(w) if m.margin().is_nan() || m.margin() < w.1.margin() => *w = (k, m),
-                Some(_) => {}
-                None => worst.push((k, m)),
-            }
-        }
+        missed.extend(c.predict(k)?.into_iter().filter(|m| !m.met()).map(|m| (k, m)));
     }
-    worst.sort_by_key(|(_, m)| m.requirement);
-    Ok(worst)
+    Ok(hil_sim::requirements::worst_each_tagged(missed))
 }
 
 /// `requirements.x (worst run k: value against allowed), …`.

@@ -53,6 +53,12 @@ pub const SETTLING_TIME_FACTOR: f64 = 3.0;
 /// if that is wider: a drive asked to regulate to ±x has settled once within ±x.
 pub const SETTLING_BAND_FRACTION: f64 = 0.02;
 
+/// The longest time a requirement may state, s: ten minutes, beyond any speed step or load
+/// recovery a drive is specified for (a fan's run-up takes a minute or two) — and the
+/// campaign runs each half of a run at least as long as the times it judges
+/// (`speed_rise_time_s = 1e300` ran forever: found by trying).
+pub const MAX_TIME_S: f64 = 600.0;
+
 /// `[requirements]` as written (every key optional).
 #[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -101,7 +107,8 @@ pub enum Requirement {
 }
 
 impl Requirement {
-    /// Every requirement, in the file's order.
+    /// Every requirement, in the file's order (the campaign's are the first eight, the
+    /// speed's the first six: `hil_sim::campaign` takes them so).
     pub const ALL: [Requirement; 9] = [
         Self::SpeedError,
         Self::SpeedOvershoot,
@@ -203,22 +210,24 @@ impl RequirementsTable {
     /// Validate for a drive switching at `pwm_frequency_hz`; errors point at the value.
     pub fn validate(&self, src: &Source<'_>, pwm_frequency_hz: f64) -> Result<Requirements, FileError> {
         let d = Requirements::defaults(pwm_frequency_hz);
-        // Fractions: positive and finite; a requirement of zero no sampled drive meets.
-        let fraction = |r: Requirement, x: Option<f64>, default: f64, most: f64| -> Result<f64, FileError> {
+        // Fractions: in (0, 1] — a requirement of zero no sampled drive meets; a speed error
+        // or dip of the whole base speed (or more) asks nothing; an overshoot of the whole
+        // step is a reversal of the error.
+        let fraction = |r: Requirement, x: Option<f64>, default: f64| -> Result<f64, FileError> {
             let Some(x) = x else { return Ok(default) };
             src.check(
-                x.is_finite() && x > 0.0 && x <= most,
+                x.is_finite() && x > 0.0 && x <= 1.0,
                 &r.to_string(),
-                &format!("is {}; must lie in (0, {}]", num(x), num(most)),
+                &format!("is {}; must lie in (0, 1]", num(x)),
             )?;
             Ok(x)
         };
         let time = |r: Requirement, x: Option<f64>| -> Result<Option<f64>, FileError> {
             let Some(x) = x else { return Ok(None) };
             src.check(
-                x.is_finite() && x > 0.0,
+                x.is_finite() && x > 0.0 && x <= MAX_TIME_S,
                 &r.to_string(),
-                &format!("is {}; must be a positive number of seconds", num(x)),
+                &format!("is {}; must be a positive number of seconds, at most {MAX_TIME_S}", num(x)),
             )?;
             Ok(Some(x))
         };
@@ -241,35 +250,25 @@ impl RequirementsTable {
         };
         use Requirement as R;
         Ok(Requirements {
-            // A speed error or dip of the whole base speed (or more) asks nothing; an
-            // overshoot of the whole step is a reversal of the error.
-            speed_error_fraction: fraction(
-                R::SpeedError,
-                self.speed_error_fraction,
-                d.speed_error_fraction,
-                1.0,
-            )?,
+            speed_error_fraction: fraction(R::SpeedError, self.speed_error_fraction, d.speed_error_fraction)?,
             speed_overshoot_fraction: fraction(
                 R::SpeedOvershoot,
                 self.speed_overshoot_fraction,
                 d.speed_overshoot_fraction,
-                1.0,
             )?,
             speed_rise_time_s: time(R::SpeedRiseTime, self.speed_rise_time_s)?,
             speed_settling_time_s: time(R::SpeedSettlingTime, self.speed_settling_time_s)?,
-            load_dip_fraction: fraction(R::LoadDip, self.load_dip_fraction, d.load_dip_fraction, 1.0)?,
+            load_dip_fraction: fraction(R::LoadDip, self.load_dip_fraction, d.load_dip_fraction)?,
             load_recovery_time_s: time(R::LoadRecoveryTime, self.load_recovery_time_s)?,
             torque_accuracy_fraction: fraction(
                 R::TorqueAccuracy,
                 self.torque_accuracy_fraction,
                 d.torque_accuracy_fraction,
-                1.0,
             )?,
             flux_accuracy_fraction: fraction(
                 R::FluxAccuracy,
                 self.flux_accuracy_fraction,
                 d.flux_accuracy_fraction,
-                1.0,
             )?,
             current_bandwidth_hz: bandwidth,
         })
@@ -337,6 +336,7 @@ mod tests {
             ("overshoot = 0.1", "", "unknown field `overshoot`"),
             ("speed_overshoot_fraction = 1.5", "requirements.speed_overshoot_fraction", "must lie in (0, 1]"),
             ("load_recovery_time_s = 0.0", "requirements.load_recovery_time_s", "positive number of seconds"),
+            ("speed_rise_time_s = 1e300", "requirements.speed_rise_time_s", "at most 600"),
             (
                 "current_bandwidth_hz = 10000.0",
                 "requirements.current_bandwidth_hz",

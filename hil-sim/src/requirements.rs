@@ -264,19 +264,24 @@ impl Measure {
     }
 }
 
-/// The worst (least margin) of `measures` for each requirement, in [`Requirement::ALL`]'s
-/// order.
-pub fn worst_each(measures: impl IntoIterator<Item = Measure>) -> Vec<Measure> {
-    let mut worst: Vec<Measure> = Vec::new();
-    for m in measures {
-        match worst.iter_mut().find(|w| w.requirement == m.requirement) {
-            Some(w) if m.margin().is_nan() || m.margin() < w.margin() => *w = m,
+/// The worst of `measures` for each requirement — the least margin, a NaN worst of all —
+/// each with its tag (a run index, or nothing), in [`Requirement::ALL`]'s order.
+pub fn worst_each_tagged<K>(measures: impl IntoIterator<Item = (K, Measure)>) -> Vec<(K, Measure)> {
+    let mut worst: Vec<(K, Measure)> = Vec::new();
+    for (k, m) in measures {
+        match worst.iter_mut().find(|(_, w)| w.requirement == m.requirement) {
+            Some(w) if m.margin().is_nan() || m.margin() < w.1.margin() => *w = (k, m),
             Some(_) => {}
-            None => worst.push(m),
+            None => worst.push((k, m)),
         }
     }
-    worst.sort_by_key(|m| m.requirement);
+    worst.sort_by_key(|(_, m)| m.requirement);
     worst
+}
+
+/// [`worst_each_tagged`] without tags.
+pub fn worst_each(measures: impl IntoIterator<Item = Measure>) -> Vec<Measure> {
+    worst_each_tagged(measures.into_iter().map(|m| ((), m))).into_iter().map(|(_, m)| m).collect()
 }
 
 #[cfg(test)]

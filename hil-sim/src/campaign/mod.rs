@@ -81,18 +81,9 @@ pub const CORNERS: u64 = 16;
 /// fewest `design certify --campaign` accepts (its summary's `corner_runs`).
 pub const CORNER_RUNS: u64 = CORNERS * Manoeuvre::ALL.len() as u64;
 
-/// The requirements a campaign run measures (the current loops' bandwidth is the linear
-/// certificate's: `design certify`).
-pub const CAMPAIGN_REQUIREMENTS: [Requirement; 8] = [
-    Requirement::SpeedError,
-    Requirement::SpeedOvershoot,
-    Requirement::SpeedRiseTime,
-    Requirement::SpeedSettlingTime,
-    Requirement::LoadDip,
-    Requirement::LoadRecoveryTime,
-    Requirement::TorqueAccuracy,
-    Requirement::FluxAccuracy,
-];
+/// The requirements a campaign run measures: all but the current loops' bandwidth, the
+/// linear certificate's (`design certify`; last in [`Requirement::ALL`]).
+pub const CAMPAIGN_REQUIREMENTS: &[Requirement] = Requirement::ALL.split_at(8).0;
 
 /// What run `k` is before it runs ([`Campaign::setup`]).
 struct Setup {
@@ -120,16 +111,9 @@ enum SecondEvent {
     SpeedRadS(f64),
 }
 
-/// The requirements [`Campaign::predict`] predicts: the speed's (the ideal actuator has no
-/// torque or flux error to predict).
-pub const PREDICTED: [Requirement; 6] = [
-    Requirement::SpeedError,
-    Requirement::SpeedOvershoot,
-    Requirement::SpeedRiseTime,
-    Requirement::SpeedSettlingTime,
-    Requirement::LoadDip,
-    Requirement::LoadRecoveryTime,
-];
+/// The requirements [`Campaign::predict`] predicts: the speed's, the campaign's first six
+/// (the ideal actuator has no torque or flux error to predict).
+pub const PREDICTED: &[Requirement] = CAMPAIGN_REQUIREMENTS.split_at(6).0;
 
 /// A speed step of a run, planned before it runs.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -300,7 +284,7 @@ impl Verdict {
         let mut h = String::from(
             "k,rs_factor,rr_factor,l_factor,j_factor,manoeuvre,omega_s_rad_s,tracking_error_rad_s,flux_ratio_min,flux_ratio_max,ripple_nm,mode,passed,failures",
         );
-        for r in CAMPAIGN_REQUIREMENTS {
+        for &r in CAMPAIGN_REQUIREMENTS {
             h.push_str(&format!(",{0},{0}_allowed", r.key()));
         }
         h
@@ -310,7 +294,7 @@ impl Verdict {
     pub fn csv(&self) -> String {
         let s = &self.sample;
         let mut measured = String::new();
-        for r in CAMPAIGN_REQUIREMENTS {
+        for &r in CAMPAIGN_REQUIREMENTS {
             match self.measures.iter().find(|m| m.requirement == r) {
                 Some(m) => measured.push_str(&format!(",{:.5},{:.5}", m.value, m.allowed)),
                 None => measured.push_str(",,"),
@@ -474,6 +458,16 @@ impl Campaign {
             .into_iter()
             .filter(|t| t.is_finite())
             .fold(0.5 * (self.duration_s - step_s), |h, t| h.max(WINDOW_MARGIN * t));
+        // A time derived from the physical least can be long where the motor barely
+        // accelerates: a run that would last longer than the longest a file may state is
+        // refused, not run for hours.
+        let most = WINDOW_MARGIN * drive_file::requirements::MAX_TIME_S;
+        if half > most {
+            return Err(format!(
+                "run {k}: its requirements' windows need {half:.0} s after the step, more than the {most} s the longest \
+                 stated time gives: state speed_rise_time_s / speed_settling_time_s / load_recovery_time_s in [requirements]"
+            ));
+        }
         let second_event = match manoeuvre {
             Manoeuvre::Motoring => SecondEvent::LoadNm(load(w, 1.0)),
             Manoeuvre::Reverse => SecondEvent::LoadNm(load(-w, -1.0)),
@@ -864,10 +858,7 @@ pub fn per_requirement(verdicts: &[Verdict]) -> Vec<RequirementStats> {
                 .iter()
                 .filter_map(|v| v.measures.iter().find(|m| m.requirement == r).map(|m| (v.k, *m)))
                 .collect();
-            let worst = of.iter().copied().reduce(|w, x| {
-                let (a, b) = (w.1.margin(), x.1.margin());
-                if b.is_nan() || (!a.is_nan() && b < a) { x } else { w }
-            });
+            let worst = judge::worst_each_tagged(of.iter().copied()).into_iter().next();
             RequirementStats {
                 requirement: r,
                 runs: of.len(),
@@ -1069,6 +1060,18 @@ mod tests {
         let idx: Vec<u64> = other.indices().take(3).collect();
         assert_eq!(idx, [1, 4, 7]);
         assert_ne!(Campaign { seed: 2, ..c }.sample(100), c.sample(100));
+    }
+
+    /// The campaign judges every requirement but the current bandwidth; the prediction the
+    /// speed's alone (the lists are cut from `Requirement::ALL` by position).
+    #[test]
+    fn the_requirement_lists_are_the_ones_meant() {
+        assert_eq!(CAMPAIGN_REQUIREMENTS.len() + 1, Requirement::ALL.len());
+        assert!(!CAMPAIGN_REQUIREMENTS.contains(&Requirement::CurrentBandwidth));
+        for r in [Requirement::TorqueAccuracy, Requirement::FluxAccuracy] {
+            assert!(CAMPAIGN_REQUIREMENTS.contains(&r) && !PREDICTED.contains(&r));
+        }
+        assert_eq!(PREDICTED.len(), 6);
     }
 
     /// A ramp has no ripple; a sine on it has its own peak to peak.
