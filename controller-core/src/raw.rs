@@ -11,7 +11,7 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 72;
+pub const FLOATS: usize = 74;
 /// Integers in a raw drive configuration.
 pub const INTEGERS: usize = 18;
 

@@ -291,9 +291,9 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
             "speed loop: saturated P kp {kp:.5} N·m·s/rad, τ_max {tau_max_nm:.3} N·m — crossover {:.1} rad/s",
             t.omega_s_rad_s
         ),
-        controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit } => report::outln!(
-            "speed loop: PI kp {kp:.5} N·m·s/rad, ki {ki:.5} N·m/rad, limit {limit:.3} N·m — seed 000's regions, \
-             bandwidth ≥ {:.1} rad/s on every inertia",
+        controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight } => report::outln!(
+            "speed loop: PI kp {kp:.5} N·m·s/rad, ki {ki:.5} N·m/rad, limit {limit:.3} N·m, setpoint weight \
+             {setpoint_weight} — seed 000's regions, bandwidth ≥ {:.1} rad/s on every inertia",
             design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify)
         ),
         controller_core::speed::SpeedLaw::PiIq { .. } => {}

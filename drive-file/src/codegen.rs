@@ -30,14 +30,12 @@ fn speed(s: &SpeedLaw) -> String {
                 "controller_core::speed::SpeedLaw::SaturatedP {{ kp: {kp:?}, tau_max_nm: {tau_max_nm:?} }}"
             )
         }
-        SpeedLaw::PiTorque { kp, ki, limit } => {
-            format!(
-                "controller_core::speed::SpeedLaw::PiTorque {{ kp: {kp:?}, ki: {ki:?}, limit: {limit:?} }}"
-            )
-        }
-        SpeedLaw::PiIq { kp, ki, limit } => {
-            format!("controller_core::speed::SpeedLaw::PiIq {{ kp: {kp:?}, ki: {ki:?}, limit: {limit:?} }}")
-        }
+        SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight: b } => format!(
+            "controller_core::speed::SpeedLaw::PiTorque {{ kp: {kp:?}, ki: {ki:?}, limit: {limit:?}, setpoint_weight: {b:?} }}"
+        ),
+        SpeedLaw::PiIq { kp, ki, limit, setpoint_weight: b } => format!(
+            "controller_core::speed::SpeedLaw::PiIq {{ kp: {kp:?}, ki: {ki:?}, limit: {limit:?}, setpoint_weight: {b:?} }}"
+        ),
     }
 }
 

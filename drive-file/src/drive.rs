@@ -177,6 +177,10 @@ pub enum SpeedTable {
         ki: f64,
         /// N·m.
         limit: f64,
+        /// The setpoint weight b in [0, 1] (`controller_core::speed`: the reference's
+        /// prefilter; default 1, the one-degree PI).
+        #[serde(default = "one")]
+        setpoint_weight: f64,
     },
     /// PI → i_q* (seed 000 PI2).
     PiIq {
@@ -186,7 +190,15 @@ pub enum SpeedTable {
         ki: f64,
         /// A.
         limit: f64,
+        /// As for `pi_torque`.
+        #[serde(default = "one")]
+        setpoint_weight: f64,
     },
+}
+
+/// The default setpoint weight: the one-degree PI.
+fn one() -> f64 {
+    1.0
 }
 
 /// `controller.position`.
@@ -908,9 +920,22 @@ pub fn drive_spec(
     finite(src, "controller.current.ki", current_law.ki_v_per_as)?;
     let speed_law = match c.speed {
         SpeedTable::SaturatedP { kp, tau_max_nm } => SpeedLaw::SaturatedP { kp, tau_max_nm },
-        SpeedTable::PiTorque { kp, ki, limit } => SpeedLaw::PiTorque { kp, ki, limit },
-        SpeedTable::PiIq { kp, ki, limit } => SpeedLaw::PiIq { kp, ki, limit },
+        SpeedTable::PiTorque { kp, ki, limit, setpoint_weight } => {
+            SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight }
+        }
+        SpeedTable::PiIq { kp, ki, limit, setpoint_weight } => {
+            SpeedLaw::PiIq { kp, ki, limit, setpoint_weight }
+        }
     };
+    if let SpeedTable::PiTorque { setpoint_weight: b, .. } | SpeedTable::PiIq { setpoint_weight: b, .. } =
+        c.speed
+    {
+        src.check(
+            b.is_finite() && (0.0..=1.0).contains(&b),
+            "controller.speed.setpoint_weight",
+            &format!("is {}; must be within [0, 1] (1: the one-degree PI)", num(b)),
+        )?;
+    }
     for (key, x) in [
         ("controller.flux_ref_wb", c.flux_ref_wb),
         ("controller.i_ref_max_a", c.i_ref_max_a),

@@ -272,6 +272,23 @@ mod tests {
             e.key.as_deref().is_some_and(|k| k.starts_with("controller.speed") || k.starts_with("certify")),
             "{e}"
         );
+        // A speed PI's setpoint weight outside [0, 1]; absent, the one-degree PI.
+        let pi = |b: &str| {
+            replace(
+                "speed = { kind = \"saturated_p\", kp = 0.05, tau_max_nm = 2.0 }",
+                &format!("speed = {{ kind = \"pi_torque\", kp = 0.05, ki = 0.5, limit = 2.0{b} }}"),
+            )
+        };
+        for b in [", setpoint_weight = 1.5", ", setpoint_weight = -0.1", ", setpoint_weight = nan"] {
+            let e = err(&pi(b));
+            assert_eq!(e.key.as_deref(), Some("controller.speed.setpoint_weight"), "{b}: {e}");
+            assert!(e.reason.contains("within [0, 1]"), "{e}");
+        }
+        let one = DriveFile::parse(Path::new("pi.toml"), &pi("")).unwrap();
+        assert!(matches!(
+            one.spec.speed_law,
+            controller_core::speed::SpeedLaw::PiTorque { setpoint_weight: 1.0, .. }
+        ));
         // A half-given ICAD law.
         let e = err(&replace("current = { kind = \"icad\" }", "current = { kind = \"icad\", kp = 300.0 }"));
         assert_eq!(e.key.as_deref(), Some("controller.current"), "{e}");

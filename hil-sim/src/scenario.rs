@@ -235,7 +235,7 @@ pub fn fig14_position() -> Result<Builtin, ScenarioError> {
     b.about =
         "seed 002 Fig. 14: position step 6.28 rad, 0.5 N·m load from 2.5 s, ICAD + speed PI + position P"
             .into();
-    b.spec.speed_law = SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0 };
+    b.spec.speed_law = SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0, setpoint_weight: 1.0 };
     b.spec.position = PositionLaw { k_per_s: 4.0, omega_max_rad_s: 50.0 };
     b.scenario.events = vec![
         (0.0, Event::Enable),

@@ -65,6 +65,10 @@ struct RunArgs {
     /// Skip the fault matrix.
     #[arg(long)]
     no_matrix: bool,
+    /// The speed law `design tune` is asked for: `auto` (the one the template's
+    /// [requirements] choose, or a refusal naming them), `p` or `pi`.
+    #[arg(long, default_value = "auto")]
+    speed: design::tune::SpeedDesign,
     /// Output directory.
     #[arg(long, default_value = "out/population")]
     out: PathBuf,
@@ -174,7 +178,8 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         if a.pwm.is_empty() { vec![None] } else { a.pwm.iter().map(|f| Some(*f)).collect() };
     let jobs: Vec<(&Member, Option<f64>)> =
         all.iter().flat_map(|m| rates.iter().map(move |r| (m, *r))).collect();
-    let plan = Plan { campaign_runs: a.campaign_runs, seed: a.select.seed, matrix: !a.no_matrix };
+    let plan =
+        Plan { campaign_runs: a.campaign_runs, seed: a.select.seed, matrix: !a.no_matrix, speed: a.speed };
     report::write::check_dir(&a.out)?;
     eprintln!(
         "population: {} member(s) × {} rate(s) = {} drive(s): tune, campaign of {} runs{}",
@@ -224,6 +229,7 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         "pwm_hz": a.pwm,
         "campaign_runs": a.campaign_runs,
         "matrix": !a.no_matrix,
+        "speed": format!("{:?}", a.speed),
         "elapsed_s": elapsed,
         "counts": { "pass": pass, "refuse": refuse, "fail": fail, "error": error },
         "families": families,

@@ -82,6 +82,8 @@ pub struct Plan {
     pub seed: u64,
     /// Run the fault matrix.
     pub matrix: bool,
+    /// The speed law `design tune` is asked for (`auto`: the one the requirements choose).
+    pub speed: SpeedDesign,
 }
 
 /// The template text and its path (for errors), the motor and the bus of `member` at
@@ -191,7 +193,9 @@ fn judge(
     if let Ok(f) = DriveFile::parse(path, &text) {
         report.pwm_hz = f.spec.pwm_frequency_hz;
     }
-    let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
+    // By default the speed law the requirements choose (issue 51): the saturated P where it
+    // meets them, else the PI with its setpoint weight, else a refusal naming the requirement.
+    let structure = Structure { current: CurrentDesign::Pi, speed: plan.speed };
     let tuned = match design::tune::tune(path, &text, &member.motor, None, structure) {
         Ok(t) => t,
         Err(reason) => return Ok(Verdict::Refuse { reason }),
@@ -358,7 +362,7 @@ mod tests {
     fn tune_takes_the_faster_frame_and_the_healthy_drive_does_not_trip() {
         let m = draw(1, 21, None).unwrap();
         assert!(m.name.starts_with("021-116W-34V-8p"), "{}", m.name);
-        let plan = Plan { campaign_runs: 64, seed: 1, matrix: false };
+        let plan = Plan { campaign_runs: 64, seed: 1, matrix: false, speed: SpeedDesign::SaturatedP };
         let r =
             evaluate(&m, Some(4000.0), Path::new(env!("CARGO_MANIFEST_DIR")), &plan, &AtomicBool::new(false));
         let omega_c = r.omega_c_rad_s.unwrap_or_else(|| panic!("{:?}", r.verdict));

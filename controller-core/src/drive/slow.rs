@@ -101,11 +101,15 @@ impl Drive {
                 Reference::RotatingCurrent { .. } => 0.0,
                 Reference::Speed(w) => {
                     self.omega_ref_rad_s = w;
-                    self.speed_torque(w, m.omega_m_rad_s, limit)
+                    // The user's reference through the speed law's setpoint-weight prefilter.
+                    let w_f = self.cfg.speed.reference(&mut self.run.speed, w);
+                    self.speed_torque(w_f, m.omega_m_rad_s, limit)
                 }
                 Reference::Position(th) => {
                     let w = self.cfg.position.update(th, self.position_rad());
                     self.omega_ref_rad_s = w;
+                    // The position loop's, unfiltered: its design ends at the speed loop.
+                    let w = self.cfg.speed.pass_reference(&mut self.run.speed, w);
                     self.speed_torque(w, m.omega_m_rad_s, limit)
                 }
             }
@@ -273,7 +277,7 @@ impl Drive {
         (target, target + self.run.v_cut_v)
     }
 
-    /// The speed loop's torque for speed reference `w_ref` at speed `w`, its output limited
+    /// The speed loop's torque for speed reference `w_ref` (shaped: `SpeedControllerConfig::reference`) at speed `w`, its output limited
     /// to the envelope's torque `limit` (so that a PI speed law does not wind up against a
     /// torque the bus cannot give). An i_q-output law (seed 000 PI2) is converted to torque
     /// with the flux estimate.

@@ -201,7 +201,8 @@ fn raw_configuration_round_trips() {
     for frame in [CurrentFrame::Stationary, CurrentFrame::Synchronous] {
         for speed_law in [
             SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 2.0 },
-            SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0 },
+            SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0, setpoint_weight: 1.0 },
+            SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0, setpoint_weight: 0.25 },
             SpeedLaw::pi2_seed000(3.0),
         ] {
             for current_law in [CurrentLaw::ICAD_EQ20, CurrentLaw::PI_SEED002] {
@@ -215,6 +216,15 @@ fn raw_configuration_round_trips() {
                 assert_eq!(DriveConfig::from_raw(&raw), Ok(cfg));
             }
         }
+    }
+    // The speed PI's setpoint weight outside [0, 1], or its lag's α outside (0, 1].
+    let law = SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0, setpoint_weight: 0.25 };
+    let pi = DriveConfig::new(&DriveSpec { speed_law: law, ..test_spec() }).unwrap().to_raw();
+    let weight = pi.f.iter().position(|&x| x == 0.25).unwrap();
+    for (b, alpha) in [(1.5, pi.f[weight + 1]), (-0.25, pi.f[weight + 1]), (0.25, 0.0), (0.25, 1.5)] {
+        let mut bad = pi;
+        (bad.f[weight], bad.f[weight + 1]) = (b, alpha);
+        assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "b {b}, α {alpha}");
     }
     let cfg = DriveConfig::new(&test_spec()).unwrap();
     let raw = cfg.to_raw();

@@ -123,13 +123,13 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
         CurrentFrame::Stationary => 0,
         CurrentFrame::Synchronous => 1,
     })?;
-    let (t, a, b, c) = match s.speed_law {
-        SpeedLaw::PiTorque { kp, ki, limit } => (0, kp, ki, limit),
-        SpeedLaw::PiIq { kp, ki, limit } => (1, kp, ki, limit),
-        SpeedLaw::SaturatedP { kp, tau_max_nm } => (2, kp, tau_max_nm, 0.0),
+    let (t, a, b, c, d) = match s.speed_law {
+        SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight } => (0, kp, ki, limit, setpoint_weight),
+        SpeedLaw::PiIq { kp, ki, limit, setpoint_weight } => (1, kp, ki, limit, setpoint_weight),
+        SpeedLaw::SaturatedP { kp, tau_max_nm } => (2, kp, tau_max_nm, 0.0, 1.0),
     };
     w.u8(t)?;
-    for v in [a, b, c, s.position.k_per_s, s.position.omega_max_rad_s] {
+    for v in [a, b, c, d, s.position.k_per_s, s.position.omega_max_rad_s] {
         w.f64(v)?;
     }
     for v in [
@@ -199,10 +199,10 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         _ => return Err(DecodeError::Value),
     };
     let t = r.u8()?;
-    let (a, b2, c) = (r.f64()?, r.f64()?, r.f64()?);
+    let (a, b2, c, d) = (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
     let speed_law = match t {
-        0 => SpeedLaw::PiTorque { kp: a, ki: b2, limit: c },
-        1 => SpeedLaw::PiIq { kp: a, ki: b2, limit: c },
+        0 => SpeedLaw::PiTorque { kp: a, ki: b2, limit: c, setpoint_weight: d },
+        1 => SpeedLaw::PiIq { kp: a, ki: b2, limit: c, setpoint_weight: d },
         2 => SpeedLaw::SaturatedP { kp: a, tau_max_nm: b2 },
         _ => return Err(DecodeError::Value),
     };
