@@ -378,7 +378,7 @@ mod tests {
     fn a_huge_speed_gain_is_refused_by_the_sampled_certificate_alone() {
         for (hi, refused) in [("1e9", true), ("50.0", true), ("4.0", true), ("3.0", false)] {
             let text = GAINS
-                .replace("speed_kp_writable = [0.02, 0.1]", &format!("speed_kp_writable = [0.02, {hi}]"));
+                .replace("speed_kp_writable = [0.04, 0.1]", &format!("speed_kp_writable = [0.04, {hi}]"));
             let bad = failed(&text);
             assert_eq!(!bad.is_empty(), refused, "kp up to {hi}: {bad:?}");
             // The speed check, and the position cascade closed around that speed loop.
@@ -418,6 +418,54 @@ mod tests {
         let fast = sync.replace("kp = 360.0", "kp = 5000.0");
         assert!(failed(&fast).iter().any(|ch| ch.name.starts_with("sampled current: worst")));
     }
+}
+
+/// Points of the certificate page's torque–speed panel, each direction.
+pub const PAGE_ENVELOPE_POINTS: usize = 10;
+
+/// The certificate's one-page summary (`design certify --out F` writes it beside F, as
+/// `.svg`): the campaign's first speed step over the box against the requirements
+/// (`band`, from the campaign's summary: [`hil_sim::campaign::StepBand`]) above the
+/// torque–speed envelope the drive reaches in SIL on bus `vdc_v`, motoring and generating,
+/// from 0.2 to 2 × the no-load base speed ([`hil_sim::envelope::measure`]), against the
+/// motor's physical limit there (computed from the motor alone, the bus and the current
+/// limit: `hil_sim::envelope::physical_limit_nm`) and τ_max.
+pub fn summary_page(
+    spec: &DriveSpec,
+    band: Option<&hil_sim::campaign::StepBand>,
+    vdc_v: f64,
+) -> Result<String, String> {
+    use report::plot::{Series, line_plot, stack};
+    let base = hil_sim::envelope::drive_base_speed_rad_s(spec, vdc_v);
+    if base.is_nan() || base <= 0.0 {
+        return Err(format!("the rated flux needs more than the {vdc_v} V bus has: no envelope to draw"));
+    }
+    let n = (PAGE_ENVELOPE_POINTS - 1) as f64;
+    let speeds: Vec<f64> = (0..PAGE_ENVELOPE_POINTS).map(|k| base * (0.2 + 1.8 * k as f64 / n)).collect();
+    let motoring = hil_sim::envelope::measure(spec, &spec.motor, vdc_v, &speeds, 1.0)?;
+    let generating = hil_sim::envelope::measure(spec, &spec.motor, vdc_v, &speeds, -1.0)?;
+    let of = |p: &[hil_sim::envelope::Point], f: fn(&hil_sim::envelope::Point) -> f64| {
+        p.iter().map(|x| (x.omega_m_rad_s, f(x).abs())).collect::<Vec<_>>()
+    };
+    let tau_max = hil_sim::campaign::torque_limit_nm(spec);
+    let top = speeds.last().copied().unwrap_or(base);
+    let envelope = line_plot(
+        &format!(
+            "Torque–speed envelope on {vdc_v:.0} V: the drive in SIL against the motor's physical limit"
+        ),
+        "mechanical rad/s (y: |torque|, N·m)",
+        &[
+            Series::markers("motoring, SIL", of(&motoring, |p| p.measured_nm)),
+            Series::markers("generating, SIL", of(&generating, |p| p.measured_nm)),
+            Series::line("physical limit, motoring", of(&motoring, |p| p.physical_nm)),
+            Series::line("physical limit, generating", of(&generating, |p| p.physical_nm)),
+            Series::line("τ_max", vec![(speeds.first().copied().unwrap_or(0.0), tau_max), (top, tau_max)]),
+        ],
+    );
+    Ok(match band {
+        Some(b) => stack(&[b.plot(), envelope]),
+        None => envelope,
+    })
 }
 
 /// The pictures an engineer checks before flashing (issue 21), as `(file name, SVG)`: on

@@ -97,7 +97,9 @@ struct CertifyArgs {
     #[arg(long)]
     campaign: Option<std::path::PathBuf>,
     /// Write the certificate (JSON: the file's fingerprint, every linear check, the
-    /// campaign's figures, the verdict) here.
+    /// requirements with their worst corners and margins, the campaign's figures, the
+    /// verdict) here, and its one-page summary beside it (`.svg`: the speed step over the box
+    /// against the requirements, the torque–speed envelope against the physical limit).
     #[arg(long)]
     out: Option<std::path::PathBuf>,
 }
@@ -110,6 +112,10 @@ struct Nonlinear {
     runs: u64,
     /// What the certificate keeps of the summary.
     record: serde_json::Value,
+    /// The first speed step over the box (absent from an older hil-sim's summary).
+    step_band: Option<hil_sim::campaign::StepBand>,
+    /// The campaign's bus, V.
+    vdc_v: Option<f64>,
 }
 
 fn campaign_result(
@@ -187,7 +193,9 @@ fn campaign_result(
     }
     record.insert("summary".into(), shown.to_string().into());
     record.insert("passed_all".into(), ok.into());
-    Ok(Nonlinear { ok, passed, runs, record: Value::Object(record) })
+    let step_band = serde_json::from_value(at("/step_band")).ok();
+    let vdc_v = at("/vdc_v").as_f64();
+    Ok(Nonlinear { ok, passed, runs, record: Value::Object(record), step_band, vdc_v })
 }
 
 /// `design tune --motor M --out F [--template drive.toml]` (design::tune).
@@ -429,18 +437,38 @@ fn icad(a: &IcadArgs) -> Result<bool, String> {
 
 fn certify(a: &CertifyArgs) -> Result<bool, String> {
     let (path, json) = (a.drive.clone(), a.json);
+    // The page goes beside the JSON, as `.svg`: an --out of that name would be overwritten.
+    if let Some(out) = a.out.as_ref().filter(|o| o.extension().is_some_and(|e| e == "svg")) {
+        return Err(format!(
+            "--out {}: the certificate is JSON, and its page is written beside it as .svg — name it .json",
+            out.display()
+        ));
+    }
     a.plot_dir.as_deref().map(report::write::check_dir).transpose()?;
     let drive_text = drive_file::source::read(std::path::Path::new(&path)).map_err(|e| e.to_string())?;
     let (spec, c) = design::certify::parse(std::path::Path::new(&path), &drive_text)?;
     let checks = design::certify::certify(&spec, &c)?;
     // The user's current-bandwidth requirement, on every corner (the sampled loops').
-    let requirements = drive_file::DriveFile::parse(std::path::Path::new(&path), &drive_text)
-        .map_err(|e| e.to_string())?
-        .requirements;
+    let file =
+        drive_file::DriveFile::parse(std::path::Path::new(&path), &drive_text).map_err(|e| e.to_string())?;
+    let requirements = file.requirements;
     let (bw_rad_s, bw_corner) = design::certify::current_bandwidth_rad_s(&spec, &c)?;
     let bw_hz = bw_rad_s / std::f64::consts::TAU;
     let bw_ok = bw_hz >= requirements.current_bandwidth_hz;
-    let linear_ok = checks.iter().all(|c| c.pass) && bw_ok;
+    // The link's writable speed gains: the requirements at each corner of their ranges
+    // (predicted on the ideal actuator, as `design tune` chooses the law).
+    let writable = design::tune::writable_gain_misses(&spec, &c, &file)?;
+    let writable_ok = writable.is_empty();
+    let writable_json: Vec<_> = writable
+        .iter()
+        .flat_map(|([kp, tau], misses)| {
+            misses.iter().map(move |(k, m)| {
+                serde_json::json!({"kp": kp, "tau_max_nm": tau, "requirement": m.requirement.to_string(),
+                    "worst_run": k, "value": m.value, "allowed": m.allowed})
+            })
+        })
+        .collect();
+    let linear_ok = checks.iter().all(|c| c.pass) && bw_ok && writable_ok;
     let nonlinear = a.campaign.as_deref().map(|p| campaign_result(p, &drive_text, &c)).transpose()?;
     let ok = linear_ok && nonlinear.as_ref().is_none_or(|n| n.ok);
     if let Some(out) = &a.out {
@@ -453,12 +481,25 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             "fingerprint": drive_file::source::fingerprint(&drive_text),
             "certified": ok,
             "linear": {"certified": linear_ok, "checks": v},
-            "requirements": {"current_bandwidth_hz": {"least": bw_hz, "corner": bw_corner, "allowed_least": requirements.current_bandwidth_hz, "met": bw_ok}},
+            "requirements": {
+                "current_bandwidth_hz": {"least": bw_hz, "corner": bw_corner, "allowed_least": requirements.current_bandwidth_hz, "met": bw_ok},
+                "writable_speed_gains": {"kp": c.speed_kp_writable, "tau_max_nm": c.speed_tau_max_nm_writable, "met": writable_ok, "missed": writable_json},
+            },
             "nonlinear": nonlinear.as_ref().map(|n| n.record.clone()),
         });
         let text = serde_json::to_string_pretty(&cert).map_err(|e| e.to_string())?;
         cli::write_atomic(out, &format!("{text}\n"))?;
         eprintln!("design: wrote the certificate to {}", out.display());
+        // Its page: the step response over the box against the requirements, the
+        // torque–speed envelope against the physical limit.
+        let vdc = nonlinear
+            .as_ref()
+            .and_then(|n| n.vdc_v)
+            .unwrap_or_else(|| hil_sim::commands::default_bus_v(&file));
+        let band = nonlinear.as_ref().and_then(|n| n.step_band.as_ref());
+        let page = out.with_extension("svg");
+        cli::write_atomic(&page, &design::certify::summary_page(&spec, band, vdc)?)?;
+        eprintln!("design: wrote the certificate's page to {}", page.display());
     }
     if let Some(n) = &nonlinear {
         report::outln!(
@@ -502,6 +543,15 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             bw_hz,
             requirements.current_bandwidth_hz
         );
+        if matches!(spec.speed_law, controller_core::speed::SpeedLaw::SaturatedP { .. }) {
+            report::outln!(
+                "{:<5} {:<56} {:<22} {:>10}  of 4",
+                if writable_ok { "ok" } else { "FAIL" },
+                "requirements over the writable speed gains (predicted)",
+                "k_p × τ_max corners",
+                4 - writable.len(),
+            );
+        }
         report::outln!("{path}: {}", if ok { "certified" } else { "NOT certified" });
     }
     if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
@@ -527,6 +577,18 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
         eprintln!(
             "design certify: {path}: requirements.current_bandwidth_hz missed: the current loops cross over at {bw_hz:.1} Hz at {bw_corner}, the file asks {} Hz",
             requirements.current_bandwidth_hz
+        );
+    }
+    for ([kp, tau], misses) in &writable {
+        let what: Vec<String> = misses
+            .iter()
+            .map(|(k, m)| {
+                format!("{} (worst run {k}: {:.4} against {:.4})", m.requirement, m.value, m.allowed)
+            })
+            .collect();
+        eprintln!(
+            "design certify: {path}: at the writable k_p {kp}, τ_max {tau} N·m the speed law is predicted to miss {} — narrow certify.speed_kp_writable / speed_tau_max_nm_writable",
+            what.join(", ")
         );
     }
     if !ok {

@@ -788,6 +788,37 @@ fn least_writable_kp(
     Ok(hi)
 }
 
+/// Requirements missed, each with its worst run ([`predicted_misses`]).
+pub type Misses = Vec<(u64, hil_sim::requirements::Measure)>;
+
+/// The corners of the link's writable speed gains (`certify.speed_kp_writable` ×
+/// `certify.speed_tau_max_nm_writable`, a saturated-P law's: the link rewrites no other) at
+/// which the law's predicted response misses the file's requirements over the box
+/// ([`predicted_misses`], on the bus the tune predicts on): each corner's `(k_p, τ_max)` with
+/// what it misses. Empty: any gains the link accepts still meet them (predicted; the droop
+/// τ_L/k_p grows as k_p falls, and is largest at the largest τ_max, whose load is 0.8 × it).
+pub fn writable_gain_misses(
+    spec: &DriveSpec,
+    cert: &CertifySpec,
+    file: &drive_file::DriveFile,
+) -> Result<Vec<([f64; 2], Misses)>, String> {
+    if !matches!(spec.speed_law, SpeedLaw::SaturatedP { .. }) {
+        return Ok(Vec::new());
+    }
+    let vdc = prediction_bus_v(file);
+    let mut missed = Vec::new();
+    for kp in cert.speed_kp_writable {
+        for tau_max_nm in cert.speed_tau_max_nm_writable {
+            let at = DriveSpec { speed_law: SpeedLaw::SaturatedP { kp, tau_max_nm }, ..*spec };
+            let misses = predicted_misses(&at, cert, file, vdc)?;
+            if !misses.is_empty() {
+                missed.push(([kp, tau_max_nm], misses));
+            }
+        }
+    }
+    Ok(missed)
+}
+
 /// The ICAD gain (V/A) of [`icad_law`] at `omega_h` with the largest [`robustness`] of the
 /// current checks over the box: a geometric grid from `kp_range[1]` down (ratio
 /// [`ICAD_GRID_RATIO`]), then a golden-section search between the best point's neighbours.
@@ -1372,6 +1403,29 @@ mod tests {
             tune(Path::new("krause.toml"), include_str!("../../drives/krause-3300v.toml"), &k, None, auto)
                 .unwrap_err();
         assert!(e.contains("PI (setpoint weight 1) misses requirements.speed_error_fraction"), "{e}");
+    }
+
+    /// Issue 51, deliverable 3: the link's writable gains are the ranges over which the
+    /// requirements hold. drive.toml's, k_p × [0.04, 0.1], meet them at every corner
+    /// (predicted); widened down to 0.02, the corners there miss the load step's dip (0.38 of
+    /// base speed against the 0.25 asked) — `design certify` refuses it, naming them.
+    #[test]
+    fn the_writable_speed_gains_keep_the_requirements() {
+        use drive_file::requirements::Requirement;
+        let shipped = drive_file::DriveFile::shipped().unwrap();
+        let cert = shipped.certify.unwrap();
+        assert_eq!(cert.speed_kp_writable, [0.04, 0.1]);
+        assert!(writable_gain_misses(&shipped.spec, &cert, &shipped).unwrap().is_empty());
+        let wide = CertifySpec { speed_kp_writable: [0.02, 0.1], ..cert };
+        let missed = writable_gain_misses(&shipped.spec, &wide, &shipped).unwrap();
+        assert!(!missed.is_empty() && missed.iter().all(|([kp, _], _)| *kp == 0.02), "{missed:?}");
+        let dip = missed
+            .iter()
+            .flat_map(|(_, m)| m)
+            .find(|(_, m)| m.requirement == Requirement::LoadDip)
+            .map(|(_, m)| (m.value, m.allowed));
+        let (value, allowed) = dip.expect("the load dip is missed at k_p 0.02");
+        assert!((value - 0.384).abs() < 0.01 && (allowed - 0.252).abs() < 0.001, "{value} against {allowed}");
     }
 
     /// The walk-through's motor on its 24 V template (docs/walkthrough.md).

@@ -437,6 +437,18 @@ fn certificate_records_linear_and_nonlinear_results() {
     // (562.4 Hz) against the 500 Hz drive.toml asks.
     let bw = &c["requirements"]["current_bandwidth_hz"];
     assert!(bw["met"] == true && (bw["least"].as_f64().unwrap() - 562.4).abs() < 0.5, "{bw}");
+    // The writable speed gains keep the requirements (predicted at each corner).
+    let writable = &c["requirements"]["writable_speed_gains"];
+    assert!(writable["met"] == true && writable["kp"] == serde_json::json!([0.04, 0.1]), "{writable}");
+    // The page beside it: the torque–speed envelope against the physical limit (this
+    // summary, written by hand, has no step band).
+    let page = std::fs::read_to_string(dir.join("certificate.svg")).unwrap();
+    assert!(page.contains("Torque–speed envelope on 310 V") && page.contains("physical limit, generating"));
+    assert!(!page.contains("The first speed step"));
+    // An --out named .svg would be overwritten by the page: refused before anything runs.
+    let (code, _, err) = run(&["certify", drive, "--out", dir.join("c.svg").to_str().unwrap()]);
+    assert_eq!(code, Some(2), "an input error");
+    assert!(err.contains("name it .json") && !dir.join("c.svg").exists(), "{err}");
     let slow = temp_file(
         "fast.toml",
         &text.replace("current_bandwidth_hz = 500.0", "current_bandwidth_hz = 1000.0"),
@@ -571,21 +583,30 @@ fn tune_lowers_a_position_gain_the_certificate_refuses() {
         let significant = token.trim_start_matches(['0', '.']).chars().filter(char::is_ascii_digit).count();
         assert!(significant <= 6, "{token} in {boxed}");
     }
-    let (code, _, err) = run(&["certify", out.to_str().unwrap()]);
-    assert_eq!(code, Some(0), "{err}");
+    // Every linear check passes, the sampled position check among them; the P law forced on
+    // this motor misses the default requirements (tune said so), at the writable gains too.
+    let (code, stdout, err) = run(&["certify", out.to_str().unwrap()]);
+    assert_eq!(code, Some(1), "{err}");
+    let failed: Vec<_> = stdout.lines().filter(|l| l.starts_with("FAIL")).collect();
+    assert_eq!(failed.len(), 1, "{stdout}");
+    assert!(failed[0].contains("requirements over the writable speed gains"), "{stdout}");
+    assert!(err.contains("the speed law is predicted to miss requirements.speed_error_fraction"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Issue 51's acceptance, end to end: drive.toml with the speed gain at 0.02 (inside its
-/// writable range) — its campaign (`hil_sim::campaign`, the summary `hil-sim campaign`
-/// writes) misses the load-step requirement the file states, and `design certify
-/// --campaign` refuses it, naming that requirement with its worst run.
+/// Issue 51's acceptance, end to end: drive.toml with the speed gain at 0.02 (its writable
+/// range widened to hold it) — the linear certificate's prediction over the writable gains
+/// and its campaign (`hil_sim::campaign`, the summary `hil-sim campaign` writes) both miss the
+/// load-step requirement the file states, and `design certify --campaign` refuses it, naming
+/// that requirement with its worst run.
 #[test]
 fn a_campaign_that_misses_a_requirement_is_refused_naming_it() {
     use hil_sim::campaign::Campaign;
     let dir = std::env::temp_dir().join(format!("design-req-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let text = drive_file::SHIPPED.replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0");
+    let text = drive_file::SHIPPED
+        .replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0")
+        .replace("speed_kp_writable = [0.04, 0.1]", "speed_kp_writable = [0.02, 0.1]");
     let drive = dir.join("kp002.toml");
     std::fs::write(&drive, &text).unwrap();
     let f = drive_file::DriveFile::parse(&drive, &text).unwrap();
@@ -607,9 +628,35 @@ fn a_campaign_that_misses_a_requirement_is_refused_naming_it() {
         serde_json::json!({"file": "kp002.toml", "fingerprint": drive_file::source::fingerprint(&text)});
     let p = dir.join("summary.json");
     std::fs::write(&p, summary.to_string()).unwrap();
-    let (code, _, err) = run(&["certify", drive.to_str().unwrap(), "--campaign", p.to_str().unwrap()]);
+    let cert = dir.join("cert.json");
+    let (code, _, err) = run(&[
+        "certify",
+        drive.to_str().unwrap(),
+        "--campaign",
+        p.to_str().unwrap(),
+        "--out",
+        cert.to_str().unwrap(),
+    ]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("requirements.load_dip_fraction missed in 48 of 48 runs (worst: run"), "{err}");
+    // The certificate names each requirement's worst corner; its page draws the speed step
+    // over the box against the requirements above the torque–speed envelope.
+    let c: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&cert).unwrap()).unwrap();
+    let dip = c["nonlinear"]["requirements"]
+        .as_array()
+        .and_then(|r| r.iter().find(|r| r["requirement"] == "requirements.load_dip_fraction"))
+        .cloned()
+        .unwrap();
+    assert!(
+        dip["worst_corner"]["j_factor"].as_f64().is_some() && dip["margin"].as_f64().unwrap() < 1.0,
+        "{dip}"
+    );
+    let page = std::fs::read_to_string(dir.join("cert.svg")).unwrap();
+    assert!(page.contains("The first speed step of 64 runs") && page.contains("Torque–speed envelope"));
+    let writable = err
+        .lines()
+        .find(|l| l.contains("at the writable k_p 0.02, τ_max 2 N·m the speed law is predicted to miss"));
+    assert!(writable.is_some_and(|l| l.contains("requirements.load_dip_fraction (worst run")), "{err}");
     assert_eq!(
         summary["requirements_missed"]
             .as_array()

@@ -207,7 +207,7 @@ mod tests {
             "{e}"
         );
         // Configured gain outside the writable range.
-        let e = err(&replace("speed_kp_writable = [0.02, 0.1]", "speed_kp_writable = [0.06, 0.1]"));
+        let e = err(&replace("speed_kp_writable = [0.04, 0.1]", "speed_kp_writable = [0.06, 0.1]"));
         assert_eq!(e.key.as_deref(), Some("certify.speed_kp_writable"), "{e}");
         // No dead time (every edge a shoot-through), or more than TIM1's dead-time generator
         // gives: refused at the key. A dead time between ticks rounds up, never down.

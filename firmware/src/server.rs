@@ -396,7 +396,7 @@ mod tests {
         assert_eq!(read(&mut c), Reply::SpeedGains { kp: 0.05, tau_max_nm: 2.0 });
         let (kp_lo, kp_hi) = certified::SPEED_KP;
         let (tau_lo, tau_hi) = certified::SPEED_TAU_MAX_NM;
-        assert!((kp_lo, kp_hi, tau_lo, tau_hi) == (0.02, 0.1, 0.1, 2.0), "drive.toml ranges");
+        assert!((kp_lo, kp_hi, tau_lo, tau_hi) == (0.04, 0.1, 0.1, 2.0), "drive.toml ranges");
         let write = |c: &mut ControlLoop, kp: f32, tau: f32| {
             handle(c, &BoardCommand::WriteSpeedGains { kp, tau_max_nm: tau }, &s)
         };

@@ -212,7 +212,8 @@ fn the_campaign_runs_on_a_saturating_plant_when_asked() {
 
 /// Issue 51's acceptance: the shipped drive meets the requirements its file states (the
 /// campaign over the box, every corner through every manoeuvre), and the same file with the
-/// speed gain at 0.02 — inside the link's writable range — is refused, naming the load-step
+/// speed gain at 0.02 — below the link's writable range, which starts at 0.04 for this reason
+/// (`design certify`'s prediction over the writable gains) — is refused, naming the load-step
 /// requirement. A saturated P droops τ_L/k_p under a load τ_L: the campaign's load step is
 /// 0.8·τ_max = 1.6 N·m, so the dip is 1.6/0.02 = 80 rad/s, 0.41 of the 196 rad/s base speed,
 /// against the 0.25 the file allows (the rotor reverses under a 45 rad/s reference). Each
@@ -226,7 +227,9 @@ fn the_shipped_requirements_hold_and_the_least_writable_gain_misses_the_load_ste
     let ok = run(&shipped(64));
     let missed: Vec<String> = ok.iter().filter(|v| !v.passed()).map(Verdict::csv).collect();
     assert!(missed.is_empty(), "{missed:#?}");
-    let text = drive_file::SHIPPED.replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0");
+    let text = drive_file::SHIPPED
+        .replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0")
+        .replace("speed_kp_writable = [0.04, 0.1]", "speed_kp_writable = [0.02, 0.1]");
     let f = drive_file::DriveFile::parse(std::path::Path::new("kp002.toml"), &text).unwrap();
     let c = Campaign { spec: f.spec, ..shipped(64) };
     let base = c.scales().base_speed_rad_s;
@@ -252,7 +255,9 @@ fn the_shipped_requirements_hold_and_the_least_writable_gain_misses_the_load_ste
 #[test]
 fn the_prediction_agrees_with_the_campaign_on_the_speed_requirements() {
     let c = shipped(64);
-    let text = drive_file::SHIPPED.replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0");
+    let text = drive_file::SHIPPED
+        .replace("kp = 0.05, tau_max_nm = 2.0", "kp = 0.02, tau_max_nm = 2.0")
+        .replace("speed_kp_writable = [0.04, 0.1]", "speed_kp_writable = [0.02, 0.1]");
     let f = drive_file::DriveFile::parse(std::path::Path::new("kp002.toml"), &text).unwrap();
     let low = Campaign { spec: f.spec, ..shipped(64) };
     for c in [c, low] {

@@ -904,6 +904,10 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
                 "worst_value": r.worst.map(|(_, m)| m.value).filter(|x| x.is_finite()),
                 "allowed": r.worst.map(|(_, m)| m.allowed).filter(|x| x.is_finite()),
                 "margin": r.worst.map(|(_, m)| m.margin()).filter(|x| x.is_finite()),
+                "worst_corner": r.worst.map(|(k, _)| {
+                    let s = c.sample(k);
+                    serde_json::json!({"rs_factor": s.rs, "rr_factor": s.rr, "inductance_factor": s.l, "j_factor": s.j})
+                }),
             })
         })
         .collect();
@@ -937,6 +941,7 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
             "ripple_nm": RIPPLE_FRACTION * torque_limit_nm(&c.spec),
         },
         "per_manoeuvre": per,
+        "step_band": StepBand::of(c, verdicts),
         "elapsed_s": elapsed_s,
         "ns_per_period": ns_per_period(c, verdicts, elapsed_s),
     })
@@ -945,60 +950,110 @@ pub fn summary(c: &Campaign, verdicts: &[Verdict], elapsed_s: f64) -> serde_json
 /// Points a run keeps of its first step's response ([`Verdict::step_response`]).
 pub const STEP_RESPONSE_POINTS: usize = 200;
 
-/// The requirements' picture (`requirements.svg`): the band of every run's first speed
-/// step — the least and the most of the step covered at each time, over the box — against
-/// what the requirements allow: the overshoot ceiling, the settling band about the target,
-/// and the least rise and settling times any run was allowed (vertical lines).
-pub fn requirements_plot(c: &Campaign, verdicts: &[Verdict]) -> String {
-    use report::plot::{Series, line_plot};
-    let req = &c.requirements;
-    let end = verdicts.iter().filter_map(|v| v.step_response.last().map(|p| p.0)).fold(0.0, f64::max);
-    let n = STEP_RESPONSE_POINTS;
-    let at = |v: &Verdict, t: f64| {
-        let r = &v.step_response;
-        let k = r.iter().position(|p| p.0 >= t)?;
-        let (b, a) = (r.get(k)?, if k == 0 { r.get(k)? } else { r.get(k - 1)? });
-        let f = if b.0 > a.0 { (t - a.0) / (b.0 - a.0) } else { 0.0 };
-        Some(a.1 + f * (b.1 - a.1))
-    };
-    let (mut lo, mut hi) = (Vec::new(), Vec::new());
-    for i in 0..=n {
-        let t = end * i as f64 / n as f64;
-        let ys: Vec<f64> = verdicts.iter().filter_map(|v| at(v, t)).filter(|y| y.is_finite()).collect();
-        if let (Some(a), Some(b)) = (ys.iter().copied().reduce(f64::min), ys.iter().copied().reduce(f64::max))
-        {
-            lo.push((t, a));
-            hi.push((t, b));
+/// The band of every run's first speed step over the box — the least and the most of the
+/// step covered at each time after it — and what the requirements allow: the overshoot
+/// ceiling, the settling band about the target, the least rise and settling times any run
+/// was allowed. Kept in the campaign's summary (`step_band`), from which `design certify`
+/// draws the certificate's page.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StepBand {
+    /// The campaign's speed step, rad/s.
+    pub step_rad_s: f64,
+    /// Runs in the band.
+    pub runs: usize,
+    /// Times after the step, s.
+    pub t_s: Vec<f64>,
+    /// The least of the step covered at each time, over the runs (fraction of the step).
+    pub least: Vec<f64>,
+    /// The most.
+    pub most: Vec<f64>,
+    /// `1 + speed_overshoot_fraction`.
+    pub overshoot_ceiling: f64,
+    /// The settling band's half-width (fraction of the step).
+    pub band_fraction: f64,
+    /// The least rise time any run was allowed, s.
+    pub rise_allowed_least_s: Option<f64>,
+    /// The least settling time any run was allowed, s.
+    pub settling_allowed_least_s: Option<f64>,
+}
+
+impl StepBand {
+    /// The band of `verdicts`' first steps ([`Verdict::step_response`]) on
+    /// [`STEP_RESPONSE_POINTS`] times.
+    pub fn of(c: &Campaign, verdicts: &[Verdict]) -> Self {
+        let req = &c.requirements;
+        let end = verdicts.iter().filter_map(|v| v.step_response.last().map(|p| p.0)).fold(0.0, f64::max);
+        let n = STEP_RESPONSE_POINTS;
+        let at = |v: &Verdict, t: f64| {
+            let r = &v.step_response;
+            let k = r.iter().position(|p| p.0 >= t)?;
+            let (b, a) = (r.get(k)?, if k == 0 { r.get(k)? } else { r.get(k - 1)? });
+            let f = if b.0 > a.0 { (t - a.0) / (b.0 - a.0) } else { 0.0 };
+            Some(a.1 + f * (b.1 - a.1))
+        };
+        let (mut t_s, mut least, mut most) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..=n {
+            let t = end * i as f64 / n as f64;
+            let ys: Vec<f64> = verdicts.iter().filter_map(|v| at(v, t)).filter(|y| y.is_finite()).collect();
+            if let (Some(a), Some(b)) =
+                (ys.iter().copied().reduce(f64::min), ys.iter().copied().reduce(f64::max))
+            {
+                t_s.push(t);
+                least.push(a);
+                most.push(b);
+            }
+        }
+        let least_allowed = |r: Requirement| {
+            verdicts
+                .iter()
+                .filter_map(|v| v.measures.iter().find(|m| m.requirement == r).map(|m| m.allowed))
+                .filter(|t| t.is_finite())
+                .reduce(f64::min)
+        };
+        Self {
+            step_rad_s: c.omega_s_rad_s(),
+            runs: verdicts.len(),
+            t_s,
+            least,
+            most,
+            overshoot_ceiling: 1.0 + req.speed_overshoot_fraction,
+            band_fraction: c.scales().settling_band_fraction(req, c.omega_s_rad_s()),
+            rise_allowed_least_s: least_allowed(Requirement::SpeedRiseTime),
+            settling_allowed_least_s: least_allowed(Requirement::SpeedSettlingTime),
         }
     }
-    let least = |r: Requirement| {
-        verdicts
-            .iter()
-            .filter_map(|v| v.measures.iter().find(|m| m.requirement == r).map(|m| m.allowed))
-            .filter(|t| t.is_finite())
-            .reduce(f64::min)
-    };
-    let band = c.scales().settling_band_fraction(req, c.omega_s_rad_s());
-    let flat = |y: f64| vec![(0.0, y), (end, y)];
-    let vertical =
-        |t: Option<f64>| t.filter(|&t| t <= end).map_or_else(Vec::new, |t| vec![(t, 0.0), (t, 1.0)]);
-    line_plot(
-        &format!(
-            "Campaign: the first speed step of {} runs (±{:.1} rad/s) against [requirements]",
-            verdicts.len(),
-            c.omega_s_rad_s()
-        ),
-        "s after the step (y: fraction of the step)",
-        &[
-            Series::line("least over the box", lo),
-            Series::line("most over the box", hi),
-            Series::line("overshoot allowed", flat(1.0 + req.speed_overshoot_fraction)),
-            Series::line("settling band", flat(1.0 - band)),
-            Series::line("settling band (upper)", flat(1.0 + band)),
-            Series::line("rise time allowed (least)", vertical(least(Requirement::SpeedRiseTime))),
-            Series::line("settling time allowed (least)", vertical(least(Requirement::SpeedSettlingTime))),
-        ],
-    )
+
+    /// The band against what the requirements allow (vertical lines: the least rise and
+    /// settling times allowed).
+    pub fn plot(&self) -> String {
+        use report::plot::{Series, line_plot};
+        let end = self.t_s.last().copied().unwrap_or(0.0);
+        let pairs = |y: &[f64]| self.t_s.iter().copied().zip(y.iter().copied()).collect::<Vec<_>>();
+        let flat = |y: f64| vec![(0.0, y), (end, y)];
+        let vertical =
+            |t: Option<f64>| t.filter(|&t| t <= end).map_or_else(Vec::new, |t| vec![(t, 0.0), (t, 1.0)]);
+        line_plot(
+            &format!(
+                "The first speed step of {} runs (±{:.1} rad/s) over the box against [requirements]",
+                self.runs, self.step_rad_s
+            ),
+            "s after the step (y: fraction of the step)",
+            &[
+                Series::line("least over the box", pairs(&self.least)),
+                Series::line("most over the box", pairs(&self.most)),
+                Series::line("overshoot allowed", flat(self.overshoot_ceiling)),
+                Series::line("settling band", flat(1.0 - self.band_fraction)),
+                Series::line("settling band (upper)", flat(1.0 + self.band_fraction)),
+                Series::line("rise time allowed (least)", vertical(self.rise_allowed_least_s)),
+                Series::line("settling time allowed (least)", vertical(self.settling_allowed_least_s)),
+            ],
+        )
+    }
+}
+
+/// The requirements' picture (`requirements.svg`): [`StepBand::plot`].
+pub fn requirements_plot(c: &Campaign, verdicts: &[Verdict]) -> String {
+    StepBand::of(c, verdicts).plot()
 }
 
 /// The overview plot: each run's tracking error against its limit (relative), by run index,
