@@ -317,13 +317,20 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         t.spec.position.omega_max_rad_s
     );
     let c = &t.certify;
+    // The link rewrites a saturated P's gains only: a PI's file keeps the template's ranges,
+    // which nothing writes.
+    let writable = match t.spec.speed_law {
+        controller_core::speed::SpeedLaw::SaturatedP { .. } => {
+            format!("; writable kp {}", interval(c.speed_kp_writable))
+        }
+        _ => String::new(),
+    };
     report::outln!(
-        "box: Rs×{} Rr×{} L×{} J×{}; writable kp {}; certified: {} checks pass",
+        "box: Rs×{} Rr×{} L×{} J×{}{writable}; certified: {} checks pass",
         interval(c.rs_factor),
         interval(c.rr_factor),
         interval(c.inductance_factor),
         interval(c.j_factor),
-        interval(c.speed_kp_writable),
         t.checks.len()
     );
     if t.predicted_misses.is_empty() {
