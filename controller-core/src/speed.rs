@@ -106,13 +106,19 @@ struct Prefilter {
 }
 
 impl Prefilter {
-    /// For weight `b` of a PI `k_p + k_i/s` sampled every `ts_s` (`k_p = 0`: an integral
-    /// law, `z` infinite, the lag passes at once).
+    /// For weight `b` of a PI `k_p + k_i/s` sampled every `ts_s`. The lag passes at once
+    /// (α = 1, F = 1) where the PI has no zero to take out: `k_p = 0` (an integral law, z
+    /// infinite) and `k_i = 0` (a P law, z = 0, where F would be the constant b). α is at
+    /// least the least normal f32, so that a very slow lag stays one `from_raw` accepts.
     fn new(b: f64, kp: f64, ki: f64, ts_s: f64) -> Result<Self, SpeedError> {
         if !(b.is_finite() && (0.0..=1.0).contains(&b)) {
             return Err(SpeedError::SetpointWeight);
         }
-        let alpha = if kp > 0.0 { 1.0 - libm::exp(-ki / kp * ts_s) } else { 1.0 };
+        let alpha = if kp > 0.0 && ki > 0.0 {
+            (1.0 - libm::exp(-ki / kp * ts_s)).max(f64::from(f32::MIN_POSITIVE))
+        } else {
+            1.0
+        };
         Ok(Self { weight: b as f32, alpha: alpha as f32 })
     }
 }
@@ -411,6 +417,10 @@ mod tests {
         // The position loop's reference passes, and the lag follows it (no bump after).
         assert_eq!(c.pass_reference(&mut s, 4.0), 4.0);
         assert_eq!(c.reference(&mut s, 4.0), 4.0);
+        // Without integral action there is no zero to take out: the reference passes.
+        let p_only = SpeedLaw::PiTorque { kp: 0.2, ki: 0.0, limit: 100.0, setpoint_weight: 0.5 };
+        let c = SpeedControllerConfig::new(&p_only, 5e-4).unwrap();
+        assert_eq!(c.reference(&mut SpeedState::default(), 10.0), 10.0);
         // Overshoot of a linear step (1 rad/s: k_p·e well inside the limit).
         let overshoot = |b: f64| {
             let w = pi_run(b, 1.0, 0.0, usize::MAX, 4000);

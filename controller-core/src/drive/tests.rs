@@ -203,6 +203,9 @@ fn raw_configuration_round_trips() {
             SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 2.0 },
             SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0, setpoint_weight: 1.0 },
             SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0, setpoint_weight: 0.25 },
+            // No integral action: no zero for the weight to take out (found by review: its
+            // lag's α was 0, which `from_raw` refuses — a PI without k_i did not start).
+            SpeedLaw::PiTorque { kp: 0.1, ki: 0.0, limit: 2.0, setpoint_weight: 0.25 },
             SpeedLaw::pi2_seed000(3.0),
         ] {
             for current_law in [CurrentLaw::ICAD_EQ20, CurrentLaw::PI_SEED002] {
