@@ -8,8 +8,9 @@
 //!   the response to a load is the PI's own. `b = 1` is the one-degree PI; a smaller `b`
 //!   takes out the zero's overshoot of a reference step, not the load's dip. A prefilter,
 //!   not the weight inside the PI: there the integrator would hold `(1 − b)·k_p·ω_ref`
-//!   beside the load, and its clamp to the torque limit left a steady error under load (the
-//!   24 V drive's predicted load dip 0.15 → 0.31 of base speed at b = 0.5, 0).
+//!   beside the load — on the 24 V walk-through drive k_p·ω_ref alone is ≈ 4 × its torque
+//!   limit (0.00636 N·m·s/rad × 75.5 rad/s against 0.12 N·m) — and its clamp to that limit
+//!   leaves a steady error under load.
 //! * Torque-limited saturated P, seed 002 eq. (21):
 //!   `τ_ref = sat_{±τ_max}(k_p·(ω_ref − ω_r))` — no integral action, so a steady-state error
 //!   remains under load (as the paper notes); during a large step the torque saturates and
