@@ -89,29 +89,93 @@ pub struct IfocConfig {
     ts_s: f32,
 }
 
-/// IFOC state, made by [`IfocConfig::state`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IfocState {
-    /// Field (rotor-flux) angle θ_e of the period's first fast step (set by
-    /// [`IfocConfig::anchor`]), rad, in `[-π, π)`; the k-th fast step's is θ_e + k·δ.
-    theta_e_rad: f32,
-    /// Slip angle θ_sl = ∫ω_sl dt, rad, in `[-π, π)`: θ_e less the rotor's electrical angle
-    /// (at the last [`IfocConfig::close_period`]).
-    theta_sl_rad: f32,
-    /// sin and cos of `theta_e_rad`: afresh at each plan, turned by `rotation` each step.
-    field: SinCos,
-    /// The plan: the field's turn per fast step, δ = (p·ω_m + ω_sl)·T, and its sin/cos.
+/// The plan of the fast steps up to the next slow step ([`IfocConfig::plan`]): what the fast
+/// steps turn into current references.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FieldPlan {
+    /// The field's turn per fast step, δ = (p·ω_m + ω_sl)·T, and its sin/cos.
     step_rad: f32,
     rotation: SinCos,
-    /// The plan: the intended current references (they set the slip), those the loops
-    /// track (the trim added), A, field frame; the slip speed, electrical rad/s.
+    /// The intended current references (they set the slip), those the loops track (the
+    /// trim added), A, field frame; the slip speed, electrical rad/s.
     i_ref_dq: Dq,
     i_track_dq: Dq,
     omega_sl_rad_s: f32,
+}
+
+/// The fast steps' part of the field orientation: the plan in force, the field angle of its
+/// first step and the field turned since, and the measured current summed for the flux
+/// model. The fast context owns one ([`IfocConfig::step_field`]); the slow context's
+/// [`IfocState`] holds another, in which it makes the next plan ([`FieldSteps::adopt`]
+/// hands that over).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FieldSteps {
+    /// Field (rotor-flux) angle θ_e of the plan's first fast step (set by
+    /// [`IfocConfig::anchor`]), rad, in `[-π, π)`; the k-th fast step's is θ_e + k·δ.
+    theta_e_rad: f32,
+    /// sin and cos of the present field angle: afresh at each plan, turned by the plan's
+    /// rotation each step.
+    field: SinCos,
+    plan: FieldPlan,
     /// Σ of the measured current in the field frame over the fast steps since the last
     /// [`IfocConfig::close_period`], A, and their count.
     i_sum_dq: Dq,
     steps: u16,
+}
+
+impl FieldSteps {
+    /// Field (rotor-flux) angle θ_e for the next fast step, rad, in `[-π, π)`: the plan's
+    /// first step's advanced by its step δ per fast step since (the fast step does not carry
+    /// the angle — it turns the field vector; made here, on demand).
+    pub fn theta_e_rad(&self) -> f32 {
+        wrap_angle(self.theta_e_rad + f32::from(self.steps) * self.plan.step_rad)
+    }
+
+    /// θ_e of the last fast step (before any: of the next one), rad, in `[-π, π)`.
+    pub fn last_theta_e_rad(&self) -> f32 {
+        wrap_angle(self.theta_e_rad + f32::from(self.steps.saturating_sub(1)) * self.plan.step_rad)
+    }
+
+    /// The current references the next fast step returns (the plan's trimmed references at
+    /// the present field angle), A, stationary frame: what [`IfocConfig::step`] computes.
+    pub fn i_ref_ab(&self) -> AlphaBeta {
+        self.plan.i_track_dq.inverse_park(self.field)
+    }
+
+    /// The intended current references of the plan at the present field angle (without the
+    /// trim: what the plan asks of the machine), A, stationary frame.
+    pub fn i_intended_ab(&self) -> AlphaBeta {
+        self.plan.i_ref_dq.inverse_park(self.field)
+    }
+
+    /// The sums of the measured current since the last take, field frame, A, and their
+    /// count; cleared (the slow step's inputs, latched by the fast context).
+    pub fn take_sums(&mut self) -> (Dq, u16) {
+        let sums = (self.i_sum_dq, self.steps);
+        (self.i_sum_dq, self.steps) = (Dq::default(), 0);
+        sums
+    }
+
+    /// Take the plan, the field angle of its first step and its field from `made` (the
+    /// slow context's), keeping this one's sums.
+    pub fn adopt(&mut self, made: &FieldSteps) {
+        (self.theta_e_rad, self.field, self.plan) = (made.theta_e_rad, made.field, made.plan);
+    }
+
+    /// Take the field angle of `made` alone (an anchor without a plan: the pre-charge's).
+    pub fn adopt_angle(&mut self, made: &FieldSteps) {
+        self.theta_e_rad = made.theta_e_rad;
+    }
+}
+
+/// IFOC state, made by [`IfocConfig::state`]: the flux model and the slip angle on the
+/// estimates in use, and the fast steps' part ([`FieldSteps`]) — the plan made last.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct IfocState {
+    f: FieldSteps,
+    /// Slip angle θ_sl = ∫ω_sl dt, rad, in `[-π, π)`: θ_e less the rotor's electrical angle
+    /// (at the last [`IfocConfig::close_period`]).
+    theta_sl_rad: f32,
     /// Rotor-flux model estimate ψ̂_r, Wb.
     psi_r_wb: f32,
     /// The slip gain `L_m·R̂_r/L_r` and the flux model's rate per fast step `T·R̂_r/L̂_r` of
@@ -127,16 +191,27 @@ pub struct IfocState {
 }
 
 impl IfocState {
-    /// Field (rotor-flux) angle θ_e for the next fast step, rad, in `[-π, π)`: the period's
-    /// first step's advanced by the plan's step δ per fast step since (the fast step does
-    /// not carry the angle — it turns the field vector; made here, on demand).
+    /// Field (rotor-flux) angle θ_e for the next fast step ([`FieldSteps::theta_e_rad`]).
     pub fn theta_e_rad(&self) -> f32 {
-        wrap_angle(self.theta_e_rad + f32::from(self.steps) * self.step_rad)
+        self.f.theta_e_rad()
     }
 
-    /// θ_e of the last fast step (before any: of the next one), rad, in `[-π, π)`.
+    /// θ_e of the last fast step ([`FieldSteps::last_theta_e_rad`]).
     pub fn last_theta_e_rad(&self) -> f32 {
-        wrap_angle(self.theta_e_rad + f32::from(self.steps.saturating_sub(1)) * self.step_rad)
+        self.f.last_theta_e_rad()
+    }
+
+    /// The fast steps' part: the plan made last.
+    pub fn field_steps(&self) -> &FieldSteps {
+        &self.f
+    }
+
+    /// The fast steps' sums `(Σ i_dq, n)` (those of another [`FieldSteps`], taken by
+    /// [`FieldSteps::take_sums`]) added to this state's, for [`IfocConfig::close_period`].
+    pub fn add_sums(&mut self, (sum, n): (Dq, u16)) {
+        let s = &mut self.f;
+        s.i_sum_dq = Dq { d: s.i_sum_dq.d + sum.d, q: s.i_sum_dq.q + sum.q };
+        s.steps = s.steps.saturating_add(n);
     }
 
     /// Rotor-flux model estimate ψ̂_r, Wb.
@@ -167,24 +242,23 @@ impl IfocState {
 
     /// The slip speed of the present plan, electrical rad/s.
     pub fn omega_sl_rad_s(&self) -> f32 {
-        self.omega_sl_rad_s
+        self.f.plan.omega_sl_rad_s
     }
 
-    /// The current references the next fast step returns (the plan's trimmed references at
-    /// the present field angle), A, stationary frame: what [`IfocConfig::step`] computes.
+    /// The current references the next fast step returns ([`FieldSteps::i_ref_ab`]).
     pub fn i_ref_ab(&self) -> AlphaBeta {
-        self.i_track_dq.inverse_park(self.field)
+        self.f.i_ref_ab()
     }
 
     /// The intended current references of the present plan at the present field angle
-    /// (without the trim: what the plan asks of the machine), A, stationary frame.
+    /// ([`FieldSteps::i_intended_ab`]).
     pub fn i_intended_ab(&self) -> AlphaBeta {
-        self.i_ref_dq.inverse_park(self.field)
+        self.f.i_intended_ab()
     }
 
     /// The intended current references of the present plan (without the trim), A.
     pub fn i_ref_dq(&self) -> Dq {
-        self.i_ref_dq
+        self.f.plan.i_ref_dq
     }
 }
 
@@ -334,23 +408,15 @@ impl IfocConfig {
     /// a single wrap brings into `[-π, π)`). The field angle becomes `θ_r + θ_sl`; the next
     /// [`IfocConfig::plan`] computes its sin/cos.
     pub fn anchor(&self, s: &mut IfocState, theta_r_rad: f32) {
-        s.theta_e_rad = wrap_angle(wrap_angle(theta_r_rad) + s.theta_sl_rad);
+        s.f.theta_e_rad = wrap_angle(wrap_angle(theta_r_rad) + s.theta_sl_rad);
     }
 
     /// A state with θ_e = 0, the flux estimate `psi_r_wb` (0: an unmagnetized machine) and
     /// the rotor resistance `rr_scale` × the motor's ([`IfocConfig::set_rotor_resistance_scale`]).
     pub fn state(&self, psi_r_wb: f32, rr_scale: f32) -> IfocState {
         let mut s = IfocState {
-            theta_e_rad: 0.0,
+            f: FieldSteps::default(),
             theta_sl_rad: 0.0,
-            field: SinCos::default(),
-            step_rad: 0.0,
-            rotation: SinCos::default(),
-            i_ref_dq: Dq::default(),
-            i_track_dq: Dq::default(),
-            omega_sl_rad_s: 0.0,
-            i_sum_dq: Dq::default(),
-            steps: 0,
             slip_gain: self.slip_gain,
             flux_rate: self.flux_rate,
             rr_scale: 1.0,
@@ -412,18 +478,18 @@ impl IfocConfig {
     /// mean of the measured d-axis current over them. Returns that mean measured current,
     /// field frame, A, and n (0: no fast step ran; nothing changes).
     pub fn close_period(&self, s: &mut IfocState) -> (Dq, u16) {
-        let n = s.steps;
+        let n = s.f.steps;
         if n == 0 {
             return (Dq::default(), 0);
         }
         let nf = f32::from(n);
-        let mean = Dq { d: s.i_sum_dq.d / nf, q: s.i_sum_dq.q / nf };
-        s.theta_sl_rad = wrap_angle(s.theta_sl_rad + nf * s.omega_sl_rad_s * self.ts_s);
+        let mean = Dq { d: s.f.i_sum_dq.d / nf, q: s.f.i_sum_dq.q / nf };
+        s.theta_sl_rad = wrap_angle(s.theta_sl_rad + nf * s.f.plan.omega_sl_rad_s * self.ts_s);
         // The next period's first step's angle (the drive's slow step then anchors it to
         // the encoder's reading).
-        s.theta_e_rad = wrap_angle(s.theta_e_rad + nf * s.step_rad);
+        s.f.theta_e_rad = wrap_angle(s.f.theta_e_rad + nf * s.f.plan.step_rad);
         s.psi_r_wb += one_minus_exp_neg(nf * s.flux_rate) * (s.lm_h * mean.d - s.psi_r_wb);
-        (s.i_sum_dq, s.steps) = (Dq::default(), 0);
+        (s.f.i_sum_dq, s.f.steps) = (Dq::default(), 0);
         (mean, n)
     }
 
@@ -448,12 +514,16 @@ impl IfocConfig {
             TorqueCommand::IqA(i) => i,
         };
         let i_q = i_q_wanted.limit(-flux.i_q_max_a, flux.i_q_max_a);
-        s.omega_sl_rad_s = s.slip_gain * i_q * inv_psi;
-        s.i_ref_dq = Dq { d: i_d, q: i_q };
-        s.i_track_dq = Dq { d: i_d + trim.d, q: i_q + trim.q };
-        s.step_rad = (self.pole_pairs * omega_m_rad_s + s.omega_sl_rad_s) * self.ts_s;
-        s.rotation = SinCos::new(s.step_rad);
-        s.field = SinCos::new(s.theta_e_rad);
+        let omega_sl_rad_s = s.slip_gain * i_q * inv_psi;
+        let step_rad = (self.pole_pairs * omega_m_rad_s + omega_sl_rad_s) * self.ts_s;
+        s.f.plan = FieldPlan {
+            step_rad,
+            rotation: SinCos::new(step_rad),
+            i_ref_dq: Dq { d: i_d, q: i_q },
+            i_track_dq: Dq { d: i_d + trim.d, q: i_q + trim.q },
+            omega_sl_rad_s,
+        };
+        s.f.field = SinCos::new(s.f.theta_e_rad);
     }
 
     /// One fast step, with the measured stator current (A): the current references at the
@@ -461,13 +531,20 @@ impl IfocConfig {
     /// current's field-frame components added to the flux model's sum.
     #[inline]
     pub fn step(&self, s: &mut IfocState, i_meas: AlphaBeta) -> IfocOutput {
+        self.step_field(&mut s.f, i_meas)
+    }
+
+    /// [`IfocConfig::step`] on the fast steps' part alone (the fast context's).
+    #[inline(always)]
+    pub fn step_field(&self, s: &mut FieldSteps, i_meas: AlphaBeta) -> IfocOutput {
         let field = s.field;
         let i_ref_ab = s.i_ref_ab();
         let i = i_meas.park(field);
         s.i_sum_dq = Dq { d: s.i_sum_dq.d + i.d, q: s.i_sum_dq.q + i.q };
         s.steps = s.steps.saturating_add(1);
-        s.field = field.then(s.rotation);
-        IfocOutput { i_ref_dq: s.i_ref_dq, i_ref_ab, i_meas_dq: i, field, omega_sl_rad_s: s.omega_sl_rad_s }
+        s.field = field.then(s.plan.rotation);
+        let p = &s.plan;
+        IfocOutput { i_ref_dq: p.i_ref_dq, i_ref_ab, i_meas_dq: i, field, omega_sl_rad_s: p.omega_sl_rad_s }
     }
 }
 
@@ -575,7 +652,7 @@ mod tests {
                 c.plan(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(0.0), 0.0, Dq::default());
             }
             // The measured current on the d axis of this step's field.
-            let f = s.field;
+            let f = s.f.field;
             c.step(&mut s, Dq { d: i_d, q: 0.0 }.inverse_park(f));
         }
         c.close_period(&mut s);
@@ -758,8 +835,7 @@ mod tests {
         while s.psi_r_wb() - psi_target > excess0 / core::f32::consts::E {
             let i_d = c.falling_flux_current(&s, target, fall_rate);
             assert!(i_d > 0.0 && i_d < target, "{i_d}");
-            s.i_sum_dq = Dq { d: N as f32 * i_d, q: 0.0 };
-            s.steps = N as u16;
+            s.add_sums((Dq { d: N as f32 * i_d, q: 0.0 }, N as u16));
             c.close_period(&mut s);
             t_s += t_slow;
         }

@@ -1,44 +1,119 @@
 //! The fast step, every PWM period: the instant limits → Clarke → the IFOC's fast part →
 //! the current loops → the delay advance → the modulator (the hexagon's rare path out of
-//! line) → the dead-time compensation; once per slow period, the encoder against the
-//! machine model and the rotor-resistance law.
+//! line) → the dead-time compensation. The fast step right after the slow step keeps its
+//! signals for the once-per-slow-period checks (`AfterSlow`), which run on the slow side's
+//! state (`Drive::after_slow_checks`).
 
 use super::*;
 use crate::frames::{Abc, wrap_angle};
 use crate::ifoc::IfocOutput;
-use crate::mras::Evidence;
-use crate::num::sqrt_f32;
 #[cfg(doc)]
 use crate::supervisor::limits::{BrakeLevels, Limits};
 use crate::svpwm;
+
+/// The rotating-current test reference at the test angle `angle_rad`: its amplitude
+/// (limited to the IFOC's current limit), the angle's sin/cos and the αβ reference.
+pub(super) fn rotating_current(
+    cfg: &DriveConfig,
+    amplitude_a: f32,
+    angle_rad: f32,
+) -> (f32, SinCos, AlphaBeta) {
+    let a = amplitude_a.limit(0.0, cfg.ifoc.i_max_a());
+    let sc = SinCos::new(angle_rad);
+    (a, sc, AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin })
+}
 
 impl Drive {
     /// Current loop. See the module docs for the signal flow.
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
         // The fast step right after the slow step (the phase checks are the slow step's own:
-        // `Drive::check_phases`).
-        let after_slow = self.steps_to_slow == self.cfg.slow_divider.saturating_sub(1);
+        // `SlowState::check_phases`).
+        let after_slow = self.fast.steps_to_slow == self.cfg.slow_divider.saturating_sub(1);
         self.fast(m, after_slow)
     }
 
-    /// [`Drive::fast_step`], told whether it follows the slow step ([`Drive::step`] knows).
+    /// [`Drive::fast_step`], told whether it follows the slow step ([`Drive::step`] knows):
+    /// then the once-per-slow-period checks on its signals.
     #[inline(always)]
     pub(super) fn fast(&mut self, m: &Measurements, after_slow: bool) -> FastOutput {
-        if !self.measurements_ok(m) {
-            self.trip_on(m);
+        let mut out = self.fast.step(&self.cfg, m, after_slow);
+        // (Its signals, not `after_slow`: tested again after the step, the flag had the
+        // compiler make two copies of the step, one with its loops out of line; and `out`
+        // returned on one path only, made in place.)
+        if self.fast.run.after_slow.is_some() {
+            self.after_slow_checks(&mut out);
         }
-        let brake = self.brake_chopper(m.vdc_v);
+        out
+    }
+
+    /// The once-per-slow-period checks on the fast step right after the slow step, while
+    /// Running on the field-oriented references: the encoder against the machine model on
+    /// the voltage applied, then the rotor-resistance law on the loops' request
+    /// (`SlowState::after_slow_checks`). The encoder check's fault turns the bridge off in
+    /// this step. Out of line: once per slow period.
+    #[cold]
+    #[inline(never)]
+    fn after_slow_checks(&mut self, out: &mut FastOutput) {
+        let Some(a) = self.fast.run.after_slow.take() else { return };
+        self.slow.after_slow_checks(&self.cfg, &a);
+        if self.slow.mode != Mode::Running {
+            self.fast.trip_from(self.slow.mode);
+            self.sync();
+            (out.phases, out.mode) = (PhaseCommand::Off, self.fast.mode);
+        }
+    }
+
+    /// A period in which the firmware holds the bridge itself (the bootstrap pre-charge, all
+    /// low sides on): the fast step's supervisor and brake chopper — a failing check latches
+    /// its fault as in [`Drive::fast_step`] — and the cadence with the shaft's stage of its
+    /// slow periods (`SlowState::track_shaft`: the encoder read and its jump check, the rest
+    /// detector, the thermal models; the rotor angle follows the shaft). The control state
+    /// (loops, flux model, plan, the magnetizing time) does not move. Returns the brake
+    /// chopper's switch.
+    ///
+    /// The cadence runs on (issue 54): frozen, with the encoder unread, the first read after
+    /// a 40-period pre-charge spanned five slow periods against the one before it, and an
+    /// enable on a rotor turning at 5 rad/s or more tripped [`Fault::EncoderLoss`] (the
+    /// firmware's `an_enable_on_a_turning_rotor_keeps_the_encoder`).
+    pub fn hold_step(&mut self, m: &Measurements) -> bool {
+        if self.fast.steps_to_slow == 0 {
+            self.sync();
+            let step_rad = self.slow.track_shaft(&self.cfg, m);
+            self.slow.anchor_field(&self.cfg, step_rad);
+            self.fast.run.field.adopt_angle(self.slow.run.ifoc.field_steps());
+            self.fast.trip_from(self.slow.mode);
+            self.sync();
+            self.fast.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
+        } else {
+            self.fast.steps_to_slow -= 1;
+        }
+        let cfg = &self.cfg;
+        if !self.fast.measurements_ok(cfg, m) {
+            self.fast.trip_on(cfg, m);
+        }
+        self.fast.brake_chopper(cfg, m.vdc_v)
+    }
+}
+
+impl FastState {
+    /// The fast step; `after_slow`: it follows the slow step (its signals kept for the
+    /// once-per-slow-period checks).
+    #[inline(always)]
+    fn step(&mut self, cfg: &DriveConfig, m: &Measurements, after_slow: bool) -> FastOutput {
+        if !self.measurements_ok(cfg, m) {
+            self.trip_on(cfg, m);
+        }
+        let brake = self.brake_chopper(cfg, m.vdc_v);
         let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, brake };
         let running = self.mode == Mode::Running;
         if !running && self.mode != Mode::Magnetizing {
             return off(self.mode); // Idle or Fault
         }
-        let cfg = &self.cfg;
         let i_ab = m.i_abc_a.clarke();
         let field = match self.reference {
             Reference::RotatingCurrent { amplitude_a, omega_rad_s } if running => {
                 let th = self.run.test_angle_rad;
-                let (a, sc, i_ref_ab) = self.rotating_current(amplitude_a);
+                let (a, sc, i_ref_ab) = rotating_current(cfg, amplitude_a, th);
                 self.run.test_angle_rad = wrap_angle(th + omega_rad_s * cfg.ts_s);
                 self.run.last_test_angle_rad = th;
                 IfocOutput {
@@ -50,7 +125,7 @@ impl Drive {
                 }
             }
             // The current references at the field angle of the slow step's plan.
-            _ => cfg.ifoc.step(&mut self.run.ifoc, i_ab),
+            _ => cfg.ifoc.step_field(&mut self.run.field, i_ab),
         };
         // What the telemetry reads of this step, stored now (not held to the step's end; the
         // voltage applied at the end). A step that trips leaves the bridge off, and the
@@ -81,20 +156,18 @@ impl Drive {
         // modulator's hexagon, beyond which the rare path takes over.
         let v_applied = v_req.rotate(self.run.delay_rotation);
         let Some(duty) = svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_max) else {
-            return self.fast_step_limited(m, field.field, i_ab, v_req, after_slow);
+            return self.step_limited(cfg, m, field.field, i_ab, v_req, after_slow);
         };
         self.run.saturated_steps = 0;
-        if after_slow
-            && !self.after_slow_checks(m, field.field, field.i_meas_dq, v_applied, Some(v_req), v_usable)
-        {
-            return off(self.mode);
+        if after_slow {
+            self.keep_after_slow(m, field.field, field.i_meas_dq, v_applied, Some(v_req), v_usable);
         }
         if !running {
             // The magnetizing fit's voltage, in the field frame of this step (at speed the
             // field turns within a slow period): what the machine gets, the request.
             self.run.v_d_sum += v_req.park(field.field).d;
         }
-        self.finish_fast_step::<false>(duty, v_applied, brake)
+        self.finish::<false>(cfg, duty, v_applied, brake)
     }
 
     /// The rare path of the fast step: the modulator limited the request (beyond the hexagon,
@@ -104,8 +177,9 @@ impl Drive {
     /// (its evidence is the loops' unlimited request).
     #[cold]
     #[inline(never)]
-    pub(super) fn fast_step_limited(
+    fn step_limited(
         &mut self,
+        cfg: &DriveConfig,
         m: &Measurements,
         field: SinCos,
         i_ab: AlphaBeta,
@@ -114,27 +188,27 @@ impl Drive {
     ) -> FastOutput {
         // The common path's values, made again (the same operations): few of them held
         // across its body, none through memory.
-        let (brake, running) = (self.machine.brake, self.mode == Mode::Running);
+        let (brake, running) = (self.brake, self.mode == Mode::Running);
         let i_meas_dq = i_ab.park(field);
         let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, brake };
-        let v_usable = m.vdc_v * self.cfg.duty_max;
+        let v_usable = m.vdc_v * cfg.duty_max;
         let v_clamp = v_usable * (2.0 / 3.0);
         let modulation =
-            svpwm::modulate_limited(v_req.rotate(self.run.delay_rotation), m.vdc_v, self.cfg.duty_max);
+            svpwm::modulate_limited(v_req.rotate(self.run.delay_rotation), m.vdc_v, cfg.duty_max);
         if !(v_req.alpha.is_finite() && v_req.beta.is_finite()) {
             self.trip(Fault::NonFiniteOutput);
             return off(self.mode);
         }
-        self.track_applied(modulation.v_applied, field, v_clamp);
+        self.track_applied(cfg, modulation.v_applied, field, v_clamp);
         self.run.trim_hold = true;
         self.run.saturated_steps = self.run.saturated_steps.saturating_add(1);
-        if self.run.saturated_steps >= self.cfg.saturation_steps {
+        if self.run.saturated_steps >= cfg.saturation_steps {
             self.trip(Fault::LossOfControl);
             return off(self.mode);
         }
         let applied = modulation.v_applied;
-        if after_slow && !self.after_slow_checks(m, field, i_meas_dq, applied, None, v_usable) {
-            return off(self.mode);
+        if after_slow {
+            self.keep_after_slow(m, field, i_meas_dq, applied, None, v_usable);
         }
         if !running {
             // The magnetizing fit's voltage: the modulator's limit of the request at the
@@ -144,17 +218,14 @@ impl Drive {
             let v = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
             self.run.v_d_sum += v.park(field).d;
         }
-        self.finish_fast_step::<true>(modulation.duty, applied, brake)
+        self.finish::<true>(cfg, modulation.duty, applied, brake)
     }
 
-    /// The once-per-slow-period work, on the fast step right after the slow step (out of
-    /// line: one test per fast step), while Running on the field-oriented references: the
-    /// encoder against the machine model on the voltage applied, `v_applied`, then the
-    /// rotor-resistance law on the loops' request `v_req` — `None` when the modulator limited
-    /// it (the law listens to the unlimited request only). False when the encoder check
-    /// tripped (the bridge off).
+    /// The signals of the fast step after the slow step for the once-per-slow-period checks,
+    /// kept while Running on the field-oriented references (out of line: once per slow
+    /// period).
     #[inline(never)]
-    pub(super) fn after_slow_checks(
+    fn keep_after_slow(
         &mut self,
         m: &Measurements,
         field: SinCos,
@@ -162,30 +233,13 @@ impl Drive {
         v_applied: AlphaBeta,
         v_req: Option<AlphaBeta>,
         v_usable_v: f32,
-    ) -> bool {
+    ) {
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
-        if !(self.mode == Mode::Running && field_oriented) {
-            return true;
+        if self.mode == Mode::Running && field_oriented {
+            let omega_m_rad_s = m.omega_m_rad_s;
+            self.run.after_slow =
+                Some(AfterSlow { omega_m_rad_s, field, i_meas_dq, v_applied, v_req, v_usable_v });
         }
-        let w_e_rad_s = self.run.model.pole_pairs() * m.omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
-        let v_limit_v = svpwm::linear_limit_v(v_usable_v);
-        self.check_encoder(i_meas_dq, v_applied, field, w_e_rad_s, v_limit_v);
-        if self.mode != Mode::Running {
-            return false;
-        }
-        if let Some(v_req) = v_req {
-            // The rotor resistance from the reactive power (the loops' own request).
-            let evidence = Evidence {
-                i: i_meas_dq,
-                v: v_req.park(field),
-                w_e_rad_s,
-                psi_r_wb: self.run.ifoc.psi_r_wb(),
-                v_limit_v,
-            };
-            let r = self.cfg.mras.update(self.run.ifoc.rotor_resistance_scale(), &self.run.model, &evidence);
-            self.cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
-        }
-        true
     }
 
     /// The fast step's end on either path: the dead-time compensation of the duties, what
@@ -193,13 +247,13 @@ impl Drive {
     /// `RARE`: on the rare path, whose dead-time compensation is made out of line
     /// ([`svpwm::compensate_dead_time_rare`], the same values).
     #[inline(always)]
-    pub(super) fn finish_fast_step<const RARE: bool>(
+    fn finish<const RARE: bool>(
         &mut self,
+        cfg: &DriveConfig,
         duty: Abc,
         v_applied: AlphaBeta,
         brake: bool,
     ) -> FastOutput {
-        let cfg = &self.cfg;
         let duty = if cfg.dead_time_duty > 0.0 {
             // This step's references (stored by the step).
             let i_ref = self.run.last.i_ref_ab.inverse_clarke();
@@ -220,62 +274,40 @@ impl Drive {
     /// advance): back into the loops' frame, and their integrators track it.
     #[cold]
     #[inline(never)]
-    pub(super) fn track_applied(&mut self, applied: AlphaBeta, field: SinCos, v_clamp: f32) {
+    fn track_applied(&mut self, cfg: &DriveConfig, applied: AlphaBeta, field: SinCos, v_clamp: f32) {
         let r = self.run.delay_rotation;
         let back = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
-        let v = match self.cfg.current_frame {
+        let v = match cfg.current_frame {
             CurrentFrame::Stationary => [back.alpha, back.beta],
             CurrentFrame::Synchronous => {
                 let dq = back.park(field);
                 [dq.d, dq.q]
             }
         };
-        self.cfg.current.track(&mut self.run.current, v, v_clamp);
+        cfg.current.track(&mut self.run.current, v, v_clamp);
     }
 
-    /// A period in which the firmware holds the bridge itself (the bootstrap pre-charge, all
-    /// low sides on): the fast step's supervisor and brake chopper — a failing check latches
-    /// its fault as in [`Drive::fast_step`] — and the cadence with the shaft's stage of its
-    /// slow periods (`Drive::track_shaft`: the encoder read and its jump check, the rest
-    /// detector, the thermal models; the rotor angle follows the shaft). The control state
-    /// (loops, flux model, plan, the magnetizing time) does not move. Returns the brake
-    /// chopper's switch.
-    ///
-    /// The cadence runs on (issue 54): frozen, with the encoder unread, the first read after
-    /// a 40-period pre-charge spanned five slow periods against the one before it, and an
-    /// enable on a rotor turning at 5 rad/s or more tripped [`Fault::EncoderLoss`] (the
-    /// firmware's `an_enable_on_a_turning_rotor_keeps_the_encoder`).
-    pub fn hold_step(&mut self, m: &Measurements) -> bool {
-        if self.steps_to_slow == 0 {
-            let step_rad = self.track_shaft(m);
-            self.anchor_field(step_rad);
-            self.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
-        } else {
-            self.steps_to_slow -= 1;
+    /// The slow side's mode `mode` taken, unless a fault of the fast step came first.
+    #[inline(always)]
+    pub(super) fn trip_from(&mut self, mode: Mode) {
+        if !matches!(self.mode, Mode::Fault(_)) {
+            self.mode = mode;
         }
-        if !self.measurements_ok(m) {
-            self.trip_on(m);
-        }
-        self.brake_chopper(m.vdc_v)
     }
 
     /// All supervisor checks of the fast step pass ([`Limits::ok`]).
     #[inline]
-    pub(super) fn measurements_ok(&self, m: &Measurements) -> bool {
-        self.cfg.limits.ok(m, self.mode.is_active())
+    pub(super) fn measurements_ok(&self, cfg: &DriveConfig, m: &Measurements) -> bool {
+        cfg.limits.ok(m, self.mode.is_active())
     }
 
-    /// Which supervisor check of the fast step fails ([`Limits::fault`]).
-    pub(super) fn supervise(&self, m: &Measurements) -> Option<Fault> {
-        self.cfg.limits.fault(m, self.mode.is_active())
-    }
-
-    /// The rare path of the fast step: a supervisor check failed; latch its fault.
+    /// The rare path of the fast step: a supervisor check failed; latch its fault
+    /// ([`Limits::fault`]).
     #[cold]
     #[inline(never)]
-    pub(super) fn trip_on(&mut self, m: &Measurements) {
-        // `measurements_ok` and `supervise` agree, so this is always Some.
-        if let Some(f) = self.supervise(m) {
+    fn trip_on(&mut self, cfg: &DriveConfig, m: &Measurements) {
+        // `measurements_ok` and `fault` agree, so this is always Some.
+        if let Some(f) = cfg.limits.fault(m, self.mode.is_active()) {
             self.trip(f);
         }
     }
@@ -283,41 +315,8 @@ impl Drive {
     /// The brake chopper's comparator on the measured bus voltage ([`BrakeLevels::switch`]),
     /// in every mode.
     #[inline]
-    pub(super) fn brake_chopper(&mut self, vdc_v: f32) -> bool {
-        self.machine.brake = self.cfg.brake.switch(self.machine.brake, vdc_v);
-        self.machine.brake
-    }
-
-    /// Encoder against the machine model: the magnitude of the applied voltage against that
-    /// of the steady-state voltage ([`EnvelopeConfig::stator_voltage`]) of the measured
-    /// currents at the encoder's speed. A frozen encoder at speed leaves the back-EMF in the applied voltage and takes
-    /// it out of the model.
-    #[inline(never)]
-    pub(super) fn check_encoder(&mut self, i: Dq, v_ab: AlphaBeta, field: SinCos, w_e: f32, v_limit: f32) {
-        let e = &self.run.model;
-        let v = v_ab.park(field);
-        let (vd, vq) = e.stator_voltage(i.d, i.q, w_e, self.run.ifoc.psi_r_wb());
-        // Magnitudes, not vectors: a detuned field angle (rotor resistance off by the
-        // certified 2×) turns the voltage vector but hardly changes its length, while a
-        // frozen encoder at speed removes the back-EMF from the model's length.
-        // Volts, far from overflow: √(x² + y²) with the FPU's square root (no libm::hypotf).
-        let residual = (sqrt_f32(v.d * v.d + v.q * v.q) - sqrt_f32(vd * vd + vq * vq)).abs();
-        // Consecutive implausible checks (a leaky count accumulated the detuned corner's
-        // transients into a false trip).
-        if residual > ENCODER_RESIDUAL_FRACTION * v_limit {
-            let cfg = &self.cfg;
-            let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.encoder_check_steps as f32;
-            let turning = w_e.abs() * window_s > PINNED_FIELD_TURN_RAD;
-            let switches = &self.run.switches;
-            let verdict = self
-                .run
-                .voltage_check
-                .implausible(v_ab, turning, cfg.encoder_check_steps, || switches.undriven(turning));
-            if let Some(f) = verdict {
-                self.trip(f);
-            }
-        } else {
-            self.run.voltage_check.plausible();
-        }
+    fn brake_chopper(&mut self, cfg: &DriveConfig, vdc_v: f32) -> bool {
+        self.brake = cfg.brake.switch(self.brake, vdc_v);
+        self.brake
     }
 }

@@ -37,6 +37,16 @@
 //! limits). The fast step performs no indexing, no division by unchecked values that could
 //! panic, and no `unwrap`: it cannot panic for any input (property-tested).
 //!
+//! **Two contexts' state** (issue 54): the fast step owns `FastState` (the mode, the
+//! current loops, the plan in force, the fast step's sums), the slow step `SlowState` (the
+//! reference, the machine's state, the flux model, the loops of the outer rates, the
+//! checks). The slow step reads the fast side only through what is latched for it
+//! (`SlowInputs`, taken at its tick) and acts on it only through what it hands over
+//! (its plan, adopted at a fixed period: today the tick itself) — so that it can run in a
+//! context of its own. The once-per-slow-period checks on the fast step after the slow
+//! step (the encoder against the machine model, the rotor-resistance law) run on that
+//! step's signals (`AfterSlow`), in the slow side's state. The commands act on both.
+//!
 //! The rooms: [`spec`](DriveSpec) (the specification and the drive's design constants),
 //! `config` ([`DriveConfig`]: validated, discretised, its raw codec), `fast` (the fast step),
 //! `slow` (the slow step's stages), this module (the state, the commands and the step).
@@ -70,6 +80,7 @@ pub use spec::*;
 use crate::current::CurrentState;
 use crate::envelope::{Envelope, EnvelopeConfig};
 use crate::frames::{AlphaBeta, Dq, SinCos};
+use crate::ifoc::FieldSteps;
 use crate::ifoc::{FluxCommand, IfocState, TorqueCommand};
 #[cfg(doc)]
 use crate::mras::MrasConfig;
@@ -91,20 +102,115 @@ struct StepSignals {
     v_ab: AlphaBeta,
 }
 
-/// A drive: its configuration and its state, grouped by lifetime and owner — the rule of
-/// what survives what is written in these types:
+/// A drive: its configuration and its state, grouped by context, lifetime and owner — the
+/// rule of what survives what is written in these types:
 ///
 /// | group | what | made afresh by |
 /// |---|---|---|
-/// | the commands (these fields) | mode, reference, a controlled stop under way | [`Drive::new`]; a reconfiguration keeps the mode (a fault stays latched) and starts the reference at rest |
-/// | `machine`: `MachineState` | the motor's and the inverter's temperature (I²t), the shaft's position and turns, whether it is at rest, how long the rotor has been left, the brake chopper's comparator | [`Drive::new`] only (power-up): kept by [`Drive::enable`] and by [`Drive::reconfigure`] |
-/// | `run`: `RunState` | one run of the bridge: the loops, the field, the plan, the checks' counts; and the estimates it runs on (R_r, the inductances) | [`Drive::enable`] and [`Drive::reconfigure`], which carry the estimates into the new run |
+/// | `FastState`'s own fields, `SlowState`'s | mode, reference, a controlled stop under way, the slow cadence | [`Drive::new`]; a reconfiguration keeps the mode (a fault stays latched) and starts the reference at rest |
+/// | `MachineState` (slow), the brake comparator (fast) | the motor's and the inverter's temperature (I²t), the shaft's position and turns, whether it is at rest, how long the rotor has been left, the brake chopper's comparator | [`Drive::new`] only (power-up): kept by [`Drive::enable`] and by [`Drive::reconfigure`] |
+/// | `FastRun`, `SlowRun` | one run of the bridge: the loops, the field, the plan, the checks' counts; and the estimates it runs on (R_r, the inductances) | [`Drive::enable`] and [`Drive::reconfigure`], which carry the estimates into the new run |
 ///
 /// The board's own state (the current sensors' offsets, the encoder's speed window, the
 /// capture) is the firmware's, beside the drive (`firmware::control::ControlLoop`).
+///
+/// `repr(C)`, the fast step's state first and its configuration next: within the
+/// Cortex-M4F's ±1 020 B reach of a floating-point load from the drive's address (laid out
+/// by the compiler, the slow state came first and the fast step paid address arithmetic).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Drive {
+    fast: FastState,
     cfg: DriveConfig,
+    slow: SlowState,
+}
+
+/// The fast step's state: what the bridge runs on every period.
+#[derive(Clone, Copy, Debug)]
+struct FastState {
+    /// The mode: the fast side's word is final (it switches the bridge); the slow side's
+    /// changes reach it with the plan.
+    mode: Mode,
+    /// The slow side's fault answered by a controlled stop, if one is under way: a fault of
+    /// the fast step latches it instead (the first fault stays latched).
+    pending_fault: Option<Fault>,
+    /// The reference as the fast step needs it (the rotating-current test's).
+    reference: Reference,
+    /// Fast steps until the next slow step (0: this one): the cadence whoever reads the
+    /// encoder every N-th period keeps in step with.
+    steps_to_slow: u16,
+    /// The brake chopper's comparator state (the machine's: kept by enable and reconfigure).
+    brake: bool,
+    run: FastRun,
+}
+
+/// One run of the bridge, the fast step's part: made afresh by [`Drive::enable`] and
+/// [`Drive::reconfigure`].
+#[derive(Clone, Copy, Debug, Default)]
+struct FastRun {
+    current: CurrentState<f32>,
+    /// The plan in force, the field turned since its first step, the measured current's sums.
+    field: FieldSteps,
+    /// The rotation that advances the output voltage over the delay
+    /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed of the plan in force.
+    delay_rotation: SinCos,
+    /// The current trim of the plan in force (field frame), A.
+    trim: Dq,
+    test_angle_rad: f32,
+    /// Consecutive fast steps with the voltage request outside the hexagon.
+    saturated_steps: u32,
+    /// Sum of the current loops' |v_request|² since the last slow step, V².
+    v_req2_sum: f32,
+    /// Fast steps in `v_req2_sum`.
+    v_req_steps: u16,
+    /// Sum of the d-axis voltage since the last slow step while magnetizing — the loops'
+    /// request, or the modulator's limit of it while it limits (the magnetizing fit's), V.
+    v_d_sum: f32,
+    /// The modulator limited the voltage since the last slow step (the trim holds).
+    trim_hold: bool,
+    /// The last fast step's signals.
+    last: StepSignals,
+    /// The rotating-current test's angle in the last fast step, rad.
+    last_test_angle_rad: f32,
+    /// The signals of the fast step after the slow step for the once-per-slow-period checks.
+    after_slow: Option<AfterSlow>,
+}
+
+/// What the slow step reads of the fast side, latched at its tick ([`FastState::latch`]).
+#[derive(Clone, Copy, Debug)]
+struct SlowInputs {
+    m: Measurements,
+    /// The fast side's mode at the tick.
+    mode: Mode,
+    /// The measured current's sums since the last tick (field frame, A) and their count.
+    sums: (Dq, u16),
+    v_req2_sum: f32,
+    v_req_steps: u16,
+    v_d_sum: f32,
+    /// The modulator limited the voltage since the last tick.
+    limited: bool,
+    /// The rotating-current test's angle at the tick, rad.
+    test_angle_rad: f32,
+}
+
+/// The fast step right after the slow step, as the once-per-slow-period checks read it
+/// ([`Drive::after_slow_checks`]): Running on the field-oriented references.
+#[derive(Clone, Copy, Debug)]
+struct AfterSlow {
+    omega_m_rad_s: f32,
+    field: SinCos,
+    i_meas_dq: Dq,
+    v_applied: AlphaBeta,
+    /// The loops' request; `None` when the modulator limited it.
+    v_req: Option<AlphaBeta>,
+    v_usable_v: f32,
+}
+
+/// The slow step's state.
+#[derive(Clone, Copy, Debug)]
+struct SlowState {
+    /// The mode as the slow side knows it: the fast side's at the tick, then its own
+    /// changes (handed over with the plan).
     mode: Mode,
     reference: Reference,
     /// Speed reference of the speed loop at the last slow step (telemetry), rad/s.
@@ -114,11 +220,8 @@ pub struct Drive {
     pending_fault: Option<Fault>,
     /// Slow steps left of a controlled stop (`None`: not stopping).
     stop_steps_left: Option<u32>,
-    /// Fast steps until the next slow step (0: this one): the cadence whoever reads the
-    /// encoder every N-th period keeps in step with.
-    steps_to_slow: u16,
     machine: MachineState,
-    run: RunState,
+    run: SlowRun,
 }
 
 /// What belongs to the machine and the board, not to a run or a configuration: kept by
@@ -135,8 +238,6 @@ struct MachineState {
     /// Slow steps with the bridge off (saturating): whether the rotor has lost its flux
     /// ([`MrasConfig::demagnetized_after`]).
     idle_slow_steps: u32,
-    /// The brake chopper's comparator state.
-    brake: bool,
 }
 
 impl MachineState {
@@ -146,25 +247,21 @@ impl MachineState {
         encoder: EncoderTrack::NONE,
         rest: RestWatch::NONE,
         idle_slow_steps: u32::MAX,
-        brake: false,
     };
 }
 
-/// One run of the bridge, from an enable: made afresh by [`Drive::enable`] and
-/// [`Drive::reconfigure`] ([`RunState::new`]), on the estimates the last run left.
+/// One run of the bridge, the slow step's part: made afresh by [`Drive::enable`] and
+/// [`Drive::reconfigure`] ([`SlowRun::new`]), on the estimates the last run left.
 #[derive(Clone, Copy, Debug)]
-struct RunState {
+struct SlowRun {
     torque_cmd: TorqueCommand,
-    current: CurrentState<f32>,
     /// The field orientation's state; it holds the estimates the run is on (R_r, the
-    /// inductances: [`IfocState::rotor_resistance_scale`], [`IfocState::inductance_scale`]).
+    /// inductances: [`IfocState::rotor_resistance_scale`], [`IfocState::inductance_scale`]),
+    /// and the plan made last.
     ifoc: IfocState,
     speed: SpeedState,
-    test_angle_rad: f32,
     /// The stall and following-error checks ([`crate::supervisor::motion`]).
     motion: MotionChecks,
-    /// Consecutive fast steps with the voltage request outside the hexagon.
-    saturated_steps: u32,
     /// The encoder-against-the-model check ([`crate::supervisor::encoder`]).
     voltage_check: VoltageCheck,
     /// The open-phase check's window: Σ|i_ref| and Σ|i| per phase, and its steps so far.
@@ -184,13 +281,6 @@ struct RunState {
     torque_max_nm: f32,
     /// The voltage regulator's cut of the budget, V (≤ 0).
     v_cut_v: f32,
-    /// Sum of the current loops' |v_request|² since the last slow step, V².
-    v_req2_sum: f32,
-    /// Fast steps in `v_req2_sum`.
-    v_req_steps: u16,
-    /// Sum of the d-axis voltage since the last slow step while magnetizing — the loops'
-    /// request, or the modulator's limit of it while it limits (the magnetizing fit's), V.
-    v_d_sum: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,
     /// The machine model on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]):
@@ -203,7 +293,7 @@ struct RunState {
     /// The rotor's electrical angle from the encoder, rad, in `[-π, π)`.
     theta_r_rad: f32,
     /// The rotation that advances the output voltage over the delay
-    /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed at the last slow step.
+    /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed of the plan made last.
     delay_rotation: SinCos,
     /// The speed loop's output was at its limit at the last slow step.
     speed_saturated: bool,
@@ -213,15 +303,9 @@ struct RunState {
     envelope_age: u16,
     /// The current trim added to the loops' references (field frame), A.
     trim: Dq,
-    /// The modulator limited the voltage since the last slow step (the trim holds).
-    trim_hold: bool,
-    /// The last fast step's signals.
-    last: StepSignals,
-    /// The rotating-current test's angle in the last fast step, rad.
-    last_test_angle_rad: f32,
 }
 
-impl RunState {
+impl SlowRun {
     /// A run of `cfg` from rest (no flux, no torque, every count at zero) on the rotor
     /// resistance `rr_scale` and the inductances `l_scale` × the motor's, with the
     /// magnetizing fit `rotor_fit`. Out of line: one copy for power-up, an enable and a
@@ -230,16 +314,13 @@ impl RunState {
     fn new(cfg: &DriveConfig, rr_scale: f32, l_scale: f32, rotor_fit: RotorFit) -> Self {
         Self {
             torque_cmd: TorqueCommand::TorqueNm(0.0),
-            current: CurrentState::default(),
             ifoc: {
                 let mut s = cfg.ifoc.state(0.0, rr_scale);
                 cfg.ifoc.set_inductance_scale(&mut s, l_scale);
                 s
             },
             speed: SpeedState::default(),
-            test_angle_rad: 0.0,
             motion: MotionChecks::default(),
-            saturated_steps: 0,
             voltage_check: VoltageCheck::default(),
             open_phase: OpenPhaseWindow::default(),
             switches: SwitchWatch::default(),
@@ -248,9 +329,6 @@ impl RunState {
             flux_forced: false,
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
-            v_req2_sum: 0.0,
-            v_req_steps: 0,
-            v_d_sum: 0.0,
             rotor_fit,
             model: cfg.envelope.with_inductance_scale(l_scale),
             i_d_rated_a: cfg.i_d_rated_a / l_scale,
@@ -261,9 +339,90 @@ impl RunState {
             envelope: Envelope::ZERO,
             envelope_age: 0,
             trim: Dq::default(),
-            trim_hold: false,
-            last: StepSignals::default(),
-            last_test_angle_rad: 0.0,
+        }
+    }
+}
+
+impl FastState {
+    /// The slow step's inputs at its tick: the measurements, the mode, and the sums since
+    /// the last tick, which start again.
+    #[inline(always)]
+    fn latch(&mut self, m: &Measurements) -> SlowInputs {
+        let r = &mut self.run;
+        let inputs = SlowInputs {
+            m: *m,
+            mode: self.mode,
+            sums: r.field.take_sums(),
+            v_req2_sum: r.v_req2_sum,
+            v_req_steps: r.v_req_steps,
+            v_d_sum: r.v_d_sum,
+            limited: r.trim_hold,
+            test_angle_rad: r.test_angle_rad,
+        };
+        (r.v_req2_sum, r.v_req_steps, r.v_d_sum, r.trim_hold) = (0.0, 0, 0.0, false);
+        inputs
+    }
+
+    /// Take the slow step's plan (`s`, the slow side's state after its step): its mode
+    /// (unless a fault of the fast step came first), the reference, the fast steps' plan,
+    /// the delay's rotation and the trim.
+    #[inline(always)]
+    fn adopt(&mut self, s: &SlowState) {
+        self.trip_from(s.mode);
+        (self.pending_fault, self.reference) = (s.pending_fault, s.reference);
+        self.run.field.adopt(s.run.ifoc.field_steps());
+        (self.run.delay_rotation, self.run.trim) = (s.run.delay_rotation, s.run.trim);
+    }
+
+    /// Latch fault `f` (the first fault stays latched: a controlled stop's, if one is under
+    /// way): phases off from this step on.
+    #[inline(never)]
+    fn trip(&mut self, f: Fault) {
+        if !matches!(self.mode, Mode::Fault(_)) {
+            self.mode = Mode::Fault(self.pending_fault.take().unwrap_or(f));
+        }
+    }
+}
+
+impl SlowState {
+    /// Latch fault `f` (the first fault stays latched): handed to the fast step with the plan.
+    /// Out of line (a fault's path: inlined, its callers took flash).
+    #[inline(never)]
+    fn trip(&mut self, f: Fault) {
+        if !matches!(self.mode, Mode::Fault(_)) {
+            // A fault whose controlled stop was under way came first.
+            self.mode = Mode::Fault(self.pending_fault.take().unwrap_or(f));
+            self.stop_steps_left = None;
+        }
+    }
+
+    /// Back to Idle (phases off) — a fault answered by a controlled stop latches now. A
+    /// latched fault stays latched.
+    fn disable(&mut self) {
+        if !matches!(self.mode, Mode::Fault(_)) {
+            self.mode = match self.pending_fault.take() {
+                Some(f) => Mode::Fault(f),
+                None => Mode::Idle,
+            };
+        }
+        self.stop_steps_left = None;
+    }
+
+    /// React to fault `f`: a controlled stop, the fault latched when it ends, if `f` is in
+    /// `stop_on` and the drive is Running; otherwise the bridge off at once.
+    #[cold]
+    #[inline(never)]
+    pub(super) fn fault_reaction(&mut self, cfg: &DriveConfig, f: Fault) {
+        if cfg.stop_on.contains(f) && self.mode == Mode::Running {
+            if self.pending_fault.is_none() {
+                self.pending_fault = Some(f);
+                self.reference = Reference::Speed(0.0);
+                if self.stop_steps_left.is_none() {
+                    self.stop_steps_left = Some(cfg.stop_slow_steps);
+                }
+            }
+        } else {
+            self.trip(f);
         }
     }
 }
@@ -275,7 +434,7 @@ impl Drive {
     /// (start-up; out of line at controller-core's 2, +72 B).
     #[inline]
     pub fn new(cfg: DriveConfig) -> Self {
-        let run = RunState::new(
+        let run = SlowRun::new(
             &cfg,
             cfg.mras.initial_scale(),
             cfg.mras.initial_inductance_scale(),
@@ -283,15 +442,43 @@ impl Drive {
         );
         Self {
             cfg,
-            mode: Mode::Idle,
-            reference: Reference::Speed(0.0),
-            omega_ref_rad_s: 0.0,
-            pending_fault: None,
-            stop_steps_left: None,
-            steps_to_slow: 0,
-            machine: MachineState::POWER_UP,
-            run,
+            fast: FastState {
+                mode: Mode::Idle,
+                pending_fault: None,
+                reference: Reference::Speed(0.0),
+                steps_to_slow: 0,
+                brake: false,
+                run: FastRun::default(),
+            },
+            slow: SlowState {
+                mode: Mode::Idle,
+                reference: Reference::Speed(0.0),
+                omega_ref_rad_s: 0.0,
+                pending_fault: None,
+                stop_steps_left: None,
+                machine: MachineState::POWER_UP,
+                run,
+            },
         }
+    }
+
+    /// The slow side learns the fast side's fault (a fault of the fast step ends a
+    /// controlled stop: its pending fault is what latched), and the fast side the slow
+    /// side's reference and pending fault: after a command, and at the slow step's tick.
+    /// Out of line: one copy for its dozen callers.
+    #[inline(never)]
+    fn sync(&mut self) {
+        if let Mode::Fault(_) = self.fast.mode {
+            self.slow.mode = self.fast.mode;
+            (self.slow.pending_fault, self.slow.stop_steps_left) = (None, None);
+        }
+        self.fast.pending_fault = self.slow.pending_fault;
+        self.fast.reference = self.slow.reference;
+    }
+
+    /// Both sides' mode set to `mode` (a command's).
+    fn set_mode(&mut self, mode: Mode) {
+        (self.fast.mode, self.slow.mode) = (mode, mode);
     }
 
     /// Swap the configuration for `cfg` — new gains (the firmware's `WriteSpeedGains`), or a
@@ -311,31 +498,34 @@ impl Drive {
     /// opt-level "z" (a gain write).
     #[inline]
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
-        if self.mode.is_active() {
+        if self.fast.mode.is_active() {
             return Err(CommandError::Active);
         }
+        self.sync();
         let old = &self.cfg;
         let [rr_min, rr_max] = cfg.mras.range();
         let [l_min, l_max] = cfg.mras.inductance_range();
-        let rr = self.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
-        let l = self.run.ifoc.inductance_scale().limit(l_min, l_max);
-        let thermal = &mut self.machine.thermal;
+        let rr = self.slow.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
+        let l = self.slow.run.ifoc.inductance_scale().limit(l_min, l_max);
+        let thermal = &mut self.slow.machine.thermal;
         thermal.motor = old.motor_thermal.carry(thermal.motor, &cfg.motor_thermal);
         thermal.inverter = old.inverter_thermal.carry(thermal.inverter, &cfg.inverter_thermal);
         if cfg.slow_divider != old.slow_divider {
-            self.steps_to_slow = 0;
-            self.machine.encoder.restart_jump_check();
+            self.fast.steps_to_slow = 0;
+            self.slow.machine.encoder.restart_jump_check();
         }
-        self.run = RunState::new(&cfg, rr, l, RotorFit::default());
-        (self.reference, self.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
-        (self.pending_fault, self.stop_steps_left) = (None, None);
+        self.slow.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
+        self.fast.run = FastRun::default();
+        (self.slow.reference, self.slow.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
+        (self.slow.pending_fault, self.slow.stop_steps_left) = (None, None);
         self.cfg = cfg;
+        self.sync();
         Ok(())
     }
 
     /// Present mode.
     pub fn mode(&self) -> Mode {
-        self.mode
+        self.fast.mode
     }
 
     /// The configuration.
@@ -345,24 +535,24 @@ impl Drive {
 
     /// Current-loop states (their PI `p_term`/`i_term` are telemetry).
     pub fn current_state(&self) -> &CurrentState<f32> {
-        &self.run.current
+        &self.fast.run.current
     }
 
     /// Speed-loop state (PI `p_term`/`i_term` when a PI law is configured).
     pub fn speed_state(&self) -> &SpeedState {
-        &self.run.speed
+        &self.slow.run.speed
     }
 
-    /// IFOC state: field angle and rotor-flux estimate.
+    /// IFOC state: the rotor-flux estimate, the estimates in use and the plan made last.
     pub fn ifoc_state(&self) -> &IfocState {
-        &self.run.ifoc
+        &self.slow.run.ifoc
     }
 
     /// The next [`Drive::step`] runs the slow step, which reads the measurements' encoder
     /// values (the one cadence: a caller that reads the encoder every N-th period reads it
     /// for this step).
     pub fn slow_step_due(&self) -> bool {
-        self.steps_to_slow == 0
+        self.fast.steps_to_slow == 0
     }
 
     /// The last [`Drive::step`] ran the slow step, and the cadence has periods without one
@@ -370,40 +560,44 @@ impl Drive {
     /// it, so that the longest period is the slow step's or a request's, not both.
     pub fn slow_step_ran(&self) -> bool {
         let divider = self.cfg.slow_divider;
-        divider > 1 && self.steps_to_slow == divider - 1
+        divider > 1 && self.fast.steps_to_slow == divider - 1
     }
 
     /// Slow steps since a bridge last drove the rotor (saturating; `u32::MAX` from power-up):
     /// what decides whether the next enable measures the inductances
     /// ([`MrasConfig::demagnetized_after`]).
     pub fn idle_slow_steps(&self) -> u32 {
-        self.machine.idle_slow_steps
+        self.slow.machine.idle_slow_steps
     }
 
     /// The rotor was driven by something else `idle_slow_steps` slow steps ago (0: now) — a
     /// commissioning sequence in the drive's place, or the drive this one replaces (a new
     /// configuration): its flux may still be there at the next enable.
     pub fn rotor_driven(&mut self, idle_slow_steps: u32) {
-        self.machine.idle_slow_steps = idle_slow_steps;
+        self.slow.machine.idle_slow_steps = idle_slow_steps;
     }
 
-    /// Idle → Magnetizing with a fresh run (`RunState`: the loops, the field, the checks'
-    /// counts), on the estimates the last run left: the rotor resistance's estimate is the
-    /// rotor's temperature, the inductance's the machine's. The machine's state carries on
-    /// (`MachineState`), and so does the slow cadence: whoever reads the encoder every
-    /// N-th period (the firmware, the simulator) stays in step with the slow step. No effect
-    /// when already active. `#[inline]`: compiled in the caller's crate — in the firmware,
-    /// with its commands at opt-level "z" (−148 B of flash), not at controller-core's 2.
+    /// Idle → Magnetizing with a fresh run (`FastRun`, `SlowRun`: the loops, the field, the
+    /// checks' counts), on the estimates the last run left: the rotor resistance's estimate
+    /// is the rotor's temperature, the inductance's the machine's. The machine's state
+    /// carries on (`MachineState`), and so does the slow cadence: whoever reads the encoder
+    /// every N-th period (the firmware, the simulator) stays in step with the slow step. No
+    /// effect when already active. `#[inline]`: compiled in the caller's crate — in the
+    /// firmware, with its commands at opt-level "z" (−148 B of flash), not at
+    /// controller-core's 2.
     #[inline]
     pub fn enable(&mut self) -> Result<(), CommandError> {
-        match self.mode {
+        self.sync();
+        match self.fast.mode {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
-                let fit = RotorFit::new(self.cfg.mras.demagnetized_after(self.machine.idle_slow_steps));
-                let (rr, l) = (self.run.ifoc.rotor_resistance_scale(), self.run.ifoc.inductance_scale());
-                self.run = RunState::new(&self.cfg, rr, l, fit);
-                self.machine.idle_slow_steps = 0;
-                self.mode = Mode::Magnetizing;
+                let fit = RotorFit::new(self.cfg.mras.demagnetized_after(self.slow.machine.idle_slow_steps));
+                let ifoc = &self.slow.run.ifoc;
+                let (rr, l) = (ifoc.rotor_resistance_scale(), ifoc.inductance_scale());
+                self.slow.run = SlowRun::new(&self.cfg, rr, l, fit);
+                self.fast.run = FastRun::default();
+                self.slow.machine.idle_slow_steps = 0;
+                self.set_mode(Mode::Magnetizing);
                 Ok(())
             }
             Mode::Magnetizing | Mode::Running => Ok(()),
@@ -412,44 +606,22 @@ impl Drive {
 
     /// Back to Idle (phases off). A latched fault stays latched.
     pub fn disable(&mut self) {
-        if !matches!(self.mode, Mode::Fault(_)) {
-            // A fault answered by a controlled stop latches when the bridge goes off.
-            self.mode = match self.pending_fault.take() {
-                Some(f) => Mode::Fault(f),
-                None => Mode::Idle,
-            };
-        }
-        self.stop_steps_left = None;
+        self.sync();
+        self.slow.disable();
+        self.fast.mode = self.slow.mode;
+        self.sync();
     }
 
     /// A fault answered by a controlled stop that is under way ([`Protection::stop_on`]): it
     /// latches when the bridge goes off.
     pub fn pending_fault(&self) -> Option<Fault> {
-        self.pending_fault
+        if matches!(self.fast.mode, Mode::Fault(_)) { None } else { self.slow.pending_fault }
     }
 
     /// The thermal models' states, motor and inverter (1 = the steady temperature rise at
     /// the rated current; the limit is `overload_factor²`; 0 without a limit).
     pub fn thermal_state(&self) -> (f32, f32) {
-        (self.machine.thermal.motor, self.machine.thermal.inverter)
-    }
-
-    /// React to fault `f`: a controlled stop, the fault latched when it ends, if `f` is in
-    /// `stop_on` and the drive is Running; otherwise the bridge off at once ([`Drive::trip`]).
-    #[cold]
-    #[inline(never)]
-    pub(super) fn fault_reaction(&mut self, f: Fault) {
-        if self.cfg.stop_on.contains(f) && self.mode == Mode::Running {
-            if self.pending_fault.is_none() {
-                self.pending_fault = Some(f);
-                self.reference = Reference::Speed(0.0);
-                if self.stop_steps_left.is_none() {
-                    self.stop_steps_left = Some(self.cfg.stop_slow_steps);
-                }
-            }
-        } else {
-            self.trip(f);
-        }
+        (self.slow.machine.thermal.motor, self.slow.machine.thermal.inverter)
     }
 
     /// A controlled stop (stop category 1): Running, the speed loop brakes to standstill
@@ -458,30 +630,37 @@ impl Drive {
     /// latest; Magnetizing, the bridge goes off at once. A new reference (the host is back)
     /// cancels the stop. What the firmware does when its link falls silent.
     pub fn controlled_stop(&mut self) {
-        match self.mode {
-            _ if self.pending_fault.is_some() => {}
-            Mode::Running if self.stop_steps_left.is_none() => {
-                self.reference = Reference::Speed(0.0);
-                self.stop_steps_left = Some(self.cfg.stop_slow_steps);
+        self.sync();
+        let s = &mut self.slow;
+        match self.fast.mode {
+            _ if s.pending_fault.is_some() => {}
+            Mode::Running if s.stop_steps_left.is_none() => {
+                s.reference = Reference::Speed(0.0);
+                s.stop_steps_left = Some(self.cfg.stop_slow_steps);
             }
-            Mode::Magnetizing => self.disable(),
+            Mode::Magnetizing => {
+                s.disable();
+                self.fast.mode = s.mode;
+            }
             _ => {}
         }
+        self.sync();
     }
 
     /// A controlled stop is under way.
     pub fn is_stopping(&self) -> bool {
-        self.stop_steps_left.is_some()
+        self.slow.stop_steps_left.is_some() && !matches!(self.fast.mode, Mode::Fault(_))
     }
 
     /// Fault → Idle (the encoder's jump check judges again from the second change after,
     /// [`Fault::EncoderLoss`]'s jump being no reference).
     pub fn clear_fault(&mut self) {
-        if matches!(self.mode, Mode::Fault(_)) {
-            self.mode = Mode::Idle;
+        self.sync();
+        if matches!(self.fast.mode, Mode::Fault(_)) {
+            self.set_mode(Mode::Idle);
             // The encoder's last change may be the jump that latched `EncoderLoss`: no
             // reference for the next one.
-            self.machine.encoder.forget_last_change();
+            self.slow.machine.encoder.forget_last_change();
         }
     }
 
@@ -496,23 +675,25 @@ impl Drive {
         if !finite {
             return Err(CommandError::NonFinite);
         }
-        if self.pending_fault.is_some() {
+        self.sync();
+        if self.slow.pending_fault.is_some() {
             // A stop for a fault is not cancelled by a new reference.
             return Err(CommandError::Faulted);
         }
-        self.reference = r;
-        self.stop_steps_left = None;
+        self.slow.reference = r;
+        self.slow.stop_steps_left = None;
+        self.sync();
         Ok(())
     }
 
     /// One PWM period: the slow step on every N-th call, then the fast step.
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
-        let after_slow = self.steps_to_slow == 0;
+        let after_slow = self.fast.steps_to_slow == 0;
         if after_slow {
             self.slow_step(m);
-            self.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
+            self.fast.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
         } else {
-            self.steps_to_slow -= 1;
+            self.fast.steps_to_slow -= 1;
         }
         self.fast(m, after_slow)
     }
@@ -522,11 +703,8 @@ impl Drive {
     /// line (a fault's path: inlined, its eight callers took 376 B of flash).
     #[inline(never)]
     pub fn trip(&mut self, f: Fault) {
-        if !matches!(self.mode, Mode::Fault(_)) {
-            // A fault whose controlled stop was under way came first.
-            self.mode = Mode::Fault(self.pending_fault.take().unwrap_or(f));
-            self.stop_steps_left = None;
-        }
+        self.fast.trip(f);
+        self.sync();
     }
 
     /// The rotor has been at rest over the rest check's last windows
@@ -534,13 +712,13 @@ impl Drive {
     /// a row): what commissioning's standstill tests need before they start. Watched in every
     /// mode; `false` from power-up until the windows have passed.
     pub fn rotor_at_rest(&self) -> bool {
-        self.machine.rest.at_rest()
+        self.slow.machine.rest.at_rest()
     }
 
     /// Multi-turn mechanical position from the encoder, rad (the position loop's;
     /// `EncoderTrack::position_rad`).
     pub fn position_rad(&self) -> f32 {
-        self.machine.encoder.position_rad()
+        self.slow.machine.encoder.position_rad()
     }
 
     /// The signals of the last fast step, for logs, traces and the capture: made on demand
@@ -550,27 +728,27 @@ impl Drive {
     /// (the firmware's capture and link stream) take it rarely.
     #[inline(never)]
     pub fn telemetry(&self) -> Telemetry {
-        if !self.mode.is_active() {
+        if !self.fast.mode.is_active() {
             return Telemetry::default();
         }
-        let rotating =
-            matches!(self.reference, Reference::RotatingCurrent { .. }) && self.mode == Mode::Running;
-        let s = &self.run.ifoc;
+        let rotating = matches!(self.fast.reference, Reference::RotatingCurrent { .. })
+            && self.fast.mode == Mode::Running;
+        let (s, f) = (&self.slow.run.ifoc, &self.fast.run);
         let (theta_e_rad, omega_sl_rad_s, i_q_ref_a) = if rotating {
-            (self.run.last_test_angle_rad, 0.0, 0.0)
+            (f.last_test_angle_rad, 0.0, 0.0)
         } else {
-            (s.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q)
+            (f.field.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q)
         };
         Telemetry {
-            i_ab_a: self.run.last.i_ab,
-            i_ref_ab_a: self.run.last.i_ref_ab,
-            v_ab_v: self.run.last.v_ab,
+            i_ab_a: f.last.i_ab,
+            i_ref_ab_a: f.last.i_ref_ab,
+            v_ab_v: f.last.v_ab,
             theta_e_rad,
             omega_sl_rad_s,
             psi_r_wb: s.psi_r_wb(),
-            psi_ref_wb: s.flux_of(self.run.i_d_target_a),
+            psi_ref_wb: s.flux_of(self.slow.run.i_d_target_a),
             i_q_ref_a,
-            omega_ref_rad_s: self.omega_ref_rad_s,
+            omega_ref_rad_s: self.slow.omega_ref_rad_s,
             rr_scale: s.rotor_resistance_scale(),
             l_scale: s.inductance_scale(),
         }

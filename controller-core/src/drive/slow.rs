@@ -8,11 +8,17 @@ use crate::envelope::ENVELOPE_REFRESH_SLOW_STEPS;
 use crate::frames::{Abc, wrap_angle};
 #[cfg(doc)]
 use crate::ifoc::IfocConfig;
+use crate::mras::Evidence;
 use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
 use crate::supervisor::phases::CURRENT_SUM_MEAN_FRACTION;
 use crate::svpwm;
 
 impl Drive {
+    /// The slow step at its tick: its inputs latched from the fast side
+    /// (`FastState::latch`), the step on the slow side's state alone
+    /// (`SlowState::step`), and its plan handed to the fast side (`FastState::adopt`) —
+    /// at once: the plan rules this period's fast step.
+    ///
     /// Speed/position loop, the operating point, and the slow supervisor: a non-finite
     /// encoder reading (in every mode), overspeed (while the bridge is active), stall (while
     /// Running under a speed or position reference) and the magnetizing time. Holds a zero
@@ -27,35 +33,51 @@ impl Drive {
     /// plan ([`IfocConfig::plan`]); the phase checks (open phase, no motor current, the
     /// windowed current sum; a stuck switch while Running).
     pub fn slow_step(&mut self, m: &Measurements) {
-        self.slow_loops(m);
+        let inputs = self.fast.latch(m);
+        self.slow.step(&self.cfg, &inputs);
+        self.fast.adopt(&self.slow);
+    }
+}
+
+impl SlowState {
+    /// The slow step on its inputs: see [`Drive::slow_step`].
+    fn step(&mut self, cfg: &DriveConfig, inputs: &SlowInputs) {
+        self.mode = inputs.mode;
+        if let Mode::Fault(_) = self.mode {
+            // A fault of the fast step ended a controlled stop (its pending fault is what
+            // latched).
+            (self.pending_fault, self.stop_steps_left) = (None, None);
+        }
+        self.slow_loops(cfg, inputs);
+        let m = &inputs.m;
         if self.mode.is_active() && m.is_finite() {
-            self.plan(m.omega_m_rad_s);
-            self.check_phases(m.i_abc_a);
+            self.plan(cfg, m.omega_m_rad_s);
+            self.check_phases(cfg, m.i_abc_a, inputs.test_angle_rad);
         }
     }
-
     /// The slow step's first stage, the shaft's and the machine's, which runs whatever the
     /// bridge does (a slow period of [`Drive::hold_step`] too): the encoder read (its
     /// non-finite and jump checks), the rest detector, the thermal models. Returns the
     /// encoder's change, mechanical rad.
     #[inline]
-    pub(super) fn track_shaft(&mut self, m: &Measurements) -> f32 {
+    pub(super) fn track_shaft(&mut self, cfg: &DriveConfig, m: &Measurements) -> f32 {
         // The encoder's readings change only here (the fast step checks the currents and
         // the bus): not finite, in any mode, is the supervisor's non-finite input.
         if !(m.omega_m_rad_s.is_finite() && m.theta_m_rad.is_finite()) {
             self.trip(Fault::NonFiniteInput);
         }
-        let step_rad = self.read_encoder(m.theta_m_rad);
-        self.machine.rest.update(&self.cfg.rest, step_rad);
-        self.update_thermal(m.i_abc_a);
+        let step_rad = self.read_encoder(cfg, m.theta_m_rad);
+        self.machine.rest.update(&cfg.rest, step_rad);
+        self.update_thermal(cfg, m.i_abc_a);
         step_rad
     }
 
     /// The slow step up to the plan: see [`Drive::slow_step`].
-    pub(super) fn slow_loops(&mut self, m: &Measurements) {
-        let step_rad = self.track_shaft(m);
+    fn slow_loops(&mut self, cfg: &DriveConfig, inputs: &SlowInputs) {
+        let m = &inputs.m;
+        let step_rad = self.track_shaft(cfg, m);
         let active = self.mode.is_active();
-        if active && m.omega_m_rad_s.abs() > self.cfg.motion.overspeed_rad_s {
+        if active && m.omega_m_rad_s.abs() > cfg.motion.overspeed_rad_s {
             self.trip(Fault::Overspeed);
         }
         let active = self.mode.is_active();
@@ -67,7 +89,7 @@ impl Drive {
             return;
         }
         if let Some(left) = self.stop_steps_left {
-            if left == 0 || m.omega_m_rad_s.abs() < self.cfg.motion.stall_speed_rad_s {
+            if left == 0 || m.omega_m_rad_s.abs() < cfg.motion.stall_speed_rad_s {
                 self.disable();
                 self.run.torque_cmd = TorqueCommand::TorqueNm(0.0);
                 return;
@@ -76,21 +98,19 @@ impl Drive {
         }
         // The fast steps since the last slow step: the slip angle and the flux model advance
         // over them (before the field is anchored, on the slip angle).
-        let (i_mean, n) = self.cfg.ifoc.close_period(&mut self.run.ifoc);
-        self.anchor_field(step_rad);
-        // The modulator limited the loops' request since the last slow step (read before
-        // the trim clears it).
-        let limited = self.run.trim_hold;
-        if n > 0 && (self.mode == Mode::Running || !self.cfg.mras.fit_pending(&self.run.rotor_fit)) {
+        self.run.ifoc.add_sums(inputs.sums);
+        let (i_mean, n) = cfg.ifoc.close_period(&mut self.run.ifoc);
+        self.anchor_field(cfg, step_rad);
+        // The modulator limited the loops' request since the last slow step.
+        let limited = inputs.limited;
+        if n > 0 && (self.mode == Mode::Running || !cfg.mras.fit_pending(&self.run.rotor_fit)) {
             // The period's mean error of the intended references (those of the plan in force).
             let r = self.run.ifoc.i_ref_dq();
-            self.update_trim(Dq { d: r.d - i_mean.d, q: r.q - i_mean.q });
+            self.update_trim(cfg, Dq { d: r.d - i_mean.d, q: r.q - i_mean.q }, limited);
         }
-        self.run.trim_hold = false;
-        // The loops' d-axis request over the slow period while magnetizing (read before the
-        // budget clears it).
-        let (v_d_sum, v_d_steps) = (self.run.v_d_sum, self.run.v_req_steps);
-        let (v_target, v_budget) = self.voltage_budget(m.vdc_v * self.cfg.duty_max, limited);
+        // The loops' d-axis request over the slow period while magnetizing.
+        let (v_d_sum, v_d_steps) = (inputs.v_d_sum, inputs.v_req_steps);
+        let (v_target, v_budget) = self.voltage_budget(cfg, inputs, m.vdc_v * cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
         let limit = self.run.torque_max_nm;
         let torque_nm = if !running {
@@ -102,19 +122,18 @@ impl Drive {
                 Reference::Speed(w) => {
                     self.omega_ref_rad_s = w;
                     // The user's reference through the speed law's setpoint-weight prefilter.
-                    let w_f = self.cfg.speed.reference(&mut self.run.speed, w);
-                    self.speed_torque(w_f, m.omega_m_rad_s, limit)
+                    let w_f = cfg.speed.reference(&mut self.run.speed, w);
+                    self.speed_torque(cfg, w_f, m.omega_m_rad_s, limit)
                 }
                 Reference::Position(th) => {
-                    let w = self.cfg.position.update(th, self.position_rad());
+                    let w = cfg.position.update(th, self.machine.encoder.position_rad());
                     self.omega_ref_rad_s = w;
                     // The position loop's, unfiltered: its design ends at the speed loop.
-                    let w = self.cfg.speed.pass_reference(&mut self.run.speed, w);
-                    self.speed_torque(w, m.omega_m_rad_s, limit)
+                    let w = cfg.speed.pass_reference(&mut self.run.speed, w);
+                    self.speed_torque(cfg, w, m.omega_m_rad_s, limit)
                 }
             }
         };
-        let cfg = &self.cfg;
         let (w, i_max) = (m.omega_m_rad_s, cfg.ifoc.i_max_a());
         let sign = if torque_nm < 0.0 { -1.0 } else { 1.0 };
         // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
@@ -186,22 +205,22 @@ impl Drive {
             // The rotor resistance and the inductance from the building flux
             // ([`MrasConfig::fit`]).
             let l_now = self.run.ifoc.inductance_scale();
-            if m.omega_m_rad_s.abs() >= self.cfg.motion.stall_speed_rad_s {
+            if m.omega_m_rad_s.abs() >= cfg.motion.stall_speed_rad_s {
                 self.run.rotor_fit.turning();
             }
             if let Some(fit) =
-                self.cfg.mras.fit(&mut self.run.rotor_fit, v_d_sum, v_d_steps, self.run.flux.i_d_a(), l_now)
+                cfg.mras.fit(&mut self.run.rotor_fit, v_d_sum, v_d_steps, self.run.flux.i_d_a(), l_now)
             {
-                self.set_inductance_scale(fit.inductance_scale);
-                self.cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
+                self.set_inductance_scale(cfg, fit.inductance_scale);
+                cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
             }
             self.run.magnetizing_steps = self.run.magnetizing_steps.saturating_add(1);
-            if self.run.magnetizing_steps > self.cfg.magnetizing_steps_max {
+            if self.run.magnetizing_steps > cfg.magnetizing_steps_max {
                 // The flux model runs on the measured current: none flows.
                 self.trip(Fault::NoMotorCurrent);
             } else if self.run.ifoc.psi_r_wb()
-                >= self.cfg.magnetized_fraction * self.run.ifoc.flux_of(self.run.flux.i_d_a())
-                && !self.cfg.mras.fit_pending(&self.run.rotor_fit)
+                >= cfg.magnetized_fraction * self.run.ifoc.flux_of(self.run.flux.i_d_a())
+                && !cfg.mras.fit_pending(&self.run.rotor_fit)
             {
                 // The flux model runs on the measured current: the motor is magnetized.
                 self.mode = Mode::Running;
@@ -215,20 +234,20 @@ impl Drive {
         // (a proportional law too soft to saturate still commands a seized rotor to turn).
         let asked = self.run.speed_saturated
             || matches!(self.reference, Reference::Speed(w)
-                if w.abs() >= STALL_REFERENCE_FACTOR * self.cfg.motion.stall_speed_rad_s);
-        if self.run.motion.stall(&self.cfg.motion, commanding_motion && asked, m.omega_m_rad_s) {
+                if w.abs() >= STALL_REFERENCE_FACTOR * cfg.motion.stall_speed_rad_s);
+        if self.run.motion.stall(&cfg.motion, commanding_motion && asked, m.omega_m_rad_s) {
             self.trip(Fault::Stall);
             self.run.torque_cmd = TorqueCommand::TorqueNm(0.0);
         }
-        self.check_following(commanding_motion, m.omega_m_rad_s);
+        self.check_following(cfg, commanding_motion, m.omega_m_rad_s);
     }
 
     /// One encoder reading, in every mode (the turn count must not miss a turn made while
     /// the bridge is off): the change since the last reading, mechanical rad; a jump
     /// ([`EncoderTrack::read`]) trips [`Fault::EncoderLoss`] unless a fault is latched.
-    pub(super) fn read_encoder(&mut self, theta_m_rad: f32) -> f32 {
+    fn read_encoder(&mut self, cfg: &DriveConfig, theta_m_rad: f32) -> f32 {
         let judge = !matches!(self.mode, Mode::Fault(_));
-        let (step, jumped) = self.machine.encoder.read(theta_m_rad, self.cfg.encoder_jump_rad, judge);
+        let (step, jumped) = self.machine.encoder.read(theta_m_rad, cfg.encoder_jump_rad, judge);
         if jumped {
             self.trip(Fault::EncoderLoss);
         }
@@ -237,19 +256,19 @@ impl Drive {
 
     /// The rotor's electrical angle advances by p·Δθ_m (the encoder's change over the read),
     /// and the field angle is re-anchored on it.
-    pub(super) fn anchor_field(&mut self, step_rad: f32) {
+    pub(super) fn anchor_field(&mut self, cfg: &DriveConfig, step_rad: f32) {
         self.run.theta_r_rad =
-            wrap_angle(self.run.theta_r_rad + wrap_angle(self.cfg.envelope.pole_pairs() * step_rad));
-        self.cfg.ifoc.anchor(&mut self.run.ifoc, self.run.theta_r_rad);
+            wrap_angle(self.run.theta_r_rad + wrap_angle(cfg.envelope.pole_pairs() * step_rad));
+        cfg.ifoc.anchor(&mut self.run.ifoc, self.run.theta_r_rad);
     }
 
     /// The current trim integrates `error`, the mean field-frame error (intended − measured)
     /// of the last slow period, unless the modulator limited the voltage in it: then the
     /// currents cannot follow and the trim holds.
-    pub(super) fn update_trim(&mut self, error: Dq) {
-        if !self.run.trim_hold {
-            let k = self.cfg.trim_gain;
-            let lim = CURRENT_TRIM_RANGE * self.cfg.ifoc.i_max_a();
+    fn update_trim(&mut self, cfg: &DriveConfig, error: Dq, limited: bool) {
+        if !limited {
+            let k = cfg.trim_gain;
+            let lim = CURRENT_TRIM_RANGE * cfg.ifoc.i_max_a();
             self.run.trim.d = (self.run.trim.d + k * error.d).limit(-lim, lim);
             self.run.trim.q = (self.run.trim.q + k * error.q).limit(-lim, lim);
         }
@@ -260,20 +279,22 @@ impl Drive {
     /// voltage the loops asked for since the last slow step (only downwards from zero, and
     /// at most [`VOLTAGE_REGULATOR_RANGE`] of the limit).
     /// Returns the target and the budget.
-    pub(super) fn voltage_budget(&mut self, vdc_v: f32, limited: bool) -> (f32, f32) {
-        let cfg = &self.cfg;
+    fn voltage_budget(
+        &mut self,
+        cfg: &DriveConfig,
+        inputs: &SlowInputs,
+        vdc_v: f32,
+        limited: bool,
+    ) -> (f32, f32) {
         let target = cfg.voltage_margin * svpwm::linear_limit_v(vdc_v);
-        if self.run.v_req_steps > 0 {
-            let v_req = sqrt_f32(self.run.v_req2_sum / f32::from(self.run.v_req_steps));
+        if inputs.v_req_steps > 0 {
+            let v_req = sqrt_f32(inputs.v_req2_sum / f32::from(inputs.v_req_steps));
             let floor = -VOLTAGE_REGULATOR_RANGE * svpwm::linear_limit_v(vdc_v);
             let gain =
                 if limited { VOLTAGE_REGULATOR_LIMITED_GAIN * cfg.voltage_gain } else { cfg.voltage_gain };
             let error = max_f32(target - v_req, -VOLTAGE_REGULATOR_EXCESS_MAX * target);
             self.run.v_cut_v = (self.run.v_cut_v + gain * error).limit(floor, 0.0);
         }
-        self.run.v_req2_sum = 0.0;
-        self.run.v_req_steps = 0;
-        self.run.v_d_sum = 0.0;
         (target, target + self.run.v_cut_v)
     }
 
@@ -281,8 +302,7 @@ impl Drive {
     /// to the envelope's torque `limit` (so that a PI speed law does not wind up against a
     /// torque the bus cannot give). An i_q-output law (seed 000 PI2) is converted to torque
     /// with the flux estimate.
-    pub(super) fn speed_torque(&mut self, w_ref: f32, w: f32, limit_nm: f32) -> f32 {
-        let cfg = &self.cfg;
+    fn speed_torque(&mut self, cfg: &DriveConfig, w_ref: f32, w: f32, limit_nm: f32) -> f32 {
         let per_a = cfg.ifoc.torque_factor() * self.run.ifoc.psi_r_wb();
         let limit = if cfg.speed.is_torque() { limit_nm } else { limit_nm / max_f32(per_a, 1e-6) };
         let limit = min_f32(limit, cfg.motion.speed_limit);
@@ -298,8 +318,7 @@ impl Drive {
     /// The fast steps' plan up to the next slow step ([`IfocConfig::plan`]: the current
     /// references, the slip and the field's rotation per step), and the rotation that
     /// advances the output voltage over the delay, from the field speed of that plan.
-    pub(super) fn plan(&mut self, omega_m_rad_s: f32) {
-        let cfg = &self.cfg;
+    fn plan(&mut self, cfg: &DriveConfig, omega_m_rad_s: f32) {
         let running = self.mode == Mode::Running;
         let cmd = if running { self.run.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
         cfg.ifoc.plan(&mut self.run.ifoc, &self.run.flux, cmd, omega_m_rad_s, self.run.trim);
@@ -310,25 +329,17 @@ impl Drive {
         self.run.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
     }
 
-    /// The rotating-current test reference at the present test angle: its amplitude
-    /// (limited to the IFOC's current limit), the angle's sin/cos and the αβ reference.
-    pub(super) fn rotating_current(&self, amplitude_a: f32) -> (f32, SinCos, AlphaBeta) {
-        let a = amplitude_a.limit(0.0, self.cfg.ifoc.i_max_a());
-        let sc = SinCos::new(self.run.test_angle_rad);
-        (a, sc, AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin })
-    }
-
     /// Run on the inductances `l` × the motor's (the magnetizing fit's): the flux model, the
     /// machine model and the rated flux's d-axis current `ψ*/(l·L_m)` — the drive keeps
     /// magnetizing until the flux model reaches it. The envelope is remade at the next slow
     /// step.
-    pub(super) fn set_inductance_scale(&mut self, l: f32) {
+    pub(super) fn set_inductance_scale(&mut self, cfg: &DriveConfig, l: f32) {
         if !finite_positive(l) || l == self.run.ifoc.inductance_scale() {
             return;
         }
-        self.cfg.ifoc.set_inductance_scale(&mut self.run.ifoc, l);
-        self.run.model = self.cfg.envelope.with_inductance_scale(l);
-        self.run.i_d_rated_a = self.cfg.i_d_rated_a / l;
+        cfg.ifoc.set_inductance_scale(&mut self.run.ifoc, l);
+        self.run.model = cfg.envelope.with_inductance_scale(l);
+        self.run.i_d_rated_a = cfg.i_d_rated_a / l;
         self.run.envelope_age = 0;
     }
 
@@ -342,16 +353,15 @@ impl Drive {
     /// every fast step cost 49 instructions per fast step, `cost interrupt_fast_step`).
     /// A fault latched here turns the bridge off in this period: the fast step that follows
     /// finds it.
-    pub(super) fn check_phases(&mut self, i_abc_a: Abc) {
+    fn check_phases(&mut self, cfg: &DriveConfig, i_abc_a: Abc, test_angle_rad: f32) {
         let running = self.mode == Mode::Running;
         let [i_ref_ab, i_track_ab] = match self.reference {
             Reference::RotatingCurrent { amplitude_a, .. } if running => {
-                [self.rotating_current(amplitude_a).2; 2]
+                [super::fast::rotating_current(cfg, amplitude_a, test_angle_rad).2; 2]
             }
             _ => [self.run.ifoc.i_intended_ab(), self.run.ifoc.i_ref_ab()],
         };
         let (i_ref_abc, i_track_abc) = (i_ref_ab.inverse_clarke(), i_track_ab.inverse_clarke());
-        let cfg = &self.cfg;
         let window = self.run.open_phase.add(
             i_track_abc,
             i_abc_a,
@@ -379,15 +389,15 @@ impl Drive {
 
     /// The speed-following check ([`MotionChecks::following`]): [`Fault::FollowingError`]
     /// with the torque command at zero.
-    pub(super) fn check_following(&mut self, commanding_motion: bool, omega_m_rad_s: f32) {
+    pub(super) fn check_following(&mut self, cfg: &DriveConfig, commanding_motion: bool, omega_m_rad_s: f32) {
         // The slow step commands a torque (an i_q command owes nothing: no trip from it).
         let torque_nm = match self.run.torque_cmd {
             TorqueCommand::TorqueNm(t) => t,
             TorqueCommand::IqA(_) => 0.0,
         };
         let at_limit = commanding_motion && self.run.speed_saturated;
-        let torque_law = self.cfg.speed.is_torque();
-        if self.run.motion.following(&self.cfg.motion, at_limit, omega_m_rad_s, torque_nm, torque_law) {
+        let torque_law = cfg.speed.is_torque();
+        if self.run.motion.following(&cfg.motion, at_limit, omega_m_rad_s, torque_nm, torque_law) {
             self.trip(Fault::FollowingError);
             self.run.torque_cmd = TorqueCommand::TorqueNm(0.0);
         }
@@ -398,14 +408,78 @@ impl Drive {
     /// [`THERMAL_UPDATE_SLOW_STEPS`], then one step of each model; at its limit,
     /// [`Fault::MotorOverload`] or [`Fault::InverterOverload`] ([`Drive::fault_reaction`]).
     #[inline(never)]
-    pub(super) fn update_thermal(&mut self, i_abc: Abc) {
-        let cfg = &self.cfg;
+    fn update_thermal(&mut self, cfg: &DriveConfig, i_abc: Abc) {
         let [motor, inverter] = self.machine.thermal.update(&cfg.motor_thermal, &cfg.inverter_thermal, i_abc);
         if motor {
-            self.fault_reaction(Fault::MotorOverload);
+            self.fault_reaction(cfg, Fault::MotorOverload);
         }
         if inverter {
-            self.fault_reaction(Fault::InverterOverload);
+            self.fault_reaction(cfg, Fault::InverterOverload);
+        }
+    }
+
+    /// The once-per-slow-period checks on the fast step after the slow step (`a`: Running on
+    /// the field-oriented references): the encoder against the machine model on the voltage
+    /// applied, then — unless it tripped — the rotor-resistance law on the loops' request,
+    /// when the modulator did not limit it (the law listens to the unlimited request only).
+    pub(super) fn after_slow_checks(&mut self, cfg: &DriveConfig, a: &AfterSlow) {
+        let w_e_rad_s = self.run.model.pole_pairs() * a.omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
+        let v_limit_v = svpwm::linear_limit_v(a.v_usable_v);
+        self.check_encoder(cfg, a.i_meas_dq, a.v_applied, a.field, w_e_rad_s, v_limit_v);
+        if self.mode != Mode::Running {
+            return;
+        }
+        if let Some(v_req) = a.v_req {
+            // The rotor resistance from the reactive power (the loops' own request).
+            let evidence = Evidence {
+                i: a.i_meas_dq,
+                v: v_req.park(a.field),
+                w_e_rad_s,
+                psi_r_wb: self.run.ifoc.psi_r_wb(),
+                v_limit_v,
+            };
+            let r = cfg.mras.update(self.run.ifoc.rotor_resistance_scale(), &self.run.model, &evidence);
+            cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
+        }
+    }
+
+    /// Encoder against the machine model: the magnitude of the applied voltage against that
+    /// of the steady-state voltage ([`EnvelopeConfig::stator_voltage`]) of the measured
+    /// currents at the encoder's speed. A frozen encoder at speed leaves the back-EMF in the applied voltage and takes
+    /// it out of the model.
+    #[inline(never)]
+    fn check_encoder(
+        &mut self,
+        cfg: &DriveConfig,
+        i: Dq,
+        v_ab: AlphaBeta,
+        field: SinCos,
+        w_e: f32,
+        v_limit: f32,
+    ) {
+        let e = &self.run.model;
+        let v = v_ab.park(field);
+        let (vd, vq) = e.stator_voltage(i.d, i.q, w_e, self.run.ifoc.psi_r_wb());
+        // Magnitudes, not vectors: a detuned field angle (rotor resistance off by the
+        // certified 2×) turns the voltage vector but hardly changes its length, while a
+        // frozen encoder at speed removes the back-EMF from the model's length.
+        // Volts, far from overflow: √(x² + y²) with the FPU's square root (no libm::hypotf).
+        let residual = (sqrt_f32(v.d * v.d + v.q * v.q) - sqrt_f32(vd * vd + vq * vq)).abs();
+        // Consecutive implausible checks (a leaky count accumulated the detuned corner's
+        // transients into a false trip).
+        if residual > ENCODER_RESIDUAL_FRACTION * v_limit {
+            let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.encoder_check_steps as f32;
+            let turning = w_e.abs() * window_s > PINNED_FIELD_TURN_RAD;
+            let switches = &self.run.switches;
+            let verdict = self
+                .run
+                .voltage_check
+                .implausible(v_ab, turning, cfg.encoder_check_steps, || switches.undriven(turning));
+            if let Some(f) = verdict {
+                self.trip(f);
+            }
+        } else {
+            self.run.voltage_check.plausible();
         }
     }
 }

@@ -55,6 +55,24 @@ pub(crate) fn test_spec() -> DriveSpec {
     }
 }
 
+/// The slow side's reaction to fault `f` ([`SlowState::fault_reaction`]), handed to the
+/// fast side as the slow step does.
+fn fault_reaction(d: &mut Drive, f: Fault) {
+    let cfg = d.cfg;
+    d.slow.fault_reaction(&cfg, f);
+    d.fast.trip_from(d.slow.mode);
+    d.sync();
+}
+
+/// The slow side's following check ([`SlowState::check_following`]), its fault handed to the
+/// fast side.
+fn check_following(d: &mut Drive, commanding_motion: bool, omega_m_rad_s: f32) {
+    let cfg = d.cfg;
+    d.slow.check_following(&cfg, commanding_motion, omega_m_rad_s);
+    d.fast.trip_from(d.slow.mode);
+    d.sync();
+}
+
 fn drive() -> Drive {
     Drive::new(DriveConfig::new(&test_spec()).unwrap())
 }
@@ -77,7 +95,7 @@ fn a_non_finite_encoder_reading_trips_at_the_slow_step() {
     for m in bad {
         for running in [false, true] {
             let mut d = if running { running_drive() } else { drive() };
-            while d.steps_to_slow != 0 {
+            while d.fast.steps_to_slow != 0 {
                 assert!(d.mode() != Mode::Fault(Fault::NonFiniteInput));
                 d.step(&meas(310.0));
             }
@@ -86,7 +104,7 @@ fn a_non_finite_encoder_reading_trips_at_the_slow_step() {
             // Between slow steps the fast step does not read them.
             let mut d = if running { running_drive() } else { drive() };
             d.step(&meas(310.0));
-            let left = d.steps_to_slow;
+            let left = d.fast.steps_to_slow;
             assert!(left > 0);
             for _ in 0..left {
                 assert!(!matches!(d.step(&m).mode, Mode::Fault(_)));
@@ -161,9 +179,13 @@ fn a_zero_bus_minimum_is_tested_as_the_floats_are() {
         d.enable().unwrap();
         for vdc in [-5.0, -0.0, 0.0, 1e-30, 310.0, 399.0, 401.0, f32::NAN, -f32::NAN, f32::NEG_INFINITY] {
             let m = Measurements { vdc_v: vdc, ..Default::default() };
-            assert_eq!(d.measurements_ok(&m), d.supervise(&m).is_none(), "min {zero}, bus {vdc}");
+            assert_eq!(
+                d.fast.measurements_ok(&d.cfg, &m),
+                d.cfg.limits.fault(&m, true).is_none(),
+                "min {zero}, bus {vdc}"
+            );
         }
-        assert!(!d.measurements_ok(&Measurements { vdc_v: -5.0, ..Default::default() }));
+        assert!(!d.fast.measurements_ok(&d.cfg, &Measurements { vdc_v: -5.0, ..Default::default() }));
     }
     let mut spec = test_spec();
     (spec.protection.vdc_min_v, spec.protection.vdc_max_v) = (400.0, 400.00001);
@@ -351,11 +373,11 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
             d.slow_step(&wrapped(start + f64::from(k) * step));
             r.slow_step(&wrapped(start + f64::from(k) * step));
             if k == 0 {
-                first = r.run.theta_r_rad;
+                first = r.slow.run.theta_r_rad;
             }
         }
         assert_eq!((d.mode(), r.mode()), (Mode::Idle, Mode::Running), "no jump");
-        (wrap_angle(r.run.theta_r_rad - first), d.position_rad())
+        (wrap_angle(r.slow.run.theta_r_rad - first), d.position_rad())
     };
     let (near, pos_near) = field_after(0.0);
     let (far, pos_far) = field_after(1e6);
@@ -497,7 +519,7 @@ fn a_stoppable_fault_stops_then_latches() {
     let cfg = DriveConfig::new(&spec).unwrap();
     let mut d = running_drive();
     d.cfg = cfg;
-    d.fault_reaction(Fault::MotorOverload);
+    fault_reaction(&mut d, Fault::MotorOverload);
     assert_eq!((d.mode(), d.pending_fault()), (Mode::Running, Some(Fault::MotorOverload)));
     assert!(d.is_stopping());
     assert_eq!(d.set_reference(Reference::Speed(100.0)), Err(CommandError::Faulted));
@@ -508,13 +530,13 @@ fn a_stoppable_fault_stops_then_latches() {
     // A hard fault during the stop: bridge off now, the first fault latched.
     let mut d = running_drive();
     d.cfg = cfg;
-    d.fault_reaction(Fault::MotorOverload);
+    fault_reaction(&mut d, Fault::MotorOverload);
     d.trip(Fault::Overcurrent);
     assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
     // Not in stop_on (or not Running): at once.
     let mut d = running_drive();
     d.cfg = cfg;
-    d.fault_reaction(Fault::InverterOverload);
+    fault_reaction(&mut d, Fault::InverterOverload);
     assert_eq!(d.mode(), Mode::Fault(Fault::InverterOverload));
     // A fault that leaves nothing to control with cannot be configured as a stop.
     spec.protection.stop_on = FaultSet::EMPTY.with(Fault::EncoderLoss);
@@ -626,11 +648,11 @@ fn running_drive() -> Drive {
 fn the_following_check_owes_nothing_at_zero_torque() {
     let run = |torque_nm: f32, decel_rad_s_per_step: f32| {
         let mut d = running_drive();
-        d.reference = Reference::Speed(100.0);
-        d.run.speed_saturated = true;
-        d.run.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
+        d.slow.reference = Reference::Speed(100.0);
+        d.slow.run.speed_saturated = true;
+        d.slow.run.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
         for k in 0..=d.cfg.motion.following_slow_steps {
-            d.check_following(true, 200.0 - decel_rad_s_per_step * k as f32);
+            check_following(&mut d, true, 200.0 - decel_rad_s_per_step * k as f32);
         }
         d.mode()
     };
@@ -658,11 +680,11 @@ fn the_following_check_owes_nothing_at_zero_torque() {
 fn a_seizure_at_speed_is_named_while_it_drags() {
     let first_trip = |decel_rad_s_per_step: f32| {
         let mut d = running_drive();
-        d.reference = Reference::Speed(300.0);
-        d.run.speed_saturated = true;
-        d.run.torque_cmd = TorqueCommand::TorqueNm(d.cfg.motion.speed_limit);
+        d.slow.reference = Reference::Speed(300.0);
+        d.slow.run.speed_saturated = true;
+        d.slow.run.torque_cmd = TorqueCommand::TorqueNm(d.cfg.motion.speed_limit);
         (0..=d.cfg.motion.following_slow_steps).find(|&k| {
-            d.check_following(true, 250.0 - decel_rad_s_per_step * k as f32);
+            check_following(&mut d, true, 250.0 - decel_rad_s_per_step * k as f32);
             d.mode() == Mode::Fault(Fault::FollowingError)
         })
     };
@@ -987,8 +1009,8 @@ proptest! {
         } else {
             None
         };
-        prop_assert_eq!(d.supervise(&m), float_test);
-        prop_assert_eq!(d.measurements_ok(&m), float_test.is_none());
+        prop_assert_eq!(d.cfg.limits.fault(&m, d.mode().is_active()), float_test);
+        prop_assert_eq!(d.fast.measurements_ok(&d.cfg, &m), float_test.is_none());
     }
 }
 
@@ -1013,8 +1035,8 @@ fn a_reconfiguration_keeps_the_machines_state() {
         let theta_m_rad = wrap_angle(k as f32 * 1e-3);
         d.step(&Measurements { theta_m_rad, ..hot });
     }
-    d.set_inductance_scale(0.8);
-    d.cfg.ifoc.set_rotor_resistance_scale(&mut d.run.ifoc, 1.7);
+    d.slow.set_inductance_scale(&cfg, 0.8);
+    d.cfg.ifoc.set_rotor_resistance_scale(&mut d.slow.run.ifoc, 1.7);
     d.set_reference(Reference::Speed(50.0)).unwrap();
     let (theta, position) = (d.thermal_state(), d.position_rad());
     assert!(theta.0 > 0.005 && position > 10.0, "{theta:?} {position}");
@@ -1026,9 +1048,9 @@ fn a_reconfiguration_keeps_the_machines_state() {
     d.reconfigure(gains).unwrap();
     assert_eq!(d.config(), &gains);
     assert_eq!((d.thermal_state(), d.position_rad(), estimates(&d)), (theta, position, (1.7, 0.8)));
-    assert_eq!((d.mode(), d.reference), (Mode::Idle, Reference::Speed(0.0)));
+    assert_eq!((d.mode(), d.slow.reference), (Mode::Idle, Reference::Speed(0.0)));
     // The new run is on those estimates: its model and rated current follow the inductance.
-    assert_eq!(d.run.i_d_rated_a, gains.i_d_rated_a / 0.8);
+    assert_eq!(d.slow.run.i_d_rated_a, gains.i_d_rated_a / 0.8);
 
     // Narrower ranges limit the estimates; a rated current twice as large rescales θ (the
     // same temperature rise is a quarter of the new rated one's).
@@ -1172,7 +1194,7 @@ fn the_rest_check_holds_after_a_long_travel() {
     let window = (spec.protection.rest_time_s / f64::from(t_slow)).ceil() as u32;
     for (w, at_rest) in [(2.0 * rest_rad_s, false), (0.5 * rest_rad_s, true)] {
         let mut d = drive();
-        d.machine.encoder = EncoderTrack::with_turns(160_000);
+        d.slow.machine.encoder = EncoderTrack::with_turns(160_000);
         assert!(d.position_rad() > 1.0e6);
         let mut theta = 0.3f32;
         let mut seen = [0u32; 2];
