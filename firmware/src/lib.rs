@@ -12,6 +12,8 @@
 //! * [`safety`]: the microcontroller's own failures (lockup, SRAM parity, supply, flash
 //!   ECC) linked to the bridge's break — the words written at start-up and their check;
 //! * [`stack`]: the main stack's high-water mark, read from cortex-m-rt's paint;
+//! * [`masking`]: the board's critical section — BASEPRI, which never masks the control
+//!   interrupt (PRIMASK's did);
 //! * [`config`]: the drive and board constants, generated from `drive.toml` at build time —
 //!   the pin map is in `main.rs`'s `pins` module, next to the peripherals it names.
 //!
@@ -24,6 +26,7 @@ pub mod boundary;
 pub mod config;
 pub mod control;
 pub mod interrupt;
+pub mod masking;
 pub mod output;
 pub mod safety;
 pub mod server;

@@ -9,6 +9,7 @@
 #[cfg(target_os = "none")]
 mod on_target {
     use controller_core::selftest::{self, Check};
+    use core::sync::atomic::{AtomicBool, Ordering};
     use cortex_m_rt as _;
     use defmt_semihosting as _;
     use qemu_target as _;
@@ -33,6 +34,28 @@ mod on_target {
     #[defmt::panic_handler]
     fn defmt_panic() -> ! {
         qemu_target::sh::exit(false)
+    }
+
+    /// Set by the handlers of the two exceptions the critical-section test pends.
+    static PENDSV_RAN: AtomicBool = AtomicBool::new(false);
+    static SYSTICK_RAN: AtomicBool = AtomicBool::new(false);
+
+    #[cortex_m_rt::exception]
+    fn PendSV() {
+        PENDSV_RAN.store(true, Ordering::SeqCst);
+    }
+
+    #[cortex_m_rt::exception]
+    fn SysTick() {
+        SYSTICK_RAN.store(true, Ordering::SeqCst);
+    }
+
+    /// The exception `pend` pends has run (or not) once the pend has taken effect.
+    fn ran_after(pend: fn(), flag: &AtomicBool) -> bool {
+        pend();
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        flag.load(Ordering::SeqCst)
     }
 
     #[defmt_test::tests]
@@ -87,6 +110,45 @@ mod on_target {
         #[test]
         fn f32_icad_vs_f64() {
             check(selftest::f32_icad_vs_f64());
+        }
+
+        /// The board's critical section (`firmware::masking`: BASEPRI at the least priority
+        /// step) lets an exception of the highest priority — the control interrupt's, here
+        /// PendSV's — run inside it, and holds one of a lower priority — SysTick's, as the
+        /// time driver's and the link's — until it ends. On this core's own priority bits.
+        #[test]
+        fn a_section_masks_all_but_the_highest_priority() {
+            use cortex_m::peripheral::SCB;
+            use cortex_m::peripheral::scb::SystemHandler;
+            use firmware::masking::{cortex, least_step};
+            // SAFETY: the test owns the core; it sets only these two handlers' priorities.
+            let mut p = unsafe { cortex_m::Peripherals::steal() };
+            // SAFETY: priorities of handlers that only set a flag.
+            unsafe {
+                p.SCB.set_priority(SystemHandler::SysTick, 0xFF);
+                p.SCB.set_priority(SystemHandler::PendSV, 0);
+            }
+            // The lowest priority this NVIC implements reads back as its implemented bits;
+            // BASEPRI masks group priorities (SCB_AIRCR.PRIGROUP).
+            let prigroup = ((p.SCB.aircr.read() >> 8) & 0x7) as u8;
+            let Some(level) = least_step(SCB::get_priority(SystemHandler::SysTick), prigroup) else {
+                defmt::panic!("no implemented group-priority bits")
+            };
+            let before = cortex::enter(level);
+            let highest_inside = ran_after(SCB::set_pendsv, &PENDSV_RAN);
+            let lower_inside = ran_after(SCB::set_pendst, &SYSTICK_RAN);
+            // SAFETY: `before` is this section's `enter`'s.
+            unsafe { cortex::leave(before) };
+            cortex_m::asm::isb();
+            let lower_after = SYSTICK_RAN.load(Ordering::SeqCst);
+            defmt::println!(
+                "section at BASEPRI {=u8:#x}: highest ran inside {=bool}, lower inside {=bool}, after {=bool}",
+                level,
+                highest_inside,
+                lower_inside,
+                lower_after
+            );
+            defmt::assert!(highest_inside && !lower_inside && lower_after);
         }
     }
 }
