@@ -55,6 +55,7 @@ impl SlowState {
             self.check_phases(cfg, m.i_abc_a, inputs.test_angle_rad);
         }
     }
+
     /// The slow step's first stage, the shaft's and the machine's, which runs whatever the
     /// bridge does (a slow period of [`Drive::hold_step`] too): the encoder read (its
     /// non-finite and jump checks), the rest detector, the thermal models. Returns the
