@@ -426,14 +426,7 @@ mod target {
         }
         c.drive_mut().set_reference(Reference::Speed(p.reference_rad_s)).ok()?;
         if p.capture {
-            let never = Trigger::Level { signal: Signal::Vdc, edge: Edge::Rising, level: 1e9 };
-            let spec = CaptureSpec {
-                signals: [Signal::IA, Signal::IAlpha, Signal::OmegaRef, Signal::DutyA],
-                trigger: never,
-                pre_samples: 0,
-                decimation: 1,
-            };
-            c.capture_mut().arm(spec).ok()?;
+            c.capture_mut().arm(recording_on()).ok()?;
         }
         for _ in 0..SETTLE_PERIODS {
             step(&mut c, samples(i_ab, advance(p.omega_m_rad_s)));
@@ -453,6 +446,17 @@ mod target {
             println!("cost worst:{} ended in {:?}", p.name, mode);
         }
         (mode == Mode::Running).then_some(worst)
+    }
+
+    /// A capture of four signals armed on a trigger that never fires: it records every
+    /// period, as a capture waiting for its event does.
+    fn recording_on() -> CaptureSpec {
+        CaptureSpec {
+            signals: [Signal::IA, Signal::IAlpha, Signal::OmegaRef, Signal::DutyA],
+            trigger: Trigger::Level { signal: Signal::Vdc, edge: Edge::Rising, level: 1e9 },
+            pre_samples: 0,
+            decimation: 1,
+        }
     }
 
     /// A 12-bit ADC code of a phase current (±16.5 A full scale, offset 2048).
@@ -756,14 +760,7 @@ mod target {
         let capture_idle = per_call(&ticks, |k| {
             capture.record(black_box(&measure(input(k), k)), black_box(&out), || drive.telemetry());
         }) - adc;
-        let never = Trigger::Level { signal: Signal::Vdc, edge: Edge::Rising, level: 1e9 };
-        let spec = CaptureSpec {
-            signals: [Signal::IA, Signal::IAlpha, Signal::OmegaRef, Signal::DutyA],
-            trigger: never,
-            pre_samples: 0,
-            decimation: 1,
-        };
-        let capture_sample = match capture.arm(spec) {
+        let capture_sample = match capture.arm(recording_on()) {
             Ok(()) => {
                 per_call(&ticks, |k| {
                     capture.record(black_box(&measure(input(k), k)), black_box(&out), || drive.telemetry());
