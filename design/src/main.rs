@@ -333,6 +333,12 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
         interval(c.j_factor),
         t.checks.len()
     );
+    let estimate = |[lo, hi]: [f64; 2]| if lo < hi { interval([lo, hi]) } else { format!("fixed at ×{lo}") };
+    report::outln!(
+        "estimates the drive runs on: R_r {}, L {} (rotor_resistance_range, inductance_range)",
+        estimate(t.spec.rotor_resistance_range),
+        estimate(t.spec.inductance_range)
+    );
     if t.predicted_misses.is_empty() {
         report::outln!(
             "requirements: met over the box by the speed law alone (predicted; `hil-sim campaign` judges the drive)"

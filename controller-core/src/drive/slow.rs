@@ -344,6 +344,24 @@ impl SlowState {
         self.run.envelope_age = 0;
     }
 
+    /// Run on the inductances `l` × the motor's as [`Self::set_inductance_scale`], keeping the
+    /// rotor time constant `T̂_r = (ℓ̂/r̂)·T_r` the fit and the loaded law found (the rotor
+    /// resistance scaled with ℓ̂, within its range: the slip `(r̂/ℓ̂)·i_q/(T_r·i_d)` does not
+    /// move), and leave the envelope to its periodic refresh: the online law moves `l` a
+    /// little every slow step (a remade envelope each of them would triple the slow step).
+    fn adapt_inductance_scale(&mut self, cfg: &DriveConfig, l: f32) {
+        let l_now = self.run.ifoc.inductance_scale();
+        if !finite_positive(l) || l == l_now {
+            return;
+        }
+        let [r_min, r_max] = cfg.mras.range();
+        let r = (self.run.ifoc.rotor_resistance_scale() * (l / l_now)).limit(r_min, r_max);
+        cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
+        cfg.ifoc.set_inductance_scale(&mut self.run.ifoc, l);
+        self.run.model = cfg.envelope.with_inductance_scale(l);
+        self.run.i_d_rated_a = cfg.i_d_rated_a / l;
+    }
+
     /// The phase checks once per slow period: the open-phase window ([`Fault::OpenPhase`],
     /// [`Fault::NoMotorCurrent`], the windowed current sum's [`Fault::CurrentSensor`];
     /// Magnetizing and Running) and the stuck-switch check ([`Fault::SwitchOpen`]; Running),
@@ -441,6 +459,9 @@ impl SlowState {
             };
             let r = cfg.mras.update(self.run.ifoc.rotor_resistance_scale(), &self.run.model, &evidence);
             cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
+            // The inductances from the same reactive power at no load.
+            let l = cfg.mras.update_inductance(self.run.ifoc.inductance_scale(), &self.run.model, &evidence);
+            self.adapt_inductance_scale(cfg, l);
         }
     }
 
