@@ -1494,6 +1494,33 @@ mod tests {
         assert!((kp * 0.3835 / (0.025 * 0.12) - 1.0).abs() < 0.01, "{kp}");
     }
 
+    /// The inductance estimate follows the box: a template that does not state
+    /// `inductance_range` gets its box's inductance interval as the range (the 24 V
+    /// template's ±5 %: estimated, so that the flux is not off by the box's spread); one that
+    /// states a single value keeps the estimate off; one that states a range gets the hull of
+    /// the two as both box and range, written into the file.
+    #[test]
+    fn the_inductance_estimate_covers_the_box() {
+        let template = include_str!("../../drives/em-synergy-24v.toml");
+        assert!(
+            template.contains("inductance_factor = [0.95, 1.05]") && !template.contains("inductance_range")
+        );
+        let m = drive_file::motor::load("em-synergy-m800006").unwrap();
+        let tuned = |text: &str| {
+            let t = tune(Path::new("t.toml"), text, &m, None, Structure::default()).unwrap();
+            let written = drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap();
+            assert_eq!(written.spec.inductance_range, t.spec.inductance_range, "written as tuned");
+            assert_eq!(written.certify.unwrap().inductance_factor, t.certify.inductance_factor);
+            (t.spec.inductance_range, t.certify.inductance_factor)
+        };
+        assert_eq!(tuned(template), ([0.95, 1.05], [0.95, 1.05]));
+        let state = |range: &str| {
+            template.replace("[controller]\n", &format!("[controller]\ninductance_range = {range}\n"))
+        };
+        assert_eq!(tuned(&state("[1.0, 1.0]")), ([1.0, 1.0], [0.95, 1.05]), "stated off: kept off");
+        assert_eq!(tuned(&state("[0.6, 1.0]")), ([0.6, 1.05], [0.6, 1.05]), "the hull");
+    }
+
     /// A synchronous-frame template: the same PI rule (its zero on the stator's pole below the
     /// rotor corner holds in the field frame too), searched against the certificate in that
     /// frame, passes every check and keeps the frame; ICAD in it is refused by name.

@@ -303,6 +303,9 @@ struct SlowRun {
     envelope_age: u16,
     /// The current trim added to the loops' references (field frame), A.
     trim: Dq,
+    /// How far the plan made last moved the current references, `|Δi*|`, A (the loops'
+    /// reaction to it is in the voltage the after-slow checks read).
+    i_ref_step_a: f32,
 }
 
 impl SlowRun {
@@ -338,6 +341,7 @@ impl SlowRun {
             speed_saturated: false,
             envelope: Envelope::ZERO,
             envelope_age: 0,
+            i_ref_step_a: 0.0,
             trim: Dq::default(),
         }
     }

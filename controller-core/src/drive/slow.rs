@@ -322,7 +322,11 @@ impl SlowState {
     fn plan(&mut self, cfg: &DriveConfig, omega_m_rad_s: f32) {
         let running = self.mode == Mode::Running;
         let cmd = if running { self.run.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
+        let before = self.run.ifoc.i_ref_dq();
         cfg.ifoc.plan(&mut self.run.ifoc, &self.run.flux, cmd, omega_m_rad_s, self.run.trim);
+        let after = self.run.ifoc.i_ref_dq();
+        let (dd, dq) = (after.d - before.d, after.q - before.q);
+        self.run.i_ref_step_a = sqrt_f32(dd * dd + dq * dq);
         let omega_e = match self.reference {
             Reference::RotatingCurrent { omega_rad_s, .. } if running => omega_rad_s,
             _ => cfg.envelope.pole_pairs() * omega_m_rad_s + self.run.ifoc.omega_sl_rad_s(),
@@ -456,6 +460,7 @@ impl SlowState {
                 w_e_rad_s,
                 psi_r_wb: self.run.ifoc.psi_r_wb(),
                 v_limit_v,
+                i_ref_step_a: self.run.i_ref_step_a,
             };
             let r = cfg.mras.update(self.run.ifoc.rotor_resistance_scale(), &self.run.model, &evidence);
             cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
