@@ -708,32 +708,49 @@ mod target {
         // loaded machine at speed; in the periods above the synthetic current keeps the loops
         // saturated, so it mostly does not), and one step of the magnetizing fit.
         let model = EnvelopeConfig::new(&spec.motor);
-        let (law, fit) = match MrasConfig::new(&spec.motor, ts, spec.slow_divider, [1.0, 2.0], [0.6, 1.0]) {
-            Ok(c) => {
-                let mut r = 1.4f32;
-                let law = per_call(&ticks, |k| {
-                    let e = Evidence {
-                        i: Dq { d: 0.63, q: 1.2 + k as f32 * 1e-4 },
-                        v: Dq { d: -40.0, q: 120.0 },
-                        w_e_rad_s: 150.0,
-                        psi_r_wb: 0.9,
-                        v_limit_v: 168.0,
-                    };
-                    r = c.update(black_box(r), &model, black_box(&e));
-                });
-                let mut f = RotorFit::new(true);
-                let n = spec.slow_divider;
-                let fit = per_call(&ticks, |k| {
-                    if k % 512 == 0 {
-                        f = RotorFit::new(true);
-                    }
-                    let v = black_box(10.0 + 1e3 / (k % 512 + 100) as f32) * f32::from(n);
-                    black_box(c.fit(&mut f, v, n, 0.634, 1.0));
-                });
-                (law, fit)
-            }
-            Err(_) => (f32::NAN, f32::NAN),
-        };
+        let (law, inductance_law, fit) =
+            match MrasConfig::new(&spec.motor, ts, spec.slow_divider, [1.0, 2.0], [0.6, 1.0]) {
+                Ok(c) => {
+                    let mut r = 1.4f32;
+                    let law = per_call(&ticks, |k| {
+                        let e = Evidence {
+                            i: Dq { d: 0.63, q: 1.2 + k as f32 * 1e-4 },
+                            v: Dq { d: -40.0, q: 120.0 },
+                            w_e_rad_s: 150.0,
+                            psi_r_wb: 0.9,
+                            v_limit_v: 168.0,
+                            i_ref_step_a: 0.0,
+                        };
+                        r = c.update(black_box(r), &model, black_box(&e));
+                    });
+                    // The inductance law on the same machine at no load, listening (its flux
+                    // model settled at L̂_m·i_d).
+                    let mut l = 0.9f32;
+                    let psi = model.lm2_over_lr_h() / model.lm_over_lr() * 0.63;
+                    let inductance = per_call(&ticks, |k| {
+                        let e = Evidence {
+                            i: Dq { d: 0.63, q: k as f32 * 1e-5 },
+                            v: Dq { d: 3.0, q: 130.0 },
+                            w_e_rad_s: 150.0,
+                            psi_r_wb: psi,
+                            v_limit_v: 168.0,
+                            i_ref_step_a: 0.0,
+                        };
+                        l = c.update_inductance(black_box(l), &model, black_box(&e));
+                    });
+                    let mut f = RotorFit::new(true);
+                    let n = spec.slow_divider;
+                    let fit = per_call(&ticks, |k| {
+                        if k % 512 == 0 {
+                            f = RotorFit::new(true);
+                        }
+                        let v = black_box(10.0 + 1e3 / (k % 512 + 100) as f32) * f32::from(n);
+                        black_box(c.fit(&mut f, v, n, 0.634, 1.0));
+                    });
+                    (law, inductance, fit)
+                }
+                Err(_) => (f32::NAN, f32::NAN, f32::NAN),
+            };
         let dead_time = per_call(&ticks, |k| {
             let i = black_box(current(k % 64));
             black_box(svpwm::compensate_dead_time(Abc { a: 0.4, b: 0.5, c: 0.6 }, i, 0.01, 0.004));
@@ -839,6 +856,7 @@ mod target {
         println!("cost part:envelope_i_q_max_at_flux {:.1}", i_q_at_flux);
         println!("cost part:dead_time_compensation {:.1}", dead_time);
         println!("cost part:rotor_resistance_law {:.1}", law);
+        println!("cost part:inductance_law {:.1}", inductance_law);
         println!("cost part:rotor_resistance_fit {:.1}", fit);
         println!("stack drive_step_bytes {stack}");
         println!(
