@@ -594,11 +594,6 @@ impl Campaign {
                 }
                 faulted |= matches!(r.mode, Some(Mode::Fault(_)));
                 let psi_r = r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb);
-                if std::env::var("DBG_RUN").ok().and_then(|v| v.parse::<u64>().ok()) == Some(k) && (r.t_s * 1000.0).round() as i64 % 10 == 0 {
-                    let q_true = r.v_ab_v[1] * r.x.i_alpha_a - r.v_ab_v[0] * r.x.i_beta_a;
-                    let i2 = r.x.i_alpha_a * r.x.i_alpha_a + r.x.i_beta_a * r.x.i_beta_a;
-                    eprintln!("{:.3} w {:8.3} psi {:.5} est {:.5} rr {:.4} l {:.4} iq {:.3} q {:.4} i2 {:.4} q/i2 {:.4}", r.t_s, r.x.omega_m_rad_s, psi_r, r.psi_est_wb, r.rr_scale, r.l_scale, r.i_q_ref_a, q_true, i2, q_true / i2);
-                }
                 if r.t_s >= step_s && r.mode == Some(Mode::Running) {
                     track = track.max((r.x.omega_m_rad_s - ideal.omega_m_rad_s).abs());
                     let ratio = psi_r / r.psi_est_wb.max(1e-9);
