@@ -241,6 +241,25 @@ pub struct Evidence {
     pub i_ref_step_a: f32,
 }
 
+impl Evidence {
+    /// The rotor-flux EMF `|ω_e|·(L_m/L_r)·ψ̂_r` is at least [`EMF_FRACTION_MIN`] of the
+    /// linear voltage limit: the voltage's own errors stay small against it (both laws).
+    #[inline(always)]
+    fn emf_heard(&self, model: &EnvelopeConfig) -> bool {
+        (self.w_e_rad_s * model.lm_over_lr() * self.psi_r_wb).abs() >= EMF_FRACTION_MIN * self.v_limit_v
+    }
+
+    /// The reactive power of the measured current and the loops' voltage,
+    /// `q = v_q·i_d − v_d·i_q`, and the model's steady state of it at the flux estimate, `q̂`
+    /// (module docs; both laws compare them).
+    #[inline(always)]
+    fn reactive_powers(&self, model: &EnvelopeConfig) -> (f32, f32) {
+        let Self { i, v, w_e_rad_s: w_e, psi_r_wb, .. } = *self;
+        let (vd, vq) = model.stator_voltage(i.d, i.q, w_e, psi_r_wb);
+        (v.q * i.d - v.d * i.q, vq * i.d - vd * i.q)
+    }
+}
+
 /// The magnetizing fit's progress ([`MrasConfig::fit`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct RotorFit {
@@ -465,17 +484,13 @@ impl MrasConfig {
     /// machine model, on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]).
     #[inline(never)]
     pub fn update(&self, r: f32, model: &EnvelopeConfig, evidence: &Evidence) -> f32 {
-        let Evidence { i, v, w_e_rad_s: w_e, psi_r_wb, v_limit_v, .. } = *evidence;
-        let listening = self.active()
-            && i.d > 0.0
-            && i.q.abs() >= LOAD_RATIO_MIN * i.d
-            && (w_e * model.lm_over_lr() * psi_r_wb).abs() >= EMF_FRACTION_MIN * v_limit_v;
+        let Evidence { i, w_e_rad_s: w_e, .. } = *evidence;
+        let listening =
+            self.active() && i.d > 0.0 && i.q.abs() >= LOAD_RATIO_MIN * i.d && evidence.emf_heard(model);
         if !listening {
             return r;
         }
-        let (vd, vq) = model.stator_voltage(i.d, i.q, w_e, psi_r_wb);
-        let q_model = vq * i.d - vd * i.q;
-        let q = v.q * i.d - v.d * i.q;
+        let (q, q_model) = evidence.reactive_powers(model);
         let i2 = i.d * i.d + i.q * i.q;
         let x = (q - q_model) / (w_e * i2 * model.lm2_over_lr_h());
         let a2 = i.q * i.q / (i.d * i.d);
@@ -493,7 +508,7 @@ impl MrasConfig {
     /// `q/q̂ = ℓ/ℓ̂`; `ℓ̂ ← ℓ̂·(1 + g·(q − q̂)/q̂)`, the rotor-resistance law's gain.
     #[inline(never)]
     pub fn update_inductance(&self, l: f32, model: &EnvelopeConfig, evidence: &Evidence) -> f32 {
-        let Evidence { i, v, w_e_rad_s: w_e, psi_r_wb, v_limit_v, i_ref_step_a } = *evidence;
+        let Evidence { i, psi_r_wb, i_ref_step_a, .. } = *evidence;
         // The flux model at its steady state `L̂_m·i_d` (L̂_m = (L̂_m²/L̂_r)/(L_m/L_r)), on the
         // measured current the model filters: a reference the loops follow with a steady
         // error at speed (stationary frame) would keep the gate shut.
@@ -503,13 +518,11 @@ impl MrasConfig {
             && i.q.abs() <= INDUCTANCE_LOAD_RATIO_MAX * i.d
             && (psi_r_wb - psi_steady_wb).abs() <= FLUX_SETTLED_FRACTION * psi_r_wb
             && i_ref_step_a <= PLAN_STEADY_FRACTION * i.d
-            && (w_e * model.lm_over_lr() * psi_r_wb).abs() >= EMF_FRACTION_MIN * v_limit_v;
+            && evidence.emf_heard(model);
         if !listening {
             return l;
         }
-        let (vd, vq) = model.stator_voltage(i.d, i.q, w_e, psi_r_wb);
-        let q_model = vq * i.d - vd * i.q;
-        let q = v.q * i.d - v.d * i.q;
+        let (q, q_model) = evidence.reactive_powers(model);
         let next = l * (1.0 + self.gain * (q - q_model) / q_model);
         if next.is_finite() { next.limit(self.l_min, self.l_max) } else { l }
     }
