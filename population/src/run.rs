@@ -372,6 +372,43 @@ mod tests {
         assert!(tripped.is_empty(), "healthy runs tripped: {tripped:?}");
     }
 
+    /// Member 21 at 10 kHz on the default requirements: the P droops and seed 000's own PI
+    /// (the region with the P's bandwidth, its deepest point) overshoots a torque-limited
+    /// reversal by 13.9 % at its best setpoint weight, so tune refused it. The search of
+    /// the region without the bandwidth floor finds a PI inside seed 000's margins that the
+    /// prediction and the corner runs in SIL both say meets them, and the tuned drive passes
+    /// its campaign.
+    #[test]
+    fn the_region_search_tunes_a_motor_seed_000s_own_pi_could_not() {
+        let m = draw(1, 21, None).unwrap();
+        let (path, text, _) = inputs(&m, Some(10_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
+        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+        assert!(tuned.predicted_misses.is_empty(), "{:?}", tuned.predicted_misses);
+        let controller_core::speed::SpeedLaw::PiTorque { kp, ki, .. } = tuned.spec.speed_law else {
+            panic!("{:?}", tuned.spec.speed_law)
+        };
+        let c = tuned.certify;
+        let j = m.motor.j_kgm2();
+        let regions = design::pi_region::SpeedRegions::new(
+            [j * c.j_factor[0], j * c.j_factor[1]],
+            m.motor.b_nms(),
+            f64::from(tuned.spec.slow_divider) / tuned.spec.pwm_frequency_hz,
+            [c.phase_margin_deg_min, c.gain_margin_db_min],
+        )
+        .unwrap();
+        assert!(regions.margins(kp, ki), "k_p {kp}, k_i {ki} outside seed 000's margins");
+        let plan = Plan { campaign_runs: 64, seed: 1, matrix: false, speed: SpeedDesign::Auto };
+        let r = evaluate(
+            &m,
+            Some(10_000.0),
+            Path::new(env!("CARGO_MANIFEST_DIR")),
+            &plan,
+            &AtomicBool::new(false),
+        );
+        assert_eq!(r.verdict, Verdict::Pass, "{:?}", r.campaign_failures);
+    }
+
     /// Failures group by family: a trip before the injection and an unreached point are
     /// families of their own, other rows by case and how, campaign runs per criterion.
     #[test]

@@ -6,7 +6,7 @@ use controller_core::drive::DriveSpec;
 use controller_core::envelope::EnvelopeConfig;
 use controller_core::ifoc::TorqueCommand;
 use controller_core::motor::MotorParams;
-use controller_core::speed::{SpeedControllerConfig, SpeedState};
+use controller_core::speed::{SpeedControllerConfig, SpeedLaw, SpeedState};
 
 /// The drive's speed law on an ideal torque actuator: the law's own discrete code
 /// (`SpeedControllerConfig`, ideal speed measurement) driving `J dω/dt = τ − Bω − T_L` of
@@ -60,6 +60,13 @@ impl IdealLoop {
             age: 0,
             omega_m_rad_s: 0.0,
         })
+    }
+
+    /// This loop at its start (at rest, the law's state cleared) with speed law `law`
+    /// stepped every `t_s`: the same mechanics and envelope.
+    pub fn with_law(&self, law: &SpeedLaw, t_s: f64) -> Result<Self, String> {
+        let law = SpeedControllerConfig::new(law, t_s).map_err(|e| format!("speed law: {e:?}"))?;
+        Ok(Self { law, state: SpeedState::default(), age: 0, omega_m_rad_s: 0.0, ..*self })
     }
 
     /// The envelope's torque magnitude in the direction `sign` (of the torque) at speed

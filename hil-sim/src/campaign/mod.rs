@@ -86,6 +86,7 @@ pub const CORNER_RUNS: u64 = CORNERS * Manoeuvre::ALL.len() as u64;
 pub const CAMPAIGN_REQUIREMENTS: &[Requirement] = Requirement::ALL.split_at(8).0;
 
 /// What run `k` is before it runs ([`Campaign::setup`]).
+#[derive(Clone, Copy, Debug)]
 struct Setup {
     sample: Sample,
     manoeuvre: Manoeuvre,
@@ -100,6 +101,48 @@ struct Setup {
     second: Second,
     second_event: SecondEvent,
     ideal: IdealLoop,
+}
+
+/// A campaign's runs prepared once ([`Campaign::predictor`]) to predict many speed laws on,
+/// as `design tune` searches for one.
+#[derive(Debug)]
+pub struct Predictor<'a> {
+    campaign: &'a Campaign,
+    setups: Vec<(u64, Setup)>,
+}
+
+impl Predictor<'_> {
+    /// Each run's [`PREDICTED`] requirements under speed law `law` in place of the
+    /// campaign's: [`Campaign::predict`] of a campaign whose drive runs `law`, without
+    /// preparing the runs again. The law must keep the campaign's torque limit (the runs'
+    /// load steps and windows are sized from it).
+    pub fn measures(&self, law: &SpeedLaw) -> Result<Vec<(u64, Vec<Measure>)>, String> {
+        self.measures_where(law, |_| true)
+    }
+
+    /// [`Predictor::measures`] on the prepared runs `k` with `keep(k)`.
+    pub fn measures_where(
+        &self,
+        law: &SpeedLaw,
+        keep: impl Fn(u64) -> bool,
+    ) -> Result<Vec<(u64, Vec<Measure>)>, String> {
+        let spec = DriveSpec { speed_law: *law, ..self.campaign.spec };
+        let (was, is) = (torque_limit_nm(&self.campaign.spec), torque_limit_nm(&spec));
+        if was.to_bits() != is.to_bits() {
+            return Err(format!(
+                "a prediction's speed law keeps the campaign's torque limit ({was} N·m), not {is} N·m"
+            ));
+        }
+        let t_s = self.campaign.slow_period_s();
+        self.setups
+            .iter()
+            .filter(|(k, _)| keep(*k))
+            .map(|(k, s)| {
+                let ideal = s.ideal.with_law(law, t_s)?;
+                Ok((*k, self.campaign.predict_setup(Setup { ideal, ..*s })))
+            })
+            .collect()
+    }
 }
 
 /// The second event's value.
@@ -501,7 +544,19 @@ impl Campaign {
     /// or sensors. Cheap (the slow rate only, no electrical model): `design tune` chooses the
     /// speed law by it, before the campaign judges the whole drive.
     pub fn predict(&self, k: u64) -> Result<Vec<Measure>, String> {
-        let s = self.setup(k)?;
+        Ok(self.predict_setup(self.setup(k)?))
+    }
+
+    /// Run `k`s of this campaign prepared for [`Predictor::measures`] to try many speed laws
+    /// on: a run's plant, step plans and windows — the physical least times, the costly part
+    /// of [`Campaign::predict`] — do not depend on the law, only on its torque limit.
+    pub fn predictor(&self, runs: impl IntoIterator<Item = u64>) -> Result<Predictor<'_>, String> {
+        let setups = runs.into_iter().map(|k| Ok((k, self.setup(k)?))).collect::<Result<_, String>>()?;
+        Ok(Predictor { campaign: self, setups })
+    }
+
+    /// [`Campaign::predict`] on a prepared run.
+    fn predict_setup(&self, s: Setup) -> Vec<Measure> {
         let t_row = self.slow_period_s();
         let mut ideal = s.ideal;
         let (mut omega_ref, mut load) = (0.0, 0.0);
@@ -532,7 +587,7 @@ impl Campaign {
             }
         }
         let measures = self.judge(&samples, s.step_s, s.t2_s, &s.first_step, &s.second);
-        Ok(measures.into_iter().filter(|m| PREDICTED.contains(&m.requirement)).collect())
+        measures.into_iter().filter(|m| PREDICTED.contains(&m.requirement)).collect()
     }
 
     /// Run `k`; stops with an error at the next slow period once `cancel` is set.
@@ -1138,6 +1193,25 @@ mod tests {
         let wavy: Vec<(f64, f64)> = ramp.iter().map(|&(t, y)| (t, y + 0.1 * (t * 2000.0).sin())).collect();
         assert!((detrended_peak_to_peak(&wavy) - 0.2).abs() < 0.01);
         assert!(detrended_peak_to_peak(&[]).is_nan());
+    }
+
+    /// A predictor prepared once predicts any law with the campaign's torque limit as a
+    /// campaign running that law predicts it, bit for bit, and refuses another limit.
+    #[test]
+    fn the_predictor_predicts_what_predict_does() {
+        let c = campaign(8, 1.0);
+        let SpeedLaw::SaturatedP { tau_max_nm, .. } = c.spec.speed_law else { panic!("shipped law") };
+        let pi = SpeedLaw::PiTorque { kp: 0.08, ki: 0.9, limit: tau_max_nm, setpoint_weight: 0.7 };
+        let p = c.predictor(0..8).unwrap();
+        let with_pi = Campaign { spec: DriveSpec { speed_law: pi, ..c.spec }, ..c };
+        let direct: Vec<_> = (0..8).map(|k| (k, with_pi.predict(k).unwrap())).collect();
+        assert_eq!(p.measures(&pi).unwrap(), direct);
+        assert_eq!(p.measures(&c.spec.speed_law).unwrap().len(), 8);
+        let odd: Vec<_> =
+            p.measures_where(&pi, |k| k % 2 == 1).unwrap().into_iter().map(|(k, _)| k).collect();
+        assert_eq!(odd, [1, 3, 5, 7]);
+        let other = SpeedLaw::PiTorque { kp: 0.08, ki: 0.9, limit: 0.5 * tau_max_nm, setpoint_weight: 1.0 };
+        assert!(p.measures(&other).unwrap_err().contains("torque limit"));
     }
 
     /// The ideal loop of the saturated P law settles where eq. (21) puts it:
