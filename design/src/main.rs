@@ -219,8 +219,9 @@ struct TuneArgs {
     /// The speed controller: `auto` (the first of p and pi whose predicted response meets
     /// the template's [requirements] over the box; refused, naming what each misses, when
     /// neither does), `p` (saturated P, seed 002 eq. (21); the link may rewrite its gains) or
-    /// `pi` (PI → torque farthest inside seed 000's stability, gain–phase-margin and bandwidth
-    /// regions over the inertia interval).
+    /// `pi` (PI → torque inside seed 000's stability and gain–phase-margin regions over the
+    /// inertia interval: the deepest point with the P's bandwidth, or else the deepest that
+    /// meets the requirements, predicted and on the campaign's corner runs).
     #[arg(long, default_value = "auto")]
     speed: design::tune::SpeedDesign,
 }
@@ -296,13 +297,13 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
     );
     match t.spec.speed_law {
         controller_core::speed::SpeedLaw::SaturatedP { kp, tau_max_nm } => report::outln!(
-            "speed loop: saturated P kp {kp:.5} N·m·s/rad, τ_max {tau_max_nm:.3} N·m — crossover {:.1} rad/s",
-            t.omega_s_rad_s
+            "speed loop: saturated P kp {kp:.5} N·m·s/rad, τ_max {tau_max_nm:.3} N·m — {}",
+            t.speed_origin
         ),
         controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight } => report::outln!(
             "speed loop: PI kp {kp:.5} N·m·s/rad, ki {ki:.5} N·m/rad, limit {limit:.3} N·m, setpoint weight \
-             {setpoint_weight} — seed 000's regions, bandwidth ≥ {:.1} rad/s on every inertia",
-            design::tune::heaviest_speed_bandwidth(t.omega_s_rad_s, &t.certify)
+             {setpoint_weight} — {}",
+            t.speed_origin
         ),
         controller_core::speed::SpeedLaw::PiIq { .. } => {}
     }

@@ -298,6 +298,8 @@ struct SpeedPiChoice {
     /// The last point predicted to meet the requirements whose drive then missed them in
     /// software in the loop: its law and what the corner runs missed.
     sil_missed: Option<(SpeedLaw, String)>,
+    /// Found by the search (not seed 000's own point).
+    searched: bool,
 }
 
 impl SpeedPiSearch<'_> {
@@ -332,7 +334,7 @@ impl SpeedPiSearch<'_> {
             weigh_setpoint(&self.law(seed.0, seed.1), |l| Ok(missed(screen.predictor.measures(l)?)))?;
         let seed_certified = certified(&law)?;
         if seed000 && misses.is_empty() && seed_certified {
-            return Ok(SpeedPiChoice { law, misses, tried: 1, region, sil_missed: None });
+            return Ok(SpeedPiChoice { law, misses, tried: 1, region, sil_missed: None, searched: false });
         }
         let (mut tried, mut confirmations, mut sil_missed) = (1, 0, None);
         for p in &region {
@@ -347,7 +349,16 @@ impl SpeedPiSearch<'_> {
                     spec: DriveSpec { speed_law: l, ..*spec },
                     ..campaign
                 })? {
-                    None => return Ok(SpeedPiChoice { law: l, misses: m, tried, region, sil_missed: None }),
+                    None => {
+                        return Ok(SpeedPiChoice {
+                            law: l,
+                            misses: m,
+                            tried,
+                            region,
+                            sil_missed: None,
+                            searched: true,
+                        });
+                    }
                     Some(why) => sil_missed = Some((l, why)),
                 }
             }
@@ -370,7 +381,7 @@ impl SpeedPiSearch<'_> {
                 seed.0, seed.1
             ));
         }
-        Ok(SpeedPiChoice { law, misses, tried, region, sil_missed })
+        Ok(SpeedPiChoice { law, misses, tried, region, sil_missed, searched: false })
     }
 
     /// Why no PI meets the requirements: seed 000's choice and what it misses, and what
@@ -639,6 +650,9 @@ pub struct Tuned {
     pub omega_s_rad_s: f64,
     /// Every check of the certificate (all pass).
     pub checks: Vec<Check>,
+    /// Where the speed law comes from, in words (the file's header and `design tune`'s
+    /// summary): the P's crossover, seed 000's own PI, or a point the search found.
+    pub speed_origin: String,
 }
 
 fn hull(f: [f64; 2], nominal: f64, interval: Option<[f64; 2]>) -> [f64; 2] {
@@ -840,9 +854,10 @@ pub fn tune(
     if p_misses.is_empty() {
         cert.speed_kp_writable[0] = least_writable_kp(&spec, &cert, &file, vdc)?;
     }
-    let (speed_design, predicted) = match structure.speed {
-        SpeedDesign::SaturatedP => (SpeedDesign::SaturatedP, p_misses),
-        SpeedDesign::Auto if p_misses.is_empty() => (SpeedDesign::SaturatedP, p_misses),
+    let p_origin = format!("crossover {omega_s:.1} rad/s on the nominal inertia");
+    let (speed_design, predicted, speed_origin) = match structure.speed {
+        SpeedDesign::SaturatedP => (SpeedDesign::SaturatedP, p_misses, p_origin),
+        SpeedDesign::Auto if p_misses.is_empty() => (SpeedDesign::SaturatedP, p_misses, p_origin),
         SpeedDesign::Pi | SpeedDesign::Auto => {
             let js = [j * cert.j_factor[0], j * cert.j_factor[1]];
             let minima = [cert.phase_margin_deg_min, cert.gain_margin_db_min];
@@ -867,11 +882,24 @@ pub fn tune(
                 ));
             }
             spec.speed_law = choice.law;
-            (SpeedDesign::Pi, choice.misses)
+            let origin = if choice.searched {
+                format!(
+                    "inside seed 000's regions without the P's bandwidth floor: the deepest point meeting \
+                     [requirements] of {} tried, met on the campaign's {} corner runs in SIL",
+                    choice.tried,
+                    hil_sim::campaign::CORNER_RUNS
+                )
+            } else {
+                format!(
+                    "seed 000's regions, the deepest point with a bandwidth ≥ {:.1} rad/s on every inertia",
+                    pi.omega_b_rad_s
+                )
+            };
+            (SpeedDesign::Pi, choice.misses, origin)
         }
     };
     let structure = Structure { speed: speed_design, ..structure };
-    let text = write(template_text, template_path, &spec, &cert, omega_c, omega_s)?;
+    let text = write(template_text, template_path, &spec, &cert, omega_c, &speed_origin)?;
     // The file as written, read back and certified whole.
     let back =
         drive_file::DriveFile::parse(Path::new("<tuned>"), &text).map_err(|e| format!("tuned file: {e}"))?;
@@ -890,6 +918,7 @@ pub fn tune(
         omega_c_rad_s: omega_c,
         omega_s_rad_s: omega_s,
         checks,
+        speed_origin,
     })
 }
 
@@ -1173,7 +1202,7 @@ fn write(
     spec: &DriveSpec,
     cert: &CertifySpec,
     omega_c: f64,
-    omega_s: f64,
+    speed_origin: &str,
 ) -> Result<String, String> {
     use toml::Value;
     let mut t: toml::Table = toml::from_str(template_text).map_err(|e| e.to_string())?;
@@ -1246,13 +1275,8 @@ fn write(
     }
     let body = toml::to_string(&t).map_err(|e| e.to_string())?;
     let speed_loop = match spec.speed_law {
-        SpeedLaw::SaturatedP { .. } => {
-            format!("saturated-P speed loop, crossover\n# {omega_s:.1} rad/s on the nominal inertia")
-        }
-        _ => format!(
-            "PI speed loop inside seed 000's\n# regions (seed 000's bandwidth floor {:.1} rad/s on every inertia, or the deepest point meeting [requirements])",
-            heaviest_speed_bandwidth(omega_s, cert)
-        ),
+        SpeedLaw::SaturatedP { .. } => format!("saturated-P speed loop,\n# {speed_origin}"),
+        _ => format!("PI speed loop,\n# {speed_origin}"),
     };
     let current = if law.lag.is_some() {
         "ICAD current loops (seed 002\n# eq. (20)'s placement scaled to the top rotor speed, the gain the most robust over the box)"
