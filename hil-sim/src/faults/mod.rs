@@ -91,23 +91,34 @@ pub const OPEN_PHASE_BOUND_S: f64 = 0.050;
 /// … stall, s.
 pub const STALL_BOUND_S: f64 = 0.5;
 /// A switch stuck open ([`Injection::SwitchOpen`]) takes one direction of its phase's current
-/// away. From the period that direction is first needed, the phase's reference in it grows
-/// with the field's turn as `A·sin(ω_e·t)`, and reaches its peak a quarter of the field's
-/// period later: before, the missing current is a fraction of the amplitude — at rest, where
-/// the field turns at the slip frequency (a fraction of a hertz), a few per cent of it for
-/// tens of milliseconds, below what the current checks resolve. The bound is
-/// [`OPEN_PHASE_BOUND_S`] from that peak, at most this much later than from the first need, s
-/// (a field that hardly turns: the dead direction is needed and missed as an open phase).
+/// away. The phase's reference in that direction follows the field's turn as
+/// `A·cos(θ − k·2π/3)`; before its first peak after the injection the missing current is a
+/// fraction of the amplitude — at rest, where the field turns at the slip frequency (a
+/// fraction of a hertz), a few per cent of it for tens of milliseconds, below what the current
+/// checks resolve. The bound is [`OPEN_PHASE_BOUND_S`] from that peak
+/// ([`dead_peak_after_s`]), at most this much later than from the first need, s (a field that
+/// hardly turns: the dead direction is needed and missed as an open phase).
 pub const SWITCH_QUARTER_TURN_MAX_S: f64 = 0.5;
 /// The field's speed ω_e at the injection is measured on the reference current vector over
 /// this long before it, s.
 pub const FIELD_TURN_WINDOW_S: f64 = 0.02;
 
-/// A quarter of the field's period at `omega_e_rad_s`, at most [`SWITCH_QUARTER_TURN_MAX_S`]
-/// (and that, for a speed not measured).
-pub fn quarter_turn_s(omega_e_rad_s: f64) -> f64 {
-    let t = std::f64::consts::FRAC_PI_2 / omega_e_rad_s.abs();
-    if t.is_nan() { SWITCH_QUARTER_TURN_MAX_S } else { t.min(SWITCH_QUARTER_TURN_MAX_S) }
+/// The time from the injection to the first peak, after it, of phase `phase`'s reference in
+/// the direction a switch stuck open takes away (`upper`: the positive current), s: the
+/// reference vector at angle `theta0_rad` (αβ) at the injection, turning at
+/// `omega_e_rad_s` (signed); phase k's reference is `|i|·cos(θ − k·2π/3)`. Injected past that
+/// direction's peak, the switch still acts on the half-wave's waning rest, but its first
+/// whole half-wave — the first peak the dead switch misses — comes a turn later: from the
+/// first need plus a quarter turn, as the bound was first written, it ran from the peak the
+/// switch had carried while healthy (the shipped DeLorenzo motor at 4 kHz, injected at
+/// the end of the positive half-wave: detected 69 ms after, 15 ms after the next peak,
+/// against a bound of 64 ms). Infinite for a field that does not turn (or not measured).
+pub fn dead_peak_after_s(phase: usize, upper: bool, theta0_rad: f64, omega_e_rad_s: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let peak = phase as f64 * TAU / 3.0 + if upper { 0.0 } else { PI };
+    let ahead = ((peak - theta0_rad) * omega_e_rad_s.signum()).rem_euclid(TAU);
+    let t = ahead / omega_e_rad_s.abs();
+    if t.is_nan() { f64::INFINITY } else { t }
 }
 /// The overload case's load, a multiple of the torque limit (with the operating point's
 /// load direction).
@@ -502,9 +513,10 @@ impl Matrix {
                       the high side conducts, between the samples: only the comparator can see it",
             },
             // A switch stuck open does nothing until its direction of current is needed: the
-            // bound runs from the first period it mattered ([`Outcome::acting_after_s`]),
-            // lengthened by a quarter of the field's period ([`quarter_turn_s`]: the run
-            // measures it, `Matrix::run_one`).
+            // bound runs from the first peak of its dead direction after the injection
+            // ([`dead_peak_after_s`]: the run measures the field's angle and turn,
+            // `Matrix::run_one`), at most [`SWITCH_QUARTER_TURN_MAX_S`] after the first period
+            // it mattered ([`Outcome::acting_after_s`]).
             // The phase then cannot follow one way: `SwitchOpen` once the other way has carried
             // since (`drive::SWITCH_MISSING_SHARE`); before that (or when the reference hardly
             // reverses) the phase carries none of its current, which is `OpenPhase`; a dead
@@ -717,7 +729,9 @@ impl Matrix {
         let mut injected_at: Option<f64> = None;
         // The reference vector's turn over the last FIELD_TURN_WINDOW_S before the injection:
         // [its angle at the last row, the angle turned, the time], rad and s.
-        let mut turn: Option<[f64; 3]> = None;
+        let mut turn: Option<[f64; 4]> = None;
+        // The reference vector's angle at the injection, rad.
+        let mut theta_at_injection = f64::NAN;
         let final_mode = b.run_into(
             |_| {},
             |r: &Row| {
@@ -730,10 +744,10 @@ impl Matrix {
                 if r.t_s < self.inject_s() {
                     if r.t_s >= self.inject_s() - FIELD_TURN_WINDOW_S {
                         let angle = r.i_ref_ab_a[1].atan2(r.i_ref_ab_a[0]);
-                        let [last, turned, time] = turn.unwrap_or([angle, 0.0, 0.0]);
+                        let [last, turned, time, signed] = turn.unwrap_or([angle, 0.0, 0.0, 0.0]);
                         let step = (angle - last + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
                             - std::f64::consts::PI;
-                        turn = Some([angle, turned + step.abs(), time + pwm_s]);
+                        turn = Some([angle, turned + step.abs(), time + pwm_s, signed + step]);
                     }
                     if before_injection_fault.is_none()
                         && let Some(mode @ Mode::Fault(_)) = r.mode
@@ -745,6 +759,7 @@ impl Matrix {
                 let t0 = *injected_at.get_or_insert(r.t_s);
                 if r.t_s == t0 {
                     speed_at_injection = r.x.omega_m_rad_s;
+                    theta_at_injection = r.i_ref_ab_a[1].atan2(r.i_ref_ab_a[0]);
                 }
                 let i = AlphaBeta { alpha: r.x.i_alpha_a, beta: r.x.i_beta_a }.inverse_clarke();
                 let phase_peak = i.a.abs().max(i.b.abs()).max(i.c.abs());
@@ -811,14 +826,18 @@ impl Matrix {
             _ => Some(0.0),
         };
         let latent = acting_after_s.is_none();
-        // A stuck switch's bound runs from the reference's peak in its dead direction: a
-        // quarter of the field's period after that direction was first needed.
-        let expect = match (case.injection, expect) {
-            (Injection::SwitchOpen { .. }, Expect::Either { faults, bound_s }) => {
-                let omega_e = turn.map_or(f64::NAN, |[_, turned, time]| turned / time);
-                Expect::Either { faults, bound_s: bound_s + quarter_turn_s(omega_e) }
+        // A stuck switch's bound runs from the first peak of the reference in its dead
+        // direction after the injection ([`dead_peak_after_s`]), at most
+        // [`SWITCH_QUARTER_TURN_MAX_S`] after the direction was first needed (a field that
+        // hardly turns).
+        let expect = match (case.injection, expect, acting_after_s) {
+            (Injection::SwitchOpen { phase, upper }, Expect::Either { faults, bound_s }, Some(acting)) => {
+                let omega_e = turn.map_or(f64::NAN, |[_, _, time, signed]| signed / time);
+                let peak = dead_peak_after_s(phase, upper, theta_at_injection, omega_e);
+                let lead = (peak - acting).clamp(0.0, SWITCH_QUARTER_TURN_MAX_S);
+                Expect::Either { faults, bound_s: bound_s + lead }
             }
-            (_, e) => e,
+            (_, e, _) => e,
         };
         // A sensor's error below the check's level is still its fault: named early, it is
         // judged by its name (a switch that never mattered must not trip anything).
