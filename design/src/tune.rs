@@ -365,12 +365,13 @@ impl SpeedPiSearch<'_> {
         }
         if misses.is_empty() && seed_certified {
             // Predicted to meet the requirements and certified, but its drive missed them.
-            let why = sil_missed.as_ref().map_or("not run", |(_, why)| why.as_str());
+            let (l, why) = sil_missed.as_ref().map_or((&law, "not run"), |(l, why)| (l, why.as_str()));
+            let (kp, ki) = law_gains(l);
             return Err(format!(
-                "the speed PI (k_p {:.4e}, k_i {:.4e}) is predicted to meet the requirements over the box, but the \
-                 drive misses them in software in the loop on the campaign's corner runs: {why} — relax \
-                 [requirements], or take a smaller box",
-                seed.0, seed.1
+                "the speed PI (k_p {kp:.4e}, k_i {ki:.4e}, setpoint weight {}) is predicted to meet the requirements \
+                 over the box, but the drive misses them in software in the loop on the campaign's corner runs: \
+                 {why} — relax [requirements], or take a smaller box",
+                setpoint_weight(l)
             ));
         }
         if misses.is_empty() {
