@@ -316,10 +316,8 @@ impl SpeedPiSearch<'_> {
     ) -> Result<SpeedPiChoice, String> {
         // `spec`'s law has the same torque limit, which the prepared runs are sized by.
         let campaign = prediction_campaign(spec, cert, file, vdc_v);
-        let screen = Screen {
-            predictor: campaign.predictor(0..hil_sim::campaign::CORNER_RUNS)?,
-            hard: std::cell::RefCell::default(),
-        };
+        let mut screen =
+            Screen { predictor: campaign.predictor(0..hil_sim::campaign::CORNER_RUNS)?, hard: Vec::new() };
         let certified = |law: &SpeedLaw| -> Result<bool, String> {
             Ok(certify(&DriveSpec { speed_law: *law, ..*spec }, cert)?.iter().all(|c| c.pass))
         };
@@ -992,12 +990,12 @@ pub const SCREEN_RUNS: usize = 8;
 /// predicted on the rest. An empty answer is therefore always the whole prediction.
 struct Screen<'a> {
     predictor: hil_sim::campaign::Predictor<'a>,
-    hard: std::cell::RefCell<Vec<u64>>,
+    hard: Vec<u64>,
 }
 
 impl Screen<'_> {
-    fn misses(&self, law: &SpeedLaw) -> Result<Misses, String> {
-        let hard = self.hard.borrow().clone();
+    fn misses(&mut self, law: &SpeedLaw) -> Result<Misses, String> {
+        let hard = &mut self.hard;
         if !hard.is_empty() {
             let first = missed(self.predictor.measures_where(law, |k| hard.contains(&k))?);
             if !first.is_empty() {
@@ -1005,10 +1003,9 @@ impl Screen<'_> {
             }
         }
         let rest = missed(self.predictor.measures_where(law, |k| !hard.contains(&k))?);
-        let mut h = self.hard.borrow_mut();
         for (k, _) in &rest {
-            if h.len() < SCREEN_RUNS && !h.contains(k) {
-                h.push(*k);
+            if hard.len() < SCREEN_RUNS && !hard.contains(k) {
+                hard.push(*k);
             }
         }
         Ok(rest)
@@ -1026,7 +1023,7 @@ pub const SETPOINT_WEIGHTS: [f64; 11] = [1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3,
 /// stops at the first weight that misses anything else (a lower one cannot help).
 pub fn weigh_setpoint(
     law: &SpeedLaw,
-    predict: impl Fn(&SpeedLaw) -> Result<Misses, String>,
+    mut predict: impl FnMut(&SpeedLaw) -> Result<Misses, String>,
 ) -> Result<(SpeedLaw, Misses), String> {
     use drive_file::requirements::Requirement;
     let mut last = None;

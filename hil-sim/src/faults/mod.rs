@@ -98,7 +98,7 @@ pub const STALL_BOUND_S: f64 = 0.5;
 /// checks resolve. The bound is [`OPEN_PHASE_BOUND_S`] from that peak
 /// ([`dead_peak_after_s`]), at most this much later than from the first need, s (a field that
 /// hardly turns: the dead direction is needed and missed as an open phase).
-pub const SWITCH_QUARTER_TURN_MAX_S: f64 = 0.5;
+pub const SWITCH_PEAK_LEAD_MAX_S: f64 = 0.5;
 /// The field's speed ω_e at the injection is measured on the reference current vector over
 /// this long before it, s.
 pub const FIELD_TURN_WINDOW_S: f64 = 0.02;
@@ -515,7 +515,7 @@ impl Matrix {
             // A switch stuck open does nothing until its direction of current is needed: the
             // bound runs from the first peak of its dead direction after the injection
             // ([`dead_peak_after_s`]: the run measures the field's angle and turn,
-            // `Matrix::run_one`), at most [`SWITCH_QUARTER_TURN_MAX_S`] after the first period
+            // `Matrix::run_one`), at most [`SWITCH_PEAK_LEAD_MAX_S`] after the first period
             // it mattered ([`Outcome::acting_after_s`]).
             // The phase then cannot follow one way: `SwitchOpen` once the other way has carried
             // since (`drive::SWITCH_MISSING_SHARE`); before that (or when the reference hardly
@@ -728,8 +728,8 @@ impl Matrix {
         // The first row at or after the injection (the event loop's own comparison).
         let mut injected_at: Option<f64> = None;
         // The reference vector's turn over the last FIELD_TURN_WINDOW_S before the injection:
-        // [its angle at the last row, the angle turned, the time], rad and s.
-        let mut turn: Option<[f64; 4]> = None;
+        // [its angle at the last row, the time, the angle turned (signed)], rad and s.
+        let mut turn: Option<[f64; 3]> = None;
         // The reference vector's angle at the injection, rad.
         let mut theta_at_injection = f64::NAN;
         let final_mode = b.run_into(
@@ -744,10 +744,10 @@ impl Matrix {
                 if r.t_s < self.inject_s() {
                     if r.t_s >= self.inject_s() - FIELD_TURN_WINDOW_S {
                         let angle = r.i_ref_ab_a[1].atan2(r.i_ref_ab_a[0]);
-                        let [last, turned, time, signed] = turn.unwrap_or([angle, 0.0, 0.0, 0.0]);
+                        let [last, time, turned] = turn.unwrap_or([angle, 0.0, 0.0]);
                         let step = (angle - last + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
                             - std::f64::consts::PI;
-                        turn = Some([angle, turned + step.abs(), time + pwm_s, signed + step]);
+                        turn = Some([angle, time + pwm_s, turned + step]);
                     }
                     if before_injection_fault.is_none()
                         && let Some(mode @ Mode::Fault(_)) = r.mode
@@ -828,13 +828,13 @@ impl Matrix {
         let latent = acting_after_s.is_none();
         // A stuck switch's bound runs from the first peak of the reference in its dead
         // direction after the injection ([`dead_peak_after_s`]), at most
-        // [`SWITCH_QUARTER_TURN_MAX_S`] after the direction was first needed (a field that
+        // [`SWITCH_PEAK_LEAD_MAX_S`] after the direction was first needed (a field that
         // hardly turns).
         let expect = match (case.injection, expect, acting_after_s) {
             (Injection::SwitchOpen { phase, upper }, Expect::Either { faults, bound_s }, Some(acting)) => {
-                let omega_e = turn.map_or(f64::NAN, |[_, _, time, signed]| signed / time);
+                let omega_e = turn.map_or(f64::NAN, |[_, time, turned]| turned / time);
                 let peak = dead_peak_after_s(phase, upper, theta_at_injection, omega_e);
-                let lead = (peak - acting).clamp(0.0, SWITCH_QUARTER_TURN_MAX_S);
+                let lead = (peak - acting).clamp(0.0, SWITCH_PEAK_LEAD_MAX_S);
                 Expect::Either { faults, bound_s: bound_s + lead }
             }
             (_, e, _) => e,
