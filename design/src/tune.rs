@@ -270,7 +270,8 @@ pub const SIL_CONFIRMATIONS: usize = 2;
 
 /// The speed PI `design tune` chooses for the requirements (issue 51): seed 000's own choice
 /// ([`speed_pi`]: the region with the saturated P's bandwidth on the heaviest inertia, its
-/// deepest point) at its best setpoint weight ([`weigh_setpoint`]) when it meets them; else
+/// deepest point) at its best setpoint weight ([`weigh_setpoint`]) when it meets them, and
+/// its drive does in software in the loop on the corner runs; else
 /// the deepest point of the region *without* that bandwidth floor — the margins on every
 /// inertia and the encoder's k_p cap only: the requirements say how fast the loop must be —
 /// whose best weight meets them, whose drive passes the certificate, and whose drive meets
@@ -296,7 +297,8 @@ struct SpeedPiChoice {
     tried: usize,
     region: Vec<RegionPoint>,
     /// The last point predicted to meet the requirements whose drive then missed them in
-    /// software in the loop: its law and what the corner runs missed.
+    /// software in the loop (before the one taken, if one was): its law and what the corner
+    /// runs missed.
     sil_missed: Option<(SpeedLaw, String)>,
     /// Found by the search (not seed 000's own point).
     searched: bool,
@@ -331,29 +333,50 @@ impl SpeedPiSearch<'_> {
         let (law, misses) =
             weigh_setpoint(&self.law(seed.0, seed.1), |l| Ok(missed(screen.predictor.measures(l)?)))?;
         let seed_certified = certified(&law)?;
+        let sil = |l: &SpeedLaw| {
+            sil_misses(&hil_sim::campaign::Campaign {
+                spec: DriveSpec { speed_law: *l, ..*spec },
+                ..campaign
+            })
+        };
+        let mut sil_missed = None;
         if seed000 && misses.is_empty() && seed_certified {
-            return Ok(SpeedPiChoice { law, misses, tried: 1, region, sil_missed: None, searched: false });
+            // Seed 000's own point, predicted to meet them: confirmed like any other.
+            match sil(&law)? {
+                None => {
+                    return Ok(SpeedPiChoice {
+                        law,
+                        misses,
+                        tried: 1,
+                        region,
+                        sil_missed: None,
+                        searched: false,
+                    });
+                }
+                Some(why) => sil_missed = Some((law, why)),
+            }
         }
-        let (mut tried, mut confirmations, mut sil_missed) = (1, 0, None);
+        let (mut tried, mut confirmations) = (1, 0);
         for p in &region {
             if confirmations == SIL_CONFIRMATIONS {
                 break;
+            }
+            if seed000 && (p.kp, p.ki) == seed {
+                // Seed 000's own point: weighed (and run) above.
+                continue;
             }
             tried += 1;
             let (l, m) = weigh_setpoint(&self.law(p.kp, p.ki), |l| screen.misses(l))?;
             if m.is_empty() && certified(&l)? {
                 confirmations += 1;
-                match sil_misses(&hil_sim::campaign::Campaign {
-                    spec: DriveSpec { speed_law: l, ..*spec },
-                    ..campaign
-                })? {
+                match sil(&l)? {
                     None => {
                         return Ok(SpeedPiChoice {
                             law: l,
                             misses: m,
                             tried,
                             region,
-                            sil_missed: None,
+                            sil_missed: sil_missed.take(),
                             searched: true,
                         });
                     }
@@ -659,6 +682,9 @@ pub struct Tuned {
     /// Where the speed law comes from, in words (the file's header and `design tune`'s
     /// summary): the P's crossover, seed 000's own PI, or a point the search found.
     pub speed_origin: String,
+    /// The speed law's drive met the requirements on the campaign's corner runs in software
+    /// in the loop before the file was written (`--speed auto`; a forced law is not run).
+    pub met_in_sil: bool,
 }
 
 fn hull(f: [f64; 2], nominal: f64, interval: Option<[f64; 2]>) -> [f64; 2] {
@@ -860,10 +886,28 @@ pub fn tune(
     if p_misses.is_empty() {
         cert.speed_kp_writable[0] = least_writable_kp(&spec, &cert, &file, vdc)?;
     }
+    // A P law predicted to meet them is run like a searched PI: its drive on the campaign's
+    // corner runs in software in the loop (the prediction has no current loops, field
+    // orientation or sensors: on 8 of the population's 87 drives a law predicted to meet the
+    // requirements missed them in the campaign).
+    let p_sil = match structure.speed {
+        SpeedDesign::Auto if p_misses.is_empty() => {
+            let c = prediction_campaign(&spec, &cert, &file, vdc);
+            sil_misses(&c)?
+        }
+        _ => None,
+    };
     let p_origin = format!("crossover {omega_s:.1} rad/s on the nominal inertia");
     let (speed_design, predicted, speed_origin) = match structure.speed {
         SpeedDesign::SaturatedP => (SpeedDesign::SaturatedP, p_misses, p_origin),
-        SpeedDesign::Auto if p_misses.is_empty() => (SpeedDesign::SaturatedP, p_misses, p_origin),
+        SpeedDesign::Auto if p_misses.is_empty() && p_sil.is_none() => (
+            SpeedDesign::SaturatedP,
+            p_misses,
+            format!(
+                "{p_origin}, met on the campaign's {} corner runs in SIL",
+                hil_sim::campaign::CORNER_RUNS
+            ),
+        ),
         SpeedDesign::Pi | SpeedDesign::Auto => {
             let js = [j * cert.j_factor[0], j * cert.j_factor[1]];
             let minima = [cert.phase_margin_deg_min, cert.gain_margin_db_min];
@@ -876,34 +920,59 @@ pub fn tune(
             };
             let choice = pi.choose(&spec, &cert, &file, vdc)?;
             if structure.speed == SpeedDesign::Auto && !choice.misses.is_empty() {
+                let p_kp = match spec.speed_law {
+                    SpeedLaw::SaturatedP { kp, .. } => kp,
+                    _ => f64::NAN,
+                };
+                let p_why = match &p_sil {
+                    Some(why) => format!(
+                        "saturated P (k_p {p_kp:.4e}) is predicted to meet them, but its drive misses them in \
+                         software in the loop on the campaign's corner runs: {why}"
+                    ),
+                    None => format!("saturated P (k_p {p_kp:.4e}) misses {}", describe(&p_misses)),
+                };
                 return Err(format!(
                     "no speed law meets the requirements over the box (predicted on the ideal actuator, {vdc:.0} V): \
-                     saturated P (k_p {:.4e}) misses {}; {} — relax [requirements], or take a smaller box",
-                    match spec.speed_law {
-                        SpeedLaw::SaturatedP { kp, .. } => kp,
-                        _ => f64::NAN,
-                    },
-                    describe(&p_misses),
+                     {p_why}; {} — relax [requirements], or take a smaller box",
                     pi.refusal(&choice, lines, t_slow),
                 ));
             }
             spec.speed_law = choice.law;
             let origin = if choice.searched {
+                let before = match &choice.sil_missed {
+                    Some((l, why)) => format!(
+                        "; before it, k_p {:.4e}, k_i {:.4e}, setpoint weight {} was predicted to meet them and \
+                         missed {why}",
+                        law_gains(l).0,
+                        law_gains(l).1,
+                        setpoint_weight(l)
+                    ),
+                    None => String::new(),
+                };
                 format!(
                     "inside seed 000's regions without the P's bandwidth floor: the deepest point meeting \
-                     [requirements] of {} tried, met on the campaign's {} corner runs in SIL",
+                     [requirements] of {} tried, met on the campaign's {} corner runs in SIL{before}",
                     choice.tried,
                     hil_sim::campaign::CORNER_RUNS
                 )
             } else {
+                let sil = if choice.misses.is_empty() {
+                    format!(", met on the campaign's {} corner runs in SIL", hil_sim::campaign::CORNER_RUNS)
+                } else {
+                    String::new()
+                };
                 format!(
-                    "seed 000's regions, the deepest point with a bandwidth ≥ {:.1} rad/s on every inertia",
+                    "seed 000's regions, the deepest point with a bandwidth ≥ {:.1} rad/s on every inertia{sil}",
                     pi.omega_b_rad_s
                 )
             };
             (SpeedDesign::Pi, choice.misses, origin)
         }
     };
+    // `--speed auto` writes only a law whose drive met them on the corner runs; a forced PI
+    // whose prediction meets them was run too (`SpeedPiSearch::choose`).
+    let met_in_sil =
+        predicted.is_empty() && (structure.speed == SpeedDesign::Auto || speed_design == SpeedDesign::Pi);
     let structure = Structure { speed: speed_design, ..structure };
     let text = write(template_text, template_path, &spec, &cert, omega_c, &speed_origin)?;
     // The file as written, read back and certified whole.
@@ -925,6 +994,7 @@ pub fn tune(
         omega_s_rad_s: omega_s,
         checks,
         speed_origin,
+        met_in_sil,
     })
 }
 
