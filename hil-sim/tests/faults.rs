@@ -199,9 +199,9 @@ fn open_lead_on_seeds_0_to_11(p: Point, motoring: bool) {
 /// out of the way (at mid-speed and motoring nothing then catches it within the row; since
 /// the voltage regulator takes at most its target's worth of excess per period,
 /// `drive::VOLTAGE_REGULATOR_EXCESS_MAX`, `LossOfControl` comes first here): the voltage check
-/// catches it after its 10 ms, by the encoder's name — with the loops' voltage on phase a's
-/// axis (the α integrator at its clamp) for 3 of the 20 checks, and the field turning
-/// (the pinned-phase rule, `drive::PINNED_PHASE_COS`, must not rename it).
+/// catches it after its 10 ms, by the encoder's name: the applied voltage departs from the
+/// model's along a vector that turns with the field, on no phase's axis for long (the
+/// pinned-phase rule, `drive::PINNED_PHASE_COS`, must not rename it).
 #[test]
 fn a_frozen_encoder_at_speed_stays_the_encoders_fault() {
     let mut m = shipped();

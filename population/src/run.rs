@@ -175,6 +175,18 @@ pub fn evaluate(
     report
 }
 
+/// The fault matrix of a tuned `file` on `vdc` V with top speed `omega_r_max_rad_s`: its
+/// encoder's lines and its board's comparator.
+fn matrix(file: &DriveFile, omega_r_max_rad_s: f64, vdc: f64) -> Matrix {
+    let mut m = Matrix::new(file.spec, omega_r_max_rad_s, vdc);
+    m.encoder_lines = file.encoder_lines();
+    m.comparator = file
+        .board
+        .and_then(|b| b.table.comparator)
+        .map(|c| hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
+    m
+}
+
 fn judge(
     member: &Member,
     pwm_hz: Option<f64>,
@@ -230,13 +242,7 @@ fn judge(
     }
     report.campaign_failures = kinds;
     if plan.matrix {
-        let mut m = Matrix::new(file.spec, certify.omega_r_max_rad_s, vdc);
-        m.encoder_lines = file.encoder_lines();
-        m.comparator = file
-            .board
-            .and_then(|b| b.table.comparator)
-            .map(|c| hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
-        let outcomes = m.run(|_| {}, cancel)?;
+        let outcomes = matrix(&file, certify.omega_r_max_rad_s, vdc).run(|_| {}, cancel)?;
         let ok = outcomes.iter().filter(|o| o.passed()).count() as u64;
         report.matrix = Some([ok, outcomes.len() as u64]);
         report.matrix_failures = outcomes
@@ -435,6 +441,53 @@ mod tests {
             reason.contains("misses them in software in the loop on the campaign's corner runs"),
             "{reason}"
         );
+    }
+
+    /// The voltage check names a bridge fault by where the applied voltage departs from the
+    /// model's, not by where the applied voltage lies. `drive.toml`'s perturbed motor, an
+    /// upper switch stuck open: at rest (4 kHz) the other two legs wind up to push the
+    /// current the dead leg does not, the applied voltage lies off every phase's axis, and
+    /// the check named the encoder (`EncoderImplausible` 104 ms after the injection,
+    /// motoring; 140.5 ms generating); at mid-speed generating (20 kHz) the field turned too
+    /// fast for the applied voltage's axis to be judged (`EncoderImplausible` after 27.5
+    /// ms). What the bridge did not apply lies on phase a's axis in both.
+    #[test]
+    fn a_stuck_switch_at_rest_is_named_by_what_the_bridge_did_not_apply() {
+        use hil_sim::faults::Point;
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let m = crate::member::shipped(&root)
+            .unwrap()
+            .into_iter()
+            .find(|m| m.name.contains("perturbed"))
+            .unwrap();
+        let cancel = AtomicBool::new(false);
+        for (pwm_hz, point, motoring) in [
+            (4_000.0, Point::Standstill, true),
+            (4_000.0, Point::Standstill, false),
+            (20_000.0, Point::Mid, false),
+        ] {
+            let (path, text, vdc) = inputs(&m, Some(pwm_hz), &root).unwrap();
+            let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
+            let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+            let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+            let matrix = matrix(&file, tuned.certify.omega_r_max_rad_s, vdc);
+            // The row as the whole matrix runs it (its index seeds the sensors).
+            let rows = matrix.rows().unwrap();
+            let (k, c, at) = rows
+                .iter()
+                .find(|(_, c, at)| {
+                    c.name == "switch a upper stuck open" && at.point == point && at.motoring == motoring
+                })
+                .unwrap();
+            let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &cancel).unwrap();
+            let row = hil_sim::faults::row_name(c, at);
+            assert_eq!(
+                o.detected.map(|d| d.0),
+                Some(controller_core::drive::Fault::OpenPhase),
+                "{row} at {pwm_hz} Hz"
+            );
+            assert!(o.passed(), "{row} at {pwm_hz} Hz: {:?}", o.failures);
+        }
     }
 
     /// Failures group by family: a trip before the injection and an unreached point are

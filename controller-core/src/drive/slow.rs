@@ -498,10 +498,13 @@ impl SlowState {
             let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.encoder_check_steps as f32;
             let turning = w_e.abs() * window_s > PINNED_FIELD_TURN_RAD;
             let switches = &self.run.switches;
+            // The vector the applied voltage departs from the model's by: a leg held at a
+            // rail leaves it on that phase's axis.
+            let departure = v_ab - Dq { d: vd, q: vq }.inverse_park(field);
             let verdict = self
                 .run
                 .voltage_check
-                .implausible(v_ab, turning, cfg.encoder_check_steps, || switches.undriven(turning));
+                .implausible(departure, cfg.encoder_check_steps, || switches.undriven(turning));
             if let Some(f) = verdict {
                 self.trip(f);
             }

@@ -9,25 +9,30 @@ use core::f32::consts::{PI, TAU};
 
 /// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
 pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
-/// A *pinned phase* for the encoder check: the applied voltage within ≈ 11.5° (cos⁻¹ 0.98)
-/// of one phase's axis, the same axis and direction in every implausible check up to the
-/// trip, while the drive's field turns less than that window's width
-/// ([`PINNED_FIELD_TURN_RAD`]) over the checks. The loops then hold one phase at a rail
-/// and its current does not answer — a switch stuck open (the opposite diode pins the
-/// phase to the other rail) or an open lead, which the check names [`Fault::OpenPhase`],
+/// A *pinned phase* for the encoder check: the applied voltage's *departure* from the
+/// model's (the vector difference, in the stationary frame) within ≈ 11.5° (cos⁻¹ 0.98) of
+/// one phase's axis, the same axis and direction in the last half of the implausible checks
+/// up to the trip. A leg held at the wrong rail removes `d·V_dc` from its own phase only,
+/// and the common mode drops out of the stationary frame: what the loops ask and the motor
+/// does not get lies on that phase's axis, whatever the other two legs do and however fast
+/// the field turns, while a wrong encoder angle turns the model's voltage, and the
+/// departure, with the field (a frozen encoder at top speed, generating, stays
+/// `EncoderImplausible`: `a_frozen_encoder_at_speed_stays_the_encoders_fault`). Judged on
+/// the applied voltage itself (until this was found), a stuck switch at rest, whose other
+/// two legs wind up to push the current the dead one does not, lay off every axis and was
+/// named the encoder's (`drive.toml`'s perturbed motor at 4, 10 and 20 kHz; population test
+/// `a_stuck_switch_at_rest_is_named_by_what_the_bridge_did_not_apply`), and a turning field
+/// had to be excluded. A switch stuck open (the opposite diode pins the phase to the other
+/// rail) or an open lead, which the check names [`Fault::OpenPhase`],
 /// not the encoder: until the reference reverses, the two give the same currents (named
 /// [`Fault::SwitchOpen`] instead when the stuck-switch check saw one direction of a phase
 /// go missing, `SwitchWatch::suspect`). Naming the switch here misnamed an open lead at
 /// standstill, generating, on three of the fault matrix's seeds 0–11 (docs/protection.md).
-/// Measured on the 36 stuck switches of `stuck_switches_at_every_point`: 0.992–0.998 at the
-/// trip.
 pub const PINNED_PHASE_COS: f32 = 0.98;
-/// … the most the drive's field angle may turn over the encoder check's window for a held
-/// voltage to be a pinned phase, rad: twice cos⁻¹ [`PINNED_PHASE_COS`]. With the field
-/// turning faster the voltage on one axis can be the loops' (an integrator at its clamp
-/// holds the α axis, phase a's): a frozen encoder at top speed, generating, with the jump
-/// and speed checks off, held phase a's axis for 3 of its 20 checks
-/// (`a_frozen_encoder_at_speed_stays_the_encoders_fault`).
+/// The most the drive's field angle may turn over the encoder check's window for a phase's
+/// short samples to say the loops do not drive it (`SwitchWatch::undriven`), rad: twice
+/// cos⁻¹ [`PINNED_PHASE_COS`], the width of a pinned axis's window. With the field turning
+/// faster a current that lags its reference falls short near every zero crossing.
 pub const PINNED_FIELD_TURN_RAD: f32 = 0.4;
 
 /// The phase axis `v` lies on ([`PINNED_PHASE_COS`]): its index (0, 1, 2 for a, b, c), 3
@@ -144,9 +149,9 @@ impl VoltageCheck {
         (self.bad_steps, self.pinned_steps) = (0, 0);
     }
 
-    /// An implausible check (the applied voltage `v_ab`'s magnitude off the model's by more
-    /// than [`ENCODER_RESIDUAL_FRACTION`] of the linear limit), `turning`: the field turned
-    /// more than [`PINNED_FIELD_TURN_RAD`] over the check's window. After `steps` in a row
+    /// An implausible check (the applied voltage's magnitude off the model's by more than
+    /// [`ENCODER_RESIDUAL_FRACTION`] of the linear limit; `departure` the applied voltage
+    /// less the model's, stationary frame, V). After `steps` in a row
     /// the verdict: [`Fault::OpenPhase`] when the last half of them held one phase's axis
     /// (that phase does not answer: its lead or a switch, the same currents until the
     /// reference reverses) or `undriven` says a phase misses (the stuck-switch check's
@@ -156,13 +161,12 @@ impl VoltageCheck {
     #[inline]
     pub(crate) fn implausible(
         &mut self,
-        v_ab: AlphaBeta,
-        turning: bool,
+        departure: AlphaBeta,
         steps: u32,
         undriven: impl FnOnce() -> bool,
     ) -> Option<Fault> {
         self.bad_steps = self.bad_steps.saturating_add(1);
-        let axis = pinned_axis(v_ab).filter(|_| !turning);
+        let axis = pinned_axis(departure);
         self.pinned_steps = match axis {
             Some(a) if self.pinned_steps == 0 || a == self.pinned_axis => self.pinned_steps + 1,
             _ => 0,
