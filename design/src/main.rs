@@ -359,6 +359,12 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
             m.allowed
         );
     }
+    if t.changes.is_empty() {
+        report::outln!("changed: nothing (the template's values are the tuned ones)");
+    }
+    for c in &t.changes {
+        report::outln!("changed: {c}");
+    }
     cli::write_atomic(&a.out, &t.text)?;
     eprintln!("design: wrote {}", a.out.display());
     Ok(true)

@@ -685,6 +685,8 @@ pub struct Tuned {
     /// The speed law's drive met the requirements on the campaign's corner runs in software
     /// in the loop before the file was written (`--speed auto`; a forced law is not run).
     pub met_in_sil: bool,
+    /// Every value the tuned file changed from the template's, `key: old → new`.
+    pub changes: Vec<String>,
 }
 
 fn hull(f: [f64; 2], nominal: f64, interval: Option<[f64; 2]>) -> [f64; 2] {
@@ -974,7 +976,7 @@ pub fn tune(
     let met_in_sil =
         predicted.is_empty() && (structure.speed == SpeedDesign::Auto || speed_design == SpeedDesign::Pi);
     let structure = Structure { speed: speed_design, ..structure };
-    let text = write(template_text, template_path, &spec, &cert, omega_c, &speed_origin)?;
+    let (text, changes) = write(template_text, template_path, &spec, &cert, omega_c, &speed_origin)?;
     // The file as written, read back and certified whole.
     let back =
         drive_file::DriveFile::parse(Path::new("<tuned>"), &text).map_err(|e| format!("tuned file: {e}"))?;
@@ -995,6 +997,7 @@ pub fn tune(
         checks,
         speed_origin,
         met_in_sil,
+        changes,
     })
 }
 
@@ -1271,6 +1274,13 @@ fn other_frame(f: CurrentFrame) -> CurrentFrame {
 
 /// The template's tables with `[motor]`, the gains and `[certify]`'s box and writable
 /// ranges replaced (comments are not kept: the header says where the file came from).
+/// The template `template_text` with the tuned values written into it, and what changed.
+///
+/// Edited in place (`toml_edit`): the template's comments, order and layout stay; a value
+/// tune sets keeps the comment after it, unless it is a law table whose `kind` changed (the
+/// comment described the template's law). Each value that differs from the template's —
+/// compared as numbers, not as text — is listed as `key: old → new` (`(absent)` where the
+/// template did not state it), and each key a new law drops as `key: old → (removed)`.
 fn write(
     template_text: &str,
     template_path: &Path,
@@ -1278,77 +1288,80 @@ fn write(
     cert: &CertifySpec,
     omega_c: f64,
     speed_origin: &str,
-) -> Result<String, String> {
-    use toml::Value;
-    let mut t: toml::Table = toml::from_str(template_text).map_err(|e| e.to_string())?;
+) -> Result<(String, Vec<String>), String> {
+    use toml_edit::{Array, DocumentMut, Value};
+    let mut doc: DocumentMut =
+        template_text.parse().map_err(|e| format!("{}: {e}", template_path.display()))?;
+    let mut changes = Vec::new();
+    let float = |x: f64| Value::from(x);
+    let pair = |p: [f64; 2]| Value::Array(p.into_iter().map(float).collect::<Array>());
     let m = &spec.motor;
-    let motor = t.entry("motor").or_insert_with(|| Value::Table(toml::Table::new()));
-    let motor = motor.as_table_mut().ok_or("[motor] is not a table")?;
-    for (key, x) in [
-        ("rs_ohm", m.rs_ohm()),
-        ("rr_ohm", m.rr_ohm()),
-        ("ls_h", m.ls_h()),
-        ("lr_h", m.lr_h()),
-        ("lm_h", m.lm_h()),
-        ("j_kgm2", m.j_kgm2()),
-        ("b_nms", m.b_nms()),
-    ] {
-        motor.insert(key.into(), Value::Float(x));
-    }
-    motor.insert("pole_pairs".into(), Value::Integer(i64::from(m.pole_pairs())));
-    let controller = t.get_mut("controller").and_then(Value::as_table_mut).ok_or("no [controller] table")?;
-    let mut current = toml::Table::new();
+    let mut motor = vec![
+        ("rs_ohm", float(m.rs_ohm())),
+        ("rr_ohm", float(m.rr_ohm())),
+        ("ls_h", float(m.ls_h())),
+        ("lr_h", float(m.lr_h())),
+        ("lm_h", float(m.lm_h())),
+        ("j_kgm2", float(m.j_kgm2())),
+        ("b_nms", float(m.b_nms())),
+    ];
+    motor.push(("pole_pairs", Value::from(i64::from(m.pole_pairs()))));
+    set_keys(&mut doc, "motor", &motor, &mut changes)?;
     let law = &spec.current_law;
-    current.insert("kind".into(), Value::String(if law.lag.is_some() { "icad" } else { "pi" }.into()));
-    current.insert("kp".into(), Value::Float(law.kp_v_per_a));
-    current.insert("ki".into(), Value::Float(law.ki_v_per_as));
-    let triple = |p: [f64; 3]| Value::Array(p.into_iter().map(Value::Float).collect());
+    let mut current = vec![
+        ("kind", Value::from(if law.lag.is_some() { "icad" } else { "pi" })),
+        ("kp", float(law.kp_v_per_a)),
+        ("ki", float(law.ki_v_per_as)),
+    ];
+    let triple = |p: [f64; 3]| Value::Array(p.into_iter().map(float).collect::<Array>());
     if let Some(lag) = &law.lag {
-        current.insert("lag_num".into(), triple(lag.num));
-        current.insert("lag_den".into(), triple(lag.den));
+        current.push(("lag_num", triple(lag.num)));
+        current.push(("lag_den", triple(lag.den)));
     }
-    controller.insert("current".into(), Value::Table(current));
+    let speed = match spec.speed_law {
+        SpeedLaw::SaturatedP { kp, tau_max_nm } => {
+            vec![("kind", Value::from("saturated_p")), ("kp", float(kp)), ("tau_max_nm", float(tau_max_nm))]
+        }
+        SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight } => vec![
+            ("kind", Value::from("pi_torque")),
+            ("kp", float(kp)),
+            ("ki", float(ki)),
+            ("limit", float(limit)),
+            ("setpoint_weight", float(setpoint_weight)),
+        ],
+        SpeedLaw::PiIq { .. } => return Err("internal: tune does not write an i_q speed law".into()),
+    };
+    let position = [
+        ("k_per_s", float(spec.position.k_per_s)),
+        ("omega_max_rad_s", float(spec.position.omega_max_rad_s)),
+    ];
+    let controller =
+        doc.get_mut("controller").and_then(|c| c.as_table_like_mut()).ok_or("no [controller] table")?;
     let frame = match spec.current_frame {
         CurrentFrame::Stationary => "stationary",
         CurrentFrame::Synchronous => "synchronous",
     };
-    controller.insert("current_frame".into(), Value::String(frame.into()));
-    let mut speed = toml::Table::new();
-    match spec.speed_law {
-        SpeedLaw::SaturatedP { kp, tau_max_nm } => {
-            speed.insert("kind".into(), Value::String("saturated_p".into()));
-            speed.insert("kp".into(), Value::Float(kp));
-            speed.insert("tau_max_nm".into(), Value::Float(tau_max_nm));
-        }
-        SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight } => {
-            speed.insert("kind".into(), Value::String("pi_torque".into()));
-            speed.insert("kp".into(), Value::Float(kp));
-            speed.insert("ki".into(), Value::Float(ki));
-            speed.insert("limit".into(), Value::Float(limit));
-            speed.insert("setpoint_weight".into(), Value::Float(setpoint_weight));
-        }
-        SpeedLaw::PiIq { .. } => return Err("internal: tune does not write an i_q speed law".into()),
-    }
-    controller.insert("speed".into(), Value::Table(speed));
-    let pair = |p: [f64; 2]| Value::Array(vec![Value::Float(p[0]), Value::Float(p[1])]);
-    controller.insert("rotor_resistance_range".into(), pair(spec.rotor_resistance_range));
-    controller.insert("inductance_range".into(), pair(spec.inductance_range));
-    let mut position = toml::Table::new();
-    position.insert("k_per_s".into(), Value::Float(spec.position.k_per_s));
-    position.insert("omega_max_rad_s".into(), Value::Float(spec.position.omega_max_rad_s));
-    controller.insert("position".into(), Value::Table(position));
-    let c = t.get_mut("certify").and_then(Value::as_table_mut).ok_or("no [certify] table")?;
-    for (key, p) in [
-        ("rs_factor", cert.rs_factor),
-        ("rr_factor", cert.rr_factor),
-        ("inductance_factor", cert.inductance_factor),
-        ("j_factor", cert.j_factor),
-        ("speed_kp_writable", cert.speed_kp_writable),
-        ("speed_tau_max_nm_writable", cert.speed_tau_max_nm_writable),
-    ] {
-        c.insert(key.into(), pair(p));
-    }
-    let body = toml::to_string(&t).map_err(|e| e.to_string())?;
+    set_law(controller, "controller.current", &current, &mut changes)?;
+    set_value(controller, "controller", "current_frame", Value::from(frame), &mut changes);
+    set_law(controller, "controller.speed", &speed, &mut changes)?;
+    set_value(
+        controller,
+        "controller",
+        "rotor_resistance_range",
+        pair(spec.rotor_resistance_range),
+        &mut changes,
+    );
+    set_value(controller, "controller", "inductance_range", pair(spec.inductance_range), &mut changes);
+    set_law(controller, "controller.position", &position, &mut changes)?;
+    let certify = [
+        ("rs_factor", pair(cert.rs_factor)),
+        ("rr_factor", pair(cert.rr_factor)),
+        ("inductance_factor", pair(cert.inductance_factor)),
+        ("j_factor", pair(cert.j_factor)),
+        ("speed_kp_writable", pair(cert.speed_kp_writable)),
+        ("speed_tau_max_nm_writable", pair(cert.speed_tau_max_nm_writable)),
+    ];
+    set_keys(&mut doc, "certify", &certify, &mut changes)?;
     let speed_loop = match spec.speed_law {
         SpeedLaw::SaturatedP { .. } => format!("saturated-P speed loop,\n# {speed_origin}"),
         _ => format!("PI speed loop,\n# {speed_origin}"),
@@ -1358,15 +1371,121 @@ fn write(
     } else {
         "PI current loops with their zero\n# on the stator's pole (the fastest the certificate passes on every corner)"
     };
-    let frame = match spec.current_frame {
-        CurrentFrame::Stationary => "stationary",
-        CurrentFrame::Synchronous => "synchronous",
-    };
-    Ok(format!(
-        "# Tuned by `design tune` from the template {} (design::tune): {frame}-frame {current},\n\
-         # crossover {omega_c:.0} rad/s on the nominal motor; {speed_loop}. `design certify` this file.\n{body}",
-        template_path.display()
+    Ok((
+        format!(
+            "# Tuned by `design tune` from the template {} (design::tune): {frame}-frame {current},\n\
+             # crossover {omega_c:.0} rad/s on the nominal motor; {speed_loop}. `design certify` this file.\n{doc}",
+            template_path.display()
+        ),
+        changes,
     ))
+}
+
+/// The value's text without its decoration (the comment and spaces around it).
+fn bare(v: &toml_edit::Value) -> String {
+    let mut v = v.clone();
+    v.decor_mut().clear();
+    if let Some(t) = v.as_inline_table_mut() {
+        t.fmt();
+    }
+    v.to_string()
+}
+
+/// The same value: numbers compared as numbers (a template's `2` is the tuned `2.0`),
+/// arrays element by element, anything else by its text.
+fn same(a: &toml_edit::Value, b: &toml_edit::Value) -> bool {
+    let number = |v: &toml_edit::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
+    match (a, b) {
+        (toml_edit::Value::Array(x), toml_edit::Value::Array(y)) => {
+            x.len() == y.len() && x.iter().zip(y.iter()).all(|(p, q)| same(p, q))
+        }
+        _ => match (number(a), number(b)) {
+            (Some(x), Some(y)) => x == y,
+            _ => bare(a) == bare(b),
+        },
+    }
+}
+
+/// `table.key = new`, the old value's comment kept; a change listed as `path.key: old → new`.
+fn set_value(
+    table: &mut dyn toml_edit::TableLike,
+    path: &str,
+    key: &str,
+    new: toml_edit::Value,
+    changes: &mut Vec<String>,
+) {
+    match table.get_mut(key).and_then(|i| i.as_value_mut()) {
+        Some(old) if same(old, &new) => {}
+        Some(old) => {
+            changes.push(format!("{path}.{key}: {} → {}", bare(old), bare(&new)));
+            let decor = old.decor().clone();
+            *old = new;
+            *old.decor_mut() = decor;
+        }
+        None => {
+            changes.push(format!("{path}.{key}: (absent) → {}", bare(&new)));
+            table.insert(key, toml_edit::Item::Value(new));
+        }
+    }
+}
+
+/// The keys `values` of the top-level table `name` (made if the template has none).
+fn set_keys(
+    doc: &mut toml_edit::DocumentMut,
+    name: &str,
+    values: &[(&str, toml_edit::Value)],
+    changes: &mut Vec<String>,
+) -> Result<(), String> {
+    let table = doc
+        .entry(name)
+        .or_insert_with(toml_edit::table)
+        .as_table_like_mut()
+        .ok_or_else(|| format!("[{name}] is not a table"))?;
+    for (key, v) in values {
+        set_value(table, name, key, v.clone(), changes);
+    }
+    Ok(())
+}
+
+/// A law's table `path` (`controller.speed`: its last part the key in `parent`) with
+/// exactly the keys `values`: an inline table stays inline, a table stays a table; the
+/// keys another law had are removed; the comment after an inline table is kept unless the
+/// law's `kind` changed.
+fn set_law(
+    parent: &mut dyn toml_edit::TableLike,
+    path: &str,
+    values: &[(&str, toml_edit::Value)],
+    changes: &mut Vec<String>,
+) -> Result<(), String> {
+    let key = path.rsplit('.').next().unwrap_or(path);
+    let item = parent.entry(key).or_insert(toml_edit::Item::None);
+    if item.is_none() {
+        *item = toml_edit::Item::Value(toml_edit::Value::InlineTable(toml_edit::InlineTable::new()));
+    }
+    let kind_changed =
+        match (item.get("kind").and_then(|k| k.as_str()), values.iter().find(|(k, _)| *k == "kind")) {
+            (Some(old), Some((_, new))) => new.as_str() != Some(old),
+            _ => false,
+        };
+    if kind_changed && let Some(v) = item.as_value_mut() {
+        v.decor_mut().clear();
+    }
+    let table = item.as_table_like_mut().ok_or_else(|| format!("`{path}` is not a table"))?;
+    let stale: Vec<String> =
+        table.iter().map(|(k, _)| k.to_string()).filter(|k| !values.iter().any(|(v, _)| v == k)).collect();
+    for k in stale {
+        if let Some(old) = table.remove(&k) {
+            let old = old.as_value().map_or_else(|| "a table".to_string(), bare);
+            changes.push(format!("{path}.{k}: {old} → (removed)"));
+        }
+    }
+    for (k, v) in values {
+        set_value(table, path, k, v.clone(), changes);
+    }
+    if let Some(t) = item.as_inline_table_mut() {
+        t.fmt();
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -1564,6 +1683,32 @@ mod tests {
 
     /// A PWM rate too slow for the ICAD loops at the top speed: refused, naming the check
     /// that binds (at 5 kHz the sampled phase margin stays under 18° of 45°).
+    /// The tuned file is the template edited in place: every comment of `drive.toml` is
+    /// still there, and each value tune changed is named with its old and new value (the
+    /// speed gain, the writable range it certifies, the current law ICAD → PI); the values it
+    /// kept are not listed. (Until this, tune wrote the file anew from its parsed values:
+    /// every comment gone, the writable ranges rewritten silently.)
+    #[test]
+    fn the_tuned_file_keeps_the_templates_comments_and_names_each_change() {
+        let path = Path::new("drive.toml");
+        let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+        let t = tune(path, TEMPLATE, &m, None, Structure::default()).unwrap();
+        // The ICAD law's comment goes with it (the law is now a PI); every other stays.
+        for line in TEMPLATE.lines().filter(|l| l.contains('#') && !l.starts_with("current = ")) {
+            let comment = &line[line.find('#').unwrap()..];
+            assert!(t.text.contains(comment), "lost: {comment}");
+        }
+        assert!(!t.text.contains("# seed 002 eq. (20)"), "an ICAD comment on a PI law");
+        let named = |prefix: &str| t.changes.iter().any(|c| c.starts_with(prefix));
+        assert!(named("controller.speed.kp: 0.05 → "), "{:#?}", t.changes);
+        assert!(named("certify.speed_kp_writable: [0.04, 0.1] → "), "{:#?}", t.changes);
+        assert!(named("controller.current.kind: \"icad\" → \"pi\""), "{:#?}", t.changes);
+        assert!(!named("motor."), "the template's motor is the one tuned: {:#?}", t.changes);
+        // What it names is what differs.
+        let back = drive_file::DriveFile::parse(path, &t.text).unwrap();
+        assert_eq!(back.spec.speed_law, t.spec.speed_law);
+    }
+
     #[test]
     fn an_icad_the_pwm_cannot_run_is_refused() {
         let template = TEMPLATE
