@@ -1290,8 +1290,14 @@ fn write(
     speed_origin: &str,
 ) -> Result<(String, Vec<String>), String> {
     use toml_edit::{Array, DocumentMut, Value};
-    let mut doc: DocumentMut =
-        template_text.parse().map_err(|e| format!("{}: {e}", template_path.display()))?;
+    // A tuned file used as the template: its header described the last tune, not this one.
+    let body = match template_text.strip_prefix(HEADER_START) {
+        Some(rest) => {
+            rest.split_once(HEADER_END).map_or(template_text, |(_, after)| after.trim_start_matches('\n'))
+        }
+        None => template_text,
+    };
+    let mut doc: DocumentMut = body.parse().map_err(|e| format!("{}: {e}", template_path.display()))?;
     let mut changes = Vec::new();
     let float = |x: f64| Value::from(x);
     let pair = |p: [f64; 2]| Value::Array(p.into_iter().map(float).collect::<Array>());
@@ -1373,13 +1379,18 @@ fn write(
     };
     Ok((
         format!(
-            "# Tuned by `design tune` from the template {} (design::tune): {frame}-frame {current},\n\
-             # crossover {omega_c:.0} rad/s on the nominal motor; {speed_loop}. `design certify` this file.\n{doc}",
+            "{HEADER_START} from the template {} (design::tune): {frame}-frame {current},\n\
+             # crossover {omega_c:.0} rad/s on the nominal motor; {speed_loop}{HEADER_END}{doc}",
             template_path.display()
         ),
         changes,
     ))
 }
+
+/// The first words of the header `design tune` writes …
+const HEADER_START: &str = "# Tuned by `design tune`";
+/// … and its last.
+const HEADER_END: &str = ". `design certify` this file.\n";
 
 /// The value's text without its decoration (the comment and spaces around it).
 fn bare(v: &toml_edit::Value) -> String {
@@ -1707,6 +1718,10 @@ mod tests {
         // What it names is what differs.
         let back = drive_file::DriveFile::parse(path, &t.text).unwrap();
         assert_eq!(back.spec.speed_law, t.spec.speed_law);
+        // Tuned again from its own output: one header (this tune's), nothing changed.
+        let again = tune(path, &t.text, &m, None, Structure::default()).unwrap();
+        assert_eq!(again.text.matches(HEADER_START).count(), 1, "{}", again.text);
+        assert!(again.changes.is_empty(), "{:#?}", again.changes);
     }
 
     #[test]
