@@ -1312,6 +1312,16 @@ fn write(
         ("b_nms", float(m.b_nms())),
     ];
     motor.push(("pole_pairs", Value::from(i64::from(m.pole_pairs()))));
+    // The tuned motor is written in the T form (`MotorParams`, linear): another form's keys,
+    // and the saturation the T form does not take, go.
+    if let Some(t) = doc.get_mut("motor").and_then(|t| t.as_table_like_mut()) {
+        for key in ["form", "l_sigma_h", "saturation"] {
+            if let Some(old) = t.remove(key) {
+                let old = old.as_value().map_or_else(|| "a table".to_string(), bare);
+                changes.push(format!("motor.{key}: {old} → (removed)"));
+            }
+        }
+    }
     set_keys(&mut doc, "motor", &motor, &mut changes)?;
     let law = &spec.current_law;
     let mut current = vec![
@@ -1722,6 +1732,33 @@ mod tests {
         let again = tune(path, &t.text, &m, None, Structure::default()).unwrap();
         assert_eq!(again.text.matches(HEADER_START).count(), 1, "{}", again.text);
         assert!(again.changes.is_empty(), "{:#?}", again.changes);
+    }
+
+    /// A template whose motor is written in another form (Γ, with its saturation) is tuned
+    /// in the T form the tuned motor has: the other form's keys go, named. Found by trying:
+    /// tune wrote the T keys beside `form = "gamma"` and refused its own file ("tuned file:
+    /// motor.ls_h: belongs to the T form").
+    #[test]
+    fn a_template_in_another_motor_form_is_tuned_in_the_t_form() {
+        let a = TEMPLATE.find("[motor]").unwrap();
+        let b = a + TEMPLATE[a + 1..].find("\n[").unwrap() + 1;
+        let gamma = "[motor]\nform = \"gamma\"\nrs_ohm = 16.2\nrr_ohm = 23.86\nlm_h = 1.998\nl_sigma_h = 0.1026\n\
+                     pole_pairs = 1\nj_kgm2 = 0.005\nb_nms = 0.0005\nrated_current_a = 0.88\n\
+                     thermal_time_constant_s = 900.0\n\n[motor.saturation]\nbeta_per_wb = 0.9\nexponent = 7.0\n";
+        let template = format!("{}{gamma}{}", &TEMPLATE[..a], &TEMPLATE[b..]);
+        drive_file::DriveFile::parse(Path::new("gamma.toml"), &template).unwrap();
+        let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+        let t = tune(Path::new("gamma.toml"), &template, &m, None, Structure::default()).unwrap();
+        for key in ["form", "l_sigma_h", "saturation"] {
+            assert!(
+                t.changes
+                    .iter()
+                    .any(|c| c.starts_with(&format!("motor.{key}: ")) && c.ends_with("(removed)")),
+                "{key}: {:#?}",
+                t.changes
+            );
+        }
+        assert_eq!(t.spec.motor, m);
     }
 
     #[test]
