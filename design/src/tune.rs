@@ -387,12 +387,11 @@ impl SpeedPiSearch<'_> {
         if misses.is_empty() && seed_certified {
             // Predicted to meet the requirements and certified, but its drive missed them.
             let (l, why) = sil_missed.as_ref().map_or((&law, "not run"), |(l, why)| (l, why.as_str()));
-            let (kp, ki) = law_gains(l);
             return Err(format!(
-                "the speed PI (k_p {kp:.4e}, k_i {ki:.4e}, setpoint weight {}) is predicted to meet the requirements \
-                 over the box, but the drive misses them in software in the loop on the campaign's corner runs: \
-                 {why} — relax [requirements], or take a smaller box",
-                setpoint_weight(l)
+                "the speed PI ({}) is predicted to meet the requirements over the box, but the drive misses them in \
+                 software in the loop on the campaign's corner runs: {why} — relax [requirements], or take a \
+                 smaller box",
+                gains_words(l)
             ));
         }
         if misses.is_empty() {
@@ -410,7 +409,6 @@ impl SpeedPiSearch<'_> {
     /// bounds the region searched — the encoder's resolution (`lines` over the speed window at
     /// the slow period `t_slow_s`) or the margins with the speed loop's dead time.
     fn refusal(&self, c: &SpeedPiChoice, lines: u32, t_slow_s: f64) -> String {
-        let (kp, ki) = law_gains(&c.law);
         let kp_top = c.region.iter().map(|p| p.kp).fold(0.0, f64::max);
         let bound = if kp_top >= 0.9 * self.kp_max {
             format!(
@@ -432,22 +430,31 @@ impl SpeedPiSearch<'_> {
         };
         let sil = match &c.sil_missed {
             Some((law, why)) => format!(
-                "; the last predicted to meet them (k_p {:.4e}, k_i {:.4e}, setpoint weight {}) missed them in \
-                 software in the loop: {why}",
-                law_gains(law).0,
-                law_gains(law).1,
-                setpoint_weight(law)
+                "; the last predicted to meet them ({}) missed them in software in the loop: {why}",
+                gains_words(law)
             ),
             None => String::new(),
         };
         format!(
-            "PI (seed 000's, k_p {kp:.4e}, k_i {ki:.4e}, setpoint weight {}) misses {}, and none of the {} points of \
-             seed 000's region tried meets them (the region: {bound}){sil}",
-            setpoint_weight(&c.law),
+            "PI (seed 000's, {}) misses {}, and none of the {} points of seed 000's region tried meets them (the \
+             region: {bound}){sil}",
+            gains_words(&c.law),
             describe(&c.misses),
             c.tried - 1
         )
     }
+}
+
+/// `k_p …, k_i …, setpoint weight …` of a speed law, as tune's messages name a point.
+fn gains_words(law: &SpeedLaw) -> String {
+    let (kp, ki) = law_gains(law);
+    format!("k_p {kp:.4e}, k_i {ki:.4e}, setpoint weight {}", setpoint_weight(law))
+}
+
+/// `, met on the campaign's 64 corner runs in SIL`: what a law's origin adds once its drive
+/// was run.
+fn met_in_sil_words() -> String {
+    format!(", met on the campaign's {} corner runs in SIL", hil_sim::campaign::CORNER_RUNS)
 }
 
 /// A speed law's (k_p, k_i) (k_i 0 for the P law).
@@ -902,14 +909,9 @@ pub fn tune(
     let p_origin = format!("crossover {omega_s:.1} rad/s on the nominal inertia");
     let (speed_design, predicted, speed_origin) = match structure.speed {
         SpeedDesign::SaturatedP => (SpeedDesign::SaturatedP, p_misses, p_origin),
-        SpeedDesign::Auto if p_misses.is_empty() && p_sil.is_none() => (
-            SpeedDesign::SaturatedP,
-            p_misses,
-            format!(
-                "{p_origin}, met on the campaign's {} corner runs in SIL",
-                hil_sim::campaign::CORNER_RUNS
-            ),
-        ),
+        SpeedDesign::Auto if p_misses.is_empty() && p_sil.is_none() => {
+            (SpeedDesign::SaturatedP, p_misses, format!("{p_origin}{}", met_in_sil_words()))
+        }
         SpeedDesign::Pi | SpeedDesign::Auto => {
             let js = [j * cert.j_factor[0], j * cert.j_factor[1]];
             let minima = [cert.phase_margin_deg_min, cert.gain_margin_db_min];
@@ -922,10 +924,7 @@ pub fn tune(
             };
             let choice = pi.choose(&spec, &cert, &file, vdc)?;
             if structure.speed == SpeedDesign::Auto && !choice.misses.is_empty() {
-                let p_kp = match spec.speed_law {
-                    SpeedLaw::SaturatedP { kp, .. } => kp,
-                    _ => f64::NAN,
-                };
+                let p_kp = law_gains(&spec.speed_law).0;
                 let p_why = match &p_sil {
                     Some(why) => format!(
                         "saturated P (k_p {p_kp:.4e}) is predicted to meet them, but its drive misses them in \
@@ -942,27 +941,19 @@ pub fn tune(
             spec.speed_law = choice.law;
             let origin = if choice.searched {
                 let before = match &choice.sil_missed {
-                    Some((l, why)) => format!(
-                        "; before it, k_p {:.4e}, k_i {:.4e}, setpoint weight {} was predicted to meet them and \
-                         missed {why}",
-                        law_gains(l).0,
-                        law_gains(l).1,
-                        setpoint_weight(l)
-                    ),
+                    Some((l, why)) => {
+                        format!("; before it, {} was predicted to meet them and missed {why}", gains_words(l))
+                    }
                     None => String::new(),
                 };
                 format!(
                     "inside seed 000's regions without the P's bandwidth floor: the deepest point meeting \
-                     [requirements] of {} tried, met on the campaign's {} corner runs in SIL{before}",
+                     [requirements] of {} tried{}{before}",
                     choice.tried,
-                    hil_sim::campaign::CORNER_RUNS
+                    met_in_sil_words()
                 )
             } else {
-                let sil = if choice.misses.is_empty() {
-                    format!(", met on the campaign's {} corner runs in SIL", hil_sim::campaign::CORNER_RUNS)
-                } else {
-                    String::new()
-                };
+                let sil = if choice.misses.is_empty() { met_in_sil_words() } else { String::new() };
                 format!(
                     "seed 000's regions, the deepest point with a bandwidth ≥ {:.1} rad/s on every inertia{sil}",
                     pi.omega_b_rad_s

@@ -534,10 +534,7 @@ fn the_tuned_3300_v_drive_reaches_its_top_speed_points() {
         design::tune::tune(&template, &text, &motor, None, design::tune::Structure::default()).unwrap();
     assert_eq!(tuned.spec.current_frame, controller_core::drive::CurrentFrame::Stationary);
     let file = drive_file::DriveFile::parse(&template, &tuned.text).unwrap();
-    let mut m = Matrix::new(file.spec, tuned.certify.omega_r_max_rad_s, 3300.0);
-    m.encoder_lines = file.encoder_lines();
-    let c = file.board.unwrap().table.comparator.unwrap();
-    m.comparator = Some(hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
+    let m = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, 3300.0);
     let c = case(&m, "encoder stuck");
     for motoring in [true, false] {
         let at = point(&m, Point::Top, motoring);

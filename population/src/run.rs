@@ -175,18 +175,6 @@ pub fn evaluate(
     report
 }
 
-/// The fault matrix of a tuned `file` on `vdc` V with top speed `omega_r_max_rad_s`: its
-/// encoder's lines and its board's comparator.
-fn matrix(file: &DriveFile, omega_r_max_rad_s: f64, vdc: f64) -> Matrix {
-    let mut m = Matrix::new(file.spec, omega_r_max_rad_s, vdc);
-    m.encoder_lines = file.encoder_lines();
-    m.comparator = file
-        .board
-        .and_then(|b| b.table.comparator)
-        .map(|c| hil_sim::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
-    m
-}
-
 fn judge(
     member: &Member,
     pwm_hz: Option<f64>,
@@ -242,7 +230,7 @@ fn judge(
     }
     report.campaign_failures = kinds;
     if plan.matrix {
-        let outcomes = matrix(&file, certify.omega_r_max_rad_s, vdc).run(|_| {}, cancel)?;
+        let outcomes = Matrix::of_file(&file, certify.omega_r_max_rad_s, vdc).run(|_| {}, cancel)?;
         let ok = outcomes.iter().filter(|o| o.passed()).count() as u64;
         report.matrix = Some([ok, outcomes.len() as u64]);
         report.matrix_failures = outcomes
@@ -378,6 +366,14 @@ mod tests {
         assert!(tripped.is_empty(), "healthy runs tripped: {tripped:?}");
     }
 
+    /// `member` tuned at `pwm_hz` as `run` tunes it (the speed law the requirements choose):
+    /// the result, the template's path and the bus it runs on.
+    fn tune_member(member: &Member, pwm_hz: f64, root: &Path) -> (design::tune::Tuned, String, f64) {
+        let (path, text, vdc) = inputs(member, Some(pwm_hz), root).unwrap();
+        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
+        (design::tune::tune(Path::new(&path), &text, &member.motor, None, structure).unwrap(), path, vdc)
+    }
+
     /// Member 21 at 10 kHz on the default requirements: the P droops and seed 000's own PI
     /// (the region with the P's bandwidth, its deepest point) overshoots a torque-limited
     /// reversal by 13.9 % at its best setpoint weight, so tune refused it. The search of
@@ -387,9 +383,7 @@ mod tests {
     #[test]
     fn the_region_search_tunes_a_motor_seed_000s_own_pi_could_not() {
         let m = draw(1, 21, None).unwrap();
-        let (path, text, _) = inputs(&m, Some(10_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
-        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
-        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+        let (tuned, _, _) = tune_member(&m, 10_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
         assert!(tuned.predicted_misses.is_empty(), "{:?}", tuned.predicted_misses);
         let controller_core::speed::SpeedLaw::PiTorque { kp, ki, .. } = tuned.spec.speed_law else {
             panic!("{:?}", tuned.spec.speed_law)
@@ -424,9 +418,7 @@ mod tests {
     #[test]
     fn a_law_whose_drive_misses_in_sil_is_not_written() {
         let m = draw(1, 13, None).unwrap();
-        let (path, text, _) = inputs(&m, Some(10_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
-        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
-        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+        let (tuned, _, _) = tune_member(&m, 10_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
         assert!(tuned.speed_origin.contains("without the P's bandwidth floor"), "{}", tuned.speed_origin);
         let plan = Plan { campaign_runs: 200, seed: 1, matrix: false, speed: SpeedDesign::Auto };
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -466,11 +458,9 @@ mod tests {
             (4_000.0, Point::Standstill, false),
             (20_000.0, Point::Mid, false),
         ] {
-            let (path, text, vdc) = inputs(&m, Some(pwm_hz), &root).unwrap();
-            let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
-            let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+            let (tuned, path, vdc) = tune_member(&m, pwm_hz, &root);
             let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
-            let matrix = matrix(&file, tuned.certify.omega_r_max_rad_s, vdc);
+            let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
             // The row as the whole matrix runs it (its index seeds the sensors).
             let rows = matrix.rows().unwrap();
             let (k, c, at) = rows

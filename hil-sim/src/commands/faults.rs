@@ -101,12 +101,7 @@ pub fn faults(a: &FaultsOptions) -> Result<(), String> {
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/faults"));
     // Without [certify], the top speed is twice the base speed (the field-weakening range).
     let omega_r_max = file.certify.map_or(f64::INFINITY, |c| c.omega_r_max_rad_s);
-    let mut m = Matrix::new(file.spec, omega_r_max, vdc);
-    m.encoder_lines = file.encoder_lines();
-    m.comparator = file
-        .board
-        .and_then(|b| b.table.comparator)
-        .map(|c| crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
+    let mut m = Matrix::of_file(&file, omega_r_max, vdc);
     m.inject_delay_s = 1e-3 * a.inject_delay_ms;
     m.seed = a.seed;
     if let Some(plant) = &a.plant {

@@ -302,6 +302,18 @@ pub const fn switch_short(upper: bool) -> SwitchShort {
 }
 
 impl Matrix {
+    /// The matrix of the drive file `file` on `vdc_v` up to `omega_r_max_rad_s`: its spec,
+    /// its encoder's lines and its board's comparator.
+    pub fn of_file(file: &drive_file::DriveFile, omega_r_max_rad_s: f64, vdc_v: f64) -> Self {
+        let mut m = Self::new(file.spec, omega_r_max_rad_s, vdc_v);
+        m.encoder_lines = file.encoder_lines();
+        m.comparator = file
+            .board
+            .and_then(|b| b.table.comparator)
+            .map(|c| crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
+        m
+    }
+
     /// The matrix of `spec` on `vdc_v`, up to the electrical speed `omega_r_max_rad_s`
     /// (without the board's comparator: [`Matrix::comparator`]).
     pub fn new(spec: DriveSpec, omega_r_max_rad_s: f64, vdc_v: f64) -> Self {
