@@ -35,7 +35,8 @@ enum Cmd {
     Certify(CertifyArgs),
     /// Synthesise the current and speed gains for a motor on a template drive file (its
     /// board, PWM, protection and certificate), widen the box to the motor file's
-    /// [identification] intervals, certify, and write the drive file (nothing if it fails).
+    /// [identification] intervals, certify, and write the drive file — the template edited in
+    /// place, its comments kept, every changed value printed (nothing if it fails).
     Tune(TuneArgs),
     /// Seed 001's recycle-process study.
     Recycle(cli::recycle::RecycleArgs),
@@ -217,8 +218,8 @@ struct TuneArgs {
     #[arg(long, default_value = "pi")]
     current: design::tune::CurrentDesign,
     /// The speed controller: `auto` (the first of p and pi whose predicted response meets
-    /// the template's [requirements] over the box; refused, naming what each misses, when
-    /// neither does), `p` (saturated P, seed 002 eq. (21); the link may rewrite its gains) or
+    /// the template's [requirements] over the box and whose drive then meets them on the
+    /// campaign's 64 corner runs in SIL; refused, naming what each misses, when neither does), `p` (saturated P, seed 002 eq. (21); the link may rewrite its gains) or
     /// `pi` (PI → torque inside seed 000's stability and gain–phase-margin regions over the
     /// inertia interval: the deepest point with the P's bandwidth, or else the deepest that
     /// meets the requirements, predicted and on the campaign's corner runs).
