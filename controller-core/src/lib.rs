@@ -26,6 +26,7 @@ pub mod magnetics;
 pub mod motor;
 pub mod mras;
 pub mod num;
+pub mod observer;
 pub mod pi;
 pub mod raw;
 pub mod scaling;

@@ -1,0 +1,226 @@
+//! The sensorless observer (`controller_core::observer`, Hinkkanen et al. 2010) riding beside
+//! the shipped encoder drive on the simulated machine: it sees only what a sensorless drive
+//! would — the voltage the drive asked for (before its dead-time compensation, which the
+//! switching inverter's 1 µs dead time then departs from), the currents through realistic
+//! sensors (12-bit ADC with offset, gain error and noise), never the encoder — and its
+//! speed and flux are compared with the plant's. The acceptance figure for a
+//! sensorless drive is the speed within 2 % of base speed; the estimate the drive would run
+//! on is held to that here, in every quadrant the shipped drive's P law visits under
+//! ±0.8·τ_max loads at half base speed and at 3 % of it (where the negative load turns the
+//! rotor backwards: plugging, the stator frequency near zero).
+#![allow(clippy::unwrap_used, clippy::indexing_slicing)]
+
+use controller_core::drive::{
+    Drive, DriveConfig, FastOutput, Measurements, Mode, PhaseCommand, Reference, Telemetry,
+};
+use controller_core::frames::AlphaBeta;
+use controller_core::observer::{Estimate, FluxObserver, ObserverConfig};
+use drive_file::DriveFile;
+use hil_sim::inverter::InverterModel;
+use hil_sim::scenario::Builtin;
+use hil_sim::sensors::SensorModel;
+use hil_sim::sim::{DriveUnderTest, Event, LoadModel, Row, Scenario};
+
+/// The shipped drive with the observer beside it, fed what the drive measured and asked for.
+struct Riding {
+    drive: Drive,
+    cfg: ObserverConfig,
+    obs: FluxObserver,
+    /// The voltage the drive asked for in its last two steps (newest first): the one asked
+    /// two steps ago was applied over the interval that ends at this step's sample.
+    asked: [AlphaBeta; 2],
+    log: Vec<Estimate>,
+}
+
+impl DriveUnderTest for Riding {
+    fn slow_divider(&self) -> u16 {
+        self.drive.config().slow_divider()
+    }
+    fn enable(&mut self) -> Result<(), String> {
+        DriveUnderTest::enable(&mut self.drive)
+    }
+    fn set_reference(&mut self, r: Reference) -> Result<(), String> {
+        DriveUnderTest::set_reference(&mut self.drive, r)
+    }
+    fn controlled_stop(&mut self) -> Result<(), String> {
+        DriveUnderTest::controlled_stop(&mut self.drive)
+    }
+    fn step(&mut self, m: &Measurements) -> FastOutput {
+        let i = m.i_abc_a.clarke();
+        let u = self.asked[1];
+        // Magnetising at rest the speed is known (zero); running, it is estimated.
+        let est = match self.drive.mode() {
+            Mode::Running => self.obs.step(&self.cfg, u, i),
+            _ => self.obs.step_known_speed(&self.cfg, u, i, 0.0),
+        };
+        let out = self.drive.step(m);
+        let asked = match out.phases {
+            PhaseCommand::Duty(_) => self.drive.telemetry().v_ab_v,
+            PhaseCommand::Off => AlphaBeta::default(),
+        };
+        self.asked = [asked, self.asked[0]];
+        assert!(!matches!(out.mode, Mode::Fault(_)), "the encoder drive tripped: {:?}", out.mode);
+        self.log.push(est);
+        out
+    }
+    fn telemetry(&self) -> Telemetry {
+        self.drive.telemetry()
+    }
+}
+
+/// Base speed of drive.toml on its 310 V bus, rad/s (its `[requirements]` comment, printed by
+/// `design certify drive.toml`).
+const BASE_RAD_S: f64 = 196.0;
+
+/// The estimate against the plant in each window of `windows`, after
+/// running `reference` with the load steps of `loads` (time, N·m) on drive.toml, the plant's
+/// stator resistance `rs_scale` × the drive's.
+fn ride(reference_rad_s: f64, loads: &[(f64, f64)], windows: &[(f64, f64)], rs_scale: f64) -> Vec<Figures> {
+    let file = DriveFile::shipped().unwrap();
+    let spec = file.spec;
+    let ts = 1.0 / spec.pwm_frequency_hz;
+    let p = f64::from(spec.motor.pole_pairs());
+    let cfg = ObserverConfig::new(
+        &spec.motor,
+        ts,
+        2.0 * core::f64::consts::PI * 40.0,
+        0.1 * spec.flux_ref_wb,
+        spec.protection.overspeed_rad_s * p,
+    )
+    .unwrap();
+    let mut events =
+        vec![(0.0, Event::Enable), (0.3, Event::Reference(Reference::Speed(reference_rad_s as f32)))];
+    events.extend(loads.iter().map(|&(t, l)| (t, Event::LoadNm(l))));
+    let duration_s = windows.iter().map(|w| w.1).fold(0.0, f64::max);
+    let b = Builtin {
+        name: "observer".into(),
+        about: "the observer beside the encoder drive".into(),
+        plant: spec.motor.scaled(rs_scale, 1.0, 1.0, 1.0).unwrap(),
+        plant_saturation: None,
+        expect_fault: None,
+        spec,
+        scenario: Scenario {
+            events,
+            duration_s,
+            vdc_v: 310.0,
+            substeps: 1,
+            trace_every: 1,
+            sensors: SensorModel::realistic(11),
+            load: LoadModel::Torque,
+            // The board's dead time, which the drive compensates: the voltage the observer
+            // is given is then the one the bridge applied but for the current's ripple
+            // around its zero crossings.
+            inverter: InverterModel::Switching { dead_time_s: spec.dead_time_compensation_s },
+            dc_link: None,
+            comparator: None,
+        },
+    };
+    let mut dut = Riding {
+        drive: Drive::new(DriveConfig::new(&b.spec).unwrap()),
+        cfg,
+        obs: FluxObserver::new(AlphaBeta::default()),
+        asked: [AlphaBeta::default(); 2],
+        log: Vec::new(),
+    };
+    let mut rows: Vec<Row> = Vec::new();
+    b.simulate(
+        &mut dut,
+        |_| {},
+        |r| {
+            rows.push(*r);
+            Ok(())
+        },
+    )
+    .unwrap();
+    assert_eq!(rows.len(), dut.log.len());
+    windows
+        .iter()
+        .map(|&(t0, t1)| {
+            let mut f = Figures::default();
+            let mut n = 0.0;
+            // The estimate of step k is at its sample, the start of period k: row k's state.
+            for (r, e) in rows.iter().zip(&dut.log).filter(|(r, _)| r.t_s >= t0 && r.t_s < t1) {
+                let x = r.x;
+                let w = f64::from(e.omega_m_rad_s) - x.omega_m_rad_s;
+                let (pa, pb) = (f64::from(e.psi_r_alpha_wb), f64::from(e.psi_r_beta_wb));
+                let angle = (pa * x.psi_beta_wb - pb * x.psi_alpha_wb)
+                    .atan2(pa * x.psi_alpha_wb + pb * x.psi_beta_wb);
+                f.speed_rad_s += x.omega_m_rad_s;
+                f.mean_speed_error_rad_s += w;
+                f.worst_speed_error_rad_s = f.worst_speed_error_rad_s.max(w.abs());
+                f.worst_angle_rad = f.worst_angle_rad.max(angle.abs());
+                n += 1.0;
+            }
+            f.speed_rad_s /= n;
+            f.mean_speed_error_rad_s /= n;
+            f
+        })
+        .collect()
+}
+
+/// The estimate against the plant over a window.
+#[derive(Default)]
+struct Figures {
+    /// The rotor's mean speed, rad/s.
+    speed_rad_s: f64,
+    /// Mean of ω̂ − ω, rad/s: what a speed loop closed on ω̂ would leave in steady state.
+    mean_speed_error_rad_s: f64,
+    /// Largest |ω̂ − ω|, rad/s.
+    worst_speed_error_rad_s: f64,
+    /// Largest |∠ψ̂_r − ∠ψ_r|, rad.
+    worst_angle_rad: f64,
+}
+
+#[test]
+fn the_observer_finds_the_speed_and_the_field_in_every_quadrant() {
+    let tau = 1.6; // 0.8 × the shipped speed law's 2 N·m
+    for (name, reference) in [("half base speed", 0.5 * BASE_RAD_S), ("3 % of base speed", 0.03 * BASE_RAD_S)]
+    {
+        let windows = [(1.0, 1.5), (2.0, 2.5), (3.0, 3.5)];
+        let got = ride(reference, &[(1.5, tau), (2.5, -tau)], &windows, 1.0);
+        for ((t0, t1), f) in windows.iter().zip(&got) {
+            eprintln!(
+                "{name}, {t0}–{t1} s (ω {:.1} rad/s): speed error mean {:+.3}, worst {:.3} rad/s ({:.2} %, {:.2} % of base); flux angle worst {:.2}°",
+                f.speed_rad_s,
+                f.mean_speed_error_rad_s,
+                f.worst_speed_error_rad_s,
+                100.0 * f.mean_speed_error_rad_s.abs() / BASE_RAD_S,
+                100.0 * f.worst_speed_error_rad_s / BASE_RAD_S,
+                f.worst_angle_rad.to_degrees()
+            );
+        }
+        for f in &got {
+            // The figure (2 % of base speed, mean over 0.5 s) for the estimate a
+            // sensorless speed loop would close on; the worst single sample (the sensors'
+            // noise through the speed adaptation) within twice that; the field angle within
+            // 5° (the torque current's share leaking into the flux axis below 9 %).
+            assert!(f.mean_speed_error_rad_s.abs() < 0.02 * BASE_RAD_S);
+            assert!(f.worst_speed_error_rad_s < 0.04 * BASE_RAD_S);
+            assert!(f.worst_angle_rad < 5f64.to_radians());
+        }
+    }
+}
+
+/// The gap the observer leaves today: its stator resistance is the drive's, and at low
+/// speed the voltage model's `R_s·i` outweighs the back-EMF (≈ 25 V against a few volts at
+/// 3 % of base speed under load), so a stator 20 % hotter than the drive believes — inside
+/// the certified box's R_s × [1, 1.5] — moves the estimate in the low-speed regenerating
+/// (plugging) window beyond the 2 % of base speed. Pinned so that the
+/// stator-resistance adaptation that closes it (Hinkkanen et al. 2010, section V) flips it.
+#[test]
+fn a_hotter_stator_than_the_drive_believes_defeats_it_at_low_speed_regenerating() {
+    let windows = [(1.0, 1.5), (2.0, 2.5)];
+    let got = ride(0.03 * BASE_RAD_S, &[(1.5, 1.6), (2.5, -1.6)], &windows, 1.2);
+    for ((t0, t1), f) in windows.iter().zip(&got) {
+        eprintln!(
+            "R_s × 1.2, 3 % of base, {t0}–{t1} s (ω {:.1} rad/s): speed error mean {:+.3} rad/s ({:.2} % of base); flux angle worst {:.2}°",
+            f.speed_rad_s,
+            f.mean_speed_error_rad_s,
+            100.0 * f.mean_speed_error_rad_s.abs() / BASE_RAD_S,
+            f.worst_angle_rad.to_degrees()
+        );
+    }
+    // Motoring at 3 % of base it holds; plugging it does not.
+    assert!(got[0].mean_speed_error_rad_s.abs() < 0.02 * BASE_RAD_S);
+    assert!(got[1].mean_speed_error_rad_s.abs() > 0.02 * BASE_RAD_S);
+}
