@@ -411,6 +411,14 @@ impl IfocConfig {
         s.f.theta_e_rad = wrap_angle(wrap_angle(theta_r_rad) + s.theta_sl_rad);
     }
 
+    /// Anchor the field at `theta_e_rad` itself (a sensorless drive's observed rotor-flux
+    /// angle) instead of on the rotor's angle: returns the rotor angle `θ_e − θ_sl` this
+    /// makes, rad in `[-π, π)`.
+    pub fn anchor_field(&self, s: &mut IfocState, theta_e_rad: f32) -> f32 {
+        s.f.theta_e_rad = wrap_angle(theta_e_rad);
+        wrap_angle(s.f.theta_e_rad - s.theta_sl_rad)
+    }
+
     /// A state with θ_e = 0, the flux estimate `psi_r_wb` (0: an unmagnetized machine) and
     /// the rotor resistance `rr_scale` × the motor's ([`IfocConfig::set_rotor_resistance_scale`]).
     pub fn state(&self, psi_r_wb: f32, rr_scale: f32) -> IfocState {

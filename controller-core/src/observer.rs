@@ -66,7 +66,7 @@ pub const ZETA_INF: f32 = 0.7;
 pub const CORRECTION_PER_SAMPLE_MAX: f64 = 0.1;
 
 /// Why an observer configuration was refused.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ObserverError {
     /// The sample period must be finite and positive.
     SamplePeriod,
@@ -79,8 +79,7 @@ pub enum ObserverError {
     TopSpeed,
     /// The correction rate at the top speed, `(α/2 + ζ∞·ω_max)·T`, exceeds
     /// [`CORRECTION_PER_SAMPLE_MAX`]: the sample period is too long for the speed range.
-    /// Carries the rate per sample.
-    TooFastForTheSamplePeriod(f64),
+    TooFastForTheSamplePeriod,
 }
 
 impl core::fmt::Display for ObserverError {
@@ -93,9 +92,9 @@ impl core::fmt::Display for ObserverError {
             ),
             Self::FluxFloor => write!(f, "the observer's flux floor must be finite and > 0"),
             Self::TopSpeed => write!(f, "the observer's top speed must be finite and > 0"),
-            Self::TooFastForTheSamplePeriod(x) => write!(
+            Self::TooFastForTheSamplePeriod => write!(
                 f,
-                "the observer's correction at the top speed is {x:.3} per sample (at most {CORRECTION_PER_SAMPLE_MAX}): sample faster or lower the top speed"
+                "the observer's correction at the top speed, (α/2 + ζ∞·ω_max)·T, exceeds {CORRECTION_PER_SAMPLE_MAX} per sample: sample faster or lower the top speed"
             ),
         }
     }
@@ -103,7 +102,7 @@ impl core::fmt::Display for ObserverError {
 
 /// The observer's configuration: the motor in the inverse-Γ form and the gains' design
 /// values, validated at construction.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ObserverConfig {
     ts_s: f32,
     rs_ohm: f32,
@@ -115,8 +114,41 @@ pub struct ObserverConfig {
     /// `L_m/L_r`: the T model's rotor flux is `ψ_R/(L_m/L_r)`.
     lm_over_lr: f32,
     speed_bandwidth_rad_s: f32,
+    /// The flux floor, inverse-Γ (`ψ_R`), Wb.
     psi_floor_wb: f32,
     pole_pairs: f32,
+}
+
+/// The raw layout ([`crate::raw`]): the fields in their order of declaration, as one array
+/// (read in a loop: field by field, the reads took 0.45 KiB of the firmware's flash).
+impl crate::raw::Field for ObserverConfig {
+    fn put(&self, w: &mut crate::raw::Writer) {
+        self.numbers().put(w);
+    }
+    fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        let [
+            ts_s,
+            rs_ohm,
+            r_sigma_ohm,
+            l_sigma_h,
+            alpha_per_s,
+            lm_over_lr,
+            speed_bandwidth_rad_s,
+            psi_floor_wb,
+            pole_pairs,
+        ] = <[f32; 9]>::get(r);
+        Self {
+            ts_s,
+            rs_ohm,
+            r_sigma_ohm,
+            l_sigma_h,
+            alpha_per_s,
+            lm_over_lr,
+            speed_bandwidth_rad_s,
+            psi_floor_wb,
+            pole_pairs,
+        }
+    }
 }
 
 impl ObserverConfig {
@@ -153,7 +185,7 @@ impl ObserverConfig {
         let alpha = r_r_inv_gamma / l_m_inv_gamma;
         let per_sample = (0.5 * alpha + f64::from(ZETA_INF) * omega_e_max_rad_s) * ts_s;
         if per_sample > CORRECTION_PER_SAMPLE_MAX {
-            return Err(ObserverError::TooFastForTheSamplePeriod(per_sample));
+            return Err(ObserverError::TooFastForTheSamplePeriod);
         }
         let f = |x: f64| x as f32;
         Ok(Self {
@@ -167,6 +199,37 @@ impl ObserverConfig {
             psi_floor_wb: f(psi_floor_wb * k),
             pole_pairs: f32::from(motor.pole_pairs()),
         })
+    }
+
+    /// Every value positive (what [`ObserverConfig::new`] made; a raw configuration is checked
+    /// with it).
+    pub fn is_valid(&self) -> bool {
+        self.numbers().iter().all(|&x| crate::num::finite_positive(x))
+    }
+
+    /// The fields in their order of declaration.
+    fn numbers(&self) -> [f32; 9] {
+        [
+            self.ts_s,
+            self.rs_ohm,
+            self.r_sigma_ohm,
+            self.l_sigma_h,
+            self.alpha_per_s,
+            self.lm_over_lr,
+            self.speed_bandwidth_rad_s,
+            self.psi_floor_wb,
+            self.pole_pairs,
+        ]
+    }
+
+    /// The sample period, s.
+    pub fn ts_s(&self) -> f32 {
+        self.ts_s
+    }
+
+    /// The speed estimate's bandwidth `α_o`, rad/s.
+    pub fn speed_bandwidth_rad_s(&self) -> f32 {
+        self.speed_bandwidth_rad_s
     }
 
     /// The inverse-Γ leakage inductance `L_σ = σ·L_s`, H.
@@ -452,9 +515,11 @@ mod tests {
         assert_eq!(ObserverConfig::new(&m, 0.0, 250.0, 0.05, 400.0), Err(ObserverError::SamplePeriod));
         assert_eq!(ObserverConfig::new(&m, 1e-4, 2000.0, 0.05, 400.0), Err(ObserverError::SpeedBandwidth));
         assert_eq!(ObserverConfig::new(&m, 1e-4, 250.0, f64::NAN, 400.0), Err(ObserverError::FluxFloor));
-        assert!(matches!(
+        assert_eq!(
             ObserverConfig::new(&m, 1e-3, 50.0, 0.05, 400.0),
-            Err(ObserverError::TooFastForTheSamplePeriod(x)) if x > CORRECTION_PER_SAMPLE_MAX
-        ));
+            Err(ObserverError::TooFastForTheSamplePeriod)
+        );
+        assert!(ObserverConfig::new(&m, 1e-4, 250.0, 0.05, 400.0).unwrap().is_valid());
+        assert!(!ObserverConfig::default().is_valid());
     }
 }

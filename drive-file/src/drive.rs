@@ -8,7 +8,7 @@ use controller_core::current::CurrentLaw;
 use controller_core::discretize::{ContinuousSection, Discretization};
 use controller_core::drive::{
     BrakeChopper, CurrentFrame, DriveConfig, DriveError, DriveSpec, Fault, FaultSet, PositionLaw, Protection,
-    ThermalLimit,
+    SpeedFeedback, ThermalLimit,
 };
 use controller_core::mras::RANGE_RATIO_MAX;
 use controller_core::speed::SpeedLaw;
@@ -46,6 +46,10 @@ pub struct ControllerTable {
     /// Frame of the current loops (default stationary).
     #[serde(default)]
     pub current_frame: FrameTable,
+    /// Where the speed and the field angle come from (default the encoder; `"sensorless"`:
+    /// the flux and speed observer, docs/sensorless.md).
+    #[serde(default)]
+    pub speed_feedback: FeedbackTable,
     /// Speed law.
     pub speed: SpeedTable,
     /// Position loop (default 10 1/s, 100 rad/s).
@@ -145,6 +149,17 @@ pub enum CurrentTable {
         /// V/(A·s).
         ki: f64,
     },
+}
+
+/// `controller.speed_feedback`.
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+pub enum FeedbackTable {
+    /// The encoder.
+    #[default]
+    Encoder,
+    /// The observer, no encoder.
+    Sensorless,
 }
 
 /// `controller.current_frame`.
@@ -995,6 +1010,10 @@ pub fn drive_spec(
             FrameTable::Synchronous => CurrentFrame::Synchronous,
         },
         speed_law,
+        speed_feedback: match c.speed_feedback {
+            FeedbackTable::Encoder => SpeedFeedback::Encoder,
+            FeedbackTable::Sensorless => SpeedFeedback::Sensorless,
+        },
         position: PositionLaw { k_per_s: c.position.k_per_s, omega_max_rad_s: c.position.omega_max_rad_s },
         flux_ref_wb: c.flux_ref_wb,
         flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
@@ -1088,6 +1107,14 @@ pub fn drive_spec(
         ),
         // Only `DriveConfig::from_raw` returns it.
         DriveError::Raw => src.error("controller", "configuration rejected"),
+        DriveError::Observer(e) => src.error(
+            "controller.speed_feedback",
+            format!(
+                "\"sensorless\" at pwm.frequency_hz = {} Hz up to protection.overspeed_rad_s = {} rad/s: {e}",
+                num(pwm.frequency_hz),
+                num(spec.protection.overspeed_rad_s)
+            ),
+        ),
         DriveError::CurrentTrim => {
             // With its numbers: a slow PWM (`frequency_hz = 1`) reads as a trim too fast.
             let t_slow_s = f64::from(pwm.slow_divider) / pwm.frequency_hz;

@@ -5,7 +5,9 @@ use crate::inverter::InverterModel;
 use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, Row, Scenario};
 use controller_core::current::CurrentLaw;
-use controller_core::drive::{CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference};
+use controller_core::drive::{
+    CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference, SpeedFeedback,
+};
 use controller_core::fault::Fault;
 use controller_core::magnetics::Saturation;
 use controller_core::motor::{MotorError, MotorParams};
@@ -182,6 +184,19 @@ pub fn speed_step_sensors() -> Result<Builtin, ScenarioError> {
     b.scenario.events.retain(|(_, e)| !matches!(e, Event::LoadNm(_)));
     b.scenario.sensors = SensorModel::realistic(7);
     b.scenario.load = LoadModel::EddyBrake { k_nm_s_rad: 0.002 };
+    Ok(b)
+}
+
+/// [`speed_step_sensors`] without an encoder: the drive's speed and field angle from the flux
+/// and speed observer ([`SpeedFeedback::Sensorless`], docs/sensorless.md), the 1 N·m load
+/// steps kept.
+pub fn speed_step_sensorless() -> Result<Builtin, ScenarioError> {
+    let mut b = speed_step()?;
+    b.name = "speed-step-sensorless".into();
+    b.about = "speed-step without an encoder (the flux and speed observer), 12-bit ADC with offset, gain error and noise"
+        .into();
+    b.spec.speed_feedback = SpeedFeedback::Sensorless;
+    b.scenario.sensors = SensorModel::realistic(7);
     Ok(b)
 }
 
@@ -399,6 +414,7 @@ pub fn all() -> Result<Vec<Builtin>, ScenarioError> {
         speed_step()?,
         speed_step_sensors()?,
         speed_step_switching()?,
+        speed_step_sensorless()?,
         fig11_locked_rotor()?,
         fig14_position()?,
         fig16_icad()?,

@@ -4,10 +4,12 @@
 
 use super::spec::*;
 use crate::current::CurrentControllerConfig;
+use crate::encoder::SPEED_WINDOW_READS;
 use crate::envelope::EnvelopeConfig;
 use crate::fault::FaultSet;
 use crate::ifoc::IfocConfig;
 use crate::mras::{MrasConfig, MrasError};
+use crate::observer::{CORRECTION_PER_SAMPLE_MAX, ObserverConfig};
 use crate::raw::{self, RawDriveConfig};
 use crate::speed::{PositionConfig, SpeedControllerConfig};
 use crate::supervisor::limits::{BrakeLevels, Limits, abs_bits};
@@ -96,6 +98,8 @@ crate::raw::raw_struct! {
         pub(super) stop_on: FaultSet,
         /// The rotor at rest ([`crate::supervisor::rest`]).
         pub(super) rest: RestLimits,
+        /// Sensorless: the flux and speed observer ([`SpeedFeedback::Sensorless`]).
+        pub(super) observer: Option<ObserverConfig>,
     }
 }
 
@@ -140,6 +144,27 @@ impl raw::Field for CurrentFrame {
     }
 }
 
+/// A tag (0: the encoder, 1: the observer) and the observer's numbers (zeros without one: a
+/// fixed layout).
+impl raw::Field for Option<ObserverConfig> {
+    fn put(&self, w: &mut raw::Writer) {
+        w.u(u32::from(self.is_some()));
+        self.unwrap_or_default().put(w);
+    }
+    fn get(r: &mut raw::Reader<'_>) -> Self {
+        let tag = r.u();
+        let cfg = ObserverConfig::get(r);
+        match tag {
+            0 => None,
+            1 if cfg.is_valid() => Some(cfg),
+            _ => {
+                r.bad = true;
+                None
+            }
+        }
+    }
+}
+
 impl raw::Field for FaultSet {
     fn put(&self, w: &mut raw::Writer) {
         w.u(self.0);
@@ -152,6 +177,15 @@ impl raw::Field for FaultSet {
 /// What a thermal limit needs ([`crate::supervisor::thermal::ThermalConfig::new`]).
 const THERMAL_NEED: &str =
     "needs rated_current_a > 0, time_constant_s > 0 and 1 ≤ overload_factor ≤ 10, finite";
+
+/// The sensorless speed estimate's bandwidth `α_o`, rad/s: `2/(N·T_slow)`, the bandwidth whose
+/// first-order lag equals, at low frequency, the delay `N·T_slow/2` of the encoder's speed
+/// window of N = [`SPEED_WINDOW_READS`] reads — the lag the speed loop was designed and certified
+/// with — limited to [`CORRECTION_PER_SAMPLE_MAX`] per fast step (at 4 kHz with a 2 kHz slow
+/// loop: 400 instead of 500 rad/s).
+pub fn observer_speed_bandwidth_rad_s(ts_s: f64, t_slow_s: f64) -> f64 {
+    (2.0 / (SPEED_WINDOW_READS as f64 * t_slow_s)).min(CORRECTION_PER_SAMPLE_MAX / ts_s)
+}
 
 /// `x` finite and positive.
 fn finite_positive_f64(x: f64) -> bool {
@@ -354,6 +388,19 @@ impl DriveConfig {
             }),
             brake: BrakeLevels { on_v: brake_on_v, off_v: brake_off_v },
             rest: RestLimits::new(p.rest_time_s, t_slow, spec.motor.pole_pairs(), spec.motor.tr_s()),
+            observer: match spec.speed_feedback {
+                SpeedFeedback::Encoder => None,
+                SpeedFeedback::Sensorless => Some(
+                    ObserverConfig::new(
+                        &spec.motor,
+                        ts,
+                        observer_speed_bandwidth_rad_s(ts, t_slow),
+                        spec.flux_floor_wb,
+                        f64::from(spec.motor.pole_pairs()) * p.overspeed_rad_s,
+                    )
+                    .map_err(DriveError::Observer)?,
+                ),
+            },
         })
     }
 }

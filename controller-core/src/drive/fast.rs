@@ -7,6 +7,7 @@
 use super::*;
 use crate::frames::{Abc, wrap_angle};
 use crate::ifoc::IfocOutput;
+use crate::observer::ObserverConfig;
 #[cfg(doc)]
 use crate::supervisor::limits::{BrakeLevels, Limits};
 use crate::svpwm;
@@ -98,6 +99,29 @@ impl Drive {
 }
 
 impl FastState {
+    /// Sensorless: the observer's step on this period's sample (the voltage asked two steps
+    /// ago was applied over the period that ends at it), the speed known to be zero while
+    /// magnetizing a rotor at rest and estimated while running; returns `m` with the
+    /// estimate as its encoder reading (the speed, and the shaft's angle it turns). With the
+    /// bridge off nothing is known: a speed of zero, the angle held. Out of line: an encoder
+    /// drive's interrupt does not carry it (inlined, 1.1 KiB of the firmware's flash).
+    #[inline(never)]
+    pub(super) fn observe(&mut self, o: &ObserverConfig, m: &Measurements) -> Measurements {
+        if !self.mode.is_active() {
+            return Measurements { omega_m_rad_s: 0.0, theta_m_rad: self.theta_est_rad, ..*m };
+        }
+        let (i, u) = (m.i_abc_a.clarke(), self.run.v_interval);
+        self.run.v_interval = self.run.last.v_ab;
+        let e = if self.mode == Mode::Running {
+            self.run.observer.step(o, u, i)
+        } else {
+            self.run.observer.step_known_speed(o, u, i, 0.0)
+        };
+        self.run.estimate = e;
+        self.theta_est_rad = wrap_angle(self.theta_est_rad + e.omega_m_rad_s * o.ts_s());
+        Measurements { omega_m_rad_s: e.omega_m_rad_s, theta_m_rad: self.theta_est_rad, ..*m }
+    }
+
     /// The fast step; `after_slow`: it follows the slow step (its signals kept for the
     /// once-per-slow-period checks).
     #[inline(always)]

@@ -74,7 +74,7 @@ pub use crate::supervisor::phases::{
 };
 pub use crate::supervisor::thermal::THERMAL_UPDATE_SLOW_STEPS;
 pub use crate::supervisor::{BrakeChopper, Protection, ThermalLimit};
-pub use config::DriveConfig;
+pub use config::{DriveConfig, observer_speed_bandwidth_rad_s};
 pub use spec::*;
 
 use crate::current::CurrentState;
@@ -86,6 +86,7 @@ use crate::ifoc::{FluxCommand, IfocState, TorqueCommand};
 use crate::mras::MrasConfig;
 use crate::mras::RotorFit;
 use crate::num::Scalar;
+use crate::observer::{Estimate, FluxObserver};
 use crate::speed::SpeedState;
 use crate::supervisor::encoder::{EncoderTrack, VoltageCheck};
 use crate::supervisor::motion::MotionChecks;
@@ -141,6 +142,10 @@ struct FastState {
     steps_to_slow: u16,
     /// The brake chopper's comparator state (the machine's: kept by enable and reconfigure).
     brake: bool,
+    /// Sensorless: the shaft's angle as the estimated speed turns it, mechanical rad in
+    /// `[-π, π)` — the encoder reading the drive gets instead of an encoder's (the machine's:
+    /// kept by enable, so that the turn count does not jump).
+    theta_est_rad: f32,
     run: FastRun,
 }
 
@@ -174,6 +179,11 @@ struct FastRun {
     last_test_angle_rad: f32,
     /// The signals of the fast step after the slow step for the once-per-slow-period checks.
     after_slow: Option<AfterSlow>,
+    /// Sensorless: the flux and speed observer, the voltage applied over the period that
+    /// ends at this step's sample (asked two steps ago), and its last estimate.
+    observer: FluxObserver,
+    v_interval: AlphaBeta,
+    estimate: Estimate,
 }
 
 /// What the slow step reads of the fast side, latched at its tick ([`FastState::latch`]).
@@ -191,6 +201,9 @@ struct SlowInputs {
     limited: bool,
     /// The rotating-current test's angle at the tick, rad.
     test_angle_rad: f32,
+    /// Sensorless and Running: the observer's rotor-flux angle at the tick, rad (the field
+    /// is anchored on it).
+    field_rad: Option<f32>,
 }
 
 /// The fast step right after the slow step, as the once-per-slow-period checks read it
@@ -351,9 +364,14 @@ impl FastState {
     /// The slow step's inputs at its tick: the measurements, the mode, and the sums since
     /// the last tick, which start again.
     #[inline(always)]
-    fn latch(&mut self, m: &Measurements) -> SlowInputs {
+    fn latch(&mut self, m: &Measurements, sensorless: bool) -> SlowInputs {
+        let field_rad = (sensorless && self.mode == Mode::Running).then(|| {
+            let e = &self.run.estimate;
+            crate::frames::atan2(e.psi_r_beta_wb, e.psi_r_alpha_wb)
+        });
         let r = &mut self.run;
         let inputs = SlowInputs {
+            field_rad,
             m: *m,
             mode: self.mode,
             sums: r.field.take_sums(),
@@ -452,6 +470,7 @@ impl Drive {
                 reference: Reference::Speed(0.0),
                 steps_to_slow: 0,
                 brake: false,
+                theta_est_rad: 0.0,
                 run: FastRun::default(),
             },
             slow: SlowState {
@@ -692,6 +711,16 @@ impl Drive {
 
     /// One PWM period: the slow step on every N-th call, then the fast step.
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
+        // Sensorless: the observer reads the period's sample first, and its estimate is the
+        // encoder reading both steps get.
+        let observed;
+        let m = match &self.cfg.observer {
+            Some(o) => {
+                observed = self.fast.observe(o, m);
+                &observed
+            }
+            None => m,
+        };
         let after_slow = self.fast.steps_to_slow == 0;
         if after_slow {
             self.slow_step(m);

@@ -33,7 +33,7 @@ impl Drive {
     /// plan ([`IfocConfig::plan`]); the phase checks (open phase, no motor current, the
     /// windowed current sum; a stuck switch while Running).
     pub fn slow_step(&mut self, m: &Measurements) {
-        let inputs = self.fast.latch(m);
+        let inputs = self.fast.latch(m, self.cfg.observer.is_some());
         self.slow.step(&self.cfg, &inputs);
         self.fast.adopt(&self.slow);
     }
@@ -102,6 +102,10 @@ impl SlowState {
         self.run.ifoc.add_sums(inputs.sums);
         let (i_mean, n) = cfg.ifoc.close_period(&mut self.run.ifoc);
         self.anchor_field(cfg, step_rad);
+        if let Some(theta_e) = inputs.field_rad {
+            // Sensorless: the field where the observer finds the rotor flux.
+            self.run.theta_r_rad = cfg.ifoc.anchor_field(&mut self.run.ifoc, theta_e);
+        }
         // The modulator limited the loops' request since the last slow step.
         let limited = inputs.limited;
         if n > 0 && (self.mode == Mode::Running || !cfg.mras.fit_pending(&self.run.rotor_fit)) {

@@ -8,6 +8,7 @@ use crate::discretize::Discretization;
 use crate::ifoc::IfocConfig;
 use crate::ifoc::IfocError;
 use crate::motor::MotorParams;
+use crate::observer::ObserverError;
 use crate::speed::{SpeedError, SpeedLaw};
 use crate::supervisor::Protection;
 #[cfg(doc)]
@@ -116,6 +117,19 @@ pub enum CurrentFrame {
     Synchronous,
 }
 
+/// Where the drive's speed and field angle come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SpeedFeedback {
+    /// The encoder's reading (the field anchored on the rotor's angle, seed 002's IFOC).
+    #[default]
+    Encoder,
+    /// No encoder: the flux and speed observer ([`crate::observer`], Hinkkanen et al. 2010)
+    /// gives the speed, and the field is anchored on its rotor-flux angle. Its speed
+    /// estimate's bandwidth is derived, not chosen ([`DriveConfig::new`]): the low-frequency
+    /// lag of the encoder's speed window the speed loop was designed and certified with.
+    Sensorless,
+}
+
 /// Everything a drive needs, in design units (f64). [`DriveConfig::new`] validates it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveSpec {
@@ -174,6 +188,8 @@ pub struct DriveSpec {
     pub inductance_range: [f64; 2],
     /// Trip thresholds.
     pub protection: Protection,
+    /// The speed's and the field angle's source.
+    pub speed_feedback: SpeedFeedback,
 }
 
 impl DriveSpec {
@@ -242,6 +258,8 @@ pub enum DriveError {
     },
     /// Brake-chopper thresholds not 0 < off < on < [`REGEN_LIMIT_START`]·vdc_max.
     BrakeChopper,
+    /// The sensorless observer cannot run at this PWM rate up to the overspeed level.
+    Observer(ObserverError),
 }
 
 impl core::fmt::Display for DriveError {
@@ -280,6 +298,7 @@ impl core::fmt::Display for DriveError {
                 "current_trim_bandwidth_rad_s: must be finite, ≥ 0 and below a tenth of the slow loop's rate",
             ),
             Self::Protection { field, need } => write!(f, "{field}: {need}"),
+            Self::Observer(e) => write!(f, "speed_feedback (sensorless): {e}"),
             Self::BrakeChopper => write!(
                 f,
                 "protection.brake_chopper: needs 0 < off_v < on_v < {REGEN_LIMIT_START} × protection.vdc_max_v"

@@ -52,6 +52,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             rest_time_s: 0.01,
             brake_chopper: None,
         },
+        speed_feedback: SpeedFeedback::Encoder,
     }
 }
 
@@ -230,8 +231,13 @@ fn raw_configuration_round_trips() {
             SpeedLaw::PiTorque { kp: 0.1, ki: 0.0, limit: 2.0, setpoint_weight: 0.25 },
             SpeedLaw::pi2_seed000(3.0),
         ] {
-            for current_law in [CurrentLaw::ICAD_EQ20, CurrentLaw::PI_SEED002] {
-                let spec = DriveSpec { current_frame: frame, speed_law, current_law, ..test_spec() };
+            for (current_law, speed_feedback) in [
+                (CurrentLaw::ICAD_EQ20, SpeedFeedback::Encoder),
+                (CurrentLaw::PI_SEED002, SpeedFeedback::Encoder),
+                (CurrentLaw::ICAD_EQ20, SpeedFeedback::Sensorless),
+            ] {
+                let spec =
+                    DriveSpec { current_frame: frame, speed_law, current_law, speed_feedback, ..test_spec() };
                 let cfg = DriveConfig::new(&spec).unwrap();
                 // Exactly full: the size constants are the field counts.
                 let w = cfg.write_raw();
@@ -260,10 +266,17 @@ fn raw_configuration_round_trips() {
     bad.u[1] = 7; // the current frame's tag
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 11] = 0; // the slow divider
+    bad.u[raw::INTEGERS - 12] = 0; // the slow divider
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 2] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
+    bad.u[raw::INTEGERS - 3] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    // The observer's tag (last): unknown, or the observer's numbers not a valid observer.
+    let mut bad = raw;
+    bad.u[raw::INTEGERS - 1] = 2;
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    let mut bad = raw;
+    bad.u[raw::INTEGERS - 1] = 1; // an encoder drive's zeros read as an observer
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.
     let at = |v: f32| {

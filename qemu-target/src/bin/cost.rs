@@ -39,6 +39,7 @@ mod target {
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
     use controller_core::link::{BoardCommand, LinkStats};
     use controller_core::mras::{Evidence, MrasConfig, RotorFit};
+    use controller_core::observer::{FluxObserver, ObserverConfig};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
     use controller_core::svpwm;
     use core::hint::black_box;
@@ -649,6 +650,32 @@ mod target {
         let sincos = per_call(&ticks, |k| {
             black_box(SinCos::new(black_box(k as f32 * 0.01 - 3.0)));
         });
+        // The sensorless observer's step (`[controller] speed_feedback = "sensorless"`, run
+        // every period before the drive's steps): the drive file's motor and rate, a 100 V
+        // voltage and the 1.5 A current turning at 0.01 rad per sample — magnetized past the
+        // flux floor first, so that the speed adaptation runs in every timed step.
+        let observer = match ObserverConfig::new(
+            &spec.motor,
+            ts,
+            controller_core::drive::observer_speed_bandwidth_rad_s(ts, ts * f64::from(spec.slow_divider)),
+            spec.flux_floor_wb,
+            f64::from(spec.motor.pole_pairs()) * spec.protection.overspeed_rad_s,
+        ) {
+            Ok(o) => {
+                let u = |k: u32| {
+                    let sc = SinCos::new((k % 600) as f32 * 0.01 - 3.0);
+                    AlphaBeta { alpha: 100.0 * sc.cos, beta: 100.0 * sc.sin }
+                };
+                let mut obs = FluxObserver::new(AlphaBeta::default());
+                for k in 0..N {
+                    obs.step(&o, u(k), current(k).clarke());
+                }
+                per_call(&ticks, |k| {
+                    black_box(obs.step(&o, black_box(u(k)), black_box(current(k).clarke())));
+                })
+            }
+            Err(_) => f32::NAN,
+        };
         let icad = match CurrentControllerConfig::<f32>::new(
             &CurrentLaw::ICAD_EQ20,
             ts,
@@ -848,6 +875,7 @@ mod target {
         println!("cost part:ifoc_fast {:.1}", ifoc);
         println!("cost part:ifoc_plan_incl_sincos {:.1}", ifoc_plan);
         println!("cost part:sincos {:.1}", sincos);
+        println!("cost part:observer_step {:.1}", observer);
         println!("cost part:svpwm {:.1}", svm);
         println!("cost part:compare_3ch {:.1}", compare);
         println!("cost part:capture_idle {:.1}", capture_idle);

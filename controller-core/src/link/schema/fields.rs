@@ -9,7 +9,7 @@ use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
     BrakeChopper, CurrentFrame, DriveSpec, FaultSet, PhaseCommand, PositionLaw, Protection, Reference,
-    ThermalLimit,
+    SpeedFeedback, ThermalLimit,
 };
 use crate::frames::Abc;
 use crate::motor::MotorParams;
@@ -172,7 +172,10 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
         }
     }
     w.u32(p.stop_on.0)?;
-    Ok(())
+    w.u8(match s.speed_feedback {
+        SpeedFeedback::Encoder => 0,
+        SpeedFeedback::Sensorless => 1,
+    })
 }
 
 pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
@@ -230,6 +233,11 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         inverter_thermal,
         FaultSet(r.u32()?),
     );
+    let speed_feedback = match r.u8()? {
+        0 => SpeedFeedback::Encoder,
+        1 => SpeedFeedback::Sensorless,
+        _ => return Err(DecodeError::Value),
+    };
     Ok(DriveSpec {
         motor,
         pwm_frequency_hz,
@@ -250,6 +258,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         rotor_resistance_range,
         inductance_range,
         protection,
+        speed_feedback,
     })
 }
 
