@@ -295,6 +295,9 @@ impl Estimate {
 /// The observer's state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FluxObserver {
+    /// The estimates in use, × the configuration's: the inductances (`L_σ`, `L_M` alike) and
+    /// the rotor resistance (1: the configuration's own).
+    scales: Scales,
     /// Stator-flux estimate `ψ̂_s`, stationary coordinates, Wb.
     psi_s: Cx,
     /// Electrical speed estimate `ω̂_m`, rad/s.
@@ -303,10 +306,41 @@ pub struct FluxObserver {
     i_last: Cx,
 }
 
+/// The machine's estimates the observer runs on, × its configuration's values.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Scales {
+    /// Inductances (`L_σ`, `L_M`; `L_m/L_r` does not move).
+    l: f32,
+    /// Rotor resistance.
+    r: f32,
+    /// `r/l`: `α`'s.
+    r_over_l: f32,
+}
+
+impl Default for Scales {
+    /// The configuration's own parameters.
+    fn default() -> Self {
+        Scales { l: 1.0, r: 1.0, r_over_l: 1.0 }
+    }
+}
+
 impl FluxObserver {
-    /// At rest, unmagnetised, the current `i_now` (the next interval starts from it), A.
+    /// At rest, unmagnetised, the current `i_now` (the next interval starts from it), A; on
+    /// the configuration's parameters.
     pub fn new(i_now: AlphaBeta) -> Self {
         Self { i_last: Cx::new(i_now.alpha, i_now.beta), ..Self::default() }
+    }
+
+    /// Run on the inductances `l` × and the rotor resistance `r` × the configuration's — the
+    /// drive's estimates (its magnetizing fit's and rotor-resistance law's, as its field
+    /// orientation runs on them). Not finite and positive: ignored.
+    pub fn set_scales(&mut self, l: f32, r: f32) {
+        if crate::num::finite_positive(l)
+            && crate::num::finite_positive(r)
+            && (l, r) != (self.scales.l, self.scales.r)
+        {
+            self.scales = Scales { l, r, r_over_l: r / l };
+        }
     }
 
     /// One interval of `cfg`'s sample period: `u` the stator voltage held over it (α, β, V),
@@ -348,7 +382,8 @@ impl FluxObserver {
 
     /// The estimate now.
     pub fn estimate(&self, cfg: &ObserverConfig) -> Estimate {
-        let psi_r = self.psi_s.sub(self.i_last.scale(cfg.l_sigma_h)).scale(1.0 / cfg.lm_over_lr);
+        let l_sigma_h = cfg.l_sigma_h * self.scales.l;
+        let psi_r = self.psi_s.sub(self.i_last.scale(l_sigma_h)).scale(1.0 / cfg.lm_over_lr);
         Estimate {
             psi_r_alpha_wb: psi_r.re,
             psi_r_beta_wb: psi_r.im,
@@ -358,16 +393,21 @@ impl FluxObserver {
 
     fn advance(&mut self, cfg: &ObserverConfig, u: Cx, i1: Cx, adapt: bool) {
         let (t, i0) = (cfg.ts_s, self.i_last);
+        // The parameters on the drive's estimates.
+        let sc = self.scales;
+        let l_sigma_h = cfg.l_sigma_h * sc.l;
+        let alpha_per_s = cfg.alpha_per_s * sc.r_over_l;
+        let r_sigma_ohm = cfg.rs_ohm + (cfg.r_sigma_ohm - cfg.rs_ohm) * sc.r;
         let i_mid = i0.add(i1).scale(0.5);
         // The voltage model's half step: the flux at the interval's middle.
         let psi_s_mid = self.psi_s.add(u.sub(i0.scale(cfg.rs_ohm)).scale(0.5 * t));
-        let psi_r_mid = psi_s_mid.sub(i_mid.scale(cfg.l_sigma_h));
+        let psi_r_mid = psi_s_mid.sub(i_mid.scale(l_sigma_h));
         // E = ∫e dt over the interval.
-        let alpha_jw = Cx::new(cfg.alpha_per_s, -self.omega_m);
-        let e_rate = i_mid.scale(cfg.r_sigma_ohm).sub(u).sub(alpha_jw.mul(psi_r_mid));
-        let e_int = i1.sub(i0).scale(cfg.l_sigma_h).add(e_rate.scale(t));
+        let alpha_jw = Cx::new(alpha_per_s, -self.omega_m);
+        let e_rate = i_mid.scale(r_sigma_ohm).sub(u).sub(alpha_jw.mul(psi_r_mid));
+        let e_int = i1.sub(i0).scale(l_sigma_h).add(e_rate.scale(t));
         // k₁ = σ_o/(α − jω̂) = σ_o·(α + jω̂)/(α² + ω̂²).
-        let sigma_o = 0.5 * cfg.alpha_per_s + ZETA_INF * self.omega_m.abs();
+        let sigma_o = 0.5 * alpha_per_s + ZETA_INF * self.omega_m.abs();
         let k1 = alpha_jw.conj().scale(sigma_o / alpha_jw.norm2());
         let psi2 = psi_r_mid.norm2();
         let floor2 = cfg.psi_floor_wb * cfg.psi_floor_wb;

@@ -580,6 +580,13 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             );
         }
         report::outln!("{path}: {}", if ok { "certified" } else { "NOT certified" });
+        if spec.speed_feedback == controller_core::drive::SpeedFeedback::Sensorless {
+            // Said, not hidden: what the certificate did not check (issue 53, item 5).
+            eprintln!(
+                "design certify: {path}: note: speed_feedback = \"sensorless\" — the certificate models the \
+                 encoder's speed window; the observer's own dynamics are not in it yet (docs/sensorless.md)"
+            );
+        }
     }
     if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
         eprintln!("design certify: {path}: the campaign passed {} of {} runs", n.passed, n.runs);

@@ -1110,9 +1110,9 @@ pub fn drive_spec(
         DriveError::Observer(e) => src.error(
             "controller.speed_feedback",
             format!(
-                "\"sensorless\" at pwm.frequency_hz = {} Hz up to protection.overspeed_rad_s = {} rad/s: {e}",
+                "\"sensorless\" at pwm.frequency_hz = {} Hz up to protection.overspeed_rad_s = {:.0} rad/s: {e}",
                 num(pwm.frequency_hz),
-                num(spec.protection.overspeed_rad_s)
+                spec.protection.overspeed_rad_s
             ),
         ),
         DriveError::CurrentTrim => {

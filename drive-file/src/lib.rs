@@ -21,6 +21,7 @@
 //! current = { kind = "icad" }            # eq. (20); or { kind = "icad", kp, ki, lag_num, lag_den }
 //!                                        # or { kind = "pi", kp = 360.0, ki = 9000.0 }
 //! current_frame = "stationary"           # or "synchronous" (d/q loops)
+//! speed_feedback = "encoder"             # default; "sensorless": the flux and speed observer
 //! speed = { kind = "saturated_p", kp = 0.05, tau_max_nm = 2.0 }
 //! #  or { kind = "pi_torque", kp, ki, limit }  |  { kind = "pi_iq", kp, ki, limit }
 //! position = { k_per_s = 10.0, omega_max_rad_s = 150.0 }   # default 10 1/s, 100 rad/s
@@ -136,6 +137,29 @@ mod tests {
         let line = text[..off].matches('\n').count() + 1;
         let col = text[..off].rsplit('\n').next().unwrap().chars().count() + 1;
         (line, col)
+    }
+
+    /// `speed_feedback`: the drive runs on the observer; a rate too slow for it up to the
+    /// overspeed level and an unknown value are errors that name the key.
+    #[test]
+    fn the_speed_feedback_key_chooses_the_observer_and_names_itself_when_wrong() {
+        let s = SHIPPED;
+        let with = |line: &str| s.replacen("[controller]\n", &format!("[controller]\n{line}\n"), 1);
+        let d = DriveFile::parse(Path::new("d.toml"), &with("speed_feedback = \"sensorless\"")).unwrap();
+        assert_eq!(d.spec.speed_feedback, controller_core::drive::SpeedFeedback::Sensorless);
+        assert_eq!(
+            DriveFile::shipped().unwrap().spec.speed_feedback,
+            controller_core::drive::SpeedFeedback::Encoder
+        );
+        let e = err(&with("speed_feedback = \"hall\""));
+        assert_eq!(e.key.as_deref(), Some("controller.speed_feedback"), "{e}");
+        // 2 kHz PWM with a 1 kHz slow loop: (α/2 + 0.7·p·ω_max)·T = 0.22 per sample.
+        let slow = with("speed_feedback = \"sensorless\"")
+            .replacen("frequency_hz = 20000.0", "frequency_hz = 2000.0", 1)
+            .replacen("slow_divider = 10", "slow_divider = 2", 1);
+        let e = err(&slow);
+        assert_eq!(e.key.as_deref(), Some("controller.speed_feedback"), "{e}");
+        assert!(e.to_string().contains("sample faster or lower the top speed"), "{e}");
     }
 
     #[test]

@@ -393,6 +393,8 @@ impl FastState {
         self.trip_from(s.mode);
         (self.pending_fault, self.reference) = (s.pending_fault, s.reference);
         self.run.field.adopt(s.run.ifoc.field_steps());
+        // Sensorless: the observer on the field orientation's estimates of the machine.
+        self.run.observer.set_scales(s.run.ifoc.inductance_scale(), s.run.ifoc.rotor_resistance_scale());
         (self.run.delay_rotation, self.run.trim) = (s.run.delay_rotation, s.run.trim);
     }
 
