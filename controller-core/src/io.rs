@@ -35,6 +35,9 @@ pub enum CommandError {
     NonFinite,
     /// Not while the bridge is active (Magnetizing or Running): disable first.
     Active,
+    /// A position reference needs an encoder: a sensorless drive's position is its estimated
+    /// speed's integral, which drifts ([`crate::drive::SpeedFeedback::Sensorless`]).
+    NoEncoder,
 }
 
 /// Sampled inputs of one PWM period.

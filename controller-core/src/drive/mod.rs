@@ -700,6 +700,9 @@ impl Drive {
         if !finite {
             return Err(CommandError::NonFinite);
         }
+        if self.cfg.observer.is_some() && matches!(r, Reference::Position(_)) {
+            return Err(CommandError::NoEncoder);
+        }
         self.sync();
         if self.slow.pending_fault.is_some() {
             // A stop for a fault is not cancelled by a new reference.

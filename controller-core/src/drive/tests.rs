@@ -1255,3 +1255,15 @@ fn a_new_slow_divider_while_coasting_is_no_encoder_fault() {
         );
     }
 }
+
+/// A sensorless drive refuses a position reference (its position is the estimated speed's
+/// integral, which drifts); the same drive on its encoder takes it.
+#[test]
+fn a_drive_without_an_encoder_refuses_a_position_reference() {
+    let sensorless = DriveSpec { speed_feedback: SpeedFeedback::Sensorless, ..test_spec() };
+    let mut d = Drive::new(DriveConfig::new(&sensorless).unwrap());
+    assert_eq!(d.set_reference(Reference::Position(1.0)), Err(CommandError::NoEncoder));
+    assert_eq!(d.set_reference(Reference::Speed(10.0)), Ok(()));
+    let mut e = Drive::new(DriveConfig::new(&test_spec()).unwrap());
+    assert_eq!(e.set_reference(Reference::Position(1.0)), Ok(()));
+}

@@ -114,5 +114,6 @@ fn command_result(r: Result<(), CommandError>) -> Reply {
         Err(CommandError::Faulted) => Reply::Nack(NackReason::Faulted),
         Err(CommandError::NonFinite) => Reply::Nack(NackReason::NonFinite),
         Err(CommandError::Active) => Reply::Nack(NackReason::NotIdle),
+        Err(CommandError::NoEncoder) => Reply::Nack(NackReason::NoEncoder),
     }
 }

@@ -167,6 +167,7 @@ fn replies_round_trip_bit_exact() {
         Reply::Nack(NackReason::OutOfCertifiedRange),
         Reply::Nack(NackReason::NoRecord),
         Reply::Nack(NackReason::NotAtRest),
+        Reply::Nack(NackReason::NoEncoder),
         Reply::CommissionRecord { chunk: 3, bytes: core::array::from_fn(|k| k as u8) },
         Reply::Capture {
             state: crate::capture::CaptureState::Triggered,

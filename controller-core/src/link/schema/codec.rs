@@ -160,6 +160,7 @@ impl Reply {
                     NackReason::OutOfCertifiedRange => 6,
                     NackReason::NoRecord => 7,
                     NackReason::NotAtRest => 8,
+                    NackReason::NoEncoder => 9,
                 })?;
             }
             Reply::Output(o, t) => {
@@ -244,6 +245,7 @@ impl Reply {
                 6 => NackReason::OutOfCertifiedRange,
                 7 => NackReason::NoRecord,
                 8 => NackReason::NotAtRest,
+                9 => NackReason::NoEncoder,
                 _ => return Err(DecodeError::Value),
             }),
             tag::OUTPUT => {

@@ -218,6 +218,8 @@ pub enum NackReason {
     /// The rotor turns: commissioning's standstill tests need it at rest
     /// (`Drive::rotor_at_rest`).
     NotAtRest,
+    /// A position reference to a drive without an encoder (`speed_feedback = "sensorless"`).
+    NoEncoder,
 }
 
 /// Drive → host.
