@@ -108,7 +108,8 @@ impl Drive {
 impl FastState {
     /// Sensorless, the bridge held by the firmware: no encoder to read; the shaft as the
     /// observer last left it, at rest. Out of line (measured: inlined into the firmware's
-    /// interrupt it cost ≈ 10 instructions per Running period through the code around it).
+    /// interrupt it cost 4 instructions per Running period through the code around it,
+    /// `cost interrupt_period` 719.0 against 715.0).
     #[cold]
     #[inline(never)]
     fn held_shaft(&self, m: &Measurements) -> Measurements {
