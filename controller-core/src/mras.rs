@@ -64,6 +64,12 @@
 //! was. Before the first fit the estimate is the range's geometric middle
 //! ([`MrasConfig::initial_scale`]); it is kept across disable/enable.
 //!
+//! **The stator resistance, from the same transient**: `c/i_d` ([`Fitted::stator_resistance_ohm`]).
+//! An encoder drive does not need it (the law above cancels R_s); a sensorless drive's
+//! observer runs its voltage model on it ([`crate::observer`]), and holds the rotor
+//! resistance at the fit's (without a speed measurement the reactive power carries no
+//! information on R_r: docs/sensorless.md).
+//!
 //! **The inductances, from the same transient.** `T_r = L_r/R_r` shortens with saturation
 //! (the inductances ×ℓ, L_s, L_r, L_m alike), so the ratio alone reads L ×0.6 as R_r ×1.67.
 //! The flux linkage the enable builds settles it: `∫(v_d − c) dt = L_s·i_d` from a rotor
@@ -221,6 +227,11 @@ pub struct Fitted {
     pub rr_scale: f32,
     /// The inductances, × the motor's (the scale in use when not measured).
     pub inductance_scale: f32,
+    /// The d-axis voltage's constant part over the current, Ω: the stator resistance as the
+    /// voltage the loops ask for sees it (any constant offset of that voltage — the dead
+    /// time's residual at this current — included). `None` when not finite and positive.
+    /// A sensorless drive's observer runs on it ([`crate::observer`]).
+    pub stator_resistance_ohm: Option<f32>,
 }
 
 /// What one slow period shows the online law ([`MrasConfig::update`]).
@@ -414,7 +425,19 @@ impl MrasConfig {
         } else {
             l_now
         };
-        Some(Fitted { rr_scale: (rate * l).limit(self.min, self.max), inductance_scale: l })
+        let r_s = self.constant_v(f, d0, d1) / f.i_d_a;
+        Some(Fitted {
+            rr_scale: (rate * l).limit(self.min, self.max),
+            inductance_scale: l,
+            stator_resistance_ohm: finite_positive(r_s).then_some(r_s),
+        })
+    }
+
+    /// The d-axis voltage's constant part `c = (S₀ − B)/W`, V: the first window's mean less
+    /// its share of the geometric decay, `B = d₀/(1 − q)`, `q = d₁/d₀` ([`Self::fit`]'s sums).
+    fn constant_v(&self, f: &RotorFit, d0: f32, d1: f32) -> f32 {
+        let b = d0 / (1.0 - d1 / d0);
+        (f.sums[0] - b) / self.fit_window_steps as f32
     }
 
     /// The stator's flux linkage the enable built, over the motor's `L_s·i_d`: the
@@ -426,7 +449,7 @@ impl MrasConfig {
     fn flux_linkage_scale(&self, f: &RotorFit, d0: f32, d1: f32) -> Option<f32> {
         let q = d1 / d0;
         let b = d0 / (1.0 - q);
-        let c = (f.sums[0] - b) / self.fit_window_steps as f32;
+        let c = self.constant_v(f, d0, d1);
         let volt_steps = f.pre_sum - c * f.pre_steps as f32 + self.slow_divider * b / (1.0 - q);
         let l = self.t_fast_over_ls * volt_steps / f.i_d_a;
         if finite_positive(l) { Some(l.limit(self.l_min, self.l_max)) } else { None }
@@ -822,8 +845,9 @@ mod tests {
 
     /// On a demagnetized rotor the fit reads the inductances from the flux linkage the step
     /// builds and the rotor resistance from T_r = L_r/R_r: both within 0.1 % across the
-    /// certified box's corners and inside, whatever the constant voltage; clamped to the
-    /// ranges. On a rotor that may hold flux it keeps the inductance in use (0.8 here) and
+    /// certified box's corners and inside, whatever the constant voltage, and the constant
+    /// voltage over the current as the stator resistance (within 0.1 %; none when it is not
+    /// positive); clamped to the ranges. On a rotor that may hold flux it keeps the inductance in use (0.8 here) and
     /// reads R_r through it.
     #[test]
     fn the_fit_reads_the_inductance_on_a_demagnetized_rotor() {
@@ -834,6 +858,12 @@ mod tests {
                     let x = magnetize(&c, true, l, r, offset, 0.634, 0).unwrap();
                     let (el, er) = (f64::from(x.inductance_scale) / l - 1.0, f64::from(x.rr_scale) / r - 1.0);
                     assert!(el.abs() < 1e-3 && er.abs() < 1e-3, "ℓ {l}, r {r}, c {offset}: {x:?}");
+                    match x.stator_resistance_ohm {
+                        Some(rs) => {
+                            assert!((f64::from(rs) * 0.634 / offset - 1.0).abs() < 1e-3, "c {offset}: {x:?}")
+                        }
+                        None => assert!(offset <= 0.0, "c {offset}: {x:?}"),
+                    }
                 }
             }
         }

@@ -65,6 +65,19 @@ pub const ZETA_INF: f32 = 0.7;
 /// exact one (`(1 − e^(−x))/x ≥ 0.95`) for `x ≤ 0.1`.
 pub const CORRECTION_PER_SAMPLE_MAX: f64 = 0.1;
 
+/// Copper's resistance is proportional to `T + 234.5 °C` (the inferred zero of annealed
+/// copper, IEEE Std 118; IEC 60034-1 rounds it to 235): the file's R_s taken at 20 °C.
+const COPPER_INFERRED_ZERO_C: f64 = 234.5;
+
+/// The stator resistance the observer accepts, × the motor file's: a copper winding from
+/// −40 °C (the industrial ambient's minimum) to 180 °C (insulation class H's hottest spot),
+/// its file value at 20 °C — `(234.5 + T)/(234.5 + 20)`: 0.764 to 1.629. A measurement
+/// outside is not the winding's temperature (a broken connection, an offset) and is limited.
+pub const STATOR_RESISTANCE_RANGE: [f64; 2] = [
+    (COPPER_INFERRED_ZERO_C - 40.0) / (COPPER_INFERRED_ZERO_C + 20.0),
+    (COPPER_INFERRED_ZERO_C + 180.0) / (COPPER_INFERRED_ZERO_C + 20.0),
+];
+
 /// Why an observer configuration was refused.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ObserverError {
@@ -237,6 +250,14 @@ impl ObserverConfig {
         self.l_sigma_h
     }
 
+    /// The stator resistance `r_s_ohm` as a scale of this configuration's (the motor
+    /// file's), limited to [`STATOR_RESISTANCE_RANGE`]; `None` if not finite and positive.
+    pub fn stator_resistance_scale(&self, r_s_ohm: f32) -> Option<f32> {
+        let [lo, hi] = STATOR_RESISTANCE_RANGE.map(|x| x as f32);
+        let scale = r_s_ohm / self.rs_ohm;
+        crate::num::finite_positive(scale).then(|| scale.clamp(lo, hi))
+    }
+
     /// `α = 1/T_r`, 1/s.
     pub fn alpha_per_s(&self) -> f32 {
         self.alpha_per_s
@@ -295,8 +316,8 @@ impl Estimate {
 /// The observer's state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FluxObserver {
-    /// The estimates in use, × the configuration's: the inductances (`L_σ`, `L_M` alike) and
-    /// the rotor resistance (1: the configuration's own).
+    /// The estimates in use, × the configuration's: the inductances (`L_σ`, `L_M` alike), the
+    /// rotor resistance and the stator resistance (1: the configuration's own).
     scales: Scales,
     /// Stator-flux estimate `ψ̂_s`, stationary coordinates, Wb.
     psi_s: Cx,
@@ -315,12 +336,14 @@ struct Scales {
     r: f32,
     /// `r/l`: `α`'s.
     r_over_l: f32,
+    /// Stator resistance.
+    rs: f32,
 }
 
 impl Default for Scales {
     /// The configuration's own parameters.
     fn default() -> Self {
-        Scales { l: 1.0, r: 1.0, r_over_l: 1.0 }
+        Scales { l: 1.0, r: 1.0, r_over_l: 1.0, rs: 1.0 }
     }
 }
 
@@ -331,15 +354,15 @@ impl FluxObserver {
         Self { i_last: Cx::new(i_now.alpha, i_now.beta), ..Self::default() }
     }
 
-    /// Run on the inductances `l` × and the rotor resistance `r` × the configuration's — the
-    /// drive's estimates (its magnetizing fit's and rotor-resistance law's, as its field
-    /// orientation runs on them). Not finite and positive: ignored.
-    pub fn set_scales(&mut self, l: f32, r: f32) {
-        if crate::num::finite_positive(l)
-            && crate::num::finite_positive(r)
-            && (l, r) != (self.scales.l, self.scales.r)
-        {
-            self.scales = Scales { l, r, r_over_l: r / l };
+    /// Run on the inductances `l` ×, the rotor resistance `r` × and the stator resistance
+    /// `rs` × the configuration's — the drive's estimates (its magnetizing fit's and
+    /// rotor-resistance law's, as its field orientation runs on them; the stator's from the
+    /// magnetizing fit, [`ObserverConfig::stator_resistance_scale`]). Not finite and
+    /// positive: ignored.
+    pub fn set_scales(&mut self, l: f32, r: f32, rs: f32) {
+        let ok = crate::num::finite_positive;
+        if ok(l) && ok(r) && ok(rs) && (l, r, rs) != (self.scales.l, self.scales.r, self.scales.rs) {
+            self.scales = Scales { l, r, r_over_l: r / l, rs };
         }
     }
 
@@ -397,10 +420,11 @@ impl FluxObserver {
         let sc = self.scales;
         let l_sigma_h = cfg.l_sigma_h * sc.l;
         let alpha_per_s = cfg.alpha_per_s * sc.r_over_l;
-        let r_sigma_ohm = cfg.rs_ohm + (cfg.r_sigma_ohm - cfg.rs_ohm) * sc.r;
+        let rs_ohm = cfg.rs_ohm * sc.rs;
+        let r_sigma_ohm = rs_ohm + (cfg.r_sigma_ohm - cfg.rs_ohm) * sc.r;
         let i_mid = i0.add(i1).scale(0.5);
         // The voltage model's half step: the flux at the interval's middle.
-        let psi_s_mid = self.psi_s.add(u.sub(i0.scale(cfg.rs_ohm)).scale(0.5 * t));
+        let psi_s_mid = self.psi_s.add(u.sub(i0.scale(rs_ohm)).scale(0.5 * t));
         let psi_r_mid = psi_s_mid.sub(i_mid.scale(l_sigma_h));
         // E = ∫e dt over the interval.
         let alpha_jw = Cx::new(alpha_per_s, -self.omega_m);
@@ -423,7 +447,7 @@ impl FluxObserver {
         } else {
             k1.mul(e_int)
         };
-        self.psi_s = self.psi_s.add(u.sub(i_mid.scale(cfg.rs_ohm)).scale(t)).add(correction);
+        self.psi_s = self.psi_s.add(u.sub(i_mid.scale(rs_ohm)).scale(t)).add(correction);
         self.i_last = i1;
     }
 }
@@ -476,15 +500,30 @@ mod tests {
     /// electrical) and flux-angle error (rad) over the last 0.1 s, and the flux magnitude
     /// error (fraction) at the end.
     fn converge(w_s: f64, w_m: f64, i_a: f64, known_s: f64, adapt_s: f64, w_err0: f64) -> (f64, f64, f64) {
+        converge_hot(w_s, w_m, i_a, known_s, adapt_s, w_err0, [1.0, 1.0])
+    }
+
+    /// [`converge`] on a machine whose stator resistance is `rs[0]` × the motor's, the
+    /// observer told `rs[1]` ×.
+    fn converge_hot(
+        w_s: f64,
+        w_m: f64,
+        i_a: f64,
+        known_s: f64,
+        adapt_s: f64,
+        w_err0: f64,
+        rs: [f64; 2],
+    ) -> (f64, f64, f64) {
         let m = MotorParams::delorenzo_dl10115a1().unwrap();
         let ts = 1e-4;
         let cfg = ObserverConfig::new(&m, ts, 2.0 * core::f64::consts::PI * 40.0, 0.05, 400.0).unwrap();
-        let (u, i, psi_r) = steady_state(&m, w_s, w_m, i_a);
+        let (u, i, psi_r) = steady_state(&m.scaled(rs[0], 1.0, 1.0, 1.0).unwrap(), w_s, w_m, i_a);
         // The voltage held over [t, t + T] is the interval's mean of U·e^(jω_s·t).
         let x = w_s * ts;
         let mean = if x == 0.0 { C(1.0, 0.0) } else { C(x.sin() / x, (1.0 - x.cos()) / x) };
         let ab = |c: C| AlphaBeta { alpha: c.0 as f32, beta: c.1 as f32 };
         let mut obs = FluxObserver::new(ab(i));
+        obs.set_scales(1.0, 1.0, rs[1] as f32);
         let (n_known, n) = ((known_s / ts) as usize, ((known_s + adapt_s) / ts) as usize);
         let (mut w_err, mut ang_err, mut mag_err) = (0.0f64, 0.0f64, 0.0f64);
         for k in 0..n {
@@ -534,6 +573,28 @@ mod tests {
                 assert!(mag_err < 5e-3, "flux error {mag_err} at ω_s {w_s}, ω_m {w_m}");
             }
         }
+    }
+
+    /// A hot stator (R_s ×1.5, the certified box's corner) at a low stator frequency under
+    /// load: on the file's R_s the voltage model's error `0.5·R_s·i` is comparable to the
+    /// back-EMF and the speed estimate is well off; on the stator resistance measured (the
+    /// magnetizing fit's, [`ObserverConfig::stator_resistance_scale`]) it is exact again.
+    /// Limited to the copper's range, a measurement of 3× is taken as 1.629×.
+    #[test]
+    fn on_the_measured_stator_resistance_a_hot_stator_is_no_error() {
+        let (cold, _, _) = converge_hot(20.0, 0.0, 1.0, 1.0, 2.0, 10.0, [1.5, 1.0]);
+        let (hot, _, _) = converge_hot(20.0, 0.0, 1.0, 1.0, 2.0, 10.0, [1.5, 1.5]);
+        eprintln!(
+            "R_s ×1.5 at ω_s 20 rad/s, standstill: speed error {cold:.3} rad/s on the file's R_s, {hot:.4} on the measured"
+        );
+        assert!(cold > 3.0 && hot < 0.3, "{cold} {hot}");
+        let m = MotorParams::delorenzo_dl10115a1().unwrap();
+        let cfg = ObserverConfig::new(&m, 1e-4, 250.0, 0.05, 400.0).unwrap();
+        let rs = m.rs_ohm() as f32;
+        assert_eq!(cfg.stator_resistance_scale(1.5 * rs), Some(1.5));
+        assert_eq!(cfg.stator_resistance_scale(3.0 * rs), Some(STATOR_RESISTANCE_RANGE[1] as f32));
+        assert_eq!(cfg.stator_resistance_scale(f32::NAN), None);
+        assert_eq!(cfg.stator_resistance_scale(-rs), None);
     }
 
     /// Started blind on a turning machine, flux and speed both unknown, the adaptation can

@@ -251,6 +251,9 @@ struct MachineState {
     /// Slow steps with the bridge off (saturating): whether the rotor has lost its flux
     /// ([`MrasConfig::demagnetized_after`]).
     idle_slow_steps: u32,
+    /// Sensorless: the stator resistance the last magnetizing fit measured, × the motor
+    /// file's (the winding's temperature: it carries on); the observer runs on it.
+    rs_scale: f32,
 }
 
 impl MachineState {
@@ -260,6 +263,7 @@ impl MachineState {
         encoder: EncoderTrack::NONE,
         rest: RestWatch::NONE,
         idle_slow_steps: u32::MAX,
+        rs_scale: 1.0,
     };
 }
 
@@ -305,6 +309,13 @@ struct SlowRun {
     magnetizing_steps: u32,
     /// The rotor's electrical angle from the encoder, rad, in `[-π, π)`.
     theta_r_rad: f32,
+    /// Sensorless: the observer's rotor-flux angle at the last slow step, rad (`None` before
+    /// the first Running one).
+    field_last_rad: Option<f32>,
+    /// Sensorless: the field's speed over the last slow period, electrical rad/s — the
+    /// stator frequency, which the current loops impose whatever the speed estimate's error
+    /// (`None` until two Running slow steps).
+    field_rate_rad_s: Option<f32>,
     /// The rotation that advances the output voltage over the delay
     /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed of the plan made last.
     delay_rotation: SinCos,
@@ -350,6 +361,8 @@ impl SlowRun {
             i_d_rated_a: cfg.i_d_rated_a / l_scale,
             magnetizing_steps: 0,
             theta_r_rad: 0.0,
+            field_last_rad: None,
+            field_rate_rad_s: None,
             delay_rotation: SinCos::default(),
             speed_saturated: false,
             envelope: Envelope::ZERO,
@@ -394,7 +407,12 @@ impl FastState {
         (self.pending_fault, self.reference) = (s.pending_fault, s.reference);
         self.run.field.adopt(s.run.ifoc.field_steps());
         // Sensorless: the observer on the field orientation's estimates of the machine.
-        self.run.observer.set_scales(s.run.ifoc.inductance_scale(), s.run.ifoc.rotor_resistance_scale());
+        let ifoc = &s.run.ifoc;
+        self.run.observer.set_scales(
+            ifoc.inductance_scale(),
+            ifoc.rotor_resistance_scale(),
+            s.machine.rs_scale,
+        );
         (self.run.delay_rotation, self.run.trim) = (s.run.delay_rotation, s.run.trim);
     }
 

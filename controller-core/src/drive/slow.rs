@@ -105,6 +105,7 @@ impl SlowState {
         if let Some(theta_e) = inputs.field_rad {
             // Sensorless: the field where the observer finds the rotor flux.
             self.run.theta_r_rad = cfg.ifoc.anchor_field(&mut self.run.ifoc, theta_e);
+            self.observe_field_rate(cfg, theta_e);
         }
         // The modulator limited the loops' request since the last slow step.
         let limited = inputs.limited;
@@ -218,6 +219,10 @@ impl SlowState {
             {
                 self.set_inductance_scale(cfg, fit.inductance_scale);
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
+                // Sensorless: the observer's voltage model on the stator as it is now.
+                if let (Some(o), Some(r_s)) = (&cfg.observer, fit.stator_resistance_ohm) {
+                    self.machine.rs_scale = o.stator_resistance_scale(r_s).unwrap_or(self.machine.rs_scale);
+                }
             }
             self.run.magnetizing_steps = self.run.magnetizing_steps.saturating_add(1);
             if self.run.magnetizing_steps > cfg.magnetizing_steps_max {
@@ -257,6 +262,20 @@ impl SlowState {
             self.trip(Fault::EncoderLoss);
         }
         step
+    }
+
+    /// Sensorless: the field's speed over the last slow period from the observer's flux
+    /// angle at its two ends — the stator frequency. The reactive-power law
+    /// ([`crate::mras`]) needs the frequency of the voltage and current it reads: taken as
+    /// `p·ω̂_m + ω_sl`, the speed estimate's own error (which the inductance estimate makes)
+    /// read as an inductance error, and the two ran away together (the 24 V walk-through
+    /// motor's inductance to its range's floor and the speed 4 % short at no load).
+    fn observe_field_rate(&mut self, cfg: &DriveConfig, theta_e_rad: f32) {
+        if let (Some(last), Some(o)) = (self.run.field_last_rad, &cfg.observer) {
+            let t_slow_s = o.ts_s() * f32::from(cfg.slow_divider);
+            self.run.field_rate_rad_s = Some(wrap_angle(theta_e_rad - last) / t_slow_s);
+        }
+        self.run.field_last_rad = Some(theta_e_rad);
     }
 
     /// The rotor's electrical angle advances by p·Δθ_m (the encoder's change over the read),
@@ -456,7 +475,14 @@ impl SlowState {
         if self.mode != Mode::Running {
             return;
         }
-        if let Some(v_req) = a.v_req {
+        // Sensorless, the laws read the stator frequency the field turns at (none before it
+        // has turned one slow period).
+        let sensorless = cfg.observer.is_some();
+        let w_e_rad_s = match (sensorless, self.run.field_rate_rad_s) {
+            (false, _) => Some(w_e_rad_s),
+            (true, rate) => rate,
+        };
+        if let (Some(v_req), Some(w_e_rad_s)) = (a.v_req, w_e_rad_s) {
             // The rotor resistance from the reactive power (the loops' own request).
             let evidence = Evidence {
                 i: a.i_meas_dq,
@@ -466,8 +492,15 @@ impl SlowState {
                 v_limit_v,
                 i_ref_step_a: self.run.i_ref_step_a,
             };
-            let r = cfg.mras.update(self.run.ifoc.rotor_resistance_scale(), &self.run.model, &evidence);
-            cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
+            // Sensorless, the rotor resistance is held at the magnetizing fit's: the
+            // observer's field angle does not depend on it in steady state (the voltage
+            // model fixes the flux; R_r only divides the frequency into speed and slip),
+            // so the reactive power holds no information on it — the well-known
+            // unobservability of R_r without a speed measurement.
+            if !sensorless {
+                let r = cfg.mras.update(self.run.ifoc.rotor_resistance_scale(), &self.run.model, &evidence);
+                cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
+            }
             // The inductances from the same reactive power at no load.
             let l = cfg.mras.update_inductance(self.run.ifoc.inductance_scale(), &self.run.model, &evidence);
             self.adapt_inductance_scale(cfg, l);
