@@ -327,3 +327,75 @@ fn the_drive_runs_on_the_observer_as_on_its_encoder() {
         }
     }
 }
+
+/// drive.toml's scenario of [`scenario`] with the speed reference stepping through
+/// `references` (time, rad/s) instead of one step, under the load steps of `loads`, on
+/// `feedback`: the plant's mean speed in each window and the mode it ends in.
+fn run_schedule(
+    feedback: SpeedFeedback,
+    sensors: SensorModel,
+    references: &[(f64, f64)],
+    loads: &[(f64, f64)],
+    windows: &[(f64, f64)],
+) -> (Vec<f64>, Mode) {
+    let mut spec = DriveFile::shipped().unwrap().spec;
+    spec.speed_feedback = feedback;
+    let mut b = scenario(spec, spec.motor, sensors, references[0].1, loads, windows);
+    b.scenario
+        .events
+        .extend(references.iter().skip(1).map(|&(t, w)| (t, Event::Reference(Reference::Speed(w as f32)))));
+    b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    let means = windows
+        .iter()
+        .map(|&(t0, t1)| {
+            let w: Vec<f64> =
+                rows.iter().filter(|r| r.t_s >= t0 && r.t_s < t1).map(|r| r.x.omega_m_rad_s).collect();
+            w.iter().sum::<f64>() / w.len() as f64
+        })
+        .collect();
+    (means, mode)
+}
+
+/// Issue 53's second acceptance on drive.toml: through zero speed under 0.5·τ_max, and
+/// regenerating at 10 % of base speed with 0.5·τ_max. The P law droops τ_L/k_p = 1 N·m/0.05 =
+/// 20 rad/s, so under +1 N·m a reference ramped from +40 to −20 rad/s in 0.5 rad/s steps every
+/// 20 ms (a reversal over 2.4 s) takes the rotor from ≈ +20 through zero — the stator frequency
+/// crosses zero on the way, at the rotor's −ω_sl — to ≈ −40 rad/s; then the load reverses
+/// (−1 N·m drives the rotor forward) with the reference at 0, the rotor at ≈ +20 rad/s
+/// regenerating (10 % of base speed). Each window's mean against the same drive's on its
+/// encoder.
+#[test]
+fn through_zero_speed_under_load_and_regenerating_at_a_tenth_of_base_speed() {
+    let steps = 120;
+    let mut references: Vec<(f64, f64)> = vec![(0.3, 40.0)];
+    references.extend((0..=steps).map(|k| (1.0 + 0.02 * f64::from(k), 40.0 - 0.5 * f64::from(k))));
+    references.push((4.0, 0.0));
+    let loads = [(0.6, 1.0), (4.0, -1.0)];
+    let windows = [(0.8, 1.0), (1.6, 1.8), (2.0, 2.2), (2.4, 2.6), (3.2, 3.6), (4.8, 5.3)];
+    let offset_free = SensorModel { current_offset_a: [0.0; 3], ..SensorModel::realistic(11) };
+    for (name, sensors) in [("no current offset", offset_free), ("20 mA offset", SensorModel::realistic(11))]
+    {
+        let (enc, enc_mode) = run_schedule(SpeedFeedback::Encoder, sensors, &references, &loads, &windows);
+        let (obs, obs_mode) = run_schedule(SpeedFeedback::Sensorless, sensors, &references, &loads, &windows);
+        assert_eq!(enc_mode, Mode::Running);
+        assert_eq!(obs_mode, Mode::Running, "{name}: sensorless ended in {obs_mode:?}");
+        for (k, ((t0, t1), (e, o))) in windows.iter().zip(enc.iter().zip(&obs)).enumerate() {
+            let error = (o - e) / BASE_RAD_S;
+            eprintln!(
+                "{name}, {t0}–{t1} s: mean speed on the encoder {e:.2} rad/s, sensorless {o:.2} rad/s ({:+.2} % of base)",
+                100.0 * error
+            );
+            let regenerating = k + 1 == windows.len();
+            if regenerating && sensors.current_offset_a != [0.0; 3] {
+                // The offset's gap at low speed under load (docs/sensorless.md), pinned.
+                assert!(
+                    error.abs() > 0.02,
+                    "{name}: {error} — the offset's gap closed: update docs/sensorless.md"
+                );
+            } else {
+                assert!(error.abs() < 0.02, "{name}, {t0}–{t1} s: {error}");
+            }
+        }
+    }
+}
