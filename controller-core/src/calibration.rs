@@ -163,6 +163,56 @@ impl OffsetCalibration {
     }
 }
 
+/// The current sensors' residual offsets, tracked while the bridge is off (a sensorless
+/// drive's, [`crate::observer`]): the power-up calibration zeroes each channel's code, but
+/// an amplifier's offset drifts with its temperature, and near zero stator frequency the
+/// observer's voltage model integrates `R_s·Δi` (docs/sensorless.md: 20 mA, 2.5 LSB, moved
+/// the plugging window's speed by several percent of base). With the bridge off no current
+/// flows — the three phases' means are the offsets — so the mean of each block of
+/// [`MIN_SAMPLES`] samples (the power-up calibration's least) is the residual, the first
+/// block after the bridge turns off discarded (the current's decay through the diodes,
+/// well within its 51 ms at 20 kHz). The estimate in use is the last complete block's,
+/// kept while the bridge is on. Non-finite samples are skipped (the measurement checks
+/// trip on them).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct IdleZero {
+    sum_a: [f32; 3],
+    samples: u32,
+    /// Blocks completed since the bridge turned off (saturating).
+    blocks: u8,
+    offset_a: [f32; 3],
+}
+
+impl IdleZero {
+    /// One sample `i_a` (phases a, b, c, A) with the bridge off.
+    pub fn idle(&mut self, i_a: [f32; 3]) {
+        if !i_a.iter().all(|x| x.is_finite()) {
+            return;
+        }
+        for (s, x) in self.sum_a.iter_mut().zip(i_a) {
+            *s += x;
+        }
+        self.samples += 1;
+        if self.samples >= MIN_SAMPLES {
+            if self.blocks > 0 {
+                let n = self.samples as f32;
+                self.offset_a = self.sum_a.map(|s| s / n);
+            }
+            (self.sum_a, self.samples, self.blocks) = ([0.0; 3], 0, self.blocks.saturating_add(1));
+        }
+    }
+
+    /// The bridge is on: the next idle stretch starts a new first block.
+    pub fn active(&mut self) {
+        (self.sum_a, self.samples, self.blocks) = ([0.0; 3], 0, 0);
+    }
+
+    /// The residual offsets, A (zero before a block has completed).
+    pub fn offset_a(&self) -> [f32; 3] {
+        self.offset_a
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -240,5 +290,49 @@ mod tests {
         );
         assert_eq!(CalibrationConfig::new(100, 2048, 200.0, 8.0), Err(CalibrationConfigError::Samples));
         assert_eq!(CalibrationConfig::new(1024, 2048, f32::NAN, 8.0), Err(CalibrationConfigError::Limit));
+    }
+
+    /// With the bridge off the tracker reads each phase's offset through noise and
+    /// quantisation (a 12-bit step of 8 mA, 10 mA RMS of noise: the realistic sensors') to a
+    /// fraction of a step; the first block after the bridge turns off is discarded (a current
+    /// still decaying there does not reach the estimate), and the estimate is kept while the
+    /// bridge is on.
+    #[test]
+    fn the_idle_tracker_reads_the_residual_offsets() {
+        let lsb = 3.3 / 4096.0 / 0.1;
+        let offset = [0.0, 0.02, -0.013];
+        let mut z = IdleZero::default();
+        let mut seed = 7u64;
+        let mut noise = || {
+            // Irwin–Hall: the sum of 12 uniforms less 6, unit variance.
+            (0..12)
+                .map(|_| {
+                    seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    (seed >> 11) as f64 / (1u64 << 53) as f64
+                })
+                .sum::<f64>()
+                - 6.0
+        };
+        let mut sample = |decay: f64| {
+            offset.map(|o| {
+                let x = o + decay + 0.01 * noise();
+                ((x / lsb).round() * lsb) as f32
+            })
+        };
+        // The first block: a current decaying from 2 A, discarded.
+        for k in 0..MIN_SAMPLES {
+            z.idle(sample(2.0 * (-f64::from(k) / 20.0).exp()));
+        }
+        assert_eq!(z.offset_a(), [0.0; 3]);
+        for _ in 0..MIN_SAMPLES {
+            z.idle(sample(0.0));
+        }
+        for (got, want) in z.offset_a().iter().zip(offset) {
+            assert!((f64::from(*got) - want).abs() < 0.25 * lsb, "{got} against {want}");
+        }
+        let kept = z.offset_a();
+        z.active();
+        z.idle([f32::NAN; 3]);
+        assert_eq!(z.offset_a(), kept);
     }
 }

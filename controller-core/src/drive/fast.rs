@@ -119,14 +119,21 @@ impl FastState {
     /// Sensorless: the observer's step on this period's sample (the voltage asked two steps
     /// ago was applied over the period that ends at it), the speed known to be zero while
     /// magnetizing a rotor at rest and estimated while running; returns `m` with the
-    /// estimate as its encoder reading (the speed, and the shaft's angle it turns). With the
-    /// bridge off nothing is known: a speed of zero, the angle held. Out of line: an encoder
-    /// drive's interrupt does not carry it (inlined, 1.1 KiB of the firmware's flash).
+    /// estimate as its encoder reading (the speed, and the shaft's angle it turns) and the
+    /// currents less the sensors' residual offsets ([`IdleZero`], read with the bridge off).
+    /// With the bridge off nothing is known: a speed of zero, the angle held. Out of line: an
+    /// encoder drive's interrupt does not carry it (inlined, 1.1 KiB of the firmware's flash).
     #[inline(never)]
     pub(super) fn observe(&mut self, o: &ObserverConfig, m: &Measurements) -> Measurements {
         if !self.mode.is_active() {
+            let i = m.i_abc_a;
+            self.zero.idle([i.a, i.b, i.c]);
             return Measurements { omega_m_rad_s: 0.0, theta_m_rad: self.theta_est_rad, ..*m };
         }
+        self.zero.active();
+        let [za, zb, zc] = self.zero.offset_a();
+        let i = m.i_abc_a;
+        let m = &Measurements { i_abc_a: Abc { a: i.a - za, b: i.b - zb, c: i.c - zc }, ..*m };
         let (i, u) = (m.i_abc_a.clarke(), self.run.v_interval);
         self.run.v_interval = self.run.last.v_ab;
         let e = if self.mode == Mode::Running {

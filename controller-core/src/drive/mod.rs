@@ -77,6 +77,7 @@ pub use crate::supervisor::{BrakeChopper, Protection, ThermalLimit};
 pub use config::{DriveConfig, observer_speed_bandwidth_rad_s};
 pub use spec::*;
 
+use crate::calibration::IdleZero;
 use crate::current::CurrentState;
 use crate::envelope::{Envelope, EnvelopeConfig};
 use crate::frames::{AlphaBeta, Dq, SinCos};
@@ -146,6 +147,10 @@ struct FastState {
     /// `[-π, π)` — the encoder reading the drive gets instead of an encoder's (the machine's:
     /// kept by enable, so that the turn count does not jump).
     theta_est_rad: f32,
+    /// Sensorless: the current sensors' residual offsets, tracked with the bridge off and
+    /// taken off the measured currents with it on ([`IdleZero`]; the machine's: kept by
+    /// enable).
+    zero: IdleZero,
     run: FastRun,
 }
 
@@ -491,6 +496,7 @@ impl Drive {
                 steps_to_slow: 0,
                 brake: false,
                 theta_est_rad: 0.0,
+                zero: IdleZero::default(),
                 run: FastRun::default(),
             },
             slow: SlowState {
