@@ -207,6 +207,12 @@ impl IdleZero {
         (self.sum_a, self.samples, self.blocks) = ([0.0; 3], 0, 0);
     }
 
+    /// The sensors' zero moved (a calibration of their codes): what was read is of the old
+    /// zero — forgotten, the next idle stretch starts a new first block.
+    pub fn forget(&mut self) {
+        *self = Self::default();
+    }
+
     /// The residual offsets, A (zero before a block has completed).
     pub fn offset_a(&self) -> [f32; 3] {
         self.offset_a
@@ -334,5 +340,7 @@ mod tests {
         z.active();
         z.idle([f32::NAN; 3]);
         assert_eq!(z.offset_a(), kept);
+        z.forget();
+        assert_eq!(z.offset_a(), [0.0; 3]);
     }
 }

@@ -518,6 +518,7 @@ impl ControlLoop {
                 let [a, b, c] = offsets.counts;
                 let [sa, sb, sc] = self.current;
                 self.current = [sa.with_offset(a), sb.with_offset(b), sc.with_offset(c)];
+                self.drive.current_zero_moved();
                 Calibration::Done(offsets)
             }
             Some(Err(e)) => {

@@ -653,6 +653,14 @@ impl Drive {
         }
     }
 
+    /// The current sensors' zero moved (the firmware's power-up calibration of their codes,
+    /// which steps the drive on the old zero meanwhile): a sensorless drive forgets the
+    /// residual offsets it read with the bridge off ([`IdleZero::forget`]) — they are of the
+    /// old zero, up to the calibration's tolerance, where the residual is a few LSB.
+    pub fn current_zero_moved(&mut self) {
+        self.fast.zero.forget();
+    }
+
     /// Back to Idle (phases off). A latched fault stays latched.
     pub fn disable(&mut self) {
         self.sync();

@@ -1267,3 +1267,39 @@ fn a_drive_without_an_encoder_refuses_a_position_reference() {
     let mut e = Drive::new(DriveConfig::new(&test_spec()).unwrap());
     assert_eq!(e.set_reference(Reference::Position(1.0)), Ok(()));
 }
+
+/// A sensorless drive reads its current sensors' residual offsets with the bridge off and
+/// takes them off the currents once enabled (the telemetry's measured current is the
+/// corrected one); a calibration that moves the sensors' zero makes it forget them; an
+/// encoder drive leaves its currents as measured.
+#[test]
+fn a_sensorless_drive_takes_off_the_offsets_it_read_while_idle() {
+    let offset = Abc { a: 0.0, b: 0.02, c: 0.0 };
+    let m = Measurements { i_abc_a: offset, ..meas(310.0) };
+    let measured_after_enable = |forget: bool, feedback: SpeedFeedback| {
+        let spec = DriveSpec { speed_feedback: feedback, ..test_spec() };
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        for _ in 0..2 * crate::calibration::MIN_SAMPLES {
+            let _ = d.step(&m);
+        }
+        assert_eq!(d.mode(), Mode::Idle);
+        if forget {
+            d.current_zero_moved();
+        }
+        d.enable().unwrap();
+        let _ = d.step(&m);
+        d.telemetry().i_ab_a
+    };
+    let zero = measured_after_enable(false, SpeedFeedback::Sensorless);
+    assert!(zero.alpha.abs() < 1e-6 && zero.beta.abs() < 1e-6, "{zero:?}");
+    let expected = offset.clarke();
+    for got in [
+        measured_after_enable(true, SpeedFeedback::Sensorless),
+        measured_after_enable(false, SpeedFeedback::Encoder),
+    ] {
+        assert!(
+            (got.alpha - expected.alpha).abs() < 1e-6 && (got.beta - expected.beta).abs() < 1e-6,
+            "{got:?}"
+        );
+    }
+}
