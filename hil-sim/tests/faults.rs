@@ -669,3 +669,25 @@ fn the_shipped_drive_passes_its_matrix_rows_on_a_saturating_plant() {
         lin.peak_current_a
     );
 }
+
+/// A sensorless drive (drive.toml with `speed_feedback = "sensorless"`) has no encoder: its
+/// matrix has no encoder rows, and no row ends in an encoder fault — the observer's estimate
+/// is not judged as an encoder (an open phase was named `EncoderLoss` when it was: its
+/// estimate jumped). Found by running the matrix sensorless (issue 53).
+#[test]
+fn a_sensorless_drive_has_no_encoder_to_fail() {
+    let mut m = shipped();
+    m.spec.speed_feedback = controller_core::drive::SpeedFeedback::Sensorless;
+    assert!(m.cases().unwrap().iter().all(|c| !c.injection.is_encoders()));
+    assert!(shipped().cases().unwrap().iter().any(|c| c.injection.is_encoders()));
+    let outcomes = m.run(|_| {}, &AtomicBool::new(false)).unwrap();
+    for o in &outcomes {
+        assert!(
+            !matches!(o.final_mode, Mode::Fault(Fault::EncoderLoss | Fault::EncoderImplausible)),
+            "{} at {:?}: {:?}",
+            o.case.name,
+            o.at.point,
+            o.final_mode
+        );
+    }
+}

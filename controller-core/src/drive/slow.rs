@@ -256,7 +256,10 @@ impl SlowState {
     /// the bridge is off): the change since the last reading, mechanical rad; a jump
     /// ([`EncoderTrack::read`]) trips [`Fault::EncoderLoss`] unless a fault is latched.
     fn read_encoder(&mut self, cfg: &DriveConfig, theta_m_rad: f32) -> f32 {
-        let judge = !matches!(self.mode, Mode::Fault(_));
+        // Sensorless, the reading is the observer's estimate, not an encoder: nothing to
+        // judge (a jump of the estimate is the machine's fault, which its own checks name —
+        // an open phase read as `EncoderLoss` in the fault matrix otherwise).
+        let judge = !matches!(self.mode, Mode::Fault(_)) && cfg.observer.is_none();
         let (step, jumped) = self.machine.encoder.read(theta_m_rad, cfg.encoder_jump_rad, judge);
         if jumped {
             self.trip(Fault::EncoderLoss);
@@ -471,13 +474,13 @@ impl SlowState {
     pub(super) fn after_slow_checks(&mut self, cfg: &DriveConfig, a: &AfterSlow) {
         let w_e_rad_s = self.run.model.pole_pairs() * a.omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
         let v_limit_v = svpwm::linear_limit_v(a.v_usable_v);
+        let sensorless = cfg.observer.is_some();
         self.check_encoder(cfg, a.i_meas_dq, a.v_applied, a.field, w_e_rad_s, v_limit_v);
         if self.mode != Mode::Running {
             return;
         }
         // Sensorless, the laws read the stator frequency the field turns at (none before it
         // has turned one slow period).
-        let sensorless = cfg.observer.is_some();
         let w_e_rad_s = match (sensorless, self.run.field_rate_rad_s) {
             (false, _) => Some(w_e_rad_s),
             (true, rate) => rate,
@@ -542,8 +545,14 @@ impl SlowState {
                 .run
                 .voltage_check
                 .implausible(departure, cfg.encoder_check_steps, || switches.undriven(turning));
-            if let Some(f) = verdict {
-                self.trip(f);
+            match verdict {
+                // Sensorless, the speed is the observer's, which the voltage model fixes: a
+                // departure that no phase explains names no encoder — nothing to trip on.
+                Some(Fault::EncoderImplausible) if cfg.observer.is_some() => {
+                    self.run.voltage_check.plausible()
+                }
+                Some(f) => self.trip(f),
+                None => {}
             }
         } else {
             self.run.voltage_check.plausible();

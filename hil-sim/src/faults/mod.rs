@@ -34,7 +34,7 @@ use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
-use controller_core::drive::{DriveSpec, Fault, Mode, Reference};
+use controller_core::drive::{DriveSpec, Fault, Mode, Reference, SpeedFeedback};
 use controller_core::frames::AlphaBeta;
 use controller_core::magnetics::Saturation;
 use controller_core::motor::MotorParams;
@@ -413,8 +413,18 @@ impl Matrix {
     }
 
     /// The faults injected (the plant's parameter changes act on the simulated motor:
-    /// [`Matrix::plant`]'s, else `spec.motor`).
+    /// [`Matrix::plant`]'s, else `spec.motor`). A sensorless drive has no encoder to fail:
+    /// its matrix has no encoder rows.
     pub fn cases(&self) -> Result<Vec<Case>, String> {
+        let mut cases = self.all_cases()?;
+        if self.spec.speed_feedback == SpeedFeedback::Sensorless {
+            cases.retain(|c| !c.injection.is_encoders());
+        }
+        Ok(cases)
+    }
+
+    /// Every fault the simulator injects, encoder's included.
+    fn all_cases(&self) -> Result<Vec<Case>, String> {
         let m = self.plant.as_ref().map_or(&self.spec.motor, |(m, _)| m);
         let hot = scaled_plant(m, 1.0, 1.5, 1.0).ok_or("R_r × 1.5 is not a valid motor")?;
         let saturated = scaled_plant(m, 1.0, 1.0, 0.8).ok_or("L_m × 0.8 is not a valid motor")?;

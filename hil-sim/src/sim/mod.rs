@@ -236,6 +236,19 @@ pub enum Injection {
     },
 }
 
+impl Injection {
+    /// A fault of the encoder (none of a sensorless drive's).
+    pub fn is_encoders(&self) -> bool {
+        matches!(
+            self,
+            Injection::EncoderStuck
+                | Injection::EncoderReversed
+                | Injection::EncoderGlitch { .. }
+                | Injection::EncoderLines { .. }
+        )
+    }
+}
+
 /// The drive's flux model's time to `magnetized_fraction` of its target on its reference
 /// current, `T_r·ln(1/(1 − f))`: when it leaves Magnetizing for Running (0.19 s for the
 /// DeLorenzo machine, 2.3 s for the 500 hp Krause machine). Runs ask for torque after it.
