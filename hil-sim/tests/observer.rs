@@ -387,3 +387,36 @@ fn through_zero_speed_under_load_and_regenerating_at_a_tenth_of_base_speed() {
         }
     }
 }
+
+/// Not yet: a flying start (issue 53's deliverable 4). An active load spins the rotor up to
+/// ≈ 1.8 × base speed with the bridge off, then lets it coast; the sensorless drive enabled
+/// on it magnetizes as on a rotor at rest (its observer told the speed is zero: a field that
+/// does not turn, DC braking) and trips `FollowingError` as it starts running — the bridge
+/// off, the current far below the trip level. Pinned so that the speed search that catches
+/// the rotor flips it (docs/sensorless.md).
+#[test]
+fn enabled_on_a_spinning_rotor_the_sensorless_drive_trips_safely() {
+    let mut spec = DriveFile::shipped().unwrap().spec;
+    spec.speed_feedback = SpeedFeedback::Sensorless;
+    let mut b = scenario(
+        spec,
+        spec.motor,
+        SensorModel::realistic(11),
+        150.0,
+        &[(0.0, -4.0), (0.45, 0.0)],
+        &[(0.0, 1.2)],
+    );
+    for (t, e) in &mut b.scenario.events {
+        if matches!(e, Event::Enable | Event::Reference(_)) {
+            *t = 0.6;
+        }
+    }
+    b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    let at_enable = rows.iter().find(|r| r.t_s >= 0.6).unwrap().x.omega_m_rad_s;
+    let peak = rows.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
+    eprintln!("enabled at {at_enable:.1} rad/s: ended in {mode:?}, peak current {peak:.2} A");
+    assert!(at_enable > 300.0, "{at_enable}");
+    assert_eq!(mode, Mode::Fault(controller_core::drive::Fault::FollowingError));
+    assert!(peak < 0.5 * spec.protection.i_trip_a, "{peak}");
+}
