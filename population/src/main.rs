@@ -69,6 +69,10 @@ struct RunArgs {
     /// [requirements] choose, or a refusal naming them), `p` or `pi`.
     #[arg(long, default_value = "auto")]
     speed: design::tune::SpeedDesign,
+    /// Run the tuned drives without their encoders (`speed_feedback = "sensorless"`, the flux
+    /// and speed observer: docs/sensorless.md).
+    #[arg(long)]
+    sensorless: bool,
     /// Output directory.
     #[arg(long, default_value = "out/population")]
     out: PathBuf,
@@ -178,8 +182,13 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         if a.pwm.is_empty() { vec![None] } else { a.pwm.iter().map(|f| Some(*f)).collect() };
     let jobs: Vec<(&Member, Option<f64>)> =
         all.iter().flat_map(|m| rates.iter().map(move |r| (m, *r))).collect();
-    let plan =
-        Plan { campaign_runs: a.campaign_runs, seed: a.select.seed, matrix: !a.no_matrix, speed: a.speed };
+    let plan = Plan {
+        campaign_runs: a.campaign_runs,
+        seed: a.select.seed,
+        matrix: !a.no_matrix,
+        speed: a.speed,
+        sensorless: a.sensorless,
+    };
     report::write::check_dir(&a.out)?;
     eprintln!(
         "population: {} member(s) × {} rate(s) = {} drive(s): tune, campaign of {} runs{}",

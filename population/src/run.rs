@@ -84,6 +84,9 @@ pub struct Plan {
     pub matrix: bool,
     /// The speed law `design tune` is asked for (`auto`: the one the requirements choose).
     pub speed: SpeedDesign,
+    /// Run the tuned drive without its encoder (`speed_feedback = "sensorless"`: the flux
+    /// and speed observer); a rate the observer cannot run at is a refusal naming it.
+    pub sensorless: bool,
 }
 
 /// The template text and its path (for errors), the motor and the bus of `member` at
@@ -201,7 +204,13 @@ fn judge(
         Err(reason) => return Ok(Verdict::Refuse { reason }),
     };
     report.omega_c_rad_s = Some(tuned.omega_c_rad_s);
-    let file = DriveFile::parse(path, &tuned.text).map_err(|e| format!("the tuned file: {e}"))?;
+    let mut file = DriveFile::parse(path, &tuned.text).map_err(|e| format!("the tuned file: {e}"))?;
+    if plan.sensorless {
+        file.spec.speed_feedback = controller_core::drive::SpeedFeedback::Sensorless;
+        if let Err(e) = controller_core::drive::DriveConfig::new(&file.spec) {
+            return Ok(Verdict::Refuse { reason: format!("sensorless: {e}") });
+        }
+    }
     let certify = file.certify.ok_or("the tuned file has no [certify]")?;
     let mut c = Campaign {
         spec: file.spec,
@@ -356,7 +365,13 @@ mod tests {
     fn tune_takes_the_faster_frame_and_the_healthy_drive_does_not_trip() {
         let m = draw(1, 21, None).unwrap();
         assert!(m.name.starts_with("021-116W-34V-8p"), "{}", m.name);
-        let plan = Plan { campaign_runs: 64, seed: 1, matrix: false, speed: SpeedDesign::SaturatedP };
+        let plan = Plan {
+            campaign_runs: 64,
+            seed: 1,
+            matrix: false,
+            speed: SpeedDesign::SaturatedP,
+            sensorless: false,
+        };
         let r =
             evaluate(&m, Some(4000.0), Path::new(env!("CARGO_MANIFEST_DIR")), &plan, &AtomicBool::new(false));
         let omega_c = r.omega_c_rad_s.unwrap_or_else(|| panic!("{:?}", r.verdict));
@@ -398,7 +413,8 @@ mod tests {
         )
         .unwrap();
         assert!(regions.margins(kp, ki), "k_p {kp}, k_i {ki} outside seed 000's margins");
-        let plan = Plan { campaign_runs: 64, seed: 1, matrix: false, speed: SpeedDesign::Auto };
+        let plan =
+            Plan { campaign_runs: 64, seed: 1, matrix: false, speed: SpeedDesign::Auto, sensorless: false };
         let r = evaluate(
             &m,
             Some(10_000.0),
@@ -420,7 +436,8 @@ mod tests {
         let m = draw(1, 13, None).unwrap();
         let (tuned, _, _) = tune_member(&m, 10_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
         assert!(tuned.speed_origin.contains("without the P's bandwidth floor"), "{}", tuned.speed_origin);
-        let plan = Plan { campaign_runs: 200, seed: 1, matrix: false, speed: SpeedDesign::Auto };
+        let plan =
+            Plan { campaign_runs: 200, seed: 1, matrix: false, speed: SpeedDesign::Auto, sensorless: false };
         let root = Path::new(env!("CARGO_MANIFEST_DIR"));
         let r = evaluate(&m, Some(10_000.0), root, &plan, &AtomicBool::new(false));
         assert_eq!(r.verdict, Verdict::Pass, "{:?}", r.campaign_failures);
