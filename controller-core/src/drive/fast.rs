@@ -143,7 +143,21 @@ impl FastState {
         };
         self.run.estimate = e;
         self.theta_est_rad = wrap_angle(self.theta_est_rad + e.omega_m_rad_s * o.ts_s());
-        Measurements { omega_m_rad_s: e.omega_m_rad_s, theta_m_rad: self.theta_est_rad, ..*m }
+        // The slow step samples the speed once per slow period: it reads the mean of the
+        // period's estimates (the estimate's noise up to the observer's bandwidth, aliased
+        // into the speed loop when sampled alone, put 4× the torque ripple of the encoder's
+        // into a tuned drive).
+        let r = &mut self.run;
+        r.omega_sum_rad_s += e.omega_m_rad_s;
+        r.omega_steps = r.omega_steps.saturating_add(1);
+        let omega_m_rad_s = if self.steps_to_slow == 0 {
+            let mean = r.omega_sum_rad_s / f32::from(r.omega_steps);
+            (r.omega_sum_rad_s, r.omega_steps) = (0.0, 0);
+            mean
+        } else {
+            e.omega_m_rad_s
+        };
+        Measurements { omega_m_rad_s, theta_m_rad: self.theta_est_rad, ..*m }
     }
 
     /// The fast step; `after_slow`: it follows the slow step (its signals kept for the

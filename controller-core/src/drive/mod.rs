@@ -188,6 +188,10 @@ struct FastRun {
     /// ends at this step's sample (asked two steps ago), and its last estimate.
     observer: FluxObserver,
     v_interval: AlphaBeta,
+    /// Sensorless: the sum of the speed estimates since the last slow step, rad/s, and their
+    /// count — the slow step reads their mean ([`FastState::observe`]).
+    omega_sum_rad_s: f32,
+    omega_steps: u16,
     estimate: Estimate,
 }
 
