@@ -252,19 +252,26 @@ fn a_hotter_stator_than_the_drive_believes_defeats_it_at_low_speed_regenerating(
 }
 
 /// drive.toml's scenario of [`ride`] run by the drive itself on `feedback` (a plain drive, no
-/// rider): the plant's mean speed in each window and the mode it ends in.
+/// rider), on a plant whose stator resistance is `rs_scale` × the drive's: the speed
+/// reference `references` (time, rad/s; the first at 0.3 s as [`scenario`] has it, each later
+/// one at its time), the load steps `loads`; the plant's mean speed in each window and the
+/// mode it ends in.
 fn run_on(
     feedback: SpeedFeedback,
     sensors: SensorModel,
     rs_scale: f64,
-    reference_rad_s: f64,
+    references: &[(f64, f64)],
     loads: &[(f64, f64)],
     windows: &[(f64, f64)],
 ) -> (Vec<f64>, Mode) {
     let mut spec = DriveFile::shipped().unwrap().spec;
     spec.speed_feedback = feedback;
     let plant = spec.motor.scaled(rs_scale, 1.0, 1.0, 1.0).unwrap();
-    let b = scenario(spec, plant, sensors, reference_rad_s, loads, windows);
+    let (first, later) = references.split_first().unwrap();
+    let mut b = scenario(spec, plant, sensors, first.1, loads, windows);
+    let steps = later.iter().map(|&(t, w)| (t, Event::Reference(Reference::Speed(w as f32))));
+    b.scenario.events.extend(steps);
+    b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (rows, mode) = b.run(|_| {}).unwrap();
     let means = windows
         .iter()
@@ -309,8 +316,10 @@ fn the_drive_runs_on_the_observer_as_on_its_encoder() {
     ];
     for (name, of_base, sensors, rs) in cases {
         let (reference, loads) = (of_base * BASE_RAD_S, [(1.5, tau), (2.5, -tau)]);
-        let (enc, enc_mode) = run_on(SpeedFeedback::Encoder, sensors, rs, reference, &loads, &windows);
-        let (obs, obs_mode) = run_on(SpeedFeedback::Sensorless, sensors, rs, reference, &loads, &windows);
+        let (enc, enc_mode) =
+            run_on(SpeedFeedback::Encoder, sensors, rs, &[(0.3, reference)], &loads, &windows);
+        let (obs, obs_mode) =
+            run_on(SpeedFeedback::Sensorless, sensors, rs, &[(0.3, reference)], &loads, &windows);
         let mut worst = 0.0f64;
         for ((t0, t1), (e, o)) in windows.iter().zip(enc.iter().zip(&obs)) {
             eprintln!(
@@ -323,35 +332,6 @@ fn the_drive_runs_on_the_observer_as_on_its_encoder() {
         assert_eq!(obs_mode, Mode::Running, "{name}: sensorless ended in {obs_mode:?}");
         assert!(worst < 0.02, "{name}: {worst}");
     }
-}
-
-/// drive.toml's scenario of [`scenario`] with the speed reference stepping through
-/// `references` (time, rad/s) instead of one step, under the load steps of `loads`, on
-/// `feedback`: the plant's mean speed in each window and the mode it ends in.
-fn run_schedule(
-    feedback: SpeedFeedback,
-    sensors: SensorModel,
-    references: &[(f64, f64)],
-    loads: &[(f64, f64)],
-    windows: &[(f64, f64)],
-) -> (Vec<f64>, Mode) {
-    let mut spec = DriveFile::shipped().unwrap().spec;
-    spec.speed_feedback = feedback;
-    let mut b = scenario(spec, spec.motor, sensors, references[0].1, loads, windows);
-    b.scenario
-        .events
-        .extend(references.iter().skip(1).map(|&(t, w)| (t, Event::Reference(Reference::Speed(w as f32)))));
-    b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let (rows, mode) = b.run(|_| {}).unwrap();
-    let means = windows
-        .iter()
-        .map(|&(t0, t1)| {
-            let w: Vec<f64> =
-                rows.iter().filter(|r| r.t_s >= t0 && r.t_s < t1).map(|r| r.x.omega_m_rad_s).collect();
-            w.iter().sum::<f64>() / w.len() as f64
-        })
-        .collect();
-    (means, mode)
 }
 
 /// Issue 53's second acceptance on drive.toml: through zero speed under 0.5·τ_max, and
@@ -373,8 +353,8 @@ fn through_zero_speed_under_load_and_regenerating_at_a_tenth_of_base_speed() {
     let offset_free = SensorModel { current_offset_a: [0.0; 3], ..SensorModel::realistic(11) };
     for (name, sensors) in [("no current offset", offset_free), ("20 mA offset", SensorModel::realistic(11))]
     {
-        let (enc, enc_mode) = run_schedule(SpeedFeedback::Encoder, sensors, &references, &loads, &windows);
-        let (obs, obs_mode) = run_schedule(SpeedFeedback::Sensorless, sensors, &references, &loads, &windows);
+        let (enc, enc_mode) = run_on(SpeedFeedback::Encoder, sensors, 1.0, &references, &loads, &windows);
+        let (obs, obs_mode) = run_on(SpeedFeedback::Sensorless, sensors, 1.0, &references, &loads, &windows);
         assert_eq!(enc_mode, Mode::Running);
         assert_eq!(obs_mode, Mode::Running, "{name}: sensorless ended in {obs_mode:?}");
         for ((t0, t1), (e, o)) in windows.iter().zip(enc.iter().zip(&obs)) {
