@@ -538,4 +538,30 @@ mod tests {
         assert_eq!(f.first().map(|x| x.count), Some(60));
         assert!(families_table(&f).contains("| campaign: tracking | 60 | 2 |"));
     }
+
+    /// A tuned drive run without its encoder at a PWM rate its observer cannot run at up to
+    /// the overspeed level is a refusal naming the observer, not a failure or an error
+    /// (found trying `population run --sensorless --pwm 4000`: member 002, 7.3 kW, tunes at
+    /// 4 kHz on its encoder; its observer's correction at the top speed exceeds 0.1 per
+    /// sample).
+    #[test]
+    fn a_rate_the_observer_cannot_run_at_is_a_refusal_naming_it() {
+        let m = draw(1, 2, None).unwrap();
+        let plan =
+            Plan { campaign_runs: 16, seed: 1, matrix: false, speed: SpeedDesign::Auto, sensorless: true };
+        let r = evaluate(
+            &m,
+            Some(4_000.0),
+            Path::new(env!("CARGO_MANIFEST_DIR")),
+            &plan,
+            &AtomicBool::new(false),
+        );
+        match r.verdict {
+            Verdict::Refuse { reason } => {
+                assert!(reason.starts_with("sensorless: ") && reason.contains("per sample"), "{reason}")
+            }
+            v => panic!("{v:?}"),
+        }
+        assert!(r.campaign.is_none(), "no campaign on a refused drive");
+    }
 }
