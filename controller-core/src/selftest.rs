@@ -314,6 +314,7 @@ pub fn link_rejects_corruption(spec: &DriveSpec) -> Check {
     // Round trip of a reply.
     let r = Reply::Status {
         mode: Mode::Running,
+        ridden_through: crate::fault::FaultSet::EMPTY,
         frames_ok: 3,
         frame_errors: 4,
         timing: link::LoopTiming::default(),

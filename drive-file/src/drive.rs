@@ -47,7 +47,8 @@ pub struct ControllerTable {
     #[serde(default)]
     pub current_frame: FrameTable,
     /// Where the speed and the field angle come from (default the encoder; `"sensorless"`:
-    /// the flux and speed observer, docs/sensorless.md).
+    /// the flux and speed observer; `"encoder_ride_through"`: the encoder, the observer
+    /// beside it carrying the drive on when the encoder fails — docs/sensorless.md).
     #[serde(default)]
     pub speed_feedback: FeedbackTable,
     /// Speed law.
@@ -160,6 +161,9 @@ pub enum FeedbackTable {
     Encoder,
     /// The observer, no encoder.
     Sensorless,
+    /// The encoder, the observer beside it: the drive carries on on the observer when the
+    /// encoder fails, and reports the fault.
+    EncoderRideThrough,
 }
 
 /// `controller.current_frame`.
@@ -1013,6 +1017,7 @@ pub fn drive_spec(
         speed_feedback: match c.speed_feedback {
             FeedbackTable::Encoder => SpeedFeedback::Encoder,
             FeedbackTable::Sensorless => SpeedFeedback::Sensorless,
+            FeedbackTable::EncoderRideThrough => SpeedFeedback::EncoderRideThrough,
         },
         position: PositionLaw { k_per_s: c.position.k_per_s, omega_max_rad_s: c.position.omega_max_rad_s },
         flux_ref_wb: c.flux_ref_wb,
@@ -1110,7 +1115,11 @@ pub fn drive_spec(
         DriveError::Observer(e) => src.error(
             "controller.speed_feedback",
             format!(
-                "\"sensorless\" at pwm.frequency_hz = {} Hz up to protection.overspeed_rad_s = {:.0} rad/s: {e}",
+                "the observer of {:?} at pwm.frequency_hz = {} Hz up to protection.overspeed_rad_s = {:.0} rad/s: {e}",
+                match c.speed_feedback {
+                    FeedbackTable::EncoderRideThrough => "encoder_ride_through",
+                    _ => "sensorless",
+                },
                 num(pwm.frequency_hz),
                 spec.protection.overspeed_rad_s
             ),

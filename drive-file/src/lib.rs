@@ -21,7 +21,8 @@
 //! current = { kind = "icad" }            # eq. (20); or { kind = "icad", kp, ki, lag_num, lag_den }
 //!                                        # or { kind = "pi", kp = 360.0, ki = 9000.0 }
 //! current_frame = "stationary"           # or "synchronous" (d/q loops)
-//! speed_feedback = "encoder"             # default; "sensorless": the flux and speed observer
+//! speed_feedback = "encoder"             # default; "sensorless": the flux and speed observer;
+//!                                        # "encoder_ride_through": the observer beside the encoder
 //! speed = { kind = "saturated_p", kp = 0.05, tau_max_nm = 2.0 }
 //! #  or { kind = "pi_torque", kp, ki, limit }  |  { kind = "pi_iq", kp, ki, limit }
 //! position = { k_per_s = 10.0, omega_max_rad_s = 150.0 }   # default 10 1/s, 100 rad/s
@@ -160,6 +161,13 @@ mod tests {
         let e = err(&slow);
         assert_eq!(e.key.as_deref(), Some("controller.speed_feedback"), "{e}");
         assert!(e.to_string().contains("sample faster or lower the top speed"), "{e}");
+        // The observer beside the encoder: the same observer, the same refusal, named.
+        let d = DriveFile::parse(Path::new("d.toml"), &with("speed_feedback = \"encoder_ride_through\""))
+            .unwrap();
+        assert_eq!(d.spec.speed_feedback, controller_core::drive::SpeedFeedback::EncoderRideThrough);
+        let e = err(&slow.replacen("\"sensorless\"", "\"encoder_ride_through\"", 1));
+        assert_eq!(e.key.as_deref(), Some("controller.speed_feedback"), "{e}");
+        assert!(e.to_string().contains("encoder_ride_through"), "{e}");
     }
 
     #[test]

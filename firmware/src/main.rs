@@ -653,9 +653,9 @@ mod target {
                 let reply = execute(cmd, prepared, stats).await;
                 // The status carries the interrupt's timing (the link module cannot see it).
                 let reply = reply.map(|r| match r {
-                    Reply::Status { mode, frames_ok, frame_errors, readings, .. } => {
+                    Reply::Status { mode, ridden_through, frames_ok, frame_errors, readings, .. } => {
                         let timing = LoopTiming { stack_bytes: stack_used_bytes(), ..LOOP_TIMER.read() };
-                        Reply::Status { mode, frames_ok, frame_errors, timing, readings }
+                        Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, readings }
                     }
                     other => other,
                 });

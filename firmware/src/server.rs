@@ -158,9 +158,14 @@ pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> R
         BoardCommand::ReadCapture { chunk } => link::read_capture(ctl.capture(), *chunk),
         other => match link::execute_board(ctl.drive_mut(), other, stats) {
             // The board's raw readings (the timing is filled in by the interrupt's owner).
-            Reply::Status { mode, frames_ok, frame_errors, timing, .. } => {
-                Reply::Status { mode, frames_ok, frame_errors, timing, readings: ctl.readings() }
-            }
+            Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, .. } => Reply::Status {
+                mode,
+                ridden_through,
+                frames_ok,
+                frame_errors,
+                timing,
+                readings: ctl.readings(),
+            },
             r => r,
         },
     }
@@ -226,6 +231,7 @@ mod tests {
             handle(&mut c, &BoardCommand::GetStatus, &stats),
             Reply::Status {
                 mode: Mode::Magnetizing,
+                ridden_through: controller_core::drive::FaultSet::EMPTY,
                 frames_ok: 5,
                 frame_errors: 2,
                 timing: Default::default(),

@@ -4,6 +4,7 @@
 //! One command, one reply. The board also streams `Output` telemetry on its own; a reply to
 //! anything but `Step` therefore skips `Output` frames ([`LinkClient::transact`]).
 
+use controller_core::drive::{Fault, FaultSet};
 use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -117,9 +118,19 @@ impl<R: Read, W: Write> LinkClient<R, W> {
 /// longest time against the PWM period, and the raw readings scaled with the drive file's
 /// `[board]` (the firmware's own scalings, before its offset calibration).
 pub fn format_status(r: &Reply, file: &drive_file::DriveFile) -> Option<String> {
-    let Reply::Status { mode, frames_ok, frame_errors, timing, readings } = r else { return None };
-    let mut s =
-        format!("mode          {mode:?}\nframes        {frames_ok} accepted, {frame_errors} rejected\n");
+    let Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, readings } = r else {
+        return None;
+    };
+    let mut s = format!("mode          {mode:?}\n");
+    if *ridden_through != FaultSet::EMPTY {
+        let names: Vec<String> =
+            Fault::ALL.iter().filter(|f| ridden_through.contains(**f)).map(|f| format!("{f:?}")).collect();
+        s += &format!(
+            "ridden through {} — running on the observer, the encoder is not read\n",
+            names.join(", ")
+        );
+    }
+    s += &format!("frames        {frames_ok} accepted, {frame_errors} rejected\n");
     let f_pwm = file.spec.pwm_frequency_hz;
     match &file.board {
         Some(b) => {
@@ -174,6 +185,7 @@ mod tests {
         let file = drive_file::DriveFile::shipped().unwrap();
         let r = Reply::Status {
             mode: controller_core::drive::Mode::Idle,
+            ridden_through: FaultSet::EMPTY,
             frames_ok: 3,
             frame_errors: 1,
             timing: controller_core::link::LoopTiming { cycles_max: 3400, overruns: 0, stack_bytes: 1480 },
@@ -188,7 +200,17 @@ mod tests {
         assert!(s.contains("+0.000 +0.999 -0.999 A"), "{s}");
         assert!(s.contains("310.0 V") && s.contains("4096 per revolution"), "{s}");
         assert!(s.contains("stack         1480 B"), "{s}");
+        assert!(!s.contains("ridden through"), "{s}");
         assert_eq!(format_status(&Reply::Ack, &file), None);
+        // A drive riding through its encoder's fault says so, by name.
+        let Reply::Status { mode, frames_ok, frame_errors, timing, readings, .. } = r else { unreachable!() };
+        let ridden = FaultSet::EMPTY.with(Fault::EncoderLoss).with(Fault::EncoderImplausible);
+        let r = Reply::Status { mode, ridden_through: ridden, frames_ok, frame_errors, timing, readings };
+        let s = format_status(&r, &file).unwrap();
+        assert!(
+            s.contains("ridden through EncoderLoss, EncoderImplausible — running on the observer"),
+            "{s}"
+        );
     }
     use controller_core::drive::{FastOutput, Mode, PhaseCommand, Telemetry};
 

@@ -691,3 +691,32 @@ fn a_sensorless_drive_has_no_encoder_to_fail() {
         );
     }
 }
+
+/// Encoder-loss ride-through (issue 53): drive.toml with the observer beside its encoder
+/// (`speed_feedback = "encoder_ride_through"`). Every encoder row at speed — stuck, a
+/// 100-count glitch, half the lines; mid and top speed, motoring and generating — carries on
+/// on the observer: no trip, the fault reported within the encoder bound (two slow periods),
+/// the speed held to the end of the run ([`Expect::Reported`]). At standstill (a position
+/// hold, which needs the shaft's angle) they are what they are without the observer.
+#[test]
+fn the_frozen_encoder_rows_at_speed_carry_on_on_the_observer() {
+    let mut m = shipped();
+    m.spec.speed_feedback = controller_core::drive::SpeedFeedback::EncoderRideThrough;
+    let encoders: Vec<_> = m.cases().unwrap().into_iter().filter(|c| c.injection.is_encoders()).collect();
+    assert_eq!(encoders.len(), 3);
+    let mut reported = 0;
+    for c in &encoders {
+        for at in m.points() {
+            let expect = m.expect(c, &at);
+            let o = m.run_one(0, c, &at, expect, &AtomicBool::new(false)).unwrap();
+            eprintln!("{} at {}: {} — {}", c.name, at.name(), o.seen(), o.verdict());
+            assert!(o.passed(), "{} at {}: {:?}", c.name, at.name(), o.failures);
+            if at.point != Point::Standstill {
+                assert!(matches!(expect, Expect::Reported { .. }), "{expect:?}");
+                assert_eq!(o.final_mode, Mode::Running);
+                reported += 1;
+            }
+        }
+    }
+    assert_eq!(reported, 12);
+}

@@ -98,8 +98,9 @@ crate::raw::raw_struct! {
         pub(super) stop_on: FaultSet,
         /// The rotor at rest ([`crate::supervisor::rest`]).
         pub(super) rest: RestLimits,
-        /// Sensorless: the flux and speed observer ([`SpeedFeedback::Sensorless`]).
-        pub(super) observer: Option<ObserverConfig>,
+        /// The speed's source: the encoder, the observer, or the encoder with the observer
+        /// beside it ([`SpeedFeedback`]).
+        pub(super) source: SpeedSource,
     }
 }
 
@@ -144,22 +145,62 @@ impl raw::Field for CurrentFrame {
     }
 }
 
-/// A tag (0: the encoder, 1: the observer) and the observer's numbers (zeros without one: a
-/// fixed layout).
-impl raw::Field for Option<ObserverConfig> {
+/// Where the drive's speed and field angle come from ([`SpeedFeedback`], with the observer's
+/// configuration where it has one).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum SpeedSource {
+    /// The encoder.
+    Encoder,
+    /// The observer ([`SpeedFeedback::Sensorless`]).
+    Observer(ObserverConfig),
+    /// The encoder, the observer beside it ([`SpeedFeedback::EncoderRideThrough`]).
+    RideThrough(ObserverConfig),
+}
+
+impl SpeedSource {
+    /// The observer, where the drive runs one.
+    #[inline]
+    pub(super) fn observer(&self) -> Option<&ObserverConfig> {
+        match self {
+            SpeedSource::Encoder => None,
+            SpeedSource::Observer(o) | SpeedSource::RideThrough(o) => Some(o),
+        }
+    }
+
+    /// No encoder at all.
+    #[inline]
+    pub(super) fn sensorless(&self) -> bool {
+        matches!(self, SpeedSource::Observer(_))
+    }
+
+    /// An encoder fault is ridden through on the observer.
+    #[inline]
+    pub(super) fn rides_through(&self) -> bool {
+        matches!(self, SpeedSource::RideThrough(_))
+    }
+}
+
+/// A tag (0: the encoder, 1: the observer, 2: the encoder with the observer beside it) and
+/// the observer's numbers (zeros without one: a fixed layout).
+impl raw::Field for SpeedSource {
     fn put(&self, w: &mut raw::Writer) {
-        w.u(u32::from(self.is_some()));
-        self.unwrap_or_default().put(w);
+        w.u(match self {
+            SpeedSource::Encoder => 0,
+            SpeedSource::Observer(_) => 1,
+            SpeedSource::RideThrough(_) => 2,
+        });
+        self.observer().copied().unwrap_or_default().put(w);
     }
     fn get(r: &mut raw::Reader<'_>) -> Self {
         let tag = r.u();
         let cfg = ObserverConfig::get(r);
         match tag {
-            0 => None,
-            1 if cfg.is_valid() => Some(cfg),
+            0 => SpeedSource::Encoder,
+            1 if cfg.is_valid() => SpeedSource::Observer(cfg),
+            2 if cfg.is_valid() => SpeedSource::RideThrough(cfg),
             _ => {
                 r.bad = true;
-                None
+                SpeedSource::Encoder
             }
         }
     }
@@ -388,9 +429,8 @@ impl DriveConfig {
             }),
             brake: BrakeLevels { on_v: brake_on_v, off_v: brake_off_v },
             rest: RestLimits::new(p.rest_time_s, t_slow, spec.motor.pole_pairs(), spec.motor.tr_s()),
-            observer: match spec.speed_feedback {
-                SpeedFeedback::Encoder => None,
-                SpeedFeedback::Sensorless => Some(
+            source: {
+                let observer = || {
                     ObserverConfig::new(
                         &spec.motor,
                         ts,
@@ -398,8 +438,13 @@ impl DriveConfig {
                         spec.flux_floor_wb,
                         f64::from(spec.motor.pole_pairs()) * p.overspeed_rad_s,
                     )
-                    .map_err(DriveError::Observer)?,
-                ),
+                    .map_err(DriveError::Observer)
+                };
+                match spec.speed_feedback {
+                    SpeedFeedback::Encoder => SpeedSource::Encoder,
+                    SpeedFeedback::Sensorless => SpeedSource::Observer(observer()?),
+                    SpeedFeedback::EncoderRideThrough => SpeedSource::RideThrough(observer()?),
+                }
             },
         })
     }

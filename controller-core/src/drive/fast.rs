@@ -80,7 +80,7 @@ impl Drive {
     /// firmware's `an_enable_on_a_turning_rotor_keeps_the_encoder`).
     pub fn hold_step(&mut self, m: &Measurements) -> bool {
         let held;
-        let m = if self.cfg.observer.is_some() {
+        let m = if self.cfg.source.sensorless() {
             held = self.fast.held_shaft(m);
             &held
         } else {
@@ -116,18 +116,29 @@ impl FastState {
         Measurements { omega_m_rad_s: 0.0, theta_m_rad: self.theta_est_rad, ..*m }
     }
 
-    /// Sensorless: the observer's step on this period's sample (the voltage asked two steps
-    /// ago was applied over the period that ends at it), the speed known to be zero while
-    /// magnetizing a rotor at rest and estimated while running; returns `m` with the
-    /// estimate as its encoder reading (the speed, and the shaft's angle it turns) and the
-    /// currents less the sensors' residual offsets ([`IdleZero`], read with the bridge off).
-    /// With the bridge off nothing is known: a speed of zero, the angle held. Out of line: an
-    /// encoder drive's interrupt does not carry it (inlined, 1.1 KiB of the firmware's flash).
+    /// The observer's step on this period's sample (the voltage asked two steps ago was
+    /// applied over the period that ends at it), with the currents less the sensors' residual
+    /// offsets ([`IdleZero`], read with the bridge off). Returns `m` with those currents and,
+    /// on the observer ([`FastState::on_observer`]), its estimate as the encoder reading
+    /// (the speed, and the shaft's angle it turns); beside a healthy encoder
+    /// ([`SpeedFeedback::EncoderRideThrough`]), the encoder's reading.
+    ///
+    /// The speed is known while magnetizing: zero without an encoder (a rotor at rest), the
+    /// encoder's beside one; running, it is estimated — beside the encoder too, which the
+    /// observer never hears then, so that its estimate is still right when the encoder fails.
+    /// With the bridge off nothing is known: a speed of zero, the angle held (the encoder's
+    /// beside one). Out of line: an encoder drive's interrupt does not carry it (inlined,
+    /// 1.1 KiB of the firmware's flash).
     #[inline(never)]
-    pub(super) fn observe(&mut self, o: &ObserverConfig, m: &Measurements) -> Measurements {
+    pub(super) fn observe(&mut self, o: &ObserverConfig, sensorless: bool, m: &Measurements) -> Measurements {
+        let on_observer = sensorless || self.run.on_observer;
         if !self.mode.is_active() {
             let i = m.i_abc_a;
             self.zero.idle([i.a, i.b, i.c]);
+            if !on_observer {
+                self.theta_est_rad = m.theta_m_rad;
+                return *m;
+            }
             return Measurements { omega_m_rad_s: 0.0, theta_m_rad: self.theta_est_rad, ..*m };
         }
         self.zero.active();
@@ -139,10 +150,10 @@ impl FastState {
         let e = if self.mode == Mode::Running {
             self.run.observer.step(o, u, i)
         } else {
-            self.run.observer.step_known_speed(o, u, i, 0.0)
+            let known_rad_s = if on_observer { 0.0 } else { m.omega_m_rad_s };
+            self.run.observer.step_known_speed(o, u, i, known_rad_s)
         };
         self.run.estimate = e;
-        self.theta_est_rad = wrap_angle(self.theta_est_rad + e.omega_m_rad_s * o.ts_s());
         // The slow step samples the speed once per slow period: it reads the mean of the
         // period's estimates (the estimate's noise up to the observer's bandwidth, aliased
         // into the speed loop when sampled alone, put 4× the torque ripple of the encoder's
@@ -157,7 +168,20 @@ impl FastState {
         } else {
             e.omega_m_rad_s
         };
+        if !on_observer {
+            // Beside the encoder: its angle is where the observer's turning starts from.
+            self.theta_est_rad = m.theta_m_rad;
+            return *m;
+        }
+        self.theta_est_rad = wrap_angle(self.theta_est_rad + e.omega_m_rad_s * o.ts_s());
         Measurements { omega_m_rad_s, theta_m_rad: self.theta_est_rad, ..*m }
+    }
+
+    /// The speed and the field are the observer's: no encoder, or the encoder's fault ridden
+    /// through (adopted from the slow side's plan).
+    #[inline(always)]
+    pub(super) fn on_observer(&self, cfg: &DriveConfig) -> bool {
+        cfg.source.sensorless() || self.run.on_observer
     }
 
     /// The fast step; `after_slow`: it follows the slow step (its signals kept for the

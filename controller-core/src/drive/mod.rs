@@ -193,6 +193,9 @@ struct FastRun {
     omega_sum_rad_s: f32,
     omega_steps: u16,
     estimate: Estimate,
+    /// Ride-through: the encoder's fault was ridden through, the speed and the field are the
+    /// observer's (the slow side's [`SlowState::ridden_through`], adopted with its plan).
+    on_observer: bool,
 }
 
 /// What the slow step reads of the fast side, latched at its tick ([`FastState::latch`]).
@@ -242,6 +245,9 @@ struct SlowState {
     pending_fault: Option<Fault>,
     /// Slow steps left of a controlled stop (`None`: not stopping).
     stop_steps_left: Option<u32>,
+    /// Ride-through: the encoder's faults ridden through on the observer since the last
+    /// enable ([`SpeedFeedback::EncoderRideThrough`]; reported, [`Drive::ridden_through`]).
+    ridden_through: FaultSet,
     machine: MachineState,
     run: SlowRun,
 }
@@ -423,6 +429,7 @@ impl FastState {
             s.machine.rs_scale,
         );
         (self.run.delay_rotation, self.run.trim) = (s.run.delay_rotation, s.run.trim);
+        self.run.on_observer = s.ridden_through != FaultSet::EMPTY;
     }
 
     /// Latch fault `f` (the first fault stays latched: a controlled stop's, if one is under
@@ -436,6 +443,13 @@ impl FastState {
 }
 
 impl SlowState {
+    /// The speed and the field are the observer's: no encoder, or the encoder's fault
+    /// ridden through.
+    #[inline]
+    fn on_observer(&self, cfg: &DriveConfig) -> bool {
+        cfg.source.sensorless() || self.ridden_through != FaultSet::EMPTY
+    }
+
     /// Latch fault `f` (the first fault stays latched): handed to the fast step with the plan.
     /// Out of line (a fault's path: inlined, its callers took flash).
     #[inline(never)]
@@ -509,6 +523,7 @@ impl Drive {
                 omega_ref_rad_s: 0.0,
                 pending_fault: None,
                 stop_steps_left: None,
+                ridden_through: FaultSet::EMPTY,
                 machine: MachineState::POWER_UP,
                 run,
             },
@@ -649,6 +664,7 @@ impl Drive {
                 let (rr, l) = (ifoc.rotor_resistance_scale(), ifoc.inductance_scale());
                 self.slow.run = SlowRun::new(&self.cfg, rr, l, fit);
                 self.fast.run = FastRun::default();
+                self.slow.ridden_through = FaultSet::EMPTY;
                 self.slow.machine.idle_slow_steps = 0;
                 self.set_mode(Mode::Magnetizing);
                 Ok(())
@@ -708,6 +724,14 @@ impl Drive {
         self.sync();
     }
 
+    /// The encoder's faults the drive rode through on the observer since the last enable
+    /// ([`SpeedFeedback::EncoderRideThrough`]): the faults it would have tripped on, which
+    /// the user must still hear of — the encoder is broken, the drive runs without it.
+    /// Empty for the other speed sources.
+    pub fn ridden_through(&self) -> FaultSet {
+        self.slow.ridden_through
+    }
+
     /// A controlled stop is under way.
     pub fn is_stopping(&self) -> bool {
         self.slow.stop_steps_left.is_some() && !matches!(self.fast.mode, Mode::Fault(_))
@@ -736,7 +760,7 @@ impl Drive {
         if !finite {
             return Err(CommandError::NonFinite);
         }
-        if self.cfg.observer.is_some() && matches!(r, Reference::Position(_)) {
+        if self.slow.on_observer(&self.cfg) && matches!(r, Reference::Position(_)) {
             return Err(CommandError::NoEncoder);
         }
         self.sync();
@@ -755,9 +779,9 @@ impl Drive {
         // Sensorless: the observer reads the period's sample first, and its estimate is the
         // encoder reading both steps get.
         let observed;
-        let m = match &self.cfg.observer {
+        let m = match self.cfg.source.observer() {
             Some(o) => {
-                observed = self.fast.observe(o, m);
+                observed = self.fast.observe(o, self.cfg.source.sensorless(), m);
                 &observed
             }
             None => m,

@@ -33,7 +33,7 @@ impl Drive {
     /// plan ([`IfocConfig::plan`]); the phase checks (open phase, no motor current, the
     /// windowed current sum; a stuck switch while Running).
     pub fn slow_step(&mut self, m: &Measurements) {
-        let inputs = self.fast.latch(m, self.cfg.observer.is_some());
+        let inputs = self.fast.latch(m, self.fast.on_observer(&self.cfg));
         self.slow.step(&self.cfg, &inputs);
         self.fast.adopt(&self.slow);
     }
@@ -220,7 +220,7 @@ impl SlowState {
                 self.set_inductance_scale(cfg, fit.inductance_scale);
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
                 // Sensorless: the observer's voltage model on the stator as it is now.
-                if let (Some(o), Some(r_s)) = (&cfg.observer, fit.stator_resistance_ohm) {
+                if let (Some(o), Some(r_s)) = (cfg.source.observer(), fit.stator_resistance_ohm) {
                     self.machine.rs_scale = o.stator_resistance_scale(r_s).unwrap_or(self.machine.rs_scale);
                 }
             }
@@ -256,15 +256,30 @@ impl SlowState {
     /// the bridge is off): the change since the last reading, mechanical rad; a jump
     /// ([`EncoderTrack::read`]) trips [`Fault::EncoderLoss`] unless a fault is latched.
     fn read_encoder(&mut self, cfg: &DriveConfig, theta_m_rad: f32) -> f32 {
-        // Sensorless, the reading is the observer's estimate, not an encoder: nothing to
-        // judge (a jump of the estimate is the machine's fault, which its own checks name —
-        // an open phase read as `EncoderLoss` in the fault matrix otherwise).
-        let judge = !matches!(self.mode, Mode::Fault(_)) && cfg.observer.is_none();
+        // On the observer, the reading is its estimate, not an encoder: nothing to judge (a
+        // jump of the estimate is the machine's fault, which its own checks name — an open
+        // phase read as `EncoderLoss` in the fault matrix otherwise).
+        let judge = !matches!(self.mode, Mode::Fault(_)) && !self.on_observer(cfg);
         let (step, jumped) = self.machine.encoder.read(theta_m_rad, cfg.encoder_jump_rad, judge);
         if jumped {
-            self.trip(Fault::EncoderLoss);
+            self.encoder_fault(cfg, Fault::EncoderLoss);
         }
         step
+    }
+
+    /// The encoder's fault `f`: ridden through on the observer where the drive has one beside
+    /// the encoder ([`SpeedFeedback::EncoderRideThrough`]), Running under a speed or torque
+    /// reference — from the next slow step on, the speed and the field are the observer's,
+    /// and `f` is reported ([`Drive::ridden_through`]); tripped otherwise.
+    #[cold]
+    #[inline(never)]
+    fn encoder_fault(&mut self, cfg: &DriveConfig, f: Fault) {
+        let needs_shaft = matches!(self.reference, Reference::Position(_));
+        if cfg.source.rides_through() && self.mode == Mode::Running && !needs_shaft {
+            self.ridden_through = self.ridden_through.with(f);
+        } else {
+            self.trip(f);
+        }
     }
 
     /// Sensorless: the field's speed over the last slow period from the observer's flux
@@ -274,7 +289,7 @@ impl SlowState {
     /// read as an inductance error, and the two ran away together (the 24 V walk-through
     /// motor's inductance to its range's floor and the speed 4 % short at no load).
     fn observe_field_rate(&mut self, cfg: &DriveConfig, theta_e_rad: f32) {
-        if let (Some(last), Some(o)) = (self.run.field_last_rad, &cfg.observer) {
+        if let (Some(last), Some(o)) = (self.run.field_last_rad, cfg.source.observer()) {
             let t_slow_s = o.ts_s() * f32::from(cfg.slow_divider);
             self.run.field_rate_rad_s = Some(wrap_angle(theta_e_rad - last) / t_slow_s);
         }
@@ -474,7 +489,7 @@ impl SlowState {
     pub(super) fn after_slow_checks(&mut self, cfg: &DriveConfig, a: &AfterSlow) {
         let w_e_rad_s = self.run.model.pole_pairs() * a.omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
         let v_limit_v = svpwm::linear_limit_v(a.v_usable_v);
-        let sensorless = cfg.observer.is_some();
+        let sensorless = self.on_observer(cfg);
         self.check_encoder(cfg, a.i_meas_dq, a.v_applied, a.field, w_e_rad_s, v_limit_v);
         if self.mode != Mode::Running {
             return;
@@ -546,10 +561,14 @@ impl SlowState {
                 .voltage_check
                 .implausible(departure, cfg.encoder_check_steps, || switches.undriven(turning));
             match verdict {
-                // Sensorless, the speed is the observer's, which the voltage model fixes: a
+                // On the observer, the speed is its estimate, which the voltage model fixes: a
                 // departure that no phase explains names no encoder — nothing to trip on.
-                Some(Fault::EncoderImplausible) if cfg.observer.is_some() => {
+                Some(Fault::EncoderImplausible) if self.on_observer(cfg) => {
                     self.run.voltage_check.plausible()
+                }
+                Some(Fault::EncoderImplausible) => {
+                    self.run.voltage_check.plausible();
+                    self.encoder_fault(cfg, Fault::EncoderImplausible);
                 }
                 Some(f) => self.trip(f),
                 None => {}

@@ -128,6 +128,14 @@ pub enum SpeedFeedback {
     /// estimate's bandwidth is derived, not chosen ([`DriveConfig::new`]): the low-frequency
     /// lag of the encoder's speed window the speed loop was designed and certified with.
     Sensorless,
+    /// The encoder, with the observer running beside it on the measured voltage and
+    /// currents alone: on the encoder's fault ([`crate::fault::Fault::EncoderLoss`],
+    /// [`crate::fault::Fault::EncoderImplausible`]) while Running under a speed or torque reference, the
+    /// drive carries on on the observer — as [`SpeedFeedback::Sensorless`] — instead of
+    /// tripping, and reports the fault ([`crate::drive::Drive::ridden_through`]) until the
+    /// next enable. Under a position reference (which needs the shaft's angle) or while
+    /// magnetizing, the fault trips as with [`SpeedFeedback::Encoder`].
+    EncoderRideThrough,
 }
 
 /// Everything a drive needs, in design units (f64). [`DriveConfig::new`] validates it.

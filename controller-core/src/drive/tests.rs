@@ -235,6 +235,7 @@ fn raw_configuration_round_trips() {
                 (CurrentLaw::ICAD_EQ20, SpeedFeedback::Encoder),
                 (CurrentLaw::PI_SEED002, SpeedFeedback::Encoder),
                 (CurrentLaw::ICAD_EQ20, SpeedFeedback::Sensorless),
+                (CurrentLaw::PI_SEED002, SpeedFeedback::EncoderRideThrough),
             ] {
                 let spec =
                     DriveSpec { current_frame: frame, speed_law, current_law, speed_feedback, ..test_spec() };
@@ -273,11 +274,13 @@ fn raw_configuration_round_trips() {
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // The observer's tag (last): unknown, or the observer's numbers not a valid observer.
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 1] = 2;
+    bad.u[raw::INTEGERS - 1] = 3;
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
-    let mut bad = raw;
-    bad.u[raw::INTEGERS - 1] = 1; // an encoder drive's zeros read as an observer
-    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    for tag in [1, 2] {
+        let mut bad = raw;
+        bad.u[raw::INTEGERS - 1] = tag; // an encoder drive's zeros read as an observer
+        assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "tag {tag}");
+    }
     // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.
     let at = |v: f32| {
         assert_eq!(raw.f.iter().filter(|&&x| x == v).count(), 1, "{v} is one field's alone");
@@ -1302,4 +1305,58 @@ fn a_sensorless_drive_takes_off_the_offsets_it_read_while_idle() {
             "{got:?}"
         );
     }
+}
+
+/// Encoder-loss ride-through (`SpeedFeedback::EncoderRideThrough`): Running under a speed
+/// reference an encoder jump is reported, not tripped on, and the drive is then on its
+/// observer (a position reference refused); the report outlives the bridge and is cleared by
+/// the next enable. Under a position reference, or while magnetizing, the same jump trips.
+#[test]
+fn an_encoder_fault_is_ridden_through_only_where_the_observer_can_carry_on() {
+    let level = test_spec().protection.encoder_jump_rad;
+    let spec = DriveSpec { speed_feedback: SpeedFeedback::EncoderRideThrough, ..test_spec() };
+    let running = |reference: Reference| {
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        d.enable().unwrap();
+        d.set_reference(reference).unwrap();
+        let mut i = Abc::default();
+        while d.mode() != Mode::Running {
+            if let PhaseCommand::Duty(duty) =
+                d.step(&Measurements { i_abc_a: i, vdc_v: 310.0, ..Default::default() }).phases
+            {
+                i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+            }
+        }
+        for _ in 0..3 {
+            d.slow_step(&wrapped(0.0));
+        }
+        assert_eq!((d.mode(), d.ridden_through()), (Mode::Running, FaultSet::EMPTY));
+        d
+    };
+    let mut d = running(Reference::Speed(0.0));
+    d.slow_step(&wrapped(1.2 * level));
+    assert_eq!(d.mode(), Mode::Running);
+    assert_eq!(d.ridden_through(), FaultSet::EMPTY.with(Fault::EncoderLoss));
+    // On the observer: no shaft angle to hold a position with; the encoder is not judged.
+    assert_eq!(d.set_reference(Reference::Position(1.0)), Err(CommandError::NoEncoder));
+    d.slow_step(&wrapped(10.0 * level));
+    assert_eq!(d.mode(), Mode::Running);
+    d.disable();
+    assert_eq!(d.ridden_through(), FaultSet::EMPTY.with(Fault::EncoderLoss), "reported while idle");
+    d.enable().unwrap();
+    assert_eq!(d.ridden_through(), FaultSet::EMPTY, "an enable trusts the encoder again");
+    assert_eq!(d.set_reference(Reference::Position(1.0)), Ok(()));
+    // A position hold needs the shaft: the fault trips.
+    let mut d = running(Reference::Position(0.0));
+    d.slow_step(&wrapped(1.2 * level));
+    assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+    // Magnetizing: the fault trips.
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    for _ in 0..3 {
+        d.slow_step(&wrapped(0.0));
+    }
+    d.enable().unwrap();
+    d.slow_step(&wrapped(1.2 * level));
+    assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+    assert_eq!(d.ridden_through(), FaultSet::EMPTY);
 }

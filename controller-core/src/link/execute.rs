@@ -63,6 +63,7 @@ pub fn execute_board(drive: &mut Drive, cmd: &BoardCommand, stats: &LinkStats) -
             // The timing and readings are the board's to fill in (firmware `server`).
             Reply::Status {
                 mode: drive.mode(),
+                ridden_through: drive.ridden_through(),
                 frames_ok: stats.frames_ok,
                 frame_errors: stats.errors(),
                 timing: super::schema::LoopTiming::default(),

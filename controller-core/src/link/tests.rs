@@ -154,6 +154,7 @@ fn replies_round_trip_bit_exact() {
         ),
         Reply::Status {
             mode: Mode::Running,
+            ridden_through: crate::fault::FaultSet::EMPTY.with(Fault::EncoderImplausible),
             frames_ok: 7,
             frame_errors: u32::MAX,
             timing: super::LoopTiming { cycles_max: 1234, overruns: 2, stack_bytes: 1480 },

@@ -34,7 +34,7 @@ use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
-use controller_core::drive::{DriveSpec, Fault, Mode, Reference, SpeedFeedback};
+use controller_core::drive::{DriveSpec, Fault, FaultSet, Mode, Reference, SpeedFeedback};
 use controller_core::frames::AlphaBeta;
 use controller_core::magnetics::Saturation;
 use controller_core::motor::MotorParams;
@@ -215,6 +215,16 @@ pub enum Expect {
     },
     /// No trip: the drive must ride through it.
     RideThrough,
+    /// No trip: the drive carries on on its observer (`speed_feedback =
+    /// "encoder_ride_through"`), reports one of these faults within `bound_s`, and holds the
+    /// operating point's speed to the end of the run (within [`REACHED_TOLERANCE_RAD_S`] of
+    /// its speed at the injection).
+    Reported {
+        /// The codes.
+        faults: &'static [Fault],
+        /// Report bound, s.
+        bound_s: f64,
+    },
     /// A stated gap: what the issue asks (`fault` within `bound_s`) does not hold here, for
     /// the reason given. The row fails if it starts to hold.
     Gap {
@@ -571,6 +581,17 @@ impl Matrix {
                 bound_s: encoder_s,
                 why: "at rest a wrong line count changes no reading",
             },
+            // The observer beside the encoder carries the drive on (issue 53: ride-through) —
+            // at speed: standstill is a position hold, which needs the shaft's angle, and the
+            // fault trips there as without the observer.
+            Injection::EncoderStuck | Injection::EncoderGlitch { .. } | Injection::EncoderLines { .. }
+                if self.spec.speed_feedback == SpeedFeedback::EncoderRideThrough && !rest =>
+            {
+                Expect::Reported {
+                    faults: &[Fault::EncoderLoss, Fault::EncoderImplausible],
+                    bound_s: encoder_s,
+                }
+            }
             Injection::EncoderStuck | Injection::EncoderGlitch { .. } | Injection::EncoderLines { .. } => {
                 Expect::Fault { fault: Fault::EncoderLoss, bound_s: encoder_s }
             }
@@ -722,6 +743,8 @@ impl Matrix {
         let i_trip = self.spec.protection.i_trip_a;
         let mut speed_at_injection = f64::NAN;
         let mut detected: Option<(Fault, f64)> = None;
+        let mut reported: Option<(FaultSet, f64)> = None;
+        let mut final_speed = f64::NAN;
         let mut off_after: Option<u64> = None;
         let (mut peak, mut peak_leg, mut energy) = (0.0f64, 0.0f64, 0.0f64);
         let mut before_injection_fault: Option<(Mode, f64)> = None;
@@ -806,6 +829,10 @@ impl Matrix {
                 {
                     detected = Some((f, r.t_s - t0));
                 }
+                if reported.is_none() && r.ridden_through != FaultSet::EMPTY {
+                    reported = Some((r.ridden_through, r.t_s - t0));
+                }
+                final_speed = r.x.omega_m_rad_s;
                 if let Some((_, t)) = detected
                     && off_after.is_none()
                     && r.duty.is_none()
@@ -889,6 +916,28 @@ impl Matrix {
                     failures.push(format!("tripped: {f:?} after {}", ms(t)));
                 }
             }
+            Expect::Reported { faults, bound_s } => {
+                if let Some((f, t)) = detected {
+                    failures.push(format!("tripped: {f:?} after {}", ms(t)));
+                }
+                match reported {
+                    Some((set, t))
+                        if faults.iter().any(|f| set.contains(*f)) && t <= bound_s + 0.5 * pwm_s => {}
+                    Some((set, t)) => failures.push(format!(
+                        "reported {} after {}, bound {}",
+                        report::names(set),
+                        ms(t),
+                        ms(bound_s)
+                    )),
+                    None => failures.push("not reported".into()),
+                }
+                let drift = (final_speed - speed_at_injection).abs();
+                if drift.is_nan() || drift > REACHED_TOLERANCE_RAD_S {
+                    failures.push(format!(
+                        "the speed was not held: {final_speed:.1} rad/s at the end, {speed_at_injection:.1} at the injection"
+                    ));
+                }
+            }
             Expect::Gap { fault, bound_s, .. } => {
                 let mut would = Vec::new();
                 judge(&[fault], bound_s, &mut would);
@@ -910,6 +959,8 @@ impl Matrix {
             expect,
             speed_at_injection_rad_s: speed_at_injection,
             detected,
+            reported,
+            final_speed_rad_s: final_speed,
             acting_after_s,
             tripped_before_s: before_injection_fault.map(|(_, t)| t),
             off_after_periods: off_after,

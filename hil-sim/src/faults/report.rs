@@ -3,7 +3,7 @@
 
 use super::{Case, Expect, Matrix, OperatingPoint};
 use crate::sim::Injection;
-use controller_core::drive::{Fault, Mode};
+use controller_core::drive::{Fault, FaultSet, Mode};
 
 /// One row's measurements and verdict.
 #[derive(Clone, Debug, PartialEq)]
@@ -18,6 +18,11 @@ pub struct Outcome {
     pub speed_at_injection_rad_s: f64,
     /// The fault latched first after the injection, and its delay, s.
     pub detected: Option<(Fault, f64)>,
+    /// The encoder's faults first reported as ridden through on the observer after the
+    /// injection (`speed_feedback = "encoder_ride_through"`), and the delay, s.
+    pub reported: Option<(FaultSet, f64)>,
+    /// The speed at the end of the observation, rad/s.
+    pub final_speed_rad_s: f64,
     /// Where the detection bound runs from, after the injection, s: a switch stuck open's
     /// first use (`None`: never within the observation), a short's first period above the
     /// trip level (the injection if never), a current sensor's first period whose reading's
@@ -65,6 +70,10 @@ impl Outcome {
                 format!("{} ≤ {}", names.join("/"), ms(bound_s))
             }
             Expect::RideThrough => "no trip".into(),
+            Expect::Reported { faults, bound_s } => {
+                let names: Vec<String> = faults.iter().map(|f| format!("{f:?}")).collect();
+                format!("no trip, {} reported ≤ {}", names.join("/"), ms(bound_s))
+            }
             Expect::Gap { fault, bound_s, .. } => format!("({fault:?} ≤ {})", ms(bound_s)),
         }
     }
@@ -81,9 +90,10 @@ impl Outcome {
 
     /// What was seen, in words.
     pub fn seen(&self) -> String {
-        let seen = match self.detected {
-            Some((f, t)) => format!("{f:?} after {}", ms(t)),
-            None => format!("none ({:?})", self.final_mode),
+        let seen = match (self.detected, self.reported) {
+            (Some((f, t)), _) => format!("{f:?} after {}", ms(t)),
+            (None, Some((set, t))) => format!("{} reported after {}", names(set), ms(t)),
+            (None, None) => format!("none ({:?})", self.final_mode),
         };
         match (self.case.injection, self.acting_after_s) {
             (Injection::SwitchOpen { .. }, Some(t)) => format!("{seen} (needed from {})", ms(t)),
@@ -98,6 +108,13 @@ impl Outcome {
             _ => seen,
         }
     }
+}
+
+/// The faults of `set`, by name ("A/B").
+pub(super) fn names(set: FaultSet) -> String {
+    let names: Vec<String> =
+        Fault::ALL.iter().filter(|f| set.contains(**f)).map(|f| format!("{f:?}")).collect();
+    names.join("/")
 }
 
 /// A time in milliseconds, as the tables write it.
@@ -167,6 +184,9 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
             "asked": o.asked(),
             "detected": o.detected.map(|(f, _)| format!("{f:?}")),
             "detection_time_s": o.detected.map(|(_, t)| t),
+            "reported": o.reported.map(|(set, _)| names(set)),
+            "report_time_s": o.reported.map(|(_, t)| t),
+            "final_speed_rad_s": o.final_speed_rad_s,
             "settles_at_rad_s": m.approach(&o.at).ok().map(|a| a.final_rad_s),
             "bound_from_s": o.acting_after_s,
             "tripped_before_injection_at_s": o.tripped_before_s,
@@ -230,9 +250,10 @@ pub fn svg(m: &Matrix, rows: &[Outcome]) -> String {
                 _ => "#f2a3a3",
             };
             let x = label_w + cell_w * j as f64;
-            let (line1, line2) = match o.detected {
-                Some((f, t)) => (format!("{f:?}"), ms(t)),
-                None => ("no trip".into(), format!("{:?}", o.final_mode)),
+            let (line1, line2) = match (o.detected, o.reported) {
+                (Some((f, t)), _) => (format!("{f:?}"), ms(t)),
+                (None, Some((set, t))) => (format!("{} reported", names(set)), ms(t)),
+                (None, None) => ("no trip".into(), format!("{:?}", o.final_mode)),
             };
             s.push_str(&format!(
                 "<rect x=\"{x}\" y=\"{y}\" width=\"{}\" height=\"{}\" fill=\"{fill}\" stroke=\"white\"/>\n\

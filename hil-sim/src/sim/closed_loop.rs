@@ -296,6 +296,7 @@ pub fn run(
                 i_q_ref_a: f64::from(telemetry.i_q_ref_a),
                 load_nm: load,
                 mode: Some(out.mode),
+                ridden_through: drive.ridden_through(),
                 duty: match out.phases {
                     PhaseCommand::Off => None,
                     PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),

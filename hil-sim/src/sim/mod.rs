@@ -19,7 +19,7 @@
 use crate::bridge_fault::{Comparator, PhaseShort, SwitchShort};
 use crate::inverter::InverterModel;
 use crate::sensors::SensorModel;
-use controller_core::drive::{Drive, FastOutput, Measurements, Mode, Reference, Telemetry};
+use controller_core::drive::{Drive, FastOutput, FaultSet, Measurements, Mode, Reference, Telemetry};
 use controller_core::motor::MotorParams;
 use plant::MachineState;
 
@@ -70,6 +70,11 @@ pub trait DriveUnderTest {
     fn finished(&self) -> bool {
         false
     }
+    /// [`Drive::ridden_through`]: the encoder's faults the drive carried on through (asked
+    /// only for the trace's rows; empty where the drive does not say: over the link).
+    fn ridden_through(&self) -> FaultSet {
+        FaultSet::EMPTY
+    }
 }
 
 impl DriveUnderTest for Drive {
@@ -98,6 +103,10 @@ impl DriveUnderTest for Drive {
 
     fn telemetry(&self) -> Telemetry {
         Drive::telemetry(self)
+    }
+
+    fn ridden_through(&self) -> FaultSet {
+        Drive::ridden_through(self)
     }
 
     fn hardware_break(&mut self) -> Result<(), String> {
@@ -367,6 +376,9 @@ pub struct Row {
     pub load_nm: f64,
     /// The drive's mode after this period's step (`None` in open-loop runs).
     pub mode: Option<Mode>,
+    /// The encoder's faults the drive rode through on its observer since its enable
+    /// ([`Drive::ridden_through`]: still reported, not tripped on; empty in open-loop runs).
+    pub ridden_through: FaultSet,
     /// Duties the drive decided for the next period (`None`: bridge off).
     pub duty: Option<[f64; 3]>,
     /// DC-bus voltage, V.

@@ -11,7 +11,7 @@ use super::{
 };
 use crate::capture::CaptureState;
 use crate::commission::{CommissionOutput, CommissionSpec};
-use crate::drive::{FastOutput, Measurements, Mode, Telemetry};
+use crate::drive::{FastOutput, FaultSet, Measurements, Mode, Telemetry};
 
 impl Command {
     /// Serialise into `buf` (at most [`MAX_PAYLOAD`](crate::link::MAX_PAYLOAD) bytes). Returns the
@@ -212,9 +212,10 @@ impl Reply {
                 w.u8(*chunk)?;
                 w.bytes(bytes)?;
             }
-            Reply::Status { mode, frames_ok, frame_errors, timing, readings } => {
+            Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, readings } => {
                 w.u8(tag::STATUS)?;
                 w.u8(mode.code())?;
+                w.u32(ridden_through.0)?;
                 w.bytes(&frames_ok.to_le_bytes())?;
                 w.bytes(&frame_errors.to_le_bytes())?;
                 w.u32(timing.cycles_max)?;
@@ -290,6 +291,7 @@ impl Reply {
             },
             tag::STATUS => Reply::Status {
                 mode: Mode::from_code(r.u8()?).ok_or(DecodeError::Value)?,
+                ridden_through: FaultSet(r.u32()?),
                 frames_ok: u32::from_le_bytes(r.take()?),
                 frame_errors: u32::from_le_bytes(r.take()?),
                 timing: LoopTiming { cycles_max: r.u32()?, overruns: r.u32()?, stack_bytes: r.u32()? },

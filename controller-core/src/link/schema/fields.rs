@@ -175,6 +175,7 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
     w.u8(match s.speed_feedback {
         SpeedFeedback::Encoder => 0,
         SpeedFeedback::Sensorless => 1,
+        SpeedFeedback::EncoderRideThrough => 2,
     })
 }
 
@@ -236,6 +237,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
     let speed_feedback = match r.u8()? {
         0 => SpeedFeedback::Encoder,
         1 => SpeedFeedback::Sensorless,
+        2 => SpeedFeedback::EncoderRideThrough,
         _ => return Err(DecodeError::Value),
     };
     Ok(DriveSpec {

@@ -9,7 +9,7 @@
 use super::framing::{BufferFull, MAX_PAYLOAD, encode_frame};
 use crate::capture::{CHUNK_BYTES, CaptureSpec, CaptureState};
 use crate::commission::{CommissionOutput, CommissionSpec, RECORD_BYTES, Record};
-use crate::drive::{DriveSpec, FastOutput, Measurements, Mode, Reference, Telemetry};
+use crate::drive::{DriveSpec, FastOutput, FaultSet, Measurements, Mode, Reference, Telemetry};
 use crate::frames::{Abc, AlphaBeta};
 
 mod codec;
@@ -265,6 +265,10 @@ pub enum Reply {
     Status {
         /// Drive mode.
         mode: Mode,
+        /// The encoder's faults the drive rode through on its observer since its last enable
+        /// ([`Drive::ridden_through`](crate::drive::Drive::ridden_through)): it runs on,
+        /// without the encoder.
+        ridden_through: FaultSet,
         /// Frames accepted by the drive.
         frames_ok: u32,
         /// Frames the drive rejected.
