@@ -1293,20 +1293,26 @@ fn write(
     let float = |x: f64| Value::from(x);
     let pair = |p: [f64; 2]| Value::Array(p.into_iter().map(float).collect::<Array>());
     let m = &spec.motor;
-    let mut motor = vec![
-        ("rs_ohm", float(m.rs_ohm())),
-        ("rr_ohm", float(m.rr_ohm())),
-        ("ls_h", float(m.ls_h())),
-        ("lr_h", float(m.lr_h())),
-        ("lm_h", float(m.lm_h())),
-        ("j_kgm2", float(m.j_kgm2())),
-        ("b_nms", float(m.b_nms())),
-    ];
+    // The tuned motor is linear (`MotorParams`), written in the T form unless it has no
+    // rotor leakage (the inverse-Γ form: L_r = L_m) or no stator leakage (the Γ form:
+    // L_s = L_m), which the T form refuses; the keys of the other forms, and the saturation
+    // the linear model does not take, go.
+    let (form, leakage_h, gone) = if m.lr_h() == m.lm_h() {
+        (Some("inverse_gamma"), m.ls_h() - m.lm_h(), ["ls_h", "lr_h", "saturation"])
+    } else if m.ls_h() == m.lm_h() {
+        (Some("gamma"), m.lr_h() - m.lm_h(), ["ls_h", "lr_h", "saturation"])
+    } else {
+        (None, 0.0, ["form", "l_sigma_h", "saturation"])
+    };
+    let mut motor = vec![("rs_ohm", float(m.rs_ohm())), ("rr_ohm", float(m.rr_ohm()))];
+    match form {
+        Some(f) => motor.extend([("form", Value::from(f)), ("l_sigma_h", float(leakage_h))]),
+        None => motor.extend([("ls_h", float(m.ls_h())), ("lr_h", float(m.lr_h()))]),
+    }
+    motor.extend([("lm_h", float(m.lm_h())), ("j_kgm2", float(m.j_kgm2())), ("b_nms", float(m.b_nms()))]);
     motor.push(("pole_pairs", Value::from(i64::from(m.pole_pairs()))));
-    // The tuned motor is written in the T form (`MotorParams`, linear): another form's keys,
-    // and the saturation the T form does not take, go.
     if let Some(t) = doc.get_mut("motor").and_then(|t| t.as_table_like_mut()) {
-        for key in ["form", "l_sigma_h", "saturation"] {
+        for key in gone {
             if let Some(old) = t.remove(key) {
                 let old = old.as_value().map_or_else(|| "a table".to_string(), bare);
                 changes.push(format!("motor.{key}: {old} → (removed)"));
@@ -2138,6 +2144,34 @@ mod tests {
         spec.current_law = t.spec.current_law;
         assert_eq!(spec.current_frame, CurrentFrame::Stationary);
         assert!(!certify_current(&spec, &cert).unwrap().iter().all(|c| c.pass));
+    }
+
+    /// A motor without rotor leakage (inverse-Γ, L_r = L_m) or without stator leakage (Γ,
+    /// L_s = L_m) is written back in its own form: in the T form the tuned file refused
+    /// itself ("L_m = 0.224 H must be below lr_h = 0.224 H") and tune wrote nothing — found
+    /// tuning motulator's 2.2-kW machine from motors/motulator-2kw.toml.
+    #[test]
+    fn a_motor_without_one_leakage_is_written_in_its_own_form() {
+        let inverse_gamma = "[motor]\nform = \"inverse_gamma\"\nrs_ohm = 16.2\nrr_ohm = 22.0\nlm_h = 1.34\n\
+                             l_sigma_h = 0.1\npole_pairs = 1\nj_kgm2 = 0.005\nb_nms = 0.0005\n";
+        let gamma = "[motor]\nform = \"gamma\"\nrs_ohm = 16.2\nrr_ohm = 24.0\nlm_h = 1.44\nl_sigma_h = 0.1\n\
+                     pole_pairs = 1\nj_kgm2 = 0.005\nb_nms = 0.0005\n";
+        for (text, form) in [(inverse_gamma, "inverse_gamma"), (gamma, "gamma")] {
+            let m = drive_file::motor::parse(Path::new("m.toml"), text).unwrap();
+            let t = tune(Path::new("drive.toml"), TEMPLATE, &m, None, Structure::default()).unwrap();
+            assert!(t.text.contains(&format!("form = \"{form}\"")), "{}", t.text);
+            let written = drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap().spec.motor;
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs();
+            for (a, b) in [
+                (written.ls_h(), m.ls_h()),
+                (written.lr_h(), m.lr_h()),
+                (written.lm_h(), m.lm_h()),
+                (written.rr_ohm(), m.rr_ohm()),
+                (written.rs_ohm(), m.rs_ohm()),
+            ] {
+                assert!(close(a, b), "{form}: {a} against {b}");
+            }
+        }
     }
 
     #[test]

@@ -724,6 +724,12 @@ impl Drive {
         self.sync();
     }
 
+    /// The observer's speed estimate at the last step, mechanical rad/s (`None` without an
+    /// observer: an encoder drive). With the bridge off, the last one before it went off.
+    pub fn observed_speed_rad_s(&self) -> Option<f32> {
+        self.cfg.source.observer().map(|_| self.fast.run.estimate.omega_m_rad_s)
+    }
+
     /// The encoder's faults the drive rode through on the observer since the last enable
     /// ([`SpeedFeedback::EncoderRideThrough`]): the faults it would have tripped on, which
     /// the user must still hear of — the encoder is broken, the drive runs without it.
