@@ -191,6 +191,12 @@ pub struct IfocState {
 }
 
 impl IfocState {
+    /// The flux model starts again from an unmagnetized rotor (a flying start: the flux it
+    /// built on a field that stood still is not the turning rotor's).
+    pub fn forget_flux(&mut self) {
+        self.psi_r_wb = 0.0;
+    }
+
     /// Field (rotor-flux) angle θ_e for the next fast step ([`FieldSteps::theta_e_rad`]).
     pub fn theta_e_rad(&self) -> f32 {
         self.f.theta_e_rad()

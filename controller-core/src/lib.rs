@@ -32,5 +32,6 @@ pub mod raw;
 pub mod scaling;
 pub mod selftest;
 pub mod speed;
+pub mod speed_search;
 pub mod supervisor;
 pub mod svpwm;

@@ -403,6 +403,19 @@ impl FluxObserver {
         self.estimate(cfg)
     }
 
+    /// The voltage model's step over one interval, `(u − R_s·i)·T` on the stator resistance
+    /// in use (Wb): what the flying start's search sums ([`crate::speed_search`]).
+    pub fn voltage_model_step(&self, cfg: &ObserverConfig, u: AlphaBeta, i: AlphaBeta) -> AlphaBeta {
+        let (rs_ohm, t) = (cfg.rs_ohm * self.scales.rs, cfg.ts_s);
+        AlphaBeta { alpha: (u.alpha - rs_ohm * i.alpha) * t, beta: (u.beta - rs_ohm * i.beta) * t }
+    }
+
+    /// Start again from an unmagnetized machine at rest, on the same estimates and from the
+    /// same current (a flying start, once the rotor's speed is known).
+    pub fn restart(&mut self) {
+        *self = Self { scales: self.scales, i_last: self.i_last, ..Self::default() };
+    }
+
     /// The estimate now.
     pub fn estimate(&self, cfg: &ObserverConfig) -> Estimate {
         let l_sigma_h = cfg.l_sigma_h * self.scales.l;

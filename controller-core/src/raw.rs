@@ -13,7 +13,7 @@
 /// Floats in a raw drive configuration.
 pub const FLOATS: usize = 83;
 /// Integers in a raw drive configuration.
-pub const INTEGERS: usize = 19;
+pub const INTEGERS: usize = 21;
 
 /// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
 /// expression: what the firmware's build script writes.

@@ -89,6 +89,12 @@ crate::raw::raw_struct! {
         pub(super) saturation_steps: u32,
         /// Slow periods of implausible encoder before the trip.
         pub(super) encoder_check_steps: u32,
+        /// Sensorless: the flying start's search, slow steps at the start of magnetizing
+        /// (one `T_r`, at least [`SEARCH_WINDOWS_MIN`] windows; 0 with an encoder) and the
+        /// slow steps of its window (the most that keep the field's turn per window within
+        /// [`SEARCH_TURN_MAX_RAD`] at the overspeed level).
+        pub(super) search_slow_steps: u32,
+        pub(super) search_span: u32,
         /// Slow steps a controlled stop may take before the bridge goes off anyway.
         pub(super) stop_slow_steps: u32,
         /// Slow steps of the open-phase check's window (it samples the currents once per slow
@@ -215,6 +221,25 @@ impl raw::Field for FaultSet {
     }
 }
 
+/// The flying start's search spans at least this many windows (the fit needs three; more
+/// average the sensors' noise on a motor whose `T_r` is a few slow periods).
+pub const SEARCH_WINDOWS_MIN: u32 = 6;
+/// The most the field may turn in one window of the flying start's search at the overspeed
+/// level, rad: the fit's angle is told apart from its alias up to π; half of it leaves the
+/// margin. Windows of several slow periods average the current sensors' noise — on one slow
+/// period (0.5 ms) drive.toml's rotor at 344 rad/s read 319 with 10 mA of noise, 351 without;
+/// on four, 352 with it.
+pub const SEARCH_TURN_MAX_RAD: f64 = core::f64::consts::FRAC_PI_2;
+
+/// The flying start's search tells a turning rotor from one at rest once the field turns
+/// this much over the transient's time constant `T_r`, rad (`|ω_e|·T_r`): below it the
+/// transient hardly turns before it decays, and the sensors' noise decides — drive.toml's
+/// rotor at rest read up to 0.9 rad per `T_r` (13.6 rad/s, `T_r` 65 ms) with the realistic
+/// sensors. Slower than that the rotor is magnetized as at rest (its flux still builds to
+/// `1/√(1 + 2²)` of the target at the least, and the observer's adaptation takes it from
+/// there).
+pub const SEARCH_RESOLVED_TURN_RAD: f32 = 2.0;
+
 /// What a thermal limit needs ([`crate::supervisor::thermal::ThermalConfig::new`]).
 const THERMAL_NEED: &str =
     "needs rated_current_a > 0, time_constant_s > 0 and 1 ≤ overload_factor ≤ 10, finite";
@@ -312,6 +337,10 @@ impl DriveConfig {
             return Err(DriveError::VoltageMargin);
         }
         let t_slow = ts * f64::from(spec.slow_divider);
+        // The flying start's window: the most slow periods in which the field turns at most
+        // SEARCH_TURN_MAX_RAD at the overspeed level (electrical), at least one.
+        let w_e_max = f64::from(spec.motor.pole_pairs()) * spec.protection.overspeed_rad_s;
+        let search_span = libm::floor(SEARCH_TURN_MAX_RAD / (w_e_max * t_slow)).clamp(1.0, 64.0) as u32;
         let trim_bw = spec.current_trim_bandwidth_rad_s;
         if !(trim_bw >= 0.0 && trim_bw * t_slow < 0.1) {
             return Err(DriveError::CurrentTrim);
@@ -405,6 +434,13 @@ impl DriveConfig {
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                 .clamp(1.0, 4e9) as u32,
+            search_span,
+            search_slow_steps: match spec.speed_feedback {
+                SpeedFeedback::Sensorless => libm::ceil(spec.motor.tr_s() / t_slow)
+                    .max(f64::from((SEARCH_WINDOWS_MIN + 1) * search_span))
+                    .min(4e9) as u32,
+                SpeedFeedback::Encoder | SpeedFeedback::EncoderRideThrough => 0,
+            },
             // Finite in f32 too.
             encoder_jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
             motor_thermal: ThermalConfig::new(p.motor_thermal.as_ref(), t_slow)

@@ -149,9 +149,16 @@ impl FastState {
         self.run.v_interval = self.run.last.v_ab;
         let e = if self.mode == Mode::Running {
             self.run.observer.step(o, u, i)
+        } else if on_observer {
+            // The flying start's search sums the voltage model while the field stands still.
+            let d = self.run.observer.voltage_model_step(o, u, i);
+            self.run.search_psi = AlphaBeta {
+                alpha: self.run.search_psi.alpha + d.alpha,
+                beta: self.run.search_psi.beta + d.beta,
+            };
+            self.run.observer.step_known_speed(o, u, i, self.run.known_speed_rad_s)
         } else {
-            let known_rad_s = if on_observer { 0.0 } else { m.omega_m_rad_s };
-            self.run.observer.step_known_speed(o, u, i, known_rad_s)
+            self.run.observer.step_known_speed(o, u, i, m.omega_m_rad_s)
         };
         self.run.estimate = e;
         // The slow step samples the speed once per slow period: it reads the mean of the

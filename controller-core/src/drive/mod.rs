@@ -74,7 +74,10 @@ pub use crate::supervisor::phases::{
 };
 pub use crate::supervisor::thermal::THERMAL_UPDATE_SLOW_STEPS;
 pub use crate::supervisor::{BrakeChopper, Protection, ThermalLimit};
-pub use config::{DriveConfig, observer_speed_bandwidth_rad_s};
+pub use config::{
+    DriveConfig, SEARCH_RESOLVED_TURN_RAD, SEARCH_TURN_MAX_RAD, SEARCH_WINDOWS_MIN,
+    observer_speed_bandwidth_rad_s,
+};
 pub use spec::*;
 
 use crate::calibration::IdleZero;
@@ -89,6 +92,7 @@ use crate::mras::RotorFit;
 use crate::num::Scalar;
 use crate::observer::{Estimate, FluxObserver};
 use crate::speed::SpeedState;
+use crate::speed_search::SpeedSearch;
 use crate::supervisor::encoder::{EncoderTrack, VoltageCheck};
 use crate::supervisor::motion::MotionChecks;
 use crate::supervisor::phases::{OpenPhaseWindow, SwitchWatch};
@@ -196,6 +200,12 @@ struct FastRun {
     /// Ride-through: the encoder's fault was ridden through, the speed and the field are the
     /// observer's (the slow side's [`SlowState::ridden_through`], adopted with its plan).
     on_observer: bool,
+    /// Sensorless, magnetizing: the voltage model's `∫(u − R_s·i)dt` since the last slow
+    /// step (the flying start's search, [`crate::speed_search`]), Wb.
+    search_psi: AlphaBeta,
+    /// Sensorless, magnetizing: the rotor's speed the search found, mechanical rad/s (0: at
+    /// rest, or not yet known) — adopted from the slow side's plan.
+    known_speed_rad_s: f32,
 }
 
 /// What the slow step reads of the fast side, latched at its tick ([`FastState::latch`]).
@@ -216,6 +226,8 @@ struct SlowInputs {
     /// Sensorless and Running: the observer's rotor-flux angle at the tick, rad (the field
     /// is anchored on it).
     field_rad: Option<f32>,
+    /// Sensorless, magnetizing: the voltage model's change since the last tick, Wb.
+    search_psi: AlphaBeta,
 }
 
 /// The fast step right after the slow step, as the once-per-slow-period checks read it
@@ -345,6 +357,11 @@ struct SlowRun {
     /// How far the plan made last moved the current references, `|Δi*|`, A (the loops'
     /// reaction to it is in the voltage the after-slow checks read).
     i_ref_step_a: f32,
+    /// Sensorless: the flying start's search ([`crate::speed_search`]), its slow steps left
+    /// (0: done), and the rotor's speed it found, mechanical rad/s (0: at rest).
+    search: SpeedSearch,
+    search_left: u32,
+    known_speed_rad_s: f32,
 }
 
 impl SlowRun {
@@ -384,6 +401,9 @@ impl SlowRun {
             envelope_age: 0,
             i_ref_step_a: 0.0,
             trim: Dq::default(),
+            search: SpeedSearch::default(),
+            search_left: cfg.search_slow_steps,
+            known_speed_rad_s: 0.0,
         }
     }
 }
@@ -400,6 +420,7 @@ impl FastState {
         let r = &mut self.run;
         let inputs = SlowInputs {
             field_rad,
+            search_psi: r.search_psi,
             m: *m,
             mode: self.mode,
             sums: r.field.take_sums(),
@@ -410,6 +431,7 @@ impl FastState {
             test_angle_rad: r.test_angle_rad,
         };
         (r.v_req2_sum, r.v_req_steps, r.v_d_sum, r.trim_hold) = (0.0, 0, 0.0, false);
+        r.search_psi = AlphaBeta::default();
         inputs
     }
 
@@ -430,6 +452,11 @@ impl FastState {
         );
         (self.run.delay_rotation, self.run.trim) = (s.run.delay_rotation, s.run.trim);
         self.run.on_observer = s.ridden_through != FaultSet::EMPTY;
+        if s.run.known_speed_rad_s != self.run.known_speed_rad_s {
+            // The search found the rotor turning: the observer starts again on its speed.
+            self.run.known_speed_rad_s = s.run.known_speed_rad_s;
+            self.run.observer.restart();
+        }
     }
 
     /// Latch fault `f` (the first fault stays latched: a controlled stop's, if one is under

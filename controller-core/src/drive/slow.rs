@@ -208,6 +208,9 @@ impl SlowState {
         self.run.torque_max_nm = op.torque_max_nm;
         self.run.torque_cmd = TorqueCommand::TorqueNm(torque_nm.limit(-torque_now_nm, torque_now_nm));
         if !running {
+            if self.run.search_left > 0 {
+                self.search(cfg, inputs);
+            }
             // The rotor resistance and the inductance from the building flux
             // ([`MrasConfig::fit`]).
             let l_now = self.run.ifoc.inductance_scale();
@@ -231,6 +234,7 @@ impl SlowState {
             } else if self.run.ifoc.psi_r_wb()
                 >= cfg.magnetized_fraction * self.run.ifoc.flux_of(self.run.flux.i_d_a())
                 && !cfg.mras.fit_pending(&self.run.rotor_fit)
+                && self.run.search_left == 0
             {
                 // The flux model runs on the measured current: the motor is magnetized.
                 self.mode = Mode::Running;
@@ -265,6 +269,33 @@ impl SlowState {
             self.encoder_fault(cfg, Fault::EncoderLoss);
         }
         step
+    }
+
+    /// Sensorless, the first slow steps of magnetizing: the flying start's search
+    /// ([`crate::speed_search`]) — the voltage model's change per slow step while the field
+    /// stands still; at its end, a rotor found turning by [`SEARCH_RESOLVED_TURN_RAD`] or
+    /// more per `T_r` is magnetized on its speed (the field turns with it, the observer
+    /// starts again on it), the flux model starting again from zero (what it built on the
+    /// standing field is not the turning rotor's flux); slower, it is taken at rest, as
+    /// before the search.
+    #[cold]
+    #[inline(never)]
+    fn search(&mut self, cfg: &DriveConfig, inputs: &SlowInputs) {
+        let Some(o) = cfg.source.observer() else { return };
+        let l_sigma_h = o.l_sigma_h() * self.run.ifoc.inductance_scale();
+        self.run.search.step(inputs.search_psi, inputs.m.i_abc_a.clarke(), l_sigma_h, cfg.search_span);
+        self.run.search_left -= 1;
+        if self.run.search_left > 0 {
+            return;
+        }
+        let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.search_span as f32;
+        let w_e = self.run.search.electrical_speed_rad_s(window_s).unwrap_or(0.0);
+        let w_m = w_e / cfg.envelope.pole_pairs();
+        if w_e.abs() >= SEARCH_RESOLVED_TURN_RAD * o.alpha_per_s() {
+            self.run.known_speed_rad_s = w_m;
+            self.run.ifoc.forget_flux();
+            self.run.magnetizing_steps = 0;
+        }
     }
 
     /// The encoder's fault `f`: ridden through on the observer where the drive has one beside

@@ -267,7 +267,7 @@ fn raw_configuration_round_trips() {
     bad.u[1] = 7; // the current frame's tag
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 12] = 0; // the slow divider
+    bad.u[raw::INTEGERS - 14] = 0; // the slow divider
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
     bad.u[raw::INTEGERS - 3] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
