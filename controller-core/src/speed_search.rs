@@ -57,10 +57,16 @@ fn times_conj(a: AlphaBeta, b: AlphaBeta) -> AlphaBeta {
 impl SpeedSearch {
     /// One slow step: `dpsi_s`, the voltage model's `∫(u_s − R_s·i_s)dt` over it (Wb), the
     /// current `i_now` at its end (A), the leakage `l_sigma_h` (H); a window is `span` slow
-    /// steps. The first slow step only sets the current the first window starts from.
+    /// steps. The first window is not used — it holds the current's rise from zero, whose
+    /// `L_σ·Δi` is as wrong as the leakage estimate (drive.toml's campaign corner with
+    /// L × 0.6 read a rotor at rest as turning) — it sets the current the next starts from.
     pub fn step(&mut self, dpsi_s: AlphaBeta, i_now: AlphaBeta, l_sigma_h: f32, span: u32) {
         if self.i_last.is_none() {
-            self.i_last = Some(i_now);
+            self.pending_steps += 1;
+            if self.pending_steps >= span {
+                self.pending_steps = 0;
+                self.i_last = Some(i_now);
+            }
             return;
         }
         self.pending =

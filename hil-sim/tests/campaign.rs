@@ -281,3 +281,18 @@ fn the_prediction_agrees_with_the_campaign_on_the_speed_requirements() {
         }
     }
 }
+
+/// The sensorless drive's flying-start search at rest (issue 53): the campaign's corner run
+/// 4 — a hot stator (R_s × 1.5) and a small inductance (L × 0.6), the rotor at rest — was
+/// read as turning when the search used the window of the current's rise from zero (its
+/// `L_σ·Δi` 40 % off), magnetized on that speed and tripped `FollowingError` at the start.
+/// The search now leaves that window out; the run ends Running and passes.
+#[test]
+fn the_sensorless_search_does_not_read_a_rotor_at_rest_as_turning() {
+    let mut c = shipped(1000);
+    c.spec.speed_feedback = controller_core::drive::SpeedFeedback::Sensorless;
+    let v = c.run_one(4, &AtomicBool::new(false)).unwrap();
+    eprintln!("run 4 ({:?}): {:?}, failures {:?}", v.sample, v.mode, v.failures);
+    assert_eq!(v.mode, controller_core::drive::Mode::Running);
+    assert!(v.passed(), "{:?}", v.failures);
+}
