@@ -18,8 +18,8 @@
 //! constant vectors with the current held. So `d_{k+1} = z·d_k + (1 − z)·b` exactly, and the
 //! least-squares fit of that line over the search (its intercept takes `b`) gives `z`, whose
 //! phase is `ω_m·T_slow`: `Σ(d_{k+1} − m₁)(d_k − m₀)*`, `m` the means, one `atan2` at the end.
-//! Without the intercept (the plain lag-one correlation) `|b|²` pulled the angle towards zero:
-//! a rotor at 344 rad/s read 319 on the switching inverter. A rotor at rest gives a transient
+//! Without the intercept (the plain lag-one correlation) `|b|²`, real and positive, pulls the
+//! angle towards zero as the transient decays. A rotor at rest gives a transient
 //! that does not turn: zero. The angle per slow period must stay within ±π (the drive's
 //! overspeed level keeps it within a tenth of that: [`crate::observer::ObserverConfig::new`]'s
 //! correction bound); the search lasts one `T_r` (`DriveConfig`'s `search_slow_steps`), the

@@ -226,16 +226,16 @@ impl raw::Field for FaultSet {
 pub const SEARCH_WINDOWS_MIN: u32 = 6;
 /// The most the field may turn in one window of the flying start's search at the overspeed
 /// level, rad: the fit's angle is told apart from its alias up to π; half of it leaves the
-/// margin. Windows of several slow periods average the current sensors' noise — on one slow
-/// period (0.5 ms) drive.toml's rotor at 344 rad/s read 319 with 10 mA of noise, 351 without;
-/// on four, 352 with it.
+/// margin. Windows of several slow periods average the current sensors' noise, which on
+/// windows of one slow period moved drive.toml's reading of a rotor at 1.8 × base speed by
+/// several percent (found trying the flying start).
 pub const SEARCH_TURN_MAX_RAD: f64 = core::f64::consts::FRAC_PI_2;
 
 /// The flying start's search tells a turning rotor from one at rest once the field turns
 /// this much over the transient's time constant `T_r`, rad (`|ω_e|·T_r`): below it the
-/// transient hardly turns before it decays, and the sensors' noise decides — drive.toml's
-/// rotor at rest read up to 0.9 rad per `T_r` (13.6 rad/s, `T_r` 65 ms) with the realistic
-/// sensors. Slower than that the rotor is magnetized as at rest (its flux still builds to
+/// transient hardly turns before it decays, and the sensors' noise decides — with the
+/// realistic sensors drive.toml's rotor at rest read as turning about a radian per `T_r`
+/// (found trying: every sensorless run starts with the search). Slower than that the rotor is magnetized as at rest (its flux still builds to
 /// `1/√(1 + 2²)` of the target at the least, and the observer's adaptation takes it from
 /// there).
 pub const SEARCH_RESOLVED_TURN_RAD: f32 = 2.0;
