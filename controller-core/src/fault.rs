@@ -173,6 +173,11 @@ impl FaultSet {
     pub const fn with(self, f: Fault) -> Self {
         Self(self.0 | f.bit())
     }
+
+    /// The faults in the set, in bit order.
+    pub fn faults(self) -> impl Iterator<Item = Fault> {
+        Fault::ALL.into_iter().filter(move |f| self.contains(*f))
+    }
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 //! One command, one reply. The board also streams `Output` telemetry on its own; a reply to
 //! anything but `Step` therefore skips `Output` frames ([`LinkClient::transact`]).
 
-use controller_core::drive::{Fault, FaultSet};
+use controller_core::drive::FaultSet;
 use controller_core::link::{self, Command, FrameDecoder, LinkStats, MAX_FRAME, Reply};
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -123,8 +123,7 @@ pub fn format_status(r: &Reply, file: &drive_file::DriveFile) -> Option<String> 
     };
     let mut s = format!("mode          {mode:?}\n");
     if *ridden_through != FaultSet::EMPTY {
-        let names: Vec<String> =
-            Fault::ALL.iter().filter(|f| ridden_through.contains(**f)).map(|f| format!("{f:?}")).collect();
+        let names: Vec<String> = ridden_through.faults().map(|f| format!("{f:?}")).collect();
         s += &format!(
             "ridden through {} — running on the observer, the encoder is not read\n",
             names.join(", ")
@@ -177,6 +176,7 @@ pub fn format_status(r: &Reply, file: &drive_file::DriveFile) -> Option<String> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use controller_core::drive::Fault;
 
     /// The shipped board's scalings: the calibration's zero reads 0 A, 3 100 counts 310 V, a
     /// 3 400-cycle step 20.0 µs of the 50 µs period.

@@ -12,39 +12,8 @@
 //! motulator's.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic)]
 
-use controller_core::drive::{Drive, DriveConfig, FastOutput, Measurements, Mode, Reference, Telemetry};
 use hil_sim::scenario_file::{ScenarioFileKind, load};
-use hil_sim::sim::DriveUnderTest;
 use std::path::Path;
-
-/// The drive, its speed estimate logged at every step.
-struct Logged {
-    drive: Drive,
-    estimates: Vec<f64>,
-}
-
-impl DriveUnderTest for Logged {
-    fn slow_divider(&self) -> u16 {
-        self.drive.config().slow_divider()
-    }
-    fn enable(&mut self) -> Result<(), String> {
-        DriveUnderTest::enable(&mut self.drive)
-    }
-    fn set_reference(&mut self, r: Reference) -> Result<(), String> {
-        DriveUnderTest::set_reference(&mut self.drive, r)
-    }
-    fn controlled_stop(&mut self) -> Result<(), String> {
-        DriveUnderTest::controlled_stop(&mut self.drive)
-    }
-    fn step(&mut self, m: &Measurements) -> FastOutput {
-        let out = self.drive.step(m);
-        self.estimates.push(f64::from(self.drive.observed_speed_rad_s().unwrap()));
-        out
-    }
-    fn telemetry(&self) -> Telemetry {
-        self.drive.telemetry()
-    }
-}
 
 /// Where the manoeuvre starts in the scenario, s (the drive magnetized: the file's comment).
 const MANOEUVRE_START_S: f64 = 0.5;
@@ -62,23 +31,15 @@ fn the_speed_estimate_is_no_worse_than_motulators_on_its_own_example() {
         panic!("a closed-loop scenario")
     };
     b.scenario.trace_every = 1;
-    let mut dut = Logged { drive: Drive::new(DriveConfig::new(&b.spec).unwrap()), estimates: Vec::new() };
-    let mut rows = Vec::new();
-    b.simulate(
-        &mut dut,
-        |_| {},
-        |r| {
-            rows.push((r.t_s, r.x.omega_m_rad_s, r.mode));
-            Ok(())
-        },
-    )
-    .unwrap();
-    assert_eq!(rows.len(), dut.estimates.len());
-    assert!(rows.iter().all(|r| r.2 != Some(Mode::Fault(controller_core::drive::Fault::Overcurrent))));
-    assert_eq!(rows.last().unwrap().2, Some(Mode::Running));
+    let (trace, mode) = b.run(|_| {}).unwrap();
+    // (time, the rotor's speed, the drive's estimate, the mode) at every PWM period.
+    let rows: Vec<_> =
+        trace.iter().map(|r| (r.t_s, r.x.omega_m_rad_s, r.omega_est_rad_s.unwrap(), r.mode)).collect();
+    assert!(rows.iter().all(|r| !matches!(r.3, Some(controller_core::drive::Mode::Fault(_)))));
+    assert_eq!(mode, controller_core::drive::Mode::Running);
     let start = rows.iter().position(|r| r.0 >= MANOEUVRE_START_S).unwrap();
-    assert_eq!(rows[start].2, Some(Mode::Running), "magnetized before the manoeuvre");
-    let errors: Vec<f64> = rows[start..].iter().zip(&dut.estimates[start..]).map(|(r, e)| e - r.1).collect();
+    assert_eq!(rows[start].3, Some(controller_core::drive::Mode::Running), "magnetized before the manoeuvre");
+    let errors: Vec<f64> = rows[start..].iter().map(|r| r.2 - r.1).collect();
     let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
     let worst = errors.iter().fold(0.0f64, |w, e| w.max(e.abs()));
     let end = rows.last().unwrap().1;

@@ -368,6 +368,28 @@ fn through_zero_speed_under_load_and_regenerating_at_a_tenth_of_base_speed() {
     }
 }
 
+/// drive.toml's `spec` on its motor, realistic sensors: an active load of `load_nm` spins the
+/// rotor up with the bridge off until `end_s` and lets it coast; the drive is enabled at 0.6 s
+/// with the speed reference `reference_rad_s`; the run ends at `duration_s`.
+fn coasting_then_enabled(
+    spec: DriveSpec,
+    load_nm: f64,
+    end_s: f64,
+    reference_rad_s: f64,
+    duration_s: f64,
+) -> Builtin {
+    let loads = [(0.0, load_nm), (end_s, 0.0)];
+    let mut b =
+        scenario(spec, spec.motor, SensorModel::realistic(11), reference_rad_s, &loads, &[(0.0, duration_s)]);
+    for (t, e) in &mut b.scenario.events {
+        if matches!(e, Event::Enable | Event::Reference(_)) {
+            *t = 0.6;
+        }
+    }
+    b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
+    b
+}
+
 /// The flying start's bound (issue 53): an active load spins the rotor up to ≈ 1.8 × base
 /// speed with the bridge off, then lets it coast; the sensorless drive enabled on it finds the
 /// rotor turning (the search of `a_flying_start_catches_the_rotor_both_ways`) and magnetizes
@@ -381,21 +403,7 @@ fn enabled_on_a_spinning_rotor_the_sensorless_drive_trips_safely() {
     spec.speed_feedback = SpeedFeedback::Sensorless;
     // (the load and its end, s; the reference, rad/s; the least |speed| at the enable)
     for (load, end_s, reference, at_least) in [(-4.0, 0.45, 150.0, 300.0), (4.0, 0.26, 0.0, 190.0)] {
-        let mut b = scenario(
-            spec,
-            spec.motor,
-            SensorModel::realistic(11),
-            reference,
-            &[(0.0, load), (end_s, 0.0)],
-            &[(0.0, 1.2)],
-        );
-        for (t, e) in &mut b.scenario.events {
-            if matches!(e, Event::Enable | Event::Reference(_)) {
-                *t = 0.6;
-            }
-        }
-        b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let (rows, mode) = b.run(|_| {}).unwrap();
+        let (rows, mode) = coasting_then_enabled(spec, load, end_s, reference, 1.2).run(|_| {}).unwrap();
         let at_enable = rows.iter().find(|r| r.t_s >= 0.6).unwrap().x.omega_m_rad_s;
         let running = rows.iter().find(|r| r.mode == Some(Mode::Running)).map(|r| r.t_s);
         let tripped = rows.iter().find(|r| matches!(r.mode, Some(Mode::Fault(_)))).map(|r| r.t_s);
@@ -468,9 +476,6 @@ fn a_frozen_encoder_at_speed_is_ridden_through_on_the_observer() {
     let after_s = reported.t_s - freeze_s;
     eprintln!("reported {:?} {:.2} ms after the freeze", reported.ridden_through, 1e3 * after_s);
     assert!(reported.ridden_through.contains(Fault::EncoderLoss), "{:?}", reported.ridden_through);
-    assert!(
-        rows.iter().all(|r| r.t_s < freeze_s || r.t_s >= reported.t_s || r.ridden_through == FaultSet::EMPTY)
-    );
     assert!(after_s <= 2.0 * slow_s + 1e-9, "{after_s}");
     for ((t0, t1), h) in windows.iter().zip(&healthy) {
         let w: Vec<f64> =
@@ -506,21 +511,8 @@ fn a_flying_start_catches_the_rotor_both_ways() {
     spec.speed_feedback = SpeedFeedback::Sensorless;
     for sign in [1.0, -1.0] {
         let reference = sign * BASE_RAD_S;
-        let mut b = scenario(
-            spec,
-            spec.motor,
-            SensorModel::realistic(11),
-            reference,
-            &[(0.0, -4.0 * sign), (0.26, 0.0)],
-            &[(0.0, 1.6)],
-        );
-        for (t, e) in &mut b.scenario.events {
-            if matches!(e, Event::Enable | Event::Reference(_)) {
-                *t = 0.6;
-            }
-        }
-        b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let (rows, mode) = b.run(|_| {}).unwrap();
+        let (rows, mode) =
+            coasting_then_enabled(spec, -4.0 * sign, 0.26, reference, 1.6).run(|_| {}).unwrap();
         let at_enable = rows.iter().find(|r| r.t_s >= 0.6).unwrap().x.omega_m_rad_s;
         let running_s =
             rows.iter().find(|r| r.t_s >= 0.6 && r.mode == Some(Mode::Running)).unwrap().t_s - 0.6;
@@ -539,5 +531,38 @@ fn a_flying_start_catches_the_rotor_both_ways() {
         assert!(running_s < 0.5, "{running_s}");
         assert!(peak < spec.protection.i_trip_a, "{peak}");
         assert!((mean - reference).abs() < 0.02 * BASE_RAD_S, "{mean} for {reference}");
+    }
+}
+
+/// A stated gap (docs/sensorless.md): an encoder that freezes at a low speed is not seen,
+/// with or without the observer beside it. drive.toml at 10 % of base speed under +1.6 N·m
+/// (the P law's droop has the rotor at ≈ −12 rad/s); frozen there at 1.5 s, the encoder's
+/// change per read is below the jump check's level, the field freezes with it (the machine
+/// a DC brake the voltage check cannot tell from a rotor at rest), and the load drives the
+/// rotor backwards far beyond the reference without a fault or a report, until it reverses
+/// at 2.5 s. Pinned so that the check that closes it flips it.
+#[test]
+fn an_encoder_frozen_at_a_low_speed_is_not_seen() {
+    use controller_core::drive::FaultSet;
+    use hil_sim::sim::Injection;
+    for feedback in [SpeedFeedback::Encoder, SpeedFeedback::EncoderRideThrough] {
+        let mut spec = DriveFile::shipped().unwrap().spec;
+        spec.speed_feedback = feedback;
+        let loads = [(1.0, 1.6), (2.5, -1.6)];
+        let mut b =
+            scenario(spec, spec.motor, SensorModel::realistic(11), 0.1 * BASE_RAD_S, &loads, &[(0.0, 2.5)]);
+        b.scenario.events.push((1.5, Event::Fault(Injection::EncoderStuck)));
+        b.scenario.events.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (rows, mode) = b.run(|_| {}).unwrap();
+        let at = |t: f64| rows.iter().find(|r| r.t_s >= t).unwrap().x.omega_m_rad_s;
+        let slowest = rows.iter().map(|r| r.x.omega_m_rad_s).fold(f64::MAX, f64::min);
+        eprintln!(
+            "{feedback:?}: frozen at {:.1} rad/s, the rotor driven to {slowest:.1} rad/s, {mode:?} at the end",
+            at(1.5)
+        );
+        assert!(at(1.5) < -5.0 && at(1.5) > -20.0, "{}", at(1.5));
+        assert_eq!(mode, Mode::Running);
+        assert!(rows.iter().all(|r| r.ridden_through == FaultSet::EMPTY));
+        assert!(slowest < -100.0, "{slowest}");
     }
 }

@@ -112,8 +112,7 @@ impl Outcome {
 
 /// The faults of `set`, by name ("A/B").
 pub(super) fn names(set: FaultSet) -> String {
-    let names: Vec<String> =
-        Fault::ALL.iter().filter(|f| set.contains(**f)).map(|f| format!("{f:?}")).collect();
+    let names: Vec<String> = set.faults().map(|f| format!("{f:?}")).collect();
     names.join("/")
 }
 

@@ -297,6 +297,7 @@ pub fn run(
                 load_nm: load,
                 mode: Some(out.mode),
                 ridden_through: drive.ridden_through(),
+                omega_est_rad_s: drive.observed_speed_rad_s().map(f64::from),
                 duty: match out.phases {
                     PhaseCommand::Off => None,
                     PhaseCommand::Duty(d) => Some([f64::from(d.a), f64::from(d.b), f64::from(d.c)]),

@@ -75,6 +75,11 @@ pub trait DriveUnderTest {
     fn ridden_through(&self) -> FaultSet {
         FaultSet::EMPTY
     }
+    /// [`Drive::observed_speed_rad_s`]: the observer's speed estimate (asked only for the
+    /// trace's rows; `None` without an observer, or where the drive does not say).
+    fn observed_speed_rad_s(&self) -> Option<f32> {
+        None
+    }
 }
 
 impl DriveUnderTest for Drive {
@@ -107,6 +112,10 @@ impl DriveUnderTest for Drive {
 
     fn ridden_through(&self) -> FaultSet {
         Drive::ridden_through(self)
+    }
+
+    fn observed_speed_rad_s(&self) -> Option<f32> {
+        Drive::observed_speed_rad_s(self)
     }
 
     fn hardware_break(&mut self) -> Result<(), String> {
@@ -379,6 +388,9 @@ pub struct Row {
     /// The encoder's faults the drive rode through on its observer since its enable
     /// ([`Drive::ridden_through`]: still reported, not tripped on; empty in open-loop runs).
     pub ridden_through: FaultSet,
+    /// The drive's observer's speed estimate after this period's step, mechanical rad/s
+    /// ([`Drive::observed_speed_rad_s`]; `None` without an observer, and in open-loop runs).
+    pub omega_est_rad_s: Option<f64>,
     /// Duties the drive decided for the next period (`None`: bridge off).
     pub duty: Option<[f64; 3]>,
     /// DC-bus voltage, V.
