@@ -38,6 +38,8 @@ pub enum CommandError {
     /// A position reference needs an encoder: a sensorless drive's position is its estimated
     /// speed's integral, which drifts ([`crate::drive::SpeedFeedback::Sensorless`]).
     NoEncoder,
+    /// V/Hz control takes a speed reference only ([`crate::drive::Control::VHz`]).
+    SpeedOnly,
 }
 
 /// Sampled inputs of one PWM period.

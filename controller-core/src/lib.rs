@@ -35,3 +35,4 @@ pub mod speed;
 pub mod speed_search;
 pub mod supervisor;
 pub mod svpwm;
+pub mod vhz;

@@ -11,9 +11,9 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 83;
+pub const FLOATS: usize = 97;
 /// Integers in a raw drive configuration.
-pub const INTEGERS: usize = 21;
+pub const INTEGERS: usize = 23;
 
 /// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
 /// expression: what the firmware's build script writes.
@@ -126,6 +126,23 @@ impl Field for u32 {
     }
     fn get(r: &mut Reader<'_>) -> Self {
         r.u()
+    }
+}
+
+/// 0 or 1; anything else marks the configuration bad.
+impl Field for bool {
+    fn put(&self, w: &mut Writer) {
+        w.u(u32::from(*self));
+    }
+    fn get(r: &mut Reader<'_>) -> Self {
+        match r.u() {
+            0 => false,
+            1 => true,
+            _ => {
+                r.bad = true;
+                false
+            }
+        }
     }
 }
 

@@ -7,8 +7,8 @@ use crate::values::exact_opt;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::{ContinuousSection, Discretization};
 use controller_core::drive::{
-    BrakeChopper, CurrentFrame, DriveConfig, DriveError, DriveSpec, Fault, FaultSet, PositionLaw, Protection,
-    SpeedFeedback, ThermalLimit,
+    BrakeChopper, Control, CurrentFrame, DriveConfig, DriveError, DriveSpec, Fault, FaultSet, PositionLaw,
+    Protection, SpeedFeedback, ThermalLimit,
 };
 use controller_core::mras::RANGE_RATIO_MAX;
 use controller_core::speed::SpeedLaw;
@@ -51,6 +51,10 @@ pub struct ControllerTable {
     /// beside it carrying the drive on when the encoder fails — docs/sensorless.md).
     #[serde(default)]
     pub speed_feedback: FeedbackTable,
+    /// The control law (default vector control; `{ kind = "vhz" }`: V/Hz —
+    /// docs/sensorless.md).
+    #[serde(default)]
+    pub control: ControlTable,
     /// Speed law.
     pub speed: SpeedTable,
     /// Position loop (default 10 1/s, 100 rad/s).
@@ -150,6 +154,36 @@ pub enum CurrentTable {
         /// V/(A·s).
         ki: f64,
     },
+}
+
+/// `controller.control`.
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ControlTable {
+    /// Field-oriented vector control.
+    #[default]
+    Vector,
+    /// V/Hz with stator-current feedback.
+    Vhz {
+        /// The frequency reference's ramp, mechanical rad/s² (default
+        /// [`controller_core::vhz::default_ramp_rad_s2`]: half the drive's torque on the
+        /// motor file's inertia).
+        ramp_rad_s2: Option<f64>,
+        /// The current feedback's gain (default [`controller_core::vhz::K_U`], the paper's).
+        #[serde(default = "default_k_u")]
+        k_u: f64,
+        /// The frequency feedback's gain (default [`controller_core::vhz::K_W`], the paper's).
+        #[serde(default = "default_k_w")]
+        k_w: f64,
+    },
+}
+
+fn default_k_u() -> f64 {
+    controller_core::vhz::K_U
+}
+
+fn default_k_w() -> f64 {
+    controller_core::vhz::K_W
 }
 
 /// `controller.speed_feedback`.
@@ -1019,6 +1053,16 @@ pub fn drive_spec(
             FeedbackTable::Sensorless => SpeedFeedback::Sensorless,
             FeedbackTable::EncoderRideThrough => SpeedFeedback::EncoderRideThrough,
         },
+        control: match c.control {
+            ControlTable::Vector => Control::Vector,
+            ControlTable::Vhz { ramp_rad_s2, k_u, k_w } => Control::VHz {
+                ramp_rad_s2: ramp_rad_s2.unwrap_or_else(|| {
+                    controller_core::vhz::default_ramp_rad_s2(&motor, c.flux_ref_wb, c.i_ref_max_a)
+                }),
+                k_u,
+                k_w,
+            },
+        },
         position: PositionLaw { k_per_s: c.position.k_per_s, omega_max_rad_s: c.position.omega_max_rad_s },
         flux_ref_wb: c.flux_ref_wb,
         flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
@@ -1124,6 +1168,7 @@ pub fn drive_spec(
                 spec.protection.overspeed_rad_s
             ),
         ),
+        DriveError::Vhz(e) => src.error("controller.control", e.to_string()),
         DriveError::CurrentTrim => {
             // With its numbers: a slow PWM (`frequency_hz = 1`) reads as a trim too fast.
             let t_slow_s = f64::from(pwm.slow_divider) / pwm.frequency_hz;

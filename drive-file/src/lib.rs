@@ -23,6 +23,8 @@
 //! current_frame = "stationary"           # or "synchronous" (d/q loops)
 //! speed_feedback = "encoder"             # default; "sensorless": the flux and speed observer;
 //!                                        # "encoder_ride_through": the observer beside the encoder
+//! control = { kind = "vector" }          # default; { kind = "vhz" }: V/Hz (speed references only),
+//!                                        # optional ramp_rad_s2 (default: 0.1·τ_max/J), k_u = 1.0, k_w = 4.0
 //! speed = { kind = "saturated_p", kp = 0.05, tau_max_nm = 2.0 }
 //! #  or { kind = "pi_torque", kp, ki, limit }  |  { kind = "pi_iq", kp, ki, limit }
 //! position = { k_per_s = 10.0, omega_max_rad_s = 150.0 }   # default 10 1/s, 100 rad/s
@@ -168,6 +170,38 @@ mod tests {
         let e = err(&slow.replacen("\"sensorless\"", "\"encoder_ride_through\"", 1));
         assert_eq!(e.key.as_deref(), Some("controller.speed_feedback"), "{e}");
         assert!(e.to_string().contains("encoder_ride_through"), "{e}");
+    }
+
+    /// `control`: V/Hz with its ramp, or its default (a tenth of the drive's torque on the
+    /// motor's inertia: drive.toml's 1.5·1·(1.42²/1.5)·0.634·√(4² − 0.634²) N·m × 0.1 over
+    /// 0.005 kg·m²); an unknown kind and a bad ramp name the key.
+    #[test]
+    fn the_control_key_chooses_vhz_and_names_itself_when_wrong() {
+        use controller_core::drive::Control;
+        let s = SHIPPED;
+        let with = |line: &str| s.replacen("[controller]\n", &format!("[controller]\n{line}\n"), 1);
+        assert_eq!(DriveFile::shipped().unwrap().spec.control, Control::Vector);
+        let d =
+            DriveFile::parse(Path::new("d.toml"), &with("control = { kind = \"vhz\", ramp_rad_s2 = 50.0 }"))
+                .unwrap();
+        assert_eq!(d.spec.control, Control::VHz { ramp_rad_s2: 50.0, k_u: 1.0, k_w: 4.0 });
+        let d = DriveFile::parse(Path::new("d.toml"), &with("control = { kind = \"vhz\" }")).unwrap();
+        let Control::VHz { ramp_rad_s2, .. } = d.spec.control else { panic!("{:?}", d.spec.control) };
+        let (i_d, lm) = (0.9 / 1.42, 1.42f64);
+        let torque = 1.5 * lm * lm / 1.5 * i_d * (16.0 - i_d * i_d).sqrt();
+        assert!((ramp_rad_s2 - 0.1 * torque / 0.005).abs() < 1e-9, "{ramp_rad_s2}");
+        let plain = with("control = { kind = \"vhz\", k_u = 0.0, k_w = 0.0 }");
+        let d = DriveFile::parse(Path::new("d.toml"), &plain).unwrap();
+        assert!(matches!(d.spec.control, Control::VHz { k_u: 0.0, k_w: 0.0, .. }));
+        for bad in [
+            "control = { kind = \"scalar\" }",
+            "control = { kind = \"vhz\", ramp_rad_s2 = -1.0 }",
+            "control = { kind = \"vhz\", k_w = -4.0 }",
+            "control = { kind = \"vhz\", gain = 1.0 }",
+        ] {
+            let e = err(&with(bad));
+            assert!(e.key.as_deref().is_some_and(|k| k.starts_with("controller.control")), "{bad}: {e}");
+        }
     }
 
     #[test]

@@ -3,10 +3,10 @@
 
 use crate::inverter::InverterModel;
 use crate::sensors::SensorModel;
-use crate::sim::{self, Event, LoadModel, Row, Scenario};
+use crate::sim::{self, Event, LoadModel, PassiveLoad, Row, Scenario};
 use controller_core::current::CurrentLaw;
 use controller_core::drive::{
-    CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference, SpeedFeedback,
+    Control, CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference, SpeedFeedback,
 };
 use controller_core::fault::Fault;
 use controller_core::magnetics::Saturation;
@@ -197,6 +197,40 @@ pub fn speed_step_sensorless() -> Result<Builtin, ScenarioError> {
         .into();
     b.spec.speed_feedback = SpeedFeedback::Sensorless;
     b.scenario.sensors = SensorModel::realistic(7);
+    Ok(b)
+}
+
+/// drive.toml's base speed on its 310 V bus, rad/s (its `[requirements]` comment, printed by
+/// `design certify drive.toml`): where [`vhz_fan`]'s fan takes its rated torque.
+pub const SHIPPED_BASE_RAD_S: f64 = 196.0;
+
+/// drive.toml as a V/Hz drive without an encoder (`control = { kind = "vhz" }`, the default
+/// ramp and gains; docs/sensorless.md, "V/Hz") running a fan that takes 1 N·m at
+/// [`SHIPPED_BASE_RAD_S`]: enabled at 0.12 s (after the idle stretch in which it reads its
+/// current sensors' residual offsets), to base speed at 0.4 s, back to rest at 4 s; realistic
+/// sensors, the switching inverter with the board's dead time.
+pub fn vhz_fan() -> Result<Builtin, ScenarioError> {
+    let mut b = speed_step()?;
+    b.name = "vhz-fan".into();
+    b.about = "V/Hz without an encoder: a fan (1 N·m at 196 rad/s) to base speed and back, realistic sensors"
+        .into();
+    let s = &mut b.spec;
+    s.speed_feedback = SpeedFeedback::Sensorless;
+    s.control = Control::VHz {
+        ramp_rad_s2: controller_core::vhz::default_ramp_rad_s2(&s.motor, s.flux_ref_wb, s.i_ref_max_a),
+        k_u: controller_core::vhz::K_U,
+        k_w: controller_core::vhz::K_W,
+    };
+    let k_nm_s2 = 1.0 / (SHIPPED_BASE_RAD_S * SHIPPED_BASE_RAD_S);
+    b.scenario.events = vec![
+        (0.0, Event::Coupling(PassiveLoad::Fan { k_nm_s2 })),
+        (0.12, Event::Enable),
+        (0.4, Event::Reference(Reference::Speed(SHIPPED_BASE_RAD_S as f32))),
+        (4.0, Event::Reference(Reference::Speed(0.0))),
+    ];
+    b.scenario.duration_s = 8.0;
+    b.scenario.sensors = SensorModel::realistic(7);
+    b.scenario.inverter = InverterModel::Switching { dead_time_s: b.spec.dead_time_compensation_s };
     Ok(b)
 }
 
@@ -415,6 +449,7 @@ pub fn all() -> Result<Vec<Builtin>, ScenarioError> {
         speed_step_sensors()?,
         speed_step_switching()?,
         speed_step_sensorless()?,
+        vhz_fan()?,
         fig11_locked_rotor()?,
         fig14_position()?,
         fig16_icad()?,

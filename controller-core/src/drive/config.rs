@@ -19,6 +19,7 @@ use crate::supervisor::phases::{OPEN_PHASE_COMMANDED_FRACTION, SWITCH_FOLLOWING_
 use crate::supervisor::rest::RestLimits;
 use crate::supervisor::thermal::ThermalConfig;
 use crate::svpwm;
+use crate::vhz::VhzConfig;
 
 crate::raw::raw_struct! {
     /// Validated, discretised drive configuration. Its fields' order is its raw layout
@@ -28,6 +29,10 @@ crate::raw::raw_struct! {
     pub struct DriveConfig {
         pub(super) current: CurrentControllerConfig<f32>,
         pub(super) current_frame: CurrentFrame,
+        /// The control law is V/Hz (`control`'s tag, within the fast step's load reach of
+        /// the drive's address: read every period, where `control` at the end cost address
+        /// arithmetic).
+        pub(super) vhz_on: bool,
         pub(super) ifoc: IfocConfig,
         /// The rotor-resistance adaptation.
         pub(super) mras: MrasConfig,
@@ -107,6 +112,11 @@ crate::raw::raw_struct! {
         /// The speed's source: the encoder, the observer, or the encoder with the observer
         /// beside it ([`SpeedFeedback`]).
         pub(super) source: SpeedSource,
+        /// The control law: vector control, or V/Hz with its configuration. Last: the vector
+        /// drive's fast step reaches the fields it reads from the drive's address without
+        /// address arithmetic (placed before the field orientation, its 60 B cost the
+        /// firmware's interrupt 10 instructions per period).
+        pub(super) control: ControlLaw,
     }
 }
 
@@ -146,6 +156,40 @@ impl raw::Field for CurrentFrame {
             _ => {
                 r.bad = true;
                 CurrentFrame::Stationary
+            }
+        }
+    }
+}
+
+/// The control law ([`Control`], with the V/Hz law's configuration where it has one).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum ControlLaw {
+    /// Field-oriented vector control.
+    Vector,
+    /// V/Hz ([`crate::vhz`]).
+    VHz(VhzConfig),
+}
+
+/// A tag (0: vector control, 1: V/Hz) and the V/Hz law's numbers (zeros without one: a
+/// fixed layout).
+impl raw::Field for ControlLaw {
+    fn put(&self, w: &mut raw::Writer) {
+        let (tag, cfg) = match self {
+            ControlLaw::Vector => (0, VhzConfig::default()),
+            ControlLaw::VHz(v) => (1, *v),
+        };
+        w.u(tag);
+        cfg.put(w);
+    }
+    fn get(r: &mut raw::Reader<'_>) -> Self {
+        let tag = r.u();
+        let cfg = VhzConfig::get(r);
+        match tag {
+            0 => ControlLaw::Vector,
+            1 if cfg.is_valid() => ControlLaw::VHz(cfg),
+            _ => {
+                r.bad = true;
+                ControlLaw::Vector
             }
         }
     }
@@ -393,6 +437,7 @@ impl DriveConfig {
         Ok(Self {
             current,
             current_frame: spec.current_frame,
+            vhz_on: matches!(spec.control, Control::VHz { .. }),
             ifoc,
             mras,
             speed,
@@ -482,6 +527,13 @@ impl DriveConfig {
                     SpeedFeedback::EncoderRideThrough => SpeedSource::RideThrough(observer()?),
                 }
             },
+            control: match spec.control {
+                Control::Vector => ControlLaw::Vector,
+                Control::VHz { ramp_rad_s2, k_u, k_w } => ControlLaw::VHz(
+                    VhzConfig::new(&spec.motor, ts, t_slow, spec.flux_ref_wb, ramp_rad_s2, [k_u, k_w])
+                        .map_err(DriveError::Vhz)?,
+                ),
+            },
         })
     }
 }
@@ -526,6 +578,7 @@ impl DriveConfig {
             || !cfg.mras.is_valid()
             || counts.contains(&0)
             || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
+            || cfg.vhz_on != matches!(cfg.control, ControlLaw::VHz(_))
         {
             return Err(DriveError::Raw);
         }
@@ -559,5 +612,23 @@ impl DriveConfig {
     /// The fast-loop period, s.
     pub fn ts_s(&self) -> f32 {
         self.ts_s
+    }
+
+    /// The V/Hz law, when the drive runs one ([`Control::VHz`]).
+    #[inline(always)]
+    pub(super) fn vhz(&self) -> Option<&VhzConfig> {
+        if !self.vhz_on {
+            return None; // the flag first: near the drive's address
+        }
+        match &self.control {
+            ControlLaw::VHz(v) => Some(v),
+            ControlLaw::Vector => None,
+        }
+    }
+
+    /// The drive runs the V/Hz law (the flag alone: what the every-period paths test).
+    #[inline(always)]
+    pub(super) fn vhz_on(&self) -> bool {
+        self.vhz_on
     }
 }

@@ -37,7 +37,7 @@ impl Drive {
     /// then the once-per-slow-period checks on its signals.
     #[inline(always)]
     pub(super) fn fast(&mut self, m: &Measurements, after_slow: bool) -> FastOutput {
-        let out = self.fast.step(&self.cfg, m, after_slow);
+        let out = self.fast.step(&self.cfg, &mut self.vhz, m, after_slow);
         // (Its signals, not `after_slow`: tested again after the step, the flag had the
         // compiler make two copies of the step, one with its loops out of line. `out` is not
         // lent to the checks: lent, it was made on the stack and copied out, +4.6
@@ -192,9 +192,16 @@ impl FastState {
     }
 
     /// The fast step; `after_slow`: it follows the slow step (its signals kept for the
-    /// once-per-slow-period checks).
+    /// once-per-slow-period checks); `vhz`: the V/Hz law's run, which a V/Hz drive's steps
+    /// take while Running.
     #[inline(always)]
-    fn step(&mut self, cfg: &DriveConfig, m: &Measurements, after_slow: bool) -> FastOutput {
+    fn step(
+        &mut self,
+        cfg: &DriveConfig,
+        vhz: &mut VhzRun,
+        m: &Measurements,
+        after_slow: bool,
+    ) -> FastOutput {
         if !self.measurements_ok(cfg, m) {
             self.trip_on(cfg, m);
         }
@@ -203,6 +210,14 @@ impl FastState {
         let running = self.mode == Mode::Running;
         if !running && self.mode != Mode::Magnetizing {
             return off(self.mode); // Idle or Fault
+        }
+        // V/Hz (the flag beside the mode already read: two instructions per period for a
+        // vector drive, which tested it before the step's own checks for five).
+        if running
+            && cfg.vhz_on()
+            && let Some(out) = self.step_vhz(cfg, vhz, m, brake)
+        {
+            return out;
         }
         let i_ab = m.i_abc_a.clarke();
         let field = match self.reference {
@@ -263,6 +278,52 @@ impl FastState {
             self.run.v_d_sum += v_req.park(field.field).d;
         }
         self.finish::<false>(cfg, duty, v_applied, brake)
+    }
+
+    /// V/Hz, Running ([`crate::vhz`]), after the supervisor's instant limits and the brake
+    /// chopper: the law's voltage for the measured current, advanced over the delay,
+    /// modulated — the hexagon's limit as in vector control (a request that is not finite
+    /// trips [`Fault::NonFiniteOutput`], one held at the limit for `saturation_time_s`
+    /// [`Fault::LossOfControl`]). The first step takes over the magnetized machine at the
+    /// field angle the magnetizing current was held at. `None` under the rotating-current test
+    /// (the current loops run it). Out of line: a vector drive's interrupt does not carry it.
+    #[cold]
+    #[inline(never)]
+    fn step_vhz(
+        &mut self,
+        cfg: &DriveConfig,
+        run: &mut VhzRun,
+        m: &Measurements,
+        brake: bool,
+    ) -> Option<FastOutput> {
+        let v = cfg.vhz()?;
+        if matches!(self.reference, Reference::RotatingCurrent { .. }) {
+            return None;
+        }
+        let i_ab = m.i_abc_a.clarke();
+        if !run.on {
+            run.state = v.start(self.run.field.last_theta_e_rad(), i_ab);
+            run.on = true;
+        }
+        let out = v.step(&mut run.state, &run.plan, i_ab);
+        // The telemetry's and the dead-time compensation's reference: the operating point.
+        (self.run.last.i_ab, self.run.last.i_ref_ab) = (i_ab, run.state.i0_ab());
+        let v_applied = out.v_ab.rotate(self.run.delay_rotation);
+        let off = Some(FastOutput { phases: PhaseCommand::Off, mode: self.mode, brake });
+        if !(v_applied.alpha.is_finite() && v_applied.beta.is_finite()) {
+            self.trip(Fault::NonFiniteOutput);
+            return off.map(|o| FastOutput { mode: self.mode, ..o });
+        }
+        let modulation = svpwm::modulate_sampled(v_applied, m.vdc_v, cfg.duty_max);
+        self.run.saturated_steps =
+            if modulation.saturated { self.run.saturated_steps.saturating_add(1) } else { 0 };
+        if self.run.saturated_steps >= cfg.saturation_steps {
+            self.trip(Fault::LossOfControl);
+            return off.map(|o| FastOutput { mode: self.mode, ..o });
+        }
+        // The dead-time compensation out of line (the rare path's): inlined, this step took
+        // 1.4 KB of the firmware's flash.
+        Some(self.finish::<true>(cfg, modulation.duty, modulation.v_applied, brake))
     }
 
     /// The rare path of the fast step: the modulator limited the request (beyond the hexagon,

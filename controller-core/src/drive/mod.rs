@@ -98,6 +98,7 @@ use crate::supervisor::motion::MotionChecks;
 use crate::supervisor::phases::{OpenPhaseWindow, SwitchWatch};
 use crate::supervisor::rest::RestWatch;
 use crate::supervisor::thermal::ThermalState;
+use crate::vhz::{VhzPlan, VhzReport, VhzState};
 
 /// What [`Drive::telemetry`] reads of the last fast step (stationary frame): the measured
 /// current, the current references, the voltage applied.
@@ -129,6 +130,7 @@ pub struct Drive {
     fast: FastState,
     cfg: DriveConfig,
     slow: SlowState,
+    vhz: VhzRun,
 }
 
 /// The fast step's state: what the bridge runs on every period.
@@ -206,6 +208,39 @@ struct FastRun {
     /// Sensorless, magnetizing: the rotor's speed the search found, mechanical rad/s (0: at
     /// rest, or not yet known) — adopted from the slow side's plan.
     known_speed_rad_s: f32,
+}
+
+/// V/Hz's fast-side run ([`crate::vhz`]): the law's state, the slow step's plan in force, and
+/// whether the law has taken over the magnetized machine in this run — made afresh with
+/// `FastRun`. Kept after the slow state, not in `FastRun`: there it moved the configuration
+/// beyond the M4F's reach from the drive's address, and the vector drive's interrupt paid
+/// for a law it does not run.
+#[derive(Clone, Copy, Debug, Default)]
+struct VhzRun {
+    state: VhzState,
+    plan: VhzPlan,
+    on: bool,
+}
+
+impl VhzRun {
+    /// What the slow step reads at its tick: the law's state, once it runs. Out of line: a
+    /// vector drive does not carry it.
+    #[cold]
+    #[inline(never)]
+    fn report(&self) -> Option<VhzReport> {
+        self.on.then(|| self.state.report())
+    }
+
+    /// The slow step's plan for the law (the one it starts on, from the step that found the
+    /// machine magnetized), and its frame made afresh from its angle.
+    #[cold]
+    #[inline(never)]
+    fn adopt(&mut self, plan: &VhzPlan) {
+        self.plan = *plan;
+        if self.on {
+            self.state.renew_field();
+        }
+    }
 }
 
 /// What the slow step reads of the fast side, latched at its tick ([`FastState::latch`]).
@@ -362,6 +397,10 @@ struct SlowRun {
     search: SpeedSearch,
     search_left: u32,
     known_speed_rad_s: f32,
+    /// V/Hz: the ramp's speed reference, mechanical rad/s (from the rotor's speed when the
+    /// machine is magnetized), and the plan for the fast steps.
+    vhz_ramp_rad_s: f32,
+    vhz_plan: VhzPlan,
 }
 
 impl SlowRun {
@@ -404,6 +443,8 @@ impl SlowRun {
             search: SpeedSearch::default(),
             search_left: cfg.search_slow_steps,
             known_speed_rad_s: 0.0,
+            vhz_ramp_rad_s: 0.0,
+            vhz_plan: VhzPlan::default(),
         }
     }
 }
@@ -554,6 +595,7 @@ impl Drive {
                 machine: MachineState::POWER_UP,
                 run,
             },
+            vhz: VhzRun::default(),
         }
     }
 
@@ -611,6 +653,7 @@ impl Drive {
         }
         self.slow.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
         self.fast.run = FastRun::default();
+        self.vhz = VhzRun::default();
         (self.slow.reference, self.slow.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
         (self.slow.pending_fault, self.slow.stop_steps_left) = (None, None);
         self.cfg = cfg;
@@ -691,6 +734,7 @@ impl Drive {
                 let (rr, l) = (ifoc.rotor_resistance_scale(), ifoc.inductance_scale());
                 self.slow.run = SlowRun::new(&self.cfg, rr, l, fit);
                 self.fast.run = FastRun::default();
+                self.vhz = VhzRun::default();
                 self.slow.ridden_through = FaultSet::EMPTY;
                 self.slow.machine.idle_slow_steps = 0;
                 self.set_mode(Mode::Magnetizing);
@@ -793,6 +837,9 @@ impl Drive {
         if !finite {
             return Err(CommandError::NonFinite);
         }
+        if self.cfg.vhz().is_some() && matches!(r, Reference::Position(_) | Reference::Torque(_)) {
+            return Err(CommandError::SpeedOnly);
+        }
         if self.slow.on_observer(&self.cfg) && matches!(r, Reference::Position(_)) {
             return Err(CommandError::NoEncoder);
         }
@@ -870,6 +917,22 @@ impl Drive {
         } else {
             (f.field.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q)
         };
+        if let (Some(v), true, false) = (self.cfg.vhz(), self.vhz.on, rotating) {
+            // V/Hz: the stator-flux frame, the operating point's slip and rotor flux.
+            return Telemetry {
+                i_ab_a: f.last.i_ab,
+                i_ref_ab_a: f.last.i_ref_ab,
+                v_ab_v: f.last.v_ab,
+                theta_e_rad: crate::frames::wrap_angle(self.vhz.state.theta_s_rad()),
+                omega_sl_rad_s: self.vhz.state.slip_rad_s(),
+                psi_r_wb: self.vhz.state.psi_r_wb(v, &self.vhz.plan),
+                psi_ref_wb: s.flux_of(self.slow.run.i_d_target_a),
+                i_q_ref_a: 0.0,
+                omega_ref_rad_s: self.slow.omega_ref_rad_s,
+                rr_scale: s.rotor_resistance_scale(),
+                l_scale: s.inductance_scale(),
+            };
+        }
         Telemetry {
             i_ab_a: f.last.i_ab,
             i_ref_ab_a: f.last.i_ref_ab,

@@ -12,6 +12,7 @@ use crate::mras::Evidence;
 use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
 use crate::supervisor::phases::CURRENT_SUM_MEAN_FRACTION;
 use crate::svpwm;
+use crate::vhz::{PULL_OUT_MARGIN, VhzConfig, VhzReport};
 
 impl Drive {
     /// The slow step at its tick: its inputs latched from the fast side
@@ -34,14 +35,21 @@ impl Drive {
     /// windowed current sum; a stuck switch while Running).
     pub fn slow_step(&mut self, m: &Measurements) {
         let inputs = self.fast.latch(m, self.fast.on_observer(&self.cfg));
-        self.slow.step(&self.cfg, &inputs);
+        // One call of the step (two, one of them for V/Hz, and it went out of line: +80
+        // instructions per slow step of a vector drive, `cost slow_step`).
+        let vhz = if self.cfg.vhz_on() { self.vhz.report() } else { None };
+        self.slow.step(&self.cfg, &inputs, vhz.as_ref());
         self.fast.adopt(&self.slow);
+        if self.cfg.vhz_on() {
+            self.vhz.adopt(&self.slow.run.vhz_plan);
+        }
     }
 }
 
 impl SlowState {
     /// The slow step on its inputs: see [`Drive::slow_step`].
-    fn step(&mut self, cfg: &DriveConfig, inputs: &SlowInputs) {
+    /// `vhz`: the V/Hz law's state at the tick, once it runs.
+    fn step(&mut self, cfg: &DriveConfig, inputs: &SlowInputs, vhz: Option<&VhzReport>) {
         self.mode = inputs.mode;
         if let Mode::Fault(_) = self.mode {
             // A fault of the fast step ended a controlled stop (its pending fault is what
@@ -51,9 +59,89 @@ impl SlowState {
         self.slow_loops(cfg, inputs);
         let m = &inputs.m;
         if self.mode.is_active() && m.is_finite() {
-            self.plan(cfg, m.omega_m_rad_s);
-            self.check_phases(cfg, m.i_abc_a, inputs.test_angle_rad);
+            // V/Hz follows no current reference: the phase window judges the currents against
+            // themselves, which leaves its current-sum check (against the law's operating
+            // point, the low-pass-filtered current, a slowly turning current read as an open
+            // phase: a seized rotor tripped `OpenPhase`). One call of the checks (two, and
+            // they went out of line: +40 instructions per slow step, `cost slow_step`).
+            let unreferenced = match self.vhz_running(cfg) {
+                Some(v) => {
+                    self.plan_vhz(cfg, v, inputs, vhz);
+                    true
+                }
+                None => {
+                    self.plan(cfg, m.omega_m_rad_s);
+                    false
+                }
+            };
+            self.check_phases(cfg, m.i_abc_a, unreferenced, inputs.test_angle_rad);
         }
+    }
+
+    /// V/Hz: no field orientation and no speed loop (the ramp and its limits are the plan's,
+    /// `plan_vhz`); of the motion checks, the stall check on the ramp's reference at the speed
+    /// `omega_m_rad_s` (the following-error check judges a torque command, which V/Hz has
+    /// not). Out of line: in the vector drive's slow step, +44 instructions.
+    #[cold]
+    #[inline(never)]
+    fn vhz_motion_checks(&mut self, cfg: &DriveConfig, omega_m_rad_s: f32) {
+        let asked = self.run.vhz_ramp_rad_s.abs() >= STALL_REFERENCE_FACTOR * cfg.motion.stall_speed_rad_s;
+        if self.run.motion.stall(&cfg.motion, asked, omega_m_rad_s) {
+            self.trip(Fault::Stall);
+        }
+    }
+
+    /// The V/Hz law, Running on a speed reference (the rotating-current test runs on the
+    /// current loops).
+    #[inline]
+    fn vhz_running<'c>(&self, cfg: &'c DriveConfig) -> Option<&'c VhzConfig> {
+        let test = matches!(self.reference, Reference::RotatingCurrent { .. });
+        cfg.vhz().filter(|_| self.mode == Mode::Running && !test)
+    }
+
+    /// V/Hz, the slow step's plan ([`crate::vhz`]): the ramp of the frequency reference
+    /// towards the speed reference at the configured rate, limited — the **current limit and
+    /// stall prevention**: while the operating point's current is beyond the references' limit,
+    /// or its slip beyond [`PULL_OUT_MARGIN`] of the pull-out slip (a load beyond the breakdown
+    /// torque: in field weakening it comes before the current limit, and the rotor fell out
+    /// while the ramp ran on to base speed), the ramp turns towards the rotor's speed (against
+    /// the slip: a motoring overload slows the field, a braking one slows the deceleration),
+    /// and the **bus limit**: generating with the link
+    /// above the regeneration limit's start, the ramp holds; then the **field weakening**:
+    /// the stator flux at most the voltage target `voltage_margin·V_dc/√3` over the
+    /// frequency.
+    #[cold]
+    #[inline(never)]
+    fn plan_vhz(&mut self, cfg: &DriveConfig, v: &VhzConfig, inputs: &SlowInputs, vhz: Option<&VhzReport>) {
+        let m = &inputs.m;
+        let (i0_sq, slip, w_s) =
+            vhz.map_or((0.0, 0.0, 0.0), |s| (s.i0_squared, s.slip_rad_s, s.omega_s_rad_s));
+        let target = match self.reference {
+            Reference::Speed(w) => w,
+            _ => 0.0,
+        };
+        let (ramp, step) = (self.run.vhz_ramp_rad_s, v.ramp_step_rad_s());
+        let i_max = cfg.ifoc.i_max_a();
+        let w_e = v.pole_pairs() * ramp + slip;
+        let generating = slip * w_e < 0.0;
+        let pull_out = PULL_OUT_MARGIN * v.pull_out_slip_rad_s();
+        let ramp = if i0_sq > i_max * i_max || slip.abs() > pull_out {
+            ramp - if slip > 0.0 { step } else { -step }
+        } else if generating && m.vdc_v > cfg.regen_start_v {
+            ramp
+        } else {
+            ramp + (target - ramp).limit(-step, step)
+        };
+        self.run.vhz_ramp_rad_s = ramp;
+        self.omega_ref_rad_s = ramp;
+        let w_e = v.pole_pairs() * ramp + slip;
+        // Weakened for the faster of the plan's frequency and the one the law turned the field
+        // at (its frequency feedback moves it away from the plan's in a transient: braking
+        // from base speed, the plan's alone left the voltage beyond the hexagon).
+        let u_max = cfg.voltage_margin * svpwm::linear_limit_v(m.vdc_v * cfg.duty_max);
+        let psi_s = min_f32(v.psi_s_nom_wb(), u_max / max_f32(max_f32(w_e.abs(), w_s.abs()), 1e-3));
+        self.run.vhz_plan = v.plan(ramp, psi_s, self.run.ifoc.inductance_scale());
+        self.run.delay_rotation = SinCos::default().rotated((w_e * cfg.delay_s).limit(-0.5, 0.5));
     }
 
     /// The slow step's first stage, the shaft's and the machine's, which runs whatever the
@@ -96,6 +184,9 @@ impl SlowState {
                 return;
             }
             self.stop_steps_left = Some(left - 1);
+        }
+        if self.vhz_running(cfg).is_some() {
+            return self.vhz_motion_checks(cfg, m.omega_m_rad_s);
         }
         // The fast steps since the last slow step: the slip angle and the flux model advance
         // over them (before the field is anchored, on the slip angle).
@@ -238,6 +329,8 @@ impl SlowState {
             {
                 // The flux model runs on the measured current: the motor is magnetized.
                 self.mode = Mode::Running;
+                // V/Hz: the ramp starts at the rotor's speed (a flying start's too).
+                self.run.vhz_ramp_rad_s = m.omega_m_rad_s;
                 self.run.speed = SpeedState::default();
                 self.run.motion.restart();
             }
@@ -447,14 +540,19 @@ impl SlowState {
     /// the instructions of every step, and none of them in the fast step (the window sampled
     /// every fast step cost 49 instructions per fast step, `cost interrupt_fast_step`).
     /// A fault latched here turns the bridge off in this period: the fast step that follows
-    /// finds it.
-    fn check_phases(&mut self, cfg: &DriveConfig, i_abc_a: Abc, test_angle_rad: f32) {
+    /// finds it. `unreferenced`: no references (V/Hz follows none): the currents are their
+    /// own, and no stuck-switch check.
+    fn check_phases(&mut self, cfg: &DriveConfig, i_abc_a: Abc, unreferenced: bool, test_angle_rad: f32) {
         let running = self.mode == Mode::Running;
-        let [i_ref_ab, i_track_ab] = match self.reference {
-            Reference::RotatingCurrent { amplitude_a, .. } if running => {
-                [super::fast::rotating_current(cfg, amplitude_a, test_angle_rad).2; 2]
+        let [i_ref_ab, i_track_ab] = if unreferenced {
+            [i_abc_a.clarke(); 2]
+        } else {
+            match self.reference {
+                Reference::RotatingCurrent { amplitude_a, .. } if running => {
+                    [super::fast::rotating_current(cfg, amplitude_a, test_angle_rad).2; 2]
+                }
+                _ => [self.run.ifoc.i_intended_ab(), self.run.ifoc.i_ref_ab()],
             }
-            _ => [self.run.ifoc.i_intended_ab(), self.run.ifoc.i_ref_ab()],
         };
         let (i_ref_abc, i_track_abc) = (i_ref_ab.inverse_clarke(), i_track_ab.inverse_clarke());
         let window = self.run.open_phase.add(
@@ -470,8 +568,10 @@ impl SlowState {
         // follow them at the voltage limit for a few milliseconds — a lag in every phase, which
         // the direction counts would read as a dead switch (a reversal from braking at 2×
         // base speed tripped `SwitchOpen`).
+        // The stuck-switch check judges the half-waves of the current against references it
+        // follows; V/Hz has none.
         let fault = window.or_else(|| {
-            if running && !self.run.flux_forced {
+            if running && !self.run.flux_forced && !unreferenced {
                 self.run.switches.add([i_ref_abc, i_track_abc], i_abc_a, cfg.switch_level_a, cfg.switch_gains)
             } else {
                 None

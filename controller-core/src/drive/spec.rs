@@ -11,6 +11,7 @@ use crate::motor::MotorParams;
 use crate::observer::ObserverError;
 use crate::speed::{SpeedError, SpeedLaw};
 use crate::supervisor::Protection;
+use crate::vhz::VhzError;
 #[cfg(doc)]
 use crate::{drive::DriveConfig, svpwm};
 
@@ -138,6 +139,25 @@ pub enum SpeedFeedback {
     EncoderRideThrough,
 }
 
+/// The control law: field-oriented vector control, or V/Hz.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Control {
+    /// Field-oriented vector control (seed 002's IFOC, the current and speed loops).
+    #[default]
+    Vector,
+    /// V/Hz control with stator-current feedback ([`crate::vhz`], Hinkkanen et al. 2022): a
+    /// speed reference only, followed by the stator frequency at `ramp_rad_s2` (mechanical
+    /// rad/s²); the magnetizing, the flying start and the supervisor as in vector control.
+    VHz {
+        /// The frequency reference's ramp, mechanical rad/s².
+        ramp_rad_s2: f64,
+        /// The current feedback's gain `k_u` ([`crate::vhz::K_U`]: the paper's; 0: none).
+        k_u: f64,
+        /// The frequency feedback's gain `k_w` ([`crate::vhz::K_W`]: the paper's; 0: none).
+        k_w: f64,
+    },
+}
+
 /// Everything a drive needs, in design units (f64). [`DriveConfig::new`] validates it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DriveSpec {
@@ -198,6 +218,8 @@ pub struct DriveSpec {
     pub protection: Protection,
     /// The speed's and the field angle's source.
     pub speed_feedback: SpeedFeedback,
+    /// The control law.
+    pub control: Control,
 }
 
 impl DriveSpec {
@@ -268,6 +290,8 @@ pub enum DriveError {
     BrakeChopper,
     /// The sensorless observer cannot run at this PWM rate up to the overspeed level.
     Observer(ObserverError),
+    /// The V/Hz law's configuration was rejected.
+    Vhz(VhzError),
 }
 
 impl core::fmt::Display for DriveError {
@@ -307,6 +331,7 @@ impl core::fmt::Display for DriveError {
             ),
             Self::Protection { field, need } => write!(f, "{field}: {need}"),
             Self::Observer(e) => write!(f, "speed_feedback (sensorless): {e}"),
+            Self::Vhz(e) => write!(f, "control (V/Hz): {e}"),
             Self::BrakeChopper => write!(
                 f,
                 "protection.brake_chopper: needs 0 < off_v < on_v < {REGEN_LIMIT_START} × protection.vdc_max_v"

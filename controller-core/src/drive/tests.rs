@@ -53,6 +53,7 @@ pub(crate) fn test_spec() -> DriveSpec {
             brake_chopper: None,
         },
         speed_feedback: SpeedFeedback::Encoder,
+        control: Control::Vector,
     }
 }
 
@@ -249,6 +250,17 @@ fn raw_configuration_round_trips() {
             }
         }
     }
+    // V/Hz: its numbers round-trip, and a V/Hz tag on a vector drive's zeros is refused.
+    let vhz = DriveConfig::new(&DriveSpec {
+        control: Control::VHz { ramp_rad_s2: 100.0, k_u: 1.0, k_w: 4.0 },
+        ..test_spec()
+    })
+    .unwrap();
+    assert_eq!(DriveConfig::from_raw(&vhz.to_raw()), Ok(vhz));
+    let mut bad = DriveConfig::new(&test_spec()).unwrap().to_raw();
+    let tag = vhz.to_raw().u.iter().zip(bad.u).position(|(a, b)| *a != b).unwrap();
+    bad.u[tag] = 1;
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // The speed PI's setpoint weight outside [0, 1], or its lag's α outside (0, 1].
     let law = SpeedLaw::PiTorque { kp: 0.1, ki: 0.5, limit: 2.0, setpoint_weight: 0.25 };
     let pi = DriveConfig::new(&DriveSpec { speed_law: law, ..test_spec() }).unwrap().to_raw();
@@ -267,18 +279,19 @@ fn raw_configuration_round_trips() {
     bad.u[1] = 7; // the current frame's tag
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 14] = 0; // the slow divider
+    bad.u[raw::INTEGERS - 15] = 0; // the slow divider
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 3] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
+    bad.u[raw::INTEGERS - 4] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
-    // The observer's tag (last): unknown, or the observer's numbers not a valid observer.
+    // The observer's tag (before the control law's): unknown, or the observer's numbers not a
+    // valid observer.
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 1] = 3;
+    bad.u[raw::INTEGERS - 2] = 3;
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     for tag in [1, 2] {
         let mut bad = raw;
-        bad.u[raw::INTEGERS - 1] = tag; // an encoder drive's zeros read as an observer
+        bad.u[raw::INTEGERS - 2] = tag; // an encoder drive's zeros read as an observer
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "tag {tag}");
     }
     // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.
@@ -1359,4 +1372,18 @@ fn an_encoder_fault_is_ridden_through_only_where_the_observer_can_carry_on() {
     d.slow_step(&wrapped(1.2 * level));
     assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
     assert_eq!(d.ridden_through(), FaultSet::EMPTY);
+}
+
+/// V/Hz takes a speed reference only: a torque or a position reference is refused by name, a
+/// bad ramp by the configuration; Running, its fast step turns the field at the ramp's
+/// frequency (the law's, [`crate::vhz`]) instead of the current loops'.
+#[test]
+fn a_vhz_drive_takes_a_speed_reference_only() {
+    let spec = DriveSpec { control: Control::VHz { ramp_rad_s2: 100.0, k_u: 1.0, k_w: 4.0 }, ..test_spec() };
+    let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+    assert_eq!(d.set_reference(Reference::Torque(1.0)), Err(CommandError::SpeedOnly));
+    assert_eq!(d.set_reference(Reference::Position(1.0)), Err(CommandError::SpeedOnly));
+    assert_eq!(d.set_reference(Reference::Speed(10.0)), Ok(()));
+    let bad = DriveSpec { control: Control::VHz { ramp_rad_s2: -1.0, k_u: 1.0, k_w: 4.0 }, ..test_spec() };
+    assert_eq!(DriveConfig::new(&bad), Err(DriveError::Vhz(crate::vhz::VhzError::Ramp)));
 }

@@ -116,5 +116,6 @@ fn command_result(r: Result<(), CommandError>) -> Reply {
         Err(CommandError::NonFinite) => Reply::Nack(NackReason::NonFinite),
         Err(CommandError::Active) => Reply::Nack(NackReason::NotIdle),
         Err(CommandError::NoEncoder) => Reply::Nack(NackReason::NoEncoder),
+        Err(CommandError::SpeedOnly) => Reply::Nack(NackReason::SpeedOnly),
     }
 }

@@ -69,6 +69,7 @@ fn every_command_round_trips() {
     largest.protection.motor_thermal = Some(thermal);
     largest.protection.inverter_thermal = Some(thermal);
     largest.protection.stop_on = crate::drive::FaultSet::STOPPABLE;
+    largest.control = crate::drive::Control::VHz { ramp_rad_s2: 200.0, k_u: 1.0, k_w: 4.0 };
     let cmds = [
         Command::Configure(spec),
         Command::Configure(largest),
@@ -169,6 +170,7 @@ fn replies_round_trip_bit_exact() {
         Reply::Nack(NackReason::NoRecord),
         Reply::Nack(NackReason::NotAtRest),
         Reply::Nack(NackReason::NoEncoder),
+        Reply::Nack(NackReason::SpeedOnly),
         Reply::CommissionRecord { chunk: 3, bytes: core::array::from_fn(|k| k as u8) },
         Reply::Capture {
             state: crate::capture::CaptureState::Triggered,

@@ -161,6 +161,7 @@ impl Reply {
                     NackReason::NoRecord => 7,
                     NackReason::NotAtRest => 8,
                     NackReason::NoEncoder => 9,
+                    NackReason::SpeedOnly => 10,
                 })?;
             }
             Reply::Output(o, t) => {
@@ -247,6 +248,7 @@ impl Reply {
                 7 => NackReason::NoRecord,
                 8 => NackReason::NotAtRest,
                 9 => NackReason::NoEncoder,
+                10 => NackReason::SpeedOnly,
                 _ => return Err(DecodeError::Value),
             }),
             tag::OUTPUT => {

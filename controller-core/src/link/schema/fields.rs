@@ -8,8 +8,8 @@ use crate::commission::{Refusal, Stage};
 use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
-    BrakeChopper, CurrentFrame, DriveSpec, FaultSet, PhaseCommand, PositionLaw, Protection, Reference,
-    SpeedFeedback, ThermalLimit,
+    BrakeChopper, Control, CurrentFrame, DriveSpec, FaultSet, PhaseCommand, PositionLaw, Protection,
+    Reference, SpeedFeedback, ThermalLimit,
 };
 use crate::frames::Abc;
 use crate::motor::MotorParams;
@@ -176,7 +176,17 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
         SpeedFeedback::Encoder => 0,
         SpeedFeedback::Sensorless => 1,
         SpeedFeedback::EncoderRideThrough => 2,
-    })
+    })?;
+    // The control law: a tag, and V/Hz's ramp.
+    match s.control {
+        Control::Vector => w.u8(0),
+        Control::VHz { ramp_rad_s2, k_u, k_w } => {
+            w.u8(1)?;
+            w.f64(ramp_rad_s2)?;
+            w.f64(k_u)?;
+            w.f64(k_w)
+        }
+    }
 }
 
 pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
@@ -240,6 +250,11 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         2 => SpeedFeedback::EncoderRideThrough,
         _ => return Err(DecodeError::Value),
     };
+    let control = match r.u8()? {
+        0 => Control::Vector,
+        1 => Control::VHz { ramp_rad_s2: r.f64()?, k_u: r.f64()?, k_w: r.f64()? },
+        _ => return Err(DecodeError::Value),
+    };
     Ok(DriveSpec {
         motor,
         pwm_frequency_hz,
@@ -261,6 +276,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         inductance_range,
         protection,
         speed_feedback,
+        control,
     })
 }
 

@@ -220,6 +220,8 @@ pub enum NackReason {
     NotAtRest,
     /// A position reference to a drive without an encoder (`speed_feedback = "sensorless"`).
     NoEncoder,
+    /// A torque or position reference to a V/Hz drive, which takes a speed reference only.
+    SpeedOnly,
 }
 
 /// Drive → host.

@@ -1,0 +1,486 @@
+//! V/Hz control with stator-current feedback: the open-loop drive of fans and pumps, made
+//! stable at light load — Hinkkanen, Tiitinen, Mölsä, Harnefors, "On the stability of
+//! volts-per-hertz control for induction motors", IEEE J. Emerg. Sel. Topics Power
+//! Electron. 10(2), 2022 (the method of motulator's `VHzCtrl` up to its 0.3 releases).
+//!
+//! Plain V/Hz turns a stator-flux vector at the reference frequency; at light load an
+//! induction machine fed so has a poorly damped (often unstable) electromechanical mode
+//! between 10 and 40 % of its base speed — the well-known light-load oscillation. The
+//! method adds to the plain law, in the frame of the stator-flux reference ψ_s* (angle θ_s):
+//!
+//! * the **operating point**, the measured current low-pass filtered (`i_s0`, bandwidth
+//!   [`ALPHA_I_RAD_S`]), and the slip it implies: the rotor flux `ψ_R0 = ψ_s* − L_σ·i_s0`
+//!   and the slip of a current `i`, `ω_r(i) = R_R·Im{i·ψ_R0*}/|ψ_R0|²` (inverse-Γ
+//!   parameters);
+//! * **slip compensation and frequency damping**: `ω_s = ω_ref + ω_r0 + k_w·(ω_r0 − ω_r(i_s))`
+//!   with `ω_r0` the slip low-pass filtered (bandwidth [`ALPHA_F_RAD_S`]) — the frequency moves
+//!   against the dynamic part of the slip ([`K_W`]);
+//! * **IR compensation (the voltage boost) and current feedback**:
+//!   `u_s = R_s·(i_sd,nom + j·i_sq0) + j·ω_s·ψ_s* + k·(i_s0 − i_s)` with
+//!   `k = k_u·L_σ·(α + j·ω_s)`, `α = R_R/L_M` ([`K_U`]) — a virtual impedance against the
+//!   dynamic part of the current, which moves the oscillating mode's poles left.
+//!
+//! `k_u` and `k_w` are the configuration's ([`K_U`], [`K_W`] by default: the paper's); 0 and 0
+//! is plain V/Hz with slip and IR compensation.
+//!
+//! The boost is no number to fit: it is `R_s` times the magnetizing current (and the load's
+//! operating-point current), both from the motor file. The drive ([`crate::drive`]) runs the
+//! law in its fast step (every PWM period) and, in its slow step, the frequency reference's
+//! ramp, the current limit (the ramp turned back towards the rotor's speed while the
+//! operating-point current exceeds the limit, stall prevention), the bus limit (a
+//! decelerating ramp held while the link is above the regeneration limit) and the field
+//! weakening (`ψ_s* = min(ψ_s,nom, u_max/|ω_s|)`).
+
+use crate::frames::{AlphaBeta, Dq, SinCos};
+use crate::motor::MotorParams;
+
+/// The current feedback's default gain `k_u` (the paper's choice: the virtual impedance
+/// `L_σ·(α + jω_s)` whole, which damps the oscillating mode over the whole speed range at
+/// light load in the paper's analysis).
+pub const K_U: f64 = 1.0;
+/// The frequency feedback's default gain `k_w` (the paper's choice).
+pub const K_W: f64 = 4.0;
+/// The largest feedback gain accepted (the paper's analysis spans a few units).
+pub const K_MAX: f64 = 20.0;
+/// The operating-point current's low-pass bandwidth `α_i`, rad/s: well below the
+/// electromechanical mode it must not follow (the paper's 2π·1 Hz).
+pub const ALPHA_I_RAD_S: f64 = core::f64::consts::TAU;
+/// The slip compensation's low-pass bandwidth `α_f`, rad/s (the paper's 2π·1 Hz).
+pub const ALPHA_F_RAD_S: f64 = core::f64::consts::TAU;
+
+/// The default ramp's share of the drive's torque: the frequency reference ramps at the
+/// acceleration this share of the torque at the current limit gives the motor file's
+/// inertia, leaving the rest for the load and the slip's transient.
+pub const RAMP_TORQUE_SHARE: f64 = 0.1;
+
+/// The default ramp of a drive on `motor` with rotor-flux reference `flux_ref_wb` and current
+/// limit `i_max_a`, mechanical rad/s²: [`RAMP_TORQUE_SHARE`] of the torque at the current
+/// limit (`1.5·p·(L_m²/L_r)·i_d·i_q`, i_d the flux's magnetizing current and i_q the rest of
+/// the limit) on the motor file's inertia. Not finite (a flux beyond the limit): the
+/// configuration refuses it.
+pub fn default_ramp_rad_s2(motor: &MotorParams, flux_ref_wb: f64, i_max_a: f64) -> f64 {
+    let i_d = flux_ref_wb / motor.lm_h();
+    let i_q = libm::sqrt(i_max_a * i_max_a - i_d * i_d);
+    let torque = 1.5 * f64::from(motor.pole_pairs()) * motor.lm_h() * motor.lm_h() / motor.lr_h() * i_d * i_q;
+    RAMP_TORQUE_SHARE * torque / motor.j_kgm2()
+}
+
+/// The share of the pull-out slip the ramp's stall prevention allows ([`VhzConfig::pull_out_slip_rad_s`]):
+/// the margin motulator's reference generator keeps to the breakdown torque (its `k_b`).
+pub const PULL_OUT_MARGIN: f32 = 0.9;
+
+/// Why a V/Hz configuration was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VhzError {
+    /// The sample period is not finite and positive, or the filters' bandwidths are not well
+    /// below its rate.
+    SamplePeriod,
+    /// The ramp is not finite and positive.
+    Ramp,
+    /// A feedback gain (`k_u`, `k_w`) is not finite and within `[0, K_MAX]`.
+    Gain,
+    /// The stator-flux reference is not finite and positive.
+    Flux,
+}
+
+impl core::fmt::Display for VhzError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::SamplePeriod => {
+                f.write_str("the V/Hz law's sample period must be finite, > 0 and below 0.1 s")
+            }
+            Self::Ramp => f.write_str("ramp_rad_s2 must be finite and > 0"),
+            Self::Gain => write!(f, "k_u and k_w must be finite, ≥ 0 and at most {K_MAX}"),
+            Self::Flux => f.write_str("the V/Hz law's stator flux (from flux_ref_wb) must be finite and > 0"),
+        }
+    }
+}
+
+/// The law's configuration: the motor in the inverse-Γ form and the discretised gains,
+/// validated at construction.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VhzConfig {
+    ts_s: f32,
+    rs_ohm: f32,
+    /// Inverse-Γ `R_R`, Ω.
+    r_r_ohm: f32,
+    /// Inverse-Γ `L_σ`, H.
+    l_sigma_h: f32,
+    /// `α = R_R/L_M`, 1/s.
+    alpha_per_s: f32,
+    /// `L_s = L_M + L_σ`, H: the no-load stator inductance (the magnetizing current of ψ_s*).
+    ls_h: f32,
+    /// The rated stator flux, Wb: at no load, the drive's rotor-flux reference ψ_r* × `L_s/L_m`.
+    psi_s_nom_wb: f32,
+    /// `α_i·T`, `α_f·T`: the filters' gains per sample.
+    i_gain: f32,
+    f_gain: f32,
+    /// The ramp's change per slow step, mechanical rad/s.
+    ramp_step_rad_s: f32,
+    pole_pairs: f32,
+    /// `L_r/L_m`: the T model's rotor flux is `ψ_R·L_r/L_m`.
+    lr_over_lm: f32,
+    /// The current feedback's and the frequency feedback's gains.
+    k_u: f32,
+    k_w: f32,
+}
+
+/// The raw layout ([`crate::raw`]): the fields in their order of declaration, as one array.
+impl crate::raw::Field for VhzConfig {
+    fn put(&self, w: &mut crate::raw::Writer) {
+        self.numbers().put(w);
+    }
+    fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        let [
+            ts_s,
+            rs_ohm,
+            r_r_ohm,
+            l_sigma_h,
+            alpha_per_s,
+            ls_h,
+            psi_s_nom_wb,
+            i_gain,
+            f_gain,
+            ramp_step_rad_s,
+            pole_pairs,
+            lr_over_lm,
+            k_u,
+            k_w,
+        ] = <[f32; 14]>::get(r);
+        Self {
+            ts_s,
+            rs_ohm,
+            r_r_ohm,
+            l_sigma_h,
+            alpha_per_s,
+            ls_h,
+            psi_s_nom_wb,
+            i_gain,
+            f_gain,
+            ramp_step_rad_s,
+            pole_pairs,
+            lr_over_lm,
+            k_u,
+            k_w,
+        }
+    }
+}
+
+/// The slow step's plan for the fast steps: the ramp's frequency reference and the flux.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VhzPlan {
+    /// The ramp's speed reference in electrical rad/s (`p·ω_ref`).
+    pub omega_ref_e_rad_s: f32,
+    /// The stator-flux reference ψ_s*, Wb (weakened above base speed).
+    pub psi_s_wb: f32,
+    /// The magnetizing current of ψ_s* on the inductances in use, A (the IR compensation's
+    /// d-axis current).
+    pub i_sd_a: f32,
+}
+
+/// The law's state: the stator-flux reference's angle, the operating point.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VhzState {
+    /// The stator-flux reference's angle θ_s (sin, cos), turned every step.
+    field: SinCos,
+    /// θ_s, rad in `[-π, π)` (the field is made afresh from it at every slow step: the
+    /// turning's rounding does not add up).
+    theta_s_rad: f32,
+    /// The operating-point current `i_s0` in the stator-flux frame, A.
+    i0: Dq,
+    /// The operating-point slip `ω_r0`, electrical rad/s.
+    omega_r0_rad_s: f32,
+    /// The stator frequency of the last step, electrical rad/s.
+    omega_s_rad_s: f32,
+}
+
+/// What the slow step reads of the law's state ([`VhzState::report`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct VhzReport {
+    /// The operating-point current in the stationary frame, A.
+    pub i0_ab: AlphaBeta,
+    /// Its magnitude squared, A².
+    pub i0_squared: f32,
+    /// The operating-point slip `ω_r0`, electrical rad/s.
+    pub slip_rad_s: f32,
+    /// The stator frequency of the last step, electrical rad/s.
+    pub omega_s_rad_s: f32,
+}
+
+/// One step's result.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VhzOutput {
+    /// The stator voltage reference, stationary frame, V.
+    pub v_ab: AlphaBeta,
+    /// The stator-flux frame of this step (its angle θ_s).
+    pub field: SinCos,
+}
+
+impl VhzConfig {
+    /// The law for `motor`, stepped every `ts_s`, holding the rated rotor flux `flux_ref_wb`
+    /// (T form, the drive's ψ_r*) at no load, its frequency reference ramped by `ramp_rad_s2`
+    /// (mechanical) in slow steps of `t_slow_s`, with the feedback gains `[k_u, k_w]`.
+    pub fn new(
+        motor: &MotorParams,
+        ts_s: f64,
+        t_slow_s: f64,
+        flux_ref_wb: f64,
+        ramp_rad_s2: f64,
+        [k_u, k_w]: [f64; 2],
+    ) -> Result<Self, VhzError> {
+        let ok = |x: f64| x.is_finite() && x > 0.0;
+        if !(ok(ts_s) && ok(t_slow_s) && ts_s < 0.1 && ALPHA_I_RAD_S.max(ALPHA_F_RAD_S) * ts_s < 0.1) {
+            return Err(VhzError::SamplePeriod);
+        }
+        if !ok(ramp_rad_s2) {
+            return Err(VhzError::Ramp);
+        }
+        if !ok(flux_ref_wb) {
+            return Err(VhzError::Flux);
+        }
+        if ![k_u, k_w].iter().all(|k| (0.0..=K_MAX).contains(k)) {
+            return Err(VhzError::Gain);
+        }
+        let k = motor.lm_h() / motor.lr_h();
+        let l_m = motor.lm_h() * k;
+        let r_r = motor.rr_ohm() * k * k;
+        let f = |x: f64| x as f32;
+        Ok(Self {
+            ts_s: f(ts_s),
+            rs_ohm: f(motor.rs_ohm()),
+            r_r_ohm: f(r_r),
+            l_sigma_h: f(motor.ls_h() - l_m),
+            alpha_per_s: f(r_r / l_m),
+            ls_h: f(motor.ls_h()),
+            psi_s_nom_wb: f(flux_ref_wb * motor.ls_h() / motor.lm_h()),
+            i_gain: f(ALPHA_I_RAD_S * ts_s),
+            f_gain: f(ALPHA_F_RAD_S * ts_s),
+            ramp_step_rad_s: f(ramp_rad_s2 * t_slow_s),
+            pole_pairs: f32::from(motor.pole_pairs()),
+            lr_over_lm: f(1.0 / k),
+            k_u: f(k_u),
+            k_w: f(k_w),
+        })
+    }
+
+    /// Every value finite and positive, the gains within `[0, K_MAX]` (what
+    /// [`VhzConfig::new`] made; a raw configuration is checked with it).
+    pub fn is_valid(&self) -> bool {
+        let [model @ .., k_u, k_w] = self.numbers();
+        let gain = |k: f32| (0.0..=K_MAX as f32).contains(&k);
+        model.iter().all(|&x| crate::num::finite_positive(x)) && gain(k_u) && gain(k_w)
+    }
+
+    fn numbers(&self) -> [f32; 14] {
+        [
+            self.ts_s,
+            self.rs_ohm,
+            self.r_r_ohm,
+            self.l_sigma_h,
+            self.alpha_per_s,
+            self.ls_h,
+            self.psi_s_nom_wb,
+            self.i_gain,
+            self.f_gain,
+            self.ramp_step_rad_s,
+            self.pole_pairs,
+            self.lr_over_lm,
+            self.k_u,
+            self.k_w,
+        ]
+    }
+
+    /// The rated stator flux, Wb.
+    pub fn psi_s_nom_wb(&self) -> f32 {
+        self.psi_s_nom_wb
+    }
+
+    /// The pull-out (breakdown) slip of the stator-flux-fed machine, electrical rad/s:
+    /// `R_R/L_σ` (inverse-Γ), where the torque at constant ψ_s, `∝ ω_r/(1 + (ω_r·L_σ/R_R)²)`,
+    /// peaks. Beyond it more slip gives less torque: the rotor falls out and the slip runs away.
+    pub fn pull_out_slip_rad_s(&self) -> f32 {
+        self.r_r_ohm / self.l_sigma_h
+    }
+
+    /// The ramp's change per slow step, mechanical rad/s.
+    pub fn ramp_step_rad_s(&self) -> f32 {
+        self.ramp_step_rad_s
+    }
+
+    /// Pole pairs.
+    pub fn pole_pairs(&self) -> f32 {
+        self.pole_pairs
+    }
+
+    /// The plan for speed reference `omega_ref_rad_s` (the ramp's, mechanical) with stator
+    /// flux `psi_s_wb`, on the inductances `l_scale` × the motor's.
+    pub fn plan(&self, omega_ref_rad_s: f32, psi_s_wb: f32, l_scale: f32) -> VhzPlan {
+        VhzPlan {
+            omega_ref_e_rad_s: self.pole_pairs * omega_ref_rad_s,
+            psi_s_wb,
+            i_sd_a: psi_s_wb / (self.ls_h * l_scale),
+        }
+    }
+
+    /// The state taking over a magnetized machine: the stator-flux frame at the field angle
+    /// `theta_rad` the magnetizing current was held at, the operating point the current
+    /// `i_ab` measured there, with no slip.
+    pub fn start(&self, theta_rad: f32, i_ab: AlphaBeta) -> VhzState {
+        let field = SinCos::new(theta_rad);
+        VhzState { field, theta_s_rad: theta_rad, i0: i_ab.park(field), ..VhzState::default() }
+    }
+
+    /// One sample: `i_ab` the measured stator current. Returns the voltage reference and
+    /// this step's frame; the state moves on to the next step (θ_s turned by `ω_s·T`, the
+    /// operating point's filters). The equations of the module docs.
+    #[inline]
+    pub fn step(&self, s: &mut VhzState, plan: &VhzPlan, i_ab: AlphaBeta) -> VhzOutput {
+        let field = s.field;
+        let i = i_ab.park(field);
+        let (l_sigma, psi_s, i0) = (self.l_sigma_h, plan.psi_s_wb, s.i0);
+        // The operating point's rotor flux ψ_R0 = ψ_s* − L_σ·i_s0 and the slip of the
+        // measured current.
+        let psi_r = Dq { d: psi_s - l_sigma * i0.d, q: -l_sigma * i0.q };
+        let psi_r2 = (psi_r.d * psi_r.d + psi_r.q * psi_r.q).max(1e-6);
+        let omega_r = self.r_r_ohm * (i.q * psi_r.d - i.d * psi_r.q) / psi_r2;
+        // Slip compensation and the frequency's damping.
+        let w0 = s.omega_r0_rad_s;
+        let omega_s = plan.omega_ref_e_rad_s + w0 + self.k_w * (w0 - omega_r);
+        // IR compensation and the current feedback k·(i_s0 − i_s), k = k_u·L_σ·(α + jω_s).
+        let e = Dq { d: i0.d - i.d, q: i0.q - i.q };
+        let (kr, ki) = (self.k_u * l_sigma * self.alpha_per_s, self.k_u * l_sigma * omega_s);
+        let u = Dq {
+            d: self.rs_ohm * plan.i_sd_a + kr * e.d - ki * e.q,
+            q: self.rs_ohm * i0.q + omega_s * psi_s + kr * e.q + ki * e.d,
+        };
+        // The state: the filters, the frame turned (within the rotation's accurate range).
+        s.i0 = Dq { d: i0.d + self.i_gain * (i.d - i0.d), q: i0.q + self.i_gain * (i.q - i0.q) };
+        s.omega_r0_rad_s = w0 + self.f_gain * (omega_r - w0);
+        let delta = (omega_s * self.ts_s).clamp(-SinCos::MAX_ROTATION_RAD, SinCos::MAX_ROTATION_RAD);
+        s.field = field.rotated(delta);
+        s.theta_s_rad += delta;
+        s.omega_s_rad_s = omega_s;
+        VhzOutput { v_ab: u.inverse_park(field), field }
+    }
+}
+
+impl VhzState {
+    /// The frame made afresh from its angle (once per slow period: the rounding of the
+    /// turns does not add up), the angle wrapped.
+    pub fn renew_field(&mut self) {
+        self.theta_s_rad = crate::frames::wrap_angle(self.theta_s_rad);
+        self.field = SinCos::new(self.theta_s_rad);
+    }
+
+    /// The operating-point current in the stationary frame, A.
+    pub fn i0_ab(&self) -> AlphaBeta {
+        self.i0.inverse_park(self.field)
+    }
+
+    /// What the slow step reads: the operating point, the slip, the stator frequency.
+    pub fn report(&self) -> VhzReport {
+        VhzReport {
+            i0_ab: self.i0_ab(),
+            i0_squared: self.i0.d * self.i0.d + self.i0.q * self.i0.q,
+            slip_rad_s: self.omega_r0_rad_s,
+            omega_s_rad_s: self.omega_s_rad_s,
+        }
+    }
+
+    /// The operating-point slip `ω_r0`, electrical rad/s.
+    pub fn slip_rad_s(&self) -> f32 {
+        self.omega_r0_rad_s
+    }
+
+    /// θ_s, rad.
+    pub fn theta_s_rad(&self) -> f32 {
+        self.theta_s_rad
+    }
+
+    /// The rotor flux of the operating point in the T model's terms (`|ψ_s* − L_σ·i_s0|`,
+    /// inverse-Γ, × `L_r/L_m`), Wb: the drive's ψ_r.
+    pub fn psi_r_wb(&self, cfg: &VhzConfig, plan: &VhzPlan) -> f32 {
+        let d = plan.psi_s_wb - cfg.l_sigma_h * self.i0.d;
+        let q = cfg.l_sigma_h * self.i0.q;
+        libm::sqrtf(d * d + q * q) * cfg.lr_over_lm
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn motor() -> MotorParams {
+        MotorParams::delorenzo_dl10115a1().unwrap()
+    }
+
+    /// The state equations of the inverse-Γ machine in the stator-flux reference's frame at
+    /// constant speed: the law's steady state at no load holds the rated flux and turns at
+    /// the reference (no slip), and with load it compensates the slip — the rotor turns at
+    /// the reference within the filters' settling.
+    #[test]
+    fn the_law_holds_the_flux_and_compensates_the_slip() {
+        let m = motor();
+        let ts = 1e-4;
+        let cfg = VhzConfig::new(&m, ts, 1e-3, 0.9, 100.0, [K_U, K_W]).unwrap();
+        let k = m.lm_h() / m.lr_h();
+        let (l_m, r_r, l_s, r_s) = (m.lm_h() * k, m.rr_ohm() * k * k, m.ls_h(), m.rs_ohm());
+        let l_sigma = l_s - l_m;
+        for &(w_ref_m, load_nm) in &[(100.0f64, 0.0f64), (100.0, 0.5), (-150.0, -0.5)] {
+            let plan = cfg.plan(w_ref_m as f32, cfg.psi_s_nom_wb(), 1.0);
+            let mut s = cfg.start(0.0, AlphaBeta::default());
+            // Stator flux ψ_s and rotor flux ψ_R (stationary frame), the rotor speed set so
+            // that the machine's torque carries `load_nm` (a stiff shaft: a speed loop of the
+            // test's own holding the torque).
+            let (mut psi_s, mut psi_rr) = ([0.0f64; 2], [0.0f64; 2]);
+            let mut w_m = w_ref_m;
+            let p = f64::from(m.pole_pairs());
+            for _ in 0..60_000 {
+                let i = [(psi_s[0] - psi_rr[0]) / l_sigma, (psi_s[1] - psi_rr[1]) / l_sigma];
+                let out = cfg.step(&mut s, &plan, AlphaBeta { alpha: i[0] as f32, beta: i[1] as f32 });
+                let u = [f64::from(out.v_ab.alpha), f64::from(out.v_ab.beta)];
+                let w = p * w_m;
+                for _ in 0..10 {
+                    let i = [(psi_s[0] - psi_rr[0]) / l_sigma, (psi_s[1] - psi_rr[1]) / l_sigma];
+                    let h = ts / 10.0;
+                    let ds = [u[0] - r_s * i[0], u[1] - r_s * i[1]];
+                    let dr = [
+                        r_r * i[0] - (r_r / l_m) * psi_rr[0] - w * psi_rr[1],
+                        r_r * i[1] - (r_r / l_m) * psi_rr[1] + w * psi_rr[0],
+                    ];
+                    psi_s = [psi_s[0] + h * ds[0], psi_s[1] + h * ds[1]];
+                    psi_rr = [psi_rr[0] + h * dr[0], psi_rr[1] + h * dr[1]];
+                }
+                let i = [(psi_s[0] - psi_rr[0]) / l_sigma, (psi_s[1] - psi_rr[1]) / l_sigma];
+                let torque = 1.5 * p * (psi_rr[0] * i[1] - psi_rr[1] * i[0]);
+                // The shaft: slowly to the speed where the torque is the load's.
+                w_m += 1e-4 * (torque - load_nm) / 0.05 * 10.0;
+            }
+            let psi = (psi_s[0].powi(2) + psi_s[1].powi(2)).sqrt();
+            assert!(
+                (psi / f64::from(cfg.psi_s_nom_wb()) - 1.0).abs() < 0.03,
+                "ψ_s {psi} at {w_ref_m}, {load_nm}"
+            );
+            assert!(
+                (w_m - w_ref_m).abs() < 0.01 * w_ref_m.abs(),
+                "ω_m {w_m} for {w_ref_m} under {load_nm} N·m"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_inputs_are_named() {
+        let m = motor();
+        let k = [K_U, K_W];
+        assert_eq!(VhzConfig::new(&m, 0.0, 1e-3, 0.9, 100.0, k), Err(VhzError::SamplePeriod));
+        assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 0.9, f64::NAN, k), Err(VhzError::Ramp));
+        assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 0.0, 100.0, k), Err(VhzError::Flux));
+        for bad in [[-1.0, 4.0], [1.0, f64::NAN], [1.0, K_MAX + 1.0]] {
+            assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 0.9, 100.0, bad), Err(VhzError::Gain), "{bad:?}");
+        }
+        assert!(VhzConfig::new(&m, 1e-4, 1e-3, 0.9, 100.0, k).unwrap().is_valid());
+        // Plain V/Hz (no feedback) is a valid law.
+        assert!(VhzConfig::new(&m, 1e-4, 1e-3, 0.9, 100.0, [0.0, 0.0]).unwrap().is_valid());
+        assert!(!VhzConfig::default().is_valid());
+    }
+}
