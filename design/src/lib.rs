@@ -16,6 +16,7 @@ pub mod im;
 pub mod kharitonov;
 pub mod margins;
 pub mod nyquist;
+pub mod observer;
 pub mod pi_region;
 pub mod poly;
 pub mod recycle;

@@ -495,7 +495,10 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             })
         })
         .collect();
-    let linear_ok = checks.iter().all(|c| c.pass) && bw_ok && writable_ok;
+    // The observer, for a drive that runs one (issue 53): linearised over its range.
+    let observer = design::observer::check(&spec);
+    let observer_ok = observer.is_none_or(|o| o.pass);
+    let linear_ok = checks.iter().all(|c| c.pass) && bw_ok && writable_ok && observer_ok;
     let nonlinear = a.campaign.as_deref().map(|p| campaign_result(p, &drive_text, &c)).transpose()?;
     let ok = linear_ok && nonlinear.as_ref().is_none_or(|n| n.ok);
     if let Some(out) = &a.out {
@@ -513,6 +516,13 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
                 "writable_speed_gains": {"kp": c.speed_kp_writable, "tau_max_nm": c.speed_tau_max_nm_writable, "met": writable_ok, "missed": writable_json},
             },
             "nonlinear": nonlinear.as_ref().map(|n| n.record.clone()),
+            "observer": observer.map(|o| serde_json::json!({
+                "worst_radius": if o.worst.radius.is_finite() { serde_json::json!(o.worst.radius) } else { serde_json::Value::Null },
+                "at_omega_e_rad_s": o.worst.point.omega_m_rad_s,
+                "at_i_q_a": o.worst.point.i_q_a,
+                "stator_resistance_margin": o.rs_margin,
+                "pass": o.pass,
+            })),
         });
         let text = serde_json::to_string_pretty(&cert).map_err(|e| e.to_string())?;
         cli::write_atomic(out, &format!("{text}\n"))?;
@@ -579,14 +589,28 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
                 4 - writable.len(),
             );
         }
-        report::outln!("{path}: {}", if ok { "certified" } else { "NOT certified" });
-        if spec.speed_feedback == controller_core::drive::SpeedFeedback::Sensorless {
-            // Said, not hidden: what the certificate did not check (issue 53, item 5).
-            eprintln!(
-                "design certify: {path}: note: speed_feedback = \"sensorless\" — the certificate models the \
-                 encoder's speed window; the observer's own dynamics are not in it yet (docs/sensorless.md)"
+        if let Some(o) = observer {
+            let w = o.worst;
+            report::outln!(
+                "{:<5} {:<56} {:<22} {:>10.6}  below 1",
+                if o.pass { "ok" } else { "FAIL" },
+                "observer: linearised, parameters right (spectral radius)",
+                format!("{:.0} rad/s, {:+.2} A", w.point.omega_m_rad_s, w.point.i_q_a),
+                w.radius
             );
+            // What the drive's measurement of R_s at every enable must reach: said, not judged.
+            match o.rs_margin {
+                Some([lo, hi]) => report::outln!(
+                    "{:<5} {:<56} {:<22} {:>10}  ×[{lo:.3}, {hi:.3}]",
+                    "info",
+                    "observer: stator resistance it holds at, × the motor's",
+                    "whole grid",
+                    ""
+                ),
+                None => report::outln!("{:<5} observer: no stator resistance margin", "info"),
+            }
         }
+        report::outln!("{path}: {}", if ok { "certified" } else { "NOT certified" });
     }
     if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
         eprintln!("design certify: {path}: the campaign passed {} of {} runs", n.passed, n.runs);
