@@ -611,6 +611,14 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
             }
         }
         report::outln!("{path}: {}", if ok { "certified" } else { "NOT certified" });
+        if matches!(spec.control, controller_core::drive::Control::VHz { .. }) {
+            // Said, not hidden: what the certificate did not check (issue 53).
+            eprintln!(
+                "design certify: {path}: note: control = \"vhz\" — the certificate checks the current and speed \
+                 loops vector control runs (the magnetizing runs on the current loops); the V/Hz law's own \
+                 stability is not in it (docs/sensorless.md)"
+            );
+        }
     }
     if let Some(n) = nonlinear.as_ref().filter(|n| !n.ok) {
         eprintln!("design certify: {path}: the campaign passed {} of {} runs", n.passed, n.runs);

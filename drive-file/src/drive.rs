@@ -51,9 +51,9 @@ pub struct ControllerTable {
     /// beside it carrying the drive on when the encoder fails — docs/sensorless.md).
     #[serde(default)]
     pub speed_feedback: FeedbackTable,
-    /// The control law (default vector control; `{ kind = "vhz" }`: V/Hz —
+    /// The control law (default vector control; `"vhz"` or `{ kind = "vhz", … }`: V/Hz —
     /// docs/sensorless.md).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "control_table")]
     pub control: ControlTable,
     /// Speed law.
     pub speed: SpeedTable,
@@ -166,8 +166,8 @@ pub enum ControlTable {
     /// V/Hz with stator-current feedback.
     Vhz {
         /// The frequency reference's ramp, mechanical rad/s² (default
-        /// [`controller_core::vhz::default_ramp_rad_s2`]: half the drive's torque on the
-        /// motor file's inertia).
+        /// [`controller_core::vhz::default_ramp_rad_s2`]: a tenth of the drive's torque at its
+        /// current limit on the motor file's inertia).
         ramp_rad_s2: Option<f64>,
         /// The current feedback's gain (default [`controller_core::vhz::K_U`], the paper's).
         #[serde(default = "default_k_u")]
@@ -176,6 +176,30 @@ pub enum ControlTable {
         #[serde(default = "default_k_w")]
         k_w: f64,
     },
+}
+
+/// `controller.control` as a name (`"vector"`, `"vhz"`: the defaults) or as a table
+/// (`{ kind = "vhz", ramp_rad_s2, k_u, k_w }`): a user's `control = "vhz"` read as "invalid
+/// type: string, expected internally tagged enum" (found trying it).
+fn control_table<'de, D: serde::Deserializer<'de>>(d: D) -> Result<ControlTable, D::Error> {
+    struct Either;
+    impl<'de> serde::de::Visitor<'de> for Either {
+        type Value = ControlTable;
+        fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+            f.write_str("\"vector\", \"vhz\" or a table { kind = \"vhz\", ramp_rad_s2, k_u, k_w }")
+        }
+        fn visit_str<E: serde::de::Error>(self, name: &str) -> Result<ControlTable, E> {
+            match name {
+                "vector" => Ok(ControlTable::Vector),
+                "vhz" => Ok(ControlTable::Vhz { ramp_rad_s2: None, k_u: default_k_u(), k_w: default_k_w() }),
+                _ => Err(E::unknown_variant(name, &["vector", "vhz"])),
+            }
+        }
+        fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<ControlTable, A::Error> {
+            ControlTable::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+        }
+    }
+    d.deserialize_any(Either)
 }
 
 fn default_k_u() -> f64 {

@@ -23,7 +23,7 @@
 //! current_frame = "stationary"           # or "synchronous" (d/q loops)
 //! speed_feedback = "encoder"             # default; "sensorless": the flux and speed observer;
 //!                                        # "encoder_ride_through": the observer beside the encoder
-//! control = { kind = "vector" }          # default; { kind = "vhz" }: V/Hz (speed references only),
+//! control = "vector"                     # default; "vhz" or { kind = "vhz", … }: V/Hz (speed references only),
 //!                                        # optional ramp_rad_s2 (default: 0.1·τ_max/J), k_u = 1.0, k_w = 4.0
 //! speed = { kind = "saturated_p", kp = 0.05, tau_max_nm = 2.0 }
 //! #  or { kind = "pi_torque", kp, ki, limit }  |  { kind = "pi_iq", kp, ki, limit }
@@ -190,11 +190,16 @@ mod tests {
         let (i_d, lm) = (0.9 / 1.42, 1.42f64);
         let torque = 1.5 * lm * lm / 1.5 * i_d * (16.0 - i_d * i_d).sqrt();
         assert!((ramp_rad_s2 - 0.1 * torque / 0.005).abs() < 1e-9, "{ramp_rad_s2}");
+        // The name alone: the defaults (a user's first try).
+        let named = DriveFile::parse(Path::new("d.toml"), &with("control = \"vhz\"")).unwrap();
+        assert_eq!(named.spec.control, d.spec.control);
         let plain = with("control = { kind = \"vhz\", k_u = 0.0, k_w = 0.0 }");
         let d = DriveFile::parse(Path::new("d.toml"), &plain).unwrap();
         assert!(matches!(d.spec.control, Control::VHz { k_u: 0.0, k_w: 0.0, .. }));
         for bad in [
             "control = { kind = \"scalar\" }",
+            "control = \"scalar\"",
+            "control = 3",
             "control = { kind = \"vhz\", ramp_rad_s2 = -1.0 }",
             "control = { kind = \"vhz\", k_w = -4.0 }",
             "control = { kind = \"vhz\", gain = 1.0 }",
