@@ -566,3 +566,27 @@ fn an_encoder_frozen_at_a_low_speed_is_not_seen() {
         assert!(slowest < -100.0, "{slowest}");
     }
 }
+
+/// The stator resistance the sensorless drive measures at its enable (the magnetizing fit's
+/// constant voltage over the current, realistic sensors, the switching inverter with the
+/// board's dead time compensated) against the winding's, on plants whose R_s is × 1, 1.2 and
+/// 1.5 the file's — against the margin the observer's certificate states for drive.toml
+/// (`design certify`: the observer holds R_s errors within ×[0.986, 1.092] over its whole
+/// grid). Each within 1 % of the winding's — inside the margin's tighter, −1.4 % side — so
+/// the margin left is the winding's warming after the enable (docs/sensorless.md).
+#[test]
+fn the_measured_stator_resistance_against_the_certificates_margin() {
+    let mut spec = DriveFile::shipped().unwrap().spec;
+    spec.speed_feedback = SpeedFeedback::Sensorless;
+    for rs in [1.0, 1.2, 1.5] {
+        let plant = spec.motor.scaled(rs, 1.0, 1.0, 1.0).unwrap();
+        let b = scenario(spec, plant, SensorModel::realistic(11), 0.0, &[], &[(0.0, 0.6)]);
+        let mut drive = Drive::new(DriveConfig::new(&spec).unwrap());
+        b.simulate(&mut drive, |_| {}, |_| Ok(())).unwrap();
+        assert_eq!(drive.mode(), Mode::Running);
+        let measured = f64::from(drive.stator_resistance_scale());
+        let error = measured / rs - 1.0;
+        eprintln!("plant R_s × {rs}: measured × {measured:.5} ({:+.3} % of the winding's)", 100.0 * error);
+        assert!(error.abs() < 0.01, "{rs}: {measured}");
+    }
+}

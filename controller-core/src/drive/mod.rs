@@ -801,6 +801,14 @@ impl Drive {
         self.cfg.source.observer().map(|_| self.fast.run.estimate.omega_m_rad_s)
     }
 
+    /// The stator resistance the observer runs on, × the motor file's: what the magnetizing
+    /// fit measured at the last enable of a demagnetized rotor at rest (1 before any, and
+    /// for a drive without an observer). Its error against the winding's is what the
+    /// observer's certificate bounds (`design certify`'s stator-resistance margin).
+    pub fn stator_resistance_scale(&self) -> f32 {
+        self.slow.machine.rs_scale
+    }
+
     /// The encoder's faults the drive rode through on the observer since the last enable
     /// ([`SpeedFeedback::EncoderRideThrough`]): the faults it would have tripped on, which
     /// the user must still hear of — the encoder is broken, the drive runs without it.
