@@ -207,15 +207,6 @@ pub struct VhzReport {
     pub omega_s_rad_s: f32,
 }
 
-/// One step's result.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct VhzOutput {
-    /// The stator voltage reference, stationary frame, V.
-    pub v_ab: AlphaBeta,
-    /// The stator-flux frame of this step (its angle θ_s).
-    pub field: SinCos,
-}
-
 impl VhzConfig {
     /// The law for `motor`, stepped every `ts_s`, holding the rated rotor flux `flux_ref_wb`
     /// (T form, the drive's ψ_r*) at no load, its frequency reference ramped by `ramp_rad_s2`
@@ -330,11 +321,11 @@ impl VhzConfig {
         VhzState { field, theta_s_rad: theta_rad, i0: i_ab.park(field), ..VhzState::default() }
     }
 
-    /// One sample: `i_ab` the measured stator current. Returns the voltage reference and
-    /// this step's frame; the state moves on to the next step (θ_s turned by `ω_s·T`, the
+    /// One sample: `i_ab` the measured stator current. Returns the stator voltage reference
+    /// (stationary frame, V); the state moves on to the next step (θ_s turned by `ω_s·T`, the
     /// operating point's filters). The equations of the module docs.
     #[inline]
-    pub fn step(&self, s: &mut VhzState, plan: &VhzPlan, i_ab: AlphaBeta) -> VhzOutput {
+    pub fn step(&self, s: &mut VhzState, plan: &VhzPlan, i_ab: AlphaBeta) -> AlphaBeta {
         let field = s.field;
         let i = i_ab.park(field);
         let (l_sigma, psi_s, i0) = (self.l_sigma_h, plan.psi_s_wb, s.i0);
@@ -360,7 +351,7 @@ impl VhzConfig {
         s.field = field.rotated(delta);
         s.theta_s_rad += delta;
         s.omega_s_rad_s = omega_s;
-        VhzOutput { v_ab: u.inverse_park(field), field }
+        u.inverse_park(field)
     }
 }
 
@@ -437,8 +428,8 @@ mod tests {
             let p = f64::from(m.pole_pairs());
             for _ in 0..60_000 {
                 let i = [(psi_s[0] - psi_rr[0]) / l_sigma, (psi_s[1] - psi_rr[1]) / l_sigma];
-                let out = cfg.step(&mut s, &plan, AlphaBeta { alpha: i[0] as f32, beta: i[1] as f32 });
-                let u = [f64::from(out.v_ab.alpha), f64::from(out.v_ab.beta)];
+                let v = cfg.step(&mut s, &plan, AlphaBeta { alpha: i[0] as f32, beta: i[1] as f32 });
+                let u = [f64::from(v.alpha), f64::from(v.beta)];
                 let w = p * w_m;
                 for _ in 0..10 {
                     let i = [(psi_s[0] - psi_rr[0]) / l_sigma, (psi_s[1] - psi_rr[1]) / l_sigma];

@@ -1,7 +1,8 @@
 //! The sensorless observer's linearised stability (issue 53, deliverable 5): the drive's
 //! flux and speed observer (`controller_core::observer`, Hinkkanen, Harnefors and Luomi 2010)
-//! as it runs — its discrete update, ported to f64 line for line — fed by the machine's
-//! sinusoidal steady state at an operating point, linearised about its equilibrium.
+//! as it runs — its discrete update, ported to f64 line for line (the f32 step's rounding would
+//! swamp the central differences; the port is held to the drive's step by a test) — fed by the
+//! machine's sinusoidal steady state at an operating point, linearised about its equilibrium.
 //!
 //! **The map.** At stator frequency `ω_s` the machine's current and voltage are
 //! `i(t) = I·e^{jω_s t}`, `u(t) = U·e^{jω_s t}` (the T model's steady state for the rotor's

@@ -189,6 +189,7 @@ mod tests {
         let Control::VHz { ramp_rad_s2, .. } = d.spec.control else { panic!("{:?}", d.spec.control) };
         let (i_d, lm) = (0.9 / 1.42, 1.42f64);
         let torque = 1.5 * lm * lm / 1.5 * i_d * (16.0 - i_d * i_d).sqrt();
+        eprintln!("drive.toml's default V/Hz ramp: {ramp_rad_s2:.1} rad/s²");
         assert!((ramp_rad_s2 - 0.1 * torque / 0.005).abs() < 1e-9, "{ramp_rad_s2}");
         // The name alone: the defaults (a user's first try).
         let named = DriveFile::parse(Path::new("d.toml"), &with("control = \"vhz\"")).unwrap();

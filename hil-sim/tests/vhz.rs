@@ -43,21 +43,9 @@ fn vhz_spec_of(path: &str, [k_u, k_w]: [f64; 2]) -> DriveSpec {
 }
 
 /// `spec` on its own motor and a bus of `vdc_v` with a fan taking `fan_nm` at `base_rad_s`,
-/// enabled at [`IDLE_S`], the speed references `references` (time, rad/s), for `duration_s`:
-/// the trace and the mode it ends in.
+/// enabled at [`IDLE_S`], the speed references `references` (time, rad/s), for `duration_s`, on
+/// the plant's load model `load` (the fan besides): the trace and the mode it ends in.
 fn run_at(
-    spec: DriveSpec,
-    vdc_v: f64,
-    base_rad_s: f64,
-    fan_nm: f64,
-    references: &[(f64, f64)],
-    duration_s: f64,
-) -> (Vec<Row>, Mode) {
-    run_with_load(spec, vdc_v, base_rad_s, fan_nm, references, duration_s, LoadModel::Torque)
-}
-
-/// [`run_at`] with the plant's load model `load`.
-fn run_with_load(
     spec: DriveSpec,
     vdc_v: f64,
     base_rad_s: f64,
@@ -137,7 +125,8 @@ const LEVELS: [f64; 4] = [0.1, 0.2, 0.3, 0.4];
 fn light_load(name: &str, spec: DriveSpec, vdc_v: f64, base_rad_s: f64, fan_nm: f64) -> Vec<(f64, f64)> {
     let refs: Vec<(f64, f64)> =
         LEVELS.iter().enumerate().map(|(k, &x)| (0.4 + HOLD_S * k as f64, x * base_rad_s)).collect();
-    let (rows, mode) = run_at(spec, vdc_v, base_rad_s, fan_nm, &refs, 0.4 + HOLD_S * LEVELS.len() as f64);
+    let (rows, mode) =
+        run_at(spec, vdc_v, base_rad_s, fan_nm, &refs, 0.4 + HOLD_S * LEVELS.len() as f64, LoadModel::Torque);
     assert!(!matches!(mode, Mode::Fault(_)), "{name}: {mode:?}");
     LEVELS
         .iter()
@@ -220,7 +209,7 @@ fn a_seized_rotor_trips_as_a_stall() {
     let spec = vhz_spec();
     let (i_max, i_trip) = (spec.i_ref_max_a, spec.protection.i_trip_a);
     let (rows, mode) =
-        run_with_load(spec, 310.0, BASE_RAD_S, 0.0, &[(0.4, BASE_RAD_S)], 4.0, LoadModel::LockedRotor);
+        run_at(spec, 310.0, BASE_RAD_S, 0.0, &[(0.4, BASE_RAD_S)], 4.0, LoadModel::LockedRotor);
     let active: Vec<&Row> = rows.iter().filter(|r| r.duty.is_some()).collect();
     let peak = active.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
     let ramp_peak = active.iter().map(|r| r.omega_ref_rad_s).fold(0.0, f64::max);
@@ -245,7 +234,7 @@ fn a_seized_rotor_trips_as_a_stall() {
 fn an_overloading_fan_in_field_weakening_is_not_held_yet() {
     let spec = vhz_spec();
     let (i_max, i_trip) = (spec.i_ref_max_a, spec.protection.i_trip_a);
-    let (rows, mode) = run_at(spec, 310.0, BASE_RAD_S, 8.0, &[(0.4, BASE_RAD_S)], 6.0);
+    let (rows, mode) = run_at(spec, 310.0, BASE_RAD_S, 8.0, &[(0.4, BASE_RAD_S)], 6.0, LoadModel::Torque);
     let active: Vec<&Row> = rows.iter().filter(|r| r.duty.is_some()).collect();
     let peak = active.iter().map(|r| r.x.i_alpha_a.hypot(r.x.i_beta_a)).fold(0.0, f64::max);
     let top = active.iter().map(|r| r.x.omega_m_rad_s).fold(0.0, f64::max);

@@ -305,21 +305,20 @@ impl FastState {
             run.state = v.start(self.run.field.last_theta_e_rad(), i_ab);
             run.on = true;
         }
-        let out = v.step(&mut run.state, &run.plan, i_ab);
+        let v_ab = v.step(&mut run.state, &run.plan, i_ab);
         // The telemetry's and the dead-time compensation's reference: the operating point.
         (self.run.last.i_ab, self.run.last.i_ref_ab) = (i_ab, run.state.i0_ab());
-        let v_applied = out.v_ab.rotate(self.run.delay_rotation);
-        let off = Some(FastOutput { phases: PhaseCommand::Off, mode: self.mode, brake });
+        let v_applied = v_ab.rotate(self.run.delay_rotation);
         if !(v_applied.alpha.is_finite() && v_applied.beta.is_finite()) {
             self.trip(Fault::NonFiniteOutput);
-            return off.map(|o| FastOutput { mode: self.mode, ..o });
+            return Some(FastOutput { phases: PhaseCommand::Off, mode: self.mode, brake });
         }
         let modulation = svpwm::modulate_sampled(v_applied, m.vdc_v, cfg.duty_max);
         self.run.saturated_steps =
             if modulation.saturated { self.run.saturated_steps.saturating_add(1) } else { 0 };
         if self.run.saturated_steps >= cfg.saturation_steps {
             self.trip(Fault::LossOfControl);
-            return off.map(|o| FastOutput { mode: self.mode, ..o });
+            return Some(FastOutput { phases: PhaseCommand::Off, mode: self.mode, brake });
         }
         // The dead-time compensation out of line (the rare path's): inlined, this step took
         // 1.4 KB of the firmware's flash.
