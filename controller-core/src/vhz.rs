@@ -89,7 +89,7 @@ impl core::fmt::Display for VhzError {
             Self::SamplePeriod => {
                 f.write_str("the V/Hz law's sample period must be finite, > 0 and below 0.1 s")
             }
-            Self::Ramp => f.write_str("ramp_rad_s2 must be finite and > 0"),
+            Self::Ramp => f.write_str("ramp_rad_s2 must be finite and > 0 (in f32 too, once per slow step)"),
             Self::Gain => write!(f, "k_u and k_w must be finite, ≥ 0 and at most {K_MAX}"),
             Self::Flux => f.write_str("the V/Hz law's stator flux (from flux_ref_wb) must be finite and > 0"),
         }
@@ -236,7 +236,7 @@ impl VhzConfig {
         let l_m = motor.lm_h() * k;
         let r_r = motor.rr_ohm() * k * k;
         let f = |x: f64| x as f32;
-        Ok(Self {
+        let cfg = Self {
             ts_s: f(ts_s),
             rs_ohm: f(motor.rs_ohm()),
             r_r_ohm: f(r_r),
@@ -251,7 +251,16 @@ impl VhzConfig {
             lr_over_lm: f(1.0 / k),
             k_u: f(k_u),
             k_w: f(k_w),
-        })
+        };
+        // Finite in f32 too: a ramp of 1e300 rad/s² was accepted, ramped at once on the host,
+        // and refused by `DriveConfig::from_raw` in the firmware's build (found trying it).
+        if !cfg.ramp_step_rad_s.is_finite() {
+            return Err(VhzError::Ramp);
+        }
+        if !cfg.is_valid() {
+            return Err(VhzError::Flux);
+        }
+        Ok(cfg)
     }
 
     /// Every value finite and positive, the gains within `[0, K_MAX]` (what
@@ -465,6 +474,8 @@ mod tests {
         let k = [K_U, K_W];
         assert_eq!(VhzConfig::new(&m, 0.0, 1e-3, 0.9, 100.0, k), Err(VhzError::SamplePeriod));
         assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 0.9, f64::NAN, k), Err(VhzError::Ramp));
+        assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 0.9, 1e300, k), Err(VhzError::Ramp));
+        assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 1e300, 100.0, k), Err(VhzError::Flux));
         assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 0.0, 100.0, k), Err(VhzError::Flux));
         for bad in [[-1.0, 4.0], [1.0, f64::NAN], [1.0, K_MAX + 1.0]] {
             assert_eq!(VhzConfig::new(&m, 1e-4, 1e-3, 0.9, 100.0, bad), Err(VhzError::Gain), "{bad:?}");

@@ -202,6 +202,7 @@ mod tests {
             "control = \"scalar\"",
             "control = 3",
             "control = { kind = \"vhz\", ramp_rad_s2 = -1.0 }",
+            "control = { kind = \"vhz\", ramp_rad_s2 = 1e300 }",
             "control = { kind = \"vhz\", k_w = -4.0 }",
             "control = { kind = \"vhz\", gain = 1.0 }",
         ] {
