@@ -76,7 +76,10 @@ impl<'a> Reader<'a> {
         Self { raw, nf: 0, nu: 0, bad: false }
     }
 
-    /// The next float; a non-finite one marks the configuration bad.
+    /// The next float; a non-finite one marks the configuration bad. Out of line: a
+    /// configuration is read once (at start-up), and inlined into each of its ≈ 100 reads the
+    /// check took the firmware's flash.
+    #[inline(never)]
     pub(crate) fn f(&mut self) -> f32 {
         let x = self.raw.f.get(self.nf).copied();
         self.nf += 1;
@@ -89,6 +92,8 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// The next integer (out of line, as [`Reader::f`]).
+    #[inline(never)]
     pub(crate) fn u(&mut self) -> u32 {
         let x = self.raw.u.get(self.nu).copied();
         self.nu += 1;

@@ -69,6 +69,11 @@ pub fn default_ramp_rad_s2(motor: &MotorParams, flux_ref_wb: f64, i_max_a: f64) 
 /// the margin motulator's reference generator keeps to the breakdown torque (its `k_b`).
 pub const PULL_OUT_MARGIN: f32 = 0.9;
 
+/// The relative step in slip by which [`VhzConfig::beyond_breakdown`] tells, in field
+/// weakening, the rising side of the torque from the falling: the check fires within half of
+/// it of the breakdown's margin (the test measures where).
+pub const BREAKDOWN_STEP: f32 = 0.01;
+
 /// Why a V/Hz configuration was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VhzError {
@@ -197,10 +202,8 @@ pub struct VhzState {
 /// What the slow step reads of the law's state ([`VhzState::report`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VhzReport {
-    /// The operating-point current in the stationary frame, A.
-    pub i0_ab: AlphaBeta,
-    /// Its magnitude squared, A².
-    pub i0_squared: f32,
+    /// The operating-point current in the stator-flux reference's frame, A.
+    pub i0: Dq,
     /// The operating-point slip `ω_r0`, electrical rad/s.
     pub slip_rad_s: f32,
     /// The stator frequency of the last step, electrical rad/s.
@@ -302,6 +305,71 @@ impl VhzConfig {
         self.r_r_ohm / self.l_sigma_h
     }
 
+    /// Whether the operating point's slip `slip_rad_s` at the rotor's electrical speed
+    /// `omega_r_e_rad_s` is beyond [`PULL_OUT_MARGIN`] of the breakdown — where more slip
+    /// (a higher stator frequency) gives less torque, and the rotor falls behind a ramp that
+    /// runs on:
+    ///
+    /// * at the rated flux (`weakened` false: the law holds ψ_s), the pull-out slip `R_R/L_σ`
+    ///   (inverse-Γ): the torque at constant ψ_s, `∝ x/(1 + x²)` with `x = ω_r·L_σ/R_R`,
+    ///   peaks at `x = 1`;
+    /// * in field weakening, motoring, the law holds the voltage instead
+    ///   ([`VhzConfig::flux_within_voltage`]): the flux falls as the frequency rises, and the
+    ///   torque at a given rotor speed peaks far below the pull-out slip — with no resistance,
+    ///   where `ω_s·(1 − x²) = 2·ω_r·(1 + x²)`, a stator frequency about twice the rotor's.
+    ///   The machine's steady state at a fixed voltage, resistance and leakage in
+    ///   (`voltage_fed_torque`), judged by a step of [`BREAKDOWN_STEP`] in slip:
+    ///   beyond where the torque stops rising. Without it, a fan overloading in field
+    ///   weakening was held by none of the limits, and its rotor fell to rest behind a ramp
+    ///   at base speed. Generating, the flux rises as the slip lowers the stator frequency:
+    ///   the pull-out slip alone.
+    ///
+    /// The margin: the slip judged as `ω_r/PULL_OUT_MARGIN` (beyond the margin's share of the
+    /// breakdown slip).
+    pub fn beyond_breakdown(&self, slip_rad_s: f32, omega_r_e_rad_s: f32, weakened: bool) -> bool {
+        let w_r = slip_rad_s.abs() / PULL_OUT_MARGIN;
+        let x = w_r * self.l_sigma_h / self.r_r_ohm;
+        let motoring = slip_rad_s * omega_r_e_rad_s >= 0.0;
+        let w_re = omega_r_e_rad_s.abs();
+        x >= 1.0
+            || (weakened
+                && motoring
+                && self.voltage_fed_torque(w_re, w_r * (1.0 + BREAKDOWN_STEP))
+                    <= self.voltage_fed_torque(w_re, w_r))
+    }
+
+    /// The machine's torque at the rotor's electrical speed `w_re` and the slip `w_r`
+    /// (electrical rad/s, motoring) fed a fixed stator voltage, over `1.5·p·u²` (a shape, not a
+    /// torque): the inverse-Γ circuit at steady state per ampere of stator current — the rotor
+    /// flux `ψ_R = R_R/(α + jω_r)`, the stator flux `ψ_s = L_σ + ψ_R`, the voltage
+    /// `v = R_s + jω_s·ψ_s` — the torque `−Im ψ_R` per ampere squared, over `|v|²`. Out of
+    /// line: one copy for its two calls (the firmware's flash).
+    #[inline(never)]
+    fn voltage_fed_torque(&self, w_re: f32, w_r: f32) -> f32 {
+        let (a, b) = (self.alpha_per_s, w_r);
+        let d = a * a + b * b;
+        let (psi_d, psi_q) = (self.r_r_ohm * a / d, -self.r_r_ohm * b / d);
+        let w_s = w_re + w_r;
+        let (v_d, v_q) = (self.rs_ohm - w_s * psi_q, w_s * (self.l_sigma_h + psi_d));
+        -psi_q / (v_d * v_d + v_q * v_q)
+    }
+
+    /// The stator flux the voltage `u_max_v` holds at the stator frequency `omega_s_rad_s` with
+    /// the operating point's current `i0` (the stator-flux reference's frame), Wb, at most the
+    /// rated flux: the steady state `u = R_s·i_s0 + j·ω_s·ψ_s` within `|u| ≤ u_max` — the
+    /// field weakening. Without the resistance's drop (`ψ_s = u_max/ω_s`) the law asked more
+    /// voltage than the modulator has where `R_s·i` is a sizeable share of it (a small
+    /// motor's), its flux fell short of the reference and its slip estimate with it. Zero
+    /// where the drop alone takes the voltage.
+    pub fn flux_within_voltage(&self, u_max_v: f32, omega_s_rad_s: f32, i0: Dq) -> f32 {
+        let (u_d, u_q) = (self.rs_ohm * i0.d, self.rs_ohm * i0.q);
+        let room = crate::num::sqrt_f32((u_max_v * u_max_v - u_d * u_d).max(0.0));
+        // The q-axis drop adds to the back-EMF when the current turns with the field (motoring).
+        let drop = if omega_s_rad_s < 0.0 { -u_q } else { u_q };
+        let psi = (room - drop).max(0.0) / omega_s_rad_s.abs().max(1e-3);
+        psi.min(self.psi_s_nom_wb)
+    }
+
     /// The ramp's change per slow step, mechanical rad/s.
     pub fn ramp_step_rad_s(&self) -> f32 {
         self.ramp_step_rad_s
@@ -379,12 +447,7 @@ impl VhzState {
 
     /// What the slow step reads: the operating point, the slip, the stator frequency.
     pub fn report(&self) -> VhzReport {
-        VhzReport {
-            i0_ab: self.i0_ab(),
-            i0_squared: self.i0.d * self.i0.d + self.i0.q * self.i0.q,
-            slip_rad_s: self.omega_r0_rad_s,
-            omega_s_rad_s: self.omega_s_rad_s,
-        }
+        VhzReport { i0: self.i0, slip_rad_s: self.omega_r0_rad_s, omega_s_rad_s: self.omega_s_rad_s }
     }
 
     /// The operating-point slip `ω_r0`, electrical rad/s.
@@ -466,6 +529,93 @@ mod tests {
                 "ω_m {w_m} for {w_ref_m} under {load_nm} N·m"
             );
         }
+    }
+
+    /// The torque of `m` fed a stator voltage of magnitude `u_v` at the rotor's electrical
+    /// speed `w_re` and the slip `w_r` (electrical rad/s), N·m: the T-equivalent circuit at
+    /// steady state (the resistance, the leakages and the magnetizing branch all in), as
+    /// `hil_sim::envelope::physical_limit_nm` takes it — per ampere of stator current, scaled
+    /// to the voltage.
+    fn voltage_fed_torque_nm(m: &MotorParams, u_v: f64, w_re: f64, w_r: f64) -> f64 {
+        let (rs, rr, ls, lr, lm) = (m.rs_ohm(), m.rr_ohm(), m.ls_h(), m.lr_h(), m.lm_h());
+        // ψ_s and V per ampere of stator current along the real axis, complex as (re, im).
+        let den = (rr, w_r * lr);
+        let d2 = den.0 * den.0 + den.1 * den.1;
+        // I_r = −jω_r·L_m/(R_r + jω_r·L_r).
+        let i_r = (-w_r * lm * den.1 / d2, -w_r * lm * den.0 / d2);
+        let psi_s = (ls + lm * i_r.0, lm * i_r.1);
+        let w_s = w_re + w_r;
+        let v = (rs - w_s * psi_s.1, w_s * psi_s.0);
+        let t1 = -1.5 * f64::from(m.pole_pairs()) * psi_s.1;
+        t1 * u_v * u_v / (v.0 * v.0 + v.1 * v.1)
+    }
+
+    /// The field weakening's breakdown check against the breakdown of the whole machine: on
+    /// three motors (drive.toml's 300 W with its 16 Ω stator, motulator's 2.2 kW, Krause's
+    /// 3 300 V machine), a fixed voltage and rotor speeds where it weakens the flux to 1/1.2 …
+    /// 1/3 of the rated, the check first fires at [`PULL_OUT_MARGIN`] of the slip of the
+    /// machine's largest torque, within the [`BREAKDOWN_STEP`] it judges by (it never lets the
+    /// ramp past the breakdown), where the machine gives at least 99 % of that torque (the
+    /// margin costs little: the torque is flat at its peak).
+    #[test]
+    fn the_weakened_breakdown_check_fires_just_before_the_machines_breakdown() {
+        let motors = [
+            (motor(), 0.9),
+            (MotorParams::new(3.7, 2.1, 0.245, 0.224, 0.224, 2, 0.015, 0.0).unwrap(), 0.77),
+            (MotorParams::new(0.262, 0.187, 0.1462, 0.1462, 0.143, 2, 11.06, 0.0).unwrap(), 7.0),
+        ];
+        for (m, flux) in motors {
+            let cfg = VhzConfig::new(&m, 1e-4, 1e-3, flux, 100.0, [K_U, K_W]).unwrap();
+            let psi_nom = f64::from(cfg.psi_s_nom_wb());
+            let w_pull = f64::from(cfg.pull_out_slip_rad_s());
+            let u_v = 100.0;
+            for k in [1.2, 1.5, 2.0, 3.0] {
+                let w_re = k * u_v / psi_nom;
+                let slips = (1..=20_000).map(|n| f64::from(n) * 1e-4 * w_pull);
+                let (w_pk, t_pk) = slips
+                    .clone()
+                    .map(|w| (w, voltage_fed_torque_nm(&m, u_v, w_re, w)))
+                    .fold((0.0, f64::MIN), |a, b| if b.1 > a.1 { b } else { a });
+                let w_c = slips.clone().find(|&w| cfg.beyond_breakdown(w as f32, w_re as f32, true)).unwrap();
+                let t_c = voltage_fed_torque_nm(&m, u_v, w_re, w_c);
+                eprintln!(
+                    "R_s {} Ω, flux 1/{k}: fires at slip {w_c:.2} rad/s, {:.4} of the breakdown's \
+                     {w_pk:.2}, torque {:.4} of the largest",
+                    m.rs_ohm(),
+                    w_c / w_pk,
+                    t_c / t_pk
+                );
+                let margin = f64::from(PULL_OUT_MARGIN);
+                let share = w_c / w_pk;
+                assert!(share <= margin && share >= margin * (1.0 - f64::from(BREAKDOWN_STEP)), "{share}");
+                assert!(t_c >= 0.99 * t_pk, "{t_c} of {t_pk}");
+                // Generating, the flux rises as the frequency falls: the pull-out slip alone.
+                assert!(!cfg.beyond_breakdown(-(w_c as f32), w_re as f32, true));
+            }
+        }
+    }
+
+    /// The field weakening's flux asks the law's steady-state voltage `R_s·i_s0 + jω_s·ψ_s`
+    /// of exactly the voltage there is, motoring and generating, in both directions — and
+    /// the rated flux where there is room.
+    #[test]
+    fn the_weakened_flux_asks_the_voltage_there_is() {
+        let cfg = VhzConfig::new(&motor(), 1e-4, 1e-3, 0.9, 100.0, [K_U, K_W]).unwrap();
+        let (rs, u_max) = (cfg.rs_ohm, 160.0f32);
+        for (w, i0) in [
+            (400.0f32, Dq { d: 0.7, q: 1.5 }),
+            (400.0, Dq { d: 0.7, q: -1.5 }),
+            (-400.0, Dq { d: 0.7, q: -1.5 }),
+            (-300.0, Dq { d: 0.6, q: 2.0 }),
+        ] {
+            let psi = cfg.flux_within_voltage(u_max, w, i0);
+            assert!(psi < cfg.psi_s_nom_wb(), "{psi}");
+            let u = (rs * i0.d).hypot(rs * i0.q + w * psi);
+            assert!((u / u_max - 1.0).abs() < 1e-5, "{u} V at {w} rad/s, {i0:?}");
+        }
+        assert_eq!(cfg.flux_within_voltage(u_max, 50.0, Dq { d: 0.7, q: 1.5 }), cfg.psi_s_nom_wb());
+        // The drop alone beyond the voltage: no flux.
+        assert_eq!(cfg.flux_within_voltage(10.0, 400.0, Dq { d: 0.7, q: 1.5 }), 0.0);
     }
 
     #[test]

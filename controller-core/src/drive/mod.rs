@@ -920,34 +920,28 @@ impl Drive {
         let rotating = matches!(self.fast.reference, Reference::RotatingCurrent { .. })
             && self.fast.mode == Mode::Running;
         let (s, f) = (&self.slow.run.ifoc, &self.fast.run);
-        let (theta_e_rad, omega_sl_rad_s, i_q_ref_a) = if rotating {
-            (f.last_test_angle_rad, 0.0, 0.0)
-        } else {
-            (f.field.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q)
-        };
-        if let (Some(v), true, false) = (self.cfg.vhz(), self.vhz.on, rotating) {
+        let (theta_e_rad, omega_sl_rad_s, i_q_ref_a, psi_r_wb) = match (self.cfg.vhz(), self.vhz.on, rotating)
+        {
+            (_, _, true) => (f.last_test_angle_rad, 0.0, 0.0, s.psi_r_wb()),
             // V/Hz: the stator-flux frame, the operating point's slip and rotor flux.
-            return Telemetry {
-                i_ab_a: f.last.i_ab,
-                i_ref_ab_a: f.last.i_ref_ab,
-                v_ab_v: f.last.v_ab,
-                theta_e_rad: crate::frames::wrap_angle(self.vhz.state.theta_s_rad()),
-                omega_sl_rad_s: self.vhz.state.slip_rad_s(),
-                psi_r_wb: self.vhz.state.psi_r_wb(v, &self.vhz.plan),
-                psi_ref_wb: s.flux_of(self.slow.run.i_d_target_a),
-                i_q_ref_a: 0.0,
-                omega_ref_rad_s: self.slow.omega_ref_rad_s,
-                rr_scale: s.rotor_resistance_scale(),
-                l_scale: s.inductance_scale(),
-            };
-        }
+            (Some(v), true, false) => {
+                let law = &self.vhz.state;
+                (
+                    crate::frames::wrap_angle(law.theta_s_rad()),
+                    law.slip_rad_s(),
+                    0.0,
+                    law.psi_r_wb(v, &self.vhz.plan),
+                )
+            }
+            _ => (f.field.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q, s.psi_r_wb()),
+        };
         Telemetry {
             i_ab_a: f.last.i_ab,
             i_ref_ab_a: f.last.i_ref_ab,
             v_ab_v: f.last.v_ab,
             theta_e_rad,
             omega_sl_rad_s,
-            psi_r_wb: s.psi_r_wb(),
+            psi_r_wb,
             psi_ref_wb: s.flux_of(self.slow.run.i_d_target_a),
             i_q_ref_a,
             omega_ref_rad_s: self.slow.omega_ref_rad_s,

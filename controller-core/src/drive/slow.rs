@@ -12,7 +12,7 @@ use crate::mras::Evidence;
 use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
 use crate::supervisor::phases::CURRENT_SUM_MEAN_FRACTION;
 use crate::svpwm;
-use crate::vhz::{PULL_OUT_MARGIN, VhzConfig, VhzReport};
+use crate::vhz::{VhzConfig, VhzReport};
 
 impl Drive {
     /// The slow step at its tick: its inputs latched from the fast side
@@ -102,30 +102,40 @@ impl SlowState {
     /// V/Hz, the slow step's plan ([`crate::vhz`]): the ramp of the frequency reference
     /// towards the speed reference at the configured rate, limited — the **current limit and
     /// stall prevention**: while the operating point's current is beyond the references' limit,
-    /// or its slip beyond [`PULL_OUT_MARGIN`] of the pull-out slip (a load beyond the breakdown
-    /// torque: in field weakening it comes before the current limit, and the rotor fell out
-    /// while the ramp ran on to base speed), the ramp turns towards the rotor's speed (against
-    /// the slip: a motoring overload slows the field, a braking one slows the deceleration),
-    /// and the **bus limit**: generating with the link
-    /// above the regeneration limit's start, the ramp holds; then the **field weakening**:
-    /// the stator flux at most the voltage target `voltage_margin·V_dc/√3` over the
-    /// frequency.
+    /// or its slip beyond the breakdown's margin ([`VhzConfig::beyond_breakdown`]: a load
+    /// beyond the breakdown torque — in field weakening it comes before the current limit, and
+    /// the rotor fell out while the ramp ran on to base speed), the ramp turns towards the
+    /// rotor's speed (against the slip: a motoring overload slows the field, a braking one
+    /// slows the deceleration), and the **bus limit**: generating with the link above the
+    /// regeneration limit's start, the ramp holds; then the **field weakening**: the stator
+    /// flux the modulator's linear limit at `duty_max` holds at the frequency with the
+    /// operating point's resistive drop ([`VhzConfig::flux_within_voltage`]) — the whole
+    /// circle: `voltage_margin` is the current loops' headroom, and V/Hz has none.
     #[cold]
     #[inline(never)]
     fn plan_vhz(&mut self, cfg: &DriveConfig, v: &VhzConfig, inputs: &SlowInputs, vhz: Option<&VhzReport>) {
         let m = &inputs.m;
-        let (i0_sq, slip, w_s) =
-            vhz.map_or((0.0, 0.0, 0.0), |s| (s.i0_squared, s.slip_rad_s, s.omega_s_rad_s));
+        let (i0, slip, w_s) =
+            vhz.map_or((Dq::default(), 0.0, 0.0), |s| (s.i0, s.slip_rad_s, s.omega_s_rad_s));
         let target = match self.reference {
             Reference::Speed(w) => w,
             _ => 0.0,
         };
         let (ramp, step) = (self.run.vhz_ramp_rad_s, v.ramp_step_rad_s());
         let i_max = cfg.ifoc.i_max_a();
-        let w_e = v.pole_pairs() * ramp + slip;
-        let generating = slip * w_e < 0.0;
-        let pull_out = PULL_OUT_MARGIN * v.pull_out_slip_rad_s();
-        let ramp = if i0_sq > i_max * i_max || slip.abs() > pull_out {
+        let w_r_e = v.pole_pairs() * ramp;
+        let generating = slip * (w_r_e + slip) < 0.0;
+        // In field weakening the breakdown is judged on the rotor's measured speed (the
+        // observer's without an encoder) and the slip the field turns at against it: while
+        // the ramp accelerates into a load, the frequency feedback keeps the field ahead of
+        // the ramp's speed by up to (1 + k_w) × the slip filter's lag, and the ramp's speed
+        // and the filtered slip both read the rotor ahead of where it is.
+        let weakened = self.run.vhz_plan.psi_s_wb < v.psi_s_nom_wb();
+        let w_m_e = v.pole_pairs() * m.omega_m_rad_s;
+        let overloaded = i0.d * i0.d + i0.q * i0.q > i_max * i_max
+            || v.beyond_breakdown(slip, w_r_e, false)
+            || (weakened && v.beyond_breakdown(w_s - w_m_e, w_m_e, true));
+        let ramp = if overloaded {
             ramp - if slip > 0.0 { step } else { -step }
         } else if generating && m.vdc_v > cfg.regen_start_v {
             ramp
@@ -138,8 +148,8 @@ impl SlowState {
         // Weakened for the faster of the plan's frequency and the one the law turned the field
         // at (its frequency feedback moves it away from the plan's in a transient: braking
         // from base speed, the plan's alone left the voltage beyond the hexagon).
-        let u_max = cfg.voltage_margin * svpwm::linear_limit_v(m.vdc_v * cfg.duty_max);
-        let psi_s = min_f32(v.psi_s_nom_wb(), u_max / max_f32(max_f32(w_e.abs(), w_s.abs()), 1e-3));
+        let u_max = svpwm::linear_limit_v(m.vdc_v * cfg.duty_max);
+        let psi_s = v.flux_within_voltage(u_max, if w_s.abs() > w_e.abs() { w_s } else { w_e }, i0);
         self.run.vhz_plan = v.plan(ramp, psi_s, self.run.ifoc.inductance_scale());
         self.run.delay_rotation = SinCos::default().rotated((w_e * cfg.delay_s).limit(-0.5, 0.5));
     }
