@@ -385,8 +385,7 @@ impl SlowState {
     #[inline(never)]
     fn search(&mut self, cfg: &DriveConfig, inputs: &SlowInputs) {
         let Some(o) = cfg.source.observer() else { return };
-        let l_sigma_h = o.l_sigma_h() * self.run.ifoc.inductance_scale();
-        self.run.search.step(inputs.search_psi, inputs.m.i_abc_a.clarke(), l_sigma_h, cfg.search_span);
+        self.run.search.step(inputs.search_psi, cfg.search_span);
         self.run.search_left -= 1;
         if self.run.search_left > 0 {
             return;
@@ -398,6 +397,15 @@ impl SlowState {
             self.run.known_speed_rad_s = w_m;
             self.run.ifoc.forget_flux();
             self.run.magnetizing_steps = 0;
+            // The rotor resistance from the transient's decay, `α = R_r/L_r`: the magnetizing
+            // fit needs the rotor at rest, and held at its range's middle (× √2 of the motor
+            // file's for drive.toml) the speed estimate under a braking current was off by its
+            // error times the slip — a catch then braking tripped `FollowingError`.
+            if let Some(a) = self.run.search.decay_rate_per_s(window_s) {
+                let [lo, hi] = cfg.mras.range();
+                let scale = (self.run.ifoc.inductance_scale() * a / o.alpha_per_s()).limit(lo, hi);
+                cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, scale);
+            }
         }
     }
 
