@@ -245,11 +245,6 @@ impl ObserverConfig {
         self.speed_bandwidth_rad_s
     }
 
-    /// The inverse-Γ leakage inductance `L_σ = σ·L_s`, H.
-    pub fn l_sigma_h(&self) -> f32 {
-        self.l_sigma_h
-    }
-
     /// The stator resistance `r_s_ohm` as a scale of this configuration's (the motor
     /// file's), limited to [`STATOR_RESISTANCE_RANGE`]; `None` if not finite and positive.
     pub fn stator_resistance_scale(&self, r_s_ohm: f32) -> Option<f32> {

@@ -23,8 +23,8 @@
 //! magnetizing fit needs the rotor at rest). The current is held after the first window (not
 //! used: it holds the current's rise), so `L_σ·Δi_s` is left out: its only part then is the
 //! current sensors' noise at the windows' ends, which neighbouring windows share with opposite
-//! signs — it biased the fit (drive.toml's sensors, 0.01 A RMS: the rotor resistance read
-//! × 1.29 on a × 1 rotor; `hil-sim/tests/observer.rs`).
+//! signs — with it, the fit read the rotor resistance high on drive.toml's realistic sensors
+//! (measured when the term was dropped; the commit's message holds the figures).
 //! Without the intercept (the plain lag-one correlation) `|b|²`, real and positive, pulls the
 //! angle towards zero as the transient decays. A rotor at rest gives a transient
 //! that does not turn: zero. The angle per slow period must stay within ±π (the drive's
