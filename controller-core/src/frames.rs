@@ -191,7 +191,7 @@ impl AlphaBeta {
     /// Euclidean magnitude.
     #[inline]
     pub fn magnitude(self) -> f32 {
-        libm::sqrtf(self.alpha * self.alpha + self.beta * self.beta)
+        crate::num::sqrt_f32(self.alpha * self.alpha + self.beta * self.beta)
     }
 
     /// Multiply both components by `k`.

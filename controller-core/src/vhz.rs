@@ -465,7 +465,7 @@ impl VhzState {
     pub fn psi_r_wb(&self, cfg: &VhzConfig, plan: &VhzPlan) -> f32 {
         let d = plan.psi_s_wb - cfg.l_sigma_h * self.i0.d;
         let q = cfg.l_sigma_h * self.i0.q;
-        libm::sqrtf(d * d + q * q) * cfg.lr_over_lm
+        crate::num::sqrt_f32(d * d + q * q) * cfg.lr_over_lm
     }
 }
 
