@@ -393,13 +393,14 @@ fn coasting_then_enabled(
 /// A flying start then braking at once (issue 53): an active load spins the rotor up with
 /// the bridge off, then lets it coast; the sensorless drive enabled on it finds the rotor
 /// turning (the search of `a_flying_start_catches_the_rotor_both_ways`), reads its rotor
-/// resistance from the same search's decay (`SpeedSearch::decay_rate_per_s`: the magnetizing
+/// resistance from the same search's decay (`Turn::decay_rate_per_s`: the magnetizing
 /// fit needs the rotor at rest), magnetizes on its speed and brakes at once — at ≈ 1.75 ×
 /// base speed to 150 rad/s in field weakening, and at −base speed to rest — on plants whose
 /// rotor is × 1, × 1.5 and × 1.9 of the motor file's (the certified range's span). Each run
 /// ends Running, the shaft nearer its reference than at the enable, the current below half
-/// the trip level, and the rotor resistance read within 15 % of the plant's (it reads low by
-/// up to ≈ 10 %; the range's floor clamps × 1). Held at the range's middle instead (× √2),
+/// the trip level, and the rotor resistance read within 5 % of the plant's (the range's floor
+/// clamps × 1; the least-squares fit of lag one, which took the windows' noise for part of the
+/// transient, read it up to ≈ 10 % low). Held at the range's middle instead (× √2),
 /// the speed estimate under the braking current was off by its error times the slip, ran
 /// against the torque, and the following check tripped 2 ms after the drive started running.
 #[test]
@@ -428,7 +429,7 @@ fn a_flying_start_then_braking_at_once_holds() {
             assert_eq!(mode, Mode::Running);
             assert!((at_end - reference).abs() < (at_enable - reference).abs(), "{at_end}");
             assert!(peak < 0.5 * spec.protection.i_trip_a, "{peak}");
-            assert!((read - 1.0).abs() <= 0.15, "R_r read × {} on × {rr}", running.rr_scale);
+            assert!((read - 1.0).abs() <= 0.05, "R_r read × {} on × {rr}", running.rr_scale);
         }
     }
 }

@@ -28,6 +28,11 @@ enum Cmd {
     Write {
         #[command(flatten)]
         select: Select,
+        /// The PWM rate to write them at, Hz (1 000 … 40 000), as `run --pwm` runs them (the
+        /// slow divider kept near the population's slow rate, the dead time within its share
+        /// of the period); none: each board's own.
+        #[arg(long)]
+        pwm: Option<f64>,
         /// Output directory.
         dir: PathBuf,
     },
@@ -157,11 +162,20 @@ fn anchors() -> Result<bool, String> {
     Ok(true)
 }
 
-fn write(s: &Select, dir: &Path) -> Result<bool, String> {
+/// The PWM rates a run or a written template may ask for, Hz.
+const PWM_RANGE_HZ: std::ops::RangeInclusive<f64> = 1_000.0..=40_000.0;
+
+fn write(s: &Select, pwm_hz: Option<f64>, dir: &Path) -> Result<bool, String> {
+    if let Some(bad) = pwm_hz.filter(|f| !PWM_RANGE_HZ.contains(f)) {
+        return Err(format!("--pwm {bad}: a PWM rate of 1 000 … 40 000 Hz"));
+    }
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let mut n = 0;
     for m in members(s)? {
-        if let Some(t) = m.template() {
+        // A drawn member's, as `run` tunes it at this rate: a failing member of a run,
+        // reproduced by hand (`design tune --motor FILE --template FILE`).
+        if m.template().is_some() {
+            let (_, t, _) = population::run::inputs(&m, pwm_hz, Path::new("."))?;
             report::write::write_text(&dir.join(format!("{}.toml", m.name)), &t)?;
             n += 1;
         }
@@ -174,7 +188,7 @@ fn write(s: &Select, dir: &Path) -> Result<bool, String> {
 const REFUSE_MAX_SHARE: f64 = 0.10;
 
 fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
-    if let Some(bad) = a.pwm.iter().find(|f| !(1_000.0..=40_000.0).contains(*f)) {
+    if let Some(bad) = a.pwm.iter().find(|f| !PWM_RANGE_HZ.contains(*f)) {
         return Err(format!("--pwm {bad}: a PWM rate of 1 000 … 40 000 Hz"));
     }
     let all = members(&a.select)?;
@@ -317,7 +331,7 @@ fn main() -> std::process::ExitCode {
     let result = match &cli.cmd {
         Cmd::List(s) => list(s),
         Cmd::Anchors => anchors(),
-        Cmd::Write { select, dir } => write(select, dir),
+        Cmd::Write { select, pwm, dir } => write(select, *pwm, dir),
         Cmd::Run(a) => run(a, &CANCEL),
     };
     match result {
@@ -327,5 +341,34 @@ fn main() -> std::process::ExitCode {
             eprintln!("population: {e}");
             std::process::ExitCode::from(2)
         }
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn select(members: u64) -> Select {
+        Select { seed: 1, members, shipped: false }
+    }
+
+    /// `write --pwm` writes the text `run` tunes at that rate (a failing member reproduced by
+    /// hand), and a rate out of the range is refused before anything is written.
+    #[test]
+    fn written_templates_are_the_runs_at_its_rate() {
+        let dir = std::env::temp_dir().join(format!("population-write-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let e = write(&select(2), Some(50.0), &dir).unwrap_err();
+        assert!(e.contains("1 000 … 40 000 Hz"), "{e}");
+        assert!(!dir.exists());
+        assert!(write(&select(2), Some(10_000.0), &dir).unwrap());
+        for m in members(&select(2)).unwrap() {
+            let text = std::fs::read_to_string(dir.join(format!("{}.toml", m.name))).unwrap();
+            let (_, want, _) = population::run::inputs(&m, Some(10_000.0), Path::new(".")).unwrap();
+            assert_eq!(text, want);
+            assert!(text.contains("frequency_hz = 10000"), "{text}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -275,13 +275,11 @@ pub const SEARCH_WINDOWS_MIN: u32 = 6;
 /// several percent (found trying the flying start).
 pub const SEARCH_TURN_MAX_RAD: f64 = core::f64::consts::FRAC_PI_2;
 
-/// The flying start's search tells a turning rotor from one at rest once the field turns
-/// this much over the transient's time constant `T_r`, rad (`|ω_e|·T_r`): below it the
-/// transient hardly turns before it decays, and the sensors' noise decides — with the
-/// realistic sensors drive.toml's rotor at rest read as turning about a radian per `T_r`
-/// (found trying: every sensorless run starts with the search). Slower than that the rotor is magnetized as at rest (its flux still builds to
-/// `1/√(1 + 2²)` of the target at the least, and the observer's adaptation takes it from
-/// there).
+/// The flying start's search takes a rotor it reads turning ([`crate::speed_search`]: a turn
+/// the windows' noise does not explain) as turning only from this much over the transient's
+/// time constant `T_r` up, rad (`|ω_e|·T_r`). Slower than that the rotor is magnetized as at
+/// rest: the field held still builds in it to `1/√(1 + (ω_e·T_r)²)` of the target at the
+/// least (`1/√5` here), and the observer's adaptation takes the speed from there.
 pub const SEARCH_RESOLVED_TURN_RAD: f32 = 2.0;
 
 /// What a thermal limit needs ([`crate::supervisor::thermal::ThermalConfig::new`]).

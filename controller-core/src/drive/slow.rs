@@ -391,7 +391,9 @@ impl SlowState {
             return;
         }
         let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.search_span as f32;
-        let w_e = self.run.search.electrical_speed_rad_s(window_s).unwrap_or(0.0);
+        let alpha_max = o.alpha_per_s() * cfg.mras.range()[1];
+        let turn = self.run.search.read(window_s, alpha_max);
+        let w_e = turn.map_or(0.0, |t| t.electrical_speed_rad_s);
         let w_m = w_e / cfg.envelope.pole_pairs();
         if w_e.abs() >= SEARCH_RESOLVED_TURN_RAD * o.alpha_per_s() {
             self.run.known_speed_rad_s = w_m;
@@ -401,7 +403,7 @@ impl SlowState {
             // fit needs the rotor at rest, and held at its range's middle (× √2 of the motor
             // file's for drive.toml) the speed estimate under a braking current was off by its
             // error times the slip — a catch then braking tripped `FollowingError`.
-            if let Some(a) = self.run.search.decay_rate_per_s(window_s) {
+            if let Some(a) = turn.and_then(|t| t.decay_rate_per_s) {
                 let [lo, hi] = cfg.mras.range();
                 let scale = (self.run.ifoc.inductance_scale() * a / o.alpha_per_s()).limit(lo, hi);
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, scale);
