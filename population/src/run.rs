@@ -539,6 +539,29 @@ mod tests {
         assert!(families_table(&f).contains("| campaign: tracking | 60 | 2 |"));
     }
 
+    /// The 153 kW member (010) without its encoder at 20 kHz: every sensorless start runs the
+    /// flying start's search, whose windows on this motor are as noisy as the transient they
+    /// read; the campaign's first corner runs (the nominal and the hot-stator corners, each
+    /// manoeuvre) start at rest and run without a fault. The least-squares search read that
+    /// rotor at rest as turning beyond the overspeed level: every run tripped `Overspeed`.
+    #[test]
+    fn a_large_motors_sensorless_start_at_rest_is_not_read_as_turning() {
+        let m = draw(1, 10, None).unwrap();
+        assert!(m.name.starts_with("010-153kW"), "{}", m.name);
+        let plan =
+            Plan { campaign_runs: 8, seed: 1, matrix: false, speed: SpeedDesign::Auto, sensorless: true };
+        let r = evaluate(
+            &m,
+            Some(20_000.0),
+            Path::new(env!("CARGO_MANIFEST_DIR")),
+            &plan,
+            &AtomicBool::new(false),
+        );
+        assert_eq!(r.campaign.map(|c| c[1]), Some(8), "{:?}", r.verdict);
+        let faults: Vec<_> = r.campaign_failures.iter().filter(|(k, _)| k.contains("fault")).collect();
+        assert!(faults.is_empty(), "{faults:?}");
+    }
+
     /// A tuned drive run without its encoder at a PWM rate its observer cannot run at up to
     /// the overspeed level is a refusal naming the observer, not a failure or an error
     /// (found trying `population run --sensorless --pwm 4000`: member 002, 7.3 kW, tunes at
