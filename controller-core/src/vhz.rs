@@ -328,10 +328,9 @@ impl VhzConfig {
     /// breakdown slip).
     pub fn beyond_breakdown(&self, slip_rad_s: f32, omega_r_e_rad_s: f32, weakened: bool) -> bool {
         let w_r = slip_rad_s.abs() / PULL_OUT_MARGIN;
-        let x = w_r * self.l_sigma_h / self.r_r_ohm;
         let motoring = slip_rad_s * omega_r_e_rad_s >= 0.0;
         let w_re = omega_r_e_rad_s.abs();
-        x >= 1.0
+        w_r >= self.pull_out_slip_rad_s()
             || (weakened
                 && motoring
                 && self.voltage_fed_torque(w_re, w_r * (1.0 + BREAKDOWN_STEP))
