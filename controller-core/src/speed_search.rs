@@ -10,27 +10,27 @@
 //! turns at `ω_m` too, and it is what the stator's voltage model gives with the current held:
 //! `dψ_R/dt = u_s − R_s·i_s − L_σ·di_s/dt`. From a rotor that carries no flux, its length is
 //! `|(−α + jω_m)·ψ_∞| = R_R·|i|` at any speed — the drive's rated magnetizing current on the
-//! rotor resistance: volts, well above the sensors' noise.
+//! rotor resistance: volts on a small motor (13 V for drive.toml), a fraction of a volt on a
+//! large one (0.71 V for the population's 153 kW member, whose windows' noise is that size).
 //!
-//! **The estimate.** Over each window (`span` slow periods) the change of `ψ_R`, `d_k =
-//! ∫(u_s − R_s·i_s)dt − L_σ·Δi_s`, is `c·z^k + b`: the transient, `z = e^((−α + jω_m)·T_window)`,
-//! and a constant `b` — the stator-resistance error's drop `ΔR_s·i` and the inverter's
-//! dead-time error, both constant vectors with the current held. So `d_{k+1} = z·d_k + (1 −
-//! z)·b` exactly, and the least-squares fit of that line over the search (its intercept takes
-//! `b`) gives `z`: its phase is `ω_m·T_window` — `Σ(d_{k+1} − m₁)(d_k − m₀)*`, `m` the means,
-//! one `atan2` at the end — and its length `e^(−α·T_window)`, over the variance
-//! `Σ|d_k − m₀|²`: the rotor's `1/T_r`, which the drive takes its rotor resistance from (the
-//! magnetizing fit needs the rotor at rest). The current is held after the first window (not
-//! used: it holds the current's rise), so `L_σ·Δi_s` is left out: its only part then is the
-//! current sensors' noise at the windows' ends, which neighbouring windows share with opposite
-//! signs — with it, the fit read the rotor resistance high on drive.toml's realistic sensors
-//! (measured when the term was dropped; the commit's message holds the figures).
-//! Without the intercept (the plain lag-one correlation) `|b|²`, real and positive, pulls the
-//! angle towards zero as the transient decays. A rotor at rest gives a transient
-//! that does not turn: zero. The angle per slow period must stay within ±π (the drive's
-//! overspeed level keeps it within a tenth of that: [`crate::observer::ObserverConfig::new`]'s
-//! correction bound); the search lasts one `T_r` (`DriveConfig`'s `search_slow_steps`), the
-//! transient's own decay.
+//! **The estimate.** Over each window (`span` slow periods) the voltage model's change,
+//! `d_k = ∫(u_s − R_s·i_s)dt`, is `c·z^k + b` and noise: the transient, `z =
+//! e^((−α + jω_m)·T_window)`, and a constant `b` — the stator-resistance error's drop `ΔR_s·i`
+//! and the inverter's dead-time error, both constant vectors with the current held. So
+//! `d_{k+1} = z·d_k + (1 − z)·b`, and with the means removed the windows' lags are `c_L =
+//! Σ(d_{k+L} − m_L)(d_k − m₀)* = z^L·S` (`S` the transient's variance): `z = c₃/c₂`, its
+//! phase `ω_m·T_window` (one `atan2` at the end) and its length `e^(−α·T_window)`, the
+//! rotor's `1/T_r`, which the drive takes its rotor resistance from (the magnetizing fit
+//! needs the rotor at rest). The lags three and two, not one: the noise each window carries
+//! (what the current did at its two ends, [`SpeedSearch`]) reaches lag one only. The current
+//! is held after the first window (not used: it holds the current's rise), so `L_σ·Δi_s` is
+//! left out: with it the noise is the current sensors' at the windows' ends, without it the
+//! current's own departure — either way a difference at the ends. A rotor at rest gives a
+//! transient that does not turn: zero, and a turn is read only where the noise does not
+//! explain it ([`SpeedSearch`]'s tests). The angle per slow period must stay within ±π (the
+//! drive's overspeed level keeps it within a tenth of that:
+//! [`crate::observer::ObserverConfig::new`]'s correction bound); the search lasts one `T_r`
+//! (`DriveConfig`'s `search_slow_steps`), the transient's own decay.
 
 use crate::frames::{AlphaBeta, atan2};
 use crate::num::Scalar;
