@@ -201,6 +201,15 @@ impl AlphaBeta {
     }
 }
 
+impl core::ops::Add for AlphaBeta {
+    type Output = AlphaBeta;
+    /// Component-wise sum.
+    #[inline]
+    fn add(self, other: AlphaBeta) -> AlphaBeta {
+        AlphaBeta { alpha: self.alpha + other.alpha, beta: self.beta + other.beta }
+    }
+}
+
 impl core::ops::Sub for AlphaBeta {
     type Output = AlphaBeta;
     /// Component-wise difference.

@@ -48,7 +48,7 @@ use crate::num::Scalar;
 /// correlation as a transient that turns by π; on a motor whose `R_R·|i|·T_window` is not
 /// well above `L_σ` times the current's noise (the population's 153 kW member: 1.1 mWb against
 /// 0.55 mWb) it read a rotor at rest as turning beyond the overspeed level. `c₂` and `c₃` hold
-/// the transient alone, `c_L = z^L·c₀` of it, so their ratio is `z` — its angle and its length
+/// the transient alone, `c_L = z^L·S` of it (`S` its variance), so their ratio is `z` — its angle and its length
 /// — unbiased by that noise.
 ///
 /// **Resolved.** The lags carry the noise too. Over `n` triples, with `V = Σ|d_k − m₀|²` the
@@ -65,8 +65,7 @@ use crate::num::Scalar;
 /// rotor-resistance range's top): where the noise is comparable to the transient, `|c₃|/|c₂|`
 /// reads anything, and a small `|z|` made `S` all of `V` and the test void. A rotor at rest,
 /// whose transient does not turn and hardly changes over the search, is at rest where the
-/// noise is comparable to it; the least-squares fit of lag one read the population's 153 kW
-/// member's at hundreds of rad/s. The bound that noise sets: a turn of `θ ≈
+/// noise is comparable to it. The bound that noise sets: a turn of `θ ≈
 /// K·√(N·(1.5·N + 2S)/n)/|c₃|` per window and less is not read (the rotor is magnetized as at
 /// rest), and a turn above it is read only as well as the noise lets it — on that member within
 /// 15 % at base speed (unit test `the_windows_own_noise_is_not_read_as_a_turn`).
@@ -81,9 +80,8 @@ pub struct SpeedSearch {
     sum0: AlphaBeta,
     /// `Σ |d_k|²` over the triples.
     sq0: f32,
-    /// Triples summed.
-    triples: u32,
-    /// The last three windows' `d` from `origin`, the latest first, and how many there were.
+    /// The last three windows' `d` from `origin`, the latest first, and how many windows
+    /// there were (the triples summed: three fewer).
     recent: [AlphaBeta; 3],
     windows: u32,
     /// The first window summed: every `d_k` is summed from it (the sums then hold the
@@ -126,18 +124,13 @@ fn len2(a: AlphaBeta) -> f32 {
     a.alpha * a.alpha + a.beta * a.beta
 }
 
-/// `a + b`.
-fn plus(a: AlphaBeta, b: AlphaBeta) -> AlphaBeta {
-    AlphaBeta { alpha: a.alpha + b.alpha, beta: a.beta + b.beta }
-}
-
 impl SpeedSearch {
     /// One slow step: `dpsi_s`, the voltage model's `∫(u_s − R_s·i_s)dt` over it (Wb); a
     /// window is `span` slow steps. The first window is not used — it holds the current's rise
     /// from zero, whose `L_σ·Δi` is as wrong as the leakage estimate (drive.toml's campaign
     /// corner with L × 0.6 read a rotor at rest as turning).
     pub fn step(&mut self, dpsi_s: AlphaBeta, span: u32) {
-        self.pending = plus(self.pending, dpsi_s);
+        self.pending = self.pending + dpsi_s;
         self.pending_steps += 1;
         if self.pending_steps >= span {
             let d = core::mem::take(&mut self.pending);
@@ -157,17 +150,16 @@ impl SpeedSearch {
         if self.windows == 0 {
             self.origin = d;
         }
-        let d = AlphaBeta { alpha: d.alpha - self.origin.alpha, beta: d.beta - self.origin.beta };
+        let d = d - self.origin;
         self.windows = self.windows.saturating_add(1);
         let [d1, d2, d3] = self.recent;
         if self.windows > 3 {
-            self.cross3 = plus(self.cross3, times_conj(d, d3));
-            self.cross2 = plus(self.cross2, times_conj(d1, d3));
-            self.sum3 = plus(self.sum3, d);
-            self.sum2 = plus(self.sum2, d1);
-            self.sum0 = plus(self.sum0, d3);
-            self.sq0 += d3.alpha * d3.alpha + d3.beta * d3.beta;
-            self.triples = self.triples.saturating_add(1);
+            self.cross3 = self.cross3 + times_conj(d, d3);
+            self.cross2 = self.cross2 + times_conj(d1, d3);
+            self.sum3 = self.sum3 + d;
+            self.sum2 = self.sum2 + d1;
+            self.sum0 = self.sum0 + d3;
+            self.sq0 += len2(d3);
         }
         self.recent = [d, d1, d2];
     }
@@ -199,10 +191,11 @@ impl SpeedSearch {
     /// The fit: the lags `c₃` and `c₂`, the variance `Σ|d_k − m₀|²` and the triples; `None`
     /// before two triples, or without a transient.
     fn fit(&self) -> Option<(AlphaBeta, AlphaBeta, f32, f32)> {
-        if self.triples < 2 {
+        let triples = self.windows.saturating_sub(3);
+        if triples < 2 {
             return None;
         }
-        let n = self.triples as f32;
+        let n = triples as f32;
         let lag = |cross: AlphaBeta, sum: AlphaBeta| {
             let m = times_conj(sum, self.sum0);
             AlphaBeta { alpha: cross.alpha - m.alpha / n, beta: cross.beta - m.beta / n }

@@ -162,13 +162,18 @@ fn anchors() -> Result<bool, String> {
     Ok(true)
 }
 
-/// The PWM rates a run or a written template may ask for, Hz.
-const PWM_RANGE_HZ: std::ops::RangeInclusive<f64> = 1_000.0..=40_000.0;
+/// `--pwm`'s rate, Hz, within what a run or a written template may ask for (1 000 … 40 000).
+fn check_pwm(hz: f64) -> Result<(), String> {
+    if (1_000.0..=40_000.0).contains(&hz) {
+        return Ok(());
+    }
+    // A huge number in exponent form (1e300 printed in full is 301 digits).
+    let shown = if hz.abs() < 1e9 { format!("{hz}") } else { format!("{hz:e}") };
+    Err(format!("--pwm {shown}: a PWM rate of 1 000 … 40 000 Hz"))
+}
 
 fn write(s: &Select, pwm_hz: Option<f64>, dir: &Path) -> Result<bool, String> {
-    if let Some(bad) = pwm_hz.filter(|f| !PWM_RANGE_HZ.contains(f)) {
-        return Err(format!("--pwm {bad}: a PWM rate of 1 000 … 40 000 Hz"));
-    }
+    pwm_hz.map_or(Ok(()), check_pwm)?;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let mut n = 0;
     for m in members(s)? {
@@ -188,9 +193,7 @@ fn write(s: &Select, pwm_hz: Option<f64>, dir: &Path) -> Result<bool, String> {
 const REFUSE_MAX_SHARE: f64 = 0.10;
 
 fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
-    if let Some(bad) = a.pwm.iter().find(|f| !PWM_RANGE_HZ.contains(*f)) {
-        return Err(format!("--pwm {bad}: a PWM rate of 1 000 … 40 000 Hz"));
-    }
+    a.pwm.iter().try_for_each(|&f| check_pwm(f))?;
     let all = members(&a.select)?;
     let rates: Vec<Option<f64>> =
         if a.pwm.is_empty() { vec![None] } else { a.pwm.iter().map(|f| Some(*f)).collect() };
@@ -354,13 +357,16 @@ mod tests {
     }
 
     /// `write --pwm` writes the text `run` tunes at that rate (a failing member reproduced by
-    /// hand), and a rate out of the range is refused before anything is written.
+    /// hand), and a rate out of the range is refused before anything is written (a huge one
+    /// named in exponent form: 1e300 was printed as 301 digits).
     #[test]
     fn written_templates_are_the_runs_at_its_rate() {
         let dir = std::env::temp_dir().join(format!("population-write-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let e = write(&select(2), Some(50.0), &dir).unwrap_err();
         assert!(e.contains("1 000 … 40 000 Hz"), "{e}");
+        let huge = write(&select(2), Some(1e300), &dir).unwrap_err();
+        assert_eq!(huge, "--pwm 1e300: a PWM rate of 1 000 … 40 000 Hz");
         assert!(!dir.exists());
         assert!(write(&select(2), Some(10_000.0), &dir).unwrap());
         for m in members(&select(2)).unwrap() {
