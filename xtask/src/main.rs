@@ -17,8 +17,9 @@
 //!   processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu`, `fuzz` — single
-//!   steps; `modules` — no import cycle between the top-level modules of any crate (part of
-//!   `ci` and `lint`; see [`module_cycles`]).
+//!   steps; `modules` — no import cycle between the top-level modules of any crate and no
+//!   module of controller-core, hil-sim or design over 1 000 lines of non-test code (part of
+//!   `ci` and `lint`; see [`module_cycles`], [`module_sizes`]).
 //!
 //! The closing line `tests: N passed, M failed` sums cargo's `test result:` lines and the
 //! defmt-test runs' (`(k/N) running …`, `all tests passed!`, decoded by `defmt-print`).
@@ -564,6 +565,100 @@ fn find_cycle(
     None
 }
 
+/// The Rust source files under `dir`, sorted.
+fn rust_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    let mut out = Vec::new();
+    let mut todo = vec![dir.to_path_buf()];
+    while let Some(p) = todo.pop() {
+        if p.is_dir() {
+            if let Ok(rd) = std::fs::read_dir(&p) {
+                todo.extend(rd.filter_map(Result::ok).map(|e| e.path()));
+            }
+        } else if p.extension().is_some_and(|e| e == "rs") {
+            out.push(p);
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The crates whose modules are held to [`MODULE_LINES_MAX`] (issue 48).
+const SIZED_CRATES: [&str; 3] = ["controller-core", "hil-sim", "design"];
+
+/// The most lines of non-test code one module file of [`SIZED_CRATES`] may hold.
+const MODULE_LINES_MAX: usize = 1000;
+
+/// Lines of a module's non-test code: those before its first `#[cfg(test)]`.
+fn non_test_lines(text: &str) -> usize {
+    text.lines().take_while(|l| !l.trim_start().starts_with("#[cfg(test)]")).count()
+}
+
+/// The files of the `#[cfg(test)] mod name;` declarations in the module file `path` (its
+/// text `text`): `name.rs` and `name/mod.rs` beside a `mod.rs`, `lib.rs` or `main.rs`,
+/// under `stem/` beside any other file.
+fn test_module_files(path: &std::path::Path, text: &str) -> Vec<std::path::PathBuf> {
+    let parent = path.parent().unwrap_or(std::path::Path::new(""));
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = if matches!(stem.as_str(), "mod" | "lib" | "main") {
+        parent.to_path_buf()
+    } else {
+        parent.join(stem)
+    };
+    let mut out = Vec::new();
+    let mut under_cfg_test = false;
+    for line in text.lines().map(str::trim) {
+        if line.starts_with("#[cfg(test)]") {
+            under_cfg_test = true;
+        } else if !line.starts_with("#[") {
+            if under_cfg_test && let Some(name) = line.strip_prefix("mod ").and_then(|r| r.strip_suffix(';'))
+            {
+                out.push(dir.join(format!("{name}.rs")));
+                out.push(dir.join(name).join("mod.rs"));
+            }
+            under_cfg_test = false;
+        }
+    }
+    out
+}
+
+/// No module file of [`SIZED_CRATES`] holds more than [`MODULE_LINES_MAX`] lines of
+/// non-test code ([`non_test_lines`]; a file that is a test module is not counted): each
+/// crate's largest is printed, each one over the limit named.
+fn module_sizes() -> bool {
+    let mut ok = true;
+    for krate in SIZED_CRATES {
+        let files: Vec<(std::path::PathBuf, String)> = rust_files(&std::path::Path::new(krate).join("src"))
+            .into_iter()
+            .map(|p| {
+                let text = std::fs::read_to_string(&p).unwrap_or_default();
+                (p, text)
+            })
+            .collect();
+        let tests: Vec<std::path::PathBuf> =
+            files.iter().flat_map(|(p, t)| test_module_files(p, t)).collect();
+        let mut largest = (0, std::path::PathBuf::new());
+        for (p, text) in files.iter().filter(|(p, _)| !tests.contains(p)) {
+            let n = non_test_lines(text);
+            if n > MODULE_LINES_MAX {
+                eprintln!(
+                    "xtask: {} holds {n} lines of non-test code, more than {MODULE_LINES_MAX}",
+                    p.display()
+                );
+                ok = false;
+            }
+            if n > largest.0 {
+                largest = (n, p.clone());
+            }
+        }
+        println!(
+            "modules: {krate}: largest module {} ({} non-test lines, at most {MODULE_LINES_MAX})",
+            largest.1.display(),
+            largest.0
+        );
+    }
+    ok
+}
+
 /// No import cycle between the top-level modules of any crate: every `crate::x` reference
 /// in a module's non-test code is an edge to `x`; a cycle fails the check, printed.
 fn module_cycles() -> bool {
@@ -572,14 +667,7 @@ fn module_cycles() -> bool {
         let src = std::path::Path::new(krate).join("src");
         let mut edges: std::collections::BTreeMap<String, std::collections::BTreeSet<String>> =
             std::collections::BTreeMap::new();
-        let mut files = vec![src.clone()];
-        while let Some(p) = files.pop() {
-            if p.is_dir() {
-                if let Ok(rd) = std::fs::read_dir(&p) {
-                    files.extend(rd.filter_map(Result::ok).map(|e| e.path()));
-                }
-                continue;
-            }
+        for p in rust_files(&src) {
             let Some(module) = p.strip_prefix(&src).ok().and_then(top_module) else { continue };
             let text = std::fs::read_to_string(&p).unwrap_or_default();
             let refs: Vec<String> = crate_references(&text).into_iter().filter(|m| *m != module).collect();
@@ -724,8 +812,13 @@ fn main() -> ExitCode {
             failed.push("fault-handlers");
         }
     }
-    if matches!(task.as_str(), "ci" | "lint" | "modules") && !module_cycles() {
-        failed.push("modules");
+    if matches!(task.as_str(), "ci" | "lint" | "modules") {
+        if !module_cycles() {
+            failed.push("modules");
+        }
+        if !module_sizes() {
+            failed.push("module-sizes");
+        }
     }
     let code = if failed.is_empty() {
         eprintln!("\nxtask {task}: all steps passed");
@@ -746,6 +839,23 @@ fn main() -> ExitCode {
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn module_sizes_count_non_test_code_and_skip_test_files() {
+        assert_eq!(non_test_lines("a\nb\n#[cfg(test)]\nmod tests {\n}\n"), 2);
+        assert_eq!(non_test_lines("a\n    #[cfg(test)]\n    fn t() {}\n"), 1);
+        let text = "mod fast;\n#[cfg(test)]\n#[allow(clippy::unwrap_used)]\nmod tests;\n#[cfg(test)]\nmod inline {}\n";
+        let beside = |p: &str| test_module_files(std::path::Path::new(p), text);
+        assert_eq!(
+            beside("src/drive/mod.rs"),
+            [std::path::PathBuf::from("src/drive/tests.rs"), "src/drive/tests/mod.rs".into()]
+        );
+        assert_eq!(
+            beside("src/drive.rs"),
+            [std::path::PathBuf::from("src/drive/tests.rs"), "src/drive/tests/mod.rs".into()]
+        );
+        assert!(test_module_files(std::path::Path::new("src/lib.rs"), "mod tests;\n").is_empty());
+    }
 
     #[test]
     fn references_and_cycles() {
