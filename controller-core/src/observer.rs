@@ -48,12 +48,15 @@
 //! the corrections act at the rate `σ_o`, which [`ObserverConfig::new`] requires to be a small
 //! part of the sampling rate.
 //!
-//! Below the flux floor (magnetising from zero) the observer is the voltage model with
-//! `k₂ = 0` and the speed held: `ε` divides by the flux.
+//! Below the flux floor (magnetising from zero) `k₂` fades with `|ψ̂_R|²` to zero — a flux
+//! too small to point anywhere is corrected by `k₁` alone — and the speed is held: `ε`
+//! divides by the flux. The correction is continuous at the floor: a gain that jumps there
+//! rectifies the current sensors' noise in `e` into a drift down to the floor (test
+//! `the_observer_magnetizes_through_its_flux_floor_under_noise`).
 
 use crate::frames::AlphaBeta;
 use crate::motor::MotorParams;
-use crate::num::sqrt_f32;
+use crate::num::{max_f32, sqrt_f32};
 
 /// The observer's damping ratio at high speed, `ζ∞` in `σ_o = α/2 + ζ∞·|ω̂_m|` (Hinkkanen et
 /// al. 2010, section IV: their choice; the poles' damping ratio tends to it as `|ω̂_m|`
@@ -443,18 +446,22 @@ impl FluxObserver {
         let k1 = alpha_jw.conj().scale(sigma_o / alpha_jw.norm2());
         let psi2 = psi_r_mid.norm2();
         let floor2 = cfg.psi_floor_wb * cfg.psi_floor_wb;
-        let correction = if psi2 > floor2 {
-            // k₁·E + k₂·E* with k₂ = k₁·ψ̂/ψ̂*: k₁·ψ̂·2·Re{ψ̂*·E}/|ψ̂|² — the ω̂ term of E,
-            // j·ω̂·ψ̂·T, has no part along ψ̂ and drops out.
-            let p_e = psi_r_mid.conj().mul(e_int);
+        let p_e = psi_r_mid.conj().mul(e_int);
+        if adapt && psi2 > floor2 {
             // ε·T = −Im{E/ψ̂} = −Im{ψ̂*·E}/|ψ̂|².
-            if adapt {
-                self.omega_m -= cfg.speed_bandwidth_rad_s * p_e.im / psi2;
-            }
-            k1.mul(psi_r_mid).scale(2.0 * p_e.re / psi2)
-        } else {
-            k1.mul(e_int)
-        };
+            self.omega_m -= cfg.speed_bandwidth_rad_s * p_e.im / psi2;
+        }
+        // k₁·E + k₂·E* with k₂ = k₁·ψ̂²/max(|ψ̂|², ψ_floor²): above the floor k₂ = k₁·ψ̂/ψ̂*,
+        // and the sum is k₁·ψ̂·2·Re{ψ̂*·E}/|ψ̂|² — the ω̂ term of E, j·ω̂·ψ̂·T, has no part
+        // along ψ̂ and drops out; below it, k₂ fades with |ψ̂|² to the plain k₁·E of a flux
+        // too small to point anywhere. Continuous at the floor: switched there, the
+        // correction's gain along ψ̂ jumped from |k₁| to 2|k₁|, and that rectified the
+        // current's differenced noise `L_σ·Δi` in E into a drift down to the floor — a
+        // 153 kW motor (sensors scaled to its 725 A trip, 0.9 A of noise) magnetized for
+        // 3.6 s with the estimate held at the floor, 5 % of its flux, then ran away (test
+        // `the_observer_magnetizes_through_its_flux_floor_under_noise`).
+        let k2_e = psi_r_mid.mul(p_e.conj()).scale(1.0 / max_f32(psi2, floor2));
+        let correction = k1.mul(e_int.add(k2_e));
         self.psi_s = self.psi_s.add(u.sub(i_mid.scale(rs_ohm)).scale(t)).add(correction);
         self.i_last = i1;
     }
@@ -554,6 +561,62 @@ mod tests {
             }
         }
         (w_err, ang_err, mag_err)
+    }
+
+    /// Magnetizing at rest through the flux floor with the current sensors' noise: the
+    /// population's 153 kW 400 V member (R_s 15.6 mΩ, T_r 1.41 s) held at its magnetizing
+    /// current, 77.7 A, at 20 kHz; the measured current carries 0.9 A of noise per axis (its
+    /// sensors scaled to a 725 A trip), the voltage is exact. After two rotor time constants
+    /// the estimate is within 2 % of the machine's flux in each of 8 seeded runs. With the
+    /// correction switched at the floor (k₂ = 0 below it, k₁·ψ̂/ψ̂* above) the noise's
+    /// `L_σ·Δi` held the estimate at the floor, 5 % of the flux, in every run.
+    #[test]
+    fn the_observer_magnetizes_through_its_flux_floor_under_noise() {
+        let m =
+            MotorParams::new(0.015_64, 0.009_459, 0.013_375, 0.013_375, 0.013_115, 2, 1.79, 0.063).unwrap();
+        let ts = 5e-5;
+        let k = m.lm_h() / m.lr_h();
+        let (l_mi, l_sigma) = (m.lm_h() * k, m.ls_h() - m.lm_h() * k);
+        let alpha = m.rr_ohm() * k * k / l_mi;
+        let (i_d, psi_ref) = (77.7, 1.02);
+        let cfg = ObserverConfig::new(&m, ts, 500.0, 0.05 * psi_ref, 700.0).unwrap();
+        // ψ_R(t) = L_M·i·(1 − e^(−α·t)), ψ_s = ψ_R + L_σ·i: the rotor flux of the T model is
+        // ψ_R/k.
+        let psi_s = |t: f64| l_mi * i_d * (1.0 - (-alpha * t).exp()) + l_sigma * i_d;
+        let n = (2.0 / alpha / ts) as usize;
+        for seed in 0..8u64 {
+            let mut state = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            let mut normal = || {
+                // The sum of twelve uniforms less six: unit variance.
+                (0..12)
+                    .map(|_| {
+                        state = state
+                            .wrapping_mul(6_364_136_223_846_793_005)
+                            .wrapping_add(1_442_695_040_888_963_407);
+                        (state >> 11) as f64 / (1u64 << 53) as f64
+                    })
+                    .sum::<f64>()
+                    - 6.0
+            };
+            let mut measured =
+                || AlphaBeta { alpha: (i_d + 0.9 * normal()) as f32, beta: (0.9 * normal()) as f32 };
+            let mut obs = FluxObserver::new(measured());
+            let mut e = Estimate::default();
+            for j in 0..n {
+                let (t0, t1) = (j as f64 * ts, (j + 1) as f64 * ts);
+                let u =
+                    AlphaBeta { alpha: (m.rs_ohm() * i_d + (psi_s(t1) - psi_s(t0)) / ts) as f32, beta: 0.0 };
+                e = obs.step_known_speed(&cfg, u, measured(), 0.0);
+            }
+            let truth = (psi_s(n as f64 * ts) - l_sigma * i_d) / k;
+            let err = f64::from(e.psi_r_wb()) / truth - 1.0;
+            eprintln!(
+                "seed {seed}: |ψ̂_r| {:.4} Wb against {truth:.4} Wb ({:+.2} %)",
+                e.psi_r_wb(),
+                100.0 * err
+            );
+            assert!(err.abs() < 0.02, "seed {seed}: the estimate {} Wb against {truth} Wb", e.psi_r_wb());
+        }
     }
 
     /// The reference: the T model's steady state (DeLorenzo, p = 1, rated ≈ 314 rad/s,

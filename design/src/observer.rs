@@ -73,7 +73,7 @@ fn advance(p: &Params, psi_s: C, w: f64, u: C, i0: C, i1: C) -> (C, f64) {
     let psi2 = psi_r_mid.norm_sqr();
     let p_e = psi_r_mid.conj() * e_int;
     let w = w - p.speed_bandwidth_rad_s * p_e.im / psi2;
-    let correction = k1 * psi_r_mid * (2.0 * p_e.re / psi2);
+    let correction = k1 * (e_int + psi_r_mid * p_e.conj() / psi2);
     (psi_s + (u - i_mid * p.rs_ohm) * t + correction, w)
 }
 

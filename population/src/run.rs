@@ -541,15 +541,19 @@ mod tests {
 
     /// The 153 kW member (010) without its encoder at 20 kHz: every sensorless start runs the
     /// flying start's search, whose windows on this motor are as noisy as the transient they
-    /// read; the campaign's first corner runs (the nominal and the hot-stator corners, each
-    /// manoeuvre) start at rest and run without a fault. The least-squares search read that
-    /// rotor at rest as turning beyond the overspeed level: every run tripped `Overspeed`.
+    /// read; the campaign's corner runs (every corner, each manoeuvre) start at rest and run
+    /// without a fault. The least-squares search read that rotor at rest as turning beyond
+    /// the overspeed level: every run tripped `Overspeed`. Then, with the observer's
+    /// correction switched at its flux floor, the estimate magnetized at the floor in some
+    /// runs and the drive ran away at a zero speed reference (`FollowingError` in 1 of the
+    /// 64; the mechanism, every time: `observer`'s test
+    /// `the_observer_magnetizes_through_its_flux_floor_under_noise`).
     #[test]
     fn a_large_motors_sensorless_start_at_rest_is_not_read_as_turning() {
         let m = draw(1, 10, None).unwrap();
         assert!(m.name.starts_with("010-153kW"), "{}", m.name);
         let plan =
-            Plan { campaign_runs: 8, seed: 1, matrix: false, speed: SpeedDesign::Auto, sensorless: true };
+            Plan { campaign_runs: 64, seed: 1, matrix: false, speed: SpeedDesign::Auto, sensorless: true };
         let r = evaluate(
             &m,
             Some(20_000.0),
@@ -557,7 +561,7 @@ mod tests {
             &plan,
             &AtomicBool::new(false),
         );
-        assert_eq!(r.campaign.map(|c| c[1]), Some(8), "{:?}", r.verdict);
+        assert_eq!(r.campaign.map(|c| c[1]), Some(64), "{:?}", r.verdict);
         let faults: Vec<_> = r.campaign_failures.iter().filter(|(k, _)| k.contains("fault")).collect();
         assert!(faults.is_empty(), "{faults:?}");
     }
