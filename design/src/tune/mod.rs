@@ -32,7 +32,10 @@
 //! what keeps the encoder's speed resolution from shaking the torque: `k_p·Δω_q ≤`
 //! [`ENCODER_NOISE_FRACTION`]`·τ_max`, with `Δω_q = 2π/(4·lines)/(window·T_slow)` one count
 //! over the speed estimate's window (the linear certificate cannot see quantisation; the
-//! nonlinear campaign's torque-ripple criterion can). Then the largest of the same kind of
+//! nonlinear campaign's torque-ripple criterion can). Without an encoder (`[controller]
+//! speed_feedback = "sensorless"`) the observer's estimate carries the current sensors' noise
+//! instead, and its peak to peak ([`observer_speed_peak_to_peak_rad_s`]) takes the count's
+//! place in the same rule ([`SpeedNoise`]). Then the largest of the same kind of
 //! search for which the speed checks pass with the writable range `[k_p/2, 2·k_p]` (what
 //! the link may set). τ_max: the template's (the torque the application asks), at most what
 //! the template's current limit gives at its flux reference,
@@ -58,7 +61,7 @@ use crate::certify::{CertifySpec, Check, certify, certify_current, certify_speed
 use crate::pi_region::SpeedRegions;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::ContinuousSection;
-use controller_core::drive::{CurrentFrame, DriveSpec};
+use controller_core::drive::{CurrentFrame, DriveSpec, SpeedFeedback};
 use controller_core::motor::MotorParams;
 use controller_core::speed::SpeedLaw;
 use std::path::Path;
@@ -366,9 +369,28 @@ pub fn tune(
         ));
     }
     let j = motor.j_kgm2();
-    let lines = file.encoder_lines();
     let t_slow = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
-    let kp_noise = encoder_kp_limit(tau_max, lines, t_slow);
+    // The speed measurement the law closes on, and its noise's cap on k_p.
+    let noise = match spec.speed_feedback {
+        SpeedFeedback::Sensorless => {
+            let noise_rms_a = hil_sim::sensors::SensorModel::realistic_for_trip(0, spec.protection.i_trip_a)
+                .current_noise_rms_a;
+            SpeedNoise::Observer {
+                noise_rms_a,
+                peak_to_peak_rad_s: observer_speed_peak_to_peak_rad_s(
+                    motor,
+                    psi,
+                    noise_rms_a,
+                    spec.pwm_frequency_hz,
+                    spec.slow_divider,
+                ),
+            }
+        }
+        SpeedFeedback::Encoder | SpeedFeedback::EncoderRideThrough => {
+            SpeedNoise::Encoder { lines: file.encoder_lines(), t_slow_s: t_slow }
+        }
+    };
+    let kp_noise = noise.kp_limit(tau_max);
     let omega_s_top = (omega_c / SPEED_BELOW_CURRENT).min(kp_noise / j);
     let speed_at = |spec: &mut DriveSpec, cert: &mut CertifySpec, omega_s: f64| {
         let kp = j * omega_s;
@@ -448,7 +470,7 @@ pub fn tune(
                 return Err(format!(
                     "no speed law meets the requirements over the box (predicted on the ideal actuator, {vdc:.0} V): \
                      {p_why}; {} — relax [requirements], or take a smaller box",
-                    pi.refusal(&choice, lines, t_slow),
+                    pi.refusal(&choice, &noise),
                 ));
             }
             spec.speed_law = choice.law;
