@@ -456,9 +456,7 @@ impl FluxObserver {
         // along ψ̂ and drops out; below it, k₂ fades with |ψ̂|² to the plain k₁·E of a flux
         // too small to point anywhere. Continuous at the floor: switched there, the
         // correction's gain along ψ̂ jumped from |k₁| to 2|k₁|, and that rectified the
-        // current's differenced noise `L_σ·Δi` in E into a drift down to the floor — a
-        // 153 kW motor (sensors scaled to its 725 A trip, 0.9 A of noise) magnetized for
-        // 3.6 s with the estimate held at the floor, 5 % of its flux, then ran away (test
+        // current's differenced noise `L_σ·Δi` in E into a drift down to the floor (test
         // `the_observer_magnetizes_through_its_flux_floor_under_noise`).
         let k2_e = psi_r_mid.mul(p_e.conj()).scale(1.0 / max_f32(psi2, floor2));
         let correction = k1.mul(e_int.add(k2_e));

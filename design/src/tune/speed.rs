@@ -387,7 +387,7 @@ pub const ENCODER_NOISE_FRACTION: f64 = hil_sim::campaign::RIPPLE_FRACTION / 4.0
 /// step reads the mean of its period's `N_s` estimates (`/√N_s`), the speed law the mechanical
 /// speed (`/p`), and over the oscillation criterion's window, `M` = `RIPPLE_WINDOW_S/T_slow`
 /// slow samples, a normal noise spans about `2·√(2·ln M)` standard deviations. `α_o` is the
-/// drive's ([`controller_core::drive::observer_speed_bandwidth_rad_s`]), `L_σ = L_s − L_m²/L_r`
+/// drive's ([`controller_core::drive::observer_speed_bandwidth_rad_s`]), `L_σ = σ·L_s`
 /// and `ψ_R = (L_m/L_r)·ψ*` the motor's at the flux reference `flux_ref_wb`.
 ///
 /// Against the campaign: the population's 73 kW 690 V member at 10 kHz, tuned on its encoder
@@ -405,7 +405,7 @@ pub fn observer_speed_peak_to_peak_rad_s(
     let t_slow = ts * n_s;
     let alpha_o = controller_core::drive::observer_speed_bandwidth_rad_s(ts, t_slow);
     let k = motor.lm_h() / motor.lr_h();
-    let l_sigma_h = motor.ls_h() - motor.lm_h() * k;
+    let l_sigma_h = motor.sigma() * motor.ls_h();
     let sigma_e = alpha_o * l_sigma_h * noise_rms_a * (2.0f64 / 3.0).sqrt() / (k * flux_ref_wb);
     let sigma_m = sigma_e / n_s.sqrt() / f64::from(motor.pole_pairs());
     let samples = (hil_sim::campaign::RIPPLE_WINDOW_S / t_slow).max(2.0);
