@@ -211,9 +211,10 @@ struct CampaignArgs {
     /// 1 000 000 (every verdict is kept for the table; shard a larger campaign).
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     runs: u64,
-    /// Length of each run, s (long runs reach into field weakening).
-    #[arg(long, default_value_t = 1.0, value_parser = campaign_seconds)]
-    duration: f64,
+    /// Length of each run, s [default: 1 s, or longer where the largest inertia of the box
+    /// needs longer to step to the box's top speed — field weakening included]
+    #[arg(long, value_parser = campaign_seconds)]
+    duration: Option<f64>,
     /// Seed of the random samples (and of the sensors' noise).
     #[arg(long, default_value_t = 1)]
     seed: u64,

@@ -45,9 +45,6 @@ impl IdealLoop {
         } else {
             (1.0, t_s / j)
         };
-        let i_d_rated = crate::envelope::rated_d_current_a(spec, plant);
-        // The drive's target on the part of the bus its modulator uses (the sampling window).
-        let v_target = spec.voltage_margin * spec.duty_max() * vdc_v / 3f64.sqrt();
         Ok(Self {
             law,
             state: SpeedState::default(),
@@ -55,7 +52,7 @@ impl IdealLoop {
             a,
             g,
             envelope: EnvelopeConfig::new(plant),
-            limits: (i_d_rated as f32, v_target as f32, spec.i_ref_max_a as f32),
+            limits: drive_limits(spec, plant, vdc_v),
             torque_max_nm: (f64::INFINITY, f64::INFINITY),
             age: 0,
             omega_m_rad_s: 0.0,
@@ -73,9 +70,7 @@ impl IdealLoop {
     /// `omega_m_rad_s`, N·m: what this plant gives there on the drive's voltage and current
     /// limits (τ_max aside).
     pub fn torque_limit_nm(&self, sign: f64, omega_m_rad_s: f64) -> f64 {
-        let (i_d, v, i_max) = self.limits;
-        let s = if sign < 0.0 { -1.0 } else { 1.0 };
-        f64::from(self.envelope.envelope(s, omega_m_rad_s as f32, i_d, v, i_max).torque_max_nm)
+        envelope_torque_nm(&self.envelope, self.limits, sign, omega_m_rad_s)
     }
 
     /// One slow period with reference `omega_ref` and load `load_nm`.
@@ -93,4 +88,25 @@ impl IdealLoop {
         let tau = tau.clamp(-self.torque_max_nm.1, self.torque_max_nm.0);
         self.omega_m_rad_s = self.a * self.omega_m_rad_s + self.g * (tau - load_nm);
     }
+}
+
+/// The drive's envelope limits on `plant` and bus `vdc_v`: the rated flux's d-axis current,
+/// the voltage target on the part of the bus the modulator uses (the sampling window) and
+/// the current limit.
+pub(super) fn drive_limits(spec: &DriveSpec, plant: &MotorParams, vdc_v: f64) -> (f32, f32, f32) {
+    let i_d_rated = crate::envelope::rated_d_current_a(spec, plant);
+    let v_target = spec.voltage_margin * spec.duty_max() * vdc_v / 3f64.sqrt();
+    (i_d_rated as f32, v_target as f32, spec.i_ref_max_a as f32)
+}
+
+/// The torque magnitude of `envelope` in the direction `sign` at speed `omega_m_rad_s`
+/// within `limits` ([`drive_limits`]), N·m.
+pub(super) fn envelope_torque_nm(
+    envelope: &EnvelopeConfig,
+    (i_d, v, i_max): (f32, f32, f32),
+    sign: f64,
+    omega_m_rad_s: f64,
+) -> f64 {
+    let s = if sign < 0.0 { -1.0 } else { 1.0 };
+    f64::from(envelope.envelope(s, omega_m_rad_s as f32, i_d, v, i_max).torque_max_nm)
 }

@@ -15,12 +15,15 @@
 //! and a reversal +ω_s/2 → −ω_s/2. τ_L is τ_max, or less where the run's plant cannot give
 //! τ_max at ω_s in that direction on the bus and the current limit (its envelope, the
 //! [`IdealLoop`]'s): a load beyond what the motor can hold there tests the motor, not the
-//! drive — 0.8·τ_max generating at twice base speed drove the rotor away from every
-//! 8-pole 1.3 kW member's reference (`FollowingError`, rightly, in 50 of 50 runs).
-//! ω_s is the top speed of the box — the certified
-//! ω_r,max/p, at most twice the no-load base speed on the bus (field weakening) — or what
-//! the weakest corner (largest J) can reach at τ_max in [`REACH_FRACTION`] of the first half:
-//! short runs stay below base speed, long ones reach into field weakening.
+//! drive — 0.8·τ_max
+//! generating at twice base speed drove the rotor away from every 8-pole 1.3 kW member's
+//! reference (`FollowingError`, rightly, in 50 of 50 runs).
+//! ω_s is the top speed of the box ([`Campaign::top_speed_rad_s`]: the certified
+//! ω_r,max/p, at most twice the no-load base speed on the bus — field weakening — and at most
+//! where the friction takes [`FRICTION_SHARE_MAX`] of the drive's torque), or what the
+//! weakest corner (largest J) can reach at τ_max in [`REACH_FRACTION`] of the first half:
+//! runs shorter than [`Campaign::full_range_duration_s`] stay below the top speed — a large
+//! motor's far below its base speed.
 //!
 //! **Criteria** (each run; [`Verdict`]):
 //! - no fault latched;
@@ -60,12 +63,22 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 /// motor the drive magnetizes more slowly ([`Campaign::step_s`]).
 pub const STEP_S: f64 = 0.25;
 /// A run must last at least this long after its speed step, s (the shortest the campaign
-/// accepts; the default 1 s runs leave 0.75 s).
+/// accepts; a 1 s run leaves 0.75 s).
 pub const MIN_AFTER_STEP_S: f64 = 0.25;
 /// ω_s is what the largest inertia reaches at τ_max in this fraction of the first half.
 pub const REACH_FRACTION: f64 = 0.6;
 /// Load step as a fraction of τ_max (or of the envelope's torque at ω_s, if less).
 pub const LOAD_FRACTION: f64 = 0.8;
+/// ω_s is at most the speed where the motor's friction `B·ω` takes this share of the torque
+/// the drive's envelope gives there ([`Campaign::friction_bound_rad_s`]): beyond it the
+/// torque left accelerates the largest inertia ever more slowly, and the step tests the
+/// motor's friction, not the drive (the shipped 24 V drive's certified 2 × base speed, 283
+/// rad/s, is beyond any: at 261 rad/s its envelope gives 0.047 N·m, `hil-sim envelope
+/// drives/em-synergy-24v.toml`, and its friction there is 2.04·10⁻⁴ N·m·s × 261 rad/s =
+/// 0.053 N·m).
+pub const FRICTION_SHARE_MAX: f64 = 0.5;
+/// Bisection steps of [`Campaign::friction_bound_rad_s`] (2⁻³⁰ of the top speed).
+const FRICTION_BOUND_STEPS: u32 = 30;
 /// Tracking tolerance: this fraction of ω_s …
 pub const TRACKING_FRACTION: f64 = 0.05;
 /// … plus this, rad/s.
@@ -394,14 +407,65 @@ impl Campaign {
 
     /// ω_s (module docs), mechanical rad/s.
     pub fn omega_s_rad_s(&self) -> f64 {
-        let m = &self.spec.motor;
-        let p = f64::from(m.pole_pairs());
+        let half = 0.5 * (self.duration_s - self.step_s());
+        self.top_speed_rad_s().min(REACH_FRACTION * half / self.seconds_per_rad_s())
+    }
+
+    /// The box's top speed, mechanical rad/s: the certified ω_r,max/p, at most
+    /// [`FIELD_WEAKENING_RANGE`](drive_file::drive::FIELD_WEAKENING_RANGE) × the drive's base
+    /// speed on the campaign's bus, and at most the speed where the motor's friction takes
+    /// [`FRICTION_SHARE_MAX`] of the torque the drive's envelope gives there
+    /// ([`Campaign::friction_bound_rad_s`]).
+    pub fn top_speed_rad_s(&self) -> f64 {
+        let p = f64::from(self.spec.motor.pole_pairs());
         let base = crate::envelope::drive_base_speed_rad_s(&self.spec, self.vdc_v);
         let top = (self.certify.omega_r_max_rad_s / p).min(drive_file::drive::FIELD_WEAKENING_RANGE * base);
-        let tau = torque_limit_nm(&self.spec);
-        let j_max = m.j_kgm2() * self.certify.j_factor[1];
-        let half = 0.5 * (self.duration_s - self.step_s());
-        top.min(REACH_FRACTION * half * tau / j_max)
+        self.friction_bound_rad_s(top)
+    }
+
+    /// The highest speed up to `top` (mechanical rad/s) at which the friction `B·ω` of the
+    /// motor the runs drive (`--plant`'s, else the drive's) is at most [`FRICTION_SHARE_MAX`]
+    /// of the torque the drive's envelope (on that motor and the campaign's bus, at most
+    /// τ_max) gives motoring there: `top` where it is, else the crossing (bisection; the
+    /// envelope falls and the friction grows with speed).
+    pub fn friction_bound_rad_s(&self, top: f64) -> f64 {
+        let plant = self.plant.as_ref().map_or(&self.spec.motor, |(m, _)| m);
+        let envelope = controller_core::envelope::EnvelopeConfig::new(plant);
+        let limits = ideal::drive_limits(&self.spec, plant, self.vdc_v);
+        let tau_max = torque_limit_nm(&self.spec);
+        let spare = |w: f64| {
+            FRICTION_SHARE_MAX * tau_max.min(ideal::envelope_torque_nm(&envelope, limits, 1.0, w))
+                - plant.b_nms() * w
+        };
+        if top.is_nan() || top <= 0.0 || spare(top) >= 0.0 {
+            return top;
+        }
+        let (mut lo, mut hi) = (0.0, top);
+        for _ in 0..FRICTION_BOUND_STEPS {
+            let mid = 0.5 * (lo + hi);
+            if spare(mid) >= 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    }
+
+    /// The time the largest inertia of the box takes per rad/s at τ_max, s·s/rad.
+    fn seconds_per_rad_s(&self) -> f64 {
+        self.spec.motor.j_kgm2() * self.certify.j_factor[1] / torque_limit_nm(&self.spec)
+    }
+
+    /// The shortest run that steps the speed to the box's top speed
+    /// ([`Campaign::top_speed_rad_s`], not what a shorter run reaches: module docs) — and
+    /// lasts at least [`MIN_AFTER_STEP_S`] after each of its two events, s. A shorter run
+    /// steps a large motor far below its base speed and never runs its field weakening:
+    /// `hil-sim campaign`'s runs last this long by default.
+    pub fn full_range_duration_s(&self) -> f64 {
+        let half = self.top_speed_rad_s() * self.seconds_per_rad_s() / REACH_FRACTION;
+        // A drive without a speed range gets the least run: `Campaign::check` names why.
+        self.step_s() + 2.0 * half.max(MIN_AFTER_STEP_S)
     }
 
     /// The run indices of this shard.

@@ -13,8 +13,9 @@ pub struct CampaignOptions {
     pub drive: PathBuf,
     /// Runs in the whole campaign (the corners' come first).
     pub runs: u64,
-    /// Length of each run, s.
-    pub duration: f64,
+    /// Length of each run, s (`None`: 1 s, or the least that steps the speed to the box's
+    /// top speed if longer: `Campaign::full_range_duration_s`).
+    pub duration: Option<f64>,
     /// Seed of the random samples (and of the sensors' noise).
     pub seed: u64,
     /// Run only the shard i of N (`(i, N)`: runs with k mod N = i).
@@ -44,11 +45,11 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     })?;
     let vdc = bus_voltage(a.vdc, &file, "the campaign")?;
     let out = a.out.clone().unwrap_or_else(|| PathBuf::from("out/campaign"));
-    let c = Campaign {
+    let mut c = Campaign {
         spec: file.spec,
         certify,
         vdc_v: vdc,
-        duration_s: a.duration,
+        duration_s: a.duration.unwrap_or(1.0),
         runs: a.runs,
         seed: a.seed,
         shard: a.shard,
@@ -56,7 +57,21 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
         plant: a.plant.as_deref().map(|p| super::plant_model(p, &file.spec)).transpose()?,
         requirements: file.requirements,
     };
+    if a.duration.is_none() {
+        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+    }
     c.check()?;
+    match a.duration {
+        Some(_) if c.omega_s_rad_s() < c.top_speed_rad_s() => eprintln!(
+            "hil-sim: runs of {:.2} s step the speed to {:.1} rad/s, below the box's top speed {:.1} rad/s: its field \
+             weakening is not run (--duration {:.2}, or none, reaches it)",
+            c.duration_s,
+            c.omega_s_rad_s(),
+            c.top_speed_rad_s(),
+            c.full_range_duration_s()
+        ),
+        _ => {}
+    }
     let total = c.indices().count() as u64;
     if total == 0 {
         return Err(format!(
@@ -73,10 +88,10 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     }
     let made = make_out_dir(&out)?;
     eprintln!(
-        "hil-sim: campaign of {} on {} V: {total} run(s) of {} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
+        "hil-sim: campaign of {} on {} V: {total} run(s) of {:.2} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
         a.drive.display(),
         vdc,
-        a.duration,
+        c.duration_s,
         a.shard.0,
         a.shard.1,
         a.runs,
@@ -215,7 +230,7 @@ mod tests {
         CampaignOptions {
             drive: PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml")),
             runs: 4,
-            duration: 1.0,
+            duration: Some(1.0),
             seed: 1,
             shard,
             vdc: None,
