@@ -15,9 +15,8 @@
 //! and a reversal +ω_s/2 → −ω_s/2. τ_L is τ_max, or less where the run's plant cannot give
 //! τ_max at ω_s in that direction on the bus and the current limit (its envelope, the
 //! [`IdealLoop`]'s): a load beyond what the motor can hold there tests the motor, not the
-//! drive — 0.8·τ_max
-//! generating at twice base speed drove the rotor away from every 8-pole 1.3 kW member's
-//! reference (`FollowingError`, rightly, in 50 of 50 runs).
+//! drive — 0.8·τ_max generating at twice base speed drove the rotor away from every
+//! 8-pole 1.3 kW member's reference (`FollowingError`, rightly, in 50 of 50 runs).
 //! ω_s is the top speed of the box ([`Campaign::top_speed_rad_s`]: the certified
 //! ω_r,max/p, at most twice the no-load base speed on the bus — field weakening — and at most
 //! where the friction takes [`FRICTION_SHARE_MAX`] of the drive's torque), or what the
@@ -929,6 +928,37 @@ mod tests {
             plant: None,
             requirements: f.requirements,
         }
+    }
+
+    /// A run of `full_range_duration_s` steps to the top speed (drive.toml: 368.0 rad/s, the
+    /// 1 s default's 45), a shorter one does not; and a friction the drive's envelope cannot
+    /// hold up there brings the top speed down to where it takes half the envelope's torque.
+    #[test]
+    fn full_range_runs_reach_the_top_speed_within_the_friction() {
+        let mut c = campaign(64, 1.0);
+        let top = c.top_speed_rad_s();
+        assert!(c.omega_s_rad_s() < 0.2 * top, "{} of {top}", c.omega_s_rad_s());
+        c.duration_s = c.full_range_duration_s();
+        assert!((c.omega_s_rad_s() / top - 1.0).abs() < 1e-9, "{} of {top}", c.omega_s_rad_s());
+        assert!((top - 368.0).abs() < 0.1, "{top}");
+        let heavy = MotorParams::new(
+            c.spec.motor.rs_ohm(),
+            c.spec.motor.rr_ohm(),
+            c.spec.motor.ls_h(),
+            c.spec.motor.lr_h(),
+            c.spec.motor.lm_h(),
+            c.spec.motor.pole_pairs(),
+            c.spec.motor.j_kgm2(),
+            0.01,
+        )
+        .unwrap();
+        let c = Campaign { spec: DriveSpec { motor: heavy, ..c.spec }, ..c };
+        let w = c.top_speed_rad_s();
+        let env = controller_core::envelope::EnvelopeConfig::new(&heavy);
+        let limits = ideal::drive_limits(&c.spec, &heavy, c.vdc_v);
+        let half = FRICTION_SHARE_MAX
+            * torque_limit_nm(&c.spec).min(ideal::envelope_torque_nm(&env, limits, 1.0, w));
+        assert!(w < top && (0.01 * w / half - 1.0).abs() < 1e-6, "{w}: {} against {half}", 0.01 * w);
     }
 
     /// Corners first (every manoeuvre of each), then seeded samples inside the box; a run's
