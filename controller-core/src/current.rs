@@ -203,6 +203,7 @@ impl CurrentControllerConfig<f32> {
         self.pi.put(w);
     }
 
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         let has_lag = r.u() == 1;
         let lag = Biquad::get(r);

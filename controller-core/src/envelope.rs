@@ -519,6 +519,7 @@ impl EnvelopeConfig {
         }
     }
 
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         Self {
             rs_ohm: r.f(),

@@ -134,6 +134,7 @@ impl Biquad<f32> {
         }
     }
 
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         Self { b0: r.f(), c1: r.f(), c2: r.f(), a1: r.f(), a0: r.f() }
     }

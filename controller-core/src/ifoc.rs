@@ -579,6 +579,7 @@ impl IfocConfig {
         }
     }
 
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         Self {
             inv_lm: r.f(),

@@ -568,6 +568,7 @@ impl MrasConfig {
         w.u(self.demagnetized_steps);
     }
 
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         Self {
             gain: r.f(),

@@ -141,6 +141,7 @@ impl crate::raw::Field for ObserverConfig {
     fn put(&self, w: &mut crate::raw::Writer) {
         self.numbers().put(w);
     }
+    #[inline(always)]
     fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         let [
             ts_s,

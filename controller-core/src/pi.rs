@@ -185,6 +185,7 @@ impl PiConfig<f32> {
         }
     }
 
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         Self { kp: r.f(), ki_over_k: r.f(), u_min: r.f(), u_max: r.f() }
     }

@@ -67,7 +67,8 @@ pub(crate) struct Reader<'a> {
     raw: &'a RawDriveConfig,
     nf: usize,
     nu: usize,
-    /// A read went beyond the end, or a float was not finite.
+    /// A read went beyond the end, or an integer did not fit its field (a float's finiteness:
+    /// [`Reader::ok`]).
     pub(crate) bad: bool,
 }
 
@@ -76,24 +77,22 @@ impl<'a> Reader<'a> {
         Self { raw, nf: 0, nu: 0, bad: false }
     }
 
-    /// The next float; a non-finite one marks the configuration bad. Out of line: a
-    /// configuration is read once (at start-up), and inlined into each of its ≈ 100 reads the
-    /// check took the firmware's flash.
-    #[inline(never)]
+    /// The next float (0 beyond the end: `bad`). Not checked here: [`Reader::ok`] checks
+    /// every float read at once. Inlined (with every [`Field::get`]), a read is one load at a
+    /// constant offset: out of line, with its finiteness check, the firmware's start-up
+    /// read the configuration through ≈ 100 calls and kept each value on the stack.
+    #[inline(always)]
     pub(crate) fn f(&mut self) -> f32 {
         let x = self.raw.f.get(self.nf).copied();
         self.nf += 1;
-        match x {
-            Some(x) if x.is_finite() => x,
-            _ => {
-                self.bad = true;
-                0.0
-            }
-        }
+        x.unwrap_or_else(|| {
+            self.bad = true;
+            0.0
+        })
     }
 
-    /// The next integer (out of line, as [`Reader::f`]).
-    #[inline(never)]
+    /// The next integer (0 beyond the end: `bad`), inlined as [`Reader::f`].
+    #[inline(always)]
     pub(crate) fn u(&mut self) -> u32 {
         let x = self.raw.u.get(self.nu).copied();
         self.nu += 1;
@@ -101,6 +100,11 @@ impl<'a> Reader<'a> {
             self.bad = true;
             0
         })
+    }
+
+    /// Every read was in range, every integer fitted, and every float read is finite.
+    pub(crate) fn ok(&self) -> bool {
+        !self.bad && self.raw.f.get(..self.nf).is_some_and(|f| f.iter().all(|x| x.is_finite()))
     }
 }
 
@@ -112,7 +116,10 @@ pub(crate) trait Field: Sized {
     /// Write the value's numbers.
     fn put(&self, w: &mut Writer);
     /// Read them back; a number that does not fit sets [`Reader::bad`] (the value is then a
-    /// placeholder: the caller refuses the configuration).
+    /// placeholder: the caller refuses the configuration); a float is checked finite only at
+    /// the end ([`Reader::ok`]). Every `get` is `#[inline(always)]`: a configuration is read
+    /// once, at start-up, and inlined whole its reads are loads at constant offsets, stored
+    /// where the value is built (out of line, each value was kept on the stack and copied).
     fn get(r: &mut Reader<'_>) -> Self;
 }
 
@@ -120,6 +127,7 @@ impl Field for f32 {
     fn put(&self, w: &mut Writer) {
         w.f(*self);
     }
+    #[inline(always)]
     fn get(r: &mut Reader<'_>) -> Self {
         r.f()
     }
@@ -129,6 +137,7 @@ impl Field for u32 {
     fn put(&self, w: &mut Writer) {
         w.u(*self);
     }
+    #[inline(always)]
     fn get(r: &mut Reader<'_>) -> Self {
         r.u()
     }
@@ -139,6 +148,7 @@ impl Field for bool {
     fn put(&self, w: &mut Writer) {
         w.u(u32::from(*self));
     }
+    #[inline(always)]
     fn get(r: &mut Reader<'_>) -> Self {
         match r.u() {
             0 => false,
@@ -155,6 +165,7 @@ impl Field for u16 {
     fn put(&self, w: &mut Writer) {
         w.u(u32::from(*self));
     }
+    #[inline(always)]
     fn get(r: &mut Reader<'_>) -> Self {
         let x = r.u();
         u16::try_from(x).unwrap_or_else(|_| {
@@ -170,6 +181,7 @@ impl<T: Field, const N: usize> Field for [T; N] {
             x.put(w);
         }
     }
+    #[inline(always)]
     fn get(r: &mut Reader<'_>) -> Self {
         core::array::from_fn(|_| T::get(r))
     }
@@ -194,6 +206,7 @@ macro_rules! raw_struct {
             fn put(&self, w: &mut $crate::raw::Writer) {
                 $($crate::raw::Field::put(&self.$field, w);)*
             }
+            #[inline(always)]
             fn get(r: &mut $crate::raw::Reader<'_>) -> Self {
                 Self { $($field: $crate::raw::Field::get(r),)* }
             }

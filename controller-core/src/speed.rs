@@ -276,6 +276,7 @@ impl SpeedControllerConfig {
     /// `None` for an unknown law tag.
     /// The law from [`Self::put`]'s numbers; an unknown tag sets the reader's `bad` (the
     /// configuration is refused).
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         let tag = r.u();
         // The same six slots: a PI's (kp, ki/K, u_min, u_max, b, α), or the P law's
@@ -324,6 +325,7 @@ impl PositionConfig {
         w.f(self.omega_max_rad_s);
     }
 
+    #[inline(always)]
     pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         Self { k_per_s: r.f(), omega_max_rad_s: r.f() }
     }

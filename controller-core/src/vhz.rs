@@ -135,6 +135,7 @@ impl crate::raw::Field for VhzConfig {
     fn put(&self, w: &mut crate::raw::Writer) {
         self.numbers().put(w);
     }
+    #[inline(always)]
     fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         let [
             ts_s,

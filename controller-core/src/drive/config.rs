@@ -127,6 +127,7 @@ macro_rules! law_fields {
             fn put(&self, w: &mut raw::Writer) {
                 <$ty>::put(self, w);
             }
+            #[inline(always)]
             fn get(r: &mut raw::Reader<'_>) -> Self {
                 <$ty>::get(r)
             }
@@ -149,6 +150,7 @@ impl raw::Field for CurrentFrame {
             CurrentFrame::Synchronous => 1,
         });
     }
+    #[inline(always)]
     fn get(r: &mut raw::Reader<'_>) -> Self {
         match r.u() {
             0 => CurrentFrame::Stationary,
@@ -181,6 +183,7 @@ impl raw::Field for ControlLaw {
         w.u(tag);
         cfg.put(w);
     }
+    #[inline(always)]
     fn get(r: &mut raw::Reader<'_>) -> Self {
         let tag = r.u();
         let cfg = VhzConfig::get(r);
@@ -241,6 +244,7 @@ impl raw::Field for SpeedSource {
         });
         self.observer().copied().unwrap_or_default().put(w);
     }
+    #[inline(always)]
     fn get(r: &mut raw::Reader<'_>) -> Self {
         let tag = r.u();
         let cfg = ObserverConfig::get(r);
@@ -260,6 +264,7 @@ impl raw::Field for FaultSet {
     fn put(&self, w: &mut raw::Writer) {
         w.u(self.0);
     }
+    #[inline(always)]
     fn get(r: &mut raw::Reader<'_>) -> Self {
         FaultSet(r.u())
     }
@@ -571,7 +576,7 @@ impl DriveConfig {
         // The bus range as `new` makes it, +0 for a zero minimum (the fast step's supervisor
         // tests it as one unsigned range of the bits, `Limits::ok`).
         let bus = cfg.limits.vdc_min_v.is_sign_positive() && cfg.limits.vdc_min_v < cfg.limits.vdc_max_v;
-        if r.bad
+        if !r.ok()
             || !bus
             || !cfg.mras.is_valid()
             || counts.contains(&0)
