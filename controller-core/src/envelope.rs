@@ -143,6 +143,25 @@ impl EnvelopeConfig {
         }
     }
 
+    /// The machine as the drive has identified it: every inductance × `l_scale`
+    /// ([`Self::with_inductance_scale`]) and the rotor resistance × `rr_scale` (T_r = L_r/R_r
+    /// and the slip per `i_q/ψ_r`, `L_m·R_r/L_r`, with it) — the estimates the field
+    /// orientation runs on (the magnetizing fit's, then the rotor-resistance law's,
+    /// [`crate::mras`]), so that the envelope asks for no more voltage than the motor as it is
+    /// now needs. On the motor file's rotor, the shipped drive's perturbed motor at 4 kHz, at
+    /// its box's corner of a hot stator and rotor in saturated iron (R_s × 1.5, R_r × 2,
+    /// L × 0.6), was given τ_max at standstill — its slip, and the voltage it takes, twice
+    /// what the envelope counted —, more than that machine takes on a 310 V bus, and tripped
+    /// `LossOfControl` 21 ms into the speed step (`hil-sim` test
+    /// `a_hot_motor_accelerates_from_rest_on_the_torque_its_bus_gives`). The stator
+    /// resistance stays the file's: the magnetizing fit's (`Fitted::stator_resistance_ohm`)
+    /// carries the dead time's residual voltage at the magnetizing current, which taken as a
+    /// resistance shrinks the envelope of a cold stator. Exact at 1, 1.
+    pub fn identified(&self, l_scale: f32, rr_scale: f32) -> Self {
+        let l = self.with_inductance_scale(l_scale);
+        Self { inv_tr_per_s: l.inv_tr_per_s * rr_scale, slip_gain: l.slip_gain * rr_scale, ..l }
+    }
+
     /// `L_m²/L_r`, H: the rotor-flux path's inductance seen from the stator.
     pub fn lm2_over_lr_h(&self) -> f32 {
         self.k_nm_per_a2 / (1.5 * self.pole_pairs)
@@ -156,6 +175,17 @@ impl EnvelopeConfig {
     /// `L_m/L_r`.
     pub fn lm_over_lr(&self) -> f32 {
         self.lm_over_lr
+    }
+
+    /// The no-load base speed on the voltage `v_max_v`, mechanical rad/s: where the d-axis
+    /// current `i_d_a` alone (the rated flux's, no torque) needs all of it,
+    /// `R_s² + (p·ω·L_s)² = (V/i_d)²` — above it the flux the bus allows falls as 1/ω (field
+    /// weakening); 0 where even standstill needs more (R_s·i_d > V).
+    #[inline]
+    pub fn no_load_base_speed_rad_s(&self, i_d_a: f32, v_max_v: f32) -> f32 {
+        let z = v_max_v / crate::num::max_f32(i_d_a, 1e-9);
+        crate::num::sqrt_f32(crate::num::max_f32(z * z - self.rs_ohm * self.rs_ohm, 0.0))
+            / (self.pole_pairs * self.ls_h)
     }
 
     /// `g(0)²`: the stator voltage per A of i_d at no load (r = 0) and electrical rotor

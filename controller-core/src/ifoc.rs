@@ -386,17 +386,20 @@ impl IfocConfig {
     /// i_ds* = i_ψ + (T̂_r/τ_f)·(i_d − i_ψ),   i_ψ = ψ̂_r/L̂_m,   T̂_r/τ_f at least 1
     /// ```
     ///
-    /// limited to `[0, i_d]`: down to no current at most (the flux then falls with T̂_r, the
-    /// fastest without reversing the current), and never above `i_d` — a flux forced
+    /// limited to `[floor_a, i_d]`: down to no current (`floor_a` 0: the flux then falls with
+    /// T̂_r, the fastest without reversing the current) or reversed (`floor_a` < 0: a speed
+    /// rising through field weakening asks the flux to fall faster than the rotor lets it
+    /// with no current, `FLUX_LAG_FRACTION`), within the current limit, and never above
+    /// `i_d` — a flux forced
     /// upwards asks for voltage that a machine in field weakening does not have (forced both
     /// ways, the 3 300 V drive's loops sat at the modulator's limit at top speed, the flux
     /// model below its target on the current they could not drive). A flux at or below its
     /// target gets `i_d` itself. Both speeds are the model's: with `fall_rate` ≥
     /// `flux_rate` nothing is forced.
-    pub fn falling_flux_current(&self, s: &IfocState, i_d_a: f32, fall_rate: f32) -> f32 {
+    pub fn falling_flux_current(&self, s: &IfocState, i_d_a: f32, fall_rate: f32, floor_a: f32) -> f32 {
         let i_psi = s.psi_r_wb / s.lm_h;
         let k = max_f32(fall_rate / s.flux_rate, 1.0);
-        (i_psi + k * (i_d_a - i_psi)).limit(0.0, i_d_a)
+        (i_psi + k * (i_d_a - i_psi)).limit(max_f32(floor_a, -self.i_max_a), i_d_a)
     }
 
     /// The steady-state rotor flux of d-axis current `i_d_a` on the motor's inductance,
@@ -829,7 +832,8 @@ mod tests {
 
     /// [`IfocConfig::falling_flux_current`]: a flux at or below its target gets the target's
     /// current, and so does any flux when the fall time is no faster than the rotor's T_r;
-    /// a flux well above it gets no current (never a negative one); and a flux a little
+    /// a flux well above it no current, or a reversed one within the current limit on a
+    /// negative floor; and a flux a little
     /// above it (no limit reached) falls to 1/e of its excess in the fall time — 10 ms here,
     /// where the DeLorenzo rotor's own T_r is 64.7 ms — on the flux model's exact update.
     #[test]
@@ -840,15 +844,22 @@ mod tests {
         let target = 0.5 * 0.9 / 1.42; // half the rated flux's current, A
         let psi_target = c.flux_of(target);
         let at = |psi: f32| c.state(psi, 1.0);
-        assert_eq!(c.falling_flux_current(&at(psi_target), target, fall_rate), target);
-        assert_eq!(c.falling_flux_current(&at(0.5 * psi_target), target, fall_rate), target);
-        assert_eq!(c.falling_flux_current(&at(2.0 * psi_target), target, ts / 0.1), target);
-        assert_eq!(c.falling_flux_current(&at(2.0 * psi_target), target, fall_rate), 0.0);
+        assert_eq!(c.falling_flux_current(&at(psi_target), target, fall_rate, 0.0), target);
+        assert_eq!(c.falling_flux_current(&at(0.5 * psi_target), target, fall_rate, 0.0), target);
+        assert_eq!(c.falling_flux_current(&at(2.0 * psi_target), target, ts / 0.1, 0.0), target);
+        // Twice the target: i_ψ + (T_r/τ_f)·(i_d − i_ψ) = i_d·(2 − 6.47) — no current on a
+        // floor of 0, reversed on a negative one, never beyond the current limit.
+        assert_eq!(c.falling_flux_current(&at(2.0 * psi_target), target, fall_rate, 0.0), 0.0);
+        let k = fall_rate / c.state(psi_target, 1.0).flux_rate;
+        let i_max = c.i_max_a();
+        let reversed = c.falling_flux_current(&at(2.0 * psi_target), target, fall_rate, -i_max);
+        assert!((reversed - target * (2.0 - k)).abs() < 1e-5 && reversed < 0.0, "{reversed}, k {k}");
+        assert_eq!(c.falling_flux_current(&at(100.0 * psi_target), target, fall_rate, -2.0 * i_max), -i_max);
         let mut s = at(1.05 * psi_target);
         let (mut t_s, t_slow) = (0.0f32, N as f32 * ts);
         let excess0 = s.psi_r_wb() - psi_target;
         while s.psi_r_wb() - psi_target > excess0 / core::f32::consts::E {
-            let i_d = c.falling_flux_current(&s, target, fall_rate);
+            let i_d = c.falling_flux_current(&s, target, fall_rate, 0.0);
             assert!(i_d > 0.0 && i_d < target, "{i_d}");
             s.add_sums((Dq { d: N as f32 * i_d, q: 0.0 }, N as u16));
             c.close_period(&mut s);

@@ -11,7 +11,7 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 97;
+pub const FLOATS: usize = 99;
 /// Integers in a raw drive configuration.
 pub const INTEGERS: usize = 23;
 

@@ -6,7 +6,7 @@
 use crate::member::{Member, Origin};
 use design::tune::{CurrentDesign, SpeedDesign, Structure};
 use drive_file::DriveFile;
-use hil_sim::campaign::{Campaign, MIN_AFTER_STEP_S};
+use hil_sim::campaign::Campaign;
 use hil_sim::faults::Matrix;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -259,7 +259,7 @@ fn judge(
         plant: None,
         requirements: file.requirements,
     };
-    c.duration_s = c.duration_s.max(c.step_s() + 2.0 * MIN_AFTER_STEP_S);
+    c.duration_s = c.duration_s.max(c.full_range_duration_s());
     c.check()?;
     let verdicts = c.run(|_| {}, cancel)?;
     let passed = verdicts.iter().filter(|v| v.passed()).count() as u64;
@@ -460,22 +460,25 @@ mod tests {
     }
 
     /// Every law tune writes is run in software in the loop before it is written, seed
-    /// 000's own point too. Member 013 (162 W, 17 V, 2 poles) at 10 kHz: seed 000's point is
-    /// predicted to meet the requirements, and tune wrote it without a run; its drive then
-    /// failed 1 of the population's 200 campaign runs (a generating run's fault, speed error,
-    /// dip and recovery). Run on the corner runs, it misses; the search goes on to a point
-    /// whose drive meets them, and the drive passes the 200 runs.
+    /// 000's own point too, and says so. Member 013 (162 W, 17 V, 2 poles) at 10 kHz: seed
+    /// 000's point is predicted to meet the requirements and meets them on the corner runs
+    /// to its top speed; the drive passes the population's 200 runs.
     #[test]
     fn a_law_whose_drive_misses_in_sil_is_not_written() {
         let m = draw(1, 13, None).unwrap();
         let (tuned, _, _) = tune_member(&m, 10_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
-        assert!(tuned.speed_origin.contains("without the P's bandwidth floor"), "{}", tuned.speed_origin);
+        assert!(
+            tuned.speed_origin.contains("met on the campaign's 64 corner runs in SIL"),
+            "{}",
+            tuned.speed_origin
+        );
         let r = evaluated(&m, 10_000.0, 200, false);
         assert_eq!(r.verdict, Verdict::Pass, "{:?}", r.campaign_failures);
         // Where no point's drive meets them, tune refuses and says what the corner runs missed
-        // (member 003, 1.3 kW 480 V 2 poles, at 4 kHz: its drive failed 63 of 200 runs).
-        let m = draw(1, 3, None).unwrap();
-        let r = evaluated(&m, 4_000.0, 200, false);
+        // (member 010, 153 kW, at 20 kHz: at its top speed its loops sit at the modulator's
+        // limit and the healthy drive trips — issue 52, docs/population.md).
+        let m = draw(1, 10, None).unwrap();
+        let r = evaluated(&m, 20_000.0, 64, false);
         let Verdict::Refuse { reason } = r.verdict else { panic!("{:?}", r.verdict) };
         assert!(
             reason.contains("misses them in software in the loop on the campaign's corner runs"),
@@ -578,30 +581,60 @@ mod tests {
     /// correction switched at its flux floor, the estimate magnetized at the floor in some
     /// runs and the drive ran away at a zero speed reference (`FollowingError` in 1 of the
     /// 64; the mechanism, every time: `observer`'s test
-    /// `the_observer_magnetizes_through_its_flux_floor_under_noise`).
+    /// `the_observer_magnetizes_through_its_flux_floor_under_noise`). The start is judged on
+    /// the shortest runs the campaign takes (`MIN_AFTER_STEP_S` after each event) of the
+    /// saturated P, whose speed steps to what the heaviest corner reaches in them:
+    /// at its top speed this member's drive does not yet hold its currents (issue 52,
+    /// docs/population.md), and tune refuses it there.
     #[test]
     fn a_large_motors_sensorless_start_at_rest_is_not_read_as_turning() {
         let m = draw(1, 10, None).unwrap();
         assert!(m.name.starts_with("010-153kW"), "{}", m.name);
-        let r = evaluated(&m, 20_000.0, 64, true);
-        assert_eq!(r.campaign.map(|c| c[1]), Some(64), "{:?}", r.verdict);
-        let faults: Vec<_> = r.campaign_failures.iter().filter(|(k, _)| k.contains("fault")).collect();
-        assert!(faults.is_empty(), "{faults:?}");
+        let (path, text, vdc) = inputs(&m, Some(20_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let text = with_sensorless(&text).unwrap();
+        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
+        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let mut c = Campaign {
+            spec: file.spec,
+            certify: file.certify.unwrap(),
+            vdc_v: vdc,
+            duration_s: 1.0,
+            runs: 64,
+            seed: 1,
+            shard: (0, 1),
+            encoder_lines: file.encoder_lines(),
+            plant: None,
+            requirements: file.requirements,
+        };
+        c.duration_s = c.step_s() + 2.0 * hil_sim::campaign::MIN_AFTER_STEP_S;
+        c.check().unwrap();
+        let verdicts = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
+        let faults: Vec<_> =
+            verdicts.iter().filter(|v| v.failures.contains(&"fault")).map(|v| v.csv()).collect();
+        assert!(faults.is_empty(), "{faults:#?}");
     }
 
     /// The 73 kW 690 V member (020) without its encoder at 10 kHz: tuned on its encoder
     /// (k_p 93 N·m·s/rad) every sensorless campaign run oscillated (the observer's speed
     /// estimate carries the current sensors' noise; 58–93 N·m peak to peak against the
     /// criterion's 36). Tuned for the observer, the speed gain is bounded by that noise
-    /// (`design::tune::observer_speed_peak_to_peak_rad_s`), the requirements cannot be met
-    /// below the bound, and tune refuses, naming it — a refusal, not a failure.
+    /// (`design::tune::observer_speed_peak_to_peak_rad_s`): on runs to the top speed (whose
+    /// larger step allows a longer rise) a PI below the bound is predicted to meet the
+    /// requirements, its drive misses them on the corner runs in SIL at the top speed, and
+    /// tune refuses — a refusal naming the observer's bound or the corner runs, not a
+    /// failure.
     #[test]
     fn a_drive_without_an_encoder_is_tuned_for_its_observers_noise() {
         let m = draw(1, 20, None).unwrap();
         assert!(m.name.starts_with("020-73kW"), "{}", m.name);
         let r = evaluated(&m, 10_000.0, 16, true);
         match r.verdict {
-            Verdict::Refuse { reason } => assert!(reason.contains("the observer's"), "{reason}"),
+            Verdict::Refuse { reason } => assert!(
+                reason.contains("the observer's")
+                    || reason.contains("misses them in software in the loop on the campaign's corner runs"),
+                "{reason}"
+            ),
             v => panic!("{v:?}"),
         }
     }

@@ -73,6 +73,11 @@ crate::raw::raw_struct! {
         /// voltage's application, s ([`VOLTAGE_DELAY_PERIODS`]·T).
         pub(super) delay_s: f32,
         pub(super) ts_s: f32,
+        /// [`FLUX_LAG_FRACTION`] × the motor's inertia, kg·m²: the flux's fall time in field
+        /// weakening is this × |ω| / the envelope's torque (`Drive::slow_loops`).
+        pub(super) flux_lag_j_kgm2: f32,
+        /// The shortest flux fall time, s: [`FLUX_FALL_SLOW_PERIODS`] slow periods.
+        pub(super) flux_fall_time_min_s: f32,
         /// Slow steps of Magnetizing without reaching the running flux before
         /// [`Fault::NoMotorCurrent`].
         pub(super) magnetizing_steps_max: u32,
@@ -459,6 +464,8 @@ impl DriveConfig {
             dead_time_band_a: (DEAD_TIME_BAND_FRACTION * spec.i_ref_max_a) as f32,
             delay_s: (VOLTAGE_DELAY_PERIODS * ts) as f32,
             ts_s: ts as f32,
+            flux_lag_j_kgm2: (FLUX_LAG_FRACTION * spec.motor.j_kgm2()) as f32,
+            flux_fall_time_min_s: (FLUX_FALL_SLOW_PERIODS * t_slow) as f32,
             slow_divider: spec.slow_divider,
             limits: Limits {
                 // Finite in f32 too (a level beyond f32::MAX would let +∞ through).

@@ -246,6 +246,8 @@ impl SlowState {
         // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
         // torque changes direction.
         if self.run.envelope_age == 0 || self.run.envelope.sign() != sign {
+            // On the estimates as they are now (the rotor-resistance law moves them).
+            self.remodel(cfg);
             self.run.envelope = self.run.model.envelope(sign, w, self.run.i_d_rated_a, v_budget, i_max);
             self.run.envelope_age = ENVELOPE_REFRESH_SLOW_STEPS;
         }
@@ -261,15 +263,32 @@ impl SlowState {
         let torque_nm = torque_nm * room;
         let op =
             self.run.model.point(&self.run.envelope, torque_nm, w, self.run.i_d_rated_a, v_budget, i_max);
-        // Running, a flux above the envelope's falls within FLUX_FALL_TIME_S, however slow the
-        // rotor (magnetizing, the rotor fit reads the flux building at its own T_r); where
+        // Running, a flux above the envelope's falls within FLUX_FALL_TIME_S — sooner while the
+        // speed rises (FLUX_LAG_FRACTION) —, however slow the rotor (magnetizing, the rotor
+        // fit reads the flux building at its own T_r); where
         // its back-EMF leaves no voltage for the current asked, it is forced down by a
         // negative i_d the bus can drive.
         self.run.i_d_target_a = op.i_d_a;
         let psi = self.run.ifoc.psi_r_wb();
         let i_d_a = if running {
-            let fall_rate = cfg.ts_s * (1.0 / FLUX_FALL_TIME_S) as f32;
-            let falling = cfg.ifoc.falling_flux_current(&self.run.ifoc, op.i_d_a, fall_rate);
+            // The flux the bus allows falls as 1/ω above the no-load base speed ω_b: a rising
+            // speed asks it to fall as fast (FLUX_LAG_FRACTION), the current reversed if need
+            // be. Below ω_b the target holds, and a flux above it (a rescaled model, an
+            // overshoot, the current limit's point) falls within FLUX_FALL_TIME_S on no less
+            // than no current. Between them the fall rate and the floor blend over the first
+            // FLUX_LAG_FRACTION of ω_b above it — where the target has fallen by less than the
+            // lag allowed —, so that a speed held at ω_b does not switch them each slow step.
+            // ω_b is the bus's (the voltage target's), not the regulator's budget: a budget cut
+            // for a fault (an open lead) would have the flux driven down into the fault.
+            let w_b = self.run.model.no_load_base_speed_rad_s(self.run.i_d_rated_a, v_target);
+            let lag = FLUX_LAG_FRACTION as f32;
+            let blend = ((w.abs() - w_b) / max_f32(lag * w_b, 1e-3)).limit(0.0, 1.0);
+            let tau_fast = (cfg.flux_lag_j_kgm2 * w.abs() / max_f32(op.torque_max_nm, 1e-6))
+                .limit(cfg.flux_fall_time_min_s, FLUX_FALL_TIME_S as f32);
+            let slow_rate = (1.0 / FLUX_FALL_TIME_S) as f32;
+            let fall_rate = cfg.ts_s * (slow_rate + blend * (1.0 / tau_fast - slow_rate));
+            let floor_a = -blend * i_max;
+            let falling = cfg.ifoc.falling_flux_current(&self.run.ifoc, op.i_d_a, fall_rate, floor_a);
             // Motoring current only adds voltage: the flux is forced where even none fits.
             // Braking current subtracts it: judged at the point's braking current (within the
             // envelope: the torque asked, converted at the present flux, overstated the slip of
@@ -321,8 +340,9 @@ impl SlowState {
             if let Some(fit) =
                 cfg.mras.fit(&mut self.run.rotor_fit, v_d_sum, v_d_steps, self.run.flux.i_d_a(), l_now)
             {
-                self.set_inductance_scale(cfg, fit.inductance_scale);
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
+                self.set_inductance_scale(cfg, fit.inductance_scale);
+                self.remodel(cfg);
                 // Sensorless: the observer's voltage model on the stator as it is now.
                 if let (Some(o), Some(r_s)) = (cfg.source.observer(), fit.stator_resistance_ohm) {
                     self.machine.rs_scale = o.stator_resistance_scale(r_s).unwrap_or(self.machine.rs_scale);
@@ -528,9 +548,16 @@ impl SlowState {
             return;
         }
         cfg.ifoc.set_inductance_scale(&mut self.run.ifoc, l);
-        self.run.model = cfg.envelope.with_inductance_scale(l);
+        self.remodel(cfg);
         self.run.i_d_rated_a = cfg.i_d_rated_a / l;
         self.run.envelope_age = 0;
+    }
+
+    /// The envelope's machine model on the drive's estimates now: the inductance and the
+    /// rotor resistance its field orientation runs on ([`EnvelopeConfig::identified`]).
+    fn remodel(&mut self, cfg: &DriveConfig) {
+        let s = &self.run.ifoc;
+        self.run.model = cfg.envelope.identified(s.inductance_scale(), s.rotor_resistance_scale());
     }
 
     /// Run on the inductances `l` × the motor's as [`Self::set_inductance_scale`], keeping the
@@ -547,7 +574,7 @@ impl SlowState {
         let r = (self.run.ifoc.rotor_resistance_scale() * (l / l_now)).limit(r_min, r_max);
         cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, r);
         cfg.ifoc.set_inductance_scale(&mut self.run.ifoc, l);
-        self.run.model = cfg.envelope.with_inductance_scale(l);
+        self.remodel(cfg);
         self.run.i_d_rated_a = cfg.i_d_rated_a / l;
     }
 

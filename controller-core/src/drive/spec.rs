@@ -29,19 +29,42 @@ pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
 
 /// The longest the rotor flux takes to fall to a lower reference while Running, s: the
 /// field-weakening voltage regulator's time constant (1/[`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]),
-/// so that the flux follows the budget the regulator sets. A rotor slower than that (T_r
-/// above 0.1 s) has its d-axis current lowered below the envelope's, to zero at most, while
-/// its flux is above the envelope's ([`IfocConfig::falling_flux_current`]); the shipped
-/// (T_r 65 ms) and 24 V (14 ms) motors never are. The 500 hp machine (T_r 0.78 s),
+/// so that the flux follows the budget the regulator sets — and shorter while the speed
+/// rises through field weakening ([`FLUX_LAG_FRACTION`]). A rotor slower than that has its
+/// d-axis current lowered below the envelope's — to zero at most below base speed, reversed
+/// if need be above the no-load base speed (`EnvelopeConfig::no_load_base_speed_rad_s`) — while
+/// its flux is above the envelope's ([`IfocConfig::falling_flux_current`]); below the no-load
+/// base speed the shipped (T_r 65 ms) and 24 V (14 ms) motors never are. The 500 hp machine (T_r 0.78 s),
 /// accelerating at its 2 000 N·m (≈ 180 rad/s²), enters field weakening faster than its
 /// flux falls by itself: the voltage left for torque fell to a quarter near 175 rad/s and it
-/// was not within 1 % of its 319 rad/s 5 s after the step; with the flux forced down, 2.34 s
-/// (2.37 s with stationary loops; `hil-sim` test `a_slow_rotor_weakens_its_field_in_time`).
+/// was not within 1 % of its 319 rad/s 5 s after the step; with the flux forced down, 2.33 s
+/// (`hil-sim` test `a_slow_rotor_weakens_its_field_in_time`).
 /// The rotor-resistance law keeps listening while the flux is forced down, although its
 /// model holds the flux (`MrasConfig::update`): kept from it then, the tuned 500 hp drive's
 /// envelope above base speed fell from −11.5 … −18.5 % to −13.6 … −19.2 % of the analytic
 /// one, and its matrix still missed one row on two seeds of twelve (others than without).
 pub const FLUX_FALL_TIME_S: f64 = 1.0 / VOLTAGE_REGULATOR_BANDWIDTH_RAD_S;
+
+/// In field weakening the flux the bus allows falls as 1/ω: a speed rising at α asks
+/// `dψ*/dt = −ψ*·α/ω`, and a flux falling with time constant τ_f lags it by `τ_f·α/ω` of
+/// itself — the lag's back-EMF takes the voltage the torque needs, and the drive holds the
+/// torque to what the rest drives. The fall time is therefore at most this fraction of the
+/// time the speed takes to rise by itself at the envelope's torque, `τ_f = f·|ω|·J/τ_max(ω)`
+/// above the no-load base speed ω_b (nominal J: the box's lightest), within
+/// [`FLUX_FALL_SLOW_PERIODS`] slow periods and [`FLUX_FALL_TIME_S`]. The fall rate and the
+/// reversed current's floor blend in over the first `f·ω_b` above ω_b, where the target has
+/// fallen by less than the lag allowed: switched at ω_b, a reversal to ±ω_b (the 895 W
+/// member's ±153 rad/s) flipped them each slow step and two of its 64 runs tripped
+/// `SwitchOpen`. With τ_f held at 0.1 s the population's 895 W member (T_r 0.13 s,
+/// ≈ 1 900 rad/s² at its τ_max) lagged 25 % at 168 rad/s and gave a fifth of its envelope's
+/// torque there; its rise to 305 rad/s took 2.25× the physical least (`population` run,
+/// docs/population.md).
+pub const FLUX_LAG_FRACTION: f64 = 0.1;
+
+/// The shortest flux fall time, in slow periods: the flux model and the d-axis reference
+/// move once per slow period, and a first-order fall sampled at T_slow is well damped for
+/// τ_f ≥ 2·T_slow.
+pub const FLUX_FALL_SLOW_PERIODS: f64 = 2.0;
 
 /// The dead-time compensation ramps from −t_d/T to +t_d/T across ± this fraction of the
 /// current-reference limit around zero current (0.1 %: 4 mA on the shipped drive). It acts on

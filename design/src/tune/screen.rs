@@ -24,14 +24,15 @@ pub fn predicted_misses(
 
 /// The campaign `design tune` predicts on: the corner runs (every corner through every
 /// manoeuvre) of a campaign as `population` runs it — long enough for a slow rotor to
-/// magnetize first.
+/// magnetize first and for the largest inertia to step to the box's top speed
+/// ([`hil_sim::campaign::Campaign::full_range_duration_s`]), field weakening included.
 pub(super) fn prediction_campaign(
     spec: &DriveSpec,
     cert: &CertifySpec,
     file: &drive_file::DriveFile,
     vdc_v: f64,
 ) -> hil_sim::campaign::Campaign {
-    use hil_sim::campaign::{CORNER_RUNS, Campaign, MIN_AFTER_STEP_S};
+    use hil_sim::campaign::{CORNER_RUNS, Campaign};
     let mut c = Campaign {
         spec: *spec,
         certify: *cert,
@@ -44,7 +45,7 @@ pub(super) fn prediction_campaign(
         plant: None,
         requirements: file.requirements,
     };
-    c.duration_s = c.duration_s.max(c.step_s() + 2.0 * MIN_AFTER_STEP_S);
+    c.duration_s = c.duration_s.max(c.full_range_duration_s());
     c
 }
 

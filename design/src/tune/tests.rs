@@ -349,9 +349,9 @@ fn seeded_random_motors_tune_and_certify() {
 
 /// Issue 51's acceptance on the same random motors, each on its template's default
 /// requirements: `--speed auto` writes a file predicted to meet them, or refuses naming
-/// each requirement its laws miss. Today all six are refused — the P droops, and seed
-/// 000's PI at its best setpoint weight overshoots or rises too slowly (the population's
-/// refusals, docs/population.md) — each naming what it misses.
+/// each requirement its laws miss — on the prediction (the P droops, seed 000's PI at its
+/// best setpoint weight overshoots or rises too slowly) or on the corner runs in SIL, which
+/// step to the box's top speed (docs/population.md).
 #[test]
 fn seeded_random_motors_meet_the_requirements_or_are_refused_naming_them() {
     let auto = Structure { speed: SpeedDesign::Auto, ..Default::default() };
@@ -363,12 +363,14 @@ fn seeded_random_motors_meet_the_requirements_or_are_refused_naming_them() {
                 verdicts.push(format!("random {k}: {:?}", t.spec.speed_law));
             }
             Err(e) => {
-                assert!(
-                    e.starts_with("no speed law meets the requirements")
-                        && e.contains("misses requirements.")
-                        && e.contains("PI (seed 000's"),
-                    "random {k}: {e}"
-                );
+                // Refused on the prediction, naming each law's misses, or on the corner runs
+                // in SIL (to the box's top speed), naming what they missed and in how many.
+                let predicted = e.starts_with("no speed law meets the requirements")
+                    && e.contains("misses requirements.")
+                    && e.contains("PI (seed 000's");
+                let in_sil = e.contains("is predicted to meet the requirements over the box, but the drive misses them in software in the loop on the campaign's corner runs")
+                    && e.contains(" of 64 runs");
+                assert!(predicted || in_sil, "random {k}: {e}");
                 verdicts.push(format!("random {k}: {e}"));
             }
         }
@@ -433,34 +435,29 @@ fn seeded_random_motors_pass_the_campaign() {
 }
 
 /// Issue 51: the template's `[requirements]` choose the speed law. The 24 V template asks
-/// the defaults (±1 % regulation, 10 % overshoot): the saturated P's droop misses the
-/// first, so `auto` takes the PI — with the largest setpoint weight that keeps the
-/// overshoot within the second — predicted to meet them all; `--speed p` keeps the P and
-/// reports the miss. Asked for 5 % overshoot, neither law meets the requirements and the
-/// tune is refused, naming each law's misses. drive.toml's own requirements (its
+/// the defaults (±1 % regulation, 10 % overshoot), its runs stepping to the box's top speed
+/// (where the motor's friction takes half the drive's torque: 178.6 rad/s). The saturated
+/// P's droop misses the first, so `auto` takes the PI predicted to meet them all — and its
+/// drive, run on the campaign's corner runs in SIL, misses the torque accuracy in
+/// generating runs at that speed (hot stator, large inductance: the magnetizing fit takes
+/// the inductance at the bottom of its range there): refused, naming it. `--speed p` keeps
+/// the P and reports the miss. Asked for 1 % overshoot, neither law is predicted to meet
+/// the requirements, refused naming each law's misses. drive.toml's own requirements (its
 /// P law's) keep the P; the 3 300 V template is refused on the defaults.
 #[test]
 fn the_requirements_choose_the_speed_law_or_refuse_naming_them() {
     let template = include_str!("../../../drives/em-synergy-24v.toml");
     let m = drive_file::motor::load("em-synergy-m800006").unwrap();
     let auto = Structure { speed: SpeedDesign::Auto, ..Default::default() };
-    let t = tune(Path::new("24v.toml"), template, &m, None, auto).unwrap();
-    assert!(matches!(t.spec.speed_law, SpeedLaw::PiTorque { .. }) && t.structure.speed == SpeedDesign::Pi);
-    assert!(t.predicted_misses.is_empty(), "{:?}", t.predicted_misses);
+    let e = tune(Path::new("24v.toml"), template, &m, None, auto).unwrap_err();
+    assert!(
+        e.contains("PI") && e.contains("is predicted to meet the requirements over the box, but the drive misses them in software in the loop")
+            && e.contains("torque_accuracy_fraction"),
+        "{e}"
+    );
     let p = tune(Path::new("24v.toml"), template, &m, None, Structure::default()).unwrap();
     let missed: Vec<_> = p.predicted_misses.iter().map(|(_, m)| m.requirement.key()).collect();
     assert!(missed.contains(&"speed_error_fraction"), "{missed:?}");
-    // The defaults' 10 % overshoot: the one-degree PI overshoots a reversal by 10.3 %, the
-    // setpoint weight takes it within them (b = 0.9, predicted).
-    let SpeedLaw::PiTorque { setpoint_weight, .. } = t.spec.speed_law else { unreachable!() };
-    assert_eq!(setpoint_weight, 0.9);
-    assert!(t.text.contains("setpoint_weight = 0.9"), "written");
-    // 5 %: seed 000's own point at no weight gets there without missing the rise time;
-    // the search of its region finds one that does (predicted, and in SIL on the corner
-    // runs).
-    let strict = template.replace("[requirements]\n", "[requirements]\nspeed_overshoot_fraction = 0.05\n");
-    let t = tune(Path::new("strict.toml"), &strict, &m, None, auto).unwrap();
-    assert!(t.predicted_misses.is_empty() && matches!(t.spec.speed_law, SpeedLaw::PiTorque { .. }));
     // 1 %: refused, named, with what bounds the region.
     let strict = template.replace("[requirements]\n", "[requirements]\nspeed_overshoot_fraction = 0.01\n");
     let e = tune(Path::new("strict.toml"), &strict, &m, None, auto).unwrap_err();
@@ -475,12 +472,13 @@ fn the_requirements_choose_the_speed_law_or_refuse_naming_them() {
     let d = drive_file::motor::load("delorenzo-appendix").unwrap();
     let t = tune(Path::new("drive.toml"), TEMPLATE, &d, None, auto).unwrap();
     assert!(matches!(t.spec.speed_law, SpeedLaw::SaturatedP { .. }) && t.predicted_misses.is_empty());
-    // The 500 hp machine on its 3 300 V template (the default requirements): neither the
-    // P (its droop) nor the PI (its slow, overshooting steps) meets them — refused, named.
+    // The 500 hp machine on its 3 300 V template (the default requirements): the P droops,
+    // and the PI predicted to meet them trips on the corner runs stepping to its top speed
+    // in SIL — refused, named.
     let k = drive_file::motor::load("krause-2300v-500hp").unwrap();
     let e = tune(Path::new("krause.toml"), include_str!("../../../drives/krause-3300v.toml"), &k, None, auto)
         .unwrap_err();
-    assert!(e.contains("setpoint weight 1) misses requirements.speed_error_fraction"), "{e}");
+    assert!(e.contains("misses them in software in the loop") && e.contains("fault in"), "{e}");
 }
 
 /// Issue 51, deliverable 3: the link's writable gains are the ranges over which the

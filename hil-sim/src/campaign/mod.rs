@@ -10,13 +10,15 @@
 //! over machines whose CSV files concatenate into the whole one.
 //!
 //! **Manoeuvres** (enable at 0; the speed step once magnetized, at [`Campaign::step_s`]; the second
-//! event half-way through the rest of the run): to +ω_s with a load step of +0.8·τ_L
-//! (motoring), to −ω_s with −0.8·τ_L, to +ω_s with −0.8·τ_L (the load drives: generating),
-//! and a reversal +ω_s/2 → −ω_s/2. τ_L is τ_max, or less where the run's plant cannot give
-//! τ_max at ω_s in that direction on the bus and the current limit (its envelope, the
-//! [`IdealLoop`]'s): a load beyond what the motor can hold there tests the motor, not the
-//! drive — 0.8·τ_max generating at twice base speed drove the rotor away from every
-//! 8-pole 1.3 kW member's reference (`FollowingError`, rightly, in 50 of 50 runs).
+//! event half-way through the rest of the run): to +ω_s with a load step of 0.8 ×
+//! the largest load the motor holds there (motoring), to −ω_s with its mirror, to +ω_s with
+//! a load that drives (generating), and a reversal +ω_s/2 → −ω_s/2. The largest load is
+//! τ_L − B·ω_s motoring and τ_L + B·ω_s braking: τ_L is τ_max, or less where the run's plant
+//! cannot give τ_max at ω_s in that direction on the bus and the current limit (its
+//! envelope, the [`IdealLoop`]'s), and the motor's own friction takes or gives B·ω_s. A load
+//! beyond what the motor can hold there tests the motor, not the drive — 0.8·τ_max
+//! generating at twice base speed drove the rotor away from every 8-pole 1.3 kW member's
+//! reference (`FollowingError`, rightly, in 50 of 50 runs).
 //! ω_s is the top speed of the box ([`Campaign::top_speed_rad_s`]: the certified
 //! ω_r,max/p, at most twice the no-load base speed on the bus — field weakening — and at most
 //! where the friction takes [`FRICTION_SHARE_MAX`] of the drive's torque), or what the
@@ -66,7 +68,8 @@ pub const STEP_S: f64 = 0.25;
 pub const MIN_AFTER_STEP_S: f64 = 0.25;
 /// ω_s is what the largest inertia reaches at τ_max in this fraction of the first half.
 pub const REACH_FRACTION: f64 = 0.6;
-/// Load step as a fraction of τ_max (or of the envelope's torque at ω_s, if less).
+/// Load step as a fraction of the largest load the motor holds at ω_s: τ_max (or the
+/// envelope's torque there, if less) less its own friction.
 pub const LOAD_FRACTION: f64 = 0.8;
 /// ω_s is at most the speed where the motor's friction `B·ω` takes this share of the torque
 /// the drive's envelope gives there ([`Campaign::friction_bound_rad_s`]): beyond it the
@@ -460,7 +463,8 @@ impl Campaign {
     /// ([`Campaign::top_speed_rad_s`], not what a shorter run reaches: module docs) — and
     /// lasts at least [`MIN_AFTER_STEP_S`] after each of its two events, s. A shorter run
     /// steps a large motor far below its base speed and never runs its field weakening:
-    /// `hil-sim campaign`'s runs last this long by default.
+    /// `hil-sim campaign` (by default), `population` and `design tune` judge a drive on runs
+    /// this long.
     pub fn full_range_duration_s(&self) -> f64 {
         let half = self.top_speed_rad_s() * self.seconds_per_rad_s() / REACH_FRACTION;
         // A drive without a speed range gets the least run: `Campaign::check` names why.
@@ -534,12 +538,13 @@ impl Campaign {
         let envelope_plant = if plant_saturation.is_some() { model } else { plant };
         let w = self.omega_s_rad_s();
         let ideal = IdealLoop::new(&self.spec, &envelope_plant, self.vdc_v, self.slow_period_s())?;
-        // The load: LOAD_FRACTION of what this plant can give at the speed it loads, in the
-        // direction the drive then pushes — τ_max, or the envelope's less in field weakening.
+        // The load: LOAD_FRACTION of the largest this plant holds at the speed it loads, in
+        // the direction the drive then pushes — τ_max, or the envelope's less in field
+        // weakening, with the motor's own friction B·ω (which a motoring drive must also
+        // overcome, and a braking one has on its side).
         let load = |omega_m: f64, torque_sign: f64| {
-            torque_sign
-                * LOAD_FRACTION
-                * torque_limit_nm(&self.spec).min(ideal.torque_limit_nm(torque_sign, omega_m))
+            let most = torque_limit_nm(&self.spec).min(ideal.torque_limit_nm(torque_sign, omega_m));
+            LOAD_FRACTION * (torque_sign * most - plant.b_nms() * omega_m)
         };
         // The requirements' times on this run's motor, and windows long enough to see them:
         // each half of the run lasts at least WINDOW_MARGIN × the longest time allowed in it.
