@@ -437,20 +437,11 @@ mod tests {
         Limits { flux_max_wb, v_max_v, i_max_a }
     }
 
-    /// The physical limit against two references it shares no code with. At standstill,
-    /// current- and flux-limited (the bus far away): in the rotor-flux frame ψ_r = L_m·i_d,
-    /// so T = (3/2)·p·(L_m/L_r)·Ψ·√(I² − (Ψ/L_m)²) — 5.0474 N·m for the shipped drive, to
-    /// 1e-6. Motoring at 1.5 and 2× base speed, where the drive's no-load flux cap does not
-    /// bind (motoring never needs more flux than no load: controller-core's envelope docs):
-    /// the dq model's dense-grid envelope (`envelope_by_grid`) on the same full circle, to
-    /// 1e-3 (its grid's resolution). Generating there too, since the braking flux is the
-    /// most a reversal holds within the current limit — the rated flux on this motor (the
-    /// no-load cap it replaced left the physical limit 1.2× above the envelope: issue 52).
     /// [`PHYSICAL_SLIP_POINTS`]' grid finds the limit a grid 40× as fine finds, to 1e-9, on
-    /// every shipped drive file's motor (drive.toml's and `drives/`: 24 V to 3 300 V,
-    /// 0.2 to 370 kW) at corners of drive.toml's box (R_s ×1.5, R_r ×2, L ×0.6: the
-    /// breakdown slip moves with R_r/L_r and the leakage), on the file's flux, current limit
-    /// and rated bus, from standstill to twice its base speed, motoring and braking.
+    /// every shipped drive file's motor (drive.toml's and `drives/`: 24 V to 3 300 V buses)
+    /// at corners of drive.toml's box (R_s ×1.5, R_r ×2, L ×0.6: the breakdown slip moves
+    /// with R_r/L_r and the leakage), on the file's flux, current limit and rated bus, from
+    /// standstill to twice its base speed, motoring and braking.
     #[test]
     fn a_coarser_slip_grid_finds_the_same_limit() {
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -483,6 +474,15 @@ mod tests {
         assert!(checked >= 4 * 4 * 21 * 2, "{checked}");
     }
 
+    /// The physical limit against two references it shares no code with. At standstill,
+    /// current- and flux-limited (the bus far away): in the rotor-flux frame ψ_r = L_m·i_d,
+    /// so T = (3/2)·p·(L_m/L_r)·Ψ·√(I² − (Ψ/L_m)²) — 5.0474 N·m for the shipped drive, to
+    /// 1e-6. Motoring at 1.5 and 2× base speed, where the drive's no-load flux cap does not
+    /// bind (motoring never needs more flux than no load: controller-core's envelope docs):
+    /// the dq model's dense-grid envelope (`envelope_by_grid`) on the same full circle, to
+    /// 1e-3 (its grid's resolution). Generating there too, since the braking flux is the
+    /// most a reversal holds within the current limit — the rated flux on this motor (the
+    /// no-load cap it replaced left the physical limit 1.2× above the envelope: issue 52).
     #[test]
     fn the_physical_limit_meets_its_closed_form_and_the_dq_envelope() {
         let spec = drive_file::DriveFile::shipped().unwrap().spec;
