@@ -219,10 +219,10 @@ struct TuneArgs {
     current: design::tune::CurrentDesign,
     /// The speed controller: `auto` (the first of p and pi whose predicted response meets
     /// the template's [requirements] over the box and whose drive then meets them on the
-    /// campaign's 64 corner runs in SIL; refused, naming what each misses, when neither does), `p` (saturated P, seed 002 eq. (21); the link may rewrite its gains) or
+    /// 64 corner runs of its 1 s and full-range campaigns in SIL; refused, naming what each misses, when neither does), `p` (saturated P, seed 002 eq. (21); the link may rewrite its gains) or
     /// `pi` (PI → torque inside seed 000's stability and gain–phase-margin regions over the
     /// inertia interval: the deepest point with the P's bandwidth, or else the deepest that
-    /// meets the requirements, predicted and on the campaign's corner runs).
+    /// meets the requirements, predicted and on those corner runs).
     #[arg(long, default_value = "auto")]
     speed: design::tune::SpeedDesign,
 }
@@ -343,9 +343,9 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
     );
     if t.predicted_misses.is_empty() && t.met_in_sil {
         report::outln!(
-            "requirements: met over the box by the speed law alone (predicted), and by the drive on the campaign's {} \
-             corner runs in SIL (`hil-sim campaign` judges it over the whole box)",
-            hil_sim::campaign::CORNER_RUNS
+            "requirements: met over the box by the speed law alone (predicted), and by the drive on {} in SIL \
+             (`hil-sim campaign` judges it over the whole box)",
+            t.sil_runs
         );
     } else if t.predicted_misses.is_empty() {
         report::outln!(
@@ -354,7 +354,7 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
     }
     for (k, m) in &t.predicted_misses {
         report::outln!(
-            "requirements: {} predicted missed (worst run {k}: {:.4} against {:.4}) — the speed law you chose; `--speed auto` chooses one that meets them",
+            "requirements: {} predicted missed (worst {k}: {:.4} against {:.4}) — the speed law you chose; `--speed auto` chooses one that meets them",
             m.requirement,
             m.value,
             m.allowed
@@ -491,7 +491,7 @@ fn certify(a: &CertifyArgs) -> Result<bool, String> {
         .flat_map(|([kp, tau], misses)| {
             misses.iter().map(move |(k, m)| {
                 serde_json::json!({"kp": kp, "tau_max_nm": tau, "requirement": m.requirement.to_string(),
-                    "worst_run": k, "value": m.value, "allowed": m.allowed})
+                    "worst_run": k.k, "worst_run_duration_s": k.duration_s, "value": m.value, "allowed": m.allowed})
             })
         })
         .collect();

@@ -462,13 +462,14 @@ mod tests {
     /// Every law tune writes is run in software in the loop before it is written, seed
     /// 000's own point too, and says so. Member 013 (162 W, 17 V, 2 poles) at 10 kHz: seed
     /// 000's point is predicted to meet the requirements and meets them on the corner runs
-    /// to its top speed; the drive passes the population's 200 runs.
+    /// of 1 s (which reach its top speed: tune's one campaign, `design::tune::TuneCampaigns`);
+    /// the drive passes the population's 200 runs.
     #[test]
     fn a_law_whose_drive_misses_in_sil_is_not_written() {
         let m = draw(1, 13, None).unwrap();
         let (tuned, _, _) = tune_member(&m, 10_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
         assert!(
-            tuned.speed_origin.contains("met on the campaign's 64 corner runs in SIL"),
+            tuned.speed_origin.contains("met on the 64 corner runs of the 1.00 s campaign in SIL"),
             "{}",
             tuned.speed_origin
         );
@@ -481,7 +482,7 @@ mod tests {
         let r = evaluated(&m, 20_000.0, 64, false);
         let Verdict::Refuse { reason } = r.verdict else { panic!("{:?}", r.verdict) };
         assert!(
-            reason.contains("misses them in software in the loop on the campaign's corner runs"),
+            reason.contains("misses them in software in the loop on the 64 corner runs of the "),
             "{reason}"
         );
     }
@@ -632,7 +633,7 @@ mod tests {
         match r.verdict {
             Verdict::Refuse { reason } => assert!(
                 reason.contains("the observer's")
-                    || reason.contains("misses them in software in the loop on the campaign's corner runs"),
+                    || reason.contains("misses them in software in the loop on the 64 corner runs of the "),
                 "{reason}"
             ),
             v => panic!("{v:?}"),

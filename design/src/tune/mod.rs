@@ -191,7 +191,7 @@ pub struct Tuned {
     pub text: String,
     /// The requirements the chosen speed law is predicted to miss over the box, each with
     /// its worst run (empty: all met; only an explicit `--speed` may leave some).
-    pub predicted_misses: Vec<(u64, hil_sim::requirements::Measure)>,
+    pub predicted_misses: Misses,
     /// Its drive.
     pub spec: DriveSpec,
     /// Its certificate.
@@ -205,9 +205,12 @@ pub struct Tuned {
     /// Where the speed law comes from, in words (the file's header and `design tune`'s
     /// summary): the P's crossover, seed 000's own PI, or a point the search found.
     pub speed_origin: String,
-    /// The speed law's drive met the requirements on the campaign's corner runs in software
-    /// in the loop before the file was written (`--speed auto`; a forced law is not run).
+    /// The speed law's drive met the requirements on the corner runs of tune's campaigns
+    /// (`TuneCampaigns`) in software in the loop before the file was written (`--speed
+    /// auto`; a forced law is not run).
     pub met_in_sil: bool,
+    /// Those runs in words: `the 64 corner runs of the 1.00 s and the 3.27 s campaigns`.
+    pub sil_runs: String,
     /// Every value the tuned file changed from the template's, `key: old → new`.
     pub changes: Vec<String>,
 }
@@ -430,22 +433,21 @@ pub fn tune(
     if p_misses.is_empty() {
         cert.speed_kp_writable[0] = least_writable_kp(&spec, &cert, &file, vdc)?;
     }
-    // A P law predicted to meet them is run like a searched PI: its drive on the campaign's
-    // corner runs in software in the loop (the prediction has no current loops, field
+    // A P law predicted to meet them is run like a searched PI: its drive on the corner runs
+    // of tune's campaigns in software in the loop (the prediction has no current loops, field
     // orientation or sensors: on 8 of the population's 87 drives a law predicted to meet the
     // requirements missed them in the campaign).
+    let campaigns = TuneCampaigns::new(&spec, &cert, &file, vdc);
     let p_sil = match structure.speed {
-        SpeedDesign::Auto if p_misses.is_empty() => {
-            let c = prediction_campaign(&spec, &cert, &file, vdc);
-            sil_misses(&c)?
-        }
+        SpeedDesign::Auto if p_misses.is_empty() => campaigns.sil_misses()?,
         _ => None,
     };
+    let met_in_sil_words = format!(", met on {} in SIL", campaigns.words());
     let p_origin = format!("crossover {omega_s:.1} rad/s on the nominal inertia");
     let (speed_design, predicted, speed_origin) = match structure.speed {
         SpeedDesign::SaturatedP => (SpeedDesign::SaturatedP, p_misses, p_origin),
         SpeedDesign::Auto if p_misses.is_empty() && p_sil.is_none() => {
-            (SpeedDesign::SaturatedP, p_misses, format!("{p_origin}{}", met_in_sil_words()))
+            (SpeedDesign::SaturatedP, p_misses, format!("{p_origin}{met_in_sil_words}"))
         }
         SpeedDesign::Pi | SpeedDesign::Auto => {
             let js = [j * cert.j_factor[0], j * cert.j_factor[1]];
@@ -463,7 +465,8 @@ pub fn tune(
                 let p_why = match &p_sil {
                     Some(why) => format!(
                         "saturated P (k_p {p_kp:.4e}) is predicted to meet them, but its drive misses them in \
-                         software in the loop on the campaign's corner runs: {why}"
+                         software in the loop on {}: {why}",
+                        campaigns.words()
                     ),
                     None => format!("saturated P (k_p {p_kp:.4e}) misses {}", describe(&p_misses)),
                 };
@@ -484,11 +487,10 @@ pub fn tune(
                 format!(
                     "inside seed 000's regions without the P's bandwidth floor: the deepest point meeting \
                      [requirements] of {} tried{}{before}",
-                    choice.tried,
-                    met_in_sil_words()
+                    choice.tried, met_in_sil_words
                 )
             } else {
-                let sil = if choice.misses.is_empty() { met_in_sil_words() } else { String::new() };
+                let sil = if choice.misses.is_empty() { met_in_sil_words.as_str() } else { "" };
                 format!(
                     "seed 000's regions, the deepest point with a bandwidth ≥ {:.1} rad/s on every inertia{sil}",
                     pi.omega_b_rad_s
@@ -523,6 +525,7 @@ pub fn tune(
         checks,
         speed_origin,
         met_in_sil,
+        sil_runs: campaigns.words(),
         changes,
     })
 }

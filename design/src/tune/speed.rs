@@ -157,8 +157,8 @@ pub const SIL_CONFIRMATIONS: usize = 2;
 /// the deepest point of the region *without* that bandwidth floor — the margins on every
 /// inertia and the encoder's k_p cap only: the requirements say how fast the loop must be —
 /// whose best weight meets them, whose drive passes the certificate, and whose drive meets
-/// them in software in the loop on the campaign's corner runs (every corner of the box
-/// through every manoeuvre: the prediction has no current loops, field orientation or
+/// them in software in the loop on the corner runs of [`TuneCampaigns`] (every corner of the box
+/// through every manoeuvre, runs of 1 s and to the top speed: the prediction has no current loops, field orientation or
 /// sensors, and a point chosen at the edge of what it allows failed the whole drive's
 /// campaign on 9 of the population's 87 drives). At most [`SIL_CONFIRMATIONS`] points are
 /// run so; else a refusal.
@@ -199,9 +199,8 @@ impl SpeedPiSearch<'_> {
         vdc_v: f64,
     ) -> Result<SpeedPiChoice, String> {
         // `spec`'s law has the same torque limit, which the prepared runs are sized by.
-        let campaign = prediction_campaign(spec, cert, file, vdc_v);
-        let mut screen =
-            Screen { predictor: campaign.predictor(0..hil_sim::campaign::CORNER_RUNS)?, hard: Vec::new() };
+        let campaigns = TuneCampaigns::new(spec, cert, file, vdc_v);
+        let mut screen = Screen { prediction: campaigns.prediction()?, hard: Vec::new() };
         let certified = |law: &SpeedLaw| -> Result<bool, String> {
             Ok(certify(&DriveSpec { speed_law: *law, ..*spec }, cert)?.iter().all(|c| c.pass))
         };
@@ -212,15 +211,11 @@ impl SpeedPiSearch<'_> {
             Ok(p) => (p, true),
             Err(e) => (region.first().map(|p| (p.kp, p.ki)).ok_or(e)?, false),
         };
-        let (law, misses) =
-            weigh_setpoint(&self.law(seed.0, seed.1), |l| Ok(missed(screen.predictor.measures(l)?)))?;
+        let (law, misses) = weigh_setpoint(&self.law(seed.0, seed.1), |l| {
+            Ok(missed(screen.prediction.measures_where(l, |_| true)?))
+        })?;
         let seed_certified = certified(&law)?;
-        let sil = |l: &SpeedLaw| {
-            sil_misses(&hil_sim::campaign::Campaign {
-                spec: DriveSpec { speed_law: *l, ..*spec },
-                ..campaign
-            })
-        };
+        let sil = |l: &SpeedLaw| campaigns.with_law(l).sil_misses();
         let mut sil_missed = None;
         if seed000 && misses.is_empty() && seed_certified {
             // Seed 000's own point, predicted to meet them: confirmed like any other.
@@ -271,9 +266,10 @@ impl SpeedPiSearch<'_> {
             let (l, why) = sil_missed.as_ref().map_or((&law, "not run"), |(l, why)| (l, why.as_str()));
             return Err(format!(
                 "the speed PI ({}) is predicted to meet the requirements over the box, but the drive misses them in \
-                 software in the loop on the campaign's corner runs: {why} — relax [requirements], or take a \
+                 software in the loop on {}: {why} — relax [requirements], or take a \
                  smaller box",
-                gains_words(l)
+                gains_words(l),
+                campaigns.words()
             ));
         }
         if misses.is_empty() {
@@ -324,12 +320,6 @@ impl SpeedPiSearch<'_> {
 pub(super) fn gains_words(law: &SpeedLaw) -> String {
     let (kp, ki) = law_gains(law);
     format!("k_p {kp:.4e}, k_i {ki:.4e}, setpoint weight {}", setpoint_weight(law))
-}
-
-/// `, met on the campaign's 64 corner runs in SIL`: what a law's origin adds once its drive
-/// was run.
-pub(super) fn met_in_sil_words() -> String {
-    format!(", met on the campaign's {} corner runs in SIL", hil_sim::campaign::CORNER_RUNS)
 }
 
 /// A speed law's (k_p, k_i) (k_i 0 for the P law).

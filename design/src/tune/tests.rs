@@ -140,12 +140,15 @@ fn speed_pi_lies_inside_seed000s_regions() {
     }
 }
 
-/// The speed PI's drive in the nonlinear campaign, on the narrow box (what
-/// self-commissioning's intervals give): every run passes the campaign's criteria (the
-/// requirements drive.toml states for its P law are printed: the PI overshoots its
-/// torque-limited reversals by ≈ 13 % against 10 %).
+/// The speed PI's drive in the nonlinear campaign of 1 s runs, on the narrow box (what
+/// self-commissioning's intervals give): every run passes the campaign's criteria and meets
+/// drive.toml's requirements — the 10 % overshoot among them, which tune's prediction and
+/// SIL confirmation judge on these short runs' small steps as well as on the full-range ones
+/// (`TuneCampaigns`). Judged on the full range alone, tune took setpoint weight 1 and every
+/// reversal of this campaign overshot, worst 0.21 against 0.1. 256 runs: the 64 corner runs
+/// tune confirmed on, and 192 random samples of the box it did not run.
 #[test]
-fn speed_pi_passes_the_campaign() {
+fn speed_pi_meets_the_requirements_on_the_short_campaign() {
     use hil_sim::campaign::Campaign;
     use std::sync::atomic::AtomicBool;
     let template = TEMPLATE
@@ -158,8 +161,8 @@ fn speed_pi_passes_the_campaign() {
         spec: t.spec,
         certify: t.certify,
         vdc_v: 310.0,
-        duration_s: 1.0,
-        runs: 64,
+        duration_s: SHORT_RUN_S,
+        runs: 256,
         seed: 1,
         shard: (0, 1),
         encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
@@ -167,9 +170,8 @@ fn speed_pi_passes_the_campaign() {
         requirements: drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap().requirements,
     };
     let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-    let bad: Vec<String> = v.iter().filter(|v| !v.criteria_failed().is_empty()).map(|v| v.csv()).collect();
-    println!("speed PI on drive.toml's requirements: missed {}", missed_counts(&v));
-    assert!(bad.is_empty(), "{} of {} fail:\n{}", bad.len(), v.len(), bad.join("\n"));
+    let bad: Vec<String> = v.iter().filter(|v| !v.passed()).map(|v| v.csv()).collect();
+    assert!(bad.is_empty(), "{} of {} fail ({}):\n{}", bad.len(), v.len(), missed_counts(&v), bad.join("\n"));
 }
 
 /// `requirement ×runs` for each requirement `verdicts` missed.
@@ -350,8 +352,8 @@ fn seeded_random_motors_tune_and_certify() {
 /// Issue 51's acceptance on the same random motors, each on its template's default
 /// requirements: `--speed auto` writes a file predicted to meet them, or refuses naming
 /// each requirement its laws miss — on the prediction (the P droops, seed 000's PI at its
-/// best setpoint weight overshoots or rises too slowly) or on the corner runs in SIL, which
-/// step to the box's top speed (docs/population.md).
+/// best setpoint weight overshoots or rises too slowly) or on the corner runs in SIL, of 1 s
+/// and to the box's top speed (`TuneCampaigns`, docs/population.md).
 #[test]
 fn seeded_random_motors_meet_the_requirements_or_are_refused_naming_them() {
     let auto = Structure { speed: SpeedDesign::Auto, ..Default::default() };
@@ -368,7 +370,7 @@ fn seeded_random_motors_meet_the_requirements_or_are_refused_naming_them() {
                 let predicted = e.starts_with("no speed law meets the requirements")
                     && e.contains("misses requirements.")
                     && e.contains("PI (seed 000's");
-                let in_sil = e.contains("is predicted to meet the requirements over the box, but the drive misses them in software in the loop on the campaign's corner runs")
+                let in_sil = e.contains("is predicted to meet the requirements over the box, but the drive misses them in software in the loop on the 64 corner runs of the ")
                     && e.contains(" of 64 runs");
                 assert!(predicted || in_sil, "random {k}: {e}");
                 verdicts.push(format!("random {k}: {e}"));
@@ -438,7 +440,7 @@ fn seeded_random_motors_pass_the_campaign() {
 /// the defaults (±1 % regulation, 10 % overshoot), its runs stepping to the box's top speed
 /// (where the motor's friction takes half the drive's torque: 178.6 rad/s). The saturated
 /// P's droop misses the first, so `auto` takes the PI predicted to meet them all — and its
-/// drive, run on the campaign's corner runs in SIL, misses the torque accuracy in
+/// drive, run on the corner runs in SIL, misses the torque accuracy in
 /// generating runs at that speed (hot stator, large inductance: the magnetizing fit takes
 /// the inductance at the bottom of its range there): refused, naming it. `--speed p` keeps
 /// the P and reports the miss. Asked for 1 % overshoot, neither law is predicted to meet

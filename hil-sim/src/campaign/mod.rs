@@ -484,13 +484,19 @@ impl Campaign {
         STEP_S.max(1.1 * crate::sim::magnetizing_time_s(&self.spec))
     }
 
+    /// The shortest run the campaign accepts for this drive, s: [`MIN_AFTER_STEP_S`] after the
+    /// speed step ([`Campaign::step_s`]).
+    pub fn least_duration_s(&self) -> f64 {
+        self.step_s() + MIN_AFTER_STEP_S
+    }
+
     /// The campaign can judge this drive: the runs are long enough for this motor, at least
     /// [`MIN_AFTER_STEP_S`] after the step (else every run would end magnetizing, or be
     /// judged on a step it had no time for), and it has a speed range on the campaign's bus
     /// (a drive whose rated flux needs more voltage than the bus has even at standstill has
     /// none, and its steps to ±0 rad/s passed every run: found by trying).
     pub fn check(&self) -> Result<(), String> {
-        let least = self.step_s() + MIN_AFTER_STEP_S;
+        let least = self.least_duration_s();
         if self.duration_s < least {
             let m = &self.spec.motor;
             return Err(format!(
