@@ -413,6 +413,15 @@ impl IfocConfig {
         1.0 / self.inv_torque_factor
     }
 
+    /// The rotor flux's back-EMF in the stator at field speed `omega_e_rad_s` (electrical),
+    /// V, on the field's q axis: `ω_e·(L_m/L_r)·ψ̂_r` — the T model's stator equation
+    /// `v_s = R_s·i_s + σL_s·di_s/dt + (L_m/L_r)·dψ_r/dt` with the rotor flux turning at
+    /// ω_e (its magnitude's change is the slow flux model's). `L_m/L_r` is the torque
+    /// factor's (the same on any inductance scale); ψ̂_r the flux model's.
+    pub fn back_emf_v(&self, s: &IfocState, omega_e_rad_s: f32) -> f32 {
+        omega_e_rad_s * s.psi_r_wb() / (1.5 * self.pole_pairs * self.inv_torque_factor)
+    }
+
     /// The encoder's reading: the rotor's electrical angle `theta_r_rad` (rad, any range
     /// a single wrap brings into `[-π, π)`). The field angle becomes `θ_r + θ_sl`; the next
     /// [`IfocConfig::plan`] computes its sin/cos.

@@ -463,8 +463,9 @@ fn a_stuck_switch_at_standstill_is_named_by_the_phase_the_loops_cannot_drive() {
 /// crossing zero, and `CurrentSensor` came 12.0 ms after the injection — failed against the
 /// issue's 10 ms. The bound now runs, as a stuck switch's does from its first use, from the
 /// first period the reading's error, (g − g₀)·i + (b − b₀), reaches the current-sum check's
-/// windowed level (8.85 ms here); a sensor fault of constant error (an offset, stuck at a
-/// value the current is not at) acts at once.
+/// windowed level (then 8.85 ms; with the back-EMF fed forward the slip's field sits
+/// elsewhere at the injection: 1.05 ms, detected at 7.0 ms); a sensor fault of constant
+/// error (an offset, stuck at a value the current is not at) acts at once.
 #[test]
 fn a_sensor_gain_error_is_judged_from_the_period_its_error_reaches_the_checks_level() {
     let mut m = shipped();
@@ -479,7 +480,7 @@ fn a_sensor_gain_error_is_judged_from_the_period_its_error_reaches_the_checks_le
     let (f, t) = o.detected.unwrap();
     assert_eq!(f, Fault::CurrentSensor);
     let acting = o.acting_after_s.unwrap();
-    assert!(t > 0.010 && acting > 0.005, "detected after {t} s, acting from {acting} s");
+    assert!(acting > 0.001, "detected after {t} s, acting from {acting} s");
     assert!(t - acting <= 0.010, "{t} - {acting}");
     assert!(o.passed(), "{:?}", o.failures);
     // An offset acts from the injection.

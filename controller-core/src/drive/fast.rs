@@ -244,8 +244,10 @@ impl FastState {
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
         let v_usable = m.vdc_v * cfg.duty_max;
         let v_clamp = v_usable * (2.0 / 3.0);
-        // The loops' request, in the stationary frame.
-        let v_req = match cfg.current_frame {
+        // The loops' request, in the stationary frame, with the back-EMF feedforward
+        // (`FastState::back_emf`).
+        let emf = self.back_emf(cfg, field.field);
+        let v_pi = match cfg.current_frame {
             CurrentFrame::Stationary => {
                 let e = field.i_ref_ab - i_ab;
                 let [alpha, beta] = cfg.current.request(&mut self.run.current, e.alpha, e.beta, v_clamp);
@@ -260,6 +262,7 @@ impl FastState {
                 Dq { d, q }.inverse_park(field.field)
             }
         };
+        let v_req = AlphaBeta { alpha: v_pi.alpha + emf.alpha, beta: v_pi.beta + emf.beta };
         self.run.v_req2_sum += v_req.alpha * v_req.alpha + v_req.beta * v_req.beta;
         self.run.v_req_steps = self.run.v_req_steps.saturating_add(1);
         // Advanced over the delay to the period it acts in, then the one vector limit: the
@@ -431,7 +434,9 @@ impl FastState {
     #[inline(never)]
     fn track_applied(&mut self, cfg: &DriveConfig, applied: AlphaBeta, field: SinCos, v_clamp: f32) {
         let r = self.run.delay_rotation;
-        let back = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
+        let (back, emf) = (applied.rotate(SinCos { sin: -r.sin, cos: r.cos }), self.back_emf(cfg, field));
+        // The loops' share of it: the feedforward is not theirs to track.
+        let back = AlphaBeta { alpha: back.alpha - emf.alpha, beta: back.beta - emf.beta };
         let v = match cfg.current_frame {
             CurrentFrame::Stationary => [back.alpha, back.beta],
             CurrentFrame::Synchronous => {
@@ -440,6 +445,22 @@ impl FastState {
             }
         };
         cfg.current.track(&mut self.run.current, v, v_clamp);
+    }
+
+    /// The back-EMF feedforward at the field angle `field`: the plan's `ω_e·(L_m/L_r)·ψ̂_r`
+    /// on the field's q axis ([`IfocConfig::back_emf_v`]), in the stationary frame. Added to
+    /// the loops' request, it leaves them the stator's own impedance: a stationary-frame PI
+    /// otherwise makes the EMF out of its error (≈ E/k_p: 70 A of a 153 kW motor's 180 A at
+    /// twice its base speed, where the modulator's limit then left the trim no room and the
+    /// current fell to half its reference). None in the synchronous frame, whose integrators
+    /// hold the EMF as the constant it is there (fed forward on the model's flux and the
+    /// plan's speed, the Krause template's envelope fell from −8.2 % to −12 % at 35.7 rad/s).
+    /// A disturbance's feedforward, outside the loops: their characteristic polynomial, and
+    /// so the certificate's analysis, do not change.
+    #[inline(always)]
+    fn back_emf(&self, cfg: &DriveConfig, field: SinCos) -> AlphaBeta {
+        let e = if matches!(cfg.current_frame, CurrentFrame::Stationary) { self.run.emf_v } else { 0.0 };
+        AlphaBeta { alpha: -e * field.sin, beta: e * field.cos }
     }
 
     /// The slow side's mode `mode` taken, unless a fault of the fast step came first.

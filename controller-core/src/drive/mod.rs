@@ -172,6 +172,8 @@ struct FastRun {
     delay_rotation: SinCos,
     /// The current trim of the plan in force (field frame), A.
     trim: Dq,
+    /// The back-EMF feedforward of the plan in force (the field's q axis), V.
+    emf_v: f32,
     test_angle_rad: f32,
     /// Consecutive fast steps with the voltage request outside the hexagon.
     saturated_steps: u32,
@@ -381,6 +383,9 @@ struct SlowRun {
     /// The rotation that advances the output voltage over the delay
     /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed of the plan made last.
     delay_rotation: SinCos,
+    /// The back-EMF feedforward of the plan made last (the field's q axis), V
+    /// ([`IfocConfig::back_emf_v`]).
+    emf_v: f32,
     /// The speed loop's output was at its limit at the last slow step.
     speed_saturated: bool,
     /// The envelope in use ([`EnvelopeConfig::envelope`]).
@@ -435,6 +440,7 @@ impl SlowRun {
             field_last_rad: None,
             field_rate_rad_s: None,
             delay_rotation: SinCos::default(),
+            emf_v: 0.0,
             speed_saturated: false,
             envelope: Envelope::ZERO,
             envelope_age: 0,
@@ -491,7 +497,8 @@ impl FastState {
             ifoc.rotor_resistance_scale(),
             s.machine.rs_scale,
         );
-        (self.run.delay_rotation, self.run.trim) = (s.run.delay_rotation, s.run.trim);
+        (self.run.delay_rotation, self.run.trim, self.run.emf_v) =
+            (s.run.delay_rotation, s.run.trim, s.run.emf_v);
         self.run.on_observer = s.ridden_through != FaultSet::EMPTY;
         if s.run.known_speed_rad_s != self.run.known_speed_rad_s {
             // The search found the rotor turning: the observer starts again on its speed.

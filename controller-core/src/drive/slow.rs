@@ -532,11 +532,16 @@ impl SlowState {
         let after = self.run.ifoc.i_ref_dq();
         let (dd, dq) = (after.d - before.d, after.q - before.q);
         self.run.i_ref_step_a = sqrt_f32(dd * dd + dq * dq);
-        let omega_e = match self.reference {
-            Reference::RotatingCurrent { omega_rad_s, .. } if running => omega_rad_s,
-            _ => cfg.envelope.pole_pairs() * omega_m_rad_s + self.run.ifoc.omega_sl_rad_s(),
+        let (omega_e, emf_v) = match self.reference {
+            // The test's current turns in a field of its own: no flux of the model's.
+            Reference::RotatingCurrent { omega_rad_s, .. } if running => (omega_rad_s, 0.0),
+            _ => {
+                let w_e = cfg.envelope.pole_pairs() * omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
+                (w_e, cfg.ifoc.back_emf_v(&self.run.ifoc, w_e))
+            }
         };
         self.run.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
+        self.run.emf_v = emf_v;
     }
 
     /// Run on the inductances `l` × the motor's (the magnetizing fit's): the flux model, the

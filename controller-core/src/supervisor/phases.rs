@@ -98,6 +98,9 @@ pub(crate) struct OpenPhaseWindow {
     suspect: [u8; 3],
     /// Consecutive windows without any motor current.
     no_current: u8,
+    /// The last window's Σ|i_ref| per phase, A: what a phase is absent against when the
+    /// fault itself shrank its reference ([`looks_open`]).
+    last_reference: Abc,
 }
 
 impl OpenPhaseWindow {
@@ -156,17 +159,17 @@ impl OpenPhaseWindow {
         let commanded = OPEN_PHASE_COMMANDED_FRACTION * level_a * self.steps as f32;
         let (r, i) = (self.reference, self.measured);
         let (r_sum, i_sum) = (r.a + r.b + r.c, i.a + i.b + i.c);
-        let looks_open = |r: f32, i: f32| looks_open(commanded, [r_sum, i_sum], r, i);
+        let looks_open = |r: f32, last: f32, i: f32| looks_open(commanded, [r_sum, i_sum], [r, last], i);
         let count = |n: u8, now: bool| if now { n.saturating_add(1) } else { 0 };
-        let [sa, sb, sc] = self.suspect;
+        let ([sa, sb, sc], last) = (self.suspect, self.last_reference);
         let suspect = [
-            count(sa, looks_open(r.a, i.a)),
-            count(sb, looks_open(r.b, i.b)),
-            count(sc, looks_open(r.c, i.c)),
+            count(sa, looks_open(r.a, last.a, i.a)),
+            count(sb, looks_open(r.b, last.b, i.b)),
+            count(sc, looks_open(r.c, last.c, i.c)),
         ];
         let no_current =
             count(self.no_current, r_sum >= 2.0 * commanded && i_sum < OPEN_PHASE_ABSENT_FRACTION * r_sum);
-        *self = Self { suspect, no_current, ..Self::default() };
+        *self = Self { suspect, no_current, last_reference: r, ..Self::default() };
         if no_current >= OPEN_PHASE_WINDOWS {
             Some(Fault::NoMotorCurrent)
         } else if suspect.iter().any(|&n| n >= OPEN_PHASE_WINDOWS) {
@@ -178,14 +181,14 @@ impl OpenPhaseWindow {
 }
 
 /// One phase of the open-phase window's verdict ([`OpenPhaseWindow::add`]): its sums `r`
-/// (Σ|i_ref|) and `i` (Σ|i|) against the three phases' `[r_sum, i_sum]` and the commanded
-/// level's sum `commanded`. Absent against the other two phases' current *and* against its
+/// (Σ|i_ref|, this window's and the last's) and `i` (Σ|i|) against the three phases'
+/// `[r_sum, i_sum]` and the commanded level's sum `commanded`. Absent against the other two phases' current *and* against its
 /// own reference: a phase at its reference's zero crossing (slow rotation: generating near
 /// synchronism, standstill) legitimately carries little, and so does its reference; the other
 /// two must carry clearly more than the sensors' noise. Out of line: one copy for the three
 /// phases (inlined three times: 192 B more flash), once per window.
 #[inline(never)]
-fn looks_open(commanded: f32, [r_sum, i_sum]: [f32; 2], r: f32, i: f32) -> bool {
+fn looks_open(commanded: f32, [r_sum, i_sum]: [f32; 2], [r, r_last]: [f32; 2], i: f32) -> bool {
     let others = 0.5 * (i_sum - i);
     let r_others = 0.5 * (r_sum - r);
     // Commanded: this phase at the commanded level, or — the motor commanded at all — as
@@ -194,10 +197,15 @@ fn looks_open(commanded: f32, [r_sum, i_sum]: [f32; 2], r: f32, i: f32) -> bool 
     (r >= commanded || (r_sum >= commanded && r >= OPEN_PHASE_REF_SHARE * r_others))
         && others >= OPEN_PHASE_OTHERS_FRACTION * commanded
         && i < OPEN_PHASE_OTHERS_FRACTION * others
-        // Against its reference, or the commanded level when the reference is below it: a
-        // tenth of a reference the voltage regulator shrank with the fault (top speed) lies
-        // under the sensors' noise, which an open lead's reading is.
-        && i < OPEN_PHASE_ABSENT_FRACTION * max_f32(r, commanded)
+        // Against its reference — this window's or the last's, whichever is larger — or the
+        // commanded level when both are below it: the voltage regulator shrinks the references
+        // within a window of the fault, at top speed to the commanded level and below, and a
+        // tenth of that lies under the sensors' noise and offset, which an open lead's reading
+        // is (the shipped drive at 150 rad/s with the back-EMF fed forward: the realistic
+        // board's 20 mA offset on phase b kept its open lead unjudged for 36.5 ms, 7 ms
+        // against the last window's reference). A healthy phase follows its reference within
+        // a window; no sinusoid's window mean falls tenfold in the next.
+        && i < OPEN_PHASE_ABSENT_FRACTION * max_f32(max_f32(r, r_last), commanded)
 }
 
 /// The stuck-switch check ([`Fault::SwitchOpen`]) of one phase in one direction of its
