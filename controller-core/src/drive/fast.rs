@@ -246,7 +246,7 @@ impl FastState {
         let v_clamp = v_usable * (2.0 / 3.0);
         // The loops' request, in the stationary frame, with the back-EMF feedforward
         // (`FastState::back_emf`).
-        let emf = self.back_emf(cfg, field.field);
+        let emf = self.back_emf(field.field);
         let v_pi = match cfg.current_frame {
             CurrentFrame::Stationary => {
                 let e = field.i_ref_ab - i_ab;
@@ -434,7 +434,7 @@ impl FastState {
     #[inline(never)]
     fn track_applied(&mut self, cfg: &DriveConfig, applied: AlphaBeta, field: SinCos, v_clamp: f32) {
         let r = self.run.delay_rotation;
-        let (back, emf) = (applied.rotate(SinCos { sin: -r.sin, cos: r.cos }), self.back_emf(cfg, field));
+        let (back, emf) = (applied.rotate(SinCos { sin: -r.sin, cos: r.cos }), self.back_emf(field));
         // The loops' share of it: the feedforward is not theirs to track.
         let back = AlphaBeta { alpha: back.alpha - emf.alpha, beta: back.beta - emf.beta };
         let v = match cfg.current_frame {
@@ -457,9 +457,10 @@ impl FastState {
     /// plan's speed, the Krause template's envelope fell from −8.2 % to −12 % at 35.7 rad/s).
     /// A disturbance's feedforward, outside the loops: their characteristic polynomial, and
     /// so the certificate's analysis, do not change.
+    /// The slow step plans it (zero in the synchronous frame), so the fast step only turns it.
     #[inline(always)]
-    fn back_emf(&self, cfg: &DriveConfig, field: SinCos) -> AlphaBeta {
-        let e = if matches!(cfg.current_frame, CurrentFrame::Stationary) { self.run.emf_v } else { 0.0 };
+    fn back_emf(&self, field: SinCos) -> AlphaBeta {
+        let e = self.run.emf_v;
         AlphaBeta { alpha: -e * field.sin, beta: e * field.cos }
     }
 

@@ -537,7 +537,12 @@ impl SlowState {
             Reference::RotatingCurrent { omega_rad_s, .. } if running => (omega_rad_s, 0.0),
             _ => {
                 let w_e = cfg.envelope.pole_pairs() * omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
-                (w_e, cfg.ifoc.back_emf_v(&self.run.ifoc, w_e))
+                // Fed forward to the stationary-frame loops only (`FastState::back_emf`).
+                let emf_v = match cfg.current_frame {
+                    CurrentFrame::Stationary => cfg.ifoc.back_emf_v(&self.run.ifoc, w_e),
+                    CurrentFrame::Synchronous => 0.0,
+                };
+                (w_e, emf_v)
             }
         };
         self.run.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));

@@ -182,10 +182,10 @@ impl OpenPhaseWindow {
 
 /// One phase of the open-phase window's verdict ([`OpenPhaseWindow::add`]): its sums `r`
 /// (Σ|i_ref|, this window's and the last's) and `i` (Σ|i|) against the three phases'
-/// `[r_sum, i_sum]` and the commanded level's sum `commanded`. Absent against the other two phases' current *and* against its
-/// own reference: a phase at its reference's zero crossing (slow rotation: generating near
-/// synchronism, standstill) legitimately carries little, and so does its reference; the other
-/// two must carry clearly more than the sensors' noise. Out of line: one copy for the three
+/// `[r_sum, i_sum]` and the commanded level's sum `commanded`. Absent against the other two
+/// phases' current *and* against its own reference: a phase at its reference's zero crossing
+/// (slow rotation: generating near synchronism, standstill) legitimately carries little, and
+/// so does its reference; the other two must carry clearly more than the sensors' noise. Out of line: one copy for the three
 /// phases (inlined three times: 192 B more flash), once per window.
 #[inline(never)]
 fn looks_open(commanded: f32, [r_sum, i_sum]: [f32; 2], [r, r_last]: [f32; 2], i: f32) -> bool {

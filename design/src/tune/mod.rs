@@ -209,7 +209,8 @@ pub struct Tuned {
     /// (`TuneCampaigns`) in software in the loop before the file was written (`--speed
     /// auto`; a forced law is not run).
     pub met_in_sil: bool,
-    /// Those runs in words: `the 64 corner runs of the 1.00 s and the 3.27 s campaigns`.
+    /// Those runs in words: `the 64 corner runs of the 1.00 s and the 6.38 s campaigns`
+    /// (drive.toml's).
     pub sil_runs: String,
     /// Every value the tuned file changed from the template's, `key: old → new`.
     pub changes: Vec<String>,
@@ -459,7 +460,7 @@ pub fn tune(
                 kp_max: kp_noise,
                 tau_max_nm: tau_max,
             };
-            let choice = pi.choose(&spec, &cert, &file, vdc)?;
+            let choice = pi.choose(&spec, &cert, &campaigns)?;
             if structure.speed == SpeedDesign::Auto && !choice.misses.is_empty() {
                 let p_kp = law_gains(&spec.speed_law).0;
                 let p_why = match &p_sil {

@@ -118,7 +118,7 @@ impl TuneCampaigns {
         Ok((!each.is_empty()).then(|| each.join("; ")))
     }
 
-    /// `the 64 corner runs of the 1.00 s and the 3.27 s campaigns`.
+    /// `the 64 corner runs of the 1.00 s and the 6.38 s campaigns` (drive.toml's).
     pub(super) fn words(&self) -> String {
         let lengths: Vec<String> = self.each.iter().map(|c| format!("{:.2} s", c.duration_s)).collect();
         let s = if self.each.len() > 1 { "s" } else { "" };

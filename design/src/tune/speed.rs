@@ -157,9 +157,9 @@ pub const SIL_CONFIRMATIONS: usize = 2;
 /// the deepest point of the region *without* that bandwidth floor — the margins on every
 /// inertia and the encoder's k_p cap only: the requirements say how fast the loop must be —
 /// whose best weight meets them, whose drive passes the certificate, and whose drive meets
-/// them in software in the loop on the corner runs of [`TuneCampaigns`] (every corner of the box
-/// through every manoeuvre, runs of 1 s and to the top speed: the prediction has no current loops, field orientation or
-/// sensors, and a point chosen at the edge of what it allows failed the whole drive's
+/// them in software in the loop on the corner runs of [`TuneCampaigns`] (every corner of
+/// the box through every manoeuvre, runs of 1 s and to the top speed: the prediction has no
+/// current loops, field orientation or sensors, and a point chosen at the edge of what it allows failed the whole drive's
 /// campaign on 9 of the population's 87 drives). At most [`SIL_CONFIRMATIONS`] points are
 /// run so; else a refusal.
 pub(super) struct SpeedPiSearch<'a> {
@@ -195,11 +195,9 @@ impl SpeedPiSearch<'_> {
         &self,
         spec: &DriveSpec,
         cert: &CertifySpec,
-        file: &drive_file::DriveFile,
-        vdc_v: f64,
+        campaigns: &TuneCampaigns,
     ) -> Result<SpeedPiChoice, String> {
-        // `spec`'s law has the same torque limit, which the prepared runs are sized by.
-        let campaigns = TuneCampaigns::new(spec, cert, file, vdc_v);
+        // The campaigns' law has the same torque limit, which the prepared runs are sized by.
         let mut screen = Screen { prediction: campaigns.prediction()?, hard: Vec::new() };
         let certified = |law: &SpeedLaw| -> Result<bool, String> {
             Ok(certify(&DriveSpec { speed_law: *law, ..*spec }, cert)?.iter().all(|c| c.pass))
