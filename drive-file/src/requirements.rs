@@ -6,10 +6,10 @@
 //! [requirements]                   # optional; absent keys take these defaults
 //! speed_error_fraction = 0.01      # steady |ω − ω*| under load, × the base speed
 //! speed_overshoot_fraction = 0.1   # of a speed step
-//! speed_rise_time_s = 0.2          # 10 → 90 % of a step, or RISE_TIME_FACTOR × the physical least if longer
-//! speed_settling_time_s = 0.5      # into the settling band, or SETTLING_TIME_FACTOR × the physical least
-//! load_dip_fraction = 0.1          # largest |ω − ω*| after a load step, × the base speed
-//! load_recovery_time_s = 0.5       # back within the speed-error band; default: the settling time allowed
+//! speed_rise_time_s = 0.2          # 10 → 90 % of a step, or RISE_TIME_FACTOR × the least if longer; default: that
+//! speed_settling_time_s = 0.5      # into the settling band, or SETTLING_TIME_FACTOR × the least; default: that
+//! load_dip_fraction = 0.1          # largest |ω − ω*| after a load step, × the base speed, or the board's least
+//! load_recovery_time_s = 0.5       # back within the speed-error band, or SETTLING_TIME_FACTOR × the least; default: the settling time allowed
 //! torque_accuracy_fraction = 0.05  # steady |τ − τ*| (the torque the drive commands), × τ_max
 //! flux_accuracy_fraction = 0.05    # steady |ψ_r − ψ_r*|, × controller.flux_ref_wb
 //! current_bandwidth_hz = 1000.0    # least current-loop crossover on every corner; default f_pwm/20
@@ -20,12 +20,15 @@
 //! load needs the whole linear voltage V_dc/√3, the speed an engineer states regulation
 //! against ("±1 % of base speed") — plus one count of the encoder's speed resolution, the
 //! least error the board can see. Times the file does not state are multiples of the
-//! *physical least*: the time the motor, accelerating at the most torque it can give at each
-//! speed on that bus and current limit (its physical envelope, from the T-equivalent circuit
-//! alone) and at most τ_max, takes for the same step. A drive that needs twice that to rise
+//! *least*: the time the motor, accelerating at the most torque it can give at each speed on
+//! that bus and current limit (its physical envelope, from the T-equivalent circuit alone)
+//! and at most τ_max, takes for the same step — and, for the error left near the target, no
+//! faster than the fastest speed loop the board's encoder allows
+//! (`hil_sim::requirements::least_step_times`). A drive that needs twice that to rise
 //! leaves half the motor's torque unused on average; the factors below are that policy,
-//! stated once. A stated time holds for the steps the torque limit does not bind: a step
-//! that physically needs longer is allowed the factor × its physical least.
+//! stated once. A stated time holds for the steps neither the torque limit nor the board
+//! binds: a step that needs longer is allowed the factor × its least. A stated dip likewise
+//! gives way to the least a load step makes under that loop.
 
 use crate::source::{FileError, Source, num};
 use serde::Deserialize;
@@ -44,9 +47,9 @@ pub const DEFAULT_FLUX_ACCURACY_FRACTION: f64 = 0.05;
 /// Default least current-loop bandwidth: the PWM rate over this (a sampled current loop's
 /// crossover lies a decade or more below the sampling rate; 1 kHz at 20 kHz).
 pub const DEFAULT_CURRENT_BANDWIDTH_DIVISOR: f64 = 20.0;
-/// A speed step's default rise time (10 → 90 %): this many times the physical least.
+/// A speed step's default rise time (10 → 90 %): this many times the least (motor and board).
 pub const RISE_TIME_FACTOR: f64 = 2.0;
-/// A speed step's default settling time: this many times the physical least time into the
+/// A speed step's default settling time: this many times the least time into the
 /// settling band.
 pub const SETTLING_TIME_FACTOR: f64 = 3.0;
 /// The settling band, × the step (the control engineer's 2 % band), or the speed-error band
@@ -144,7 +147,7 @@ impl core::fmt::Display for Requirement {
 }
 
 /// Validated requirements, defaults filled in. A time is `None` where the file states
-/// none: the judge derives it from the physical least ([`Requirements::rise_time_allowed_s`]).
+/// none: the judge derives it from the least ([`Requirements::rise_time_allowed_s`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Requirements {
     /// Steady-state speed error under load, × the base speed.
@@ -183,7 +186,7 @@ impl Requirements {
         }
     }
 
-    /// The rise time allowed for a step whose physical least rise time is `least_s`, s:
+    /// The rise time allowed for a step whose least rise time (motor and board) is `least_s`, s:
     /// [`RISE_TIME_FACTOR`] × it, or the stated time if longer — a stated time is for the
     /// steps the torque limit does not bind (no drive raises a large step faster than the
     /// motor's torque allows).
@@ -192,17 +195,19 @@ impl Requirements {
         self.speed_rise_time_s.map_or(physical, |t| t.max(physical))
     }
 
-    /// The settling time allowed for a step whose physical least time into the band is
+    /// The settling time allowed for a step whose least time into the band is
     /// `least_s`, s: [`SETTLING_TIME_FACTOR`] × it, or the stated time if longer.
     pub fn settling_time_allowed_s(&self, least_s: f64) -> f64 {
         let physical = SETTLING_TIME_FACTOR * least_s;
         self.speed_settling_time_s.map_or(physical, |t| t.max(physical))
     }
 
-    /// The recovery time allowed after a load step, where a speed step of the same run would
-    /// be allowed `settling_allowed_s` to settle, s.
-    pub fn recovery_time_allowed_s(&self, settling_allowed_s: f64) -> f64 {
-        self.load_recovery_time_s.unwrap_or(settling_allowed_s)
+    /// The recovery time allowed after a load step whose least recovery (motor and board) is
+    /// `least_s`, where a speed step of the same run would be allowed `settling_allowed_s` to
+    /// settle, s: the stated time, else that settling time — or [`SETTLING_TIME_FACTOR`] ×
+    /// the least if longer.
+    pub fn recovery_time_allowed_s(&self, settling_allowed_s: f64, least_s: f64) -> f64 {
+        self.load_recovery_time_s.unwrap_or(settling_allowed_s).max(SETTLING_TIME_FACTOR * least_s)
     }
 }
 
@@ -307,14 +312,15 @@ mod tests {
     }
 
     /// A stated time holds for small steps; a step the torque limit binds is allowed the
-    /// factor × its physical least.
+    /// factor × its least.
     #[test]
     fn allowed_times_are_the_stated_or_the_physical() {
         let r = DriveFile::shipped().unwrap().requirements;
         assert_eq!(r.rise_time_allowed_s(0.1), 0.6);
         assert_eq!(r.rise_time_allowed_s(1.0), RISE_TIME_FACTOR);
         assert_eq!(r.settling_time_allowed_s(0.1), SETTLING_TIME_FACTOR * 0.1);
-        assert_eq!(r.recovery_time_allowed_s(0.7), 0.7);
+        assert_eq!(r.recovery_time_allowed_s(0.7, 0.1), 0.7);
+        assert_eq!(r.recovery_time_allowed_s(0.7, 1.0), SETTLING_TIME_FACTOR);
     }
 
     /// Bad values are refused at their key: a zero or negative fraction, a fraction above

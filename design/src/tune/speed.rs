@@ -352,17 +352,11 @@ pub(super) fn sil_misses(c: &hil_sim::campaign::Campaign) -> Result<Option<Strin
 
 /// The speed loop's crossover is at least this many times below the current loops'.
 pub const SPEED_BELOW_CURRENT: f64 = 20.0;
-/// One count of speed resolution may move the torque by at most this fraction of τ_max:
-/// a quarter of the ripple the campaign allows (`hil_sim::campaign::RIPPLE_FRACTION`, peak to
-/// peak). The estimate toggles between neighbouring counts, so the speed law's torque
-/// toggles by `k_p·Δω_q` — a square wave the loop carries round and the current loops add
-/// their own noise to; the quarter leaves the rest of the allowance to them. Measured over
-/// the population (`population run --members 24 --shipped --pwm 4000,10000,20000`): at a
-/// quarter, one drive of 87 oscillates in 2 of its 200 runs; at half, 12 drives in 60 runs,
-/// the shipped DeLorenzo and EM_Synergy drives among them. (First fitted on the DeLorenzo
-/// motor alone, narrow box: k_p = 0.1 passed 64 of 64 runs, 0.2 63, 0.4 49 — the same
-/// value.)
-pub const ENCODER_NOISE_FRACTION: f64 = hil_sim::campaign::RIPPLE_FRACTION / 4.0;
+/// One count of speed resolution may move the torque by at most this fraction of τ_max
+/// (the judge's, which derives the fastest loop a board allows from it). First fitted on the
+/// DeLorenzo motor alone, narrow box: k_p = 0.1 passed 64 of 64 runs, 0.2 63, 0.4 49 — the
+/// same value; measured over the population since.
+pub use hil_sim::requirements::ENCODER_NOISE_FRACTION;
 
 /// The peak to peak of the observer's speed estimate over the oscillation criterion's window
 /// (mechanical rad/s), from the current sensors' noise alone, for a drive without an encoder:
@@ -406,7 +400,7 @@ pub fn observer_speed_peak_to_peak_rad_s(
 pub fn encoder_kp_limit(tau_max_nm: f64, encoder_lines: u32, t_slow_s: f64) -> f64 {
     let window = controller_core::encoder::SPEED_WINDOW_READS as f64;
     let speed_quantum = std::f64::consts::TAU / (4.0 * f64::from(encoder_lines)) / (window * t_slow_s);
-    ENCODER_NOISE_FRACTION * tau_max_nm / speed_quantum
+    hil_sim::requirements::speed_gain_limit_nm_s(tau_max_nm, speed_quantum)
 }
 
 /// What measures the speed the speed law closes on, and so bounds its gain by its noise.
@@ -436,7 +430,7 @@ impl SpeedNoise {
         match *self {
             Self::Encoder { lines, t_slow_s } => encoder_kp_limit(tau_max_nm, lines, t_slow_s),
             Self::Observer { peak_to_peak_rad_s, .. } => {
-                ENCODER_NOISE_FRACTION * tau_max_nm / peak_to_peak_rad_s
+                hil_sim::requirements::speed_gain_limit_nm_s(tau_max_nm, peak_to_peak_rad_s)
             }
         }
     }

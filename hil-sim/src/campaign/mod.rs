@@ -90,8 +90,9 @@ pub const FLUX_BOUNDS: [f64; 2] = [0.5, 1.3];
 /// Torque ripple is measured over the last this long of the run, s: the requirements'
 /// steady-state window.
 pub const RIPPLE_WINDOW_S: f64 = judge::STEADY_WINDOW_S;
-/// Torque ripple limit as a fraction of τ_max.
-pub const RIPPLE_FRACTION: f64 = 0.1;
+/// Torque ripple limit as a fraction of τ_max (the judge's, which bounds a speed loop's gain
+/// by it).
+pub const RIPPLE_FRACTION: f64 = judge::RIPPLE_FRACTION;
 /// The 16 corners of (R_s, R_r, L, J).
 pub const CORNERS: u64 = 16;
 /// The runs that take every corner through every manoeuvre: a campaign's first runs, the
@@ -191,8 +192,14 @@ struct StepPlan {
 /// What follows a run's first speed step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Second {
-    /// A load step, and the recovery time allowed after it, s.
-    Load(f64),
+    /// A load step: the deviation allowed after it, rad/s ([`judge::Scales::dip_allowed_rad_s`]),
+    /// and the recovery time, s.
+    Load {
+        /// The largest deviation allowed, rad/s.
+        dip_allowed_rad_s: f64,
+        /// The recovery time allowed, s.
+        recovery_allowed_s: f64,
+    },
     /// A speed step.
     Step(StepPlan),
 }
@@ -565,19 +572,31 @@ impl Campaign {
         };
         let plan = |from: f64, to: f64| self.step_plan(&plant, physical, from, to);
         let first_step = plan(0.0, first_target(manoeuvre, w));
-        let second = match manoeuvre {
-            Manoeuvre::Reversal => Second::Step(plan(0.5 * w, -0.5 * w)),
-            _ => Second::Load(self.requirements.recovery_time_allowed_s(first_step.settling_allowed_s)),
+        let second_event = match manoeuvre {
+            Manoeuvre::Motoring => SecondEvent::LoadNm(load(w, 1.0)),
+            Manoeuvre::Reverse => SecondEvent::LoadNm(load(-w, -1.0)),
+            Manoeuvre::Generating => SecondEvent::LoadNm(load(w, -1.0)),
+            Manoeuvre::Reversal => SecondEvent::SpeedRadS(-0.5 * w),
+        };
+        let second = match second_event {
+            SecondEvent::SpeedRadS(to) => Second::Step(plan(0.5 * w, to)),
+            SecondEvent::LoadNm(load_nm) => Second::Load {
+                dip_allowed_rad_s: self.scales().dip_allowed_rad_s(&self.requirements, load_nm),
+                recovery_allowed_s: self.requirements.recovery_time_allowed_s(
+                    first_step.settling_allowed_s,
+                    self.scales().least_recovery_s(&self.requirements, load_nm, plant.j_kgm2()),
+                ),
+            },
         };
         let second_allowed_s = match second {
             Second::Step(p) => p.settling_allowed_s.max(p.rise_allowed_s),
-            Second::Load(recovery_s) => recovery_s,
+            Second::Load { recovery_allowed_s, .. } => recovery_allowed_s,
         };
         let half = [first_step.settling_allowed_s, first_step.rise_allowed_s, second_allowed_s]
             .into_iter()
             .filter(|t| t.is_finite())
             .fold(0.5 * (self.duration_s - step_s), |h, t| h.max(WINDOW_MARGIN * t));
-        // A time derived from the physical least can be long where the motor barely
+        // A time derived from the least can be long where the motor barely
         // accelerates: a run that would last longer than the longest a file may state is
         // refused, not run for hours.
         let most = WINDOW_MARGIN * drive_file::requirements::MAX_TIME_S;
@@ -587,12 +606,6 @@ impl Campaign {
                  stated time gives: state speed_rise_time_s / speed_settling_time_s / load_recovery_time_s in [requirements]"
             ));
         }
-        let second_event = match manoeuvre {
-            Manoeuvre::Motoring => SecondEvent::LoadNm(load(w, 1.0)),
-            Manoeuvre::Reverse => SecondEvent::LoadNm(load(-w, -1.0)),
-            Manoeuvre::Generating => SecondEvent::LoadNm(load(w, -1.0)),
-            Manoeuvre::Reversal => SecondEvent::SpeedRadS(-0.5 * w),
-        };
         Ok(Setup {
             sample,
             manoeuvre,
@@ -624,7 +637,7 @@ impl Campaign {
     }
 
     /// Run `k`s of this campaign prepared for [`Predictor::measures`] to try many speed laws
-    /// on: a run's plant, step plans and windows — the physical least times, the costly part
+    /// on: a run's plant, step plans and windows — the least times, the costly part
     /// of [`Campaign::predict`] — do not depend on the law, only on its torque limit.
     pub fn predictor(&self, runs: impl IntoIterator<Item = u64>) -> Result<Predictor<'_>, String> {
         let setups = runs.into_iter().map(|k| Ok((k, self.setup(k)?))).collect::<Result<_, String>>()?;
@@ -808,7 +821,7 @@ impl Campaign {
     }
 
     /// A speed step's plan on `plant` ([`StepPlan`]): its settling band, and the times the
-    /// requirements allow it — stated, or from the physical least with `physical(ω, motoring)`
+    /// requirements allow it — stated, or from the least (motor and board) with `physical(ω, motoring)`
     /// the most torque at ω ([`judge::least_step_times`]).
     fn step_plan(
         &self,
@@ -819,8 +832,9 @@ impl Campaign {
     ) -> StepPlan {
         let req = &self.requirements;
         let band_fraction = self.scales().settling_band_fraction(req, to - from);
+        let gain = self.scales().speed_gain_limit_nm_s();
         let (rise, settle) =
-            judge::least_step_times(physical, plant.j_kgm2(), plant.b_nms(), from, to, band_fraction);
+            judge::least_step_times(physical, plant.j_kgm2(), plant.b_nms(), gain, from, to, band_fraction);
         StepPlan {
             to,
             band_fraction,
@@ -855,9 +869,9 @@ impl Campaign {
         let base = sc.base_speed_rad_s;
         match second {
             Second::Step(p) => step(t2_s, f64::INFINITY, p),
-            Second::Load(recovery_allowed_s) => {
+            Second::Load { dip_allowed_rad_s, recovery_allowed_s } => {
                 let l = judge::load_response(samples, t2_s, sc.speed_error_allowed_rad_s(req));
-                out.push(measure(R::LoadDip, l.dip_rad_s / base, sc.dip_allowed_rad_s(req) / base));
+                out.push(measure(R::LoadDip, l.dip_rad_s / base, dip_allowed_rad_s / base));
                 out.push(measure(R::LoadRecoveryTime, l.recovery_s, *recovery_allowed_s));
             }
         }
