@@ -30,9 +30,10 @@ use drive_file::requirements::{Requirement, Requirements, SETTLING_BAND_FRACTION
 pub const RIPPLE_FRACTION: f64 = 0.1;
 
 /// One count of speed resolution may move the torque by at most this fraction of τ_max:
-/// a quarter of the ripple the campaign allows ([`RIPPLE_FRACTION`], peak to peak). The estimate toggles between neighbouring counts, so the speed law's torque
-/// toggles by `k_p·Δω_q` — a square wave the loop carries round and the current loops add
-/// their own noise to; the quarter leaves the rest of the allowance to them. `design tune`
+/// a quarter of the ripple the campaign allows ([`RIPPLE_FRACTION`], peak to peak). The
+/// estimate toggles between neighbouring counts, so the speed law's torque toggles by
+/// `k_p·Δω_q` — a square wave the loop carries round and the current loops add their own
+/// noise to; the quarter leaves the rest of the allowance to them. `design tune`
 /// bounds its speed gains by it; the judge derives from it the fastest speed loop a board
 /// allows ([`Scales::speed_gain_limit_nm_s`]). Measured over the population (`population
 /// run --members 24 --shipped --pwm 4000,10000,20000`): at a quarter, one drive of 87
@@ -126,7 +127,8 @@ impl Scales {
         // ln(1/(x·e^{−x})) = x − ln x: solve x = ln(2R) + ln x from above (a contraction
         // for x > 1), R the least dip over the band.
         let log_2r = (2.0 * self.least_dip_rad_s(load_step_nm) / self.speed_error_allowed_rad_s(r)).ln();
-        if log_2r.is_nan() || log_2r <= 1.0 || !k.is_finite() {
+        // (No count, k = ∞: no least dip, ln 0 = −∞.)
+        if log_2r.is_nan() || log_2r <= 1.0 {
             return 0.0;
         }
         let mut x = 2.0 * log_2r;

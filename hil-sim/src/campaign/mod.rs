@@ -570,7 +570,8 @@ impl Campaign {
             };
             most.min(torque_limit_nm(&self.spec))
         };
-        let plan = |from: f64, to: f64| self.step_plan(&plant, physical, from, to);
+        let sc = self.scales();
+        let plan = |from: f64, to: f64| self.step_plan(&sc, &plant, physical, from, to);
         let first_step = plan(0.0, first_target(manoeuvre, w));
         let second_event = match manoeuvre {
             Manoeuvre::Motoring => SecondEvent::LoadNm(load(w, 1.0)),
@@ -581,10 +582,10 @@ impl Campaign {
         let second = match second_event {
             SecondEvent::SpeedRadS(to) => Second::Step(plan(0.5 * w, to)),
             SecondEvent::LoadNm(load_nm) => Second::Load {
-                dip_allowed_rad_s: self.scales().dip_allowed_rad_s(&self.requirements, load_nm),
+                dip_allowed_rad_s: sc.dip_allowed_rad_s(&self.requirements, load_nm),
                 recovery_allowed_s: self.requirements.recovery_time_allowed_s(
                     first_step.settling_allowed_s,
-                    self.scales().least_recovery_s(&self.requirements, load_nm, plant.j_kgm2()),
+                    sc.least_recovery_s(&self.requirements, load_nm, plant.j_kgm2()),
                 ),
             },
         };
@@ -820,19 +821,21 @@ impl Campaign {
         }
     }
 
-    /// A speed step's plan on `plant` ([`StepPlan`]): its settling band, and the times the
-    /// requirements allow it — stated, or from the least (motor and board) with `physical(ω, motoring)`
-    /// the most torque at ω ([`judge::least_step_times`]).
+    /// A speed step's plan on `plant` ([`StepPlan`]) in the campaign's scales `sc`: its
+    /// settling band, and the times the requirements allow it — stated, or from the least
+    /// (motor and board) with `physical(ω, motoring)` the most torque at ω
+    /// ([`judge::least_step_times`]).
     fn step_plan(
         &self,
+        sc: &judge::Scales,
         plant: &MotorParams,
         physical: impl Fn(f64, bool) -> f64,
         from: f64,
         to: f64,
     ) -> StepPlan {
         let req = &self.requirements;
-        let band_fraction = self.scales().settling_band_fraction(req, to - from);
-        let gain = self.scales().speed_gain_limit_nm_s();
+        let band_fraction = sc.settling_band_fraction(req, to - from);
+        let gain = sc.speed_gain_limit_nm_s();
         let (rise, settle) =
             judge::least_step_times(physical, plant.j_kgm2(), plant.b_nms(), gain, from, to, band_fraction);
         StepPlan {
