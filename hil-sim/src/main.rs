@@ -234,6 +234,11 @@ struct CampaignArgs {
     /// [motor.saturation]) puts the drive on a plant richer than its model.
     #[arg(long)]
     plant: Option<String>,
+    /// Run only run K of the campaign (the same parameters, manoeuvre and noise) and write
+    /// its trace (trace.csv, one row per slow period), plots and verdict (summary.json) in
+    /// --out [default: out/campaign/run-K]: why that run failed.
+    #[arg(long, value_name = "K")]
+    trace: Option<u64>,
 }
 
 #[derive(Args, Debug)]
@@ -385,7 +390,7 @@ macro_rules! options_from_args {
 options_from_args! {
     RunArgs => RunOptions { scenario, out }
     EnvelopeArgs => EnvelopeOptions { drive, vdc, points, generating, out, plant }
-    CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out, plant }
+    CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out, plant, trace }
     FaultsArgs => FaultsOptions { drive, vdc, out, inject_delay_ms, seed, only, trace, plant }
     CommissionArgs => CommissionOptions {
         out, test_current, current_limit, level_time, leakage_ratio, rotate, rated_voltage, rated_frequency,

@@ -451,6 +451,42 @@ fn campaign_writes_its_table_and_judges_every_run() {
         serde_json::from_str(&std::fs::read_to_string(res.join("summary.json")).unwrap()).unwrap();
     let per = summary["per_manoeuvre"].as_array().unwrap();
     assert_eq!(per.iter().filter(|m| m["runs"] == 0 && m["flux_ratio_min"].is_null()).count(), 3);
+    // `--trace 0`: that run alone, its trace (one row per slow period from the enable) and
+    // the same verdict as in the campaign; a run the campaign does not hold is an error.
+    let traced = out.join("run-0");
+    let st = bin()
+        .arg("campaign")
+        .arg(&fixed_l)
+        .args(["--runs", "1", "--duration", "0.5", "--trace", "0", "--out"])
+        .arg(&traced)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1), "{}", String::from_utf8_lossy(&st.stderr));
+    let verdict: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(traced.join("summary.json")).unwrap()).unwrap();
+    // The run's whole length (0.5 s asked, longer where the requirements allow its response
+    // more) at 20 kHz over the slow divider of 10, and the header.
+    let rows = verdict["duration_s"].as_f64().unwrap() * 20_000.0 / 10.0;
+    let lines = std::fs::read_to_string(traced.join("trace.csv")).unwrap().lines().count() as f64;
+    assert!(rows >= 1000.0 && (lines - rows - 1.0).abs() <= 1.0, "{lines} lines for {rows} slow periods");
+    assert_eq!(
+        verdict["failures"],
+        serde_json::json!(["torque_accuracy_fraction", "flux_accuracy_fraction"])
+    );
+    let torque =
+        verdict["requirements"].as_array().unwrap().iter().find(|m| m["key"] == "torque_accuracy_fraction");
+    assert_eq!(torque.map(|m| m["met"].clone()), Some(serde_json::json!(false)), "{verdict}");
+    assert!(traced.join("speed.svg").exists() && traced.join("currents.svg").exists());
+    let st = bin()
+        .arg("campaign")
+        .arg(&fixed_l)
+        .args(["--runs", "1", "--trace", "5", "--out"])
+        .arg(out.join("run-5"))
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("run 5 is not in a 1-run campaign"));
+    assert!(!out.join("run-5").exists(), "nothing written");
     let drive = concat!(env!("CARGO_MANIFEST_DIR"), "/../drive.toml");
     let no_certify = out.join("plain.toml");
     std::fs::write(&no_certify, &shipped[..shipped.find("[certify]").unwrap()]).unwrap();

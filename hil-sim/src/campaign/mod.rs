@@ -682,6 +682,17 @@ impl Campaign {
 
     /// Run `k`; stops with an error at the next slow period once `cancel` is set.
     pub fn run_one(&self, k: u64, cancel: &AtomicBool) -> Result<Verdict, String> {
+        self.run_one_into(k, cancel, &mut |_| Ok(()))
+    }
+
+    /// [`Campaign::run_one`], each trace row (one per slow period) also to `tap` as it is
+    /// made (`hil-sim campaign --trace K`: why run K failed); `tap`'s error stops the run.
+    pub fn run_one_into(
+        &self,
+        k: u64,
+        cancel: &AtomicBool,
+        tap: &mut dyn FnMut(&Row) -> Result<(), String>,
+    ) -> Result<Verdict, String> {
         let Setup {
             sample,
             manoeuvre,
@@ -737,6 +748,7 @@ impl Campaign {
                 if cancel.load(Ordering::Relaxed) {
                     return Err("interrupted".into());
                 }
+                tap(r)?;
                 faulted |= matches!(r.mode, Some(Mode::Fault(_)));
                 let psi_r = r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb);
                 if r.t_s >= step_s && r.mode == Some(Mode::Running) {

@@ -27,6 +27,9 @@ pub struct CampaignOptions {
     /// Simulate this motor (a shipped motor's name or a file with a `[motor]` table, its
     /// saturation included) at the box's points instead of the drive's own.
     pub plant: Option<String>,
+    /// Run only this run, writing its trace (`hil-sim campaign --trace K`) instead of the
+    /// campaign's table.
+    pub trace: Option<u64>,
 }
 
 /// `hil-sim campaign`: runs the shard in parallel (Ctrl-C stops it and writes nothing),
@@ -61,6 +64,9 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
         c.duration_s = c.duration_s.max(c.full_range_duration_s());
     }
     c.check()?;
+    if let Some(k) = a.trace {
+        return trace_run(&c, k, a.out.clone());
+    }
     match a.duration {
         Some(_) if c.omega_s_rad_s() < c.top_speed_rad_s() => eprintln!(
             "hil-sim: runs of {:.2} s step the speed to {:.1} rad/s, below the box's top speed {:.1} rad/s: its field \
@@ -222,6 +228,44 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     }
 }
 
+/// `hil-sim campaign --trace K`: run `k` alone, its trace (one row per slow period) streamed
+/// to `trace.csv` in `out` (default `out/campaign/run-K`) with its plots, and its verdict —
+/// each requirement measured and allowed, the failures — in `summary.json` and on stdout.
+/// `Err` if the run failed, as the campaign would.
+fn trace_run(c: &crate::campaign::Campaign, k: u64, out: Option<PathBuf>) -> Result<(), String> {
+    if k >= c.runs {
+        return Err(format!(
+            "run {k} is not in a {}-run campaign (runs 0 … {})",
+            c.runs,
+            c.runs.saturating_sub(1)
+        ));
+    }
+    let out = out.unwrap_or_else(|| PathBuf::from(format!("out/campaign/run-{k}")));
+    let rows = c.duration_s * c.spec.pwm_frequency_hz / f64::from(c.spec.slow_divider);
+    let (verdict, stats) = crate::trace::stream_trace(&out, true, rows, &INTERRUPTED, |sink| {
+        c.run_one_into(k, &INTERRUPTED, sink)
+    })?;
+    let failures = verdict.failures.clone();
+    crate::trace::finish(&out, stats, |_, peak_a| {
+        serde_json::json!({
+            "run": verdict.k,
+            "manoeuvre": verdict.manoeuvre.name(),
+            "factors": {
+                "rs": verdict.sample.rs, "rr": verdict.sample.rr, "l": verdict.sample.l, "j": verdict.sample.j,
+            },
+            "speed_step_rad_s": verdict.omega_s_rad_s,
+            "duration_s": verdict.duration_s,
+            "mode": format!("{:?}", verdict.mode),
+            "peak_current_a": peak_a,
+            "requirements": verdict.measures.iter().map(|m| serde_json::json!({
+                "key": m.requirement.key(), "value": m.value, "allowed": m.allowed, "met": m.met(),
+            })).collect::<Vec<_>>(),
+            "failures": failures,
+        })
+    })?;
+    if verdict.passed() { Ok(()) } else { Err(format!("run {k} failed: {}", verdict.failures.join(", "))) }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -236,6 +280,7 @@ mod tests {
             vdc: None,
             out: Some(out.to_path_buf()),
             plant: None,
+            trace: None,
         }
     }
 
