@@ -617,6 +617,53 @@ mod tests {
         assert!(faults.is_empty(), "{faults:#?}");
     }
 
+    /// The 1.3 kW 8-pole member (001) at 20 kHz with the speed PI tune's search found for it
+    /// (k_p 0.633, k_i 6.98, setpoint weight 0.8): on the 64 corner runs of 1 s — speed
+    /// steps to ±145 rad/s at the torque limit, into field weakening — no healthy run trips.
+    /// Loaded, its flux target falls from ≈ 58 rad/s, 20 % before the no-load base speed
+    /// (71 rad/s) where the flux's fast fall was blended in: the flux left behind, forced
+    /// there with the full gain, swung i_d* by 1.5 A per encoder count, the torque fell from
+    /// 27 to 0 N·m for 5 ms and the stuck-switch check read the currents that could not
+    /// follow as a dead switch (`SwitchOpen` in 7 of 64 runs; `hil-sim campaign --trace 24`
+    /// shows it). Motoring, the fast fall now blends in where the target itself falls.
+    #[test]
+    fn a_loaded_motor_weakens_its_field_where_its_target_falls() {
+        let m = draw(1, 1, None).unwrap();
+        assert!(m.name.starts_with("001-1.3kW"), "{}", m.name);
+        let (path, text, vdc) = inputs(&m, Some(20_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
+        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let mut spec = file.spec;
+        let controller_core::speed::SpeedLaw::SaturatedP { tau_max_nm, .. } = spec.speed_law else {
+            panic!("{:?}", spec.speed_law)
+        };
+        spec.speed_law = controller_core::speed::SpeedLaw::PiTorque {
+            kp: 6.3328e-1,
+            ki: 6.9783,
+            limit: tau_max_nm,
+            setpoint_weight: 0.8,
+        };
+        let c = Campaign {
+            spec,
+            certify: file.certify.unwrap(),
+            vdc_v: vdc,
+            duration_s: 1.0,
+            runs: 64,
+            seed: 1,
+            shard: (0, 1),
+            encoder_lines: file.encoder_lines(),
+            plant: None,
+            requirements: file.requirements,
+        };
+        c.check().unwrap();
+        assert!(c.omega_s_rad_s() > 2.0 * 71.0, "steps to {} rad/s", c.omega_s_rad_s());
+        let verdicts = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
+        let faults: Vec<_> =
+            verdicts.iter().filter(|v| v.failures.contains(&"fault")).map(|v| v.csv()).collect();
+        assert!(faults.is_empty(), "{faults:#?}");
+    }
+
     /// The 73 kW 690 V member (020) without its encoder at 10 kHz: tuned on its encoder
     /// (k_p 93 N·m·s/rad) every sensorless campaign run oscillated (the observer's speed
     /// estimate carries the current sensors' noise; 58–93 N·m peak to peak against the

@@ -271,18 +271,36 @@ impl SlowState {
         self.run.i_d_target_a = op.i_d_a;
         let psi = self.run.ifoc.psi_r_wb();
         let i_d_a = if running {
-            // The flux the bus allows falls as 1/ω above the no-load base speed ω_b: a rising
-            // speed asks it to fall as fast (FLUX_LAG_FRACTION), the current reversed if need
-            // be. Below ω_b the target holds, and a flux above it (a rescaled model, an
-            // overshoot, the current limit's point) falls within FLUX_FALL_TIME_S on no less
-            // than no current. Between them the fall rate and the floor blend over the first
-            // FLUX_LAG_FRACTION of ω_b above it — where the target has fallen by less than the
-            // lag allowed —, so that a speed held at ω_b does not switch them each slow step.
+            // The flux the bus allows falls as 1/ω above the base speed: a rising speed asks
+            // it to fall as fast (FLUX_LAG_FRACTION), the current reversed if need be. Where
+            // the target holds, a flux above it (a rescaled model, an overshoot, the current
+            // limit's point) falls within FLUX_FALL_TIME_S on no less than no current. Between
+            // them the fall rate and the floor blend in over the lag allowed — where the target
+            // has fallen by less, a speed held there does not switch them each slow step —
+            // from the no-load base speed ω_b, or, motoring (the speed rises with the torque
+            // asked), from where the target itself has begun to fall (as far as the speed
+            // makes it fall: weighed by |ω|/ω_b, below): under load the voltage
+            // binds below ω_b (the 1.3 kW member 001's target had fallen 20 % at ω_b, and the
+            // flux left behind, forced there with the full gain, swung i_d* by 1.5 A per
+            // encoder count: the torque fell from 27 to 0 N·m). Braking, the speed falls and
+            // the braking point's lower flux is its own choice, not the speed's: ω_b's blend.
             // ω_b is the bus's (the voltage target's), not the regulator's budget: a budget cut
-            // for a fault (an open lead) would have the flux driven down into the fault.
+            // for a fault (an open lead) would have the flux driven down into the fault. The
+            // target's fall is the budget's, but motoring only and weighed by |ω|/ω_b: the
+            // fault matrix's open leads (mid and top speed, both ways) are named as before.
             let w_b = self.run.model.no_load_base_speed_rad_s(self.run.i_d_rated_a, v_target);
             let lag = FLUX_LAG_FRACTION as f32;
-            let blend = ((w.abs() - w_b) / max_f32(lag * w_b, 1e-3)).limit(0.0, 1.0);
+            let above_base = (w.abs() - w_b) / max_f32(lag * w_b, 1e-3);
+            let fallen = if torque_nm * w > 0.0 {
+                // The part of the fall the speed makes: weighed by |ω|/ω_b, how much of the
+                // bus the rated flux's back-EMF takes (a stator whose resistance takes it at
+                // standstill has its target down with no speed to weaken the field for).
+                let speed_share = min_f32(w.abs() / max_f32(w_b, 1e-3), 1.0);
+                speed_share * (1.0 - op.i_d_a / max_f32(self.run.i_d_rated_a, 1e-6)) / lag
+            } else {
+                0.0
+            };
+            let blend = max_f32(above_base, fallen).limit(0.0, 1.0);
             let tau_fast = (cfg.flux_lag_j_kgm2 * w.abs() / max_f32(op.torque_max_nm, 1e-6))
                 .limit(cfg.flux_fall_time_min_s, FLUX_FALL_TIME_S as f32);
             let slow_rate = (1.0 / FLUX_FALL_TIME_S) as f32;

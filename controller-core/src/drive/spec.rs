@@ -50,12 +50,19 @@ pub const FLUX_FALL_TIME_S: f64 = 1.0 / VOLTAGE_REGULATOR_BANDWIDTH_RAD_S;
 /// itself — the lag's back-EMF takes the voltage the torque needs, and the drive holds the
 /// torque to what the rest drives. The fall time is therefore at most this fraction of the
 /// time the speed takes to rise by itself at the envelope's torque, `τ_f = f·|ω|·J/τ_max(ω)`
-/// above the no-load base speed ω_b (nominal J: the box's lightest), within
-/// [`FLUX_FALL_SLOW_PERIODS`] slow periods and [`FLUX_FALL_TIME_S`]. The fall rate and the
-/// reversed current's floor blend in over the first `f·ω_b` above ω_b, where the target has
-/// fallen by less than the lag allowed: switched at ω_b, a reversal to ±ω_b (the 895 W
+/// in field weakening (nominal J: the box's lightest), within [`FLUX_FALL_SLOW_PERIODS`]
+/// slow periods and [`FLUX_FALL_TIME_S`]. The fall rate and the reversed current's floor
+/// blend in over the first `f·ω_b` above the no-load base speed ω_b, where the target has
+/// fallen by less than the lag allowed — switched at ω_b, a reversal to ±ω_b (the 895 W
 /// member's ±153 rad/s) flipped them each slow step and two of its 64 runs tripped
-/// `SwitchOpen`. With τ_f held at 0.1 s the population's 895 W member (T_r 0.13 s,
+/// `SwitchOpen` — or, motoring, as the target itself falls by `f` below the rated flux
+/// (the part of its fall the speed makes: weighed by |ω|/ω_b, the share of the bus the rated
+/// flux's back-EMF takes), whichever is further in: under load the voltage binds below ω_b. Blended on ω_b alone,
+/// the 1.3 kW member 001 (its target 20 % down at ω_b) left its flux behind, forced it there
+/// with the full gain, swung i_d* by 1.5 A per encoder count and tripped `SwitchOpen` in
+/// 7 of 64 runs (population test `a_loaded_motor_weakens_its_field_where_its_target_falls`).
+/// Braking, the speed falls, and the braking point's flux is its own choice: ω_b's blend.
+/// With τ_f held at 0.1 s the population's 895 W member (T_r 0.13 s,
 /// ≈ 1 900 rad/s² at its τ_max) lagged 25 % at 168 rad/s and gave a fifth of its envelope's
 /// torque there; its rise to 305 rad/s took 2.25× the physical least (`population` run,
 /// docs/population.md).
