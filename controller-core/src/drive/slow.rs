@@ -279,11 +279,11 @@ impl SlowState {
             // has fallen by less, a speed held there does not switch them each slow step —
             // from the no-load base speed ω_b, or, motoring (the speed rises with the torque
             // asked), from where the target itself has begun to fall (as far as the speed
-            // makes it fall: weighed by |ω|/ω_b, below): under load the voltage
-            // binds below ω_b (the 1.3 kW member 001's target had fallen 20 % at ω_b, and the
-            // flux left behind, forced there with the full gain, swung i_d* by 1.5 A per
-            // encoder count: the torque fell from 27 to 0 N·m). Braking, the speed falls and
-            // the braking point's lower flux is its own choice, not the speed's: ω_b's blend.
+            // makes it fall: weighed by |ω|/ω_b, below): under load the voltage binds below
+            // ω_b (the 1.3 kW member 001's target had fallen 20 % at ω_b, and the flux left
+            // behind, forced there with the full gain, swung i_d* by 1.5 A per encoder count:
+            // the torque fell from 27 to 0 N·m). Braking, the speed falls and the braking
+            // point's lower flux is its own choice, not the speed's: ω_b's blend.
             // ω_b is the bus's (the voltage target's), not the regulator's budget: a budget cut
             // for a fault (an open lead) would have the flux driven down into the fault. The
             // target's fall is the budget's, but motoring only and weighed by |ω|/ω_b: the

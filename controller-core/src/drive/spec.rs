@@ -56,12 +56,13 @@ pub const FLUX_FALL_TIME_S: f64 = 1.0 / VOLTAGE_REGULATOR_BANDWIDTH_RAD_S;
 /// fallen by less than the lag allowed — switched at ω_b, a reversal to ±ω_b (the 895 W
 /// member's ±153 rad/s) flipped them each slow step and two of its 64 runs tripped
 /// `SwitchOpen` — or, motoring, as the target itself falls by `f` below the rated flux
-/// (the part of its fall the speed makes: weighed by |ω|/ω_b, the share of the bus the rated
-/// flux's back-EMF takes), whichever is further in: under load the voltage binds below ω_b. Blended on ω_b alone,
-/// the 1.3 kW member 001 (its target 20 % down at ω_b) left its flux behind, forced it there
-/// with the full gain, swung i_d* by 1.5 A per encoder count and tripped `SwitchOpen` in
-/// 7 of 64 runs (population test `a_loaded_motor_weakens_its_field_where_its_target_falls`).
-/// Braking, the speed falls, and the braking point's flux is its own choice: ω_b's blend.
+/// (the part of its fall the speed makes: weighed by |ω|/ω_b, the share of the bus the
+/// rated flux's back-EMF takes), whichever is further in: under load the voltage binds
+/// below ω_b. Blended on ω_b alone, the 1.3 kW member 001 (its target 20 % down at ω_b)
+/// left its flux behind, forced it there with the full gain, swung i_d* by 1.5 A per
+/// encoder count and tripped `SwitchOpen` in 7 of 64 runs (population test
+/// `a_loaded_motor_weakens_its_field_where_its_target_falls`). Braking, the speed falls,
+/// and the braking point's flux is its own choice: ω_b's blend.
 /// With τ_f held at 0.1 s the population's 895 W member (T_r 0.13 s,
 /// ≈ 1 900 rad/s² at its τ_max) lagged 25 % at 168 rad/s and gave a fifth of its envelope's
 /// torque there; its rise to 305 rad/s took 2.25× the physical least (`population` run,
