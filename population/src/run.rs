@@ -664,6 +664,50 @@ mod tests {
         assert!(faults.is_empty(), "{faults:#?}");
     }
 
+    /// The 33 kW 8-pole member (016) at 20 kHz with the speed PI tune's search found for it
+    /// (k_p 68.8, k_i 710.9, setpoint weight 0.9): on the 64 corner runs to its top speed
+    /// (2.96 s), the generating ones brake an overhauling load of 0.8 × what the motor holds
+    /// there without a fault. With the torque the present flux allows worked out on the
+    /// voltage regulator's trimmed budget, a 3 % trim cut it below the load, and the rotor
+    /// ran away (`FollowingError` in runs 2 and 50).
+    #[test]
+    fn a_braking_drive_holds_its_load_at_top_speed() {
+        let m = draw(1, 16, None).unwrap();
+        assert!(m.name.starts_with("016-33kW"), "{}", m.name);
+        let (path, text, vdc) = inputs(&m, Some(20_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
+        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let mut spec = file.spec;
+        let controller_core::speed::SpeedLaw::SaturatedP { tau_max_nm, .. } = spec.speed_law else {
+            panic!("{:?}", spec.speed_law)
+        };
+        spec.speed_law = controller_core::speed::SpeedLaw::PiTorque {
+            kp: 6.8811e1,
+            ki: 7.1086e2,
+            limit: tau_max_nm,
+            setpoint_weight: 0.9,
+        };
+        let mut c = Campaign {
+            spec,
+            certify: file.certify.unwrap(),
+            vdc_v: vdc,
+            duration_s: 1.0,
+            runs: 64,
+            seed: 1,
+            shard: (0, 1),
+            encoder_lines: file.encoder_lines(),
+            plant: None,
+            requirements: file.requirements,
+        };
+        c.duration_s = c.full_range_duration_s();
+        c.check().unwrap();
+        let verdicts = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
+        let faults: Vec<_> =
+            verdicts.iter().filter(|v| v.failures.contains(&"fault")).map(|v| v.csv()).collect();
+        assert!(faults.is_empty(), "{faults:#?}");
+    }
+
     /// The 73 kW 690 V member (020) without its encoder at 10 kHz: tuned on its encoder
     /// (k_p 93 N·m·s/rad) every sensorless campaign run oscillated (the observer's speed
     /// estimate carries the current sensors' noise; 58–93 N·m peak to peak against the

@@ -339,7 +339,14 @@ impl SlowState {
         // only worked out when the torque asked for needs more than fits.
         let per_a = cfg.ifoc.torque_factor() * max_f32(psi, 1e-3);
         let needed = min_f32(self.run.flux.i_q_max_a(), torque_nm.abs() / per_a);
-        let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w, v_budget, needed, sign);
+        // Braking, on the bus's voltage target, not the regulator's budget: the budget's trim is
+        // the loops' headroom in a transient, and an overhauling load the steady envelope holds
+        // must stay held — cut 3 % (321 → 312 V), member 016's present-flux limit fell from
+        // ≥ 320 to 275 N·m under a 319 N·m load at its top speed, and the rotor ran away
+        // (`FollowingError` in 30 of 512 generating runs; population test
+        // `a_braking_drive_holds_its_load_at_top_speed`).
+        let v_now = if torque_nm * w < 0.0 { v_target } else { v_budget };
+        let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w, v_now, needed, sign);
         let torque_now_nm = room * min_f32(op.torque_max_nm, per_a * i_q_now);
         // The speed loop's limit is the steady envelope: limited by the present flux too, it
         // would ask for a torque the rated flux can give, and the flux would never fall.
