@@ -628,39 +628,9 @@ mod tests {
     /// shows it). Motoring, the fast fall now blends in where the target itself falls.
     #[test]
     fn a_loaded_motor_weakens_its_field_where_its_target_falls() {
-        let m = draw(1, 1, None).unwrap();
-        assert!(m.name.starts_with("001-1.3kW"), "{}", m.name);
-        let (path, text, vdc) = inputs(&m, Some(20_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
-        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
-        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
-        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
-        let mut spec = file.spec;
-        let controller_core::speed::SpeedLaw::SaturatedP { tau_max_nm, .. } = spec.speed_law else {
-            panic!("{:?}", spec.speed_law)
-        };
-        spec.speed_law = controller_core::speed::SpeedLaw::PiTorque {
-            kp: 6.3328e-1,
-            ki: 6.9783,
-            limit: tau_max_nm,
-            setpoint_weight: 0.8,
-        };
-        let c = Campaign {
-            spec,
-            certify: file.certify.unwrap(),
-            vdc_v: vdc,
-            duration_s: 1.0,
-            runs: 64,
-            seed: 1,
-            shard: (0, 1),
-            encoder_lines: file.encoder_lines(),
-            plant: None,
-            requirements: file.requirements,
-        };
-        c.check().unwrap();
+        let c = pi_campaign(1, "001-1.3kW", [6.3328e-1, 6.9783, 0.8], 1.0);
         assert!(c.omega_s_rad_s() > 2.0 * 71.0, "steps to {} rad/s", c.omega_s_rad_s());
-        let verdicts = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-        let faults: Vec<_> =
-            verdicts.iter().filter(|v| v.failures.contains(&"fault")).map(|v| v.csv()).collect();
+        let faults = faulted(&c);
         assert!(faults.is_empty(), "{faults:#?}");
     }
 
@@ -672,8 +642,18 @@ mod tests {
     /// ran away (`FollowingError` in runs 2 and 50).
     #[test]
     fn a_braking_drive_holds_its_load_at_top_speed() {
-        let m = draw(1, 16, None).unwrap();
-        assert!(m.name.starts_with("016-33kW"), "{}", m.name);
+        let mut c = pi_campaign(16, "016-33kW", [6.8811e1, 7.1086e2, 0.9], 1.0);
+        c.duration_s = c.full_range_duration_s();
+        let faults = faulted(&c);
+        assert!(faults.is_empty(), "{faults:#?}");
+    }
+
+    /// Member `index` at 20 kHz tuned as tune tunes it with the saturated P, its speed law
+    /// then the PI `[k_p, k_i, setpoint weight]` at the P's torque limit: the 64 corner runs
+    /// of `duration_s` (checked after the caller's changes, by [`faulted`]).
+    fn pi_campaign(index: u64, name: &str, [kp, ki, setpoint_weight]: [f64; 3], duration_s: f64) -> Campaign {
+        let m = draw(1, index, None).unwrap();
+        assert!(m.name.starts_with(name), "{}", m.name);
         let (path, text, vdc) = inputs(&m, Some(20_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
         let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
         let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
@@ -682,30 +662,27 @@ mod tests {
         let controller_core::speed::SpeedLaw::SaturatedP { tau_max_nm, .. } = spec.speed_law else {
             panic!("{:?}", spec.speed_law)
         };
-        spec.speed_law = controller_core::speed::SpeedLaw::PiTorque {
-            kp: 6.8811e1,
-            ki: 7.1086e2,
-            limit: tau_max_nm,
-            setpoint_weight: 0.9,
-        };
-        let mut c = Campaign {
+        spec.speed_law =
+            controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit: tau_max_nm, setpoint_weight };
+        Campaign {
             spec,
             certify: file.certify.unwrap(),
             vdc_v: vdc,
-            duration_s: 1.0,
+            duration_s,
             runs: 64,
             seed: 1,
             shard: (0, 1),
             encoder_lines: file.encoder_lines(),
             plant: None,
             requirements: file.requirements,
-        };
-        c.duration_s = c.full_range_duration_s();
+        }
+    }
+
+    /// `c` checked and run: the CSV lines of the runs that faulted.
+    fn faulted(c: &Campaign) -> Vec<String> {
         c.check().unwrap();
         let verdicts = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-        let faults: Vec<_> =
-            verdicts.iter().filter(|v| v.failures.contains(&"fault")).map(|v| v.csv()).collect();
-        assert!(faults.is_empty(), "{faults:#?}");
+        verdicts.iter().filter(|v| v.failures.contains(&"fault")).map(|v| v.csv()).collect()
     }
 
     /// The 73 kW 690 V member (020) without its encoder at 10 kHz: tuned on its encoder
