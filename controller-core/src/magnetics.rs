@@ -297,6 +297,173 @@ impl MagnetizingCurve {
     }
 }
 
+/// Points of the drive's magnetizing table ([`MagnetizingTable`]) beyond the origin.
+pub const TABLE_POINTS: usize = 16;
+/// The table's step in magnetizing current, × the rated flux's: it spans 0 … 2× that
+/// current (the flux rises past the rated one by the curve's last segment beyond).
+pub const TABLE_STEP: f64 = 0.125;
+/// The point of the table at the rated current (its flux is the rated flux).
+const TABLE_RATED: usize = 7;
+
+/// The drive's view of a saturating branch (issue 50): the rotor flux at no load against
+/// the magnetizing current, both per unit of the rated point — `flux_ratio[k]` is
+/// `ψ(x)/ψ_N` at `x = (k + 1)·`[`TABLE_STEP`] `× i_N`, with `i_N` the current of the rated
+/// rotor flux `ψ_N` (so `flux_ratio[7]` is 1), joined by straight lines from the origin
+/// and the last segment extended. At no load the rotor current is zero, so in either form
+/// the branch's flux is the rotor's: the table is the no-load test's curve
+/// ([`Self::of_curve`]). The drive runs on its chord `ψ(x)/(x·ψ_N)`, the inductance scale
+/// at that current ([`MagnetizingChord`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MagnetizingTable {
+    /// ψ/ψ_N at each step of the current.
+    pub flux_ratio: [f64; TABLE_POINTS],
+}
+
+/// Why a [`MagnetizingTable`] was refused: the point at this index (`TABLE_POINTS`: the
+/// rated point's flux is not 1) is not finite, not rising, or rises more than twice as steeply
+/// as the chord to it — the drive's chord model then does not settle (its magnetizing
+/// current is `ψ*/chord` on the present current, which converges while
+/// `0 < L_diff < 2·L_chord`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TableError(pub usize);
+
+impl MagnetizingTable {
+    /// The table of `curve` (a branch's) with its rated point at the rotor flux
+    /// `flux_rated_wb` at no load, and that point's magnetizing current, A (`None`: the flux
+    /// is not finite and positive).
+    pub fn of_curve(curve: &MagnetizingCurve, flux_rated_wb: f64) -> Option<(Self, f64)> {
+        if !(flux_rated_wb.is_finite() && flux_rated_wb > 0.0) {
+            return None;
+        }
+        let i_rated_a = curve.current_a(flux_rated_wb);
+        let mut flux_ratio = [0.0; TABLE_POINTS];
+        for (k, y) in flux_ratio.iter_mut().enumerate() {
+            let i = (k + 1) as f64 * TABLE_STEP * i_rated_a;
+            *y = curve.flux_at_total_current(i, 0.0) / flux_rated_wb;
+        }
+        // The rated point exactly (Newton leaves it within 1e-9).
+        if let Some(y) = flux_ratio.get_mut(TABLE_RATED) {
+            *y = 1.0;
+        }
+        Some((Self { flux_ratio }, i_rated_a))
+    }
+
+    /// Refuses what the drive cannot run on ([`TableError`]).
+    pub fn validate(&self) -> Result<(), TableError> {
+        let mut y0 = 0.0;
+        for (k, &y) in self.flux_ratio.iter().enumerate() {
+            let x = (k + 1) as f64 * TABLE_STEP;
+            let slope = (y - y0) / TABLE_STEP;
+            if !(y.is_finite() && y > y0 && slope < 2.0 * y / x) {
+                return Err(TableError(k));
+            }
+            y0 = y;
+        }
+        match self.flux_ratio.get(TABLE_RATED) {
+            Some(&y) if (y - 1.0).abs() <= 1e-6 => Ok(()),
+            _ => Err(TableError(TABLE_POINTS)),
+        }
+    }
+
+    /// The chord `ψ(x)/(x·ψ_N)` at current ratio `x` ≥ 0 (the inductance at that current
+    /// over the rated one; its limit at 0): [`MagnetizingChord::ratio`] in f64.
+    pub fn chord_ratio(&self, x: f64) -> f64 {
+        let u = x / TABLE_STEP;
+        let at = |m: usize| self.flux_ratio.get(m.wrapping_sub(1)).copied().unwrap_or(0.0);
+        if u.partial_cmp(&1.0) != Some(core::cmp::Ordering::Greater) {
+            return at(1) / TABLE_STEP;
+        }
+        // The segment [m, m + 1] in steps (the last one extended beyond it).
+        let m = (u as usize).clamp(1, TABLE_POINTS - 1);
+        (at(m) + (u - m as f64) * (at(m + 1) - at(m))) / x
+    }
+}
+
+crate::raw::raw_struct! {
+    /// The drive's magnetizing table in f32 ([`MagnetizingTable`] on the target): the
+    /// inductance scale the field orientation and the machine model run on at a magnetizing
+    /// current (`Drive`'s slow step follows it, issue 50). `on` false: a linear motor, nothing
+    /// is evaluated.
+    #[derive(Clone, Copy, Debug, Default, PartialEq)]
+    pub struct MagnetizingChord {
+        /// The motor saturates: the table is in use.
+        pub(crate) on: bool,
+        /// `1/(Δx·i_N)`: the magnetizing current in table steps, 1/A.
+        pub(crate) steps_per_a: f32,
+        /// `1/ψ_N`: the flux in units of the rated one, 1/Wb.
+        pub(crate) per_wb: f32,
+        /// [`MagnetizingTable::flux_ratio`].
+        pub(crate) flux_ratio: [f32; TABLE_POINTS],
+    }
+}
+
+impl MagnetizingChord {
+    /// The drive's table of `t` with the rated flux `flux_rated_wb` at the magnetizing
+    /// current `i_rated_a` (both > 0), or a linear motor's (`None`).
+    pub fn new(t: Option<&MagnetizingTable>, i_rated_a: f64, flux_rated_wb: f64) -> Self {
+        match t {
+            Some(t) => Self {
+                on: true,
+                steps_per_a: (1.0 / (TABLE_STEP * i_rated_a)) as f32,
+                per_wb: (1.0 / flux_rated_wb) as f32,
+                flux_ratio: t.flux_ratio.map(|y| y as f32),
+            },
+            None => Self::default(),
+        }
+    }
+
+    /// The motor saturates.
+    #[inline]
+    pub fn on(&self) -> bool {
+        self.on
+    }
+
+    /// The chord ratio at the flux `psi_wb` (Wb; 0 or less: the unsaturated end's): the
+    /// table read the other way — the current of that flux (at a refresh of the machine
+    /// model, not every slow step).
+    #[inline(never)]
+    pub fn ratio_at_flux(&self, psi_wb: f32) -> f32 {
+        let y = psi_wb * self.per_wb;
+        let table = &self.flux_ratio;
+        let at = |m: usize| table.get(m.wrapping_sub(1)).copied().unwrap_or(0.0);
+        // The segment [m, m + 1] in steps holding y (a binary search of the rising table),
+        // the last one extended beyond it.
+        let m = table.partition_point(|&y1| y1 < y).min(TABLE_POINTS - 1);
+        let u = m as f32 + (y - at(m)) / (at(m + 1) - at(m));
+        if u > 0.0 { y / (u * TABLE_STEP as f32) } else { at(1) / TABLE_STEP as f32 }
+    }
+
+    /// Off, or on a positive step and a rising table (what [`crate::drive::DriveConfig::from_raw`]
+    /// checks of a raw table: the rest is [`MagnetizingTable::validate`]'s, on the host).
+    pub(crate) fn is_valid(&self) -> bool {
+        let mut last = 0.0;
+        !self.on
+            || (self.steps_per_a > 0.0
+                && self.per_wb > 0.0
+                && self.flux_ratio.iter().all(|&y| {
+                    let up = y > last;
+                    last = y;
+                    up
+                }))
+    }
+
+    /// The chord ratio ([`MagnetizingTable::chord_ratio`]) at magnetizing current
+    /// `i_m_a` (A; 0 or less: the unsaturated end's). Out of line: the flux model's and the
+    /// machine model's call share it (inlined into both, the firmware took 80 B more flash).
+    #[inline(never)]
+    pub fn ratio(&self, i_m_a: f32) -> f32 {
+        let u = i_m_a * self.steps_per_a;
+        let y = &self.flux_ratio;
+        let at = |m: usize| y.get(m.wrapping_sub(1)).copied().unwrap_or(0.0);
+        let step = TABLE_STEP as f32;
+        if u.partial_cmp(&1.0) != Some(core::cmp::Ordering::Greater) {
+            return at(1) / step;
+        }
+        let m = (u as usize).clamp(1, TABLE_POINTS - 1);
+        (at(m) + (u - m as f32) * (at(m + 1) - at(m))) / (u * step)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -372,5 +539,62 @@ mod tests {
         assert_eq!(MagnetizingCurve::points(&[1.0, 2.0], &[1.0, 0.5]), Err(CurveError::NotRising(1)));
         assert_eq!(MagnetizingCurve::points(&[-1.0, 2.0], &[1.0, 2.0]), Err(CurveError::NotRising(0)));
         assert_eq!(MagnetizingCurve::points(&[0.5; 17], &[1.0; 17]), Err(CurveError::Count));
+    }
+
+    /// The drive's table of motulator's 2.2-kW curve at its rated rotor flux: the chord it
+    /// gives is the curve's own to a fraction of a percent from a third of the rated current
+    /// to twice it (linear interpolation of a bending curve), 1 at the rated point, the
+    /// unsaturated inductance below the first step; the f32 copy the drive runs agrees with
+    /// it; a straight curve gives 1 everywhere.
+    #[test]
+    fn the_drive_table_follows_the_curve() {
+        let curve = MagnetizingCurve::law(0.34, 0.84, 7.0).unwrap();
+        let psi_n = 0.95;
+        let (t, i_n) = MagnetizingTable::of_curve(&curve, psi_n).unwrap();
+        t.validate().unwrap();
+        assert!((curve.current_a(psi_n) - i_n).abs() < 1e-12);
+        let chord = MagnetizingChord::new(Some(&t), i_n, psi_n);
+        let mut worst: f64 = 0.0;
+        for k in 0..=170 {
+            let x = 0.3 + 0.01 * f64::from(k);
+            let truth = curve.flux_at_total_current(x * i_n, 0.0) / (x * psi_n);
+            worst = worst.max((t.chord_ratio(x) / truth - 1.0).abs());
+            let f32_ratio = f64::from(chord.ratio((x * i_n) as f32));
+            assert!((f32_ratio / t.chord_ratio(x) - 1.0).abs() < 1e-5, "x {x}: {f32_ratio}");
+            // Read by flux: the same chord at the flux the table gives that current.
+            let psi = t.chord_ratio(x) * x * psi_n;
+            let by_flux = f64::from(chord.ratio_at_flux(psi as f32));
+            assert!((by_flux / t.chord_ratio(x) - 1.0).abs() < 1e-4, "x {x}: {by_flux}");
+        }
+        assert!(worst < 0.01, "worst chord error {worst}");
+        assert_eq!(t.chord_ratio(1.0), 1.0);
+        let unsat = curve.flux_at_total_current(0.1 * i_n, 0.0) / (0.1 * psi_n);
+        assert!((t.chord_ratio(0.0) / unsat - 1.0).abs() < 0.01, "{} vs {unsat}", t.chord_ratio(0.0));
+        assert!(!MagnetizingChord::new(None, i_n, psi_n).on());
+        assert_eq!(chord.ratio_at_flux(0.0), chord.ratio(0.0));
+
+        let straight = MagnetizingCurve::points(&[0.5, 1.0], &[1.0, 2.0]).unwrap();
+        let (t, _) = MagnetizingTable::of_curve(&straight, 0.8).unwrap();
+        for x in [0.0, 0.2, 0.9, 1.0, 1.7, 2.5] {
+            assert!((t.chord_ratio(x) - 1.0).abs() < 1e-9, "{x}: {}", t.chord_ratio(x));
+        }
+        assert!(MagnetizingTable::of_curve(&straight, 0.0).is_none());
+    }
+
+    /// A table the drive cannot settle on is refused at the point that breaks it.
+    #[test]
+    fn a_table_the_drive_cannot_run_on_is_refused() {
+        let good =
+            MagnetizingTable::of_curve(&MagnetizingCurve::law(0.34, 0.84, 7.0).unwrap(), 0.95).unwrap().0;
+        let with = |k: usize, y: f64| {
+            let mut t = good;
+            t.flux_ratio[k] = y;
+            t.validate()
+        };
+        assert_eq!(with(3, f64::NAN), Err(TableError(3)));
+        assert_eq!(with(10, good.flux_ratio[9]), Err(TableError(10)));
+        // A step more than twice as steep as the chord to it.
+        assert_eq!(with(5, 2.0), Err(TableError(5)));
+        assert_eq!(with(7, 1.01), Err(TableError(TABLE_POINTS)));
     }
 }

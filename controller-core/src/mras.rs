@@ -367,7 +367,7 @@ impl MrasConfig {
     /// asked for over the slow period's `steps` fast steps, the d-axis current reference
     /// `i_d_a` (A) and the inductance scale in use `l_now`. Returns what it measured once,
     /// when the third window closes (module docs), `None` before, after and when the fit is
-    /// given up: the reference moved by more than [`FIT_I_D_TOLERANCE`] (field weakening on a
+    /// given up: the reference moved by more than [`FIT_I_D_TOLERANCE`] from the first window on (field weakening on a
     /// spinning rotor), or the voltage is not finite. [`RotorFit::new`] starts it (at the
     /// enable).
     pub fn fit(
@@ -382,7 +382,11 @@ impl MrasConfig {
             return None;
         }
         let first = f.steps == 0;
-        if first {
+        // The reference is taken up to the first window: a move before it (a saturating
+        // machine's model settling on its curve in field weakening) leaves one decay at the
+        // rotor's rate after it, which the windows read, and the flux linkage of the final
+        // current.
+        if f.steps <= self.fit_skip_steps {
             f.i_d_a = i_d_a;
         }
         if !(v_d_sum_v.is_finite() && (i_d_a - f.i_d_a).abs() <= FIT_I_D_TOLERANCE * f.i_d_a.abs()) {

@@ -11,9 +11,9 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 99;
+pub const FLOATS: usize = 117;
 /// Integers in a raw drive configuration.
-pub const INTEGERS: usize = 23;
+pub const INTEGERS: usize = 24;
 
 /// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
 /// expression: what the firmware's build script writes.

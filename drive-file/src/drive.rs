@@ -893,6 +893,12 @@ pub struct DriveFile {
     pub board: Option<crate::board::Board>,
     /// What the user asks of the drive (the defaults where the file is silent).
     pub requirements: crate::requirements::Requirements,
+    /// A saturating motor as its file writes it — its form's T model at `lm_h` and its
+    /// magnetizing branch — the machine the simulator runs for this drive (`spec.motor` is
+    /// the drive's linear model at the rated flux, `spec.magnetizing` its table); `None` for
+    /// a linear motor.
+    pub saturating_motor:
+        Option<(controller_core::motor::MotorParams, controller_core::magnetics::Saturation)>,
 }
 
 impl DriveFile {
@@ -938,7 +944,11 @@ impl DriveTables {
         let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
         let board = self.board.as_ref().map(|b| b.validate(src, &spec)).transpose()?;
         let requirements = self.requirements.validate(src, spec.pwm_frequency_hz)?;
-        Ok(DriveFile { spec, certify, board, requirements })
+        let saturating_motor = match self.motor.validate_model(src, "motor")? {
+            (m, Some(sat)) => Some((m, sat)),
+            (_, None) => None,
+        };
+        Ok(DriveFile { spec, certify, board, requirements, saturating_motor })
     }
 }
 
@@ -975,7 +985,9 @@ pub fn drive_spec(
         &format!("must lie in 1…{SLOW_DIVIDER_MAX}"),
     )?;
     let motor_table = motor;
-    let motor = motor.validate(src, "motor")?;
+    finite(src, "controller.flux_ref_wb", c.flux_ref_wb)?;
+    src.check(c.flux_ref_wb > 0.0, "controller.flux_ref_wb", "must be > 0")?;
+    let (motor, magnetizing) = motor.drive_model(src, "motor", c.flux_ref_wb)?;
     let current_law = match c.current {
         CurrentTable::Icad { kp: None, ki: None, lag_num: None, lag_den: None } => CurrentLaw::ICAD_EQ20,
         CurrentTable::Icad { kp: Some(kp), ki: Some(ki), lag_num: Some(n), lag_den: Some(d) } => {
@@ -1098,6 +1110,7 @@ pub fn drive_spec(
         sample_window_s,
         rotor_resistance_range: c.rotor_resistance_range,
         inductance_range: c.inductance_range,
+        magnetizing,
         protection: {
             let basis = DefaultsBasis {
                 flux_ref_wb: c.flux_ref_wb,
@@ -1147,6 +1160,7 @@ pub fn drive_spec(
             ),
         ),
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
+        DriveError::Magnetizing(_) => src.error("motor.saturation", e.to_string()),
         DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
         DriveError::RotorResistanceRange => {
             src.error("controller.rotor_resistance_range", range_need("rr_ohm"))

@@ -630,4 +630,49 @@ mod tests {
         assert_eq!(relative_to(Path::new("s.toml"), "d.toml"), PathBuf::from("d.toml"));
         assert_eq!(relative_to(Path::new("a/s.toml"), "/x/d.toml"), PathBuf::from("/x/d.toml"));
     }
+
+    /// A drive whose `[motor]` saturates runs on its curve (issue 50). Before, the file's
+    /// `[motor.saturation]` was read and dropped: the drive ran a linear model on the
+    /// unsaturated `lm_h` (1.998 H for a machine whose rated-flux inductance is 1.44 H), its
+    /// magnetizing current 28 % short. Now its `L_m` is the curve's chord at
+    /// `controller.flux_ref_wb`, the leakage as written, the curve its table; the simulator's
+    /// machine is the file's own ([`DriveFile::saturating_motor`]); a curve the drive cannot
+    /// run on names `motor.saturation`.
+    #[test]
+    fn a_saturating_motor_runs_on_its_curve() {
+        let (start, end) = (SHIPPED.find("\n[motor]").unwrap(), SHIPPED.find("\nrs_ohm = 16.2").unwrap());
+        let twin = "\n[motor]\nform = \"gamma\"\nlm_h = 1.99765926\nl_sigma_h = 0.102551081\n";
+        let text = format!("{}{twin}{}", &SHIPPED[..start], &SHIPPED[end..])
+            .replacen("ls_h = 1.44\nlr_h = 1.5\nlm_h = 1.42\n", "", 1)
+            .replacen(
+                "\n[controller]",
+                "\n[motor.saturation]\nbeta_per_wb = 0.956813\nexponent = 7.0\n\n[controller]",
+                1,
+            );
+        let d = DriveFile::parse(Path::new("d.toml"), &text).unwrap();
+        let (plant, sat) = d.saturating_motor.unwrap();
+        assert_eq!(plant.lm_h(), 1.99765926);
+        let psi = d.spec.flux_ref_wb;
+        let m = &d.spec.motor;
+        assert!((m.lm_h() - psi / sat.curve.current_a(psi)).abs() < 1e-12, "{}", m.lm_h());
+        // At the drive's 0.9 Wb, a little below the 0.913 Wb at which the file places 1.44 H.
+        assert!((1.44..1.5).contains(&m.lm_h()), "{}", m.lm_h());
+        assert!(((m.lr_h() - m.lm_h()) - 0.102551081).abs() < 1e-12 && m.ls_h() == m.lm_h());
+        let t = d.spec.magnetizing.unwrap();
+        assert_eq!(t.chord_ratio(1.0), 1.0);
+        assert!(t.chord_ratio(0.5) > 1.2, "{}", t.chord_ratio(0.5));
+        // Linear files have none.
+        assert!(DriveFile::shipped().unwrap().spec.magnetizing.is_none());
+        assert!(DriveFile::shipped().unwrap().saturating_motor.is_none());
+        // A curve whose flux jumps past a low knee (8 H between 0.5 and 0.6 A, 1.5 H of chord
+        // at the rated 0.6 A): the drive's chord model would not settle on it.
+        let steep = text.replace(
+            "beta_per_wb = 0.956813\nexponent = 7.0",
+            "flux_wb = [0.1, 0.9, 1.0]\ncurrent_a = [0.5, 0.6, 0.7]",
+        );
+        assert_ne!(steep, text);
+        let e = DriveFile::parse(Path::new("d.toml"), &steep).unwrap_err();
+        assert_eq!(e.key.as_deref(), Some("motor.saturation"), "{e}");
+        assert!(e.reason.contains("twice as steeply"), "{e}");
+    }
 }

@@ -6,7 +6,9 @@
 //! accepts each of them, and the shipped motors by name ([`BUILTIN`]).
 
 use crate::source::{self, FileError, Source, num};
-use controller_core::magnetics::{CURVE_POINTS_MAX, CurveError, Form, MagnetizingCurve, Saturation};
+use controller_core::magnetics::{
+    CURVE_POINTS_MAX, CurveError, Form, MagnetizingCurve, MagnetizingTable, Saturation,
+};
 use controller_core::motor::{MotorError, MotorField, MotorParams};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -272,6 +274,50 @@ impl MotorTable {
             Some(t) => Some(self.saturation_of(t, form, src, table)?),
         };
         Ok((params, saturation))
+    }
+
+    /// The motor as a drive runs it at the rotor flux `flux_ref_wb` (issue 50): a linear
+    /// motor's T model ([`MotorTable::validate`]) and no table; a saturating motor's T model
+    /// with its magnetizing inductance the curve's chord at that flux at no load (where the
+    /// branch's flux is the rotor's, in either form) — `L_m`, and `L_s`, `L_r` with it, so
+    /// the leakage is the file's — and the curve as the drive's table
+    /// ([`MagnetizingTable::of_curve`]). A table the drive cannot run on names
+    /// `[motor.saturation]`.
+    pub fn drive_model(
+        &self,
+        src: &Source<'_>,
+        table: &str,
+        flux_ref_wb: f64,
+    ) -> Result<(MotorParams, Option<MagnetizingTable>), FileError> {
+        let (m, saturation) = self.validate_model(src, table)?;
+        let Some(sat) = saturation else { return Ok((m, None)) };
+        let key = format!("{table}.saturation");
+        let rated = MagnetizingTable::of_curve(&sat.curve, flux_ref_wb)
+            .filter(|(t, i)| t.validate().is_ok() && i.is_finite() && *i > 0.0);
+        let Some((t, i_rated_a)) = rated else {
+            return Err(src.error(
+                &key,
+                format!(
+                    "the drive cannot run on this curve at controller.flux_ref_wb = {} Wb: its flux must rise \
+                     with the current, and no step of it more than twice as steeply as the chord to it, from 0 to \
+                     twice the rated flux's magnetizing current",
+                    num(flux_ref_wb)
+                ),
+            ));
+        };
+        let shift = flux_ref_wb / i_rated_a - m.lm_h();
+        let at_rated = MotorParams::new(
+            m.rs_ohm(),
+            m.rr_ohm(),
+            m.ls_h() + shift,
+            m.lr_h() + shift,
+            m.lm_h() + shift,
+            m.pole_pairs(),
+            m.j_kgm2(),
+            m.b_nms(),
+        )
+        .map_err(|_| src.error(&key, "its chord at controller.flux_ref_wb leaves no valid T model"))?;
+        Ok((at_rated, Some(t)))
     }
 
     /// The `[motor.saturation]` table as the branch's curve.

@@ -79,6 +79,10 @@ pub struct Point {
     pub physical_nm: f64,
     /// Mean rotor flux magnitude of the machine model over the window, Wb.
     pub flux_wb: f64,
+    /// The torque asked for, N·m (magnitude).
+    pub asked_nm: f64,
+    /// Mean of the drive's rotor-flux reference over the window, Wb.
+    pub flux_ref_wb: f64,
     /// The drive's mode at the end (Running unless something tripped).
     pub mode: Mode,
 }
@@ -88,6 +92,27 @@ impl Point {
     pub fn relative_error(&self) -> f64 {
         (self.measured_nm - self.analytic_nm) / self.analytic_nm
     }
+
+    /// Measured against the torque asked for, relative (the torque accuracy).
+    pub fn torque_error(&self) -> f64 {
+        (self.measured_nm - self.asked_nm) / self.asked_nm
+    }
+
+    /// The machine's rotor flux against the drive's reference, relative (the flux accuracy).
+    pub fn flux_error(&self) -> f64 {
+        (self.flux_wb - self.flux_ref_wb) / self.flux_ref_wb
+    }
+}
+
+/// What a point asks of the drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Ask {
+    /// More than it can give ([`TORQUE_ASKED_FACTOR`] × the analytic envelope): the envelope.
+    Beyond,
+    /// This fraction of the analytic envelope on the drive's own voltage target
+    /// (`voltage_margin` of the linear limit at `duty_max`, what the drive can deliver): the
+    /// torque and flux accuracy.
+    Fraction(f64),
 }
 
 /// Measure the envelope of drive `spec` on plant `plant` at bus `vdc_v` at each of `speeds`
@@ -115,6 +140,19 @@ pub fn measure_on(
     speeds: &[f64],
     sign: f32,
 ) -> Result<Vec<Point>, String> {
+    measure_asking(spec, plant, saturation, vdc_v, speeds, sign, Ask::Beyond)
+}
+
+/// [`measure_on`], each point asking `ask` of the drive.
+pub fn measure_asking(
+    spec: &DriveSpec,
+    plant: &MotorParams,
+    saturation: Option<&Saturation>,
+    vdc_v: f64,
+    speeds: &[f64],
+    sign: f32,
+    ask: Ask,
+) -> Result<Vec<Point>, String> {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(speeds.len().max(1));
     let next = std::sync::atomic::AtomicUsize::new(0);
     let mut results: Vec<Option<Result<Point, String>>> = vec![None; speeds.len()];
@@ -126,7 +164,7 @@ pub fn measure_on(
                     loop {
                         let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                         let Some(&w) = speeds.get(i) else { break };
-                        done.push((i, point(spec, plant, saturation, vdc_v, w, sign)));
+                        done.push((i, point(spec, plant, saturation, vdc_v, w, sign, ask)));
                     }
                     done
                 })
@@ -150,6 +188,7 @@ fn point(
     vdc_v: f64,
     w: f64,
     sign: f32,
+    ask: Ask,
 ) -> Result<Point, String> {
     let run_s = run_s(spec);
     let model = if saturation.is_some() { &spec.motor } else { plant };
@@ -161,7 +200,22 @@ fn point(
         spec.i_ref_max_a,
         20_000,
     );
-    let asked_nm = (TORQUE_ASKED_FACTOR * analytic) as f32;
+    let asked = match ask {
+        Ask::Beyond => TORQUE_ASKED_FACTOR * analytic,
+        Ask::Fraction(f) => {
+            let v_target = spec.voltage_margin * spec.duty_max() * vdc_v / 3f64.sqrt();
+            let (within, _, _) = envelope_by_grid(
+                model,
+                f64::from(sign) * w,
+                rated_d_current_a(spec, model),
+                v_target,
+                spec.i_ref_max_a,
+                20_000,
+            );
+            f * within
+        }
+    };
+    let asked_nm = asked as f32;
     let b = Builtin {
         name: format!("envelope-{w}"),
         about: String::new(),
@@ -190,7 +244,10 @@ fn point(
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| (lo.min(r.torque_nm), hi.max(r.torque_nm)));
     let flux = window.iter().map(|r| r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb)).sum::<f64>() / n;
+    let flux_ref = window.iter().map(|r| r.psi_ref_wb).sum::<f64>() / n;
     Ok(Point {
+        asked_nm: asked,
+        flux_ref_wb: flux_ref,
         omega_m_rad_s: w,
         measured_nm: mean.abs(),
         ripple_nm: hi - lo,

@@ -200,6 +200,16 @@ struct EnvelopeArgs {
     /// [motor] table); the physical limit is then that motor's, its saturation included.
     #[arg(long)]
     plant: Option<String>,
+    /// Ask this fraction (0 < F ≤ 1) of the envelope on the drive's voltage target instead of
+    /// more than it has, and judge the torque against the torque asked and the machine's rotor
+    /// flux against the drive's reference (each within 5 %): the torque and flux accuracy.
+    #[arg(long, value_parser = torque_fraction)]
+    torque_fraction: Option<f64>,
+}
+
+/// `--torque-fraction`: a fraction of the envelope.
+fn torque_fraction(s: &str) -> Result<f64, String> {
+    number(s, |x| x > 0.0 && x <= 1.0, "a fraction of the envelope in (0, 1]")
 }
 
 #[derive(Args, Debug)]
@@ -389,7 +399,7 @@ macro_rules! options_from_args {
 
 options_from_args! {
     RunArgs => RunOptions { scenario, out }
-    EnvelopeArgs => EnvelopeOptions { drive, vdc, points, generating, out, plant }
+    EnvelopeArgs => EnvelopeOptions { drive, vdc, points, generating, out, plant, torque_fraction }
     CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out, plant, trace }
     FaultsArgs => FaultsOptions { drive, vdc, out, inject_delay_ms, seed, only, trace, plant }
     CommissionArgs => CommissionOptions {

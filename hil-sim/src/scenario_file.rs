@@ -96,7 +96,7 @@ use crate::inverter::InverterModel;
 use crate::scenario::Builtin;
 use crate::sensors::SensorModel;
 use crate::sim::{Event, Injection, LoadModel, OpenLoop, PassiveLoad, Scenario};
-use controller_core::drive::{DriveSpec, Reference};
+use controller_core::drive::Reference;
 use controller_core::fault::Fault;
 use drive_file::board::BoardTable;
 use drive_file::certify::CertifyTable;
@@ -340,7 +340,7 @@ fn check_timing(src: &Source<'_>, duration_s: f64, sample_period_s: f64) -> Resu
 }
 
 /// The drive a closed-loop file names or embeds.
-fn drive_of(src: &Source<'_>, f: &ClosedLoopFile) -> Result<DriveSpec, FileError> {
+fn drive_of(src: &Source<'_>, f: &ClosedLoopFile) -> Result<DriveFile, FileError> {
     if let Some(reference) = &f.drive {
         let embedded = [
             ("pwm", f.pwm.is_some()),
@@ -357,7 +357,6 @@ fn drive_of(src: &Source<'_>, f: &ClosedLoopFile) -> Result<DriveSpec, FileError
         }
         let path = drive_file::relative_to(src.path(), reference);
         return DriveFile::load(&path)
-            .map(|d| d.spec)
             .map_err(|e| if e.at.is_none() { src.error("drive", e.to_string()) } else { e });
     }
     let missing =
@@ -372,7 +371,7 @@ fn drive_of(src: &Source<'_>, f: &ClosedLoopFile) -> Result<DriveSpec, FileError
         // A scenario runs the drive; what the user asks of it is judged by the campaign.
         requirements: Default::default(),
     };
-    Ok(tables.validate(src)?.spec)
+    tables.validate(src)
 }
 
 /// Parse and validate a closed-loop scenario read from `file`.
@@ -381,7 +380,8 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
     let f: ClosedLoopFile = src.deserialize()?;
     check_timing(&src, f.duration_s, f.sample_period_s)?;
     src.check(f.vdc_v.is_finite() && f.vdc_v > 0.0, "vdc_v", "must be finite and > 0")?;
-    let spec = drive_of(&src, &f)?;
+    let drive = drive_of(&src, &f)?;
+    let spec = drive.spec;
     let periods = f.sample_period_s * spec.pwm_frequency_hz;
     src.check(
         periods >= 0.999 && (periods - periods.round()).abs() <= 1e-6 * periods,
@@ -389,11 +389,12 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         &format!("must be a whole number of PWM periods (is {periods:.4})"),
     )?;
     src.check((1..=1000).contains(&f.rk4_substeps), "rk4_substeps", "must lie in 1…1000")?;
-    // The simulated machine: [plant] when given, else the motor; it saturates when its
-    // table has a [*.saturation] (the drive's model stays linear).
-    let (plant, plant_saturation) = match (&f.plant, &f.motor) {
+    // The simulated machine: [plant] when given, else the drive's motor as its file writes
+    // it — saturating when its table has a [*.saturation] (the drive then runs on the curve
+    // too: `DriveFile::saturating_motor`).
+    let (plant, plant_saturation) = match (&f.plant, drive.saturating_motor) {
         (Some(p), _) => p.validate_model(&src, "plant")?,
-        (None, Some(m)) => (spec.motor, m.validate_model(&src, "motor")?.1),
+        (None, Some((m, sat))) => (m, Some(sat)),
         (None, None) => (spec.motor, None),
     };
     let mut events = Vec::with_capacity(f.events.len());

@@ -8,6 +8,7 @@ use crate::encoder::SPEED_WINDOW_READS;
 use crate::envelope::EnvelopeConfig;
 use crate::fault::FaultSet;
 use crate::ifoc::IfocConfig;
+use crate::magnetics::MagnetizingChord;
 use crate::mras::{MrasConfig, MrasError};
 use crate::observer::{CORRECTION_PER_SAMPLE_MAX, ObserverConfig};
 use crate::raw::{self, RawDriveConfig};
@@ -122,6 +123,9 @@ crate::raw::raw_struct! {
         /// address arithmetic (placed before the field orientation, its 60 B cost the
         /// firmware's interrupt 10 instructions per period).
         pub(super) control: ControlLaw,
+        /// The magnetizing curve the slow step follows (a linear motor's: off). After the
+        /// control law: the slow step alone reads it.
+        pub(super) magnetizing: MagnetizingChord,
     }
 }
 
@@ -339,6 +343,9 @@ impl DriveConfig {
         {
             return Err(DriveError::FluxReference);
         }
+        if let Some(t) = &spec.magnetizing {
+            t.validate().map_err(DriveError::Magnetizing)?;
+        }
         let p = &spec.protection;
         // Each threshold with what it needs, in the order they are judged: the first that
         // fails is named.
@@ -544,6 +551,11 @@ impl DriveConfig {
                         .map_err(DriveError::Vhz)?,
                 ),
             },
+            magnetizing: MagnetizingChord::new(
+                spec.magnetizing.as_ref(),
+                spec.flux_ref_wb / spec.motor.lm_h(),
+                spec.flux_ref_wb,
+            ),
         })
     }
 }
@@ -589,6 +601,7 @@ impl DriveConfig {
             || counts.contains(&0)
             || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
             || cfg.vhz_on != matches!(cfg.control, ControlLaw::VHz(_))
+            || !cfg.magnetizing.is_valid()
         {
             return Err(DriveError::Raw);
         }

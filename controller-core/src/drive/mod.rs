@@ -369,6 +369,13 @@ struct SlowRun {
     model: EnvelopeConfig,
     /// The d-axis current of the rated flux on the inductance in use, A.
     i_d_rated_a: f32,
+    /// The magnetizing curve's chord at the flux model's current, × the rated one (1 for a
+    /// linear motor): the inductance in use is the identified one × this
+    /// ([`SlowRun::identified_inductance_scale`]; `SlowState::follow_curve`).
+    chord: f32,
+    /// A saturating motor's machine model: the chord of its magnetizing inductance at the
+    /// operating point, × the rated one (1 for a linear motor; `SlowState::remodel`).
+    model_chord: f32,
     /// Slow steps spent magnetizing.
     magnetizing_steps: u32,
     /// The rotor's electrical angle from the encoder, rad, in `[-π, π)`.
@@ -409,6 +416,14 @@ struct SlowRun {
 }
 
 impl SlowRun {
+    /// The inductances identified, × the motor's: those in use over the magnetizing curve's
+    /// chord where the flux model is (the same for a linear motor) — what a new run starts
+    /// from, and what the identification's laws and ranges judge.
+    #[inline]
+    fn identified_inductance_scale(&self) -> f32 {
+        self.ifoc.inductance_scale() / self.chord
+    }
+
     /// A run of `cfg` from rest (no flux, no torque, every count at zero) on the rotor
     /// resistance `rr_scale` and the inductances `l_scale` × the motor's, with the
     /// magnetizing fit `rotor_fit`. Out of line: one copy for power-up, an enable and a
@@ -435,6 +450,8 @@ impl SlowRun {
             rotor_fit,
             model: cfg.envelope.with_inductance_scale(l_scale),
             i_d_rated_a: cfg.i_d_rated_a / l_scale,
+            chord: 1.0,
+            model_chord: 1.0,
             magnetizing_steps: 0,
             theta_r_rad: 0.0,
             field_last_rad: None,
@@ -650,7 +667,7 @@ impl Drive {
         let [rr_min, rr_max] = cfg.mras.range();
         let [l_min, l_max] = cfg.mras.inductance_range();
         let rr = self.slow.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
-        let l = self.slow.run.ifoc.inductance_scale().limit(l_min, l_max);
+        let l = self.slow.run.identified_inductance_scale().limit(l_min, l_max);
         let thermal = &mut self.slow.machine.thermal;
         thermal.motor = old.motor_thermal.carry(thermal.motor, &cfg.motor_thermal);
         thermal.inverter = old.inverter_thermal.carry(thermal.inverter, &cfg.inverter_thermal);
@@ -737,8 +754,8 @@ impl Drive {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
                 let fit = RotorFit::new(self.cfg.mras.demagnetized_after(self.slow.machine.idle_slow_steps));
-                let ifoc = &self.slow.run.ifoc;
-                let (rr, l) = (ifoc.rotor_resistance_scale(), ifoc.inductance_scale());
+                let run = &self.slow.run;
+                let (rr, l) = (run.ifoc.rotor_resistance_scale(), run.identified_inductance_scale());
                 self.slow.run = SlowRun::new(&self.cfg, rr, l, fit);
                 self.fast.run = FastRun::default();
                 self.vhz = VhzRun::default();

@@ -251,6 +251,12 @@ pub struct DriveSpec {
     pub speed_feedback: SpeedFeedback,
     /// The control law.
     pub control: Control,
+    /// The magnetizing curve the drive runs on (issue 50), `None` for a linear motor: the
+    /// rotor flux at no load against the magnetizing current per unit of the rated point
+    /// (`flux_ref_wb` at `flux_ref_wb/motor.lm_h()` — the motor's `L_m` is the curve's chord
+    /// there). The field orientation's and the machine model's inductances follow the chord
+    /// at the flux model's magnetizing current.
+    pub magnetizing: Option<crate::magnetics::MagnetizingTable>,
 }
 
 impl DriveSpec {
@@ -323,6 +329,8 @@ pub enum DriveError {
     Observer(ObserverError),
     /// The V/Hz law's configuration was rejected.
     Vhz(VhzError),
+    /// The magnetizing table was rejected.
+    Magnetizing(crate::magnetics::TableError),
 }
 
 impl core::fmt::Display for DriveError {
@@ -363,6 +371,12 @@ impl core::fmt::Display for DriveError {
             Self::Protection { field, need } => write!(f, "{field}: {need}"),
             Self::Observer(e) => write!(f, "speed_feedback (sensorless): {e}"),
             Self::Vhz(e) => write!(f, "control (V/Hz): {e}"),
+            Self::Magnetizing(crate::magnetics::TableError(k)) => write!(
+                f,
+                "magnetizing: point {k} is not finite, not above the one before, or more than twice as steep \
+                 as the chord to it — or the rated point's flux is not 1 (point {})",
+                crate::magnetics::TABLE_POINTS
+            ),
             Self::BrakeChopper => write!(
                 f,
                 "protection.brake_chopper: needs 0 < off_v < on_v < {REGEN_LIMIT_START} × protection.vdc_max_v"

@@ -54,6 +54,7 @@ pub(crate) fn test_spec() -> DriveSpec {
         },
         speed_feedback: SpeedFeedback::Encoder,
         control: Control::Vector,
+        magnetizing: None,
     }
 }
 
@@ -250,6 +251,15 @@ fn raw_configuration_round_trips() {
             }
         }
     }
+    // A saturating motor's table round-trips; switched on over a linear motor's zeros (the
+    // last integer) it is refused.
+    let curve = crate::magnetics::MagnetizingCurve::law(3.0, 1.0, 7.0).unwrap();
+    let (table, _) = crate::magnetics::MagnetizingTable::of_curve(&curve, 0.9).unwrap();
+    let saturating = DriveConfig::new(&DriveSpec { magnetizing: Some(table), ..test_spec() }).unwrap();
+    assert_eq!(DriveConfig::from_raw(&saturating.to_raw()), Ok(saturating));
+    let mut bad = DriveConfig::new(&test_spec()).unwrap().to_raw();
+    bad.u[raw::INTEGERS - 1] = 1;
+    assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // V/Hz: its numbers round-trip, and a V/Hz tag on a vector drive's zeros is refused.
     let vhz = DriveConfig::new(&DriveSpec {
         control: Control::VHz { ramp_rad_s2: 100.0, k_u: 1.0, k_w: 4.0 },
@@ -279,19 +289,19 @@ fn raw_configuration_round_trips() {
     bad.u[1] = 7; // the current frame's tag
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 15] = 0; // the slow divider
+    bad.u[raw::INTEGERS - 16] = 0; // the slow divider
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 4] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
+    bad.u[raw::INTEGERS - 5] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // The observer's tag (before the control law's): unknown, or the observer's numbers not a
     // valid observer.
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 2] = 3;
+    bad.u[raw::INTEGERS - 3] = 3;
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     for tag in [1, 2] {
         let mut bad = raw;
-        bad.u[raw::INTEGERS - 2] = tag; // an encoder drive's zeros read as an observer
+        bad.u[raw::INTEGERS - 3] = tag; // an encoder drive's zeros read as an observer
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "tag {tag}");
     }
     // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.

@@ -70,6 +70,10 @@ fn every_command_round_trips() {
     largest.protection.inverter_thermal = Some(thermal);
     largest.protection.stop_on = crate::drive::FaultSet::STOPPABLE;
     largest.control = crate::drive::Control::VHz { ramp_rad_s2: 200.0, k_u: 1.0, k_w: 4.0 };
+    // A straight curve's table: each point exact in f32, the wire's precision.
+    largest.magnetizing = Some(crate::magnetics::MagnetizingTable {
+        flux_ratio: core::array::from_fn(|k| (k + 1) as f64 * crate::magnetics::TABLE_STEP),
+    });
     let cmds = [
         Command::Configure(spec),
         Command::Configure(largest),

@@ -93,6 +93,22 @@ pub fn plant_model(
     Ok((motor, saturation))
 }
 
+/// The machine a command simulates for drive `file`: `asked` (`--plant`, [`plant_model`]),
+/// else the file's own saturating motor ([`drive_file::DriveFile::saturating_motor`]: a drive
+/// on its curve runs against the curve), else `None` — the drive's own linear motor.
+pub fn simulated_motor(
+    asked: Option<&str>,
+    file: &drive_file::DriveFile,
+) -> Result<
+    Option<(controller_core::motor::MotorParams, Option<controller_core::magnetics::Saturation>)>,
+    String,
+> {
+    match asked {
+        Some(p) => plant_model(p, &file.spec).map(Some),
+        None => Ok(file.saturating_motor.map(|(m, s)| (m, Some(s)))),
+    }
+}
+
 /// The bus a command runs on when none is asked ([`bus_voltage`], silently): the file's rated
 /// bus, or [`DEFAULT_VDC_V`] within the drive's bus range, or that range's middle.
 pub fn default_bus_v(file: &drive_file::DriveFile) -> f64 {

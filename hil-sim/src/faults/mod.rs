@@ -321,6 +321,8 @@ impl Matrix {
             .board
             .and_then(|b| b.table.comparator)
             .map(|c| crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
+        // A drive on its magnetizing curve against the file's saturating machine.
+        m.plant = file.saturating_motor.map(|(motor, sat)| (motor, Some(sat)));
         m
     }
 

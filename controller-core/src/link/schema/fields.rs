@@ -12,6 +12,7 @@ use crate::drive::{
     Reference, SpeedFeedback, ThermalLimit,
 };
 use crate::frames::Abc;
+use crate::magnetics::{MagnetizingTable, TABLE_POINTS};
 use crate::motor::MotorParams;
 use crate::speed::SpeedLaw;
 use crate::supervisor::THRESHOLD_COUNT;
@@ -179,12 +180,21 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
     })?;
     // The control law: a tag, and V/Hz's ramp.
     match s.control {
-        Control::Vector => w.u8(0),
+        Control::Vector => w.u8(0)?,
         Control::VHz { ramp_rad_s2, k_u, k_w } => {
             w.u8(1)?;
             w.f64(ramp_rad_s2)?;
             w.f64(k_u)?;
-            w.f64(k_w)
+            w.f64(k_w)?;
+        }
+    }
+    // The magnetizing table: a tag, and its points in f32 — the precision the drive runs it
+    // in (`DriveConfig::new` rounds them to f32 and nothing else reads them).
+    match &s.magnetizing {
+        None => w.u8(0),
+        Some(t) => {
+            w.u8(1)?;
+            t.flux_ratio.iter().try_for_each(|&y| w.f32(y as f32))
         }
     }
 }
@@ -255,6 +265,17 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         1 => Control::VHz { ramp_rad_s2: r.f64()?, k_u: r.f64()?, k_w: r.f64()? },
         _ => return Err(DecodeError::Value),
     };
+    let magnetizing = match r.u8()? {
+        0 => None,
+        1 => {
+            let mut t = MagnetizingTable { flux_ratio: [0.0; TABLE_POINTS] };
+            for y in t.flux_ratio.iter_mut() {
+                *y = f64::from(r.f32()?);
+            }
+            Some(t)
+        }
+        _ => return Err(DecodeError::Value),
+    };
     Ok(DriveSpec {
         motor,
         pwm_frequency_hz,
@@ -277,6 +298,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         protection,
         speed_feedback,
         control,
+        magnetizing,
     })
 }
 
