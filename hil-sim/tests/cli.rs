@@ -1081,3 +1081,18 @@ fn a_bus_outside_the_drives_range_is_said() {
     assert!(!err.contains("lies outside the drive's range"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `envelope --torque-fraction` outside [0.01, 1] is refused before anything runs (1e-300
+/// asked a torque that rounded to zero and printed a torque error of 10^300 %).
+#[test]
+fn a_torque_fraction_outside_its_range_is_refused() {
+    let out = tmp("fraction");
+    for bad in ["0", "1.5", "nan", "1e-300", "0.001", "-0.5"] {
+        // `=`: a negative value is the option's, not another option.
+        let fraction = format!("--torque-fraction={bad}");
+        let st = bin().args(["envelope", "--points", "2", &fraction, "--out"]).arg(&out).output().unwrap();
+        assert_eq!(st.status.code(), Some(2), "{bad}: {st:?}");
+        assert!(String::from_utf8_lossy(&st.stderr).contains("fraction of the envelope"), "{bad}: {st:?}");
+        assert!(!out.exists(), "{bad}");
+    }
+}
