@@ -640,16 +640,18 @@ impl SlowState {
     /// ([`EnvelopeConfig::with_magnetizing_scale`]) — the chord at the flux of the last
     /// operating point, `L̂_m·i_d` on the model that planned it (the rated flux before the
     /// first). The flux model's chord, where the flux is now, planned a magnetizing machine's
-    /// voltage on the unsaturated inductance and lowered its rated flux below base speed (a
-    /// flying start at 149 rad/s on the 300 W motor's saturating twin gave up its rotor fit,
-    /// and its R̂_r stayed 37 % high). Read at the flux, not at the current: in field
-    /// weakening the voltage sets the flux whatever the chord, so the model is the curve's
-    /// from the next refresh on — read at the current, it settled by a fraction of its error
-    /// per refresh, and the moving reference gave up the flying start's rotor fit. Running,
-    /// it moves [`MODEL_CHORD_RELAXATION`] of the way each refresh: at the current limit the
-    /// point's flux depends on the chord more than one for one, and the full step swung the
-    /// twin's torque 1.8 ↔ 3.1 N·m at 37 rad/s (a limit cycle of the refreshes). A machine
-    /// whose inductances are ℓ × the file's has ℓ × the file's chord at the same flux.
+    /// voltage on the unsaturated inductance and lowered its rated flux below base speed: a
+    /// flying start near base speed gave up its rotor fit on the moving reference (the 300 W
+    /// motor's saturating twin at 149 rad/s, a tenth of its envelope: 37.5 % too much torque,
+    /// `hil-sim envelope drives/delorenzo-saturating.toml --torque-fraction 0.1`). Read at
+    /// the flux, not at the current: in field weakening the voltage sets the flux whatever
+    /// the chord, so the model is the curve's from the next refresh on — read at the current,
+    /// it settled by a fraction of its error per refresh, and the fit gave up there too.
+    /// Running, it moves [`MODEL_CHORD_RELAXATION`] of the way each refresh: at the current
+    /// limit the point's flux depends on the chord more than one for one, and the full step
+    /// made a limit cycle of the refreshes (the twin's whole envelope at 37 rad/s: 43 % short).
+    /// A machine whose inductances are ℓ × the file's has ℓ × the file's chord at the same
+    /// flux.
     #[cold]
     #[inline(never)]
     fn remodel_on_curve(&mut self, cfg: &DriveConfig) {
