@@ -610,10 +610,7 @@ mod tests {
             requirements: file.requirements,
         };
         c.duration_s = c.step_s() + 2.0 * hil_sim::campaign::MIN_AFTER_STEP_S;
-        c.check().unwrap();
-        let verdicts = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-        let faults: Vec<_> =
-            verdicts.iter().filter(|v| v.failures.contains(&"fault")).map(|v| v.csv()).collect();
+        let faults = faulted(&c);
         assert!(faults.is_empty(), "{faults:#?}");
     }
 

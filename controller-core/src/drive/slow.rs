@@ -641,8 +641,8 @@ impl SlowState {
     /// ([`crate::magnetics::MagnetizingTable::validate`]: the map's slope is
     /// `1 − L_diff/L_chord`), within [`FIT_CURVE_ITERATIONS`]; kept within the inductance
     /// range. Read as ℓ × the assumed chord, the 300 W twin at 0.6 × its file's inductances
-    /// was taken for a less saturated machine: magnetizing current 27 % short, rotor flux
-    /// 13.1 % below its reference (now 15 % and 6.1 %: hil-sim test
+    /// was taken for a less saturated machine: its rotor flux ended 13.1 % below its
+    /// reference (now 6.1 %: hil-sim test
     /// `a_saturating_machine_with_smaller_inductances_is_identified_on_its_curve`; its
     /// campaign 161 → 193 of 200 runs).
     #[cold]
