@@ -219,6 +219,14 @@ impl core::ops::Sub for AlphaBeta {
     }
 }
 
+impl core::ops::AddAssign for Dq {
+    /// Component-wise sum.
+    #[inline]
+    fn add_assign(&mut self, other: Dq) {
+        (self.d, self.q) = (self.d + other.d, self.q + other.q);
+    }
+}
+
 impl Dq {
     /// Inverse Park: α = d cos θ − q sin θ, β = d sin θ + q cos θ.
     #[inline]

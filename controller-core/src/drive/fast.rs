@@ -278,7 +278,7 @@ impl FastState {
         if !running {
             // The magnetizing fit's voltage, in the field frame of this step (at speed the
             // field turns within a slow period): what the machine gets, the request.
-            self.run.v_d_sum += v_req.park(field.field).d;
+            self.run.v_fit_sum += v_req.park(field.field);
         }
         self.finish::<false>(cfg, duty, v_applied, brake)
     }
@@ -374,7 +374,7 @@ impl FastState {
             // the volt-seconds applied).
             let r = self.run.delay_rotation;
             let v = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
-            self.run.v_d_sum += v.park(field).d;
+            self.run.v_fit_sum += v.park(field);
         }
         self.finish::<true>(cfg, modulation.duty, applied, brake)
     }

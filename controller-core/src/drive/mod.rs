@@ -181,9 +181,10 @@ struct FastRun {
     v_req2_sum: f32,
     /// Fast steps in `v_req2_sum`.
     v_req_steps: u16,
-    /// Sum of the d-axis voltage since the last slow step while magnetizing — the loops'
-    /// request, or the modulator's limit of it while it limits (the magnetizing fit's), V.
-    v_d_sum: f32,
+    /// Sum of the field-frame voltage since the last slow step while magnetizing — the
+    /// loops' request, or the modulator's limit of it while it limits (the magnetizing
+    /// fit's, [`crate::mras::FitPeriod`]), V.
+    v_fit_sum: Dq,
     /// The modulator limited the voltage since the last slow step (the trim holds).
     trim_hold: bool,
     /// The last fast step's signals.
@@ -255,7 +256,7 @@ struct SlowInputs {
     sums: (Dq, u16),
     v_req2_sum: f32,
     v_req_steps: u16,
-    v_d_sum: f32,
+    v_fit_sum: Dq,
     /// The modulator limited the voltage since the last tick.
     limited: bool,
     /// The rotating-current test's angle at the tick, rad.
@@ -490,11 +491,11 @@ impl FastState {
             sums: r.field.take_sums(),
             v_req2_sum: r.v_req2_sum,
             v_req_steps: r.v_req_steps,
-            v_d_sum: r.v_d_sum,
+            v_fit_sum: r.v_fit_sum,
             limited: r.trim_hold,
             test_angle_rad: r.test_angle_rad,
         };
-        (r.v_req2_sum, r.v_req_steps, r.v_d_sum, r.trim_hold) = (0.0, 0, 0.0, false);
+        (r.v_req2_sum, r.v_req_steps, r.v_fit_sum, r.trim_hold) = (0.0, 0, Dq::default(), false);
         r.search_psi = AlphaBeta::default();
         inputs
     }

@@ -8,7 +8,7 @@ use crate::envelope::ENVELOPE_REFRESH_SLOW_STEPS;
 use crate::frames::{Abc, wrap_angle};
 #[cfg(doc)]
 use crate::ifoc::IfocConfig;
-use crate::mras::Evidence;
+use crate::mras::{Evidence, FitPeriod};
 use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
 use crate::supervisor::phases::CURRENT_SUM_MEAN_FRACTION;
 use crate::svpwm;
@@ -227,8 +227,11 @@ impl SlowState {
             let r = self.run.ifoc.i_ref_dq();
             self.update_trim(cfg, Dq { d: r.d - i_mean.d, q: r.q - i_mean.q }, limited);
         }
-        // The loops' d-axis request over the slow period while magnetizing.
-        let (v_d_sum, v_d_steps) = (inputs.v_d_sum, inputs.v_req_steps);
+        // The loops' request over the slow period while magnetizing, and the field's angle
+        // over it at the shaft's speed.
+        let (v_fit_sum, v_fit_steps) = (inputs.v_fit_sum, inputs.v_req_steps);
+        let field_step_rad =
+            cfg.envelope.pole_pairs() * m.omega_m_rad_s * cfg.ts_s * f32::from(cfg.slow_divider);
         let (v_target, v_budget) = self.voltage_budget(cfg, inputs, m.vdc_v * cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
         let limit = self.run.torque_max_nm;
@@ -374,9 +377,17 @@ impl SlowState {
             if m.omega_m_rad_s.abs() >= cfg.motion.stall_speed_rad_s {
                 self.run.rotor_fit.turning();
             }
-            if let Some(fit) =
-                cfg.mras.fit(&mut self.run.rotor_fit, v_d_sum, v_d_steps, self.run.flux.i_d_a(), l_now)
-            {
+            let i_d_a = self.run.flux.i_d_a();
+            let built_inductance_scale =
+                if cfg.magnetizing.on() { self.built_inductance_scale(cfg, i_d_a) } else { l_now };
+            let period = FitPeriod {
+                v_sum: v_fit_sum,
+                steps: v_fit_steps,
+                i_d_a,
+                field_step_rad,
+                built_inductance_scale,
+            };
+            if let Some(fit) = cfg.mras.fit(&mut self.run.rotor_fit, &period, l_now) {
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
                 if cfg.magnetizing.on() {
                     self.set_inductance_on_curve(cfg, fit.inductance_scale);
@@ -631,6 +642,16 @@ impl SlowState {
         // The rated flux's current on the curve itself, `ψ(ℓ·i) = ψ*` at `i = i_N/ℓ`: held
         // while the flux builds (the magnetizing fit gives up on a moving reference).
         self.run.i_d_rated_a = cfg.i_d_rated_a / l_id;
+    }
+
+    /// A saturating motor's inductance scale at the flux the d-axis current `i_d_a` builds:
+    /// the identified ℓ × the curve's chord at `ℓ·i_d` ([`Self::follow_curve`] in steady
+    /// state).
+    #[cold]
+    #[inline(never)]
+    fn built_inductance_scale(&self, cfg: &DriveConfig, i_d_a: f32) -> f32 {
+        let l_id = self.run.identified_inductance_scale();
+        l_id * cfg.magnetizing.ratio(l_id * i_d_a)
     }
 
     /// A saturating motor's magnetizing fit: the flux linkage it measured is the chord, × the

@@ -38,7 +38,7 @@ mod target {
     use controller_core::frames::{Abc, AlphaBeta, Dq, SinCos};
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
     use controller_core::link::{BoardCommand, LinkStats};
-    use controller_core::mras::{Evidence, MrasConfig, RotorFit};
+    use controller_core::mras::{Evidence, FitPeriod, MrasConfig, RotorFit};
     use controller_core::observer::{FluxObserver, ObserverConfig};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
     use controller_core::svpwm;
@@ -772,7 +772,8 @@ mod target {
                             f = RotorFit::new(true);
                         }
                         let v = black_box(10.0 + 1e3 / (k % 512 + 100) as f32) * f32::from(n);
-                        black_box(c.fit(&mut f, v, n, 0.634, 1.0));
+                        let period = FitPeriod { v_sum: Dq { d: v, q: 0.0 }, steps: n, i_d_a: 0.634, field_step_rad: 0.0 };
+                        black_box(c.fit(&mut f, &period, 1.0));
                     });
                     (law, inductance, fit)
                 }
