@@ -234,6 +234,7 @@ fn point(
             inverter: InverterModel::Average,
             dc_link: None,
             comparator: None,
+            heating: None,
         },
     };
     let (rows, mode) = b.run(|_| {})?;

@@ -169,6 +169,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
             inverter: InverterModel::Average,
             dc_link: None,
             comparator: None,
+            heating: None,
         },
     })
 }

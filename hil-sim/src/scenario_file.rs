@@ -70,6 +70,14 @@
 //! [comparator]                     # optional: the board's hardware overcurrent comparator
 //! trip_a = 12.0                    # on the leg currents (hil_sim::bridge_fault)
 //! filter_s = 1e-6
+//!
+//! [heating]                        # optional: windings that heat with their copper losses,
+//! rated_rise_k = 80.0              # R_s and R_r following them (plant::thermal): the rise
+//! ambient_c = 40.0                 # at the rated current (IEC 60034-1 class B: 80 K);
+//! reference_c = 20.0               # where [motor]'s resistances are stated;
+//! start = "cold"                   # "cold" (ambient), "hot" (rated rise) or start_c = 90.0;
+//! # rated_current_a, time_constant_s: default [motor]'s; no_load_current_a: default the
+//! # rated flux's magnetizing current, flux_ref_wb/(√2·L_m)
 //! ```
 //!
 //! **Open loop** (plant alone, validation) — a `[motor]` table (or `drive = "path"` for
@@ -170,11 +178,33 @@ struct ClosedLoopFile {
     inverter: Option<InverterTable>,
     dc_link: Option<DcLinkTable>,
     comparator: Option<ComparatorTable>,
+    heating: Option<HeatingTable>,
     #[serde(default)]
     sensors: SensorsTable,
     /// The fault the run is meant to end in, by its name (`"DcBusUndervoltage"`).
     expect_fault: Option<String>,
     events: Vec<EventTable>,
+}
+
+/// `[heating]`: windings that heat with their losses ([`plant::thermal`]).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HeatingTable {
+    rated_rise_k: f64,
+    ambient_c: f64,
+    reference_c: f64,
+    rated_current_a: Option<f64>,
+    time_constant_s: Option<f64>,
+    no_load_current_a: Option<f64>,
+    start: Option<HeatingStart>,
+    start_c: Option<f64>,
+}
+
+#[derive(Debug, Deserialize, Clone, Copy)]
+#[serde(rename_all = "snake_case")]
+enum HeatingStart {
+    Cold,
+    Hot,
 }
 
 /// `[comparator]`: the power board's hardware overcurrent comparator.
@@ -340,6 +370,57 @@ fn check_timing(src: &Source<'_>, duration_s: f64, sample_period_s: f64) -> Resu
 }
 
 /// The drive a closed-loop file names or embeds.
+/// The `[heating]` table on the plant `plant` of the drive `spec`: the rated current and the
+/// time constant default to the drive's motor protection's, the no-load current to the rated
+/// flux's magnetizing current.
+fn heating_of(
+    src: &Source<'_>,
+    h: &HeatingTable,
+    spec: &controller_core::drive::DriveSpec,
+    plant: &controller_core::motor::MotorParams,
+) -> Result<crate::sim::HeatingRun, FileError> {
+    use plant::thermal::{ThermalError, ThermalSpec, Windings};
+    let limit = spec.protection.motor_thermal;
+    let rated_current_a = h.rated_current_a.or(limit.map(|l| l.rated_current_a)).ok_or_else(|| {
+        src.error("heating.rated_current_a", "is needed: the drive's [motor] states no rated_current_a")
+    })?;
+    let time_constant_s = h.time_constant_s.or(limit.map(|l| l.time_constant_s)).ok_or_else(|| {
+        src.error(
+            "heating.time_constant_s",
+            "is needed: the drive's [motor] states no thermal_time_constant_s",
+        )
+    })?;
+    let thermal = ThermalSpec {
+        rated_current_a,
+        no_load_current_a: h.no_load_current_a.unwrap_or(spec.flux_ref_wb / (plant.lm_h() * 2f64.sqrt())),
+        rated_rise_k: h.rated_rise_k,
+        time_constant_s,
+        ambient_c: h.ambient_c,
+        reference_c: h.reference_c,
+    };
+    let model = thermal.heating(plant).map_err(|e| {
+        let key = match e {
+            ThermalError::Nameplate => "heating",
+            ThermalError::Temperature => "heating.ambient_c",
+        };
+        src.error(key, e.to_string())
+    })?;
+    let windings = match (h.start, h.start_c) {
+        (Some(_), Some(_)) => return Err(src.error("heating.start_c", "give start or start_c, not both")),
+        (None | Some(HeatingStart::Cold), None) => model.cold(),
+        (Some(HeatingStart::Hot), None) => model.rated_hot(),
+        (None, Some(t)) => {
+            src.check(
+                t.is_finite() && t >= h.ambient_c && t <= h.ambient_c + 4.0 * h.rated_rise_k,
+                "heating.start_c",
+                "must lie between ambient_c and four rated rises above it",
+            )?;
+            Windings { stator_c: t, rotor_c: t }
+        }
+    };
+    Ok(crate::sim::HeatingRun { model, windings })
+}
+
 fn drive_of(src: &Source<'_>, f: &ClosedLoopFile) -> Result<DriveFile, FileError> {
     if let Some(reference) = &f.drive {
         let embedded = [
@@ -671,6 +752,10 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             Some(crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s })
         }
     };
+    let heating = match &f.heating {
+        None => None,
+        Some(h) => Some(heating_of(&src, h, &spec, &plant)?),
+    };
     let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
     let expect_fault = match f.expect_fault.as_deref() {
         None => None,
@@ -697,6 +782,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             inverter,
             dc_link,
             comparator,
+            heating,
         },
     })
 }
@@ -837,6 +923,37 @@ torque_nm = 0.5
         let o = parse_open_loop(&path, &open).unwrap();
         assert_eq!(o.motor, DriveFile::shipped().unwrap().spec.motor);
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Issue 50: `[heating]` — the windings start cold, hot or at a temperature; a motor
+    /// without a rated current needs one stated; a bad nameplate or start is named.
+    #[test]
+    fn heating_windings_are_read_and_checked() {
+        let heated =
+            |table: &str| parse_closed_loop(Path::new("h.toml"), &format!("{FIG16}\n[heating]\n{table}"));
+        let base = "rated_rise_k = 80.0\nambient_c = 40.0\nreference_c = 20.0\nrated_current_a = 0.88\ntime_constant_s = 900.0\n";
+        let run = heated(base).unwrap().scenario.heating.unwrap();
+        assert_eq!(run.windings, run.model.cold());
+        assert_eq!(run.windings.stator_c, 40.0);
+        let hot = heated(&format!("{base}start = \"hot\"\n")).unwrap().scenario.heating.unwrap();
+        assert_eq!(hot.windings.rotor_c, 120.0);
+        let at = heated(&format!("{base}start_c = 90.0\n")).unwrap().scenario.heating.unwrap();
+        assert_eq!(at.windings.stator_c, 90.0);
+        let key = |table: &str| heated(table).unwrap_err().key;
+        assert_eq!(
+            key("rated_rise_k = 80.0\nambient_c = 40.0\nreference_c = 20.0\n").as_deref(),
+            Some("heating.rated_current_a")
+        );
+        assert_eq!(key(&base.replace("80.0", "-1.0")).as_deref(), Some("heating"));
+        assert_eq!(key(&format!("{base}start_c = 10.0\n")).as_deref(), Some("heating.start_c"));
+        assert_eq!(
+            key(&format!("{base}start = \"hot\"\nstart_c = 90.0\n")).as_deref(),
+            Some("heating.start_c")
+        );
+        assert_eq!(
+            key(&base.replace("ambient_c = 40.0", "ambient_c = -400.0")).as_deref(),
+            Some("heating.ambient_c")
+        );
     }
 
     /// Issue 16, item 2: the inputs found by trying are errors that point at the value.

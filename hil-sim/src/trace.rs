@@ -15,7 +15,7 @@
 //! | `torque_nm` | electromagnetic torque, N·m | 5 decimals |
 //! | `v_alpha_v`, `v_beta_v` | applied stator voltage, V | 4 decimals |
 //!
-//! A closed-loop run (the drive in the loop) adds eighteen ([`CLOSED_LOOP_COLUMNS`]):
+//! A closed-loop run (the drive in the loop) adds twenty ([`CLOSED_LOOP_COLUMNS`]):
 //!
 //! | column | what | format |
 //! |---|---|---|
@@ -32,6 +32,7 @@
 //! | `i_chopper_a` | current through the chopper's resistor, A | 4 decimals |
 //! | `i_leg_peak_a` | largest \|leg current\| in the period, A | 4 decimals |
 //! | `comparator` | the hardware comparator has broken the bridge (latched), 0 or 1 | integer |
+//! | `stator_c`, `rotor_c` | the windings' temperatures, °C; empty unless they heat (a scenario's `[heating]`) | 2 decimals |
 //!
 //! The file is streamed to disk as the run goes ([`stream_trace`]) under a `.partial` name
 //! and renamed when complete (`report::write`): a failed or interrupted run leaves neither it
@@ -61,7 +62,7 @@ pub const COLUMNS: [&str; 10] = [
 ];
 
 /// The columns a closed-loop trace adds after [`COLUMNS`], in order.
-pub const CLOSED_LOOP_COLUMNS: [&str; 18] = [
+pub const CLOSED_LOOP_COLUMNS: [&str; 20] = [
     "i_alpha_ref_a",
     "i_beta_ref_a",
     "omega_ref_rad_s",
@@ -80,6 +81,8 @@ pub const CLOSED_LOOP_COLUMNS: [&str; 18] = [
     "i_chopper_a",
     "i_leg_peak_a",
     "comparator",
+    "stator_c",
+    "rotor_c",
 ];
 
 /// The header line of a trace (without its line end).
@@ -176,6 +179,10 @@ pub fn write_row(f: &mut dyn Write, r: &Row, closed_loop: bool) -> std::io::Resu
         )?;
         write!(f, ",{},{:.4}", u8::from(r.brake), r.i_chopper_a)?;
         write!(f, ",{:.4},{}", r.i_leg_peak_a, u8::from(r.hw_break))?;
+        match r.windings {
+            Some(w) => write!(f, ",{:.2},{:.2}", w.stator_c, w.rotor_c)?,
+            None => write!(f, ",,")?,
+        }
     }
     writeln!(f)
 }
@@ -320,12 +327,15 @@ mod tests {
             "t_s,i_alpha_a,i_beta_a,psi_alpha_wb,psi_beta_wb,omega_m_rad_s,theta_m_rad,torque_nm,v_alpha_v,v_beta_v"
         );
         let closed = header(true);
-        assert!(closed.starts_with(&header(false)) && closed.ends_with(",i_leg_peak_a,comparator"));
+        assert!(
+            closed.starts_with(&header(false))
+                && closed.ends_with(",i_leg_peak_a,comparator,stator_c,rotor_c")
+        );
         let mut names: Vec<&str> = closed.split(',').collect();
-        assert_eq!(names.len(), 28);
+        assert_eq!(names.len(), 30);
         names.sort_unstable();
         names.dedup();
-        assert_eq!(names.len(), 28);
+        assert_eq!(names.len(), 30);
     }
 
     /// A row has as many fields as the header, in either kind of trace, whatever the mode
@@ -358,6 +368,10 @@ mod tests {
         assert_eq!(field(&running, true, "vdc_v"), "310.00");
         assert_eq!(field(&running, true, "brake"), "1");
         assert_eq!(field(&running, true, "comparator"), "0");
+        assert_eq!(field(&running, true, "rotor_c"), "");
+        running.windings = Some(plant::thermal::Windings { stator_c: 61.25, rotor_c: 70.5 });
+        assert_eq!(field(&running, true, "stator_c"), "61.25");
+        assert_eq!(field(&running, true, "rotor_c"), "70.50");
     }
 
     /// A complete stream: the header and one line per row, the figures kept, the directory
@@ -381,7 +395,7 @@ mod tests {
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 4);
         assert_eq!(lines[0], header(true));
-        assert!(lines[1..].iter().all(|l| l.split(',').count() == 28), "{text}");
+        assert!(lines[1..].iter().all(|l| l.split(',').count() == 30), "{text}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 

@@ -334,11 +334,11 @@ fn closed_loop_trace_has_mode_fault_duties_bus_and_flux() {
     let mut lines = trace.lines();
     assert!(
         lines.next().unwrap().ends_with(
-            ",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,rr_scale,l_scale,brake,i_chopper_a,i_leg_peak_a,comparator"
+            ",drive_mode,fault,duty_a,duty_b,duty_c,vdc_v,psi_est_wb,psi_ref_wb,rr_scale,l_scale,brake,i_chopper_a,i_leg_peak_a,comparator,stator_c,rotor_c"
         )
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
-    let col = |r: &Vec<&str>, k: usize| r[r.len() - 14 + k].to_string();
+    let col = |r: &Vec<&str>, k: usize| r[r.len() - 16 + k].to_string();
     assert_eq!(col(&rows[10], 0), "Magnetizing");
     assert_eq!(col(&rows[300], 0), "Running");
     assert!(col(&rows[300], 2).parse::<f64>().is_ok() && col(&rows[300], 5) == "310.00");

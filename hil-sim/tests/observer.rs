@@ -113,6 +113,7 @@ fn scenario(
             inverter: InverterModel::Switching { dead_time_s: spec.dead_time_compensation_s },
             dc_link: None,
             comparator: None,
+            heating: None,
         },
     }
 }

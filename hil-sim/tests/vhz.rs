@@ -78,6 +78,7 @@ fn run_at(
             inverter: InverterModel::Switching { dead_time_s: spec.dead_time_compensation_s },
             dc_link: None,
             comparator: None,
+            heating: None,
         },
     };
     b.run(|_| {}).unwrap()

@@ -25,6 +25,7 @@ use controller_core::motor::MotorParams;
 use core::cell::Cell;
 
 pub mod saturated;
+pub mod thermal;
 use saturated::{Saturated, SaturationError};
 
 /// Plant state.

@@ -736,6 +736,7 @@ impl Campaign {
                 inverter: InverterModel::Average,
                 dc_link: None,
                 comparator: None,
+                heating: None,
             },
         };
         let (mut track, mut flux, mut faulted) = (0.0f64, [f64::INFINITY, 0.0f64], false);

@@ -196,7 +196,7 @@ mod tests {
         let rows: Vec<&str> = lines.collect();
         let expected = 0.05 * b.spec.pwm_frequency_hz / f64::from(b.scenario.trace_every.max(1));
         assert!((rows.len() as f64 - expected).abs() <= 1.0, "{} rows, {expected} expected", rows.len());
-        assert!(rows.iter().all(|r| r.split(',').count() == 28));
+        assert!(rows.iter().all(|r| r.split(',').count() == 30));
         let summary: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
         assert_eq!(summary["scenario"], "speed-step");

@@ -726,6 +726,7 @@ impl Matrix {
                 inverter: InverterModel::Average,
                 dc_link: None,
                 comparator: self.comparator,
+                heating: None,
             },
         }
     }

@@ -372,6 +372,7 @@ pub fn simulate_on(
         inverter: setup.inverter,
         dc_link: None,
         comparator: None,
+        heating: None,
     };
     let machine = match &setup.saturation {
         Some(s) => Machine::saturated(&setup.motor, s)

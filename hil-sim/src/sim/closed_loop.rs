@@ -7,13 +7,16 @@ use super::integrate::{
     BRIDGE_OFF_SUBSTEPS, PHASE_AXES, check_rk4_step, integrate_bridge_off, integrate_segments,
 };
 use super::{
-    DriveUnderTest, Event, Injection, LoadModel, PassiveLoad, Row, SWITCH_ACTING_DUTY, Scenario, non_finite,
+    DriveUnderTest, Event, HeatingRun, Injection, LoadModel, PassiveLoad, Row, SWITCH_ACTING_DUTY, Scenario,
+    non_finite,
 };
 use crate::bridge_fault::{Legs, SwitchShort};
 use crate::inverter::InverterModel;
 use crate::sensors::Sensors;
 use controller_core::drive::{Measurements, PhaseCommand};
 use controller_core::frames::AlphaBeta;
+use controller_core::motor::MotorParams;
+use plant::thermal::Heating;
 use plant::{Machine, MachineState, Rk4Midway};
 
 /// The plant's side of one period in [`run`].
@@ -59,6 +62,12 @@ pub fn run(
     };
     // The machine as it is now (a load seizure or a parameter change rebuilds it).
     let mut machine = loaded;
+    // Heating windings: the machine on their resistances, rebuilt every
+    // `HEATING_UPDATE_S` with the mean copper losses since the last update.
+    let mut heating = sc.heating.map(|run| Heated::new(run, ts));
+    if let Some(w) = &heating {
+        machine = machine.with_electrical(&w.motor).map_err(|e| e.to_string())?;
+    }
     let substeps = sc.substeps.max(1);
     let h = ts / f64::from(substeps);
     check_rk4_step(&machine, sc, h)?;
@@ -162,7 +171,12 @@ pub fn run(
                         rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
                     }
                     Event::Fault(Injection::Plant { motor }) => {
-                        // Checked before the run (`check_rk4_step`).
+                        // Checked before the run (`check_rk4_step`); a heating machine's
+                        // windings stay as hot as they are.
+                        let motor = match heating.as_mut() {
+                            Some(w) => w.rebase(&motor),
+                            None => motor,
+                        };
                         machine = machine.with_electrical(&motor).map_err(|e| e.to_string())?;
                         rk4 = machine.rk4_stepper(h);
                         rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
@@ -261,6 +275,13 @@ pub fn run(
             x.i_alpha_a -= along * ux;
             x.i_beta_a -= along * uy;
         }
+        if let Some(w) = heating.as_mut()
+            && let Some(motor) = w.period(&x)
+        {
+            machine = machine.with_electrical(&motor).map_err(|e| e.to_string())?;
+            rk4 = machine.rk4_stepper(h);
+            rk4_off = machine.rk4_stepper(ts / f64::from(BRIDGE_OFF_SUBSTEPS));
+        }
         let mut leg_period = crate::bridge_fault::LegPeriod::default();
         if legs_modelled {
             let end = AlphaBeta { alpha: x.i_alpha_a, beta: x.i_beta_a }.inverse_clarke();
@@ -289,6 +310,7 @@ pub fn run(
             sink(&Row {
                 t_s: k as f64 * ts,
                 x: x_at_start,
+                windings: heating.as_ref().map(|w| w.run.windings),
                 torque_nm: machine.torque_nm(&x_at_start),
                 v_ab_v: v_avg,
                 i_ref_ab_a: [f64::from(telemetry.i_ref_ab_a.alpha), f64::from(telemetry.i_ref_ab_a.beta)],
@@ -338,6 +360,55 @@ pub fn run(
     }
     progress(1.0);
     Ok(rows)
+}
+
+/// How often heating windings are stepped and the machine rebuilt on their resistances, s:
+/// a thousandth of a second against thermal time constants of minutes.
+const HEATING_UPDATE_S: f64 = 1e-3;
+
+/// Heating windings during a run ([`Scenario::heating`]).
+struct Heated {
+    run: HeatingRun,
+    /// The motor at the windings' present temperatures.
+    motor: MotorParams,
+    /// The copper losses summed over the periods since the last update, W, and their count.
+    losses_w: [f64; 2],
+    periods: u32,
+    /// Periods per update, and the PWM period, s.
+    every: u32,
+    ts: f64,
+}
+
+impl Heated {
+    fn new(run: HeatingRun, ts: f64) -> Self {
+        let every = (HEATING_UPDATE_S / ts).round().clamp(1.0, 1e6) as u32;
+        Self { motor: run.model.motor_at(&run.windings), run, losses_w: [0.0; 2], periods: 0, every, ts }
+    }
+
+    /// One PWM period ending in the state `x`: its losses counted; the motor on the new
+    /// resistances when the windings were stepped.
+    fn period(&mut self, x: &MachineState) -> Option<MotorParams> {
+        let [s, r] = Heating::losses_w(&self.motor, x);
+        self.losses_w = [self.losses_w[0] + s, self.losses_w[1] + r];
+        self.periods += 1;
+        if self.periods < self.every {
+            return None;
+        }
+        let n = f64::from(self.periods);
+        let mean = self.losses_w.map(|p| p / n);
+        self.run.windings = self.run.model.advance(&self.run.windings, mean, n * self.ts);
+        (self.losses_w, self.periods) = ([0.0; 2], 0);
+        self.motor = self.run.model.motor_at(&self.run.windings);
+        Some(self.motor)
+    }
+
+    /// The motor stepped to `motor` (stated at the reference temperature): the same windings
+    /// on its resistances.
+    fn rebase(&mut self, motor: &MotorParams) -> MotorParams {
+        self.run.model = self.run.model.with_motor(motor);
+        self.motor = self.run.model.motor_at(&self.run.windings);
+        self.motor
+    }
 }
 
 /// [`run`] keeping every row in memory (tests, short runs).

@@ -342,6 +342,18 @@ pub struct Scenario {
     pub dc_link: Option<DcLink>,
     /// The power board's hardware overcurrent comparator (`None`: not modelled).
     pub comparator: Option<Comparator>,
+    /// Windings that heat with their losses, from these temperatures (`None`: the
+    /// resistances stay as stated; [`plant::thermal`]).
+    pub heating: Option<HeatingRun>,
+}
+
+/// A heating machine and its windings' temperatures at the start of a run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeatingRun {
+    /// The thermal model of the run's machine.
+    pub model: plant::thermal::Heating,
+    /// The temperatures it starts from.
+    pub windings: plant::thermal::Windings,
 }
 
 /// A validated open-loop scenario.
@@ -370,6 +382,8 @@ pub struct Row {
     pub t_s: f64,
     /// Plant state.
     pub x: MachineState,
+    /// The windings' temperatures, when they heat ([`Scenario::heating`]).
+    pub windings: Option<plant::thermal::Windings>,
     /// Electromagnetic torque, N·m.
     pub torque_nm: f64,
     /// Applied stator voltage, V.
