@@ -235,6 +235,7 @@ fn point(
             dc_link: None,
             comparator: None,
             heating: None,
+            iron_loss_ohm: None,
         },
     };
     let (rows, mode) = b.run(|_| {})?;

@@ -135,8 +135,30 @@ impl Builtin {
             }
             None => Machine::new(&self.plant),
         };
+        let machine = match sc.iron_loss_ohm {
+            Some(r) => with_iron_loss(&machine, &self.plant, r)?,
+            None => machine,
+        };
         sim::run(dut, &machine, self.spec.pwm_frequency_hz, &sc, progress, sink)
     }
+}
+
+/// `machine` (of the motor `plant`) with the iron-loss resistance `r_fe_ohm` across its
+/// magnetizing branch: a linear machine in the inverse-Γ form (L_r = L_m) takes it on the
+/// straight line of its L_m ([`plant::saturated`]).
+fn with_iron_loss(machine: &Machine, plant: &MotorParams, r_fe_ohm: f64) -> Result<Machine, String> {
+    let why = |e: plant::saturated::SaturationError| format!("the simulated machine: {e}");
+    if machine.is_saturating() {
+        return machine.with_iron_loss(r_fe_ohm).map_err(why);
+    }
+    let psi = [1.0, 2.0];
+    let curve = controller_core::magnetics::MagnetizingCurve::points(&psi, &psi.map(|p| p / plant.lm_h()))
+        .map_err(|e| format!("the simulated machine's straight line: {e:?}"))?;
+    let form = controller_core::magnetics::Saturation {
+        form: controller_core::magnetics::Form::InverseGamma,
+        curve,
+    };
+    Machine::saturated(plant, &form).and_then(|m| m.with_iron_loss(r_fe_ohm)).map_err(why)
 }
 
 /// IFOC speed step to 150 rad/s with the shipped drive (DeLorenzo motor, ICAD current loop
@@ -170,6 +192,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
             dc_link: None,
             comparator: None,
             heating: None,
+            iron_loss_ohm: None,
         },
     })
 }

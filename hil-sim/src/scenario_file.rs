@@ -71,6 +71,9 @@
 //! trip_a = 12.0                    # on the leg currents (hil_sim::bridge_fault)
 //! filter_s = 1e-6
 //!
+//! [iron_loss]                      # optional: a resistance across the machine's magnetizing
+//! resistance_ohm = 400.0           # branch (plant::saturated; the machine in the inverse-Γ form)
+//!
 //! [heating]                        # optional: windings that heat with their copper losses,
 //! rated_rise_k = 80.0              # R_s and R_r following them (plant::thermal): the rise
 //! ambient_c = 40.0                 # at the rated current (IEC 60034-1 class B: 80 K);
@@ -179,11 +182,19 @@ struct ClosedLoopFile {
     dc_link: Option<DcLinkTable>,
     comparator: Option<ComparatorTable>,
     heating: Option<HeatingTable>,
+    iron_loss: Option<IronLossTable>,
     #[serde(default)]
     sensors: SensorsTable,
     /// The fault the run is meant to end in, by its name (`"DcBusUndervoltage"`).
     expect_fault: Option<String>,
     events: Vec<EventTable>,
+}
+
+/// `[iron_loss]`: a resistance across the simulated machine's magnetizing branch.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct IronLossTable {
+    resistance_ohm: f64,
 }
 
 /// `[heating]`: windings that heat with their losses ([`plant::thermal`]).
@@ -752,6 +763,25 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             Some(crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s })
         }
     };
+    // Iron loss: the machine in the inverse-Γ form (its branch behind the stator leakage).
+    let iron_loss_ohm = match &f.iron_loss {
+        None => None,
+        Some(t) => {
+            let r = t.resistance_ohm;
+            src.check(r.is_finite() && r > 0.0, "iron_loss.resistance_ohm", "must be finite and > 0")?;
+            let inverse_gamma = match &plant_saturation {
+                Some(s) => s.form == controller_core::magnetics::Form::InverseGamma,
+                None => (plant.lr_h() - plant.lm_h()).abs() <= 1e-9 * plant.lm_h(),
+            };
+            src.check(
+                inverse_gamma,
+                "iron_loss",
+                "needs the simulated machine in the inverse-Γ form (form = \"inverse_gamma\"): its \
+                 magnetizing branch behind the stator leakage",
+            )?;
+            Some(r)
+        }
+    };
     let heating = match &f.heating {
         None => None,
         Some(h) => Some(heating_of(&src, h, &spec, &plant)?),
@@ -783,6 +813,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             dc_link,
             comparator,
             heating,
+            iron_loss_ohm,
         },
     })
 }
@@ -954,6 +985,30 @@ torque_nm = 0.5
             key(&base.replace("ambient_c = 40.0", "ambient_c = -400.0")).as_deref(),
             Some("heating.ambient_c")
         );
+    }
+
+    /// Issue 50: `[iron_loss]` on a machine in the inverse-Γ form (motulator's 2.2 kW drive,
+    /// its motor file's form) is read and runs: the drive magnetizes and holds its speed; on
+    /// a T-form machine (FIG16's) it is refused naming the table, a resistance that is not one
+    /// naming the key.
+    #[test]
+    fn iron_loss_needs_the_inverse_gamma_form() {
+        let drive = Path::new(env!("CARGO_MANIFEST_DIR")).join("../drives/motulator-2kw.toml");
+        let text = format!(
+            "drive = {:?}\nduration_s = 1.0\nsample_period_s = 1e-3\nvdc_v = 540.0\n[iron_loss]\nresistance_ohm = 1000.0\n\
+             [[events]]\nt_s = 0.0\nkind = \"enable\"\n[[events]]\nt_s = 0.2\nkind = \"speed\"\nvalue = 100.0\n",
+            drive.display().to_string()
+        );
+        let b = parse_closed_loop(Path::new("iron.toml"), &text).unwrap();
+        assert_eq!(b.scenario.iron_loss_ohm, Some(1000.0));
+        let (rows, mode) = b.run(|_| {}).unwrap();
+        assert_eq!(mode, controller_core::drive::Mode::Running);
+        let end = rows.last().unwrap();
+        assert!((end.x.omega_m_rad_s - 100.0).abs() < 5.0, "{}", end.x.omega_m_rad_s);
+        let bad = replace(&text, "resistance_ohm = 1000.0", "resistance_ohm = -1.0");
+        assert_eq!(err(&bad).key.as_deref(), Some("iron_loss.resistance_ohm"));
+        let t_form = format!("{FIG16}\n[iron_loss]\nresistance_ohm = 1000.0\n");
+        assert_eq!(err(&t_form).key.as_deref(), Some("iron_loss"));
     }
 
     /// Issue 16, item 2: the inputs found by trying are errors that point at the value.

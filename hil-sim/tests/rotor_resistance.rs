@@ -44,6 +44,7 @@ fn run(
             dc_link: None,
             comparator: None,
             heating: None,
+            iron_loss_ohm: None,
         },
     };
     let (rows, mode) = b.run(|_| {}).unwrap();
@@ -266,6 +267,7 @@ fn a_flying_start_at_top_speed_reads_its_rotor_resistance() {
                 dc_link: None,
                 comparator: None,
                 heating: None,
+                iron_loss_ohm: None,
             },
         };
         let (rows, mode) = b.run(|_| {}).unwrap();
@@ -320,6 +322,7 @@ fn the_online_law_follows_a_rotor_heating_with_its_losses() {
             dc_link: None,
             comparator: None,
             heating: Some(HeatingRun { model, windings: model.cold() }),
+            iron_loss_ohm: None,
         },
     };
     let (rows, mode) = b.run(|_| {}).unwrap();

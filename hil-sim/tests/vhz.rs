@@ -79,6 +79,7 @@ fn run_at(
             dc_link: None,
             comparator: None,
             heating: None,
+            iron_loss_ohm: None,
         },
     };
     b.run(|_| {}).unwrap()

@@ -409,6 +409,21 @@ impl Machine {
         self.saturation.is_some()
     }
 
+    /// The same machine with an iron-loss resistance `r_fe_ohm` across its magnetizing branch
+    /// ([`crate::saturated`]): a machine in the inverse-Γ form (its curve may be a straight
+    /// line), an error otherwise.
+    pub fn with_iron_loss(&self, r_fe_ohm: f64) -> Result<Self, SaturationError> {
+        match &self.saturation {
+            Some(s) => Ok(Self { saturation: Some(s.with_iron_loss(r_fe_ohm)?), ..*self }),
+            None => Err(SaturationError::IronLoss),
+        }
+    }
+
+    /// The iron-loss resistance across the magnetizing branch, Ω (`None`: none).
+    pub fn iron_loss_ohm(&self) -> Option<f64> {
+        self.saturation.as_ref().and_then(Saturated::iron_loss_ohm)
+    }
+
     /// A passive load (dry friction, a fan: held over the step from its start) would have
     /// reversed the rotor within the step that began at `w0_rad_s`: it stops instead.
     #[inline(always)]

@@ -10,7 +10,17 @@
 //! inverse-Γ: i_s = (ψ_s − ψ_r)/L_σ,  i_r = f(|ψ_r|)·ψ_r/|ψ_r| − i_s
 //! T_e = (3/2)·p·(ψ_sα·i_sβ − ψ_sβ·i_sα)
 //! ```
-//! with f the magnetizing curve. The machine's state stays [`MachineState`]'s (stator
+//! with f the magnetizing curve.
+//!
+//! **Iron loss** (inverse-Γ only, [`crate::Machine::with_iron_loss`]): a resistance R_fe across
+//! the magnetizing branch, which in the inverse-Γ form sits behind the stator leakage and
+//! carries the air-gap voltage `u_m = dψ_R/dt` (stator frame). Its current `u_m/R_fe` is
+//! taken from the rotor's, `i_r = f(|ψ_r|)·ψ_r/|ψ_r| − i_s + u_m/R_fe`, so
+//! `dψ_r/dt = (−R_r·(f − i_s) + p·ω_m·J·ψ_r)/(1 + R_r/R_fe)`, and the torque is the rotor
+//! branch's, `T_e = (3/2)·p·(ψ_s × i_s − ψ_r × u_m/R_fe)` — the iron-loss current makes no
+//! torque. The loss `(3/2)·|u_m|²/R_fe` grows with the square of the frequency and of the
+//! flux (eddy currents; a constant R_fe). In the Γ form the branch is behind R_s alone and
+//! the stator current would not be a state: refused there. The machine's state stays [`MachineState`]'s (stator
 //! current, rotor flux — what the rest of the simulator reads and what the bridge's diodes
 //! act on); a step recovers the stator flux from it
 //! ([`MagnetizingCurve::flux_at_total_current`]), integrates the fluxes by classical RK4
@@ -57,6 +67,9 @@ pub enum SaturationError {
     GammaNeedsNoStatorLeakage,
     /// The inverse-Γ form has no rotor leakage: its `MotorParams` need L_r = L_m.
     InverseGammaNeedsNoRotorLeakage,
+    /// Iron loss is modelled in the inverse-Γ form only (module docs), with R_fe finite
+    /// and positive.
+    IronLoss,
 }
 
 impl core::fmt::Display for SaturationError {
@@ -65,6 +78,10 @@ impl core::fmt::Display for SaturationError {
             Self::GammaNeedsNoStatorLeakage => "a Γ-form machine has no stator leakage: L_s must equal L_m",
             Self::InverseGammaNeedsNoRotorLeakage => {
                 "an inverse-Γ-form machine has no rotor leakage: L_r must equal L_m"
+            }
+            Self::IronLoss => {
+                "iron loss needs the inverse-Γ form (its magnetizing branch behind the stator leakage) and a \
+                 finite, positive resistance"
             }
         })
     }
@@ -88,6 +105,8 @@ pub(crate) struct Saturated {
     lm_h: f64,
     /// The fastest electrical rate over the fluxes a run reaches, 1/s.
     fastest_rate_per_s: f64,
+    /// The iron-loss conductance across the magnetizing branch, S (0: none).
+    g_fe_s: f64,
 }
 
 /// The fluxes a step integrates, and the speed.
@@ -129,14 +148,45 @@ impl Saturated {
             p: f64::from(m.pole_pairs()),
             lm_h: m.lm_h(),
             fastest_rate_per_s,
+            g_fe_s: 0.0,
         })
+    }
+
+    /// The same machine with an iron-loss resistance `r_fe_ohm` across its magnetizing
+    /// branch (module docs): inverse-Γ form only.
+    pub(crate) fn with_iron_loss(&self, r_fe_ohm: f64) -> Result<Self, SaturationError> {
+        if self.form != Form::InverseGamma || !(r_fe_ohm.is_finite() && r_fe_ohm > 0.0) {
+            return Err(SaturationError::IronLoss);
+        }
+        Ok(Self { g_fe_s: 1.0 / r_fe_ohm, ..*self })
+    }
+
+    /// The iron-loss resistance, Ω (`None`: no iron loss).
+    pub(crate) fn iron_loss_ohm(&self) -> Option<f64> {
+        (self.g_fe_s > 0.0).then(|| 1.0 / self.g_fe_s)
     }
 
     /// The same branch on the electrical parameters of `m` (a parameter step mid-run): the
     /// curve's inductances scaled as `m`'s L_m is to the one this was made with.
     pub(crate) fn with_electrical(&self, m: &MotorParams) -> Result<Self, SaturationError> {
         let curve = self.curve.with_inductance_scaled(m.lm_h() / self.lm_h);
-        Self::new(m, &Saturation { form: self.form, curve })
+        Ok(Self { g_fe_s: self.g_fe_s, ..Self::new(m, &Saturation { form: self.form, curve })? })
+    }
+
+    /// The rotor flux's rate, `dψ_r/dt` — the air-gap voltage `u_m` of the inverse-Γ form —
+    /// for the fluxes' rotor current `i_r` (without the iron's share), the rotor flux and
+    /// the electrical speed `w`.
+    #[inline]
+    fn rotor_flux_rate(&self, i_r: V2, psi_r: V2, w: f64) -> V2 {
+        let d = add(scale(-self.rr_ohm, i_r), scale(w, rot(psi_r)));
+        if self.g_fe_s > 0.0 { scale(1.0 / (1.0 + self.rr_ohm * self.g_fe_s), d) } else { d }
+    }
+
+    /// `(3/2)·p·(ψ_s × i_s − G_fe·ψ_r × u_m)`: the rotor branch's torque (module docs).
+    #[inline]
+    fn torque_of(&self, psi_s: V2, i_s: V2, psi_r: V2, u_m: V2) -> f64 {
+        let cross = |a: V2, b: V2| a[0] * b[1] - a[1] * b[0];
+        1.5 * self.p * (cross(psi_s, i_s) - self.g_fe_s * cross(psi_r, u_m))
     }
 
     pub(crate) fn fastest_rate_per_s(&self) -> f64 {
@@ -186,7 +236,10 @@ impl Saturated {
     /// Electromagnetic torque, N·m.
     pub(crate) fn torque_nm(&self, x: &MachineState) -> f64 {
         let psi_s = self.stator_flux(x);
-        1.5 * self.p * (psi_s[0] * x.i_beta_a - psi_s[1] * x.i_alpha_a)
+        let psi_r = [x.psi_alpha_wb, x.psi_beta_wb];
+        let (i_s, i_r) = self.currents(psi_s, psi_r);
+        let u_m = self.rotor_flux_rate(i_r, psi_r, self.p * x.omega_m_rad_s);
+        self.torque_of(psi_s, i_s, psi_r, u_m)
     }
 
     /// The terminal voltage at which the stator current stays zero (the open stator's), αβ:
@@ -212,7 +265,7 @@ impl Saturated {
                 let k_along = self.inv_leak_per_h / (self.curve.slope_per_h(r_s) + self.inv_leak_per_h);
                 add(scale(along * k_along, u), scale(r_s / r, across))
             }
-            Form::InverseGamma => add(scale(-self.rr_ohm, self.magnetizing(psi_r)), scale(w, rot(psi_r))),
+            Form::InverseGamma => self.rotor_flux_rate(self.magnetizing(psi_r), psi_r, w),
         }
     }
 
@@ -220,10 +273,11 @@ impl Saturated {
     #[inline]
     fn f(&self, inv_j: f64, b_nms: f64, x: &Fluxes, v: V2, t_l: f64) -> Fluxes {
         let (i_s, i_r) = self.currents(x.psi_s, x.psi_r);
-        let t_e = 1.5 * self.p * (x.psi_s[0] * i_s[1] - x.psi_s[1] * i_s[0]);
+        let d_psi_r = self.rotor_flux_rate(i_r, x.psi_r, self.p * x.w);
+        let t_e = self.torque_of(x.psi_s, i_s, x.psi_r, d_psi_r);
         Fluxes {
             psi_s: sub(v, scale(self.rs_ohm, i_s)),
-            psi_r: add(scale(-self.rr_ohm, i_r), scale(self.p * x.w, rot(x.psi_r))),
+            psi_r: d_psi_r,
             w: (t_e - b_nms * x.w - t_l) * inv_j,
         }
     }
@@ -287,13 +341,17 @@ impl Saturated {
             + 0.5 * self.leak_h * (i_leak[0] * i_leak[0] + i_leak[1] * i_leak[1]))
     }
 
-    /// The power the resistances dissipate, W.
+    /// The power the resistances dissipate, W: the windings' and the iron's (the rotor's
+    /// current less the iron's share, module docs).
     #[cfg(test)]
     pub(crate) fn copper_loss_w(&self, x: &MachineState) -> f64 {
         let psi_s = self.stator_flux(x);
-        let (i_s, i_r) = self.currents(psi_s, [x.psi_alpha_wb, x.psi_beta_wb]);
-        1.5 * (self.rs_ohm * (i_s[0] * i_s[0] + i_s[1] * i_s[1])
-            + self.rr_ohm * (i_r[0] * i_r[0] + i_r[1] * i_r[1]))
+        let psi_r = [x.psi_alpha_wb, x.psi_beta_wb];
+        let (i_s, i_r) = self.currents(psi_s, psi_r);
+        let u_m = self.rotor_flux_rate(i_r, psi_r, self.p * x.omega_m_rad_s);
+        let i_rotor = add(i_r, scale(self.g_fe_s, u_m));
+        let sq = |a: V2| a[0] * a[0] + a[1] * a[1];
+        1.5 * (self.rs_ohm * sq(i_s) + self.rr_ohm * sq(i_rotor) + self.g_fe_s * sq(u_m))
     }
 }
 
@@ -347,14 +405,18 @@ mod tests {
     /// of the saturating Γ machine (the flux well past the knee), the energy the source
     /// delivers equals the copper losses, the shaft's work and the change of the stored
     /// magnetic energy (the branch's ∫f plus the leakage's) to 1e-7 of the input — the
-    /// trapezoid rule's error on a 2 µs grid.
+    /// trapezoid rule's error on a 2 µs grid; the inverse-Γ form with an iron-loss
+    /// resistance too (its loss counted with the windings').
     #[test]
     fn the_saturating_machine_conserves_energy() {
-        for (m, form) in [
-            (gamma_2kw(), Form::Gamma),
-            (MotorParams::new(3.7, 2.1, 0.245, 0.224, 0.224, 2, 0.015, 0.0).unwrap(), Form::InverseGamma),
+        let inv_gamma = MotorParams::new(3.7, 2.1, 0.245, 0.224, 0.224, 2, 0.015, 0.0).unwrap();
+        for (m, form, iron) in [
+            (gamma_2kw(), Form::Gamma, false),
+            (inv_gamma, Form::InverseGamma, false),
+            (inv_gamma, Form::InverseGamma, true),
         ] {
             let machine = Machine::saturated(&m, &Saturation { form, curve: law() }).unwrap();
+            let machine = if iron { machine.with_iron_loss(300.0).unwrap() } else { machine };
             let Some(sat) = machine.saturation else { panic!("saturating") };
             let (h, src) = (2e-6, sine(326.6, 2.0 * core::f64::consts::PI * 50.0));
             let mut x = MachineState::default();
@@ -423,6 +485,66 @@ mod tests {
             assert!((x.i_alpha_a - want[0]).abs() < 1e-9 * scale_a, "ψ {psi}: {x:?} vs {want:?}");
             assert!((x.i_beta_a - want[1]).abs() < 1e-9 * scale_a, "ψ {psi}");
             assert!((machine.torque_nm(&x) - torque).abs() < 1e-9 * torque.abs(), "ψ {psi}");
+        }
+    }
+
+    /// Iron loss (inverse-Γ): the analytic steady state in the synchronous frame, the rotor
+    /// flux ψ on the real axis at slip ω_sl — `u_m = jω_s·ψ`, the rotor's current
+    /// `jω_sl·ψ/R_R`, the iron's `u_m/R_fe`, `i_s = f(ψ) + u_m/R_fe + jω_sl·ψ/R_R`,
+    /// `v = R_s·i_s + jω_s·(ψ + L_σ·i_s)`, the torque the rotor's alone,
+    /// `(3/2)·p·ψ²·ω_sl/R_R`. Started in it at a held speed, the machine stays in it for
+    /// 0.1 s to 1e-9, below and beyond the knee; the iron loss there is
+    /// `(3/2)·ω_s²·ψ²/R_fe`. Without R_fe the same voltage gives another current. And a Γ
+    /// machine, a linear one or a resistance that is not one are refused.
+    #[test]
+    fn iron_loss_holds_its_analytic_steady_state() {
+        let m = MotorParams::new(3.7, 2.1, 0.245, 0.224, 0.224, 2, 0.015, 0.0).unwrap();
+        let c = law();
+        let r_fe = 400.0;
+        let lossless = Machine::saturated(&m, &Saturation { form: Form::InverseGamma, curve: c }).unwrap();
+        let machine = lossless.with_iron_loss(r_fe).unwrap().speed_locked();
+        assert_eq!(machine.iron_loss_ohm(), Some(r_fe));
+        let (w_s, w_sl, l, rr, rs) = (2.0 * core::f64::consts::PI * 50.0, 6.0, 0.245 - 0.224, 2.1, 3.7);
+        for psi in [0.5, 0.9, 1.2] {
+            let i_s = [c.current_a(psi), w_s * psi / r_fe + w_sl * psi / rr];
+            let v = [rs * i_s[0] - w_s * l * i_s[1], rs * i_s[1] + w_s * (psi + l * i_s[0])];
+            let torque = 1.5 * 2.0 * psi * psi * w_sl / rr;
+            let turn = |a: [f64; 2], t: f64| {
+                let (co, si) = ((w_s * t).cos(), (w_s * t).sin());
+                [a[0] * co - a[1] * si, a[0] * si + a[1] * co]
+            };
+            let start = MachineState {
+                i_alpha_a: i_s[0],
+                i_beta_a: i_s[1],
+                psi_alpha_wb: psi,
+                omega_m_rad_s: (w_s - w_sl) / 2.0,
+                ..Default::default()
+            };
+            let run = |mach: &Machine| {
+                let (mut x, h) = (start, 1e-5);
+                for n in 0..10_000 {
+                    x = mach.rk4_source(&x, n as f64 * h, h, |t| turn(v, t), 0.0);
+                }
+                x
+            };
+            let x = run(&machine);
+            let want = turn(i_s, 0.1);
+            let scale_a = i_s[0].hypot(i_s[1]);
+            assert!((x.i_alpha_a - want[0]).abs() < 1e-9 * scale_a, "ψ {psi}: {x:?} vs {want:?}");
+            assert!((x.i_beta_a - want[1]).abs() < 1e-9 * scale_a, "ψ {psi}");
+            assert!((machine.torque_nm(&x) - torque).abs() < 1e-9 * torque, "ψ {psi}");
+            let Some(sat) = machine.saturation else { panic!("saturating") };
+            let copper = 1.5 * (rs * scale_a * scale_a + rr * (w_sl * psi / rr).powi(2));
+            let iron = 1.5 * (w_s * psi).powi(2) / r_fe;
+            assert!((sat.copper_loss_w(&x) - copper - iron).abs() < 1e-8 * (copper + iron), "ψ {psi}");
+            let y = run(&lossless.speed_locked());
+            assert!((y.i_beta_a - x.i_beta_a).hypot(y.i_alpha_a - x.i_alpha_a) > 0.05 * scale_a, "ψ {psi}");
+        }
+        let gamma = Machine::saturated(&gamma_2kw(), &Saturation { form: Form::Gamma, curve: c }).unwrap();
+        assert_eq!(gamma.with_iron_loss(r_fe).map(|_| ()), Err(SaturationError::IronLoss));
+        assert_eq!(Machine::new(&m).with_iron_loss(r_fe).map(|_| ()), Err(SaturationError::IronLoss));
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert_eq!(lossless.with_iron_loss(bad).map(|_| ()), Err(SaturationError::IronLoss), "{bad}");
         }
     }
 

@@ -772,7 +772,13 @@ mod target {
                             f = RotorFit::new(true);
                         }
                         let v = black_box(10.0 + 1e3 / (k % 512 + 100) as f32) * f32::from(n);
-                        let period = FitPeriod { v_sum: Dq { d: v, q: 0.0 }, steps: n, i_d_a: 0.634, field_step_rad: 0.0 };
+                        let period = FitPeriod {
+                            v_sum: Dq { d: v, q: 0.0 },
+                            steps: n,
+                            i_d_a: 0.634,
+                            field_step_rad: 0.0,
+                            built_inductance_scale: 1.0,
+                        };
                         black_box(c.fit(&mut f, &period, 1.0));
                     });
                     (law, inductance, fit)
