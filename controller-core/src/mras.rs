@@ -70,12 +70,14 @@
 //! builds moves `v_d` by δ·v_q — at the 300 W motor's 373 rad/s (ω_e·T_r ≈ 24) a drift of a
 //! milliradian is a quarter of the d axis's decay over a window, and the d-axis fit read
 //! ×2.4 its rotor resistance (the top of its range; hil-sim test
-//! `a_flying_start_at_top_speed_reads_its_rotor_resistance`); the q axis moves by δ·v_d. So the fit
-//! reads `−v_q/ω_e` when `|ω_e|·T_r ≥ 1` as its windows begin (the q axis's share of the decay
-//! at least the d axis's; ω_e the field's mean speed since the enable, not one slow
-//! period's encoder count), scaled by that speed, and gives up when the mean over the
+//! `a_flying_start_at_top_speed_reads_its_rotor_resistance`); the q axis moves by δ·v_d. So
+//! the fit reads `−v_q/ω_e` when `|ω_e|·T_r ≥ 1` as its windows begin (the q axis's share of
+//! the decay at least the d axis's; ω_e the field's mean speed since the enable, not one
+//! slow period's encoder count), scaled by that speed, and gives up when the mean over the
 //! windows falls below the bound. Its constant part is not the stator's drop: no stator
-//! resistance is read there. Before the first fit the estimate is the range's geometric middle
+//! resistance is read there.
+//!
+//! Before the first fit the estimate is the range's geometric middle
 //! ([`MrasConfig::initial_scale`]); it is kept across disable/enable.
 //!
 //! **The stator resistance, from the same transient**: `c/i_d` ([`Fitted::stator_resistance_ohm`]).
@@ -423,12 +425,12 @@ impl MrasConfig {
     /// measured, or [`FitPeriod::built_inductance_scale`] — on a saturating motor the chord
     /// at the flux the reference builds, not where the flux is as the windows close (the
     /// 300 W motor's saturating twin at 100 rad/s read ×1.15 there, and a tenth of its
-    /// envelope ran 13 % over its torque). Returns what it measured once, when the third window closes (module docs), `None`
-    /// before, after and when the fit is given up: the reference moved by more than
-    /// [`FIT_I_D_TOLERANCE`] from the first window on (field weakening on a spinning rotor),
-    /// the voltage is not finite, or a q-axis fit's field slowed below `|ω_e|·T_r = 1` over
-    /// the windows.
-    /// [`RotorFit::new`] starts it (at the enable).
+    /// envelope ran 13 % over its torque). Returns what it measured once, when the third
+    /// window closes (module docs), `None` before, after and when the fit is given up: the
+    /// reference moved by more than [`FIT_I_D_TOLERANCE`] from the first window on (field
+    /// weakening on a spinning rotor), the voltage is not finite, or a q-axis fit's field
+    /// slowed below `|ω_e|·T_r = 1` over the windows. [`RotorFit::new`] starts it (at the
+    /// enable).
     pub fn fit(&self, f: &mut RotorFit, period: &FitPeriod, l_now: f32) -> Option<Fitted> {
         if f.done || !self.fit_active() {
             return None;
