@@ -227,11 +227,8 @@ impl SlowState {
             let r = self.run.ifoc.i_ref_dq();
             self.update_trim(cfg, Dq { d: r.d - i_mean.d, q: r.q - i_mean.q }, limited);
         }
-        // The loops' request over the slow period while magnetizing, and the field's angle
-        // over it at the shaft's speed.
+        // The loops' request over the slow period while magnetizing.
         let (v_fit_sum, v_fit_steps) = (inputs.v_fit_sum, inputs.v_req_steps);
-        let field_step_rad =
-            cfg.envelope.pole_pairs() * m.omega_m_rad_s * cfg.ts_s * f32::from(cfg.slow_divider);
         let (v_target, v_budget) = self.voltage_budget(cfg, inputs, m.vdc_v * cfg.duty_max, limited);
         let running = self.mode == Mode::Running;
         let limit = self.run.torque_max_nm;
@@ -384,7 +381,11 @@ impl SlowState {
                 v_sum: v_fit_sum,
                 steps: v_fit_steps,
                 i_d_a,
-                field_step_rad,
+                // The field's angle over the period at the shaft's speed.
+                field_step_rad: cfg.envelope.pole_pairs()
+                    * m.omega_m_rad_s
+                    * cfg.ts_s
+                    * f32::from(cfg.slow_divider),
                 built_inductance_scale,
             };
             if let Some(fit) = cfg.mras.fit(&mut self.run.rotor_fit, &period, l_now) {
