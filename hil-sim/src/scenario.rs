@@ -129,36 +129,40 @@ impl Builtin {
         // The sensors sample in the board's window unless the scenario says otherwise.
         let mut sc = self.scenario.clone();
         sc.sensors.low_side_window_s.get_or_insert(self.spec.sample_window_s);
-        let machine = match &self.plant_saturation {
-            Some(s) => {
-                Machine::saturated(&self.plant, s).map_err(|e| format!("the simulated machine: {e}"))?
-            }
-            None => Machine::new(&self.plant),
-        };
-        let machine = match sc.iron_loss_ohm {
-            Some(r) => with_iron_loss(&machine, &self.plant, r)?,
-            None => machine,
-        };
+        let machine = plant_machine(&self.plant, self.plant_saturation.as_ref(), sc.iron_loss_ohm)?;
         sim::run(dut, &machine, self.spec.pwm_frequency_hz, &sc, progress, sink)
     }
 }
 
-/// `machine` (of the motor `plant`) with the iron-loss resistance `r_fe_ohm` across its
-/// magnetizing branch: a linear machine in the inverse-Γ form (L_r = L_m) takes it on the
-/// straight line of its L_m ([`plant::saturated`]).
-fn with_iron_loss(machine: &Machine, plant: &MotorParams, r_fe_ohm: f64) -> Result<Machine, String> {
+/// The simulated machine: the motor `plant`, saturating when `saturation` is given, with an
+/// iron-loss resistance across its magnetizing branch when `iron_loss_ohm` is — a linear
+/// machine in the inverse-Γ form (L_r = L_m) takes it on the straight line of its L_m
+/// ([`plant::saturated`]); any other form is an error.
+pub(crate) fn plant_machine(
+    plant: &MotorParams,
+    saturation: Option<&Saturation>,
+    iron_loss_ohm: Option<f64>,
+) -> Result<Machine, String> {
     let why = |e: plant::saturated::SaturationError| format!("the simulated machine: {e}");
-    if machine.is_saturating() {
-        return machine.with_iron_loss(r_fe_ohm).map_err(why);
-    }
-    let psi = [1.0, 2.0];
-    let curve = controller_core::magnetics::MagnetizingCurve::points(&psi, &psi.map(|p| p / plant.lm_h()))
-        .map_err(|e| format!("the simulated machine's straight line: {e:?}"))?;
-    let form = controller_core::magnetics::Saturation {
-        form: controller_core::magnetics::Form::InverseGamma,
-        curve,
+    let Some(r_fe_ohm) = iron_loss_ohm else {
+        return match saturation {
+            Some(s) => Machine::saturated(plant, s).map_err(why),
+            None => Ok(Machine::new(plant)),
+        };
     };
-    Machine::saturated(plant, &form).and_then(|m| m.with_iron_loss(r_fe_ohm)).map_err(why)
+    let straight;
+    let saturation = match saturation {
+        Some(s) => s,
+        None => {
+            let psi = [1.0, 2.0];
+            let curve =
+                controller_core::magnetics::MagnetizingCurve::points(&psi, &psi.map(|p| p / plant.lm_h()))
+                    .map_err(|e| format!("the simulated machine's straight line: {e:?}"))?;
+            straight = Saturation { form: controller_core::magnetics::Form::InverseGamma, curve };
+            &straight
+        }
+    };
+    Machine::saturated(plant, saturation).and_then(|m| m.with_iron_loss(r_fe_ohm)).map_err(why)
 }
 
 /// IFOC speed step to 150 rad/s with the shipped drive (DeLorenzo motor, ICAD current loop

@@ -422,9 +422,9 @@ fn heating_of(
         (Some(HeatingStart::Hot), None) => model.rated_hot(),
         (None, Some(t)) => {
             src.check(
-                t.is_finite() && t >= h.ambient_c && t <= h.ambient_c + 4.0 * h.rated_rise_k,
+                t.is_finite() && t >= h.ambient_c && t < plant::thermal::COPPER_MELTING_C,
                 "heating.start_c",
-                "must lie between ambient_c and four rated rises above it",
+                "must lie between ambient_c and copper's melting point",
             )?;
             Windings { stator_c: t, rotor_c: t }
         }
@@ -769,16 +769,9 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
         Some(t) => {
             let r = t.resistance_ohm;
             src.check(r.is_finite() && r > 0.0, "iron_loss.resistance_ohm", "must be finite and > 0")?;
-            let inverse_gamma = match &plant_saturation {
-                Some(s) => s.form == controller_core::magnetics::Form::InverseGamma,
-                None => (plant.lr_h() - plant.lm_h()).abs() <= 1e-9 * plant.lm_h(),
-            };
-            src.check(
-                inverse_gamma,
-                "iron_loss",
-                "needs the simulated machine in the inverse-Γ form (form = \"inverse_gamma\"): its \
-                 magnetizing branch behind the stator leakage",
-            )?;
+            // The machine the run builds, built now: a form that cannot take it is named here.
+            crate::scenario::plant_machine(&plant, plant_saturation.as_ref(), Some(r))
+                .map_err(|e| src.error("iron_loss", format!("{e} (form = \"inverse_gamma\")")))?;
             Some(r)
         }
     };
@@ -977,6 +970,8 @@ torque_nm = 0.5
         );
         assert_eq!(key(&base.replace("80.0", "-1.0")).as_deref(), Some("heating"));
         assert_eq!(key(&format!("{base}start_c = 10.0\n")).as_deref(), Some("heating.start_c"));
+        assert_eq!(key(&format!("{base}start_c = 1e300\n")).as_deref(), Some("heating.start_c"));
+        assert_eq!(key(&base.replace("80.0", "1e300")).as_deref(), Some("heating.ambient_c"));
         assert_eq!(
             key(&format!("{base}start = \"hot\"\nstart_c = 90.0\n")).as_deref(),
             Some("heating.start_c")

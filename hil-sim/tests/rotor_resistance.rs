@@ -18,14 +18,16 @@ fn motor(spec: &DriveSpec, rs: f64, rr: f64) -> MotorParams {
     scaled_plant(&spec.motor, rs, rr, 1.0).unwrap()
 }
 
-fn run(
+/// A run of `spec` on `plant` at 310 V with realistic sensors (noise seed `seed`), an active
+/// load, the average inverter; a test changes what it needs.
+fn builtin(
     spec: DriveSpec,
     plant: MotorParams,
     events: Vec<(f64, Event)>,
     duration_s: f64,
     seed: u64,
-) -> Vec<Row> {
-    let b = Builtin {
+) -> Builtin {
+    Builtin {
         name: "rotor-resistance".into(),
         about: String::new(),
         spec,
@@ -46,8 +48,17 @@ fn run(
             heating: None,
             iron_loss_ohm: None,
         },
-    };
-    let (rows, mode) = b.run(|_| {}).unwrap();
+    }
+}
+
+fn run(
+    spec: DriveSpec,
+    plant: MotorParams,
+    events: Vec<(f64, Event)>,
+    duration_s: f64,
+    seed: u64,
+) -> Vec<Row> {
+    let (rows, mode) = builtin(spec, plant, events, duration_s, seed).run(|_| {}).unwrap();
     assert_eq!(mode, Mode::Running, "the drive ends running");
     rows
 }
@@ -248,28 +259,10 @@ fn a_flying_start_at_top_speed_reads_its_rotor_resistance() {
             Some((m, s)) => (m, Some(s)),
             None => (spec.motor, None),
         };
-        let b = Builtin {
-            name: "flying-start".into(),
-            about: String::new(),
-            spec,
-            plant,
-            plant_saturation,
-            expect_fault: None,
-            scenario: Scenario {
-                events: vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Torque(0.0)))],
-                duration_s: 0.4,
-                vdc_v: 310.0,
-                substeps: 1,
-                trace_every: 10,
-                sensors: SensorModel::realistic_for_trip(3, spec.protection.i_trip_a),
-                load: LoadModel::Dynamometer { omega_m_rad_s: 373.2 },
-                inverter: InverterModel::Average,
-                dc_link: None,
-                comparator: None,
-                heating: None,
-                iron_loss_ohm: None,
-            },
-        };
+        let events = vec![(0.0, Event::Enable), (0.0, Event::Reference(Reference::Torque(0.0)))];
+        let mut b = builtin(spec, plant, events, 0.4, 3);
+        b.plant_saturation = plant_saturation;
+        b.scenario.load = LoadModel::Dynamometer { omega_m_rad_s: 373.2 };
         let (rows, mode) = b.run(|_| {}).unwrap();
         assert_eq!(mode, Mode::Running, "{name}");
         let first = rows.iter().find(|r| r.mode == Some(Mode::Running)).unwrap();
@@ -299,32 +292,14 @@ fn the_online_law_follows_a_rotor_heating_with_its_losses() {
         reference_c: 40.0,
     };
     let model = thermal.heating(&plant).unwrap();
-    let b = Builtin {
-        name: "heating".into(),
-        about: String::new(),
-        spec,
-        plant,
-        plant_saturation: None,
-        expect_fault: None,
-        scenario: Scenario {
-            events: vec![
-                (0.0, Event::Enable),
-                (0.3, Event::Reference(Reference::Speed(100.0))),
-                (0.6, Event::LoadNm(1.6)),
-            ],
-            duration_s: 5.0,
-            vdc_v: 310.0,
-            substeps: 1,
-            trace_every: 100,
-            sensors: SensorModel::realistic_for_trip(7, spec.protection.i_trip_a),
-            load: LoadModel::Torque,
-            inverter: InverterModel::Average,
-            dc_link: None,
-            comparator: None,
-            heating: Some(HeatingRun { model, windings: model.cold() }),
-            iron_loss_ohm: None,
-        },
-    };
+    let events = vec![
+        (0.0, Event::Enable),
+        (0.3, Event::Reference(Reference::Speed(100.0))),
+        (0.6, Event::LoadNm(1.6)),
+    ];
+    let mut b = builtin(spec, plant, events, 5.0, 7);
+    b.scenario.trace_every = 100;
+    b.scenario.heating = Some(HeatingRun { model, windings: model.cold() });
     let (rows, mode) = b.run(|_| {}).unwrap();
     assert_eq!(mode, Mode::Running);
     let truth = |r: &Row| model.motor_at(&r.windings.unwrap()).rr_ohm() / plant.rr_ohm();

@@ -28,6 +28,9 @@ pub const COPPER_ALPHA_PER_K: f64 = 3.93e-3;
 /// The resistance-temperature coefficient of cast aluminium (a cage rotor) at 20 °C, 1/K.
 pub const ALUMINIUM_ALPHA_PER_K: f64 = 4.03e-3;
 
+/// Copper's melting point, °C: no winding is hotter, and the linear R(T) means nothing near it.
+pub const COPPER_MELTING_C: f64 = 1085.0;
+
 /// A heating machine's thermal data, as a nameplate and a data sheet give them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ThermalSpec {
@@ -51,8 +54,8 @@ pub enum ThermalError {
     /// A current, the rise or the time constant not finite and positive, or the no-load
     /// current not below the rated one.
     Nameplate,
-    /// A temperature not finite, or a resistance that would not be positive at the ambient
-    /// or at the rated rise.
+    /// A temperature not finite, a resistance that would not be positive at the ambient or
+    /// at the rated rise, or the rated rise reaching [`COPPER_MELTING_C`].
     Temperature,
 }
 
@@ -65,7 +68,7 @@ impl core::fmt::Display for ThermalError {
             }
             Self::Temperature => {
                 "heating: the ambient and reference temperatures must be finite and leave the resistances \
-                 positive"
+                 positive, and the ambient plus the rated rise below copper's melting point"
             }
         })
     }
@@ -106,6 +109,9 @@ impl ThermalSpec {
             return Err(ThermalError::Temperature);
         }
         let hot = s.ambient_c + s.rated_rise_k;
+        if hot >= COPPER_MELTING_C {
+            return Err(ThermalError::Temperature);
+        }
         let factor = |alpha: f64, t: f64| 1.0 + alpha * (t - s.reference_c);
         let (fs, fr) = (factor(COPPER_ALPHA_PER_K, hot), factor(ALUMINIUM_ALPHA_PER_K, hot));
         if !(positive(fs)
@@ -284,5 +290,13 @@ mod tests {
             ThermalSpec { reference_c: f64::INFINITY, ..spec() }.heating(&m),
             Err(ThermalError::Temperature)
         );
+        // Found by trying: a rise of 1e300 K was taken, and the run failed on the machine's
+        // stiffness, naming the RK4 step instead of the rise. A winding hotter than copper
+        // melts is not one.
+        for rise in [1e300, COPPER_MELTING_C] {
+            let s = ThermalSpec { rated_rise_k: rise, ..spec() };
+            assert_eq!(s.heating(&m), Err(ThermalError::Temperature), "{rise}");
+        }
+        assert!(ThermalSpec { rated_rise_k: COPPER_MELTING_C - 41.0, ..spec() }.heating(&m).is_ok());
     }
 }
