@@ -118,6 +118,11 @@ struct CommissionArgs {
     /// --rated-voltage and --rated-frequency).
     #[arg(long, requires_all = ["rated_voltage", "rated_frequency"])]
     rotate: bool,
+    /// With --rotate: after the rated flux, the no-load test measures the magnetizing curve
+    /// at 0.3…1.2 of it (a motor that saturates; ≈ 2 s of settling per level more), and the
+    /// motor file carries it when the motor saturates beyond the L_M interval.
+    #[arg(long, requires = "rotate")]
+    curve: bool,
     /// Nameplate: rated line voltage, V RMS (with --rated-frequency, the rated flux of the
     /// no-load test).
     #[arg(long, requires = "rotate", value_parser = positive_volts)]
@@ -406,8 +411,8 @@ options_from_args! {
     CampaignArgs => CampaignOptions { drive, runs, duration, seed, shard, vdc, out, plant, trace }
     FaultsArgs => FaultsOptions { drive, vdc, out, inject_delay_ms, seed, only, trace, plant }
     CommissionArgs => CommissionOptions {
-        out, test_current, current_limit, level_time, leakage_ratio, rotate, rated_voltage, rated_frequency,
-        no_load_frequency,
+        out, test_current, current_limit, level_time, leakage_ratio, rotate, curve, rated_voltage,
+        rated_frequency, no_load_frequency,
     }
     IdentifyArgs => IdentifyOptions {
         motor, run, vdc, pwm_hz, seed, pole_pairs, swap_current_channels, reverse_encoder, plot_dir, pil, elf,

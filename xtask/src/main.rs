@@ -211,6 +211,8 @@ struct Totals {
     failed: u64,
     /// The last `(k/N) running` line of a defmt-test run in the current step.
     target_run: Option<(u64, u64)>,
+    /// Each step's wall time, in the order run (printed at the end: where CI's minutes go).
+    seconds: Vec<(&'static str, f64)>,
 }
 
 impl Totals {
@@ -266,6 +268,16 @@ impl Totals {
 
 /// Run a step, echoing its stdout line by line and counting any test results in it.
 fn run_counting(step: &Step, totals: &mut Totals) -> bool {
+    let started = std::time::Instant::now();
+    let passed = run_step(step, totals);
+    let s = started.elapsed().as_secs_f64();
+    eprintln!("=== xtask: {} {} in {s:.0} s ===", step.name, if passed { "passed" } else { "FAILED" });
+    totals.seconds.push((step.name, s));
+    passed
+}
+
+/// Run one step, its standard output echoed line by line and counted into `totals`.
+fn run_step(step: &Step, totals: &mut Totals) -> bool {
     use std::io::{BufRead, BufReader};
     use std::process::Stdio;
     let all_args: Vec<&str> = step.pre_args.iter().chain(step.args).copied().collect();
@@ -818,6 +830,13 @@ fn main() -> ExitCode {
         }
         if !module_sizes() {
             failed.push("module-sizes");
+        }
+    }
+    if totals.seconds.len() > 1 {
+        let total: f64 = totals.seconds.iter().map(|(_, s)| s).sum();
+        eprintln!("\nxtask {task}: wall time per step ({total:.0} s in all)");
+        for (name, s) in &totals.seconds {
+            eprintln!("{s:>8.0} s  {name}");
         }
     }
     let code = if failed.is_empty() {

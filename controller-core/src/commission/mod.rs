@@ -69,7 +69,7 @@ mod pulses;
 mod record;
 mod rotation;
 
-pub use no_load::{NO_LOAD_WINDOWS, NoLoadRecord, NoLoadWindow};
+pub use no_load::{CURVE_FLUX_FRACTIONS, CURVE_WINDOWS, NO_LOAD_WINDOWS, NoLoadRecord, NoLoadWindow};
 pub use record::{InjectionRecord, LevelRecord, PulseRecord, RECORD_BYTES, Record, RotationRecord};
 
 /// Periods of the offset and bus measurement (≥ 1 024, issue 19's calibration).
@@ -180,6 +180,8 @@ pub enum CommissionSpecError {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CommissionConfig {
     spec: CommissionSpec,
+    /// The no-load test measures the magnetizing curve ([`CommissionConfig::with_curve`]).
+    curve: bool,
     ts_s: f32,
     level_periods: u32,
     block_end: [u32; BLOCKS],
@@ -245,7 +247,20 @@ impl CommissionConfig {
         if let Some(last) = block_end.last_mut() {
             *last = level_periods;
         }
-        Ok(Self { spec, ts_s, level_periods, block_end })
+        Ok(Self { spec, curve: false, ts_s, level_periods, block_end })
+    }
+
+    /// With [`CommissionSpec::rotate`]: after the rated flux, the no-load test measures the
+    /// magnetizing curve at 0.3…1.2 of it ([`no_load::CURVE_FLUX_FRACTIONS`]; a motor that
+    /// saturates). Ignored without it. Not yet over the link: a board's sequence measures the
+    /// rated flux only (the link's `Commission` carries the spec).
+    pub fn with_curve(self, curve: bool) -> Self {
+        Self { curve, ..self }
+    }
+
+    /// The no-load test measures the magnetizing curve ([`CommissionConfig::with_curve`]).
+    pub fn curve(&self) -> bool {
+        self.curve
     }
 
     /// The spec.

@@ -172,7 +172,7 @@ impl Record {
         }
         f(&mut n.omega_e_rad_s);
         bits(f, &mut n.periods_per_window);
-        for w in n.windows.iter_mut() {
+        for w in n.windows.iter_mut().chain(n.curve.iter_mut()) {
             w.v_dq_v.iter_mut().chain(w.i_dq_a.iter_mut()).for_each(&mut *f);
             f(&mut w.theta_m_rad);
         }

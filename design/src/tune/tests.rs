@@ -314,6 +314,47 @@ fn template_for(m: &MotorParams) -> String {
     )
 }
 
+/// One test per seeded random motor, in a module named for the check (`…::motor_3`): the
+/// harness spreads the motors over the cores (as one loop, one check held a core for
+/// minutes while the other sat idle).
+macro_rules! per_random_motor {
+    ($module:ident, $check:ident) => {
+        mod $module {
+            #[test]
+            fn motor_0() {
+                super::$check(0)
+            }
+            #[test]
+            fn motor_1() {
+                super::$check(1)
+            }
+            #[test]
+            fn motor_2() {
+                super::$check(2)
+            }
+            #[test]
+            fn motor_3() {
+                super::$check(3)
+            }
+            #[test]
+            fn motor_4() {
+                super::$check(4)
+            }
+            #[test]
+            fn motor_5() {
+                super::$check(5)
+            }
+        }
+    };
+}
+
+/// The `k`-th of the seeded random motors.
+fn seeded_random_motor(k: usize) -> MotorParams {
+    let motors = seeded_random_motors();
+    assert!(k < motors.len(), "{k} is not one of the {} random motors", motors.len());
+    motors.into_iter().nth(k).unwrap()
+}
+
 /// Six seeded random motors in the ranges of `hil-sim/tests/identify.rs`.
 fn seeded_random_motors() -> Vec<MotorParams> {
     let mut state = 0x2545_f491_4f6c_dd1du64;
@@ -335,53 +376,41 @@ fn seeded_random_motors() -> Vec<MotorParams> {
         .collect()
 }
 
-/// Motors the toolkit has never seen (the ranges of `hil-sim/tests/identify.rs`: 2–10 %
-/// leakage each side, L_m 0.05…2 H, T_r 20…600 ms, L_s/R_s 10…200 ms, p = 2), each on a
-/// template sized for it: the tuned file passes every linear check.
-#[test]
-fn seeded_random_motors_tune_and_certify() {
-    for (k, m) in seeded_random_motors().into_iter().enumerate() {
-        let template = template_for(&m);
-        let t = tune(Path::new("template.toml"), &template, &m, None, Structure::default())
-            .unwrap_or_else(|e| panic!("random {k} ({m:?}): {e}"));
-        assert!(t.checks.iter().all(|c| c.pass), "random {k}");
-        println!("random {k}: ω_c {:.0} rad/s, ω_s {:.1} rad/s", t.omega_c_rad_s, t.omega_s_rad_s);
-    }
-}
-
 /// Issue 51's acceptance on the same random motors, each on its template's default
 /// requirements: `--speed auto` writes a file predicted to meet them, or refuses naming
 /// each requirement its laws miss — on the prediction (the P droops, seed 000's PI at its
 /// best setpoint weight overshoots or rises too slowly) or on the corner runs in SIL, of 1 s
 /// and to the box's top speed (`TuneCampaigns`, docs/population.md).
-#[test]
-fn seeded_random_motors_meet_the_requirements_or_are_refused_naming_them() {
+fn meets_the_requirements_or_is_refused_naming_them(k: usize) {
     let auto = Structure { speed: SpeedDesign::Auto, ..Default::default() };
-    let mut verdicts = Vec::new();
-    for (k, m) in seeded_random_motors().into_iter().enumerate() {
-        match tune(Path::new("template.toml"), &template_for(&m), &m, None, auto) {
-            Ok(t) => {
-                assert!(t.predicted_misses.is_empty(), "random {k}: {:?}", t.predicted_misses);
-                verdicts.push(format!("random {k}: {:?}", t.spec.speed_law));
-            }
-            Err(e) => {
-                // Refused on the prediction, naming each law's misses, or on the corner runs
-                // in SIL (to the box's top speed), naming what they missed and in how many.
-                let predicted = e.starts_with("no speed law meets the requirements")
-                    && e.contains("misses requirements.")
-                    && e.contains("PI (seed 000's");
-                let in_sil = e.contains("is predicted to meet the requirements over the box, but the drive misses them in software in the loop on the 64 corner runs of the ")
-                    && e.contains(" of 64 runs");
-                assert!(predicted || in_sil, "random {k}: {e}");
-                verdicts.push(format!("random {k}: {e}"));
-            }
+    let m = seeded_random_motor(k);
+    match tune(Path::new("template.toml"), &template_for(&m), &m, None, auto) {
+        Ok(t) => {
+            assert!(t.predicted_misses.is_empty(), "random {k}: {:?}", t.predicted_misses);
+            println!("random {k}: {:?}", t.spec.speed_law);
+        }
+        Err(e) => {
+            // Refused on the prediction, naming each law's misses, or on the corner runs
+            // in SIL (to the box's top speed), naming what they missed and in how many.
+            let predicted = e.starts_with("no speed law meets the requirements")
+                && e.contains("misses requirements.")
+                && e.contains("PI (seed 000's");
+            let in_sil = e.contains("is predicted to meet the requirements over the box, but the drive misses them in software in the loop on the 64 corner runs of the ")
+                && e.contains(" of 64 runs");
+            assert!(predicted || in_sil, "random {k}: {e}");
+            println!("random {k}: {e}");
         }
     }
-    println!("{}", verdicts.join("\n"));
 }
+per_random_motor!(
+    seeded_random_motors_meet_the_requirements_or_are_refused_naming_them,
+    meets_the_requirements_or_is_refused_naming_them
+);
 
-/// The same random motors' tuned files in the nonlinear campaign (issue 21: "passes both
-/// certificates"): 200 runs each over the tuned file's box (`hil_sim::campaign`: speed
+/// Motors the toolkit has never seen (the ranges of `hil-sim/tests/identify.rs`: 2–10 %
+/// leakage each side, L_m 0.05…2 H, T_r 20…600 ms, L_s/R_s 10…200 ms, p = 2), each on a
+/// template sized for it: the tuned file passes every linear check, and then the nonlinear
+/// campaign (issue 21: "passes both certificates"): 200 runs each over the tuned file's box (`hil_sim::campaign`: speed
 /// steps, load steps to the torque limit and reversals, realistic sensors scaled to the
 /// drive's trip level), long enough for each motor to magnetize first. Every run passes
 /// (a stated gap — reversals at the R_r ×1.2 corners missing tracking by a little, the
@@ -390,51 +419,51 @@ fn seeded_random_motors_meet_the_requirements_or_are_refused_naming_them() {
 /// fault, no flux collapse, no oscillation); the default `[requirements]` — ±1 % speed
 /// regulation, which the saturated P's droop τ_L/k_p misses by design — are printed, not
 /// asserted: choosing a speed law that meets them is the tuner's next step (issue 51).
-#[test]
-fn seeded_random_motors_pass_the_campaign() {
+fn tunes_certifies_and_passes_the_campaign(k: usize) {
     use hil_sim::campaign::{Campaign, STEP_S};
     use std::sync::atomic::AtomicBool;
-    let mut failed = Vec::new();
-    for (k, m) in seeded_random_motors().into_iter().enumerate() {
-        let t = tune(Path::new("template.toml"), &template_for(&m), &m, None, Structure::default()).unwrap();
-        let mut c = Campaign {
-            spec: t.spec,
-            certify: t.certify,
-            vdc_v: 310.0,
-            duration_s: 1.0,
-            runs: 200,
-            seed: 1,
-            shard: (0, 1),
-            encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
-            plant: None,
-            requirements: drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap().requirements,
-        };
-        // A long rotor time constant magnetizes later: 0.75 s after the step as at 1 s.
-        c.duration_s = c.duration_s.max(c.step_s() + (1.0 - STEP_S));
-        let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
-        let bad: Vec<String> =
-            v.iter().filter(|v| !v.criteria_failed().is_empty()).map(|v| v.csv()).collect();
-        println!(
-            "random {k} (L_m {:.3} H, T_r {:.3} s, J {:.2e} kg·m², i_trip {:.2} A, runs of {:.2} s): {} of {} pass the criteria, {} meet the default requirements; missed: {}",
-            m.lm_h(),
-            m.lr_h() / m.rr_ohm(),
-            m.j_kgm2(),
-            t.spec.protection.i_trip_a,
-            c.duration_s,
-            v.len() - bad.len(),
-            v.len(),
-            v.iter().filter(|v| v.passed()).count(),
-            missed_counts(&v),
-        );
-        for b in bad.iter().take(5) {
-            println!("  {b}");
-        }
-        if !bad.is_empty() {
-            failed.push(k);
-        }
+    let m = seeded_random_motor(k);
+    let t = tune(Path::new("template.toml"), &template_for(&m), &m, None, Structure::default())
+        .unwrap_or_else(|e| panic!("random {k} ({m:?}): {e}"));
+    assert!(t.checks.iter().all(|c| c.pass), "random {k}");
+    println!("random {k}: ω_c {:.0} rad/s, ω_s {:.1} rad/s", t.omega_c_rad_s, t.omega_s_rad_s);
+    let mut c = Campaign {
+        spec: t.spec,
+        certify: t.certify,
+        vdc_v: 310.0,
+        duration_s: 1.0,
+        runs: 200,
+        seed: 1,
+        shard: (0, 1),
+        encoder_lines: drive_file::drive::DEFAULT_ENCODER_LINES,
+        plant: None,
+        requirements: drive_file::DriveFile::parse(Path::new("t.toml"), &t.text).unwrap().requirements,
+    };
+    // A long rotor time constant magnetizes later: 0.75 s after the step as at 1 s.
+    c.duration_s = c.duration_s.max(c.step_s() + (1.0 - STEP_S));
+    let v = c.run(|_| {}, &AtomicBool::new(false)).unwrap();
+    let bad: Vec<String> = v.iter().filter(|v| !v.criteria_failed().is_empty()).map(|v| v.csv()).collect();
+    println!(
+        "random {k} (L_m {:.3} H, T_r {:.3} s, J {:.2e} kg·m², i_trip {:.2} A, runs of {:.2} s): {} of {} pass the criteria, {} meet the default requirements; missed: {}",
+        m.lm_h(),
+        m.lr_h() / m.rr_ohm(),
+        m.j_kgm2(),
+        t.spec.protection.i_trip_a,
+        c.duration_s,
+        v.len() - bad.len(),
+        v.len(),
+        v.iter().filter(|v| v.passed()).count(),
+        missed_counts(&v),
+    );
+    for b in bad.iter().take(5) {
+        println!("  {b}");
     }
-    assert!(failed.is_empty(), "random motors {failed:?} fail the campaign");
+    assert!(bad.is_empty(), "random motor {k} fails the campaign");
 }
+per_random_motor!(
+    seeded_random_motors_tune_certify_and_pass_the_campaign,
+    tunes_certifies_and_passes_the_campaign
+);
 
 /// Issue 51: the template's `[requirements]` choose the speed law. The 24 V template asks
 /// the defaults (±1 % regulation, 10 % overshoot), its runs stepping to the box's top speed

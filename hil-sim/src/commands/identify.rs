@@ -24,6 +24,8 @@ pub struct CommissionOptions {
     /// The motor may turn: the rotating field and the no-load test after the standstill
     /// sequence.
     pub rotate: bool,
+    /// With `rotate`: the no-load test measures the magnetizing curve too.
+    pub curve: bool,
     /// Nameplate: rated line voltage, V RMS.
     pub rated_voltage: Option<f64>,
     /// Nameplate: rated frequency, Hz.
@@ -60,17 +62,21 @@ impl CommissionOptions {
                 .or(self.rated_frequency.map(|f| (0.25 * f).max(f64::from(ROTATION_HZ))))
                 .unwrap_or(0.0) as f32,
         };
-        CommissionConfig::new(spec).map_err(|e| {
-            match e {
-                E::PwmFrequency => "the PWM frequency must lie in 1 … 100 kHz",
-                E::TestCurrent => "--test-current must be positive",
-                E::CurrentLimit => "--current-limit must be at least 1.5 × the test current",
-                E::BusRange => "the bus range is empty",
-                E::LevelTime => "--level-time must lie between 192 PWM periods and 60 s",
-                E::NoLoad => "--no-load-frequency must lie in 2 … 400 Hz (and the rated flux be positive)",
-            }
-            .to_string()
-        })
+        CommissionConfig::new(spec)
+            .map_err(|e| {
+                match e {
+                    E::PwmFrequency => "the PWM frequency must lie in 1 … 100 kHz",
+                    E::TestCurrent => "--test-current must be positive",
+                    E::CurrentLimit => "--current-limit must be at least 1.5 × the test current",
+                    E::BusRange => "the bus range is empty",
+                    E::LevelTime => "--level-time must lie between 192 PWM periods and 60 s",
+                    E::NoLoad => {
+                        "--no-load-frequency must lie in 2 … 400 Hz (and the rated flux be positive)"
+                    }
+                }
+                .to_string()
+            })
+            .map(|c| c.with_curve(self.curve))
     }
 
     /// Write the motor file for `id` (checked to load as a motor first; atomically).
@@ -243,6 +249,9 @@ pub fn identify(a: &IdentifyOptions) -> Result<(), String> {
     if let Some(n) = &id.no_load {
         report::outln!("{}", crate::identify::describe_no_load(n));
     }
+    for line in crate::identify::describe_curve(&id) {
+        report::outln!("{line}");
+    }
     let about = format!(
         "Simulated commissioning of `{}` (hil-sim identify: {} V bus, {} Hz PWM, test current {} A, seed {}).",
         a.motor, a.vdc, a.pwm_hz, a.run.test_current, a.seed
@@ -279,6 +288,7 @@ mod tests {
                 level_time: 3.0,
                 leakage_ratio: 1.0,
                 rotate: false,
+                curve: false,
                 rated_voltage: None,
                 rated_frequency: None,
                 no_load_frequency: None,

@@ -89,6 +89,13 @@ pub fn link_identify<R: std::io::Read, W: std::io::Write>(
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
     let p = &file.spec.protection;
     // The board validates the same way; refused here first, with a reason.
+    if a.run.curve {
+        return Err(
+            "--curve is not yet available over the link: a board's sequence measures the rated flux only \
+                    (the curve runs in `hil-sim identify`, in SIL)"
+                .into(),
+        );
+    }
     let config = a.run.config(file.spec.pwm_frequency_hz, (p.vdc_min_v, p.vdc_max_v))?;
     stop_on_ctrl_c();
     let mut shown = None;
@@ -114,6 +121,9 @@ pub fn link_identify<R: std::io::Read, W: std::io::Write>(
     let id = identify::estimate(&config, &record, m.pole_pairs())?;
     if let Some(n) = &id.no_load {
         report::outln!("{}", identify::describe_no_load(n));
+    }
+    for line in identify::describe_curve(&id) {
+        report::outln!("{line}");
     }
     let about = format!(
         "Commissioned on the board over its link (hil-sim link … identify: test current {} A, drive file {}).",

@@ -2,8 +2,10 @@
 //! module's docs, "Estimation"), and the thresholds that refuse a record: the DC levels'
 //! decays, the injections' impedance, the rotating field's mechanics and the no-load test.
 
-use super::{DecayFit, Estimate, Identified, MARGIN, NoLoad, Rotation};
-use controller_core::commission::{BLOCKS, CommissionConfig, Record};
+use super::{CurvePoint, DecayFit, Estimate, Identified, MARGIN, NoLoad, Rotation};
+use controller_core::commission::{
+    BLOCKS, CURVE_FLUX_FRACTIONS, CURVE_WINDOWS, CommissionConfig, NoLoadWindow, Record,
+};
 
 /// Relative margin on J and B, beyond three standard errors of their fit.
 pub const MECHANICS_MARGIN: f64 = 0.10;
@@ -338,7 +340,7 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
         l_sigma_h: l_sigma_est,
         tr_s: tr_est,
         r_rr_ohm: rr_est,
-        l_mm_h: no_load.map_or(lmm_est, |n| n.l_mm_h),
+        l_mm_h: no_load.as_ref().map_or(lmm_est, |n| n.l_mm_h),
         inverter_error_v: e_est,
         offsets_a,
         vdc_v: f64::from(rec.vdc_v),
@@ -385,22 +387,15 @@ fn no_load(
     }
     let half = 0.5 * w * ts;
     let delay = num_complex::Complex64::from_polar(half.sin() / half, -3.0 * half);
+    let branch = |win: &NoLoadWindow| branch_of(win, w, delay, t);
     let mut l_mm = Vec::new();
     let (mut flux, mut slip) = (0.0, 0.0);
+    let mut rated_point = Vec::new();
     for win in &n.windows {
-        let v = num_complex::Complex64::new(f64::from(win.v_dq_v[0]), f64::from(win.v_dq_v[1])) * delay;
-        let i = num_complex::Complex64::new(f64::from(win.i_dq_a[0]), f64::from(win.i_dq_a[1]));
-        if i.norm().is_nan() || i.norm() <= 0.0 {
-            return Err("no current in the no-load test's record".into());
-        }
-        let v = v - i / i.norm() * (4.0 / std::f64::consts::PI * t.v_e);
-        let z_r = v / i - t.rs - num_complex::Complex64::new(0.0, w * t.l_sigma);
-        let l = -1.0 / (w * (1.0 / z_r).im);
-        if !(l.is_finite() && l > 0.0) {
-            return Err(format!("the no-load test gives no positive magnetizing inductance ({l} H)"));
-        }
-        l_mm.push(l);
-        flux += (v - i * t.rs).norm() / w;
+        let b = branch(win)?;
+        l_mm.push(b.l_mm_h);
+        rated_point.push(b);
+        flux += b.stator_flux_wb;
         slip += w - f64::from(pole_pairs) * f64::from(win.theta_m_rad) / (periods * ts);
     }
     let k = n.windows.len() as f64;
@@ -429,7 +424,16 @@ fn no_load(
             100.0 * flux / k / rated
         ));
     }
+    let mut levels = vec![(1.0, rated_point)];
+    for (fraction, windows) in CURVE_FLUX_FRACTIONS.iter().zip(n.curve.chunks_exact(CURVE_WINDOWS)) {
+        // A level not reached (the sequence stopped before it) is all zero.
+        if windows.iter().all(|win| *win == NoLoadWindow::default()) {
+            continue;
+        }
+        levels.push((f64::from(*fraction), windows.iter().map(branch).collect::<Result<_, _>>()?));
+    }
     Ok(NoLoad {
+        curve: curve_points(levels),
         l_mm_h: Estimate::of(&l_mm, MARGIN.lm),
         standstill_l_mm_h: standstill,
         flux_wb: flux / k,
@@ -438,6 +442,73 @@ fn no_load(
         amplitude_a: f64::from(n.amplitude_a),
         slip_rad_s: slip / k,
     })
+}
+
+/// The rotor branch of one no-load window (see [`no_load`]).
+#[derive(Clone, Copy, Debug)]
+struct Branch {
+    /// L_M, H.
+    l_mm_h: f64,
+    /// The branch's flux ψ_R = |Z_R·I|/ω, Wb.
+    flux_wb: f64,
+    /// The stator flux |V − R_s·I|/ω, Wb.
+    stator_flux_wb: f64,
+}
+
+/// [`Branch`] of window `win` at field frequency `w`, the voltage's `delay`, the
+/// standstill `t`erminals.
+fn branch_of(
+    win: &NoLoadWindow,
+    w: f64,
+    delay: num_complex::Complex64,
+    t: Terminals,
+) -> Result<Branch, String> {
+    let v = num_complex::Complex64::new(f64::from(win.v_dq_v[0]), f64::from(win.v_dq_v[1])) * delay;
+    let i = num_complex::Complex64::new(f64::from(win.i_dq_a[0]), f64::from(win.i_dq_a[1]));
+    if i.norm().is_nan() || i.norm() <= 0.0 {
+        return Err("no current in the no-load test's record".into());
+    }
+    let v = v - i / i.norm() * (4.0 / std::f64::consts::PI * t.v_e);
+    let z_r = v / i - t.rs - num_complex::Complex64::new(0.0, w * t.l_sigma);
+    let l = -1.0 / (w * (1.0 / z_r).im);
+    if !(l.is_finite() && l > 0.0) {
+        return Err(format!("the no-load test gives no positive magnetizing inductance ({l} H)"));
+    }
+    Ok(Branch { l_mm_h: l, flux_wb: (z_r * i).norm() / w, stator_flux_wb: (v - i * t.rs).norm() / w })
+}
+
+/// The curve's points from each level's windows (`(target fraction, branches)`): by rising
+/// current, each point's flux and current the windows' span widened by the L_M margin
+/// ([`MARGIN`]`.lm`: the current sensor's gain error and the model's approximations scale
+/// them as they scale L_M). A point whose current does not exceed the one below it by more
+/// than its own interval (the test current capped two levels at one current) is left out:
+/// the curve must rise.
+fn curve_points(levels: Vec<(f64, Vec<Branch>)>) -> Vec<CurvePoint> {
+    let mut points: Vec<CurvePoint> = levels
+        .into_iter()
+        .filter(|(_, b)| !b.is_empty())
+        .map(|(target_fraction, b)| {
+            let flux: Vec<f64> = b.iter().map(|x| x.flux_wb).collect();
+            let current: Vec<f64> = b.iter().map(|x| x.flux_wb / x.l_mm_h).collect();
+            CurvePoint {
+                target_fraction,
+                flux_wb: Estimate::of(&flux, MARGIN.lm),
+                current_a: Estimate::of(&current, MARGIN.lm),
+                stator_flux_wb: b.iter().map(|x| x.stator_flux_wb).sum::<f64>() / b.len() as f64,
+            }
+        })
+        .collect();
+    points.sort_by(|a, b| a.current_a.value.total_cmp(&b.current_a.value));
+    let mut rising: Vec<CurvePoint> = Vec::with_capacity(points.len());
+    for p in points {
+        let above = rising.last().is_none_or(|q| {
+            p.current_a.value > q.current_a.value * (1.0 + MARGIN.lm) && p.flux_wb.value > q.flux_wb.value
+        });
+        if above {
+            rising.push(p);
+        }
+    }
+    rising
 }
 
 /// The no-load test must reach this fraction of the rated flux, or the estimate is refused

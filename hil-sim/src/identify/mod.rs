@@ -56,7 +56,7 @@ mod run;
 
 pub use estimation::{MECHANICS_MARGIN, NO_LOAD_FLUX_MIN, ROTATION_RATIO_RANGE, SLIP_RESOLUTION, estimate};
 pub use model::{TModel, inverse_gamma, rated_flux_wb, t_model};
-pub use output::{describe_no_load, motor_file, plots};
+pub use output::{describe_curve, describe_no_load, motor_file, plots, saturating_curve};
 pub use run::{RunError, Setup, Target, describe, over_link, simulate, simulate_on, stage_name};
 
 /// Relative margin added on each side of the repeats' span, per parameter: the accuracy the
@@ -157,8 +157,22 @@ pub struct Identified {
     pub no_load: Option<NoLoad>,
 }
 
-/// What the no-load test at rated flux found.
+/// One point of the magnetizing curve (the inverse-Γ branch at the rotor): its flux and its
+/// current, each an estimate over the level's windows.
 #[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CurvePoint {
+    /// The fraction of the rated stator flux the level aimed at.
+    pub target_fraction: f64,
+    /// The branch's flux ψ_R, Wb (peak).
+    pub flux_wb: Estimate,
+    /// The branch's current i_M = ψ_R/L_M, A (peak): at no load, nearly the stator current.
+    pub current_a: Estimate,
+    /// The stator flux the level settled at, Wb (peak).
+    pub stator_flux_wb: f64,
+}
+
+/// What the no-load test at rated flux found.
+#[derive(Clone, Debug, PartialEq)]
 pub struct NoLoad {
     /// L_M at the test's flux, H (one repeat per window).
     pub l_mm_h: Estimate,
@@ -174,6 +188,10 @@ pub struct NoLoad {
     pub amplitude_a: f64,
     /// Mean slip, rad/s (electrical; from the encoder and the pole pairs).
     pub slip_rad_s: f64,
+    /// The magnetizing curve: a point per level reached (`controller_core::commission::
+    /// no_load`, step 5) and the rated flux's, by rising current (a level the test current
+    /// capped at its predecessor's current is left out).
+    pub curve: Vec<CurvePoint>,
 }
 
 /// What the slow rotating field found.

@@ -2,7 +2,7 @@
 //! and the no-load test's line.
 
 use super::estimation::skip_periods;
-use super::{Estimate, Identified, NoLoad};
+use super::{CurvePoint, Estimate, Identified, NoLoad};
 use controller_core::commission::{BLOCKS, CommissionConfig, Record};
 
 /// One line on the no-load test's result.
@@ -21,6 +21,35 @@ pub fn describe_no_load(n: &NoLoad) -> String {
         n.l_mm_h.interval[1],
         n.standstill_l_mm_h.value,
     )
+}
+
+/// The measured magnetizing curve, if the motor saturates beyond the L_M interval: some
+/// point's chord ψ_R/i_M lies outside it (a linear motor's chords all lie within it, and its
+/// file stays in the T form with one L_m). At least two points.
+pub fn saturating_curve(id: &Identified) -> Option<&[CurvePoint]> {
+    let curve = &id.no_load.as_ref()?.curve;
+    let outside = curve.iter().any(|p| !id.l_mm_h.contains(p.flux_wb.value / p.current_a.value));
+    (curve.len() >= 2 && outside).then_some(curve.as_slice())
+}
+
+/// One line per point of the measured curve.
+pub fn describe_curve(id: &Identified) -> Vec<String> {
+    let Some(nl) = &id.no_load else { return Vec::new() };
+    nl.curve
+        .iter()
+        .map(|p| {
+            format!(
+                "  curve at {:.2} of the rated flux: ψ_R {:.4} Wb [{:.4}, {:.4}] at i_M {:.4} A (chord L_M {:.5} H; stator flux {:.4} Wb)",
+                p.target_fraction,
+                p.flux_wb.value,
+                p.flux_wb.interval[0],
+                p.flux_wb.interval[1],
+                p.current_a.value,
+                p.flux_wb.value / p.current_a.value,
+                p.stator_flux_wb
+            )
+        })
+        .collect()
 }
 
 /// The pictures of a run: `decays.svg` — each DC level's recorded voltage above its settled
@@ -93,7 +122,10 @@ pub fn plots(
 
 /// The motor file: `[motor]` at the nominal values under `ratio`, with `pole_pairs` as given,
 /// J and B identified by the rotating field if it ran (else `j_kgm2`, `b_nms` as given), and
-/// `[identification]` with the intervals and the inverter's error.
+/// `[identification]` with the intervals and the inverter's error. A motor that saturates
+/// ([`saturating_curve`]) is written in the inverse-Γ form its curve was measured in
+/// (`ratio` set aside: the curve saturates the branch at the rotor, which the T form cannot
+/// say), with `[motor.saturation]` the curve's points and `[identification]` their intervals.
 pub fn motor_file(
     id: &Identified,
     ratio: f64,
@@ -102,6 +134,8 @@ pub fn motor_file(
     b_nms: f64,
     about: &str,
 ) -> String {
+    let curve = saturating_curve(id);
+    let ratio = if curve.is_some() { 0.0 } else { ratio };
     let t = id.t_model(ratio);
     let (j_kgm2, b_nms, mechanics) = match &id.rotation {
         Some(r) => (r.j_kgm2.value, r.b_nms.value, "j_kgm2 and b_nms by the slow rotating field"),
@@ -126,22 +160,48 @@ pub fn motor_file(
     for line in about.lines() {
         s.push_str(&format!("# {line}\n"));
     }
-    s.push_str(&format!(
-        "# Identified by controller-core's commissioning sequence (hil_sim::identify).\n\
-         # The leakage split L_lr/L_ls = {} is assumed (the terminals cannot tell it; control does not\n\
-         # depend on it). pole_pairs is as given; {mechanics}.\n\
-         # {magnetizing}.\n\
-         [motor]\n\
-         rs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = {}\nlm_h = {}\npole_pairs = {pole_pairs}\nj_kgm2 = {}\nb_nms = {}\n\n",
-        n(ratio),
-        n(t.rs_ohm),
-        n(t.rr_ohm),
-        n(t.ls_h),
-        n(t.lr_h),
-        n(t.lm_h),
-        n(j_kgm2),
-        n(b_nms),
-    ));
+    let head = "# Identified by controller-core's commissioning sequence (hil_sim::identify).\n";
+    match curve {
+        None => s.push_str(&format!(
+            "{head}\
+             # The leakage split L_lr/L_ls = {} is assumed (the terminals cannot tell it; control does not\n\
+             # depend on it). pole_pairs is as given; {mechanics}.\n\
+             # {magnetizing}.\n\
+             [motor]\n\
+             rs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = {}\nlm_h = {}\npole_pairs = {pole_pairs}\nj_kgm2 = {}\nb_nms = {}\n\n",
+            n(ratio),
+            n(t.rs_ohm),
+            n(t.rr_ohm),
+            n(t.ls_h),
+            n(t.lr_h),
+            n(t.lm_h),
+            n(j_kgm2),
+            n(b_nms),
+        )),
+        Some(points) => {
+            s.push_str(&format!(
+                "{head}\
+                 # The magnetizing branch saturates: written in the inverse-Γ form the no-load test measures it\n\
+                 # in (the branch at the rotor, L_σ on the stator side; rr_ohm is R_R, lm_h L_M at rated flux).\n\
+                 # pole_pairs is as given; {mechanics}.\n\
+                 # {magnetizing}.\n\
+                 [motor]\n\
+                 form = \"inverse_gamma\"\nrs_ohm = {}\nrr_ohm = {}\nlm_h = {}\nl_sigma_h = {}\npole_pairs = {pole_pairs}\n\
+                 j_kgm2 = {}\nb_nms = {}\n\n\
+                 # The curve by the no-load test at {} levels: the branch's flux ψ_R and current i_M (peak).\n\
+                 [motor.saturation]\ncurrent_a = [{}]\nflux_wb = [{}]\n\n",
+                n(t.rs_ohm),
+                n(t.rr_ohm),
+                n(t.lm_h),
+                n(id.l_sigma_h.value),
+                n(j_kgm2),
+                n(b_nms),
+                points.len(),
+                points.iter().map(|p| n(p.current_a.value)).collect::<Vec<_>>().join(", "),
+                points.iter().map(|p| n(p.flux_wb.value)).collect::<Vec<_>>().join(", "),
+            ));
+        }
+    }
     s.push_str(
         "# Intervals: the repeats' span widened by the stated margins (hil_sim::identify::MARGIN).\n\
          [identification]\n",
@@ -157,6 +217,15 @@ pub fn motor_file(
         iv(&id.l_mm_h),
         iv(&id.r_rr_ohm)
     ));
+    if let Some(points) = curve {
+        let list =
+            |f: fn(&CurvePoint) -> &Estimate| points.iter().map(|p| iv(f(p))).collect::<Vec<_>>().join(", ");
+        s.push_str(&format!(
+            "curve_current_a = [{}]\ncurve_flux_wb = [{}]\n",
+            list(|p| &p.current_a),
+            list(|p| &p.flux_wb)
+        ));
+    }
     if let Some(r) = &id.rotation {
         s.push_str(&format!(
             "j_kgm2 = {}\nb_nms = {}\n# The rotor turned {}× the field's mechanical speed (1 − slip) at {} rad/s.\n",
