@@ -250,18 +250,15 @@ fn tune(a: &TuneArgs) -> Result<bool, String> {
             a.out.display()
         ));
     }
-    let motor = drive_file::motor::load(&a.motor).map_err(|e| e.to_string())?;
-    let intervals = if std::path::Path::new(&a.motor).is_file() {
-        let text = drive_file::source::read(std::path::Path::new(&a.motor)).map_err(|e| e.to_string())?;
-        design::tune::Intervals::parse(&text).map_err(|e| format!("{}: {e}", a.motor))?
-    } else {
-        None
-    };
+    // The motor as written (a shipped one's text, or the file's): its [identification]
+    // intervals widen the box, and a saturating one goes into the drive file with its curve.
+    let (motor_path, motor_text) = drive_file::motor::text_of(&a.motor).map_err(|e| e.to_string())?;
+    let intervals = design::tune::Intervals::parse(&motor_text).map_err(|e| format!("{}: {e}", a.motor))?;
     let template = drive_file::source::read(&a.template).map_err(|e| e.to_string())?;
-    let t = design::tune::tune(
+    let t = design::tune::tune_file(
         &a.template,
         &template,
-        &motor,
+        design::tune::MotorFile { path: &motor_path, text: &motor_text },
         intervals.as_ref(),
         design::tune::Structure { current: a.current, speed: a.speed },
     )?;

@@ -450,9 +450,48 @@ pub fn parse_model(path: &Path, text: &str) -> Result<(MotorParams, Option<Satur
     raw.motor.validate_model(&src, "motor")
 }
 
+/// The `[motor]` table of a file's text as a drive at rotor flux `flux_ref_wb` runs it, if
+/// its branch saturates: the chord model there and the curve as the drive's table
+/// ([`MotorTable::drive_model`]), with the table as written; `None` for a linear motor.
+pub fn drive_model_of(
+    path: &Path,
+    text: &str,
+    flux_ref_wb: f64,
+) -> Result<Option<(MotorParams, MagnetizingTable, MotorTable)>, FileError> {
+    let src = Source::parse(path, text)?;
+    if !src.has("motor") {
+        // A scenario that references its drive file, as in `parse_model`.
+        return match src.string("drive") {
+            Some(drive) => {
+                let target = crate::relative_to(path, &drive);
+                drive_model_of(&target, &source::read(&target)?, flux_ref_wb)
+            }
+            None => Ok(None),
+        };
+    }
+    let raw: MotorOnly = src.deserialize()?;
+    if raw.motor.saturation.is_none() {
+        return Ok(None);
+    }
+    let (m, table) = raw.motor.drive_model(&src, "motor", flux_ref_wb)?;
+    Ok(table.map(|t| (m, t, raw.motor)))
+}
+
 fn load_path(path: &Path) -> Result<(MotorParams, Option<Saturation>), FileError> {
     let text = source::read(path)?;
     parse_model(path, &text)
+}
+
+/// The text of a shipped motor by name ([`BUILTIN`]), under the path `<builtin name>`, or
+/// of a file.
+pub fn text_of(name_or_path: &str) -> Result<(std::path::PathBuf, String), FileError> {
+    match BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+        Some((name, text)) => Ok((format!("<builtin {name}>").into(), (*text).to_string())),
+        None => {
+            load(name_or_path)?;
+            Ok((name_or_path.into(), source::read(Path::new(name_or_path))?))
+        }
+    }
 }
 
 /// A shipped motor by name ([`BUILTIN`]), or the `[motor]` table of a file.

@@ -17,3 +17,4 @@
 pub mod laws;
 pub mod member;
 pub mod run;
+pub mod saturation;

@@ -69,7 +69,9 @@ mod pulses;
 mod record;
 mod rotation;
 
-pub use no_load::{CURVE_FLUX_FRACTIONS, CURVE_WINDOWS, NO_LOAD_WINDOWS, NoLoadRecord, NoLoadWindow};
+pub use no_load::{
+    CURVE_FLUX_FRACTIONS, CURVE_LEVELS, CURVE_WINDOWS, NO_LOAD_WINDOWS, NoLoadRecord, NoLoadWindow,
+};
 pub use record::{InjectionRecord, LevelRecord, PulseRecord, RECORD_BYTES, Record, RotationRecord};
 
 /// Periods of the offset and bus measurement (≥ 1 024, issue 19's calibration).

@@ -50,11 +50,13 @@
 //! 4. **Measure** [`NO_LOAD_WINDOWS`] windows of [`NO_LOAD_WINDOW_S`]: the mean commanded
 //!    voltage and measured current in the frame of the current reference, and the encoder's
 //!    turning (the slip).
-//! 5. **The magnetizing curve** (issue 50, deliverable 4): the same settling, corrections
-//!    and measurement at each fraction of the rated flux in [`CURVE_FLUX_FRACTIONS`]
-//!    (0.3 to 1.2, [`CURVE_WINDOWS`] windows each), the amplitude's first guess the last
-//!    level's scaled by the flux ratio: every level is a point of the branch's curve, whatever
-//!    flux it settles at (the host reads the flux and the magnetizing current from the
+//! 5. **The magnetizing curve** (issue 50, deliverable 4; [`CommissionConfig::with_curve`](super::CommissionConfig::with_curve)):
+//!    the same settling, corrections and measurement at each fraction of the rated flux in
+//!    [`CURVE_FLUX_FRACTIONS`] (0.3 to 1.2, [`CURVE_WINDOWS`] windows each), the amplitude's
+//!    first guess the last level's scaled by the flux ratio, then at the test current itself
+//!    if it lies above the last level's (uncorrected: so that the curve holds every current
+//!    the DC levels used, whose decays the host reads through it): every level is a point of
+//!    the branch's curve, whatever flux it settles at (the host reads the flux and the magnetizing current from the
 //!    windows, `hil_sim::identify`). The field turns at the test frequency throughout — the
 //!    back-EMF at the highest level takes at most 1.2 × [`NO_LOAD_VOLTAGE_FRACTION`] of the
 //!    linear limit.
@@ -101,6 +103,15 @@ pub const CURVE_FLUX_FRACTIONS: [f32; 6] = [0.3, 0.5, 0.7, 0.9, 1.1, 1.2];
 /// Measurement windows per curve level (repeats, for the point's interval), of
 /// [`NO_LOAD_WINDOW_S`] each.
 pub const CURVE_WINDOWS: usize = 2;
+/// The curve's levels: [`CURVE_FLUX_FRACTIONS`], then the test current itself (if above the
+/// last level's), so that the curve holds every current the DC levels used.
+pub const CURVE_LEVELS: usize = CURVE_FLUX_FRACTIONS.len() + 1;
+/// The test current's level keeps its flux below this multiple of the rated flux — its
+/// back-EMF at most 0.8 of the linear limit, the rated flux's being at most
+/// [`NO_LOAD_VOLTAGE_FRACTION`] of it — bounded by extrapolating the last level's chord
+/// (saturation only lowers the flux): a motor that saturates little, or a large test current,
+/// would otherwise run into the loops' voltage limit and lose the whole sequence.
+pub const CURVE_FLUX_MAX: f32 = 0.8 / NO_LOAD_VOLTAGE_FRACTION;
 /// Measurement windows (repeats, for the interval)…
 pub const NO_LOAD_WINDOWS: usize = 4;
 /// …of this length each, s.
@@ -152,14 +163,14 @@ pub struct NoLoadRecord {
     pub periods_per_window: u32,
     /// The windows.
     pub windows: [NoLoadWindow; NO_LOAD_WINDOWS],
-    /// The magnetizing curve's windows: [`CURVE_WINDOWS`] per level of
-    /// [`CURVE_FLUX_FRACTIONS`], in order (all zero for a level not reached).
-    pub curve: [NoLoadWindow; CURVE_FLUX_FRACTIONS.len() * CURVE_WINDOWS],
+    /// The magnetizing curve's windows: [`CURVE_WINDOWS`] per level of [`CURVE_LEVELS`], in
+    /// order (all zero for a level not reached or skipped).
+    pub curve: [NoLoadWindow; CURVE_LEVELS * CURVE_WINDOWS],
 }
 
 impl NoLoadRecord {
     /// 4-byte words of a serialised record.
-    pub const WORDS: usize = 8 + 5 * (NO_LOAD_WINDOWS + CURVE_FLUX_FRACTIONS.len() * CURVE_WINDOWS);
+    pub const WORDS: usize = 8 + 5 * (NO_LOAD_WINDOWS + CURVE_LEVELS * CURVE_WINDOWS);
 }
 
 /// Where the test stands.
@@ -218,21 +229,32 @@ pub(super) struct NoLoadState {
     curve: bool,
 }
 
-/// The target flux of `level`, a fraction of the rated flux (`None` past the last level).
-fn level_fraction(level: usize) -> Option<f32> {
+/// What a level aims at.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Target {
+    /// A fraction of the rated flux (corrected toward it).
+    Flux(f32),
+    /// The test current (no correction).
+    TestCurrent,
+}
+
+/// The target of `level` (`None` past the last level): 0 the rated flux, then the curve's.
+fn level_target(level: usize) -> Option<Target> {
     match level {
-        0 => Some(1.0),
-        k => CURVE_FLUX_FRACTIONS.get(k - 1).copied(),
+        0 => Some(Target::Flux(1.0)),
+        k if k <= CURVE_FLUX_FRACTIONS.len() => CURVE_FLUX_FRACTIONS.get(k - 1).map(|f| Target::Flux(*f)),
+        k if k == CURVE_LEVELS => Some(Target::TestCurrent),
+        _ => None,
     }
 }
 
 /// Upper bound of the test's periods (every wait to its timeout, T̂_r at its bound).
 pub(super) fn max_periods(pwm_hz: f32) -> u64 {
     let settle = NO_LOAD_SETTLE_MAX_BLOCKS as f32 * NO_LOAD_TR_RANGE_S[1].max(NO_LOAD_SETTLE_MIN_S);
-    let levels = 1 + CURVE_FLUX_FRACTIONS.len();
+    let levels = 1 + CURVE_LEVELS;
     let s = 2.0 * NO_LOAD_RAMP_MAX_S
         + levels as f32 * (1 + NO_LOAD_CORRECTIONS_MAX) as f32 * (settle + NO_LOAD_AMPLITUDE_RAMP_S)
-        + (NO_LOAD_WINDOWS + CURVE_FLUX_FRACTIONS.len() * CURVE_WINDOWS) as f32 * NO_LOAD_WINDOW_S
+        + (NO_LOAD_WINDOWS + CURVE_LEVELS * CURVE_WINDOWS) as f32 * NO_LOAD_WINDOW_S
         + NO_LOAD_BRAKE_S;
     (s * pwm_hz) as u64 + 8
 }
@@ -241,14 +263,32 @@ impl NoLoadState {
     /// After a level's windows: the next level of the curve, its amplitude's first guess the
     /// present one scaled by the flux ratio (within the test current); after the last, the
     /// deceleration.
-    fn next_level(&mut self, test_current_a: f32, pwm_hz: f32) {
-        let next = if self.curve { level_fraction(self.level + 1) } else { None };
-        let (Some(from), Some(to)) = (level_fraction(self.level), next) else {
-            self.phase = Phase::Decelerate;
-            return;
+    fn next_level(&mut self, test_current_a: f32, psi_rated_wb: f32, pwm_hz: f32) {
+        let next = if self.curve { level_target(self.level + 1) } else { None };
+        let target = match (level_target(self.level), next) {
+            (Some(Target::Flux(from)), Some(Target::Flux(to))) => {
+                (self.amplitude * to / from).min(test_current_a)
+            }
+            // The test current (within the flux bound), if the last level stayed clear of it.
+            (_, Some(Target::TestCurrent)) => {
+                let flux = self.settled.map_or(f32::INFINITY, |(_, f)| f);
+                let cap = self.amplitude * CURVE_FLUX_MAX * psi_rated_wb / flux;
+                let top = test_current_a.min(cap);
+                // NaN (no settled flux) is not above either.
+                let above = top.partial_cmp(&(self.amplitude * (1.0 + NO_LOAD_FLUX_TOLERANCE)));
+                if above != Some(core::cmp::Ordering::Greater) {
+                    self.phase = Phase::Decelerate;
+                    return;
+                }
+                top
+            }
+            _ => {
+                self.phase = Phase::Decelerate;
+                return;
+            }
         };
         self.level += 1;
-        self.amplitude_target = (self.amplitude * to / from).min(test_current_a);
+        self.amplitude_target = target;
         self.amplitude_step = (self.amplitude_target - self.amplitude).abs().max(0.1 * self.amplitude_target)
             / (NO_LOAD_AMPLITUDE_RAMP_S * pwm_hz);
         (self.phase, self.k, self.blocks, self.flux_prev, self.flux_sum, self.settled) =
@@ -432,7 +472,12 @@ impl Commissioning {
                     return;
                 }
                 (s.blocks, s.flux_prev) = (0, 0.0);
-                let target = psi_rated * level_fraction(s.level).unwrap_or(1.0);
+                let Some(Target::Flux(fraction)) = level_target(s.level) else {
+                    // The test current's level: measured as it settles.
+                    s.phase = Phase::Measure;
+                    return;
+                };
+                let target = psi_rated * fraction;
                 if s.level == 0 && corrections == 0 {
                     rec.flux_first_wb = flux;
                 }
@@ -488,7 +533,7 @@ impl Commissioning {
                     s.window += 1;
                     if s.window >= windows {
                         s.window = 0;
-                        s.next_level(test_current, pwm_hz);
+                        s.next_level(test_current, psi_rated, pwm_hz);
                     }
                 }
             }

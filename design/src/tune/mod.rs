@@ -240,11 +240,50 @@ fn speed_ok(checks: &[Check]) -> bool {
         .all(|c| c.pass)
 }
 
+/// A motor file as written (a shipped motor's text under `<builtin name>`), for
+/// [`tune_file`].
+#[derive(Clone, Copy, Debug)]
+pub struct MotorFile<'a> {
+    /// Where it was read from.
+    pub path: &'a Path,
+    /// Its text.
+    pub text: &'a str,
+}
+
 /// Tune `motor` on the template drive file (`template_text`, read from `template_path`).
 pub fn tune(
     template_path: &Path,
     template_text: &str,
     motor: &MotorParams,
+    intervals: Option<&Intervals>,
+    structure: Structure,
+) -> Result<Tuned, String> {
+    tune_with(template_path, template_text, motor, None, intervals, structure)
+}
+
+/// [`tune`] the motor of a motor file. A motor whose magnetizing branch saturates
+/// (`[motor.saturation]`: `hil-sim identify --curve`'s, or a data sheet's) is designed for as
+/// the drive runs it — its linear model at the curve's chord at the template's
+/// `flux_ref_wb` ([`drive_file::motor::MotorTable::drive_model`]), the curve as the drive's
+/// table — and its `[motor]` table goes into the drive file as written, form, values and
+/// curve. Found by trying: tuning on an identified saturating motor wrote its linear model
+/// at the rated chord and removed the curve, so the drive ran linear on a motor that is not.
+pub fn tune_file(
+    template_path: &Path,
+    template_text: &str,
+    motor: MotorFile<'_>,
+    intervals: Option<&Intervals>,
+    structure: Structure,
+) -> Result<Tuned, String> {
+    let (params, _) = drive_file::motor::parse_model(motor.path, motor.text).map_err(|e| e.to_string())?;
+    tune_with(template_path, template_text, &params, Some(motor), intervals, structure)
+}
+
+fn tune_with(
+    template_path: &Path,
+    template_text: &str,
+    motor: &MotorParams,
+    written: Option<MotorFile<'_>>,
     intervals: Option<&Intervals>,
     structure: Structure,
 ) -> Result<Tuned, String> {
@@ -264,11 +303,33 @@ pub fn tune(
                 .into(),
         );
     }
+    // A saturating motor file: its table, and its model and curve as the drive runs them.
+    let saturating = match written {
+        Some(f) => {
+            drive_file::motor::drive_model_of(f.path, f.text, spec.flux_ref_wb).map_err(|e| e.to_string())?
+        }
+        None => None,
+    };
+    // The identification's intervals are of the values as written (a saturating motor's
+    // inductances at the point it was identified at), so the box's factors are taken
+    // against those; the drive runs at its own flux reference's chord.
+    let as_written = *motor;
+    let chord;
+    let motor = match &saturating {
+        Some((m, magnetizing, _)) => {
+            spec.magnetizing = Some(*magnetizing);
+            chord = *m;
+            &chord
+        }
+        None => motor,
+    };
     spec.motor = *motor;
     if let Some(iv) = intervals {
         cert.rs_factor = hull(cert.rs_factor, motor.rs_ohm(), iv.rs_ohm);
         cert.rr_factor = hull(cert.rr_factor, motor.rr_ohm(), iv.rr_ohm);
-        for (nominal, i) in [motor.ls_h(), motor.lr_h(), motor.lm_h()].into_iter().zip(iv.inductances_h) {
+        for (nominal, i) in
+            [as_written.ls_h(), as_written.lr_h(), as_written.lm_h()].into_iter().zip(iv.inductances_h)
+        {
             cert.inductance_factor = hull(cert.inductance_factor, nominal, i);
         }
         cert.j_factor = hull(cert.j_factor, motor.j_kgm2(), iv.j_kgm2);
@@ -505,7 +566,8 @@ pub fn tune(
     let met_in_sil =
         predicted.is_empty() && (structure.speed == SpeedDesign::Auto || speed_design == SpeedDesign::Pi);
     let structure = Structure { speed: speed_design, ..structure };
-    let (text, changes) = write(template_text, template_path, &spec, &cert, omega_c, &speed_origin)?;
+    let table = saturating.as_ref().map(|(_, _, t)| t);
+    let (text, changes) = write(template_text, template_path, &spec, table, &cert, omega_c, &speed_origin)?;
     // The file as written, read back and certified whole.
     let back =
         drive_file::DriveFile::parse(Path::new("<tuned>"), &text).map_err(|e| format!("tuned file: {e}"))?;

@@ -240,6 +240,62 @@ fn a_template_in_another_motor_form_is_tuned_in_the_t_form() {
     assert_eq!(t.spec.motor, m);
 }
 
+/// A motor file whose branch saturates — `hil-sim identify --curve`'s Γ file, its curve as
+/// points (here motulator's 2.2 kW law sampled at seven fluxes) — is tuned as the drive runs
+/// it: its linear model at the curve's chord at the template's flux reference, and the drive
+/// file carries its `[motor]` table as written, curve included, so the tuned drive runs on
+/// the curve. Found by trying: tune wrote the linear model at the rated chord and removed
+/// `[motor.saturation]` ("motor.saturation: a table → (removed)").
+#[test]
+fn a_saturating_motor_file_keeps_its_curve() {
+    let template = include_str!("../../../drives/motulator-2kw-saturating.toml");
+    let flux = [0.3, 0.5, 0.7, 0.9, 1.04, 1.14, 1.2];
+    let current = flux.map(|p: f64| p * (1.0 + (0.84 * p).powi(7)) / 0.34);
+    let list = |x: &[f64]| x.iter().map(|v| format!("{v}")).collect::<Vec<_>>().join(", ");
+    let motor = format!(
+        "[motor]\nform = \"gamma\"\nrs_ohm = 3.7\nrr_ohm = 2.5\nlm_h = 0.245\nl_sigma_h = 0.023\npole_pairs = 2\n\
+         j_kgm2 = 0.015\nb_nms = 0.0\n\n[motor.saturation]\ncurrent_a = [{}]\nflux_wb = [{}]\n",
+        list(&current),
+        list(&flux)
+    );
+    let path = Path::new("identified.toml");
+    let t = tune_file(
+        Path::new("motulator.toml"),
+        template,
+        MotorFile { path, text: &motor },
+        None,
+        Structure::default(),
+    )
+    .unwrap();
+    assert!(
+        !t.changes.iter().any(|c| c.starts_with("motor.saturation") && c.ends_with("(removed)")),
+        "{:#?}",
+        t.changes
+    );
+    let back = drive_file::DriveFile::parse(Path::new("tuned.toml"), &t.text).unwrap();
+    let flux_ref = back.spec.flux_ref_wb;
+    let (chord, table, _) = drive_file::motor::drive_model_of(path, &motor, flux_ref).unwrap().unwrap();
+    assert_eq!(back.spec.magnetizing, Some(table), "{}", t.text);
+    assert_eq!(back.spec.motor, chord);
+    assert_eq!(t.spec.motor, chord);
+    let (_, sat) = drive_file::motor::parse_model(Path::new("tuned.toml"), &t.text).unwrap();
+    let (_, want) = drive_file::motor::parse_model(path, &motor).unwrap();
+    assert_eq!(sat, want);
+    // A linear motor file is tuned as before.
+    let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+    let linear = drive_file::motor::BUILTIN.iter().find(|(n, _)| *n == "delorenzo-appendix").unwrap().1;
+    let a = tune(Path::new("t.toml"), TEMPLATE, &m, None, Structure::default()).unwrap();
+    let b = tune_file(
+        Path::new("t.toml"),
+        TEMPLATE,
+        MotorFile { path, text: linear },
+        None,
+        Structure::default(),
+    )
+    .unwrap();
+    assert_eq!(a.text, b.text);
+}
+
 #[test]
 fn an_icad_the_pwm_cannot_run_is_refused() {
     let template = TEMPLATE

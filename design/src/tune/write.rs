@@ -15,6 +15,7 @@ pub(super) fn write(
     template_text: &str,
     template_path: &Path,
     spec: &DriveSpec,
+    saturating: Option<&drive_file::motor::MotorTable>,
     cert: &CertifySpec,
     omega_c: f64,
     speed_origin: &str,
@@ -32,33 +33,10 @@ pub(super) fn write(
     let float = |x: f64| Value::from(x);
     let pair = |p: [f64; 2]| Value::Array(p.into_iter().map(float).collect::<Array>());
     let m = &spec.motor;
-    // The tuned motor is linear (`MotorParams`), written in the T form unless it has no
-    // rotor leakage (the inverse-Γ form: L_r = L_m) or no stator leakage (the Γ form:
-    // L_s = L_m), which the T form refuses; the keys of the other forms, and the saturation
-    // the linear model does not take, go.
-    let (form, leakage_h, gone) = if m.lr_h() == m.lm_h() {
-        (Some("inverse_gamma"), m.ls_h() - m.lm_h(), ["ls_h", "lr_h", "saturation"])
-    } else if m.ls_h() == m.lm_h() {
-        (Some("gamma"), m.lr_h() - m.lm_h(), ["ls_h", "lr_h", "saturation"])
-    } else {
-        (None, 0.0, ["form", "l_sigma_h", "saturation"])
-    };
-    let mut motor = vec![("rs_ohm", float(m.rs_ohm())), ("rr_ohm", float(m.rr_ohm()))];
-    match form {
-        Some(f) => motor.extend([("form", Value::from(f)), ("l_sigma_h", float(leakage_h))]),
-        None => motor.extend([("ls_h", float(m.ls_h())), ("lr_h", float(m.lr_h()))]),
+    match saturating {
+        Some(t) => write_saturating(&mut doc, t, &mut changes)?,
+        None => write_linear(&mut doc, m, &mut changes)?,
     }
-    motor.extend([("lm_h", float(m.lm_h())), ("j_kgm2", float(m.j_kgm2())), ("b_nms", float(m.b_nms()))]);
-    motor.push(("pole_pairs", Value::from(i64::from(m.pole_pairs()))));
-    if let Some(t) = doc.get_mut("motor").and_then(|t| t.as_table_like_mut()) {
-        for key in gone {
-            if let Some(old) = t.remove(key) {
-                let old = old.as_value().map_or_else(|| "a table".to_string(), bare);
-                changes.push(format!("motor.{key}: {old} → (removed)"));
-            }
-        }
-    }
-    set_keys(&mut doc, "motor", &motor, &mut changes)?;
     let law = &spec.current_law;
     let mut current = vec![
         ("kind", Value::from(if law.lag.is_some() { "icad" } else { "pi" })),
@@ -131,6 +109,90 @@ pub(super) fn write(
         ),
         changes,
     ))
+}
+
+/// `[motor]` as the tuned linear motor `m`: the T form unless it has no rotor leakage (the
+/// inverse-Γ form: L_r = L_m) or no stator leakage (the Γ form: L_s = L_m), which the T form
+/// refuses; the keys of the other forms, and a saturation the linear model does not take, go.
+fn write_linear(
+    doc: &mut toml_edit::DocumentMut,
+    m: &MotorParams,
+    changes: &mut Vec<String>,
+) -> Result<(), String> {
+    use toml_edit::Value;
+    let float = |x: f64| Value::from(x);
+    // The tuned motor is linear (`MotorParams`), written in the T form unless it has no
+    // rotor leakage (the inverse-Γ form: L_r = L_m) or no stator leakage (the Γ form:
+    // L_s = L_m), which the T form refuses; the keys of the other forms, and the saturation
+    // the linear model does not take, go.
+    let (form, leakage_h, gone) = if m.lr_h() == m.lm_h() {
+        (Some("inverse_gamma"), m.ls_h() - m.lm_h(), ["ls_h", "lr_h", "saturation"])
+    } else if m.ls_h() == m.lm_h() {
+        (Some("gamma"), m.lr_h() - m.lm_h(), ["ls_h", "lr_h", "saturation"])
+    } else {
+        (None, 0.0, ["form", "l_sigma_h", "saturation"])
+    };
+    let mut motor = vec![("rs_ohm", float(m.rs_ohm())), ("rr_ohm", float(m.rr_ohm()))];
+    match form {
+        Some(f) => motor.extend([("form", Value::from(f)), ("l_sigma_h", float(leakage_h))]),
+        None => motor.extend([("ls_h", float(m.ls_h())), ("lr_h", float(m.lr_h()))]),
+    }
+    motor.extend([("lm_h", float(m.lm_h())), ("j_kgm2", float(m.j_kgm2())), ("b_nms", float(m.b_nms()))]);
+    motor.push(("pole_pairs", Value::from(i64::from(m.pole_pairs()))));
+    if let Some(t) = doc.get_mut("motor").and_then(|t| t.as_table_like_mut()) {
+        for key in gone {
+            if let Some(old) = t.remove(key) {
+                let old = old.as_value().map_or_else(|| "a table".to_string(), bare);
+                changes.push(format!("motor.{key}: {old} → (removed)"));
+            }
+        }
+    }
+    set_keys(doc, "motor", &motor, changes)
+}
+
+/// `[motor]` as the saturating motor file's table `t` has it — form, values and
+/// `[motor.saturation]` — the keys of the other forms gone.
+fn write_saturating(
+    doc: &mut toml_edit::DocumentMut,
+    t: &drive_file::motor::MotorTable,
+    changes: &mut Vec<String>,
+) -> Result<(), String> {
+    let written: toml_edit::DocumentMut = toml::to_string(t)
+        .map_err(|e| format!("internal: the motor table: {e}"))?
+        .parse()
+        .map_err(|e| format!("internal: the motor table: {e}"))?;
+    let motor = doc
+        .entry("motor")
+        .or_insert_with(toml_edit::table)
+        .as_table_like_mut()
+        .ok_or("[motor] is not a table")?;
+    let keys: Vec<String> = motor.iter().map(|(k, _)| k.to_string()).collect();
+    for key in keys {
+        // Tune sets what the motor file states; the template's thermal keys stay unless the
+        // motor file states them too.
+        let thermal = matches!(key.as_str(), "rated_current_a" | "thermal_time_constant_s");
+        if !written.contains_key(&key)
+            && !thermal
+            && let Some(old) = motor.remove(&key)
+        {
+            let old = old.as_value().map_or_else(|| "a table".to_string(), bare);
+            changes.push(format!("motor.{key}: {old} → (removed)"));
+        }
+    }
+    for (key, item) in written.iter() {
+        match item.as_value() {
+            Some(v) => set_value(motor, "motor", key, v.clone(), changes),
+            None => {
+                let new = item.clone();
+                let differs = motor.get(key).is_none_or(|old| old.to_string() != new.to_string());
+                if differs {
+                    changes.push(format!("motor.{key}: the motor file's"));
+                    motor.insert(key, new);
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// The first words of the header `design tune` writes …

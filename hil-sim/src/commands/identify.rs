@@ -182,30 +182,8 @@ pub fn identify(a: &IdentifyOptions) -> Result<(), String> {
     })?;
     eprintln!();
     let id = identify::estimate(&config, &record, pole_pairs)?;
-    let (l_sigma, l_mm, r_rr, tr) = identify::inverse_gamma(&motor);
-    let tm = id.t_model(a.run.leakage_ratio);
-    let truth = identify::t_model(motor.rs_ohm(), l_sigma, l_mm, r_rr, a.run.leakage_ratio);
-    report::outln!(
-        "motor time {t:.1} s; against the simulated motor (T-model under L_lr/L_ls = {}):",
-        a.run.leakage_ratio
-    );
-    report::outln!(
-        "{:<12} {:>12} {:>26} {:>12} {:>8}",
-        "parameter",
-        "identified",
-        "interval",
-        "simulated",
-        "error"
-    );
-    let rows: [(&str, &identify::Estimate, f64); 5] = [
-        ("R_s Ω", &id.rs_ohm, motor.rs_ohm()),
-        ("σL_s H", &id.l_sigma_h, l_sigma),
-        ("T_r s", &id.tr_s, tr),
-        ("L_M H", &id.l_mm_h, l_mm),
-        ("R_R Ω", &id.r_rr_ohm, r_rr),
-    ];
     let g = |x: f64| format!("{x:.5}");
-    for (name, e, x) in rows {
+    let row = |name: &str, e: &identify::Estimate, x: f64| {
         let iv = format!("[{}, {}]", g(e.interval[0]), g(e.interval[1]));
         report::outln!(
             "{name:<12} {:>12} {iv:>26} {:>12} {:>+7.2}%",
@@ -213,15 +191,66 @@ pub fn identify(a: &IdentifyOptions) -> Result<(), String> {
             g(x),
             100.0 * (e.value / x - 1.0)
         );
-    }
-    let t_rows = [
-        ("R_r Ω", tm.rr_ohm, truth.rr_ohm),
-        ("L_s H", tm.ls_h, truth.ls_h),
-        ("L_r H", tm.lr_h, truth.lr_h),
-        ("L_m H", tm.lm_h, truth.lm_h),
-    ];
-    for (name, v, x) in t_rows {
-        report::outln!("{name:<12} {:>12} {:>26} {:>12} {:>+7.2}%", g(v), "", g(x), 100.0 * (v / x - 1.0));
+    };
+    let header = || {
+        report::outln!(
+            "{:<12} {:>12} {:>26} {:>12} {:>8}",
+            "parameter",
+            "identified",
+            "interval",
+            "simulated",
+            "error"
+        )
+    };
+    let gamma_plant = saturation.filter(|s| s.form == controller_core::magnetics::Form::Gamma);
+    if let (Some(fit), Some(sat), Some(nl)) = (id.gamma, gamma_plant, id.no_load.as_ref()) {
+        // A saturating Γ machine identified on its curve: its own values at the flux the
+        // no-load test reached (L_s the chord there).
+        let truth = identify::gamma_truth(&motor, &sat.curve, nl.flux_wb);
+        report::outln!(
+            "motor time {t:.1} s; against the simulated Γ machine at the no-load test's {:.4} Wb:",
+            nl.flux_wb
+        );
+        header();
+        row("R_s Ω", &id.rs_ohm, motor.rs_ohm());
+        row("L_s H", &fit.l_s_h, truth.l_s_h);
+        row("L_σ H", &fit.l_sigma_h, truth.l_sigma_h);
+        row("R_R Ω", &fit.r_r_ohm, truth.r_r_ohm);
+        row("T_r s", &fit.tr_s, truth.tr_s);
+    } else {
+        let (l_sigma, l_mm, r_rr, tr) = identify::inverse_gamma(&motor);
+        let tm = id.t_model(a.run.leakage_ratio);
+        let truth = identify::t_model(motor.rs_ohm(), l_sigma, l_mm, r_rr, a.run.leakage_ratio);
+        report::outln!(
+            "motor time {t:.1} s; against the simulated motor (T-model under L_lr/L_ls = {}):",
+            a.run.leakage_ratio
+        );
+        header();
+        let rows: [(&str, &identify::Estimate, f64); 5] = [
+            ("R_s Ω", &id.rs_ohm, motor.rs_ohm()),
+            ("σL_s H", &id.l_sigma_h, l_sigma),
+            ("T_r s", &id.tr_s, tr),
+            ("L_M H", &id.l_mm_h, l_mm),
+            ("R_R Ω", &id.r_rr_ohm, r_rr),
+        ];
+        for (name, e, x) in rows {
+            row(name, e, x);
+        }
+        let t_rows = [
+            ("R_r Ω", tm.rr_ohm, truth.rr_ohm),
+            ("L_s H", tm.ls_h, truth.ls_h),
+            ("L_r H", tm.lr_h, truth.lr_h),
+            ("L_m H", tm.lm_h, truth.lm_h),
+        ];
+        for (name, v, x) in t_rows {
+            report::outln!(
+                "{name:<12} {:>12} {:>26} {:>12} {:>+7.2}%",
+                g(v),
+                "",
+                g(x),
+                100.0 * (v / x - 1.0)
+            );
+        }
     }
     let ve = a.vdc * 1e-6 * a.pwm_hz;
     report::outln!(

@@ -37,11 +37,11 @@ pub const ROTATION_RATIO_RANGE: [f64; 2] = [0.7, 1.05];
 /// stiffer the machine (large k_τ, long T_r), the more J rests on the encoder's resolution
 /// — within 10 % on every motor of `tests/identify.rs` (0.1 % on the DeLorenzo machine,
 /// 4 % on the 500 hp Krause machine).
-fn rotation(
+pub(super) fn rotation(
     cfg: &CommissionConfig,
     rec: &Record,
     pole_pairs: u8,
-    l_mm: f64,
+    branch: Branch<'_>,
     r_rr: f64,
 ) -> Result<Rotation, String> {
     use controller_core::commission::{ROTATION_HOLD_S, ROTATION_HZ, ROTATION_RAMP_S};
@@ -99,7 +99,8 @@ fn rotation(
         omega[b] + (omega[b + 1] - omega[b]) * (x - b as f64).clamp(0.0, 1.0)
     };
     let amp = f64::from(r.amplitude_a);
-    let tr = l_mm / r_rr;
+    // The branch's chord at the field's current: its rotor time constant there.
+    let (l_mm, tr) = branch.at_current(amp, r_rr);
     // The flux the rotation starts from: the last level's step down from I to I/2 still
     // decaying (the injections ride on I/2 and average out).
     let injections: u32 = controller_core::commission::INJECTION_PERIODS
@@ -111,7 +112,7 @@ fn rotation(
         .sum();
     let since_s = (f64::from(cfg.level_periods()) + f64::from(injections)) * ts;
     let step_a = f64::from(rec.levels[1].i_ref_a - rec.levels[2].i_ref_a);
-    let psi0 = l_mm * (amp + step_a * (-since_s / tr).exp());
+    let psi0 = branch.flux_wb(amp + step_a * (-since_s / tr).exp());
     let (mut psi, mut theta_e) = ([psi0, 0.0], 0.0f64);
     let n = blocks * r.periods_per_block as usize;
     let mut torque_int = 0.0;
@@ -122,12 +123,26 @@ fn rotation(
         let w = if kf < ramp { w_max * kf / ramp } else { w_max };
         let i = [amp * theta_e.cos(), amp * theta_e.sin()];
         let wr = p * omega_at(kf);
+        // dψ/dt = R_R·(i − i_M(ψ)) + j·p·ω·ψ, i_M(ψ) = ψ/L(|ψ|) the branch's current.
+        // dψ/dt = R_R·(i − i_M) + j·p·ω·ψ, i_M = ψ/L_M (linear) or the Γ branch's current.
         let f = |psi: [f64; 2]| {
-            [r_rr * i[0] - psi[0] / tr - wr * psi[1], r_rr * i[1] - psi[1] / tr + wr * psi[0]]
+            let d = match branch {
+                Branch::Linear(_) => [psi[0] / tr, psi[1] / tr],
+                Branch::Gamma { .. } => {
+                    let (_, i_m) = branch.gamma_stator(psi, i);
+                    [r_rr * i_m[0], r_rr * i_m[1]]
+                }
+            };
+            [r_rr * i[0] - d[0] - wr * psi[1], r_rr * i[1] - d[1] + wr * psi[0]]
         };
         let k1 = f(psi);
         let k2 = f([psi[0] + 0.5 * ts * k1[0], psi[1] + 0.5 * ts * k1[1]]);
-        torque_int += 1.5 * p * (psi[0] * i[1] - psi[1] * i[0]) * ts;
+        // τ = 1.5·p·ψ_s × i (the rotor flux's in the inverse-Γ form: the leakage's is along i).
+        let flux = match branch {
+            Branch::Linear(_) => psi,
+            Branch::Gamma { .. } => branch.gamma_stator(psi, i).0,
+        };
+        torque_int += 1.5 * p * (flux[0] * i[1] - flux[1] * i[0]) * ts;
         psi = [psi[0] + ts * k2[0], psi[1] + ts * k2[1]];
         theta_e += w * ts;
         if k % r.periods_per_block as usize == half
@@ -167,6 +182,68 @@ fn rotation(
     let mut b_est = widen(b.max(0.0), sb);
     b_est.interval = [(b_est.interval[0] - b_slip).max(0.0), b_est.interval[1] + b_slip];
     Ok(Rotation { ratio, omega_hold_rad_s: omega_hold, j_kgm2: widen(j, sj), b_nms: b_est })
+}
+
+/// The Γ model's rotor (`curve` module), to take its current out of a no-load window's.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct GammaRotor {
+    /// R_R, Ω.
+    pub(super) r_r_ohm: f64,
+    /// L_σ, H.
+    pub(super) l_sigma_h: f64,
+}
+
+/// The rotor's magnetizing, for the rotating field's torque: the inverse-Γ branch with one
+/// L_M, or the Γ model on the measured curve (`curve`: the stator flux against the branch's
+/// current; `l_sigma_h` the rotor-side leakage).
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Branch<'a> {
+    /// L_M, H.
+    Linear(f64),
+    /// The Γ model on its curve.
+    Gamma { curve: &'a controller_core::magnetics::MagnetizingCurve, l_sigma_h: f64 },
+}
+
+impl Branch<'_> {
+    /// The settled flux at current `i_a` ≥ 0, Wb (the rotor's; in the Γ form, with no rotor
+    /// current, the stator's).
+    pub(super) fn flux_wb(&self, i_a: f64) -> f64 {
+        match self {
+            Branch::Linear(l) => l * i_a,
+            Branch::Gamma { curve, .. } => curve.flux_at_total_current(i_a, 0.0),
+        }
+    }
+
+    /// (L_M, T_r) at current `i_a` > 0 and rotor resistance `r_ohm` (the form's): the
+    /// magnetizing inductance of the inverse-Γ equivalent and the rotor time constant — in
+    /// the Γ form `γ·L_s` and `(L_s + L_σ)/R_R` with L_s the chord there, `γ = L_s/(L_s + L_σ)`.
+    pub(super) fn at_current(&self, i_a: f64, r_ohm: f64) -> (f64, f64) {
+        match self {
+            Branch::Linear(l) => (*l, l / r_ohm),
+            Branch::Gamma { l_sigma_h, .. } => {
+                let l_s = self.flux_wb(i_a) / i_a;
+                (l_s * l_s / (l_s + l_sigma_h), (l_s + l_sigma_h) / r_ohm)
+            }
+        }
+    }
+
+    /// The Γ model's stator flux and branch current (vectors) for rotor flux `psi_r` and
+    /// stator current `i`: `ψ_s + L_σ·i_m(ψ_s) = ψ_r + L_σ·i`, the branch's current radial
+    /// in its flux ([`MagnetizingCurve::flux_at_total_current`]). Zeros for the linear branch.
+    ///
+    /// [`MagnetizingCurve::flux_at_total_current`]: controller_core::magnetics::MagnetizingCurve::flux_at_total_current
+    pub(super) fn gamma_stator(&self, psi_r: [f64; 2], i: [f64; 2]) -> ([f64; 2], [f64; 2]) {
+        let Branch::Gamma { curve, l_sigma_h: l } = self else { return ([0.0; 2], [0.0; 2]) };
+        let a = [psi_r[0] / l + i[0], psi_r[1] / l + i[1]];
+        let a_norm = a[0].hypot(a[1]);
+        if a_norm <= 0.0 {
+            return ([0.0; 2], [0.0; 2]);
+        }
+        let m = curve.flux_at_total_current(a_norm, 1.0 / l);
+        let u = [a[0] / a_norm, a[1] / a_norm];
+        let i_m = curve.current_a(m);
+        ([m * u[0], m * u[1]], [i_m * u[0], i_m * u[1]])
+    }
 }
 
 /// Mean over periods `a..e` of `q^(k − k0)`.
@@ -299,7 +376,7 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
     let lmm_est = Estimate::of(&l_mm, MARGIN.lm);
     // σL_s from each injection.
     let mut impedance = [(0.0, 0.0, 0.0); 2];
-    let mut l_sigma = Vec::new();
+    let mut l_sigma: Vec<f64> = Vec::new();
     for (slot, j) in impedance.iter_mut().zip(&rec.injections) {
         let n = f64::from(j.periods_per_cycle);
         let w = 2.0 * std::f64::consts::PI / (n * ts);
@@ -317,10 +394,7 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
         }
         let (zr, zi) = ((var * ir + vai * ii) / den, (vai * ir - var * ii) / den);
         *slot = (w, zr, zi);
-        // Rotor branch jωL_M·R_R/(jωL_M + R_R): imaginary part ω·L_M·R_R²/(R_R² + ω²L_M²).
-        let (lm, rr) = (lmm_est.value, rr_est.value);
-        let zb_im = w * lm * rr * rr / (rr * rr + w * w * lm * lm);
-        l_sigma.push((zi - zb_im) / w);
+        l_sigma.push(l_sigma_of(*slot, lmm_est.value, rr_est.value));
     }
     if l_sigma.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
         return Err(format!("the injections give no positive transient inductance ({l_sigma:?} H)"));
@@ -329,13 +403,13 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
     let l_sigma_est = Estimate::of(&l_sigma, MARGIN.l_sigma);
     let e_est = Estimate::of(&e, 0.0);
     let (rotation, no_load) = if cfg.spec().rotate {
-        let rot = rotation(cfg, rec, pole_pairs, lmm_est.value, rr_est.value)?;
+        let rot = rotation(cfg, rec, pole_pairs, Branch::Linear(lmm_est.value), rr_est.value)?;
         let terminals = Terminals { rs: rs_est.value, l_sigma: l_sigma_est.value, v_e: e_est.value };
-        (Some(rot), Some(no_load(cfg, rec, pole_pairs, terminals, lmm_est)?))
+        (Some(rot), Some(no_load(cfg, rec, pole_pairs, terminals, lmm_est, None)?))
     } else {
         (None, None)
     };
-    Ok(Identified {
+    let id = Identified {
         rs_ohm: rs_est,
         l_sigma_h: l_sigma_est,
         tr_s: tr_est,
@@ -348,18 +422,28 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
         impedance,
         rotation,
         no_load,
-    })
+        gamma: None,
+    };
+    if cfg.curve() { super::curve::refine(cfg, rec, pole_pairs, id) } else { Ok(id) }
+}
+
+/// L_σ from an injection's impedance `(ω, Re Z, Im Z)` less the rotor branch
+/// `jωL·R_R/(jωL + R_R)` (imaginary part `ω·L·R_R²/(R_R² + ω²L²)`), L the branch's
+/// inductance to a small signal.
+pub(super) fn l_sigma_of((w, _, zi): (f64, f64, f64), l_h: f64, r_rr: f64) -> f64 {
+    let zb_im = w * l_h * r_rr * r_rr / (r_rr * r_rr + w * w * l_h * l_h);
+    (zi - zb_im) / w
 }
 
 /// The standstill estimates the no-load test's impedance is corrected with.
 #[derive(Clone, Copy, Debug)]
-struct Terminals {
+pub(super) struct Terminals {
     /// R_s, Ω.
-    rs: f64,
+    pub(super) rs: f64,
     /// L_σ, H.
-    l_sigma: f64,
+    pub(super) l_sigma: f64,
     /// The inverter's voltage error per phase, V.
-    v_e: f64,
+    pub(super) v_e: f64,
 }
 
 /// The no-load test's estimates (`controller_core::commission::no_load`).
@@ -371,12 +455,13 @@ struct Terminals {
 /// `Z_R = Z − R_s − jωL_σ` and its admittance `Y_R = 1/(jωL_M) + s/R_R` (s the slip):
 /// `L_M = −1/(ω·Im Y_R)`, whatever the slip (it only adds a real part). The stator flux
 /// reached is `|V − R_s·I|/ω`.
-fn no_load(
+pub(super) fn no_load(
     cfg: &CommissionConfig,
     rec: &Record,
     pole_pairs: u8,
     t: Terminals,
     standstill: Estimate,
+    rotor: Option<GammaRotor>,
 ) -> Result<NoLoad, String> {
     let n = &rec.no_load;
     let ts = f64::from(cfg.ts_s());
@@ -387,16 +472,23 @@ fn no_load(
     }
     let half = 0.5 * w * ts;
     let delay = num_complex::Complex64::from_polar(half.sin() / half, -3.0 * half);
-    let branch = |win: &NoLoadWindow| branch_of(win, w, delay, t);
+    let slip_of =
+        |win: &NoLoadWindow| w - f64::from(pole_pairs) * f64::from(win.theta_m_rad) / (periods * ts);
+    let level_slip =
+        |windows: &[NoLoadWindow]| windows.iter().map(slip_of).sum::<f64>() / windows.len().max(1) as f64;
+    let rated_slip = level_slip(&n.windows);
+    let branch = |win: &NoLoadWindow| branch_of(win, w, delay, t, rotor.map(|r| (r, rated_slip)));
     let mut l_mm = Vec::new();
     let (mut flux, mut slip) = (0.0, 0.0);
     let mut rated_point = Vec::new();
+    let mut chord = Vec::new();
     for win in &n.windows {
         let b = branch(win)?;
         l_mm.push(b.l_mm_h);
         rated_point.push(b);
         flux += b.stator_flux_wb;
-        slip += w - f64::from(pole_pairs) * f64::from(win.theta_m_rad) / (periods * ts);
+        chord.push(b.stator_flux_wb / b.branch_current_a);
+        slip += slip_of(win);
     }
     let k = n.windows.len() as f64;
     let rated = f64::from(cfg.spec().rated_flux_wb);
@@ -424,16 +516,21 @@ fn no_load(
             100.0 * flux / k / rated
         ));
     }
-    let mut levels = vec![(1.0, rated_point)];
-    for (fraction, windows) in CURVE_FLUX_FRACTIONS.iter().zip(n.curve.chunks_exact(CURVE_WINDOWS)) {
-        // A level not reached (the sequence stopped before it) is all zero.
+    let mut levels = vec![(Some(1.0), rated_point)];
+    for (k, windows) in n.curve.chunks_exact(CURVE_WINDOWS).enumerate() {
+        // A level not reached (the sequence stopped before it, or skipped it) is all zero.
         if windows.iter().all(|win| *win == NoLoadWindow::default()) {
             continue;
         }
-        levels.push((f64::from(*fraction), windows.iter().map(branch).collect::<Result<_, _>>()?));
+        // The fractions' levels, then the test current's.
+        let target = CURVE_FLUX_FRACTIONS.get(k).map(|f| f64::from(*f));
+        let sl = level_slip(windows);
+        let points = windows.iter().map(|win| branch_of(win, w, delay, t, rotor.map(|r| (r, sl))));
+        levels.push((target, points.collect::<Result<_, _>>()?));
     }
     Ok(NoLoad {
         curve: curve_points(levels),
+        l_s_h: Estimate::of(&chord, MARGIN.lm),
         l_mm_h: Estimate::of(&l_mm, MARGIN.lm),
         standstill_l_mm_h: standstill,
         flux_wb: flux / k,
@@ -444,57 +541,91 @@ fn no_load(
     })
 }
 
-/// The rotor branch of one no-load window (see [`no_load`]).
+/// The rotor branch in one no-load window (see [`no_load`]).
 #[derive(Clone, Copy, Debug)]
-struct Branch {
+pub(super) struct Window {
     /// L_M, H.
     l_mm_h: f64,
-    /// The branch's flux ψ_R = |Z_R·I|/ω, Wb.
-    flux_wb: f64,
-    /// The stator flux |V − R_s·I|/ω, Wb.
+    /// The stator flux ψ_s = |V − R_s·I|/ω, Wb: the Γ branch's.
     stator_flux_wb: f64,
+    /// The current's component along ψ_s: the Γ branch's current, A.
+    branch_current_a: f64,
+    /// (ψ_s, i_m) without the inverter's error.
+    bare: (f64, f64),
 }
 
-/// [`Branch`] of window `win` at field frequency `w`, the voltage's `delay`, the
+/// [`Window`] of window `win` at field frequency `w`, the voltage's `delay`, the
 /// standstill `t`erminals.
 fn branch_of(
     win: &NoLoadWindow,
     w: f64,
     delay: num_complex::Complex64,
     t: Terminals,
-) -> Result<Branch, String> {
+    rotor: Option<(GammaRotor, f64)>,
+) -> Result<Window, String> {
     let v = num_complex::Complex64::new(f64::from(win.v_dq_v[0]), f64::from(win.v_dq_v[1])) * delay;
     let i = num_complex::Complex64::new(f64::from(win.i_dq_a[0]), f64::from(win.i_dq_a[1]));
     if i.norm().is_nan() || i.norm() <= 0.0 {
         return Err("no current in the no-load test's record".into());
     }
+    let v_raw = v;
     let v = v - i / i.norm() * (4.0 / std::f64::consts::PI * t.v_e);
     let z_r = v / i - t.rs - num_complex::Complex64::new(0.0, w * t.l_sigma);
     let l = -1.0 / (w * (1.0 / z_r).im);
     if !(l.is_finite() && l > 0.0) {
         return Err(format!("the no-load test gives no positive magnetizing inductance ({l} H)"));
     }
-    Ok(Branch { l_mm_h: l, flux_wb: (z_r * i).norm() / w, stator_flux_wb: (v - i * t.rs).norm() / w })
+    // The stator flux, and the Γ branch's current: the current's component along the flux,
+    // less the rotor's, `i_r = j·ψ_s·ω_sl/(R_R + j·ω_sl·L_σ)` when the Γ rotor is known (ω_sl
+    // the level's mean slip: a window's swings by ±0.4 rad/s as the rotor hunts; without the
+    // rotor, its current is taken at right angles to the flux: first order in the slip; its
+    // part along the flux, ψ_s·ω_sl²·L_σ/R_R², is 5 % of the branch's at 0.3 of the rated
+    // flux on the shipped saturating motor, whose friction's slip grows as the flux falls).
+    let j = num_complex::Complex64::i();
+    let psi_s = (v - i * t.rs) / (j * w);
+    // The same without the inverter's error: at a small current its ripple rounds the
+    // dead time's square wave off, and the error lies between none and (4/π)·V_e.
+    let psi_bare = (v_raw - i * t.rs) / (j * w);
+    let i_r = |psi: num_complex::Complex64| {
+        rotor.map_or(num_complex::Complex64::new(0.0, 0.0), |(r, sl)| {
+            j * psi * sl / (r.r_r_ohm + j * sl * r.l_sigma_h)
+        })
+    };
+    let branch = |psi: num_complex::Complex64| ((i - i_r(psi)) * psi.conj()).re / psi.norm();
+    Ok(Window {
+        l_mm_h: l,
+        stator_flux_wb: psi_s.norm(),
+        branch_current_a: branch(psi_s),
+        bare: (psi_bare.norm(), branch(psi_bare)),
+    })
 }
 
-/// The curve's points from each level's windows (`(target fraction, branches)`): by rising
-/// current, each point's flux and current the windows' span widened by the L_M margin
+/// The curve's points (the Γ branch's: the stator flux against the current's component
+/// along it) from each level's windows (`(target fraction, windows)`): by rising
+/// current, each point's flux and current the windows' span — with and without the
+/// inverter's error, which a small current's ripple rounds off — widened by the L_M margin
 /// ([`MARGIN`]`.lm`: the current sensor's gain error and the model's approximations scale
 /// them as they scale L_M). A point whose current does not exceed the one below it by more
 /// than its own interval (the test current capped two levels at one current) is left out:
 /// the curve must rise.
-fn curve_points(levels: Vec<(f64, Vec<Branch>)>) -> Vec<CurvePoint> {
+fn curve_points(levels: Vec<(Option<f64>, Vec<Window>)>) -> Vec<CurvePoint> {
     let mut points: Vec<CurvePoint> = levels
         .into_iter()
         .filter(|(_, b)| !b.is_empty())
         .map(|(target_fraction, b)| {
-            let flux: Vec<f64> = b.iter().map(|x| x.flux_wb).collect();
-            let current: Vec<f64> = b.iter().map(|x| x.flux_wb / x.l_mm_h).collect();
+            let flux: Vec<f64> = b.iter().map(|x| x.stator_flux_wb).collect();
+            let current: Vec<f64> = b.iter().map(|x| x.branch_current_a).collect();
+            let widened = |e: Estimate, bare: Vec<f64>| {
+                let bare = Estimate::of(&bare, MARGIN.lm);
+                Estimate {
+                    interval: [e.interval[0].min(bare.interval[0]), e.interval[1].max(bare.interval[1])],
+                    ..e
+                }
+            };
             CurvePoint {
                 target_fraction,
-                flux_wb: Estimate::of(&flux, MARGIN.lm),
-                current_a: Estimate::of(&current, MARGIN.lm),
-                stator_flux_wb: b.iter().map(|x| x.stator_flux_wb).sum::<f64>() / b.len() as f64,
+                flux_wb: widened(Estimate::of(&flux, MARGIN.lm), b.iter().map(|x| x.bare.0).collect()),
+                current_a: widened(Estimate::of(&current, MARGIN.lm), b.iter().map(|x| x.bare.1).collect()),
             }
         })
         .collect();
@@ -579,10 +710,10 @@ mod tests {
         let mut rec = Record::default();
         for periods in [0, 1, 999, 1001, u32::MAX] {
             rec.rotation.periods_per_block = periods;
-            let e = rotation(&cfg, &rec, 1, 1.34, 20.8).unwrap_err();
+            let e = rotation(&cfg, &rec, 1, Branch::Linear(1.34), 20.8).unwrap_err();
             assert!(e.contains("empty or not this sequence's"), "{periods}: {e}");
         }
         rec.rotation.periods_per_block = 1000;
-        assert!(rotation(&cfg, &rec, 1, 1.34, 20.8).is_err(), "a rotor that never turned");
+        assert!(rotation(&cfg, &rec, 1, Branch::Linear(1.34), 20.8).is_err(), "a rotor that never turned");
     }
 }

@@ -49,13 +49,15 @@
 //!
 //! [`Record`]: controller_core::commission::Record
 
+mod curve;
 mod estimation;
 mod model;
 mod output;
 mod run;
 
+pub use curve::measured_curve;
 pub use estimation::{MECHANICS_MARGIN, NO_LOAD_FLUX_MIN, ROTATION_RATIO_RANGE, SLIP_RESOLUTION, estimate};
-pub use model::{TModel, inverse_gamma, rated_flux_wb, t_model};
+pub use model::{GammaTruth, TModel, gamma_truth, inverse_gamma, rated_flux_wb, t_model};
 pub use output::{describe_curve, describe_no_load, motor_file, plots, saturating_curve};
 pub use run::{RunError, Setup, Target, describe, over_link, simulate, simulate_on, stage_name};
 
@@ -155,20 +157,36 @@ pub struct Identified {
     pub rotation: Option<Rotation>,
     /// The no-load test's results (if the motor was allowed to turn).
     pub no_load: Option<NoLoad>,
+    /// The Γ model on the measured curve (with `--curve`; module `curve`): then R_R, σL_s,
+    /// L_M and T_r above are its inverse-Γ equivalent at rated flux.
+    pub gamma: Option<GammaFit>,
 }
 
-/// One point of the magnetizing curve (the inverse-Γ branch at the rotor): its flux and its
-/// current, each an estimate over the level's windows.
+/// The Γ model identified on the measured curve, at rated flux (`curve` module).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GammaFit {
+    /// The branch's chord L_s = ψ_s/i_m at rated flux, H.
+    pub l_s_h: Estimate,
+    /// The rotor-side leakage L_σ, H.
+    pub l_sigma_h: Estimate,
+    /// The rotor resistance R_R, Ω.
+    pub r_r_ohm: Estimate,
+    /// The rotor time constant (L_s + L_σ)/R_R at rated flux, s.
+    pub tr_s: Estimate,
+}
+
+/// One point of the magnetizing curve, the Γ branch's (at the terminals): the stator flux
+/// against the branch's current, each an estimate over the level's windows.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CurvePoint {
-    /// The fraction of the rated stator flux the level aimed at.
-    pub target_fraction: f64,
-    /// The branch's flux ψ_R, Wb (peak).
+    /// The fraction of the rated stator flux the level aimed at; `None` for the test
+    /// current's level.
+    pub target_fraction: Option<f64>,
+    /// The stator flux ψ_s = |V − R_s·I|/ω, Wb (peak).
     pub flux_wb: Estimate,
-    /// The branch's current i_M = ψ_R/L_M, A (peak): at no load, nearly the stator current.
+    /// The branch's current i_m, the stator current's component along ψ_s, A (peak): the
+    /// rotor's, ψ_s·ω_slip/R_R, lies at right angles to the flux to first order in the slip.
     pub current_a: Estimate,
-    /// The stator flux the level settled at, Wb (peak).
-    pub stator_flux_wb: f64,
 }
 
 /// What the no-load test at rated flux found.
@@ -188,6 +206,8 @@ pub struct NoLoad {
     pub amplitude_a: f64,
     /// Mean slip, rad/s (electrical; from the encoder and the pole pairs).
     pub slip_rad_s: f64,
+    /// The Γ branch's chord L_s = ψ_s/i_m at the test's flux, H (one repeat per window).
+    pub l_s_h: Estimate,
     /// The magnetizing curve: a point per level reached (`controller_core::commission::
     /// no_load`, step 5) and the rated flux's, by rising current (a level the test current
     /// capped at its predecessor's current is left out).

@@ -71,6 +71,32 @@ pub fn rated_flux_wb(rated_voltage_v: f64, rated_frequency_hz: f64) -> f64 {
         / (3f64.sqrt() * 2.0 * std::f64::consts::PI * rated_frequency_hz)
 }
 
+/// A saturating Γ machine's own values at no load at stator flux `flux_wb`: what
+/// [`GammaFit`](super::GammaFit) should find there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GammaTruth {
+    /// The branch's chord ψ/f(ψ) at that flux, H.
+    pub l_s_h: f64,
+    /// The rotor-side leakage, H.
+    pub l_sigma_h: f64,
+    /// The rotor resistance, Ω.
+    pub r_r_ohm: f64,
+    /// (L_s + L_σ)/R_R, s.
+    pub tr_s: f64,
+}
+
+/// [`GammaTruth`] of the Γ machine `m` (its T model: L_s = L_m, L_r = L_m + L_σ) whose branch
+/// follows `curve`, at stator flux `flux_wb`.
+pub fn gamma_truth(
+    m: &MotorParams,
+    curve: &controller_core::magnetics::MagnetizingCurve,
+    flux_wb: f64,
+) -> GammaTruth {
+    let l_s_h = flux_wb / curve.current_a(flux_wb);
+    let l_sigma_h = m.lr_h() - m.lm_h();
+    GammaTruth { l_s_h, l_sigma_h, r_r_ohm: m.rr_ohm(), tr_s: (l_s_h + l_sigma_h) / m.rr_ohm() }
+}
+
 /// The true values the identification should find for `m`: (L_σ, L_M, R_R, T_r).
 pub fn inverse_gamma(m: &MotorParams) -> (f64, f64, f64, f64) {
     let k = m.lm_h() / m.lr_h();

@@ -23,13 +23,15 @@ pub fn describe_no_load(n: &NoLoad) -> String {
     )
 }
 
-/// The measured magnetizing curve, if the motor saturates beyond the L_M interval: some
-/// point's chord ψ_R/i_M lies outside it (a linear motor's chords all lie within it, and its
-/// file stays in the T form with one L_m). At least two points.
+/// The measured magnetizing curve, if the motor saturates beyond the rated chord's interval
+/// and the Γ model was fitted on it: some point's chord ψ_s/i_m lies outside the interval of
+/// L_s at rated flux (a linear motor's chords all lie within it, and its file stays in the
+/// T form with one L_m). At least two points.
 pub fn saturating_curve(id: &Identified) -> Option<&[CurvePoint]> {
-    let curve = &id.no_load.as_ref()?.curve;
-    let outside = curve.iter().any(|p| !id.l_mm_h.contains(p.flux_wb.value / p.current_a.value));
-    (curve.len() >= 2 && outside).then_some(curve.as_slice())
+    let nl = id.no_load.as_ref()?;
+    let curve = &nl.curve;
+    let outside = curve.iter().any(|p| !nl.l_s_h.contains(p.flux_wb.value / p.current_a.value));
+    (id.gamma.is_some() && curve.len() >= 2 && outside).then_some(curve.as_slice())
 }
 
 /// One line per point of the measured curve.
@@ -39,14 +41,13 @@ pub fn describe_curve(id: &Identified) -> Vec<String> {
         .iter()
         .map(|p| {
             format!(
-                "  curve at {:.2} of the rated flux: ψ_R {:.4} Wb [{:.4}, {:.4}] at i_M {:.4} A (chord L_M {:.5} H; stator flux {:.4} Wb)",
-                p.target_fraction,
+                "  curve at {}: ψ_s {:.4} Wb [{:.4}, {:.4}] at i_m {:.4} A (chord L_s {:.5} H)",
+                p.target_fraction.map_or("the test current".into(), |f| format!("{f:.2} of the rated flux")),
                 p.flux_wb.value,
                 p.flux_wb.interval[0],
                 p.flux_wb.interval[1],
                 p.current_a.value,
                 p.flux_wb.value / p.current_a.value,
-                p.stator_flux_wb
             )
         })
         .collect()
@@ -123,9 +124,9 @@ pub fn plots(
 /// The motor file: `[motor]` at the nominal values under `ratio`, with `pole_pairs` as given,
 /// J and B identified by the rotating field if it ran (else `j_kgm2`, `b_nms` as given), and
 /// `[identification]` with the intervals and the inverter's error. A motor that saturates
-/// ([`saturating_curve`]) is written in the inverse-Γ form its curve was measured in
-/// (`ratio` set aside: the curve saturates the branch at the rotor, which the T form cannot
-/// say), with `[motor.saturation]` the curve's points and `[identification]` their intervals.
+/// ([`saturating_curve`]) is written in the Γ form it was identified in (`ratio` set aside:
+/// the curve saturates the branch at the terminals, which the T form cannot say), with
+/// `[motor.saturation]` the curve's points and `[identification]` their intervals.
 pub fn motor_file(
     id: &Identified,
     ratio: f64,
@@ -134,8 +135,7 @@ pub fn motor_file(
     b_nms: f64,
     about: &str,
 ) -> String {
-    let curve = saturating_curve(id);
-    let ratio = if curve.is_some() { 0.0 } else { ratio };
+    let curve = saturating_curve(id).zip(id.gamma);
     let t = id.t_model(ratio);
     let (j_kgm2, b_nms, mechanics) = match &id.rotation {
         Some(r) => (r.j_kgm2.value, r.b_nms.value, "j_kgm2 and b_nms by the slow rotating field"),
@@ -178,22 +178,22 @@ pub fn motor_file(
             n(j_kgm2),
             n(b_nms),
         )),
-        Some(points) => {
+        Some((points, g)) => {
             s.push_str(&format!(
                 "{head}\
-                 # The magnetizing branch saturates: written in the inverse-Γ form the no-load test measures it\n\
-                 # in (the branch at the rotor, L_σ on the stator side; rr_ohm is R_R, lm_h L_M at rated flux).\n\
+                 # The magnetizing branch saturates: written in the Γ form it was identified in (the branch at\n\
+                 # the terminals, the leakage on the rotor side; lm_h is L_s at rated flux, rr_ohm the Γ R_R).\n\
                  # pole_pairs is as given; {mechanics}.\n\
                  # {magnetizing}.\n\
                  [motor]\n\
-                 form = \"inverse_gamma\"\nrs_ohm = {}\nrr_ohm = {}\nlm_h = {}\nl_sigma_h = {}\npole_pairs = {pole_pairs}\n\
+                 form = \"gamma\"\nrs_ohm = {}\nrr_ohm = {}\nlm_h = {}\nl_sigma_h = {}\npole_pairs = {pole_pairs}\n\
                  j_kgm2 = {}\nb_nms = {}\n\n\
-                 # The curve by the no-load test at {} levels: the branch's flux ψ_R and current i_M (peak).\n\
+                 # The curve by the no-load test at {} levels: the stator flux ψ_s and the branch's current i_m (peak).\n\
                  [motor.saturation]\ncurrent_a = [{}]\nflux_wb = [{}]\n\n",
-                n(t.rs_ohm),
-                n(t.rr_ohm),
-                n(t.lm_h),
-                n(id.l_sigma_h.value),
+                n(id.rs_ohm.value),
+                n(g.r_r_ohm.value),
+                n(g.l_s_h.value),
+                n(g.l_sigma_h.value),
                 n(j_kgm2),
                 n(b_nms),
                 points.len(),
@@ -206,9 +206,26 @@ pub fn motor_file(
         "# Intervals: the repeats' span widened by the stated margins (hil_sim::identify::MARGIN).\n\
          [identification]\n",
     );
-    s.push_str(&format!("leakage_ratio = {}\n", n(ratio)));
-    for (key, e) in id.t_intervals(ratio) {
-        s.push_str(&format!("{key} = {}\n", iv(&e)));
+    match curve {
+        None => {
+            s.push_str(&format!("leakage_ratio = {}\n", n(ratio)));
+            for (key, e) in id.t_intervals(ratio) {
+                s.push_str(&format!("{key} = {}\n", iv(&e)));
+            }
+        }
+        // The Γ file's T model: L_s = L_m = lm_h, L_r = L_s + L_σ, R_r = R_R.
+        Some((_, g)) => {
+            let [(ll, lh), (sl, sh)] = [g.l_s_h.interval, g.l_sigma_h.interval].map(|[a, b]| (a, b));
+            s.push_str(&format!(
+                "rs_ohm = {}\nrr_ohm = {}\nls_h = {}\nlr_h = [{}, {}]\nlm_h = {}\n",
+                iv(&id.rs_ohm),
+                iv(&g.r_r_ohm),
+                iv(&g.l_s_h),
+                n(ll + sl),
+                n(lh + sh),
+                iv(&g.l_s_h)
+            ));
+        }
     }
     s.push_str(&format!(
         "sigma_ls_h = {}\ntr_s = {}\nl_mm_h = {}\nr_rr_ohm = {}\n",
@@ -217,7 +234,7 @@ pub fn motor_file(
         iv(&id.l_mm_h),
         iv(&id.r_rr_ohm)
     ));
-    if let Some(points) = curve {
+    if let Some((points, _)) = curve {
         let list =
             |f: fn(&CurvePoint) -> &Estimate| points.iter().map(|p| iv(f(p))).collect::<Vec<_>>().join(", ");
         s.push_str(&format!(
