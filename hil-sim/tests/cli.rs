@@ -868,6 +868,51 @@ fn identify_writes_a_motor_file_or_nothing() {
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("--current-limit"));
     assert!(!refused.exists());
+    // The curve on a board: refused by name before any port is opened (the link's
+    // `Commission` carries no curve flag yet).
+    let st = bin()
+        .args(["link", "/dev/no-such-board", "identify", "--test-current", "1", "--rotate", "--curve"])
+        .args(["--rated-voltage", "380", "--rated-frequency", "60", "--out"])
+        .arg(&refused)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert_eq!(st.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("--curve is not yet available over the link") && !err.contains("no-such-board"),
+        "{err}"
+    );
+    assert!(!refused.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `identify --curve` on a motor whose branch saturates writes it in the Γ form with its
+/// curve, which loads as a saturating motor (issue 50's deliverable 4, the command a user
+/// runs); on a linear motor the file keeps the T form.
+#[test]
+fn identify_with_the_curve_writes_a_saturating_motor_file() {
+    let dir = tmp("identify-curve");
+    let out = dir.join("motor.toml");
+    let run = |motor: &str| {
+        let st = bin()
+            .args(["identify", motor, "--test-current", "1.24", "--rotate", "--curve"])
+            .args(["--rated-voltage", "380", "--rated-frequency", "60", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+        (String::from_utf8_lossy(&st.stdout).into_owned(), std::fs::read_to_string(&out).unwrap())
+    };
+    let (stdout, text) = run("delorenzo-saturating");
+    assert!(
+        stdout.contains("against the simulated Γ machine") && stdout.contains("curve at 0.30"),
+        "{stdout}"
+    );
+    assert!(text.contains("form = \"gamma\"") && text.contains("[motor.saturation]"), "{text}");
+    let (_, sat) = drive_file::motor::load_model(out.to_str().unwrap()).unwrap();
+    assert!(sat.is_some());
+    let (_, text) = run("delorenzo-appendix");
+    assert!(!text.contains("[motor.saturation]") && text.contains("ls_h = "), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 

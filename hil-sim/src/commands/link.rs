@@ -89,13 +89,6 @@ pub fn link_identify<R: std::io::Read, W: std::io::Write>(
     let file = drive_file::DriveFile::load(&a.drive).map_err(|e| e.to_string())?;
     let p = &file.spec.protection;
     // The board validates the same way; refused here first, with a reason.
-    if a.run.curve {
-        return Err(
-            "--curve is not yet available over the link: a board's sequence measures the rated flux only \
-                    (the curve runs in `hil-sim identify`, in SIL)"
-                .into(),
-        );
-    }
     let config = a.run.config(file.spec.pwm_frequency_hz, (p.vdc_min_v, p.vdc_max_v))?;
     stop_on_ctrl_c();
     let mut shown = None;
@@ -227,6 +220,16 @@ pub fn board_link(a: &LinkOptions) -> Result<(), String> {
         }
         _ => None,
     };
+    // Refused before the port is opened: the link's `Commission` carries no curve flag.
+    if let LinkAction::Identify(args) = action
+        && args.run.curve
+    {
+        return Err(
+            "--curve is not yet available over the link: a board's sequence measures the rated flux \
+                    only (the curve runs in `hil-sim identify`, in SIL)"
+                .into(),
+        );
+    }
     let timeout = seconds(a.timeout_s, "--timeout-s")?;
     // Raw 8N1 at 115200 baud; reads return after 100 ms without data (the client's own
     // deadline decides when to give up).
