@@ -41,11 +41,15 @@
 //!   margins its intervals are widened by ([`MARGIN`]);
 //! - `estimation`: the estimates from a [`Record`] ([`estimate`]; the equations above) and
 //!   the thresholds that refuse a record;
-//! - `model`: the inverse-Γ and T-models ([`TModel`], [`inverse_gamma`]) and the rated flux;
+//! - `model`: the inverse-Γ and T-models ([`TModel`], [`inverse_gamma`]), a saturating Γ
+//!   machine's own values ([`gamma_truth`]) and the rated flux;
+//! - `curve`: with the magnetizing curve measured (`--curve`), the estimates redone on it in
+//!   the Γ model ([`GammaFit`], [`measured_curve`]);
 //! - `run`: running the sequence — in SIL or PIL ([`simulate`], [`simulate_on`]) or on a
 //!   board over its link ([`over_link`]) — and its refusals and stages in words;
-//! - `output`: the motor file ([`motor_file`]), the pictures ([`plots`]) and the no-load
-//!   test's line ([`describe_no_load`]).
+//! - `output`: the motor file ([`motor_file`]; a saturating motor's in the Γ form with its
+//!   curve, [`saturating_curve`]), the pictures ([`plots`]) and the no-load test's lines
+//!   ([`describe_no_load`], [`describe_curve`]).
 //!
 //! [`Record`]: controller_core::commission::Record
 
