@@ -45,8 +45,8 @@
 //!    through the last two settled (amplitude, flux) points, at most
 //!    [`NO_LOAD_CORRECTIONS_MAX`] times in all, or until the test current caps the amplitude.
 //!    A saturating branch needs this: its inductance falls as the current rises, and
-//!    proportional steps creep toward the target (on the shipped saturating motor, from
-//!    124.8 % of the rated flux: 118, 112, 107.9 %…).
+//!    proportional steps only creep toward the target (on the shipped saturating motor one
+//!    left the test at 107.9 % of the rated flux, which the host refuses).
 //! 4. **Measure** [`NO_LOAD_WINDOWS`] windows of [`NO_LOAD_WINDOW_S`]: the mean commanded
 //!    voltage and measured current in the frame of the current reference, and the encoder's
 //!    turning (the slip).
@@ -225,8 +225,6 @@ pub(super) struct NoLoadState {
     error_v: f32,
     /// The commanded voltage's lead over its effect at the test frequency, as a rotation.
     lead: SinCos,
-    /// The curve's levels follow the rated one ([`CommissionSpec::curve`](super::CommissionSpec::curve)).
-    curve: bool,
 }
 
 /// What a level aims at.
@@ -262,9 +260,10 @@ pub(super) fn max_periods(pwm_hz: f32) -> u64 {
 impl NoLoadState {
     /// After a level's windows: the next level of the curve, its amplitude's first guess the
     /// present one scaled by the flux ratio (within the test current); after the last, the
-    /// deceleration.
-    fn next_level(&mut self, test_current_a: f32, psi_rated_wb: f32, pwm_hz: f32) {
-        let next = if self.curve { level_target(self.level + 1) } else { None };
+    /// deceleration — at once after the rated level unless `curve`
+    /// ([`CommissionConfig::curve`](super::CommissionConfig::curve)).
+    fn next_level(&mut self, curve: bool, test_current_a: f32, psi_rated_wb: f32, pwm_hz: f32) {
+        let next = if curve { level_target(self.level + 1) } else { None };
         let target = match (level_target(self.level), next) {
             (Some(Target::Flux(from)), Some(Target::Flux(to))) => {
                 (self.amplitude * to / from).min(test_current_a)
@@ -371,7 +370,6 @@ impl Commissioning {
         let error_v = 3.0 / PI * e.filter(|e| e.is_finite()).unwrap_or(0.0);
         self.no_load = NoLoadState {
             error_v,
-            curve: self.cfg.curve,
             lead: SinCos::new(1.5 * omega_target * self.cfg.ts_s),
             omega_e: w_rot,
             omega_target,
@@ -446,6 +444,7 @@ impl Commissioning {
         let psi_rated = self.cfg.spec.rated_flux_wb;
         let test_current = self.cfg.spec.test_current_a;
         let pwm_hz = self.cfg.spec.pwm_hz;
+        let curve = self.cfg.curve();
         let rs = self.record.no_load.rs_ohm;
         let rec = &mut self.record.no_load;
         let s = &mut self.no_load;
@@ -533,7 +532,7 @@ impl Commissioning {
                     s.window += 1;
                     if s.window >= windows {
                         s.window = 0;
-                        s.next_level(test_current, psi_rated, pwm_hz);
+                        s.next_level(curve, test_current, psi_rated, pwm_hz);
                     }
                 }
             }

@@ -246,6 +246,34 @@ impl Branch<'_> {
     }
 }
 
+/// The minimiser of `f` over `[lo, hi]` (> 0): `grid` + 1 points evenly spaced in ln x, then
+/// `iterations` of golden-section search on ln x between the best point's neighbours (the
+/// decay fits' one-parameter searches: T_r here, R_R on the curve).
+pub(super) fn minimize_on_log_scale(
+    f: impl Fn(f64) -> f64,
+    [lo, hi]: [f64; 2],
+    grid: usize,
+    iterations: u32,
+) -> f64 {
+    let (lo, hi) = (lo.ln(), hi.ln());
+    let x_at = |j: usize| lo + (hi - lo) * j as f64 / grid as f64;
+    let best = (0..=grid)
+        .map(|j| (j, f(x_at(j).exp())))
+        .fold((0, f64::INFINITY), |acc, (j, s)| if s < acc.1 { (j, s) } else { acc })
+        .0;
+    let (mut a, mut b) = (x_at(best.saturating_sub(1)), x_at((best + 1).min(grid)));
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    for _ in 0..iterations {
+        let (x1, x2) = (b - g * (b - a), a + g * (b - a));
+        if f(x1.exp()) < f(x2.exp()) {
+            b = x2;
+        } else {
+            a = x1;
+        }
+    }
+    (0.5 * (a + b)).exp()
+}
+
 /// Mean over periods `a..e` of `q^(k − k0)`.
 fn block_mean(q: f64, a: f64, e: f64, k0: f64) -> f64 {
     let n = e - a;
@@ -314,26 +342,9 @@ fn fit_decay(cfg: &CommissionConfig, rec: &Record, level: usize) -> Result<Decay
         let (c, a, ssr) = fit_linear(&w, &g, &y);
         (ssr, c, a)
     };
-    // Logarithmic grid from 2 periods to 10 levels, then golden section on ln τ.
+    // From 2 periods to 10 levels.
     let level_s = f64::from(cfg.level_periods()) * ts;
-    let (lo, hi) = ((2.0 * ts).ln(), (10.0 * level_s).ln());
-    let grid = 200;
-    let x_at = |j: usize| lo + (hi - lo) * j as f64 / grid as f64;
-    let best = (0..=grid)
-        .map(|j| (j, ssr_at(x_at(j).exp()).0))
-        .fold((0, f64::INFINITY), |acc, (j, s)| if s < acc.1 { (j, s) } else { acc })
-        .0;
-    let (mut a, mut b) = (x_at(best.saturating_sub(1)), x_at((best + 1).min(grid)));
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    for _ in 0..80 {
-        let (x1, x2) = (b - g * (b - a), a + g * (b - a));
-        if ssr_at(x1.exp()).0 < ssr_at(x2.exp()).0 {
-            b = x2;
-        } else {
-            a = x1;
-        }
-    }
-    let tau = (0.5 * (a + b)).exp();
+    let tau = minimize_on_log_scale(|tau| ssr_at(tau).0, [2.0 * ts, 10.0 * level_s], 200, 80);
     let (ssr, c, amp) = ssr_at(tau);
     let wsum: f64 = w.iter().sum();
     if tau > 0.5 * level_s {
@@ -579,8 +590,8 @@ fn branch_of(
     // less the rotor's, `i_r = j·ψ_s·ω_sl/(R_R + j·ω_sl·L_σ)` when the Γ rotor is known (ω_sl
     // the level's mean slip: a window's swings by ±0.4 rad/s as the rotor hunts; without the
     // rotor, its current is taken at right angles to the flux: first order in the slip; its
-    // part along the flux, ψ_s·ω_sl²·L_σ/R_R², is 5 % of the branch's at 0.3 of the rated
-    // flux on the shipped saturating motor, whose friction's slip grows as the flux falls).
+    // part along the flux, ψ_s·ω_sl²·L_σ/R_R², left the shipped saturating motor's 0.3 level
+    // 6.4 % low in flux at its current, the friction's slip growing as the flux falls).
     let j = num_complex::Complex64::i();
     let psi_s = (v - i * t.rs) / (j * w);
     // The same without the inverter's error: at a small current its ripple rounds the
