@@ -97,6 +97,23 @@
 //! inductance) and at rest ([`RotorFit::turning`]); otherwise ℓ̂ is kept. The law below runs on the model at ℓ̂
 //! ([`EnvelopeConfig::with_inductance_scale`]).
 //!
+//! **On a saturating motor the windows slide** ([`FitPeriod::saturating`]). There the flux
+//! does not build as one exponential: the voltage's decay runs at the incremental
+//! inductance of the flux reached, `(L_d(ψ) + L_lr)/R_r`, long while the flux is below the
+//! knee and short above it, and three windows across the knee read the constant part `c` —
+//! which multiplies the whole time since the enable — wrong: on the 300 W motor's
+//! saturating twin at its rated current, ×2.9 its flux linkage (test
+//! `a_saturating_machines_fit_slides_until_its_flux_settles`). In the drive the range
+//! clamped that to its top, and ℓ solved from it on the curve's flat part read 0.846 where the
+//! machine was ×1 and ×0.8 alike (hil-sim test
+//! `a_saturating_machine_is_identified_on_its_curve_at_any_inductance_scale`). So the windows
+//! slide on — the first joins the sum before them, a new one opens — until the last two
+//! differ by at most [`FIT_SETTLED_SHARE`] of the least inductance's flux linkage (the flux
+//! has settled, `c` is the voltage the loops then ask), at most [`FIT_SLIDE_WINDOWS_MAX`]
+//! windows more; a slid decay sunk into the noise counts as none beyond its first window.
+//! The rotor resistance is the first windows': their decay and the flux linkage they read
+//! are of the same building flux, where the later ones' decay is within the noise.
+//!
 //! **Online, at no load: the inductances** ([`MrasConfig::update_inductance`]). The fit's ℓ̂
 //! carries the current sensors' noise twice (it needs the decay's area): on small motors its
 //! spread is of the order of a ±5 % flux requirement. Where the loaded law has no
@@ -185,6 +202,18 @@ pub const FIT_SKIP_S: f64 = 10e-3;
 /// gain): with half a time constant, one of twelve seeded runs with realistic sensors was
 /// 22 % off; the error with 0.8 is what `magnetizing_measures_the_rotor_resistance_and_the_inductance` prints.
 pub const FIT_WINDOW_FRACTION: f64 = 0.8;
+
+/// A saturating motor's fit slides its windows on while the last two differ by more than
+/// this fraction of the least inductance's flux linkage ([`MrasConfig::fit`]): what the
+/// flux still builds is then of the order of this share, a tenth of a flux requirement of
+/// 10 %, and ℓ solved on the curve's flat part (× `L_chord/L_d`, ≈ 3) stays within a few %.
+pub const FIT_SETTLED_SHARE: f32 = 0.01;
+
+/// The most windows a saturating motor's fit slides past: with its three, nine windows of
+/// [`FIT_WINDOW_FRACTION`] of the rotor time constant at the range's middle — 7.2 of them,
+/// the flux settled to e^{−7} on the chord, sooner on the steeper incremental decay above
+/// the knee.
+pub const FIT_SLIDE_WINDOWS_MAX: u32 = 6;
 
 /// The fit gives up when the d-axis current reference moves by more than this fraction.
 pub const FIT_I_D_TOLERANCE: f32 = 0.01;
@@ -315,6 +344,9 @@ pub struct FitPeriod {
     /// time constant the decay approaches (a saturating motor's chord there, the scale in
     /// use for a linear one).
     pub built_inductance_scale: f32,
+    /// The motor saturates: the windows slide on until the flux linkage they read settles
+    /// ([`MrasConfig::fit`]).
+    pub saturating: bool,
 }
 
 /// The magnetizing fit's progress ([`MrasConfig::fit`]).
@@ -338,6 +370,10 @@ pub struct RotorFit {
     demagnetized: bool,
     /// Finished (estimated, or given up).
     done: bool,
+    /// A saturating motor's fit: windows slid past so far, and the rotor resistance its first
+    /// three windows read.
+    slid: u32,
+    first_rr: f32,
 }
 
 impl RotorFit {
@@ -360,6 +396,20 @@ impl RotorFit {
 /// `0 < min ≤ max ≤ min·RANGE_RATIO_MAX`, finite.
 fn range_ok([min, max]: [f64; 2]) -> bool {
     min.is_finite() && max.is_finite() && min > 0.0 && min <= max && max <= RANGE_RATIO_MAX * min
+}
+
+/// The magnetizing fit's window for `motor` and the rotor-resistance range `[min, max]`, s:
+/// [`FIT_WINDOW_FRACTION`] of the rotor time constant at the range's middle `√(min·max)`.
+pub fn fit_window_s(motor: &MotorParams, [min, max]: [f64; 2]) -> f64 {
+    FIT_WINDOW_FRACTION * motor.tr_s() / libm::sqrt(min * max)
+}
+
+/// The longest the magnetizing fit keeps the drive magnetizing, s: [`FIT_SKIP_S`] and its
+/// three windows ([`fit_window_s`]), a saturating motor's slid ones too
+/// ([`FIT_SLIDE_WINDOWS_MAX`]).
+pub fn fit_time_max_s(motor: &MotorParams, range: [f64; 2], saturating: bool) -> f64 {
+    let windows = 3 + if saturating { FIT_SLIDE_WINDOWS_MAX } else { 0 };
+    FIT_SKIP_S + f64::from(windows) * fit_window_s(motor, range)
 }
 
 impl MrasConfig {
@@ -389,7 +439,7 @@ impl MrasConfig {
         // The windows: at the middle of the rotor resistance's range, on the motor's
         // inductance (a saturated machine's shorter T_r gets windows longer against it: they
         // average more noise). The rotor time constant at its longest: for demagnetizing.
-        let window_s = FIT_WINDOW_FRACTION * motor.tr_s() / libm::sqrt(min * max);
+        let window_s = fit_window_s(motor, range);
         let fit_window_steps = libm::round(window_s / t_slow_s).clamp(1.0, 1e6) as u32;
         let tr_max_s = motor.tr_s() * l_max / min;
         Ok(Self {
@@ -426,16 +476,17 @@ impl MrasConfig {
     /// at the flux the reference builds, not where the flux is as the windows close (the
     /// 300 W motor's saturating twin at 100 rad/s read ×1.15 there, and a tenth of its
     /// envelope ran 13 % over its torque). Returns what it measured once, when the third
-    /// window closes (module docs), `None` before, after and when the fit is given up: the
-    /// reference moved by more than [`FIT_I_D_TOLERANCE`] from the first window on (field
-    /// weakening on a spinning rotor), the voltage is not finite, or a q-axis fit's field
-    /// slowed below `|ω_e|·T_r = 1` over the windows. [`RotorFit::new`] starts it (at the
+    /// window closes (a saturating motor's: when its slid windows settle; module docs),
+    /// `None` before, after and when the fit is given up: the reference moved by more than
+    /// [`FIT_I_D_TOLERANCE`] from the first window on (field weakening on a spinning rotor),
+    /// the voltage is not finite, or a q-axis fit's field slowed below `|ω_e|·T_r = 1` over
+    /// the windows. [`RotorFit::new`] starts it (at the
     /// enable).
     pub fn fit(&self, f: &mut RotorFit, period: &FitPeriod, l_now: f32) -> Option<Fitted> {
         if f.done || !self.fit_active() {
             return None;
         }
-        let FitPeriod { v_sum, steps, i_d_a, field_step_rad, built_inductance_scale } = *period;
+        let FitPeriod { v_sum, steps, i_d_a, field_step_rad, built_inductance_scale, saturating } = *period;
         let first = f.steps == 0;
         // The reference and the axis are taken up to the first window: a move before it (a
         // saturating machine's model settling on its curve in field weakening) leaves one
@@ -473,11 +524,11 @@ impl MrasConfig {
             }
             return None;
         };
-        let window = (k / self.fit_window_steps) as usize;
+        let window = (k / self.fit_window_steps).wrapping_sub(f.slid) as usize;
         if let Some(sum) = f.sums.get_mut(window) {
             *sum += v / f32::from(steps.max(1));
         }
-        if k + 1 < 3 * self.fit_window_steps {
+        if k + 1 < (3 + f.slid) * self.fit_window_steps {
             return None;
         }
         f.done = true;
@@ -489,22 +540,47 @@ impl MrasConfig {
         }
         let [s0, s1, s2] = f.sums;
         let (d0, d1) = (s0 - s1, s1 - s2);
-        if !(d0 > 0.0 && d1 > 0.0) {
-            return None;
-        }
-        // r̂/ℓ̂ = T_r,motor/T̂_r; a ratio at or below 1 (the middle window's step the smaller)
-        // is noise, not a fit.
-        let rate = self.tr_over_window * crate::num::ln_f32(d0 / d1);
-        if !finite_positive(rate) {
-            return None;
-        }
+        let rate = if f.slid == 0 {
+            if !(d0 > 0.0 && d1 > 0.0) {
+                return None;
+            }
+            // r̂/ℓ̂ = T_r,motor/T̂_r; a ratio at or below 1 (the middle window's step the
+            // smaller) is noise, not a fit.
+            let rate = self.tr_over_window * crate::num::ln_f32(d0 / d1);
+            if !finite_positive(rate) {
+                return None;
+            }
+            rate
+        } else {
+            0.0
+        };
+        // Slid windows: a decay sunk into the noise leaves nothing beyond the first of them.
+        let d1 = if f.slid == 0 || (d0 > 0.0 && d1 > 0.0 && d1 < d0) { d1 } else { 0.0 };
         let direct = f.axis == FitAxis::Direct;
         let measured = if direct && f.demagnetized && self.l_max > self.l_min && f.i_d_a > 0.0 {
             self.flux_linkage_scale(f, d0, d1)
         } else {
             None
         };
-        let rr = rate * measured.unwrap_or(built_inductance_scale);
+        // A saturating motor's rotor resistance is its first windows': their decay and the
+        // flux linkage they read are of the same building flux (a decay, not yet the noise).
+        let rr = if f.slid == 0 { rate * measured.unwrap_or(built_inductance_scale) } else { f.first_rr };
+        if let (true, Some(_)) = (saturating, measured) {
+            // The volt-seconds by which the last two windows differ, as a flux linkage: the
+            // flux still building when the windows close.
+            let building = self.t_fast_over_ls * self.slow_divider * d1.abs() / f.i_d_a;
+            let settled = building <= FIT_SETTLED_SHARE * self.l_min;
+            if !settled && f.slid < FIT_SLIDE_WINDOWS_MAX {
+                // The first window joins the sum before the windows; a new one opens.
+                f.first_rr = rr;
+                f.pre_sum += self.slow_divider * s0;
+                f.pre_steps = f.pre_steps.saturating_add(self.fit_window_steps * self.slow_divider as u32);
+                f.sums = [s1, s2, 0.0];
+                f.slid += 1;
+                f.done = false;
+                return None;
+            }
+        }
         if !finite_positive(rr) {
             return None;
         }
@@ -701,6 +777,7 @@ mod tests {
             i_d_a,
             field_step_rad: 0.0,
             built_inductance_scale: l,
+            saturating: false,
         }
     }
 
@@ -757,7 +834,7 @@ mod tests {
     /// references, with a single-valued range and on a non-finite voltage.
     #[test]
     fn the_inductance_law_settles_at_no_load() {
-        let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 2.0], [0.6, 1.2]).unwrap();
+        let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 2.0], [0.3, 3.0]).unwrap();
         for ell in [0.6f32, 0.8, 1.0, 1.15] {
             for (i_q, omega_m, rho) in
                 [(0.0, 150.0, 1.0), (0.0, -150.0, 1.0), (0.03, 100.0, 2.0), (-0.06, 100.0, 1.5)]
@@ -982,6 +1059,85 @@ mod tests {
         assert!((f64::from(x.inductance_scale) / 0.7 - 1.0).abs() < 1e-3 && x.rr_scale == 1.0, "{x:?}");
     }
 
+    /// The flux building at rest on a saturating Γ machine (motulator's law on the 300 W
+    /// motor's twin, `motors/delorenzo-saturating.toml`: L_u, β, S = 7, the rotor leakage
+    /// L_σ and resistance R_R), the d-axis current held at `i_d`: the branch's current
+    /// `i(ψ_s) = ψ_s·(1 + (β·ψ_s)^S)/L_u` is the stator's plus the rotor's, `ψ_R = ψ_s + L_σ·i_R`,
+    /// `dψ_R/dt = −R_R·i_R`, so `dψ_s/dt = −R_R·(i(ψ_s) − i_d)/(1 + L_σ·i'(ψ_s))`; `v_d` is
+    /// `offset` plus that (RK4, ten steps per fast period). `saturating` as the drive hands
+    /// it. Returns what the fit read and the truth, the settled flux linkage over the
+    /// motor's `L_s·i_d`.
+    fn magnetize_on_curve(c: &MrasConfig, saturating: bool, i_d: f64, offset: f64) -> (Option<Fitted>, f64) {
+        let (l_u, beta, l_sigma, r_r) = (1.99765926, 0.956813, 0.102551081, 23.8581234);
+        let current = |psi: f64| psi * (1.0 + (beta * psi).powi(7)) / l_u;
+        let slope = |psi: f64| (1.0 + 8.0 * (beta * psi).powi(7)) / l_u;
+        let rate = |psi: f64| -r_r * (current(psi) - i_d) / (1.0 + l_sigma * slope(psi));
+        let (mut lo, mut hi) = (0.0, 10.0);
+        for _ in 0..200 {
+            let mid = 0.5 * (lo + hi);
+            if current(mid) < i_d { lo = mid } else { hi = mid }
+        }
+        let truth = lo / (motor().ls_h() * i_d);
+        let mut f = RotorFit::new(true);
+        let period = |v: f64| FitPeriod { saturating, ..at_rest(v as f32, DIVIDER, i_d as f32, 1.0) };
+        let mut got = c.fit(&mut f, &period(0.0), 1.0);
+        let (mut psi, h) = (0.0, T_FAST / 10.0);
+        for _ in 0..4_000u32 {
+            let mut sum = 0.0;
+            for _ in 0..DIVIDER {
+                let before = psi;
+                for _ in 0..10 {
+                    let k1 = rate(psi);
+                    let k2 = rate(psi + 0.5 * h * k1);
+                    let k3 = rate(psi + 0.5 * h * k2);
+                    let k4 = rate(psi + h * k3);
+                    psi += h * (k1 + 2.0 * k2 + 2.0 * k3 + k4) / 6.0;
+                }
+                sum += offset + (psi - before) / T_FAST;
+            }
+            if let Some(x) = c.fit(&mut f, &period(sum), 1.0) {
+                assert!(got.is_none(), "one estimate");
+                got = Some(x);
+            }
+        }
+        (got, truth)
+    }
+
+    /// Issue 50: on a saturating machine the flux does not build as one exponential, and
+    /// three windows across the knee read the flux linkage far off (the constant part they
+    /// fit multiplies the whole time since the enable; the test prints each); the windows
+    /// that slide until the flux has settled read it within 0.5 % from below the knee to the
+    /// rated current, with any constant voltage (the widest inductance range, so that nothing
+    /// is clamped). The rotor resistance is the first windows' either way. On a
+    /// linear machine the slid windows read what the three do (within 0.1 %).
+    #[test]
+    fn a_saturating_machines_fit_slides_until_its_flux_settles() {
+        let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 2.0], [0.3, 3.0]).unwrap();
+        for i_d in [0.3, 0.45, 0.6087] {
+            for offset in [10.0, 15.4] {
+                let (three, truth) = magnetize_on_curve(&c, false, i_d, offset);
+                let (slid, _) = magnetize_on_curve(&c, true, i_d, offset);
+                let (three, slid) = (three.unwrap(), slid.unwrap());
+                let e = |x: &Fitted| f64::from(x.inductance_scale) / truth - 1.0;
+                eprintln!(
+                    "i_d {i_d} A, c {offset} V: flux linkage ×{truth:.4}, three windows {:+.2} %, slid {:+.2} %",
+                    100.0 * e(&three),
+                    100.0 * e(&slid)
+                );
+                assert!(e(&slid).abs() < 5e-3, "i_d {i_d}, c {offset}: {slid:?} against {truth}");
+                assert_eq!(slid.rr_scale, three.rr_scale);
+            }
+        }
+        // Three windows across the knee: far off (×2.9 at the rated current).
+        let (three, truth) = magnetize_on_curve(&c, false, 0.6087, 10.0);
+        let three = three.unwrap();
+        assert!((f64::from(three.inductance_scale) / truth - 1.0).abs() > 0.5, "{three:?} against {truth}");
+        for l in [0.6, 1.0] {
+            let linear = magnetize(&c, true, l, 1.4, 10.0, 0.634, 0).unwrap();
+            assert!((f64::from(linear.inductance_scale) / l - 1.0).abs() < 1e-3, "{linear:?}");
+        }
+    }
+
     /// The magnetizing transient of [`magnetize`] on a rotor turning at `w_e` (electrical
     /// rad/s) with i_q held at zero: `v_d` as at rest, `v_q = ω_e·(σL_s·i_d + (L_m/L_r)·ψ_r)`,
     /// both seen in a frame that drifts from the flux by `drift_rad_s·t` (rad) — the field
@@ -1029,6 +1185,7 @@ mod tests {
                 i_d_a: i_d as f32,
                 field_step_rad: field_step(j),
                 built_inductance_scale: 1.0,
+                saturating: false,
             };
             if let Some(x) = c.fit(&mut f, &period, 1.0) {
                 assert!(got.is_none(), "one estimate");

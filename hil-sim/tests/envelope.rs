@@ -788,32 +788,50 @@ fn a_saturating_drive_runs_on_its_curve() {
     assert_eq!(p.mode, Mode::Fault(controller_core::fault::Fault::LossOfControl), "{p:?}");
 }
 
-/// Issue 50: a saturating machine whose inductances are 0.6 × its file's (the certified box's
-/// corner, as the campaign scales a curve), magnetized at rest: the magnetizing fit measures
-/// the flux linkage built, which is that machine's chord at that flux — `ℓ·c(ℓ·i)` — and the
-/// drive solves for ℓ on its curve (`SlowState::set_inductance_on_curve`). Read as ℓ × the
-/// chord the drive had assumed there, it took the machine for a less saturated one: the
-/// magnetizing current 27 % short and the rotor flux 13.1 % below its reference. Now 15 % and
-/// 6.1 % (the rest is the fit's decay extrapolated as first-order on a curve; issue 50 asks 5 %).
+/// Issue 50: a saturating machine whose inductances are ℓ × its file's (1, 0.8 and the
+/// certified box's corner 0.6, as the campaign scales a curve), magnetized at rest: the
+/// magnetizing fit measures the flux linkage built, which is that machine's chord at that
+/// flux — `ℓ·c(ℓ·i)` — and the drive solves for ℓ on its curve
+/// (`SlowState::set_inductance_on_curve`). On the curve's flat part an error in the linkage
+/// is an error in ℓ magnified by `L_chord/L_diff`, so the linkage must not be extrapolated
+/// across the knee: the windows slide on until the flux has settled (`MrasConfig::fit`).
+/// With the first three windows only, the linkage read far off and clamped to the range's
+/// top, and ℓ read 0.846 at ℓ = 1 and at ℓ = 0.8 alike: the rotor flux settled 5.6 % over its
+/// reference at ℓ = 1 (the campaign's generating runs at top speed then missed their torque
+/// by 5.4–5.9 %). Asserted: ℓ within 3 % and the rotor flux within 2 % of its reference
+/// (issue 50 asks 5 %).
 #[test]
-fn a_saturating_machine_with_smaller_inductances_is_identified_on_its_curve() {
+fn a_saturating_machine_is_identified_on_its_curve_at_any_inductance_scale() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let drive = root.join("drives/delorenzo-saturating.toml");
-    let text = format!(
-        "drive = {:?}\nduration_s = 0.6\nsample_period_s = 1e-3\nvdc_v = 310.0\n\n\
-         [plant]\nform = \"gamma\"\nrs_ohm = 16.2\nrr_ohm = 23.8581234\nlm_h = {:?}\nl_sigma_h = {:?}\n\
-         pole_pairs = 1\nj_kgm2 = 0.005\nb_nms = 0.0005\n\n\
-         [plant.saturation]\nbeta_per_wb = 0.956813\nexponent = 7.0\n\n\
-         [[events]]\nt_s = 0.0\nkind = \"enable\"\n\n[[events]]\nt_s = 0.0\nkind = \"speed\"\nvalue = 0.0\n",
-        drive.display().to_string(),
-        0.6 * 1.99765926,
-        0.6 * 0.102551081
-    );
-    let b = hil_sim::scenario_file::parse_closed_loop(Path::new("l06.toml"), &text).unwrap();
-    let (rows, mode) = b.run(|_| {}).unwrap();
-    assert_eq!(mode, Mode::Running);
-    let last = rows.last().unwrap();
-    let error = flux(last) / last.psi_ref_wb - 1.0;
-    eprintln!("rotor flux {:.4} Wb against {:.4}: {:+.2} %", flux(last), last.psi_ref_wb, 100.0 * error);
-    assert!(error.abs() < 0.07, "{error}");
+    for l in [1.0, 0.8, 0.6] {
+        let text = format!(
+            "drive = {:?}\nduration_s = 0.6\nsample_period_s = 1e-3\nvdc_v = 310.0\n\n\
+             [plant]\nform = \"gamma\"\nrs_ohm = 16.2\nrr_ohm = 23.8581234\nlm_h = {:?}\nl_sigma_h = {:?}\n\
+             pole_pairs = 1\nj_kgm2 = 0.005\nb_nms = 0.0005\n\n\
+             [plant.saturation]\nbeta_per_wb = 0.956813\nexponent = 7.0\n\n\
+             [[events]]\nt_s = 0.0\nkind = \"enable\"\n\n[[events]]\nt_s = 0.0\nkind = \"speed\"\nvalue = 0.0\n",
+            drive.display().to_string(),
+            l * 1.99765926,
+            l * 0.102551081
+        );
+        let b = hil_sim::scenario_file::parse_closed_loop(Path::new("l.toml"), &text).unwrap();
+        let (rows, mode) = b.run(|_| {}).unwrap();
+        assert_eq!(mode, Mode::Running);
+        let last = rows.last().unwrap();
+        let error = flux(last) / last.psi_ref_wb - 1.0;
+        // The scale in use is ℓ̂ × the chord at the flux model's current; at the reference
+        // flux that chord is the rated one, 1.
+        let l_error = last.l_scale / l - 1.0;
+        eprintln!(
+            "ℓ = {l}: ℓ̂·c {:.4} ({:+.2} %), rotor flux {:.4} Wb against {:.4}: {:+.2} %",
+            last.l_scale,
+            100.0 * l_error,
+            flux(last),
+            last.psi_ref_wb,
+            100.0 * error
+        );
+        assert!(error.abs() < 0.02, "ℓ = {l}: flux {error}");
+        assert!(l_error.abs() < 0.03, "ℓ = {l}: ℓ̂ {l_error}");
+    }
 }

@@ -387,6 +387,7 @@ impl SlowState {
                     * cfg.ts_s
                     * f32::from(cfg.slow_divider),
                 built_inductance_scale,
+                saturating: cfg.magnetizing.on(),
             };
             if let Some(fit) = cfg.mras.fit(&mut self.run.rotor_fit, &period, l_now) {
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
@@ -664,9 +665,8 @@ impl SlowState {
     /// `1 − L_diff/L_chord`), within [`FIT_CURVE_ITERATIONS`]; kept within the inductance
     /// range. Read as ℓ × the assumed chord, the 300 W twin at 0.6 × its file's inductances
     /// was taken for a less saturated machine: its rotor flux ended 13.1 % below its
-    /// reference (now 6.1 %: hil-sim test
-    /// `a_saturating_machine_with_smaller_inductances_is_identified_on_its_curve`; its
-    /// campaign 161 → 193 of 200 runs).
+    /// reference (hil-sim test
+    /// `a_saturating_machine_is_identified_on_its_curve_at_any_inductance_scale`).
     #[cold]
     #[inline(never)]
     fn set_inductance_on_curve(&mut self, cfg: &DriveConfig, l_measured: f32) {

@@ -267,11 +267,21 @@ impl Injection {
     }
 }
 
-/// The drive's flux model's time to `magnetized_fraction` of its target on its reference
-/// current, `T_r·ln(1/(1 − f))`: when it leaves Magnetizing for Running (0.19 s for the
-/// DeLorenzo machine, 2.3 s for the 500 hp Krause machine). Runs ask for torque after it.
+/// When the drive leaves Magnetizing for Running: its flux model's time to
+/// `magnetized_fraction` of its target on its reference current, `T_r·ln(1/(1 − f))` (0.19 s
+/// for the DeLorenzo machine, 2.3 s for the 500 hp Krause machine), or the magnetizing fit's
+/// longest when that is later ([`controller_core::mras::fit_time_max_s`]: a saturating
+/// motor's fit slides its windows until the flux settles). Runs ask for torque after it.
 pub fn magnetizing_time_s(spec: &controller_core::drive::DriveSpec) -> f64 {
-    spec.motor.tr_s() * (1.0 / (1.0 - spec.magnetized_fraction)).ln()
+    let flux_s = spec.motor.tr_s() * (1.0 / (1.0 - spec.magnetized_fraction)).ln();
+    let [range, inductance_range] = [spec.rotor_resistance_range, spec.inductance_range];
+    let fitting = range[0] < range[1] || inductance_range[0] < inductance_range[1];
+    if fitting {
+        let fit_s = controller_core::mras::fit_time_max_s(&spec.motor, range, spec.magnetizing.is_some());
+        flux_s.max(fit_s)
+    } else {
+        flux_s
+    }
 }
 
 /// `m` with its resistances scaled by `rs_factor` and `rr_factor` (heating) and its

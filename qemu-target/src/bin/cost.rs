@@ -778,6 +778,7 @@ mod target {
                             i_d_a: 0.634,
                             field_step_rad: 0.0,
                             built_inductance_scale: 1.0,
+                            saturating: false,
                         };
                         black_box(c.fit(&mut f, &period, 1.0));
                     });
