@@ -27,6 +27,7 @@ fn main() {
     println!("cargo::rerun-if-changed={}", drive.display());
     let code = drive_file::DriveFile::load(&drive)
         .map_err(|e| e.to_string())
+        .and_then(|d| modes_built(&d, &name).map(|()| d))
         .and_then(|d| drive_file::codegen::firmware_rs(&d, &name));
     match code {
         Ok(code) => {
@@ -38,5 +39,21 @@ fn main() {
     }
     if board && env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "none") {
         println!("cargo::rustc-link-arg-bins=-Tdefmt.x");
+    }
+}
+
+/// The image carries only the control modes its drive runs (controller-core's features,
+/// docs/firmware.md): a drive that asks for one the build leaves out stops the build, naming
+/// the feature — the firmware would otherwise refuse its own configuration at power-up.
+fn modes_built(d: &drive_file::DriveFile, name: &str) -> Result<(), String> {
+    use controller_core::drive::{Control, SpeedFeedback};
+    let feature = |f: &str| env::var_os(format!("CARGO_FEATURE_{}", f.to_uppercase())).is_some();
+    let needs = [
+        (matches!(d.spec.control, Control::VHz { .. }), "vhz", "[controller] control = \"vhz\""),
+        (d.spec.speed_feedback != SpeedFeedback::Encoder, "sensorless", "[controller] speed_feedback"),
+    ];
+    match needs.iter().find(|(needed, f, _)| *needed && !feature(f)) {
+        Some((_, f, key)) => Err(format!("{name}: {key} needs the firmware built with `--features {f}`")),
+        None => Ok(()),
     }
 }

@@ -96,6 +96,9 @@ pub enum ObserverError {
     /// The correction rate at the top speed, `(α/2 + ζ∞·ω_max)·T`, exceeds
     /// [`CORRECTION_PER_SAMPLE_MAX`]: the sample period is too long for the speed range.
     TooFastForTheSamplePeriod,
+    /// This build of the crate has no observer (its feature `observer` is off: an image
+    /// carries only the speed feedback its drive runs).
+    NotBuilt,
 }
 
 impl core::fmt::Display for ObserverError {
@@ -108,6 +111,9 @@ impl core::fmt::Display for ObserverError {
             ),
             Self::FluxFloor => write!(f, "the observer's flux floor must be finite and > 0"),
             Self::TopSpeed => write!(f, "the observer's top speed must be finite and > 0"),
+            Self::NotBuilt => f.write_str(
+                "this build has no speed observer (controller-core's feature `observer`, the firmware's `sensorless`)",
+            ),
             Self::TooFastForTheSamplePeriod => write!(
                 f,
                 "the observer's correction at the top speed, (α/2 + ζ∞·ω_max)·T, exceeds {CORRECTION_PER_SAMPLE_MAX} per sample: sample faster or lower the top speed"

@@ -86,6 +86,9 @@ pub enum VhzError {
     Gain,
     /// The stator-flux reference is not finite and positive.
     Flux,
+    /// This build of the crate has no V/Hz law (its feature `vhz` is off: an image carries
+    /// only the control law its drive runs).
+    NotBuilt,
 }
 
 impl core::fmt::Display for VhzError {
@@ -97,6 +100,9 @@ impl core::fmt::Display for VhzError {
             Self::Ramp => f.write_str("ramp_rad_s2 must be finite and > 0 (in f32 too, once per slow step)"),
             Self::Gain => write!(f, "k_u and k_w must be finite, ≥ 0 and at most {K_MAX}"),
             Self::Flux => f.write_str("the V/Hz law's stator flux (from flux_ref_wb) must be finite and > 0"),
+            Self::NotBuilt => f.write_str(
+                "this build has no V/Hz law (controller-core's feature `vhz`, the firmware's `vhz`)",
+            ),
         }
     }
 }

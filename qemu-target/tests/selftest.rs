@@ -102,6 +102,26 @@ mod on_target {
             check(selftest::link_rejects_corruption(&spec()));
         }
 
+        /// Built without controller-core's `vhz` and `observer` (as the default firmware
+        /// is), a drive that asks for V/Hz or for the speed observer is refused, naming what
+        /// the build leaves out — not run as the encoder drive it would silently become.
+        #[test]
+        fn a_mode_left_out_of_the_build_is_refused() {
+            use controller_core::drive::{Control, DriveConfig, DriveError, DriveSpec, SpeedFeedback};
+            use controller_core::{observer::ObserverError, vhz::VhzError};
+            let vhz =
+                DriveSpec { control: Control::VHz { ramp_rad_s2: 100.0, k_u: 0.0, k_w: 0.0 }, ..spec() };
+            defmt::assert!(matches!(DriveConfig::new(&vhz), Err(DriveError::Vhz(VhzError::NotBuilt))));
+            for feedback in [SpeedFeedback::Sensorless, SpeedFeedback::EncoderRideThrough] {
+                let s = DriveSpec { speed_feedback: feedback, ..spec() };
+                defmt::assert!(matches!(
+                    DriveConfig::new(&s),
+                    Err(DriveError::Observer(ObserverError::NotBuilt))
+                ));
+            }
+            defmt::assert!(DriveConfig::new(&spec()).is_ok());
+        }
+
         #[test]
         fn q32_icad_vs_f64() {
             check(selftest::q32_icad_vs_f64());

@@ -14,7 +14,8 @@
 //!   tests on QEMU `mps2-an386` and `lm3s6965evb` (`cargo test --target …` in `qemu-target`,
 //!   runner in `qemu-target/.cargo/config.toml`), the instruction-count benchmark
 //!   (`-icount shift=0`) at opt-level 3 and as the firmware ships (its profile), and the
-//!   processor-in-the-loop tests (`hil-sim/tests/pil.rs`).
+//!   processor-in-the-loop tests (`hil-sim/tests/pil.rs`; the server built with every
+//!   control mode, `qemu-target`'s `all-modes`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu`, `fuzz` — single
 //!   steps; `modules` — no import cycle between the top-level modules of any crate and no
@@ -188,6 +189,12 @@ const Q_COST_FW: Step = Step::qemu(
         "qemu-target/target/thumbv7em-none-eabihf/firmware/cost",
     ],
 );
+/// The processor-in-the-loop server runs every builtin scenario, V/Hz and sensorless ones
+/// too: built with every control mode (the firmware's default image and `cost` leave them out).
+const Q_BUILD_PIL: Step = Step::in_qemu_target(
+    "qemu-target build (M4F, the PIL server with every control mode)",
+    &["build", "--target", THUMB, "--release", "--bin", "pil", "--features", "all-modes"],
+);
 const PIL: Step = Step::cargo(
     "processor in the loop (hil-sim/tests/pil.rs)",
     &["test", "--release", "--package", "hil-sim", "--test", "pil", "--", "--ignored", "--nocapture"],
@@ -201,8 +208,18 @@ const FUZZ: Step = Step {
     // cargo fuzz passes nightly-only flags (sanitizer, coverage) to the stable compiler.
     env: &[("RUSTC_BOOTSTRAP", "1")],
 };
-const QEMU_STEPS: [&Step; 9] =
-    [&Q_FMT, &Q_CLIPPY, &Q_BUILD_M4, &Q_TESTS_M4, &Q_TESTS_M3, &Q_COST, &Q_BUILD_M4_FW, &Q_COST_FW, &PIL];
+const QEMU_STEPS: [&Step; 10] = [
+    &Q_FMT,
+    &Q_CLIPPY,
+    &Q_BUILD_M4,
+    &Q_TESTS_M4,
+    &Q_TESTS_M3,
+    &Q_COST,
+    &Q_BUILD_M4_FW,
+    &Q_COST_FW,
+    &Q_BUILD_PIL,
+    &PIL,
+];
 
 /// Test totals summed over every `test result:` line cargo printed.
 #[derive(Default)]

@@ -10,7 +10,7 @@ use crate::fault::FaultSet;
 use crate::ifoc::IfocConfig;
 use crate::magnetics::MagnetizingChord;
 use crate::mras::{MrasConfig, MrasError};
-use crate::observer::{CORRECTION_PER_SAMPLE_MAX, ObserverConfig};
+use crate::observer::{CORRECTION_PER_SAMPLE_MAX, ObserverConfig, ObserverError};
 use crate::raw::{self, RawDriveConfig};
 use crate::speed::{PositionConfig, SpeedControllerConfig};
 use crate::supervisor::limits::{BrakeLevels, Limits, abs_bits};
@@ -20,7 +20,7 @@ use crate::supervisor::phases::{OPEN_PHASE_COMMANDED_FRACTION, SWITCH_FOLLOWING_
 use crate::supervisor::rest::RestLimits;
 use crate::supervisor::thermal::ThermalConfig;
 use crate::svpwm;
-use crate::vhz::VhzConfig;
+use crate::vhz::{VhzConfig, VhzError};
 
 crate::raw::raw_struct! {
     /// Validated, discretised drive configuration. Its fields' order is its raw layout
@@ -198,7 +198,7 @@ impl raw::Field for ControlLaw {
         let cfg = VhzConfig::get(r);
         match tag {
             0 => ControlLaw::Vector,
-            1 if cfg.is_valid() => ControlLaw::VHz(cfg),
+            1 if cfg!(feature = "vhz") && cfg.is_valid() => ControlLaw::VHz(cfg),
             _ => {
                 r.bad = true;
                 ControlLaw::Vector
@@ -223,6 +223,9 @@ impl SpeedSource {
     /// The observer, where the drive runs one.
     #[inline]
     pub(super) fn observer(&self) -> Option<&ObserverConfig> {
+        if !cfg!(feature = "observer") {
+            return None; // not in this build: none of its code is linked
+        }
         match self {
             SpeedSource::Encoder => None,
             SpeedSource::Observer(o) | SpeedSource::RideThrough(o) => Some(o),
@@ -232,13 +235,13 @@ impl SpeedSource {
     /// No encoder at all.
     #[inline]
     pub(super) fn sensorless(&self) -> bool {
-        matches!(self, SpeedSource::Observer(_))
+        cfg!(feature = "observer") && matches!(self, SpeedSource::Observer(_))
     }
 
     /// An encoder fault is ridden through on the observer.
     #[inline]
     pub(super) fn rides_through(&self) -> bool {
-        matches!(self, SpeedSource::RideThrough(_))
+        cfg!(feature = "observer") && matches!(self, SpeedSource::RideThrough(_))
     }
 }
 
@@ -259,8 +262,8 @@ impl raw::Field for SpeedSource {
         let cfg = ObserverConfig::get(r);
         match tag {
             0 => SpeedSource::Encoder,
-            1 if cfg.is_valid() => SpeedSource::Observer(cfg),
-            2 if cfg.is_valid() => SpeedSource::RideThrough(cfg),
+            1 if cfg!(feature = "observer") && cfg.is_valid() => SpeedSource::Observer(cfg),
+            2 if cfg!(feature = "observer") && cfg.is_valid() => SpeedSource::RideThrough(cfg),
             _ => {
                 r.bad = true;
                 SpeedSource::Encoder
@@ -540,12 +543,18 @@ impl DriveConfig {
                 };
                 match spec.speed_feedback {
                     SpeedFeedback::Encoder => SpeedSource::Encoder,
+                    _ if !cfg!(feature = "observer") => {
+                        return Err(DriveError::Observer(ObserverError::NotBuilt));
+                    }
                     SpeedFeedback::Sensorless => SpeedSource::Observer(observer()?),
                     SpeedFeedback::EncoderRideThrough => SpeedSource::RideThrough(observer()?),
                 }
             },
             control: match spec.control {
                 Control::Vector => ControlLaw::Vector,
+                Control::VHz { .. } if !cfg!(feature = "vhz") => {
+                    return Err(DriveError::Vhz(VhzError::NotBuilt));
+                }
                 Control::VHz { ramp_rad_s2, k_u, k_w } => ControlLaw::VHz(
                     VhzConfig::new(&spec.motor, ts, t_slow, spec.flux_ref_wb, ramp_rad_s2, [k_u, k_w])
                         .map_err(DriveError::Vhz)?,
@@ -640,7 +649,7 @@ impl DriveConfig {
     /// The V/Hz law, when the drive runs one ([`Control::VHz`]).
     #[inline(always)]
     pub(super) fn vhz(&self) -> Option<&VhzConfig> {
-        if !self.vhz_on {
+        if !self.vhz_on() {
             return None; // the flag first: near the drive's address
         }
         match &self.control {
@@ -652,6 +661,6 @@ impl DriveConfig {
     /// The drive runs the V/Hz law (the flag alone: what the every-period paths test).
     #[inline(always)]
     pub(super) fn vhz_on(&self) -> bool {
-        self.vhz_on
+        cfg!(feature = "vhz") && self.vhz_on
     }
 }
