@@ -458,6 +458,17 @@ impl MrasConfig {
         })
     }
 
+    /// The slow steps the magnetizing fit may keep the drive magnetizing at most: its skip,
+    /// the first step's and its three windows, a saturating motor's slid ones too
+    /// ([`FIT_SLIDE_WINDOWS_MAX`]); 0 when it does not run.
+    pub fn fit_slow_steps_max(&self, saturating: bool) -> u32 {
+        if !self.fit_active() {
+            return 0;
+        }
+        let windows = 3 + if saturating { FIT_SLIDE_WINDOWS_MAX } else { 0 };
+        self.fit_skip_steps.saturating_add(1).saturating_add(windows.saturating_mul(self.fit_window_steps))
+    }
+
     /// A rotor left idle `idle_slow_steps` slow steps counts as demagnetized
     /// ([`DEMAGNETIZED_TIME_CONSTANTS`]).
     pub fn demagnetized_after(&self, idle_slow_steps: u32) -> bool {

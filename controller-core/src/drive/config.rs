@@ -463,7 +463,12 @@ impl DriveConfig {
             envelope: EnvelopeConfig::new(&spec.motor),
             i_d_rated_a,
             magnetized_fraction: mf as f32,
-            magnetizing_steps_max: libm::ceil(magnetizing_s / t_slow).clamp(1.0, 4e9) as u32,
+            // Or the magnetizing fit's longest and the current loops' 20 ms, when that is
+            // longer (a saturating motor's slid windows on a low rotor-resistance range).
+            magnetizing_steps_max: (libm::ceil(magnetizing_s / t_slow).clamp(1.0, 4e9) as u32).max(
+                mras.fit_slow_steps_max(spec.magnetizing.is_some())
+                    .saturating_add(libm::ceil(0.02 / t_slow) as u32),
+            ),
             voltage_margin: spec.voltage_margin as f32,
             voltage_gain: (VOLTAGE_REGULATOR_BANDWIDTH_RAD_S * t_slow) as f32,
             trim_gain: (trim_bw * t_slow) as f32,

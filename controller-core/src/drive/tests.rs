@@ -1397,3 +1397,22 @@ fn a_vhz_drive_takes_a_speed_reference_only() {
     let bad = DriveSpec { control: Control::VHz { ramp_rad_s2: -1.0, k_u: 1.0, k_w: 4.0 }, ..test_spec() };
     assert_eq!(DriveConfig::new(&bad), Err(DriveError::Vhz(crate::vhz::VhzError::Ramp)));
 }
+
+/// Magnetizing may last as long as the magnetizing fit keeps the drive there: on a saturating
+/// motor with a low rotor-resistance range the slid windows (9 of 0.8·T_r/√(min·max)) outlast
+/// the flux model's twice-its-settling time, and the drive would trip `NoMotorCurrent` on a
+/// healthy motor before the fit ends. The timeout covers the fit's longest and the current
+/// loops' 20 ms; a linear motor's stays the flux model's.
+#[test]
+fn magnetizing_lasts_as_long_as_the_fit_may() {
+    let curve = crate::magnetics::MagnetizingCurve::law(3.0, 1.0, 7.0).unwrap();
+    let (table, _) = crate::magnetics::MagnetizingTable::of_curve(&curve, 0.9).unwrap();
+    let spec = DriveSpec { magnetizing: Some(table), rotor_resistance_range: [0.5, 1.0], ..test_spec() };
+    let cfg = DriveConfig::new(&spec).unwrap();
+    let fit = cfg.mras.fit_slow_steps_max(true);
+    let flux = DriveConfig::new(&DriveSpec { magnetizing: None, ..spec }).unwrap().magnetizing_steps_max;
+    assert!(fit > flux, "the case: the fit {fit} outlasts the flux model's {flux}");
+    assert!(cfg.magnetizing_steps_max > fit, "{} against {fit}", cfg.magnetizing_steps_max);
+    let linear = DriveConfig::new(&test_spec()).unwrap();
+    assert!(linear.magnetizing_steps_max > linear.mras.fit_slow_steps_max(false));
+}
