@@ -467,3 +467,17 @@ fn a_saturating_motors_curve_is_measured() {
     s.config = s.config.with_curve(true);
     println!("{}", check_saturating("motulator 2.2 kW", &s, &sat));
 }
+
+/// A test current deep in saturation (the 300 W twin at 5 A, ten times the current its rated
+/// flux needs): the rotor follows the slow field, but the DC levels' step builds almost no
+/// flux and the sequence cannot set its no-load test up — the refusal says so, with the
+/// levels' currents, where it used to say the rotor had not followed.
+#[test]
+fn a_test_current_deep_in_saturation_is_named() {
+    let (m, sat) = drive_file::motor::load_model("delorenzo-saturating").unwrap();
+    let mut s = setup(m, 5.0, 310.0, 7, DELORENZO);
+    s.saturation = sat;
+    let (rec, _) = identify::simulate(&s, |_, _| {}, || false).unwrap();
+    let e = identify::estimate(&s.config, &rec, 1).unwrap_err();
+    assert!(e.contains("the rotor followed the slow field") && e.contains("2.500 A to 5.000 A"), "{e}");
+}
