@@ -110,7 +110,8 @@
 //! slide on — the first joins the sum before them, a new one opens — until the last two
 //! differ by at most [`FIT_SETTLED_SHARE`] of the least inductance's flux linkage (the flux
 //! has settled, `c` is the voltage the loops then ask), at most [`FIT_SLIDE_WINDOWS_MAX`]
-//! windows more; a slid decay sunk into the noise counts as none beyond its first window.
+//! windows more; a slid decay slower than the slowest rotor the ranges allow is the noise's
+//! and counts as none beyond its first window.
 //! The rotor resistance is the first windows': their decay and the flux linkage they read
 //! are of the same building flux, where the later ones' decay is within the noise.
 //!
@@ -373,7 +374,7 @@ pub struct RotorFit {
     /// A saturating motor's fit: windows slid past so far, and the rotor resistance its first
     /// three windows read.
     slid: u32,
-    first_rr: f32,
+    first_rr_scale: f32,
 }
 
 impl RotorFit {
@@ -405,10 +406,16 @@ pub fn fit_window_s(motor: &MotorParams, [min, max]: [f64; 2]) -> f64 {
 }
 
 /// The longest the magnetizing fit keeps the drive magnetizing, s: [`FIT_SKIP_S`] and its
-/// three windows ([`fit_window_s`]), a saturating motor's slid ones too
-/// ([`FIT_SLIDE_WINDOWS_MAX`]).
-pub fn fit_time_max_s(motor: &MotorParams, range: [f64; 2], saturating: bool) -> f64 {
-    let windows = 3 + if saturating { FIT_SLIDE_WINDOWS_MAX } else { 0 };
+/// three windows ([`fit_window_s`]), and the slid ones of a saturating motor whose inductance
+/// it measures (`inductance_range` not one value; [`FIT_SLIDE_WINDOWS_MAX`]).
+pub fn fit_time_max_s(
+    motor: &MotorParams,
+    range: [f64; 2],
+    inductance_range: [f64; 2],
+    saturating: bool,
+) -> f64 {
+    let slides = saturating && inductance_range[0] < inductance_range[1];
+    let windows = 3 + if slides { FIT_SLIDE_WINDOWS_MAX } else { 0 };
     FIT_SKIP_S + f64::from(windows) * fit_window_s(motor, range)
 }
 
@@ -459,13 +466,14 @@ impl MrasConfig {
     }
 
     /// The slow steps the magnetizing fit may keep the drive magnetizing at most: its skip,
-    /// the first step's and its three windows, a saturating motor's slid ones too
-    /// ([`FIT_SLIDE_WINDOWS_MAX`]); 0 when it does not run.
+    /// the first step's and its three windows, and the slid ones of a saturating motor whose
+    /// inductance it measures ([`FIT_SLIDE_WINDOWS_MAX`]); 0 when it does not run.
     pub fn fit_slow_steps_max(&self, saturating: bool) -> u32 {
         if !self.fit_active() {
             return 0;
         }
-        let windows = 3 + if saturating { FIT_SLIDE_WINDOWS_MAX } else { 0 };
+        let slides = saturating && self.l_max > self.l_min;
+        let windows = 3 + if slides { FIT_SLIDE_WINDOWS_MAX } else { 0 };
         self.fit_skip_steps.saturating_add(1).saturating_add(windows.saturating_mul(self.fit_window_steps))
     }
 
@@ -539,7 +547,7 @@ impl MrasConfig {
         if let Some(sum) = f.sums.get_mut(window) {
             *sum += v / f32::from(steps.max(1));
         }
-        if k + 1 < (3 + f.slid) * self.fit_window_steps {
+        if k + 1 < (3 + f.slid).saturating_mul(self.fit_window_steps) {
             return None;
         }
         f.done = true;
@@ -565,8 +573,18 @@ impl MrasConfig {
         } else {
             0.0
         };
-        // Slid windows: a decay sunk into the noise leaves nothing beyond the first of them.
-        let d1 = if f.slid == 0 || (d0 > 0.0 && d1 > 0.0 && d1 < d0) { d1 } else { 0.0 };
+        // A saturating motor's windows have settled when the last two differ by at most
+        // FIT_SETTLED_SHARE of the least inductance's flux linkage (their volt-seconds).
+        let settled =
+            self.t_fast_over_ls * self.slow_divider * d1.abs() / f.i_d_a <= FIT_SETTLED_SHARE * self.l_min;
+        // Slid windows: a decay slower than the slowest rotor the ranges allow (`T̂_r` above
+        // `T_r·ℓ_max/r_min`) is the noise's — its ratio near 1 would blow the tail
+        // `B/(1 − q)` up — and leaves nothing beyond the first of them.
+        let physical = d0 > 0.0
+            && d1 > 0.0
+            && d1 < d0
+            && self.tr_over_window * crate::num::ln_f32(d0 / d1) >= self.min / self.l_max;
+        let d1 = if f.slid == 0 || physical { d1 } else { 0.0 };
         let direct = f.axis == FitAxis::Direct;
         let measured = if direct && f.demagnetized && self.l_max > self.l_min && f.i_d_a > 0.0 {
             self.flux_linkage_scale(f, d0, d1)
@@ -575,22 +593,18 @@ impl MrasConfig {
         };
         // A saturating motor's rotor resistance is its first windows': their decay and the
         // flux linkage they read are of the same building flux (a decay, not yet the noise).
-        let rr = if f.slid == 0 { rate * measured.unwrap_or(built_inductance_scale) } else { f.first_rr };
-        if let (true, Some(_)) = (saturating, measured) {
-            // The volt-seconds by which the last two windows differ, as a flux linkage: the
-            // flux still building when the windows close.
-            let building = self.t_fast_over_ls * self.slow_divider * d1.abs() / f.i_d_a;
-            let settled = building <= FIT_SETTLED_SHARE * self.l_min;
-            if !settled && f.slid < FIT_SLIDE_WINDOWS_MAX {
-                // The first window joins the sum before the windows; a new one opens.
-                f.first_rr = rr;
-                f.pre_sum += self.slow_divider * s0;
-                f.pre_steps = f.pre_steps.saturating_add(self.fit_window_steps * self.slow_divider as u32);
-                f.sums = [s1, s2, 0.0];
-                f.slid += 1;
-                f.done = false;
-                return None;
-            }
+        let rr =
+            if f.slid == 0 { rate * measured.unwrap_or(built_inductance_scale) } else { f.first_rr_scale };
+        if saturating && measured.is_some() && !settled && f.slid < FIT_SLIDE_WINDOWS_MAX {
+            // The first window joins the sum before the windows; a new one opens.
+            f.first_rr_scale = rr;
+            f.pre_sum += self.slow_divider * s0;
+            f.pre_steps =
+                f.pre_steps.saturating_add(self.fit_window_steps.saturating_mul(self.slow_divider as u32));
+            f.sums = [s1, s2, 0.0];
+            f.slid += 1;
+            f.done = false;
+            return None;
         }
         if !finite_positive(rr) {
             return None;
@@ -845,7 +859,7 @@ mod tests {
     /// references, with a single-valued range and on a non-finite voltage.
     #[test]
     fn the_inductance_law_settles_at_no_load() {
-        let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 2.0], [0.3, 3.0]).unwrap();
+        let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 2.0], [0.6, 1.2]).unwrap();
         for ell in [0.6f32, 0.8, 1.0, 1.15] {
             for (i_q, omega_m, rho) in
                 [(0.0, 150.0, 1.0), (0.0, -150.0, 1.0), (0.03, 100.0, 2.0), (-0.06, 100.0, 1.5)]

@@ -508,13 +508,16 @@ impl FastState {
         self.trip_from(s.mode);
         (self.pending_fault, self.reference) = (s.pending_fault, s.reference);
         self.run.field.adopt(s.run.ifoc.field_steps());
-        // Sensorless: the observer on the field orientation's estimates of the machine.
-        let ifoc = &s.run.ifoc;
-        self.run.observer.set_scales(
-            ifoc.inductance_scale(),
-            ifoc.rotor_resistance_scale(),
-            s.machine.rs_scale,
-        );
+        // Sensorless: the observer on the field orientation's estimates of the machine (a
+        // build without it has none to feed).
+        if cfg!(feature = "observer") {
+            let ifoc = &s.run.ifoc;
+            self.run.observer.set_scales(
+                ifoc.inductance_scale(),
+                ifoc.rotor_resistance_scale(),
+                s.machine.rs_scale,
+            );
+        }
         (self.run.delay_rotation, self.run.trim, self.run.emf_v) =
             (s.run.delay_rotation, s.run.trim, s.run.emf_v);
         self.run.on_observer = s.ridden_through != FaultSet::EMPTY;

@@ -458,12 +458,12 @@ pub(super) struct Terminals {
 }
 
 /// Why the sequence skipped its no-load test (`Commissioning::start_no_load` refuses to set
-/// it up): the rotor did not follow the slow field over its hold's second half (its turning
-/// below 1/`NO_LOAD_KE_MAX` of the field's), or else the DC levels gave no inductance and
+/// it up): the rotor did not follow the slow field over its hold's second half (its turning,
+/// mechanical, below 1/`NO_LOAD_KE_MAX` of the field's, electrical — the sequence's own test), or else the DC levels gave no inductance and
 /// rotor time constant to set it up from — a step deep in saturation builds almost no flux
 /// (the 300 W twin at 5 A, ten times its magnetizing current, was told its rotor had not
 /// followed; test `a_test_current_deep_in_saturation_is_named`).
-fn why_no_load_did_not_start(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> String {
+fn why_no_load_did_not_start(cfg: &CommissionConfig, rec: &Record) -> String {
     use controller_core::commission::{
         ROTATION_BLOCKS, ROTATION_HOLD_S, ROTATION_HZ, no_load::NO_LOAD_KE_MAX,
     };
@@ -471,7 +471,7 @@ fn why_no_load_did_not_start(cfg: &CommissionConfig, rec: &Record, pole_pairs: u
     let hold_blocks = (ROTATION_HOLD_S * cfg.spec().pwm_hz) as u32 / r.periods_per_block.max(1);
     let half = (hold_blocks / 2) as usize;
     let turned = match (r.theta_m_rad.last(), r.theta_m_rad.get(ROTATION_BLOCKS.saturating_sub(half + 1))) {
-        (Some(end), Some(from)) => f64::from(end - from) * f64::from(pole_pairs),
+        (Some(end), Some(from)) => f64::from(end - from),
         _ => 0.0,
     };
     let field =
@@ -512,7 +512,7 @@ pub(super) fn no_load(
     let w = f64::from(n.omega_e_rad_s);
     let periods = f64::from(n.periods_per_window);
     if !(w > 0.0 && w.is_finite() && periods > 0.0) {
-        return Err(why_no_load_did_not_start(cfg, rec, pole_pairs));
+        return Err(why_no_load_did_not_start(cfg, rec));
     }
     let half = 0.5 * w * ts;
     let delay = num_complex::Complex64::from_polar(half.sin() / half, -3.0 * half);

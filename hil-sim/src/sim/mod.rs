@@ -277,7 +277,8 @@ pub fn magnetizing_time_s(spec: &controller_core::drive::DriveSpec) -> f64 {
     let [range, inductance_range] = [spec.rotor_resistance_range, spec.inductance_range];
     let fitting = range[0] < range[1] || inductance_range[0] < inductance_range[1];
     if fitting {
-        let fit_s = controller_core::mras::fit_time_max_s(&spec.motor, range, spec.magnetizing.is_some());
+        let saturating = spec.magnetizing.is_some();
+        let fit_s = controller_core::mras::fit_time_max_s(&spec.motor, range, inductance_range, saturating);
         flux_s.max(fit_s)
     } else {
         flux_s
