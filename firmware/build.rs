@@ -53,7 +53,9 @@ fn modes_built(d: &drive_file::DriveFile, name: &str) -> Result<(), String> {
         (d.spec.speed_feedback != SpeedFeedback::Encoder, "sensorless", "[controller] speed_feedback"),
     ];
     match needs.iter().find(|(needed, f, _)| *needed && !feature(f)) {
-        Some((_, f, key)) => Err(format!("{name}: {key} needs the firmware built with `--features {f}`")),
+        Some((_, f, key)) => Err(format!(
+            "{name}: {key} needs the firmware built with `--features {f}` (`cargo xtask build-fw --features {f}`)"
+        )),
         None => Ok(()),
     }
 }

@@ -17,8 +17,9 @@
 //!   processor-in-the-loop tests (`hil-sim/tests/pil.rs`; the server built with every
 //!   control mode, `qemu-target`'s `all-modes`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
-//! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw`, `qemu`, `fuzz` — single
-//!   steps; `modules` — no import cycle between the top-level modules of any crate and no
+//! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw [--features F]` (the
+//!   firmware's features, a drive file's control modes: docs/firmware.md), `qemu`, `fuzz` —
+//!   single steps; `modules` — no import cycle between the top-level modules of any crate and no
 //!   module of controller-core, hil-sim or design over 1 000 lines of non-test code (part of
 //!   `ci` and `lint`; see [`module_cycles`], [`module_sizes`]).
 //!
@@ -115,6 +116,13 @@ const CORE_M4: Step =
     Step::cargo("build-core-m4", &["build", "--package", "controller-core", "--target", THUMB, "--release"]);
 const FW: Step =
     Step::cargo("build-fw", &["build", "--package", "firmware", "--target", THUMB, "--profile", "firmware"]);
+/// The firmware build with the firmware's `features` (a drive file's control modes beyond the
+/// default image's, docs/firmware.md: `vhz`, `sensorless`): the one step of a run, made once.
+fn firmware_with(features: &str) -> &'static Step {
+    let features: &'static str = Box::leak(features.to_owned().into_boxed_str());
+    let args: Vec<&'static str> = FW.args.iter().copied().chain(["--features", features]).collect();
+    Box::leak(Box::new(Step::cargo(FW.name, Box::leak(args.into_boxed_slice()))))
+}
 const CLIPPY_FW: Step = Step::cargo(
     "clippy (firmware for the board)",
     &["clippy", "--package", "firmware", "--target", THUMB, "--profile", "firmware", "--", "-D", "warnings"],
@@ -780,6 +788,7 @@ const VENV_PYTHON: &str = "target/ci-venv/bin/python3";
 fn main() -> ExitCode {
     let task = std::env::args().nth(1).unwrap_or_else(|| "help".into());
     let options: Vec<String> = std::env::args().skip(2).collect();
+    let mut fw = &FW;
     match (task.as_str(), options.as_slice()) {
         ("ci", [o]) if o == "--setup" => {
             if let Err(e) = setup() {
@@ -787,9 +796,12 @@ fn main() -> ExitCode {
                 return ExitCode::FAILURE;
             }
         }
+        ("build-fw", [o, features]) if o == "--features" => fw = firmware_with(features),
         (_, []) => {}
         _ => {
-            eprintln!("xtask: unknown options {options:?} (only `ci --setup` takes one)");
+            eprintln!(
+                "xtask: unknown options {options:?} (only `ci --setup` and `build-fw --features F` take them)"
+            );
             return ExitCode::from(2);
         }
     }
@@ -820,12 +832,12 @@ fn main() -> ExitCode {
         "modules" => vec![],
         "test-host" => vec![&TEST, &TEST_FW_COMMISSIONING],
         "build-core-m4" => vec![&CORE_M4],
-        "build-fw" => vec![&FW],
+        "build-fw" => vec![fw],
         "certify" => vec![&CERTIFY],
         "faults" => vec![&FAULTS],
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci [--setup] | lint | modules | test-host | certify | faults | build-core-m4 | build-fw | qemu | fuzz>"
+                "usage: cargo xtask <ci [--setup] | lint | modules | test-host | certify | faults | build-core-m4 | build-fw [--features F] | qemu | fuzz>"
             );
             return ExitCode::from(2);
         }
