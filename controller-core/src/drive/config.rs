@@ -615,6 +615,9 @@ impl DriveConfig {
             || counts.contains(&0)
             || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
             || cfg.vhz_on != matches!(cfg.control, ControlLaw::VHz(_))
+            // The flying start's speed search is the observer's: with an encoder it would hold
+            // the drive magnetizing until its timeout.
+            || (cfg.search_slow_steps != 0 && !cfg.source.sensorless())
             || !cfg.magnetizing.is_valid()
         {
             return Err(DriveError::Raw);

@@ -1407,7 +1407,12 @@ fn a_vhz_drive_takes_a_speed_reference_only() {
 fn magnetizing_lasts_as_long_as_the_fit_may() {
     let curve = crate::magnetics::MagnetizingCurve::law(3.0, 1.0, 7.0).unwrap();
     let (table, _) = crate::magnetics::MagnetizingTable::of_curve(&curve, 0.9).unwrap();
-    let spec = DriveSpec { magnetizing: Some(table), rotor_resistance_range: [0.5, 1.0], ..test_spec() };
+    let spec = DriveSpec {
+        magnetizing: Some(table),
+        rotor_resistance_range: [0.5, 1.0],
+        inductance_range: [0.6, 1.0],
+        ..test_spec()
+    };
     let cfg = DriveConfig::new(&spec).unwrap();
     let fit = cfg.mras.fit_slow_steps_max(true);
     let flux = DriveConfig::new(&DriveSpec { magnetizing: None, ..spec }).unwrap().magnetizing_steps_max;
@@ -1415,4 +1420,22 @@ fn magnetizing_lasts_as_long_as_the_fit_may() {
     assert!(cfg.magnetizing_steps_max > fit, "{} against {fit}", cfg.magnetizing_steps_max);
     let linear = DriveConfig::new(&test_spec()).unwrap();
     assert!(linear.magnetizing_steps_max > linear.mras.fit_slow_steps_max(false));
+    // Its inductance not measured (one value), a saturating motor's windows do not slide.
+    let fixed = DriveConfig::new(&DriveSpec { inductance_range: [1.0, 1.0], ..spec }).unwrap();
+    assert!(fixed.mras.fit_slow_steps_max(true) < fit, "{}", fixed.mras.fit_slow_steps_max(true));
+}
+
+/// A raw configuration whose speed search is set on a drive that does not run sensorless (an
+/// encoder drive, or a build without the observer) is refused: the search would never count
+/// down, and the drive would sit magnetizing until `NoMotorCurrent`.
+#[test]
+fn a_raw_speed_search_without_the_observer_is_refused() {
+    let mut cfg = DriveConfig::new(&test_spec()).unwrap();
+    assert_eq!(DriveConfig::from_raw(&cfg.to_raw()), Ok(cfg));
+    cfg.search_slow_steps = 5;
+    assert_eq!(DriveConfig::from_raw(&cfg.to_raw()), Err(DriveError::Raw));
+    let sensorless =
+        DriveConfig::new(&DriveSpec { speed_feedback: SpeedFeedback::Sensorless, ..test_spec() }).unwrap();
+    assert!(sensorless.search_slow_steps > 0);
+    assert_eq!(DriveConfig::from_raw(&sensorless.to_raw()), Ok(sensorless));
 }
