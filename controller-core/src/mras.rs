@@ -580,11 +580,13 @@ impl MrasConfig {
         // Slid windows: a decay slower than the slowest rotor the ranges allow (`T̂_r` above
         // `T_r·ℓ_max/r_min`) is the noise's — its ratio near 1 would blow the tail
         // `B/(1 − q)` up — and leaves nothing beyond the first of them.
-        let physical = d0 > 0.0
-            && d1 > 0.0
-            && d1 < d0
-            && self.tr_over_window * crate::num::ln_f32(d0 / d1) >= self.min / self.l_max;
-        let d1 = if f.slid == 0 || physical { d1 } else { 0.0 };
+        let physical = |d0: f32, d1: f32| {
+            d0 > 0.0
+                && d1 > 0.0
+                && d1 < d0
+                && self.tr_over_window * crate::num::ln_f32(d0 / d1) >= self.min / self.l_max
+        };
+        let d1 = if f.slid == 0 || physical(d0, d1) { d1 } else { 0.0 };
         let direct = f.axis == FitAxis::Direct;
         let measured = if direct && f.demagnetized && self.l_max > self.l_min && f.i_d_a > 0.0 {
             self.flux_linkage_scale(f, d0, d1)

@@ -459,10 +459,11 @@ pub(super) struct Terminals {
 
 /// Why the sequence skipped its no-load test (`Commissioning::start_no_load` refuses to set
 /// it up): the rotor did not follow the slow field over its hold's second half (its turning,
-/// mechanical, below 1/`NO_LOAD_KE_MAX` of the field's, electrical — the sequence's own test), or else the DC levels gave no inductance and
-/// rotor time constant to set it up from — a step deep in saturation builds almost no flux
-/// (the 300 W twin at 5 A, ten times its magnetizing current, was told its rotor had not
-/// followed; test `a_test_current_deep_in_saturation_is_named`).
+/// mechanical, below 1/`NO_LOAD_KE_MAX` of the field's, electrical — the sequence's own
+/// test), or else the DC levels gave no inductance and rotor time constant to set it up
+/// from — a step deep in saturation builds almost no flux (the 300 W twin at 5 A, ten times
+/// its magnetizing current, was told its rotor had not followed; test
+/// `a_test_current_deep_in_saturation_is_named`).
 fn why_no_load_did_not_start(cfg: &CommissionConfig, rec: &Record) -> String {
     use controller_core::commission::{
         ROTATION_BLOCKS, ROTATION_HOLD_S, ROTATION_HZ, no_load::NO_LOAD_KE_MAX,
