@@ -433,6 +433,15 @@ impl MagnetizingChord {
         if u > 0.0 { y / (u * TABLE_STEP as f32) } else { at(1) / TABLE_STEP as f32 }
     }
 
+    /// The magnetizing current of the flux `psi_wb` on the table, A (the file's machine; 0 at
+    /// a flux of 0 or less): `i_N·(ψ/ψ_N)/c(ψ)`, the table read the other way.
+    pub fn current_at_flux(&self, psi_wb: f32) -> f32 {
+        if psi_wb <= 0.0 {
+            return 0.0;
+        }
+        psi_wb * self.per_wb / (self.ratio_at_flux(psi_wb) * self.steps_per_a * TABLE_STEP as f32)
+    }
+
     /// Off, or on a positive step and a rising table (what [`crate::drive::DriveConfig::from_raw`]
     /// checks of a raw table: the rest is [`MagnetizingTable::validate`]'s, on the host).
     pub(crate) fn is_valid(&self) -> bool {
@@ -565,7 +574,12 @@ mod tests {
             let psi = t.chord_ratio(x) * x * psi_n;
             let by_flux = f64::from(chord.ratio_at_flux(psi as f32));
             assert!((by_flux / t.chord_ratio(x) - 1.0).abs() < 1e-4, "x {x}: {by_flux}");
+            // … and the current of that flux, the table read the other way.
+            let i = f64::from(chord.current_at_flux(psi as f32));
+            assert!((i / (x * i_n) - 1.0).abs() < 1e-4, "x {x}: {i}");
         }
+        assert_eq!(chord.current_at_flux(0.0), 0.0);
+        assert_eq!(chord.current_at_flux(-0.1), 0.0);
         assert!(worst < 0.01, "worst chord error {worst}");
         assert_eq!(t.chord_ratio(1.0), 1.0);
         let unsat = curve.flux_at_total_current(0.1 * i_n, 0.0) / (0.1 * psi_n);

@@ -11,9 +11,9 @@
 //! file).
 
 /// Floats in a raw drive configuration.
-pub const FLOATS: usize = 117;
+pub const FLOATS: usize = 121;
 /// Integers in a raw drive configuration.
-pub const INTEGERS: usize = 24;
+pub const INTEGERS: usize = 25;
 
 /// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
 /// expression: what the firmware's build script writes.

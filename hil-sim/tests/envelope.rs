@@ -754,10 +754,10 @@ fn the_envelope_on_a_saturating_plant_is_judged_against_its_own_limit() {
 /// drives/delorenzo-saturating.toml --torque-fraction 0.5 [--generating]`), at half and
 /// 1.25 × base speed (in field weakening), motoring and braking: the torque within 5 % of the
 /// torque asked and the rotor flux within 5 % of the drive's reference, no fault — measured
-/// within 1.3 %. The same drive without its table (a linear model at the rated chord) on the
-/// same machine trips `LossOfControl` at a tenth of its envelope at 1.5 × base speed. Not
-/// asserted: twice base speed, where the flying start's rotor fit misreads R_r and the
-/// encoder check trips (docs/verification.md).
+/// within 1.3 %; at a tenth of it, at half and 1.4 × base speed, within 2 %. The same drive
+/// without its table (a linear model at the rated chord) on the
+/// same machine trips `LossOfControl` at a tenth of its envelope at 1.5 × base speed. The
+/// whole sweep, 0.2 … 2 × base speed at 0.1, 0.5 and 1: docs/verification.md.
 #[test]
 fn a_saturating_drive_runs_on_its_curve() {
     use hil_sim::envelope::{Ask, measure_asking};
@@ -780,6 +780,17 @@ fn a_saturating_drive_runs_on_its_curve() {
             assert_eq!(p.mode, Mode::Running, "{p:?}");
             assert!(p.torque_error().abs() < 0.05 && p.flux_error().abs() < 0.05, "{p:?}");
         }
+    }
+    // A tenth of the envelope: the torque's error is the slip's, read by the flying start's
+    // fit on the curve (`MrasConfig::rotor_resistance_on_curve`; from the q axis's decay it
+    // ran 5.3 % over at half base speed).
+    for p in
+        measure_asking(&spec, &plant, Some(&sat), 310.0, &[0.5 * base, 1.4 * base], 1.0, Ask::Fraction(0.1))
+            .unwrap()
+    {
+        eprintln!("a tenth, {:.1} rad/s: torque {:+.2} %", p.omega_m_rad_s, 100.0 * p.torque_error());
+        assert_eq!(p.mode, Mode::Running, "{p:?}");
+        assert!(p.torque_error().abs() < 0.02 && p.flux_error().abs() < 0.02, "{p:?}");
     }
     let linear = controller_core::drive::DriveSpec { magnetizing: None, ..spec };
     let p = measure_asking(&linear, &plant, Some(&sat), 310.0, &[1.5 * base], 1.0, Ask::Fraction(0.1))
@@ -833,5 +844,53 @@ fn a_saturating_machine_is_identified_on_its_curve_at_any_inductance_scale() {
         );
         assert!(error.abs() < 0.02, "ℓ = {l}: flux {error}");
         assert!(l_error.abs() < 0.03, "ℓ = {l}: ℓ̂ {l_error}");
+    }
+}
+
+/// Issue 50: a saturating machine's rotor resistance read at rest on its curve
+/// (`MrasConfig::rotor_resistance_on_curve`), with realistic sensors and a switching
+/// inverter with dead time — motulator's 2.2 kW machine (`drives/motulator-2kw-saturating.toml`,
+/// 8 kHz) at R_r ×1.25 and ℓ 0.9 and 1.1, the 300 W motor's twin (`drives/delorenzo-saturating.toml`,
+/// 20 kHz) at R_r ×1.5 and ℓ 0.6 and 1: within 5 % (the issue's bound for R_r; measured
+/// within 4 %, the twin's at ℓ = 1 following its ℓ's −4 %). Read from the first windows'
+/// decay, a tenth of motulator's machine's campaign, every run above R_r ×1.16, missed its
+/// flux.
+#[test]
+fn a_saturating_machines_rotor_resistance_is_read_at_rest_on_its_curve() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    // The drive file, its Γ machine (R_s, R_R, unsaturated L_M, L_σ), pole pairs, J, β, the bus.
+    let motulator = ("drives/motulator-2kw-saturating.toml", [3.7, 2.5, 0.34, 0.023], 2, 0.015, 0.84, 540.0);
+    let twin = (
+        "drives/delorenzo-saturating.toml",
+        [16.2, 23.8581234, 1.99765926, 0.102551081],
+        1,
+        0.005,
+        0.956813,
+        310.0,
+    );
+    for ((file, [rs, rr, lm, ls], p, j, beta, vdc), r, l) in
+        [(motulator, 1.25, 0.9), (motulator, 1.25, 1.1), (twin, 1.5, 0.6), (twin, 1.5, 1.0)]
+    {
+        let text = format!(
+            "drive = {:?}\nduration_s = 0.6\nsample_period_s = 1e-3\nvdc_v = {vdc:?}\n\n\
+             [plant]\nform = \"gamma\"\nrs_ohm = {rs:?}\nrr_ohm = {:?}\nlm_h = {:?}\nl_sigma_h = {:?}\n\
+             pole_pairs = {p}\nj_kgm2 = {j:?}\nb_nms = 0.0\n\n\
+             [plant.saturation]\nbeta_per_wb = {beta:?}\nexponent = 7.0\n\n\
+             [inverter]\nkind = \"switching\"\ndead_time_s = 1e-6\n\n\
+             [sensors]\ncurrent_lsb_a = 0.00806\ncurrent_noise_rms_a = 0.01\n\
+             current_offset_a = [0.0, 0.02, 0.0]\ncurrent_gain = [1.0, 1.0, 1.005]\nencoder_lines = 1024\n\n\
+             [[events]]\nt_s = 0.0\nkind = \"enable\"\n\n[[events]]\nt_s = 0.0\nkind = \"speed\"\nvalue = 0.0\n",
+            root.join(file).display().to_string(),
+            r * rr,
+            l * lm,
+            l * ls
+        );
+        let b = hil_sim::scenario_file::parse_closed_loop(Path::new("r.toml"), &text).unwrap();
+        let (rows, mode) = b.run(|_| {}).unwrap();
+        assert_eq!(mode, Mode::Running, "{file}");
+        let last = rows.last().unwrap();
+        let error = last.rr_scale / r - 1.0;
+        eprintln!("{file}, R_r ×{r}, ℓ {l}: R̂_r ×{:.4} ({:+.2} %)", last.rr_scale, 100.0 * error);
+        assert!(error.abs() < 0.05, "{file}, R_r ×{r}, ℓ {l}: ×{}", last.rr_scale);
     }
 }

@@ -38,6 +38,7 @@ mod target {
     use controller_core::frames::{Abc, AlphaBeta, Dq, SinCos};
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
     use controller_core::link::{BoardCommand, LinkStats};
+    use controller_core::magnetics::{MagnetizingChord, MagnetizingCurve, MagnetizingTable};
     use controller_core::mras::{Evidence, FitPeriod, MrasConfig, RotorFit};
     use controller_core::observer::{FluxObserver, ObserverConfig};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
@@ -735,7 +736,7 @@ mod target {
         // loaded machine at speed; in the periods above the synthetic current keeps the loops
         // saturated, so it mostly does not), and one step of the magnetizing fit.
         let model = EnvelopeConfig::new(&spec.motor);
-        let (law, inductance_law, fit) =
+        let (law, inductance_law, fit, on_curve) =
             match MrasConfig::new(&spec.motor, ts, spec.slow_divider, [1.0, 2.0], [0.6, 1.0]) {
                 Ok(c) => {
                     let mut r = 1.4f32;
@@ -776,15 +777,57 @@ mod target {
                             v_sum: Dq { d: v, q: 0.0 },
                             steps: n,
                             i_d_a: 0.634,
+                            i_d_mean_a: 0.634,
                             field_step_rad: 0.0,
                             built_inductance_scale: 1.0,
                             saturating: false,
                         };
                         black_box(c.fit(&mut f, &period, 1.0));
                     });
-                    (law, inductance, fit)
+                    // A saturating motor's fit to its end — a first-order build at the rotor's
+                    // time constant, 10 V of constant part — then its rotor resistance read
+                    // on the curve (once per enable): the saturating twin's law
+                    // (drives/delorenzo-saturating.toml: β 0.956813/Wb, S = 7; its
+                    // unsaturated inductance, 2.0 H, sets only where the flux sits).
+                    let on_curve = match MagnetizingCurve::law(2.0, 0.956813, 7.0)
+                        .ok()
+                        .and_then(|curve| MagnetizingTable::of_curve(&curve, 0.9))
+                    {
+                        Some((table, i_rated_a)) => {
+                            let chord = MagnetizingChord::new(Some(&table), i_rated_a, 0.9);
+                            let mut f = RotorFit::new(true);
+                            let tr_s = spec.motor.tr_s() as f32;
+                            let mut t_s = 0.0f32;
+                            for _ in 0..100_000 {
+                                let mut v = 0.0;
+                                for _ in 0..n {
+                                    v += 10.0 + 60.0 * libm::expf(-t_s / tr_s);
+                                    t_s += ts as f32;
+                                }
+                                let period = FitPeriod {
+                                    v_sum: Dq { d: v, q: 0.0 },
+                                    steps: n,
+                                    i_d_a: 0.634,
+                                    i_d_mean_a: 0.634,
+                                    field_step_rad: 0.0,
+                                    built_inductance_scale: 1.0,
+                                    saturating: true,
+                                };
+                                if c.fit(&mut f, &period, 1.0).is_some() {
+                                    break;
+                                }
+                            }
+                            per_call(&ticks, |_| {
+                                black_box(c.rotor_resistance_on_curve(black_box(&f), 1.0, |psi| {
+                                    chord.current_at_flux(psi)
+                                }));
+                            })
+                        }
+                        None => f32::NAN,
+                    };
+                    (law, inductance, fit, on_curve)
                 }
-                Err(_) => (f32::NAN, f32::NAN, f32::NAN),
+                Err(_) => (f32::NAN, f32::NAN, f32::NAN, f32::NAN),
             };
         let dead_time = per_call(&ticks, |k| {
             let i = black_box(current(k % 64));
@@ -894,6 +937,7 @@ mod target {
         println!("cost part:rotor_resistance_law {:.1}", law);
         println!("cost part:inductance_law {:.1}", inductance_law);
         println!("cost part:rotor_resistance_fit {:.1}", fit);
+        println!("cost part:rotor_resistance_on_curve {:.1}", on_curve);
         println!("stack drive_step_bytes {stack}");
         println!(
             "stack interrupt_bytes {} (the firmware's body serving a command, with the {} B exception frame)",
