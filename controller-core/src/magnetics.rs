@@ -412,10 +412,11 @@ impl MagnetizingChord {
         }
     }
 
-    /// The motor saturates.
+    /// The motor saturates (and the build carries the curve: controller-core's `curve`
+    /// feature, a constant otherwise — none of the curve's code is linked).
     #[inline]
     pub fn on(&self) -> bool {
-        self.on
+        cfg!(feature = "curve") && self.on
     }
 
     /// The chord ratio at the flux `psi_wb` (Wb; 0 or less: the unsaturated end's): the
@@ -440,6 +441,11 @@ impl MagnetizingChord {
             return 0.0;
         }
         psi_wb * self.per_wb / (self.ratio_at_flux(psi_wb) * self.steps_per_a * TABLE_STEP as f32)
+    }
+
+    /// Off, or on in a build that carries the curve (controller-core's `curve` feature).
+    pub(crate) fn is_built(&self) -> bool {
+        !self.on || cfg!(feature = "curve")
     }
 
     /// Off, or on a positive step and a rising table (what [`crate::drive::DriveConfig::from_raw`]

@@ -1160,7 +1160,7 @@ pub fn drive_spec(
             ),
         ),
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
-        DriveError::Magnetizing(_) => src.error("motor.saturation", e.to_string()),
+        DriveError::Magnetizing(_) | DriveError::CurveNotBuilt => src.error("motor.saturation", e.to_string()),
         DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
         DriveError::RotorResistanceRange => {
             src.error("controller.rotor_resistance_range", range_need("rr_ohm"))

@@ -102,9 +102,9 @@ mod on_target {
             check(selftest::link_rejects_corruption(&spec()));
         }
 
-        /// Built without controller-core's `vhz` and `observer` (as the default firmware
-        /// is), a drive that asks for V/Hz or for the speed observer is refused, naming what
-        /// the build leaves out — not run as the encoder drive it would silently become.
+        /// Built without controller-core's `vhz`, `observer` and `curve` (as the default
+        /// firmware is), a drive that asks for V/Hz, for the speed observer or for a
+        /// magnetizing curve is refused, naming what the build leaves out — not run as the encoder drive it would silently become.
         #[test]
         fn a_mode_left_out_of_the_build_is_refused() {
             use controller_core::drive::{Control, DriveConfig, DriveError, DriveSpec, SpeedFeedback};
@@ -119,6 +119,15 @@ mod on_target {
                     Err(DriveError::Observer(ObserverError::NotBuilt))
                 ));
             }
+            // A saturating motor's curve (the shipped motor's chord on a table of its own).
+            use controller_core::magnetics::{MagnetizingCurve, MagnetizingTable};
+            let table = MagnetizingCurve::law(2.0, 0.956813, 7.0)
+                .ok()
+                .and_then(|c| MagnetizingTable::of_curve(&c, 0.9))
+                .map(|(t, _)| t);
+            defmt::assert!(table.is_some());
+            let curve = DriveSpec { magnetizing: table, ..spec() };
+            defmt::assert!(matches!(DriveConfig::new(&curve), Err(DriveError::CurveNotBuilt)));
             defmt::assert!(DriveConfig::new(&spec()).is_ok());
         }
 

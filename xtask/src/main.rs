@@ -117,7 +117,7 @@ const CORE_M4: Step =
 const FW: Step =
     Step::cargo("build-fw", &["build", "--package", "firmware", "--target", THUMB, "--profile", "firmware"]);
 /// The firmware build with the firmware's `features` (a drive file's control modes beyond the
-/// default image's, docs/firmware.md: `vhz`, `sensorless`): the one step of a run, made once.
+/// default image's, docs/firmware.md: `vhz`, `sensorless`, `saturation`): the one step of a run, made once.
 fn firmware_with(features: &str) -> &'static Step {
     let features: &'static str = Box::leak(features.to_owned().into_boxed_str());
     let args: Vec<&'static str> = FW.args.iter().copied().chain(["--features", features]).collect();

@@ -347,6 +347,9 @@ impl DriveConfig {
             return Err(DriveError::FluxReference);
         }
         if let Some(t) = &spec.magnetizing {
+            if !cfg!(feature = "curve") {
+                return Err(DriveError::CurveNotBuilt);
+            }
             t.validate().map_err(DriveError::Magnetizing)?;
         }
         let p = &spec.protection;
@@ -609,6 +612,9 @@ impl DriveConfig {
         // The bus range as `new` makes it, +0 for a zero minimum (the fast step's supervisor
         // tests it as one unsigned range of the bits, `Limits::ok`).
         let bus = cfg.limits.vdc_min_v.is_sign_positive() && cfg.limits.vdc_min_v < cfg.limits.vdc_max_v;
+        if r.ok() && !cfg.magnetizing.is_built() {
+            return Err(DriveError::CurveNotBuilt);
+        }
         if !r.ok()
             || !bus
             || !cfg.mras.is_valid()

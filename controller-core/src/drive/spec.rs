@@ -331,6 +331,9 @@ pub enum DriveError {
     Vhz(VhzError),
     /// The magnetizing table was rejected.
     Magnetizing(crate::magnetics::TableError),
+    /// A motor with a magnetizing curve in a build without controller-core's `curve` feature
+    /// (the firmware's `saturation`).
+    CurveNotBuilt,
 }
 
 impl core::fmt::Display for DriveError {
@@ -371,6 +374,10 @@ impl core::fmt::Display for DriveError {
             Self::Protection { field, need } => write!(f, "{field}: {need}"),
             Self::Observer(e) => write!(f, "speed_feedback (sensorless): {e}"),
             Self::Vhz(e) => write!(f, "control (V/Hz): {e}"),
+            Self::CurveNotBuilt => f.write_str(
+                "magnetizing: a saturating motor needs controller-core's `curve` feature (the firmware's \
+                 `saturation`: `cargo xtask build-fw --features saturation`)",
+            ),
             Self::Magnetizing(crate::magnetics::TableError(k)) => write!(
                 f,
                 "magnetizing: point {k} is not finite, not above the one before, or more than twice as steep \
