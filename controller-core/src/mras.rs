@@ -295,7 +295,10 @@ pub struct MrasConfig {
 pub struct Fitted {
     /// The rotor resistance, × the motor's R_r.
     pub rr_scale: f32,
-    /// The inductances, × the motor's (the scale in use when not measured).
+    /// The inductances, × the motor's (the scale in use when not measured). A saturating
+    /// motor's is the flux linkage over the motor's `L_s·i_d`, not limited here: ℓ times the
+    /// chord's ratio at the current asked, which may lie beyond the range where ℓ does not —
+    /// the drive solves ℓ on its curve and limits that (`SlowState::set_inductance_on_curve`).
     pub inductance_scale: f32,
     /// The d-axis voltage's constant part over the current, Ω: the stator resistance as the
     /// voltage the loops ask for sees it (any constant offset of that voltage — the dead
@@ -653,14 +656,18 @@ impl MrasConfig {
         let d1 = if f.slid == 0 || physical(d0, d1) { d1 } else { 0.0 };
         let direct = f.axis == FitAxis::Direct;
         let measured = if direct && f.demagnetized && self.l_max > self.l_min && f.i_d_a > 0.0 {
-            self.flux_linkage_scale(f, d0, d1)
+            self.flux_linkage_scale(f, d0, d1, saturating)
         } else {
             None
         };
         // A saturating motor's rotor resistance is its first windows': their decay and the
-        // flux linkage they read are of the same building flux (a decay, not yet the noise).
-        let rr =
-            if f.slid == 0 { rate * measured.unwrap_or(built_inductance_scale) } else { f.first_rr_scale };
+        // flux linkage they read are of the same building flux (a decay, not yet the noise);
+        // on the inductance scale that linkage reads within the range.
+        let rr = if f.slid == 0 {
+            rate * measured.map_or(built_inductance_scale, |l| l.limit(self.l_min, self.l_max))
+        } else {
+            f.first_rr_scale
+        };
         if saturating && measured.is_some() && !settled && f.slid < FIT_SLIDE_WINDOWS_MAX {
             // The first window joins the sum before the windows; a new one opens.
             f.first_rr_scale = rr;
@@ -703,14 +710,23 @@ impl MrasConfig {
     /// offset), from the enable on — the fast steps before the windows as summed, the
     /// geometric decay from the first window on to its end, `B/(1 − q)` with
     /// `q = e^{−W/T_r} = d₁/d₀` and `B = d₀/(1 − q)` the first window's share; the constant
-    /// part `c = (S₀ − B)/W`. Limited to the range; `None` if not finite.
-    fn flux_linkage_scale(&self, f: &RotorFit, d0: f32, d1: f32) -> Option<f32> {
+    /// part `c = (S₀ − B)/W`. Limited to the range on a linear motor, where it is the
+    /// inductance scale; a saturating motor's is ℓ times the chord's ratio at the current
+    /// asked (the twin's at ℓ = 1: ×1.027), which a limit to ℓ's range read as ℓ = 0.96
+    /// ([`Fitted::inductance_scale`]). `None` if not finite and positive.
+    fn flux_linkage_scale(&self, f: &RotorFit, d0: f32, d1: f32, saturating: bool) -> Option<f32> {
         let q = d1 / d0;
         let b = d0 / (1.0 - q);
         let c = self.constant_v(f, d0, d1);
         let volt_steps = f.pre_sum - c * f.pre_steps as f32 + self.slow_divider * b / (1.0 - q);
         let l = self.t_fast_over_ls * volt_steps / f.i_d_a;
-        if finite_positive(l) { Some(l.limit(self.l_min, self.l_max)) } else { None }
+        if !finite_positive(l) {
+            None
+        } else if saturating {
+            Some(l)
+        } else {
+            Some(l.limit(self.l_min, self.l_max))
+        }
     }
 
     /// A saturating motor's fit: one slow period's voltage sum `v` (V over its fast steps)
@@ -1398,8 +1414,9 @@ mod tests {
     /// fit multiplies the whole time since the enable; the test prints each); the windows
     /// that slide until the flux has settled read it within 0.5 % from below the knee to the
     /// rated current, with any constant voltage (the widest inductance range, so that nothing
-    /// is clamped). The rotor resistance is the first windows' either way. On a
-    /// linear machine the slid windows read what the three do (within 0.1 %).
+    /// is clamped) — and beyond the inductance range, where ℓ is not. The rotor resistance is
+    /// the first windows' either way. On a linear machine the slid windows read what the
+    /// three do (within 0.1 %).
     #[test]
     fn a_saturating_machines_fit_slides_until_its_flux_settles() {
         let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 2.0], [0.3, 3.0]).unwrap();
@@ -1426,6 +1443,13 @@ mod tests {
             let linear = magnetize(&c, true, l, 1.4, 10.0, 0.634, 0).unwrap();
             assert!((f64::from(linear.inductance_scale) / l - 1.0).abs() < 1e-3, "{linear:?}");
         }
+        // With the drive file's inductance range [0.6, 1]: the twin at ℓ = 1 builds 1.027 ×
+        // the motor's `L_s·i_d` (its chord at the current asked), read as such — a linkage,
+        // not ℓ; limited to ℓ's range it was 1.0, which the drive solved as ℓ = 0.96.
+        let c = MrasConfig::new(&motor(), T_FAST, DIVIDER, [1.0, 2.0], [0.6, 1.0]).unwrap();
+        let (got, truth, _) = magnetize_scaled_on_curve(&c, true, 0.6087, 10.0, 1.0, 1.0, true);
+        let got = got.unwrap().inductance_scale;
+        assert!(truth > 1.02 && (f64::from(got) / truth - 1.0).abs() < 5e-3, "{got} against {truth}");
     }
 
     /// The magnetizing transient of [`magnetize`] on a rotor turning at `w_e` (electrical
