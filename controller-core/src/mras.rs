@@ -300,6 +300,9 @@ pub struct Fitted {
     /// chord's ratio at the current asked, which may lie beyond the range where ℓ does not —
     /// the drive solves ℓ on its curve and limits that (`SlowState::set_inductance_on_curve`).
     pub inductance_scale: f32,
+    /// `inductance_scale` was measured (at rest, on a demagnetized rotor, a range to read
+    /// within): the flux linkage of the settled build at the fit's current.
+    pub inductance_measured: bool,
     /// The d-axis voltage's constant part over the current, Ω: the stator resistance as the
     /// voltage the loops ask for sees it (any constant offset of that voltage — the dead
     /// time's residual at this current — included). `None` when not finite and positive.
@@ -694,6 +697,7 @@ impl MrasConfig {
         Some(Fitted {
             rr_scale: rr.limit(self.min, self.max),
             inductance_scale: measured.unwrap_or(l_now),
+            inductance_measured: measured.is_some(),
             stator_resistance_ohm: finite_positive(r_s).then_some(r_s),
         })
     }

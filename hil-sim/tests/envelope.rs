@@ -851,10 +851,12 @@ fn a_saturating_machine_is_identified_on_its_curve_at_any_inductance_scale() {
 /// (`MrasConfig::rotor_resistance_on_curve`), with realistic sensors and a switching
 /// inverter with dead time — motulator's 2.2 kW machine (`drives/motulator-2kw-saturating.toml`,
 /// 8 kHz) at R_r ×1.25 and ℓ 0.9 and 1.1, the 300 W motor's twin (`drives/delorenzo-saturating.toml`,
-/// 20 kHz) at R_r ×1.5 and ℓ 0.6 and 1: within 5 % (the bound for R_r; measured
-/// within 4 %, the twin's at ℓ = 1 following its ℓ's −4 %). Read from the first windows'
-/// decay, a tenth of motulator's machine's campaign, every run above R_r ×1.16, missed its
-/// flux.
+/// 20 kHz) at R_r ×1.5 and ℓ 0.6 and 1: within 2.5 % (measured within 1.9 %, the realistic
+/// sensors' share; the bound is 5 %). The twin at ℓ = 1 read +4.3 % while the fit's
+/// linkage was limited to ℓ's range, and +3.0 % while ℓ was solved at the flux model's
+/// still-building current (`SlowState::set_inductance_on_curve`). Read from the first
+/// windows' decay, a tenth of motulator's machine's campaign, every run above R_r ×1.16,
+/// missed its flux. The scale in use at the end (ℓ, the chord at the rated flux) is printed.
 #[test]
 fn a_saturating_machines_rotor_resistance_is_read_at_rest_on_its_curve() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -890,7 +892,15 @@ fn a_saturating_machines_rotor_resistance_is_read_at_rest_on_its_curve() {
         assert_eq!(mode, Mode::Running, "{file}");
         let last = rows.last().unwrap();
         let error = last.rr_scale / r - 1.0;
-        eprintln!("{file}, R_r ×{r}, ℓ {l}: R̂_r ×{:.4} ({:+.2} %)", last.rr_scale, 100.0 * error);
-        assert!(error.abs() < 0.05, "{file}, R_r ×{r}, ℓ {l}: ×{}", last.rr_scale);
+        // At rest at the rated flux the chord is 1: the scale in use is ℓ.
+        let l_error = last.l_scale / l - 1.0;
+        eprintln!(
+            "{file}, R_r ×{r}, ℓ {l}: R̂_r ×{:.4} ({:+.2} %), ℓ̂ {:.4} ({:+.2} %)",
+            last.rr_scale,
+            100.0 * error,
+            last.l_scale,
+            100.0 * l_error
+        );
+        assert!(error.abs() < 0.025, "{file}, R_r ×{r}, ℓ {l}: ×{}", last.rr_scale);
     }
 }

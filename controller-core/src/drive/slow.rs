@@ -393,7 +393,14 @@ impl SlowState {
             if let Some(fit) = cfg.mras.fit(&mut self.run.rotor_fit, &period, l_now) {
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
                 if cfg.magnetizing.on() {
-                    self.set_inductance_on_curve(cfg, fit.inductance_scale);
+                    // A measured linkage is the settled build's at the fit's current; the
+                    // scale in use is the model's, at its flux.
+                    let i_m = if fit.inductance_measured {
+                        self.run.flux.i_d_a()
+                    } else {
+                        self.run.ifoc.psi_r_wb() / self.run.ifoc.flux_of(1.0)
+                    };
+                    self.set_inductance_on_curve(cfg, fit.inductance_scale, i_m);
                     self.rotor_resistance_on_curve(cfg);
                 } else {
                     self.set_inductance_scale(cfg, fit.inductance_scale);
@@ -661,7 +668,11 @@ impl SlowState {
     /// A saturating motor's magnetizing fit: the flux linkage it measured is the chord, × the
     /// rated one, of the machine at the flux built — `ℓ·c(ℓ·i_m)` for a machine whose
     /// inductances are ℓ × the file's ([`Self::follow_curve`]), not ℓ × the chord the drive
-    /// had assumed there. ℓ is the fixed point of `ℓ ← l/c(ℓ·i_m)`, which converges while
+    /// had assumed there. `i_m`, A: for a measured linkage the fit's current (the build it
+    /// extrapolates is settled: all of the current magnetizes) — the flux model's `ψ̂_r/L̂_m`,
+    /// still building where the machine's rotor is faster than the model's, read the 300 W
+    /// twin at R_r ×1.5 as ℓ 0.96 with exact sensors; for the scale in use (a fit that did
+    /// not measure it) the model's. ℓ is the fixed point of `ℓ ← l/c(ℓ·i_m)`, which converges while
     /// the table rises no more steeply than its chord allows
     /// ([`crate::magnetics::MagnetizingTable::validate`]: the map's slope is
     /// `1 − L_diff/L_chord`), within [`FIT_CURVE_ITERATIONS`]; kept within the inductance
@@ -671,9 +682,7 @@ impl SlowState {
     /// `a_saturating_machine_is_identified_on_its_curve_at_any_inductance_scale`).
     #[cold]
     #[inline(never)]
-    fn set_inductance_on_curve(&mut self, cfg: &DriveConfig, l_measured: f32) {
-        let s = &self.run.ifoc;
-        let i_m = s.psi_r_wb() / s.flux_of(1.0);
+    fn set_inductance_on_curve(&mut self, cfg: &DriveConfig, l_measured: f32, i_m: f32) {
         let [lo, hi] = cfg.mras.inductance_range();
         let mut l = self.run.identified_inductance_scale();
         // A loop, not eight copies (unrolled, the firmware took 280 B more flash for a step
