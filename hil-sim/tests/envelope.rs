@@ -856,7 +856,7 @@ fn a_saturating_machine_is_identified_on_its_curve_at_any_inductance_scale() {
 /// linkage was limited to ℓ's range, and +3.0 % while ℓ was solved at the flux model's
 /// still-building current (`SlowState::set_inductance_on_curve`). Read from the first
 /// windows' decay, a tenth of motulator's machine's campaign, every run above R_r ×1.16,
-/// missed its flux. The scale in use at the end (ℓ, the chord at the rated flux) is printed.
+/// missed its flux. The scale in use at the end (ℓ̂ × the chord at the model's flux) is printed.
 #[test]
 fn a_saturating_machines_rotor_resistance_is_read_at_rest_on_its_curve() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -892,14 +892,13 @@ fn a_saturating_machines_rotor_resistance_is_read_at_rest_on_its_curve() {
         assert_eq!(mode, Mode::Running, "{file}");
         let last = rows.last().unwrap();
         let error = last.rr_scale / r - 1.0;
-        // At rest at the rated flux the chord is 1: the scale in use is ℓ.
-        let l_error = last.l_scale / l - 1.0;
         eprintln!(
-            "{file}, R_r ×{r}, ℓ {l}: R̂_r ×{:.4} ({:+.2} %), ℓ̂ {:.4} ({:+.2} %)",
+            "{file}, R_r ×{r}, ℓ {l}: R̂_r ×{:.4} ({:+.2} %); the scale in use ℓ̂·c {:.4}, the flux {:.4} Wb for {:.4}",
             last.rr_scale,
             100.0 * error,
             last.l_scale,
-            100.0 * l_error
+            last.psi_est_wb,
+            last.psi_ref_wb
         );
         assert!(error.abs() < 0.025, "{file}, R_r ×{r}, ℓ {l}: ×{}", last.rr_scale);
     }
