@@ -768,21 +768,22 @@ mod target {
                     });
                     let mut f = RotorFit::new(true);
                     let n = spec.slow_divider;
+                    // A slow period at rest: its d-axis voltage sum at 0.634 A.
+                    let at_rest = |v_d_sum: f32, saturating: bool| FitPeriod {
+                        v_sum: Dq { d: v_d_sum, q: 0.0 },
+                        steps: n,
+                        i_d_a: 0.634,
+                        i_d_mean_a: 0.634,
+                        field_step_rad: 0.0,
+                        built_inductance_scale: 1.0,
+                        saturating,
+                    };
                     let fit = per_call(&ticks, |k| {
                         if k % 512 == 0 {
                             f = RotorFit::new(true);
                         }
                         let v = black_box(10.0 + 1e3 / (k % 512 + 100) as f32) * f32::from(n);
-                        let period = FitPeriod {
-                            v_sum: Dq { d: v, q: 0.0 },
-                            steps: n,
-                            i_d_a: 0.634,
-                            i_d_mean_a: 0.634,
-                            field_step_rad: 0.0,
-                            built_inductance_scale: 1.0,
-                            saturating: false,
-                        };
-                        black_box(c.fit(&mut f, &period, 1.0));
+                        black_box(c.fit(&mut f, &at_rest(v, false), 1.0));
                     });
                     // A saturating motor's fit to its end — a first-order build at the rotor's
                     // time constant, 10 V of constant part — then its rotor resistance read
@@ -804,16 +805,7 @@ mod target {
                                     v += 10.0 + 60.0 * libm::expf(-t_s / tr_s);
                                     t_s += ts as f32;
                                 }
-                                let period = FitPeriod {
-                                    v_sum: Dq { d: v, q: 0.0 },
-                                    steps: n,
-                                    i_d_a: 0.634,
-                                    i_d_mean_a: 0.634,
-                                    field_step_rad: 0.0,
-                                    built_inductance_scale: 1.0,
-                                    saturating: true,
-                                };
-                                if c.fit(&mut f, &period, 1.0).is_some() {
+                                if c.fit(&mut f, &at_rest(v, true), 1.0).is_some() {
                                     break;
                                 }
                             }
