@@ -398,7 +398,7 @@ impl SlowState {
                     let i_m = if fit.inductance_measured {
                         self.run.flux.i_d_a()
                     } else {
-                        self.run.ifoc.psi_r_wb() / self.run.ifoc.flux_of(1.0)
+                        self.model_magnetizing_current_a()
                     };
                     self.set_inductance_on_curve(cfg, fit.inductance_scale, i_m);
                     self.rotor_resistance_on_curve(cfg);
@@ -643,7 +643,7 @@ impl SlowState {
     fn follow_curve(&mut self, cfg: &DriveConfig) {
         let s = &self.run.ifoc;
         let l_id = self.run.identified_inductance_scale();
-        let i_m = s.psi_r_wb() / s.flux_of(1.0);
+        let i_m = self.model_magnetizing_current_a();
         let chord = cfg.magnetizing.ratio(l_id * i_m);
         let l = l_id * chord;
         if finite_positive(l) && l != s.inductance_scale() {
@@ -653,6 +653,12 @@ impl SlowState {
         // The rated flux's current on the curve itself, `ψ(ℓ·i) = ψ*` at `i = i_N/ℓ`: held
         // while the flux builds (the magnetizing fit gives up on a moving reference).
         self.run.i_d_rated_a = cfg.i_d_rated_a / l_id;
+    }
+
+    /// The flux model's magnetizing current `i_m = ψ̂_r/L̂_m`, A.
+    fn model_magnetizing_current_a(&self) -> f32 {
+        let s = &self.run.ifoc;
+        s.psi_r_wb() / s.flux_of(1.0)
     }
 
     /// A saturating motor's inductance scale at the flux the d-axis current `i_d_a` builds:
