@@ -414,7 +414,7 @@ mod tests {
             psi_alpha_wb: 0.3,
             psi_beta_wb: 0.1,
             omega_m_rad_s: wr,
-            theta_m_rad: 0.0,
+            ..Default::default()
         };
         let u = [40.0, -25.0];
         let mut x = x0;

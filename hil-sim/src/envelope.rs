@@ -235,7 +235,7 @@ fn point(
             dc_link: None,
             comparator: None,
             heating: None,
-            iron_loss_ohm: None,
+            extras: plant::Extras::default(),
         },
     };
     let (rows, mode) = b.run(|_| {})?;

@@ -129,40 +129,25 @@ impl Builtin {
         // The sensors sample in the board's window unless the scenario says otherwise.
         let mut sc = self.scenario.clone();
         sc.sensors.low_side_window_s.get_or_insert(self.spec.sample_window_s);
-        let machine = plant_machine(&self.plant, self.plant_saturation.as_ref(), sc.iron_loss_ohm)?;
+        let machine = plant_machine(&self.plant, self.plant_saturation.as_ref(), &sc.extras)?;
         sim::run(dut, &machine, self.spec.pwm_frequency_hz, &sc, progress, sink)
     }
 }
 
-/// The simulated machine: the motor `plant`, saturating when `saturation` is given, with an
-/// iron-loss resistance across its magnetizing branch when `iron_loss_ohm` is — a linear
-/// machine in the inverse-Γ form (L_r = L_m) takes it on the straight line of its L_m
-/// ([`plant::saturated`]); any other form is an error.
+/// The simulated machine: the motor `plant`, saturating when `saturation` is given, with
+/// `extras` (iron loss, a deep bar: [`plant::saturated`] — a saturating machine must be in
+/// the inverse-Γ form for them, a linear one takes them in its inverse-Γ equivalent).
 pub(crate) fn plant_machine(
     plant: &MotorParams,
     saturation: Option<&Saturation>,
-    iron_loss_ohm: Option<f64>,
+    extras: &plant::Extras,
 ) -> Result<Machine, String> {
     let why = |e: plant::saturated::SaturationError| format!("the simulated machine: {e}");
-    let Some(r_fe_ohm) = iron_loss_ohm else {
-        return match saturation {
-            Some(s) => Machine::saturated(plant, s).map_err(why),
-            None => Ok(Machine::new(plant)),
-        };
+    let machine = match saturation {
+        Some(s) => Machine::saturated(plant, s).map_err(why)?,
+        None => Machine::new(plant),
     };
-    let straight;
-    let saturation = match saturation {
-        Some(s) => s,
-        None => {
-            let psi = [1.0, 2.0];
-            let curve =
-                controller_core::magnetics::MagnetizingCurve::points(&psi, &psi.map(|p| p / plant.lm_h()))
-                    .map_err(|e| format!("the simulated machine's straight line: {e:?}"))?;
-            straight = Saturation { form: controller_core::magnetics::Form::InverseGamma, curve };
-            &straight
-        }
-    };
-    Machine::saturated(plant, saturation).and_then(|m| m.with_iron_loss(r_fe_ohm)).map_err(why)
+    machine.with_extras(extras).map_err(why)
 }
 
 /// IFOC speed step to 150 rad/s with the shipped drive (DeLorenzo motor, ICAD current loop
@@ -196,7 +181,7 @@ pub fn speed_step() -> Result<Builtin, ScenarioError> {
             dc_link: None,
             comparator: None,
             heating: None,
-            iron_loss_ohm: None,
+            extras: plant::Extras::default(),
         },
     })
 }

@@ -72,7 +72,13 @@
 //! filter_s = 1e-6
 //!
 //! [iron_loss]                      # optional: a resistance across the machine's magnetizing
-//! resistance_ohm = 400.0           # branch (plant::saturated; the machine in the inverse-Γ form)
+//! resistance_ohm = 400.0           # branch (plant::saturated; a saturating machine in the
+//!                                  # inverse-Γ form, a linear one in its inverse-Γ equivalent)
+//!
+//! [deep_bar]                       # optional: a deep-bar rotor (plant::saturated: a second
+//! high_slip_resistance_factor = 2.0  # cage): the rotor resistance rises from [motor]'s at zero
+//! corner_slip_hz = 10.0            # slip to this factor times it at high slip, the rise
+//!                                  # centred at this slip frequency (same forms as iron_loss)
 //!
 //! [heating]                        # optional: windings that heat with their copper losses,
 //! rated_rise_k = 80.0              # R_s and R_r following them (plant::thermal): the rise
@@ -183,6 +189,7 @@ struct ClosedLoopFile {
     comparator: Option<ComparatorTable>,
     heating: Option<HeatingTable>,
     iron_loss: Option<IronLossTable>,
+    deep_bar: Option<DeepBarTable>,
     #[serde(default)]
     sensors: SensorsTable,
     /// The fault the run is meant to end in, by its name (`"DcBusUndervoltage"`).
@@ -195,6 +202,14 @@ struct ClosedLoopFile {
 #[serde(deny_unknown_fields)]
 struct IronLossTable {
     resistance_ohm: f64,
+}
+
+/// `[deep_bar]`: a deep-bar rotor ([`plant::DeepBar`]).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DeepBarTable {
+    high_slip_resistance_factor: f64,
+    corner_slip_hz: f64,
 }
 
 /// `[heating]`: windings that heat with their losses ([`plant::thermal`]).
@@ -763,18 +778,36 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             Some(crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s })
         }
     };
-    // Iron loss: the machine in the inverse-Γ form (its branch behind the stator leakage).
+    // Iron loss and a deep bar: a saturating machine in the inverse-Γ form, a linear one in
+    // its inverse-Γ equivalent.
     let iron_loss_ohm = match &f.iron_loss {
         None => None,
         Some(t) => {
             let r = t.resistance_ohm;
             src.check(r.is_finite() && r > 0.0, "iron_loss.resistance_ohm", "must be finite and > 0")?;
-            // The machine the run builds, built now: a form that cannot take it is named here.
-            crate::scenario::plant_machine(&plant, plant_saturation.as_ref(), Some(r))
-                .map_err(|e| src.error("iron_loss", format!("{e} (form = \"inverse_gamma\")")))?;
             Some(r)
         }
     };
+    let deep_bar = match &f.deep_bar {
+        None => None,
+        Some(t) => {
+            let k = t.high_slip_resistance_factor;
+            src.check(
+                k.is_finite() && k > 1.0,
+                "deep_bar.high_slip_resistance_factor",
+                "must be finite and > 1",
+            )?;
+            let hz = t.corner_slip_hz;
+            src.check(hz.is_finite() && hz > 0.0, "deep_bar.corner_slip_hz", "must be finite and > 0")?;
+            Some(plant::DeepBar { high_slip_resistance_factor: k, corner_slip_hz: hz })
+        }
+    };
+    let extras = plant::Extras { iron_loss_ohm, deep_bar };
+    // The machine the run builds, built now: a form that cannot take them is named here.
+    crate::scenario::plant_machine(&plant, plant_saturation.as_ref(), &extras).map_err(|e| {
+        let key = if f.iron_loss.is_some() { "iron_loss" } else { "deep_bar" };
+        src.error(key, format!("{e} (form = \"inverse_gamma\")"))
+    })?;
     let heating = match &f.heating {
         None => None,
         Some(h) => Some(heating_of(&src, h, &spec, &plant)?),
@@ -806,7 +839,7 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             dc_link,
             comparator,
             heating,
-            iron_loss_ohm,
+            extras,
         },
     })
 }
@@ -983,11 +1016,12 @@ torque_nm = 0.5
     }
 
     /// Issue 50: `[iron_loss]` on a machine in the inverse-Γ form (motulator's 2.2 kW drive,
-    /// its motor file's form) is read and runs: the drive magnetizes and holds its speed; on
-    /// a T-form machine (FIG16's) it is refused naming the table, a resistance that is not one
-    /// naming the key.
+    /// its motor file's form) is read and runs: the drive magnetizes and holds its speed. A
+    /// linear T-form machine (FIG16's) takes it and `[deep_bar]` in its inverse-Γ
+    /// equivalent; a saturating Γ-form one (delorenzo-saturating's) is refused naming the
+    /// table; a value that is not one is refused naming its key.
     #[test]
-    fn iron_loss_needs_the_inverse_gamma_form() {
+    fn iron_loss_and_a_deep_bar_need_the_inverse_gamma_form() {
         let drive = Path::new(env!("CARGO_MANIFEST_DIR")).join("../drives/motulator-2kw.toml");
         let text = format!(
             "drive = {:?}\nduration_s = 1.0\nsample_period_s = 1e-3\nvdc_v = 540.0\n[iron_loss]\nresistance_ohm = 1000.0\n\
@@ -995,15 +1029,34 @@ torque_nm = 0.5
             drive.display().to_string()
         );
         let b = parse_closed_loop(Path::new("iron.toml"), &text).unwrap();
-        assert_eq!(b.scenario.iron_loss_ohm, Some(1000.0));
+        assert_eq!(b.scenario.extras.iron_loss_ohm, Some(1000.0));
         let (rows, mode) = b.run(|_| {}).unwrap();
         assert_eq!(mode, controller_core::drive::Mode::Running);
         let end = rows.last().unwrap();
         assert!((end.x.omega_m_rad_s - 100.0).abs() < 5.0, "{}", end.x.omega_m_rad_s);
         let bad = replace(&text, "resistance_ohm = 1000.0", "resistance_ohm = -1.0");
         assert_eq!(err(&bad).key.as_deref(), Some("iron_loss.resistance_ohm"));
-        let t_form = format!("{FIG16}\n[iron_loss]\nresistance_ohm = 1000.0\n");
-        assert_eq!(err(&t_form).key.as_deref(), Some("iron_loss"));
+        let bar = "[deep_bar]\nhigh_slip_resistance_factor = 2.0\ncorner_slip_hz = 10.0\n";
+        let t_form = format!("{FIG16}\n[iron_loss]\nresistance_ohm = 1000.0\n{bar}");
+        let extras = parse_closed_loop(Path::new("t.toml"), &t_form).unwrap().scenario.extras;
+        let want = plant::DeepBar { high_slip_resistance_factor: 2.0, corner_slip_hz: 10.0 };
+        assert_eq!((extras.iron_loss_ohm, extras.deep_bar), (Some(1000.0), Some(want)));
+        let gamma = Path::new(env!("CARGO_MANIFEST_DIR")).join("../drives/delorenzo-saturating.toml");
+        let gamma = text.replace(
+            &format!("{:?}", drive.display().to_string()),
+            &format!("{:?}", gamma.display().to_string()),
+        );
+        assert_eq!(err(&gamma).key.as_deref(), Some("iron_loss"));
+        let gamma_bar = gamma.replace("[iron_loss]\nresistance_ohm = 1000.0\n", bar);
+        assert_eq!(err(&gamma_bar).key.as_deref(), Some("deep_bar"));
+        for (from, to, key) in [
+            ("= 2.0", "= 1.0", "deep_bar.high_slip_resistance_factor"),
+            ("= 2.0", "= nan", "deep_bar.high_slip_resistance_factor"),
+            ("= 10.0", "= 0.0", "deep_bar.corner_slip_hz"),
+        ] {
+            let bad = format!("{FIG16}\n{}", bar.replace(from, to));
+            assert_eq!(err(&bad).key.as_deref(), Some(key), "{to}");
+        }
     }
 
     /// Issue 16, item 2: the inputs found by trying are errors that point at the value.

@@ -114,7 +114,7 @@ fn scenario(
             dc_link: None,
             comparator: None,
             heating: None,
-            iron_loss_ohm: None,
+            extras: plant::Extras::default(),
         },
     }
 }

@@ -46,7 +46,7 @@ fn builtin(
             dc_link: None,
             comparator: None,
             heating: None,
-            iron_loss_ohm: None,
+            extras: plant::Extras::default(),
         },
     }
 }

@@ -79,7 +79,7 @@ fn run_at(
             dc_link: None,
             comparator: None,
             heating: None,
-            iron_loss_ohm: None,
+            extras: plant::Extras::default(),
         },
     };
     b.run(|_| {}).unwrap()

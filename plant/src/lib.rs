@@ -26,7 +26,19 @@ use core::cell::Cell;
 
 pub mod saturated;
 pub mod thermal;
+pub use saturated::DeepBar;
 use saturated::{Saturated, SaturationError};
+
+/// What a simulated machine has beyond its equivalent circuit's form, each optional: iron
+/// loss and a deep-bar rotor ([`crate::saturated`]). A linear machine takes them in its
+/// inverse-Γ equivalent, a saturating one in the inverse-Γ form only.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Extras {
+    /// An iron-loss resistance across the magnetizing branch, Ω.
+    pub iron_loss_ohm: Option<f64>,
+    /// A deep-bar rotor.
+    pub deep_bar: Option<DeepBar>,
+}
 
 /// Plant state.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -43,6 +55,11 @@ pub struct MachineState {
     pub omega_m_rad_s: f64,
     /// Mechanical angle, rad (not wrapped).
     pub theta_m_rad: f64,
+    /// The second rotor cage's current α, A: a deep-bar rotor's inner cage
+    /// ([`Machine::with_deep_bar`]); 0 on a machine with one cage.
+    pub i_cage_alpha_a: f64,
+    /// The second rotor cage's current β, A.
+    pub i_cage_beta_a: f64,
 }
 
 impl MachineState {
@@ -53,7 +70,9 @@ impl MachineState {
             + self.psi_alpha_wb
             + self.psi_beta_wb
             + self.omega_m_rad_s
-            + self.theta_m_rad)
+            + self.theta_m_rad
+            + self.i_cage_alpha_a
+            + self.i_cage_beta_a)
             .is_finite()
     }
 }
@@ -348,6 +367,8 @@ impl Split {
             psi_beta_wb: psi.1,
             omega_m_rad_s: w,
             theta_m_rad: theta,
+            i_cage_alpha_a: 0.0,
+            i_cage_beta_a: 0.0,
         };
         rk4.machine.stop_a_reversing_passive_load(x0.w.0, &mut x1);
         x1
@@ -374,6 +395,9 @@ pub struct Machine {
     /// A fan's (or pump's) torque per speed squared, N·m·s²/rad²: k·ω_m·|ω_m| against the
     /// motion.
     fan_nm_s2: f64,
+    /// The parameters it was made with (a linear machine takes iron loss or a deep bar in
+    /// their inverse-Γ equivalent).
+    motor: MotorParams,
 }
 
 impl Machine {
@@ -394,6 +418,7 @@ impl Machine {
             coulomb_nm: 0.0,
             fan_nm_s2: 0.0,
             saturation: None,
+            motor: *m,
         }
     }
 
@@ -404,24 +429,57 @@ impl Machine {
         Ok(Self { saturation: Some(Saturated::new(m, sat)?), ..Self::new(m) })
     }
 
-    /// Whether the magnetizing branch saturates.
+    /// Whether the magnetizing branch saturates (has a machine's curve; a linear machine
+    /// carried in its inverse-Γ equivalent for its iron loss or deep bar does not).
     pub fn is_saturating(&self) -> bool {
-        self.saturation.is_some()
+        self.saturation.as_ref().is_some_and(Saturated::is_curved)
+    }
+
+    /// The branch a loss or a deep bar is added to: a saturating machine's, or a linear
+    /// one's in its inverse-Γ equivalent ([`crate::saturated`]).
+    fn branch(&self) -> Result<Saturated, SaturationError> {
+        match &self.saturation {
+            Some(s) => Ok(*s),
+            None => Saturated::linear_equivalent(&self.motor),
+        }
     }
 
     /// The same machine with an iron-loss resistance `r_fe_ohm` across its magnetizing branch
-    /// ([`crate::saturated`]): a machine in the inverse-Γ form (its curve may be a straight
-    /// line), an error otherwise.
+    /// ([`crate::saturated`]): a saturating machine in the inverse-Γ form, or a linear
+    /// machine in its inverse-Γ equivalent; an error otherwise.
     pub fn with_iron_loss(&self, r_fe_ohm: f64) -> Result<Self, SaturationError> {
-        match &self.saturation {
-            Some(s) => Ok(Self { saturation: Some(s.with_iron_loss(r_fe_ohm)?), ..*self }),
-            None => Err(SaturationError::IronLoss),
-        }
+        Ok(Self { saturation: Some(self.branch()?.with_iron_loss(r_fe_ohm)?), ..*self })
     }
 
     /// The iron-loss resistance across the magnetizing branch, Ω (`None`: none).
     pub fn iron_loss_ohm(&self) -> Option<f64> {
         self.saturation.as_ref().and_then(Saturated::iron_loss_ohm)
+    }
+
+    /// The same machine with a deep-bar rotor ([`crate::saturated`]): a second cage that
+    /// keeps the running rotor resistance and raises it `bar.high_slip_resistance_factor`
+    /// times at high slip. A saturating machine in the inverse-Γ form, or a linear machine
+    /// in its inverse-Γ equivalent; an error otherwise.
+    pub fn with_deep_bar(&self, bar: &DeepBar) -> Result<Self, SaturationError> {
+        Ok(Self { saturation: Some(self.branch()?.with_deep_bar(bar)?), ..*self })
+    }
+
+    /// The same machine with `extras` ([`Machine::with_iron_loss`], [`Machine::with_deep_bar`]);
+    /// none leaves it as it is.
+    pub fn with_extras(&self, extras: &Extras) -> Result<Self, SaturationError> {
+        let m = match extras.iron_loss_ohm {
+            Some(r) => self.with_iron_loss(r)?,
+            None => *self,
+        };
+        match &extras.deep_bar {
+            Some(bar) => m.with_deep_bar(bar),
+            None => Ok(m),
+        }
+    }
+
+    /// The deep bar (`None`: a rotor with one cage).
+    pub fn deep_bar(&self) -> Option<DeepBar> {
+        self.saturation.as_ref().and_then(Saturated::deep_bar)
     }
 
     /// A passive load (dry friction, a fan: held over the step from its start) would have
@@ -791,6 +849,7 @@ mod tests {
             psi_beta_wb: 0.9,
             omega_m_rad_s: 120.0,
             theta_m_rad: 2.0,
+            ..Default::default()
         };
         let (v, load, h) = ([150.0, -80.0], 0.6, 2e-4);
         let got = m.rk4_stepper(h).step(&x, v, load);

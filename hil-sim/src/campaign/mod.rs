@@ -737,7 +737,7 @@ impl Campaign {
                 dc_link: None,
                 comparator: None,
                 heating: None,
-                iron_loss_ohm: None,
+                extras: plant::Extras::default(),
             },
         };
         let (mut track, mut flux, mut faulted) = (0.0f64, [f64::INFINITY, 0.0f64], false);

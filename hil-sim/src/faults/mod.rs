@@ -727,7 +727,7 @@ impl Matrix {
                 dc_link: None,
                 comparator: self.comparator,
                 heating: None,
-                iron_loss_ohm: None,
+                extras: plant::Extras::default(),
             },
         }
     }

@@ -373,7 +373,7 @@ pub fn simulate_on(
         dc_link: None,
         comparator: None,
         heating: None,
-        iron_loss_ohm: None,
+        extras: plant::Extras::default(),
     };
     let machine = match &setup.saturation {
         Some(s) => Machine::saturated(&setup.motor, s)

@@ -356,9 +356,9 @@ pub struct Scenario {
     /// Windings that heat with their losses, from these temperatures (`None`: the
     /// resistances stay as stated; [`plant::thermal`]).
     pub heating: Option<HeatingRun>,
-    /// An iron-loss resistance across the simulated machine's magnetizing branch, Ω
-    /// (`None`: no iron loss; the machine in the inverse-Γ form, `plant::saturated`).
-    pub iron_loss_ohm: Option<f64>,
+    /// What the simulated machine has beyond its motor file's circuit: iron loss, a deep-bar
+    /// rotor (`plant::Extras`; none by default).
+    pub extras: plant::Extras,
 }
 
 /// A heating machine and its windings' temperatures at the start of a run.
