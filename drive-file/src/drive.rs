@@ -944,6 +944,8 @@ impl DriveTables {
         let certify = self.certify.as_ref().map(|c| c.validate(src, &spec)).transpose()?;
         let board = self.board.as_ref().map(|b| b.validate(src, &spec)).transpose()?;
         let requirements = self.requirements.validate(src, spec.pwm_frequency_hz)?;
+        // The plant-only tables are checked here too: a bad value is the file's error.
+        self.motor.plant_extras(src, "motor")?;
         let saturating_motor = match self.motor.validate_model(src, "motor")? {
             (m, Some(sat)) => Some((m, sat)),
             (_, None) => None,

@@ -89,6 +89,43 @@ pub struct MotorTable {
     /// the drive's model stays linear at `lm_h`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub saturation: Option<SaturationTable>,
+    /// `[motor.iron_loss]`: a resistance across the magnetizing branch — the simulated
+    /// plant's only (`plant::saturated`); the drive does not model it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub iron_loss: Option<IronLossTable>,
+    /// `[motor.deep_bar]`: a deep-bar rotor — the simulated plant's only
+    /// (`plant::DeepBar`); the drive does not model it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deep_bar: Option<DeepBarTable>,
+}
+
+/// `[motor.iron_loss]`.
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct IronLossTable {
+    /// The resistance across the magnetizing branch, Ω (per phase, in the form's referral).
+    pub resistance_ohm: f64,
+}
+
+/// `[motor.deep_bar]`: the rotor resistance rises from `rr_ohm` at zero slip to
+/// `high_slip_resistance_factor` times it at high slip, centred at `corner_slip_hz`.
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct DeepBarTable {
+    /// The rotor resistance at high slip over `rr_ohm`, > 1.
+    pub high_slip_resistance_factor: f64,
+    /// The slip frequency the rise is centred at, Hz.
+    pub corner_slip_hz: f64,
+}
+
+/// What a `[motor]` table gives the simulated plant beyond its circuit and curve (each
+/// optional; [`MotorTable::plant_extras`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PlantExtras {
+    /// `[motor.iron_loss]`'s resistance, Ω.
+    pub iron_loss_ohm: Option<f64>,
+    /// `[motor.deep_bar]`.
+    pub deep_bar: Option<DeepBarTable>,
 }
 
 /// Accepted magnitude of each value. The bounds are wide — from a 10 W servo motor to a
@@ -147,7 +184,33 @@ impl MotorTable {
             rated_current_a: None,
             thermal_time_constant_s: None,
             saturation: None,
+            iron_loss: None,
+            deep_bar: None,
         }
+    }
+
+    /// The simulated plant's `[motor.iron_loss]` and `[motor.deep_bar]`, each value checked
+    /// (errors point at `table.iron_loss.resistance_ohm`, …); whether the form can take them
+    /// is the plant's to say.
+    pub fn plant_extras(&self, src: &Source<'_>, table: &str) -> Result<PlantExtras, FileError> {
+        let check = |ok: bool, key: &str, need: &str| {
+            if ok { Ok(()) } else { Err(src.error(&format!("{table}.{key}"), need)) }
+        };
+        if let Some(t) = &self.iron_loss {
+            let r = t.resistance_ohm;
+            check(r.is_finite() && r > 0.0, "iron_loss.resistance_ohm", "must be finite and > 0")?;
+        }
+        if let Some(t) = &self.deep_bar {
+            let k = t.high_slip_resistance_factor;
+            check(
+                k.is_finite() && k > 1.0,
+                "deep_bar.high_slip_resistance_factor",
+                "must be finite and > 1",
+            )?;
+            let f = t.corner_slip_hz;
+            check(f.is_finite() && f > 0.0, "deep_bar.corner_slip_hz", "must be finite and > 0")?;
+        }
+        Ok(PlantExtras { iron_loss_ohm: self.iron_loss.map(|t| t.resistance_ohm), deep_bar: self.deep_bar })
     }
 
     fn value(&self, key: &str) -> Option<f64> {
@@ -497,6 +560,31 @@ pub fn text_of(name_or_path: &str) -> Result<(std::path::PathBuf, String), FileE
 /// A shipped motor by name ([`BUILTIN`]), or the `[motor]` table of a file.
 pub fn load(name_or_path: &str) -> Result<MotorParams, FileError> {
     load_model(name_or_path).map(|(m, _)| m)
+}
+
+/// A shipped motor's or a file's `[motor]` table's plant extras ([`MotorTable::plant_extras`];
+/// a scenario's, its drive file's motor's). Call after [`load_model`] has read the same name.
+pub fn load_plant_extras(name_or_path: &str) -> Result<PlantExtras, FileError> {
+    let (path, text) = match BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+        Some((name, text)) => (std::path::PathBuf::from(format!("<builtin {name}>")), (*text).to_string()),
+        None => (std::path::PathBuf::from(name_or_path), source::read(Path::new(name_or_path))?),
+    };
+    plant_extras_of(&path, &text)
+}
+
+fn plant_extras_of(path: &Path, text: &str) -> Result<PlantExtras, FileError> {
+    let src = Source::parse(path, text)?;
+    if !src.has("motor") {
+        return match src.string("drive") {
+            Some(drive) => {
+                let target = crate::relative_to(path, &drive);
+                plant_extras_of(&target, &source::read(&target)?)
+            }
+            None => Ok(PlantExtras::default()),
+        };
+    }
+    let raw: MotorOnly = src.deserialize()?;
+    raw.motor.plant_extras(&src, "motor")
 }
 
 /// [`load`], with the magnetizing branch's saturation ([`MotorTable::validate_model`]).

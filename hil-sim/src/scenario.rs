@@ -134,6 +134,30 @@ impl Builtin {
     }
 }
 
+/// A simulated machine other than the drive's own linear motor (`--plant`, a saturating
+/// drive file's motor): its T model, its magnetizing branch's curve, and what the plant
+/// has beyond them (iron loss, a deep bar; [`plant::Extras`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimulatedMotor {
+    /// The T model (a saturating one's at its unsaturated inductance).
+    pub motor: MotorParams,
+    /// The magnetizing branch's curve.
+    pub saturation: Option<Saturation>,
+    /// Iron loss, a deep bar.
+    pub extras: plant::Extras,
+}
+
+/// A motor file's plant extras as the plant takes them.
+pub fn extras_of(e: &drive_file::motor::PlantExtras) -> plant::Extras {
+    plant::Extras {
+        iron_loss_ohm: e.iron_loss_ohm,
+        deep_bar: e.deep_bar.map(|d| plant::DeepBar {
+            high_slip_resistance_factor: d.high_slip_resistance_factor,
+            corner_slip_hz: d.corner_slip_hz,
+        }),
+    }
+}
+
 /// The simulated machine: the motor `plant`, saturating when `saturation` is given, with
 /// `extras` (iron loss, a deep bar: [`plant::saturated`] — a saturating machine must be in
 /// the inverse-Γ form for them, a linear one takes them in its inverse-Γ equivalent).

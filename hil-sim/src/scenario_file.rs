@@ -802,10 +802,32 @@ pub fn parse_closed_loop(file: &Path, text: &str) -> Result<Builtin, FileError> 
             Some(plant::DeepBar { high_slip_resistance_factor: k, corner_slip_hz: hz })
         }
     };
-    let extras = plant::Extras { iron_loss_ohm, deep_bar };
+    // The motor's own [*.iron_loss] / [*.deep_bar] ([plant], the embedded [motor] or the
+    // drive file's), each unless the scenario's table says otherwise.
+    let written = match (&f.plant, &f.motor, &f.drive) {
+        (Some(p), _, _) => p.plant_extras(&src, "plant")?,
+        (None, Some(m), _) => m.plant_extras(&src, "motor")?,
+        (None, None, Some(d)) => {
+            let path = drive_file::relative_to(src.path(), d);
+            drive_file::motor::load_plant_extras(&path.to_string_lossy())
+                .map_err(|e| if e.at.is_none() { src.error("drive", e.to_string()) } else { e })?
+        }
+        (None, None, None) => drive_file::motor::PlantExtras::default(),
+    };
+    let written = crate::scenario::extras_of(&written);
+    let extras = plant::Extras {
+        iron_loss_ohm: iron_loss_ohm.or(written.iron_loss_ohm),
+        deep_bar: deep_bar.or(written.deep_bar),
+    };
     // The machine the run builds, built now: a form that cannot take them is named here.
     crate::scenario::plant_machine(&plant, plant_saturation.as_ref(), &extras).map_err(|e| {
-        let key = if f.iron_loss.is_some() { "iron_loss" } else { "deep_bar" };
+        let key = match (f.iron_loss.is_some(), f.deep_bar.is_some(), f.plant.is_some()) {
+            (true, _, _) => "iron_loss",
+            (false, true, _) => "deep_bar",
+            (false, false, true) => "plant",
+            (false, false, false) if f.motor.is_some() => "motor",
+            (false, false, false) => "drive",
+        };
         src.error(key, format!("{e} (form = \"inverse_gamma\")"))
     })?;
     let heating = match &f.heating {
@@ -1019,7 +1041,8 @@ torque_nm = 0.5
     /// its motor file's form) is read and runs: the drive magnetizes and holds its speed. A
     /// linear T-form machine (FIG16's) takes it and `[deep_bar]` in its inverse-Γ
     /// equivalent; a saturating Γ-form one (delorenzo-saturating's) is refused naming the
-    /// table; a value that is not one is refused naming its key.
+    /// table; a value that is not one is refused naming its key. A `[plant]`'s own
+    /// `[plant.deep_bar]` is the run's unless the scenario's `[deep_bar]` says otherwise.
     #[test]
     fn iron_loss_and_a_deep_bar_need_the_inverse_gamma_form() {
         let drive = Path::new(env!("CARGO_MANIFEST_DIR")).join("../drives/motulator-2kw.toml");
@@ -1049,6 +1072,15 @@ torque_nm = 0.5
         assert_eq!(err(&gamma).key.as_deref(), Some("iron_loss"));
         let gamma_bar = gamma.replace("[iron_loss]\nresistance_ohm = 1000.0\n", bar);
         assert_eq!(err(&gamma_bar).key.as_deref(), Some("deep_bar"));
+        // The [plant]'s own deep bar, unless the scenario's [deep_bar] says otherwise.
+        let plant = "[plant]\nrs_ohm = 16.2\nrr_ohm = 23.2\nls_h = 1.44\nlr_h = 1.5\nlm_h = 1.42\npole_pairs = 1\n\
+                     j_kgm2 = 0.005\nb_nms = 0.0005\n[plant.deep_bar]\nhigh_slip_resistance_factor = 3.0\n\
+                     corner_slip_hz = 20.0\n";
+        let own = parse_closed_loop(Path::new("p.toml"), &format!("{FIG16}\n{plant}")).unwrap();
+        let three = plant::DeepBar { high_slip_resistance_factor: 3.0, corner_slip_hz: 20.0 };
+        assert_eq!(own.scenario.extras.deep_bar, Some(three));
+        let told = parse_closed_loop(Path::new("p.toml"), &format!("{FIG16}\n{plant}{bar}")).unwrap();
+        assert_eq!(told.scenario.extras.deep_bar, Some(want));
         for (from, to, key) in [
             ("= 2.0", "= 1.0", "deep_bar.high_slip_resistance_factor"),
             ("= 2.0", "= nan", "deep_bar.high_slip_resistance_factor"),

@@ -630,8 +630,8 @@ fn faults_writes_its_table_and_passes_on_the_shipped_drive() {
     }
 }
 
-/// `hil-sim faults --plant`: a plant the drive could not run (other pole pairs), or no
-/// motor at all, is refused before any row runs, naming it.
+/// `hil-sim faults --plant`: a plant the drive could not run (other pole pairs), no motor at
+/// all, or a plant the simulator cannot build, is refused before any row runs, naming it.
 #[test]
 fn faults_refuses_a_plant_it_cannot_run() {
     let res = tmp("faults-plant");
@@ -644,6 +644,25 @@ fn faults_refuses_a_plant_it_cannot_run() {
     let st = bin().args(["faults", drive, "--plant", "no-such-motor", "--out"]).arg(&res).output().unwrap();
     assert_eq!(st.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&st.stderr).contains("no-such-motor"));
+    // A deep bar on a saturating Γ-form curve (its cages would sit behind the branch), and a
+    // deep bar that is not one (issue 50): named, before any row runs.
+    std::fs::create_dir_all(&res).unwrap();
+    let saturating =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../motors/delorenzo-saturating.toml"))
+            .unwrap();
+    let gamma = res.join("gamma-deep-bar.toml");
+    let bar = "\n[motor.deep_bar]\nhigh_slip_resistance_factor = 2.0\ncorner_slip_hz = 10.0\n";
+    std::fs::write(&gamma, format!("{saturating}{bar}")).unwrap();
+    let st = bin().args(["faults", drive, "--plant"]).arg(&gamma).arg("--out").arg(&res).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&st.stderr).contains("a deep bar needs the inverse-Γ form"));
+    let bad = res.join("bad-deep-bar.toml");
+    std::fs::write(&bad, format!("{saturating}{}", bar.replace("= 10.0", "= -1.0"))).unwrap();
+    let st = bin().args(["faults", drive, "--plant"]).arg(&bad).arg("--out").arg(&res).output().unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&st.stderr).contains("motor.deep_bar.corner_slip_hz: must be finite and > 0")
+    );
     assert!(!res.join("faults.json").exists());
 }
 

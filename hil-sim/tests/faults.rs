@@ -650,7 +650,7 @@ fn the_shipped_drive_passes_its_matrix_rows_on_a_saturating_plant() {
     let mut m = shipped();
     let (motor, saturation) = drive_file::motor::load_model("delorenzo-saturating").unwrap();
     assert!(saturation.is_some());
-    m.plant = Some((motor, saturation));
+    m.plant = Some(hil_sim::scenario::SimulatedMotor { motor, saturation, extras: plant::Extras::default() });
     for name in ["R_r step", "L_m step", "overload"] {
         for motoring in [true, false] {
             let (c, at) = (case(&m, name), point(&m, Point::Top, motoring));

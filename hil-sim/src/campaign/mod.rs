@@ -110,6 +110,8 @@ struct Setup {
     manoeuvre: Manoeuvre,
     plant: MotorParams,
     plant_saturation: Option<Saturation>,
+    /// What the simulated machine has beyond its circuit and curve.
+    extras: plant::Extras,
     /// ω_s, mechanical rad/s.
     w: f64,
     step_s: f64,
@@ -270,10 +272,10 @@ pub struct Campaign {
     /// said: a 13 000-line board's campaign tripped `EncoderLoss` at standstill).
     pub encoder_lines: u32,
     /// The simulated machine's nominal point when it is not the drive's motor (`hil-sim
-    /// campaign --plant`): its T model and its magnetizing branch's saturation. Each run
-    /// scales it by the run's sample (a saturating curve's inductances by the sample's L
-    /// factor), as it would the drive's motor.
-    pub plant: Option<(MotorParams, Option<Saturation>)>,
+    /// campaign --plant`): its T model, its magnetizing branch's saturation and its extras.
+    /// Each run scales it by the run's sample (a saturating curve's inductances by the
+    /// sample's L factor; a deep bar's resistances with R_r), as it would the drive's motor.
+    pub plant: Option<crate::scenario::SimulatedMotor>,
     /// What the user asks of the drive (the drive file's `[requirements]`): each run is
     /// judged against it ([`crate::requirements`]).
     pub requirements: Requirements,
@@ -438,7 +440,7 @@ impl Campaign {
     /// τ_max) gives motoring there: `top` where it is, else the crossing (bisection; the
     /// envelope falls and the friction grows with speed).
     pub fn friction_bound_rad_s(&self, top: f64) -> f64 {
-        let plant = self.plant.as_ref().map_or(&self.spec.motor, |(m, _)| m);
+        let plant = self.plant.as_ref().map_or(&self.spec.motor, |p| &p.motor);
         let envelope = controller_core::envelope::EnvelopeConfig::new(plant);
         let limits = ideal::drive_limits(&self.spec, plant, self.vdc_v);
         let tau_max = torque_limit_nm(&self.spec);
@@ -538,12 +540,13 @@ impl Campaign {
                 .map_err(|e| format!("run {k}: sample motor rejected: {e:?}"))
         };
         let model = scaled(&self.spec.motor)?;
-        let (plant, plant_saturation) = match &self.plant {
-            Some((m, saturation)) => (
-                scaled(m)?,
-                saturation.map(|s| Saturation { curve: s.curve.with_inductance_scaled(sample.l), ..s }),
+        let (plant, plant_saturation, extras) = match &self.plant {
+            Some(p) => (
+                scaled(&p.motor)?,
+                p.saturation.map(|s| Saturation { curve: s.curve.with_inductance_scaled(sample.l), ..s }),
+                p.extras,
             ),
-            None => (model, None),
+            None => (model, None, plant::Extras::default()),
         };
         // The ideal loop's envelope is the plant's steady state: a linear plant's own; for a
         // saturating one, whose T model holds the unsaturated inductance, the drive's model
@@ -612,6 +615,7 @@ impl Campaign {
             manoeuvre,
             plant,
             plant_saturation,
+            extras,
             w,
             step_s,
             t2_s: step_s + half,
@@ -698,6 +702,7 @@ impl Campaign {
             manoeuvre,
             plant,
             plant_saturation,
+            extras,
             w,
             step_s,
             t2_s: t2,
@@ -737,7 +742,7 @@ impl Campaign {
                 dc_link: None,
                 comparator: None,
                 heating: None,
-                extras: plant::Extras::default(),
+                extras,
             },
         };
         let (mut track, mut flux, mut faulted) = (0.0f64, [f64::INFINITY, 0.0f64], false);

@@ -57,7 +57,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
         seed: a.seed,
         shard: a.shard,
         encoder_lines: file.encoder_lines(),
-        plant: super::simulated_motor(a.plant.as_deref(), &file)?,
+        plant: super::simulated_motor(a.plant.as_deref(), &file, &a.drive)?,
         requirements: file.requirements,
     };
     if a.duration.is_none() {

@@ -48,6 +48,16 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
     if base <= 0.0 {
         return Err(format!("the rated flux needs more than the {} V bus has even at standstill", vdc));
     }
+    let simulated = super::simulated_motor(a.plant.as_deref(), &file, &a.drive)?;
+    // Its physical limit is the circuit's and curve's: a plant with more is refused, not
+    // simulated without it.
+    if simulated.is_some_and(|p| p.extras != plant::Extras::default()) {
+        return Err(format!(
+            "{}: the envelope simulates a motor's circuit and curve only; [motor.iron_loss] and [motor.deep_bar] \
+             are run by `campaign` and `faults`",
+            a.plant.as_deref().map_or_else(|| a.drive.display().to_string(), str::to_string)
+        ));
+    }
     std::fs::create_dir_all(&out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
     let n = f64::from(a.points - 1);
     let speeds: Vec<f64> = (0..a.points).map(|k| base * (0.2 + 1.8 * f64::from(k) / n)).collect();
@@ -60,8 +70,7 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
         speeds.first().copied().unwrap_or(0.0),
         speeds.last().copied().unwrap_or(0.0)
     );
-    let (plant, saturation) =
-        super::simulated_motor(a.plant.as_deref(), &file)?.unwrap_or((spec.motor, None));
+    let (plant, saturation) = simulated.map_or((spec.motor, None), |p| (p.motor, p.saturation));
     let ask = a.torque_fraction.map_or(crate::envelope::Ask::Beyond, crate::envelope::Ask::Fraction);
     let points =
         crate::envelope::measure_asking(&spec, &plant, saturation.as_ref(), vdc, &speeds, sign, ask)?;

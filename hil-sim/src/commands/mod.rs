@@ -76,12 +76,13 @@ pub fn pil_options(elf: Option<&Path>, no_pin: bool) -> Result<PilOptions, Strin
 pub const DEFAULT_VDC_V: f64 = 310.0;
 
 /// `--plant NAME|FILE`: the machine a command simulates instead of the drive's own motor (a
-/// shipped motor's name or a file with a `[motor]` table, its saturation included); one the
-/// drive could not run (other pole pairs) is refused, naming both.
+/// shipped motor's name or a file with a `[motor]` table, its saturation, iron loss and deep
+/// bar included); one the drive could not run (other pole pairs) or the plant could not
+/// build (a deep bar on a Γ-form curve) is refused, naming it.
 pub fn plant_model(
     plant: &str,
     drive: &controller_core::drive::DriveSpec,
-) -> Result<(controller_core::motor::MotorParams, Option<controller_core::magnetics::Saturation>), String> {
+) -> Result<crate::scenario::SimulatedMotor, String> {
     let (motor, saturation) = drive_file::motor::load_model(plant).map_err(|e| e.to_string())?;
     if motor.pole_pairs() != drive.motor.pole_pairs() {
         return Err(format!(
@@ -90,22 +91,44 @@ pub fn plant_model(
             drive.motor.pole_pairs()
         ));
     }
-    Ok((motor, saturation))
+    let extras = drive_file::motor::load_plant_extras(plant).map_err(|e| e.to_string())?;
+    simulated(plant, motor, saturation, extras)
 }
 
-/// The machine a command simulates for drive `file`: `asked` (`--plant`, [`plant_model`]),
-/// else the file's own saturating motor ([`drive_file::DriveFile::saturating_motor`]: a drive
-/// on its curve runs against the curve), else `None` — the drive's own linear motor.
+/// The machine, checked by building it once.
+fn simulated(
+    name: &str,
+    motor: controller_core::motor::MotorParams,
+    saturation: Option<controller_core::magnetics::Saturation>,
+    extras: drive_file::motor::PlantExtras,
+) -> Result<crate::scenario::SimulatedMotor, String> {
+    let extras = crate::scenario::extras_of(&extras);
+    crate::scenario::plant_machine(&motor, saturation.as_ref(), &extras)
+        .map_err(|e| format!("{name}: {e}"))?;
+    Ok(crate::scenario::SimulatedMotor { motor, saturation, extras })
+}
+
+/// The machine a command simulates for drive `file` read from `path`: `asked` (`--plant`,
+/// [`plant_model`]), else the file's own motor when the plant differs from the drive's linear
+/// model — its curve ([`drive_file::DriveFile::saturating_motor`]: a drive on its curve runs
+/// against the curve) or its `[motor.iron_loss]`, `[motor.deep_bar]` — else `None`: the
+/// drive's own linear motor.
 pub fn simulated_motor(
     asked: Option<&str>,
     file: &drive_file::DriveFile,
-) -> Result<
-    Option<(controller_core::motor::MotorParams, Option<controller_core::magnetics::Saturation>)>,
-    String,
-> {
-    match asked {
-        Some(p) => plant_model(p, &file.spec).map(Some),
-        None => Ok(file.saturating_motor.map(|(m, s)| (m, Some(s)))),
+    path: &std::path::Path,
+) -> Result<Option<crate::scenario::SimulatedMotor>, String> {
+    if let Some(p) = asked {
+        return plant_model(p, &file.spec).map(Some);
+    }
+    let name = path.to_string_lossy();
+    let extras = drive_file::motor::load_plant_extras(&name).map_err(|e| e.to_string())?;
+    match file.saturating_motor {
+        Some((m, s)) => simulated(&name, m, Some(s), extras).map(Some),
+        None if extras != drive_file::motor::PlantExtras::default() => {
+            simulated(&name, file.spec.motor, None, extras).map(Some)
+        }
+        None => Ok(None),
     }
 }
 

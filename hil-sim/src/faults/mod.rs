@@ -36,8 +36,6 @@ use crate::sensors::SensorModel;
 use crate::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
 use controller_core::drive::{DriveSpec, Fault, FaultSet, Mode, Reference, SpeedFeedback};
 use controller_core::frames::AlphaBeta;
-use controller_core::magnetics::Saturation;
-use controller_core::motor::MotorParams;
 use rayon::prelude::*;
 
 mod report;
@@ -262,8 +260,8 @@ pub struct Matrix {
     /// `hil-sim faults --seed`).
     pub seed: u64,
     /// The simulated machine when it is not the drive's own motor (`hil-sim faults
-    /// --plant`): its T model and its magnetizing branch's saturation.
-    pub plant: Option<(MotorParams, Option<Saturation>)>,
+    /// --plant`): its T model, its magnetizing branch's saturation and its extras.
+    pub plant: Option<crate::scenario::SimulatedMotor>,
     /// The reference's time and the injection's (before its delay), s: made once by
     /// [`Matrix::new`] from the drive ([`Matrix::reference_s`], [`Matrix::inject_s`]).
     times_s: (f64, f64),
@@ -322,7 +320,11 @@ impl Matrix {
             .and_then(|b| b.table.comparator)
             .map(|c| crate::bridge_fault::Comparator { trip_a: c.trip_a, filter_s: c.filter_s });
         // A drive on its magnetizing curve against the file's saturating machine.
-        m.plant = file.saturating_motor.map(|(motor, sat)| (motor, Some(sat)));
+        m.plant = file.saturating_motor.map(|(motor, sat)| crate::scenario::SimulatedMotor {
+            motor,
+            saturation: Some(sat),
+            extras: plant::Extras::default(),
+        });
         m
     }
 
@@ -437,7 +439,7 @@ impl Matrix {
 
     /// Every fault the simulator injects, encoder's included.
     fn all_cases(&self) -> Result<Vec<Case>, String> {
-        let m = self.plant.as_ref().map_or(&self.spec.motor, |(m, _)| m);
+        let m = self.plant.as_ref().map_or(&self.spec.motor, |p| &p.motor);
         let hot = scaled_plant(m, 1.0, 1.5, 1.0).ok_or("R_r × 1.5 is not a valid motor")?;
         let saturated = scaled_plant(m, 1.0, 1.0, 0.8).ok_or("L_m × 0.8 is not a valid motor")?;
         // Rounded to the milliampere: the names print it.
@@ -704,8 +706,8 @@ impl Matrix {
             name: format!("faults-{k}"),
             about: row_name(case, at),
             spec: self.spec,
-            plant: self.plant.map_or(self.spec.motor, |(m, _)| m),
-            plant_saturation: self.plant.and_then(|(_, s)| s),
+            plant: self.plant.map_or(self.spec.motor, |p| p.motor),
+            plant_saturation: self.plant.and_then(|p| p.saturation),
             expect_fault: None,
             scenario: Scenario {
                 events: vec![
@@ -727,7 +729,7 @@ impl Matrix {
                 dc_link: None,
                 comparator: self.comparator,
                 heating: None,
-                extras: plant::Extras::default(),
+                extras: self.plant.map_or(plant::Extras::default(), |p| p.extras),
             },
         }
     }
