@@ -144,7 +144,7 @@ impl Prediction<'_> {
     pub(super) fn measures_where(
         &self,
         law: &SpeedLaw,
-        keep: impl Fn(TuneRun) -> bool,
+        keep: impl Fn(TuneRun) -> bool + Sync,
     ) -> Result<Vec<(TuneRun, Vec<hil_sim::requirements::Measure>)>, String> {
         let mut all = Vec::new();
         for (duration_s, p) in &self.each {

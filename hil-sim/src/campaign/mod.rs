@@ -144,7 +144,7 @@ impl Predictor<'_> {
     pub fn measures_where(
         &self,
         law: &SpeedLaw,
-        keep: impl Fn(u64) -> bool,
+        keep: impl Fn(u64) -> bool + Sync,
     ) -> Result<Vec<(u64, Vec<Measure>)>, String> {
         let spec = DriveSpec { speed_law: *law, ..self.campaign.spec };
         let (was, is) = (torque_limit_nm(&self.campaign.spec), torque_limit_nm(&spec));
@@ -154,8 +154,10 @@ impl Predictor<'_> {
             ));
         }
         let t_s = self.campaign.slow_period_s();
+        // In parallel (rayon), in run order: `design tune` predicts every law it tries on
+        // every corner run, and each is thousands of slow periods on the envelope.
         self.setups
-            .iter()
+            .par_iter()
             .filter(|(k, _)| keep(*k))
             .map(|(k, s)| {
                 let ideal = s.ideal.with_law(law, t_s)?;
@@ -645,7 +647,8 @@ impl Campaign {
     /// on: a run's plant, step plans and windows — the least times, the costly part
     /// of [`Campaign::predict`] — do not depend on the law, only on its torque limit.
     pub fn predictor(&self, runs: impl IntoIterator<Item = u64>) -> Result<Predictor<'_>, String> {
-        let setups = runs.into_iter().map(|k| Ok((k, self.setup(k)?))).collect::<Result<_, String>>()?;
+        let runs: Vec<u64> = runs.into_iter().collect();
+        let setups = runs.par_iter().map(|&k| Ok((k, self.setup(k)?))).collect::<Result<_, String>>()?;
         Ok(Predictor { campaign: self, setups })
     }
 
