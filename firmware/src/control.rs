@@ -860,6 +860,7 @@ mod tests {
             rotate: false,
             rated_flux_wb: 0.9,
             no_load_hz: 15.0,
+            curve: false,
         };
         let start = |periods: u16| {
             let mut c = ControlLoop::new(

@@ -474,6 +474,7 @@ mod tests {
             rotate: false,
             rated_flux_wb: 0.823,
             no_load_hz: 15.0,
+            curve: false,
         }
     }
 

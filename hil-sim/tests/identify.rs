@@ -26,6 +26,7 @@ fn spec(test_current_a: f32, vdc_v: f32) -> CommissionSpec {
         rotate: true,
         rated_flux_wb: identify::rated_flux_wb(380.0, 60.0) as f32,
         no_load_hz: 15.0,
+        curve: false,
     }
 }
 
@@ -448,6 +449,11 @@ fn check_saturating(name: &str, s: &Setup, sat: &Saturation) -> String {
     line + &format!(", {} points over {lo:.3}…{hi:.3} of the rated flux, {t:.1} s", nl.curve.len())
 }
 
+/// `config` with the no-load test measuring the magnetizing curve.
+fn with_curve(config: CommissionConfig) -> CommissionConfig {
+    CommissionConfig::new(CommissionSpec { curve: true, ..*config.spec() }).unwrap()
+}
+
 /// [`check_saturating`] on the shipped saturating DeLorenzo motor (1.24 A, 380 V 60 Hz) and
 /// on motulator's 2.2 kW machine (the saturation issue's reference: L_s(ψ) = 0.34/(1 +
 /// (0.84·ψ)⁷), 400 V 50 Hz on 540 V, 7 A).
@@ -457,14 +463,14 @@ fn a_saturating_motors_curve_is_measured() {
     let sat = sat.unwrap();
     let mut s = setup(m, 1.24, 310.0, 7, DELORENZO);
     s.saturation = Some(sat);
-    s.config = s.config.with_curve(true);
+    s.config = with_curve(s.config);
     println!("{}", check_saturating("delorenzo-saturating", &s, &sat));
     let (m, sat) = drive_file::motor::load_model("../drives/motulator-2kw-saturating.toml").unwrap();
     let sat = sat.unwrap();
     let plate = Nameplate { flux_wb: identify::rated_flux_wb(400.0, 50.0), hz: 50.0 };
     let mut s = setup(m, 7.0, 540.0, 7, plate);
     s.saturation = Some(sat);
-    s.config = s.config.with_curve(true);
+    s.config = with_curve(s.config);
     println!("{}", check_saturating("motulator 2.2 kW", &s, &sat));
 }
 

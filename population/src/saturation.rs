@@ -105,8 +105,9 @@ mod tests {
                 rotate: true,
                 rated_flux_wb: identify::rated_flux_wb(plate.line_voltage_v, plate.frequency_hz) as f32,
                 no_load_hz: (plate.frequency_hz / 4.0) as f32,
+                curve: true,
             };
-            let config = CommissionConfig::new(spec).unwrap().with_curve(true);
+            let config = CommissionConfig::new(spec).unwrap();
             let mut s = Setup::realistic(m, config, board.vdc_v, 7);
             s.saturation = Some(sat);
             let (rec, t) = identify::simulate(&s, |_, _| {}, || false).unwrap();

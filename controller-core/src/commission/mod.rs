@@ -158,6 +158,10 @@ pub struct CommissionSpec {
     /// frequency keeps the test short and the rotor slow. Used only with
     /// [`CommissionSpec::rotate`].
     pub no_load_hz: f32,
+    /// With [`CommissionSpec::rotate`]: after the rated flux, the no-load test measures the
+    /// magnetizing curve at 0.3…1.2 of it ([`no_load::CURVE_FLUX_FRACTIONS`]; a motor that
+    /// saturates). It costs 10…25 s more of rotation.
+    pub curve: bool,
 }
 
 /// Why a [`CommissionSpec`] was rejected.
@@ -176,14 +180,15 @@ pub enum CommissionSpecError {
     /// With [`CommissionSpec::rotate`]: a rated flux that is not finite and positive, or a
     /// no-load frequency outside [`ROTATION_HZ`] … 400 Hz.
     NoLoad,
+    /// [`CommissionSpec::curve`] without [`CommissionSpec::rotate`]: the curve is measured
+    /// on the turning rotor's no-load test.
+    CurveWithoutRotation,
 }
 
 /// A validated commissioning configuration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CommissionConfig {
     spec: CommissionSpec,
-    /// The no-load test measures the magnetizing curve ([`CommissionConfig::with_curve`]).
-    curve: bool,
     ts_s: f32,
     level_periods: u32,
     block_end: [u32; BLOCKS],
@@ -219,6 +224,9 @@ impl CommissionConfig {
         {
             return Err(CommissionSpecError::NoLoad);
         }
+        if spec.curve && !spec.rotate {
+            return Err(CommissionSpecError::CurveWithoutRotation);
+        }
         let level_periods = periods as u32;
         // The ratio r with FIRST·(r^B − 1)/(r − 1) = level: bisection (the sum grows with r).
         let total = |r: f32| {
@@ -249,20 +257,12 @@ impl CommissionConfig {
         if let Some(last) = block_end.last_mut() {
             *last = level_periods;
         }
-        Ok(Self { spec, curve: false, ts_s, level_periods, block_end })
+        Ok(Self { spec, ts_s, level_periods, block_end })
     }
 
-    /// With [`CommissionSpec::rotate`]: after the rated flux, the no-load test measures the
-    /// magnetizing curve at 0.3…1.2 of it ([`no_load::CURVE_FLUX_FRACTIONS`]; a motor that
-    /// saturates). Ignored without it. Not yet over the link: a board's sequence measures the
-    /// rated flux only (the link's `Commission` carries the spec).
-    pub fn with_curve(self, curve: bool) -> Self {
-        Self { curve, ..self }
-    }
-
-    /// The no-load test measures the magnetizing curve ([`CommissionConfig::with_curve`]).
+    /// The no-load test measures the magnetizing curve ([`CommissionSpec::curve`]).
     pub fn curve(&self) -> bool {
-        self.curve
+        self.spec.curve
     }
 
     /// The spec.
@@ -642,6 +642,7 @@ mod tests {
             rotate: false,
             rated_flux_wb: 0.823,
             no_load_hz: 15.0,
+            curve: false,
         }
     }
 

@@ -50,7 +50,7 @@
 //! 4. **Measure** [`NO_LOAD_WINDOWS`] windows of [`NO_LOAD_WINDOW_S`]: the mean commanded
 //!    voltage and measured current in the frame of the current reference, and the encoder's
 //!    turning (the slip).
-//! 5. **The magnetizing curve** (issue 50, deliverable 4; [`CommissionConfig::with_curve`](super::CommissionConfig::with_curve)):
+//! 5. **The magnetizing curve** (issue 50, deliverable 4; [`CommissionSpec::curve`](super::CommissionSpec::curve)):
 //!    the same settling, corrections and measurement at each fraction of the rated flux in
 //!    [`CURVE_FLUX_FRACTIONS`] (0.3 to 1.2, [`CURVE_WINDOWS`] windows each), the amplitude's
 //!    first guess the last level's scaled by the flux ratio, then at the test current itself

@@ -104,6 +104,7 @@ fn every_command_round_trips() {
             rotate: true,
             rated_flux_wb: 0.823,
             no_load_hz: 15.0,
+            curve: true,
         }),
         Command::GetCommissionRecord { chunk: 10 },
         Command::GetCommissionStage,
@@ -385,4 +386,46 @@ fn configure_keeps_the_same_motors_state_and_not_anothers() {
     assert_eq!((drive.thermal_state(), drive.mode()), ((0.0, 0.0), Mode::Idle));
     drive.enable().unwrap();
     assert_eq!(execute(&mut drive, &Command::Configure(gains), &stats), Reply::Nack(NackReason::NotIdle));
+}
+
+/// `Commission`'s motion byte carries the rotation and the curve as two bits (a spec
+/// asking the curve without the rotation goes through, for the board's validation to
+/// refuse by name); any other bit is refused as a value. A board older than the curve
+/// read 0 and 1 alone, as today.
+#[test]
+fn the_commission_motion_byte_carries_the_curve() {
+    use crate::commission::{CommissionConfig, CommissionSpec, CommissionSpecError};
+    let spec = CommissionSpec {
+        pwm_hz: 20_000.0,
+        test_current_a: 1.0,
+        current_limit_a: 2.0,
+        vdc_min_v: 250.0,
+        vdc_max_v: 370.0,
+        level_time_s: 1.0,
+        rotate: true,
+        rated_flux_wb: 0.823,
+        no_load_hz: 15.0,
+        curve: true,
+    };
+    let at = 1 + 6 * 4;
+    let mut p = [0u8; MAX_PAYLOAD];
+    for (rotate, curve, byte) in [(false, false, 0u8), (true, false, 1), (false, true, 2), (true, true, 3)] {
+        let s = CommissionSpec { rotate, curve, ..spec };
+        let n = Command::Commission(s).encode(&mut p).unwrap();
+        assert_eq!(p.get(at), Some(&byte), "rotate {rotate}, curve {curve}");
+        assert_eq!(Command::decode_board(&p[..n]), Ok(BoardCommand::Commission(s)));
+        assert_eq!(CommissionConfig::new(s).map(|c| c.curve()).ok(), (rotate || !curve).then_some(curve));
+    }
+    assert_eq!(
+        CommissionConfig::new(CommissionSpec { rotate: false, ..spec }),
+        Err(CommissionSpecError::CurveWithoutRotation)
+    );
+    let n = Command::Commission(spec).encode(&mut p).unwrap();
+    for bad in [4u8, 8, 255] {
+        let mut q = p;
+        if let Some(b) = q.get_mut(at) {
+            *b = bad;
+        }
+        assert_eq!(Command::decode_board(&q[..n]), Err(DecodeError::Value), "motion byte {bad}");
+    }
 }

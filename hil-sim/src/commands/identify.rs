@@ -61,22 +61,22 @@ impl CommissionOptions {
                 .no_load_frequency
                 .or(self.rated_frequency.map(|f| (0.25 * f).max(f64::from(ROTATION_HZ))))
                 .unwrap_or(0.0) as f32,
+            curve: self.curve,
         };
-        CommissionConfig::new(spec)
-            .map_err(|e| {
-                match e {
-                    E::PwmFrequency => "the PWM frequency must lie in 1 … 100 kHz",
-                    E::TestCurrent => "--test-current must be positive",
-                    E::CurrentLimit => "--current-limit must be at least 1.5 × the test current",
-                    E::BusRange => "the bus range is empty",
-                    E::LevelTime => "--level-time must lie between 192 PWM periods and 60 s",
-                    E::NoLoad => {
-                        "--no-load-frequency must lie in 2 … 400 Hz (and the rated flux be positive)"
-                    }
+        CommissionConfig::new(spec).map_err(|e| {
+            match e {
+                E::PwmFrequency => "the PWM frequency must lie in 1 … 100 kHz",
+                E::TestCurrent => "--test-current must be positive",
+                E::CurrentLimit => "--current-limit must be at least 1.5 × the test current",
+                E::BusRange => "the bus range is empty",
+                E::LevelTime => "--level-time must lie between 192 PWM periods and 60 s",
+                E::NoLoad => "--no-load-frequency must lie in 2 … 400 Hz (and the rated flux be positive)",
+                E::CurveWithoutRotation => {
+                    "--curve needs --rotate: the curve is measured on the turning rotor"
                 }
-                .to_string()
-            })
-            .map(|c| c.with_curve(self.curve))
+            }
+            .to_string()
+        })
     }
 
     /// Write the motor file for `id` (checked to load as a motor first; atomically).

@@ -220,16 +220,6 @@ pub fn board_link(a: &LinkOptions) -> Result<(), String> {
         }
         _ => None,
     };
-    // Refused before the port is opened: the link's `Commission` carries no curve flag.
-    if let LinkAction::Identify(args) = action
-        && args.run.curve
-    {
-        return Err(
-            "--curve is not yet available over the link: a board's sequence measures the rated flux \
-                    only (the curve runs in `hil-sim identify`, in SIL)"
-                .into(),
-        );
-    }
     let timeout = seconds(a.timeout_s, "--timeout-s")?;
     // Raw 8N1 at 115200 baud; reads return after 100 ms without data (the client's own
     // deadline decides when to give up).

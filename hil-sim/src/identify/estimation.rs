@@ -718,6 +718,7 @@ mod tests {
                 rotate,
                 rated_flux_wb: 0.823,
                 no_load_hz: 15.0,
+                curve: false,
             };
             let cfg = CommissionConfig::new(spec).unwrap();
             for _ in 0..100 {
@@ -750,6 +751,7 @@ mod tests {
             rotate: true,
             rated_flux_wb: 0.823,
             no_load_hz: 15.0,
+            curve: false,
         };
         let cfg = CommissionConfig::new(spec).unwrap();
         let mut rec = Record::default();

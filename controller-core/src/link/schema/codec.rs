@@ -52,7 +52,7 @@ impl Command {
                 {
                     w.f32(v)?;
                 }
-                w.u8(u8::from(c.rotate))?;
+                w.u8(if c.rotate { ROTATE } else { 0 } | if c.curve { CURVE } else { 0 })?;
                 w.f32(c.rated_flux_wb)?;
                 w.f32(c.no_load_hz)?;
             }
@@ -107,6 +107,33 @@ impl Command {
     }
 }
 
+/// `Commission`'s motion byte: the rotor may turn (the rotating field and the no-load test)…
+const ROTATE: u8 = 1;
+/// …and the no-load test measures the magnetizing curve. Any other bit is refused.
+const CURVE: u8 = 2;
+
+/// `Commission`'s fields in their order on the wire.
+fn read_commission_spec(r: &mut Reader<'_>) -> Result<CommissionSpec, DecodeError> {
+    let [pwm_hz, test_current_a, current_limit_a, vdc_min_v, vdc_max_v, level_time_s] =
+        [r.f32()?, r.f32()?, r.f32()?, r.f32()?, r.f32()?, r.f32()?];
+    let motion = r.u8()?;
+    if motion & !(ROTATE | CURVE) != 0 {
+        return Err(DecodeError::Value);
+    }
+    Ok(CommissionSpec {
+        pwm_hz,
+        test_current_a,
+        current_limit_a,
+        vdc_min_v,
+        vdc_max_v,
+        level_time_s,
+        rotate: motion & ROTATE != 0,
+        rated_flux_wb: r.f32()?,
+        no_load_hz: r.f32()?,
+        curve: motion & CURVE != 0,
+    })
+}
+
 /// The commands every endpoint parses.
 fn decode_board_tag(t: u8, r: &mut Reader<'_>) -> Result<BoardCommand, DecodeError> {
     Ok(match t {
@@ -118,21 +145,7 @@ fn decode_board_tag(t: u8, r: &mut Reader<'_>) -> Result<BoardCommand, DecodeErr
         tag::WRITE_SPEED_GAINS => BoardCommand::WriteSpeedGains { kp: r.f32()?, tau_max_nm: r.f32()? },
         tag::READ_SPEED_GAINS => BoardCommand::ReadSpeedGains,
         tag::STOP => BoardCommand::Stop,
-        tag::COMMISSION => BoardCommand::Commission(CommissionSpec {
-            pwm_hz: r.f32()?,
-            test_current_a: r.f32()?,
-            current_limit_a: r.f32()?,
-            vdc_min_v: r.f32()?,
-            vdc_max_v: r.f32()?,
-            level_time_s: r.f32()?,
-            rotate: match r.u8()? {
-                0 => false,
-                1 => true,
-                _ => return Err(DecodeError::Value),
-            },
-            rated_flux_wb: r.f32()?,
-            no_load_hz: r.f32()?,
-        }),
+        tag::COMMISSION => BoardCommand::Commission(read_commission_spec(r)?),
         tag::GET_COMMISSION_RECORD => BoardCommand::GetCommissionRecord { chunk: r.u8()? },
         tag::GET_COMMISSION_STAGE => BoardCommand::GetCommissionStage,
         tag::ARM_CAPTURE => BoardCommand::ArmCapture(read_capture_spec(r)?),
