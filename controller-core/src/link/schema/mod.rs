@@ -149,7 +149,9 @@ pub enum Command {
     Stop,
     /// Start a commissioning sequence ([`crate::commission`]) in place of the drive; `Step`
     /// is then answered by `Commission`. `Ack`, or `Nack(Configuration)` for a spec that
-    /// `CommissionConfig::new` rejects.
+    /// `CommissionConfig::new` rejects. On the wire: six f32 (PWM, test current, current
+    /// limit, bus min and max, level time), the motion byte (bit 0 `rotate`, bit 1 `curve`;
+    /// another bit is a `DecodeError::Value`), rated flux and no-load frequency (f32).
     Commission(CommissionSpec),
     /// Ask for part `chunk` of the finished sequence's record ([`RECORD_CHUNK_BYTES`] each);
     /// answered by `CommissionRecord`, or `Nack(NoRecord)`.
