@@ -1059,10 +1059,10 @@ torque_nm = 0.5
         assert!((end.x.omega_m_rad_s - 100.0).abs() < 5.0, "{}", end.x.omega_m_rad_s);
         let bad = replace(&text, "resistance_ohm = 1000.0", "resistance_ohm = -1.0");
         assert_eq!(err(&bad).key.as_deref(), Some("iron_loss.resistance_ohm"));
-        let bar = "[deep_bar]\nhigh_slip_resistance_factor = 2.0\ncorner_slip_hz = 10.0\n";
+        let bar = "[deep_bar]\nhigh_slip_resistance_factor = 2.0\ncorner_slip_hz = 60.0\n";
         let t_form = format!("{FIG16}\n[iron_loss]\nresistance_ohm = 1000.0\n{bar}");
         let extras = parse_closed_loop(Path::new("t.toml"), &t_form).unwrap().scenario.extras;
-        let want = plant::DeepBar { high_slip_resistance_factor: 2.0, corner_slip_hz: 10.0 };
+        let want = plant::DeepBar { high_slip_resistance_factor: 2.0, corner_slip_hz: 60.0 };
         assert_eq!((extras.iron_loss_ohm, extras.deep_bar), (Some(1000.0), Some(want)));
         let gamma = Path::new(env!("CARGO_MANIFEST_DIR")).join("../drives/delorenzo-saturating.toml");
         let gamma = text.replace(
@@ -1075,20 +1075,24 @@ torque_nm = 0.5
         // The [plant]'s own deep bar, unless the scenario's [deep_bar] says otherwise.
         let plant = "[plant]\nrs_ohm = 16.2\nrr_ohm = 23.2\nls_h = 1.44\nlr_h = 1.5\nlm_h = 1.42\npole_pairs = 1\n\
                      j_kgm2 = 0.005\nb_nms = 0.0005\n[plant.deep_bar]\nhigh_slip_resistance_factor = 3.0\n\
-                     corner_slip_hz = 20.0\n";
+                     corner_slip_hz = 60.0\n";
         let own = parse_closed_loop(Path::new("p.toml"), &format!("{FIG16}\n{plant}")).unwrap();
-        let three = plant::DeepBar { high_slip_resistance_factor: 3.0, corner_slip_hz: 20.0 };
+        let three = plant::DeepBar { high_slip_resistance_factor: 3.0, corner_slip_hz: 60.0 };
         assert_eq!(own.scenario.extras.deep_bar, Some(three));
         let told = parse_closed_loop(Path::new("p.toml"), &format!("{FIG16}\n{plant}{bar}")).unwrap();
         assert_eq!(told.scenario.extras.deep_bar, Some(want));
         for (from, to, key) in [
             ("= 2.0", "= 1.0", "deep_bar.high_slip_resistance_factor"),
             ("= 2.0", "= nan", "deep_bar.high_slip_resistance_factor"),
-            ("= 10.0", "= 0.0", "deep_bar.corner_slip_hz"),
+            ("= 60.0", "= 0.0", "deep_bar.corner_slip_hz"),
         ] {
             let bad = format!("{FIG16}\n{}", bar.replace(from, to));
             assert_eq!(err(&bad).key.as_deref(), Some(key), "{to}");
         }
+        // A corner so low that the second cage alone leaks more than the motor does.
+        let low = err(&format!("{FIG16}\n{}", bar.replace("= 60.0", "= 10.0")));
+        assert_eq!(low.key.as_deref(), Some("deep_bar"), "{low}");
+        assert!(low.to_string().contains("leaks more at zero slip"), "{low}");
     }
 
     /// Issue 16, item 2: the inputs found by trying are errors that point at the value.

@@ -212,14 +212,13 @@ fn the_campaign_runs_on_a_saturating_plant_when_asked() {
 }
 
 /// Issue 50, deliverable 3: `hil-sim campaign --plant motors/delorenzo-deep-bar.toml` runs the
-/// shipped drive on a deep-bar rotor (a second cage, the rotor resistance ×1 at zero slip
-/// and ×1.5 above its 86 Hz corner — a plant the drive does not model), over the box's
-/// corners through to its top speed: every run changes with the plant, and what misses is
-/// the torque — the reactive-power law reads the second cage's leakage at slip as
-/// resistance in field weakening (`controller_core::mras`, "What it cannot tell apart";
-/// docs/verification.md states the count).
+/// shipped drive on a deep-bar rotor (a second cage: at zero slip the file's circuit, its
+/// resistance ×1.5 above an 86 Hz corner and its leakage lower — a plant the drive does not
+/// model), over the box's corners through to its top speed: every run changes with the
+/// plant and every run meets the file's requirements (docs/verification.md states the
+/// figures).
 #[test]
-fn the_campaign_runs_on_a_deep_bar_plant_when_asked() {
+fn the_campaign_passes_on_a_deep_bar_plant() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../motors/delorenzo-deep-bar.toml");
     let (motor, saturation) = drive_file::motor::load_model(path).unwrap();
     let extras = hil_sim::scenario::extras_of(&drive_file::motor::load_plant_extras(path).unwrap());
@@ -231,9 +230,7 @@ fn the_campaign_runs_on_a_deep_bar_plant_when_asked() {
     let deep = run(&c);
     for (a, b) in plain.iter().zip(&deep) {
         assert_ne!(a.csv(), b.csv(), "run {} did not change with the plant", a.k);
-        println!("{}", b.csv());
-        assert!(b.criteria_failed().is_empty(), "{}", b.csv());
-        assert!(b.requirements_missed().iter().all(|r| *r == Requirement::TorqueAccuracy), "{}", b.csv());
+        assert!(b.passed(), "{}", b.csv());
     }
 }
 

@@ -93,6 +93,9 @@ pub enum SaturationError {
     /// resistance factor finite and above 1 and its corner slip frequency finite and
     /// positive.
     DeepBar,
+    /// A deep bar whose second cage's zero-slip leakage ([`DeepBar::zero_slip_leakage_h`])
+    /// is not below the motor's L_σ.
+    DeepBarLeakage,
 }
 
 impl core::fmt::Display for SaturationError {
@@ -109,6 +112,11 @@ impl core::fmt::Display for SaturationError {
             Self::DeepBar => {
                 "a deep bar needs the inverse-Γ form (its rotor cages at the magnetizing branch), a high-slip \
                  resistance factor above 1 and a positive corner slip frequency"
+            }
+            Self::DeepBarLeakage => {
+                "the deep bar's second cage leaks more at zero slip than the motor's whole leakage: its corner \
+                 slip frequency is too low (or its factor too high) for this motor — L₂ = R₂/(2π·f) must leave \
+                 L_σ > L₂·((k − 1)/k)²"
             }
         })
     }
@@ -153,6 +161,9 @@ struct Cage {
     inv_l_per_h: f64,
     /// R₁ over the running resistance R₁‖R₂ (the bar's high-slip factor).
     high_slip_factor: f64,
+    /// The leakage the second cage adds at zero slip, `L₂·(R₁/(R₁ + R₂))²`, H: taken from
+    /// L_σ ([`DeepBar::zero_slip_leakage_h`]).
+    zero_slip_leakage_h: f64,
 }
 
 /// A deep-bar rotor as its nameplate-level figures: the rotor resistance rises from the
@@ -177,6 +188,19 @@ impl DeepBar {
         }
         let r2 = rr_ohm * k / (k - 1.0);
         Ok((k * rr_ohm, r2, r2 / (core::f64::consts::TAU * f)))
+    }
+
+    /// The leakage the second cage adds at zero slip for a running rotor resistance
+    /// `rr_ohm`, H: at slip ω the rotor's impedance `R₁‖(R₂ + jω·L₂)` is `R₁‖R₂ +
+    /// jω·L₂·(R₁/(R₁ + R₂))² + O(ω²)`, with `R₁/(R₁ + R₂) = (k − 1)/k`. The machine takes it
+    /// from its L_σ, so that at zero slip — where a motor file's circuit is measured (a
+    /// running machine; IEEE 112's locked-rotor test at reduced frequency for a deep bar) —
+    /// both its resistance and its leakage are the file's; at high slip the resistance rises
+    /// to k·R_R and the leakage falls by this much, as a deep bar's crowding does.
+    pub fn zero_slip_leakage_h(&self, rr_ohm: f64) -> Result<f64, SaturationError> {
+        let (_, _, l2) = self.circuit(rr_ohm)?;
+        let share = (self.high_slip_resistance_factor - 1.0) / self.high_slip_resistance_factor;
+        Ok(l2 * share * share)
     }
 
     /// Where a bar of height `height_m` and resistivity `resistivity_ohm_m` starts to crowd
@@ -329,13 +353,20 @@ impl Saturated {
         }
         let running = self.running_rr_ohm();
         let (r1, r2, l2) = bar.circuit(running)?;
+        let zero_slip_leakage_h = bar.zero_slip_leakage_h(running)?;
+        // The file's L_σ is the zero-slip leakage: the main one is what the cage leaves of it.
+        let leak_h = self.leak_h + self.cage.map_or(0.0, |c| c.zero_slip_leakage_h) - zero_slip_leakage_h;
+        if !leak_h.is_finite() || leak_h <= 0.0 {
+            return Err(SaturationError::DeepBarLeakage);
+        }
         let cage = Cage {
             r_ohm: r2,
             l_h: l2,
             inv_l_per_h: 1.0 / l2,
             high_slip_factor: bar.high_slip_resistance_factor,
+            zero_slip_leakage_h,
         };
-        let mut s = Self { rr_ohm: r1, cage: Some(cage), ..*self };
+        let mut s = Self { rr_ohm: r1, leak_h, inv_leak_per_h: 1.0 / leak_h, cage: Some(cage), ..*self };
         s.fastest_rate_per_s = s.fastest_rate();
         Ok(s)
     }
@@ -671,7 +702,7 @@ mod tests {
     #[test]
     fn the_saturating_machine_conserves_energy() {
         let inv_gamma = MotorParams::new(3.7, 2.1, 0.245, 0.224, 0.224, 2, 0.015, 0.0).unwrap();
-        let bar = DeepBar { high_slip_resistance_factor: 2.5, corner_slip_hz: 15.0 };
+        let bar = DeepBar { high_slip_resistance_factor: 2.5, corner_slip_hz: 60.0 };
         for (m, form, iron, deep) in [
             (gamma_2kw(), Form::Gamma, false, false),
             (inv_gamma, Form::InverseGamma, false, false),
@@ -816,8 +847,8 @@ mod tests {
     /// second's `−jω·ψ/(R₂ + jω·L₂)`, `i_s = f(ψ)` less both, `v = R_s·i_s + jω_s·(ψ +
     /// L_σ·i_s)`, the torque `(3/2)·p·ψ²·ω/R(ω)` with `R(ω)` the bar's resistance at that
     /// slip ([`DeepBar::resistance_factor_at`] times the running R_R). Started in it at a
-    /// held speed, the machine stays in it for 0.1 s to 1e-9 in both currents and the
-    /// torque, from a slip far below the corner to one far above it, below and beyond the
+    /// held speed, the machine stays in it for 0.1 s to 1e-9 in both currents (and the
+    /// torque to what that is in torque), from a slip far below the corner to one far above it, below and beyond the
     /// knee; the resistance there runs from R_R to near k·R_R.
     #[test]
     fn a_deep_bar_holds_its_analytic_steady_state() {
@@ -833,7 +864,9 @@ mod tests {
         assert!((read.corner_slip_hz - 15.0).abs() < 1e-12 && read.high_slip_resistance_factor == 2.5);
         let (r1, r2, l2) = bar.circuit(2.1).unwrap();
         assert!((1.0 / (1.0 / r1 + 1.0 / r2) - 2.1).abs() < 1e-12);
-        let (w_s, l, rs) = (2.0 * core::f64::consts::PI * 50.0, 0.245 - 0.224, 3.7);
+        // The main leakage: the file's, less what the second cage adds at zero slip.
+        let l_sigma = 0.245 - 0.224 - bar.zero_slip_leakage_h(2.1).unwrap();
+        let (w_s, l, rs) = (2.0 * core::f64::consts::PI * 50.0, l_sigma, 3.7);
         let mut factors = Vec::new();
         for psi in [0.5, 1.2] {
             for w_sl in [1.0, 6.0, 60.0, 300.0] {
@@ -879,7 +912,10 @@ mod tests {
                     close(x.i_cage_alpha_a, want_2[0]) && close(x.i_cage_beta_a, want_2[1]),
                     "ψ {psi}, ω {w_sl}"
                 );
-                assert!((machine.torque_nm(&x) - torque).abs() < 1e-9 * torque, "ψ {psi}, ω {w_sl}");
+                // The currents' tolerance in torque: (3/2)·p·ψ times 1e-9 of the current.
+                let torque_tol = 1e-9 * 1.5 * 2.0 * psi * scale_a;
+                let got = machine.torque_nm(&x);
+                assert!((got - torque).abs() < torque_tol, "ψ {psi}, ω {w_sl}: {got} vs {torque}");
             }
         }
         // The corner's physics: an aluminium bar at 75 °C (3.4e-8 Ω·m), 10 and 40 mm high.
@@ -887,6 +923,39 @@ mod tests {
         assert!((corner(0.010) - 86.12).abs() < 0.01 && (corner(0.040) - 5.383).abs() < 1e-3);
         // From the running R_R (below the corner) to near k·R_R (far above it).
         assert!(factors[0] < 1.001 && factors[3] > 0.85 * 2.5, "{factors:?}");
+    }
+
+    /// A deep bar leaves the motor file's circuit whole at zero slip, where a file's circuit
+    /// is measured: the rotor's impedance `R₁‖(R₂ + jω·L₂)` tends to R_R with a reactance
+    /// `ω·`[`DeepBar::zero_slip_leakage_h`] (to 1e-6 at ω = 1e-3 rad/s), and the machine's
+    /// main leakage is the file's L_σ less it — the sum the file's. A bar whose second cage
+    /// alone leaks more than the file's L_σ (the shipped 300 W motor with a 1.8× bar cornering
+    /// at 8 Hz: L₂·(0.8/1.8)² = 0.18 H against 0.096 H) is refused.
+    #[test]
+    fn a_deep_bars_circuit_is_the_files_at_zero_slip() {
+        let m = MotorParams::new(3.7, 2.1, 0.245, 0.224, 0.224, 2, 0.015, 0.0).unwrap();
+        let bar = DeepBar { high_slip_resistance_factor: 2.5, corner_slip_hz: 15.0 };
+        let (r1, r2, l2) = bar.circuit(2.1).unwrap();
+        let w = 1e-3;
+        // Z = R₁·(R₂ + jωL₂)/(R₁ + R₂ + jωL₂), on (re, im) pairs.
+        let (nr, ni) = (r1 * r2, r1 * w * l2);
+        let (dr, di) = (r1 + r2, w * l2);
+        let d2 = dr * dr + di * di;
+        let (zr, zi) = ((nr * dr + ni * di) / d2, (ni * dr - nr * di) / d2);
+        let extra = bar.zero_slip_leakage_h(2.1).unwrap();
+        assert!((zr / 2.1 - 1.0).abs() < 1e-6 && (zi / w / extra - 1.0).abs() < 1e-6, "{zr} {}", zi / w);
+        let machine = Machine::saturated(&m, &Saturation { form: Form::InverseGamma, curve: law() })
+            .and_then(|x| x.with_deep_bar(&bar))
+            .unwrap();
+        let Some(sat) = machine.saturation else { panic!("saturating") };
+        assert!((sat.leak_h + extra - (0.245 - 0.224)).abs() < 1e-15, "{}", sat.leak_h);
+        // A second bar replaces the first, leakage included.
+        let again = machine.with_deep_bar(&bar).unwrap();
+        let Some(sat2) = again.saturation else { panic!("saturating") };
+        assert!((sat2.leak_h - sat.leak_h).abs() < 1e-15);
+        let shipped = Machine::new(&MotorParams::delorenzo_dl10115a1().unwrap());
+        let low = DeepBar { high_slip_resistance_factor: 1.8, corner_slip_hz: 8.0 };
+        assert_eq!(shipped.with_deep_bar(&low).map(|_| ()), Err(SaturationError::DeepBarLeakage));
     }
 
     /// A linear T model takes a deep bar and iron loss in its inverse-Γ equivalent (module
@@ -913,7 +982,7 @@ mod tests {
         .unwrap();
         let psi: [f64; 2] = [1.0, 2.0];
         let curve = MagnetizingCurve::points(&psi, &psi.map(|p| p / lm)).unwrap();
-        let bar = DeepBar { high_slip_resistance_factor: 1.8, corner_slip_hz: 8.0 };
+        let bar = DeepBar { high_slip_resistance_factor: 1.8, corner_slip_hz: 60.0 };
         let by_hand = Machine::saturated(&inv_gamma, &Saturation { form: Form::InverseGamma, curve })
             .and_then(|m| m.with_iron_loss(900.0))
             .and_then(|m| m.with_deep_bar(&bar))
@@ -938,7 +1007,8 @@ mod tests {
         let Some(sat) = from_t.saturation else { panic!("carried in the inverse-Γ form") };
         let rate = from_t.fastest_rate_per_s();
         let (r1, r2, l2) = bar.circuit(t.rr_ohm() * g * g).unwrap();
-        let (a_, g_, c_) = (1.0 / (t.ls_h() - lm), 1.0 / lm, 1.0 / l2);
+        let l_sigma = t.ls_h() - lm - bar.zero_slip_leakage_h(t.rr_ohm() * g * g).unwrap();
+        let (a_, g_, c_) = (1.0 / l_sigma, 1.0 / lm, 1.0 / l2);
         let rc = [
             [t.rs_ohm() * a_, -t.rs_ohm() * a_, 0.0],
             [-r1 * a_, r1 * (g_ + a_ + c_), -r1 * c_],

@@ -39,17 +39,21 @@
 //! amplification left a flying start in field weakening seconds from converged.
 //!
 //! **What it cannot tell apart.** The reactive power also carries the leakage: a machine
-//! whose leakage is ΔL above the model's (a deep-bar rotor's second cage at slip, a leakage
-//! that saturates) adds `ω_e·ΔL·|i|²` to `q`, `x` by `ΔL/(L_m²/L_r)`, and the law settles
-//! where the resistance's share cancels it: `r̂/ρ − 1 ≈ (ΔL/(L_m²/L_r))/s(a)` — the leakage
-//! read as resistance, amplified by `1/s(a)` to first order: 2 at a = 1, 3.1 at a = 0.5
-//! and 2, 19 at a = 6 (unit test `a_leakage_error_is_read_as_resistance_amplified_by_the_slope`). The step's
-//! amplification only sets how fast it gets there. On the shipped drive with a deep bar
-//! (`motors/delorenzo-deep-bar.toml`) this is what misses the torque in field weakening
-//! (docs/verification.md); listening only where `s(a)` is within 64 % of its peak on both
-//! sides (a ≤ 2) cured that but left the flying starts the law corrects at a ≈ 4.5 (the
-//! 24 V drive braking at 391 rad/s: the q-axis fit's ×1.089 held, −7.5 % of torque):
-//! the flying start's fit must read closer before the band can narrow.
+//! whose leakage is ΔL above the model's (a leakage that saturates, a motor file whose
+//! leakage is not the running machine's) adds `ω_e·ΔL·|i|²` to `q`, `x` by
+//! `ΔL/(L_m²/L_r)`, and the law settles where the resistance's share cancels it:
+//! `r̂/ρ − 1 ≈ (ΔL/(L_m²/L_r))/s(a)` — the leakage read as resistance, amplified by
+//! `1/s(a)` to first order: 2 at a = 1, 3.1 at a = 0.5 and 2, 19 at a = 6 (unit test
+//! `a_leakage_error_is_read_as_resistance_amplified_by_the_slope`). The step's amplification
+//! only sets how fast it gets there. Measured: a deep-bar plant whose zero-slip leakage was
+//! 13 % above its file's walked the shipped drive's estimate to ×1.25 in field weakening;
+//! listening only where `s(a)` is within 64 % of its peak on both sides (a ≤ 2) cured that
+//! but left the flying starts the law corrects at a ≈ 4.5 (the 24 V drive braking at
+//! 391 rad/s: the q-axis fit's ×1.089 held, −7.5 % of torque), and a linear drive on its
+//! motor's saturating twin at 2× base speed fell from 0.849 to 0.528 of the physical limit.
+//! A deep bar whose circuit is the file's at zero slip (plant::DeepBar) moves the leakage at
+//! the running slips little, and the shipped drive meets its requirements on it
+//! (docs/verification.md).
 //!
 //! **When it listens** ([`MrasConfig::update`] returns the scale unchanged otherwise):
 //! Running on the field-oriented references, the modulator not limiting the request (the
