@@ -143,8 +143,10 @@ pub fn identify(a: &IdentifyOptions) -> Result<(), String> {
     }
     let (motor, saturation) = drive_file::motor::load_model(&a.motor).map_err(|e| e.to_string())?;
     let config = a.run.config(a.pwm_hz, (0.8 * a.vdc, 1.2 * a.vdc))?;
+    let extras = drive_file::motor::load_plant_extras(&a.motor).map_err(|e| e.to_string())?;
     let mut setup = Setup::realistic(motor, config, a.vdc, a.seed);
     setup.saturation = saturation;
+    setup.extras = crate::scenario::extras_of(&extras);
     if a.swap_current_channels {
         setup.injections.push(crate::sim::Injection::CurrentChannelsSwapped { first: 1, second: 2 });
     }
@@ -202,6 +204,24 @@ pub fn identify(a: &IdentifyOptions) -> Result<(), String> {
             "error"
         )
     };
+    // A plant richer than the circuit identified: what "simulated" leaves out, said first.
+    let mut beyond = Vec::new();
+    if let Some(r) = setup.extras.iron_loss_ohm {
+        beyond.push(format!("iron loss (R_fe {r} Ω)"));
+    }
+    if let Some(d) = setup.extras.deep_bar {
+        beyond.push(format!(
+            "a deep bar (R_r ×{} above {} Hz of slip)",
+            d.high_slip_resistance_factor, d.corner_slip_hz
+        ));
+    }
+    if !beyond.is_empty() {
+        report::outln!(
+            "the simulated motor also has {}, which the sequence does not model: \"simulated\" below is its \
+             circuit without them (the rotor's at zero slip)",
+            beyond.join(" and ")
+        );
+    }
     let gamma_plant = saturation.filter(|s| s.form == controller_core::magnetics::Form::Gamma);
     if let (Some(fit), Some(sat), Some(nl)) = (id.gamma, gamma_plant, id.no_load.as_ref()) {
         // A saturating Γ machine identified on its curve: its own values at the flux the

@@ -13,7 +13,6 @@ use controller_core::drive::{FastOutput, Measurements, Mode, PhaseCommand, Refer
 use controller_core::frames::AlphaBeta;
 use controller_core::link::{Command, RECORD_CHUNK_BYTES, RECORD_CHUNKS, Reply};
 use controller_core::motor::MotorParams;
-use plant::Machine;
 use std::cell::Cell;
 use std::rc::Rc;
 
@@ -25,6 +24,10 @@ pub struct Setup {
     /// Its magnetizing branch's saturation, if it has one (`motor` is then its form's T
     /// model at the unsaturated inductance).
     pub saturation: Option<controller_core::magnetics::Saturation>,
+    /// What the simulated machine has beyond its circuit and curve (iron loss, a deep bar:
+    /// the motor file's `[motor.iron_loss]`, `[motor.deep_bar]`), which the identification
+    /// does not model.
+    pub extras: plant::Extras,
     /// The sequence's configuration.
     pub config: CommissionConfig,
     /// Bus voltage, V.
@@ -53,6 +56,7 @@ impl Setup {
         Self {
             motor,
             saturation: None,
+            extras: plant::Extras::default(),
             config,
             vdc_v,
             sensors,
@@ -373,13 +377,10 @@ pub fn simulate_on(
         dc_link: None,
         comparator: None,
         heating: None,
-        extras: plant::Extras::default(),
+        extras: setup.extras,
     };
-    let machine = match &setup.saturation {
-        Some(s) => Machine::saturated(&setup.motor, s)
-            .map_err(|e| RunError::Simulation(format!("the simulated motor: {e}")))?,
-        None => Machine::new(&setup.motor),
-    };
+    let machine = crate::scenario::plant_machine(&setup.motor, setup.saturation.as_ref(), &setup.extras)
+        .map_err(RunError::Simulation)?;
     let mut last_t = 0.0;
     let result = sim::run(
         &mut seq,
