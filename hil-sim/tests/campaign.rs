@@ -211,6 +211,25 @@ fn the_campaign_runs_on_a_saturating_plant_when_asked() {
         && v.requirements_missed().contains(&Requirement::TorqueAccuracy)));
 }
 
+/// The shipped drive's 16 corner runs through to its top speed, on its own motor and on the
+/// motor file `name` (a plant the drive does not model): the runs on the file's motor, each
+/// checked to differ from its run on the drive's own; the file's extras checked by `has`.
+fn on_plant(name: &str, has: impl Fn(&plant::Extras) -> bool) -> Vec<Verdict> {
+    let path = format!("{}/../motors/{name}", env!("CARGO_MANIFEST_DIR"));
+    let (motor, saturation) = drive_file::motor::load_model(&path).unwrap();
+    let extras = hil_sim::scenario::extras_of(&drive_file::motor::load_plant_extras(&path).unwrap());
+    assert!(has(&extras) && saturation.is_none(), "{name}");
+    let mut c = shipped(16);
+    c.duration_s = c.full_range_duration_s();
+    let plain = run(&c);
+    c.plant = Some(hil_sim::scenario::SimulatedMotor { motor, saturation, extras });
+    let on = run(&c);
+    for (a, b) in plain.iter().zip(&on) {
+        assert_ne!(a.csv(), b.csv(), "run {} did not change with the plant", a.k);
+    }
+    on
+}
+
 /// Issue 50, deliverable 3: `hil-sim campaign --plant motors/delorenzo-deep-bar.toml` runs the
 /// shipped drive on a deep-bar rotor (a second cage: at zero slip the file's circuit, its
 /// resistance ×1.5 above an 86 Hz corner and its leakage lower — a plant the drive does not
@@ -219,17 +238,7 @@ fn the_campaign_runs_on_a_saturating_plant_when_asked() {
 /// figures).
 #[test]
 fn the_campaign_passes_on_a_deep_bar_plant() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../motors/delorenzo-deep-bar.toml");
-    let (motor, saturation) = drive_file::motor::load_model(path).unwrap();
-    let extras = hil_sim::scenario::extras_of(&drive_file::motor::load_plant_extras(path).unwrap());
-    assert!(extras.deep_bar.is_some() && saturation.is_none());
-    let mut c = shipped(16);
-    c.duration_s = c.full_range_duration_s();
-    let plain = run(&c);
-    c.plant = Some(hil_sim::scenario::SimulatedMotor { motor, saturation, extras });
-    let deep = run(&c);
-    for (a, b) in plain.iter().zip(&deep) {
-        assert_ne!(a.csv(), b.csv(), "run {} did not change with the plant", a.k);
+    for b in on_plant("delorenzo-deep-bar.toml", |e| e.deep_bar.is_some()) {
         assert!(b.passed(), "{}", b.csv());
     }
 }
@@ -244,18 +253,8 @@ fn the_campaign_passes_on_a_deep_bar_plant() {
 /// where the loss starts to trip the drive.
 #[test]
 fn the_campaign_passes_on_an_iron_loss_plant() {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../motors/delorenzo-iron-loss.toml");
-    let (motor, saturation) = drive_file::motor::load_model(path).unwrap();
-    let extras = hil_sim::scenario::extras_of(&drive_file::motor::load_plant_extras(path).unwrap());
-    assert!(extras.iron_loss_ohm.is_some() && saturation.is_none());
-    let mut c = shipped(16);
-    c.duration_s = c.full_range_duration_s();
-    let plain = run(&c);
-    c.plant = Some(hil_sim::scenario::SimulatedMotor { motor, saturation, extras });
-    let lossy = run(&c);
     let mut worst = 0.0f64;
-    for (a, b) in plain.iter().zip(&lossy) {
-        assert_ne!(a.csv(), b.csv(), "run {} did not change with the plant", a.k);
+    for b in on_plant("delorenzo-iron-loss.toml", |e| e.iron_loss_ohm.is_some()) {
         assert!(b.passed(), "{}", b.csv());
         worst = b
             .measures

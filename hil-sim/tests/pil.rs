@@ -137,15 +137,10 @@ fn interrupted_pil_run_removes_its_fifo_directory() {
     let _ = std::fs::remove_dir_all(&out);
 }
 
-/// Issue 20: the commissioning sequence on the emulated Cortex-M4F records exactly what it
-/// records in process, so the motor file is the same, bit for bit; a refusal is the same too.
-#[test]
-#[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
-fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
-    use controller_core::commission::{CommissionConfig, CommissionSpec, Refusal};
-    use hil_sim::identify::{self, RunError, Setup, Target};
-    let m = drive_file::motor::load("delorenzo-appendix").unwrap();
-    let spec = CommissionSpec {
+/// The rotating commissioning of the DeLorenzo motor (1.24 A, 380 V 60 Hz on 310 V), with
+/// the magnetizing curve or without.
+fn delorenzo_spec(curve: bool) -> controller_core::commission::CommissionSpec {
+    controller_core::commission::CommissionSpec {
         pwm_hz: 20_000.0,
         test_current_a: 1.24,
         current_limit_a: 2.48,
@@ -155,8 +150,19 @@ fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
         rotate: true,
         rated_flux_wb: 0.823,
         no_load_hz: 15.0,
-        curve: false,
-    };
+        curve,
+    }
+}
+
+/// Issue 20: the commissioning sequence on the emulated Cortex-M4F records exactly what it
+/// records in process, so the motor file is the same, bit for bit; a refusal is the same too.
+#[test]
+#[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
+fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
+    use controller_core::commission::{CommissionConfig, Refusal};
+    use hil_sim::identify::{self, RunError, Setup, Target};
+    let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+    let spec = delorenzo_spec(false);
     let setup = Setup::realistic(m, CommissionConfig::new(spec).unwrap(), 310.0, 5);
     let file = |target: &Target| {
         let (rec, t) = identify::simulate_on(&setup, target, |_, _| {}, || false).unwrap();
@@ -184,21 +190,10 @@ fn pil_commissioning_writes_the_sil_motor_file_bit_for_bit() {
 #[test]
 #[ignore = "needs QEMU and the pil target program: `cargo xtask qemu`"]
 fn pil_measures_the_magnetizing_curve_bit_for_bit() {
-    use controller_core::commission::{CommissionConfig, CommissionSpec};
+    use controller_core::commission::CommissionConfig;
     use hil_sim::identify::{self, Setup, Target};
     let (m, sat) = drive_file::motor::load_model("delorenzo-saturating").unwrap();
-    let spec = CommissionSpec {
-        pwm_hz: 20_000.0,
-        test_current_a: 1.24,
-        current_limit_a: 2.48,
-        vdc_min_v: 248.0,
-        vdc_max_v: 372.0,
-        level_time_s: 3.0,
-        rotate: true,
-        rated_flux_wb: 0.823,
-        no_load_hz: 15.0,
-        curve: true,
-    };
+    let spec = delorenzo_spec(true);
     let mut setup = Setup::realistic(m, CommissionConfig::new(spec).unwrap(), 310.0, 7);
     setup.saturation = sat;
     let file = |target: &Target| {
