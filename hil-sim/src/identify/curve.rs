@@ -63,7 +63,7 @@ pub(super) fn refine(
         return Ok(id);
     };
     let rs = id.rs_ohm.value;
-    let terminals = Terminals { rs, l_sigma: id.l_sigma_h.value, v_e: id.inverter_error_v.value };
+    let terminals = Terminals { rs, l_sigma: id.l_sigma_h.value };
     let mut fit = fit_rotor(cfg, rec, &id, &curve)?;
     // The curve's points again with the rotor's current taken out (the friction's slip), and
     // the rotor on that curve: twice (the second pass moves R_R by < 0.1 %).

@@ -415,7 +415,7 @@ pub fn estimate(cfg: &CommissionConfig, rec: &Record, pole_pairs: u8) -> Result<
     let e_est = Estimate::of(&e, 0.0);
     let (rotation, no_load) = if cfg.spec().rotate {
         let rot = rotation(cfg, rec, pole_pairs, Branch::Linear(lmm_est.value), rr_est.value)?;
-        let terminals = Terminals { rs: rs_est.value, l_sigma: l_sigma_est.value, v_e: e_est.value };
+        let terminals = Terminals { rs: rs_est.value, l_sigma: l_sigma_est.value };
         (Some(rot), Some(no_load(cfg, rec, pole_pairs, terminals, lmm_est, None)?))
     } else {
         (None, None)
@@ -453,8 +453,6 @@ pub(super) struct Terminals {
     pub(super) rs: f64,
     /// L_σ, H.
     pub(super) l_sigma: f64,
-    /// The inverter's voltage error per phase, V.
-    pub(super) v_e: f64,
 }
 
 /// Why the sequence skipped its no-load test (`Commissioning::start_no_load` refuses to set
@@ -494,9 +492,9 @@ fn why_no_load_did_not_start(cfg: &CommissionConfig, rec: &Record) -> String {
 /// The no-load test's estimates (`controller_core::commission::no_load`).
 ///
 /// Per window, in the frame of the current reference: the commanded voltage acts 1.5
-/// periods later and held (`V = V̂·e^{−j1.5ωT}·sinc(ωT/2)`, as for the injections), less the
-/// inverter's error — each phase's `−sign(i)·V_e` square wave has the fundamental
-/// `(4/π)·V_e` along the current, which the loops make up. Then `Z = V/I`, the rotor branch
+/// periods later and held (`V = V̂·e^{−j1.5ωT}·sinc(ωT/2)`, as for the injections); the
+/// inverter's error is made up ahead of the loops by the sequence
+/// (`controller_core::commission::no_load`), so the commanded voltage is the motor's. Then `Z = V/I`, the rotor branch
 /// `Z_R = Z − R_s − jωL_σ` and its admittance `Y_R = 1/(jωL_M) + s/R_R` (s the slip):
 /// `L_M = −1/(ω·Im Y_R)`, whatever the slip (it only adds a real part). The stator flux
 /// reached is `|V − R_s·I|/ω`.
@@ -595,8 +593,6 @@ pub(super) struct Window {
     stator_flux_wb: f64,
     /// The current's component along ψ_s: the Γ branch's current, A.
     branch_current_a: f64,
-    /// (ψ_s, i_m) without the inverter's error.
-    bare: (f64, f64),
 }
 
 /// [`Window`] of window `win` at field frequency `w`, the voltage's `delay`, the
@@ -613,8 +609,6 @@ fn branch_of(
     if i.norm().is_nan() || i.norm() <= 0.0 {
         return Err("no current in the no-load test's record".into());
     }
-    let v_raw = v;
-    let v = v - i / i.norm() * (4.0 / std::f64::consts::PI * t.v_e);
     let z_r = v / i - t.rs - num_complex::Complex64::new(0.0, w * t.l_sigma);
     let l = -1.0 / (w * (1.0 / z_r).im);
     if !(l.is_finite() && l > 0.0) {
@@ -628,27 +622,18 @@ fn branch_of(
     // 6.4 % low in flux at its current, the friction's slip growing as the flux falls).
     let j = num_complex::Complex64::i();
     let psi_s = (v - i * t.rs) / (j * w);
-    // The same without the inverter's error: at a small current its ripple rounds the
-    // dead time's square wave off, and the error lies between none and (4/π)·V_e.
-    let psi_bare = (v_raw - i * t.rs) / (j * w);
     let i_r = |psi: num_complex::Complex64| {
         rotor.map_or(num_complex::Complex64::new(0.0, 0.0), |(r, sl)| {
             j * psi * sl / (r.r_r_ohm + j * sl * r.l_sigma_h)
         })
     };
     let branch = |psi: num_complex::Complex64| ((i - i_r(psi)) * psi.conj()).re / psi.norm();
-    Ok(Window {
-        l_mm_h: l,
-        stator_flux_wb: psi_s.norm(),
-        branch_current_a: branch(psi_s),
-        bare: (psi_bare.norm(), branch(psi_bare)),
-    })
+    Ok(Window { l_mm_h: l, stator_flux_wb: psi_s.norm(), branch_current_a: branch(psi_s) })
 }
 
 /// The curve's points (the Γ branch's: the stator flux against the current's component
 /// along it) from each level's windows (`(target fraction, windows)`): by rising
-/// current, each point's flux and current the windows' span — with and without the
-/// inverter's error, which a small current's ripple rounds off — widened by the L_M margin
+/// current, each point's flux and current the windows' span widened by the L_M margin
 /// ([`MARGIN`]`.lm`: the current sensor's gain error and the model's approximations scale
 /// them as they scale L_M). A point whose current does not exceed the one below it by more
 /// than its own interval (the test current capped two levels at one current) is left out:
@@ -660,17 +645,10 @@ fn curve_points(levels: Vec<(Option<f64>, Vec<Window>)>) -> Vec<CurvePoint> {
         .map(|(target_fraction, b)| {
             let flux: Vec<f64> = b.iter().map(|x| x.stator_flux_wb).collect();
             let current: Vec<f64> = b.iter().map(|x| x.branch_current_a).collect();
-            let widened = |e: Estimate, bare: Vec<f64>| {
-                let bare = Estimate::of(&bare, MARGIN.lm);
-                Estimate {
-                    interval: [e.interval[0].min(bare.interval[0]), e.interval[1].max(bare.interval[1])],
-                    ..e
-                }
-            };
             CurvePoint {
                 target_fraction,
-                flux_wb: widened(Estimate::of(&flux, MARGIN.lm), b.iter().map(|x| x.bare.0).collect()),
-                current_a: widened(Estimate::of(&current, MARGIN.lm), b.iter().map(|x| x.bare.1).collect()),
+                flux_wb: Estimate::of(&flux, MARGIN.lm),
+                current_a: Estimate::of(&current, MARGIN.lm),
             }
         })
         .collect();
