@@ -33,6 +33,11 @@ enum Cmd {
         /// of the period); none: each board's own.
         #[arg(long)]
         pwm: Option<f64>,
+        /// Also each drawn member's saturating machine, NAME-saturating.toml: a motor file
+        /// (the Γ form with its magnetizing curve) to simulate (`--plant`) and to commission
+        /// (`hil-sim identify … --curve`, the command in its first lines).
+        #[arg(long)]
+        saturating: bool,
         /// Output directory.
         dir: PathBuf,
     },
@@ -172,10 +177,10 @@ fn check_pwm(hz: f64) -> Result<(), String> {
     Err(format!("--pwm {shown}: a PWM rate of 1 000 … 40 000 Hz"))
 }
 
-fn write(s: &Select, pwm_hz: Option<f64>, dir: &Path) -> Result<bool, String> {
+fn write(s: &Select, pwm_hz: Option<f64>, saturating: bool, dir: &Path) -> Result<bool, String> {
     pwm_hz.map_or(Ok(()), check_pwm)?;
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    let mut n = 0;
+    let (mut n, mut n_sat) = (0, 0);
     for m in members(s)? {
         // A drawn member's, as `run` tunes it at this rate: a failing member of a run,
         // reproduced by hand (`design tune --motor FILE --template FILE`).
@@ -185,7 +190,14 @@ fn write(s: &Select, pwm_hz: Option<f64>, dir: &Path) -> Result<bool, String> {
             n += 1;
         }
     }
-    eprintln!("population: wrote {n} template(s) in {}", dir.display());
+    for index in (0..s.members).filter(|_| saturating) {
+        let m = member::draw(s.seed, index, None)?;
+        let text = population::saturation::saturating_motor_file(s.seed, index, &m)
+            .ok_or_else(|| format!("{}: no saturating machine (its Γ form is refused)", m.name))?;
+        report::write::write_text(&dir.join(format!("{}-saturating.toml", m.name)), &text)?;
+        n_sat += 1;
+    }
+    eprintln!("population: wrote {n} template(s) and {n_sat} saturating motor file(s) in {}", dir.display());
     Ok(true)
 }
 
@@ -334,7 +346,7 @@ fn main() -> std::process::ExitCode {
     let result = match &cli.cmd {
         Cmd::List(s) => list(s),
         Cmd::Anchors => anchors(),
-        Cmd::Write { select, pwm, dir } => write(select, *pwm, dir),
+        Cmd::Write { select, pwm, saturating, dir } => write(select, *pwm, *saturating, dir),
         Cmd::Run(a) => run(a, &CANCEL),
     };
     match result {
@@ -363,12 +375,12 @@ mod tests {
     fn written_templates_are_the_runs_at_its_rate() {
         let dir = std::env::temp_dir().join(format!("population-write-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
-        let e = write(&select(2), Some(50.0), &dir).unwrap_err();
+        let e = write(&select(2), Some(50.0), false, &dir).unwrap_err();
         assert!(e.contains("1 000 … 40 000 Hz"), "{e}");
-        let huge = write(&select(2), Some(1e300), &dir).unwrap_err();
+        let huge = write(&select(2), Some(1e300), false, &dir).unwrap_err();
         assert_eq!(huge, "--pwm 1e300: a PWM rate of 1 000 … 40 000 Hz");
         assert!(!dir.exists());
-        assert!(write(&select(2), Some(10_000.0), &dir).unwrap());
+        assert!(write(&select(2), Some(10_000.0), false, &dir).unwrap());
         for m in members(&select(2)).unwrap() {
             let text = std::fs::read_to_string(dir.join(format!("{}.toml", m.name))).unwrap();
             let (_, want, _) = population::run::inputs(&m, Some(10_000.0), Path::new(".")).unwrap();

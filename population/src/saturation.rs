@@ -29,6 +29,13 @@ const STREAM: u64 = 0x5a70_c0de;
 /// `form = "gamma"` and the law gives it) and its branch's saturation; `None` for a shipped
 /// member (no nameplate) or a model the Γ form refuses.
 pub fn saturating(seed: u64, index: u64, member: &Member) -> Option<(MotorParams, Saturation)> {
+    let (gamma, beta, s) = saturating_law(seed, index, member)?;
+    let curve = MagnetizingCurve::law(gamma.lm_h(), beta, s).ok()?;
+    Some((gamma, Saturation { form: Form::Gamma, curve }))
+}
+
+/// [`saturating`]'s machine and its law's `(β, S)`, 1/Wb and 1.
+fn saturating_law(seed: u64, index: u64, member: &Member) -> Option<(MotorParams, f64, f64)> {
     let plate = member.nameplate?;
     let m = &member.motor;
     let mut rng = Rng(mix(seed ^ mix(index) ^ STREAM));
@@ -41,11 +48,51 @@ pub fn saturating(seed: u64, index: u64, member: &Member) -> Option<(MotorParams
     let r_r = (ls / lm).powi(2) * m.rr_ohm();
     let l_u = k * ls;
     let beta = (k - 1.0).powf(1.0 / s) / psi_n;
-    let curve = MagnetizingCurve::law(l_u, beta, s).ok()?;
+    MagnetizingCurve::law(l_u, beta, s).ok()?;
     let gamma =
         MotorParams::new(m.rs_ohm(), r_r, l_u, l_u + l_sigma, l_u, m.pole_pairs(), m.j_kgm2(), m.b_nms())
             .ok()?;
-    Some((gamma, Saturation { form: Form::Gamma, curve }))
+    Some((gamma, beta, s))
+}
+
+/// Member `index` of the population of `seed` as a saturating motor file (the Γ form with
+/// `[motor.saturation]`, [`saturating`]'s machine), its first lines the nameplate and the
+/// `hil-sim identify` command that commissions it on its own board with the curve; `None`
+/// where [`saturating`] is.
+pub fn saturating_motor_file(seed: u64, index: u64, member: &Member) -> Option<String> {
+    let (gamma, beta, s) = saturating_law(seed, index, member)?;
+    let (plate, board) = (member.nameplate?, member.board?);
+    #[derive(serde::Serialize)]
+    struct MotorFile {
+        motor: drive_file::motor::MotorTable,
+    }
+    let motor = drive_file::motor::MotorTable {
+        rated_current_a: Some(plate.current_a),
+        thermal_time_constant_s: Some(member.thermal_time_constant_s),
+        saturation: Some(drive_file::motor::SaturationTable {
+            beta_per_wb: Some(beta),
+            exponent: Some(s),
+            ..Default::default()
+        }),
+        ..drive_file::motor::MotorTable::from_params(&gamma)
+    };
+    let table = toml::to_string(&MotorFile { motor }).ok()?;
+    Some(format!(
+        "# Population member {} (seed {seed}) as a saturating machine: the Γ form of its model with\n\
+         # motulator's law L(ψ) = lm_h/(1 + (β·ψ)^S), the chord at the rated stator flux {:.4} Wb its\n\
+         # linear L_s (population/src/saturation.rs). Commissioned on its own board with the curve:\n\
+         #   hil-sim identify FILE --out identified.toml --test-current {:.4} --vdc {:.1} --pwm-hz {:.1} \\\n\
+         #     --level-time {:.1} --rotate --curve --rated-voltage {:.1} --rated-frequency {:.1}\n\n{}\n",
+        member.name,
+        hil_sim::identify::rated_flux_wb(plate.line_voltage_v, plate.frequency_hz),
+        board.i_ref_max_a,
+        board.vdc_v,
+        board.pwm_hz,
+        (5.0 * (gamma.lr_h() / gamma.rr_ohm()).max(0.1)).clamp(3.0, 60.0),
+        plate.line_voltage_v,
+        plate.frequency_hz,
+        table.trim_end()
+    ))
 }
 
 #[cfg(test)]
@@ -79,6 +126,33 @@ mod tests {
         let (a, b) = (identify::inverse_gamma(&at_rated), identify::inverse_gamma(&member.motor));
         for (x, y) in [(a.0, b.0), (a.1, b.1), (a.2, b.2), (a.3, b.3)] {
             assert!((x / y - 1.0).abs() < 1e-12, "{a:?} against {b:?}");
+        }
+    }
+
+    /// `population write --saturating`'s file is the member's saturating machine: read back by
+    /// drive-file, the same Γ machine and the same curve (flux at five currents to 1e-12).
+    #[test]
+    fn a_saturating_members_file_reads_back_to_its_machine() {
+        for index in 0..3 {
+            let member = crate::member::draw(1, index, None).unwrap();
+            let (m, sat) = saturating(1, index, &member).unwrap();
+            let text = saturating_motor_file(1, index, &member).unwrap();
+            let (back, back_sat) =
+                drive_file::motor::parse_model(std::path::Path::new("member.toml"), &text).unwrap();
+            let back_sat = back_sat.unwrap();
+            assert_eq!(back_sat.form, Form::Gamma, "{text}");
+            for (x, y) in [(back.rs_ohm(), m.rs_ohm()), (back.rr_ohm(), m.rr_ohm()), (back.lm_h(), m.lm_h())]
+                .into_iter()
+                .chain([(back.lr_h(), m.lr_h()), (back.ls_h(), m.ls_h()), (back.j_kgm2(), m.j_kgm2())])
+            {
+                assert!((x / y - 1.0).abs() < 1e-12, "{text}");
+            }
+            for i in [0.1, 1.0, 3.0, 10.0, 30.0] {
+                let (a, b) =
+                    (back_sat.curve.flux_at_total_current(i, 0.0), sat.curve.flux_at_total_current(i, 0.0));
+                assert!((a / b - 1.0).abs() < 1e-12, "{text}");
+            }
+            assert!(text.contains("hil-sim identify FILE --out identified.toml --test-current"), "{text}");
         }
     }
 
