@@ -9,8 +9,14 @@
 //! - motulator's law (Qu, Ranta, Hinkkanen, Luomi, "Loss-minimizing flux level control of
 //!   induction motor drives", IEEE TIA 2012): `L(ψ) = L_u/(1 + (β·ψ)^S)`, so
 //!   `f(ψ) = ψ·(1 + (β·ψ)^S)/L_u`;
-//! - the curve as points `(ψ_k, i_k)` from a no-load test or a data sheet, joined by
-//!   straight lines from the origin, the last segment extended.
+//! - the curve as points `(ψ_k, i_k)` from a no-load test or a data sheet, joined from the
+//!   origin by a monotone cubic (piecewise cubic Hermite: Fritsch and Carlson, "Monotone
+//!   piecewise cubic interpolation", SIAM J. Numer. Anal. 1980, with the knots' slopes the
+//!   weighted harmonic mean of Fritsch and Butland, SIAM J. Sci. Stat. Comput. 1984), the
+//!   last segment's chord extended beyond the last point. Straight lines between the
+//!   points cut the knee: a 7.3 kW member's identified curve, 8 points, put the drive's
+//!   flux 1 % and its torque 3.7 % over at a tenth of its envelope near base speed, the
+//!   same curve densely sampled 0.1 % (docs/commissioning.md).
 //!
 //! Where the branch sits ([`Form`]) decides which flux saturates it: the Γ model puts it at
 //! the stator terminals (ψ_m = ψ_s, the rotor-side leakage outside), the inverse-Γ model
@@ -20,6 +26,9 @@
 
 /// The most points a measured curve may hold (no allocation: the curve is `Copy`).
 pub const CURVE_POINTS_MAX: usize = 16;
+
+/// A knot of a measured curve's cubic: `(ψ, i, di/dψ)`, Wb, A, 1/H.
+type Knot = (f64, f64, f64);
 
 /// Where the magnetizing branch sits in the equivalent circuit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,7 +84,8 @@ enum Repr {
         /// S when whole and at most 32 (then (β·ψ)^S by squaring), else 0.
         whole_exponent: u32,
     },
-    /// Points `(ψ_k, i_k)`, k < n, both strictly rising, joined from the origin.
+    /// Points `(ψ_k, i_k)`, k < n, both strictly rising, joined from the origin by the
+    /// cubic Hermite through them with slopes `di/dψ` at the origin and at each point.
     Points {
         /// Number of points used.
         n: usize,
@@ -83,6 +93,8 @@ enum Repr {
         psi_wb: [f64; CURVE_POINTS_MAX],
         /// i_k, A (peak of the space vector).
         current_a: [f64; CURVE_POINTS_MAX],
+        /// di/dψ at the origin (index 0) and at each point (index k + 1), 1/H.
+        slope_per_h: [f64; CURVE_POINTS_MAX + 1],
     },
 }
 
@@ -120,29 +132,116 @@ impl MagnetizingCurve {
             }
             (*dp, *di, last_psi, last_i) = (*p, *i, *p, *i);
         }
-        Ok(Self(Repr::Points { n, psi_wb: psi, current_a: cur }))
+        Ok(Self(Repr::Points {
+            n,
+            psi_wb: psi,
+            current_a: cur,
+            slope_per_h: Self::knot_slopes(n, &psi, &cur),
+        }))
     }
 
-    /// The segment of a measured curve holding `psi` (the last one beyond it): its start
-    /// `(ψ, i)` and slope di/dψ.
+    /// The knots' slopes of the monotone cubic through the origin and the `n` points:
+    /// at the origin and at the last point the adjacent chord (the curve starts linear, and
+    /// the last chord extends it), between two chords `d₀`, `d₁` over `h₀`, `h₁` their
+    /// weighted harmonic mean `3(h₀ + h₁)/((2h₁ + h₀)/d₀ + (h₁ + 2h₀)/d₁)` (Fritsch and
+    /// Butland), which keeps each segment monotone (the chords are all positive here).
+    fn knot_slopes(
+        n: usize,
+        psi_wb: &[f64; CURVE_POINTS_MAX],
+        current_a: &[f64; CURVE_POINTS_MAX],
+    ) -> [f64; CURVE_POINTS_MAX + 1] {
+        let knot = |k: usize| -> (f64, f64) {
+            match k.checked_sub(1) {
+                None => (0.0, 0.0),
+                Some(j) => (psi_wb.get(j).copied().unwrap_or(0.0), current_a.get(j).copied().unwrap_or(0.0)),
+            }
+        };
+        // Chord k joins knot k to knot k + 1, k < n.
+        let chord = |k: usize| {
+            let ((p0, i0), (p1, i1)) = (knot(k), knot(k + 1));
+            (p1 - p0, (i1 - i0) / (p1 - p0))
+        };
+        let mut m = [0.0; CURVE_POINTS_MAX + 1];
+        for (k, slot) in m.iter_mut().enumerate().take(n + 1) {
+            *slot = match (k.checked_sub(1).map(chord), (k < n).then(|| chord(k))) {
+                (Some((h0, d0)), Some((h1, d1))) => {
+                    3.0 * (h0 + h1) / ((2.0 * h1 + h0) / d0 + (h1 + 2.0 * h0) / d1)
+                }
+                (Some((_, d)), None) | (None, Some((_, d))) => d,
+                (None, None) => 0.0,
+            };
+        }
+        m
+    }
+
+    /// The segment of a measured curve holding `psi`: its knots `(ψ₀, i₀, m₀)` and `(ψ₁, i₁,
+    /// m₁)`, or `None` beyond the last point, where the curve is the last knot's line
+    /// `(ψ₀, i₀)` with slope `m₀` (returned as the first knot).
     fn segment(
         n: usize,
         psi_wb: &[f64; CURVE_POINTS_MAX],
         current_a: &[f64; CURVE_POINTS_MAX],
+        slope_per_h: &[f64; CURVE_POINTS_MAX + 1],
+        psi: f64,
+    ) -> (Knot, Option<Knot>) {
+        let mut start = (0.0, 0.0, slope_per_h.first().copied().unwrap_or(0.0));
+        for ((p1, i1), m1) in psi_wb.iter().zip(current_a).zip(slope_per_h.iter().skip(1)).take(n) {
+            let end = (*p1, *i1, *m1);
+            if psi <= *p1 {
+                return (start, Some(end));
+            }
+            start = end;
+        }
+        (start, None)
+    }
+
+    /// A measured curve's current, its slope di/dψ and its energy ∫₀^ψ i dψ at `psi` ≥ 0:
+    /// the cubic Hermite on the segment holding it (`t` its position in the segment, `h`
+    /// its length; the energy the full segments' `h·(i₀ + i₁)/2 + h²·(m₀ − m₁)/12` and the
+    /// basis functions' integrals over `[0, t]`), the line beyond the last point.
+    fn points_at(
+        n: usize,
+        psi_wb: &[f64; CURVE_POINTS_MAX],
+        current_a: &[f64; CURVE_POINTS_MAX],
+        slope_per_h: &[f64; CURVE_POINTS_MAX + 1],
         psi: f64,
     ) -> (f64, f64, f64) {
-        let (mut p0, mut i0) = (0.0, 0.0);
-        let mut slope = 0.0;
-        for (p1, i1) in psi_wb.iter().zip(current_a).take(n) {
-            slope = (i1 - i0) / (p1 - p0);
-            if psi <= *p1 {
+        let ((p0, i0, m0), end) = Self::segment(n, psi_wb, current_a, slope_per_h, psi);
+        let mut w = 0.0;
+        let (mut q0, mut j0, mut k0) = (0.0, 0.0, slope_per_h.first().copied().unwrap_or(0.0));
+        for ((q1, j1), k1) in psi_wb.iter().zip(current_a).zip(slope_per_h.iter().skip(1)).take(n) {
+            if *q1 > p0 {
                 break;
             }
-            (p0, i0) = (*p1, *i1);
+            let h = q1 - q0;
+            w += h * (0.5 * (j0 + j1) + h * (k0 - k1) / 12.0);
+            (q0, j0, k0) = (*q1, *j1, *k1);
         }
-        // Beyond the last point, (p0, i0) is that point and `slope` the last segment's:
-        // the segment extended.
-        (p0, i0, slope)
+        match end {
+            None => {
+                let x = psi - p0;
+                (i0 + m0 * x, m0, w + x * (i0 + 0.5 * m0 * x))
+            }
+            Some((p1, i1, m1)) => {
+                let h = p1 - p0;
+                let t = (psi - p0) / h;
+                let (t2, t3) = (t * t, t * t * t);
+                let t4 = t2 * t2;
+                let i = (2.0 * t3 - 3.0 * t2 + 1.0) * i0
+                    + (t3 - 2.0 * t2 + t) * h * m0
+                    + (3.0 * t2 - 2.0 * t3) * i1
+                    + (t3 - t2) * h * m1;
+                let slope = (6.0 * t2 - 6.0 * t) / h * (i0 - i1)
+                    + (3.0 * t2 - 4.0 * t + 1.0) * m0
+                    + (3.0 * t2 - 2.0 * t) * m1;
+                let energy = h
+                    * ((t - t3 + 0.5 * t4) * i0
+                        + (0.5 * t2 - 2.0 / 3.0 * t3 + 0.25 * t4) * h * m0
+                        + (t3 - 0.5 * t4) * i1
+                        + (0.25 * t4 - t3 / 3.0) * h * m1);
+                (i, slope, w + energy)
+            }
+        }
     }
 
     /// (β·ψ)^S: by squaring for a whole S up to 32 (the laws in use: motulator's S = 7; a
@@ -169,9 +268,8 @@ impl MagnetizingCurve {
     pub fn current_a(&self, psi_wb: f64) -> f64 {
         match self.0 {
             Repr::Law { .. } => psi_wb * self.inverse_inductance_per_h(psi_wb),
-            Repr::Points { n, psi_wb: ref p, current_a: ref i } => {
-                let (p0, i0, slope) = Self::segment(n, p, i, psi_wb);
-                i0 + slope * (psi_wb - p0)
+            Repr::Points { n, psi_wb: ref p, current_a: ref i, slope_per_h: ref m } => {
+                Self::points_at(n, p, i, m, psi_wb).0
             }
         }
     }
@@ -186,9 +284,12 @@ impl MagnetizingCurve {
                 exponent,
                 whole_exponent,
             }),
-            Repr::Points { n, psi_wb, current_a } => {
-                Self(Repr::Points { n, psi_wb, current_a: current_a.map(|i| i / k) })
-            }
+            Repr::Points { n, psi_wb, current_a, slope_per_h } => Self(Repr::Points {
+                n,
+                psi_wb,
+                current_a: current_a.map(|i| i / k),
+                slope_per_h: slope_per_h.map(|m| m / k),
+            }),
         }
     }
 
@@ -211,11 +312,11 @@ impl MagnetizingCurve {
                 (1.0 + Self::saturation_term(beta_per_wb, exponent, whole_exponent, psi_wb))
                     * inv_l_unsat_per_h
             }
-            Repr::Points { n, psi_wb: ref p, current_a: ref i } => {
+            Repr::Points { slope_per_h: ref m, .. } => {
                 if psi_wb > 0.0 {
                     self.current_a(psi_wb) / psi_wb
                 } else {
-                    Self::segment(n, p, i, 0.0).2
+                    m.first().copied().unwrap_or(0.0)
                 }
             }
         }
@@ -229,7 +330,9 @@ impl MagnetizingCurve {
                     * Self::saturation_term(beta_per_wb, exponent, whole_exponent, psi_wb))
                     * inv_l_unsat_per_h
             }
-            Repr::Points { n, psi_wb: ref p, current_a: ref i } => Self::segment(n, p, i, psi_wb).2,
+            Repr::Points { n, psi_wb: ref p, current_a: ref i, slope_per_h: ref m } => {
+                Self::points_at(n, p, i, m, psi_wb).1
+            }
         }
     }
 
@@ -241,18 +344,8 @@ impl MagnetizingCurve {
                 let s = Self::saturation_term(beta_per_wb, exponent, whole_exponent, psi_wb);
                 psi_wb * psi_wb * (0.5 + s / (exponent + 2.0)) * inv_l_unsat_per_h
             }
-            Repr::Points { n, psi_wb: ref p, current_a: ref i } => {
-                let (mut p0, mut i0, mut w) = (0.0, 0.0, 0.0);
-                for (p1, i1) in p.iter().zip(i).take(n) {
-                    if psi_wb <= *p1 {
-                        break;
-                    }
-                    w += 0.5 * (i0 + i1) * (p1 - p0);
-                    (p0, i0) = (*p1, *i1);
-                }
-                let (_, _, slope) = Self::segment(n, p, i, psi_wb);
-                let i1 = i0 + slope * (psi_wb - p0);
-                w + 0.5 * (i0 + i1) * (psi_wb - p0)
+            Repr::Points { n, psi_wb: ref p, current_a: ref i, slope_per_h: ref m } => {
+                Self::points_at(n, p, i, m, psi_wb).2
             }
         }
     }
@@ -292,7 +385,10 @@ impl MagnetizingCurve {
                 let t = Self::saturation_term(beta_per_wb, exponent, whole_exponent, psi_wb);
                 (psi_wb * (1.0 + t) * inv_l_unsat_per_h, (1.0 + (exponent + 1.0) * t) * inv_l_unsat_per_h)
             }
-            Repr::Points { .. } => (self.current_a(psi_wb), self.slope_per_h(psi_wb)),
+            Repr::Points { n, psi_wb: ref p, current_a: ref i, slope_per_h: ref m } => {
+                let (i, slope, _) = Self::points_at(n, p, i, m, psi_wb);
+                (i, slope)
+            }
         }
     }
 }
@@ -516,9 +612,40 @@ mod tests {
         for k in 0..12 {
             assert!((p.current_a(psi[k]) - cur[k]).abs() < 1e-12);
         }
-        // Between points the chord lies above a curve that bends up; beyond, the last
-        // segment extended.
-        assert!(p.current_a(1.0) > c.current_a(1.0));
+        // Between the points the monotone cubic follows the law far closer than straight
+        // lines (the chord over 0.15 Wb of a knee): within 0.6 % up to 1.65 Wb, where the
+        // chords miss by up to 5 %; it rises, its slope is its current's derivative and
+        // continuous at the points, and its energy is its current's integral.
+        let (mut cubic, mut chords) = (0.0f64, 0.0f64);
+        let mut last_i = 0.0;
+        for k in 1..=1650 {
+            let x = 1e-3 * f64::from(k);
+            let (j, truth) = (p.current_a(x), c.current_a(x));
+            cubic = cubic.max((j / truth - 1.0).abs());
+            let seg = ((x / 0.15).ceil() as usize).clamp(1, 12) - 1;
+            let (q0, j0) = if seg == 0 { (0.0, 0.0) } else { (psi[seg - 1], cur[seg - 1]) };
+            let line = j0 + (cur[seg] - j0) / (psi[seg] - q0) * (x - q0);
+            chords = chords.max((line / truth - 1.0).abs());
+            assert!(j > last_i, "{x}");
+            last_i = j;
+            let h = 1e-7;
+            let numeric = (p.current_a(x + h) - p.current_a(x - h)) / (2.0 * h);
+            assert!((p.slope_per_h(x) - numeric).abs() < 1e-5 * p.slope_per_h(x), "{x}");
+        }
+        assert!(cubic < 0.006 && chords > 0.04, "cubic {cubic}, chords {chords}");
+        for knot in psi {
+            let (below, above) = (p.slope_per_h(knot - 1e-12), p.slope_per_h(knot + 1e-12));
+            assert!((below / above - 1.0).abs() < 1e-6, "{knot}: {below} {above}");
+        }
+        // Simpson's rule on each 1 mWb: exact for the cubics, their knots on its nodes.
+        let simpson: f64 = (0..1700)
+            .map(|k| {
+                let (a, b) = (1e-3 * f64::from(k), 1e-3 * f64::from(k + 1));
+                (b - a) / 6.0 * (p.current_a(a) + 4.0 * p.current_a(0.5 * (a + b)) + p.current_a(b))
+            })
+            .sum();
+        assert!((p.energy(1.7) - simpson).abs() < 1e-12 * simpson, "{} {simpson}", p.energy(1.7));
+        // Beyond the last point, the last segment's chord extended.
         let last = (cur[11] - cur[10]) / (psi[11] - psi[10]);
         assert!((p.current_a(2.0) - (cur[11] + last * 0.2)).abs() < 1e-9);
         assert!(

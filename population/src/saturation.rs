@@ -157,8 +157,8 @@ mod tests {
     }
 
     /// Issue 50's acceptance on saturating population members: the commissioning with its
-    /// curve (`--curve`) on the member's board (its bus, PWM and current limit as the test
-    /// current; realistic sensors, the identification set-up's 1 µs of dead time), the nameplate's rated flux: the curve within 5 % of the
+    /// curve (`--curve`) on the member's board (its bus, PWM, dead time and current limit as
+    /// the test current; realistic sensors), the nameplate's rated flux: the curve within 5 % of the
     /// machine's flux at its current over 0.3…1.1 of the rated flux, R_s within 3 %, L_σ, R_R
     /// and T_r at rated flux within 5 %, each interval holding the truth.
     #[test]
@@ -184,6 +184,7 @@ mod tests {
             let config = CommissionConfig::new(spec).unwrap();
             let mut s = Setup::realistic(m, config, board.vdc_v, 7);
             s.saturation = Some(sat);
+            s.inverter = hil_sim::inverter::InverterModel::Switching { dead_time_s: board.dead_time_s };
             let (rec, t) = identify::simulate(&s, |_, _| {}, || false).unwrap();
             let id = identify::estimate(&s.config, &rec, m.pole_pairs())
                 .unwrap_or_else(|e| panic!("{}: {e}", member.name));
