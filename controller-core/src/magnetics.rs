@@ -13,10 +13,10 @@
 //!   origin by a monotone cubic (piecewise cubic Hermite: Fritsch and Carlson, "Monotone
 //!   piecewise cubic interpolation", SIAM J. Numer. Anal. 1980, with the knots' slopes the
 //!   weighted harmonic mean of Fritsch and Butland, SIAM J. Sci. Stat. Comput. 1984), the
-//!   last segment's chord extended beyond the last point. Straight lines between the
-//!   points cut the knee: a 7.3 kW member's identified curve, 8 points, put the drive's
-//!   flux 1 % and its torque 3.7 % over at a tenth of its envelope near base speed, the
-//!   same curve densely sampled 0.1 % (docs/commissioning.md).
+//!   last segment's chord extended beyond the last point. Straight lines between a no-load
+//!   test's few points cut the knee, where the drive runs at rated flux, and gave the
+//!   identification's DC steps into saturation a wrong rotor resistance
+//!   (docs/commissioning.md, the saturating population members).
 //!
 //! Where the branch sits ([`Form`]) decides which flux saturates it: the Γ model puts it at
 //! the stator terminals (ψ_m = ψ_s, the rotor-side leakage outside), the inverse-Γ model

@@ -190,12 +190,18 @@ fn write(s: &Select, pwm_hz: Option<f64>, saturating: bool, dir: &Path) -> Resul
             n += 1;
         }
     }
-    for index in (0..s.members).filter(|_| saturating) {
-        let m = member::draw(s.seed, index, None)?;
-        let text = population::saturation::saturating_motor_file(s.seed, index, &m)
-            .ok_or_else(|| format!("{}: no saturating machine (its Γ form is refused)", m.name))?;
-        report::write::write_text(&dir.join(format!("{}-saturating.toml", m.name)), &text)?;
-        n_sat += 1;
+    if saturating {
+        // The drawn members only: a shipped motor's saturation is its own file's.
+        for index in 0..s.members {
+            let m = member::draw(s.seed, index, None)?;
+            match population::saturation::saturating_motor_file(s.seed, index, &m) {
+                Some(text) => {
+                    report::write::write_text(&dir.join(format!("{}-saturating.toml", m.name)), &text)?;
+                    n_sat += 1;
+                }
+                None => eprintln!("population: {}: no saturating machine (its Γ form is refused)", m.name),
+            }
+        }
     }
     eprintln!("population: wrote {n} template(s) and {n_sat} saturating motor file(s) in {}", dir.display());
     Ok(true)
@@ -380,12 +386,17 @@ mod tests {
         let huge = write(&select(2), Some(1e300), false, &dir).unwrap_err();
         assert_eq!(huge, "--pwm 1e300: a PWM rate of 1 000 … 40 000 Hz");
         assert!(!dir.exists());
-        assert!(write(&select(2), Some(10_000.0), false, &dir).unwrap());
+        assert!(write(&select(2), Some(10_000.0), true, &dir).unwrap());
         for m in members(&select(2)).unwrap() {
             let text = std::fs::read_to_string(dir.join(format!("{}.toml", m.name))).unwrap();
             let (_, want, _) = population::run::inputs(&m, Some(10_000.0), Path::new(".")).unwrap();
             assert_eq!(text, want);
             assert!(text.contains("frequency_hz = 10000"), "{text}");
+            // `--saturating`: each drawn member's machine beside its template, a motor file
+            // drive-file reads as a saturating Γ machine.
+            let path = dir.join(format!("{}-saturating.toml", m.name));
+            let (_, sat) = drive_file::motor::load_model(&path.to_string_lossy()).unwrap();
+            assert!(sat.is_some(), "{}", path.display());
         }
         std::fs::remove_dir_all(&dir).unwrap();
     }

@@ -304,6 +304,28 @@ pub fn power_name(w: f64) -> String {
 }
 
 impl Member {
+    /// The `[motor]` table of model `m` as drive-file writes motor files
+    /// (`drive_file::motor::MotorTable`), with this member's rated current and thermal time
+    /// constant and `saturation`'s curve, if any; `None` for a drawn member without a
+    /// nameplate.
+    pub(crate) fn motor_table(
+        &self,
+        m: &MotorParams,
+        saturation: Option<drive_file::motor::SaturationTable>,
+    ) -> Option<String> {
+        #[derive(serde::Serialize)]
+        struct MotorFile {
+            motor: drive_file::motor::MotorTable,
+        }
+        let motor = drive_file::motor::MotorTable {
+            rated_current_a: Some(self.nameplate?.current_a),
+            thermal_time_constant_s: Some(self.thermal_time_constant_s),
+            saturation,
+            ..drive_file::motor::MotorTable::from_params(m)
+        };
+        Some(toml::to_string(&MotorFile { motor }).ok()?.trim_end().to_owned())
+    }
+
     /// The template drive file a user writes from the nameplate and the board (drawn
     /// members), `None` for a shipped member (its template is a file).
     pub fn template(&self) -> Option<String> {
@@ -338,17 +360,7 @@ impl Member {
             b.dead_time_s * 1e6
         );
         let _ = writeln!(t, "\n[pwm]\nfrequency_hz = {:?}\nslow_divider = {divider}", b.pwm_hz);
-        // The motor as drive-file writes motor files (drive_file::motor::MotorTable).
-        #[derive(serde::Serialize)]
-        struct MotorFile {
-            motor: drive_file::motor::MotorTable,
-        }
-        let motor = drive_file::motor::MotorTable {
-            rated_current_a: Some(plate.current_a),
-            thermal_time_constant_s: Some(self.thermal_time_constant_s),
-            ..drive_file::motor::MotorTable::from_params(m)
-        };
-        let _ = writeln!(t, "\n{}", toml::to_string(&MotorFile { motor }).ok()?.trim_end());
+        let _ = writeln!(t, "\n{}", self.motor_table(m, None)?);
         let _ = writeln!(
             t,
             "\n[controller]\ncurrent = {{ kind = \"pi\", kp = {:?}, ki = {:?} }}\ncurrent_frame = \"stationary\"\n\

@@ -48,6 +48,7 @@ fn saturating_law(seed: u64, index: u64, member: &Member) -> Option<(MotorParams
     let r_r = (ls / lm).powi(2) * m.rr_ohm();
     let l_u = k * ls;
     let beta = (k - 1.0).powf(1.0 / s) / psi_n;
+    // A law the curve refuses is no machine (its file would be refused too).
     MagnetizingCurve::law(l_u, beta, s).ok()?;
     let gamma =
         MotorParams::new(m.rs_ohm(), r_r, l_u, l_u + l_sigma, l_u, m.pole_pairs(), m.j_kgm2(), m.b_nms())
@@ -62,21 +63,12 @@ fn saturating_law(seed: u64, index: u64, member: &Member) -> Option<(MotorParams
 pub fn saturating_motor_file(seed: u64, index: u64, member: &Member) -> Option<String> {
     let (gamma, beta, s) = saturating_law(seed, index, member)?;
     let (plate, board) = (member.nameplate?, member.board?);
-    #[derive(serde::Serialize)]
-    struct MotorFile {
-        motor: drive_file::motor::MotorTable,
-    }
-    let motor = drive_file::motor::MotorTable {
-        rated_current_a: Some(plate.current_a),
-        thermal_time_constant_s: Some(member.thermal_time_constant_s),
-        saturation: Some(drive_file::motor::SaturationTable {
-            beta_per_wb: Some(beta),
-            exponent: Some(s),
-            ..Default::default()
-        }),
-        ..drive_file::motor::MotorTable::from_params(&gamma)
+    let law = drive_file::motor::SaturationTable {
+        beta_per_wb: Some(beta),
+        exponent: Some(s),
+        ..Default::default()
     };
-    let table = toml::to_string(&MotorFile { motor }).ok()?;
+    let table = member.motor_table(&gamma, Some(law))?;
     Some(format!(
         "# Population member {} (seed {seed}) as a saturating machine: the Γ form of its model with\n\
          # motulator's law L(ψ) = lm_h/(1 + (β·ψ)^S), the chord at the rated stator flux {:.4} Wb its\n\
@@ -91,7 +83,7 @@ pub fn saturating_motor_file(seed: u64, index: u64, member: &Member) -> Option<S
         (5.0 * (gamma.lr_h() / gamma.rr_ohm()).max(0.1)).clamp(3.0, 60.0),
         plate.line_voltage_v,
         plate.frequency_hz,
-        table.trim_end()
+        table
     ))
 }
 

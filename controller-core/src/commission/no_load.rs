@@ -41,8 +41,8 @@
 //!    the measured current instead left a large motor's low levels far off: where the error
 //!    is a third of the back-EMF (a 7.3 kW member's 0.3 level, 6.2 V against 18 V at 12.5 Hz)
 //!    the uncompensated error clamps each phase current near its zero crossings, the
-//!    error's fundamental turns off the current, and the level settled at 0.22 of the rated
-//!    flux reading +8.2 % (−2.5 % compensated; population test
+//!    error's fundamental turns off the current, and the level read its flux 8 % high,
+//!    outside its interval (+1.1 % compensated; population test
 //!    `saturating_members_are_identified_on_their_curve`). At low flux
 //!    the friction's slip turns the current tens of degrees off the flux (45° at 0.3 of the
 //!    rated flux on the shipped saturating motor): the component across alone then reads

@@ -494,8 +494,8 @@ fn why_no_load_did_not_start(cfg: &CommissionConfig, rec: &Record) -> String {
 /// Per window, in the frame of the current reference: the commanded voltage acts 1.5
 /// periods later and held (`V = V̂·e^{−j1.5ωT}·sinc(ωT/2)`, as for the injections); the
 /// inverter's error is made up ahead of the loops by the sequence
-/// (`controller_core::commission::no_load`), so the commanded voltage is the motor's. Then `Z = V/I`, the rotor branch
-/// `Z_R = Z − R_s − jωL_σ` and its admittance `Y_R = 1/(jωL_M) + s/R_R` (s the slip):
+/// (`controller_core::commission::no_load`), so the commanded voltage is the motor's.
+/// Then `Z = V/I`, the rotor branch `Z_R = Z − R_s − jωL_σ` and its admittance `Y_R = 1/(jωL_M) + s/R_R` (s the slip):
 /// `L_M = −1/(ω·Im Y_R)`, whatever the slip (it only adds a real part). The stator flux
 /// reached is `|V − R_s·I|/ω`.
 pub(super) fn no_load(
