@@ -327,7 +327,12 @@ impl PhaseDirections {
         this.missed += g * (x - this.missed);
         this.seen_long += g_long * (1.0 - this.seen_long);
         this.missed_long += g_long * (x - this.missed_long);
-        let missing = this.missing();
+        // Missing on a sample that missed: a direction carrying again is not dead, whatever
+        // its history (a direction's history is stale until its next sample: a current that
+        // trailed a reference step through one half-wave carried in the next, and was judged
+        // dead by it, `a_current_catching_up_with_a_reference_step_is_no_stuck_switch`). A
+        // stuck switch's dead direction misses every sample.
+        let missing = missed && this.missing();
         this.dead |= missing;
         // The other way, dead, answered by this sample: carried here, the switch is stuck.
         let answered = core::mem::take(&mut other.dead) && carried && this.following();
