@@ -174,31 +174,12 @@ impl MagnetizingCurve {
         m
     }
 
-    /// The segment of a measured curve holding `psi`: its knots `(ψ₀, i₀, m₀)` and `(ψ₁, i₁,
-    /// m₁)`, or `None` beyond the last point, where the curve is the last knot's line
-    /// `(ψ₀, i₀)` with slope `m₀` (returned as the first knot).
-    fn segment(
-        n: usize,
-        psi_wb: &[f64; CURVE_POINTS_MAX],
-        current_a: &[f64; CURVE_POINTS_MAX],
-        slope_per_h: &[f64; CURVE_POINTS_MAX + 1],
-        psi: f64,
-    ) -> (Knot, Option<Knot>) {
-        let mut start = (0.0, 0.0, slope_per_h.first().copied().unwrap_or(0.0));
-        for ((p1, i1), m1) in psi_wb.iter().zip(current_a).zip(slope_per_h.iter().skip(1)).take(n) {
-            let end = (*p1, *i1, *m1);
-            if psi <= *p1 {
-                return (start, Some(end));
-            }
-            start = end;
-        }
-        (start, None)
-    }
-
     /// A measured curve's current, its slope di/dψ and its energy ∫₀^ψ i dψ at `psi` ≥ 0:
     /// the cubic Hermite on the segment holding it (`t` its position in the segment, `h`
     /// its length; the energy the full segments' `h·(i₀ + i₁)/2 + h²·(m₀ − m₁)/12` and the
-    /// basis functions' integrals over `[0, t]`), the line beyond the last point.
+    /// basis functions' integrals over `[0, t]`), beyond the last point the last knot's line
+    /// `(ψ₀, i₀)` with slope `m₀`. One walk over the knots finds the segment and sums the
+    /// full segments before it.
     fn points_at(
         n: usize,
         psi_wb: &[f64; CURVE_POINTS_MAX],
@@ -206,17 +187,20 @@ impl MagnetizingCurve {
         slope_per_h: &[f64; CURVE_POINTS_MAX + 1],
         psi: f64,
     ) -> (f64, f64, f64) {
-        let ((p0, i0, m0), end) = Self::segment(n, psi_wb, current_a, slope_per_h, psi);
         let mut w = 0.0;
-        let (mut q0, mut j0, mut k0) = (0.0, 0.0, slope_per_h.first().copied().unwrap_or(0.0));
-        for ((q1, j1), k1) in psi_wb.iter().zip(current_a).zip(slope_per_h.iter().skip(1)).take(n) {
-            if *q1 > p0 {
+        let (mut start, mut end): (Knot, Option<Knot>) =
+            ((0.0, 0.0, slope_per_h.first().copied().unwrap_or(0.0)), None);
+        for ((p1, i1), m1) in psi_wb.iter().zip(current_a).zip(slope_per_h.iter().skip(1)).take(n) {
+            if psi <= *p1 {
+                end = Some((*p1, *i1, *m1));
                 break;
             }
-            let h = q1 - q0;
-            w += h * (0.5 * (j0 + j1) + h * (k0 - k1) / 12.0);
-            (q0, j0, k0) = (*q1, *j1, *k1);
+            let (q0, j0, k0) = start;
+            let h = p1 - q0;
+            w += h * (0.5 * (j0 + i1) + h * (k0 - m1) / 12.0);
+            start = (*p1, *i1, *m1);
         }
+        let (p0, i0, m0) = start;
         match end {
             None => {
                 let x = psi - p0;
