@@ -26,6 +26,7 @@ use crate::discretize::{ContinuousSection, DesignError, Discretization};
 use crate::filter::{Biquad, BiquadState};
 use crate::num::Scalar;
 use crate::pi::{PiConfig, PiError, PiState};
+use crate::raw::Field;
 
 /// Continuous-time description of a current law: `(kp + ki/s) · lag(s)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -196,15 +197,20 @@ impl CurrentControllerConfig<f32> {
     }
 }
 
-impl CurrentControllerConfig<f32> {
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+/// Whether there is a lag (1) or not (0), the lag's coefficients (zeros without one: a
+/// fixed layout) and the PI's.
+impl Field for CurrentControllerConfig<f32> {
+    const NF: usize = <Biquad<f32> as Field>::NF + <PiConfig<f32> as Field>::NF;
+    const NU: usize = 1;
+
+    fn put(&self, w: &mut crate::raw::Writer) {
         w.u(u32::from(self.lag.is_some()));
         self.lag.unwrap_or(Biquad::zero()).put(w);
         self.pi.put(w);
     }
 
     #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+    fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         let has_lag = r.u() == 1;
         let lag = Biquad::get(r);
         Self { lag: if has_lag { Some(lag) } else { None }, pi: PiConfig::get(r) }

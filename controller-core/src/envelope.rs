@@ -84,22 +84,24 @@ pub const GOLDEN_STEPS: u32 = 16;
 /// bracket.
 pub const BISECTION_STEPS: u32 = 18;
 
-/// Steady-state machine constants of the envelope (f32, derived at construction).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EnvelopeConfig {
-    rs_ohm: f32,
-    ls_h: f32,
-    sigma_ls_h: f32,
-    inv_tr_per_s: f32,
-    pole_pairs: f32,
-    /// K = (3/2)·p·L_m²/L_r: torque per (i_d²·r), N·m/A².
-    k_nm_per_a2: f32,
-    /// L_m/L_r.
-    lm_over_lr: f32,
-    /// L_m·R_r/L_r: slip speed per (i_q/ψ_r), electrical rad/s·Wb/A.
-    slip_gain: f32,
-    /// Upper end of the slip-ratio search, 2/σ (the R_s-free breakdown ratio is 1/σ).
-    r_max: f32,
+crate::raw::raw_struct! {
+    /// Steady-state machine constants of the envelope (f32, derived at construction).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct EnvelopeConfig {
+        rs_ohm: f32,
+        ls_h: f32,
+        sigma_ls_h: f32,
+        inv_tr_per_s: f32,
+        pole_pairs: f32,
+        /// K = (3/2)·p·L_m²/L_r: torque per (i_d²·r), N·m/A².
+        k_nm_per_a2: f32,
+        /// L_m/L_r.
+        lm_over_lr: f32,
+        /// L_m·R_r/L_r: slip speed per (i_q/ψ_r), electrical rad/s·Wb/A.
+        slip_gain: f32,
+        /// Upper end of the slip-ratio search, 2/σ (the R_s-free breakdown ratio is 1/σ).
+        r_max: f32,
+    }
 }
 
 /// One operating point: the current references and the torque limit at this speed and bus.
@@ -559,38 +561,7 @@ impl EnvelopeConfig {
     }
 }
 
-impl EnvelopeConfig {
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
-        for x in [
-            self.rs_ohm,
-            self.ls_h,
-            self.sigma_ls_h,
-            self.inv_tr_per_s,
-            self.pole_pairs,
-            self.k_nm_per_a2,
-            self.lm_over_lr,
-            self.slip_gain,
-            self.r_max,
-        ] {
-            w.f(x);
-        }
-    }
-
-    #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
-        Self {
-            rs_ohm: r.f(),
-            ls_h: r.f(),
-            sigma_ls_h: r.f(),
-            inv_tr_per_s: r.f(),
-            pole_pairs: r.f(),
-            k_nm_per_a2: r.f(),
-            lm_over_lr: r.f(),
-            slip_gain: r.f(),
-            r_max: r.f(),
-        }
-    }
-}
+impl EnvelopeConfig {}
 
 /// The same model in f64 on a dense grid of slip ratios: the reference the tests (and the
 /// simulator's envelope check) hold [`EnvelopeConfig::operating_point`] against. Returns

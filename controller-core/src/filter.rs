@@ -127,18 +127,23 @@ impl<T: Scalar> FirstOrder<T> {
     }
 }
 
-impl Biquad<f32> {
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
-        for x in [self.b0, self.c1, self.c2, self.a1, self.a0] {
-            w.f(x);
-        }
+/// `b0`, `c1`, `c2`, `a1`, `a0`.
+impl crate::raw::Field for Biquad<f32> {
+    const NF: usize = <[f32; 5] as crate::raw::Field>::NF;
+    const NU: usize = 0;
+
+    fn put(&self, w: &mut crate::raw::Writer) {
+        [self.b0, self.c1, self.c2, self.a1, self.a0].put(w);
     }
 
     #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
-        Self { b0: r.f(), c1: r.f(), c2: r.f(), a1: r.f(), a0: r.f() }
+    fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        let [b0, c1, c2, a1, a0] = <[f32; 5]>::get(r);
+        Self { b0, c1, c2, a1, a0 }
     }
+}
 
+impl Biquad<f32> {
     /// All-zero coefficients (the raw form's filler for a missing section).
     pub(crate) fn zero() -> Self {
         Self { b0: 0.0, c1: 0.0, c2: 0.0, a1: 0.0, a0: 0.0 }

@@ -74,19 +74,21 @@ impl core::fmt::Display for IfocError {
     }
 }
 
-/// IFOC configuration (derived from the motor at construction).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct IfocConfig {
-    inv_lm: f32,
-    lm_h: f32,
-    slip_gain: f32,
-    inv_torque_factor: f32,
-    pole_pairs: f32,
-    /// `T/T_r`, the flux model's rate per fast step at the motor's rotor resistance.
-    flux_rate: f32,
-    psi_min_wb: f32,
-    i_max_a: f32,
-    ts_s: f32,
+crate::raw::raw_struct! {
+    /// IFOC configuration (derived from the motor at construction).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct IfocConfig {
+        inv_lm: f32,
+        lm_h: f32,
+        slip_gain: f32,
+        inv_torque_factor: f32,
+        pole_pairs: f32,
+        /// `T/T_r`, the flux model's rate per fast step at the motor's rotor resistance.
+        flux_rate: f32,
+        psi_min_wb: f32,
+        i_max_a: f32,
+        ts_s: f32,
+    }
 }
 
 /// The plan of the fast steps up to the next slow step ([`IfocConfig::plan`]): what the fast
@@ -574,38 +576,7 @@ impl IfocConfig {
     }
 }
 
-impl IfocConfig {
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
-        for x in [
-            self.inv_lm,
-            self.lm_h,
-            self.slip_gain,
-            self.inv_torque_factor,
-            self.pole_pairs,
-            self.flux_rate,
-            self.psi_min_wb,
-            self.i_max_a,
-            self.ts_s,
-        ] {
-            w.f(x);
-        }
-    }
-
-    #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
-        Self {
-            inv_lm: r.f(),
-            lm_h: r.f(),
-            slip_gain: r.f(),
-            inv_torque_factor: r.f(),
-            pole_pairs: r.f(),
-            flux_rate: r.f(),
-            psi_min_wb: r.f(),
-            i_max_a: r.f(),
-            ts_s: r.f(),
-        }
-    }
-}
+impl IfocConfig {}
 
 #[cfg(test)]
 mod tests {

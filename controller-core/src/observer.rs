@@ -144,6 +144,8 @@ pub struct ObserverConfig {
 /// The raw layout ([`crate::raw`]): the fields in their order of declaration, as one array
 /// (read in a loop: field by field, the reads took 0.45 KiB of the firmware's flash).
 impl crate::raw::Field for ObserverConfig {
+    const NF: usize = <[f32; 9] as crate::raw::Field>::NF;
+    const NU: usize = 0;
     fn put(&self, w: &mut crate::raw::Writer) {
         self.numbers().put(w);
     }

@@ -178,16 +178,21 @@ impl PiConfig<f32> {
             u_max,
         })
     }
+}
 
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
-        for x in [self.kp, self.ki_over_k, self.u_min, self.u_max] {
-            w.f(x);
-        }
+/// `k_p`, `K_i/K`, `u_min`, `u_max`.
+impl crate::raw::Field for PiConfig<f32> {
+    const NF: usize = <[f32; 4] as crate::raw::Field>::NF;
+    const NU: usize = 0;
+
+    fn put(&self, w: &mut crate::raw::Writer) {
+        [self.kp, self.ki_over_k, self.u_min, self.u_max].put(w);
     }
 
     #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
-        Self { kp: r.f(), ki_over_k: r.f(), u_min: r.f(), u_max: r.f() }
+    fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+        let [kp, ki_over_k, u_min, u_max] = <[f32; 4]>::get(r);
+        Self { kp, ki_over_k, u_min, u_max }
     }
 }
 

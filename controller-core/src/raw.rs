@@ -10,10 +10,10 @@
 //! same order; the round trip is tested (`drive` tests, and the firmware's against its drive
 //! file).
 
-/// Floats in a raw drive configuration.
-pub const FLOATS: usize = 121;
-/// Integers in a raw drive configuration.
-pub const INTEGERS: usize = 25;
+/// Floats in a raw drive configuration: counted from its declaration ([`Field::NF`]).
+pub const FLOATS: usize = <crate::drive::DriveConfig as Field>::NF;
+/// Integers in a raw drive configuration ([`Field::NU`]).
+pub const INTEGERS: usize = <crate::drive::DriveConfig as Field>::NU;
 
 /// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
 /// expression: what the firmware's build script writes.
@@ -113,6 +113,11 @@ impl<'a> Reader<'a> {
 /// is one: its fields in their order of declaration — the struct is the one source of its
 /// place on the raw wire.
 pub(crate) trait Field: Sized {
+    /// The floats `put` writes (a count the compiler sums: the raw arrays' sizes are the
+    /// configuration's, [`FLOATS`]).
+    const NF: usize;
+    /// The integers `put` writes ([`INTEGERS`]).
+    const NU: usize;
     /// Write the value's numbers.
     fn put(&self, w: &mut Writer);
     /// Read them back; a number that does not fit sets [`Reader::bad`] (the value is then a
@@ -124,6 +129,8 @@ pub(crate) trait Field: Sized {
 }
 
 impl Field for f32 {
+    const NF: usize = 1;
+    const NU: usize = 0;
     fn put(&self, w: &mut Writer) {
         w.f(*self);
     }
@@ -134,6 +141,8 @@ impl Field for f32 {
 }
 
 impl Field for u32 {
+    const NF: usize = 0;
+    const NU: usize = 1;
     fn put(&self, w: &mut Writer) {
         w.u(*self);
     }
@@ -145,6 +154,8 @@ impl Field for u32 {
 
 /// 0 or 1; anything else marks the configuration bad.
 impl Field for bool {
+    const NF: usize = 0;
+    const NU: usize = 1;
     fn put(&self, w: &mut Writer) {
         w.u(u32::from(*self));
     }
@@ -162,6 +173,8 @@ impl Field for bool {
 }
 
 impl Field for u16 {
+    const NF: usize = 0;
+    const NU: usize = 1;
     fn put(&self, w: &mut Writer) {
         w.u(u32::from(*self));
     }
@@ -176,6 +189,8 @@ impl Field for u16 {
 }
 
 impl<T: Field, const N: usize> Field for [T; N] {
+    const NF: usize = N * T::NF;
+    const NU: usize = N * T::NU;
     fn put(&self, w: &mut Writer) {
         for x in self {
             x.put(w);
@@ -203,6 +218,8 @@ macro_rules! raw_struct {
         }
 
         impl $crate::raw::Field for $name {
+            const NF: usize = 0 $(+ <$ty as $crate::raw::Field>::NF)*;
+            const NU: usize = 0 $(+ <$ty as $crate::raw::Field>::NU)*;
             fn put(&self, w: &mut $crate::raw::Writer) {
                 $($crate::raw::Field::put(&self.$field, w);)*
             }

@@ -233,11 +233,13 @@ impl SpeedControllerConfig {
     }
 }
 
-/// Position loop configuration: P with speed-reference saturation.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PositionConfig {
-    k_per_s: f32,
-    omega_max_rad_s: f32,
+crate::raw::raw_struct! {
+    /// Position loop configuration: P with speed-reference saturation.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct PositionConfig {
+        k_per_s: f32,
+        omega_max_rad_s: f32,
+    }
 }
 
 impl PositionConfig {
@@ -255,12 +257,17 @@ impl PositionConfig {
     }
 }
 
-impl SpeedControllerConfig {
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
+/// A tag (0: PI to torque, 1: PI to i_q, 2: saturated P) and six floats: the PI's and its
+/// prefilter's, or the P law's in the same slots.
+impl crate::raw::Field for SpeedControllerConfig {
+    const NF: usize = <PiConfig<f32> as crate::raw::Field>::NF + 2;
+    const NU: usize = 1;
+
+    fn put(&self, w: &mut crate::raw::Writer) {
         match &self.law {
             Law::Pi { pi, torque, prefilter } => {
                 w.u(if *torque { 0 } else { 1 });
-                pi.put(w);
+                crate::raw::Field::put(pi, w);
                 w.f(prefilter.weight);
                 w.f(prefilter.alpha);
             }
@@ -273,15 +280,14 @@ impl SpeedControllerConfig {
         }
     }
 
-    /// `None` for an unknown law tag.
-    /// The law from [`Self::put`]'s numbers; an unknown tag sets the reader's `bad` (the
+    /// The law from `put`'s numbers; an unknown tag sets the reader's `bad` (the
     /// configuration is refused).
     #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
+    fn get(r: &mut crate::raw::Reader<'_>) -> Self {
         let tag = r.u();
         // The same six slots: a PI's (kp, ki/K, u_min, u_max, b, α), or the P law's
         // (kp, τ_max, 0, 0, 1, 1).
-        let pi = PiConfig::get(r);
+        let pi = <PiConfig<f32> as crate::raw::Field>::get(r);
         let prefilter = Prefilter { weight: r.f(), alpha: r.f() };
         // A weight within [0, 1] and a lag that moves and does not overshoot, as `new` makes.
         if !((0.0..=1.0).contains(&prefilter.weight) && prefilter.alpha > 0.0 && prefilter.alpha <= 1.0) {
@@ -298,7 +304,9 @@ impl SpeedControllerConfig {
         };
         Self { law }
     }
+}
 
+impl SpeedControllerConfig {
     /// The saturated-P law (seed 002 eq. (21)) with new gains, checked in f32 (what the
     /// firmware's `WriteSpeedGains` does without the f64 design path). `None` for another
     /// law, or a gain that is negative or not finite (τ_max: not positive).
@@ -316,18 +324,6 @@ impl SpeedControllerConfig {
             Law::SaturatedP { kp, tau_max } => Some((kp, tau_max)),
             Law::Pi { .. } => None,
         }
-    }
-}
-
-impl PositionConfig {
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
-        w.f(self.k_per_s);
-        w.f(self.omega_max_rad_s);
-    }
-
-    #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
-        Self { k_per_s: r.f(), omega_max_rad_s: r.f() }
     }
 }
 

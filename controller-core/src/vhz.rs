@@ -138,6 +138,8 @@ pub struct VhzConfig {
 
 /// The raw layout ([`crate::raw`]): the fields in their order of declaration, as one array.
 impl crate::raw::Field for VhzConfig {
+    const NF: usize = <[f32; 14] as crate::raw::Field>::NF;
+    const NU: usize = 0;
     fn put(&self, w: &mut crate::raw::Writer) {
         self.numbers().put(w);
     }

@@ -13,10 +13,11 @@ use crate::mras::{MrasConfig, MrasError};
 use crate::observer::{CORRECTION_PER_SAMPLE_MAX, ObserverConfig, ObserverError};
 use crate::raw::{self, RawDriveConfig};
 use crate::speed::{PositionConfig, SpeedControllerConfig};
+use crate::supervisor::encoder::EncoderLimits;
 use crate::supervisor::limits::{BrakeLevels, Limits, abs_bits};
 use crate::supervisor::motion::MotionLimits;
 use crate::supervisor::motion::{FOLLOWING_PROGRESS_FRACTION, STALL_SPEED_FRACTION};
-use crate::supervisor::phases::{OPEN_PHASE_COMMANDED_FRACTION, SWITCH_FOLLOWING_WINDOWS, SWITCH_WINDOWS};
+use crate::supervisor::phases::PhaseLimits;
 use crate::supervisor::rest::RestLimits;
 use crate::supervisor::thermal::ThermalConfig;
 use crate::svpwm;
@@ -54,13 +55,6 @@ crate::raw::raw_struct! {
         /// compensation added after it (1: no sampling window): also the fraction of the
         /// measured bus the loops, the envelope and the checks count on.
         pub(super) duty_max: f32,
-        /// The open-phase check's commanded level, A, for the stuck-switch check
-        /// ([`OPEN_PHASE_COMMANDED_FRACTION`] × `i_d_rated_a`: derived in the slow step instead,
-        /// the firmware took 196 B more flash).
-        pub(super) switch_level_a: f32,
-        /// The stuck-switch check's weights of a new sample, 1 − exp(−T_slow/τ) with τ
-        /// [`SWITCH_WINDOWS`] and [`SWITCH_FOLLOWING_WINDOWS`] open-phase windows.
-        pub(super) switch_gains: [f32; 2],
         /// Half-width of the dead-time compensation's ramp around zero current, A.
         pub(super) dead_time_band_a: f32,
         /// Bus voltage at which the regeneration limit starts ([`REGEN_LIMIT_START`]), V.
@@ -89,8 +83,6 @@ crate::raw::raw_struct! {
         pub(super) motion: MotionLimits,
         /// The brake chopper's levels (`f32::MAX` without a chopper: never on).
         pub(super) brake: BrakeLevels,
-        /// Largest plausible change of the encoder's per-read increment, mechanical rad.
-        pub(super) encoder_jump_rad: f32,
         /// Thermal models: 1/I_rated² (per A² of |i_αβ|²/2, the RMS phase current squared), the
         /// update gain `1 − e^(−N·T_slow/τ)` and the trip level `overload_factor²` (`f32::MAX`
         /// without a limit) — motor, then inverter.
@@ -98,8 +90,8 @@ crate::raw::raw_struct! {
         pub(super) inverter_thermal: ThermalConfig,
         /// Fast steps with the voltage request outside the hexagon before the trip.
         pub(super) saturation_steps: u32,
-        /// Slow periods of implausible encoder before the trip.
-        pub(super) encoder_check_steps: u32,
+        /// The encoder's checks ([`crate::supervisor::encoder`]).
+        pub(super) encoder: EncoderLimits,
         /// Sensorless: the flying start's search, slow steps at the start of magnetizing
         /// (one `T_r`, at least [`SEARCH_WINDOWS_MIN`] windows; 0 with an encoder) and the
         /// slow steps of its window (the most that keep the field's turn per window within
@@ -108,9 +100,8 @@ crate::raw::raw_struct! {
         pub(super) search_span: u32,
         /// Slow steps a controlled stop may take before the bridge goes off anyway.
         pub(super) stop_slow_steps: u32,
-        /// Slow steps of the open-phase check's window (it samples the currents once per slow
-        /// period, with the stuck-switch check).
-        pub(super) open_phase_slow_steps: u32,
+        /// The open-phase and stuck-switch checks ([`crate::supervisor::phases`]).
+        pub(super) phases: PhaseLimits,
         /// The faults answered by a controlled stop.
         pub(super) stop_on: FaultSet,
         /// The rotor at rest ([`crate::supervisor::rest`]).
@@ -129,30 +120,9 @@ crate::raw::raw_struct! {
     }
 }
 
-/// The laws' configurations on the raw wire: their own layouts (`put`, `get`).
-macro_rules! law_fields {
-    ($($ty:ty),*) => {$(
-        impl raw::Field for $ty {
-            fn put(&self, w: &mut raw::Writer) {
-                <$ty>::put(self, w);
-            }
-            #[inline(always)]
-            fn get(r: &mut raw::Reader<'_>) -> Self {
-                <$ty>::get(r)
-            }
-        }
-    )*};
-}
-law_fields!(
-    CurrentControllerConfig<f32>,
-    IfocConfig,
-    MrasConfig,
-    SpeedControllerConfig,
-    PositionConfig,
-    EnvelopeConfig
-);
-
 impl raw::Field for CurrentFrame {
+    const NF: usize = 0;
+    const NU: usize = 1;
     fn put(&self, w: &mut raw::Writer) {
         w.u(match self {
             CurrentFrame::Stationary => 0,
@@ -184,6 +154,8 @@ pub(super) enum ControlLaw {
 /// A tag (0: vector control, 1: V/Hz) and the V/Hz law's numbers (zeros without one: a
 /// fixed layout).
 impl raw::Field for ControlLaw {
+    const NF: usize = <VhzConfig as raw::Field>::NF;
+    const NU: usize = 1 + <VhzConfig as raw::Field>::NU;
     fn put(&self, w: &mut raw::Writer) {
         let (tag, cfg) = match self {
             ControlLaw::Vector => (0, VhzConfig::default()),
@@ -248,6 +220,8 @@ impl SpeedSource {
 /// A tag (0: the encoder, 1: the observer, 2: the encoder with the observer beside it) and
 /// the observer's numbers (zeros without one: a fixed layout).
 impl raw::Field for SpeedSource {
+    const NF: usize = <ObserverConfig as raw::Field>::NF;
+    const NU: usize = 1 + <ObserverConfig as raw::Field>::NU;
     fn put(&self, w: &mut raw::Writer) {
         w.u(match self {
             SpeedSource::Encoder => 0,
@@ -273,6 +247,8 @@ impl raw::Field for SpeedSource {
 }
 
 impl raw::Field for FaultSet {
+    const NF: usize = 0;
+    const NU: usize = 1;
     fn put(&self, w: &mut raw::Writer) {
         w.u(self.0);
     }
@@ -505,8 +481,12 @@ impl DriveConfig {
                 speed_limit: speed.output_limit(),
             },
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
-            encoder_check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
-                .clamp(1.0, 4e9) as u32,
+            encoder: EncoderLimits {
+                // Finite in f32 too.
+                jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
+                check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
+                    .clamp(1.0, 4e9) as u32,
+            },
             search_span,
             search_slow_steps: match spec.speed_feedback {
                 SpeedFeedback::Sensorless => libm::ceil(spec.motor.tr_s() / t_slow)
@@ -514,8 +494,6 @@ impl DriveConfig {
                     .min(4e9) as u32,
                 SpeedFeedback::Encoder | SpeedFeedback::EncoderRideThrough => 0,
             },
-            // Finite in f32 too.
-            encoder_jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
             motor_thermal: ThermalConfig::new(p.motor_thermal.as_ref(), t_slow)
                 .ok_or(DriveError::Protection { field: "protection.motor_thermal", need: THERMAL_NEED })?,
             inverter_thermal: ThermalConfig::new(p.inverter_thermal.as_ref(), t_slow)
@@ -531,11 +509,7 @@ impl DriveConfig {
             },
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
-            open_phase_slow_steps: open_phase_steps.div_ceil(u32::from(spec.slow_divider)),
-            switch_level_a: OPEN_PHASE_COMMANDED_FRACTION * i_d_rated_a,
-            switch_gains: [SWITCH_WINDOWS, SWITCH_FOLLOWING_WINDOWS].map(|windows| {
-                (1.0 - libm::exp(-f64::from(spec.slow_divider) / (windows * open_phase_steps as f64))) as f32
-            }),
+            phases: PhaseLimits::new(open_phase_steps, spec.slow_divider, i_d_rated_a),
             brake: BrakeLevels { on_v: brake_on_v, off_v: brake_off_v },
             rest: RestLimits::new(p.rest_time_s, t_slow, spec.motor.pole_pairs(), spec.motor.tr_s()),
             source: {
@@ -604,9 +578,9 @@ impl DriveConfig {
             cfg.motion.stall_slow_steps,
             cfg.motion.following_slow_steps,
             cfg.saturation_steps,
-            cfg.encoder_check_steps,
+            cfg.encoder.check_steps,
             cfg.stop_slow_steps,
-            cfg.open_phase_slow_steps,
+            cfg.phases.open_phase_slow_steps,
             cfg.rest.window_slow_steps,
         ];
         // The bus range as `new` makes it, +0 for a zero minimum (the fast step's supervisor

@@ -450,7 +450,7 @@ impl SlowState {
         // jump of the estimate is the machine's fault, which its own checks name — an open
         // phase read as `EncoderLoss` in the fault matrix otherwise).
         let judge = !matches!(self.mode, Mode::Fault(_)) && !self.on_observer(cfg);
-        let (step, jumped) = self.machine.encoder.read(theta_m_rad, cfg.encoder_jump_rad, judge);
+        let (step, jumped) = self.machine.encoder.read(theta_m_rad, cfg.encoder.jump_rad, judge);
         if jumped {
             self.encoder_fault(cfg, Fault::EncoderLoss);
         }
@@ -812,7 +812,7 @@ impl SlowState {
         let window = self.run.open_phase.add(
             i_track_abc,
             i_abc_a,
-            cfg.open_phase_slow_steps,
+            cfg.phases.open_phase_slow_steps,
             // The motor file's magnetizing current, as the window's level: a saturated
             // machine's (×1/ℓ̂) is larger, so its phases would pass the level sooner.
             cfg.i_d_rated_a,
@@ -826,7 +826,12 @@ impl SlowState {
         // follows; V/Hz has none.
         let fault = window.or_else(|| {
             if running && !self.run.flux_forced && !unreferenced {
-                self.run.switches.add([i_ref_abc, i_track_abc], i_abc_a, cfg.switch_level_a, cfg.switch_gains)
+                self.run.switches.add(
+                    [i_ref_abc, i_track_abc],
+                    i_abc_a,
+                    cfg.phases.switch_level_a,
+                    cfg.phases.switch_gains,
+                )
             } else {
                 None
             }
@@ -941,7 +946,7 @@ impl SlowState {
         // Consecutive implausible checks (a leaky count accumulated the detuned corner's
         // transients into a false trip).
         if residual > ENCODER_RESIDUAL_FRACTION * v_limit {
-            let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.encoder_check_steps as f32;
+            let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.encoder.check_steps as f32;
             let turning = w_e.abs() * window_s > PINNED_FIELD_TURN_RAD;
             let switches = &self.run.switches;
             // The vector the applied voltage departs from the model's by: a leg held at a
@@ -950,7 +955,7 @@ impl SlowState {
             let verdict = self
                 .run
                 .voltage_check
-                .implausible(departure, cfg.encoder_check_steps, || switches.undriven(turning));
+                .implausible(departure, cfg.encoder.check_steps, || switches.undriven(turning));
             match verdict {
                 // On the observer, the speed is its estimate, which the voltage model fixes: a
                 // departure that no phase explains names no encoder — nothing to trip on.

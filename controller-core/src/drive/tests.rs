@@ -404,9 +404,9 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
         let mut d = drive();
         let mut r = running_drive();
         // Already running: the jump from its readings at rest is not this test's.
-        r.cfg.encoder_jump_rad = f32::MAX;
+        r.cfg.encoder.jump_rad = f32::MAX;
         // Slow steps alone, no current: the open-phase check's window never closes.
-        r.cfg.open_phase_slow_steps = u32::MAX;
+        r.cfg.phases.open_phase_slow_steps = u32::MAX;
         let mut first = 0.0;
         for k in 0..40 {
             d.slow_step(&wrapped(start + f64::from(k) * step));

@@ -25,6 +25,38 @@ fn decode_all(bytes: &[u8]) -> (Vec<Command>, LinkStats) {
     (got, stats)
 }
 
+/// A refusal's byte is a wire contract (a host's decoder, the board's replies): pinned, and
+/// every byte beyond them refused.
+#[test]
+fn nack_codes_are_the_wire_contract() {
+    use super::schema::NackReason as N;
+    let golden = [
+        (N::Faulted, 0),
+        (N::NonFinite, 1),
+        (N::Configuration, 2),
+        (N::NotIdle, 3),
+        (N::Unsupported, 4),
+        (N::NotConfigured, 5),
+        (N::OutOfCertifiedRange, 6),
+        (N::NoRecord, 7),
+        (N::NotAtRest, 8),
+        (N::NoEncoder, 9),
+        (N::SpeedOnly, 10),
+    ];
+    assert_eq!(golden.map(|(r, _)| r), N::ALL);
+    for (r, code) in golden {
+        assert_eq!((r.code(), N::from_code(code)), (code, Some(r)), "{r:?}");
+        let mut buf = [0u8; 8];
+        let n = Reply::Nack(r).encode(&mut buf).unwrap();
+        assert_eq!(buf.get(..n), Some(&[tag::NACK, code][..]), "{r:?}");
+        assert_eq!(Reply::decode(&buf[..n]), Ok(Reply::Nack(r)));
+    }
+    for code in 11..=u8::MAX {
+        assert_eq!(N::from_code(code), None);
+        assert!(Reply::decode(&[tag::NACK, code]).is_err(), "{code}");
+    }
+}
+
 #[test]
 fn crc_check_value() {
     assert_eq!(crc16(b"123456789"), 0x29B1);

@@ -168,37 +168,39 @@ pub enum MrasError {
     Rate,
 }
 
-/// The adaptation's constants (from the motor, the periods and the ranges).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MrasConfig {
-    /// `T_slow/(LAW_TIME_CONSTANTS·T_r)`: the update's gain.
-    gain: f32,
-    /// The range of `r̂`, × the motor's R_r.
-    min: f32,
-    max: f32,
-    /// The range of `ℓ̂`, × the motor's inductances.
-    l_min: f32,
-    l_max: f32,
-    /// The magnetizing fit: slow steps skipped, slow steps per window, and
-    /// `T_r,motor/W` (`r̂/ℓ̂ = (T_r/W)·ln((S₀ − S₁)/(S₁ − S₂))`).
-    fit_skip_steps: u32,
-    fit_window_steps: u32,
-    tr_over_window: f32,
-    /// Fast steps per slow step, and `T_fast/L_s` (the flux linkage's volt-seconds, summed
-    /// per fast step, over the motor's stator inductance), s/H.
-    slow_divider: f32,
-    t_fast_over_ls: f32,
-    /// Idle slow steps after which the rotor counts as demagnetized
-    /// ([`DEMAGNETIZED_TIME_CONSTANTS`]).
-    demagnetized_steps: u32,
-    /// A saturating motor's flux samples: slow steps apart ([`FIT_FLUX_SAMPLES`]), the
-    /// fast period (Wb per volt-step), the leakages and the rotor resistance of the motor
-    /// file ([`Self::rotor_resistance_on_curve`]).
-    fit_sample_steps: u32,
-    t_fast_s: f32,
-    l_ls_h: f32,
-    l_lr_h: f32,
-    rr_ohm: f32,
+crate::raw::raw_struct! {
+    /// The adaptation's constants (from the motor, the periods and the ranges).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub struct MrasConfig {
+        /// `T_slow/(LAW_TIME_CONSTANTS·T_r)`: the update's gain.
+        gain: f32,
+        /// The range of `r̂`, × the motor's R_r.
+        min: f32,
+        max: f32,
+        /// The range of `ℓ̂`, × the motor's inductances.
+        l_min: f32,
+        l_max: f32,
+        /// The magnetizing fit: slow steps skipped, slow steps per window, and
+        /// `T_r,motor/W` (`r̂/ℓ̂ = (T_r/W)·ln((S₀ − S₁)/(S₁ − S₂))`).
+        fit_skip_steps: u32,
+        fit_window_steps: u32,
+        tr_over_window: f32,
+        /// Fast steps per slow step, and `T_fast/L_s` (the flux linkage's volt-seconds, summed
+        /// per fast step, over the motor's stator inductance), s/H.
+        slow_divider: f32,
+        t_fast_over_ls: f32,
+        /// Idle slow steps after which the rotor counts as demagnetized
+        /// ([`DEMAGNETIZED_TIME_CONSTANTS`]).
+        demagnetized_steps: u32,
+        /// A saturating motor's flux samples: slow steps apart ([`FIT_FLUX_SAMPLES`]), the
+        /// fast period (Wb per volt-step), the leakages and the rotor resistance of the motor
+        /// file ([`Self::rotor_resistance_on_curve`]).
+        fit_sample_steps: u32,
+        t_fast_s: f32,
+        l_ls_h: f32,
+        l_lr_h: f32,
+        rr_ohm: f32,
+    }
 }
 
 /// What one slow period shows the online law ([`MrasConfig::update`]).
@@ -380,51 +382,6 @@ impl MrasConfig {
         let (q, q_model) = evidence.reactive_powers(model);
         let next = l * (1.0 + self.gain * (q - q_model) / q_model);
         if next.is_finite() { next.limit(self.l_min, self.l_max) } else { l }
-    }
-
-    pub(crate) fn put(&self, w: &mut crate::raw::Writer) {
-        for x in [
-            self.gain,
-            self.min,
-            self.max,
-            self.l_min,
-            self.l_max,
-            self.tr_over_window,
-            self.slow_divider,
-            self.t_fast_over_ls,
-            self.t_fast_s,
-            self.l_ls_h,
-            self.l_lr_h,
-            self.rr_ohm,
-        ] {
-            w.f(x);
-        }
-        w.u(self.fit_skip_steps);
-        w.u(self.fit_window_steps);
-        w.u(self.demagnetized_steps);
-        w.u(self.fit_sample_steps);
-    }
-
-    #[inline(always)]
-    pub(crate) fn get(r: &mut crate::raw::Reader<'_>) -> Self {
-        Self {
-            gain: r.f(),
-            min: r.f(),
-            max: r.f(),
-            l_min: r.f(),
-            l_max: r.f(),
-            tr_over_window: r.f(),
-            slow_divider: r.f(),
-            t_fast_over_ls: r.f(),
-            t_fast_s: r.f(),
-            l_ls_h: r.f(),
-            l_lr_h: r.f(),
-            rr_ohm: r.f(),
-            fit_skip_steps: r.u(),
-            fit_window_steps: r.u(),
-            demagnetized_steps: r.u(),
-            fit_sample_steps: r.u(),
-        }
     }
 }
 

@@ -47,6 +47,18 @@ pub(crate) fn pinned_axis(v: AlphaBeta) -> Option<u8> {
     [p.a, p.b, p.c, -p.a, -p.b, -p.c].iter().position(|&x| x >= on).and_then(|k| u8::try_from(k).ok())
 }
 
+crate::raw::raw_struct! {
+    /// The encoder checks' levels (the drive configuration's).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub(crate) struct EncoderLimits {
+        /// Largest plausible change of the encoder's per-read increment, mechanical rad
+        /// ([`EncoderTrack::read`]).
+        pub(crate) jump_rad: f32,
+        /// Slow periods of implausible encoder before the trip ([`VoltageCheck::implausible`]).
+        pub(crate) check_steps: u32,
+    }
+}
+
 /// The encoder's readings as the slow step takes them: the last angle, the whole turns
 /// counted and the last change. The shaft's, so they carry on through every mode, an enable
 /// and a reconfiguration (a turn made while the bridge is off is still a turn).

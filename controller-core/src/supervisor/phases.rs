@@ -84,6 +84,37 @@ pub const SWITCH_FOLLOWING_WINDOWS: f64 = 4.0;
 /// 0.24 A.
 pub const CURRENT_SUM_MEAN_FRACTION: f32 = 0.25;
 
+crate::raw::raw_struct! {
+    /// The phase checks' levels, as the slow step uses them (the drive configuration's).
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    pub(crate) struct PhaseLimits {
+        /// The open-phase check's commanded level, A, for the stuck-switch check
+        /// ([`OPEN_PHASE_COMMANDED_FRACTION`] × the rated flux's d-axis current: derived in the
+        /// slow step instead, the firmware took 196 B more flash).
+        pub(crate) switch_level_a: f32,
+        /// The stuck-switch check's weights of a new sample, 1 − exp(−T_slow/τ) with τ
+        /// [`SWITCH_WINDOWS`] and [`SWITCH_FOLLOWING_WINDOWS`] open-phase windows.
+        pub(crate) switch_gains: [f32; 2],
+        /// Slow steps of the open-phase check's window (it samples the currents once per slow
+        /// period, with the stuck-switch check).
+        pub(crate) open_phase_slow_steps: u32,
+    }
+}
+
+impl PhaseLimits {
+    /// The levels for an open-phase window of `open_phase_steps` fast steps, a slow step every
+    /// `slow_divider` of them, and the rated flux's d-axis current `i_d_rated_a`.
+    pub(crate) fn new(open_phase_steps: u32, slow_divider: u16, i_d_rated_a: f32) -> Self {
+        let n = f64::from(slow_divider);
+        Self {
+            switch_level_a: OPEN_PHASE_COMMANDED_FRACTION * i_d_rated_a,
+            switch_gains: [SWITCH_WINDOWS, SWITCH_FOLLOWING_WINDOWS]
+                .map(|windows| (1.0 - libm::exp(-n / (windows * f64::from(open_phase_steps)))) as f32),
+            open_phase_slow_steps: open_phase_steps.div_ceil(u32::from(slow_divider)),
+        }
+    }
+}
+
 /// The open-phase check's window ([`Protection::open_phase_time_s`]).
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct OpenPhaseWindow {

@@ -163,19 +163,7 @@ impl Reply {
             Reply::Ack => w.u8(tag::ACK)?,
             Reply::Nack(r) => {
                 w.u8(tag::NACK)?;
-                w.u8(match r {
-                    NackReason::Faulted => 0,
-                    NackReason::NonFinite => 1,
-                    NackReason::Configuration => 2,
-                    NackReason::NotIdle => 3,
-                    NackReason::Unsupported => 4,
-                    NackReason::NotConfigured => 5,
-                    NackReason::OutOfCertifiedRange => 6,
-                    NackReason::NoRecord => 7,
-                    NackReason::NotAtRest => 8,
-                    NackReason::NoEncoder => 9,
-                    NackReason::SpeedOnly => 10,
-                })?;
+                w.u8(r.code())?;
             }
             Reply::Output(o, t) => {
                 w.u8(tag::OUTPUT)?;
@@ -250,20 +238,7 @@ impl Reply {
         let mut r = Reader { rest };
         let reply = match t {
             tag::ACK => Reply::Ack,
-            tag::NACK => Reply::Nack(match r.u8()? {
-                0 => NackReason::Faulted,
-                1 => NackReason::NonFinite,
-                2 => NackReason::Configuration,
-                3 => NackReason::NotIdle,
-                4 => NackReason::Unsupported,
-                5 => NackReason::NotConfigured,
-                6 => NackReason::OutOfCertifiedRange,
-                7 => NackReason::NoRecord,
-                8 => NackReason::NotAtRest,
-                9 => NackReason::NoEncoder,
-                10 => NackReason::SpeedOnly,
-                _ => return Err(DecodeError::Value),
-            }),
+            tag::NACK => Reply::Nack(NackReason::from_code(r.u8()?).ok_or(DecodeError::Value)?),
             tag::OUTPUT => {
                 let mode = Mode::from_code(r.u8()?).ok_or(DecodeError::Value)?;
                 let brake = match r.u8()? {

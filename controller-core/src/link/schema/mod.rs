@@ -198,32 +198,63 @@ pub const RECORD_CHUNK_BYTES: usize = 128;
 /// `CommissionRecord` replies that carry a whole record.
 pub const RECORD_CHUNKS: u8 = RECORD_BYTES.div_ceil(RECORD_CHUNK_BYTES) as u8;
 
-/// Why a command was refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum NackReason {
+/// Declares the refusals once, each with its byte on the wire: the [`NackReason`] enum,
+/// [`NackReason::code`] and [`NackReason::from_code`]. A new reason is one line with the next
+/// free byte; none moves (the golden test `nack_codes_are_the_wire_contract` pins them).
+macro_rules! nack_reasons {
+    ($($(#[$doc:meta])* $name:ident = $code:literal,)*) => {
+        /// Why a command was refused.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+        pub enum NackReason {
+            $($(#[$doc])* $name,)*
+        }
+
+        impl NackReason {
+            /// Every reason, in the order declared.
+            pub const ALL: [NackReason; [$($code),*].len()] = [$(NackReason::$name),*];
+
+            /// The reason's byte on the wire.
+            pub const fn code(self) -> u8 {
+                match self {
+                    $(NackReason::$name => $code,)*
+                }
+            }
+
+            /// The reason of a byte (`None`: no such reason).
+            pub const fn from_code(c: u8) -> Option<NackReason> {
+                match c {
+                    $($code => Some(NackReason::$name),)*
+                    _ => None,
+                }
+            }
+        }
+    };
+}
+
+nack_reasons! {
     /// A fault is latched.
-    Faulted,
+    Faulted = 0,
     /// A value was not finite.
-    NonFinite,
+    NonFinite = 1,
     /// The drive specification was rejected by `DriveConfig::new`.
-    Configuration,
+    Configuration = 2,
     /// The command needs the drive Idle.
-    NotIdle,
+    NotIdle = 3,
     /// The command is not supported by this endpoint.
-    Unsupported,
+    Unsupported = 4,
     /// No drive configuration yet: send `Configure` first.
-    NotConfigured,
+    NotConfigured = 5,
     /// A gain outside the certified range.
-    OutOfCertifiedRange,
+    OutOfCertifiedRange = 6,
     /// No finished commissioning record (or no such part of it).
-    NoRecord,
+    NoRecord = 7,
     /// The rotor turns: commissioning's standstill tests need it at rest
     /// (`Drive::rotor_at_rest`).
-    NotAtRest,
+    NotAtRest = 8,
     /// A position reference to a drive without an encoder (`speed_feedback = "sensorless"`).
-    NoEncoder,
+    NoEncoder = 9,
     /// A torque or position reference to a V/Hz drive, which takes a speed reference only.
-    SpeedOnly,
+    SpeedOnly = 10,
 }
 
 /// Drive → host.
