@@ -10,37 +10,24 @@
 //! same order; the round trip is tested (`drive` tests, and the firmware's against its drive
 //! file).
 
-/// Floats in a raw drive configuration: counted from its declaration ([`Field::NF`]).
-pub const FLOATS: usize = <crate::drive::DriveConfig as Field>::NF;
-/// Integers in a raw drive configuration ([`Field::NU`]).
-pub const INTEGERS: usize = <crate::drive::DriveConfig as Field>::NU;
-
-/// A drive configuration as numbers (see the module docs). Its `Debug` form is a Rust
-/// expression: what the firmware's build script writes.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RawDriveConfig {
-    /// The f32 fields, in writing order.
-    pub f: [f32; FLOATS],
-    /// The integer fields (counts, bit patterns, variant tags), in writing order.
-    pub u: [u32; INTEGERS],
-}
-
-/// Writes fields in order.
-pub(crate) struct Writer {
-    raw: RawDriveConfig,
+/// Writes fields in order into a configuration's numbers (the drive's raw form,
+/// [`crate::drive::RawDriveConfig`], owns the arrays).
+pub(crate) struct Writer<'a> {
+    f: &'a mut [f32],
+    u: &'a mut [u32],
     nf: usize,
     nu: usize,
-    /// A field did not fit (a size constant is too small): caught by the tests.
+    /// A field did not fit (the arrays are too small): caught by the tests.
     pub(crate) overflow: bool,
 }
 
-impl Writer {
-    pub(crate) fn new() -> Self {
-        Self { raw: RawDriveConfig { f: [0.0; FLOATS], u: [0; INTEGERS] }, nf: 0, nu: 0, overflow: false }
+impl<'a> Writer<'a> {
+    pub(crate) fn new(f: &'a mut [f32], u: &'a mut [u32]) -> Self {
+        Self { f, u, nf: 0, nu: 0, overflow: false }
     }
 
     pub(crate) fn f(&mut self, x: f32) {
-        match self.raw.f.get_mut(self.nf) {
+        match self.f.get_mut(self.nf) {
             Some(slot) => *slot = x,
             None => self.overflow = true,
         }
@@ -48,23 +35,24 @@ impl Writer {
     }
 
     pub(crate) fn u(&mut self, x: u32) {
-        match self.raw.u.get_mut(self.nu) {
+        match self.u.get_mut(self.nu) {
             Some(slot) => *slot = x,
             None => self.overflow = true,
         }
         self.nu += 1;
     }
 
-    /// The numbers, and how many of each were written.
-    pub(crate) fn finish(self) -> (RawDriveConfig, usize, usize) {
-        (self.raw, self.nf, self.nu)
+    /// How many floats and integers were written.
+    pub(crate) fn counts(&self) -> (usize, usize) {
+        (self.nf, self.nu)
     }
 }
 
 /// Reads fields in the order they were written. Reading beyond the end gives zeros (and
 /// sets `overrun`), never a panic.
 pub(crate) struct Reader<'a> {
-    raw: &'a RawDriveConfig,
+    f: &'a [f32],
+    u: &'a [u32],
     nf: usize,
     nu: usize,
     /// A read went beyond the end, or an integer did not fit its field (a float's finiteness:
@@ -73,8 +61,8 @@ pub(crate) struct Reader<'a> {
 }
 
 impl<'a> Reader<'a> {
-    pub(crate) fn new(raw: &'a RawDriveConfig) -> Self {
-        Self { raw, nf: 0, nu: 0, bad: false }
+    pub(crate) fn new(f: &'a [f32], u: &'a [u32]) -> Self {
+        Self { f, u, nf: 0, nu: 0, bad: false }
     }
 
     /// The next float (0 beyond the end: `bad`). Not checked here: [`Reader::ok`] checks
@@ -83,7 +71,7 @@ impl<'a> Reader<'a> {
     /// read the configuration through ≈ 100 calls and kept each value on the stack.
     #[inline(always)]
     pub(crate) fn f(&mut self) -> f32 {
-        let x = self.raw.f.get(self.nf).copied();
+        let x = self.f.get(self.nf).copied();
         self.nf += 1;
         x.unwrap_or_else(|| {
             self.bad = true;
@@ -94,7 +82,7 @@ impl<'a> Reader<'a> {
     /// The next integer (0 beyond the end: `bad`), inlined as [`Reader::f`].
     #[inline(always)]
     pub(crate) fn u(&mut self) -> u32 {
-        let x = self.raw.u.get(self.nu).copied();
+        let x = self.u.get(self.nu).copied();
         self.nu += 1;
         x.unwrap_or_else(|| {
             self.bad = true;
@@ -104,7 +92,7 @@ impl<'a> Reader<'a> {
 
     /// Every read was in range, every integer fitted, and every float read is finite.
     pub(crate) fn ok(&self) -> bool {
-        !self.bad && self.raw.f.get(..self.nf).is_some_and(|f| f.iter().all(|x| x.is_finite()))
+        !self.bad && self.f.get(..self.nf).is_some_and(|f| f.iter().all(|x| x.is_finite()))
     }
 }
 
@@ -114,9 +102,9 @@ impl<'a> Reader<'a> {
 /// place on the raw wire.
 pub(crate) trait Field: Sized {
     /// The floats `put` writes (a count the compiler sums: the raw arrays' sizes are the
-    /// configuration's, [`FLOATS`]).
+    /// configuration's, [`crate::drive::FLOATS`]).
     const NF: usize;
-    /// The integers `put` writes ([`INTEGERS`]).
+    /// The integers `put` writes ([`crate::drive::INTEGERS`]).
     const NU: usize;
     /// Write the value's numbers.
     fn put(&self, w: &mut Writer);

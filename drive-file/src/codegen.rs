@@ -164,8 +164,8 @@ pub fn firmware_rs(file: &DriveFile, origin: &str) -> Result<String, String> {
         "\n/// The discretised drive configuration of `drive_spec()`, built at compile time on the\n\
          /// host (`DriveConfig::new`, then `to_raw`): the firmware checks and copies it\n\
          /// (`DriveConfig::from_raw`) and runs no design arithmetic.\n\
-         pub const DRIVE_CONFIG: controller_core::raw::RawDriveConfig = \
-         controller_core::raw::RawDriveConfig {{ f: {:?}, u: {:?} }};\n",
+         pub const DRIVE_CONFIG: controller_core::drive::RawDriveConfig = \
+         controller_core::drive::RawDriveConfig {{ f: {:?}, u: {:?} }};\n",
         raw.f, raw.u
     );
     let filter =

@@ -37,13 +37,13 @@ use controller_core::calibration::{
 use controller_core::capture::Capture;
 #[cfg(feature = "commissioning")]
 use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
+use controller_core::drive::RawDriveConfig;
 use controller_core::drive::{
     Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand, Telemetry,
 };
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
 use controller_core::link::BoardReadings;
-use controller_core::raw::RawDriveConfig;
 use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling, ScalingError};
 use core::mem::MaybeUninit;
 

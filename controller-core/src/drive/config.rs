@@ -11,7 +11,7 @@ use crate::ifoc::IfocConfig;
 use crate::magnetics::MagnetizingChord;
 use crate::mras::{MrasConfig, MrasError};
 use crate::observer::{CORRECTION_PER_SAMPLE_MAX, ObserverConfig, ObserverError};
-use crate::raw::{self, RawDriveConfig};
+use crate::raw;
 use crate::speed::{PositionConfig, SpeedControllerConfig};
 use crate::supervisor::encoder::EncoderLimits;
 use crate::supervisor::limits::{BrakeLevels, Limits, abs_bits};
@@ -551,17 +551,37 @@ impl DriveConfig {
     }
 }
 
+/// Floats in a raw drive configuration: the compiler's count of [`DriveConfig`]'s
+/// ([`raw::Field::NF`], summed over its declaration).
+pub const FLOATS: usize = <DriveConfig as raw::Field>::NF;
+/// Integers in a raw drive configuration ([`raw::Field::NU`]).
+pub const INTEGERS: usize = <DriveConfig as raw::Field>::NU;
+
+/// A drive configuration as numbers ([`crate::raw`]). Its `Debug` form is a Rust
+/// expression: what the firmware's build script writes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RawDriveConfig {
+    /// The f32 fields, in writing order.
+    pub f: [f32; FLOATS],
+    /// The integer fields (counts, bit patterns, variant tags), in writing order.
+    pub u: [u32; INTEGERS],
+}
+
 impl DriveConfig {
     /// The configuration as plain numbers ([`crate::raw`]): what a host computes and the
     /// firmware embeds.
     pub fn to_raw(&self) -> RawDriveConfig {
-        self.write_raw().finish().0
+        self.write_raw().0
     }
 
-    pub(super) fn write_raw(&self) -> raw::Writer {
-        let mut w = raw::Writer::new();
+    /// [`Self::to_raw`], with the numbers written — floats, integers — and whether a field
+    /// did not fit (the tests' check that the arrays are exactly full).
+    pub(super) fn write_raw(&self) -> (RawDriveConfig, (usize, usize), bool) {
+        let mut raw = RawDriveConfig { f: [0.0; FLOATS], u: [0; INTEGERS] };
+        let mut w = raw::Writer::new(&mut raw.f, &mut raw.u);
         raw::Field::put(self, &mut w);
-        w
+        let (counts, overflow) = (w.counts(), w.overflow);
+        (raw, counts, overflow)
     }
 
     /// The configuration from [`DriveConfig::to_raw`]'s numbers, checked without any design
@@ -570,7 +590,7 @@ impl DriveConfig {
     /// configuration valid, the controlled stop's faults stoppable. [`DriveError::Raw`]
     /// otherwise.
     pub fn from_raw(raw: &RawDriveConfig) -> Result<Self, DriveError> {
-        let mut r = raw::Reader::new(raw);
+        let mut r = raw::Reader::new(&raw.f, &raw.u);
         let cfg = <Self as raw::Field>::get(&mut r);
         let counts = [
             u32::from(cfg.slow_divider),

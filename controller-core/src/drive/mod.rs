@@ -75,8 +75,8 @@ pub use crate::supervisor::phases::{
 pub use crate::supervisor::thermal::THERMAL_UPDATE_SLOW_STEPS;
 pub use crate::supervisor::{BrakeChopper, Protection, ThermalLimit};
 pub use config::{
-    DriveConfig, SEARCH_RESOLVED_TURN_RAD, SEARCH_TURN_MAX_RAD, SEARCH_WINDOWS_MIN,
-    observer_speed_bandwidth_rad_s,
+    DriveConfig, FLOATS, INTEGERS, RawDriveConfig, SEARCH_RESOLVED_TURN_RAD, SEARCH_TURN_MAX_RAD,
+    SEARCH_WINDOWS_MIN, observer_speed_bandwidth_rad_s,
 };
 pub use spec::*;
 

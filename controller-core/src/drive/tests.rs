@@ -3,7 +3,6 @@ use crate::current::CurrentLaw;
 use crate::discretize::Discretization;
 use crate::frames::{Abc, wrap_angle};
 use crate::motor::MotorParams;
-use crate::raw;
 use crate::speed::{SpeedError, SpeedLaw};
 use crate::supervisor::encoder::pinned_axis;
 use crate::supervisor::phases::SwitchWatch;
@@ -243,10 +242,9 @@ fn raw_configuration_round_trips() {
                     DriveSpec { current_frame: frame, speed_law, current_law, speed_feedback, ..test_spec() };
                 let cfg = DriveConfig::new(&spec).unwrap();
                 // Exactly full: the size constants are the field counts.
-                let w = cfg.write_raw();
-                assert!(!w.overflow);
-                let (raw, nf, nu) = w.finish();
-                assert_eq!((nf, nu), (raw::FLOATS, raw::INTEGERS));
+                let (raw, counts, overflow) = cfg.write_raw();
+                assert!(!overflow);
+                assert_eq!(counts, (FLOATS, INTEGERS));
                 assert_eq!(DriveConfig::from_raw(&raw), Ok(cfg));
             }
         }
@@ -258,7 +256,7 @@ fn raw_configuration_round_trips() {
     let saturating = DriveConfig::new(&DriveSpec { magnetizing: Some(table), ..test_spec() }).unwrap();
     assert_eq!(DriveConfig::from_raw(&saturating.to_raw()), Ok(saturating));
     let mut bad = DriveConfig::new(&test_spec()).unwrap().to_raw();
-    bad.u[raw::INTEGERS - 1] = 1;
+    bad.u[INTEGERS - 1] = 1;
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // V/Hz: its numbers round-trip, and a V/Hz tag on a vector drive's zeros is refused.
     let vhz = DriveConfig::new(&DriveSpec {
@@ -289,19 +287,19 @@ fn raw_configuration_round_trips() {
     bad.u[1] = 7; // the current frame's tag
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 16] = 0; // the slow divider
+    bad.u[INTEGERS - 16] = 0; // the slow divider
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 5] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
+    bad.u[INTEGERS - 5] = Fault::EncoderLoss.bit(); // stop_on: not stoppable
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     // The observer's tag (before the control law's): unknown, or the observer's numbers not a
     // valid observer.
     let mut bad = raw;
-    bad.u[raw::INTEGERS - 3] = 3;
+    bad.u[INTEGERS - 3] = 3;
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
     for tag in [1, 2] {
         let mut bad = raw;
-        bad.u[raw::INTEGERS - 3] = tag; // an encoder drive's zeros read as an observer
+        bad.u[INTEGERS - 3] = tag; // an encoder drive's zeros read as an observer
         assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw), "tag {tag}");
     }
     // The bus range: +0 ≤ min < max, which the supervisor's one unsigned range test needs.

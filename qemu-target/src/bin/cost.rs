@@ -177,7 +177,7 @@ mod target {
     /// the period (each the link can post, in turn) and a snapshot published.
     fn interrupt_period(
         ticks: &Ticks,
-        raw: &controller_core::raw::RawDriveConfig,
+        raw: &controller_core::drive::RawDriveConfig,
         ts_s: f32,
         points: &[Point; POINTS],
     ) -> Interrupt {
@@ -381,7 +381,7 @@ mod target {
     /// is not Running at the end (a fault).
     fn worst_at(
         ticks: &Ticks,
-        raw: &controller_core::raw::RawDriveConfig,
+        raw: &controller_core::drive::RawDriveConfig,
         ts_s: f32,
         step: &mut impl FnMut(&mut firmware::control::ControlLoop, firmware::control::Samples),
         p: &Point,
