@@ -552,9 +552,9 @@ impl DriveConfig {
 }
 
 /// Floats in a raw drive configuration: the compiler's count of [`DriveConfig`]'s
-/// ([`raw::Field::NF`], summed over its declaration).
+/// (`raw::Field::NF`, summed over its declaration).
 pub const FLOATS: usize = <DriveConfig as raw::Field>::NF;
-/// Integers in a raw drive configuration ([`raw::Field::NU`]).
+/// Integers in a raw drive configuration (`raw::Field::NU`).
 pub const INTEGERS: usize = <DriveConfig as raw::Field>::NU;
 
 /// A drive configuration as numbers ([`crate::raw`]). Its `Debug` form is a Rust
