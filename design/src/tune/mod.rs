@@ -25,7 +25,14 @@
 //! both frames (`current_frame`) and takes the faster crossover, the template's frame on a
 //! tie: the field frame passes where the stationary frame's phase error at the top electrical
 //! speed fails (a 3 hp 220 V motor at 10 kHz, issue 49), or passes only far lower (a 116 W
-//! 8-pole motor at 4 kHz: 54 rad/s against 1 753); the file records the frame taken.
+//! 8-pole motor at 4 kHz: 54 rad/s against 1 753); the file records the frame taken. A
+//! stationary-frame crossover also has to leave a steady error at the top electrical speed,
+//! |S(jω_r,max)| of the loop on the stator with the back-EMF fed forward, within what the
+//! drive's current trim makes up ([`controller_core::drive::CURRENT_TRIM_RANGE`] of the
+//! current limit): a stationary PI follows the field's rotation only through its gain, and
+//! the two frames' certificates tie where it does not (an 895 W motor at 4 kHz: the same
+//! gains in both frames, the stationary PI 1.1 A off a 4 A reference at 100 Hz and its
+//! drive outrun by the generating load at the top speed, the field frame's passing).
 //!
 //! **Speed loop**: saturated P (seed 002 eq. (21)), `k_p = J·ω_s`: the speed loop's
 //! crossover ω_s on the nominal inertia, at most ω_c/[`SPEED_BELOW_CURRENT`], and at most
@@ -386,8 +393,19 @@ fn tune_with(
             for frame in [first, other_frame(first)] {
                 spec.current_frame = frame;
                 let grid = candidates(top, bottom).filter(|&w| found.is_none_or(|(best, _)| w > best));
+                // A stationary-frame PI follows the field's rotation only through its gain: at the
+                // top electrical speed its steady error, |S(jω)| of the loop on the stator with the
+                // back-EMF fed forward (the delay advanced away at ω_e), must lie within what the
+                // current trim makes up (`CURRENT_TRIM_RANGE` of the current limit).
+                let steady = |w: f64| {
+                    frame == CurrentFrame::Synchronous
+                        || stationary_steady_error(law(w), r, sigma_ls, cert.omega_r_max_rad_s)
+                            <= f64::from(controller_core::drive::CURRENT_TRIM_RANGE)
+                };
                 let pass = |w: f64| {
-                    Ok::<_, String>(certify_current(&with_law(&spec, law(w)), &cert)?.iter().all(|c| c.pass))
+                    Ok::<_, String>(
+                        steady(w) && certify_current(&with_law(&spec, law(w)), &cert)?.iter().all(|c| c.pass),
+                    )
                 };
                 if let Some(w) = search_down(grid, pass)? {
                     found = Some((w, frame));
@@ -595,3 +613,16 @@ fn tune_with(
 
 #[cfg(test)]
 mod tests;
+
+/// |S(jω)| = |1/(1 + C(jω)·G(jω))| of a stationary-frame PI `law` on the stator seen with the
+/// back-EMF fed forward, G = 1/(r + jω·σL_s): the share of a current reference at electrical
+/// speed ω the loop leaves as steady error.
+fn stationary_steady_error(law: CurrentLaw, r_ohm: f64, sigma_ls_h: f64, omega_rad_s: f64) -> f64 {
+    let w = omega_rad_s.abs().max(1e-9);
+    // C = k_p − j·k_i/ω; L = C/(r + jωσL).
+    let (cr, ci) = (law.kp_v_per_a, -law.ki_v_per_as / w);
+    let (gr, gi) = (r_ohm, w * sigma_ls_h);
+    let den = gr * gr + gi * gi;
+    let (lr, li) = ((cr * gr + ci * gi) / den, (ci * gr - cr * gi) / den);
+    1.0 / ((1.0 + lr).hypot(li))
+}
