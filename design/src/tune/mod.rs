@@ -611,18 +611,15 @@ fn tune_with(
     })
 }
 
+/// |S(jω)| = |1/(1 + C(jω)·G(jω))| of a stationary-frame PI `law` ([`CurrentLaw::response`])
+/// on the stator seen with the back-EMF fed forward, G = 1/(r + jω·σL_s): the share of a
+/// current reference at electrical speed ω the loop leaves as steady error.
+fn stationary_steady_error(law: CurrentLaw, r_ohm: f64, sigma_ls_h: f64, omega_rad_s: f64) -> f64 {
+    use controller_core::discretize::Complex;
+    let w = omega_rad_s.abs().max(1e-9);
+    let loop_gain = law.response(w) / Complex::new(r_ohm, w * sigma_ls_h);
+    1.0 / (1.0 + loop_gain).norm()
+}
+
 #[cfg(test)]
 mod tests;
-
-/// |S(jω)| = |1/(1 + C(jω)·G(jω))| of a stationary-frame PI `law` on the stator seen with the
-/// back-EMF fed forward, G = 1/(r + jω·σL_s): the share of a current reference at electrical
-/// speed ω the loop leaves as steady error.
-fn stationary_steady_error(law: CurrentLaw, r_ohm: f64, sigma_ls_h: f64, omega_rad_s: f64) -> f64 {
-    let w = omega_rad_s.abs().max(1e-9);
-    // C = k_p − j·k_i/ω; L = C/(r + jωσL).
-    let (cr, ci) = (law.kp_v_per_a, -law.ki_v_per_as / w);
-    let (gr, gi) = (r_ohm, w * sigma_ls_h);
-    let den = gr * gr + gi * gi;
-    let (lr, li) = ((cr * gr + ci * gi) / den, (ci * gr - cr * gi) / den);
-    1.0 / ((1.0 + lr).hypot(li))
-}

@@ -747,3 +747,15 @@ fn identification_intervals_widen_the_box() {
     assert!(Intervals::parse("[identification]\nrs_ohm = [2.0, 1.0]\n").is_err());
     assert_eq!(Intervals::parse("[motor]\n").unwrap(), None);
 }
+
+/// The stationary PI's steady error against closed forms: a proportional loop on a pure
+/// inductance leaves `ωL/√((ωL)² + k_p²)`; on a pure resistance `r/(r + k_p)`.
+#[test]
+fn a_stationary_pis_steady_error_is_its_sensitivity_at_the_field_speed() {
+    let p = |kp: f64| CurrentLaw { kp_v_per_a: kp, ki_v_per_as: 0.0, lag: None };
+    let (w, l, kp) = (628.0, 0.0776, 136.0);
+    let inductive = stationary_steady_error(p(kp), 0.0, l, w);
+    assert!((inductive - w * l / (w * l).hypot(kp)).abs() < 1e-12, "{inductive}");
+    let resistive = stationary_steady_error(p(kp), 12.3, 0.0, w);
+    assert!((resistive - 12.3 / (12.3 + kp)).abs() < 1e-12, "{resistive}");
+}
