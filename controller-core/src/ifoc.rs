@@ -133,6 +133,11 @@ impl FieldSteps {
         wrap_angle(self.theta_e_rad + f32::from(self.steps) * self.plan.step_rad)
     }
 
+    /// The field's turn per fast step, δ = (p·ω_m + ω_sl)·T: sin δ and cos δ.
+    pub fn rotation(&self) -> SinCos {
+        self.plan.rotation
+    }
+
     /// θ_e of the last fast step (before any: of the next one), rad, in `[-π, π)`.
     pub fn last_theta_e_rad(&self) -> f32 {
         wrap_angle(self.theta_e_rad + f32::from(self.steps.saturating_sub(1)) * self.plan.step_rad)

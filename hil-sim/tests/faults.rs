@@ -630,12 +630,20 @@ fn a_stuck_switch_injected_past_its_peak_is_judged_from_the_next_one() {
     let o = m.run_one(1, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
     assert!(o.passed(), "{:?}", o.failures);
     let (f, t) = o.detected.unwrap();
-    assert_eq!(f, Fault::SwitchOpen);
-    // Past the old bound: the first need plus a quarter turn at the field's speed (one pole
-    // pair, the slip on top only makes the quarter shorter) plus 50 ms.
+    // Either name, as the matrix's row expects: until the reference reverses, the dead switch
+    // and an open lead give the same currents, and which of the two checks concludes first is
+    // decided within a slow period here — the current loops' anti-windup moves it (tracking:
+    // `SwitchOpen` at 69.5 ms; back-calculation: `OpenPhase` at 61 ms).
+    assert!(matches!(f, Fault::SwitchOpen | Fault::OpenPhase), "{f:?}");
+    // The row's bound runs from the next peak: past the old one, the first need plus a
+    // quarter turn at the field's speed (one pole pair, the slip on top only makes the
+    // quarter shorter) plus 50 ms — which the switch's name at 69.5 ms overran.
     let quarter = std::f64::consts::FRAC_PI_2 / o.speed_at_injection_rad_s.abs();
     let acting = o.acting_after_s.unwrap();
-    assert!(t > acting + quarter + hil_sim::faults::OPEN_PHASE_BOUND_S, "{t} s");
+    let Expect::Either { bound_s, .. } = o.expect else { panic!("{:?}", o.expect) };
+    let old = acting + quarter + hil_sim::faults::OPEN_PHASE_BOUND_S;
+    assert!(bound_s > old + 0.015, "bound {bound_s} s, old {old} s");
+    assert!(t <= bound_s, "{t} s");
 }
 
 /// The shipped drive on a plant richer than its model (`hil-sim faults --plant

@@ -429,7 +429,8 @@ impl FastState {
     }
 
     /// The modulator limited the request to `applied` (stationary frame, after the delay
-    /// advance): back into the loops' frame, and their integrators track it.
+    /// advance): back into the loops' frame, and their integrators follow it
+    /// (`CurrentControllerConfig::track`, turned with the field in the stationary frame).
     #[cold]
     #[inline(never)]
     fn track_applied(&mut self, cfg: &DriveConfig, applied: AlphaBeta, field: SinCos, v_clamp: f32) {
@@ -437,14 +438,15 @@ impl FastState {
         let (back, emf) = (applied.rotate(SinCos { sin: -r.sin, cos: r.cos }), self.back_emf(field));
         // The loops' share of it: the feedforward is not theirs to track.
         let back = AlphaBeta { alpha: back.alpha - emf.alpha, beta: back.beta - emf.beta };
-        let v = match cfg.current_frame {
-            CurrentFrame::Stationary => [back.alpha, back.beta],
+        // The loops' frame's turn against the field since the last sample.
+        let (v, turn) = match cfg.current_frame {
+            CurrentFrame::Stationary => ([back.alpha, back.beta], self.run.field.rotation()),
             CurrentFrame::Synchronous => {
                 let dq = back.park(field);
-                [dq.d, dq.q]
+                ([dq.d, dq.q], SinCos::default())
             }
         };
-        cfg.current.track(&mut self.run.current, v, v_clamp);
+        cfg.current.track(&mut self.run.current, v, cfg.tracking_rate, turn, v_clamp);
     }
 
     /// The back-EMF feedforward at the field angle `field`: the plan's `ω_e·(L_m/L_r)·ψ̂_r`
