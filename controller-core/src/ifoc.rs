@@ -505,19 +505,30 @@ impl IfocConfig {
         self.i_max_a
     }
 
-    /// Slow rate, first: the fast steps since the last call close — the slip angle advances
-    /// by their `n·ω_sl·T`, the field angle by their `n·δ`, and the flux model (eq. (8),
-    /// exact ZOH over the n steps) takes the
-    /// mean of the measured d-axis current over them. Returns that mean measured current,
-    /// field frame, A, and n (0: no fast step ran; nothing changes).
-    pub fn close_period(&self, s: &mut IfocState) -> (Dq, u16) {
+    /// Slow rate, first: the fast steps since the last call close — the field angle advances
+    /// by their `n·δ` (the plan's prediction), and the rotor's model by what the measured
+    /// current did over them: the flux model (eq. (8), exact ZOH over the n steps) takes
+    /// the mean of the measured d-axis current, and with `measured_slip` the slip angle
+    /// advances by `n·T·(L_m·R_r/L_r)·ī_q/ψ̂_r` on the mean measured q-axis current (eq. (7)
+    /// on the current the rotor saw), without it by the plan's slip on its reference
+    /// (`SlipCurrent`). The two differ where the loops do not follow — at the voltage limit,
+    /// braking at the top speed — and the slip of the reference then turned the field away
+    /// from the rotor's flux, a detuning that grew into a swing of the flux and a trip
+    /// (`FollowingError` on healthy motors of the population at 4 kHz). Returns that mean
+    /// measured current, field frame, A, and n (0: no fast step ran; nothing changes).
+    pub fn close_period(&self, s: &mut IfocState, measured_slip: bool) -> (Dq, u16) {
         let n = s.f.steps;
         if n == 0 {
             return (Dq::default(), 0);
         }
         let nf = f32::from(n);
         let mean = Dq { d: s.f.i_sum_dq.d / nf, q: s.f.i_sum_dq.q / nf };
-        s.theta_sl_rad = wrap_angle(s.theta_sl_rad + nf * s.f.plan.omega_sl_rad_s * self.ts_s);
+        let omega_sl_rad_s = if measured_slip {
+            s.slip_gain * mean.q * self.inv_psi_floored(s.psi_r_wb)
+        } else {
+            s.f.plan.omega_sl_rad_s
+        };
+        s.theta_sl_rad = wrap_angle(s.theta_sl_rad + nf * omega_sl_rad_s * self.ts_s);
         // The next period's first step's angle (the drive's slow step then anchors it to
         // the encoder's reading).
         s.f.theta_e_rad = wrap_angle(s.f.theta_e_rad + nf * s.f.plan.step_rad);
@@ -609,7 +620,7 @@ mod tests {
         let mut out = IfocOutput::default();
         for k in 0..n {
             if k % N == 0 {
-                c.close_period(s);
+                c.close_period(s, false);
                 c.plan(s, &c.flux_command(psi), cmd, omega_m, Dq::default());
             }
             out = c.step(s, out.i_ref_ab);
@@ -627,7 +638,7 @@ mod tests {
         let mut s = c.state(0.0, 1.0);
         // Flux builds with T_r = 64.7 ms; 1 s is > 15 T_r.
         let out = run(&c, &mut s, 1.0, TorqueCommand::TorqueNm(1.0), 0.0, 20_000);
-        c.close_period(&mut s);
+        c.close_period(&mut s, false);
         // The measured current is the reference one step late, in a field that has turned by
         // ω_sl·T = 7.7e-4 rad since: its d part is i_d + i_q·ω_sl·T, 7.7e-4 too high here.
         assert!((s.psi_r_wb() - 1.000_773).abs() < 1e-4, "flux {}", s.psi_r_wb());
@@ -651,14 +662,14 @@ mod tests {
         let i_d = 1.0 / 1.42;
         for k in 0..n {
             if k % N == 0 {
-                c.close_period(&mut s);
+                c.close_period(&mut s, false);
                 c.plan(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(0.0), 0.0, Dq::default());
             }
             // The measured current on the d axis of this step's field.
             let f = s.f.field;
             c.step(&mut s, Dq { d: i_d, q: 0.0 }.inverse_park(f));
         }
-        c.close_period(&mut s);
+        c.close_period(&mut s, false);
         let expected = 1.0 - libm::exp(-(n as f64) * 5e-5 / tr);
         let e = (f64::from(s.psi_r_wb()) - expected).abs();
         assert!(e < 1e-5, "ψ̂ {} against {expected}: {e:e}", s.psi_r_wb());
@@ -682,6 +693,28 @@ mod tests {
         }
     }
 
+    /// The slip angle is the rotor's: over a plan asking i_q* = 2 A, a measured q-axis
+    /// current of 1 A (loops that cannot follow, at the voltage limit) advances it by half
+    /// the plan's slip, and the reference's 2 A by all of it.
+    #[test]
+    fn the_slip_angle_follows_the_measured_q_current() {
+        let c = cfg();
+        for (i_q_meas, share) in [(1.0f32, 0.5f32), (2.0, 1.0)] {
+            let mut s = c.state(1.0, 1.0);
+            c.plan(&mut s, &c.flux_command(1.0), TorqueCommand::IqA(2.0), 0.0, Dq::default());
+            let mut omega_sl = 0.0;
+            for _ in 0..N {
+                let f = s.f.field;
+                omega_sl = c.step(&mut s, Dq { d: 0.5, q: i_q_meas }.inverse_park(f)).omega_sl_rad_s;
+            }
+            assert!(omega_sl > 0.0);
+            c.close_period(&mut s, true);
+            let expected = share * omega_sl * N as f32 * 5e-5;
+            let got = s.theta_sl_rad();
+            assert!((got - expected).abs() <= 1e-5 * expected, "{got} against {expected}");
+        }
+    }
+
     #[test]
     fn field_angle_advances_at_synchronous_speed_and_wraps() {
         let c = cfg();
@@ -691,7 +724,7 @@ mod tests {
         let mut wraps = 0;
         for k in 0..20_000 {
             if k % N == 0 {
-                c.close_period(&mut s);
+                c.close_period(&mut s, false);
                 c.plan(&mut s, &c.flux_command(1.0), TorqueCommand::IqA(0.0), 100.0, Dq::default());
             }
             let theta = s.theta_e_rad();
@@ -727,7 +760,7 @@ mod tests {
             for k in 0..40_000 {
                 let torque = if k < 20_000 { 1.0 } else { -3.0 };
                 if k % N == 0 {
-                    c.close_period(&mut s);
+                    c.close_period(&mut s, false);
                     c.plan(
                         &mut s,
                         &c.flux_command(0.9),
@@ -847,7 +880,7 @@ mod tests {
             let i_d = c.falling_flux_current(&s, target, fall_rate, 0.0);
             assert!(i_d > 0.0 && i_d < target, "{i_d}");
             s.add_sums((Dq { d: N as f32 * i_d, q: 0.0 }, N as u16));
-            c.close_period(&mut s);
+            c.close_period(&mut s, false);
             t_s += t_slow;
         }
         assert!((t_s - fall_s).abs() <= t_slow, "{t_s}");

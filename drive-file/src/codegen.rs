@@ -61,6 +61,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         CurrentFrame::Stationary => "Stationary",
         CurrentFrame::Synchronous => "Synchronous",
     };
+    let slip = spec.slip_current;
     let feedback = spec.speed_feedback;
     // `Vector` or `VHz { ramp_rad_s2: … }`: the variant's Debug form is its Rust expression.
     let control = spec.control;
@@ -81,6 +82,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_law: {},\n\
          \x20       discretization: {disc},\n\
          \x20       current_frame: controller_core::drive::CurrentFrame::{frame},\n\
+         \x20       slip_current: controller_core::drive::SlipCurrent::{slip:?},\n\
          \x20       speed_feedback: controller_core::drive::SpeedFeedback::{feedback:?},\n\
          \x20       control: controller_core::drive::Control::{control:?},\n\
          \x20       speed_law: {},\n\

@@ -46,6 +46,10 @@ pub struct ControllerTable {
     /// Frame of the current loops (default stationary).
     #[serde(default)]
     pub current_frame: FrameTable,
+    /// The q current the field's slip is turned on (default `"reference"`: i_q*, as seed 000
+    /// prints eq. (7); `"measured"`: the measured q current while Running).
+    #[serde(default)]
+    pub slip_current: SlipTable,
     /// Where the speed and the field angle come from (default the encoder; `"sensorless"`:
     /// the flux and speed observer; `"encoder_ride_through"`: the encoder, the observer
     /// beside it carrying the drive on when the encoder fails — docs/sensorless.md).
@@ -233,6 +237,17 @@ pub enum FrameTable {
     Stationary,
     /// d/q loops.
     Synchronous,
+}
+
+/// `controller.slip_current`.
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+pub enum SlipTable {
+    /// The reference i_q*.
+    #[default]
+    Reference,
+    /// The measured q current while Running.
+    Measured,
 }
 
 /// `controller.speed`.
@@ -1084,6 +1099,10 @@ pub fn drive_spec(
         current_frame: match c.current_frame {
             FrameTable::Stationary => CurrentFrame::Stationary,
             FrameTable::Synchronous => CurrentFrame::Synchronous,
+        },
+        slip_current: match c.slip_current {
+            SlipTable::Measured => controller_core::drive::SlipCurrent::Measured,
+            SlipTable::Reference => controller_core::drive::SlipCurrent::Reference,
         },
         speed_law,
         speed_feedback: match c.speed_feedback {

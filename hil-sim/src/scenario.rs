@@ -6,7 +6,8 @@ use crate::sensors::SensorModel;
 use crate::sim::{self, Event, LoadModel, PassiveLoad, Row, Scenario};
 use controller_core::current::CurrentLaw;
 use controller_core::drive::{
-    Control, CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference, SpeedFeedback,
+    Control, CurrentFrame, Drive, DriveConfig, DriveSpec, Mode, PositionLaw, Reference, SlipCurrent,
+    SpeedFeedback,
 };
 use controller_core::fault::Fault;
 use controller_core::magnetics::Saturation;
@@ -388,9 +389,10 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     // [board]); the shipped board's is in the scenarios on drive.toml.
     b.spec.sample_window_s = 0.0;
     // The paper's field orientation: the motor's rotor resistance and inductances, fixed (no
-    // adaptation).
+    // adaptation), the slip on the reference.
     b.spec.rotor_resistance_range = [1.0, 1.0];
     b.spec.inductance_range = [1.0, 1.0];
+    b.spec.slip_current = SlipCurrent::Reference;
     b.scenario.events = vec![(0.0, Event::Enable), (0.3, Event::Reference(Reference::Speed(376.0)))];
     b.scenario.duration_s = 6.5;
     Ok(b)
@@ -432,9 +434,10 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     b.spec.flux_ref_wb = 4.5;
     b.spec.flux_floor_wb = 0.2;
     // The paper's field orientation: the motor's rotor resistance and inductances, fixed
-    // (Fig. 12 detunes it).
+    // (Fig. 12 detunes it), and eq. (7)'s slip on the reference i_q*.
     b.spec.rotor_resistance_range = [1.0, 1.0];
     b.spec.inductance_range = [1.0, 1.0];
+    b.spec.slip_current = SlipCurrent::Reference;
     b.spec.i_ref_max_a = 260.0;
     let basis = drive_file::drive::DefaultsBasis {
         flux_ref_wb: 4.5,

@@ -632,6 +632,28 @@ mod tests {
         assert!(faults.is_empty(), "{faults:#?}");
     }
 
+    /// The 7.3 kW member (002) at 4 kHz with the speed PI its refusal names (k_p 6.6725,
+    /// k_i 118.17): on the 64 corner runs to its top speed, braking an overhauling load there
+    /// on the R_r × 1.5, L × 1.05 corners (runs 26 and 58), the field turned at the slip of
+    /// the reference leaves the rotor's flux, which swings until the speed runs away
+    /// (`FollowingError`); turned at the slip of the measured q current
+    /// (`slip_current = "measured"`) no run faults (docs/envelope.md, docs/population.md).
+    #[test]
+    fn a_braking_drive_turns_its_field_at_the_slip_its_rotor_sees() {
+        let mut c = pi_campaign_at(2, "002-7.3kW", [6.6725, 118.17, 1.0], 1.0, 4_000.0);
+        c.duration_s = c.full_range_duration_s();
+        let on_reference = faulted(&c);
+        assert_eq!(on_reference.len(), 2, "{on_reference:#?}");
+        assert!(
+            on_reference.iter().all(|r| r.starts_with("26,") || r.starts_with("58,")),
+            "{on_reference:#?}"
+        );
+        assert!(on_reference.iter().all(|r| r.contains("Fault(FollowingError)")), "{on_reference:#?}");
+        c.spec.slip_current = controller_core::drive::SlipCurrent::Measured;
+        let on_measured = faulted(&c);
+        assert!(on_measured.is_empty(), "{on_measured:#?}");
+    }
+
     /// The 33 kW 8-pole member (016) at 20 kHz with the speed PI tune's search found for it
     /// (k_p 68.8, k_i 710.9, setpoint weight 0.9): on the 64 corner runs to its top speed
     /// (2.96 s), the generating ones brake an overhauling load of 0.8 × what the motor holds
@@ -649,10 +671,21 @@ mod tests {
     /// Member `index` at 20 kHz tuned as tune tunes it with the saturated P, its speed law
     /// then the PI `[k_p, k_i, setpoint weight]` at the P's torque limit: the 64 corner runs
     /// of `duration_s` (checked after the caller's changes, by [`faulted`]).
-    fn pi_campaign(index: u64, name: &str, [kp, ki, setpoint_weight]: [f64; 3], duration_s: f64) -> Campaign {
+    fn pi_campaign(index: u64, name: &str, gains: [f64; 3], duration_s: f64) -> Campaign {
+        pi_campaign_at(index, name, gains, duration_s, 20_000.0)
+    }
+
+    /// [`pi_campaign`] at `pwm_hz`.
+    fn pi_campaign_at(
+        index: u64,
+        name: &str,
+        [kp, ki, setpoint_weight]: [f64; 3],
+        duration_s: f64,
+        pwm_hz: f64,
+    ) -> Campaign {
         let m = draw(1, index, None).unwrap();
         assert!(m.name.starts_with(name), "{}", m.name);
-        let (path, text, vdc) = inputs(&m, Some(20_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let (path, text, vdc) = inputs(&m, Some(pwm_hz), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
         let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
         let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
         let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();

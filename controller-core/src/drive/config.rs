@@ -31,6 +31,8 @@ crate::raw::raw_struct! {
     pub struct DriveConfig {
         pub(super) current: CurrentControllerConfig<f32>,
         pub(super) current_frame: CurrentFrame,
+        /// The q current the slip is turned on.
+        pub(super) slip_current: SlipCurrent,
         /// The control law is V/Hz (`control`'s tag, within the fast step's load reach of
         /// the drive's address: read every period, where `control` at the end cost address
         /// arithmetic).
@@ -149,6 +151,28 @@ impl raw::Field for CurrentFrame {
             _ => {
                 r.bad = true;
                 CurrentFrame::Stationary
+            }
+        }
+    }
+}
+
+impl raw::Field for SlipCurrent {
+    const NF: usize = 0;
+    const NU: usize = 1;
+    fn put(&self, w: &mut raw::Writer) {
+        w.u(match self {
+            SlipCurrent::Reference => 0,
+            SlipCurrent::Measured => 1,
+        });
+    }
+    #[inline(always)]
+    fn get(r: &mut raw::Reader<'_>) -> Self {
+        match r.u() {
+            0 => SlipCurrent::Reference,
+            1 => SlipCurrent::Measured,
+            _ => {
+                r.bad = true;
+                SlipCurrent::Reference
             }
         }
     }
@@ -446,6 +470,7 @@ impl DriveConfig {
         Ok(Self {
             current,
             current_frame: spec.current_frame,
+            slip_current: spec.slip_current,
             vhz_on: matches!(spec.control, Control::VHz { .. }),
             ifoc,
             mras,

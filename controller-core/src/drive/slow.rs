@@ -210,7 +210,8 @@ impl SlowState {
         // The fast steps since the last slow step: the slip angle and the flux model advance
         // over them (before the field is anchored, on the slip angle).
         self.run.ifoc.add_sums(inputs.sums);
-        let (i_mean, n) = cfg.ifoc.close_period(&mut self.run.ifoc);
+        let measured_slip = cfg.slip_current == SlipCurrent::Measured && self.mode == Mode::Running;
+        let (i_mean, n) = cfg.ifoc.close_period(&mut self.run.ifoc, measured_slip);
         if cfg.magnetizing.on() {
             self.follow_curve(cfg);
         }

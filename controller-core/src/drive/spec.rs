@@ -149,6 +149,20 @@ pub enum CurrentFrame {
     Synchronous,
 }
 
+/// The q-axis current the field's slip is turned on (seed 000 eq. (7), `ω_sl =
+/// (L_m·R_r/L_r)·i_q/ψ̂_r`, `IfocConfig::close_period`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SlipCurrent {
+    /// The reference i_q*, as seed 000 prints eq. (7).
+    #[default]
+    Reference,
+    /// The measured q current while Running (its mean over each slow period; the plan
+    /// predicts with the reference in between): the slip the rotor sees, also where the
+    /// loops do not follow their reference — at the voltage limit, or a stationary-frame PI
+    /// at the field's frequency (docs/envelope.md).
+    Measured,
+}
+
 /// Where the drive's speed and field angle come from.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SpeedFeedback {
@@ -204,6 +218,8 @@ pub struct DriveSpec {
     pub discretization: Discretization,
     /// Frame of the current loops.
     pub current_frame: CurrentFrame,
+    /// The q current the slip is turned on.
+    pub slip_current: SlipCurrent,
     /// Speed law.
     pub speed_law: SpeedLaw,
     /// Position loop.

@@ -9,7 +9,7 @@ use crate::current::CurrentLaw;
 use crate::discretize::{ContinuousSection, Discretization};
 use crate::drive::{
     BrakeChopper, Control, CurrentFrame, DriveSpec, FaultSet, PhaseCommand, PositionLaw, Protection,
-    Reference, SpeedFeedback, ThermalLimit,
+    Reference, SlipCurrent, SpeedFeedback, ThermalLimit,
 };
 use crate::frames::Abc;
 use crate::magnetics::{MagnetizingTable, TABLE_POINTS};
@@ -120,10 +120,16 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
             w.f64(omega_rad_s)?;
         }
     }
-    w.u8(match s.current_frame {
+    // The frame in bit 0, the slip's current in bit 1 (one byte: the spec fills the frame).
+    let frame = match s.current_frame {
         CurrentFrame::Stationary => 0,
         CurrentFrame::Synchronous => 1,
-    })?;
+    };
+    let slip = match s.slip_current {
+        SlipCurrent::Reference => 0,
+        SlipCurrent::Measured => 2,
+    };
+    w.u8(frame | slip)?;
     let (t, a, b, c, d) = match s.speed_law {
         SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight } => (0, kp, ki, limit, setpoint_weight),
         SpeedLaw::PiIq { kp, ki, limit, setpoint_weight } => (1, kp, ki, limit, setpoint_weight),
@@ -217,11 +223,12 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         (1, omega_rad_s) => Discretization::TustinPrewarped { omega_rad_s },
         _ => return Err(DecodeError::Value),
     };
-    let current_frame = match r.u8()? {
-        0 => CurrentFrame::Stationary,
-        1 => CurrentFrame::Synchronous,
-        _ => return Err(DecodeError::Value),
-    };
+    let byte = r.u8()?;
+    if byte > 3 {
+        return Err(DecodeError::Value);
+    }
+    let current_frame = if byte & 1 == 0 { CurrentFrame::Stationary } else { CurrentFrame::Synchronous };
+    let slip_current = if byte & 2 == 0 { SlipCurrent::Reference } else { SlipCurrent::Measured };
     let t = r.u8()?;
     let (a, b2, c, d) = (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
     let speed_law = match t {
@@ -283,6 +290,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         current_law: CurrentLaw { kp_v_per_a, ki_v_per_as, lag },
         discretization,
         current_frame,
+        slip_current,
         speed_law,
         position,
         flux_ref_wb,
