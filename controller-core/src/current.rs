@@ -24,7 +24,7 @@
 
 use crate::discretize::{ContinuousSection, DesignError, Discretization};
 use crate::filter::{Biquad, BiquadState};
-use crate::frames::SinCos;
+use crate::frames::{AlphaBeta, SinCos};
 use crate::num::Scalar;
 use crate::pi::{PiConfig, PiError, PiState};
 use crate::raw::Field;
@@ -207,9 +207,8 @@ impl CurrentControllerConfig<f32> {
             self.pi.track(&mut s.axis1.pi, a1, v_clamp_v);
             self.pi.track(&mut s.axis2.pi, a2, v_clamp_v);
         } else {
-            let (i1, i2) = (s.axis1.pi.i_term, s.axis2.pi.i_term);
-            s.axis1.pi.i_term = i1 * turn.cos - i2 * turn.sin;
-            s.axis2.pi.i_term = i1 * turn.sin + i2 * turn.cos;
+            let i = AlphaBeta { alpha: s.axis1.pi.i_term, beta: s.axis2.pi.i_term }.rotate(turn);
+            (s.axis1.pi.i_term, s.axis2.pi.i_term) = (i.alpha, i.beta);
             self.pi.back_calculate(&mut s.axis1.pi, a1, rate, v_clamp_v);
             self.pi.back_calculate(&mut s.axis2.pi, a2, rate, v_clamp_v);
         }

@@ -54,9 +54,9 @@ crate::raw::raw_struct! {
         /// The current loops' back-calculation rate at the voltage limit, per fast step: a PI
         /// without a lag moves its integrator by this share of what the modulator took off
         /// its request ([`CurrentControllerConfig::track`]), `1 − e^(−T_s/T_slow)` — a tracking
-        /// time constant of one slow period, discretised exactly. The plan steps the references once per slow period,
-        /// and the proportional kick `k_p·Δi` of a step lasts the few fast periods the current
-        /// takes to catch up; tracking at once (`T_t = T_s`) handed the whole kick to the
+        /// time constant of one slow period, discretised exactly. The plan steps the
+        /// references once per slow period, and the proportional kick `k_p·Δi` of a step
+        /// lasts the few fast periods the current takes to catch up; tracking at once (`T_t = T_s`) handed the whole kick to the
         /// integrator, which then lay below the back-EMF by as much (member 010 of the
         /// population, 153 kW at twice its base speed: a 20 A step at 4.51 V/A, 90 V, and
         /// the current ran away into a false `SwitchOpen`). A limit that lasts many slow
