@@ -476,15 +476,16 @@ mod tests {
         let r = evaluated(&m, 10_000.0, 200, false);
         assert_eq!(r.verdict, Verdict::Pass, "{:?}", r.campaign_failures);
         // Where no point's drive meets them, tune refuses and says what the corner runs missed
-        // (member 022, 35 kW, at 20 kHz: the last point searched that is predicted to meet
-        // them faults in 1 of its 64 runs to the top speed, a false `SwitchOpen` —
+        // (member 004, 270 W 6-pole on 34 V, at 20 kHz: the last point searched that is
+        // predicted to meet them overshoots in 6 of its 64 corner runs of 1 s —
         // docs/population.md).
-        let m = draw(1, 22, None).unwrap();
-        assert!(m.name.starts_with("022-35kW"), "{}", m.name);
+        let m = draw(1, 4, None).unwrap();
+        assert!(m.name.starts_with("004-270W"), "{}", m.name);
         let r = evaluated(&m, 20_000.0, 64, false);
         let Verdict::Refuse { reason } = r.verdict else { panic!("{:?}", r.verdict) };
         assert!(
-            reason.contains("missed them in software in the loop: fault in") && reason.contains("of 64 runs"),
+            reason.contains("missed them in software in the loop: speed_overshoot_fraction in")
+                && reason.contains("of 64 runs"),
             "{reason}"
         );
     }
@@ -632,16 +633,18 @@ mod tests {
         assert!(faults.is_empty(), "{faults:#?}");
     }
 
-    /// The 7.3 kW member (002) at 4 kHz with the speed PI its refusal names (k_p 6.6725,
-    /// k_i 118.17): on the 64 corner runs to its top speed, braking an overhauling load there
+    /// The 7.3 kW member (002) at 4 kHz with the speed PI its refusal named while tune left
+    /// the slip on the reference (k_p 6.6725, k_i 118.17): on the 64 corner runs to its top speed, braking an overhauling load there
     /// on the R_r × 1.5, L × 1.05 corners (runs 26 and 58), the field turned at the slip of
     /// the reference leaves the rotor's flux, which swings until the speed runs away
     /// (`FollowingError`); turned at the slip of the measured q current
-    /// (`slip_current = "measured"`) no run faults (docs/envelope.md, docs/population.md).
+    /// (`slip_current = "measured"`, which tune now writes) no run faults (docs/envelope.md,
+    /// docs/population.md).
     #[test]
     fn a_braking_drive_turns_its_field_at_the_slip_its_rotor_sees() {
         let mut c = pi_campaign_at(2, "002-7.3kW", [6.6725, 118.17, 1.0], 1.0, 4_000.0);
         c.duration_s = c.full_range_duration_s();
+        c.spec.slip_current = controller_core::drive::SlipCurrent::Reference;
         let on_reference = faulted(&c);
         assert_eq!(on_reference.len(), 2, "{on_reference:#?}");
         assert!(

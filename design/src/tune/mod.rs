@@ -56,6 +56,11 @@
 //! certificate checks the sampled cascade. The speed limit `omega_max_rad_s` is the
 //! template's.
 //!
+//! **Field angle**: the slip on the measured q current (`slip_current = "measured"`)
+//! unless the template states its choice — the rotor slips at the current it carries, and
+//! the reference's slip turns the field away from the rotor's flux wherever the loops lag
+//! their reference (at the voltage limit; a stationary PI at the top field frequency).
+//!
 //! **Box**: the template's factors, widened to hold the motor file's `[identification]`
 //! intervals (relative to its nominal values; L_s, L_r and L_m's widest together) and the
 //! rotor-resistance range the drive's estimate may take (`rotor_resistance_range`); that R_r
@@ -68,7 +73,7 @@ use crate::certify::{CertifySpec, Check, certify, certify_current, certify_speed
 use crate::pi_region::SpeedRegions;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::ContinuousSection;
-use controller_core::drive::{CurrentFrame, DriveSpec, SpeedFeedback};
+use controller_core::drive::{CurrentFrame, DriveSpec, SlipCurrent, SpeedFeedback};
 use controller_core::motor::MotorParams;
 use controller_core::speed::SpeedLaw;
 use std::path::Path;
@@ -302,6 +307,16 @@ fn tune_with(
         )
     })?;
     let mut spec = file.spec;
+    // The slip on the q current the rotor saw, unless the template states its choice: the
+    // rotor's slip follows the current it carries, and where the loops do not follow their
+    // reference (at the voltage limit, or a stationary-frame PI at the top field frequency)
+    // the reference's slip turns the field away from the rotor's flux (a 7.3 kW motor at
+    // 4 kHz braking at its top speed: the rotor's flux swung 0.37–0.57 Wb while the model
+    // held 0.45–0.51, and the speed ran away; population test
+    // `a_braking_drive_turns_its_field_at_the_slip_its_rotor_sees`).
+    if !template_states(template_text, "controller", "slip_current") {
+        spec.slip_current = SlipCurrent::Measured;
+    }
     if spec.current_frame == CurrentFrame::Synchronous && structure.current == CurrentDesign::Icad {
         return Err(
             "the template's current frame is synchronous: ICAD's lag pair is placed at the stationary \

@@ -205,6 +205,7 @@ fn the_tuned_file_keeps_the_templates_comments_and_names_each_change() {
     assert!(named("controller.speed.kp: 0.05 → "), "{:#?}", t.changes);
     assert!(named("certify.speed_kp_writable: [0.04, 0.1] → "), "{:#?}", t.changes);
     assert!(named("controller.current.kind: \"icad\" → \"pi\""), "{:#?}", t.changes);
+    assert!(named("controller.slip_current: (absent) → \"measured\""), "{:#?}", t.changes);
     assert!(!named("motor."), "the template's motor is the one tuned: {:#?}", t.changes);
     // What it names is what differs.
     let back = drive_file::DriveFile::parse(path, &t.text).unwrap();
@@ -213,6 +214,26 @@ fn the_tuned_file_keeps_the_templates_comments_and_names_each_change() {
     let again = tune(path, &t.text, &m, None, Structure::default()).unwrap();
     assert_eq!(again.text.matches(HEADER_START).count(), 1, "{}", again.text);
     assert!(again.changes.is_empty(), "{:#?}", again.changes);
+}
+
+/// The field turns at the slip of the measured q current unless the template states its
+/// choice: drive.toml (silent) is tuned to `"measured"`; the same template stating
+/// `"reference"` keeps it, in the spec and in the file.
+#[test]
+fn tune_takes_the_measured_slip_unless_the_template_states_one() {
+    let path = Path::new("drive.toml");
+    let m = drive_file::motor::load("delorenzo-appendix").unwrap();
+    let t = tune(path, TEMPLATE, &m, None, Structure::default()).unwrap();
+    assert_eq!(t.spec.slip_current, SlipCurrent::Measured);
+    let back = drive_file::DriveFile::parse(path, &t.text).unwrap();
+    assert_eq!(back.spec.slip_current, SlipCurrent::Measured);
+    let stated = TEMPLATE.replace("[controller]\n", "[controller]\nslip_current = \"reference\"\n");
+    assert_ne!(stated, TEMPLATE);
+    let t = tune(path, &stated, &m, None, Structure::default()).unwrap();
+    assert_eq!(t.spec.slip_current, SlipCurrent::Reference);
+    assert!(!t.changes.iter().any(|c| c.starts_with("controller.slip_current")), "{:#?}", t.changes);
+    let back = drive_file::DriveFile::parse(path, &t.text).unwrap();
+    assert_eq!(back.spec.slip_current, SlipCurrent::Reference);
 }
 
 /// A template whose motor is written in another form (Γ, with its saturation) is tuned

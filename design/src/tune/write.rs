@@ -73,6 +73,11 @@ pub(super) fn write(
     };
     set_law(controller, "controller.current", &current, &mut changes)?;
     set_value(controller, "controller", "current_frame", Value::from(frame), &mut changes);
+    let slip = match spec.slip_current {
+        SlipCurrent::Reference => "reference",
+        SlipCurrent::Measured => "measured",
+    };
+    set_value(controller, "controller", "slip_current", Value::from(slip), &mut changes);
     set_law(controller, "controller.speed", &speed, &mut changes)?;
     set_value(
         controller,
