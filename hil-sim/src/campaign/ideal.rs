@@ -3,13 +3,15 @@
 //! speed law by ([`super::Campaign::predict`]).
 
 use controller_core::drive::DriveSpec;
+use controller_core::encoder::SPEED_WINDOW_READS;
 use controller_core::envelope::EnvelopeConfig;
 use controller_core::ifoc::TorqueCommand;
 use controller_core::motor::MotorParams;
 use controller_core::speed::{SpeedControllerConfig, SpeedLaw, SpeedState};
 
 /// The drive's speed law on an ideal torque actuator: the law's own discrete code
-/// (`SpeedControllerConfig`, ideal speed measurement) driving `J dω/dt = τ − Bω − T_L` of
+/// (`SpeedControllerConfig`; the speed measured ideally, or as the board measures it,
+/// [`IdealLoop::measured`]) driving `J dω/dt = τ − Bω − T_L` of
 /// the sampled plant's mechanics, one step per slow period (zero-order hold). The torque is
 /// limited to the steady-state envelope of the *sampled* machine at the present speed
 /// (`controller_core::envelope` with the plant's parameters, the drive's voltage target on
@@ -29,6 +31,12 @@ pub struct IdealLoop {
     /// The envelope's torque magnitude (motoring, generating) at the last refresh, N·m.
     torque_max_nm: (f64, f64),
     age: u32,
+    /// The speed at the last [`SPEED_WINDOW_READS`] + 1 slow steps, the newest at `head`:
+    /// what the drive's speed estimate averages over.
+    window: [f64; SPEED_WINDOW_READS + 1],
+    head: usize,
+    /// The law reads the window's mean (the encoder's estimate), not the speed itself.
+    measured: bool,
     /// The ideal loop's speed, mechanical rad/s.
     pub omega_m_rad_s: f64,
 }
@@ -55,15 +63,50 @@ impl IdealLoop {
             limits: drive_limits(spec, plant, vdc_v),
             torque_max_nm: (f64::INFINITY, f64::INFINITY),
             age: 0,
+            window: [0.0; SPEED_WINDOW_READS + 1],
+            head: 0,
+            measured: false,
             omega_m_rad_s: 0.0,
         })
+    }
+
+    /// This loop with its law reading the speed as the drive's estimate gives it: the mean
+    /// over the encoder's window of [`SPEED_WINDOW_READS`] slow periods (the M-method,
+    /// `controller_core::encoder`: a delay of half the window), the rotor at rest before the
+    /// start. The sensorless observer's bandwidth is chosen to lag as much
+    /// (`controller_core::drive::observer_speed_bandwidth_rad_s`). A prediction that reads
+    /// the speed ideally answers a load step and a speed step sooner than any drive on the
+    /// board can, and so chose laws whose drives overshot and dipped beyond it in software in
+    /// the loop.
+    pub fn measured(self) -> Self {
+        Self { measured: true, ..self }
+    }
+
+    /// The speed the law reads: the window's mean (trapezoidal over its slow periods), or the
+    /// speed itself.
+    fn speed_read(&self) -> f64 {
+        if !self.measured {
+            return self.omega_m_rad_s;
+        }
+        let n = SPEED_WINDOW_READS;
+        let oldest = self.window[(self.head + 1) % (n + 1)];
+        let inner: f64 = (1..n).map(|i| self.window[(self.head + n + 1 - i) % (n + 1)]).sum();
+        (0.5 * (oldest + self.omega_m_rad_s) + inner) / n as f64
     }
 
     /// This loop at its start (at rest, the law's state cleared) with speed law `law`
     /// stepped every `t_s`: the same mechanics and envelope.
     pub fn with_law(&self, law: &SpeedLaw, t_s: f64) -> Result<Self, String> {
         let law = SpeedControllerConfig::new(law, t_s).map_err(|e| format!("speed law: {e:?}"))?;
-        Ok(Self { law, state: SpeedState::default(), age: 0, omega_m_rad_s: 0.0, ..*self })
+        Ok(Self {
+            law,
+            state: SpeedState::default(),
+            age: 0,
+            window: [0.0; SPEED_WINDOW_READS + 1],
+            head: 0,
+            omega_m_rad_s: 0.0,
+            ..*self
+        })
     }
 
     /// The envelope's torque magnitude in the direction `sign` (of the torque) at speed
@@ -81,7 +124,10 @@ impl IdealLoop {
             self.age = u32::from(controller_core::envelope::ENVELOPE_REFRESH_SLOW_STEPS);
         }
         self.age -= 1;
-        let tau = match self.law.update(&mut self.state, omega_ref as f32, self.omega_m_rad_s as f32) {
+        self.head = (self.head + 1) % (SPEED_WINDOW_READS + 1);
+        self.window[self.head] = self.omega_m_rad_s;
+        let read = self.speed_read();
+        let tau = match self.law.update(&mut self.state, omega_ref as f32, read as f32) {
             TorqueCommand::TorqueNm(t) => f64::from(t),
             TorqueCommand::IqA(i) => self.kt * f64::from(i),
         };
@@ -109,4 +155,27 @@ pub(super) fn envelope_torque_nm(
 ) -> f64 {
     let s = if sign < 0.0 { -1.0 } else { 1.0 };
     f64::from(envelope.envelope(s, omega_m_rad_s as f32, i_d, v, i_max).torque_max_nm)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Read through the encoder's window, a speed rising at a constant rate lags by half the
+    /// window (the M-method's delay, `controller_core::encoder`; the trapezoid is exact on a
+    /// ramp); read ideally, it is the speed itself.
+    #[test]
+    fn the_measured_speed_lags_half_the_window() {
+        let f = drive_file::DriveFile::shipped().unwrap();
+        let (t_s, rate) = (5e-4, 200.0);
+        let ideal = IdealLoop::new(&f.spec, &f.spec.motor, 310.0, t_s).unwrap();
+        for (mut l, lag) in [(ideal.measured(), rate * SPEED_WINDOW_READS as f64 * t_s / 2.0), (ideal, 0.0)] {
+            for k in 0..=3 * SPEED_WINDOW_READS {
+                l.head = (l.head + 1) % (SPEED_WINDOW_READS + 1);
+                l.omega_m_rad_s = rate * k as f64 * t_s;
+                l.window[l.head] = l.omega_m_rad_s;
+            }
+            assert!((l.omega_m_rad_s - l.speed_read() - lag).abs() < 1e-9, "{} {}", l.speed_read(), lag);
+        }
+    }
 }

@@ -636,8 +636,9 @@ impl Campaign {
 
     /// What the speed law alone gives on run `k` ([`PREDICTED`] requirements): the run's
     /// manoeuvre on its [`IdealLoop`] — the law's discrete code driving the sampled mechanics,
-    /// the torque within τ_max and the machine's envelope; no current loops, field orientation
-    /// or sensors. Cheap (the slow rate only, no electrical model): `design tune` chooses the
+    /// the torque within τ_max and the machine's envelope, the speed read through the
+    /// encoder's window ([`IdealLoop::measured`]); no current loops, field orientation or
+    /// sensor noise. Cheap (the slow rate only, no electrical model): `design tune` chooses the
     /// speed law by it, before the campaign judges the whole drive.
     pub fn predict(&self, k: u64) -> Result<Vec<Measure>, String> {
         Ok(self.predict_setup(self.setup(k)?))
@@ -655,7 +656,8 @@ impl Campaign {
     /// [`Campaign::predict`] on a prepared run.
     fn predict_setup(&self, s: Setup) -> Vec<Measure> {
         let t_row = self.slow_period_s();
-        let mut ideal = s.ideal;
+        // The law reads the speed as the board measures it.
+        let mut ideal = s.ideal.measured();
         let (mut omega_ref, mut load) = (0.0, 0.0);
         let rows = (s.duration_s / t_row).round() as u64;
         let mut samples = Vec::with_capacity(rows as usize + 1);
