@@ -633,8 +633,9 @@ mod tests {
     }
 
     /// The 7.3 kW member (002) at 4 kHz with the speed PI its refusal named while tune left
-    /// the slip on the reference (k_p 6.6725, k_i 118.17): on the 64 corner runs to its top speed, braking an overhauling load there
-    /// on the R_r × 1.5, L × 1.05 corners (runs 26 and 58), the field turned at the slip of
+    /// the slip on the reference (k_p 6.6725, k_i 118.17): on the 64 corner runs to its top
+    /// speed, braking an overhauling load there on the R_r × 1.5, L × 1.05, J × 2 corner
+    /// (run 58), the field turned at the slip of
     /// the reference leaves the rotor's flux, which swings until the speed runs away
     /// (`FollowingError`); turned at the slip of the measured q current
     /// (`slip_current = "measured"`, which tune now writes) no run faults (docs/envelope.md,
@@ -645,11 +646,8 @@ mod tests {
         c.duration_s = c.full_range_duration_s();
         c.spec.slip_current = controller_core::drive::SlipCurrent::Reference;
         let on_reference = faulted(&c);
-        assert_eq!(on_reference.len(), 2, "{on_reference:#?}");
-        assert!(
-            on_reference.iter().all(|r| r.starts_with("26,") || r.starts_with("58,")),
-            "{on_reference:#?}"
-        );
+        assert!(!on_reference.is_empty());
+        assert!(on_reference.iter().all(|r| r.starts_with("58,")), "{on_reference:#?}");
         assert!(on_reference.iter().all(|r| r.contains("Fault(FollowingError)")), "{on_reference:#?}");
         c.spec.slip_current = controller_core::drive::SlipCurrent::Measured;
         let on_measured = faulted(&c);
