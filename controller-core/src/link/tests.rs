@@ -106,9 +106,17 @@ fn every_command_round_trips() {
     largest.magnetizing = Some(crate::magnetics::MagnetizingTable {
         flux_ratio: core::array::from_fn(|k| (k + 1) as f64 * crate::magnetics::TABLE_STEP),
     });
+    // The frame and the slip's current share one byte (bit 0, bit 1): each set alone and both.
+    largest.current_frame = crate::drive::CurrentFrame::Synchronous;
+    largest.slip_current = crate::drive::SlipCurrent::Measured;
+    let slip_alone = crate::drive::DriveSpec { slip_current: crate::drive::SlipCurrent::Measured, ..spec };
+    let frame_alone =
+        crate::drive::DriveSpec { current_frame: crate::drive::CurrentFrame::Synchronous, ..spec };
     let cmds = [
         Command::Configure(spec),
         Command::Configure(largest),
+        Command::Configure(slip_alone),
+        Command::Configure(frame_alone),
         Command::Enable,
         Command::Disable,
         Command::ClearFault,
