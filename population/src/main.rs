@@ -46,6 +46,12 @@ enum Cmd {
     /// drive that does not work). Writes population.json, population.md and population.svg;
     /// exits 1 if a member fails or more than 10 % refuse.
     Run(RunArgs),
+    /// Print a run's verdicts over rated power × PWM rate and its totals, from the
+    /// population.json it wrote (without running anything again).
+    Summary {
+        /// A population.json written by `run`.
+        file: PathBuf,
+    },
 }
 
 #[derive(clap::Args, Debug, Clone)]
@@ -258,7 +264,12 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
     let count = |w: &str| reports.iter().filter(|r| r.verdict.word() == w).count();
     let (pass, refuse, fail, error) = (count("pass"), count("refuse"), count("FAIL"), count("ERROR"));
     let families = population::run::families(&reports);
-    let md = format!("{}\n{}", table(&reports), population::run::families_table(&families));
+    let md = format!(
+        "{}\n{}\n{}",
+        population::run::grid(&reports),
+        table(&reports),
+        population::run::families_table(&families)
+    );
     outln!("{md}");
     outln!(
         "{} drive(s) in {elapsed:.1} s on {} thread(s): {pass} pass, {refuse} refuse, {fail} FAIL, {error} ERROR",
@@ -293,6 +304,32 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         );
     }
     Ok(fail == 0 && error == 0 && refuse_share <= REFUSE_MAX_SHARE)
+}
+
+/// `summary FILE`: the grid and the totals of a run's population.json.
+fn summary(file: &Path) -> Result<bool, String> {
+    let text = std::fs::read_to_string(file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+    let json: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: not JSON: {e}", file.display()))?;
+    let reports: Vec<Report> = json
+        .get("reports")
+        .cloned()
+        .map(serde_json::from_value)
+        .transpose()
+        .map_err(|e| format!("{}: its reports are not a population run's: {e}", file.display()))?
+        .ok_or_else(|| {
+            format!("{}: no \"reports\" (not a population.json written by `run`)", file.display())
+        })?;
+    outln!("{}", population::run::grid(&reports));
+    let elapsed = json.get("elapsed_s").and_then(serde_json::Value::as_f64);
+    outln!(
+        "{} drive(s){}: pass / refuse / FAIL over rated power and PWM rate (campaign of {} runs, fault matrix {})",
+        reports.len(),
+        elapsed.map_or(String::new(), |t| format!(" in {t:.1} s")),
+        json.get("campaign_runs").map_or("?".into(), ToString::to_string),
+        if json.get("matrix").and_then(serde_json::Value::as_bool) == Some(true) { "on" } else { "off" }
+    );
+    Ok(true)
 }
 
 fn table(reports: &[Report]) -> String {
@@ -354,6 +391,7 @@ fn main() -> std::process::ExitCode {
         Cmd::Anchors => anchors(),
         Cmd::Write { select, pwm, saturating, dir } => write(select, *pwm, *saturating, dir),
         Cmd::Run(a) => run(a, &CANCEL),
+        Cmd::Summary { file } => summary(file),
     };
     match result {
         Ok(true) => std::process::ExitCode::SUCCESS,
@@ -398,6 +436,36 @@ mod tests {
             let (_, sat) = drive_file::motor::load_model(&path.to_string_lossy()).unwrap();
             assert!(sat.is_some(), "{}", path.display());
         }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// `summary` reads back what `run` wrote, and names what it cannot read: a missing file,
+    /// text that is not JSON, JSON without a run's reports, reports of another shape.
+    #[test]
+    fn a_summary_reads_a_runs_json_and_names_what_it_cannot() {
+        let dir = std::env::temp_dir().join(format!("population-summary-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = |name: &str, text: &str| {
+            let p = dir.join(name);
+            std::fs::write(&p, text).unwrap();
+            p
+        };
+        let report = serde_json::json!({
+            "member": "x", "power_w": 500.0, "pwm_hz": 4000.0, "vdc_v": 310.0, "omega_c_rad_s": null,
+            "campaign": [64, 64], "campaign_failures": [], "matrix": null, "matrix_failures": [],
+            "verdict": { "verdict": "pass" }, "elapsed_s": 1.0
+        });
+        let good =
+            file("good.json", &serde_json::json!({ "reports": [report], "campaign_runs": 64 }).to_string());
+        assert_eq!(summary(&good), Ok(true));
+        let e = summary(&dir.join("missing.json")).unwrap_err();
+        assert!(e.starts_with("cannot read"), "{e}");
+        let e = summary(&file("text.json", "not json")).unwrap_err();
+        assert!(e.contains("not JSON"), "{e}");
+        let e = summary(&file("other.json", "{\"a\": 1}")).unwrap_err();
+        assert!(e.contains("no \"reports\""), "{e}");
+        let e = summary(&file("shape.json", "{\"reports\": [1]}")).unwrap_err();
+        assert!(e.contains("not a population run's"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 /// How a member ended.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "verdict", rename_all = "snake_case")]
 pub enum Verdict {
     /// Tuned, and the tuned file passed the campaign and the fault matrix.
@@ -47,7 +47,7 @@ impl Verdict {
 }
 
 /// What a member's run measured.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Report {
     /// The member's name.
     pub member: String,
@@ -386,10 +386,125 @@ pub fn families_table(families: &[Family]) -> String {
     s
 }
 
+/// The rated-power bands of [`grid`], W: each decade from 100 W up (the population draws
+/// 100 W … 200 kW; the shipped 17.6 W motor and anything below fall in the first, anything
+/// above in the last).
+const POWER_DECADES_W: [f64; 4] = [1e2, 1e3, 1e4, 1e5];
+
+/// The verdicts over rated power × PWM rate as a markdown table: one row per power decade
+/// (and one for the shipped motors without a nameplate), one column per PWM rate, each cell
+/// `pass / refuse / FAIL` (ERROR added when there is one), and the totals.
+pub fn grid(reports: &[Report]) -> String {
+    let mut rates: Vec<f64> = Vec::new();
+    for r in reports {
+        if !rates.contains(&r.pwm_hz) {
+            rates.push(r.pwm_hz);
+        }
+    }
+    rates.sort_by(f64::total_cmp);
+    let band = |p: Option<f64>| -> Option<usize> {
+        p.map(|p| POWER_DECADES_W.iter().rposition(|&lo| p >= lo).unwrap_or(0))
+    };
+    let label = |b: Option<usize>| match b {
+        None => "shipped, no nameplate".to_string(),
+        Some(i) => {
+            let kw = |w: f64| if w < 1e3 { format!("{w:.0} W") } else { format!("{:.0} kW", w / 1e3) };
+            match (POWER_DECADES_W.get(i), POWER_DECADES_W.get(i + 1)) {
+                (Some(&lo), Some(&hi)) => format!("{} – {}", kw(lo), kw(hi)),
+                (Some(&lo), None) => format!("≥ {}", kw(lo)),
+                _ => String::new(),
+            }
+        }
+    };
+    let cell = |rs: &mut dyn Iterator<Item = &Report>| {
+        let (mut n, mut e) = ([0usize; 3], 0usize);
+        for r in rs {
+            match r.verdict {
+                Verdict::Pass => n[0] += 1,
+                Verdict::Refuse { .. } => n[1] += 1,
+                Verdict::Fail { .. } => n[2] += 1,
+                Verdict::Error { .. } => e += 1,
+            }
+        }
+        let mut c = format!("{} / {} / {}", n[0], n[1], n[2]);
+        if e > 0 {
+            c.push_str(&format!(" (+{e} ERROR)"));
+        }
+        c
+    };
+    let head: Vec<String> = rates.iter().map(|f| format!("{:.0} kHz", f / 1e3)).collect();
+    let mut s =
+        format!("| rated power | {} | all |\n|---|{}---|\n", head.join(" | "), "---|".repeat(rates.len()));
+    let mut bands: Vec<Option<usize>> = reports.iter().map(|r| band(r.power_w)).collect();
+    bands.sort();
+    bands.dedup();
+    // Each band's row, then the totals' (`None`: every report).
+    let rows = bands.iter().map(|&b| (label(b), Some(b))).chain(std::iter::once(("all".to_string(), None)));
+    for (name, row) in rows {
+        let keep = |r: &&Report| row.is_none_or(|b| band(r.power_w) == b);
+        let mut line = format!("| {name} |");
+        for &f in &rates {
+            line.push_str(&format!(
+                " {} |",
+                cell(&mut reports.iter().filter(keep).filter(|r| r.pwm_hz == f))
+            ));
+        }
+        line.push_str(&format!(" {} |\n", cell(&mut reports.iter().filter(keep))));
+        s.push_str(&line);
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::member::draw;
+
+    /// The grid counts each verdict in its power decade and PWM rate, the shipped motors
+    /// without a nameplate on a row of their own, and the totals.
+    #[test]
+    fn the_grid_counts_verdicts_over_power_and_rate() {
+        let report = |power_w: Option<f64>, pwm_hz: f64, verdict: Verdict| Report {
+            member: String::new(),
+            power_w,
+            pwm_hz,
+            vdc_v: 0.0,
+            omega_c_rad_s: None,
+            campaign: None,
+            campaign_failures: Vec::new(),
+            matrix: None,
+            matrix_failures: Vec::new(),
+            verdict,
+            elapsed_s: 0.0,
+        };
+        let refuse = || Verdict::Refuse { reason: String::new() };
+        let reports = [
+            report(Some(500.0), 4e3, Verdict::Pass),
+            report(Some(999.0), 20e3, refuse()),
+            report(Some(1e3), 4e3, Verdict::Fail { what: String::new() }),
+            report(Some(150e3), 20e3, Verdict::Pass),
+            report(Some(17.6), 20e3, Verdict::Error { error: String::new() }),
+            report(None, 4e3, Verdict::Pass),
+        ];
+        let g = grid(&reports);
+        let lines: Vec<&str> = g.lines().collect();
+        assert_eq!(lines.first(), Some(&"| rated power | 4 kHz | 20 kHz | all |"), "{g}");
+        assert!(lines.contains(&"| shipped, no nameplate | 1 / 0 / 0 | 0 / 0 / 0 | 1 / 0 / 0 |"), "{g}");
+        assert!(
+            lines.contains(&"| 100 W – 1 kW | 1 / 0 / 0 | 0 / 1 / 0 (+1 ERROR) | 1 / 1 / 0 (+1 ERROR) |"),
+            "{g}"
+        );
+        assert!(lines.contains(&"| 1 kW – 10 kW | 0 / 0 / 1 | 0 / 0 / 0 | 0 / 0 / 1 |"), "{g}");
+        assert!(lines.contains(&"| ≥ 100 kW | 0 / 0 / 0 | 1 / 0 / 0 | 1 / 0 / 0 |"), "{g}");
+        assert_eq!(
+            *lines.last().unwrap(),
+            "| all | 2 / 0 / 1 | 1 / 1 / 0 (+1 ERROR) | 3 / 1 / 1 (+1 ERROR) |",
+            "{g}"
+        );
+        // A report read back from the JSON `run` writes is the same report.
+        let json = serde_json::to_string(&reports[1]).unwrap();
+        assert_eq!(serde_json::from_str::<Report>(&json).unwrap(), reports[1]);
+    }
 
     /// Member 21 of seed 1, a 116 W 34 V 8-pole motor at 4 kHz: its stationary-frame PI passes
     /// the certificate only down at 54 rad/s, where every phase current lags its reference at
