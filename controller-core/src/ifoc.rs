@@ -112,8 +112,11 @@ pub struct FieldPlan {
 /// hands that over).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FieldSteps {
-    /// Field (rotor-flux) angle θ_e of the plan's first fast step (set by
-    /// [`IfocConfig::anchor`]), rad, in `[-π, π)`; the k-th fast step's is θ_e + k·δ.
+    /// Field (rotor-flux) angle θ_e, rad, in `[-π, π)`, from which the next fast step's is
+    /// θ_e + n·δ, n the fast steps counted in the sums: in the slow context's, that of the
+    /// plan's first fast step (set by [`IfocConfig::anchor`]); in the fast context's,
+    /// rebased where the count starts again ([`FieldSteps::take_sums`],
+    /// [`FieldSteps::adopt`]).
     theta_e_rad: f32,
     /// sin and cos of the present field angle: afresh at each plan, turned by the plan's
     /// rotation each step.
@@ -156,22 +159,33 @@ impl FieldSteps {
     }
 
     /// The sums of the measured current since the last take, field frame, A, and their
-    /// count; cleared (the slow step's inputs, latched by the fast context).
+    /// count; cleared (the slow step's inputs, latched by the fast context), the angle
+    /// rebased on the next step's.
     pub fn take_sums(&mut self) -> (Dq, u16) {
         let sums = (self.i_sum_dq, self.steps);
+        self.theta_e_rad = self.theta_e_rad();
         (self.i_sum_dq, self.steps) = (Dq::default(), 0);
         sums
     }
 
-    /// Take the plan, the field angle of its first step and its field from `made` (the
-    /// slow context's), keeping this one's sums.
+    /// Take the plan, the field angle of its first step — the next fast step — and its field
+    /// from `made` (the slow context's), keeping this one's sums (the angle rebased on
+    /// their count).
     pub fn adopt(&mut self, made: &FieldSteps) {
-        (self.theta_e_rad, self.field, self.plan) = (made.theta_e_rad, made.field, made.plan);
+        (self.field, self.plan) = (made.field, made.plan);
+        self.theta_e_rad = self.rebased(made.theta_e_rad);
     }
 
-    /// Take the field angle of `made` alone (an anchor without a plan: the pre-charge's).
+    /// Take the field angle of `made` alone as the next fast step's (an anchor without a
+    /// plan: the pre-charge's).
     pub fn adopt_angle(&mut self, made: &FieldSteps) {
-        self.theta_e_rad = made.theta_e_rad;
+        self.theta_e_rad = self.rebased(made.theta_e_rad);
+    }
+
+    /// The angle from which `next_rad` is the next fast step's, this plan's step δ per fast
+    /// step counted in the sums.
+    fn rebased(&self, next_rad: f32) -> f32 {
+        wrap_angle(next_rad - f32::from(self.steps) * self.plan.step_rad)
     }
 }
 
@@ -183,6 +197,10 @@ pub struct IfocState {
     /// Slip angle θ_sl = ∫ω_sl dt, rad, in `[-π, π)`: θ_e less the rotor's electrical angle
     /// (at the last [`IfocConfig::close_period`]).
     theta_sl_rad: f32,
+    /// The slip of the plan in force at the last [`IfocConfig::close_period`], rad/s: the
+    /// fast steps ran it up to the adoption of the next one, the plan's delay into the
+    /// period the next close closes.
+    omega_sl_before_rad_s: f32,
     /// Rotor-flux model estimate ψ̂_r, Wb.
     psi_r_wb: f32,
     /// The slip gain `L_m·R̂_r/L_r` and the flux model's rate per fast step `T·R̂_r/L̂_r` of
@@ -450,6 +468,7 @@ impl IfocConfig {
         let mut s = IfocState {
             f: FieldSteps::default(),
             theta_sl_rad: 0.0,
+            omega_sl_before_rad_s: 0.0,
             slip_gain: self.slip_gain,
             flux_rate: self.flux_rate,
             rr_scale: 1.0,
@@ -510,31 +529,44 @@ impl IfocConfig {
     /// current did over them: the flux model (eq. (8), exact ZOH over the n steps) takes
     /// the mean of the measured d-axis current, and with `measured_slip` the slip angle
     /// advances by `n·T·(L_m·R_r/L_r)·ī_q/ψ̂_r` on the mean measured q-axis current (eq. (7)
-    /// on the current the rotor saw), without it by the plan's slip on its reference
+    /// on the current the rotor saw), without it by the slip of the plans the fast steps ran
     /// (`SlipCurrent`). The two differ where the loops do not follow — at the voltage limit,
     /// braking at the top speed — and the slip of the reference then turned the field away
     /// from the rotor's flux, a detuning that grew into a swing of the flux and a trip
-    /// (`FollowingError` on healthy motors of the population at 4 kHz). Returns that mean
+    /// (`FollowingError` on healthy motors of the population at 4 kHz).
+    ///
+    /// `delay`: the plan's delay ([`crate::drive::plan_delay_periods`]) — the first `delay`
+    /// of the n steps ran the plan before this state's last one (its adoption comes that
+    /// many periods after the tick that made it): their slip is that plan's, and the field
+    /// angle of the last plan's first step advances over the rest alone. Returns the mean
     /// measured current, field frame, A, and n (0: no fast step ran; nothing changes).
-    pub fn close_period(&self, s: &mut IfocState, measured_slip: bool) -> (Dq, u16) {
+    pub fn close_period(&self, s: &mut IfocState, measured_slip: bool, delay: u16) -> (Dq, u16) {
         let n = s.f.steps;
         if n == 0 {
             return (Dq::default(), 0);
         }
         let nf = f32::from(n);
+        let (before, after) = (f32::from(delay.min(n)), f32::from(n.saturating_sub(delay)));
         let mean = Dq { d: s.f.i_sum_dq.d / nf, q: s.f.i_sum_dq.q / nf };
-        let omega_sl_rad_s = if measured_slip {
-            s.slip_gain * mean.q * self.inv_psi_floored(s.psi_r_wb)
+        let slip_angle_rad = if measured_slip {
+            nf * s.slip_gain * mean.q * self.inv_psi_floored(s.psi_r_wb)
         } else {
-            s.f.plan.omega_sl_rad_s
+            before * s.omega_sl_before_rad_s + after * s.f.plan.omega_sl_rad_s
         };
-        s.theta_sl_rad = wrap_angle(s.theta_sl_rad + nf * omega_sl_rad_s * self.ts_s);
+        s.theta_sl_rad = wrap_angle(s.theta_sl_rad + slip_angle_rad * self.ts_s);
+        s.omega_sl_before_rad_s = s.f.plan.omega_sl_rad_s;
         // The next period's first step's angle (the drive's slow step then anchors it to
         // the encoder's reading).
-        s.f.theta_e_rad = wrap_angle(s.f.theta_e_rad + nf * s.f.plan.step_rad);
+        s.f.theta_e_rad = wrap_angle(s.f.theta_e_rad + after * s.f.plan.step_rad);
         s.psi_r_wb += one_minus_exp_neg(nf * s.flux_rate) * (s.lm_h * mean.d - s.psi_r_wb);
         (s.f.i_sum_dq, s.f.steps) = (Dq::default(), 0);
         (mean, n)
+    }
+
+    /// The field angle of the next plan's first step `delay` fast steps on (the plan's delay
+    /// from the anchor's tick to its adoption), over which the plan in force turns it.
+    pub fn advance(&self, s: &mut IfocState, delay: u16) {
+        s.f.theta_e_rad = wrap_angle(s.f.theta_e_rad + f32::from(delay) * s.f.plan.step_rad);
     }
 
     /// Slow rate, last: the plan for the fast steps up to the next slow step, from the flux
@@ -620,7 +652,7 @@ mod tests {
         let mut out = IfocOutput::default();
         for k in 0..n {
             if k % N == 0 {
-                c.close_period(s, false);
+                c.close_period(s, false, 0);
                 c.plan(s, &c.flux_command(psi), cmd, omega_m, Dq::default());
             }
             out = c.step(s, out.i_ref_ab);
@@ -638,7 +670,7 @@ mod tests {
         let mut s = c.state(0.0, 1.0);
         // Flux builds with T_r = 64.7 ms; 1 s is > 15 T_r.
         let out = run(&c, &mut s, 1.0, TorqueCommand::TorqueNm(1.0), 0.0, 20_000);
-        c.close_period(&mut s, false);
+        c.close_period(&mut s, false, 0);
         // The measured current is the reference one step late, in a field that has turned by
         // ω_sl·T = 7.7e-4 rad since: its d part is i_d + i_q·ω_sl·T, 7.7e-4 too high here.
         assert!((s.psi_r_wb() - 1.000_773).abs() < 1e-4, "flux {}", s.psi_r_wb());
@@ -662,14 +694,14 @@ mod tests {
         let i_d = 1.0 / 1.42;
         for k in 0..n {
             if k % N == 0 {
-                c.close_period(&mut s, false);
+                c.close_period(&mut s, false, 0);
                 c.plan(&mut s, &c.flux_command(1.0), TorqueCommand::TorqueNm(0.0), 0.0, Dq::default());
             }
             // The measured current on the d axis of this step's field.
             let f = s.f.field;
             c.step(&mut s, Dq { d: i_d, q: 0.0 }.inverse_park(f));
         }
-        c.close_period(&mut s, false);
+        c.close_period(&mut s, false, 0);
         let expected = 1.0 - libm::exp(-(n as f64) * 5e-5 / tr);
         let e = (f64::from(s.psi_r_wb()) - expected).abs();
         assert!(e < 1e-5, "ψ̂ {} against {expected}: {e:e}", s.psi_r_wb());
@@ -708,7 +740,7 @@ mod tests {
                 omega_sl = c.step(&mut s, Dq { d: 0.5, q: i_q_meas }.inverse_park(f)).omega_sl_rad_s;
             }
             assert!(omega_sl > 0.0);
-            c.close_period(&mut s, true);
+            c.close_period(&mut s, true, 0);
             let expected = share * omega_sl * N as f32 * 5e-5;
             let got = s.theta_sl_rad();
             assert!((got - expected).abs() <= 1e-5 * expected, "{got} against {expected}");
@@ -724,7 +756,7 @@ mod tests {
         let mut wraps = 0;
         for k in 0..20_000 {
             if k % N == 0 {
-                c.close_period(&mut s, false);
+                c.close_period(&mut s, false, 0);
                 c.plan(&mut s, &c.flux_command(1.0), TorqueCommand::IqA(0.0), 100.0, Dq::default());
             }
             let theta = s.theta_e_rad();
@@ -760,7 +792,7 @@ mod tests {
             for k in 0..40_000 {
                 let torque = if k < 20_000 { 1.0 } else { -3.0 };
                 if k % N == 0 {
-                    c.close_period(&mut s, false);
+                    c.close_period(&mut s, false, 0);
                     c.plan(
                         &mut s,
                         &c.flux_command(0.9),
@@ -880,7 +912,7 @@ mod tests {
             let i_d = c.falling_flux_current(&s, target, fall_rate, 0.0);
             assert!(i_d > 0.0 && i_d < target, "{i_d}");
             s.add_sums((Dq { d: N as f32 * i_d, q: 0.0 }, N as u16));
-            c.close_period(&mut s, false);
+            c.close_period(&mut s, false, 0);
             t_s += t_slow;
         }
         assert!((t_s - fall_s).abs() <= t_slow, "{t_s}");

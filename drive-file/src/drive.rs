@@ -1165,8 +1165,19 @@ pub fn drive_spec(
         },
     };
     DriveConfig::new(&spec).map_err(|e| match e {
-        DriveError::PwmFrequency => src.error("pwm.frequency_hz", "must be finite and > 0"),
-        DriveError::SlowDivider => src.error("pwm.slow_divider", "must be ≥ 1"),
+        DriveError::PwmFrequency => src.error(
+            "pwm.frequency_hz",
+            "must be finite, > 0 and leave each period room for the fast interrupt's longest \
+             (below ≈ 141 kHz on the 170 MHz core)",
+        ),
+        DriveError::SlowDivider { min } => src.error(
+            "pwm.slow_divider",
+            format!(
+                "must be ≥ {min} at this PWM rate: the slow step's plan is adopted {} period(s) after \
+                 its tick (the slow context's time), before the next tick",
+                min.saturating_sub(1)
+            ),
+        ),
         DriveError::Current(e) => src.error("controller.current", format!("rejected: {e}")),
         DriveError::Speed(e) => src.error("controller.speed", format!("rejected: {e}")),
         DriveError::Position(e) => src.error("controller.position", format!("rejected: {e}")),

@@ -385,8 +385,13 @@ mod tests {
             "{e}"
         );
         // A default sample window (dead time + settling) that leaves too little duty at
-        // 68 kHz blames the dead time the file sets, not the window it does not.
-        let fast = replace("frequency_hz = 20000.0", "frequency_hz = 68000.0");
+        // 68 kHz blames the dead time the file sets, not the window it does not (with a slow
+        // divider that leaves the slow step's 10 periods of plan delay at that rate).
+        let fast = replace("frequency_hz = 20000.0", "frequency_hz = 68000.0")
+            .replace("slow_divider = 10", "slow_divider = 40");
+        let e = err(&replace("frequency_hz = 20000.0", "frequency_hz = 68000.0"));
+        assert_eq!(e.key.as_deref(), Some("pwm.slow_divider"), "{e}");
+        assert!(e.reason.contains("≥ 11") && e.reason.contains("10 period(s)"), "{e}");
         let window_line = fast.lines().find(|l| l.starts_with("sample_window_s")).unwrap().to_string();
         let e = err(&fast.replace(&format!("{window_line}\n"), ""));
         assert_eq!(e.key.as_deref(), Some("board.dead_time_s"), "{e}");

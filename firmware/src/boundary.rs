@@ -12,6 +12,10 @@
 //! **In** ([`Mailbox`]): the task posts one request (a command); the interrupt serves it at
 //! the end of a period and leaves the reply; the task takes it. Whose turn it is is one
 //! atomic state, so the request and the reply are only ever touched by their owner.
+//!
+//! **Between the control interrupt and a slower context** ([`Handoff`]): a value the fast
+//! context hands over and the slow one hands back after working on it, each side touching
+//! it only while it owns it — the drive's slow step in a context of its own (issue 54).
 
 use core::cell::UnsafeCell;
 use core::mem::MaybeUninit;
@@ -197,9 +201,167 @@ impl<Q: Copy, A: Copy> core::fmt::Debug for Mailbox<Q, A> {
     }
 }
 
+/// [`Handoff`] states: which context owns the value, and whether it is lent out.
+const FAST: u8 = 0;
+const FAST_LENT: u8 = 1;
+const SLOW: u8 = 2;
+const SLOW_LENT: u8 = 3;
+
+/// A value two contexts take turns on, on one core: the fast context (the control interrupt,
+/// the higher priority) owns it until it hands it over ([`Handoff::hand_over`]); the slow
+/// context (a lower-priority interrupt) then works on it once ([`Handoff::run`]) and hands it
+/// back. Neither side waits: the fast context asks whether the value is back
+/// ([`Handoff::with`] gives `None` while the slow context has it) — the drive's slow step,
+/// latched at its tick and adopted a fixed number of periods later, is the use (issue 54's
+/// two contexts).
+pub struct Handoff<T> {
+    state: AtomicU8,
+    value: UnsafeCell<T>,
+}
+
+// SAFETY: `state` says who owns the value — the fast context in FAST (and FAST_LENT while
+// its closure runs), the slow context in SLOW (SLOW_LENT) — and each side changes it only
+// from a state it owns, handing over with a Release store the other side reads with
+// Acquire: the value is never reached from both sides at once, and each sees the other's
+// writes. A lent state refuses a second borrow from the same side (a closure that calls
+// back in). On one core the fast context, the higher priority, never runs inside the slow
+// one's load-then-store of SLOW's states, and the slow context never runs inside the fast
+// one's. `T: Send`: the value crosses between the contexts.
+unsafe impl<T: Send> Sync for Handoff<T> {}
+
+impl<T> Handoff<T> {
+    /// `value`, the fast context's.
+    pub const fn new(value: T) -> Self {
+        Self { state: AtomicU8::new(FAST), value: UnsafeCell::new(value) }
+    }
+
+    /// The fast context: `f` on the value, `None` while the slow context has it (or from a
+    /// closure already holding it).
+    pub fn with<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
+        if self.state.load(Ordering::Acquire) != FAST {
+            return None;
+        }
+        self.state.store(FAST_LENT, Ordering::Relaxed);
+        // SAFETY: FAST, now FAST_LENT: the fast context owns the value, and this is its only
+        // borrow (a nested call sees FAST_LENT).
+        let r = f(unsafe { &mut *self.value.get() });
+        self.state.store(FAST, Ordering::Relaxed);
+        Some(r)
+    }
+
+    /// The fast context: hand the value to the slow context. False if the fast context does
+    /// not own it (already handed over, not yet back) or is inside [`Handoff::with`].
+    pub fn hand_over(&self) -> bool {
+        if self.state.load(Ordering::Relaxed) != FAST {
+            return false;
+        }
+        self.state.store(SLOW, Ordering::Release);
+        true
+    }
+
+    /// The slow context: `f` on the value handed over, then the value back to the fast
+    /// context; `None` when nothing was handed over.
+    pub fn run<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
+        if self.state.load(Ordering::Acquire) != SLOW {
+            return None;
+        }
+        self.state.store(SLOW_LENT, Ordering::Relaxed);
+        // SAFETY: SLOW, now SLOW_LENT: the slow context owns the value (the fast context
+        // touches it only in FAST), and this is its only borrow.
+        let r = f(unsafe { &mut *self.value.get() });
+        self.state.store(FAST, Ordering::Release);
+        Some(r)
+    }
+
+    /// The value is the fast context's (handed back, or never handed over).
+    pub fn is_back(&self) -> bool {
+        self.state.load(Ordering::Acquire) == FAST
+    }
+}
+
+impl<T> core::fmt::Debug for Handoff<T> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Handoff").field("state", &self.state.load(Ordering::Relaxed)).finish()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    extern crate std;
+
+    /// The fast context owns the value until it hands it over; then only the slow context
+    /// reaches it, once, and hands it back; a nested borrow is refused.
+    #[test]
+    fn a_handoff_lends_the_value_to_one_side_at_a_time() {
+        let h = Handoff::new(0u32);
+        assert_eq!(h.run(|v| *v += 1), None, "nothing handed over");
+        assert_eq!(
+            h.with(|v| {
+                *v += 1;
+                *v
+            }),
+            Some(1)
+        );
+        assert_eq!(h.with(|_| h.with(|_| ())), Some(None), "a nested borrow is refused");
+        assert_eq!(h.with(|_| h.hand_over()), Some(false), "not handed over from inside a borrow");
+        assert!(h.hand_over());
+        assert!(!h.is_back());
+        assert_eq!(h.with(|v| *v), None, "the slow context's");
+        assert!(!h.hand_over(), "not twice");
+        assert_eq!(
+            h.run(|v| {
+                *v *= 10;
+                h.run(|_| ())
+            }),
+            Some(None),
+            "a nested run is refused"
+        );
+        assert!(h.is_back());
+        assert_eq!(h.run(|_| ()), None, "run once per hand-over");
+        assert_eq!(h.with(|v| *v), Some(10));
+    }
+
+    /// Two threads standing for the two contexts (on the board one core: the test is the
+    /// stronger), each touching the value only through its side: every hand-over is run once,
+    /// and no side ever sees the other's borrow.
+    #[test]
+    fn a_handoff_between_two_threads_never_shares_the_value() {
+        use std::sync::Arc;
+        let h = Arc::new(Handoff::new((0u64, false)));
+        let slow = {
+            let h = Arc::clone(&h);
+            std::thread::spawn(move || {
+                let mut runs = 0;
+                while runs < 10_000 {
+                    if h.run(|(n, busy)| {
+                        assert!(!*busy);
+                        *busy = true;
+                        *n += 1;
+                        *busy = false;
+                    })
+                    .is_some()
+                    {
+                        runs += 1;
+                    }
+                }
+            })
+        };
+        let mut handed = 0;
+        while handed < 10_000 {
+            if h.with(|(n, busy)| {
+                assert!(!*busy);
+                assert_eq!(*n, handed, "each hand-over run once before it is back");
+            })
+            .is_some()
+                && h.hand_over()
+            {
+                handed += 1;
+            }
+        }
+        slow.join().unwrap();
+        assert_eq!(h.with(|(n, _)| *n), Some(10_000));
+    }
 
     #[test]
     fn the_reader_gets_the_newest_value() {

@@ -576,11 +576,12 @@ impl ControlLoop {
         self.commission.as_ref().and_then(|(c, _)| c.record())
     }
 
-    /// The period just stepped ran the drive's slow step, or during the bootstrap pre-charge
-    /// its shaft's stage ([`Drive::hold_step`]): [`crate::interrupt::Shared`] serves the
-    /// link's requests in the next period instead ([`Drive::slow_step_ran`]).
-    pub fn slow_period(&self) -> bool {
-        self.drive.slow_step_ran()
+    /// The drive's slow step is in flight after the period just stepped — from its tick (or
+    /// during the bootstrap pre-charge its shaft's stage, [`Drive::hold_step`]) up to the
+    /// adoption of its plan ([`Drive::slow_busy`]): [`crate::interrupt::Shared`] serves the
+    /// link's requests, which act on the slow step's state, in a period after it.
+    pub fn slow_busy(&self) -> bool {
+        self.drive.slow_busy()
     }
 
     /// The brake chopper's switch after the last step.

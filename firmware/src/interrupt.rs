@@ -58,11 +58,11 @@ impl Shared {
     /// One control period after the samples are read: the output stage around the control
     /// step ([`Outputs::period`]), then the link's requests — the watchdog's stop and a
     /// posted command take effect from the next period — and the snapshot, if the link task
-    /// asked for one. With a slow divider above 1, a command and the snapshot wait for a
-    /// period without the drive's slow step ([`ControlLoop::slow_period`]: a period later at
-    /// most), so that the longest period is the slow step's or theirs, not the sum (`cost
-    /// interrupt_worst_period`, `cost interrupt_worst_command_period`); the watchdog's stop
-    /// does not wait.
+    /// asked for one. A command and the snapshot wait while the drive's slow step is in
+    /// flight ([`ControlLoop::slow_busy`]: from its tick to its plan's adoption, a plan's
+    /// delay at most) — they act on, and read, its state — so that the longest period is
+    /// the slow step's or theirs, not the sum (`cost interrupt_worst_period`, `cost
+    /// interrupt_worst_command_period`); the watchdog's stop does not wait.
     pub fn control_period(
         &self,
         outputs: &mut Outputs,
@@ -80,14 +80,14 @@ impl Shared {
             self.watchdog_stop.store(false, Ordering::Relaxed);
             server::LinkWatchdog::stop(ctl);
         }
-        // (`slow_period` is asked only with a request: nothing added to a period without.)
+        // (`slow_busy` is asked only with a request: nothing added to a period without.)
         self.commands.serve(|(cmd, prepared, stats)| {
-            (!ctl.slow_period()).then(|| {
+            (!ctl.slow_busy()).then(|| {
                 ctl.note_readings(&samples);
                 server::handle_board(ctl, cmd, *prepared, stats)
             })
         });
-        if self.snapshot_wanted.load(Ordering::Relaxed) && !ctl.slow_period() {
+        if self.snapshot_wanted.load(Ordering::Relaxed) && !ctl.slow_busy() {
             self.snapshot_wanted.store(false, Ordering::Relaxed);
             self.snapshot.write(ctl.snapshot());
         }
@@ -151,10 +151,10 @@ mod tests {
             self.shared.control_period(&mut self.outputs, &mut self.tim, &mut self.ctl, s);
         }
 
-        /// Periods at rest until the next one has no slow step of the drive (in which the
-        /// link's requests are served: `Shared::control_period`).
+        /// Periods at rest until the next one ends with no slow step of the drive in flight
+        /// (in which the link's requests are served: `Shared::control_period`).
         fn step_to_a_period_without_the_slow_step(&mut self) {
-            while self.ctl.drive().slow_step_due() {
+            while self.ctl.slow_busy() || self.ctl.drive().slow_step_due() {
                 self.period(at_rest());
             }
         }
@@ -186,11 +186,11 @@ mod tests {
         assert!(r.shared.snapshot.read().unwrap().bridge_on);
     }
 
-    /// A command and a snapshot request that find the drive's slow step in their period
-    /// wait for the next one (the longest period is then the slow step's alone); the
-    /// watchdog's stop does not wait.
+    /// A command and a snapshot request that find the drive's slow step in flight wait for
+    /// the period that adopts its plan (the longest period is then the slow step's alone);
+    /// the watchdog's stop does not wait.
     #[test]
-    fn the_links_requests_wait_for_a_period_without_the_slow_step() {
+    fn the_links_requests_wait_while_the_slow_step_is_in_flight() {
         let mut r = Rig::new();
         r.ctl.drive_mut().enable().unwrap();
         let mut guard = 0;
@@ -201,12 +201,15 @@ mod tests {
         assert!(guard < 100, "the pre-charge ends and a slow step comes");
         assert!(r.post(BoardCommand::GetStatus));
         r.shared.request_snapshot();
+        // From the slow step's tick up to its plan's adoption: a plan's delay.
+        for _ in 0..r.ctl.config().plan_delay() {
+            r.period(at_rest());
+            assert!(r.ctl.slow_busy());
+            assert_eq!(r.shared.commands.take(), None, "not served while the slow step is in flight");
+            assert_eq!(r.shared.snapshot.read(), None, "nor published");
+        }
         r.period(at_rest());
-        assert!(r.ctl.slow_period());
-        assert_eq!(r.shared.commands.take(), None, "not served in the slow step's period");
-        assert_eq!(r.shared.snapshot.read(), None, "nor published");
-        r.period(at_rest());
-        assert!(!r.ctl.slow_period());
+        assert!(!r.ctl.slow_busy());
         assert!(matches!(r.shared.commands.take(), Some(Reply::Status { .. })));
         assert!(r.shared.snapshot.read().is_some());
         // The watchdog's stop in a slow step's period: carried out in it.
@@ -215,7 +218,7 @@ mod tests {
         }
         r.shared.watchdog_stop.store(true, Ordering::Relaxed);
         r.period(at_rest());
-        assert!(r.ctl.slow_period());
+        assert!(r.ctl.slow_busy());
         assert_eq!(r.ctl.drive().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
     }
 

@@ -201,7 +201,12 @@ fn open_lead_on_seeds_0_to_11(p: Point, motoring: bool) {
 /// `drive::VOLTAGE_REGULATOR_EXCESS_MAX`, `LossOfControl` comes first here): the voltage check
 /// catches it after its 10 ms, by the encoder's name: the applied voltage departs from the
 /// model's along a vector that turns with the field, on no phase's axis for long (the
-/// pinned-phase rule, `drive::PINNED_PHASE_COS`, must not rename it).
+/// pinned-phase rule, `drive::PINNED_PHASE_COS`, must not rename it). The open-phase window
+/// is out of the way too: its verdict on the currents the loops no longer hold at the
+/// voltage limit, `OpenPhase` after 25.1 ms, comes a slow period before the voltage check's
+/// twentieth implausible check in a row (its residual hovers at the level: one check at
+/// 84.04 V against 84.12 V restarts the count about 10 ms before) — before the plan's delay
+/// (issue 54) the voltage check's verdict came at 24.0 ms: a race, not a rule.
 #[test]
 fn a_frozen_encoder_at_speed_stays_the_encoders_fault() {
     let mut m = shipped();
@@ -209,6 +214,7 @@ fn a_frozen_encoder_at_speed_stays_the_encoders_fault() {
     m.spec.protection.stall_time_s = 1e6;
     m.spec.protection.following_time_s = 1e6;
     m.spec.protection.saturation_time_s = 1e6;
+    m.spec.protection.open_phase_time_s = 1e3;
     let (c, at) = (case(&m, "encoder stuck"), point(&m, Point::Top, false));
     let o = m.run_one(6, &c, &at, Expect::RideThrough, &AtomicBool::new(false)).unwrap();
     let (f, t) = o.detected.unwrap();
@@ -245,14 +251,24 @@ fn a_terminal_short_breaks_the_bridge_through_the_comparator() {
     assert!(o.peak_current_a < 1.0, "{}", o.peak_current_a);
 }
 
-/// A switch stuck open (phase a's upper one) at top speed, motoring and generating: the
-/// phase follows its reference in one direction only, named `SwitchOpen` within four turns
-/// of the rotor, the bridge off from the next period — and not before the dead direction
-/// could be judged: more than three quarters of its weighted samples missed
-/// (`drive::SWITCH_MISSING_SHARE`), at least ln 0.25 / ln(1 − g) ≈ 6.2 slow periods
-/// (3.1 ms) after the switch was first needed, g the weight of a sample at a 2.5 ms window.
-/// (Before the check: `OpenPhase` after 407–492 ms or nothing; with two missed half-waves,
-/// 29–46 ms.)
+/// A switch stuck open (phase a's upper one) at top speed, motoring and generating, on the
+/// sensors' noise seeds 0–11: the phase follows its reference in one direction only, and
+/// each run is named a bridge fault within four turns of the rotor, the bridge off from the
+/// next period. Until the reference reverses, an open lead and a switch stuck open in the
+/// direction needed carry the same currents: the open-phase window's two-window verdict
+/// (`OpenPhase`, which the matrix accepts for a stuck switch) and the stuck-switch check's
+/// (`SwitchOpen`) race, and at top speed two windows are half an electrical period. The
+/// stuck switch's dead half-wave carries a little through the opposite diode, so the
+/// window seldom holds it absent for two windows: the stuck-switch check names most of
+/// them (main, the plan adopted at its tick: 24 of 24; with the plan adopted a plan's
+/// delay after its tick: 21 of 24). A `SwitchOpen` comes no sooner than the dead direction
+/// can be judged: more than three quarters of its weighted samples missed
+/// (`drive::SWITCH_MISSING_SHARE`), at least ln 0.25 / ln(1 − g) ≈ 6.2 slow periods (3.1 ms)
+/// after the switch was first needed, g the weight of a sample at a 2.5 ms window. (Before
+/// the check: `OpenPhase` after 407–492 ms or nothing; with two missed half-waves, 29–46 ms.)
+/// Waiting for the reversal before the window's verdict names all 24 `SwitchOpen` but an
+/// open lead 14.5–37 ms after it opens instead of 7–12 ms: the branch that tried it is in
+/// docs/decisions.md.
 #[test]
 fn a_switch_stuck_open_at_top_speed_is_named() {
     let m = shipped();
@@ -260,22 +276,27 @@ fn a_switch_stuck_open_at_top_speed_is_named() {
         name: "switch a upper open",
         injection: hil_sim::sim::Injection::SwitchOpen { phase: 0, upper: true },
     };
+    let (mut runs, mut switch_open) = (0, 0);
     for motoring in [true, false] {
         let at = point(&m, Point::Top, motoring);
         let period_s = std::f64::consts::TAU / at.speed_rad_s;
-        let expect = Expect::Fault { fault: Fault::SwitchOpen, bound_s: 4.0 * period_s };
-        let o = m.run_one(5, &case, &at, expect, &AtomicBool::new(false)).unwrap();
-        eprintln!(
-            "{}: {} (bound {:.1} ms), peak {:.2} A",
-            at.name(),
-            o.seen(),
-            4e3 * period_s,
-            o.peak_current_a
-        );
-        assert!(o.passed(), "{}: {:?}", at.name(), o.failures);
-        let needed = o.acting_after_s.unwrap();
-        assert!(o.detected.is_some_and(|(_, t)| t - needed >= 3.0e-3), "{:?} {needed}", o.detected);
+        for seed in 0..12 {
+            let expect = Expect::Fault { fault: Fault::SwitchOpen, bound_s: 4.0 * period_s };
+            let o = m.run_one(seed, &case, &at, expect, &AtomicBool::new(false)).unwrap();
+            eprintln!("{} seed {seed}: {} (bound {:.1} ms)", at.name(), o.seen(), 4e3 * period_s);
+            let needed = o.acting_after_s.unwrap();
+            let named = o.detected.filter(|(f, _)| matches!(f, Fault::SwitchOpen | Fault::OpenPhase));
+            let Some((fault, t)) = named else { panic!("{} seed {seed}: {}", at.name(), o.seen()) };
+            assert!(t - needed <= 4.0 * period_s, "{} seed {seed}: {}", at.name(), o.seen());
+            assert_eq!(o.off_after_periods, Some(0), "{} seed {seed}", at.name());
+            if fault == Fault::SwitchOpen {
+                assert!(t - needed >= 3.0e-3, "{} seed {seed}: {t} s, needed from {needed} s", at.name());
+                switch_open += 1;
+            }
+            runs += 1;
+        }
     }
+    assert!(2 * switch_open > runs, "SwitchOpen in {switch_open} of {runs} runs");
 }
 
 /// Each of the six switches stuck open at the matrix's six points: what the drive names it

@@ -91,6 +91,10 @@ crate::raw::raw_struct! {
         /// [`Fault::NoMotorCurrent`].
         pub(super) magnetizing_steps_max: u32,
         pub(super) slow_divider: u16,
+        /// The fast steps to the next slow tick at the period that adopts the slow step's
+        /// plan: `slow_divider − 1 −` [`plan_delay_periods`] (`Drive::step`; stored so, the
+        /// fast step compares it with its count as it is).
+        pub(super) adopt_at: u16,
         /// The instant limits ([`crate::supervisor::limits`]).
         pub(super) limits: Limits,
         /// The motion checks' levels ([`crate::supervisor::motion`]).
@@ -335,15 +339,23 @@ impl DriveConfig {
         self.slow_divider
     }
 
+    /// PWM periods from the slow tick to the period that adopts its plan
+    /// ([`plan_delay_periods`] at this configuration's rate).
+    pub fn plan_delay(&self) -> u16 {
+        self.slow_divider - 1 - self.adopt_at
+    }
+
     /// Validate and discretise.
     pub fn new(spec: &DriveSpec) -> Result<Self, DriveError> {
         let f = spec.pwm_frequency_hz;
         if !(f.is_finite() && f > 0.0) {
             return Err(DriveError::PwmFrequency);
         }
-        if spec.slow_divider == 0 {
-            return Err(DriveError::SlowDivider);
-        }
+        let delay = plan_delay_periods(f).ok_or(DriveError::PwmFrequency)?;
+        // The plan is adopted before the next tick: at the latest in the period before it.
+        let Some(adopt_at) = spec.slow_divider.checked_sub(1 + delay) else {
+            return Err(DriveError::SlowDivider { min: delay + 1 });
+        };
         let ts = 1.0 / f;
         // Before the protection, whose defaults are derived from the flux's magnetizing
         // current: a bad flux is named as such. Its magnetizing current ψ*/L_m must leave
@@ -499,6 +511,7 @@ impl DriveConfig {
             flux_lag_j_kgm2: (FLUX_LAG_FRACTION * spec.motor.j_kgm2()) as f32,
             flux_fall_time_min_s: (FLUX_FALL_SLOW_PERIODS * t_slow) as f32,
             slow_divider: spec.slow_divider,
+            adopt_at,
             limits: Limits {
                 // Finite in f32 too (a level beyond f32::MAX would let +∞ through).
                 i_trip_bits: abs_bits((p.i_trip_a as f32).min(f32::MAX)),
@@ -651,6 +664,8 @@ impl DriveConfig {
             || !bus
             || !cfg.mras.is_valid()
             || counts.contains(&0)
+            // The plan adopted before the next tick (`adopt_at` < the divider).
+            || cfg.adopt_at >= cfg.slow_divider
             || cfg.stop_on.0 & !FaultSet::STOPPABLE.0 != 0
             || cfg.vhz_on != matches!(cfg.control, ControlLaw::VHz(_))
             // The flying start's speed search is the observer's: with an encoder it would hold

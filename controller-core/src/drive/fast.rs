@@ -1,8 +1,8 @@
 //! The fast step, every PWM period: the instant limits → Clarke → the IFOC's fast part →
 //! the current loops → the delay advance → the modulator (the hexagon's rare path out of
-//! line) → the dead-time compensation. The fast step right after the slow step keeps its
-//! signals for the once-per-slow-period checks (`AfterSlow`), which run on the slow side's
-//! state (`Drive::after_slow_checks`).
+//! line) → the dead-time compensation. The fast step of the period that adopts the slow
+//! step's plan keeps its signals for the once-per-slow-period checks (`AfterSlow`), which
+//! the next slow step runs on its state first (`SlowState::after_slow_checks`).
 
 use super::*;
 use crate::frames::{Abc, wrap_angle};
@@ -27,43 +27,18 @@ pub(super) fn rotating_current(
 impl Drive {
     /// Current loop. See the module docs for the signal flow.
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
-        // The fast step right after the slow step (the phase checks are the slow step's own:
-        // `SlowState::check_phases`).
-        let after_slow = self.fast.steps_to_slow == self.cfg.slow_divider.saturating_sub(1);
-        self.fast(m, after_slow)
+        // The period that adopts the slow step's plan keeps its signals for the next slow
+        // step's checks (`Drive::cadence`).
+        let keep = self.fast.steps_to_slow == self.cfg.adopt_at;
+        self.fast(m, keep)
     }
 
-    /// [`Drive::fast_step`], told whether it follows the slow step ([`Drive::step`] knows):
-    /// then the once-per-slow-period checks on its signals.
+    /// [`Drive::fast_step`], told whether its period adopted the slow step's plan
+    /// ([`Drive::step`] knows): then its signals are kept for the next slow step's
+    /// once-per-slow-period checks (`SlowInputs::after_slow`).
     #[inline(always)]
-    pub(super) fn fast(&mut self, m: &Measurements, after_slow: bool) -> FastOutput {
-        let out = self.fast.step(&self.cfg, &mut self.vhz, m, after_slow);
-        // (Its signals, not `after_slow`: tested again after the step, the flag had the
-        // compiler make two copies of the step, one with its loops out of line. `out` is not
-        // lent to the checks: lent, it was made on the stack and copied out, +4.6
-        // instructions per period.)
-        if self.fast.run.after_slow.is_some() && self.after_slow_checks() {
-            return FastOutput { phases: PhaseCommand::Off, mode: self.fast.mode, brake: self.fast.brake };
-        }
-        out
-    }
-
-    /// The once-per-slow-period checks on the fast step right after the slow step, while
-    /// Running on the field-oriented references: the encoder against the machine model on
-    /// the voltage applied, then the rotor-resistance law on the loops' request
-    /// (`SlowState::after_slow_checks`). True when the encoder check's fault turns the
-    /// bridge off in this step. Out of line: once per slow period.
-    #[cold]
-    #[inline(never)]
-    fn after_slow_checks(&mut self) -> bool {
-        let Some(a) = self.fast.run.after_slow.take() else { return false };
-        self.slow.after_slow_checks(&self.cfg, &a);
-        if self.slow.mode == Mode::Running {
-            return false;
-        }
-        self.fast.trip_from(self.slow.mode);
-        self.sync();
-        true
+    pub(super) fn fast(&mut self, m: &Measurements, keep: bool) -> FastOutput {
+        self.fast.step(&self.cfg, &mut self.vhz, m, keep)
     }
 
     /// A period in which the firmware holds the bridge itself (the bootstrap pre-charge, all
@@ -96,6 +71,12 @@ impl Drive {
             self.fast.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
         } else {
             self.fast.steps_to_slow -= 1;
+            if self.fast.steps_to_slow == self.cfg.adopt_at {
+                // The adoption of a job latched before the hold (none on the board, whose
+                // link commands an enable after it): its mode and faults.
+                self.fast.trip_from(self.slow.mode);
+                self.sync();
+            }
         }
         let cfg = &self.cfg;
         if !self.fast.measurements_ok(cfg, m) {
@@ -191,17 +172,11 @@ impl FastState {
         cfg.source.sensorless() || self.run.on_observer
     }
 
-    /// The fast step; `after_slow`: it follows the slow step (its signals kept for the
-    /// once-per-slow-period checks); `vhz`: the V/Hz law's run, which a V/Hz drive's steps
-    /// take while Running.
+    /// The fast step; `keep`: its period adopted the slow step's plan (its signals kept for
+    /// the next slow step's once-per-slow-period checks); `vhz`: the V/Hz law's run, which a
+    /// V/Hz drive's steps take while Running.
     #[inline(always)]
-    fn step(
-        &mut self,
-        cfg: &DriveConfig,
-        vhz: &mut VhzRun,
-        m: &Measurements,
-        after_slow: bool,
-    ) -> FastOutput {
+    fn step(&mut self, cfg: &DriveConfig, vhz: &mut VhzRun, m: &Measurements, keep: bool) -> FastOutput {
         if !self.measurements_ok(cfg, m) {
             self.trip_on(cfg, m);
         }
@@ -269,10 +244,10 @@ impl FastState {
         // modulator's hexagon, beyond which the rare path takes over.
         let v_applied = v_req.rotate(self.run.delay_rotation);
         let Some(duty) = svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_max) else {
-            return self.step_limited(cfg, m, field.field, i_ab, v_req, after_slow);
+            return self.step_limited(cfg, m, field.field, i_ab, v_req, keep);
         };
         self.run.saturated_steps = 0;
-        if after_slow {
+        if keep {
             self.keep_after_slow(m, field.field, field.i_meas_dq, v_applied, Some(v_req), v_usable);
         }
         if !running {
@@ -342,7 +317,7 @@ impl FastState {
         field: SinCos,
         i_ab: AlphaBeta,
         v_req: AlphaBeta,
-        after_slow: bool,
+        keep: bool,
     ) -> FastOutput {
         // The common path's values, made again (the same operations): few of them held
         // across its body, none through memory.
@@ -365,7 +340,7 @@ impl FastState {
             return off(self.mode);
         }
         let applied = modulation.v_applied;
-        if after_slow {
+        if keep {
             self.keep_after_slow(m, field, i_meas_dq, applied, None, v_usable);
         }
         if !running {

@@ -29,23 +29,30 @@
 //! rated flux below base speed, weakened above — and the torque limited to the envelope and to
 //! what the flux that is there can drive now) → the IFOC's plan for the fast steps (i_qs*,
 //! slip, the field and its rotation per step); the stuck-switch check.
-//! [`Drive::step`] runs the slow step on every N-th call, then the fast step — what the
-//! firmware's control interrupt and the simulators call.
+//! [`Drive::step`] latches the slow step's inputs and runs it on every N-th call, adopts its
+//! plan [`DriveConfig::plan_delay`] calls later, and runs the fast step on every call — what
+//! the firmware's control interrupt and the simulators call.
 //!
 //! **Supervisor**: [`crate::supervisor`], one module per family of checks; the drive runs them
 //! at their rates and latches what they find (first thing in the fast step: the instant
 //! limits). The fast step performs no indexing, no division by unchecked values that could
 //! panic, and no `unwrap`: it cannot panic for any input (property-tested).
 //!
-//! **Two contexts' state** (issue 54): the fast step owns `FastState` (the mode, the
-//! current loops, the plan in force, the fast step's sums), the slow step `SlowState` (the
+//! **Two contexts** (issue 54): the fast step owns `FastState` (the mode, the current
+//! loops, the plan in force, the fast step's sums), the slow step `SlowState` (the
 //! reference, the machine's state, the flux model, the loops of the outer rates, the
 //! checks). The slow step reads the fast side only through what is latched for it
-//! (`SlowInputs`, taken at its tick) and acts on it only through what it hands over
-//! (its plan, adopted at a fixed period: today the tick itself) — so that it can run in a
-//! context of its own. The once-per-slow-period checks on the fast step after the slow
-//! step (the encoder against the machine model, the rotor-resistance law) run on that
-//! step's signals (`AfterSlow`), in the slow side's state. The commands act on both.
+//! (`SlowInputs`, taken at its tick) and acts on it only through its plan, which the fast
+//! side adopts at a fixed period, [`plan_delay_periods`] after the tick (`Drive::cadence`)
+//! — so that it can run in a context of its own, preempted by the fast interrupt, and the
+//! drive still steps alike on the board, in QEMU and in the simulator. The plan is made for
+//! the period that adopts it: the field anchored on the encoder at the tick and turned over
+//! the delay by the plan in force, the slip angle closed over the plans the fast steps ran.
+//! The once-per-slow-period checks on the adopting period's fast step (the encoder against
+//! the machine model, the rotor-resistance law) run on its signals (`AfterSlow`, latched
+//! with the next tick's inputs) at the start of the next slow step. The commands act on
+//! both sides; the firmware serves them while no slow step is in flight
+//! ([`Drive::slow_busy`]).
 //!
 //! The rooms: [`spec`](DriveSpec) (the specification and the drive's design constants),
 //! `config` ([`DriveConfig`]: validated, discretised, its raw codec), `fast` (the fast step),
@@ -266,6 +273,12 @@ struct SlowInputs {
     field_rad: Option<f32>,
     /// Sensorless, magnetizing: the voltage model's change since the last tick, Wb.
     search_psi: AlphaBeta,
+    /// The fast step's current references at the tick, intended and tracked (the trim
+    /// added), stationary frame, A: the phase checks judge the tick's sample against them.
+    i_refs_ab: [AlphaBeta; 2],
+    /// The signals of the fast step that adopted the last plan, for the once-per-slow-period
+    /// checks (`None`: it was not Running on the field-oriented references).
+    after_slow: Option<AfterSlow>,
 }
 
 /// The fast step right after the slow step, as the once-per-slow-period checks read it
@@ -482,6 +495,7 @@ impl FastState {
             let e = &self.run.estimate;
             crate::frames::atan2(e.psi_r_beta_wb, e.psi_r_alpha_wb)
         });
+        let i_refs_ab = [self.run.field.i_intended_ab(), self.run.field.i_ref_ab()];
         let r = &mut self.run;
         let inputs = SlowInputs {
             field_rad,
@@ -494,6 +508,8 @@ impl FastState {
             v_fit_sum: r.v_fit_sum,
             limited: r.trim_hold,
             test_angle_rad: r.test_angle_rad,
+            i_refs_ab,
+            after_slow: r.after_slow.take(),
         };
         (r.v_req2_sum, r.v_req_steps, r.v_fit_sum, r.trim_hold) = (0.0, 0, Dq::default(), false);
         r.search_psi = AlphaBeta::default();
@@ -721,12 +737,13 @@ impl Drive {
         self.fast.steps_to_slow == 0
     }
 
-    /// The last [`Drive::step`] ran the slow step, and the cadence has periods without one
-    /// (a slow divider above 1): the firmware leaves the link's requests to a period without
-    /// it, so that the longest period is the slow step's or a request's, not both.
-    pub fn slow_step_ran(&self) -> bool {
-        let divider = self.cfg.slow_divider;
-        divider > 1 && self.fast.steps_to_slow == divider - 1
+    /// The slow step's job is in flight after the last [`Drive::step`]: from its tick up to
+    /// the period that adopts its plan ([`DriveConfig::plan_delay`]). The board's slow
+    /// context may be running it, so the firmware leaves the link's requests — which act on
+    /// the slow side's state — to a period after the adoption (the tick's period is among
+    /// these: the longest period is never the job's and a request's).
+    pub fn slow_busy(&self) -> bool {
+        self.fast.steps_to_slow > self.cfg.adopt_at
     }
 
     /// Slow steps since a bridge last drove the rotor (saturating; `u32::MAX` from power-up):
@@ -890,7 +907,8 @@ impl Drive {
         Ok(())
     }
 
-    /// One PWM period: the slow step on every N-th call, then the fast step.
+    /// One PWM period: the slow cadence ([`Drive::cadence`]: at the tick the slow step's
+    /// job, a plan's delay later its plan adopted), then the fast step.
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
         // Sensorless: the observer reads the period's sample first, and its estimate is the
         // encoder reading both steps get.
@@ -902,14 +920,43 @@ impl Drive {
             }
             None => m,
         };
-        let after_slow = self.fast.steps_to_slow == 0;
-        if after_slow {
+        let keep = self.cadence(m);
+        self.fast(m, keep)
+    }
+
+    /// The slow cadence of one period, the two contexts' schedule (issue 54): at the tick
+    /// (every `slow_divider`-th period) the fast side latches the slow step's inputs and the
+    /// slow step runs on them alone ([`Drive::slow_step`]: the board's slow context runs it
+    /// while the fast interrupt goes on); [`DriveConfig::plan_delay`] periods after the tick
+    /// the fast side adopts its plan — the mode, the reference, the field plan — at that
+    /// fixed period whatever context made it and however long it took, so that the
+    /// simulator, QEMU and the board step alike. True in the adopting period: its fast step,
+    /// the plan's first, keeps its signals for the once-per-slow-period checks, which the
+    /// next slow step runs (latched with its inputs).
+    #[inline(always)]
+    fn cadence(&mut self, m: &Measurements) -> bool {
+        if self.fast.steps_to_slow == 0 {
             self.slow_step(m);
             self.fast.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
         } else {
             self.fast.steps_to_slow -= 1;
         }
-        self.fast(m, after_slow)
+        let adopting = self.fast.steps_to_slow == self.cfg.adopt_at;
+        if adopting {
+            self.adopt();
+        }
+        adopting
+    }
+
+    /// The fast side takes the slow step's plan: its mode (unless a fault of the fast step
+    /// came first), the reference, the field plan; V/Hz's. Out of line: once per slow
+    /// period.
+    #[inline(never)]
+    fn adopt(&mut self) {
+        self.fast.adopt(&self.slow);
+        if self.cfg.vhz_on() {
+            self.vhz.adopt(&self.slow.run.vhz_plan);
+        }
     }
 
     /// Latch fault `f` (the first fault stays latched): phases off from the next fast step

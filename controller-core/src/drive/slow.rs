@@ -16,10 +16,13 @@ use crate::vhz::{VhzConfig, VhzReport};
 
 impl Drive {
     /// The slow step at its tick: its inputs latched from the fast side
-    /// (`FastState::latch`), the step on the slow side's state alone
-    /// (`SlowState::step`), and its plan handed to the fast side (`FastState::adopt`) —
-    /// at once: the plan rules this period's fast step.
+    /// (`FastState::latch`), then the step on them and the slow side's state alone
+    /// (`SlowState::step`) — what the board's slow context runs. Its plan is the fast side's
+    /// [`DriveConfig::plan_delay`] periods later (`Drive::cadence`).
     ///
+    /// First the once-per-slow-period checks on the fast step that adopted the last plan
+    /// (latched with the inputs; `SlowState::after_slow_checks`): the encoder against the
+    /// machine model, the rotor-resistance law.
     /// Speed/position loop, the operating point, and the slow supervisor: a non-finite
     /// encoder reading (in every mode), overspeed (while the bridge is active), stall (while
     /// Running under a speed or position reference) and the magnetizing time. Holds a zero
@@ -39,10 +42,6 @@ impl Drive {
         // instructions per slow step of a vector drive, `cost slow_step`).
         let vhz = if self.cfg.vhz_on() { self.vhz.report() } else { None };
         self.slow.step(&self.cfg, &inputs, vhz.as_ref());
-        self.fast.adopt(&self.slow);
-        if self.cfg.vhz_on() {
-            self.vhz.adopt(&self.slow.run.vhz_plan);
-        }
     }
 }
 
@@ -65,6 +64,10 @@ impl SlowState {
             // latched).
             (self.pending_fault, self.stop_steps_left) = (None, None);
         }
+        // On the state the plan they ran on was made in (nothing moves it in between).
+        if let Some(a) = inputs.after_slow.as_ref().filter(|_| self.mode == Mode::Running) {
+            self.after_slow_checks(cfg, a);
+        }
         self.slow_loops(cfg, inputs);
         let m = &inputs.m;
         if self.mode.is_active() && m.is_finite() {
@@ -83,7 +86,7 @@ impl SlowState {
                     false
                 }
             };
-            self.check_phases(cfg, m.i_abc_a, unreferenced, inputs.test_angle_rad);
+            self.check_phases(cfg, m.i_abc_a, unreferenced, inputs);
         }
     }
 
@@ -211,7 +214,7 @@ impl SlowState {
         // over them (before the field is anchored, on the slip angle).
         self.run.ifoc.add_sums(inputs.sums);
         let measured_slip = cfg.slip_current == SlipCurrent::Measured && self.mode == Mode::Running;
-        let (i_mean, n) = cfg.ifoc.close_period(&mut self.run.ifoc, measured_slip);
+        let (i_mean, n) = cfg.ifoc.close_period(&mut self.run.ifoc, measured_slip, cfg.plan_delay());
         if cfg.magnetizing.on() {
             self.follow_curve(cfg);
         }
@@ -221,6 +224,8 @@ impl SlowState {
             self.run.theta_r_rad = cfg.ifoc.anchor_field(&mut self.run.ifoc, theta_e);
             self.observe_field_rate(cfg, theta_e);
         }
+        // The plan this step makes starts at its adoption: the field there.
+        cfg.ifoc.advance(&mut self.run.ifoc, cfg.plan_delay());
         // The modulator limited the loops' request since the last slow step.
         let limited = inputs.limited;
         if n > 0 && (self.mode == Mode::Running || !cfg.mras.fit_pending(&self.run.rotor_fit)) {
@@ -390,6 +395,7 @@ impl SlowState {
                     * f32::from(cfg.slow_divider),
                 built_inductance_scale,
                 saturating: cfg.magnetizing.on(),
+                delay_steps: cfg.plan_delay(),
             };
             if let Some(fit) = cfg.mras.fit(&mut self.run.rotor_fit, &period, l_now) {
                 cfg.ifoc.set_rotor_resistance_scale(&mut self.run.ifoc, fit.rr_scale);
@@ -789,24 +795,24 @@ impl SlowState {
     /// The phase checks once per slow period: the open-phase window ([`Fault::OpenPhase`],
     /// [`Fault::NoMotorCurrent`], the windowed current sum's [`Fault::CurrentSensor`];
     /// Magnetizing and Running) and the stuck-switch check ([`Fault::SwitchOpen`]; Running),
-    /// on the phase currents `i_abc_a` of this period against the references its fast step
-    /// turns out of the plan (the same operations, so the same values) — enough samples of a
-    /// half-wave up to the top speed (≈ 18 per electrical period at 700 rad/s), at a tenth of
-    /// the instructions of every step, and none of them in the fast step (the window sampled
+    /// on the phase currents `i_abc_a` of the tick against the references its fast step ran
+    /// on (latched with them, `SlowInputs::i_refs_ab`) — enough samples of a half-wave up to
+    /// the top speed (≈ 18 per electrical period at 700 rad/s), at a tenth of the
+    /// instructions of every step, and none of them in the fast step (the window sampled
     /// every fast step cost 49 instructions per fast step, `cost interrupt_fast_step`).
-    /// A fault latched here turns the bridge off in this period: the fast step that follows
-    /// finds it. `unreferenced`: no references (V/Hz follows none): the currents are their
-    /// own, and no stuck-switch check.
-    fn check_phases(&mut self, cfg: &DriveConfig, i_abc_a: Abc, unreferenced: bool, test_angle_rad: f32) {
+    /// A fault latched here turns the bridge off with the plan's adoption. `unreferenced`:
+    /// no references (V/Hz follows none): the currents are their own, and no stuck-switch
+    /// check.
+    fn check_phases(&mut self, cfg: &DriveConfig, i_abc_a: Abc, unreferenced: bool, inputs: &SlowInputs) {
         let running = self.mode == Mode::Running;
         let [i_ref_ab, i_track_ab] = if unreferenced {
             [i_abc_a.clarke(); 2]
         } else {
             match self.reference {
                 Reference::RotatingCurrent { amplitude_a, .. } if running => {
-                    [super::fast::rotating_current(cfg, amplitude_a, test_angle_rad).2; 2]
+                    [super::fast::rotating_current(cfg, amplitude_a, inputs.test_angle_rad).2; 2]
                 }
-                _ => [self.run.ifoc.i_intended_ab(), self.run.ifoc.i_ref_ab()],
+                _ => inputs.i_refs_ab,
             }
         };
         let (i_ref_abc, i_track_abc) = (i_ref_ab.inverse_clarke(), i_track_ab.inverse_clarke());

@@ -129,6 +129,47 @@ pub const VOLTAGE_REGULATOR_RANGE: f32 = 0.5;
 /// voltage is advanced by ω_e times this delay.
 pub const VOLTAGE_DELAY_PERIODS: f64 = 1.5;
 
+/// The control core's clock, Hz: the STM32G474's 170 MHz (the firmware's `clocks()`; its
+/// TIM1 runs on the same clock, the drive file's `board.tim_clock_hz`).
+pub const CORE_CLOCK_HZ: f64 = 170e6;
+
+/// Cycles per instruction the schedule assumes on the Cortex-M4F until the board measures it
+/// (docs/firmware.md's bring-up): the instruction counts are QEMU's, and flash wait states,
+/// pipeline refills at branches and the FPU's divide and square root take more than one
+/// cycle each.
+pub const CYCLES_PER_INSTRUCTION: f64 = 1.5;
+
+/// The fast interrupt's longest period the schedule allows, instructions: issue 54's bound,
+/// which `cost fast_interrupt_worst` measures on the shipped build.
+pub const FAST_INTERRUPT_INSTRUCTIONS_MAX: f64 = 800.0;
+
+/// The slow context's longest run the schedule allows, instructions: issue 54's bound, which
+/// `cost slow_context_worst` measures on the shipped build.
+pub const SLOW_CONTEXT_INSTRUCTIONS_MAX: f64 = 8000.0;
+
+/// The plan's delay, PWM periods: the slow step's plan, made from what the fast step latched
+/// at the slow tick, is adopted this many periods after the tick — a fixed period index, so
+/// that the simulator, QEMU and the board run the same schedule whichever context computes
+/// the plan and however long it takes (`Drive::step`). The slow context must finish its
+/// longest run, [`SLOW_CONTEXT_INSTRUCTIONS_MAX`], within these periods while the fast
+/// interrupt preempts it for up to [`FAST_INTERRUPT_INSTRUCTIONS_MAX`] in each:
+///
+/// `D = ⌈W_slow·c / (T − W_fast·c)⌉`, `c` = [`CYCLES_PER_INSTRUCTION`]/[`CORE_CLOCK_HZ`],
+///
+/// at least 1: 2 at 20 kHz (70.6 µs of slow context against 42.9 µs left of each 50 µs
+/// period), 1 at 10 kHz and below. `None` when the period does not even hold the fast
+/// interrupt's longest (above ≈ 141 kHz) or the rate is not finite and positive.
+pub fn plan_delay_periods(pwm_frequency_hz: f64) -> Option<u16> {
+    let cycle_s = CYCLES_PER_INSTRUCTION / CORE_CLOCK_HZ;
+    let left_s = 1.0 / pwm_frequency_hz - FAST_INTERRUPT_INSTRUCTIONS_MAX * cycle_s;
+    if !(pwm_frequency_hz.is_finite() && pwm_frequency_hz > 0.0 && left_s > 0.0) {
+        return None;
+    }
+    let periods = libm::ceil(SLOW_CONTEXT_INSTRUCTIONS_MAX * cycle_s / left_s).max(1.0);
+    // Below u16::MAX for any rate that leaves time: at 1 Hz it is 1.
+    (periods <= f64::from(u16::MAX)).then_some(periods as u16)
+}
+
 /// Position loop parameters (P law with speed saturation).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PositionLaw {
@@ -294,10 +335,15 @@ impl DriveSpec {
 /// Why a drive specification was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DriveError {
-    /// PWM frequency not finite and positive.
+    /// PWM frequency not finite and positive, or so high that a period does not hold the
+    /// fast interrupt's longest ([`plan_delay_periods`]).
     PwmFrequency,
-    /// `slow_divider` is 0.
-    SlowDivider,
+    /// `slow_divider` below `min`: the slow step's plan must be adopted before the next
+    /// slow tick, [`plan_delay_periods`] after its own (`min` = that delay + 1).
+    SlowDivider {
+        /// The least divider at this PWM rate.
+        min: u16,
+    },
     /// Current law rejected.
     Current(CurrentError),
     /// Speed law rejected.
@@ -356,8 +402,16 @@ impl core::fmt::Display for DriveError {
     /// The field refused, as the [`DriveSpec`] path, and what it needs.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::PwmFrequency => f.write_str("pwm_frequency_hz: must be finite and > 0"),
-            Self::SlowDivider => f.write_str("slow_divider: must be ≥ 1"),
+            Self::PwmFrequency => f.write_str(
+                "pwm_frequency_hz: must be finite, > 0 and leave each period room for the fast \
+                 interrupt's longest (below ≈ 141 kHz on the 170 MHz core)",
+            ),
+            Self::SlowDivider { min } => write!(
+                f,
+                "slow_divider: must be ≥ {min} at this PWM rate (the slow step's plan is adopted {} \
+                 period(s) after its tick, before the next one)",
+                min.saturating_sub(1)
+            ),
             Self::Current(e) => write!(f, "current_law: {e}"),
             Self::Speed(e) => write!(f, "speed_law: {e}"),
             Self::Position(e) => write!(f, "position: {e}"),

@@ -180,6 +180,10 @@ pub struct FitPeriod {
     /// The motor saturates: the windows slide on until the flux linkage they read settles
     /// ([`MrasConfig::fit`]).
     pub saturating: bool,
+    /// The fast steps of each slow period that still run the plan before the last (the
+    /// plan's delay, `DriveConfig::plan_delay`): in the period after the first slow step
+    /// they carry no current yet ([`MrasConfig::fit`]).
+    pub delay_steps: u16,
 }
 
 /// The magnetizing fit's progress ([`MrasConfig::fit`]).
@@ -311,9 +315,17 @@ impl MrasConfig {
         if f.done || !self.fit_active() {
             return None;
         }
-        let FitPeriod { v_sum, steps, i_d_a, i_d_mean_a, field_step_rad, built_inductance_scale, saturating } =
-            *period;
-        let first = f.steps == 0;
+        let FitPeriod {
+            v_sum,
+            steps,
+            i_d_a,
+            i_d_mean_a,
+            field_step_rad,
+            built_inductance_scale,
+            saturating,
+            delay_steps,
+        } = *period;
+        let (first, second) = (f.steps == 0, f.steps == 1);
         // The reference and the axis are taken up to the first window: a move before it (a
         // saturating machine's model settling on its curve in field weakening) leaves one
         // decay at the rotor's rate after it, which the windows read, and the flux linkage
@@ -346,10 +358,14 @@ impl MrasConfig {
             // The first slow step's sum is of the fast steps between the enable and it, which
             // ran before it set the d-axis reference: no current, nothing built — and the
             // constant part `c` must not be taken off them (an enable between slow steps read
-            // ℓ̂ low by up to (N − 1)·T·R_s/(ℓ·L_s)).
+            // ℓ̂ low by up to (N − 1)·T·R_s/(ℓ·L_s)). Nor off the next period's first
+            // `delay_steps`, which still ran the plan before it — none: the first reference
+            // is adopted a plan's delay after the slow step that made it (`drive.toml`'s
+            // perturbed motor at R_s × 1.5, 4 kHz, one step: ℓ̂ 0.860 for 0.874).
             if !first {
+                let idle = if second { delay_steps.min(steps) } else { 0 };
                 f.pre_sum += v;
-                f.pre_steps = f.pre_steps.saturating_add(u32::from(steps));
+                f.pre_steps = f.pre_steps.saturating_add(u32::from(steps - idle));
             }
             return None;
         };

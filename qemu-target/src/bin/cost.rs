@@ -303,10 +303,11 @@ mod target {
             }
             served &= shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()));
             shared.request_snapshot();
-            // Served in the period it is posted for, or in the next when that one has the
-            // drive's slow step (`Shared::control_period`): the period that served it timed.
+            // Served in the period it is posted for, or after the drive's slow step in flight
+            // (`Shared::control_period`: a plan's delay at most): the period that served it
+            // timed.
             let mut reply = None;
-            for _ in 0..2 {
+            for _ in 0..=c.config().plan_delay() {
                 let s = black_box(fetch(j));
                 j += 1;
                 let t = timed(ticks, || step(&mut c, s));
@@ -317,8 +318,8 @@ mod target {
                     }
                     break;
                 }
-                // Left posted: only in a period with the slow step.
-                served &= c.slow_period();
+                // Left posted: only while the slow step is in flight.
+                served &= c.slow_busy();
             }
             served &= reply.is_some();
         }
@@ -439,7 +440,7 @@ mod target {
         for _ in 0..TIMED_PERIODS {
             let s = black_box(samples(i_ab, advance(p.omega_m_rad_s)));
             let t = timed(ticks, || step(&mut c, s)).saturating_sub(empty);
-            let w = if c.slow_period() { &mut worst.slow } else { &mut worst.other };
+            let w = if c.slow_busy() { &mut worst.slow } else { &mut worst.other };
             *w = (*w).max(t);
             i_ab = c.drive().telemetry().i_ref_ab_a;
         }
@@ -777,6 +778,7 @@ mod target {
                         field_step_rad: 0.0,
                         built_inductance_scale: 1.0,
                         saturating,
+                        delay_steps: 0,
                     };
                     let fit = per_call(&ticks, |k| {
                         if k % 512 == 0 {
