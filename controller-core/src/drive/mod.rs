@@ -907,7 +907,7 @@ impl Drive {
         Ok(())
     }
 
-    /// One PWM period: the slow cadence ([`Drive::cadence`]: at the tick the slow step's
+    /// One PWM period: the slow cadence (`Drive::cadence`: at the tick the slow step's
     /// job, a plan's delay later its plan adopted), then the fast step.
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
         // Sensorless: the observer reads the period's sample first, and its estimate is the
