@@ -238,15 +238,7 @@ impl<T> Handoff<T> {
     /// The fast context: `f` on the value, `None` while the slow context has it (or from a
     /// closure already holding it).
     pub fn with<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
-        if self.state.load(Ordering::Acquire) != FAST {
-            return None;
-        }
-        self.state.store(FAST_LENT, Ordering::Relaxed);
-        // SAFETY: FAST, now FAST_LENT: the fast context owns the value, and this is its only
-        // borrow (a nested call sees FAST_LENT).
-        let r = f(unsafe { &mut *self.value.get() });
-        self.state.store(FAST, Ordering::Relaxed);
-        Some(r)
+        self.lend(FAST, FAST_LENT, f)
     }
 
     /// The fast context: hand the value to the slow context. False if the fast context does
@@ -262,12 +254,20 @@ impl<T> Handoff<T> {
     /// The slow context: `f` on the value handed over, then the value back to the fast
     /// context; `None` when nothing was handed over.
     pub fn run<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
-        if self.state.load(Ordering::Acquire) != SLOW {
+        self.lend(SLOW, SLOW_LENT, f)
+    }
+
+    /// `f` on the value if the calling side owns it (`owner`), marked `lent` meanwhile, then
+    /// the value the fast context's: [`Handoff::with`] keeps it, [`Handoff::run`] gives it
+    /// back (Release: the slow side's writes before the fast side's next Acquire).
+    fn lend<R>(&self, owner: u8, lent: u8, f: impl FnOnce(&mut T) -> R) -> Option<R> {
+        if self.state.load(Ordering::Acquire) != owner {
             return None;
         }
-        self.state.store(SLOW_LENT, Ordering::Relaxed);
-        // SAFETY: SLOW, now SLOW_LENT: the slow context owns the value (the fast context
-        // touches it only in FAST), and this is its only borrow.
+        self.state.store(lent, Ordering::Relaxed);
+        // SAFETY: the state was `owner`, now `lent`: the calling side owns the value (the
+        // fast context touches it only in FAST, the slow one only in SLOW) and this is its
+        // only borrow (a nested call sees `lent`).
         let r = f(unsafe { &mut *self.value.get() });
         self.state.store(FAST, Ordering::Release);
         Some(r)
