@@ -653,6 +653,39 @@ mod tests {
         }
     }
 
+    /// Member 018 (7.2 kW, 8 poles, a coupled load) at 20 kHz holds its load at rest on a
+    /// field that turns at the slip frequency, a fraction of a hertz: phase a's upper switch,
+    /// stuck open as the matrix injects it, acts only on the waning tail of a positive
+    /// half-wave, and its dead direction's next peak comes after the row's 0.6 s of
+    /// observation. No check can see a direction nobody asks for: the row passes undetected
+    /// (it failed "not detected" until the matrix judged a switch by a peak within the run),
+    /// and the drive stays Running.
+    #[test]
+    fn a_stuck_switch_not_needed_again_within_the_run_is_no_miss() {
+        use hil_sim::faults::Point;
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let m = draw(1, 18, None).unwrap();
+        let (tuned, path, vdc) = tune_member(&m, 20_000.0, &root);
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
+        let rows = matrix.rows().unwrap();
+        let cancel = AtomicBool::new(false);
+        for motoring in [true, false] {
+            let (k, c, at) = rows
+                .iter()
+                .find(|(_, c, at)| {
+                    c.name == "switch a upper stuck open"
+                        && at.point == Point::Standstill
+                        && at.motoring == motoring
+                })
+                .unwrap();
+            let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &cancel).unwrap();
+            let row = hil_sim::faults::row_name(c, at);
+            assert_eq!(o.detected, None, "{row}");
+            assert!(o.passed(), "{row}: {:?}", o.failures);
+        }
+    }
+
     /// Failures group by family: a trip before the injection and an unreached point are
     /// families of their own, other rows by case and how, campaign runs per criterion.
     #[test]
