@@ -188,12 +188,15 @@ fn write(s: &Select, pwm_hz: Option<f64>, saturating: bool, dir: &Path) -> Resul
     std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     let (mut n, mut n_sat) = (0, 0);
     for m in members(s)? {
-        // A drawn member's, as `run` tunes it at this rate: a failing member of a run,
-        // reproduced by hand (`design tune --motor FILE --template FILE`).
-        if m.template().is_some() {
-            let (_, t, _) = population::run::inputs(&m, pwm_hz, Path::new("."))?;
-            report::write::write_text(&dir.join(format!("{}.toml", m.name)), &t)?;
-            n += 1;
+        // Each member's template as `run` tunes it at this rate: a failing member of a run,
+        // reproduced by hand (`design tune --motor FILE --template FILE`; a shipped motor's
+        // command is printed, its motor not being its template's `[motor]`).
+        let (_, t, _) = population::run::inputs(&m, pwm_hz, Path::new("."))?;
+        let file = dir.join(format!("{}.toml", m.name));
+        report::write::write_text(&file, &t)?;
+        n += 1;
+        if let Some(hint) = shipped_hint(&m, &file) {
+            eprintln!("{hint}");
         }
     }
     if saturating {
@@ -211,6 +214,21 @@ fn write(s: &Select, pwm_hz: Option<f64>, saturating: bool, dir: &Path) -> Resul
     }
     eprintln!("population: wrote {n} template(s) and {n_sat} saturating motor file(s) in {}", dir.display());
     Ok(true)
+}
+
+/// For a shipped member written to `file`: the command that tunes it as `run` does — its
+/// motor is a motor file of its own, not the template's `[motor]` (`write --shipped` wrote
+/// nothing for them, and said nothing).
+fn shipped_hint(m: &Member, file: &Path) -> Option<String> {
+    match m.origin {
+        member::Origin::Shipped { motor, .. } => Some(format!(
+            "population: {}: a shipped motor on its template, whose [motor] is not this motor's: \
+             design tune --motor {motor} --template {}",
+            m.name,
+            file.display()
+        )),
+        member::Origin::Drawn { .. } => None,
+    }
 }
 
 /// Largest share of refusals a sample may have (issue 49's acceptance).
@@ -437,6 +455,24 @@ mod tests {
             assert!(sat.is_some(), "{}", path.display());
         }
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A shipped member is written too, as `run` tunes it, with the command that tunes it on
+    /// its own motor file (`write --members 0 --shipped` wrote 0 files and said nothing).
+    #[test]
+    fn a_shipped_member_is_written_with_the_command_that_tunes_it() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        let shipped = member::shipped(&root).unwrap();
+        let m = shipped.iter().find(|m| m.name.contains("perturbed")).unwrap();
+        let hint = shipped_hint(m, Path::new("out/t.toml")).unwrap();
+        assert!(
+            hint.ends_with("design tune --motor motors/delorenzo-perturbed.toml --template out/t.toml"),
+            "{hint}"
+        );
+        let (_, text, _) = population::run::inputs(m, Some(10_000.0), &root).unwrap();
+        assert!(text.contains("frequency_hz = 10000"), "{text}");
+        let drawn = member::draw(1, 0, None).unwrap();
+        assert_eq!(shipped_hint(&drawn, Path::new("x")), None);
     }
 
     /// `summary` reads back what `run` wrote, and names what it cannot read: a missing file,
