@@ -1167,8 +1167,12 @@ pub fn drive_spec(
     DriveConfig::new(&spec).map_err(|e| match e {
         DriveError::PwmFrequency => src.error(
             "pwm.frequency_hz",
-            "must be finite, > 0 and leave each period room for the fast interrupt's longest \
-             (below ≈ 141 kHz on the 170 MHz core)",
+            format!(
+                "must be finite, > 0 and leave each period room for the fast interrupt's longest \
+                 (below {:.1} kHz on the {:.0} MHz core)",
+                controller_core::drive::PWM_FREQUENCY_MAX_HZ / 1e3,
+                controller_core::drive::CORE_CLOCK_HZ / 1e6
+            ),
         ),
         DriveError::SlowDivider { min } => src.error(
             "pwm.slow_divider",

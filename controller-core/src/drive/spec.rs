@@ -147,6 +147,13 @@ pub const FAST_INTERRUPT_INSTRUCTIONS_MAX: f64 = 800.0;
 /// measured alone: `cost slow_period_worst` times the slow step with a fast step).
 pub const SLOW_CONTEXT_INSTRUCTIONS_MAX: f64 = 8000.0;
 
+/// The highest PWM rate whose period holds the fast interrupt's longest,
+/// [`FAST_INTERRUPT_INSTRUCTIONS_MAX`] at [`CYCLES_PER_INSTRUCTION`] on the [`CORE_CLOCK_HZ`]
+/// core, Hz (141.7 kHz): above it no plan's delay exists ([`plan_delay_periods`]). The one
+/// source of the limit the drive file's error names.
+pub const PWM_FREQUENCY_MAX_HZ: f64 =
+    CORE_CLOCK_HZ / (FAST_INTERRUPT_INSTRUCTIONS_MAX * CYCLES_PER_INSTRUCTION);
+
 /// The plan's delay, PWM periods: the slow step's plan, made from what the fast step latched
 /// at the slow tick, is adopted this many periods after the tick — a fixed period index, so
 /// that the simulator, QEMU and the board run the same schedule whichever context computes
@@ -158,7 +165,8 @@ pub const SLOW_CONTEXT_INSTRUCTIONS_MAX: f64 = 8000.0;
 ///
 /// at least 1: 2 at 20 kHz (70.6 µs of slow context against 42.9 µs left of each 50 µs
 /// period), 1 at 10 kHz and below. `None` when the period does not even hold the fast
-/// interrupt's longest (above ≈ 141 kHz) or the rate is not finite and positive.
+/// interrupt's longest (from [`PWM_FREQUENCY_MAX_HZ`] up) or the rate is not finite and
+/// positive.
 pub fn plan_delay_periods(pwm_frequency_hz: f64) -> Option<u16> {
     let cycle_s = CYCLES_PER_INSTRUCTION / CORE_CLOCK_HZ;
     let left_s = 1.0 / pwm_frequency_hz - FAST_INTERRUPT_INSTRUCTIONS_MAX * cycle_s;
@@ -402,9 +410,12 @@ impl core::fmt::Display for DriveError {
     /// The field refused, as the [`DriveSpec`] path, and what it needs.
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            Self::PwmFrequency => f.write_str(
+            Self::PwmFrequency => write!(
+                f,
                 "pwm_frequency_hz: must be finite, > 0 and leave each period room for the fast \
-                 interrupt's longest (below ≈ 141 kHz on the 170 MHz core)",
+                 interrupt's longest (below {:.1} kHz on the {:.0} MHz core)",
+                PWM_FREQUENCY_MAX_HZ / 1e3,
+                CORE_CLOCK_HZ / 1e6
             ),
             Self::SlowDivider { min } => write!(
                 f,

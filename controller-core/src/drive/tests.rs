@@ -229,6 +229,10 @@ fn the_plans_delay_is_the_slow_contexts_time_in_periods() {
     // 10 µs periods leave 2.94 µs each.
     assert_eq!(plan_delay_periods(100_000.0), Some(24));
     assert_eq!(plan_delay_periods(142_000.0), None);
+    // The limit the drive file's error names: the first rate without a delay.
+    assert!(plan_delay_periods(0.999 * PWM_FREQUENCY_MAX_HZ).is_some());
+    assert_eq!(plan_delay_periods(PWM_FREQUENCY_MAX_HZ), None);
+    assert!(std::format!("{}", DriveError::PwmFrequency).contains("below 141.7 kHz on the 170 MHz core"));
     for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
         assert_eq!(plan_delay_periods(bad), None, "{bad}");
     }
