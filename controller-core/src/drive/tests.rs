@@ -1044,6 +1044,20 @@ fn a_phase_that_follows_one_way_only_is_a_stuck_switch() {
     }
 }
 
+/// The stuck-switch check on recorded samples (columns: the intended, the tracked reference
+/// and the measured current of phases a, b, c, A) from a fresh watch, at the commanded level
+/// `commanded_a`, with the gains of one and four 2.5 ms windows at a 0.5 ms slow period (every
+/// recording's): no verdict on any sample.
+fn no_stuck_switch_on(samples: &[[f32; 9]], commanded_a: f32) {
+    let gains = [0.18126924, 0.048770577];
+    let abc = |s: &[f32]| Abc { a: s[0], b: s[1], c: s[2] };
+    let mut watch = SwitchWatch::default();
+    for (k, s) in samples.iter().enumerate() {
+        let verdict = watch.add([abc(&s[0..3]), abc(&s[3..6])], abc(&s[6..9]), commanded_a, gains);
+        assert_eq!(verdict, None, "sample {k}");
+    }
+}
+
 /// A healthy phase whose loops lag near top speed is no stuck switch, even where one
 /// direction misses most of its samples for a half-wave. The samples are the stuck-switch
 /// check's, recorded from population member 007 (2.8 kW, 230 V, two poles) at 4 kHz with the
@@ -1100,15 +1114,8 @@ fn a_lagging_loop_near_top_speed_is_no_stuck_switch() {
         [1.6872, 0.0238, -1.7110, 1.9135, 0.3367, -2.2503, 1.4742, -0.1749, -1.2993],
         [2.0772, -1.2110, -0.8662, 2.4486, -1.0516, -1.3970, 1.5742, -0.3498, -1.1494],
     ];
-    // Member 007's drive at 4 kHz: the commanded level 0.2·i_d_rated, the gains of 1 and 4
-    // windows (a slow period of 0.5 ms).
-    let (commanded, gains) = (0.8206665, [0.18126924, 0.048770577]);
-    let abc = |s: &[f32]| Abc { a: s[0], b: s[1], c: s[2] };
-    let mut watch = SwitchWatch::default();
-    for (k, s) in SAMPLES.iter().enumerate() {
-        let verdict = watch.add([abc(&s[0..3]), abc(&s[3..6])], abc(&s[6..9]), commanded, gains);
-        assert_eq!(verdict, None, "sample {k}");
-    }
+    // Member 007's drive at 4 kHz: the commanded level 0.2·i_d_rated.
+    no_stuck_switch_on(&SAMPLES, 0.8206665);
 }
 
 /// An open lead is no stuck switch, even where one of the other two phases follows one way
@@ -1188,14 +1195,8 @@ fn an_open_leads_neighbour_following_one_way_is_no_stuck_switch() {
         [-0.1671, -0.1464, 0.3135, -0.1246, -0.1613, 0.2858, 0.0081, -0.1934, 0.2256],
         [-0.1126, -0.2062, 0.3189, -0.0721, -0.2137, 0.2857, 0.0161, -0.2336, 0.2820],
     ];
-    // The perturbed drive's commanded level 0.2·i_d_rated, the gains of 1 and 4 windows.
-    let (commanded, gains) = (0.21484843, [0.18126924, 0.048770577]);
-    let abc = |s: &[f32]| Abc { a: s[0], b: s[1], c: s[2] };
-    let mut watch = SwitchWatch::default();
-    for (k, s) in SAMPLES.iter().enumerate() {
-        let verdict = watch.add([abc(&s[0..3]), abc(&s[3..6])], abc(&s[6..9]), commanded, gains);
-        assert_eq!(verdict, None, "sample {k}");
-    }
+    // The perturbed drive's commanded level 0.2·i_d_rated.
+    no_stuck_switch_on(&SAMPLES, 0.21484843);
 }
 
 /// A healthy machine whose currents catch up with a reference step for a few milliseconds
@@ -1321,14 +1322,8 @@ fn a_current_catching_up_with_a_reference_step_is_no_stuck_switch() {
         [11.474716, -23.142614, 11.667898, 12.3375435, -24.64216, 12.304617, 11.45109, -23.25893, 11.807839],
         [14.311813, -22.857388, 8.545574, 15.360767, -24.315186, 8.954418, 14.418807, -23.134096, 8.715289],
     ];
-    // Member 002's drive: the commanded level 0.2·i_d_rated, the gains of 1 and 4 windows.
-    let (commanded, gains) = (1.0889215, [0.18126924, 0.048770577]);
-    let abc = |s: &[f32]| Abc { a: s[0], b: s[1], c: s[2] };
-    let mut watch = SwitchWatch::default();
-    for (k, s) in SAMPLES.iter().enumerate() {
-        let verdict = watch.add([abc(&s[0..3]), abc(&s[3..6])], abc(&s[6..9]), commanded, gains);
-        assert_eq!(verdict, None, "sample {k}");
-    }
+    // Member 002's drive: the commanded level 0.2·i_d_rated.
+    no_stuck_switch_on(&SAMPLES, 1.0889215);
 }
 
 proptest! {
