@@ -96,7 +96,9 @@ faults! {
     SwitchOpen = 27,
     /// The control interrupt finished past the next update event in two periods running:
     /// the duties it computed missed the period they were for (the firmware's loop timer;
-    /// reported through `Drive::trip`, the bridge already off).
+    /// reported through `Drive::trip`, the bridge already off); or the slow step's job not
+    /// back at its plan's adoption or at the next tick (`FastSide::step`: a slow context
+    /// that cannot keep up), the bridge off in that period.
     Overrun = 28,
 }
 

@@ -156,7 +156,7 @@ pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> R
         BoardCommand::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
         BoardCommand::ArmCapture(spec) => link::arm_capture(ctl.capture_mut(), *spec),
         BoardCommand::ReadCapture { chunk } => link::read_capture(ctl.capture(), *chunk),
-        other => match link::execute_board(ctl.drive_mut(), other, stats) {
+        other => match link::execute_board(ctl.drive_mut().as_mut(), other, stats) {
             // The board's raw readings (the timing is filled in by the interrupt's owner).
             Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, .. } => Reply::Status {
                 mode,

@@ -24,65 +24,81 @@ pub(super) fn rotating_current(
     (a, sc, AlphaBeta { alpha: a * sc.cos, beta: a * sc.sin })
 }
 
-impl Drive {
+impl FastSide {
     /// Current loop. See the module docs for the signal flow.
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
         // The period that adopts the slow step's plan keeps its signals for the next slow
-        // step's checks (`Drive::cadence`).
-        let keep = self.fast.steps_to_slow == self.cfg.adopt_at;
+        // step's checks (`FastSide::cadence`).
+        let keep = self.state.steps_to_slow == self.cfg.adopt_at;
         self.fast(m, keep)
     }
 
-    /// [`Drive::fast_step`], told whether its period adopted the slow step's plan
-    /// ([`Drive::step`] knows): then its signals are kept for the next slow step's
+    /// [`FastSide::fast_step`], told whether its period adopted the slow step's plan
+    /// ([`FastSide::step`] knows): then its signals are kept for the next slow step's
     /// once-per-slow-period checks (`SlowInputs::after_slow`).
     #[inline(always)]
     pub(super) fn fast(&mut self, m: &Measurements, keep: bool) -> FastOutput {
-        self.fast.step(&self.cfg, &mut self.vhz, m, keep)
+        self.state.step(&self.cfg, &mut self.vhz, m, keep)
     }
 
     /// A period in which the firmware holds the bridge itself (the bootstrap pre-charge, all
     /// low sides on): the fast step's supervisor and brake chopper — a failing check latches
-    /// its fault as in [`Drive::fast_step`] — and the cadence with the shaft's stage of its
+    /// its fault as in [`FastSide::fast_step`] — and the cadence with the shaft's stage of its
     /// slow periods (`SlowState::track_shaft`: the encoder read and its jump check, the rest
-    /// detector, the thermal models; the rotor angle follows the shaft). The control state
-    /// (loops, flux model, plan, the magnetizing time) does not move. Returns the brake
+    /// detector, the thermal models; the rotor angle follows the shaft), run in this context
+    /// on the slow side `slow` holds ([`Fault::Overrun`] if it is not back). The control
+    /// state (loops, flux model, plan, the magnetizing time) does not move. Returns the brake
     /// chopper's switch.
     ///
     /// The cadence runs on (issue 54): frozen, with the encoder unread, the first read after
     /// a 40-period pre-charge spanned five slow periods against the one before it, and an
     /// enable on a rotor turning at 5 rad/s or more tripped [`Fault::EncoderLoss`] (the
     /// firmware's `an_enable_on_a_turning_rotor_keeps_the_encoder`).
-    pub fn hold_step(&mut self, m: &Measurements) -> bool {
+    pub fn hold_step(&mut self, m: &Measurements, slow: &mut dyn SlowContext) -> bool {
         let held;
         let m = if self.cfg.source.sensorless() {
-            held = self.fast.held_shaft(m);
+            held = self.state.held_shaft(m);
             &held
         } else {
             m
         };
-        if self.fast.steps_to_slow == 0 {
-            self.sync();
-            let step_rad = self.slow.track_shaft(&self.cfg, m);
-            self.slow.anchor_field(&self.cfg, step_rad);
-            self.fast.run.field.adopt_angle(self.slow.run.ifoc.field_steps());
-            self.fast.trip_from(self.slow.mode);
-            self.sync();
-            self.fast.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
+        let back = if self.state.steps_to_slow == 0 {
+            self.state.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
+            slow.with(&mut |s| DriveMut::new(self, s).hold_tick(m))
         } else {
-            self.fast.steps_to_slow -= 1;
-            if self.fast.steps_to_slow == self.cfg.adopt_at {
-                // The adoption of a job latched before the hold (none on the board, whose
-                // link commands an enable after it): its mode and faults.
-                self.fast.trip_from(self.slow.mode);
-                self.sync();
-            }
+            self.state.steps_to_slow -= 1;
+            // The adoption of a job latched before the hold (none on the board, whose link
+            // commands an enable after it): its mode and faults.
+            self.state.steps_to_slow != self.cfg.adopt_at
+                || slow.with(&mut |s| DriveMut::new(self, s).hold_adopt())
+        };
+        if !back {
+            self.state.trip(Fault::Overrun);
         }
         let cfg = &self.cfg;
-        if !self.fast.measurements_ok(cfg, m) {
-            self.fast.trip_on(cfg, m);
+        if !self.state.measurements_ok(cfg, m) {
+            self.state.trip_on(cfg, m);
         }
-        self.fast.brake_chopper(cfg, m.vdc_v)
+        self.state.brake_chopper(cfg, m.vdc_v)
+    }
+}
+
+impl DriveMut<'_> {
+    /// [`FastSide::hold_step`]'s tick: the shaft's stage of the slow step, the field turned
+    /// with the rotor.
+    fn hold_tick(&mut self, m: &Measurements) {
+        self.sync();
+        let step_rad = self.slow.state.track_shaft(&self.slow.cfg, m);
+        self.slow.state.anchor_field(&self.slow.cfg, step_rad);
+        self.fast.state.run.field.adopt_angle(self.slow.state.run.ifoc.field_steps());
+        self.fast.state.trip_from(self.slow.state.mode);
+        self.sync();
+    }
+
+    /// [`FastSide::hold_step`]'s adoption: the slow side's mode and faults.
+    fn hold_adopt(&mut self) {
+        self.fast.state.trip_from(self.slow.state.mode);
+        self.sync();
     }
 }
 

@@ -38,20 +38,24 @@
 //! limits). The fast step performs no indexing, no division by unchecked values that could
 //! panic, and no `unwrap`: it cannot panic for any input (property-tested).
 //!
-//! **Two contexts** (issue 54): the fast step owns `FastState` (the mode, the current
-//! loops, the plan in force, the fast step's sums), the slow step `SlowState` (the
-//! reference, the machine's state, the flux model, the loops of the outer rates, the
-//! checks). The slow step reads the fast side only through what is latched for it
-//! (`SlowInputs`, taken at its tick) and acts on it only through its plan, which the fast
-//! side adopts at a fixed period, [`plan_delay_periods`] after the tick (`Drive::cadence`)
-//! — so that it can run in a context of its own, preempted by the fast interrupt, and the
-//! drive still steps alike on the board, in QEMU and in the simulator. The plan is made for
-//! the period that adopts it: the field anchored on the encoder at the tick and turned over
-//! the delay by the plan in force, the slip angle closed over the plans the fast steps ran.
-//! The once-per-slow-period checks on the adopting period's fast step (the encoder against
-//! the machine model, the rotor-resistance law) run on its signals (`AfterSlow`, latched
-//! with the next tick's inputs) at the start of the next slow step. The commands act on
-//! both sides; the firmware serves them while no slow step is in flight
+//! **Two contexts** (issue 54): a [`Drive`] is two halves that never share a byte — the
+//! [`FastSide`] (`FastState`: the mode, the current loops, the plan in force, the fast
+//! step's sums; its own copy of the configuration) and the [`SlowSide`] (`SlowState`: the
+//! reference, the machine's state, the flux model, the loops of the outer rates, the checks;
+//! its copy of the configuration; the job latched at the tick). The slow step reads the fast
+//! side only through what is latched for it (`SlowInputs`, taken at its tick) and acts on it
+//! only through its plan, which the fast side adopts at a fixed period,
+//! [`plan_delay_periods`] after the tick ([`FastSide::step`]) — so that it can run in a
+//! context of its own, preempted by the fast interrupt ([`SlowContext`]: the fast side
+//! reaches the slow side only at the tick and the adoption, and a slow side not back then is
+//! [`Fault::Overrun`]), and the drive still steps alike on the board, in QEMU and in the
+//! simulator (which keeps the halves together: [`Drive::step`]). The plan is made for the
+//! period that adopts it: the field anchored on the encoder at the tick and turned over the
+//! delay by the plan in force, the slip angle closed over the plans the fast steps ran. The
+//! once-per-slow-period checks on the adopting period's fast step (the encoder against the
+//! machine model, the rotor-resistance law) run on its signals (`AfterSlow`, latched with the
+//! next tick's inputs) at the start of the next slow step. The commands act on both halves
+//! ([`DriveMut`]); the firmware serves them while no slow step is in flight
 //! ([`Drive::slow_busy`]).
 //!
 //! The rooms: [`spec`](DriveSpec) (the specification and the drive's design constants),
@@ -116,8 +120,10 @@ struct StepSignals {
     v_ab: AlphaBeta,
 }
 
-/// A drive: its configuration and its state, grouped by context, lifetime and owner — the
-/// rule of what survives what is written in these types:
+/// A drive: its configuration and its state, in two halves — the fast context's
+/// ([`FastSide`]) and the slow context's ([`SlowSide`]), each with its own copy of the
+/// configuration — grouped within them by lifetime and owner; the rule of what survives what
+/// is written in these types:
 ///
 /// | group | what | made afresh by |
 /// |---|---|---|
@@ -125,19 +131,170 @@ struct StepSignals {
 /// | `MachineState` (slow), the brake comparator (fast) | the motor's and the inverter's temperature (I²t), the shaft's position and turns, whether it is at rest, how long the rotor has been left, the brake chopper's comparator | [`Drive::new`] only (power-up): kept by [`Drive::enable`] and by [`Drive::reconfigure`] |
 /// | `FastRun`, `SlowRun` | one run of the bridge: the loops, the field, the plan, the checks' counts; and the estimates it runs on (R_r, the inductances) | [`Drive::enable`] and [`Drive::reconfigure`], which carry the estimates into the new run |
 ///
+/// The simulators own a `Drive` and step it whole ([`Drive::step`]: the slow step's job runs
+/// at its tick, in the same call). The firmware owns the halves apart
+/// ([`Drive::into_parts`]): the fast interrupt the [`FastSide`], a slower interrupt the
+/// [`SlowSide`] while its job runs — the two never share a byte — and it commands the drive
+/// through a [`DriveMut`] made of both while the slow side is back.
+///
 /// The board's own state (the current sensors' offsets, the encoder's speed window, the
 /// capture) is the firmware's, beside the drive (`firmware::control::ControlLoop`).
+#[derive(Clone, Copy, Debug)]
+pub struct Drive {
+    fast: FastSide,
+    slow: SlowSide,
+}
+
+/// The fast context's half of a [`Drive`]: the bridge's state every period, the
+/// configuration, V/Hz's fast run. Steps with [`FastSide::step`].
 ///
 /// `repr(C)`, the fast step's state first and its configuration next: within the
-/// Cortex-M4F's ±1 020 B reach of a floating-point load from the drive's address (laid out
+/// Cortex-M4F's ±1 020 B reach of a floating-point load from the half's address (laid out
 /// by the compiler, the slow state came first and the fast step paid address arithmetic).
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
-pub struct Drive {
-    fast: FastState,
+pub struct FastSide {
+    state: FastState,
     cfg: DriveConfig,
-    slow: SlowState,
     vhz: VhzRun,
+}
+
+/// The slow context's half of a [`Drive`]: the loops of the outer rates, the machine's
+/// state, the checks, a copy of the configuration, and the job latched at the last tick
+/// ([`SlowSide::run`]).
+#[derive(Clone, Copy, Debug)]
+pub struct SlowSide {
+    state: SlowState,
+    cfg: DriveConfig,
+    job: Option<SlowJob>,
+}
+
+/// The slow step's job: its inputs, latched from the fast side at the tick, and the V/Hz
+/// law's state then (once it runs).
+#[derive(Clone, Copy, Debug)]
+struct SlowJob {
+    inputs: SlowInputs,
+    vhz: Option<VhzReport>,
+}
+
+/// Where the slow side is while the fast side steps ([`FastSide::step`]): beside it, its job
+/// run at the tick (the simulator: [`SlowSide`] itself), or in a context of its own (the
+/// board: the firmware's hand-off to a lower-priority interrupt).
+pub trait SlowContext {
+    /// `f` on the slow side if the fast context holds it now; false while it is lent to its
+    /// job.
+    fn with(&mut self, f: &mut dyn FnMut(&mut SlowSide)) -> bool;
+    /// Start the job just latched into the slow side ([`SlowSide::run`]): run it now, or
+    /// hand the slow side to its context. False if it could not be started.
+    fn start(&mut self) -> bool;
+}
+
+/// The simulator's: the slow side beside the fast one, its job run at its tick.
+impl SlowContext for SlowSide {
+    fn with(&mut self, f: &mut dyn FnMut(&mut SlowSide)) -> bool {
+        f(self);
+        true
+    }
+
+    fn start(&mut self) -> bool {
+        self.run();
+        true
+    }
+}
+
+/// The slow side's part of the drive's signals ([`DriveRef::telemetry`]), read from its
+/// state: what the fast context reads of it while it holds it — the firmware's capture keeps
+/// the last one read for the periods in which the slow side is at its job.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SlowSignals {
+    omega_sl_rad_s: f32,
+    i_q_ref_a: f32,
+    psi_r_wb: f32,
+    psi_ref_wb: f32,
+    omega_ref_rad_s: f32,
+    rr_scale: f32,
+    l_scale: f32,
+}
+
+impl SlowSide {
+    /// Its part of the drive's signals now.
+    pub fn signals(&self) -> SlowSignals {
+        let (s, ifoc) = (&self.state, &self.state.run.ifoc);
+        SlowSignals {
+            omega_sl_rad_s: ifoc.omega_sl_rad_s(),
+            i_q_ref_a: ifoc.i_ref_dq().q,
+            psi_r_wb: ifoc.psi_r_wb(),
+            psi_ref_wb: ifoc.flux_of(s.run.i_d_target_a),
+            omega_ref_rad_s: s.omega_ref_rad_s,
+            rr_scale: ifoc.rotor_resistance_scale(),
+            l_scale: ifoc.inductance_scale(),
+        }
+    }
+
+    /// The job latched at the last tick, if it has not run (nothing otherwise): the slow
+    /// step on its inputs (latched from the fast side, `FastState::latch`) and the slow
+    /// side's state alone (`SlowState::step`) — what the board's slow context runs. Its plan
+    /// is the fast side's [`DriveConfig::plan_delay`] periods after the tick
+    /// ([`FastSide::step`]).
+    ///
+    ///
+    /// First the once-per-slow-period checks on the fast step that adopted the last plan
+    /// (latched with the inputs; `SlowState::after_slow_checks`): the encoder against the
+    /// machine model, the rotor-resistance law.
+    /// Speed/position loop, the operating point, and the slow supervisor: a non-finite
+    /// encoder reading (in every mode), overspeed (while the bridge is active), stall (while
+    /// Running under a speed or position reference) and the magnetizing time. Holds a zero
+    /// torque command unless Running; otherwise ignores non-finite measurements (the fast
+    /// step trips on the currents and the bus).
+    ///
+    /// Order: encoder → the IFOC's period closed ([`crate::ifoc::IfocConfig::close_period`]: flux model,
+    /// slip angle) → field angle ([`crate::ifoc::IfocConfig::anchor`]); current trim; voltage regulator;
+    /// speed loop limited to the envelope's torque at the last slow step; operating point
+    /// ([`EnvelopeConfig::point`] on the envelope remade every [`crate::envelope::ENVELOPE_REFRESH_SLOW_STEPS`]:
+    /// i_d*, and the torque limited to the envelope); magnetized → Running; the fast steps'
+    /// plan ([`crate::ifoc::IfocConfig::plan`]); the phase checks (open phase, no motor current, the
+    /// windowed current sum; a stuck switch while Running).
+    pub fn run(&mut self) {
+        if let Some(job) = &self.job {
+            self.state.step(&self.cfg, &job.inputs, job.vhz.as_ref());
+            self.job = None;
+        }
+    }
+}
+
+/// The whole drive to command, made of its two halves while the fast context holds both
+/// ([`DriveMut::new`]; [`Drive`]'s methods are these): the link's commands, a
+/// reconfiguration.
+#[derive(Debug)]
+pub struct DriveMut<'a> {
+    fast: &'a mut FastSide,
+    slow: &'a mut SlowSide,
+}
+
+/// The whole drive to read ([`DriveRef::new`]; [`Drive`]'s reading methods are these).
+#[derive(Clone, Copy, Debug)]
+pub struct DriveRef<'a> {
+    fast: &'a FastSide,
+    slow: &'a SlowSide,
+}
+
+impl<'a> DriveMut<'a> {
+    /// The drive made of its halves.
+    pub fn new(fast: &'a mut FastSide, slow: &'a mut SlowSide) -> Self {
+        Self { fast, slow }
+    }
+
+    /// To read it.
+    pub fn as_ref(&self) -> DriveRef<'_> {
+        DriveRef { fast: self.fast, slow: self.slow }
+    }
+}
+
+impl<'a> DriveRef<'a> {
+    /// The drive made of its halves.
+    pub fn new(fast: &'a FastSide, slow: &'a SlowSide) -> Self {
+        Self { fast, slow }
+    }
 }
 
 /// The fast step's state: what the bridge runs on every period.
@@ -617,9 +774,8 @@ impl Drive {
             cfg.mras.initial_inductance_scale(),
             RotorFit::default(),
         );
-        Self {
-            cfg,
-            fast: FastState {
+        let fast = FastSide {
+            state: FastState {
                 mode: Mode::Idle,
                 pending_fault: None,
                 reference: Reference::Speed(0.0),
@@ -629,7 +785,11 @@ impl Drive {
                 zero: IdleZero::default(),
                 run: FastRun::default(),
             },
-            slow: SlowState {
+            cfg,
+            vhz: VhzRun::default(),
+        };
+        let slow = SlowSide {
+            state: SlowState {
                 mode: Mode::Idle,
                 reference: Reference::Speed(0.0),
                 omega_ref_rad_s: 0.0,
@@ -639,125 +799,239 @@ impl Drive {
                 machine: MachineState::POWER_UP,
                 run,
             },
-            vhz: VhzRun::default(),
-        }
+            cfg,
+            job: None,
+        };
+        Self { fast, slow }
     }
 
+    /// The two halves, for two contexts (the firmware's: [`Drive`]).
+    pub fn into_parts(self) -> (FastSide, SlowSide) {
+        (self.fast, self.slow)
+    }
+
+    /// To command it ([`DriveMut`]).
+    pub fn as_mut(&mut self) -> DriveMut<'_> {
+        DriveMut { fast: &mut self.fast, slow: &mut self.slow }
+    }
+
+    /// To read it ([`DriveRef`]).
+    pub fn as_ref(&self) -> DriveRef<'_> {
+        DriveRef { fast: &self.fast, slow: &self.slow }
+    }
+
+    /// The fast side ([`FastSide`]: the mode, the configuration, the cadence).
+    pub fn fast(&self) -> &FastSide {
+        &self.fast
+    }
+
+    /// One PWM period, the slow step's job run at its tick: [`FastSide::step`] with the slow
+    /// side beside it.
+    pub fn step(&mut self, m: &Measurements) -> FastOutput {
+        self.fast.step(m, &mut self.slow)
+    }
+
+    /// A period in which the firmware holds the bridge: [`FastSide::hold_step`] with the slow
+    /// side beside it.
+    pub fn hold_step(&mut self, m: &Measurements) -> bool {
+        self.fast.hold_step(m, &mut self.slow)
+    }
+
+    /// The slow step alone, its plan not adopted (benchmarks and tests): its inputs latched
+    /// from the fast side, then its job ([`SlowSide::run`]).
+    pub fn slow_step(&mut self, m: &Measurements) {
+        self.fast.latch(m, &mut self.slow);
+        self.slow.run();
+    }
+
+    /// The fast step alone, without the cadence (benchmarks and tests):
+    /// [`FastSide::fast_step`].
+    pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
+        self.fast.fast_step(m)
+    }
+
+    /// [`DriveMut::reconfigure`].
+    #[inline]
+    pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
+        self.as_mut().reconfigure(cfg)
+    }
+
+    /// [`DriveMut::rotor_driven`].
+    #[inline]
+    pub fn rotor_driven(&mut self, idle_slow_steps: u32) {
+        self.as_mut().rotor_driven(idle_slow_steps)
+    }
+
+    /// [`DriveMut::enable`].
+    #[inline]
+    pub fn enable(&mut self) -> Result<(), CommandError> {
+        self.as_mut().enable()
+    }
+
+    /// [`DriveMut::current_zero_moved`].
+    #[inline]
+    pub fn current_zero_moved(&mut self) {
+        self.as_mut().current_zero_moved()
+    }
+
+    /// [`DriveMut::disable`].
+    #[inline]
+    pub fn disable(&mut self) {
+        self.as_mut().disable()
+    }
+
+    /// [`DriveMut::controlled_stop`].
+    #[inline]
+    pub fn controlled_stop(&mut self) {
+        self.as_mut().controlled_stop()
+    }
+
+    /// [`DriveMut::clear_fault`].
+    #[inline]
+    pub fn clear_fault(&mut self) {
+        self.as_mut().clear_fault()
+    }
+
+    /// [`DriveMut::set_reference`].
+    #[inline]
+    pub fn set_reference(&mut self, r: Reference) -> Result<(), CommandError> {
+        self.as_mut().set_reference(r)
+    }
+
+    /// [`DriveMut::trip`].
+    #[inline]
+    pub fn trip(&mut self, f: Fault) {
+        self.as_mut().trip(f)
+    }
+
+    /// [`DriveRef::speed_state`].
+    #[inline]
+    pub fn speed_state(&self) -> &SpeedState {
+        self.as_ref().speed_state()
+    }
+
+    /// [`DriveRef::ifoc_state`].
+    #[inline]
+    pub fn ifoc_state(&self) -> &IfocState {
+        self.as_ref().ifoc_state()
+    }
+
+    /// [`DriveRef::idle_slow_steps`].
+    #[inline]
+    pub fn idle_slow_steps(&self) -> u32 {
+        self.as_ref().idle_slow_steps()
+    }
+
+    /// [`DriveRef::pending_fault`].
+    #[inline]
+    pub fn pending_fault(&self) -> Option<Fault> {
+        self.as_ref().pending_fault()
+    }
+
+    /// [`DriveRef::thermal_state`].
+    #[inline]
+    pub fn thermal_state(&self) -> (f32, f32) {
+        self.as_ref().thermal_state()
+    }
+
+    /// [`DriveRef::stator_resistance_scale`].
+    #[inline]
+    pub fn stator_resistance_scale(&self) -> f32 {
+        self.as_ref().stator_resistance_scale()
+    }
+
+    /// [`DriveRef::ridden_through`].
+    #[inline]
+    pub fn ridden_through(&self) -> FaultSet {
+        self.as_ref().ridden_through()
+    }
+
+    /// [`DriveRef::is_stopping`].
+    #[inline]
+    pub fn is_stopping(&self) -> bool {
+        self.as_ref().is_stopping()
+    }
+
+    /// [`DriveRef::rotor_at_rest`].
+    #[inline]
+    pub fn rotor_at_rest(&self) -> bool {
+        self.as_ref().rotor_at_rest()
+    }
+
+    /// [`DriveRef::position_rad`].
+    #[inline]
+    pub fn position_rad(&self) -> f32 {
+        self.as_ref().position_rad()
+    }
+
+    /// [`DriveRef::telemetry`].
+    #[inline]
+    pub fn telemetry(&self) -> Telemetry {
+        self.as_ref().telemetry()
+    }
+
+    /// [`FastSide::mode`].
+    #[inline]
+    pub fn mode(&self) -> Mode {
+        self.fast.mode()
+    }
+
+    /// [`FastSide::config`].
+    #[inline]
+    pub fn config(&self) -> &DriveConfig {
+        self.fast.config()
+    }
+
+    /// [`FastSide::current_state`].
+    #[inline]
+    pub fn current_state(&self) -> &CurrentState<f32> {
+        self.fast.current_state()
+    }
+
+    /// [`FastSide::slow_step_due`].
+    #[inline]
+    pub fn slow_step_due(&self) -> bool {
+        self.fast.slow_step_due()
+    }
+
+    /// [`FastSide::slow_busy`].
+    #[inline]
+    pub fn slow_busy(&self) -> bool {
+        self.fast.slow_busy()
+    }
+
+    /// [`FastSide::observed_speed_rad_s`].
+    #[inline]
+    pub fn observed_speed_rad_s(&self) -> Option<f32> {
+        self.fast.observed_speed_rad_s()
+    }
+}
+
+impl DriveMut<'_> {
     /// The slow side learns the fast side's fault (a fault of the fast step ends a
     /// controlled stop: its pending fault is what latched), and the fast side the slow
     /// side's reference and pending fault: after a command, and at the slow step's tick.
     /// Out of line: one copy for its dozen callers.
     #[inline(never)]
     fn sync(&mut self) {
-        if let Mode::Fault(_) = self.fast.mode {
-            self.slow.mode = self.fast.mode;
-            (self.slow.pending_fault, self.slow.stop_steps_left) = (None, None);
+        if let Mode::Fault(_) = self.fast.state.mode {
+            self.slow.state.mode = self.fast.state.mode;
+            (self.slow.state.pending_fault, self.slow.state.stop_steps_left) = (None, None);
         }
-        self.fast.pending_fault = self.slow.pending_fault;
-        self.fast.reference = self.slow.reference;
+        self.fast.state.pending_fault = self.slow.state.pending_fault;
+        self.fast.state.reference = self.slow.state.reference;
     }
 
     /// Both sides' mode set to `mode` (a command's).
     fn set_mode(&mut self, mode: Mode) {
-        (self.fast.mode, self.slow.mode) = (mode, mode);
-    }
-
-    /// Swap the configuration for `cfg` — new gains (the firmware's `WriteSpeedGains`), or a
-    /// new drive file for the same machine — keeping the machine's state: the motor's and
-    /// the inverter's I²t temperature (θ rescaled if the rated current changed,
-    /// [`ThermalLimit`]), the encoder's position and turns, how long the rotor has been
-    /// left, the brake chopper's state. The estimates (R_r, the inductances, × the motor
-    /// file's) carry over, limited to `cfg`'s ranges — an estimate inside them is one `cfg`'s
-    /// certificate covers. The run starts afresh, the reference at rest (`Speed(0)`), a
-    /// latched fault stays latched, and the slow cadence keeps its phase unless the divider
-    /// changed (then the encoder's jump check starts again at the new read period). As in
-    /// stabilizer and idsp: the configuration is swapped, the state is kept. Another machine
-    /// is another drive ([`Drive::new`]; the link's `Configure` tells them apart).
-    ///
-    /// Refused while the bridge is active ([`CommandError::Active`]): the drive is left as
-    /// it was. `#[inline]`: compiled in the caller's crate — in the firmware at its
-    /// opt-level "z" (a gain write).
-    #[inline]
-    pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
-        if self.fast.mode.is_active() {
-            return Err(CommandError::Active);
-        }
-        self.sync();
-        let old = &self.cfg;
-        let [rr_min, rr_max] = cfg.mras.range();
-        let [l_min, l_max] = cfg.mras.inductance_range();
-        let rr = self.slow.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
-        let l = self.slow.run.identified_inductance_scale().limit(l_min, l_max);
-        let thermal = &mut self.slow.machine.thermal;
-        thermal.motor = old.motor_thermal.carry(thermal.motor, &cfg.motor_thermal);
-        thermal.inverter = old.inverter_thermal.carry(thermal.inverter, &cfg.inverter_thermal);
-        if cfg.slow_divider != old.slow_divider {
-            self.fast.steps_to_slow = 0;
-            self.slow.machine.encoder.restart_jump_check();
-        }
-        self.slow.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
-        self.fast.run = FastRun::default();
-        self.vhz = VhzRun::default();
-        (self.slow.reference, self.slow.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
-        (self.slow.pending_fault, self.slow.stop_steps_left) = (None, None);
-        self.cfg = cfg;
-        self.sync();
-        Ok(())
-    }
-
-    /// Present mode.
-    pub fn mode(&self) -> Mode {
-        self.fast.mode
-    }
-
-    /// The configuration.
-    pub fn config(&self) -> &DriveConfig {
-        &self.cfg
-    }
-
-    /// Current-loop states (their PI `p_term`/`i_term` are telemetry).
-    pub fn current_state(&self) -> &CurrentState<f32> {
-        &self.fast.run.current
-    }
-
-    /// Speed-loop state (PI `p_term`/`i_term` when a PI law is configured).
-    pub fn speed_state(&self) -> &SpeedState {
-        &self.slow.run.speed
-    }
-
-    /// IFOC state: the rotor-flux estimate, the estimates in use and the plan made last.
-    pub fn ifoc_state(&self) -> &IfocState {
-        &self.slow.run.ifoc
-    }
-
-    /// The next [`Drive::step`] runs the slow step, which reads the measurements' encoder
-    /// values (the one cadence: a caller that reads the encoder every N-th period reads it
-    /// for this step).
-    pub fn slow_step_due(&self) -> bool {
-        self.fast.steps_to_slow == 0
-    }
-
-    /// The slow step's job is in flight after the last [`Drive::step`]: from its tick up to
-    /// the period that adopts its plan ([`DriveConfig::plan_delay`]). The board's slow
-    /// context may be running it, so the firmware leaves the link's requests — which act on
-    /// the slow side's state — to a period after the adoption (the tick's period is among
-    /// these: the longest period is never the job's and a request's).
-    pub fn slow_busy(&self) -> bool {
-        self.fast.steps_to_slow > self.cfg.adopt_at
-    }
-
-    /// Slow steps since a bridge last drove the rotor (saturating; `u32::MAX` from power-up):
-    /// what decides whether the next enable measures the inductances
-    /// ([`MrasConfig::demagnetized_after`]).
-    pub fn idle_slow_steps(&self) -> u32 {
-        self.slow.machine.idle_slow_steps
+        (self.fast.state.mode, self.slow.state.mode) = (mode, mode);
     }
 
     /// The rotor was driven by something else `idle_slow_steps` slow steps ago (0: now) — a
     /// commissioning sequence in the drive's place, or the drive this one replaces (a new
     /// configuration): its flux may still be there at the next enable.
     pub fn rotor_driven(&mut self, idle_slow_steps: u32) {
-        self.slow.machine.idle_slow_steps = idle_slow_steps;
+        self.slow.state.machine.idle_slow_steps = idle_slow_steps;
     }
 
     /// Idle → Magnetizing with a fresh run (`FastRun`, `SlowRun`: the loops, the field, the
@@ -771,17 +1045,19 @@ impl Drive {
     #[inline]
     pub fn enable(&mut self) -> Result<(), CommandError> {
         self.sync();
-        match self.fast.mode {
+        match self.fast.state.mode {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
-                let fit = RotorFit::new(self.cfg.mras.demagnetized_after(self.slow.machine.idle_slow_steps));
-                let run = &self.slow.run;
+                let fit = RotorFit::new(
+                    self.fast.cfg.mras.demagnetized_after(self.slow.state.machine.idle_slow_steps),
+                );
+                let run = &self.slow.state.run;
                 let (rr, l) = (run.ifoc.rotor_resistance_scale(), run.identified_inductance_scale());
-                self.slow.run = SlowRun::new(&self.cfg, rr, l, fit);
-                self.fast.run = FastRun::default();
-                self.vhz = VhzRun::default();
-                self.slow.ridden_through = FaultSet::EMPTY;
-                self.slow.machine.idle_slow_steps = 0;
+                self.slow.state.run = SlowRun::new(&self.fast.cfg, rr, l, fit);
+                self.fast.state.run = FastRun::default();
+                self.fast.vhz = VhzRun::default();
+                self.slow.state.ridden_through = FaultSet::EMPTY;
+                self.slow.state.machine.idle_slow_steps = 0;
                 self.set_mode(Mode::Magnetizing);
                 Ok(())
             }
@@ -794,27 +1070,15 @@ impl Drive {
     /// residual offsets it read with the bridge off ([`IdleZero::forget`]) — they are of the
     /// old zero, up to the calibration's tolerance, where the residual is a few LSB.
     pub fn current_zero_moved(&mut self) {
-        self.fast.zero.forget();
+        self.fast.state.zero.forget();
     }
 
     /// Back to Idle (phases off). A latched fault stays latched.
     pub fn disable(&mut self) {
         self.sync();
-        self.slow.disable();
-        self.fast.mode = self.slow.mode;
+        self.slow.state.disable();
+        self.fast.state.mode = self.slow.state.mode;
         self.sync();
-    }
-
-    /// A fault answered by a controlled stop that is under way ([`Protection::stop_on`]): it
-    /// latches when the bridge goes off.
-    pub fn pending_fault(&self) -> Option<Fault> {
-        if matches!(self.fast.mode, Mode::Fault(_)) { None } else { self.slow.pending_fault }
-    }
-
-    /// The thermal models' states, motor and inverter (1 = the steady temperature rise at
-    /// the rated current; the limit is `overload_factor²`; 0 without a limit).
-    pub fn thermal_state(&self) -> (f32, f32) {
-        (self.slow.machine.thermal.motor, self.slow.machine.thermal.inverter)
     }
 
     /// A controlled stop (stop category 1): Running, the speed loop brakes to standstill
@@ -824,58 +1088,31 @@ impl Drive {
     /// cancels the stop. What the firmware does when its link falls silent.
     pub fn controlled_stop(&mut self) {
         self.sync();
-        let s = &mut self.slow;
-        match self.fast.mode {
+        let s = &mut self.slow.state;
+        match self.fast.state.mode {
             _ if s.pending_fault.is_some() => {}
             Mode::Running if s.stop_steps_left.is_none() => {
                 s.reference = Reference::Speed(0.0);
-                s.stop_steps_left = Some(self.cfg.stop_slow_steps);
+                s.stop_steps_left = Some(self.fast.cfg.stop_slow_steps);
             }
             Mode::Magnetizing => {
                 s.disable();
-                self.fast.mode = s.mode;
+                self.fast.state.mode = s.mode;
             }
             _ => {}
         }
         self.sync();
     }
 
-    /// The observer's speed estimate at the last step, mechanical rad/s (`None` without an
-    /// observer: an encoder drive). With the bridge off, the last one before it went off.
-    pub fn observed_speed_rad_s(&self) -> Option<f32> {
-        self.cfg.source.observer().map(|_| self.fast.run.estimate.omega_m_rad_s)
-    }
-
-    /// The stator resistance the observer runs on, × the motor file's: what the magnetizing
-    /// fit measured at the last enable of a demagnetized rotor at rest (1 before any, and
-    /// for a drive without an observer). Its error against the winding's is what the
-    /// observer's certificate bounds (`design certify`'s stator-resistance margin).
-    pub fn stator_resistance_scale(&self) -> f32 {
-        self.slow.machine.rs_scale
-    }
-
-    /// The encoder's faults the drive rode through on the observer since the last enable
-    /// ([`SpeedFeedback::EncoderRideThrough`]): the faults it would have tripped on, which
-    /// the user must still hear of — the encoder is broken, the drive runs without it.
-    /// Empty for the other speed sources.
-    pub fn ridden_through(&self) -> FaultSet {
-        self.slow.ridden_through
-    }
-
-    /// A controlled stop is under way.
-    pub fn is_stopping(&self) -> bool {
-        self.slow.stop_steps_left.is_some() && !matches!(self.fast.mode, Mode::Fault(_))
-    }
-
     /// Fault → Idle (the encoder's jump check judges again from the second change after,
     /// [`Fault::EncoderLoss`]'s jump being no reference).
     pub fn clear_fault(&mut self) {
         self.sync();
-        if matches!(self.fast.mode, Mode::Fault(_)) {
+        if matches!(self.fast.state.mode, Mode::Fault(_)) {
             self.set_mode(Mode::Idle);
             // The encoder's last change may be the jump that latched `EncoderLoss`: no
             // reference for the next one.
-            self.slow.machine.encoder.forget_last_change();
+            self.slow.state.machine.encoder.forget_last_change();
         }
     }
 
@@ -890,73 +1127,21 @@ impl Drive {
         if !finite {
             return Err(CommandError::NonFinite);
         }
-        if self.cfg.vhz().is_some() && matches!(r, Reference::Position(_) | Reference::Torque(_)) {
+        if self.fast.cfg.vhz().is_some() && matches!(r, Reference::Position(_) | Reference::Torque(_)) {
             return Err(CommandError::SpeedOnly);
         }
-        if self.slow.on_observer(&self.cfg) && matches!(r, Reference::Position(_)) {
+        if self.slow.state.on_observer(&self.fast.cfg) && matches!(r, Reference::Position(_)) {
             return Err(CommandError::NoEncoder);
         }
         self.sync();
-        if self.slow.pending_fault.is_some() {
+        if self.slow.state.pending_fault.is_some() {
             // A stop for a fault is not cancelled by a new reference.
             return Err(CommandError::Faulted);
         }
-        self.slow.reference = r;
-        self.slow.stop_steps_left = None;
+        self.slow.state.reference = r;
+        self.slow.state.stop_steps_left = None;
         self.sync();
         Ok(())
-    }
-
-    /// One PWM period: the slow cadence (`Drive::cadence`: at the tick the slow step's
-    /// job, a plan's delay later its plan adopted), then the fast step.
-    pub fn step(&mut self, m: &Measurements) -> FastOutput {
-        // Sensorless: the observer reads the period's sample first, and its estimate is the
-        // encoder reading both steps get.
-        let observed;
-        let m = match self.cfg.source.observer() {
-            Some(o) => {
-                observed = self.fast.observe(o, self.cfg.source.sensorless(), m);
-                &observed
-            }
-            None => m,
-        };
-        let keep = self.cadence(m);
-        self.fast(m, keep)
-    }
-
-    /// The slow cadence of one period, the two contexts' schedule (issue 54): at the tick
-    /// (every `slow_divider`-th period) the fast side latches the slow step's inputs and the
-    /// slow step runs on them alone ([`Drive::slow_step`]: the board's slow context runs it
-    /// while the fast interrupt goes on); [`DriveConfig::plan_delay`] periods after the tick
-    /// the fast side adopts its plan — the mode, the reference, the field plan — at that
-    /// fixed period whatever context made it and however long it took, so that the
-    /// simulator, QEMU and the board step alike. True in the adopting period: its fast step,
-    /// the plan's first, keeps its signals for the once-per-slow-period checks, which the
-    /// next slow step runs (latched with its inputs).
-    #[inline(always)]
-    fn cadence(&mut self, m: &Measurements) -> bool {
-        if self.fast.steps_to_slow == 0 {
-            self.slow_step(m);
-            self.fast.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
-        } else {
-            self.fast.steps_to_slow -= 1;
-        }
-        let adopting = self.fast.steps_to_slow == self.cfg.adopt_at;
-        if adopting {
-            self.adopt();
-        }
-        adopting
-    }
-
-    /// The fast side takes the slow step's plan: its mode (unless a fault of the fast step
-    /// came first), the reference, the field plan; V/Hz's. Out of line: once per slow
-    /// period.
-    #[inline(never)]
-    fn adopt(&mut self) {
-        self.fast.adopt(&self.slow);
-        if self.cfg.vhz_on() {
-            self.vhz.adopt(&self.slow.run.vhz_plan);
-        }
     }
 
     /// Latch fault `f` (the first fault stays latched): phases off from the next fast step
@@ -964,40 +1149,271 @@ impl Drive {
     /// line (a fault's path: inlined, its eight callers took 376 B of flash).
     #[inline(never)]
     pub fn trip(&mut self, f: Fault) {
-        self.fast.trip(f);
+        self.fast.state.trip(f);
         self.sync();
+    }
+
+    /// Swap the configuration for `cfg` — new gains (the firmware's `WriteSpeedGains`), or a
+    /// new drive file for the same machine — keeping the machine's state: the motor's and
+    /// the inverter's I²t temperature (θ rescaled if the rated current changed,
+    /// [`ThermalLimit`]), the encoder's position and turns, how long the rotor has been
+    /// left, the brake chopper's state. The estimates (R_r, the inductances, × the motor
+    /// file's) carry over, limited to `cfg`'s ranges — an estimate inside them is one `cfg`'s
+    /// certificate covers. The run starts afresh, the reference at rest (`Speed(0)`), a
+    /// latched fault stays latched, and the slow cadence keeps its phase unless the divider
+    /// changed (then the encoder's jump check starts again at the new read period). As in
+    /// stabilizer and idsp: the configuration is swapped, the state is kept. Another machine
+    /// is another drive ([`DriveMut::replace`]; the link's `Configure` tells them apart).
+    ///
+    /// Refused while the bridge is active ([`CommandError::Active`]): the drive is left as
+    /// it was. `#[inline]`: compiled in the caller's crate — in the firmware at its
+    /// opt-level "z" (a gain write).
+    #[inline]
+    pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
+        if self.fast.state.mode.is_active() {
+            return Err(CommandError::Active);
+        }
+        self.sync();
+        let old = &self.fast.cfg;
+        let [rr_min, rr_max] = cfg.mras.range();
+        let [l_min, l_max] = cfg.mras.inductance_range();
+        let rr = self.slow.state.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
+        let l = self.slow.state.run.identified_inductance_scale().limit(l_min, l_max);
+        let thermal = &mut self.slow.state.machine.thermal;
+        thermal.motor = old.motor_thermal.carry(thermal.motor, &cfg.motor_thermal);
+        thermal.inverter = old.inverter_thermal.carry(thermal.inverter, &cfg.inverter_thermal);
+        if cfg.slow_divider != old.slow_divider {
+            self.fast.state.steps_to_slow = 0;
+            self.slow.state.machine.encoder.restart_jump_check();
+        }
+        self.slow.state.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
+        self.fast.state.run = FastRun::default();
+        self.fast.vhz = VhzRun::default();
+        (self.slow.state.reference, self.slow.state.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
+        (self.slow.state.pending_fault, self.slow.state.stop_steps_left) = (None, None);
+        (self.fast.cfg, self.slow.cfg, self.slow.job) = (cfg, cfg, None);
+        self.sync();
+        Ok(())
+    }
+
+    /// Another machine: a new drive on `cfg` ([`Drive::new`]) in this one's place, which only
+    /// knows how long the rotor was left ([`DriveMut::rotor_driven`]).
+    pub fn replace(&mut self, cfg: DriveConfig) {
+        let idle = self.slow.state.machine.idle_slow_steps;
+        (*self.fast, *self.slow) = Drive::new(cfg).into_parts();
+        self.rotor_driven(idle);
+    }
+}
+
+impl<'a> DriveRef<'a> {
+    /// Speed-loop state (PI `p_term`/`i_term` when a PI law is configured).
+    pub fn speed_state(self) -> &'a SpeedState {
+        &self.slow.state.run.speed
+    }
+
+    /// IFOC state: the rotor-flux estimate, the estimates in use and the plan made last.
+    pub fn ifoc_state(self) -> &'a IfocState {
+        &self.slow.state.run.ifoc
+    }
+
+    /// Slow steps since a bridge last drove the rotor (saturating; `u32::MAX` from power-up):
+    /// what decides whether the next enable measures the inductances
+    /// ([`MrasConfig::demagnetized_after`]).
+    pub fn idle_slow_steps(self) -> u32 {
+        self.slow.state.machine.idle_slow_steps
+    }
+
+    /// A fault answered by a controlled stop that is under way ([`Protection::stop_on`]): it
+    /// latches when the bridge goes off.
+    pub fn pending_fault(self) -> Option<Fault> {
+        if matches!(self.fast.state.mode, Mode::Fault(_)) { None } else { self.slow.state.pending_fault }
+    }
+
+    /// The thermal models' states, motor and inverter (1 = the steady temperature rise at
+    /// the rated current; the limit is `overload_factor²`; 0 without a limit).
+    pub fn thermal_state(self) -> (f32, f32) {
+        (self.slow.state.machine.thermal.motor, self.slow.state.machine.thermal.inverter)
+    }
+
+    /// The stator resistance the observer runs on, × the motor file's: what the magnetizing
+    /// fit measured at the last enable of a demagnetized rotor at rest (1 before any, and
+    /// for a drive without an observer). Its error against the winding's is what the
+    /// observer's certificate bounds (`design certify`'s stator-resistance margin).
+    pub fn stator_resistance_scale(self) -> f32 {
+        self.slow.state.machine.rs_scale
+    }
+
+    /// The encoder's faults the drive rode through on the observer since the last enable
+    /// ([`SpeedFeedback::EncoderRideThrough`]): the faults it would have tripped on, which
+    /// the user must still hear of — the encoder is broken, the drive runs without it.
+    /// Empty for the other speed sources.
+    pub fn ridden_through(self) -> FaultSet {
+        self.slow.state.ridden_through
+    }
+
+    /// A controlled stop is under way.
+    pub fn is_stopping(self) -> bool {
+        self.slow.state.stop_steps_left.is_some() && !matches!(self.fast.state.mode, Mode::Fault(_))
     }
 
     /// The rotor has been at rest over the rest check's last windows
     /// ([`crate::supervisor::rest`]: `p·|ω_m|·T_r` at most 0.05 over `rest_time_s`, twice in
     /// a row): what commissioning's standstill tests need before they start. Watched in every
     /// mode; `false` from power-up until the windows have passed.
-    pub fn rotor_at_rest(&self) -> bool {
-        self.slow.machine.rest.at_rest()
+    pub fn rotor_at_rest(self) -> bool {
+        self.slow.state.machine.rest.at_rest()
     }
 
     /// Multi-turn mechanical position from the encoder, rad (the position loop's;
     /// `EncoderTrack::position_rad`).
-    pub fn position_rad(&self) -> f32 {
-        self.slow.machine.encoder.position_rad()
+    pub fn position_rad(self) -> f32 {
+        self.slow.state.machine.encoder.position_rad()
     }
 
     /// The signals of the last fast step, for logs, traces and the capture: made on demand
     /// from what the step left (its measured current, current references and voltage) and
-    /// the drive's state, not in every step. All zero unless the bridge is active
-    /// (Magnetizing or Running) — as after a step that tripped. Out of line: its callers
-    /// (the firmware's capture and link stream) take it rarely.
+    /// the drive's state ([`FastSide::telemetry_with`] on [`SlowSide::signals`]), not in
+    /// every step. All zero unless the bridge is active (Magnetizing or Running) — as after a
+    /// step that tripped.
+    pub fn telemetry(self) -> Telemetry {
+        self.fast.telemetry_with(&self.slow.signals())
+    }
+
+    /// [`FastSide::mode`].
+    pub fn mode(self) -> Mode {
+        self.fast.mode()
+    }
+
+    /// [`FastSide::config`].
+    pub fn config(self) -> &'a DriveConfig {
+        self.fast.config()
+    }
+}
+
+impl FastSide {
+    /// Present mode.
+    pub fn mode(&self) -> Mode {
+        self.state.mode
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DriveConfig {
+        &self.cfg
+    }
+
+    /// Current-loop states (their PI `p_term`/`i_term` are telemetry).
+    pub fn current_state(&self) -> &CurrentState<f32> {
+        &self.state.run.current
+    }
+
+    /// The next [`Drive::step`] runs the slow step, which reads the measurements' encoder
+    /// values (the one cadence: a caller that reads the encoder every N-th period reads it
+    /// for this step).
+    pub fn slow_step_due(&self) -> bool {
+        self.state.steps_to_slow == 0
+    }
+
+    /// The slow step's job is in flight after the last [`Drive::step`]: from its tick up to
+    /// the period that adopts its plan ([`DriveConfig::plan_delay`]). The board's slow
+    /// context may be running it, so the firmware leaves the link's requests — which act on
+    /// the slow side's state — to a period after the adoption (the tick's period is among
+    /// these: the longest period is never the job's and a request's).
+    pub fn slow_busy(&self) -> bool {
+        self.state.steps_to_slow > self.cfg.adopt_at
+    }
+
+    /// The observer's speed estimate at the last step, mechanical rad/s (`None` without an
+    /// observer: an encoder drive). With the bridge off, the last one before it went off.
+    pub fn observed_speed_rad_s(&self) -> Option<f32> {
+        self.cfg.source.observer().map(|_| self.state.run.estimate.omega_m_rad_s)
+    }
+
+    /// One PWM period, the two contexts' schedule (issue 54): the observer on the period's
+    /// sample (sensorless: its estimate is the encoder reading both steps get); at the tick
+    /// (every `slow_divider`-th period) the slow step's inputs latched into the slow side and
+    /// its job started (`slow`: run at once beside the fast side, or handed to the board's
+    /// slow context, which runs it while the fast interrupt goes on);
+    /// [`DriveConfig::plan_delay`] periods after the tick its plan adopted — the mode, the
+    /// reference, the field plan — at that fixed period whatever context made it and however
+    /// long it took, so that the simulator, QEMU and the board step alike; then the fast
+    /// step. A slow side not back at the tick or at the adoption (its job late: a slow
+    /// context that cannot keep up) latches [`Fault::Overrun`], the bridge off in that
+    /// period.
+    pub fn step(&mut self, m: &Measurements, slow: &mut dyn SlowContext) -> FastOutput {
+        let observed;
+        let m = match self.cfg.source.observer() {
+            Some(o) => {
+                observed = self.state.observe(o, self.cfg.source.sensorless(), m);
+                &observed
+            }
+            None => m,
+        };
+        let keep = self.cadence(m, slow);
+        self.fast(m, keep)
+    }
+
+    /// The slow cadence of one period ([`FastSide::step`]). True in the adopting period: its
+    /// fast step, the plan's first, keeps its signals for the once-per-slow-period checks,
+    /// which the next slow step runs (latched with its inputs).
+    #[inline(always)]
+    fn cadence(&mut self, m: &Measurements, slow: &mut dyn SlowContext) -> bool {
+        if self.state.steps_to_slow == 0 {
+            self.tick(m, slow);
+            self.state.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
+        } else {
+            self.state.steps_to_slow -= 1;
+        }
+        let adopting = self.state.steps_to_slow == self.cfg.adopt_at;
+        if adopting && !slow.with(&mut |s| self.adopt(s)) {
+            self.state.trip(Fault::Overrun);
+        }
+        adopting
+    }
+
+    /// The tick: the slow step's job latched and started, or [`Fault::Overrun`] if the slow
+    /// side is not back. Out of line: once per slow period.
     #[inline(never)]
-    pub fn telemetry(&self) -> Telemetry {
-        if !self.fast.mode.is_active() {
+    fn tick(&mut self, m: &Measurements, slow: &mut dyn SlowContext) {
+        if !(slow.with(&mut |s| self.latch(m, s)) && slow.start()) {
+            self.state.trip(Fault::Overrun);
+        }
+    }
+
+    /// The slow step's job latched into `s` (`FastState::latch`: the measurements, the mode,
+    /// the sums since the last tick), with the V/Hz law's state.
+    #[inline(always)]
+    fn latch(&mut self, m: &Measurements, s: &mut SlowSide) {
+        let inputs = self.state.latch(m, self.state.on_observer(&self.cfg));
+        // One call of the step (two, one of them for V/Hz, and it went out of line: +80
+        // instructions per slow step of a vector drive, `cost slow_step`).
+        let vhz = if self.cfg.vhz_on() { self.vhz.report() } else { None };
+        s.job = Some(SlowJob { inputs, vhz });
+    }
+
+    /// The fast side takes the slow step's plan: its mode (unless a fault of the fast step
+    /// came first), the reference, the field plan; V/Hz's. Out of line: once per slow
+    /// period.
+    #[inline(never)]
+    fn adopt(&mut self, s: &SlowSide) {
+        self.state.adopt(&s.state);
+        if self.cfg.vhz_on() {
+            self.vhz.adopt(&s.state.run.vhz_plan);
+        }
+    }
+
+    /// The signals of the last fast step ([`DriveRef::telemetry`]) with the slow side's part
+    /// `s`. Out of line: its callers (the firmware's capture and link stream) take it rarely.
+    #[inline(never)]
+    pub fn telemetry_with(&self, s: &SlowSignals) -> Telemetry {
+        if !self.state.mode.is_active() {
             return Telemetry::default();
         }
-        let rotating = matches!(self.fast.reference, Reference::RotatingCurrent { .. })
-            && self.fast.mode == Mode::Running;
-        let (s, f) = (&self.slow.run.ifoc, &self.fast.run);
+        let rotating = matches!(self.state.reference, Reference::RotatingCurrent { .. })
+            && self.state.mode == Mode::Running;
+        let f = &self.state.run;
         let (theta_e_rad, omega_sl_rad_s, i_q_ref_a, psi_r_wb) = match (self.cfg.vhz(), self.vhz.on, rotating)
         {
-            (_, _, true) => (f.last_test_angle_rad, 0.0, 0.0, s.psi_r_wb()),
+            (_, _, true) => (f.last_test_angle_rad, 0.0, 0.0, s.psi_r_wb),
             // V/Hz: the stator-flux frame, the operating point's slip and rotor flux.
             (Some(v), true, false) => {
                 let law = &self.vhz.state;
@@ -1008,7 +1424,7 @@ impl Drive {
                     law.psi_r_wb(v, &self.vhz.plan),
                 )
             }
-            _ => (f.field.last_theta_e_rad(), s.omega_sl_rad_s(), s.i_ref_dq().q, s.psi_r_wb()),
+            _ => (f.field.last_theta_e_rad(), s.omega_sl_rad_s, s.i_q_ref_a, s.psi_r_wb),
         };
         Telemetry {
             i_ab_a: f.last.i_ab,
@@ -1017,11 +1433,20 @@ impl Drive {
             theta_e_rad,
             omega_sl_rad_s,
             psi_r_wb,
-            psi_ref_wb: s.flux_of(self.slow.run.i_d_target_a),
+            psi_ref_wb: s.psi_ref_wb,
             i_q_ref_a,
-            omega_ref_rad_s: self.slow.omega_ref_rad_s,
-            rr_scale: s.rotor_resistance_scale(),
-            l_scale: s.inductance_scale(),
+            omega_ref_rad_s: s.omega_ref_rad_s,
+            rr_scale: s.rr_scale,
+            l_scale: s.l_scale,
         }
+    }
+
+    /// Latch fault `f` on the fast side alone (the first fault stays latched): phases off
+    /// from the next fast step on; the slow side learns it at its next tick (the mode is
+    /// among its inputs) or command. What the fast interrupt calls for the faults only the
+    /// firmware sees ([`DriveMut::trip`] with the slow side back).
+    #[inline(never)]
+    pub fn trip(&mut self, f: Fault) {
+        self.state.trip(f);
     }
 }

@@ -14,37 +14,6 @@ use crate::supervisor::phases::CURRENT_SUM_MEAN_FRACTION;
 use crate::svpwm;
 use crate::vhz::{VhzConfig, VhzReport};
 
-impl Drive {
-    /// The slow step at its tick: its inputs latched from the fast side
-    /// (`FastState::latch`), then the step on them and the slow side's state alone
-    /// (`SlowState::step`) — what the board's slow context runs. Its plan is the fast side's
-    /// [`DriveConfig::plan_delay`] periods later (`Drive::cadence`).
-    ///
-    /// First the once-per-slow-period checks on the fast step that adopted the last plan
-    /// (latched with the inputs; `SlowState::after_slow_checks`): the encoder against the
-    /// machine model, the rotor-resistance law.
-    /// Speed/position loop, the operating point, and the slow supervisor: a non-finite
-    /// encoder reading (in every mode), overspeed (while the bridge is active), stall (while
-    /// Running under a speed or position reference) and the magnetizing time. Holds a zero
-    /// torque command unless Running; otherwise ignores non-finite measurements (the fast
-    /// step trips on the currents and the bus).
-    ///
-    /// Order: encoder → the IFOC's period closed ([`IfocConfig::close_period`]: flux model,
-    /// slip angle) → field angle ([`IfocConfig::anchor`]); current trim; voltage regulator;
-    /// speed loop limited to the envelope's torque at the last slow step; operating point
-    /// ([`EnvelopeConfig::point`] on the envelope remade every [`ENVELOPE_REFRESH_SLOW_STEPS`]:
-    /// i_d*, and the torque limited to the envelope); magnetized → Running; the fast steps'
-    /// plan ([`IfocConfig::plan`]); the phase checks (open phase, no motor current, the
-    /// windowed current sum; a stuck switch while Running).
-    pub fn slow_step(&mut self, m: &Measurements) {
-        let inputs = self.fast.latch(m, self.fast.on_observer(&self.cfg));
-        // One call of the step (two, one of them for V/Hz, and it went out of line: +80
-        // instructions per slow step of a vector drive, `cost slow_step`).
-        let vhz = if self.cfg.vhz_on() { self.vhz.report() } else { None };
-        self.slow.step(&self.cfg, &inputs, vhz.as_ref());
-    }
-}
-
 /// A saturating motor's machine model moves this fraction of the way to the chord at its
 /// operating point at each refresh while Running (`SlowState::remodel_on_curve`).
 const MODEL_CHORD_RELAXATION: f32 = 0.5;
@@ -55,9 +24,9 @@ const MODEL_CHORD_RELAXATION: f32 = 0.5;
 const FIT_CURVE_ITERATIONS: u32 = 8;
 
 impl SlowState {
-    /// The slow step on its inputs: see [`Drive::slow_step`].
+    /// The slow step on its inputs: see [`SlowSide::run`].
     /// `vhz`: the V/Hz law's state at the tick, once it runs.
-    fn step(&mut self, cfg: &DriveConfig, inputs: &SlowInputs, vhz: Option<&VhzReport>) {
+    pub(super) fn step(&mut self, cfg: &DriveConfig, inputs: &SlowInputs, vhz: Option<&VhzReport>) {
         self.mode = inputs.mode;
         if let Mode::Fault(_) = self.mode {
             // A fault of the fast step ended a controlled stop (its pending fault is what

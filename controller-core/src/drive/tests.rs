@@ -61,19 +61,19 @@ pub(crate) fn test_spec() -> DriveSpec {
 /// The slow side's reaction to fault `f` ([`SlowState::fault_reaction`]), handed to the
 /// fast side as the slow step does.
 fn fault_reaction(d: &mut Drive, f: Fault) {
-    let cfg = d.cfg;
-    d.slow.fault_reaction(&cfg, f);
-    d.fast.trip_from(d.slow.mode);
-    d.sync();
+    let cfg = d.fast.cfg;
+    d.slow.state.fault_reaction(&cfg, f);
+    d.fast.state.trip_from(d.slow.state.mode);
+    d.as_mut().sync();
 }
 
 /// The slow side's following check ([`SlowState::check_following`]), its fault handed to the
 /// fast side.
 fn check_following(d: &mut Drive, commanding_motion: bool, omega_m_rad_s: f32) {
-    let cfg = d.cfg;
-    d.slow.check_following(&cfg, commanding_motion, omega_m_rad_s);
-    d.fast.trip_from(d.slow.mode);
-    d.sync();
+    let cfg = d.fast.cfg;
+    d.slow.state.check_following(&cfg, commanding_motion, omega_m_rad_s);
+    d.fast.state.trip_from(d.slow.state.mode);
+    d.as_mut().sync();
 }
 
 impl Drive {
@@ -82,7 +82,7 @@ impl Drive {
     /// `the_plan_is_adopted_a_plans_delay_after_its_tick`'s).
     fn slow_period(&mut self, m: &Measurements) {
         self.slow_step(m);
-        self.adopt();
+        self.fast.adopt(&self.slow);
     }
 }
 
@@ -108,7 +108,7 @@ fn a_non_finite_encoder_reading_trips_at_the_slow_step() {
     for m in bad {
         for running in [false, true] {
             let mut d = if running { running_drive() } else { drive() };
-            while d.fast.steps_to_slow != 0 {
+            while d.fast.state.steps_to_slow != 0 {
                 assert!(d.mode() != Mode::Fault(Fault::NonFiniteInput));
                 d.step(&meas(310.0));
             }
@@ -124,7 +124,7 @@ fn a_non_finite_encoder_reading_trips_at_the_slow_step() {
             // Between slow steps the fast step does not read them.
             let mut d = if running { running_drive() } else { drive() };
             d.step(&meas(310.0));
-            let left = d.fast.steps_to_slow;
+            let left = d.fast.state.steps_to_slow;
             assert!(left > 0);
             for _ in 0..left + delay {
                 assert!(!matches!(d.step(&m).mode, Mode::Fault(_)));
@@ -200,12 +200,14 @@ fn a_zero_bus_minimum_is_tested_as_the_floats_are() {
         for vdc in [-5.0, -0.0, 0.0, 1e-30, 310.0, 399.0, 401.0, f32::NAN, -f32::NAN, f32::NEG_INFINITY] {
             let m = Measurements { vdc_v: vdc, ..Default::default() };
             assert_eq!(
-                d.fast.measurements_ok(&d.cfg, &m),
-                d.cfg.limits.fault(&m, true).is_none(),
+                d.fast.state.measurements_ok(&d.fast.cfg, &m),
+                d.fast.cfg.limits.fault(&m, true).is_none(),
                 "min {zero}, bus {vdc}"
             );
         }
-        assert!(!d.fast.measurements_ok(&d.cfg, &Measurements { vdc_v: -5.0, ..Default::default() }));
+        assert!(
+            !d.fast.state.measurements_ok(&d.fast.cfg, &Measurements { vdc_v: -5.0, ..Default::default() })
+        );
     }
     let mut spec = test_spec();
     (spec.protection.vdc_min_v, spec.protection.vdc_max_v) = (400.0, 400.00001);
@@ -306,6 +308,114 @@ fn the_plan_is_adopted_a_plans_delay_after_its_tick() {
     }
     let adopted = step(&mut d);
     assert!(magnitude(adopted.i_ref_ab_a) > magnitude(held) + 0.1, "{adopted:?} against {held:?}");
+}
+
+/// A slow context of its own, as the board's: the tick lends the slow side to its job, which
+/// runs when the lower-priority context gets the core ([`Deferred::run_job`]); the fast side
+/// reaches it only while it is back.
+struct Deferred {
+    slow: SlowSide,
+    lent: bool,
+}
+
+impl SlowContext for Deferred {
+    fn with(&mut self, f: &mut dyn FnMut(&mut SlowSide)) -> bool {
+        if !self.lent {
+            f(&mut self.slow);
+        }
+        !self.lent
+    }
+
+    fn start(&mut self) -> bool {
+        !std::mem::replace(&mut self.lent, true)
+    }
+}
+
+impl Deferred {
+    fn run_job(&mut self) {
+        if self.lent {
+            self.slow.run();
+            self.lent = false;
+        }
+    }
+}
+
+/// The halves apart, the slow step's job run in a context of its own some periods after its
+/// tick (0 to the plan's delay − 1: the lower-priority interrupt preempted by the fast one),
+/// step the drive bit for bit as the whole drive does (the simulator's `Drive::step`): the
+/// outputs and the signals of every period, through a torque step, a reference change and a
+/// disable.
+#[test]
+fn the_halves_apart_step_as_the_whole_drive() {
+    let delay = u32::from(running_drive().config().plan_delay());
+    for lateness in 0..delay {
+        let mut whole = running_drive();
+        let (mut fast, slow) = whole.into_parts();
+        let mut ctx = Deferred { slow, lent: false };
+        let mut i = Abc::default();
+        let mut since_tick = 0;
+        for k in 0..2_000 {
+            match k {
+                100 => {
+                    whole.set_reference(Reference::Torque(1.5)).unwrap();
+                    ctx.run_job();
+                    DriveMut::new(&mut fast, &mut ctx.slow).set_reference(Reference::Torque(1.5)).unwrap();
+                }
+                1_500 => {
+                    whole.disable();
+                    ctx.run_job();
+                    DriveMut::new(&mut fast, &mut ctx.slow).disable();
+                }
+                _ => {}
+            }
+            let m = Measurements { i_abc_a: i, vdc_v: 310.0, ..Default::default() };
+            let due = fast.slow_step_due();
+            let (a, b) = (whole.step(&m), fast.step(&m, &mut ctx));
+            since_tick = if due { 0 } else { since_tick + 1 };
+            if since_tick == lateness {
+                ctx.run_job();
+            }
+            assert_eq!(a, b, "period {k}, the job {lateness} periods late");
+            // The signals once the job has run (before, the slow side's part is the last
+            // job's: the whole drive ran this one at its tick).
+            if !ctx.lent {
+                assert_eq!(whole.telemetry(), DriveRef::new(&fast, &ctx.slow).telemetry(), "period {k}");
+            }
+            if let PhaseCommand::Duty(duty) = a.phases {
+                i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+            }
+        }
+        assert_eq!(whole.mode(), Mode::Idle);
+    }
+}
+
+/// A slow step's job that has not ended when its plan is due (a slow context that cannot
+/// keep up) is `Overrun`, the bridge off in that period; so is a tick that finds the last
+/// job still running.
+#[test]
+fn a_late_slow_step_is_an_overrun_with_the_bridge_off() {
+    let (mut fast, slow) = running_drive().into_parts();
+    let mut ctx = Deferred { slow, lent: false };
+    let m = Measurements { vdc_v: 310.0, ..Default::default() };
+    while !fast.slow_step_due() {
+        assert!(matches!(fast.step(&m, &mut ctx).phases, PhaseCommand::Duty(_)));
+        ctx.run_job();
+    }
+    let delay = fast.config().plan_delay();
+    for k in 0..delay {
+        let out = fast.step(&m, &mut ctx);
+        assert!(matches!(out.phases, PhaseCommand::Duty(_)), "period {k} after the tick");
+    }
+    let out = fast.step(&m, &mut ctx);
+    assert_eq!((out.mode, out.phases), (Mode::Fault(Fault::Overrun), PhaseCommand::Off));
+    // At the tick: the job of the last one still lent.
+    let (mut fast, slow) = running_drive().into_parts();
+    let mut ctx = Deferred { slow, lent: true };
+    while !fast.slow_step_due() {
+        fast.step(&m, &mut ctx);
+    }
+    let out = fast.step(&m, &mut ctx);
+    assert_eq!((out.mode, out.phases), (Mode::Fault(Fault::Overrun), PhaseCommand::Off));
 }
 
 /// The raw form round-trips every field, fills its arrays exactly, and refuses a
@@ -498,19 +608,20 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
         let mut d = drive();
         let mut r = running_drive();
         // Already running: the jump from its readings at rest is not this test's.
-        r.cfg.encoder.jump_rad = f32::MAX;
+        r.fast.cfg.encoder.jump_rad = f32::MAX;
         // Slow steps alone, no current: the open-phase check's window never closes.
-        r.cfg.phases.open_phase_slow_steps = u32::MAX;
+        r.fast.cfg.phases.open_phase_slow_steps = u32::MAX;
+        r.slow.cfg = r.fast.cfg;
         let mut first = 0.0;
         for k in 0..40 {
             d.slow_period(&wrapped(start + f64::from(k) * step));
             r.slow_period(&wrapped(start + f64::from(k) * step));
             if k == 0 {
-                first = r.slow.run.theta_r_rad;
+                first = r.slow.state.run.theta_r_rad;
             }
         }
         assert_eq!((d.mode(), r.mode()), (Mode::Idle, Mode::Running), "no jump");
-        (wrap_angle(r.slow.run.theta_r_rad - first), d.position_rad())
+        (wrap_angle(r.slow.state.run.theta_r_rad - first), d.position_rad())
     };
     let (near, pos_near) = field_after(0.0);
     let (far, pos_far) = field_after(1e6);
@@ -651,7 +762,7 @@ fn a_stoppable_fault_stops_then_latches() {
     spec.protection.stop_on = FaultSet::EMPTY.with(Fault::MotorOverload);
     let cfg = DriveConfig::new(&spec).unwrap();
     let mut d = running_drive();
-    d.cfg = cfg;
+    (d.fast.cfg, d.slow.cfg) = (cfg, cfg);
     fault_reaction(&mut d, Fault::MotorOverload);
     assert_eq!((d.mode(), d.pending_fault()), (Mode::Running, Some(Fault::MotorOverload)));
     assert!(d.is_stopping());
@@ -662,13 +773,13 @@ fn a_stoppable_fault_stops_then_latches() {
     assert_eq!(d.pending_fault(), None);
     // A hard fault during the stop: bridge off now, the first fault latched.
     let mut d = running_drive();
-    d.cfg = cfg;
+    (d.fast.cfg, d.slow.cfg) = (cfg, cfg);
     fault_reaction(&mut d, Fault::MotorOverload);
     d.trip(Fault::Overcurrent);
     assert_eq!(d.mode(), Mode::Fault(Fault::MotorOverload));
     // Not in stop_on (or not Running): at once.
     let mut d = running_drive();
-    d.cfg = cfg;
+    (d.fast.cfg, d.slow.cfg) = (cfg, cfg);
     fault_reaction(&mut d, Fault::InverterOverload);
     assert_eq!(d.mode(), Mode::Fault(Fault::InverterOverload));
     // A fault that leaves nothing to control with cannot be configured as a stop.
@@ -781,18 +892,18 @@ fn running_drive() -> Drive {
 fn the_following_check_owes_nothing_at_zero_torque() {
     let run = |torque_nm: f32, decel_rad_s_per_step: f32| {
         let mut d = running_drive();
-        d.slow.reference = Reference::Speed(100.0);
-        d.slow.run.speed_saturated = true;
-        d.slow.run.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
-        for k in 0..=d.cfg.motion.following_slow_steps {
+        d.slow.state.reference = Reference::Speed(100.0);
+        d.slow.state.run.speed_saturated = true;
+        d.slow.state.run.torque_cmd = TorqueCommand::TorqueNm(torque_nm);
+        for k in 0..=d.fast.cfg.motion.following_slow_steps {
             check_following(&mut d, true, 200.0 - decel_rad_s_per_step * k as f32);
         }
         d.mode()
     };
     // Motoring at the 2 N·m limit, the rotor slowing as a 2.5 N·m load would (J = 0.005
     // kg·m², T_slow = 0.5 ms): beyond 1.1·τ_max.
-    let limit = running_drive().cfg.motion.speed_limit;
-    let d_steps = || running_drive().cfg.motion.following_slow_steps;
+    let limit = running_drive().fast.cfg.motion.speed_limit;
+    let d_steps = || running_drive().fast.cfg.motion.following_slow_steps;
     let decel = (2.5 - limit) / 0.005 * 5e-4 + 0.01;
     assert_eq!(run(limit, decel), Mode::Fault(Fault::FollowingError));
     // The rotor slowing as a 3 N·m load would, with no torque to hold it (the window
@@ -813,16 +924,16 @@ fn the_following_check_owes_nothing_at_zero_torque() {
 fn a_seizure_at_speed_is_named_while_it_drags() {
     let first_trip = |decel_rad_s_per_step: f32| {
         let mut d = running_drive();
-        d.slow.reference = Reference::Speed(300.0);
-        d.slow.run.speed_saturated = true;
-        d.slow.run.torque_cmd = TorqueCommand::TorqueNm(d.cfg.motion.speed_limit);
-        (0..=d.cfg.motion.following_slow_steps).find(|&k| {
+        d.slow.state.reference = Reference::Speed(300.0);
+        d.slow.state.run.speed_saturated = true;
+        d.slow.state.run.torque_cmd = TorqueCommand::TorqueNm(d.fast.cfg.motion.speed_limit);
+        (0..=d.fast.cfg.motion.following_slow_steps).find(|&k| {
             check_following(&mut d, true, 250.0 - decel_rad_s_per_step * k as f32);
             d.mode() == Mode::Fault(Fault::FollowingError)
         })
     };
-    let limit = running_drive().cfg.motion.speed_limit;
-    let steps = running_drive().cfg.motion.following_slow_steps;
+    let limit = running_drive().fast.cfg.motion.speed_limit;
+    let steps = running_drive().fast.cfg.motion.following_slow_steps;
     let seizure = 9.0 * limit / 0.005 * 5e-4;
     let k = first_trip(seizure).unwrap();
     assert!(k <= steps / 20, "tripped at slow step {k} of a {steps}-step window");
@@ -1430,8 +1541,8 @@ proptest! {
         } else {
             None
         };
-        prop_assert_eq!(d.cfg.limits.fault(&m, d.mode().is_active()), float_test);
-        prop_assert_eq!(d.fast.measurements_ok(&d.cfg, &m), float_test.is_none());
+        prop_assert_eq!(d.fast.cfg.limits.fault(&m, d.mode().is_active()), float_test);
+        prop_assert_eq!(d.fast.state.measurements_ok(&d.fast.cfg, &m), float_test.is_none());
     }
 }
 
@@ -1456,8 +1567,8 @@ fn a_reconfiguration_keeps_the_machines_state() {
         let theta_m_rad = wrap_angle(k as f32 * 1e-3);
         d.step(&Measurements { theta_m_rad, ..hot });
     }
-    d.slow.set_inductance_scale(&cfg, 0.8);
-    d.cfg.ifoc.set_rotor_resistance_scale(&mut d.slow.run.ifoc, 1.7);
+    d.slow.state.set_inductance_scale(&cfg, 0.8);
+    d.fast.cfg.ifoc.set_rotor_resistance_scale(&mut d.slow.state.run.ifoc, 1.7);
     d.set_reference(Reference::Speed(50.0)).unwrap();
     let (theta, position) = (d.thermal_state(), d.position_rad());
     assert!(theta.0 > 0.005 && position > 10.0, "{theta:?} {position}");
@@ -1469,9 +1580,9 @@ fn a_reconfiguration_keeps_the_machines_state() {
     d.reconfigure(gains).unwrap();
     assert_eq!(d.config(), &gains);
     assert_eq!((d.thermal_state(), d.position_rad(), estimates(&d)), (theta, position, (1.7, 0.8)));
-    assert_eq!((d.mode(), d.slow.reference), (Mode::Idle, Reference::Speed(0.0)));
+    assert_eq!((d.mode(), d.slow.state.reference), (Mode::Idle, Reference::Speed(0.0)));
     // The new run is on those estimates: its model and rated current follow the inductance.
-    assert_eq!(d.slow.run.i_d_rated_a, gains.i_d_rated_a / 0.8);
+    assert_eq!(d.slow.state.run.i_d_rated_a, gains.i_d_rated_a / 0.8);
 
     // Narrower ranges limit the estimates; a rated current twice as large rescales θ (the
     // same temperature rise is a quarter of the new rated one's).
@@ -1596,7 +1707,7 @@ fn the_rotor_is_at_rest_only_below_its_own_time_constants_speed() {
     d.enable().unwrap();
     assert!(d.rotor_at_rest());
     d.disable();
-    d.reconfigure(d.cfg.with_saturated_p(0.08, 1.5).unwrap()).unwrap();
+    d.reconfigure(d.fast.cfg.with_saturated_p(0.08, 1.5).unwrap()).unwrap();
     assert!(d.rotor_at_rest());
 }
 
@@ -1615,7 +1726,7 @@ fn the_rest_check_holds_after_a_long_travel() {
     let window = (spec.protection.rest_time_s / f64::from(t_slow)).ceil() as u32;
     for (w, at_rest) in [(2.0 * rest_rad_s, false), (0.5 * rest_rad_s, true)] {
         let mut d = drive();
-        d.slow.machine.encoder = EncoderTrack::with_turns(160_000);
+        d.slow.state.machine.encoder = EncoderTrack::with_turns(160_000);
         assert!(d.position_rad() > 1.0e6);
         let mut theta = 0.3f32;
         let mut seen = [0u32; 2];

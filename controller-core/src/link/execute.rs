@@ -4,7 +4,7 @@
 use super::receive::LinkStats;
 use super::schema::{BoardCommand, Command, NackReason, Reply};
 use crate::capture::{Capture, CaptureSpec};
-use crate::drive::{CommandError, Drive, DriveConfig};
+use crate::drive::{CommandError, Drive, DriveConfig, DriveMut};
 
 /// Carry out `cmd` on `drive` and say how it went — the command handling shared by the
 /// processor-in-the-loop server and the firmware (which refuses `Step` itself: on the board
@@ -24,16 +24,14 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
                 // over. Another: another drive, which only knows how long the rotor was left.
                 Ok(cfg) if cfg.same_motor(drive.config()) => command_result(drive.reconfigure(cfg)),
                 Ok(cfg) => {
-                    let idle = drive.idle_slow_steps();
-                    *drive = Drive::new(cfg);
-                    drive.rotor_driven(idle);
+                    drive.as_mut().replace(cfg);
                     Reply::Ack
                 }
                 Err(_) => Reply::Nack(NackReason::Configuration),
             }
         }
         Command::Step(m) => Reply::Output(drive.step(m), drive.telemetry()),
-        other => execute_board(drive, &BoardCommand::of(other), stats),
+        other => execute_board(drive.as_mut(), &BoardCommand::of(other), stats),
     }
 }
 
@@ -43,7 +41,7 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
 /// compiled in the caller's crate, the firmware's opt-level "z" for its commands (rare,
 /// beside the control step in the interrupt; −56 B of flash).
 #[inline]
-pub fn execute_board(drive: &mut Drive, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
+pub fn execute_board(mut drive: DriveMut<'_>, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
     match cmd {
         BoardCommand::Enable => command_result(drive.enable()),
         BoardCommand::Disable => {
@@ -62,8 +60,8 @@ pub fn execute_board(drive: &mut Drive, cmd: &BoardCommand, stats: &LinkStats) -
         BoardCommand::GetStatus => {
             // The timing and readings are the board's to fill in (firmware `server`).
             Reply::Status {
-                mode: drive.mode(),
-                ridden_through: drive.ridden_through(),
+                mode: drive.as_ref().mode(),
+                ridden_through: drive.as_ref().ridden_through(),
                 frames_ok: stats.frames_ok,
                 frame_errors: stats.errors(),
                 timing: super::schema::LoopTiming::default(),
