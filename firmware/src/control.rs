@@ -5,9 +5,16 @@
 //!
 //! ```text
 //!  ADC codes ─▶ AdcScaling ─▶ i_abc, V_dc ─┐
-//!  TIM4 count ─▶ Encoder (every N-th) ─▶ θ_m, ω_m ─┼─▶ Drive::step ─▶ duties ─▶ PwmScaling ─▶ CCR1..3
-//!  TIM1 break flag ─▶ Drive::trip(HardwareBreak) ─┘                    └─ Off ─▶ MOE = 0
+//!  TIM4 count ─▶ Encoder (every N-th) ─▶ θ_m, ω_m ─┼─▶ FastSide::step ─▶ duties ─▶ PwmScaling ─▶ CCR1..3
+//!  TIM1 break flag ─▶ FastSide::trip(HardwareBreak) ─┘   │  └─ Off ─▶ MOE = 0
+//!                     tick: the slow side handed over ─▶ SlowCell ─▶ the slow context (run_slow)
+//!                     a plan's delay later: its plan adopted ◀─┘
 //! ```
+//!
+//! **Two contexts** (issue 54): the loop owns the drive's fast side; its slow side lives in a
+//! [`SlowCell`] of its own, lent to the slow context from the slow step's tick until its job
+//! is done ([`run_slow`], pended by [`Pend`]); the commands reach both through
+//! [`ControlLoop::drive_mut`], in a period with the slow side back.
 //!
 //! **Offset calibration** (first thing after start-up; a new configuration keeps its result):
 //! [`CALIBRATION_SAMPLES`] periods with the bridge held off, the three current channels'
@@ -31,6 +38,7 @@
 //! Encoder loss: the drive's own jump check (`controller_core::drive`, `Fault::EncoderLoss`)
 //! on the angle the estimator reports — the same code in the simulator.
 
+use crate::boundary::Handoff;
 use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
@@ -39,7 +47,8 @@ use controller_core::capture::Capture;
 use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::RawDriveConfig;
 use controller_core::drive::{
-    Drive, DriveConfig, DriveError, FastOutput, Fault, Measurements, Mode, PhaseCommand, Telemetry,
+    Drive, DriveConfig, DriveError, DriveMut, DriveRef, FastOutput, FastSide, Fault, Measurements, Mode,
+    PhaseCommand, SlowContext, SlowSide, SlowSignals, Telemetry,
 };
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
@@ -110,6 +119,9 @@ pub enum ControlError {
     Drive(DriveError),
     /// A new configuration while the bridge is the drive's (Magnetizing or Running).
     BridgeActive,
+    /// A new configuration while the drive's slow step is in flight (a command waits for its
+    /// plan's adoption: [`ControlLoop::slow_busy`]).
+    SlowBusy,
     /// ADC or PWM scaling rejected.
     Scaling(ScalingError),
     /// Encoder configuration rejected.
@@ -248,11 +260,53 @@ pub enum Calibration {
     Failed(CalibrationError),
 }
 
-/// Control loop state: the drive plus the converter scalings and the encoder estimator.
-#[derive(Clone, Debug)]
-pub struct ControlLoop {
+/// The drive's slow side where the slow context works on it (issue 54's two contexts): lent
+/// to the slow step's job at its tick ([`Handoff::hand_over`]), back when the job is done.
+pub type SlowCell = Handoff<SlowSide>;
+
+/// How the slow step's job is started once its cell is handed over: the board pends its
+/// slow interrupt, whose body is [`run_slow`]; the host tests and QEMU's benchmarks run it
+/// themselves.
+pub type Pend = fn(&SlowCell);
+
+/// The slow context's body: the job handed over, if any, run and the slow side handed back
+/// (the board's slow interrupt; the host tests' and QEMU's [`Pend`]).
+pub fn run_slow(cell: &SlowCell) {
+    cell.run(SlowSide::run);
+}
+
+/// The drive's slow side as the fast side's step reaches it ([`SlowContext`]): its cell
+/// and how its job is started.
+#[derive(Clone, Copy, Debug)]
+struct SlowHome<'s> {
+    cell: &'s SlowCell,
+    pend: Pend,
+}
+
+impl SlowContext for SlowHome<'_> {
+    fn with(&mut self, f: &mut dyn FnMut(&mut SlowSide)) -> bool {
+        self.cell.with(|s| f(s)).is_some()
+    }
+
+    fn start(&mut self) -> bool {
+        let handed = self.cell.hand_over();
+        if handed {
+            (self.pend)(self.cell);
+        }
+        handed
+    }
+}
+
+/// Control loop state: the drive's fast side (its slow side in a [`SlowCell`] of its own, for
+/// the slow context) plus the converter scalings and the encoder estimator.
+#[derive(Debug)]
+pub struct ControlLoop<'s> {
     board: BoardConfig,
-    drive: Drive,
+    fast: FastSide,
+    slow: SlowHome<'s>,
+    /// The slow side's part of the drive's signals as last read (the capture's, for the
+    /// periods in which the slow side is at its job).
+    signals: SlowSignals,
     /// Phase-current channels a, b, c (their zeros from the calibration).
     current: [AdcScaling; 3],
     calibration_cfg: CalibrationConfig,
@@ -344,27 +398,35 @@ pub enum CommissionRefused {
     RotorTurning,
 }
 
-impl ControlLoop {
+impl<'s> ControlLoop<'s> {
     /// Validate everything once, at start-up: the drive configuration built at compile time
     /// (`config::DRIVE_CONFIG`, checked by [`DriveConfig::from_raw`]) and the board's scalings.
-    pub fn new(raw: &RawDriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
+    /// The drive's slow side is written into `cell`, its jobs started with `pend`.
+    pub fn new(
+        raw: &RawDriveConfig,
+        board: &BoardConfig,
+        cell: &'s mut MaybeUninit<SlowCell>,
+        pend: Pend,
+    ) -> Result<Self, ControlError> {
         let cfg = DriveConfig::from_raw(raw).map_err(ControlError::Drive)?;
-        Self::with_config(cfg, board)
+        Self::with_config(cfg, board, cell, pend)
     }
 
     /// [`ControlLoop::new`] written into `slot` (the firmware's static cell): everything
     /// validated first, then the loop written into the slot — no `Result` of the loop's
     /// 5.2 KiB moved on the way (built by value and moved, its 4 KiB capture ring was copied
     /// three times through a 10 KiB stack frame at start-up; written, twice through 9.3 KiB).
-    /// On error `slot` is left as it was.
+    /// On error `slot` and `cell` are left as they were.
     pub fn init<'a>(
         slot: &'a mut MaybeUninit<Self>,
+        cell: &'s mut MaybeUninit<SlowCell>,
+        pend: Pend,
         raw: &RawDriveConfig,
         board: &BoardConfig,
     ) -> Result<&'a mut Self, ControlError> {
         let cfg = DriveConfig::from_raw(raw).map_err(ControlError::Drive)?;
         let parts = Parts::new(&cfg, board)?;
-        Ok(slot.write(Self::assemble(cfg, board, parts)))
+        Ok(slot.write(Self::assemble(cfg, board, parts, cell, pend)))
     }
 
     /// The shipped configuration without the checks that compare the measured currents with
@@ -372,12 +434,13 @@ impl ControlLoop {
     /// against the model), calibrated, for tests that step an enabled drive on samples at
     /// rest.
     #[cfg(test)]
-    pub(crate) fn at_rest_for_tests() -> Self {
+    pub(crate) fn at_rest_for_tests() -> ControlLoop<'static> {
         let mut spec = crate::config::drive_spec().unwrap();
         spec.protection.open_phase_time_s = 1e6;
         spec.protection.saturation_time_s = 1e6;
         spec.protection.encoder_check_time_s = 1e6;
-        let mut c = Self::with_config(DriveConfig::new(&spec).unwrap(), &crate::config::BOARD).unwrap();
+        let cfg = DriveConfig::new(&spec).unwrap();
+        let mut c = ControlLoop::with_config(cfg, &crate::config::BOARD, tests::cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         c
     }
@@ -392,17 +455,31 @@ impl ControlLoop {
         assert!(matches!(self.calibration, Calibration::Done(_)), "{:?}", self.calibration);
     }
 
-    fn with_config(cfg: DriveConfig, board: &BoardConfig) -> Result<Self, ControlError> {
+    fn with_config(
+        cfg: DriveConfig,
+        board: &BoardConfig,
+        cell: &'s mut MaybeUninit<SlowCell>,
+        pend: Pend,
+    ) -> Result<Self, ControlError> {
         let parts = Parts::new(&cfg, board)?;
-        Ok(Self::assemble(cfg, board, parts))
+        Ok(Self::assemble(cfg, board, parts, cell, pend))
     }
 
     /// The loop from validated parts, at rest: calibration under way, the capture idle.
     #[inline(always)]
-    fn assemble(cfg: DriveConfig, board: &BoardConfig, p: Parts) -> Self {
+    fn assemble(
+        cfg: DriveConfig,
+        board: &BoardConfig,
+        p: Parts,
+        cell: &'s mut MaybeUninit<SlowCell>,
+        pend: Pend,
+    ) -> Self {
+        let (fast, slow) = Drive::new(cfg).into_parts();
         Self {
             board: *board,
-            drive: Drive::new(cfg),
+            fast,
+            slow: SlowHome { cell: cell.write(Handoff::new(slow)), pend },
+            signals: SlowSignals::default(),
             current: [p.current; 3],
             calibration_cfg: p.calibration_cfg,
             calibration: Calibration::Running(OffsetCalibration::default()),
@@ -427,10 +504,11 @@ impl ControlLoop {
 
     /// The drive configuration in use.
     pub fn config(&self) -> &DriveConfig {
-        self.drive.config()
+        self.fast.config()
     }
 
-    /// Swap the configuration for `cfg` while the bridge is off; on error nothing changes.
+    /// Swap the configuration for `cfg` while the bridge is off and the slow side is back
+    /// ([`ControlError::SlowBusy`] otherwise); on error nothing changes.
     ///
     /// The drive swaps its configuration and keeps the machine's state ([`Drive::reconfigure`]:
     /// the motor's and the inverter's I²t temperature, the shaft's position, how long ago the
@@ -444,7 +522,9 @@ impl ControlLoop {
         let read_period_s = f32::from(divider) * cfg.ts_s();
         let encoder_cfg =
             EncoderConfig::new(self.board.encoder_lines, read_period_s).map_err(ControlError::Encoder)?;
-        self.drive.reconfigure(cfg).map_err(|_| ControlError::BridgeActive)?;
+        self.drive_mut(|mut d| d.reconfigure(cfg))
+            .ok_or(ControlError::SlowBusy)?
+            .map_err(|_| ControlError::BridgeActive)?;
         if encoder_cfg != self.encoder_cfg || divider != self.divider {
             // The speed window restarts at the new period; the angle carries on (the drive's
             // position and turns with it).
@@ -466,22 +546,87 @@ impl ControlLoop {
         &mut self.capture
     }
 
-    /// The drive (mode, telemetry, commands).
-    pub fn drive(&self) -> &Drive {
-        &self.drive
+    /// Latch fault `f` (the first stays latched): the bridge off from this period on; the
+    /// slow side learns it at its next tick ([`FastSide::trip`]).
+    pub fn trip(&mut self, f: Fault) {
+        self.fast.trip(f);
     }
 
-    /// The drive, for commands from the link.
-    pub fn drive_mut(&mut self) -> &mut Drive {
-        &mut self.drive
+    /// A copy of this loop whose slow side is a copy of this one's, written into `cell`
+    /// (benchmarks: the same periods again from the same state; two loops on one cell
+    /// would share one slow side): `None` while the slow side is at its job.
+    pub fn fork<'t>(&self, cell: &'t mut MaybeUninit<SlowCell>) -> Option<ControlLoop<'t>> {
+        let slow = self.slow.cell.with(|s| *s)?;
+        Some(ControlLoop {
+            board: self.board,
+            fast: self.fast,
+            slow: SlowHome { cell: cell.write(Handoff::new(slow)), pend: self.slow.pend },
+            signals: self.signals,
+            current: self.current,
+            calibration_cfg: self.calibration_cfg,
+            calibration: self.calibration,
+            vdc: self.vdc,
+            pwm: self.pwm,
+            encoder_cfg: self.encoder_cfg,
+            encoder: self.encoder,
+            theta_m_rad: self.theta_m_rad,
+            omega_m_rad_s: self.omega_m_rad_s,
+            divider: self.divider,
+            last: self.last,
+            bridge_on: self.bridge_on,
+            precharge_left: self.precharge_left,
+            readings: self.readings,
+            capture: self.capture.clone(),
+            #[cfg(feature = "commissioning")]
+            commission: self.commission.clone(),
+            #[cfg(feature = "commissioning")]
+            commission_precharge_left: self.commission_precharge_left,
+        })
+    }
+
+    /// The cell of the drive's slow side, for the slow context ([`run_slow`]).
+    pub fn slow_cell(&self) -> &'s SlowCell {
+        self.slow.cell
+    }
+
+    /// The drive's fast side: its mode, configuration and cadence, in every period.
+    pub fn fast(&self) -> &FastSide {
+        &self.fast
+    }
+
+    /// `f` on the whole drive, to read it; `None` while the slow step is in flight — from its
+    /// tick to its plan's adoption ([`ControlLoop::slow_busy`]) — or its slow side is not
+    /// back from its job.
+    pub fn drive<R>(&self, f: impl FnOnce(DriveRef<'_>) -> R) -> Option<R> {
+        if self.slow_busy() {
+            return None;
+        }
+        self.slow.cell.with(|s| f(DriveRef::new(&self.fast, s)))
+    }
+
+    /// `f` on the whole drive, for commands from the link; `None` as [`ControlLoop::drive`]
+    /// (the command waits for a later period).
+    pub fn drive_mut<R>(&mut self, f: impl FnOnce(DriveMut<'_>) -> R) -> Option<R> {
+        if self.slow_busy() {
+            return None;
+        }
+        let fast = &mut self.fast;
+        self.slow.cell.with(|s| f(DriveMut::new(fast, s)))
+    }
+
+    /// The drive's signals after the last step ([`DriveRef::telemetry`]), the slow side's
+    /// part as last read while it is at its job.
+    pub fn telemetry(&self) -> Telemetry {
+        let s = self.slow.cell.with(|s| s.signals()).unwrap_or(self.signals);
+        self.fast.telemetry_with(&s)
     }
 
     /// What the link task reads ([`Snapshot`]), made on demand: the drive's telemetry too.
     pub fn snapshot(&self) -> Snapshot {
         Snapshot {
-            output: self.last.map(|o| (o, self.drive.telemetry())),
+            output: self.last.map(|o| (o, self.telemetry())),
             calibration: Some(self.calibration),
-            bridge_on: self.drive.mode().is_active() || self.commissioning(),
+            bridge_on: self.fast.mode().is_active() || self.commissioning(),
         }
     }
 
@@ -508,8 +653,10 @@ impl ControlLoop {
     #[inline(never)]
     fn calibrate(&mut self, codes: [u16; 3]) {
         let Calibration::Running(mut cal) = self.calibration else { return };
-        if self.drive.mode().is_active() {
-            self.drive.disable();
+        if self.fast.mode().is_active() {
+            // Undone in a period with the slow side back (the bridge stays off meanwhile:
+            // `control`).
+            self.drive_mut(|mut d| d.disable());
         }
         self.calibration = match cal.add(&self.calibration_cfg, codes) {
             None => Calibration::Running(cal),
@@ -518,11 +665,11 @@ impl ControlLoop {
                 let [a, b, c] = offsets.counts;
                 let [sa, sb, sc] = self.current;
                 self.current = [sa.with_offset(a), sb.with_offset(b), sc.with_offset(c)];
-                self.drive.current_zero_moved();
+                self.fast.current_zero_moved();
                 Calibration::Done(offsets)
             }
             Some(Err(e)) => {
-                self.drive.trip(Fault::CurrentSensor);
+                self.fast.trip(Fault::CurrentSensor);
                 Calibration::Failed(e)
             }
         };
@@ -532,13 +679,13 @@ impl ControlLoop {
     /// calibrated. A finished or refused sequence is replaced.
     #[cfg(feature = "commissioning")]
     pub fn start_commissioning(&mut self, cfg: CommissionConfig) -> Result<(), CommissionRefused> {
-        if self.drive.mode() != Mode::Idle || self.commissioning() {
+        if self.fast.mode() != Mode::Idle || self.commissioning() {
             return Err(CommissionRefused::NotIdle);
         }
         if !matches!(self.calibration, Calibration::Done(_)) {
             return Err(CommissionRefused::NotCalibrated);
         }
-        if !self.drive.rotor_at_rest() {
+        if self.drive(|d| d.rotor_at_rest()) != Some(true) {
             return Err(CommissionRefused::RotorTurning);
         }
         self.commission = Some((Commissioning::new(cfg), None));
@@ -577,11 +724,11 @@ impl ControlLoop {
     }
 
     /// The drive's slow step is in flight after the period just stepped — from its tick (or
-    /// during the bootstrap pre-charge its shaft's stage, [`Drive::hold_step`]) up to the
-    /// adoption of its plan ([`Drive::slow_busy`]): [`crate::interrupt::Shared`] serves the
+    /// during the bootstrap pre-charge its shaft's stage, [`FastSide::hold_step`]) up to the
+    /// adoption of its plan ([`FastSide::slow_busy`]): [`crate::interrupt::Shared`] serves the
     /// link's requests, which act on the slow step's state, in a period after it.
     pub fn slow_busy(&self) -> bool {
-        self.drive.slow_busy()
+        self.fast.slow_busy()
     }
 
     /// The brake chopper's switch after the last step.
@@ -592,7 +739,7 @@ impl ControlLoop {
     /// One PWM period: the control interrupt.
     pub fn step(&mut self, s: &Samples) -> Bridge {
         if s.hardware_break {
-            self.drive.trip(Fault::HardwareBreak);
+            self.fast.trip(Fault::HardwareBreak);
         }
         // Running with the bridge on (the common case) needs no pre-charge check.
         let precharge = if self.bridge_on && self.precharge_left == 0 { None } else { self.precharge(s) };
@@ -616,7 +763,7 @@ impl ControlLoop {
     /// commissioning sequence gets its own, after its offsets and before its first pulse
     /// ([`ControlLoop::start_commissioning`]).
     fn precharge(&mut self, s: &Samples) -> Option<Bridge> {
-        let wants_bridge = self.drive.mode().is_active();
+        let wants_bridge = self.fast.mode().is_active();
         if !wants_bridge {
             self.precharge_left = 0;
             return None;
@@ -632,20 +779,21 @@ impl ControlLoop {
             return None;
         }
         self.precharge_left -= 1;
-        if self.drive.slow_step_due() {
+        if self.fast.slow_step_due() {
             self.read_encoder(s.encoder);
         }
         let m = self.measurements(s);
-        let brake = self.drive.hold_step(&m);
+        let brake = self.fast.hold_step(&m, &mut self.slow);
         if let Some(o) = self.last.as_mut() {
             o.brake = brake;
-            o.mode = self.drive.mode();
+            o.mode = self.fast.mode();
             // The capture's sample of this period: the drive's last telemetry, the duties
             // applied (the low sides on).
             let applied = FastOutput { phases: PhaseCommand::Duty(Abc { a: 0.0, b: 0.0, c: 0.0 }), ..*o };
-            self.capture.record(&m, &applied, || self.drive.telemetry());
+            let (fast, slow, held) = (&self.fast, &self.slow, &mut self.signals);
+            self.capture.record(&m, &applied, || telemetry(fast, slow, held));
         }
-        if matches!(self.drive.mode(), Mode::Fault(_)) {
+        if matches!(self.fast.mode(), Mode::Fault(_)) {
             self.precharge_left = 0;
             return Some(Bridge::Off);
         }
@@ -670,7 +818,7 @@ impl ControlLoop {
     fn control(&mut self, s: &Samples) -> Bridge {
         // The encoder for the drive's slow step, in its period: the drive's cadence is the
         // one cadence (a new configuration restarts it).
-        if self.drive.slow_step_due() {
+        if self.fast.slow_step_due() {
             self.read_encoder(s.encoder);
         }
         let calibrating = matches!(self.calibration, Calibration::Running(_));
@@ -678,9 +826,10 @@ impl ControlLoop {
             self.calibrate(s.i_abc);
         }
         let m = self.measurements(s);
-        let out = self.drive.step(&m);
+        let out = self.fast.step(&m, &mut self.slow);
         self.last = Some(out);
-        self.capture.record(&m, &out, || self.drive.telemetry());
+        let (fast, slow, held) = (&self.fast, &self.slow, &mut self.signals);
+        self.capture.record(&m, &out, || telemetry(fast, slow, held));
         #[cfg(feature = "commissioning")]
         if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {
             if matches!(out.mode, Mode::Fault(_)) {
@@ -702,7 +851,8 @@ impl ControlLoop {
             if o.phases != PhaseCommand::Off {
                 // The sequence magnetizes the rotor: the drive's next enable must not read
                 // the flux it leaves as a smaller inductance.
-                self.drive.rotor_driven(0);
+                // (In a period with the slow side back: the sequence's pulses last many.)
+                self.drive_mut(|mut d| d.rotor_driven(0));
             }
             return match o.phases {
                 PhaseCommand::Off => Bridge::Off,
@@ -724,12 +874,29 @@ impl ControlLoop {
     }
 }
 
+/// The drive's signals for the capture: the slow side's part read if it is back, else the
+/// one `held` from the last read (the slow step's job is running).
+fn telemetry(fast: &FastSide, slow: &SlowHome<'_>, held: &mut SlowSignals) -> Telemetry {
+    if let Some(s) = slow.cell.with(|s| s.signals()) {
+        *held = s;
+    }
+    fast.telemetry_with(held)
+}
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::config::{DRIVE_CONFIG, drive_spec};
     use controller_core::drive::{Mode, Reference};
-    use controller_core::link::{self, Command, LinkStats, NackReason, Reply};
+    use controller_core::link::{self, BoardCommand, LinkStats, NackReason, Reply};
+
+    extern crate std;
+
+    /// A slow cell for a test's loop, its job run at once ([`run_slow`] as the pend): leaked,
+    /// as the board's is a static.
+    pub(crate) fn cell() -> &'static mut MaybeUninit<SlowCell> {
+        std::boxed::Box::leak(std::boxed::Box::new(MaybeUninit::uninit()))
+    }
 
     pub(crate) fn board() -> BoardConfig {
         BoardConfig {
@@ -748,10 +915,39 @@ mod tests {
     /// Enable, then the bootstrap pre-charge on samples at rest: all low sides on (compare
     /// 0), for exactly the board's periods.
     fn enable_through_precharge(c: &mut ControlLoop) {
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         for k in 0..c.board.bootstrap_precharge_periods {
             assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]), "pre-charge period {k}");
         }
+    }
+
+    /// The slow step's job in a context of its own that never runs it (a slow interrupt
+    /// that is not serviced): the plan is not there when it is due, the drive latches
+    /// `Overrun` and the bridge goes off in that period.
+    #[test]
+    fn a_slow_job_never_run_turns_the_bridge_off() {
+        use core::sync::atomic::{AtomicBool, Ordering};
+        static SERVICED: AtomicBool = AtomicBool::new(true);
+        let pend: Pend = |cell| {
+            if SERVICED.load(Ordering::Relaxed) {
+                run_slow(cell);
+            }
+        };
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), pend).unwrap();
+        c.calibrate_at_rest();
+        enable_through_precharge(&mut c);
+        SERVICED.store(false, Ordering::Relaxed);
+        let mut periods = 0;
+        while c.step(&at_rest(0)) != Bridge::Off {
+            periods += 1;
+            assert!(periods <= c.config().slow_divider(), "off within a slow period");
+        }
+        assert_eq!(c.fast().mode(), Mode::Fault(Fault::Overrun));
+        assert!(!c.slow_cell().is_back(), "the job is still the slow context's");
+        // Run at last: the slow side is back, the fault stays latched, the bridge off.
+        run_slow(c.slow_cell());
+        assert_eq!(c.step(&at_rest(0)), Bridge::Off);
+        assert_eq!(c.drive(|d| d.mode()), Some(Mode::Fault(Fault::Overrun)));
     }
 
     fn at_rest(enc: u16) -> Samples {
@@ -760,7 +956,7 @@ mod tests {
 
     #[test]
     fn adc_codes_to_amperes_and_duty_to_compare() {
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         // Idle: bridge off whatever the inputs.
         assert_eq!(c.step(&at_rest(0)), Bridge::Off);
@@ -788,7 +984,7 @@ mod tests {
         // 2048 + 1241 counts = +10 A on phase a: above i_trip (8 A) → Overcurrent, off.
         let s = Samples { i_abc: [2048 + 1241, 2048 - 620, 2048 - 621], ..at_rest(0) };
         assert_eq!(c.step(&s), Bridge::Off);
-        assert_eq!(c.drive().mode(), Mode::Fault(Fault::Overcurrent));
+        assert_eq!(c.fast().mode(), Mode::Fault(Fault::Overcurrent));
     }
 
     /// The bootstrap pre-charge leaves the drive exactly where an enable without it would:
@@ -796,15 +992,19 @@ mod tests {
     /// period for period (the drive was not stepped, its slow cadence did not move).
     #[test]
     fn the_precharge_does_not_disturb_the_drive() {
-        let mut with = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
-        let mut without =
-            ControlLoop::new(&DRIVE_CONFIG, &BoardConfig { bootstrap_precharge_periods: 0, ..board() })
-                .unwrap();
+        let mut with = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
+        let mut without = ControlLoop::new(
+            &DRIVE_CONFIG,
+            &BoardConfig { bootstrap_precharge_periods: 0, ..board() },
+            cell(),
+            run_slow,
+        )
+        .unwrap();
         for c in [&mut with, &mut without] {
             c.calibrate_at_rest();
         }
         enable_through_precharge(&mut with);
-        without.drive_mut().enable().unwrap();
+        without.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         let mut switching = 0;
         for k in 0..200u16 {
             // A current that moves, so that the loops' outputs move too (it does not follow
@@ -815,27 +1015,27 @@ mod tests {
             assert_eq!(a, b, "period {k}");
             switching += usize::from(matches!(a, Bridge::Compare(_)));
         }
-        assert!(switching > 90, "{switching} {:?}", with.drive().mode());
-        assert_eq!(with.drive().mode(), without.drive().mode());
+        assert!(switching > 90, "{switching} {:?}", with.fast().mode());
+        assert_eq!(with.fast().mode(), without.fast().mode());
     }
 
     /// A fault during the pre-charge ends it with the bridge off (the supervisor runs on
     /// every sample); a disable ends it too; the next enable pre-charges again.
     #[test]
     fn the_precharge_ends_on_a_fault_or_a_disable() {
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
         c.calibrate_at_rest();
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]));
         // +10 A on phase a, above the 8 A trip level.
         let s = Samples { i_abc: [2048 + 1241, 2048 - 620, 2048 - 621], ..at_rest(0) };
         assert_eq!(c.step(&s), Bridge::Off);
-        assert_eq!(c.drive().mode(), Mode::Fault(Fault::Overcurrent));
+        assert_eq!(c.fast().mode(), Mode::Fault(Fault::Overcurrent));
         assert_eq!(c.step(&at_rest(0)), Bridge::Off);
-        c.drive_mut().clear_fault();
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.clear_fault()).unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]));
-        c.drive_mut().disable();
+        c.drive_mut(|mut d| d.disable()).unwrap();
         assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         // A fresh enable: the whole pre-charge again.
         enable_through_precharge(&mut c);
@@ -867,6 +1067,8 @@ mod tests {
             let mut c = ControlLoop::new(
                 &DRIVE_CONFIG,
                 &BoardConfig { bootstrap_precharge_periods: periods, ..board() },
+                cell(),
+                run_slow,
             )
             .unwrap();
             c.calibrate_at_rest();
@@ -888,12 +1090,20 @@ mod tests {
             pulsing += usize::from(matches!(a, Bridge::Compare(ccr) if ccr != [0; 3]));
         }
         assert!(pulsing > 0, "the sequence pulsed");
-        // The rotor it drove is not demagnetized for the drive's next enable.
-        assert!(with.drive().idle_slow_steps() < 10, "{}", with.drive().idle_slow_steps());
+        // The rotor it drove is not demagnetized for the drive's next enable (read, as the
+        // link would, in a period without the slow step in flight).
+        while with.slow_busy() {
+            with.step(&at_rest(0));
+        }
+        assert!(
+            with.drive(|d| d.idle_slow_steps()).unwrap() < 10,
+            "{}",
+            with.drive(|d| d.idle_slow_steps()).unwrap()
+        );
         // A new configuration keeps how long ago the rotor was driven (its flux).
-        let idle = with.drive().idle_slow_steps();
+        let idle = with.drive(|d| d.idle_slow_steps()).unwrap();
         with.reconfigure(DriveConfig::new(&drive_spec().unwrap()).unwrap()).unwrap();
-        assert_eq!(with.drive().idle_slow_steps(), idle);
+        assert_eq!(with.drive(|d| d.idle_slow_steps()).unwrap(), idle);
         // A fault during the pre-charge: +10 A on phase a, above the 8 A trip level.
         let mut c = start(40);
         assert_eq!(c.step(&at_rest(0)), Bridge::Compare([0; 3]));
@@ -913,15 +1123,19 @@ mod tests {
     fn the_encoder_is_read_for_the_drives_slow_step_after_a_reconfiguration() {
         let div = usize::from(drive_spec().unwrap().slow_divider);
         for reconfigure_at in 0..2 * div {
-            let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+            let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
             let mut encoder = 0u16;
+            let mut done = false;
             for k in 0..reconfigure_at + 3 * div {
-                if k == reconfigure_at {
+                // As the link's gain write is served: the first period from `reconfigure_at`
+                // without the slow step in flight.
+                if k >= reconfigure_at && !done && !c.slow_busy() {
                     c.reconfigure(DriveConfig::new(&drive_spec().unwrap()).unwrap()).unwrap();
+                    done = true;
                 }
                 // One count a period: every read finds the rotor moved.
                 encoder = encoder.wrapping_add(1);
-                let (due, theta) = (c.drive().slow_step_due(), c.theta_m_rad);
+                let (due, theta) = (c.fast().slow_step_due(), c.theta_m_rad);
                 let _ = c.step(&at_rest(encoder));
                 // The first read is the angle's zero (the encoder's priming read).
                 let read = c.theta_m_rad != theta || k == 0;
@@ -939,7 +1153,7 @@ mod tests {
         let spec = drive_spec().unwrap();
         let counts_per_rad = 4.0 * f64::from(board().encoder_lines) / core::f64::consts::TAU;
         for w_rad_s in [7.7, 50.0, 150.0] {
-            let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+            let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
             let mut counts = 0.0f64;
             let mut run = |c: &mut ControlLoop, periods: u32| {
                 for _ in 0..periods {
@@ -951,12 +1165,16 @@ mod tests {
             let halved = controller_core::drive::DriveSpec { slow_divider: spec.slow_divider / 2, ..spec };
             c.reconfigure(DriveConfig::new(&halved).unwrap()).unwrap();
             run(&mut c, 3000);
-            assert_eq!(c.drive().mode(), Mode::Idle, "{w_rad_s} rad/s");
+            assert_eq!(c.fast().mode(), Mode::Idle, "{w_rad_s} rad/s");
             let turned = counts / counts_per_rad;
             // The first read is the angle's zero; then within a read's turning.
             let read_rad = w_rad_s * f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
-            let error = f64::from(c.drive().position_rad()) - turned;
-            assert!(error.abs() < 2.0 * read_rad, "{w_rad_s}: {} against {turned}", c.drive().position_rad());
+            let error = f64::from(c.drive(|d| d.position_rad()).unwrap()) - turned;
+            assert!(
+                error.abs() < 2.0 * read_rad,
+                "{w_rad_s}: {} against {turned}",
+                c.drive(|d| d.position_rad()).unwrap()
+            );
         }
     }
 
@@ -988,8 +1206,12 @@ mod tests {
                 for _ in 0..enable_at {
                     let _ = step(&mut c);
                 }
-                assert_eq!(c.drive().mode(), Mode::Idle, "{w_rad_s} rad/s before the enable");
-                c.drive_mut().enable().unwrap();
+                assert_eq!(c.fast().mode(), Mode::Idle, "{w_rad_s} rad/s before the enable");
+                // As the link's command is served: in a period without the slow step in flight.
+                while c.slow_busy() {
+                    let _ = step(&mut c);
+                }
+                c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
                 for k in 0..c.board.bootstrap_precharge_periods {
                     assert_eq!(
                         step(&mut c),
@@ -1006,9 +1228,9 @@ mod tests {
                 for k in 0..10 * u32::from(spec.slow_divider) {
                     let _ = step(&mut c);
                     assert!(
-                        !matches!(c.drive().mode(), Mode::Fault(_)),
+                        !matches!(c.fast().mode(), Mode::Fault(_)),
                         "{w_rad_s} rad/s, enabled at {enable_at}: {:?} {k} periods after the pre-charge",
-                        c.drive().mode()
+                        c.fast().mode()
                     );
                 }
             }
@@ -1020,7 +1242,7 @@ mod tests {
     #[test]
     fn the_capture_records_the_precharge_periods() {
         use controller_core::capture::{CaptureSpec, CaptureState, Signal, Trigger};
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let spec = CaptureSpec {
             signals: [Signal::DutyA, Signal::Mode, Signal::Vdc, Signal::IA],
@@ -1049,9 +1271,9 @@ mod tests {
 
     #[test]
     fn hardware_break_latches_until_cleared_by_command() {
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
         c.calibrate_at_rest();
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         assert!(matches!(c.step(&at_rest(0)), Bridge::Compare(_)));
         let brk = Samples { hardware_break: true, ..at_rest(0) };
         assert_eq!(c.step(&brk), Bridge::Off);
@@ -1059,12 +1281,21 @@ mod tests {
         for _ in 0..100 {
             assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         }
-        assert_eq!(c.drive().mode(), Mode::Fault(Fault::HardwareBreak));
+        assert_eq!(c.fast().mode(), Mode::Fault(Fault::HardwareBreak));
         // Enable is refused while faulted; ClearFault then Enable works.
         let stats = LinkStats::default();
-        assert_eq!(link::execute(c.drive_mut(), &Command::Enable, &stats), Reply::Nack(NackReason::Faulted));
-        assert_eq!(link::execute(c.drive_mut(), &Command::ClearFault, &stats), Reply::Ack);
-        assert_eq!(link::execute(c.drive_mut(), &Command::Enable, &stats), Reply::Ack);
+        assert_eq!(
+            c.drive_mut(|d| link::execute_board(d, &BoardCommand::Enable, &stats)).unwrap(),
+            Reply::Nack(NackReason::Faulted)
+        );
+        assert_eq!(
+            c.drive_mut(|d| link::execute_board(d, &BoardCommand::ClearFault, &stats)).unwrap(),
+            Reply::Ack
+        );
+        assert_eq!(
+            c.drive_mut(|d| link::execute_board(d, &BoardCommand::Enable, &stats)).unwrap(),
+            Reply::Ack
+        );
         assert!(matches!(c.step(&at_rest(0)), Bridge::Compare(_)));
     }
 
@@ -1072,7 +1303,7 @@ mod tests {
     fn encoder_jump_is_encoder_loss_and_wrap_is_not() {
         let mut c = ControlLoop::at_rest_for_tests();
         enable_through_precharge(&mut c);
-        c.drive_mut().set_reference(Reference::Speed(0.0)).unwrap();
+        c.drive_mut(|mut d| d.set_reference(Reference::Speed(0.0))).unwrap().unwrap();
         let div = u32::from(drive_spec().unwrap().slow_divider);
         // Counter running backwards through the 16-bit wrap, speeding up by one count per read
         // (6 100 rad/s², within the jump check's allowance) to 40 counts per read
@@ -1082,14 +1313,14 @@ mod tests {
             if k % div == 0 {
                 enc = enc.wrapping_sub((k / div).min(40) as u16);
             }
-            assert!(matches!(c.step(&at_rest(enc)), Bridge::Compare(_)), "step {k}: {:?}", c.drive().mode());
+            assert!(matches!(c.step(&at_rest(enc)), Bridge::Compare(_)), "step {k}: {:?}", c.fast().mode());
         }
         assert!(enc > 60_000, "wrapped: {enc}");
         // A jump of 5000 counts between two reads.
         for _ in 0..div {
             let _ = c.step(&at_rest(enc.wrapping_add(5000)));
         }
-        assert_eq!(c.drive().mode(), Mode::Fault(Fault::EncoderLoss));
+        assert_eq!(c.fast().mode(), Mode::Fault(Fault::EncoderLoss));
     }
 
     /// The offset calibration at start-up: the bridge stays off for its 1 024 periods (an
@@ -1097,17 +1328,17 @@ mod tests {
     /// sample at those codes reads 0 A — and the drive runs.
     #[test]
     fn offsets_are_calibrated_with_the_bridge_off() {
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
         let zeros = [2060u16, 2040, 2048];
         // ±1 count of noise, alternating.
         let sample = |k: u32| Samples {
             i_abc: zeros.map(|z| if k.is_multiple_of(2) { z + 1 } else { z - 1 }),
             ..at_rest(0)
         };
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         for k in 0..CALIBRATION_SAMPLES {
             assert_eq!(c.step(&sample(k)), Bridge::Off, "period {k}");
-            assert!(matches!(c.drive().mode(), Mode::Idle), "the enable is undone");
+            assert!(matches!(c.fast().mode(), Mode::Idle), "the enable is undone");
         }
         match c.calibration() {
             Calibration::Done(o) => {
@@ -1116,14 +1347,14 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         let div = drive_spec().unwrap().slow_divider;
         let mut out = Bridge::Off;
         for _ in 0..div {
             out = c.step(&Samples { i_abc: zeros, ..at_rest(0) });
         }
         assert!(matches!(out, Bridge::Compare(_)));
-        let i = c.drive().telemetry().i_ab_a;
+        let i = c.telemetry().i_ab_a;
         assert_eq!((i.alpha, i.beta), (0.0, 0.0));
     }
 
@@ -1134,7 +1365,7 @@ mod tests {
         let stuck: fn(u32) -> [u16; 3] = |_| [2048, 4095, 2048];
         let floating: fn(u32) -> [u16; 3] = |k| [2048, 2048, if k.is_multiple_of(2) { 2078 } else { 2018 }];
         for (codes, channel) in [(stuck, 1u8), (floating, 2)] {
-            let mut c = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
+            let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
             for k in 0..CALIBRATION_SAMPLES {
                 assert_eq!(c.step(&Samples { i_abc: codes(k), ..at_rest(0) }), Bridge::Off);
             }
@@ -1150,8 +1381,8 @@ mod tests {
             // A channel at the rail reads 16.5 A: the supervisor's Overcurrent (it runs in
             // every mode) latches first; a noisy one, the calibration's CurrentSensor.
             let want = if channel == 1 { Fault::Overcurrent } else { Fault::CurrentSensor };
-            assert_eq!(c.drive().mode(), Mode::Fault(want));
-            assert!(c.drive_mut().enable().is_err());
+            assert_eq!(c.fast().mode(), Mode::Fault(want));
+            assert!(c.drive_mut(|mut d| d.enable()).unwrap().is_err());
             assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         }
     }
@@ -1164,34 +1395,43 @@ mod tests {
         let bad = BoardConfig { pwm_period_counts: 0, ..board() };
         let mut slot = MaybeUninit::uninit();
         assert_eq!(
-            ControlLoop::init(&mut slot, &DRIVE_CONFIG, &bad).err(),
+            ControlLoop::init(&mut slot, cell(), run_slow, &DRIVE_CONFIG, &bad).err(),
             Some(ControlError::Scaling(ScalingError::Period))
         );
-        let mut by_value = ControlLoop::new(&DRIVE_CONFIG, &board()).unwrap();
-        let in_place = ControlLoop::init(&mut slot, &DRIVE_CONFIG, &board()).unwrap();
+        let mut by_value = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
+        let in_place = ControlLoop::init(&mut slot, cell(), run_slow, &DRIVE_CONFIG, &board()).unwrap();
         assert!(matches!(in_place.calibration(), Calibration::Running(_)));
         assert_eq!(in_place.snapshot(), by_value.snapshot());
         for k in 0..(CALIBRATION_SAMPLES + 200) {
             let s = Samples { i_abc: [2048 + (k % 5) as u16, 2047, 2049], ..at_rest(k as u16) };
             assert_eq!(in_place.step(&s), by_value.step(&s), "period {k}");
             if k == CALIBRATION_SAMPLES + 10 {
-                in_place.drive_mut().enable().unwrap();
-                by_value.drive_mut().enable().unwrap();
+                in_place.drive_mut(|mut d| d.enable()).unwrap().unwrap();
+                by_value.drive_mut(|mut d| d.enable()).unwrap().unwrap();
             }
         }
         assert_eq!(in_place.snapshot(), by_value.snapshot());
-        assert_eq!(in_place.drive().mode(), by_value.drive().mode());
+        assert_eq!(in_place.fast().mode(), by_value.fast().mode());
     }
 
     #[test]
     fn invalid_board_constants_are_rejected_at_construction() {
         let spec = DRIVE_CONFIG;
         let bad = BoardConfig { pwm_period_counts: 0, ..board() };
-        assert_eq!(ControlLoop::new(&spec, &bad).unwrap_err(), ControlError::Scaling(ScalingError::Period));
+        assert_eq!(
+            ControlLoop::new(&spec, &bad, cell(), run_slow).unwrap_err(),
+            ControlError::Scaling(ScalingError::Period)
+        );
         let bad = BoardConfig { current_offset_counts: 5000, ..board() };
-        assert_eq!(ControlLoop::new(&spec, &bad).unwrap_err(), ControlError::Scaling(ScalingError::Offset));
+        assert_eq!(
+            ControlLoop::new(&spec, &bad, cell(), run_slow).unwrap_err(),
+            ControlError::Scaling(ScalingError::Offset)
+        );
         let bad = BoardConfig { encoder_lines: 0, ..board() };
-        assert_eq!(ControlLoop::new(&spec, &bad).unwrap_err(), ControlError::Encoder(EncoderError::Lines));
+        assert_eq!(
+            ControlLoop::new(&spec, &bad, cell(), run_slow).unwrap_err(),
+            ControlError::Encoder(EncoderError::Lines)
+        );
         // Issue 19: the timer's period read back must be the board's (embassy's
         // `ComplementaryPwm` with `khz(20)` programmed ARR = 4249, a 20 004.7 Hz PWM; the
         // board's is 4250, 20 000 Hz).

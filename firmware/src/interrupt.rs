@@ -62,7 +62,9 @@ impl Shared {
     /// flight ([`ControlLoop::slow_busy`]: from its tick to its plan's adoption, a plan's
     /// delay at most) — they act on, and read, its state — so that the longest period is
     /// the slow step's or theirs, not the sum (`cost interrupt_worst_period`, `cost
-    /// interrupt_worst_command_period`); the watchdog's stop does not wait.
+    /// interrupt_worst_command_period`); the watchdog's stop waits too (the controlled stop
+    /// acts on the slow side's reference: a plan's delay at most, 100 µs at 20 kHz), its
+    /// abort of a commissioning sequence does not.
     pub fn control_period(
         &self,
         outputs: &mut Outputs,
@@ -76,16 +78,16 @@ impl Shared {
         // Only this side clears the flags and the task only sets them (on one core: the
         // task cannot run between the load and the store), so a load and a store do what
         // a swap's exclusive-access loop would.
-        if self.watchdog_stop.load(Ordering::Relaxed) {
+        if self.watchdog_stop.load(Ordering::Relaxed) && server::LinkWatchdog::stop(ctl) {
             self.watchdog_stop.store(false, Ordering::Relaxed);
-            server::LinkWatchdog::stop(ctl);
         }
         // (`slow_busy` is asked only with a request: nothing added to a period without.)
         self.commands.serve(|(cmd, prepared, stats)| {
-            (!ctl.slow_busy()).then(|| {
-                ctl.note_readings(&samples);
-                server::handle_board(ctl, cmd, *prepared, stats)
-            })
+            if ctl.slow_busy() {
+                return None;
+            }
+            ctl.note_readings(&samples);
+            server::handle_board(ctl, cmd, *prepared, stats)
         });
         if self.snapshot_wanted.load(Ordering::Relaxed) && !ctl.slow_busy() {
             self.snapshot_wanted.store(false, Ordering::Relaxed);
@@ -137,7 +139,7 @@ mod tests {
         shared: Shared,
         outputs: Outputs,
         tim: Timer,
-        ctl: ControlLoop,
+        ctl: ControlLoop<'static>,
     }
 
     impl Rig {
@@ -154,7 +156,7 @@ mod tests {
         /// Periods at rest until the next one ends with no slow step of the drive in flight
         /// (in which the link's requests are served: `Shared::control_period`).
         fn step_to_a_period_without_the_slow_step(&mut self) {
-            while self.ctl.slow_busy() || self.ctl.drive().slow_step_due() {
+            while self.ctl.slow_busy() || self.ctl.fast().slow_step_due() {
                 self.period(at_rest());
             }
         }
@@ -176,7 +178,7 @@ mod tests {
         r.period(at_rest());
         assert_eq!(r.shared.snapshot.read(), Some(r.ctl.snapshot()));
         // The request is spent: the drive moves on, the snapshot read stays the one taken.
-        r.ctl.drive_mut().enable().unwrap();
+        r.ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         r.period(at_rest());
         let held = r.shared.snapshot.read().unwrap();
         assert!(!held.bridge_on && r.ctl.snapshot().bridge_on);
@@ -186,15 +188,14 @@ mod tests {
         assert!(r.shared.snapshot.read().unwrap().bridge_on);
     }
 
-    /// A command and a snapshot request that find the drive's slow step in flight wait for
-    /// the period that adopts its plan (the longest period is then the slow step's alone);
-    /// the watchdog's stop does not wait.
+    /// A command, a snapshot request and the watchdog's stop that find the drive's slow step
+    /// in flight wait for the period that adopts its plan.
     #[test]
     fn the_links_requests_wait_while_the_slow_step_is_in_flight() {
         let mut r = Rig::new();
-        r.ctl.drive_mut().enable().unwrap();
+        r.ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         let mut guard = 0;
-        while !(r.ctl.drive().slow_step_due() && r.ctl.drive().mode() == Mode::Magnetizing) && guard < 100 {
+        while !(r.ctl.fast().slow_step_due() && r.ctl.fast().mode() == Mode::Magnetizing) && guard < 100 {
             r.period(at_rest());
             guard += 1;
         }
@@ -212,14 +213,21 @@ mod tests {
         assert!(!r.ctl.slow_busy());
         assert!(matches!(r.shared.commands.take(), Some(Reply::Status { .. })));
         assert!(r.shared.snapshot.read().is_some());
-        // The watchdog's stop in a slow step's period: carried out in it.
-        while !r.ctl.drive().slow_step_due() {
+        // The watchdog's stop in a slow step's period waits too (it acts on the slow side),
+        // and is carried out in the period that adopts the plan.
+        while !r.ctl.fast().slow_step_due() {
             r.period(at_rest());
         }
         r.shared.watchdog_stop.store(true, Ordering::Relaxed);
+        for _ in 0..r.ctl.config().plan_delay() {
+            r.period(at_rest());
+            assert!(r.ctl.slow_busy());
+            assert_eq!(r.ctl.fast().mode(), Mode::Magnetizing, "waits");
+            assert!(r.shared.watchdog_stop.load(Ordering::Relaxed));
+        }
         r.period(at_rest());
-        assert!(r.ctl.slow_busy());
-        assert_eq!(r.ctl.drive().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
+        assert_eq!(r.ctl.fast().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
+        assert!(!r.shared.watchdog_stop.load(Ordering::Relaxed), "carried out once");
     }
 
     /// `Status` reports the raw samples of the period that serves it (noted then, not in
@@ -246,11 +254,11 @@ mod tests {
         assert_eq!(r.shared.commands.take(), None, "not served before a period");
         r.period(at_rest());
         assert_eq!(r.shared.commands.take(), Some(Reply::Ack));
-        assert_eq!(r.ctl.drive().mode(), Mode::Magnetizing);
+        assert_eq!(r.ctl.fast().mode(), Mode::Magnetizing);
         // Magnetizing, the watchdog's controlled stop is the bridge off at once.
         r.shared.watchdog_stop.store(true, Ordering::Relaxed);
         r.period(at_rest());
-        assert_eq!(r.ctl.drive().mode(), Mode::Idle);
+        assert_eq!(r.ctl.fast().mode(), Mode::Idle);
         assert!(!r.shared.watchdog_stop.load(Ordering::Relaxed), "the stop is carried out once");
     }
 }

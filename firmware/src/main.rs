@@ -65,7 +65,7 @@ mod target {
         f
     }
     use firmware::control::{
-        Calibration, ControlError, ControlLoop, Samples, UPDATE_REPETITION, check_update_timing,
+        Calibration, ControlError, ControlLoop, Samples, SlowCell, UPDATE_REPETITION, check_update_timing,
     };
     use firmware::output::{OutputStage, Outputs, stop_for_good};
     use firmware::server;
@@ -79,10 +79,25 @@ mod target {
     /// The control loop, handed over once: stored at start-up, taken by the control
     /// interrupt at its first run ([`take_control`]), then the interrupt's alone (the link
     /// task reaches it through `SHARED`). No critical section on either side.
-    static CONTROL: AtomicPtr<ControlLoop> = AtomicPtr::new(core::ptr::null_mut());
+    static CONTROL: AtomicPtr<ControlLoop<'static>> = AtomicPtr::new(core::ptr::null_mut());
     /// Where the control loop lives: zero-initialised (`.bss`), so its ≈ 5.2 KiB take no flash
     /// for an initial image, as an `Option<ControlLoop>` static did.
-    static CONTROL_CELL: static_cell::StaticCell<ControlLoop> = static_cell::StaticCell::new();
+    static CONTROL_CELL: static_cell::StaticCell<ControlLoop<'static>> = static_cell::StaticCell::new();
+    /// Where the drive's slow side lives (issue 54's two contexts): lent by the control
+    /// interrupt to the slow interrupt ([`SLOW_IRQ`]) from the slow step's tick until its job
+    /// is done (`firmware::boundary::Handoff`); zero-initialised as the loop's.
+    static SLOW_CELL: static_cell::StaticCell<SlowCell> = static_cell::StaticCell::new();
+    /// The slow cell for the slow interrupt, stored once at start-up (null before: the
+    /// interrupt then does nothing).
+    static SLOW: AtomicPtr<SlowCell> = AtomicPtr::new(core::ptr::null_mut());
+
+    /// The slow step's job handed over ([`SlowCell`]): pend the slow context — a vector no
+    /// peripheral of the board uses, CORDIC's, at the priority below the control interrupt's
+    /// (its handler, [`CORDIC`], runs once the control interrupt returns, and is preempted by
+    /// the next).
+    fn pend_slow(_: &SlowCell) {
+        interrupt::CORDIC.pend();
+    }
     /// Control interrupts served; the link task feeds the watchdog only while this advances.
     static ISR_COUNT: AtomicU32 = AtomicU32::new(0);
     /// The control interrupt's longest step and overruns (`Status`).
@@ -232,13 +247,19 @@ mod target {
         defmt::info!("drive firmware: 170 MHz, validating the drive configuration");
 
         // Validate at construction: with an invalid configuration nothing is enabled.
-        let control = match ControlLoop::init(CONTROL_CELL.uninit(), &DRIVE_CONFIG, &BOARD) {
+        let control = match ControlLoop::init(
+            CONTROL_CELL.uninit(),
+            SLOW_CELL.uninit(),
+            pend_slow,
+            &DRIVE_CONFIG,
+            &BOARD,
+        ) {
             Ok(c) => c,
             Err(e) => {
                 // One interned message per reason (a table of strings took flash).
                 match e {
                     // `BridgeActive` is a reconfiguration's, never the start's.
-                    ControlError::Drive(_) | ControlError::BridgeActive => {
+                    ControlError::Drive(_) | ControlError::BridgeActive | ControlError::SlowBusy => {
                         defmt::error!("configuration rejected (drive specification)")
                     }
                     ControlError::Scaling(_) => defmt::error!("configuration rejected (ADC/PWM scaling)"),
@@ -255,8 +276,9 @@ mod target {
                 halt_safe();
             }
         };
-        // Handed to the control interrupt, which takes it at its first run (Release: the
-        // loop's initialisation is seen there).
+        // The slow cell for the slow interrupt, and the loop for the control interrupt, which
+        // takes it at its first run (Release: their initialisation is seen there).
+        SLOW.store(core::ptr::from_ref(control.slow_cell()).cast_mut(), Ordering::Release);
         CONTROL.store(control, Ordering::Release);
 
         // TIM1: centre-aligned complementary PWM, outputs off until the drive asks (MOE is
@@ -406,9 +428,14 @@ mod target {
         static RX_BUF: static_cell::StaticCell<[u8; 256]> = static_cell::StaticCell::new();
         let rx = rx.into_ring_buffered(RX_BUF.init([0; 256]));
 
-        // Priorities: only the control interrupt at P0.
+        // Priorities: only the control interrupt at P0, the drive's slow context at P1.
         interrupt::TIM3.set_priority(Priority::P4);
         interrupt::LPUART1.set_priority(Priority::P5);
+        interrupt::CORDIC.set_priority(Priority::P1);
+        interrupt::CORDIC.unpend();
+        // SAFETY: the handler only touches the slow cell, through its hand-off (the control
+        // interrupt lends it), and nothing else shares its priority.
+        unsafe { interrupt::CORDIC.enable() };
         interrupt::ADC1_2.set_priority(Priority::P0);
         interrupt::ADC1_2.unpend();
         // SAFETY: the handler only touches the control loop (handed over once through
@@ -444,7 +471,7 @@ mod target {
     fn ADC1_2() {
         // The interrupt's own state, which nothing else reaches: cortex-m-rt makes these
         // `&mut` to this handler (no critical section around the body, issue 54).
-        static mut CONTROL_LOOP: Option<&'static mut ControlLoop> = None;
+        static mut CONTROL_LOOP: Option<&'static mut ControlLoop<'static>> = None;
         static mut OUTPUTS: Outputs = Outputs::new();
         let t0 = cortex_m::peripheral::DWT::cycle_count();
         // Where the period was when the handler began: its work is timed from the update
@@ -485,9 +512,23 @@ mod target {
         }
     }
 
+    /// The drive's slow context (issue 54's two contexts): the slow step's job the control
+    /// interrupt handed over at its tick ([`SLOW_CELL`]), run here — preempted by the control
+    /// interrupt (P0 over P1) — and the slow side handed back. Its plan is adopted a plan's
+    /// delay after the tick (2 periods at 20 kHz); a job not back by then latches
+    /// `Fault::Overrun` with the bridge off in that period (`FastSide::step`).
+    #[interrupt]
+    fn CORDIC() {
+        // SAFETY: a non-null pointer in `SLOW` is the `&'static` cell start-up stored, never
+        // freed; a shared reference is all the hand-off needs (it is `Sync`).
+        if let Some(cell) = unsafe { SLOW.load(Ordering::Acquire).as_ref() } {
+            firmware::control::run_slow(cell);
+        }
+    }
+
     /// The control loop [`CONTROL`] holds, taken out (`None` if none was stored, or it was
     /// taken before).
-    fn take_control() -> Option<&'static mut ControlLoop> {
+    fn take_control() -> Option<&'static mut ControlLoop<'static>> {
         let p = CONTROL.swap(core::ptr::null_mut(), Ordering::Acquire);
         // SAFETY: a non-null pointer in `CONTROL` is the `&'static mut` start-up stored, once
         // (from the static cell's single initialisation); the swap leaves null behind, so it

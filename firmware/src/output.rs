@@ -118,7 +118,7 @@ impl Outputs {
     #[cold]
     #[inline(never)]
     pub fn overrun(&mut self, hw: &mut impl OutputStage, ctl: &mut ControlLoop) {
-        ctl.drive_mut().trip(Fault::Overrun);
+        ctl.trip(Fault::Overrun);
         hw.disable_outputs();
         self.stage = Stage::Off;
     }
@@ -137,6 +137,8 @@ pub fn stop_for_good(mask_interrupts: impl FnOnce(), hw: &mut impl OutputStage) 
 
 #[cfg(test)]
 mod tests {
+    use crate::control::run_slow;
+    use crate::control::tests::cell;
     extern crate std;
     use super::*;
     use crate::config::{BOARD, DRIVE_CONFIG};
@@ -209,9 +211,9 @@ mod tests {
         let mut cases = 0;
         // The first four periods after enable take ≤ 4 operations each: 16 injection points.
         for pulse_op in 0..16 {
-            let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+            let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
             ctl.calibrate_at_rest();
-            ctl.drive_mut().enable().unwrap();
+            ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
             let (mut out, mut hw) =
                 (Outputs::new(), ModelTimer { pulse_at: Some(pulse_op), ..Default::default() });
             let mut fired_in = None;
@@ -223,7 +225,7 @@ mod tests {
                 if let Some(f) = fired_in {
                     assert!(!hw.moe, "break at op {pulse_op} (period {f}): MOE = 1 after period {k}");
                     if k > f {
-                        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak), "op {pulse_op}");
+                        assert_eq!(ctl.fast().mode(), Mode::Fault(Fault::HardwareBreak), "op {pulse_op}");
                     }
                 }
             }
@@ -239,7 +241,7 @@ mod tests {
     /// (350 V), off below — with the bridge off, running, and after a fault.
     #[test]
     fn the_brake_follows_the_bus_in_every_mode() {
-        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         ctl.calibrate_at_rest();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
         let bus = |out: &mut Outputs, hw: &mut ModelTimer, ctl: &mut ControlLoop, code: u16| {
@@ -250,13 +252,13 @@ mod tests {
         for (code, on) in sweep {
             assert_eq!(bus(&mut out, &mut hw, &mut ctl, code), on, "idle, code {code}");
         }
-        ctl.drive_mut().enable().unwrap();
+        ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         for (code, on) in sweep {
             assert_eq!(bus(&mut out, &mut hw, &mut ctl, code), on, "enabled, code {code}");
         }
         // An over-voltage trips the drive; the chopper goes on regulating the bus.
         assert!(bus(&mut out, &mut hw, &mut ctl, 4010));
-        assert!(matches!(ctl.drive().mode(), Mode::Fault(Fault::DcBusOvervoltage)));
+        assert!(matches!(ctl.fast().mode(), Mode::Fault(Fault::DcBusOvervoltage)));
         assert!(!hw.moe);
         assert!(bus(&mut out, &mut hw, &mut ctl, 3550));
         assert!(!bus(&mut out, &mut hw, &mut ctl, 3400));
@@ -332,7 +334,7 @@ mod tests {
             b
         };
         for run in 0..2 {
-            ctl.drive_mut().enable().unwrap();
+            ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
             for _ in 0..BOARD.bootstrap_precharge_periods {
                 assert_eq!(period(&mut out, &mut hw, &mut ctl), Bridge::Compare([0; 3]));
             }
@@ -348,7 +350,7 @@ mod tests {
                 assert!(matches!(period(&mut out, &mut hw, &mut ctl), Bridge::Compare(_)));
             }
             assert_ne!(hw.active, [0; 3], "the drive switches its own duties");
-            ctl.drive_mut().disable();
+            ctl.drive_mut(|mut d| d.disable()).unwrap();
             assert_eq!(period(&mut out, &mut hw, &mut ctl), Bridge::Off);
             assert!(!hw.timer.moe);
             hw.switched.clear();
@@ -363,7 +365,7 @@ mod tests {
     fn an_overrun_turns_the_bridge_off_and_latches() {
         let mut ctl = ControlLoop::at_rest_for_tests();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
-        ctl.drive_mut().enable().unwrap();
+        ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         for _ in 0..60 {
             out.period(&mut hw, &mut ctl, &mut at_rest());
         }
@@ -374,9 +376,9 @@ mod tests {
             assert_eq!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Off);
             assert!(!hw.moe);
         }
-        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::Overrun));
-        ctl.drive_mut().clear_fault();
-        ctl.drive_mut().enable().unwrap();
+        assert_eq!(ctl.fast().mode(), Mode::Fault(Fault::Overrun));
+        ctl.drive_mut(|mut d| d.clear_fault()).unwrap();
+        ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         for _ in 0..60 {
             out.period(&mut hw, &mut ctl, &mut at_rest());
         }
@@ -417,7 +419,7 @@ mod tests {
         for _ in 0..10 {
             assert_eq!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Off);
         }
-        ctl.drive_mut().enable().unwrap();
+        ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         for _ in 0..100 {
             assert!(matches!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Compare(_)));
         }
@@ -426,7 +428,7 @@ mod tests {
         // MOE cleared behind the firmware's back (a break whose flag was lost): a fault.
         hw.0.moe = false;
         assert_eq!(out.period(&mut hw, &mut ctl, &mut at_rest()), Bridge::Off);
-        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak));
+        assert_eq!(ctl.fast().mode(), Mode::Fault(Fault::HardwareBreak));
         assert_eq!(hw.1, 1);
     }
 
@@ -435,9 +437,9 @@ mod tests {
     /// interrupt only while interrupts are not masked).
     #[test]
     fn after_stop_for_good_moe_stays_off() {
-        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut ctl = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         ctl.calibrate_at_rest();
-        ctl.drive_mut().enable().unwrap();
+        ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         let (mut out, mut hw) = (Outputs::new(), ModelTimer::default());
         for _ in 0..10 {
             out.period(&mut hw, &mut ctl, &mut at_rest());
@@ -463,6 +465,6 @@ mod tests {
         hw.interrupts_masked = false;
         out.period(&mut hw, &mut ctl, &mut at_rest());
         assert!(!hw.moe);
-        assert_eq!(ctl.drive().mode(), Mode::Fault(Fault::HardwareBreak));
+        assert_eq!(ctl.fast().mode(), Mode::Fault(Fault::HardwareBreak));
     }
 }

@@ -18,7 +18,7 @@
 use crate::config as certified;
 #[cfg(feature = "commissioning")]
 use crate::control::CommissionRefused;
-use crate::control::ControlLoop;
+use crate::control::{ControlError, ControlLoop};
 use controller_core::commission::{CommissionConfig, CommissionSpecError};
 use controller_core::drive::Mode;
 use controller_core::link::{self, BoardCommand, LinkStats, NackReason, Reply};
@@ -73,9 +73,11 @@ impl LinkWatchdog {
     }
 
     /// The watchdog's reaction: a controlled stop, and any commissioning sequence aborted.
-    pub fn stop(ctl: &mut ControlLoop) {
-        ctl.drive_mut().controlled_stop();
+    /// False when the stop must wait for a period with the drive's slow side back (the
+    /// sequence is aborted at once).
+    pub fn stop(ctl: &mut ControlLoop) -> bool {
         ctl.abort_commissioning();
+        ctl.drive_mut(|mut d| d.controlled_stop()).is_some()
     }
 }
 
@@ -102,14 +104,16 @@ pub fn prepare(cmd: &BoardCommand) -> Prepared {
 }
 
 /// Answer one command as the board decodes it ([`Command::decode_board`](controller_core::link::Command::decode_board): `Configure` and
-/// `Step` arrive unparsed, as [`BoardCommand::Refused`]), with what [`prepare`] built.
+/// `Step` arrive unparsed, as [`BoardCommand::Refused`]), with what [`prepare`] built;
+/// `None` while the drive's slow step is in flight (the command waits:
+/// [`ControlLoop::drive_mut`]).
 pub fn handle_board(
     ctl: &mut ControlLoop,
     cmd: &BoardCommand,
     prepared: Prepared,
     stats: &LinkStats,
-) -> Reply {
-    match (cmd, prepared) {
+) -> Option<Reply> {
+    Some(match (cmd, prepared) {
         #[cfg(feature = "commissioning")]
         (BoardCommand::Commission(_), Prepared::Commission(cfg)) => {
             match cfg.map(|c| ctl.start_commissioning(c)) {
@@ -137,26 +141,26 @@ pub fn handle_board(
         }
         // The capture records the drive's periods whatever runs: served at any time.
         (BoardCommand::GetStatus | BoardCommand::ArmCapture(_) | BoardCommand::ReadCapture { .. }, _) => {
-            handle(ctl, cmd, stats)
+            return handle(ctl, cmd, stats);
         }
         _ if ctl.commissioning() => Reply::Nack(NackReason::NotIdle),
-        _ => handle(ctl, cmd, stats),
-    }
+        _ => return handle(ctl, cmd, stats),
+    })
 }
 
 /// Answer one command (`Configure` and `Step`, the board's `Refused`: `Nack(Unsupported)`).
 /// Dispatched as the board decodes it: a [`Command`](controller_core::link::Command) would be ≈ 500 B on the control
-/// interrupt's stack.
-pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Reply {
-    match cmd {
+/// interrupt's stack. `None`: the command waits ([`handle_board`]).
+pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Option<Reply> {
+    Some(match cmd {
         BoardCommand::ReadSpeedGains => match ctl.config().speed().saturated_p() {
             Some((kp, tau_max_nm)) => Reply::SpeedGains { kp, tau_max_nm },
             None => Reply::Nack(NackReason::Unsupported),
         },
-        BoardCommand::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(ctl, *kp, *tau_max_nm),
+        BoardCommand::WriteSpeedGains { kp, tau_max_nm } => return write_speed_gains(ctl, *kp, *tau_max_nm),
         BoardCommand::ArmCapture(spec) => link::arm_capture(ctl.capture_mut(), *spec),
         BoardCommand::ReadCapture { chunk } => link::read_capture(ctl.capture(), *chunk),
-        other => match link::execute_board(ctl.drive_mut().as_mut(), other, stats) {
+        other => match ctl.drive_mut(|d| link::execute_board(d, other, stats))? {
             // The board's raw readings (the timing is filled in by the interrupt's owner).
             Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, .. } => Reply::Status {
                 mode,
@@ -168,45 +172,58 @@ pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> R
             },
             r => r,
         },
-    }
+    })
 }
 
-fn write_speed_gains(ctl: &mut ControlLoop, kp: f32, tau_max_nm: f32) -> Reply {
+fn write_speed_gains(ctl: &mut ControlLoop, kp: f32, tau_max_nm: f32) -> Option<Reply> {
     if !(kp.is_finite() && tau_max_nm.is_finite()) {
-        return Reply::Nack(NackReason::NonFinite);
+        return Some(Reply::Nack(NackReason::NonFinite));
     }
     let inside = |x: f32, (lo, hi): (f32, f32)| lo <= x && x <= hi;
     if !inside(kp, certified::SPEED_KP) || !inside(tau_max_nm, certified::SPEED_TAU_MAX_NM) {
-        return Reply::Nack(NackReason::OutOfCertifiedRange);
+        return Some(Reply::Nack(NackReason::OutOfCertifiedRange));
     }
-    if ctl.drive().mode() != Mode::Idle {
-        return Reply::Nack(NackReason::NotIdle);
+    if ctl.fast().mode() != Mode::Idle {
+        return Some(Reply::Nack(NackReason::NotIdle));
     }
     // In f32, on the configuration in use: no design arithmetic on the target.
     let Some(cfg) = ctl.config().with_saturated_p(kp, tau_max_nm) else {
-        return Reply::Nack(NackReason::Unsupported);
+        return Some(Reply::Nack(NackReason::Unsupported));
     };
     match ctl.reconfigure(cfg) {
-        Ok(()) => Reply::Ack,
-        Err(_) => Reply::Nack(NackReason::Configuration),
+        Ok(()) => Some(Reply::Ack),
+        Err(ControlError::SlowBusy) => None,
+        Err(_) => Some(Reply::Nack(NackReason::Configuration)),
     }
 }
 
 #[cfg(test)]
 mod tests {
+    /// The command's reply, served in a period with the slow side back (the tests' loops
+    /// run the slow step's job at its tick).
+    fn handle(c: &mut ControlLoop, cmd: &BoardCommand, s: &LinkStats) -> Reply {
+        super::handle(c, cmd, s).expect("served")
+    }
+
+    fn handle_board(c: &mut ControlLoop, cmd: &BoardCommand, p: Prepared, s: &LinkStats) -> Reply {
+        super::handle_board(c, cmd, p, s).expect("served")
+    }
+
     use super::*;
     use crate::config::{BOARD, DRIVE_CONFIG, drive_spec};
+    use crate::control::run_slow;
+    use crate::control::tests::cell;
     use controller_core::drive::{Measurements, Reference};
     use controller_core::link::Command;
 
     #[test]
     fn commands_reach_the_drive_and_step_or_configure_are_refused() {
         let spec = drive_spec().unwrap();
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let stats = LinkStats { frames_ok: 5, crc: 2, ..Default::default() };
         assert_eq!(handle(&mut c, &BoardCommand::Enable, &stats), Reply::Ack);
-        assert_eq!(c.drive().mode(), Mode::Magnetizing);
+        assert_eq!(c.fast().mode(), Mode::Magnetizing);
         assert_eq!(
             handle(&mut c, &BoardCommand::SetReference(Reference::Speed(f32::NAN)), &stats),
             Reply::Nack(NackReason::NonFinite)
@@ -243,7 +260,7 @@ mod tests {
             }
         );
         assert_eq!(handle(&mut c, &BoardCommand::Disable, &stats), Reply::Ack);
-        assert_eq!(c.drive().mode(), Mode::Idle);
+        assert_eq!(c.fast().mode(), Mode::Idle);
     }
 
     /// On the wire: `Configure` and `Step` frames are refused unparsed (the board decodes no
@@ -251,7 +268,7 @@ mod tests {
     #[test]
     fn the_board_refuses_configure_and_step_frames_unparsed() {
         let spec = drive_spec().unwrap();
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let mut stats = LinkStats::default();
         let mut decoder = link::FrameDecoder::new();
@@ -277,7 +294,7 @@ mod tests {
         }));
         assert_eq!(reply(&Command::GetCommissionRecord { chunk: 0 }, &mut c, &mut stats), no_record);
         assert_eq!(reply(&Command::Enable, &mut c, &mut stats), Some(Reply::Ack));
-        assert_eq!(c.drive().mode(), Mode::Magnetizing);
+        assert_eq!(c.fast().mode(), Mode::Magnetizing);
         assert_eq!(stats.frames_ok, 4);
         assert_eq!(link::Command::decode_board(&[0x7E]), Err(link::DecodeError::UnknownType(0x7E)));
     }
@@ -291,7 +308,7 @@ mod tests {
     fn the_capture_records_the_control_loops_periods_and_reads_out_over_the_link() {
         use crate::control::{CAPTURE_DEPTH, Samples};
         use controller_core::capture::{CaptureSpec, CaptureState, Edge, Signal, Trigger};
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let mut stats = LinkStats::default();
         let mut decoder = link::FrameDecoder::new();
@@ -370,20 +387,20 @@ mod tests {
     /// re-arms it; the counter may wrap.
     #[test]
     fn a_silent_link_stops_a_running_drive() {
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let start = u32::MAX - 100; // wraps during the test
         let mut w = LinkWatchdog::new(1000, start);
         assert!(!w.poll(start.wrapping_add(5000), &mut c), "Idle: nothing to stop");
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         // Magnetizing: a controlled stop turns the bridge off at once.
         w.frame(start);
         assert!(!w.poll(start.wrapping_add(999), &mut c));
         assert!(w.poll(start.wrapping_add(1000), &mut c));
-        assert_eq!(c.drive().mode(), Mode::Idle);
+        assert_eq!(c.fast().mode(), Mode::Idle);
         assert!(!w.poll(start.wrapping_add(2000), &mut c), "once");
         // Re-armed by a frame: a second silence stops the drive again.
-        c.drive_mut().enable().unwrap();
+        c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
         w.frame(start.wrapping_add(3000));
         assert!(!w.poll(start.wrapping_add(3999), &mut c));
         assert!(w.poll(start.wrapping_add(4000), &mut c));
@@ -395,7 +412,7 @@ mod tests {
 
     #[test]
     fn speed_gains_are_written_only_inside_the_certified_ranges_and_while_idle() {
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let s = LinkStats::default();
         let read = |c: &mut ControlLoop| handle(c, &BoardCommand::ReadSpeedGains, &s);
@@ -426,7 +443,7 @@ mod tests {
     #[test]
     fn a_gain_write_keeps_the_thermal_state_and_the_position() {
         use crate::control::Samples;
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let s = LinkStats::default();
         // 2 A in phase a and back through b, with the bridge off (the models integrate the
@@ -447,18 +464,22 @@ mod tests {
             };
             let _ = c.step(&hot);
         }
-        assert_eq!(c.drive().mode(), Mode::Idle);
-        let (motor, inverter) = c.drive().thermal_state();
+        assert_eq!(c.fast().mode(), Mode::Idle);
+        let (motor, inverter) = c.drive(|d| d.thermal_state()).unwrap();
         assert!(motor > 0.015 && inverter > 0.005, "heated: {motor} {inverter}");
-        let position = c.drive().position_rad();
+        let position = c.drive(|d| d.position_rad()).unwrap();
         assert!(position > core::f32::consts::TAU, "one turn and more: {position}");
         assert_eq!(
             handle(&mut c, &BoardCommand::WriteSpeedGains { kp: 0.08, tau_max_nm: 1.5 }, &s),
             Reply::Ack
         );
         assert_eq!(c.config().speed().saturated_p(), Some((0.08, 1.5)), "the gains written");
-        assert_eq!(c.drive().thermal_state(), (motor, inverter), "the motor is as hot as before");
-        assert_eq!(c.drive().position_rad(), position, "the shaft is where it was");
+        assert_eq!(
+            c.drive(|d| d.thermal_state()).unwrap(),
+            (motor, inverter),
+            "the motor is as hot as before"
+        );
+        assert_eq!(c.drive(|d| d.position_rad()).unwrap(), position, "the shaft is where it was");
     }
 
     /// A standstill commissioning of the shipped motor on its board (the tests' request).
@@ -504,14 +525,14 @@ mod tests {
             }
             counts
         };
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         let counts = turn(&mut c, 0.0, 2.0 * rest_rad_s, 20_000);
-        assert!(!c.drive().rotor_at_rest());
+        assert!(!c.drive(|d| d.rotor_at_rest()).unwrap());
         assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Nack(NackReason::NotAtRest));
         assert!(!c.commissioning());
         turn(&mut c, counts, 0.5 * rest_rad_s, 20_000);
-        assert!(c.drive().rotor_at_rest(), "creeping at half the rest speed");
+        assert!(c.drive(|d| d.rotor_at_rest()).unwrap(), "creeping at half the rest speed");
         assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Ack);
         assert!(c.commissioning());
     }
@@ -528,7 +549,7 @@ mod tests {
         let spec = commission_spec();
         let cmd = BoardCommand::Commission(spec);
         let stats = LinkStats::default();
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Nack(NackReason::NotConfigured));
         c.calibrate_at_rest();
         assert_eq!(
@@ -562,7 +583,7 @@ mod tests {
             "{stage:?}"
         );
         // A new one on a healthy drive, stopped from the link.
-        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD).unwrap();
+        let mut c = ControlLoop::new(&DRIVE_CONFIG, &BOARD, cell(), run_slow).unwrap();
         c.calibrate_at_rest();
         assert_eq!(handle_board(&mut c, &cmd, prepare(&cmd), &stats), Reply::Ack);
         assert_eq!(handle_board(&mut c, &BoardCommand::Stop, Prepared::Nothing, &stats), Reply::Ack);

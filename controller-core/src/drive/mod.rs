@@ -139,7 +139,11 @@ struct StepSignals {
 ///
 /// The board's own state (the current sensors' offsets, the encoder's speed window, the
 /// capture) is the firmware's, beside the drive (`firmware::control::ControlLoop`).
+///
+/// `repr(C)`, the fast side first: the fast step's loads within the Cortex-M4F's reach
+/// from the drive's address ([`FastSide`]).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Drive {
     fast: FastSide,
     slow: SlowSide,
@@ -868,10 +872,10 @@ impl Drive {
         self.as_mut().enable()
     }
 
-    /// [`DriveMut::current_zero_moved`].
+    /// [`FastSide::current_zero_moved`].
     #[inline]
     pub fn current_zero_moved(&mut self) {
-        self.as_mut().current_zero_moved()
+        self.fast.current_zero_moved()
     }
 
     /// [`DriveMut::disable`].
@@ -1063,14 +1067,6 @@ impl DriveMut<'_> {
             }
             Mode::Magnetizing | Mode::Running => Ok(()),
         }
-    }
-
-    /// The current sensors' zero moved (the firmware's power-up calibration of their codes,
-    /// which steps the drive on the old zero meanwhile): a sensorless drive forgets the
-    /// residual offsets it read with the bridge off ([`IdleZero::forget`]) — they are of the
-    /// old zero, up to the calibration's tolerance, where the residual is a few LSB.
-    pub fn current_zero_moved(&mut self) {
-        self.fast.state.zero.forget();
     }
 
     /// Back to Idle (phases off). A latched fault stays latched.
@@ -1439,6 +1435,14 @@ impl FastSide {
             rr_scale: s.rr_scale,
             l_scale: s.l_scale,
         }
+    }
+
+    /// The current sensors' zero moved (the firmware's power-up calibration of their codes,
+    /// which steps the drive on the old zero meanwhile): a sensorless drive forgets the
+    /// residual offsets it read with the bridge off ([`IdleZero::forget`]) — they are of the
+    /// old zero, up to the calibration's tolerance, where the residual is a few LSB.
+    pub fn current_zero_moved(&mut self) {
+        self.state.zero.forget();
     }
 
     /// Latch fault `f` on the fast side alone (the first fault stays latched): phases off
