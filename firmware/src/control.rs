@@ -596,7 +596,8 @@ impl<'s> ControlLoop<'s> {
 
     /// `f` on the whole drive, to read it; `None` while the slow step is in flight — from its
     /// tick to its plan's adoption ([`ControlLoop::slow_busy`]) — or its slow side is not
-    /// back from its job.
+    /// back from its job. The loop's methods are the control interrupt's (the fast context:
+    /// the slow cell's owner); the slow context reaches the cell only through [`run_slow`].
     pub fn drive<R>(&self, f: impl FnOnce(DriveRef<'_>) -> R) -> Option<R> {
         if self.slow_busy() {
             return None;
