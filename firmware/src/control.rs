@@ -1270,6 +1270,87 @@ pub(crate) mod tests {
         assert!(duty(50) > 0.0 && duty(50) < 1.0, "then the drive's own duty: {}", duty(50));
     }
 
+    /// The capture in a slow step's periods, its job run by a slow context of its own after
+    /// the period (the board's order): the drive's outputs as with the job run at its tick;
+    /// the signals' slow part — here the rotor-flux estimate, which the slow step's flux
+    /// model moves — in the tick's period is the last read before the job (the slow side is
+    /// at its job), then the job's.
+    #[test]
+    fn the_capture_reads_the_slow_part_held_while_the_slow_step_runs() {
+        use controller_core::capture::{CaptureSpec, CaptureState, Signal, Trigger};
+        use core::sync::atomic::{AtomicBool, Ordering};
+        static PENDING: AtomicBool = AtomicBool::new(false);
+        let deferred: Pend = |_| PENDING.store(true, Ordering::Relaxed);
+        let capture = CaptureSpec {
+            signals: [Signal::DutyA, Signal::PsiR, Signal::IAlpha, Signal::Mode],
+            trigger: Trigger::Immediate,
+            pre_samples: 0,
+            decimation: 1,
+        };
+        let run = |pend: Pend| {
+            // The checks that compare the currents with a machine off (none stands behind
+            // the samples: each period's current is the reference of the period before).
+            let mut spec = drive_spec().unwrap();
+            spec.protection.open_phase_time_s = 1e6;
+            spec.protection.saturation_time_s = 1e6;
+            spec.protection.encoder_check_time_s = 1e6;
+            let cfg = DriveConfig::new(&spec).unwrap();
+            let mut c = ControlLoop::with_config(cfg, &board(), cell(), pend).unwrap();
+            let (zero, a_per_count) = (f32::from(c.board.current_offset_counts), c.board.current_a_per_count);
+            let mut step = |c: &mut ControlLoop| {
+                let i = c.telemetry().i_ref_ab_a.inverse_clarke();
+                let code = |x: f32| (zero + x / a_per_count) as u16;
+                let b = c.step(&Samples { i_abc: [code(i.a), code(i.b), code(i.c)], ..at_rest(0) });
+                if PENDING.swap(false, Ordering::Relaxed) {
+                    run_slow(c.slow_cell());
+                }
+                b
+            };
+            for _ in 0..CALIBRATION_SAMPLES {
+                step(&mut c);
+            }
+            while c.slow_busy() {
+                step(&mut c);
+            }
+            c.drive_mut(|mut d| d.enable()).unwrap().unwrap();
+            // Running at a speed reference that the speed loop's reference ramps to.
+            let mut k = 0;
+            while c.fast().mode() != Mode::Running || c.slow_busy() {
+                step(&mut c);
+                k += 1;
+                assert!(k < 20_000, "magnetized");
+            }
+            c.drive_mut(|mut d| d.set_reference(controller_core::drive::Reference::Speed(100.0)))
+                .unwrap()
+                .unwrap();
+            c.capture_mut().arm(capture).unwrap();
+            let mut ticks = std::vec::Vec::new();
+            for k in 0..CAPTURE_DEPTH {
+                ticks.push(c.fast().slow_step_due());
+                assert!(!matches!(step(&mut c), Bridge::Off), "period {k}");
+            }
+            assert_eq!(c.capture().state(), CaptureState::Done);
+            let chunks: std::vec::Vec<_> =
+                (0..Capture::<CAPTURE_DEPTH>::CHUNKS).map(|i| c.capture().chunk(i).unwrap()).collect();
+            let signal = move |k: usize, s: usize| {
+                let at = (k % 8) * 16 + 4 * s;
+                f32::from_le_bytes(chunks[k / 8][at..at + 4].try_into().unwrap())
+            };
+            (ticks, signal)
+        };
+        let (ticks, at_once) = run(run_slow);
+        let (_, apart) = run(deferred);
+        let mut held = 0;
+        for k in 1..CAPTURE_DEPTH {
+            assert_eq!(at_once(k, 0).to_bits(), apart(k, 0).to_bits(), "duty, sample {k}");
+            assert_eq!(at_once(k, 2).to_bits(), apart(k, 2).to_bits(), "i_alpha, sample {k}");
+            let expected = if ticks[k] { at_once(k - 1, 1) } else { at_once(k, 1) };
+            assert_eq!(apart(k, 1).to_bits(), expected.to_bits(), "the flux estimate, sample {k}");
+            held += usize::from(ticks[k] && at_once(k, 1) != at_once(k - 1, 1));
+        }
+        assert!(held > 5, "the flux estimate moves across the ticks: {held}");
+    }
+
     #[test]
     fn hardware_break_latches_until_cleared_by_command() {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
