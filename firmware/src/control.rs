@@ -1297,7 +1297,7 @@ pub(crate) mod tests {
             let cfg = DriveConfig::new(&spec).unwrap();
             let mut c = ControlLoop::with_config(cfg, &board(), cell(), pend).unwrap();
             let (zero, a_per_count) = (f32::from(c.board.current_offset_counts), c.board.current_a_per_count);
-            let mut step = |c: &mut ControlLoop| {
+            let step = |c: &mut ControlLoop| {
                 let i = c.telemetry().i_ref_ab_a.inverse_clarke();
                 let code = |x: f32| (zero + x / a_per_count) as u16;
                 let b = c.step(&Samples { i_abc: [code(i.a), code(i.b), code(i.c)], ..at_rest(0) });
