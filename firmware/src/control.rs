@@ -1351,6 +1351,33 @@ pub(crate) mod tests {
         assert!(held > 5, "the flux estimate moves across the ticks: {held}");
     }
 
+    /// A fork (the benchmarks' copy of a loop) steps as its original, on a slow side of its
+    /// own: the original's slow steps do not move the fork's.
+    #[test]
+    fn a_fork_steps_as_its_original_on_a_slow_side_of_its_own() {
+        let mut c = ControlLoop::at_rest_for_tests();
+        enable_through_precharge(&mut c);
+        let mut fork = c.fork(cell()).unwrap();
+        assert!(!core::ptr::eq(c.slow_cell(), fork.slow_cell()));
+        for k in 0..200 {
+            assert_eq!(c.step(&at_rest(0)), fork.step(&at_rest(0)), "period {k}");
+        }
+        // The original disabled and stepped alone for three slow periods: its slow side counts
+        // them with the bridge off, the fork's (still magnetizing) does not move.
+        while c.slow_busy() || fork.slow_busy() {
+            let _ = (c.step(&at_rest(0)), fork.step(&at_rest(0)));
+        }
+        c.drive_mut(|mut d| d.disable()).unwrap();
+        for _ in 0..c.config().slow_divider() * 3 {
+            let _ = c.step(&at_rest(0));
+        }
+        while c.slow_busy() {
+            let _ = c.step(&at_rest(0));
+        }
+        assert_eq!(c.drive(|d| d.idle_slow_steps()), Some(3));
+        assert_eq!(fork.drive(|d| (d.mode(), d.idle_slow_steps())), Some((Mode::Magnetizing, 0)));
+    }
+
     #[test]
     fn hardware_break_latches_until_cleared_by_command() {
         let mut c = ControlLoop::new(&DRIVE_CONFIG, &board(), cell(), run_slow).unwrap();
