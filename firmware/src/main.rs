@@ -84,7 +84,7 @@ mod target {
     /// for an initial image, as an `Option<ControlLoop>` static did.
     static CONTROL_CELL: static_cell::StaticCell<ControlLoop<'static>> = static_cell::StaticCell::new();
     /// Where the drive's slow side lives (issue 54's two contexts): lent by the control
-    /// interrupt to the slow interrupt ([`SLOW_IRQ`]) from the slow step's tick until its job
+    /// interrupt to the slow interrupt ([`CORDIC`]) from the slow step's tick until its job
     /// is done (`firmware::boundary::Handoff`); zero-initialised as the loop's.
     static SLOW_CELL: static_cell::StaticCell<SlowCell> = static_cell::StaticCell::new();
     /// The slow cell for the slow interrupt, stored once at start-up (null before: the

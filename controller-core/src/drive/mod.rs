@@ -241,7 +241,6 @@ impl SlowSide {
     /// is the fast side's [`DriveConfig::plan_delay`] periods after the tick
     /// ([`FastSide::step`]).
     ///
-    ///
     /// First the once-per-slow-period checks on the fast step that adopted the last plan
     /// (latched with the inputs; `SlowState::after_slow_checks`): the encoder against the
     /// machine model, the rotor-resistance law.

@@ -143,8 +143,8 @@ pub const CYCLES_PER_INSTRUCTION: f64 = 1.5;
 /// which `cost fast_interrupt_worst` measures on the shipped build.
 pub const FAST_INTERRUPT_INSTRUCTIONS_MAX: f64 = 800.0;
 
-/// The slow context's longest run the schedule allows, instructions: issue 54's bound (not yet
-/// measured alone: `cost slow_period_worst` times the slow step with a fast step).
+/// The slow context's longest run the schedule allows, instructions: issue 54's bound, which
+/// `cost slow_context_worst` measures on the shipped build.
 pub const SLOW_CONTEXT_INSTRUCTIONS_MAX: f64 = 8000.0;
 
 /// The highest PWM rate whose period holds the fast interrupt's longest,
