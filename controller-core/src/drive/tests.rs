@@ -343,13 +343,32 @@ impl Deferred {
 /// The halves apart, the slow step's job run in a context of its own some periods after its
 /// tick (0 to the plan's delay − 1: the lower-priority interrupt preempted by the fast one),
 /// step the drive bit for bit as the whole drive does (the simulator's `Drive::step`): the
-/// outputs and the signals of every period, through a torque step, a reference change and a
-/// disable.
+/// outputs and the signals of every period, through a torque step and a disable; at 20 kHz
+/// (a delay of 2 periods) and at 10 and 4 kHz (1 period).
 #[test]
 fn the_halves_apart_step_as_the_whole_drive() {
-    let delay = u32::from(running_drive().config().plan_delay());
+    for pwm_frequency_hz in [20_000.0, 10_000.0, 4_000.0] {
+        let spec = DriveSpec { pwm_frequency_hz, ..test_spec() };
+        let ts = (1.0 / pwm_frequency_hz) as f32;
+        let mut running = Drive::new(DriveConfig::new(&spec).unwrap());
+        running.enable().unwrap();
+        let mut i = Abc::default();
+        while running.mode() != Mode::Running {
+            let m = Measurements { i_abc_a: i, vdc_v: 310.0, ..Default::default() };
+            if let PhaseCommand::Duty(duty) = running.step(&m).phases {
+                i = rl_step(i, duty, 310.0, 16.2, 0.1, ts);
+            }
+        }
+        halves_apart_step_as_the_whole(running, ts);
+    }
+}
+
+/// [`the_halves_apart_step_as_the_whole_drive`] from the `running` drive of period `ts`.
+fn halves_apart_step_as_the_whole(running: Drive, ts: f32) {
+    let delay = u32::from(running.config().plan_delay());
+    assert!(delay >= 1);
     for lateness in 0..delay {
-        let mut whole = running_drive();
+        let mut whole = running;
         let (mut fast, slow) = whole.into_parts();
         let mut ctx = Deferred { slow, lent: false };
         let mut i = Abc::default();
@@ -375,14 +394,14 @@ fn the_halves_apart_step_as_the_whole_drive() {
             if since_tick == lateness {
                 ctx.run_job();
             }
-            assert_eq!(a, b, "period {k}, the job {lateness} periods late");
+            assert_eq!(a, b, "period {k}, the job {lateness} periods late, T = {ts} s");
             // The signals once the job has run (before, the slow side's part is the last
             // job's: the whole drive ran this one at its tick).
             if !ctx.lent {
                 assert_eq!(whole.telemetry(), DriveRef::new(&fast, &ctx.slow).telemetry(), "period {k}");
             }
             if let PhaseCommand::Duty(duty) = a.phases {
-                i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+                i = rl_step(i, duty, 310.0, 16.2, 0.1, ts);
             }
         }
         assert_eq!(whole.mode(), Mode::Idle);
