@@ -823,11 +823,6 @@ impl Drive {
         DriveRef { fast: &self.fast, slow: &self.slow }
     }
 
-    /// The fast side ([`FastSide`]: the mode, the configuration, the cadence).
-    pub fn fast(&self) -> &FastSide {
-        &self.fast
-    }
-
     /// One PWM period, the slow step's job run at its tick: [`FastSide::step`] with the slow
     /// side beside it.
     pub fn step(&mut self, m: &Measurements) -> FastOutput {
