@@ -64,13 +64,12 @@ impl FastSide {
         };
         let back = if self.state.steps_to_slow == 0 {
             self.state.steps_to_slow = self.cfg.slow_divider.saturating_sub(1);
-            slow.with(&mut |s| DriveMut::new(self, s).hold_tick(m))
+            slow.with(&mut |s| self.hold_tick(s, m))
         } else {
             self.state.steps_to_slow -= 1;
             // The adoption of a job latched before the hold (none on the board, whose link
             // commands an enable after it): its mode and faults.
-            self.state.steps_to_slow != self.cfg.adopt_at
-                || slow.with(&mut |s| DriveMut::new(self, s).hold_adopt())
+            self.state.steps_to_slow != self.cfg.adopt_at || slow.with(&mut |s| self.hold_adopt(s))
         };
         if !back {
             self.state.trip(Fault::Overrun);
@@ -83,22 +82,26 @@ impl FastSide {
     }
 }
 
-impl DriveMut<'_> {
-    /// [`FastSide::hold_step`]'s tick: the shaft's stage of the slow step, the field turned
-    /// with the rotor.
-    fn hold_tick(&mut self, m: &Measurements) {
-        self.sync();
-        let step_rad = self.slow.state.track_shaft(&self.slow.cfg, m);
-        self.slow.state.anchor_field(&self.slow.cfg, step_rad);
-        self.fast.state.run.field.adopt_angle(self.slow.state.run.ifoc.field_steps());
-        self.fast.state.trip_from(self.slow.state.mode);
-        self.sync();
+impl FastSide {
+    /// [`FastSide::hold_step`]'s tick on the slow side `s`: the shaft's stage of the slow
+    /// step, the field turned with the rotor.
+    fn hold_tick(&mut self, s: &mut SlowSide, m: &Measurements) {
+        DriveMut::new(self, s).sync();
+        let step_rad = s.state.track_shaft(&s.cfg, m);
+        s.state.anchor_field(&s.cfg, step_rad);
+        self.state.run.field.adopt_angle(s.state.run.ifoc.field_steps());
+        self.state.trip_from(s.state.mode);
+        DriveMut::new(self, s).sync();
     }
 
-    /// [`FastSide::hold_step`]'s adoption: the slow side's mode and faults.
-    fn hold_adopt(&mut self) {
-        self.fast.state.trip_from(self.slow.state.mode);
-        self.sync();
+    /// [`FastSide::hold_step`]'s adoption: a command's order, the slow side's mode and
+    /// faults.
+    fn hold_adopt(&mut self, s: &mut SlowSide) {
+        if s.order != Order::default() {
+            self.obey(s);
+        }
+        self.state.trip_from(s.state.mode);
+        DriveMut::new(self, s).sync();
     }
 }
 

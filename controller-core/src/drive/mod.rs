@@ -171,6 +171,27 @@ pub struct SlowSide {
     state: SlowState,
     cfg: DriveConfig,
     job: Option<SlowJob>,
+    order: Order,
+}
+
+/// What a command on the slow side asks of the fast side ([`DriveMut`]): taken at once when
+/// the command has the fast side too, or with the next plan the fast side adopts when the
+/// slow context commands the slow side alone ([`DriveMut::slow_only`], the board's link).
+/// The mode and the reference travel as every plan's do.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Order {
+    /// A new run: the fast step's (`FastRun`) and V/Hz's afresh (an enable, a
+    /// reconfiguration).
+    restart: bool,
+    /// The slow side's configuration taken (a reconfiguration).
+    reconfigured: bool,
+    /// The slow cadence starts again at this period (a new divider).
+    cadence: bool,
+    /// The slow side's mode taken, unless a fault of the fast step stands (an enable, a
+    /// disable, a stop while magnetizing; the adoption takes it anyway).
+    mode: bool,
+    /// The fault cleared: the slow side's mode taken over the fast side's fault.
+    cleared: bool,
 }
 
 /// The slow step's job: its inputs, latched from the fast side at the tick, and the V/Hz
@@ -270,7 +291,8 @@ impl SlowSide {
 /// reconfiguration.
 #[derive(Debug)]
 pub struct DriveMut<'a> {
-    fast: &'a mut FastSide,
+    /// `None`: the slow context's, its commands' fast part ordered for the next adoption.
+    fast: Option<&'a mut FastSide>,
     slow: &'a mut SlowSide,
 }
 
@@ -282,14 +304,19 @@ pub struct DriveRef<'a> {
 }
 
 impl<'a> DriveMut<'a> {
-    /// The drive made of its halves.
+    /// The drive made of its halves: a command acts on both at once.
     pub fn new(fast: &'a mut FastSide, slow: &'a mut SlowSide) -> Self {
-        Self { fast, slow }
+        Self { fast: Some(fast), slow }
     }
 
-    /// To read it.
-    pub fn as_ref(&self) -> DriveRef<'_> {
-        DriveRef { fast: self.fast, slow: self.slow }
+    /// The drive as the slow context commands it, holding the slow side alone (the board's
+    /// link, served after the slow step's job): a command decides on the slow side's state
+    /// — the mode latched at the tick, moved on by the job — acts on it, and leaves its
+    /// fast part (a new run, the new configuration, the mode) to the plan the fast side
+    /// adopts [`DriveConfig::plan_delay`] periods after the tick. A fault of the fast step
+    /// in between stays latched (only a cleared fault's mode is taken over one).
+    pub fn slow_only(slow: &'a mut SlowSide) -> Self {
+        Self { fast: None, slow }
     }
 }
 
@@ -804,6 +831,7 @@ impl Drive {
             },
             cfg,
             job: None,
+            order: Order::default(),
         };
         Self { fast, slow }
     }
@@ -815,7 +843,7 @@ impl Drive {
 
     /// To command it ([`DriveMut`]).
     pub fn as_mut(&mut self) -> DriveMut<'_> {
-        DriveMut { fast: &mut self.fast, slow: &mut self.slow }
+        DriveMut::new(&mut self.fast, &mut self.slow)
     }
 
     /// To read it ([`DriveRef`]).
@@ -846,6 +874,14 @@ impl Drive {
     /// [`FastSide::fast_step`].
     pub fn fast_step(&mut self, m: &Measurements) -> FastOutput {
         self.fast.fast_step(m)
+    }
+
+    /// Another machine: a new drive on `cfg` ([`Drive::new`]) in this one's place, which only
+    /// knows how long the rotor was left ([`DriveMut::rotor_driven`]).
+    pub fn replace(&mut self, cfg: DriveConfig) {
+        let idle = self.slow.state.machine.idle_slow_steps;
+        *self = Drive::new(cfg);
+        self.rotor_driven(idle);
     }
 
     /// [`DriveMut::reconfigure`].
@@ -1009,20 +1045,44 @@ impl DriveMut<'_> {
     /// The slow side learns the fast side's fault (a fault of the fast step ends a
     /// controlled stop: its pending fault is what latched), and the fast side the slow
     /// side's reference and pending fault: after a command, and at the slow step's tick.
-    /// Out of line: one copy for its dozen callers.
+    /// Without the fast side (the slow context's) the slow step's job did the first half
+    /// from the mode latched at the tick, and the adoption does the second. Out of line:
+    /// one copy for its dozen callers.
     #[inline(never)]
     fn sync(&mut self) {
-        if let Mode::Fault(_) = self.fast.state.mode {
-            self.slow.state.mode = self.fast.state.mode;
+        let Some(fast) = self.fast.as_deref_mut() else { return };
+        if let Mode::Fault(_) = fast.state.mode {
+            self.slow.state.mode = fast.state.mode;
             (self.slow.state.pending_fault, self.slow.state.stop_steps_left) = (None, None);
         }
-        self.fast.state.pending_fault = self.slow.state.pending_fault;
-        self.fast.state.reference = self.slow.state.reference;
+        fast.state.pending_fault = self.slow.state.pending_fault;
+        fast.state.reference = self.slow.state.reference;
     }
 
-    /// Both sides' mode set to `mode` (a command's).
-    fn set_mode(&mut self, mode: Mode) {
-        (self.fast.state.mode, self.slow.state.mode) = (mode, mode);
+    /// The command's fast part: at once with the fast side here ([`FastSide::obey`], then
+    /// [`DriveMut::sync`]); left in the slow side's order otherwise, for the next adoption.
+    fn done(&mut self) {
+        if let Some(fast) = self.fast.as_deref_mut() {
+            fast.obey(self.slow);
+        }
+        self.sync();
+    }
+
+    /// The mode a command decides on: the fast side's (its word is final), or without it the
+    /// slow side's — the mode latched at the tick as the job left it, the one the next
+    /// adoption takes unless the fast step faults first.
+    pub fn mode(&self) -> Mode {
+        self.fast.as_deref().map_or(self.slow.state.mode, |f| f.state.mode)
+    }
+
+    /// [`DriveRef::ridden_through`].
+    pub fn ridden_through(&self) -> FaultSet {
+        self.slow.state.ridden_through
+    }
+
+    /// The configuration (the same on both sides).
+    pub fn config(&self) -> &DriveConfig {
+        &self.slow.cfg
     }
 
     /// The rotor was driven by something else `idle_slow_steps` slow steps ago (0: now) — a
@@ -1043,32 +1103,33 @@ impl DriveMut<'_> {
     #[inline]
     pub fn enable(&mut self) -> Result<(), CommandError> {
         self.sync();
-        match self.fast.state.mode {
+        let r = match self.mode() {
             Mode::Fault(_) => Err(CommandError::Faulted),
             Mode::Idle => {
-                let fit = RotorFit::new(
-                    self.fast.cfg.mras.demagnetized_after(self.slow.state.machine.idle_slow_steps),
-                );
-                let run = &self.slow.state.run;
+                let s = &mut *self.slow;
+                let fit = RotorFit::new(s.cfg.mras.demagnetized_after(s.state.machine.idle_slow_steps));
+                let run = &s.state.run;
                 let (rr, l) = (run.ifoc.rotor_resistance_scale(), run.identified_inductance_scale());
-                self.slow.state.run = SlowRun::new(&self.fast.cfg, rr, l, fit);
-                self.fast.state.run = FastRun::default();
-                self.fast.vhz = VhzRun::default();
-                self.slow.state.ridden_through = FaultSet::EMPTY;
-                self.slow.state.machine.idle_slow_steps = 0;
-                self.set_mode(Mode::Magnetizing);
+                s.state.run = SlowRun::new(&s.cfg, rr, l, fit);
+                s.order.restart = true;
+                s.state.ridden_through = FaultSet::EMPTY;
+                s.state.machine.idle_slow_steps = 0;
+                s.state.mode = Mode::Magnetizing;
+                s.order.mode = true;
                 Ok(())
             }
             Mode::Magnetizing | Mode::Running => Ok(()),
-        }
+        };
+        self.done();
+        r
     }
 
     /// Back to Idle (phases off). A latched fault stays latched.
     pub fn disable(&mut self) {
         self.sync();
         self.slow.state.disable();
-        self.fast.state.mode = self.slow.state.mode;
-        self.sync();
+        self.slow.order.mode = true;
+        self.done();
     }
 
     /// A controlled stop (stop category 1): Running, the speed loop brakes to standstill
@@ -1078,32 +1139,36 @@ impl DriveMut<'_> {
     /// cancels the stop. What the firmware does when its link falls silent.
     pub fn controlled_stop(&mut self) {
         self.sync();
+        let mode = self.mode();
         let s = &mut self.slow.state;
-        match self.fast.state.mode {
+        match mode {
             _ if s.pending_fault.is_some() => {}
             Mode::Running if s.stop_steps_left.is_none() => {
                 s.reference = Reference::Speed(0.0);
-                s.stop_steps_left = Some(self.fast.cfg.stop_slow_steps);
+                s.stop_steps_left = Some(self.slow.cfg.stop_slow_steps);
             }
             Mode::Magnetizing => {
                 s.disable();
-                self.fast.state.mode = s.mode;
+                self.slow.order.mode = true;
             }
             _ => {}
         }
-        self.sync();
+        self.done();
     }
 
     /// Fault → Idle (the encoder's jump check judges again from the second change after,
     /// [`Fault::EncoderLoss`]'s jump being no reference).
     pub fn clear_fault(&mut self) {
         self.sync();
-        if matches!(self.fast.state.mode, Mode::Fault(_)) {
-            self.set_mode(Mode::Idle);
+        if matches!(self.mode(), Mode::Fault(_)) {
+            let s = &mut *self.slow;
+            s.state.mode = Mode::Idle;
+            s.order.cleared = true;
             // The encoder's last change may be the jump that latched `EncoderLoss`: no
             // reference for the next one.
-            self.slow.state.machine.encoder.forget_last_change();
+            s.state.machine.encoder.forget_last_change();
         }
+        self.done();
     }
 
     /// Set the outer-loop reference (takes effect at the next slow step).
@@ -1117,10 +1182,11 @@ impl DriveMut<'_> {
         if !finite {
             return Err(CommandError::NonFinite);
         }
-        if self.fast.cfg.vhz().is_some() && matches!(r, Reference::Position(_) | Reference::Torque(_)) {
+        let cfg = &self.slow.cfg;
+        if cfg.vhz().is_some() && matches!(r, Reference::Position(_) | Reference::Torque(_)) {
             return Err(CommandError::SpeedOnly);
         }
-        if self.slow.state.on_observer(&self.fast.cfg) && matches!(r, Reference::Position(_)) {
+        if self.slow.state.on_observer(cfg) && matches!(r, Reference::Position(_)) {
             return Err(CommandError::NoEncoder);
         }
         self.sync();
@@ -1130,16 +1196,20 @@ impl DriveMut<'_> {
         }
         self.slow.state.reference = r;
         self.slow.state.stop_steps_left = None;
-        self.sync();
+        self.done();
         Ok(())
     }
 
     /// Latch fault `f` (the first fault stays latched): phases off from the next fast step
-    /// on. The supervisor calls it; the firmware calls it for faults only it can see. Out of
-    /// line (a fault's path: inlined, its eight callers took 376 B of flash).
+    /// on (without the fast side: from the next adoption, unless the fast step faults
+    /// first). The supervisor calls it; the firmware calls it for faults only it can see.
+    /// Out of line (a fault's path: inlined, its eight callers took 376 B of flash).
     #[inline(never)]
     pub fn trip(&mut self, f: Fault) {
-        self.fast.state.trip(f);
+        match self.fast.as_deref_mut() {
+            Some(fast) => fast.state.trip(f),
+            None => self.slow.state.trip(f),
+        }
         self.sync();
     }
 
@@ -1153,45 +1223,37 @@ impl DriveMut<'_> {
     /// latched fault stays latched, and the slow cadence keeps its phase unless the divider
     /// changed (then the encoder's jump check starts again at the new read period). As in
     /// stabilizer and idsp: the configuration is swapped, the state is kept. Another machine
-    /// is another drive ([`DriveMut::replace`]; the link's `Configure` tells them apart).
+    /// is another drive ([`Drive::replace`]; the link's `Configure` tells them apart).
     ///
     /// Refused while the bridge is active ([`CommandError::Active`]): the drive is left as
     /// it was. `#[inline]`: compiled in the caller's crate — in the firmware at its
     /// opt-level "z" (a gain write).
     #[inline]
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
-        if self.fast.state.mode.is_active() {
+        if self.mode().is_active() {
             return Err(CommandError::Active);
         }
         self.sync();
-        let old = &self.fast.cfg;
+        let s = &mut *self.slow;
+        let old = &s.cfg;
         let [rr_min, rr_max] = cfg.mras.range();
         let [l_min, l_max] = cfg.mras.inductance_range();
-        let rr = self.slow.state.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
-        let l = self.slow.state.run.identified_inductance_scale().limit(l_min, l_max);
-        let thermal = &mut self.slow.state.machine.thermal;
+        let rr = s.state.run.ifoc.rotor_resistance_scale().limit(rr_min, rr_max);
+        let l = s.state.run.identified_inductance_scale().limit(l_min, l_max);
+        let thermal = &mut s.state.machine.thermal;
         thermal.motor = old.motor_thermal.carry(thermal.motor, &cfg.motor_thermal);
         thermal.inverter = old.inverter_thermal.carry(thermal.inverter, &cfg.inverter_thermal);
         if cfg.slow_divider != old.slow_divider {
-            self.fast.state.steps_to_slow = 0;
-            self.slow.state.machine.encoder.restart_jump_check();
+            s.order.cadence = true;
+            s.state.machine.encoder.restart_jump_check();
         }
-        self.slow.state.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
-        self.fast.state.run = FastRun::default();
-        self.fast.vhz = VhzRun::default();
-        (self.slow.state.reference, self.slow.state.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
-        (self.slow.state.pending_fault, self.slow.state.stop_steps_left) = (None, None);
-        (self.fast.cfg, self.slow.cfg, self.slow.job) = (cfg, cfg, None);
-        self.sync();
+        s.state.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
+        (s.state.reference, s.state.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
+        (s.state.pending_fault, s.state.stop_steps_left) = (None, None);
+        (s.cfg, s.job) = (cfg, None);
+        (s.order.restart, s.order.reconfigured) = (true, true);
+        self.done();
         Ok(())
-    }
-
-    /// Another machine: a new drive on `cfg` ([`Drive::new`]) in this one's place, which only
-    /// knows how long the rotor was left ([`DriveMut::rotor_driven`]).
-    pub fn replace(&mut self, cfg: DriveConfig) {
-        let idle = self.slow.state.machine.idle_slow_steps;
-        (*self.fast, *self.slow) = Drive::new(cfg).into_parts();
-        self.rotor_driven(idle);
     }
 }
 
@@ -1384,10 +1446,39 @@ impl FastSide {
     /// came first), the reference, the field plan; V/Hz's. Out of line: once per slow
     /// period.
     #[inline(never)]
-    fn adopt(&mut self, s: &SlowSide) {
+    fn adopt(&mut self, s: &mut SlowSide) {
+        if s.order != Order::default() {
+            self.obey(s);
+        }
         self.state.adopt(&s.state);
         if self.cfg.vhz_on() {
             self.vhz.adopt(&s.state.run.vhz_plan);
+        }
+    }
+
+    /// A command's fast part, ordered by the slow side ([`DriveMut`]), taken (and the order
+    /// spent): the new configuration, the cadence from this period, a new run, the mode —
+    /// unless a fault of the fast step stands, which only a clear takes over. Before the
+    /// plan at an adoption: the new run takes it. Out of line: rare, and the adoption's
+    /// path stays short.
+    #[cold]
+    #[inline(never)]
+    fn obey(&mut self, s: &mut SlowSide) {
+        let o = core::mem::take(&mut s.order);
+        if o.reconfigured {
+            self.cfg = s.cfg;
+        }
+        if o.cadence {
+            self.state.steps_to_slow = 0;
+        }
+        if o.restart {
+            self.state.run = FastRun::default();
+            self.vhz = VhzRun::default();
+        }
+        if o.cleared {
+            self.state.mode = s.state.mode;
+        } else if o.mode {
+            self.state.trip_from(s.state.mode);
         }
     }
 

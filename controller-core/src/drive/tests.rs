@@ -82,7 +82,7 @@ impl Drive {
     /// `the_plan_is_adopted_a_plans_delay_after_its_tick`'s).
     fn slow_period(&mut self, m: &Measurements) {
         self.slow_step(m);
-        self.fast.adopt(&self.slow);
+        self.fast.adopt(&mut self.slow);
     }
 }
 
@@ -406,6 +406,131 @@ fn halves_apart_step_as_the_whole(running: Drive, ts: f32) {
         }
         assert_eq!(whole.mode(), Mode::Idle);
     }
+}
+
+/// One of the link's commands, on a [`DriveMut`] of either kind.
+#[derive(Clone, Copy, Debug)]
+enum Cmd {
+    Enable,
+    Reference(Reference),
+    Stop,
+    Disable,
+    Gains(f32),
+    Trip,
+    ClearFault,
+}
+
+impl Cmd {
+    fn on(self, mut d: DriveMut<'_>) {
+        match self {
+            Cmd::Enable => d.enable().unwrap(),
+            Cmd::Reference(r) => d.set_reference(r).unwrap(),
+            Cmd::Stop => d.controlled_stop(),
+            Cmd::Disable => d.disable(),
+            Cmd::Gains(kp) => {
+                let (_, tau_max_nm) = d.config().speed().saturated_p().unwrap();
+                let cfg = d.config().with_saturated_p(kp, tau_max_nm).unwrap();
+                d.reconfigure(cfg).unwrap();
+            }
+            Cmd::Trip => d.trip(Fault::EncoderLoss),
+            Cmd::ClearFault => d.clear_fault(),
+        }
+    }
+}
+
+/// A command of the slow context ([`DriveMut::slow_only`]: served after the slow step's job,
+/// on the slow side alone) takes effect at the plan's adoption, bit for bit as the same
+/// command given to the whole drive just before that period: an enable, a torque reference,
+/// a controlled stop, a disable, a gain write (a reconfiguration), an enable again, a fault
+/// and its clearing — every period's outputs and signals equal over 3 000 periods, through
+/// the magnetizing, a stop and the new gains. Fails with the order left untaken (the second
+/// enable's run not made afresh on the fast side: its duties differ from its first period).
+#[test]
+fn a_command_of_the_slow_context_acts_at_the_plans_adoption() {
+    let mut whole = drive();
+    let ts = whole.config().ts_s;
+    let (mut fast, slow) = whole.into_parts();
+    let mut ctx = Deferred { slow, lent: false };
+    // Each command at the first tick 200 periods after the last, once Running if it says so.
+    let commands = [
+        (Cmd::Enable, false),
+        (Cmd::Reference(Reference::Torque(1.5)), true),
+        (Cmd::Stop, false),
+        (Cmd::Reference(Reference::Speed(20.0)), false),
+        (Cmd::Disable, false),
+        (Cmd::Gains(0.07), false),
+        (Cmd::Enable, false),
+        (Cmd::Trip, true),
+        (Cmd::ClearFault, false),
+    ];
+    let (mut next, mut last, mut ordered) = (0, 0, None::<Cmd>);
+    let mut i = Abc::default();
+    let mut modes = std::collections::BTreeSet::new();
+    for k in 0..20_000 {
+        // The whole drive takes the command just before the period that adopts the plan.
+        if fast.state.steps_to_slow == fast.cfg.adopt_at + 1
+            && let Some(c) = ordered.take()
+        {
+            c.on(whole.as_mut());
+        }
+        let m = Measurements { i_abc_a: i, vdc_v: 310.0, ..Default::default() };
+        let due = fast.slow_step_due();
+        let (a, b) = (whole.step(&m), fast.step(&m, &mut ctx));
+        ctx.run_job();
+        // The slow context's: after the job of a tick, on the slow side alone.
+        let ready =
+            |&&(_, running): &&(Cmd, bool)| due && k >= last + 200 && (!running || a.mode == Mode::Running);
+        if let Some(&(c, _)) = commands.get(next).filter(ready) {
+            c.on(DriveMut::slow_only(&mut ctx.slow));
+            (ordered, next, last) = (Some(c), next + 1, k);
+        }
+        assert_eq!(a, b, "period {k}");
+        assert_eq!(whole.telemetry(), DriveRef::new(&fast, &ctx.slow).telemetry(), "period {k}");
+        if let PhaseCommand::Duty(duty) = a.phases {
+            i = rl_step(i, duty, 310.0, 16.2, 0.1, ts);
+        }
+        modes.insert(format!("{:?}", a.mode));
+    }
+    assert_eq!(next, commands.len());
+    assert_eq!(fast.config().speed().saturated_p().map(|g| g.0), Some(0.07));
+    assert_eq!(fast.mode(), Mode::Idle);
+    assert_eq!(modes.len(), 4, "{modes:?}");
+}
+
+/// A fault of the fast step between the tick and the adoption of a slow-context command
+/// stands: an enable ordered then is not taken (the bridge stays off), a disable keeps it,
+/// and only a clear (ordered on the fault the slow side saw) takes it over.
+#[test]
+fn a_fault_before_the_adoption_stands_over_a_commands_mode() {
+    let (mut fast, slow) = drive().into_parts();
+    let mut ctx = Deferred { slow, lent: false };
+    let m = meas(310.0);
+    let to_tick = |fast: &mut FastSide, ctx: &mut Deferred| {
+        while !fast.slow_step_due() {
+            fast.step(&m, ctx);
+        }
+        fast.step(&m, ctx);
+        ctx.run_job();
+    };
+    let to_adoption = |fast: &mut FastSide, ctx: &mut Deferred| {
+        while fast.state.steps_to_slow != fast.cfg.adopt_at {
+            fast.step(&m, ctx);
+        }
+    };
+    to_tick(&mut fast, &mut ctx);
+    DriveMut::slow_only(&mut ctx.slow).enable().unwrap();
+    fast.trip(Fault::Overcurrent);
+    to_adoption(&mut fast, &mut ctx);
+    let out = fast.step(&m, &mut ctx);
+    assert_eq!((out.mode, out.phases), (Mode::Fault(Fault::Overcurrent), PhaseCommand::Off));
+    // The slow side learns the fault at its next tick; a clear ordered then takes it over.
+    to_tick(&mut fast, &mut ctx);
+    assert_eq!(DriveMut::slow_only(&mut ctx.slow).mode(), Mode::Fault(Fault::Overcurrent));
+    assert_eq!(DriveMut::slow_only(&mut ctx.slow).enable(), Err(CommandError::Faulted));
+    DriveMut::slow_only(&mut ctx.slow).clear_fault();
+    assert_eq!(fast.mode(), Mode::Fault(Fault::Overcurrent), "not before the adoption");
+    to_adoption(&mut fast, &mut ctx);
+    assert_eq!(fast.mode(), Mode::Idle);
 }
 
 /// A slow step's job that has not ended when its plan is due (a slow context that cannot

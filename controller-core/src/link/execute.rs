@@ -24,7 +24,7 @@ pub fn execute(drive: &mut Drive, cmd: &Command, stats: &LinkStats) -> Reply {
                 // over. Another: another drive, which only knows how long the rotor was left.
                 Ok(cfg) if cfg.same_motor(drive.config()) => command_result(drive.reconfigure(cfg)),
                 Ok(cfg) => {
-                    drive.as_mut().replace(cfg);
+                    drive.replace(cfg);
                     Reply::Ack
                 }
                 Err(_) => Reply::Nack(NackReason::Configuration),
@@ -60,8 +60,8 @@ pub fn execute_board(mut drive: DriveMut<'_>, cmd: &BoardCommand, stats: &LinkSt
         BoardCommand::GetStatus => {
             // The timing and readings are the board's to fill in (firmware `server`).
             Reply::Status {
-                mode: drive.as_ref().mode(),
-                ridden_through: drive.as_ref().ridden_through(),
+                mode: drive.mode(),
+                ridden_through: drive.ridden_through(),
                 frames_ok: stats.frames_ok,
                 frame_errors: stats.errors(),
                 timing: super::schema::LoopTiming::default(),
