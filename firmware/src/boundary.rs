@@ -9,9 +9,10 @@
 //! a slot from one side to the other, so the two never touch the same slot and no read is
 //! ever torn (unlike a sequence lock, there is no racing copy to retry).
 //!
-//! **In** ([`Mailbox`]): the task posts one request (a command); the interrupt serves it at
-//! the end of a period and leaves the reply; the task takes it. Whose turn it is is one
-//! atomic state, so the request and the reply are only ever touched by their owner.
+//! **In** ([`Mailbox`]): the task posts one request (a command); an interrupt serves it — the
+//! control interrupt or the drive's slow context, whichever the command is for: each claims
+//! it first, so one serves it — and leaves the reply; the task takes it. Whose turn it is is
+//! one atomic state, so the request and the reply are only ever touched by their owner.
 //!
 //! **Between the control interrupt and a slower context** ([`Handoff`]): a value the fast
 //! context hands over and the slow one hands back after working on it, each side touching
@@ -125,9 +126,11 @@ impl<T: Copy> core::fmt::Debug for TripleBuffer<T> {
 const EMPTY: u8 = 0;
 const REQUEST: u8 = 1;
 const REPLY: u8 = 2;
+const CLAIMED: u8 = 3;
 
-/// A one-slot request/reply mailbox between one task (posts, takes) and one interrupt
-/// (serves).
+/// A one-slot request/reply mailbox between one task (posts, takes) and the interrupts that
+/// serve it (any number, of any priorities on one core: the first to claim a request serves
+/// it, the others find it claimed).
 pub struct Mailbox<Q: Copy, A: Copy> {
     state: AtomicU8,
     request: UnsafeCell<MaybeUninit<Q>>,
@@ -135,9 +138,12 @@ pub struct Mailbox<Q: Copy, A: Copy> {
 }
 
 // SAFETY: `state` says who owns the slots — the task in EMPTY (writes the request) and in
-// REPLY (reads the reply), the interrupt in REQUEST (reads the request, writes the reply)
-// — and changes hands only by Release stores seen with Acquire loads, so a slot is never
-// accessed by both sides and each side sees the other's writes. `Q`, `A: Send`: they cross.
+// REPLY (reads the reply); in REQUEST the request is read-only (any server may read it);
+// in CLAIMED the one server whose compare-exchange moved REQUEST to CLAIMED owns the reply
+// slot (and reads the request) — and changes hands only by Release stores (or the
+// compare-exchange's Acquire) seen with Acquire loads, so a slot is never written while
+// another side reads or writes it, and each side sees the other's writes. `Q`, `A: Send`:
+// they cross.
 unsafe impl<Q: Copy + Send, A: Copy + Send> Sync for Mailbox<Q, A> {}
 
 impl<Q: Copy, A: Copy> Mailbox<Q, A> {
@@ -161,20 +167,28 @@ impl<Q: Copy, A: Copy> Mailbox<Q, A> {
         true
     }
 
-    /// The interrupt: answer a posted request with `f`'s reply, or leave it posted for a
-    /// later call when `f` gives none (nothing to do without a request: one atomic load).
+    /// A server: claim a posted request and answer it with `f`'s reply, or give it back,
+    /// posted, for a later call or another server when `f` gives none (nothing to do
+    /// without a request: one atomic load). A request another server holds is left alone.
     pub fn serve(&self, f: impl FnOnce(&Q) -> Option<A>) {
-        if self.state.load(Ordering::Acquire) != REQUEST {
+        if self.state.load(Ordering::Relaxed) != REQUEST
+            || self.state.compare_exchange(REQUEST, CLAIMED, Ordering::Acquire, Ordering::Relaxed).is_err()
+        {
             return;
         }
-        // SAFETY: REQUEST: the interrupt owns both slots (the task writes the request only
-        // in EMPTY), and `post` wrote the request; it is only read here, in place — not
-        // copied first: a request left posted costs no copy.
+        // SAFETY: CLAIMED by this call: this server owns both slots (the task writes the
+        // request only in EMPTY, the other servers touch nothing in CLAIMED), and `post`
+        // wrote the request; it is only read here, in place — not copied first: a request
+        // given back costs no copy.
         let q = unsafe { (*self.request.get()).assume_init_ref() };
-        let Some(a) = f(q) else { return };
-        // SAFETY: as above.
-        unsafe { (*self.reply.get()).write(a) };
-        self.state.store(REPLY, Ordering::Release);
+        match f(q) {
+            Some(a) => {
+                // SAFETY: as above.
+                unsafe { (*self.reply.get()).write(a) };
+                self.state.store(REPLY, Ordering::Release);
+            }
+            None => self.state.store(REQUEST, Ordering::Release),
+        }
     }
 
     /// The task: the reply, once served (the box is empty again after it).
@@ -426,5 +440,27 @@ mod tests {
         assert!(m.post(9));
         m.serve(|q| Some(u64::from(*q)));
         assert_eq!(m.take(), Some(9));
+    }
+
+    /// Two servers (the slow context, preempted by the control interrupt): a request claimed
+    /// by one is left alone by the other, whether the first answers it or gives it back;
+    /// once given back, the other may serve it.
+    #[test]
+    fn a_claimed_request_is_served_by_its_claimer_alone() {
+        let m: Mailbox<u32, u64> = Mailbox::new();
+        assert!(m.post(3));
+        m.serve(|q| {
+            m.serve(|_| unreachable!("claimed by the preempted server"));
+            Some(u64::from(*q))
+        });
+        assert_eq!(m.take(), Some(3));
+        assert!(m.post(4));
+        m.serve(|_| {
+            m.serve(|_| unreachable!("claimed by the preempted server"));
+            None
+        });
+        assert_eq!(m.take(), None, "given back, posted");
+        m.serve(|q| Some(u64::from(*q) + 1));
+        assert_eq!(m.take(), Some(5));
     }
 }

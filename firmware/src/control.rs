@@ -39,6 +39,7 @@
 //! on the angle the estimator reports — the same code in the simulator.
 
 use crate::boundary::Handoff;
+use crate::interrupt::Shared;
 use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
@@ -47,8 +48,8 @@ use controller_core::capture::Capture;
 use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::RawDriveConfig;
 use controller_core::drive::{
-    Drive, DriveConfig, DriveError, DriveMut, DriveRef, FastOutput, FastSide, Fault, Measurements, Mode,
-    PhaseCommand, SlowContext, SlowSide, SlowSignals, Telemetry,
+    Drive, DriveConfig, DriveError, DriveMut, DriveRef, FastOutput, FastSide, FastSignals, Fault,
+    Measurements, Mode, PhaseCommand, SlowContext, SlowSide, SlowSignals, Telemetry,
 };
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderState};
 use controller_core::frames::Abc;
@@ -260,19 +261,74 @@ pub enum Calibration {
     Failed(CalibrationError),
 }
 
-/// The drive's slow side where the slow context works on it (issue 54's two contexts): lent
-/// to the slow step's job at its tick ([`Handoff::hand_over`]), back when the job is done.
-pub type SlowCell = Handoff<SlowSide>;
+/// What the slow context works on (issue 54's two contexts): the drive's slow side, what the
+/// fast context noted for it at the tick, and the link it serves — lent to it from the slow
+/// step's tick until its job and the link's work are done ([`run_slow`]).
+#[derive(Debug)]
+pub struct SlowPart {
+    pub(crate) side: SlowSide,
+    pub(crate) tick: TickNote,
+    /// The link whose drive commands, watchdog stop and snapshots the slow context serves
+    /// ([`ControlLoop::connect`]; none: the link's requests are the fast context's alone).
+    pub(crate) link: Option<&'static Shared>,
+}
+
+/// What the fast context notes for the slow context at a tick, beside the job.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct TickNote {
+    /// The raw samples of the tick's period: what a `Status` served then reports.
+    pub(crate) readings: BoardReadings,
+    /// A commissioning sequence runs: the link's drive commands are the fast context's (a
+    /// `Stop` or `Disable` aborts it, the rest is refused).
+    pub(crate) commissioning: bool,
+    /// The fast context's part of a snapshot the link task asked for.
+    pub(crate) snapshot: Option<FastNote>,
+}
+
+/// The fast context's part of a [`Snapshot`], taken at a tick (before its period's step).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FastNote {
+    output: Option<FastOutput>,
+    signals: FastSignals,
+    calibration: Calibration,
+    bridge_on: bool,
+}
+
+impl FastNote {
+    /// The snapshot, with the slow side's part of the signals `s`.
+    pub(crate) fn snapshot(&self, s: &SlowSignals) -> Snapshot {
+        Snapshot {
+            output: self.output.map(|o| (o, self.signals.join(s))),
+            calibration: Some(self.calibration),
+            bridge_on: self.bridge_on,
+        }
+    }
+}
+
+/// The cell of [`SlowPart`]: the fast context's but for the slow context's turns.
+pub type SlowCell = Handoff<SlowPart>;
 
 /// How the slow step's job is started once its cell is handed over: the board pends its
 /// slow interrupt, whose body is [`run_slow`]; the host tests and QEMU's benchmarks run it
 /// themselves.
 pub type Pend = fn(&SlowCell);
 
-/// The slow context's body: the job handed over, if any, run and the slow side handed back
-/// (the board's slow interrupt; the host tests' and QEMU's [`Pend`]).
+/// The slow context's body: the snapshot the link asked for published (the fast context's
+/// note and the slow side's signals before the job: the same period's), the job handed
+/// over, if any, run, then the link's work that needs the slow side (the watchdog's stop, a
+/// drive command: [`Shared::slow_period`]), and the slow side handed back (the board's slow
+/// interrupt; the host tests' and QEMU's [`Pend`]).
 pub fn run_slow(cell: &SlowCell) {
-    cell.run(SlowSide::run);
+    cell.run(|p| {
+        let link = p.link;
+        if let Some(l) = link {
+            l.publish(p);
+        }
+        p.side.run();
+        if let Some(l) = link {
+            l.slow_period(p);
+        }
+    });
 }
 
 /// The drive's slow side as the fast side's step reaches it ([`SlowContext`]): its cell
@@ -285,7 +341,7 @@ struct SlowHome<'s> {
 
 impl SlowContext for SlowHome<'_> {
     fn with(&mut self, f: &mut dyn FnMut(&mut SlowSide)) -> bool {
-        self.cell.with(|s| f(s)).is_some()
+        self.cell.with(|p| f(&mut p.side)).is_some()
     }
 
     fn start(&mut self) -> bool {
@@ -478,7 +534,14 @@ impl<'s> ControlLoop<'s> {
         Self {
             board: *board,
             fast,
-            slow: SlowHome { cell: cell.write(Handoff::new(slow)), pend },
+            slow: SlowHome {
+                cell: cell.write(Handoff::new(SlowPart {
+                    side: slow,
+                    tick: TickNote::default(),
+                    link: None,
+                })),
+                pend,
+            },
             signals: SlowSignals::default(),
             current: [p.current; 3],
             calibration_cfg: p.calibration_cfg,
@@ -556,7 +619,7 @@ impl<'s> ControlLoop<'s> {
     /// (benchmarks: the same periods again from the same state; two loops on one cell
     /// would share one slow side): `None` while the slow side is at its job.
     pub fn fork<'t>(&self, cell: &'t mut MaybeUninit<SlowCell>) -> Option<ControlLoop<'t>> {
-        let slow = self.slow.cell.with(|s| *s)?;
+        let slow = self.slow.cell.with(|p| SlowPart { side: p.side, tick: p.tick, link: None })?;
         Some(ControlLoop {
             board: self.board,
             fast: self.fast,
@@ -589,6 +652,14 @@ impl<'s> ControlLoop<'s> {
         self.slow.cell
     }
 
+    /// Connect the link `link`: the slow context serves its drive commands, the watchdog's
+    /// stop and the snapshots ([`Shared::slow_period`]), the control interrupt the rest
+    /// ([`Shared::control_period`], called with the same `link`). False (nothing changes)
+    /// while the slow side is at its job.
+    pub fn connect(&mut self, link: &'static Shared) -> bool {
+        self.slow.cell.with(|p| p.link = Some(link)).is_some()
+    }
+
     /// The drive's fast side: its mode, configuration and cadence, in every period.
     pub fn fast(&self) -> &FastSide {
         &self.fast
@@ -602,7 +673,7 @@ impl<'s> ControlLoop<'s> {
         if self.slow_busy() {
             return None;
         }
-        self.slow.cell.with(|s| f(DriveRef::new(&self.fast, s)))
+        self.slow.cell.with(|p| f(DriveRef::new(&self.fast, &p.side)))
     }
 
     /// `f` on the whole drive, for commands from the link; `None` as [`ControlLoop::drive`]
@@ -612,13 +683,13 @@ impl<'s> ControlLoop<'s> {
             return None;
         }
         let fast = &mut self.fast;
-        self.slow.cell.with(|s| f(DriveMut::new(fast, s)))
+        self.slow.cell.with(|p| f(DriveMut::new(fast, &mut p.side)))
     }
 
     /// The drive's signals after the last step ([`DriveRef::telemetry`]), the slow side's
     /// part as last read while it is at its job.
     pub fn telemetry(&self) -> Telemetry {
-        let s = self.slow.cell.with(|s| s.signals()).unwrap_or(self.signals);
+        let s = self.slow.cell.with(|p| p.side.signals()).unwrap_or(self.signals);
         self.fast.telemetry_with(&s)
     }
 
@@ -821,6 +892,7 @@ impl<'s> ControlLoop<'s> {
         // one cadence (a new configuration restarts it).
         if self.fast.slow_step_due() {
             self.read_encoder(s.encoder);
+            self.note_tick(s);
         }
         let calibrating = matches!(self.calibration, Calibration::Running(_));
         if calibrating {
@@ -868,6 +940,35 @@ impl<'s> ControlLoop<'s> {
         }
     }
 
+    /// What the slow context needs beside the job of this period's tick ([`TickNote`]): the
+    /// period's raw samples, whether a sequence runs, and the fast part of a snapshot if the
+    /// link asked for one (of the last period: noted before this one's step). Nothing if
+    /// the slow side is not back (the tick latches `Overrun`).
+    #[inline(always)]
+    fn note_tick(&mut self, s: &Samples) {
+        let commissioning = self.commissioning();
+        let readings = BoardReadings { i_abc_counts: s.i_abc, vdc_counts: s.vdc, encoder_counts: s.encoder };
+        let this = &*self;
+        self.slow.cell.with(|p| {
+            p.tick.readings = readings;
+            p.tick.commissioning = commissioning;
+            if p.link.is_some_and(Shared::snapshot_wanted) {
+                p.tick.snapshot = Some(this.fast_note(commissioning));
+            }
+        });
+    }
+
+    /// The fast context's part of a snapshot ([`FastNote`]). Out of line: every 10 ms at most.
+    #[inline(never)]
+    fn fast_note(&self, commissioning: bool) -> FastNote {
+        FastNote {
+            output: self.last,
+            signals: self.fast.signals(),
+            calibration: self.calibration,
+            bridge_on: self.fast.mode().is_active() || commissioning,
+        }
+    }
+
     fn read_encoder(&mut self, raw: u16) {
         let r = self.encoder_cfg.update(&mut self.encoder, raw);
         self.theta_m_rad = r.theta_m_rad;
@@ -880,7 +981,7 @@ impl<'s> ControlLoop<'s> {
 /// [`ControlLoop::telemetry`], which keeps nothing: one helper for both, measured, cost the
 /// capture-armed period 120 instructions (`cost worst:capture_armed_top_speed`, 1 080 → 1 200).
 fn telemetry(fast: &FastSide, slow: &SlowHome<'_>, held: &mut SlowSignals) -> Telemetry {
-    if let Some(s) = slow.cell.with(|s| s.signals()) {
+    if let Some(s) = slow.cell.with(|p| p.side.signals()) {
         *held = s;
     }
     fast.telemetry_with(held)

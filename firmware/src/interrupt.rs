@@ -10,9 +10,10 @@
 //! ```
 
 use crate::boundary::{Mailbox, TripleBuffer};
-use crate::control::{Bridge, ControlLoop, Samples, Snapshot};
+use crate::control::{Bridge, ControlLoop, Samples, SlowPart, Snapshot};
 use crate::output::{OutputStage, Outputs};
 use crate::server::{self, Prepared};
+use controller_core::drive::DriveMut;
 use controller_core::link::{BoardCommand, LinkStats, Reply};
 use core::sync::atomic::{AtomicBool, Ordering};
 
@@ -55,16 +56,22 @@ impl Shared {
         self.snapshot_wanted.store(true, Ordering::Relaxed);
     }
 
+    /// The link task's snapshot request, for the fast context to note its part at the next
+    /// tick ([`crate::control::TickNote`]).
+    pub(crate) fn snapshot_wanted(&self) -> bool {
+        self.snapshot_wanted.load(Ordering::Relaxed)
+    }
+
     /// One control period after the samples are read: the output stage around the control
-    /// step ([`Outputs::period`]), then the link's requests — the watchdog's stop and a
-    /// posted command take effect from the next period — and the snapshot, if the link task
-    /// asked for one. A command and the snapshot wait while the drive's slow step is in
-    /// flight ([`ControlLoop::slow_busy`]: from its tick to its plan's adoption, a plan's
-    /// delay at most) — they act on, and read, its state — so that the longest period is
-    /// the slow step's or theirs, not the sum (`cost interrupt_worst_period`, `cost
-    /// interrupt_worst_command_period`); the watchdog's stop waits too (the controlled stop
-    /// acts on the slow side's reference: a plan's delay at most, 100 µs at 20 kHz), its
-    /// abort of a commissioning sequence does not.
+    /// step ([`Outputs::period`]), then the link's requests that are the fast context's —
+    /// the watchdog's abort of a commissioning sequence, and a posted command the slow
+    /// context does not serve ([`server::slow_context_serves`]: the capture's, the
+    /// commissioning's; a drive command only while a sequence runs, which it aborts or is
+    /// refused by). Those wait while the drive's slow step is in flight
+    /// ([`ControlLoop::slow_busy`]: from its tick to its plan's adoption, a plan's delay at
+    /// most), so that the longest period is not the slow step's and theirs. The drive's
+    /// commands, the watchdog's controlled stop and the snapshot are the slow context's
+    /// ([`Shared::slow_period`]): nothing of theirs runs here but a load and a test.
     pub fn control_period(
         &self,
         outputs: &mut Outputs,
@@ -75,25 +82,50 @@ impl Shared {
         // By reference: kept for a command's `Status` below (moved in, at opt-level "z" its
         // copy was a `memcpy` call in every period).
         let bridge = outputs.period(hw, ctl, &mut samples);
-        // Only this side clears the flags and the task only sets them (on one core: the
-        // task cannot run between the load and the store), so a load and a store do what
-        // a swap's exclusive-access loop would.
-        if self.watchdog_stop.load(Ordering::Relaxed) && server::LinkWatchdog::stop(ctl) {
-            self.watchdog_stop.store(false, Ordering::Relaxed);
+        // The slow context stops the drive and clears the flag, after the period of its tick
+        // — whose control interrupt came here first.
+        if self.watchdog_stop.load(Ordering::Relaxed) {
+            ctl.abort_commissioning();
         }
-        // (`slow_busy` is asked only with a request: nothing added to a period without.)
         self.commands.serve(|(cmd, prepared, stats)| {
-            if ctl.slow_busy() {
+            if (server::slow_context_serves(cmd) && !ctl.commissioning()) || ctl.slow_busy() {
                 return None;
             }
             ctl.note_readings(&samples);
             server::handle_board(ctl, cmd, *prepared, stats)
         });
-        if self.snapshot_wanted.load(Ordering::Relaxed) && !ctl.slow_busy() {
-            self.snapshot_wanted.store(false, Ordering::Relaxed);
-            self.snapshot.write(ctl.snapshot());
-        }
         bridge
+    }
+
+    /// The slow context, before the slow step's job on `p` (the slow side held:
+    /// [`crate::control::run_slow`]): the snapshot the link task asked for, made of the fast
+    /// context's note of the tick and the slow side's signals before the job (the same
+    /// period's), published. Out of line: every 10 ms at most.
+    #[inline(never)]
+    pub fn publish(&self, p: &mut SlowPart) {
+        if let Some(n) = p.tick.snapshot.take() {
+            self.snapshot.write(n.snapshot(&p.side.signals()));
+            self.snapshot_wanted.store(false, Ordering::Relaxed);
+        }
+    }
+
+    /// The slow context's part of the link, after the slow step's job on `p`: the watchdog's
+    /// controlled stop, and a posted drive command (unless a commissioning sequence ran at
+    /// the tick: then the fast context's). A command's fast part — the mode, a new run, a
+    /// new configuration — is the fast side's at the plan's adoption
+    /// ([`DriveMut::slow_only`]); its reply is sent now.
+    pub fn slow_period(&self, p: &mut SlowPart) {
+        if self.watchdog_stop.load(Ordering::Relaxed) {
+            DriveMut::slow_only(&mut p.side).controlled_stop();
+            self.watchdog_stop.store(false, Ordering::Relaxed);
+        }
+        if !p.tick.commissioning {
+            let readings = p.tick.readings;
+            self.commands.serve(|(cmd, _, stats)| {
+                server::slow_context_serves(cmd)
+                    .then(|| server::drive_command(DriveMut::slow_only(&mut p.side), cmd, stats, readings))
+            });
+        }
     }
 }
 
@@ -134,9 +166,10 @@ mod tests {
     }
 
     /// The interrupt's body with its shared state, a timer and the control loop (calibrated
-    /// at rest).
+    /// at rest, connected to the shared state: its slow context, run at the tick by the
+    /// tests' pend, serves the drive's commands).
     struct Rig {
-        shared: Shared,
+        shared: &'static Shared,
         outputs: Outputs,
         tim: Timer,
         ctl: ControlLoop<'static>,
@@ -144,21 +177,41 @@ mod tests {
 
     impl Rig {
         fn new() -> Self {
+            extern crate std;
             let (outputs, tim) = (Outputs::new(), Timer::default());
-            Self { shared: Shared::new(), outputs, tim, ctl: ControlLoop::at_rest_for_tests() }
+            let shared = std::boxed::Box::leak(std::boxed::Box::new(Shared::new()));
+            let mut ctl = ControlLoop::at_rest_for_tests();
+            assert!(ctl.connect(shared));
+            Self { shared, outputs, tim, ctl }
         }
 
-        /// One control period on samples `s`.
+        /// One control period on samples `s` (the slow context's turn after it, if it is a
+        /// tick's: the tests' pend runs it at once).
         fn period(&mut self, s: Samples) {
             self.shared.control_period(&mut self.outputs, &mut self.tim, &mut self.ctl, s);
         }
 
-        /// Periods at rest until the next one ends with no slow step of the drive in flight
-        /// (in which the link's requests are served: `Shared::control_period`).
-        fn step_to_a_period_without_the_slow_step(&mut self) {
-            while self.ctl.slow_busy() || self.ctl.fast().slow_step_due() {
+        /// Periods at rest until the next one is a tick's (the slow context's turn).
+        fn step_to_before_a_tick(&mut self) {
+            while !self.ctl.fast().slow_step_due() {
                 self.period(at_rest());
             }
+        }
+
+        /// An enable from the fast context, and periods at rest past its bootstrap pre-charge
+        /// (all low sides on: compare 0; no slow job meanwhile, `FastSide::hold_step`).
+        fn enable_past_the_precharge(&mut self) {
+            while self.ctl.slow_busy() {
+                self.period(at_rest());
+            }
+            self.ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
+            for _ in 0..100 {
+                self.period(at_rest());
+                if self.tim.ccr != [0; 3] {
+                    return;
+                }
+            }
+            panic!("the pre-charge ends");
         }
 
         fn post(&self, cmd: BoardCommand) -> bool {
@@ -166,99 +219,157 @@ mod tests {
         }
     }
 
+    /// The snapshot is the slow context's, at the first tick after the link task asks: the
+    /// loop as it was before the tick's period (its last output and signals) — nothing
+    /// without a request, and one per request.
     #[test]
-    fn a_snapshot_is_published_after_the_period_that_follows_a_request_only() {
+    fn a_snapshot_is_published_at_the_tick_after_a_request_only() {
         let mut r = Rig::new();
-        for _ in 0..3 {
+        for _ in 0..3 * r.ctl.config().slow_divider() {
             r.period(at_rest());
         }
         assert_eq!(r.shared.snapshot.read(), None, "nothing asked, nothing published");
-        r.step_to_a_period_without_the_slow_step();
         r.shared.request_snapshot();
+        r.step_to_before_a_tick();
+        assert_eq!(r.shared.snapshot.read(), None, "not before the tick");
+        let before = r.ctl.snapshot();
         r.period(at_rest());
-        assert_eq!(r.shared.snapshot.read(), Some(r.ctl.snapshot()));
+        assert_eq!(r.shared.snapshot.read(), Some(before));
         // The request is spent: the drive moves on, the snapshot read stays the one taken.
-        r.ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
+        r.enable_past_the_precharge();
+        r.step_to_before_a_tick();
         r.period(at_rest());
         let held = r.shared.snapshot.read().unwrap();
-        assert!(!held.bridge_on && r.ctl.snapshot().bridge_on);
-        r.step_to_a_period_without_the_slow_step();
+        assert!(!held.bridge_on && r.ctl.snapshot().bridge_on, "one snapshot per request");
         r.shared.request_snapshot();
+        r.step_to_before_a_tick();
         r.period(at_rest());
         assert!(r.shared.snapshot.read().unwrap().bridge_on);
     }
 
-    /// A command, a snapshot request and the watchdog's stop that find the drive's slow step
-    /// in flight wait for the period that adopts its plan.
+    /// A drive command is the slow context's: served after the job of the next tick — not
+    /// by the control interrupt in the periods before, whatever their number — its reply
+    /// then, its effect on the bridge at the plan's adoption (a plan's delay later);
+    /// `Status` reports the raw samples of the tick's period.
     #[test]
-    fn the_links_requests_wait_while_the_slow_step_is_in_flight() {
+    fn a_drive_command_is_served_at_a_tick_and_acts_at_the_adoption() {
         let mut r = Rig::new();
-        r.ctl.drive_mut(|mut d| d.enable()).unwrap().unwrap();
-        let mut guard = 0;
-        while !(r.ctl.fast().slow_step_due() && r.ctl.fast().mode() == Mode::Magnetizing) && guard < 100 {
-            r.period(at_rest());
-            guard += 1;
-        }
-        assert!(guard < 100, "the pre-charge ends and a slow step comes");
-        assert!(r.post(BoardCommand::GetStatus));
-        r.shared.request_snapshot();
-        // From the slow step's tick up to its plan's adoption: a plan's delay.
-        for _ in 0..r.ctl.config().plan_delay() {
-            r.period(at_rest());
-            assert!(r.ctl.slow_busy());
-            assert_eq!(r.shared.commands.take(), None, "not served while the slow step is in flight");
-            assert_eq!(r.shared.snapshot.read(), None, "nor published");
-        }
+        r.step_to_before_a_tick();
         r.period(at_rest());
-        assert!(!r.ctl.slow_busy());
-        assert!(matches!(r.shared.commands.take(), Some(Reply::Status { .. })));
-        assert!(r.shared.snapshot.read().is_some());
-        // The watchdog's stop in a slow step's period waits too (it acts on the slow side),
-        // and is carried out in the period that adopts the plan.
+        assert!(r.post(BoardCommand::GetStatus));
         while !r.ctl.fast().slow_step_due() {
             r.period(at_rest());
+            assert_eq!(r.shared.commands.take(), None, "not served between ticks");
         }
-        r.shared.watchdog_stop.store(true, Ordering::Relaxed);
-        for _ in 0..r.ctl.config().plan_delay() {
-            r.period(at_rest());
-            assert!(r.ctl.slow_busy());
-            assert_eq!(r.ctl.fast().mode(), Mode::Magnetizing, "waits");
-            assert!(r.shared.watchdog_stop.load(Ordering::Relaxed));
-        }
-        r.period(at_rest());
-        assert_eq!(r.ctl.fast().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
-        assert!(!r.shared.watchdog_stop.load(Ordering::Relaxed), "carried out once");
-    }
-
-    /// `Status` reports the raw samples of the period that serves it (noted then, not in
-    /// every period).
-    #[test]
-    fn status_reports_the_samples_of_the_period_that_serves_it() {
-        let mut r = Rig::new();
-        r.step_to_a_period_without_the_slow_step();
-        assert!(r.post(BoardCommand::GetStatus));
-        let s = Samples { i_abc: [2050, 2047, 2046], vdc: 3105, encoder: 12, hardware_break: false };
+        let s = Samples { i_abc: [2050, 2047, 2046], vdc: 3105, encoder: 0, hardware_break: false };
         r.period(s);
-        let Some(Reply::Status { readings, .. }) = r.shared.commands.take() else { panic!("a status") };
+        let Some(Reply::Status { readings, mode, .. }) = r.shared.commands.take() else { panic!("a status") };
         assert_eq!(
-            (readings.i_abc_counts, readings.vdc_counts, readings.encoder_counts),
-            (s.i_abc, s.vdc, s.encoder)
+            (readings.i_abc_counts, readings.vdc_counts, readings.encoder_counts, mode),
+            (s.i_abc, s.vdc, s.encoder, Mode::Idle)
         );
-    }
-
-    #[test]
-    fn the_watchdogs_stop_and_a_posted_command_act_in_the_next_period() {
-        let mut r = Rig::new();
-        r.step_to_a_period_without_the_slow_step();
         assert!(r.post(BoardCommand::Enable));
-        assert_eq!(r.shared.commands.take(), None, "not served before a period");
+        r.step_to_before_a_tick();
         r.period(at_rest());
         assert_eq!(r.shared.commands.take(), Some(Reply::Ack));
-        assert_eq!(r.ctl.fast().mode(), Mode::Magnetizing);
-        // Magnetizing, the watchdog's controlled stop is the bridge off at once.
-        r.shared.watchdog_stop.store(true, Ordering::Relaxed);
+        for _ in 1..r.ctl.config().plan_delay() {
+            assert_eq!(r.ctl.fast().mode(), Mode::Idle, "the bridge's mode changes at the adoption");
+            r.period(at_rest());
+        }
         r.period(at_rest());
+        assert_eq!(r.ctl.fast().mode(), Mode::Magnetizing);
+    }
+
+    /// The watchdog's stop: the slow context's controlled stop at the next tick (Magnetizing:
+    /// the bridge off at the adoption), carried out once.
+    #[test]
+    fn the_watchdogs_stop_acts_at_the_next_ticks_adoption() {
+        let mut r = Rig::new();
+        r.enable_past_the_precharge();
+        r.shared.watchdog_stop.store(true, Ordering::Relaxed);
+        while !r.ctl.fast().slow_step_due() {
+            r.period(at_rest());
+            assert!(r.shared.watchdog_stop.load(Ordering::Relaxed), "waits for the tick");
+        }
+        r.period(at_rest());
+        assert!(!r.shared.watchdog_stop.load(Ordering::Relaxed), "carried out once");
+        for _ in 0..r.ctl.config().plan_delay() {
+            assert_eq!(r.ctl.fast().mode(), Mode::Magnetizing, "until the adoption");
+            r.period(at_rest());
+        }
+        assert_eq!(r.ctl.fast().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
+    }
+
+    /// The capture's commands are the control interrupt's: served in the next period without
+    /// the slow step in flight, no tick needed.
+    #[test]
+    fn a_capture_command_is_served_by_the_control_interrupt() {
+        let mut r = Rig::new();
+        r.step_to_before_a_tick();
+        r.period(at_rest());
+        while r.ctl.slow_busy() {
+            r.period(at_rest());
+        }
+        assert!(!r.ctl.fast().slow_step_due());
+        assert!(r.post(BoardCommand::ReadCapture { chunk: 0 }));
+        r.period(at_rest());
+        assert!(matches!(r.shared.commands.take(), Some(Reply::Capture { .. })));
+    }
+
+    /// While a commissioning sequence runs, the drive's commands are the control interrupt's:
+    /// an `Enable` is refused and a `Stop` aborts the sequence — never a slow context's
+    /// enable or controlled stop of the drive beside the running sequence.
+    #[cfg(feature = "commissioning")]
+    #[test]
+    fn a_sequences_stop_is_the_control_interrupts() {
+        use controller_core::commission::CommissionSpec;
+        use controller_core::link::NackReason;
+        let mut r = Rig::new();
+        let spec = CommissionSpec {
+            pwm_hz: 20_000.0,
+            test_current_a: 1.0,
+            current_limit_a: 2.0,
+            vdc_min_v: 250.0,
+            vdc_max_v: 370.0,
+            level_time_s: 1.0,
+            rotate: false,
+            rated_flux_wb: 0.823,
+            no_load_hz: 15.0,
+            curve: false,
+        };
+        let cmd = BoardCommand::Commission(spec);
+        // Served by the control interrupt once the rest check has passed (its windows).
+        let mut reply = None;
+        for _ in 0..4_000 {
+            if reply.is_none() {
+                let _ = r.shared.commands.post((cmd, server::prepare(&cmd), LinkStats::default()));
+            }
+            r.period(at_rest());
+            reply = r.shared.commands.take();
+            if reply == Some(Reply::Ack) {
+                break;
+            }
+            reply = None;
+        }
+        assert_eq!(reply, Some(Reply::Ack));
+        assert!(r.ctl.commissioning());
+        for (cmd, want) in
+            [(BoardCommand::Enable, Reply::Nack(NackReason::NotIdle)), (BoardCommand::Stop, Reply::Ack)]
+        {
+            // Posted for a tick's period: the slow context has its turn first.
+            r.step_to_before_a_tick();
+            assert!(r.post(cmd));
+            let mut got = None;
+            for _ in 0..2 * r.ctl.config().slow_divider() {
+                r.period(at_rest());
+                got = r.shared.commands.take();
+                if got.is_some() {
+                    break;
+                }
+            }
+            assert_eq!(got, Some(want), "{cmd:?}");
+        }
+        assert!(!r.ctl.commissioning(), "aborted");
         assert_eq!(r.ctl.fast().mode(), Mode::Idle);
-        assert!(!r.shared.watchdog_stop.load(Ordering::Relaxed), "the stop is carried out once");
     }
 }

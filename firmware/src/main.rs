@@ -276,6 +276,12 @@ mod target {
                 halt_safe();
             }
         };
+        // The link's requests: the drive's commands, the watchdog's stop and the snapshots
+        // served by the slow interrupt, the rest by the control interrupt (`SHARED` both).
+        // (Nothing has run yet: the slow side is the start-up's.)
+        if !control.connect(&SHARED) {
+            halt_safe();
+        }
         // The slow cell for the slow interrupt, and the loop for the control interrupt, which
         // takes it at its first run (Release: their initialisation is seen there).
         SLOW.store(core::ptr::from_ref(control.slow_cell()).cast_mut(), Ordering::Release);

@@ -8,20 +8,27 @@
 //! measurements) and `Configure` (the rest of the constants are the certified ones the
 //! firmware was built with).
 //!
+//! **Who serves what** (issue 54's two contexts): the drive's commands are the drive's slow
+//! context's ([`slow_context_serves`], [`drive_command`]: after the slow step's job, on the
+//! slow side alone; a command's effect on the bridge comes with the plan's adoption, a
+//! plan's delay after its tick), so that their work — a gain write rebuilds the drive's
+//! configuration, an enable a run — never lengthens a control period; the capture's and the
+//! commissioning's are the control interrupt's ([`handle_board`]), which owns them.
+//!
 //! Commissioning (feature `commissioning`; without it these commands are answered
 //! `Nack(Unsupported)`): `Commission` while Idle and calibrated
 //! starts the sequence in the drive's place — its configuration built by [`prepare`]
-//! outside the interrupt's critical section, swapped in by [`handle_board`];
+//! in the link task, swapped in by [`handle_board`];
 //! `GetCommissionStage` and `GetCommissionRecord` report it; `Stop` or `Disable` abort it,
 //! and nothing else reaches the drive while it runs (`Nack(NotIdle)`).
 
 use crate::config as certified;
 #[cfg(feature = "commissioning")]
 use crate::control::CommissionRefused;
-use crate::control::{ControlError, ControlLoop};
+use crate::control::ControlLoop;
 use controller_core::commission::{CommissionConfig, CommissionSpecError};
-use controller_core::drive::Mode;
-use controller_core::link::{self, BoardCommand, LinkStats, NackReason, Reply};
+use controller_core::drive::{DriveMut, Mode};
+use controller_core::link::{self, BoardCommand, BoardReadings, LinkStats, LoopTiming, NackReason, Reply};
 
 /// The link's watchdog: no valid frame for `timeout_us` while the bridge is on (Magnetizing
 /// or Running) → one controlled stop ([`controller_core::drive::Drive::controlled_stop`]);
@@ -94,7 +101,7 @@ pub enum Prepared {
     Commission(Result<CommissionConfig, CommissionSpecError>),
 }
 
-/// Prepare `cmd` (call outside the critical section, then [`handle_board`] inside it).
+/// Prepare `cmd` in the link task (then [`handle_board`] in the control interrupt).
 pub fn prepare(cmd: &BoardCommand) -> Prepared {
     match cmd {
         #[cfg(feature = "commissioning")]
@@ -103,10 +110,13 @@ pub fn prepare(cmd: &BoardCommand) -> Prepared {
     }
 }
 
-/// Answer one command as the board decodes it ([`Command::decode_board`](controller_core::link::Command::decode_board): `Configure` and
-/// `Step` arrive unparsed, as [`BoardCommand::Refused`]), with what [`prepare`] built;
-/// `None` while the drive's slow step is in flight (the command waits:
-/// [`ControlLoop::drive_mut`]).
+/// Answer one command in the control interrupt, as the board decodes it
+/// ([`Command::decode_board`](controller_core::link::Command::decode_board): `Configure` and
+/// `Step` arrive unparsed, as [`BoardCommand::Refused`]), with what [`prepare`] built: the
+/// capture's and the commissioning's — and the drive's while a commissioning sequence runs
+/// (`Stop` or `Disable` aborts it, `GetStatus` reports, the rest is refused). `None` for the
+/// drive's commands otherwise: they are the slow context's ([`slow_context_serves`],
+/// [`drive_command`]), and stay posted for it.
 pub fn handle_board(
     ctl: &mut ControlLoop,
     cmd: &BoardCommand,
@@ -124,7 +134,7 @@ pub fn handle_board(
                 Err(_) => Reply::Nack(NackReason::Configuration),
             }
         }
-        // Not prepared: refused rather than built inside the critical section.
+        // Not prepared: refused rather than built inside the interrupt.
         #[cfg(feature = "commissioning")]
         (BoardCommand::Commission(_), _) => Reply::Nack(NackReason::Configuration),
         #[cfg(feature = "commissioning")]
@@ -135,65 +145,120 @@ pub fn handle_board(
         (BoardCommand::GetCommissionRecord { chunk }, _) => {
             link::record_chunk(ctl.commission_record(), *chunk)
         }
-        (BoardCommand::Stop | BoardCommand::Disable, _) if ctl.commissioning() => {
+        #[cfg(not(feature = "commissioning"))]
+        (
+            BoardCommand::Commission(_)
+            | BoardCommand::GetCommissionStage
+            | BoardCommand::GetCommissionRecord { .. },
+            _,
+        ) => Reply::Nack(NackReason::Unsupported),
+        // The capture records the drive's periods whatever runs: served at any time.
+        (BoardCommand::ArmCapture(spec), _) => link::arm_capture(ctl.capture_mut(), *spec),
+        (BoardCommand::ReadCapture { chunk }, _) => link::read_capture(ctl.capture(), *chunk),
+        _ if !ctl.commissioning() => return None,
+        (BoardCommand::Stop | BoardCommand::Disable, _) => {
             ctl.abort_commissioning();
             Reply::Ack
         }
-        // The capture records the drive's periods whatever runs: served at any time.
-        (BoardCommand::GetStatus | BoardCommand::ArmCapture(_) | BoardCommand::ReadCapture { .. }, _) => {
-            return handle(ctl, cmd, stats);
-        }
-        _ if ctl.commissioning() => Reply::Nack(NackReason::NotIdle),
-        _ => return handle(ctl, cmd, stats),
+        (BoardCommand::GetStatus, _) => Reply::Status {
+            mode: ctl.fast().mode(),
+            ridden_through: ctl.drive(|d| d.ridden_through())?,
+            frames_ok: stats.frames_ok,
+            frame_errors: stats.errors(),
+            timing: LoopTiming::default(),
+            readings: ctl.readings(),
+        },
+        _ => Reply::Nack(NackReason::NotIdle),
     })
 }
 
-/// Answer one command (`Configure` and `Step`, the board's `Refused`: `Nack(Unsupported)`).
-/// Dispatched as the board decodes it: a [`Command`](controller_core::link::Command) would be ≈ 500 B on the control
-/// interrupt's stack. `None`: the command waits ([`handle_board`]).
-pub fn handle(ctl: &mut ControlLoop, cmd: &BoardCommand, stats: &LinkStats) -> Option<Reply> {
-    Some(match cmd {
-        BoardCommand::ReadSpeedGains => match ctl.config().speed().saturated_p() {
+/// A command answered at once in the fast context (the host tests' link): the drive's with
+/// both halves ([`drive_command`] on [`ControlLoop::drive_mut`]: `None` while the slow
+/// step is in flight), the rest as the control interrupt does ([`handle_board`]).
+#[cfg(test)]
+pub(crate) fn serve_at_once(
+    ctl: &mut ControlLoop,
+    cmd: &BoardCommand,
+    prepared: Prepared,
+    stats: &LinkStats,
+) -> Option<Reply> {
+    if slow_context_serves(cmd) && !ctl.commissioning() {
+        let readings = ctl.readings();
+        ctl.drive_mut(|d| drive_command(d, cmd, stats, readings))
+    } else {
+        handle_board(ctl, cmd, prepared, stats)
+    }
+}
+
+/// Whether the drive's slow context serves `cmd` ([`crate::interrupt::Shared::slow_period`],
+/// after the slow step's job, on the slow side alone): the drive's commands and reads — they
+/// act on the slow side, and their work (a gain write rebuilds the configuration, an enable
+/// a run) stays out of the control interrupt. The capture's and the commissioning's are the
+/// control interrupt's ([`handle_board`]): they act on what it owns.
+pub fn slow_context_serves(cmd: &BoardCommand) -> bool {
+    match cmd {
+        BoardCommand::Enable
+        | BoardCommand::Disable
+        | BoardCommand::ClearFault
+        | BoardCommand::Stop
+        | BoardCommand::SetReference(_)
+        | BoardCommand::GetStatus
+        | BoardCommand::WriteSpeedGains { .. }
+        | BoardCommand::ReadSpeedGains
+        | BoardCommand::Refused => true,
+        BoardCommand::Commission(_)
+        | BoardCommand::GetCommissionRecord { .. }
+        | BoardCommand::GetCommissionStage
+        | BoardCommand::ArmCapture(_)
+        | BoardCommand::ReadCapture { .. } => false,
+    }
+}
+
+/// Answer one of the drive's commands on `d` ([`slow_context_serves`]): the slow context's
+/// (on the slow side alone, [`DriveMut::slow_only`]: the command's fast part at the plan's
+/// adoption) or the fast context's (at once). `Status` carries the board's raw `readings`
+/// (its timing is filled in by the link task). The gain write keeps the slow divider
+/// ([`controller_core::drive::DriveConfig::with_saturated_p`] changes the speed law
+/// alone): the board's encoder estimator, which reads at that period, needs no change.
+pub fn drive_command(
+    d: DriveMut<'_>,
+    cmd: &BoardCommand,
+    stats: &LinkStats,
+    readings: BoardReadings,
+) -> Reply {
+    match cmd {
+        BoardCommand::ReadSpeedGains => match d.config().speed().saturated_p() {
             Some((kp, tau_max_nm)) => Reply::SpeedGains { kp, tau_max_nm },
             None => Reply::Nack(NackReason::Unsupported),
         },
-        BoardCommand::WriteSpeedGains { kp, tau_max_nm } => return write_speed_gains(ctl, *kp, *tau_max_nm),
-        BoardCommand::ArmCapture(spec) => link::arm_capture(ctl.capture_mut(), *spec),
-        BoardCommand::ReadCapture { chunk } => link::read_capture(ctl.capture(), *chunk),
-        other => match ctl.drive_mut(|d| link::execute_board(d, other, stats))? {
-            // The board's raw readings (the timing is filled in by the interrupt's owner).
-            Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, .. } => Reply::Status {
-                mode,
-                ridden_through,
-                frames_ok,
-                frame_errors,
-                timing,
-                readings: ctl.readings(),
-            },
+        BoardCommand::WriteSpeedGains { kp, tau_max_nm } => write_speed_gains(d, *kp, *tau_max_nm),
+        other => match link::execute_board(d, other, stats) {
+            Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, .. } => {
+                Reply::Status { mode, ridden_through, frames_ok, frame_errors, timing, readings }
+            }
             r => r,
         },
-    })
+    }
 }
 
-fn write_speed_gains(ctl: &mut ControlLoop, kp: f32, tau_max_nm: f32) -> Option<Reply> {
+fn write_speed_gains(mut d: DriveMut<'_>, kp: f32, tau_max_nm: f32) -> Reply {
     if !(kp.is_finite() && tau_max_nm.is_finite()) {
-        return Some(Reply::Nack(NackReason::NonFinite));
+        return Reply::Nack(NackReason::NonFinite);
     }
     let inside = |x: f32, (lo, hi): (f32, f32)| lo <= x && x <= hi;
     if !inside(kp, certified::SPEED_KP) || !inside(tau_max_nm, certified::SPEED_TAU_MAX_NM) {
-        return Some(Reply::Nack(NackReason::OutOfCertifiedRange));
+        return Reply::Nack(NackReason::OutOfCertifiedRange);
     }
-    if ctl.fast().mode() != Mode::Idle {
-        return Some(Reply::Nack(NackReason::NotIdle));
+    if d.mode() != Mode::Idle {
+        return Reply::Nack(NackReason::NotIdle);
     }
     // In f32, on the configuration in use: no design arithmetic on the target.
-    let Some(cfg) = ctl.config().with_saturated_p(kp, tau_max_nm) else {
-        return Some(Reply::Nack(NackReason::Unsupported));
+    let Some(cfg) = d.config().with_saturated_p(kp, tau_max_nm) else {
+        return Reply::Nack(NackReason::Unsupported);
     };
-    match ctl.reconfigure(cfg) {
-        Ok(()) => Some(Reply::Ack),
-        Err(ControlError::SlowBusy) => None,
-        Err(_) => Some(Reply::Nack(NackReason::Configuration)),
+    match d.reconfigure(cfg) {
+        Ok(()) => Reply::Ack,
+        Err(_) => Reply::Nack(NackReason::Configuration),
     }
 }
 
@@ -202,11 +267,11 @@ mod tests {
     /// The command's reply, served in a period with the slow side back (the tests' loops
     /// run the slow step's job at its tick).
     fn handle(c: &mut ControlLoop, cmd: &BoardCommand, s: &LinkStats) -> Reply {
-        super::handle(c, cmd, s).expect("served")
+        serve_at_once(c, cmd, Prepared::Nothing, s).expect("served")
     }
 
     fn handle_board(c: &mut ControlLoop, cmd: &BoardCommand, p: Prepared, s: &LinkStats) -> Reply {
-        super::handle_board(c, cmd, p, s).expect("served")
+        serve_at_once(c, cmd, p, s).expect("served")
     }
 
     use super::*;

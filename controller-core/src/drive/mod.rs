@@ -241,6 +241,58 @@ pub struct SlowSignals {
     l_scale: f32,
 }
 
+/// The fast side's part of the drive's signals ([`FastSide::signals`]): the last fast
+/// step's currents and voltage, and the field angle of whichever law ran it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FastSignals {
+    active: bool,
+    i_ab: AlphaBeta,
+    i_ref_ab: AlphaBeta,
+    v_ab: AlphaBeta,
+    theta_e_rad: f32,
+    field: FieldOf,
+}
+
+/// Whose field [`FastSignals`] carries the angle of.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+enum FieldOf {
+    /// The field orientation's (its slip, flux and q reference are the slow side's).
+    #[default]
+    Vector,
+    /// The rotating-current test's: no slip, no q reference.
+    Test,
+    /// V/Hz's stator-flux frame, its operating point's slip and rotor flux.
+    Vhz { omega_sl_rad_s: f32, psi_r_wb: f32 },
+}
+
+impl FastSignals {
+    /// The drive's signals, with the slow side's part `s` ([`DriveRef::telemetry`]): all zero
+    /// unless the bridge was active.
+    pub fn join(&self, s: &SlowSignals) -> Telemetry {
+        if !self.active {
+            return Telemetry::default();
+        }
+        let (omega_sl_rad_s, i_q_ref_a, psi_r_wb) = match self.field {
+            FieldOf::Vector => (s.omega_sl_rad_s, s.i_q_ref_a, s.psi_r_wb),
+            FieldOf::Test => (0.0, 0.0, s.psi_r_wb),
+            FieldOf::Vhz { omega_sl_rad_s, psi_r_wb } => (omega_sl_rad_s, 0.0, psi_r_wb),
+        };
+        Telemetry {
+            i_ab_a: self.i_ab,
+            i_ref_ab_a: self.i_ref_ab,
+            v_ab_v: self.v_ab,
+            theta_e_rad: self.theta_e_rad,
+            omega_sl_rad_s,
+            psi_r_wb,
+            psi_ref_wb: s.psi_ref_wb,
+            i_q_ref_a,
+            omega_ref_rad_s: s.omega_ref_rad_s,
+            rr_scale: s.rr_scale,
+            l_scale: s.l_scale,
+        }
+    }
+}
+
 impl SlowSide {
     /// Its part of the drive's signals now.
     pub fn signals(&self) -> SlowSignals {
@@ -1486,39 +1538,38 @@ impl FastSide {
     /// `s`. Out of line: its callers (the firmware's capture and link stream) take it rarely.
     #[inline(never)]
     pub fn telemetry_with(&self, s: &SlowSignals) -> Telemetry {
-        if !self.state.mode.is_active() {
-            return Telemetry::default();
-        }
+        self.signals().join(s)
+    }
+
+    /// Its part of the drive's signals after the last step: what the board's fast context
+    /// latches for the slow context, which joins it with its own ([`FastSignals::join`]).
+    #[inline(always)]
+    pub fn signals(&self) -> FastSignals {
+        let f = &self.state.run;
         let rotating = matches!(self.state.reference, Reference::RotatingCurrent { .. })
             && self.state.mode == Mode::Running;
-        let f = &self.state.run;
-        let (theta_e_rad, omega_sl_rad_s, i_q_ref_a, psi_r_wb) = match (self.cfg.vhz(), self.vhz.on, rotating)
-        {
-            (_, _, true) => (f.last_test_angle_rad, 0.0, 0.0, s.psi_r_wb),
+        let (theta_e_rad, field) = match (self.cfg.vhz(), self.vhz.on, rotating) {
+            (_, _, true) => (f.last_test_angle_rad, FieldOf::Test),
             // V/Hz: the stator-flux frame, the operating point's slip and rotor flux.
             (Some(v), true, false) => {
                 let law = &self.vhz.state;
                 (
                     crate::frames::wrap_angle(law.theta_s_rad()),
-                    law.slip_rad_s(),
-                    0.0,
-                    law.psi_r_wb(v, &self.vhz.plan),
+                    FieldOf::Vhz {
+                        omega_sl_rad_s: law.slip_rad_s(),
+                        psi_r_wb: law.psi_r_wb(v, &self.vhz.plan),
+                    },
                 )
             }
-            _ => (f.field.last_theta_e_rad(), s.omega_sl_rad_s, s.i_q_ref_a, s.psi_r_wb),
+            _ => (f.field.last_theta_e_rad(), FieldOf::Vector),
         };
-        Telemetry {
-            i_ab_a: f.last.i_ab,
-            i_ref_ab_a: f.last.i_ref_ab,
-            v_ab_v: f.last.v_ab,
+        FastSignals {
+            active: self.state.mode.is_active(),
+            i_ab: f.last.i_ab,
+            i_ref_ab: f.last.i_ref_ab,
+            v_ab: f.last.v_ab,
             theta_e_rad,
-            omega_sl_rad_s,
-            psi_r_wb,
-            psi_ref_wb: s.psi_ref_wb,
-            i_q_ref_a,
-            omega_ref_rad_s: s.omega_ref_rad_s,
-            rr_scale: s.rr_scale,
-            l_scale: s.l_scale,
+            field,
         }
     }
 

@@ -127,16 +127,23 @@ mod target {
         period: f32,
         /// Calls of the body before the measured ones.
         calls_before: u32,
-        /// The deepest stack of a period, bytes (0: a command was not served).
+        /// The deepest stack of the control interrupt's body in a period with a command posted
+        /// or served, bytes (0: a command was not served).
         stack_bytes: usize,
+        /// The slow context's then.
+        slow_stack_bytes: usize,
         /// The longest of the [`N`] measured periods, run again from a copy of the loop and
         /// each timed alone, in instructions (to `WORST_RESOLUTION`; NaN: the drive did not
         /// run): no command posted, the capture idle.
         worst_period: f32,
-        /// The longest period serving a command (each the link can post, in turn), and its
-        /// command.
+        /// The control interrupt's longest period while a command is posted or served (each
+        /// the link can post, in turn, a snapshot asked for with each), and its command.
         worst_command_period: f32,
         worst_command: &'static str,
+        /// The slow context's longest turn then (the job and the command it serves), and its
+        /// command.
+        worst_slow_command: f32,
+        worst_slow_name: &'static str,
         /// The worst-case sweep at each [`Point`] (`None`: the drive faulted there).
         sweep: [Option<Worst>; POINTS],
     }
@@ -146,9 +153,12 @@ mod target {
             period: f32::NAN,
             calls_before: 0,
             stack_bytes: 0,
+            slow_stack_bytes: 0,
             worst_period: f32::NAN,
             worst_command_period: f32::NAN,
             worst_command: "",
+            worst_slow_command: f32::NAN,
+            worst_slow_name: "",
             sweep: [None; POINTS],
         };
     }
@@ -209,7 +219,12 @@ mod target {
         use firmware::output::Outputs;
         let mut cell = core::mem::MaybeUninit::uninit();
         let Ok(mut c) = ControlLoop::new(raw, &BOARD, &mut cell, pend_slow) else { return Interrupt::FAILED };
-        let shared = Shared::new();
+        // The link's: the slow context serves the drive's commands and the snapshots.
+        static SHARED: Shared = Shared::new();
+        let shared = &SHARED;
+        if !c.connect(shared) {
+            return Interrupt::FAILED;
+        }
         let mut outputs = Outputs::new();
         let mut tim1 = Registers::default();
         let zero = BOARD.current_offset_counts;
@@ -331,11 +346,14 @@ mod target {
             ("WriteSpeedGains (Idle)", write_gains),
             ("Enable (Idle)", BoardCommand::Enable),
         ];
+        // Each context's deepest stack: painted before each turn, scanned after it.
         let sp = qemu_target::stack::pointer();
-        let top = qemu_target::stack::paint();
+        let (mut fast_stack, mut slow_stack) = (0, 0);
         let mut served = true;
         let (mut worst_command, mut worst_name) = (0, "");
+        let (mut worst_slow_command, mut worst_slow_name) = (0, "");
         let mut j = N;
+        let mut i_now = c.telemetry().i_ref_ab_a;
         for (name, cmd) in commands {
             if matches!(cmd, BoardCommand::Stop) {
                 // The commands before it were served while Running.
@@ -343,30 +361,46 @@ mod target {
             }
             served &= shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()));
             shared.request_snapshot();
-            // Served in the period it is posted for, or after the drive's slow step in flight
-            // (`Shared::control_period`: a plan's delay at most): the period that served it
-            // timed.
+            // Served by the slow context after the next tick's job (the drive's commands), or
+            // by the control interrupt in a period without the slow step in flight (the
+            // capture's): within a slow period and a plan's delay. Every period it waits
+            // timed, and the slow context's turn after it.
+            // Then the periods up to its adoption. The measured current is the reference
+            // (the table's no longer: the commands change the references).
             let mut reply = None;
-            for _ in 0..=c.config().plan_delay() {
-                let s = black_box(fetch(j));
-                j += 1;
-                let t = timed(ticks, || step(&mut c, s));
-                slow_context(c.slow_cell());
-                reply = shared.commands.take();
-                if reply.is_some() {
-                    if t > worst_command {
-                        (worst_command, worst_name) = (t, name);
-                    }
+            let mut adopted = false;
+            for _ in 0..=2 * (c.config().slow_divider() + c.config().plan_delay()) {
+                if reply.is_some() && !c.slow_busy() {
+                    adopted = true;
                     break;
                 }
-                // Left posted: only while the slow step is in flight.
-                served &= c.slow_busy();
+                let s = black_box(samples(codes(i_now, j)));
+                j += 1;
+                let top = qemu_target::stack::paint();
+                let t = timed(ticks, || step(&mut c, s));
+                fast_stack = fast_stack.max(qemu_target::stack::depth_below(sp, top));
+                if t > worst_command {
+                    (worst_command, worst_name) = (t, name);
+                }
+                let cell = c.slow_cell();
+                let top = qemu_target::stack::paint();
+                let u = timed(ticks, || {
+                    slow_context(cell);
+                });
+                slow_stack = slow_stack.max(qemu_target::stack::depth_below(sp, top));
+                if u > worst_slow_command {
+                    (worst_slow_command, worst_slow_name) = (u, name);
+                }
+                if reply.is_none() {
+                    reply = shared.commands.take();
+                }
+                i_now = c.telemetry().i_ref_ab_a;
             }
-            served &= reply.is_some();
+            served &= reply.is_some() && adopted;
         }
         served &= c.fast().mode() == Mode::Magnetizing;
         let worst_command = worst_command.saturating_sub(empty);
-        let stack = qemu_target::stack::depth_below(sp, top);
+        let worst_slow_command = worst_slow_command.saturating_sub(empty);
         // The worst-case sweep, through the same body (one `step` for all: a second call
         // site of `control_period` changed the firmware profile's inlining, +2 instructions
         // per period in the figures above).
@@ -377,10 +411,13 @@ mod target {
         Interrupt {
             period: if running { period - fetch_cost } else { f32::NAN },
             calls_before: before,
-            stack_bytes: if served { stack } else { 0 },
+            stack_bytes: if served { fast_stack } else { 0 },
+            slow_stack_bytes: if served { slow_stack } else { 0 },
             worst_period: if running && running_again { worst as f32 } else { f32::NAN },
             worst_command_period: if running && served { worst_command as f32 } else { f32::NAN },
             worst_command: worst_name,
+            worst_slow_command: if running && served { worst_slow_command as f32 } else { f32::NAN },
+            worst_slow_name,
             sweep,
         }
     }
@@ -937,8 +974,12 @@ mod target {
             isr.worst_period
         );
         println!(
-            "cost interrupt_worst_command_period {:.0} (the longest period serving a command the link posts: {}, ±{WORST_RESOLUTION})",
+            "cost interrupt_worst_command_period {:.0} (the control interrupt's longest period with a command the link posts and a snapshot asked for: {}, ±{WORST_RESOLUTION})",
             isr.worst_command_period, isr.worst_command
+        );
+        println!(
+            "cost slow_context_worst_command {:.0} (the slow context's longest turn serving them, its job included: {}, ±{WORST_RESOLUTION})",
+            isr.worst_slow_command, isr.worst_slow_name
         );
         let nan = |w: Option<u32>| w.map_or(f32::NAN, |w| w as f32);
         let (mut fast_worst, mut slow_worst) = (0u32, 0u32);
@@ -958,13 +999,14 @@ mod target {
         }
         let swept = sweep.iter().all(Option::is_some);
         let command = if isr.worst_command_period.is_finite() { isr.worst_command_period as u32 } else { 0 };
+        let slow_command = if isr.worst_slow_command.is_finite() { isr.worst_slow_command as u32 } else { 0 };
         println!(
             "cost fast_interrupt_worst {:.0} (the control interrupt's longest period over the points and the commands, ±{WORST_RESOLUTION})",
             nan(swept.then_some(fast_worst.max(command)))
         );
         println!(
-            "cost slow_context_worst {:.0} (the slow context's longest job over the points, ±{WORST_RESOLUTION})",
-            nan(swept.then_some(slow_worst))
+            "cost slow_context_worst {:.0} (the slow context's longest turn over the points and the commands, ±{WORST_RESOLUTION})",
+            nan(swept.then_some(slow_worst.max(slow_command)))
         );
         println!("cost part:adc_scaling_4ch {:.1}", adc);
         println!("cost part:clarke {:.1}", clarke);
@@ -985,10 +1027,18 @@ mod target {
         println!("cost part:rotor_resistance_fit {:.1}", fit);
         println!("cost part:rotor_resistance_on_curve {:.1}", on_curve);
         println!("stack drive_step_bytes {stack}");
+        let frame = qemu_target::stack::EXCEPTION_FRAME_FP_BYTES;
         println!(
-            "stack interrupt_bytes {} (the firmware's body serving a command, with the {} B exception frame)",
-            isr.stack_bytes + qemu_target::stack::EXCEPTION_FRAME_FP_BYTES,
-            qemu_target::stack::EXCEPTION_FRAME_FP_BYTES
+            "stack interrupt_bytes {} (the control interrupt's body with a command posted, with the {frame} B exception frame)",
+            isr.stack_bytes + frame,
+        );
+        println!(
+            "stack slow_context_bytes {} (the slow context's turn serving the commands, with its {frame} B exception frame)",
+            isr.slow_stack_bytes + frame,
+        );
+        println!(
+            "stack nested_bytes {} (the two: the control interrupt preempts the slow context on the board)",
+            isr.stack_bytes + isr.slow_stack_bytes + 2 * frame,
         );
         sh::exit(
             running
