@@ -40,10 +40,10 @@
 
 use crate::boundary::Handoff;
 use crate::interrupt::Shared;
+use crate::scope::Scope;
 use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
-use controller_core::capture::Capture;
 #[cfg(feature = "commissioning")]
 use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::RawDriveConfig;
@@ -281,17 +281,31 @@ pub(crate) struct TickNote {
     /// A commissioning sequence runs: the link's drive commands are the fast context's (a
     /// `Stop` or `Disable` aborts it, the rest is refused).
     pub(crate) commissioning: bool,
-    /// The fast context's part of a snapshot the link task asked for.
-    pub(crate) snapshot: Option<FastNote>,
+    /// The link task asked for a snapshot: `fast` is noted for it.
+    pub(crate) snapshot: bool,
+    /// The fast context's part of the snapshot (written in place: no copy of it made on the
+    /// way, which cost the tick's period ≈ 200 instructions).
+    pub(crate) fast: FastNote,
 }
 
-/// The fast context's part of a [`Snapshot`], taken at a tick (before its period's step).
+/// The fast context's part of a [`Snapshot`], noted in the period [`FastSide::note_due`] names.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct FastNote {
     output: Option<FastOutput>,
     signals: FastSignals,
     calibration: Calibration,
     bridge_on: bool,
+}
+
+impl Default for FastNote {
+    fn default() -> Self {
+        Self {
+            output: None,
+            signals: FastSignals::default(),
+            calibration: Calibration::Running(OffsetCalibration::default()),
+            bridge_on: false,
+        }
+    }
 }
 
 impl FastNote {
@@ -307,6 +321,25 @@ impl FastNote {
 
 /// The cell of [`SlowPart`]: the fast context's but for the slow context's turns.
 pub type SlowCell = Handoff<SlowPart>;
+
+/// What the control loop shares with the other contexts, each behind its own hand-off: the
+/// drive's slow side (the slow context's turns, [`SlowCell`]) and the capture (the link
+/// task's but while it records, [`Scope`]). Where the firmware keeps it: a static.
+#[derive(Debug)]
+pub struct Cells {
+    slow: SlowCell,
+    scope: Scope,
+}
+
+impl Cells {
+    /// The cells written into `slot`: the slow side `side` (no link yet), the capture idle.
+    fn new(slot: &mut MaybeUninit<Self>, side: SlowSide) -> &mut Self {
+        slot.write(Self {
+            slow: Handoff::new(SlowPart { side, tick: TickNote::default(), link: None }),
+            scope: Scope::new(),
+        })
+    }
+}
 
 /// How the slow step's job is started once its cell is handed over: the board pends its
 /// slow interrupt, whose body is [`run_slow`]; the host tests and QEMU's benchmarks run it
@@ -337,6 +370,9 @@ pub fn run_slow(cell: &SlowCell) {
 struct SlowHome<'s> {
     cell: &'s SlowCell,
     pend: Pend,
+    /// The link the cell's slow context serves ([`ControlLoop::connect`]), for the fast
+    /// context's check of a snapshot request without the cell.
+    link: Option<&'static Shared>,
 }
 
 impl SlowContext for SlowHome<'_> {
@@ -385,8 +421,9 @@ pub struct ControlLoop<'s> {
     /// The raw samples of the period that served the last command (the link's `Status`
     /// reports them): noted by the interrupt when it serves one, not in every period.
     readings: BoardReadings,
-    /// The scope: the drive's measurements and output of chosen periods.
-    capture: Capture<CAPTURE_DEPTH>,
+    /// The scope: the drive's measurements and output of chosen periods (recorded here,
+    /// armed and read out by the link task).
+    scope: &'s Scope,
     /// A commissioning sequence in the drive's place, and its last output.
     #[cfg(feature = "commissioning")]
     commission: Option<(Commissioning, Option<CommissionOutput>)>,
@@ -461,11 +498,11 @@ impl<'s> ControlLoop<'s> {
     pub fn new(
         raw: &RawDriveConfig,
         board: &BoardConfig,
-        cell: &'s mut MaybeUninit<SlowCell>,
+        cells: &'s mut MaybeUninit<Cells>,
         pend: Pend,
     ) -> Result<Self, ControlError> {
         let cfg = DriveConfig::from_raw(raw).map_err(ControlError::Drive)?;
-        Self::with_config(cfg, board, cell, pend)
+        Self::with_config(cfg, board, cells, pend)
     }
 
     /// [`ControlLoop::new`] written into `slot` (the firmware's static cell): everything
@@ -475,14 +512,14 @@ impl<'s> ControlLoop<'s> {
     /// On error `slot` and `cell` are left as they were.
     pub fn init<'a>(
         slot: &'a mut MaybeUninit<Self>,
-        cell: &'s mut MaybeUninit<SlowCell>,
+        cells: &'s mut MaybeUninit<Cells>,
         pend: Pend,
         raw: &RawDriveConfig,
         board: &BoardConfig,
     ) -> Result<&'a mut Self, ControlError> {
         let cfg = DriveConfig::from_raw(raw).map_err(ControlError::Drive)?;
         let parts = Parts::new(&cfg, board)?;
-        Ok(slot.write(Self::assemble(cfg, board, parts, cell, pend)))
+        Ok(slot.write(Self::assemble(cfg, board, parts, cells, pend)))
     }
 
     /// The shipped configuration without the checks that compare the measured currents with
@@ -514,11 +551,11 @@ impl<'s> ControlLoop<'s> {
     fn with_config(
         cfg: DriveConfig,
         board: &BoardConfig,
-        cell: &'s mut MaybeUninit<SlowCell>,
+        cells: &'s mut MaybeUninit<Cells>,
         pend: Pend,
     ) -> Result<Self, ControlError> {
         let parts = Parts::new(&cfg, board)?;
-        Ok(Self::assemble(cfg, board, parts, cell, pend))
+        Ok(Self::assemble(cfg, board, parts, cells, pend))
     }
 
     /// The loop from validated parts, at rest: calibration under way, the capture idle.
@@ -527,21 +564,16 @@ impl<'s> ControlLoop<'s> {
         cfg: DriveConfig,
         board: &BoardConfig,
         p: Parts,
-        cell: &'s mut MaybeUninit<SlowCell>,
+        cells: &'s mut MaybeUninit<Cells>,
         pend: Pend,
     ) -> Self {
         let (fast, slow) = Drive::new(cfg).into_parts();
+        let cells: &'s Cells = Cells::new(cells, slow);
         Self {
             board: *board,
             fast,
-            slow: SlowHome {
-                cell: cell.write(Handoff::new(SlowPart {
-                    side: slow,
-                    tick: TickNote::default(),
-                    link: None,
-                })),
-                pend,
-            },
+            slow: SlowHome { cell: &cells.slow, pend, link: None },
+            scope: &cells.scope,
             signals: SlowSignals::default(),
             current: [p.current; 3],
             calibration_cfg: p.calibration_cfg,
@@ -557,7 +589,6 @@ impl<'s> ControlLoop<'s> {
             bridge_on: false,
             precharge_left: 0,
             readings: BoardReadings::default(),
-            capture: Capture::new(),
             #[cfg(feature = "commissioning")]
             commission: None,
             #[cfg(feature = "commissioning")]
@@ -599,14 +630,9 @@ impl<'s> ControlLoop<'s> {
         Ok(())
     }
 
-    /// The capture (the link's `ArmCapture`, `ReadCapture`).
-    pub fn capture(&self) -> &Capture<CAPTURE_DEPTH> {
-        &self.capture
-    }
-
-    /// The capture, to arm it.
-    pub fn capture_mut(&mut self) -> &mut Capture<CAPTURE_DEPTH> {
-        &mut self.capture
+    /// The scope: the capture, armed and read out by the link task ([`Scope::serve`]).
+    pub fn scope(&self) -> &'s Scope {
+        self.scope
     }
 
     /// Latch fault `f` (the first stays latched): the bridge off from this period on; the
@@ -615,15 +641,18 @@ impl<'s> ControlLoop<'s> {
         self.fast.trip(f);
     }
 
-    /// A copy of this loop whose slow side is a copy of this one's, written into `cell`
+    /// A copy of this loop whose slow side is a copy of this one's, in `cells` of its own
     /// (benchmarks: the same periods again from the same state; two loops on one cell
-    /// would share one slow side): `None` while the slow side is at its job.
-    pub fn fork<'t>(&self, cell: &'t mut MaybeUninit<SlowCell>) -> Option<ControlLoop<'t>> {
-        let slow = self.slow.cell.with(|p| SlowPart { side: p.side, tick: p.tick, link: None })?;
+    /// would share one slow side): connected to no link, its capture idle. `None` while the
+    /// slow side is at its job.
+    pub fn fork<'t>(&self, cells: &'t mut MaybeUninit<Cells>) -> Option<ControlLoop<'t>> {
+        let side = self.slow.cell.with(|p| p.side)?;
+        let cells: &'t Cells = Cells::new(cells, side);
         Some(ControlLoop {
             board: self.board,
             fast: self.fast,
-            slow: SlowHome { cell: cell.write(Handoff::new(slow)), pend: self.slow.pend },
+            slow: SlowHome { cell: &cells.slow, pend: self.slow.pend, link: None },
+            scope: &cells.scope,
             signals: self.signals,
             current: self.current,
             calibration_cfg: self.calibration_cfg,
@@ -639,7 +668,6 @@ impl<'s> ControlLoop<'s> {
             bridge_on: self.bridge_on,
             precharge_left: self.precharge_left,
             readings: self.readings,
-            capture: self.capture.clone(),
             #[cfg(feature = "commissioning")]
             commission: self.commission.clone(),
             #[cfg(feature = "commissioning")]
@@ -657,7 +685,11 @@ impl<'s> ControlLoop<'s> {
     /// ([`Shared::control_period`], called with the same `link`). False (nothing changes)
     /// while the slow side is at its job.
     pub fn connect(&mut self, link: &'static Shared) -> bool {
-        self.slow.cell.with(|p| p.link = Some(link)).is_some()
+        let connected = self.slow.cell.with(|p| p.link = Some(link)).is_some();
+        if connected {
+            self.slow.link = Some(link);
+        }
+        connected
     }
 
     /// The drive's fast side: its mode, configuration and cadence, in every period.
@@ -863,7 +895,7 @@ impl<'s> ControlLoop<'s> {
             // applied (the low sides on).
             let applied = FastOutput { phases: PhaseCommand::Duty(Abc { a: 0.0, b: 0.0, c: 0.0 }), ..*o };
             let (fast, slow, held) = (&self.fast, &self.slow, &mut self.signals);
-            self.capture.record(&m, &applied, || telemetry(fast, slow, held));
+            self.scope.record(&m, &applied, || telemetry(fast, slow, held));
         }
         if matches!(self.fast.mode(), Mode::Fault(_)) {
             self.precharge_left = 0;
@@ -894,6 +926,9 @@ impl<'s> ControlLoop<'s> {
             self.read_encoder(s.encoder);
             self.note_tick(s);
         }
+        if self.slow.link.is_some_and(Shared::snapshot_wanted) && self.fast.note_due() {
+            self.note_snapshot();
+        }
         let calibrating = matches!(self.calibration, Calibration::Running(_));
         if calibrating {
             self.calibrate(s.i_abc);
@@ -902,7 +937,7 @@ impl<'s> ControlLoop<'s> {
         let out = self.fast.step(&m, &mut self.slow);
         self.last = Some(out);
         let (fast, slow, held) = (&self.fast, &self.slow, &mut self.signals);
-        self.capture.record(&m, &out, || telemetry(fast, slow, held));
+        self.scope.record(&m, &out, || telemetry(fast, slow, held));
         #[cfg(feature = "commissioning")]
         if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {
             if matches!(out.mode, Mode::Fault(_)) {
@@ -941,32 +976,39 @@ impl<'s> ControlLoop<'s> {
     }
 
     /// What the slow context needs beside the job of this period's tick ([`TickNote`]): the
-    /// period's raw samples, whether a sequence runs, and the fast part of a snapshot if the
-    /// link asked for one (of the last period: noted before this one's step). Nothing if
-    /// the slow side is not back (the tick latches `Overrun`).
+    /// period's raw samples and whether a sequence runs. Nothing if the slow side is not back
+    /// (the tick latches `Overrun`).
     #[inline(always)]
     fn note_tick(&mut self, s: &Samples) {
         let commissioning = self.commissioning();
         let readings = BoardReadings { i_abc_counts: s.i_abc, vdc_counts: s.vdc, encoder_counts: s.encoder };
-        let this = &*self;
         self.slow.cell.with(|p| {
             p.tick.readings = readings;
             p.tick.commissioning = commissioning;
-            if p.link.is_some_and(Shared::snapshot_wanted) {
-                p.tick.snapshot = Some(this.fast_note(commissioning));
+        });
+    }
+
+    /// The fast part of the snapshot the link task asked for, noted for the next job's slow
+    /// context ([`TickNote`]) in the period [`FastSide::note_due`] names (the last period's:
+    /// before this one's step), once per request. Out of line: every 10 ms at most.
+    #[inline(never)]
+    fn note_snapshot(&self) {
+        let commissioning = self.commissioning();
+        self.slow.cell.with(|p| {
+            if !p.tick.snapshot {
+                self.note_fast(&mut p.tick.fast, commissioning);
+                p.tick.snapshot = true;
             }
         });
     }
 
-    /// The fast context's part of a snapshot ([`FastNote`]). Out of line: every 10 ms at most.
-    #[inline(never)]
-    fn fast_note(&self, commissioning: bool) -> FastNote {
-        FastNote {
-            output: self.last,
-            signals: self.fast.signals(),
-            calibration: self.calibration,
-            bridge_on: self.fast.mode().is_active() || commissioning,
-        }
+    /// The fast context's part of a snapshot written into `n` ([`FastNote`]).
+    #[inline(always)]
+    fn note_fast(&self, n: &mut FastNote, commissioning: bool) {
+        n.output = self.last;
+        n.signals = self.fast.signals();
+        n.calibration = self.calibration;
+        n.bridge_on = self.fast.mode().is_active() || commissioning;
     }
 
     fn read_encoder(&mut self, raw: u16) {
@@ -998,7 +1040,7 @@ pub(crate) mod tests {
 
     /// A slow cell for a test's loop, its job run at once ([`run_slow`] as the pend): leaked,
     /// as the board's is a static.
-    pub(crate) fn cell() -> &'static mut MaybeUninit<SlowCell> {
+    pub(crate) fn cell() -> &'static mut MaybeUninit<Cells> {
         std::boxed::Box::leak(std::boxed::Box::new(MaybeUninit::uninit()))
     }
 
@@ -1354,7 +1396,7 @@ pub(crate) mod tests {
             pre_samples: 0,
             decimation: 1,
         };
-        c.capture_mut().arm(spec).unwrap();
+        assert_eq!(c.scope().serve(&BoardCommand::ArmCapture(spec)), Some(Reply::Ack));
         for _ in 0..10 {
             assert_eq!(c.step(&at_rest(0)), Bridge::Off);
         }
@@ -1362,9 +1404,9 @@ pub(crate) mod tests {
         for _ in 0..(CAPTURE_DEPTH - 10 - 40) {
             let _ = c.step(&at_rest(0));
         }
-        assert_eq!(c.capture().state(), CaptureState::Done);
+        assert_eq!(c.scope().state(), CaptureState::Done);
         let duty = |k: usize| {
-            let b = c.capture().chunk(k / 8).unwrap();
+            let b = c.scope().with_capture(|cap| cap.chunk(k / 8)).unwrap().unwrap();
             let at = (k % 8) * 16;
             f32::from_le_bytes(b[at..at + 4].try_into().unwrap())
         };
@@ -1426,15 +1468,16 @@ pub(crate) mod tests {
             c.drive_mut(|mut d| d.set_reference(controller_core::drive::Reference::Speed(100.0)))
                 .unwrap()
                 .unwrap();
-            c.capture_mut().arm(capture).unwrap();
+            assert_eq!(c.scope().serve(&BoardCommand::ArmCapture(capture)), Some(Reply::Ack));
             let mut ticks = std::vec::Vec::new();
             for k in 0..CAPTURE_DEPTH {
                 ticks.push(c.fast().slow_step_due());
                 assert!(!matches!(step(&mut c), Bridge::Off), "period {k}");
             }
-            assert_eq!(c.capture().state(), CaptureState::Done);
-            let chunks: std::vec::Vec<_> =
-                (0..Capture::<CAPTURE_DEPTH>::CHUNKS).map(|i| c.capture().chunk(i).unwrap()).collect();
+            assert_eq!(c.scope().state(), CaptureState::Done);
+            let chunks: std::vec::Vec<_> = (0..controller_core::capture::Capture::<CAPTURE_DEPTH>::CHUNKS)
+                .map(|i| c.scope().with_capture(|cap| cap.chunk(i)).unwrap().unwrap())
+                .collect();
             let signal = move |k: usize, s: usize| {
                 let at = (k % 8) * 16 + 4 * s;
                 f32::from_le_bytes(chunks[k / 8][at..at + 4].try_into().unwrap())

@@ -103,8 +103,8 @@ impl Shared {
     /// period's), published. Out of line: every 10 ms at most.
     #[inline(never)]
     pub fn publish(&self, p: &mut SlowPart) {
-        if let Some(n) = p.tick.snapshot.take() {
-            self.snapshot.write(n.snapshot(&p.side.signals()));
+        if core::mem::take(&mut p.tick.snapshot) {
+            self.snapshot.write(p.tick.fast.snapshot(&p.side.signals()));
             self.snapshot_wanted.store(false, Ordering::Relaxed);
         }
     }
@@ -219,32 +219,46 @@ mod tests {
         }
     }
 
-    /// The snapshot is the slow context's, at the first tick after the link task asks: the
-    /// loop as it was before the tick's period (its last output and signals) — nothing
-    /// without a request, and one per request.
+    /// The snapshot: its fast part noted by the control interrupt in the first period after
+    /// an adoption once the link task asks (`FastSide::note_due`: neither a tick's nor an
+    /// adoption's period), published by the slow context at the next tick — the loop as it
+    /// was before the noting period (its last output and signals; the slow side does not
+    /// move in between). Nothing without a request, one per request.
     #[test]
-    fn a_snapshot_is_published_at_the_tick_after_a_request_only() {
+    fn a_snapshot_is_noted_after_an_adoption_and_published_at_the_next_tick() {
         let mut r = Rig::new();
         for _ in 0..3 * r.ctl.config().slow_divider() {
             r.period(at_rest());
         }
         assert_eq!(r.shared.snapshot.read(), None, "nothing asked, nothing published");
         r.shared.request_snapshot();
-        r.step_to_before_a_tick();
-        assert_eq!(r.shared.snapshot.read(), None, "not before the tick");
-        let before = r.ctl.snapshot();
-        r.period(at_rest());
+        let published_at = |r: &mut Rig| {
+            while !r.ctl.fast().note_due() {
+                r.period(at_rest());
+            }
+            assert!(!r.ctl.fast().slow_step_due() && !r.ctl.slow_busy(), "a quiet period");
+            let before = r.ctl.snapshot();
+            r.period(at_rest());
+            while !r.ctl.fast().slow_step_due() {
+                r.period(at_rest());
+                assert_ne!(r.shared.snapshot.read(), Some(before), "not before the tick");
+            }
+            r.period(at_rest());
+            before
+        };
+        let before = published_at(&mut r);
         assert_eq!(r.shared.snapshot.read(), Some(before));
         // The request is spent: the drive moves on, the snapshot read stays the one taken.
         r.enable_past_the_precharge();
-        r.step_to_before_a_tick();
-        r.period(at_rest());
+        for _ in 0..2 * r.ctl.config().slow_divider() {
+            r.period(at_rest());
+        }
         let held = r.shared.snapshot.read().unwrap();
         assert!(!held.bridge_on && r.ctl.snapshot().bridge_on, "one snapshot per request");
         r.shared.request_snapshot();
-        r.step_to_before_a_tick();
-        r.period(at_rest());
-        assert!(r.shared.snapshot.read().unwrap().bridge_on);
+        let before = published_at(&mut r);
+        assert_eq!(r.shared.snapshot.read(), Some(before));
+        assert!(before.bridge_on);
     }
 
     /// A drive command is the slow context's: served after the job of the next tick — not
@@ -300,20 +314,24 @@ mod tests {
         assert_eq!(r.ctl.fast().mode(), Mode::Idle, "Magnetizing: the controlled stop is the bridge off");
     }
 
-    /// The capture's commands are the control interrupt's: served in the next period without
-    /// the slow step in flight, no tick needed.
+    /// The capture's commands are the link task's (`crate::scope`), never posted: one posted
+    /// anyway is refused by the control interrupt in the next period without the slow step
+    /// in flight — nothing of the capture's read-out runs there.
     #[test]
-    fn a_capture_command_is_served_by_the_control_interrupt() {
+    fn a_posted_capture_command_is_refused_by_the_control_interrupt() {
         let mut r = Rig::new();
         r.step_to_before_a_tick();
         r.period(at_rest());
         while r.ctl.slow_busy() {
             r.period(at_rest());
         }
-        assert!(!r.ctl.fast().slow_step_due());
+        assert!(server::link_task_serves(&BoardCommand::ReadCapture { chunk: 0 }));
         assert!(r.post(BoardCommand::ReadCapture { chunk: 0 }));
         r.period(at_rest());
-        assert!(matches!(r.shared.commands.take(), Some(Reply::Capture { .. })));
+        assert_eq!(
+            r.shared.commands.take(),
+            Some(Reply::Nack(controller_core::link::NackReason::Unsupported))
+        );
     }
 
     /// While a commissioning sequence runs, the drive's commands are the control interrupt's:

@@ -65,9 +65,11 @@ mod target {
         f
     }
     use firmware::control::{
-        Calibration, ControlError, ControlLoop, Samples, SlowCell, UPDATE_REPETITION, check_update_timing,
+        Calibration, Cells, ControlError, ControlLoop, Samples, SlowCell, UPDATE_REPETITION,
+        check_update_timing,
     };
     use firmware::output::{OutputStage, Outputs, stop_for_good};
+    use firmware::scope::Scope;
     use firmware::server;
 
     bind_interrupts!(struct Irqs {
@@ -83,10 +85,12 @@ mod target {
     /// Where the control loop lives: zero-initialised (`.bss`), so its ≈ 5.2 KiB take no flash
     /// for an initial image, as an `Option<ControlLoop>` static did.
     static CONTROL_CELL: static_cell::StaticCell<ControlLoop<'static>> = static_cell::StaticCell::new();
-    /// Where the drive's slow side lives (issue 54's two contexts): lent by the control
-    /// interrupt to the slow interrupt ([`CORDIC`]) from the slow step's tick until its job
-    /// is done (`firmware::boundary::Handoff`); zero-initialised as the loop's.
-    static SLOW_CELL: static_cell::StaticCell<SlowCell> = static_cell::StaticCell::new();
+    /// What the control loop shares (`firmware::control::Cells`): the drive's slow side (issue
+    /// 54's two contexts), lent by the control interrupt to the slow interrupt ([`CORDIC`])
+    /// from the slow step's tick until its job is done (`firmware::boundary::Handoff`), and the
+    /// capture, the link task's while the control interrupt does not record
+    /// (`firmware::scope`); zero-initialised as the loop's.
+    static CELLS: static_cell::StaticCell<Cells> = static_cell::StaticCell::new();
     /// The slow cell for the slow interrupt, stored once at start-up (null before: the
     /// interrupt then does nothing).
     static SLOW: AtomicPtr<SlowCell> = AtomicPtr::new(core::ptr::null_mut());
@@ -249,7 +253,7 @@ mod target {
         // Validate at construction: with an invalid configuration nothing is enabled.
         let control = match ControlLoop::init(
             CONTROL_CELL.uninit(),
-            SLOW_CELL.uninit(),
+            CELLS.uninit(),
             pend_slow,
             &DRIVE_CONFIG,
             &BOARD,
@@ -282,8 +286,10 @@ mod target {
         if !control.connect(&SHARED) {
             halt_safe();
         }
-        // The slow cell for the slow interrupt, and the loop for the control interrupt, which
-        // takes it at its first run (Release: their initialisation is seen there).
+        // The capture for the link task, the slow cell for the slow interrupt, and the loop
+        // for the control interrupt, which takes it at its first run (Release: their
+        // initialisation is seen there).
+        let scope = control.scope();
         SLOW.store(core::ptr::from_ref(control.slow_cell()).cast_mut(), Ordering::Release);
         CONTROL.store(control, Ordering::Release);
 
@@ -449,7 +455,7 @@ mod target {
         // writes after this point.
         unsafe { interrupt::ADC1_2.enable() };
 
-        match link_task(tx, rx, p.IWDG) {
+        match link_task(tx, rx, p.IWDG, scope) {
             Ok(l) => spawner.spawn(l),
             Err(_) => halt_safe(),
         }
@@ -519,7 +525,7 @@ mod target {
     }
 
     /// The drive's slow context (issue 54's two contexts): the slow step's job the control
-    /// interrupt handed over at its tick ([`SLOW_CELL`]), run here — preempted by the control
+    /// interrupt handed over at its tick ([`CELLS`]), run here — preempted by the control
     /// interrupt (P0 over P1) — and the slow side handed back. Its plan is adopted a plan's
     /// delay after the tick (2 periods at 20 kHz); a job not back by then latches
     /// `Fault::Overrun` with the bridge off in that period (`FastSide::step`).
@@ -577,18 +583,27 @@ mod target {
     /// The link watchdog's timeout in its clock's unit (3 600 s at most: below 2^32 µs).
     const LINK_TIMEOUT_US: u32 = LINK_TIMEOUT_MS * 1000;
 
-    /// `cmd` executed by the control interrupt (`SHARED.commands`): its reply within
-    /// [`COMMAND_TIMEOUT_MS`], else none (no control loop, or the interrupt not running; a
-    /// late reply is dropped before the next command).
-    async fn execute(cmd: BoardCommand, prepared: server::Prepared, stats: LinkStats) -> Option<Reply> {
+    /// `cmd` executed — by the drive's slow context or the control interrupt, posted to them
+    /// (`SHARED.commands`), or here if it is the capture's (`Scope::serve`: an `ArmCapture`
+    /// while the control interrupt records waits for the capture to come back): its reply
+    /// within [`COMMAND_TIMEOUT_MS`], else none (no control loop, or the interrupts not
+    /// running; a late reply is dropped before the next command).
+    async fn execute(
+        cmd: BoardCommand,
+        prepared: server::Prepared,
+        stats: LinkStats,
+        scope: &Scope,
+    ) -> Option<Reply> {
+        let here = server::link_task_serves(&cmd);
         let _ = SHARED.commands.take();
-        if !SHARED.commands.post((cmd, prepared, stats)) {
+        if !here && !SHARED.commands.post((cmd, prepared, stats)) {
             return None;
         }
         let t0 = embassy_time::Instant::now();
         loop {
-            if let Some(r) = SHARED.commands.take() {
-                return Some(r);
+            let reply = if here { scope.serve(&cmd) } else { SHARED.commands.take() };
+            if reply.is_some() {
+                return reply;
             }
             if t0.elapsed() > Duration::from_millis(COMMAND_TIMEOUT_MS) {
                 return None;
@@ -609,6 +624,7 @@ mod target {
         mut tx: UartTx<'static, Async>,
         mut rx: RingBufferedUartRx<'static>,
         iwdg: Peri<'static, IWDG>,
+        scope: &'static Scope,
     ) {
         // The independent watchdog (100 ms), fed from this loop — which turns at least every
         // 10 ms (the read's timeout) — and only while the control interrupt runs: a reset
@@ -697,7 +713,7 @@ mod target {
                 watchdog.frame(now_us());
                 // Heavy work (a commissioning configuration) here, not in the interrupt.
                 let prepared = server::prepare(&cmd);
-                let reply = execute(cmd, prepared, stats).await;
+                let reply = execute(cmd, prepared, stats, scope).await;
                 // The status carries the interrupt's timing (the link module cannot see it).
                 let reply = reply.map(|r| match r {
                     Reply::Status { mode, ridden_through, frames_ok, frame_errors, readings, .. } => {

@@ -12,8 +12,9 @@
 //! context's ([`slow_context_serves`], [`drive_command`]: after the slow step's job, on the
 //! slow side alone; a command's effect on the bridge comes with the plan's adoption, a
 //! plan's delay after its tick), so that their work — a gain write rebuilds the drive's
-//! configuration, an enable a run — never lengthens a control period; the capture's and the
-//! commissioning's are the control interrupt's ([`handle_board`]), which owns them.
+//! configuration, an enable a run — never lengthens a control period; the capture's are the
+//! link task's own, in thread mode ([`link_task_serves`], `crate::scope`); the
+//! commissioning's the control interrupt's ([`handle_board`]), which owns the sequence.
 //!
 //! Commissioning (feature `commissioning`; without it these commands are answered
 //! `Nack(Unsupported)`): `Commission` while Idle and calibrated
@@ -152,9 +153,10 @@ pub fn handle_board(
             | BoardCommand::GetCommissionRecord { .. },
             _,
         ) => Reply::Nack(NackReason::Unsupported),
-        // The capture records the drive's periods whatever runs: served at any time.
-        (BoardCommand::ArmCapture(spec), _) => link::arm_capture(ctl.capture_mut(), *spec),
-        (BoardCommand::ReadCapture { chunk }, _) => link::read_capture(ctl.capture(), *chunk),
+        // The link task's, never posted ([`link_task_serves`]).
+        (BoardCommand::ArmCapture(_) | BoardCommand::ReadCapture { .. }, _) => {
+            Reply::Nack(NackReason::Unsupported)
+        }
         _ if !ctl.commissioning() => return None,
         (BoardCommand::Stop | BoardCommand::Disable, _) => {
             ctl.abort_commissioning();
@@ -172,9 +174,10 @@ pub fn handle_board(
     })
 }
 
-/// A command answered at once in the fast context (the host tests' link): the drive's with
-/// both halves ([`drive_command`] on [`ControlLoop::drive_mut`]: `None` while the slow
-/// step is in flight), the rest as the control interrupt does ([`handle_board`]).
+/// A command answered at once in the fast context (the host tests' link): the capture's by
+/// the scope ([`crate::scope::Scope::serve`], as the link task does), the drive's with both
+/// halves ([`drive_command`] on [`ControlLoop::drive_mut`]: `None` while the slow step is
+/// in flight), the rest as the control interrupt does ([`handle_board`]).
 #[cfg(test)]
 pub(crate) fn serve_at_once(
     ctl: &mut ControlLoop,
@@ -182,7 +185,9 @@ pub(crate) fn serve_at_once(
     prepared: Prepared,
     stats: &LinkStats,
 ) -> Option<Reply> {
-    if slow_context_serves(cmd) && !ctl.commissioning() {
+    if link_task_serves(cmd) {
+        ctl.scope().serve(cmd)
+    } else if slow_context_serves(cmd) && !ctl.commissioning() {
         let readings = ctl.readings();
         ctl.drive_mut(|d| drive_command(d, cmd, stats, readings))
     } else {
@@ -190,11 +195,18 @@ pub(crate) fn serve_at_once(
     }
 }
 
+/// Whether the link task serves `cmd` itself, never posting it: the capture's
+/// ([`crate::scope::Scope::serve`]: arming and reading out in thread mode).
+pub fn link_task_serves(cmd: &BoardCommand) -> bool {
+    matches!(cmd, BoardCommand::ArmCapture(_) | BoardCommand::ReadCapture { .. })
+}
+
 /// Whether the drive's slow context serves `cmd` ([`crate::interrupt::Shared::slow_period`],
 /// after the slow step's job, on the slow side alone): the drive's commands and reads — they
 /// act on the slow side, and their work (a gain write rebuilds the configuration, an enable
-/// a run) stays out of the control interrupt. The capture's and the commissioning's are the
-/// control interrupt's ([`handle_board`]): they act on what it owns.
+/// a run) stays out of the control interrupt. The commissioning's are the control
+/// interrupt's ([`handle_board`]): they act on what it owns; the capture's the link task's
+/// ([`link_task_serves`]).
 pub fn slow_context_serves(cmd: &BoardCommand) -> bool {
     match cmd {
         BoardCommand::Enable

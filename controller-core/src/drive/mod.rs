@@ -185,6 +185,11 @@ struct Order {
     restart: bool,
     /// The slow side's configuration taken (a reconfiguration).
     reconfigured: bool,
+    /// Its speed law alone (a reconfiguration that changed nothing else: a gain write) —
+    /// the fast side reads none of it, so its copy stays the slow side's at a field's cost
+    /// (the whole configuration's, 584 B, cost the adopting period ≈ 500 instructions,
+    /// `cost interrupt_worst_command_period`).
+    speed_law: bool,
     /// The slow cadence starts again at this period (a new divider).
     cadence: bool,
     /// The slow side's mode taken, unless a fault of the fast step stands (an enable, a
@@ -1302,8 +1307,9 @@ impl DriveMut<'_> {
         s.state.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
         (s.state.reference, s.state.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
         (s.state.pending_fault, s.state.stop_steps_left) = (None, None);
+        let speed_law_only = DriveConfig { speed: s.cfg.speed, ..cfg } == s.cfg;
         (s.cfg, s.job) = (cfg, None);
-        (s.order.restart, s.order.reconfigured) = (true, true);
+        (s.order.restart, s.order.reconfigured, s.order.speed_law) = (true, !speed_law_only, speed_law_only);
         self.done();
         Ok(())
     }
@@ -1417,6 +1423,17 @@ impl FastSide {
         self.state.steps_to_slow == 0
     }
 
+    /// The next [`FastSide::step`] is the one period of each slow period in which the fast
+    /// context notes what the slow context reads beside the next job (the firmware's part of
+    /// a snapshot for the link): the first after the adoption — neither a tick nor an
+    /// adoption, the slow side back — or the tick itself when the adoption is the last
+    /// period before it. So the tick's and the adoption's periods, the longest, carry none
+    /// of it.
+    pub fn note_due(&self) -> bool {
+        let s = self.state.steps_to_slow;
+        if self.cfg.adopt_at == 0 { s == 0 } else { s == self.cfg.adopt_at }
+    }
+
     /// The slow step's job is in flight after the last [`Drive::step`]: from its tick up to
     /// the period that adopts its plan ([`DriveConfig::plan_delay`]). The board's slow
     /// context may be running it, so the firmware leaves the link's requests — which act on
@@ -1519,6 +1536,8 @@ impl FastSide {
         let o = core::mem::take(&mut s.order);
         if o.reconfigured {
             self.cfg = s.cfg;
+        } else if o.speed_law {
+            self.cfg.speed = s.cfg.speed;
         }
         if o.cadence {
             self.state.steps_to_slow = 0;

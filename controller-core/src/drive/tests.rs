@@ -493,6 +493,7 @@ fn a_command_of_the_slow_context_acts_at_the_plans_adoption() {
     }
     assert_eq!(next, commands.len());
     assert_eq!(fast.config().speed().saturated_p().map(|g| g.0), Some(0.07));
+    assert_eq!(*fast.config(), ctx.slow.cfg, "the two copies of the configuration alike");
     assert_eq!(fast.mode(), Mode::Idle);
     assert_eq!(modes.len(), 4, "{modes:?}");
 }

@@ -3,7 +3,7 @@
 
 use super::receive::LinkStats;
 use super::schema::{BoardCommand, Command, NackReason, Reply};
-use crate::capture::{Capture, CaptureSpec};
+use crate::capture::{CHUNK_BYTES, Capture, CaptureSpec, CaptureState};
 use crate::drive::{CommandError, Drive, DriveConfig, DriveMut};
 
 /// Carry out `cmd` on `drive` and say how it went — the command handling shared by the
@@ -95,15 +95,26 @@ pub fn arm_capture<const DEPTH: usize>(capture: &mut Capture<DEPTH>, spec: Captu
 /// `ReadCapture { chunk }`: the state, and the chunk once the record is done (zeros
 /// before); `Nack(NoRecord)` past the record's end.
 pub fn read_capture<const DEPTH: usize>(capture: &Capture<DEPTH>, chunk: u8) -> Reply {
+    capture_reply::<DEPTH>(capture.state(), chunk, capture.chunk(usize::from(chunk)))
+}
+
+/// `ReadCapture { chunk }`'s reply for a capture of `DEPTH` samples in `state`, with the
+/// chunk's `bytes` (zeros without: the record not done) — also what an endpoint answers
+/// while another context records into the capture; `Nack(NoRecord)` past the record's end.
+pub fn capture_reply<const DEPTH: usize>(
+    state: CaptureState,
+    chunk: u8,
+    bytes: Option<[u8; CHUNK_BYTES]>,
+) -> Reply {
     if usize::from(chunk) >= Capture::<DEPTH>::CHUNKS {
         return Reply::Nack(NackReason::NoRecord);
     }
     Reply::Capture {
-        state: capture.state(),
+        state,
         // At most 2 048 (`Capture::new`'s bound).
         samples: DEPTH as u16,
         chunk,
-        bytes: capture.chunk(usize::from(chunk)).unwrap_or([0; crate::capture::CHUNK_BYTES]),
+        bytes: bytes.unwrap_or([0; CHUNK_BYTES]),
     }
 }
 

@@ -27,7 +27,7 @@ pub mod framing;
 pub mod receive;
 pub mod schema;
 
-pub use execute::{arm_capture, execute, execute_board, read_capture};
+pub use execute::{arm_capture, capture_reply, execute, execute_board, read_capture};
 pub use framing::{
     BufferFull, FrameDecoder, FrameError, MAX_FRAME, MAX_PAYLOAD, cobs_decode_in_place, cobs_encode, crc16,
     encode_frame,

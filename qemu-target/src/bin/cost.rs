@@ -39,7 +39,7 @@ mod target {
     use controller_core::envelope::EnvelopeConfig;
     use controller_core::frames::{Abc, AlphaBeta, Dq, SinCos};
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
-    use controller_core::link::{BoardCommand, LinkStats};
+    use controller_core::link::{BoardCommand, LinkStats, Reply};
     use controller_core::magnetics::{MagnetizingChord, MagnetizingCurve, MagnetizingTable};
     use controller_core::mras::{Evidence, FitPeriod, MrasConfig, RotorFit};
     use controller_core::observer::{FluxObserver, ObserverConfig};
@@ -336,8 +336,6 @@ mod target {
             ("ReadSpeedGains", BoardCommand::ReadSpeedGains),
             ("WriteSpeedGains (refused: Running)", write_gains),
             ("SetReference", BoardCommand::SetReference(Reference::Speed(150.0))),
-            ("ArmCapture", BoardCommand::ArmCapture(spec)),
-            ("ReadCapture", BoardCommand::ReadCapture { chunk: 0 }),
             ("ClearFault", BoardCommand::ClearFault),
             ("Refused", BoardCommand::Refused),
             ("Stop", BoardCommand::Stop),
@@ -345,6 +343,9 @@ mod target {
             ("Disable", BoardCommand::Disable),
             ("WriteSpeedGains (Idle)", write_gains),
             ("Enable (Idle)", BoardCommand::Enable),
+            // The link task's own (no interrupt's work but the recording: the points' capture).
+            ("ArmCapture", BoardCommand::ArmCapture(spec)),
+            ("ReadCapture", BoardCommand::ReadCapture { chunk: 0 }),
         ];
         // Each context's deepest stack: painted before each turn, scanned after it.
         let sp = qemu_target::stack::pointer();
@@ -358,6 +359,11 @@ mod target {
             if matches!(cmd, BoardCommand::Stop) {
                 // The commands before it were served while Running.
                 served &= c.fast().mode() == Mode::Running;
+            }
+            if firmware::server::link_task_serves(&cmd) {
+                // The capture's: the link task's own, in thread mode (`firmware::scope`).
+                served &= c.scope().serve(&cmd).is_some();
+                continue;
             }
             served &= shared.commands.post((cmd, Prepared::Nothing, LinkStats::default()));
             shared.request_snapshot();
@@ -516,7 +522,8 @@ mod target {
         }
         c.drive_mut(|mut d| d.set_reference(Reference::Speed(p.reference_rad_s)))?.ok()?;
         if p.capture {
-            c.capture_mut().arm(recording_on()).ok()?;
+            // As the link task arms it (`firmware::scope`).
+            (c.scope().serve(&BoardCommand::ArmCapture(recording_on())) == Some(Reply::Ack)).then_some(())?;
         }
         for _ in 0..SETTLE_PERIODS {
             step(&mut c, samples(i_ab, advance(p.omega_m_rad_s)));
