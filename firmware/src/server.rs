@@ -230,7 +230,7 @@ pub fn slow_context_serves(cmd: &BoardCommand) -> bool {
 /// (on the slow side alone, [`DriveMut::slow_only`]: the command's fast part at the plan's
 /// adoption) or the fast context's (at once). `Status` carries the board's raw `readings`
 /// (its timing is filled in by the link task). The gain write keeps the slow divider
-/// ([`controller_core::drive::DriveConfig::with_saturated_p`] changes the speed law
+/// ([`DriveMut::write_speed_gains`] changes the speed law and the stall check's limit
 /// alone): the board's encoder estimator, which reads at that period, needs no change.
 pub fn drive_command(
     d: DriveMut<'_>,
@@ -265,12 +265,10 @@ fn write_speed_gains(mut d: DriveMut<'_>, kp: f32, tau_max_nm: f32) -> Reply {
         return Reply::Nack(NackReason::NotIdle);
     }
     // In f32, on the configuration in use: no design arithmetic on the target.
-    let Some(cfg) = d.config().with_saturated_p(kp, tau_max_nm) else {
-        return Reply::Nack(NackReason::Unsupported);
-    };
-    match d.reconfigure(cfg) {
-        Ok(()) => Reply::Ack,
-        Err(_) => Reply::Nack(NackReason::Configuration),
+    match d.write_speed_gains(kp, tau_max_nm) {
+        None => Reply::Nack(NackReason::Unsupported),
+        Some(Ok(())) => Reply::Ack,
+        Some(Err(_)) => Reply::Nack(NackReason::Configuration),
     }
 }
 

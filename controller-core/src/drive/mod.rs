@@ -185,10 +185,10 @@ struct Order {
     restart: bool,
     /// The slow side's configuration taken (a reconfiguration).
     reconfigured: bool,
-    /// Its speed law alone (a reconfiguration that changed nothing else: a gain write) —
-    /// the fast side reads none of it, so its copy stays the slow side's at a field's cost
-    /// (the whole configuration's, 584 B, cost the adopting period ≈ 500 instructions,
-    /// `cost interrupt_worst_command_period`).
+    /// Its speed law and the stall check's limit alone (a gain write,
+    /// [`DriveMut::write_speed_gains`]) — the fast side reads neither, so its copy stays the
+    /// slow side's at two fields' cost (the whole configuration's, 584 B, cost the adopting
+    /// period ≈ 500 instructions, `cost interrupt_worst_command_period`).
     speed_law: bool,
     /// The slow cadence starts again at this period (a new divider).
     cadence: bool,
@@ -1287,6 +1287,24 @@ impl DriveMut<'_> {
     /// opt-level "z" (a gain write).
     #[inline]
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), CommandError> {
+        self.swap(cfg, false)
+    }
+
+    /// New gains of the saturated-P speed law (seed 002 eq. (21)) — the firmware's
+    /// `WriteSpeedGains`: [`DriveMut::reconfigure`] with
+    /// [`DriveConfig::with_saturated_p`], the speed law and the stall check's limit, which
+    /// the fast side never reads (its order copies these two alone). `None` for another law
+    /// or bad gains. `#[inline]`: compiled in the caller's crate.
+    #[inline]
+    pub fn write_speed_gains(&mut self, kp: f32, tau_max_nm: f32) -> Option<Result<(), CommandError>> {
+        let cfg = self.slow.cfg.with_saturated_p(kp, tau_max_nm)?;
+        Some(self.swap(cfg, true))
+    }
+
+    /// [`DriveMut::reconfigure`]'s body; `speed_law`: `cfg` differs from the configuration
+    /// in use in the speed law and the stall check's limit alone.
+    #[inline]
+    fn swap(&mut self, cfg: DriveConfig, speed_law: bool) -> Result<(), CommandError> {
         if self.mode().is_active() {
             return Err(CommandError::Active);
         }
@@ -1307,9 +1325,8 @@ impl DriveMut<'_> {
         s.state.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
         (s.state.reference, s.state.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
         (s.state.pending_fault, s.state.stop_steps_left) = (None, None);
-        let speed_law_only = DriveConfig { speed: s.cfg.speed, ..cfg } == s.cfg;
         (s.cfg, s.job) = (cfg, None);
-        (s.order.restart, s.order.reconfigured, s.order.speed_law) = (true, !speed_law_only, speed_law_only);
+        (s.order.restart, s.order.reconfigured, s.order.speed_law) = (true, !speed_law, speed_law);
         self.done();
         Ok(())
     }
@@ -1537,7 +1554,7 @@ impl FastSide {
         if o.reconfigured {
             self.cfg = s.cfg;
         } else if o.speed_law {
-            self.cfg.speed = s.cfg.speed;
+            (self.cfg.speed, self.cfg.motion) = (s.cfg.speed, s.cfg.motion);
         }
         if o.cadence {
             self.state.steps_to_slow = 0;

@@ -429,8 +429,7 @@ impl Cmd {
             Cmd::Disable => d.disable(),
             Cmd::Gains(kp) => {
                 let (_, tau_max_nm) = d.config().speed().saturated_p().unwrap();
-                let cfg = d.config().with_saturated_p(kp, tau_max_nm).unwrap();
-                d.reconfigure(cfg).unwrap();
+                d.write_speed_gains(kp, 0.5 * tau_max_nm).unwrap().unwrap();
             }
             Cmd::Trip => d.trip(Fault::EncoderLoss),
             Cmd::ClearFault => d.clear_fault(),
@@ -493,6 +492,7 @@ fn a_command_of_the_slow_context_acts_at_the_plans_adoption() {
     }
     assert_eq!(next, commands.len());
     assert_eq!(fast.config().speed().saturated_p().map(|g| g.0), Some(0.07));
+    assert_eq!(whole.config().speed().saturated_p(), fast.config().speed().saturated_p());
     assert_eq!(*fast.config(), ctx.slow.cfg, "the two copies of the configuration alike");
     assert_eq!(fast.mode(), Mode::Idle);
     assert_eq!(modes.len(), 4, "{modes:?}");
