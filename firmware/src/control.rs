@@ -12,9 +12,13 @@
 //! ```
 //!
 //! **Two contexts** (issue 54): the loop owns the drive's fast side; its slow side lives in a
-//! [`SlowCell`] of its own, lent to the slow context from the slow step's tick until its job
-//! is done ([`run_slow`], pended by [`Pend`]); the commands reach both through
-//! [`ControlLoop::drive_mut`], in a period with the slow side back.
+//! [`SlowCell`] of its own ([`Cells`], beside the capture's [`Scope`]), lent to the slow
+//! context from the slow step's tick until its job — and the link's work that needs the slow
+//! side: the drive's commands, the watchdog's stop, the snapshot — is done ([`run_slow`],
+//! pended by [`Pend`]); a command's part on the fast side is an order taken with the plan
+//! (`controller_core::drive::DriveMut::slow_only`). [`ControlLoop::drive_mut`] commands both
+//! halves at once from the fast context (the tests', the calibration's disable), in a period
+//! with the slow side back.
 //!
 //! **Offset calibration** (first thing after start-up; a new configuration keeps its result):
 //! [`CALIBRATION_SAMPLES`] periods with the bridge held off, the three current channels'
@@ -353,15 +357,30 @@ pub type Pend = fn(&SlowCell);
 /// interrupt; the host tests' and QEMU's [`Pend`]).
 pub fn run_slow(cell: &SlowCell) {
     cell.run(|p| {
-        let link = p.link;
-        if let Some(l) = link {
-            l.publish(p);
-        }
+        p.publish();
         p.side.run();
-        if let Some(l) = link {
-            l.slow_period(p);
-        }
+        p.serve();
     });
+}
+
+impl SlowPart {
+    /// [`Shared::publish`] on the link, if any. Out of line, as [`SlowPart::serve`]: the
+    /// slow context's body one path with one call of the job (two, one per link or none,
+    /// and the job went out of line with the magnetizing fit out of it: +1 KB of flash).
+    #[inline(never)]
+    fn publish(&mut self) {
+        if let Some(l) = self.link {
+            l.publish(self);
+        }
+    }
+
+    /// [`Shared::slow_period`] on the link, if any.
+    #[inline(never)]
+    fn serve(&mut self) {
+        if let Some(l) = self.link {
+            l.slow_period(self);
+        }
+    }
 }
 
 /// The drive's slow side as the fast side's step reaches it ([`SlowContext`]): its cell
@@ -609,8 +628,9 @@ impl<'s> ControlLoop<'s> {
     /// rotor was driven, the estimates), so a gain write cannot cool a hot motor's
     /// protection. What belongs to the board is kept: the measured current offsets, the
     /// capture and the encoder's angle; its speed window too when its period is the same (a
-    /// gain write: a coasting rotor's speed stays known), and it starts again at a new one. In place: no temporary of the loop's size on the
-    /// control interrupt's stack, where the link's commands are served.
+    /// gain write: a coasting rotor's speed stays known), and it starts again at a new one.
+    /// The fast context's, at once (a drive file for the same motor; the link's gain write is
+    /// the slow context's, `server::drive_command`, which keeps the slow divider).
     pub fn reconfigure(&mut self, cfg: DriveConfig) -> Result<(), ControlError> {
         let divider = cfg.slow_divider();
         let read_period_s = f32::from(divider) * cfg.ts_s();
@@ -829,8 +849,9 @@ impl<'s> ControlLoop<'s> {
 
     /// The drive's slow step is in flight after the period just stepped — from its tick (or
     /// during the bootstrap pre-charge its shaft's stage, [`FastSide::hold_step`]) up to the
-    /// adoption of its plan ([`FastSide::slow_busy`]): [`crate::interrupt::Shared`] serves the
-    /// link's requests, which act on the slow step's state, in a period after it.
+    /// adoption of its plan ([`FastSide::slow_busy`]): the control interrupt serves its own
+    /// share of the link's requests ([`crate::interrupt::Shared::control_period`]) in a period
+    /// after it.
     pub fn slow_busy(&self) -> bool {
         self.fast.slow_busy()
     }

@@ -79,7 +79,9 @@ impl Scope {
     /// The link task: `ArmCapture` or `ReadCapture` answered (any other command: `None`).
     /// `None` too for an `ArmCapture` while the interrupt records: the capture is asked back
     /// (it comes back within a period) — call again. While it records, `ReadCapture` answers
-    /// with its state and no samples.
+    /// with its state and no samples. Out of line (inlined into the link task's async body,
+    /// 252 B more flash).
+    #[inline(never)]
     pub fn serve(&self, cmd: &BoardCommand) -> Option<Reply> {
         match cmd {
             BoardCommand::ArmCapture(spec) => {
