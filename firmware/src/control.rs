@@ -437,8 +437,9 @@ pub struct ControlLoop<'s> {
     bridge_on: bool,
     /// Pre-charge periods left (0: none under way).
     precharge_left: u16,
-    /// The raw samples of the period that served the last command (the link's `Status`
-    /// reports them): noted by the interrupt when it serves one, not in every period.
+    /// The raw samples of the period that served the last command the control interrupt
+    /// served (a `Status` during commissioning reports them; the slow context's `Status`
+    /// the tick's, `TickNote`): noted when it serves one, not in every period.
     readings: BoardReadings,
     /// The scope: the drive's measurements and output of chosen periods (recorded here,
     /// armed and read out by the link task).

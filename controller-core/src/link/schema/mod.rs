@@ -310,12 +310,13 @@ pub enum Reply {
         frame_errors: u32,
         /// The control interrupt's timing (zero where it is not measured: PIL).
         timing: LoopTiming,
-        /// The board's raw readings of the last control period (zero without a board).
+        /// The board's raw readings of a recent control period — the slow step's tick that
+        /// served the `GetStatus` (zero without a board).
         readings: BoardReadings,
     },
 }
 
-/// The board's raw readings at the last control period, before any scaling: what bring-up
+/// The board's raw readings at a control period, before any scaling: what bring-up
 /// checks against the drive file's scalings (docs/firmware.md's checklist).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BoardReadings {
