@@ -219,13 +219,13 @@ mod tests {
         }
     }
 
-    /// The snapshot: its fast part noted by the control interrupt in the first period after
-    /// an adoption once the link task asks (`FastSide::note_due`: neither a tick's nor an
-    /// adoption's period), published by the slow context at the next tick — the loop as it
-    /// was before the noting period (its last output and signals; the slow side does not
-    /// move in between). Nothing without a request, one per request.
+    /// The snapshot: its fast part noted by the control interrupt in the period before a
+    /// tick once the link task asks (`FastSide::note_due`: neither a tick's nor an
+    /// adoption's period), published by the slow context at that tick — the loop as it was
+    /// before the noting period (its last output and signals; the slow side does not move in
+    /// between). Nothing without a request, one per request.
     #[test]
-    fn a_snapshot_is_noted_after_an_adoption_and_published_at_the_next_tick() {
+    fn a_snapshot_is_noted_before_a_tick_and_published_at_it() {
         let mut r = Rig::new();
         for _ in 0..3 * r.ctl.config().slow_divider() {
             r.period(at_rest());

@@ -1442,13 +1442,14 @@ impl FastSide {
 
     /// The next [`FastSide::step`] is the one period of each slow period in which the fast
     /// context notes what the slow context reads beside the next job (the firmware's part of
-    /// a snapshot for the link): the first after the adoption — neither a tick nor an
-    /// adoption, the slow side back — or the tick itself when the adoption is the last
-    /// period before it. So the tick's and the adoption's periods, the longest, carry none
-    /// of it.
+    /// a snapshot for the link): the last before the tick — neither a tick nor an adoption,
+    /// the slow side back, and a plain period (the first after an adoption takes ≈ 240
+    /// instructions more, measured in `cost`) — or the tick itself when the adoption is the
+    /// last period before it. So the tick's and the adoption's periods, the longest, carry
+    /// none of it.
     pub fn note_due(&self) -> bool {
         let s = self.state.steps_to_slow;
-        if self.cfg.adopt_at == 0 { s == 0 } else { s == self.cfg.adopt_at }
+        if self.cfg.adopt_at == 0 { s == 0 } else { s == 1 }
     }
 
     /// The slow step's job is in flight after the last [`Drive::step`]: from its tick up to
