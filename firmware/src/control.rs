@@ -43,7 +43,6 @@
 //! on the angle the estimator reports — the same code in the simulator.
 
 use crate::boundary::Handoff;
-use crate::interrupt::Shared;
 use crate::scope::Scope;
 use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
@@ -60,6 +59,7 @@ use controller_core::frames::Abc;
 use controller_core::link::BoardReadings;
 use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling, ScalingError};
 use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicBool, Ordering};
 
 /// Samples of the offset calibration (51 ms at 20 kHz; issue 19: at least 1 024).
 pub const CALIBRATION_SAMPLES: u32 = controller_core::calibration::MIN_SAMPLES;
@@ -67,8 +67,7 @@ pub const CALIBRATION_SAMPLES: u32 = controller_core::calibration::MIN_SAMPLES;
 /// Speed window of the encoder estimator, in slow-loop reads (the simulator's too).
 pub const ENCODER_WINDOW: usize = controller_core::encoder::SPEED_WINDOW_READS;
 
-/// Samples in a capture's record (`controller_core::capture`).
-pub const CAPTURE_DEPTH: usize = controller_core::capture::RECORD_SAMPLES;
+pub use crate::scope::CAPTURE_DEPTH;
 
 /// Raw conversions of one PWM period.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -268,13 +267,12 @@ pub enum Calibration {
 /// What the slow context works on (issue 54's two contexts): the drive's slow side, what the
 /// fast context noted for it at the tick, and the link it serves — lent to it from the slow
 /// step's tick until its job and the link's work are done ([`run_slow`]).
-#[derive(Debug)]
 pub struct SlowPart {
     pub(crate) side: SlowSide,
     pub(crate) tick: TickNote,
     /// The link whose drive commands, watchdog stop and snapshots the slow context serves
     /// ([`ControlLoop::connect`]; none: the link's requests are the fast context's alone).
-    pub(crate) link: Option<&'static Shared>,
+    pub(crate) link: Option<&'static dyn SlowLink>,
 }
 
 /// What the fast context notes for the slow context at a tick, beside the job.
@@ -323,6 +321,32 @@ impl FastNote {
     }
 }
 
+/// The link as the drive's slow context serves it — `crate::interrupt::Shared`, which also
+/// holds what the control interrupt and the link task share: what the slow context does with
+/// it around the slow step's job ([`run_slow`]), and the link task's snapshot request, which
+/// the control interrupt reads to note its part of one.
+pub trait SlowLink: Sync {
+    /// The link task asks for a snapshot ([`FastSide::note_due`]'s period notes its fast part).
+    fn snapshot_wanted(&self) -> &AtomicBool;
+    /// Before the job, the slow side held: the snapshot noted, published.
+    fn publish(&self, p: &mut SlowPart);
+    /// After the job: the link's work that needs the slow side (the watchdog's stop, a
+    /// drive command).
+    fn serve(&self, p: &mut SlowPart);
+}
+
+impl core::fmt::Debug for SlowPart {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        // The link is a trait object without `Debug`: a `Debug` bound on it put `core::fmt`
+        // in the image through its vtable (2.4 KB of flash).
+        f.debug_struct("SlowPart")
+            .field("side", &self.side)
+            .field("tick", &self.tick)
+            .field("linked", &self.link.is_some())
+            .finish()
+    }
+}
+
 /// The cell of [`SlowPart`]: the fast context's but for the slow context's turns.
 pub type SlowCell = Handoff<SlowPart>;
 
@@ -353,7 +377,7 @@ pub type Pend = fn(&SlowCell);
 /// The slow context's body: the snapshot the link asked for published (the fast context's
 /// note and the slow side's signals before the job: the same period's), the job handed
 /// over, if any, run, then the link's work that needs the slow side (the watchdog's stop, a
-/// drive command: [`Shared::slow_period`]), and the slow side handed back (the board's slow
+/// drive command: [`SlowLink::serve`]), and the slow side handed back (the board's slow
 /// interrupt; the host tests' and QEMU's [`Pend`]).
 pub fn run_slow(cell: &SlowCell) {
     cell.run(|p| {
@@ -364,7 +388,7 @@ pub fn run_slow(cell: &SlowCell) {
 }
 
 impl SlowPart {
-    /// [`Shared::publish`] on the link, if any. Out of line, as [`SlowPart::serve`]: the
+    /// [`SlowLink::publish`] on the link, if any. Out of line, as [`SlowPart::serve`]: the
     /// slow context's body one path with one call of the job (two, one per link or none,
     /// and the job went out of line with the magnetizing fit out of it: +1 KB of flash).
     #[inline(never)]
@@ -374,11 +398,11 @@ impl SlowPart {
         }
     }
 
-    /// [`Shared::slow_period`] on the link, if any.
+    /// [`SlowLink::serve`] on the link, if any.
     #[inline(never)]
     fn serve(&mut self) {
         if let Some(l) = self.link {
-            l.slow_period(self);
+            l.serve(self);
         }
     }
 }
@@ -389,9 +413,9 @@ impl SlowPart {
 struct SlowHome<'s> {
     cell: &'s SlowCell,
     pend: Pend,
-    /// The link the cell's slow context serves ([`ControlLoop::connect`]), for the fast
-    /// context's check of a snapshot request without the cell.
-    link: Option<&'static Shared>,
+    /// The snapshot request of the link the cell's slow context serves
+    /// ([`ControlLoop::connect`]), for the fast context's check without the cell.
+    snapshot_wanted: Option<&'static AtomicBool>,
 }
 
 impl SlowContext for SlowHome<'_> {
@@ -592,7 +616,7 @@ impl<'s> ControlLoop<'s> {
         Self {
             board: *board,
             fast,
-            slow: SlowHome { cell: &cells.slow, pend, link: None },
+            slow: SlowHome { cell: &cells.slow, pend, snapshot_wanted: None },
             scope: &cells.scope,
             signals: SlowSignals::default(),
             current: [p.current; 3],
@@ -672,7 +696,7 @@ impl<'s> ControlLoop<'s> {
         Some(ControlLoop {
             board: self.board,
             fast: self.fast,
-            slow: SlowHome { cell: &cells.slow, pend: self.slow.pend, link: None },
+            slow: SlowHome { cell: &cells.slow, pend: self.slow.pend, snapshot_wanted: None },
             scope: &cells.scope,
             signals: self.signals,
             current: self.current,
@@ -702,13 +726,13 @@ impl<'s> ControlLoop<'s> {
     }
 
     /// Connect the link `link`: the slow context serves its drive commands, the watchdog's
-    /// stop and the snapshots ([`Shared::slow_period`]), the control interrupt the rest
-    /// ([`Shared::control_period`], called with the same `link`). False (nothing changes)
-    /// while the slow side is at its job.
-    pub fn connect(&mut self, link: &'static Shared) -> bool {
+    /// stop and the snapshots ([`SlowLink`]), the control interrupt the rest
+    /// (`crate::interrupt::Shared::control_period`, called with the same link). False
+    /// (nothing changes) while the slow side is at its job.
+    pub fn connect(&mut self, link: &'static dyn SlowLink) -> bool {
         let connected = self.slow.cell.with(|p| p.link = Some(link)).is_some();
         if connected {
-            self.slow.link = Some(link);
+            self.slow.snapshot_wanted = Some(link.snapshot_wanted());
         }
         connected
     }
@@ -851,7 +875,7 @@ impl<'s> ControlLoop<'s> {
     /// The drive's slow step is in flight after the period just stepped — from its tick (or
     /// during the bootstrap pre-charge its shaft's stage, [`FastSide::hold_step`]) up to the
     /// adoption of its plan ([`FastSide::slow_busy`]): the control interrupt serves its own
-    /// share of the link's requests ([`crate::interrupt::Shared::control_period`]) in a period
+    /// share of the link's requests (`crate::interrupt::Shared::control_period`) in a period
     /// after it.
     pub fn slow_busy(&self) -> bool {
         self.fast.slow_busy()
@@ -948,7 +972,7 @@ impl<'s> ControlLoop<'s> {
             self.read_encoder(s.encoder);
             self.note_tick(s);
         }
-        if self.slow.link.is_some_and(Shared::snapshot_wanted) && self.fast.note_due() {
+        if self.slow.snapshot_wanted.is_some_and(|w| w.load(Ordering::Relaxed)) && self.fast.note_due() {
             self.note_snapshot();
         }
         let calibrating = matches!(self.calibration, Calibration::Running(_));

@@ -1,16 +1,18 @@
-//! The control interrupt's body once its samples are read, and what it shares with the link
-//! task — free of the registers (those are behind [`OutputStage`]), so that the code the
-//! board runs every period is the code QEMU counts (`qemu-target`'s `cost
-//! interrupt_period`) and the host tests.
+//! The control interrupt's body once its samples are read, the drive's slow context's part
+//! of the link, and what they share with the link task — free of the registers (those are
+//! behind [`OutputStage`]), so that the code the board runs every period is the code QEMU
+//! counts (`qemu-target`'s `cost interrupt_period`) and the host tests.
 //!
 //! ```text
-//!  Samples ─▶ Outputs::period (break flag → ControlLoop::step → compare values, MOE)
-//!          ─▶ the link watchdog's stop, a posted command (Mailbox)
-//!          ─▶ the snapshot for the link task (TripleBuffer), when it asks for one
+//!  control interrupt:  Samples ─▶ Outputs::period (break flag → ControlLoop::step → compare
+//!                      values, MOE) ─▶ the watchdog's abort of a sequence, a posted
+//!                      commissioning command (Mailbox)
+//!  slow context:       the snapshot (TripleBuffer) ─▶ the slow step's job ─▶ the watchdog's
+//!                      controlled stop, a posted drive command (Mailbox)
 //! ```
 
 use crate::boundary::{Mailbox, TripleBuffer};
-use crate::control::{Bridge, ControlLoop, Samples, SlowPart, Snapshot};
+use crate::control::{Bridge, ControlLoop, Samples, SlowLink, SlowPart, Snapshot};
 use crate::output::{OutputStage, Outputs};
 use crate::server::{self, Prepared};
 use controller_core::drive::DriveMut;
@@ -56,22 +58,16 @@ impl Shared {
         self.snapshot_wanted.store(true, Ordering::Relaxed);
     }
 
-    /// The link task's snapshot request, for the fast context to note its part at the next
-    /// tick ([`crate::control::TickNote`]).
-    pub(crate) fn snapshot_wanted(&self) -> bool {
-        self.snapshot_wanted.load(Ordering::Relaxed)
-    }
-
     /// One control period after the samples are read: the output stage around the control
     /// step ([`Outputs::period`]), then the link's requests that are the fast context's —
     /// the watchdog's abort of a commissioning sequence, and a posted command the slow
-    /// context does not serve ([`server::slow_context_serves`]: the capture's, the
-    /// commissioning's; a drive command only while a sequence runs, which it aborts or is
-    /// refused by). Those wait while the drive's slow step is in flight
+    /// context does not serve ([`server::slow_context_serves`]: the commissioning's; a drive
+    /// command only while a sequence runs, which it aborts or is refused by; the capture's,
+    /// never posted, are refused). Those wait while the drive's slow step is in flight
     /// ([`ControlLoop::slow_busy`]: from its tick to its plan's adoption, a plan's delay at
     /// most), so that the longest period is not the slow step's and theirs. The drive's
     /// commands, the watchdog's controlled stop and the snapshot are the slow context's
-    /// ([`Shared::slow_period`]): nothing of theirs runs here but a load and a test.
+    /// ([`SlowLink`]): nothing of theirs runs here but a load and a test.
     pub fn control_period(
         &self,
         outputs: &mut Outputs,
@@ -96,25 +92,30 @@ impl Shared {
         });
         bridge
     }
+}
 
-    /// The slow context, before the slow step's job on `p` (the slow side held:
-    /// [`crate::control::run_slow`]): the snapshot the link task asked for, made of the fast
-    /// context's note of the tick and the slow side's signals before the job (the same
-    /// period's), published. Out of line: every 10 ms at most.
+/// The slow context's part of the link (`crate::control::run_slow`, the slow side held).
+impl SlowLink for Shared {
+    fn snapshot_wanted(&self) -> &AtomicBool {
+        &self.snapshot_wanted
+    }
+
+    /// The snapshot the link task asked for, made of the fast context's note and the slow
+    /// side's signals before the job (the same period's), published. Out of line: every
+    /// 10 ms at most.
     #[inline(never)]
-    pub fn publish(&self, p: &mut SlowPart) {
+    fn publish(&self, p: &mut SlowPart) {
         if core::mem::take(&mut p.tick.snapshot) {
             self.snapshot.write(p.tick.fast.snapshot(&p.side.signals()));
             self.snapshot_wanted.store(false, Ordering::Relaxed);
         }
     }
 
-    /// The slow context's part of the link, after the slow step's job on `p`: the watchdog's
-    /// controlled stop, and a posted drive command (unless a commissioning sequence ran at
+    /// The watchdog's controlled stop, and a posted drive command (unless a commissioning sequence ran at
     /// the tick: then the fast context's). A command's fast part — the mode, a new run, a
     /// new configuration — is the fast side's at the plan's adoption
     /// ([`DriveMut::slow_only`]); its reply is sent now.
-    pub fn slow_period(&self, p: &mut SlowPart) {
+    fn serve(&self, p: &mut SlowPart) {
         if self.watchdog_stop.load(Ordering::Relaxed) {
             DriveMut::slow_only(&mut p.side).controlled_stop();
             self.watchdog_stop.store(false, Ordering::Relaxed);

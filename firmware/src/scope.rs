@@ -13,12 +13,14 @@
 //! interrupt records, the link reads the capture's state from a mirror the interrupt keeps
 //! (`ReadCapture` then answers with the state and no samples, as before the record is done).
 
-use crate::control::CAPTURE_DEPTH;
 use controller_core::capture::{Capture, CaptureState};
 use controller_core::drive::{FastOutput, Measurements, Telemetry};
 use controller_core::link::{self, BoardCommand, Reply};
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+
+/// Samples in a capture's record (`controller_core::capture`).
+pub const CAPTURE_DEPTH: usize = controller_core::capture::RECORD_SAMPLES;
 
 /// [`Scope`]'s holders: the link task (and while one of its calls has it, lent), the
 /// control interrupt.

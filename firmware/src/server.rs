@@ -201,7 +201,7 @@ pub fn link_task_serves(cmd: &BoardCommand) -> bool {
     matches!(cmd, BoardCommand::ArmCapture(_) | BoardCommand::ReadCapture { .. })
 }
 
-/// Whether the drive's slow context serves `cmd` ([`crate::interrupt::Shared::slow_period`],
+/// Whether the drive's slow context serves `cmd` ([`crate::control::SlowLink::serve`],
 /// after the slow step's job, on the slow side alone): the drive's commands and reads — they
 /// act on the slow side, and their work (a gain write rebuilds the configuration, an enable
 /// a run) stays out of the control interrupt. The commissioning's are the control
