@@ -2,7 +2,7 @@
 """Where the Cortex-M4F's instructions go inside one function of a target program: an
 executed-instruction profile under QEMU, attributed to source lines through the debug info.
 
-    python3 tools/qemu_profile.py [--skip N] [--calls N] [--annotate | --whole] [ELF] [SYMBOL | 0xADDR]
+    python3 tools/qemu_profile.py [--skip N] [--calls N] [--annotate | --whole | --longest K] [ELF] [SYMBOL | 0xADDR]
 
 Defaults: `qemu-target/target/thumbv7em-none-eabihf/firmware/cost` (build it first:
 `cd qemu-target && cargo build --target thumbv7em-none-eabihf --profile firmware --bin cost`,
@@ -28,6 +28,7 @@ tenth of the slow step. QEMU single-steps the whole program: ≈ 10 s for the co
 not run by CI.
 """
 import argparse
+import bisect
 import collections
 import re
 import subprocess
@@ -118,6 +119,74 @@ def profile(elf: Path, start: int, size: int, skip: int, calls: int, entry: int 
         return counts, done
 
 
+def call_sites(elf: Path, start: int) -> set[int]:
+    """The return addresses of every `bl` to `start` in the program (a Thumb-2 `bl` is four
+    bytes): where a call of the function ends."""
+    out = subprocess.run(["llvm-objdump", "-d", "--no-show-raw-insn", str(elf)],
+                         check=True, capture_output=True, text=True).stdout
+    bl = re.compile(rf"^\s*([0-9a-f]+):\s*bl\s+0x{start:x}\b")
+    return {int(m.group(1), 16) + 4 for m in map(bl.match, out.splitlines()) if m}
+
+
+def calls_apart(elf: Path, start: int, ends: set[int], skip: int, calls: int
+                ) -> list[collections.Counter]:
+    """Each call of the function at `start` after the first `skip`, up to `calls` of them,
+    whole — from its entry to its return to a call site (`ends`), callees included — as
+    executions per address."""
+    t0, tsize = text_range(elf)
+    with tempfile.TemporaryDirectory() as tmp:
+        fifo = Path(tmp) / "exec.log"
+        subprocess.run(["mkfifo", str(fifo)], check=True)
+        qemu = subprocess.Popen(
+            ["qemu-system-arm", "-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic",
+             "-semihosting-config", "enable=on,target=native", "-singlestep",
+             "-d", "exec,nochain", "-dfilter", f"{t0:#x}+{tsize:#x}", "-D", str(fifo),
+             "-kernel", str(elf)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        out: list[collections.Counter] = []
+        seen, inside = 0, None
+        pc = re.compile(r"\[[0-9a-f]+/([0-9a-f]+)/")
+        try:
+            with open(fifo) as log:
+                for line in log:
+                    m = pc.search(line)
+                    if not m:
+                        continue
+                    addr = int(m.group(1), 16)
+                    if inside is None:
+                        if addr == start:
+                            seen += 1
+                            if seen > skip + calls:
+                                break
+                            if seen % 500 == 0:
+                                print(f"qemu_profile: {seen} calls", file=sys.stderr)
+                            inside = collections.Counter() if seen > skip else False
+                    elif addr in ends:
+                        if isinstance(inside, collections.Counter):
+                            out.append(inside)
+                        inside = None
+                        continue
+                    if isinstance(inside, collections.Counter):
+                        inside[addr] += 1
+        finally:
+            qemu.kill()
+            qemu.wait()
+        if not out:
+            sys.exit(f"qemu_profile: no whole call after the first {skip} (the program made {seen})")
+        return out
+
+
+def by_function(fns: list[tuple[int, int, str]], counts: collections.Counter) -> collections.Counter:
+    """Executions per address charged to the out-of-line function holding the address."""
+    starts = [f[0] for f in fns]
+    per_fn: collections.Counter = collections.Counter()
+    for addr, c in counts.items():
+        k = bisect.bisect_right(starts, addr) - 1
+        f0, fsize, name = fns[k] if k >= 0 else (0, 0, "?")
+        per_fn[name if f0 <= addr < f0 + max(fsize, 1) else "?"] += c
+    return per_fn
+
+
 def attribute(elf: Path, counts: collections.Counter, outer: tuple[str, ...]):
     addrs = sorted(counts)
     out = subprocess.run(["llvm-addr2line", "-e", str(elf), "-f", "-C", "-i", "-a"],
@@ -162,6 +231,9 @@ def main() -> None:
     ap.add_argument("--top", type=int, default=25)
     ap.add_argument("--annotate", action="store_true",
                     help="also print SYMBOL's executed instructions in address order, each with its executions per call")
+    ap.add_argument("--longest", type=int, metavar="K",
+                    help="each call whole (entry to its return, callees included): the distribution of "
+                         "instructions per call, and the K longest calls and a median one by function")
     ap.add_argument("--whole", action="store_true",
                     help="count every instruction from one call's entry to the next (callees, the caller's loop), by function")
     a = ap.parse_args()
@@ -174,6 +246,23 @@ def main() -> None:
     start, size = symbol_range(elf, a.symbol)
     if a.skip is None:
         a.skip = magnetizing_periods(elf)
+    if a.longest is not None:
+        ends = call_sites(elf, start)
+        if not ends:
+            sys.exit(f"qemu_profile: no `bl` to {a.symbol} in {elf}: inlined everywhere")
+        each = calls_apart(elf, start, ends, a.skip, a.calls)
+        totals = sorted((sum(c.values()), i) for i, c in enumerate(each))
+        q = lambda f: totals[min(len(totals) - 1, int(f * len(totals)))][0]
+        print(f"{a.symbol}: {len(each)} whole calls after {a.skip}; instructions per call: "
+              f"min {totals[0][0]}, median {q(0.5)}, 90 % {q(0.9)}, 99 % {q(0.99)}, max {totals[-1][0]}")
+        fns = functions(elf)
+        median = totals[len(totals) // 2]
+        for total, i in [median] + totals[::-1][:a.longest]:
+            what = "median" if (total, i) == median else "longest"
+            print(f"\ncall {a.skip + i + 1} ({what}): {total} instructions, by function (out of line):")
+            for fn, c in by_function(fns, each[i]).most_common(a.top):
+                print(f"{c:8d}  {fn}")
+        return
     if a.whole:
         t0, tsize = text_range(elf)
         counts, calls = profile(elf, t0, tsize, a.skip, a.calls, entry=start)

@@ -23,7 +23,7 @@
 //! Configuration apart from state: [`Capture::arm`] validates a [`CaptureSpec`] against the
 //! buffer's depth once; [`Capture::record`] never checks anything.
 
-use crate::drive::{FastOutput, Measurements, PhaseCommand, Telemetry};
+use crate::drive::{FastOutput, FastSide, Measurements, PhaseCommand, Telemetry, TelemetryField};
 
 /// Signals per sample.
 pub const CHANNELS: usize = 4;
@@ -190,6 +190,49 @@ impl Signal {
     /// The signal's value in one control period.
     #[inline]
     pub fn value(self, m: &Measurements, out: &FastOutput, t: &Telemetry) -> f32 {
+        match self.field() {
+            Some(k) => t.get(k),
+            None => self.measured(m, out),
+        }
+    }
+
+    /// The drive's signal ([`Telemetry`]'s field) this one is, if it is one; `None` for what
+    /// the period's measurements and output carry ([`Signal::measured`]).
+    #[inline]
+    pub fn field(self) -> Option<TelemetryField> {
+        use TelemetryField as F;
+        Some(match self {
+            Signal::IAlpha => F::IAlpha,
+            Signal::IBeta => F::IBeta,
+            Signal::IRefAlpha => F::IRefAlpha,
+            Signal::IRefBeta => F::IRefBeta,
+            Signal::VAlpha => F::VAlpha,
+            Signal::VBeta => F::VBeta,
+            Signal::ThetaE => F::ThetaE,
+            Signal::OmegaSl => F::OmegaSl,
+            Signal::PsiR => F::PsiR,
+            Signal::PsiRef => F::PsiRef,
+            Signal::IqRef => F::IqRef,
+            Signal::OmegaRef => F::OmegaRef,
+            Signal::RrScale => F::RrScale,
+            Signal::LScale => F::LScale,
+            Signal::IA
+            | Signal::IB
+            | Signal::IC
+            | Signal::Vdc
+            | Signal::OmegaM
+            | Signal::ThetaM
+            | Signal::DutyA
+            | Signal::DutyB
+            | Signal::DutyC
+            | Signal::Mode => return None,
+        })
+    }
+
+    /// The value of a signal that is not the drive's ([`Signal::field`] `None`) in one
+    /// control period: a measurement, a duty or the mode. NaN for a drive's signal.
+    #[inline]
+    pub fn measured(self, m: &Measurements, out: &FastOutput) -> f32 {
         let duty = |k: usize| match out.phases {
             PhaseCommand::Duty(d) => [d.a, d.b, d.c].get(k).copied().unwrap_or(f32::NAN),
             PhaseCommand::Off => f32::NAN,
@@ -201,24 +244,62 @@ impl Signal {
             Signal::Vdc => m.vdc_v,
             Signal::OmegaM => m.omega_m_rad_s,
             Signal::ThetaM => m.theta_m_rad,
-            Signal::IAlpha => t.i_ab_a.alpha,
-            Signal::IBeta => t.i_ab_a.beta,
-            Signal::IRefAlpha => t.i_ref_ab_a.alpha,
-            Signal::IRefBeta => t.i_ref_ab_a.beta,
-            Signal::VAlpha => t.v_ab_v.alpha,
-            Signal::VBeta => t.v_ab_v.beta,
-            Signal::ThetaE => t.theta_e_rad,
-            Signal::OmegaSl => t.omega_sl_rad_s,
-            Signal::PsiR => t.psi_r_wb,
-            Signal::PsiRef => t.psi_ref_wb,
-            Signal::IqRef => t.i_q_ref_a,
-            Signal::OmegaRef => t.omega_ref_rad_s,
-            Signal::RrScale => t.rr_scale,
-            Signal::LScale => t.l_scale,
             Signal::DutyA => duty(0),
             Signal::DutyB => duty(1),
             Signal::DutyC => duty(2),
             Signal::Mode => f32::from(out.mode.code()),
+            _ => f32::NAN,
+        }
+    }
+}
+
+/// Where a recorded sample's signals come from: one control period's, each made when a
+/// channel or the trigger asks for it ([`Capture::record_from`]).
+pub trait Source {
+    /// Signal `s` in this period.
+    fn value(&self, s: Signal) -> f32;
+}
+
+/// A period's measurements, output and telemetry, made whole (the simulators', the
+/// processor-in-the-loop server's; [`Capture::record`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Period<'a> {
+    /// The step's measurements.
+    pub m: &'a Measurements,
+    /// Its output.
+    pub out: &'a FastOutput,
+    /// The drive's signals after it.
+    pub t: &'a Telemetry,
+}
+
+impl Source for Period<'_> {
+    #[inline]
+    fn value(&self, s: Signal) -> f32 {
+        s.value(self.m, self.out, self.t)
+    }
+}
+
+/// A period of the drive's fast side: its measurements and output, and the drive's signals
+/// one by one ([`FastSide::signal`], the slow side's part that of the plan in force) — only
+/// those a channel or the trigger asks for. The firmware's capture, in the control
+/// interrupt: made whole for each sample, the telemetry cost the period ≈ 110 instructions,
+/// and the slow side is not the interrupt's to read while its job runs.
+#[derive(Clone, Copy, Debug)]
+pub struct FastPeriod<'a> {
+    /// The step's measurements.
+    pub m: &'a Measurements,
+    /// Its output.
+    pub out: &'a FastOutput,
+    /// The fast side after it.
+    pub fast: &'a FastSide,
+}
+
+impl Source for FastPeriod<'_> {
+    #[inline]
+    fn value(&self, s: Signal) -> f32 {
+        match s.field() {
+            Some(k) => self.fast.signal(k),
+            None => s.measured(self.m, self.out),
         }
     }
 }
@@ -394,23 +475,41 @@ impl<const DEPTH: usize> Capture<DEPTH> {
     /// that is recorded.
     #[inline]
     pub fn record(&mut self, m: &Measurements, out: &FastOutput, telemetry: impl FnOnce() -> Telemetry) {
+        if self.due() {
+            self.take(&Period { m, out, t: &telemetry() });
+        }
+    }
+
+    /// One control period (call after every step), its signals read from `src` — each only
+    /// if a channel or the trigger of a recorded sample asks for it (the firmware's capture:
+    /// the drive's signals one by one, `FastSide::signal`).
+    #[inline]
+    pub fn record_from(&mut self, src: &impl Source) {
+        if self.due() {
+            self.take(src);
+        }
+    }
+
+    /// This period's sample is recorded: armed or triggered, and not one the decimation skips.
+    #[inline(always)]
+    fn due(&mut self) -> bool {
         if matches!(self.state, CaptureState::Idle | CaptureState::Done) {
-            return;
+            return false;
         }
         if self.skip > 0 {
             self.skip -= 1;
-            return;
+            return false;
         }
-        self.take(m, out, &telemetry());
+        true
     }
 
     /// A recorded sample: into the ring, then the trigger or the countdown.
     #[inline(never)]
-    fn take(&mut self, m: &Measurements, out: &FastOutput, t: &Telemetry) {
+    fn take(&mut self, src: &impl Source) {
         let s = &self.spec;
         self.skip = s.decimation.saturating_sub(1);
         if let Some(slot) = self.ring.get_mut(self.head) {
-            *slot = s.signals.map(|x| x.value(m, out, t));
+            *slot = s.signals.map(|x| src.value(x));
         }
         self.head = if self.head + 1 >= DEPTH { 0 } else { self.head + 1 };
         self.filled = (self.filled + 1).min(DEPTH);
@@ -419,7 +518,7 @@ impl<const DEPTH: usize> Capture<DEPTH> {
                 let fired = match s.trigger {
                     Trigger::Immediate => true,
                     Trigger::Level { signal, edge, level } => {
-                        let (was, now) = (self.last, signal.value(m, out, t));
+                        let (was, now) = (self.last, src.value(signal));
                         self.last = now;
                         let rising = (was < level && now >= level) || (was == level && now > level);
                         let falling = (was > level && now <= level) || (was == level && now < level);

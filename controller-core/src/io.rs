@@ -105,6 +105,84 @@ pub struct Telemetry {
     pub l_scale: f32,
 }
 
+/// One field of [`Telemetry`], named: what reads one signal of a step without making them
+/// all (the firmware's capture: `crate::drive::FastSide::signal`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TelemetryField {
+    /// [`Telemetry::i_ab_a`]'s α.
+    IAlpha,
+    /// [`Telemetry::i_ab_a`]'s β.
+    IBeta,
+    /// [`Telemetry::i_ref_ab_a`]'s α.
+    IRefAlpha,
+    /// [`Telemetry::i_ref_ab_a`]'s β.
+    IRefBeta,
+    /// [`Telemetry::v_ab_v`]'s α.
+    VAlpha,
+    /// [`Telemetry::v_ab_v`]'s β.
+    VBeta,
+    /// [`Telemetry::theta_e_rad`].
+    ThetaE,
+    /// [`Telemetry::omega_sl_rad_s`].
+    OmegaSl,
+    /// [`Telemetry::psi_r_wb`].
+    PsiR,
+    /// [`Telemetry::psi_ref_wb`].
+    PsiRef,
+    /// [`Telemetry::i_q_ref_a`].
+    IqRef,
+    /// [`Telemetry::omega_ref_rad_s`].
+    OmegaRef,
+    /// [`Telemetry::rr_scale`].
+    RrScale,
+    /// [`Telemetry::l_scale`].
+    LScale,
+}
+
+impl TelemetryField {
+    /// Every field.
+    pub const ALL: [TelemetryField; 14] = [
+        TelemetryField::IAlpha,
+        TelemetryField::IBeta,
+        TelemetryField::IRefAlpha,
+        TelemetryField::IRefBeta,
+        TelemetryField::VAlpha,
+        TelemetryField::VBeta,
+        TelemetryField::ThetaE,
+        TelemetryField::OmegaSl,
+        TelemetryField::PsiR,
+        TelemetryField::PsiRef,
+        TelemetryField::IqRef,
+        TelemetryField::OmegaRef,
+        TelemetryField::RrScale,
+        TelemetryField::LScale,
+    ];
+}
+
+impl Telemetry {
+    /// The field `k`.
+    #[inline]
+    pub fn get(&self, k: TelemetryField) -> f32 {
+        use TelemetryField as F;
+        match k {
+            F::IAlpha => self.i_ab_a.alpha,
+            F::IBeta => self.i_ab_a.beta,
+            F::IRefAlpha => self.i_ref_ab_a.alpha,
+            F::IRefBeta => self.i_ref_ab_a.beta,
+            F::VAlpha => self.v_ab_v.alpha,
+            F::VBeta => self.v_ab_v.beta,
+            F::ThetaE => self.theta_e_rad,
+            F::OmegaSl => self.omega_sl_rad_s,
+            F::PsiR => self.psi_r_wb,
+            F::PsiRef => self.psi_ref_wb,
+            F::IqRef => self.i_q_ref_a,
+            F::OmegaRef => self.omega_ref_rad_s,
+            F::RrScale => self.rr_scale,
+            F::LScale => self.l_scale,
+        }
+    }
+}
+
 /// Output of one fast step (its signals: `Drive::telemetry`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FastOutput {

@@ -286,7 +286,20 @@ impl BoardTable {
 
     /// Validate against the drive; errors point at the value.
     pub fn validate(&self, src: &Source<'_>, spec: &DriveSpec) -> Result<Board, FileError> {
-        src.check(self.tim_clock_hz > 0, "board.tim_clock_hz", "must be > 0")?;
+        // The firmware clocks the core and TIM1 (on APB2, undivided) at one frequency, and
+        // the slow step's schedule — the plan's delay, the highest PWM rate — is timed on the
+        // core's (`controller_core::drive::plan_delay_periods`): a board file at another clock
+        // would build a firmware whose timer and schedule disagree with the file.
+        let core_hz = controller_core::drive::CORE_CLOCK_HZ;
+        src.check(
+            f64::from(self.tim_clock_hz) == core_hz,
+            "board.tim_clock_hz",
+            &format!(
+                "must be the core's clock, {:.0} MHz (controller_core::drive::CORE_CLOCK_HZ): the firmware \
+                 runs TIM1 on it, and the slow step's schedule is timed on it",
+                core_hz / 1e6
+            ),
+        )?;
         let f_tim = f64::from(self.tim_clock_hz);
         // Centre-aligned: the counter runs 0 → ARR → 0, a period of 2·ARR ticks (not
         // 2·(ARR + 1): with ARR = f_tim/(2·f) − 1 the PWM ran at 20 004.7 Hz, issue 19).

@@ -583,6 +583,18 @@ mod tests {
         }
     }
 
+    /// A board clock that is not the core's (the firmware's TIM1 clock and the schedule's) is
+    /// refused at its key, naming the core's.
+    #[test]
+    fn a_board_clock_other_than_the_cores_is_refused() {
+        let text = SHIPPED.replace("tim_clock_hz = 170000000", "tim_clock_hz = 150000000");
+        assert_ne!(text, SHIPPED);
+        let e = err(&text);
+        assert_eq!(e.key.as_deref(), Some("board.tim_clock_hz"), "{e}");
+        assert!(e.to_string().contains("170 MHz"), "{e}");
+        assert_eq!(e.at.map(|(line, _)| line), Some(pos(&text, "tim_clock_hz = 150000000").0), "{e}");
+    }
+
     /// Dead-time compensation takes the board's dead time, and needs a board.
     #[test]
     fn dead_time_compensation_takes_the_boards_dead_time() {

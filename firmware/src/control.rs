@@ -47,6 +47,7 @@ use crate::scope::Scope;
 use controller_core::calibration::{
     CalibrationConfig, CalibrationConfigError, CalibrationError, OffsetCalibration, Offsets,
 };
+use controller_core::capture::FastPeriod;
 #[cfg(feature = "commissioning")]
 use controller_core::commission::{CommissionConfig, CommissionOutput, Commissioning, Record, Stage};
 use controller_core::drive::RawDriveConfig;
@@ -416,6 +417,11 @@ struct SlowHome<'s> {
     /// The snapshot request of the link the cell's slow context serves
     /// ([`ControlLoop::connect`]), for the fast context's check without the cell.
     snapshot_wanted: Option<&'static AtomicBool>,
+    /// What the tick's period notes for the slow context beside the job ([`TickNote`]'s
+    /// readings and whether a sequence runs), set before the step and written with the job
+    /// (in a borrow of the cell of its own, it cost the tick's period ≈ 20 instructions).
+    readings: BoardReadings,
+    commissioning: bool,
 }
 
 impl SlowContext for SlowHome<'_> {
@@ -423,8 +429,13 @@ impl SlowContext for SlowHome<'_> {
         self.cell.with(|p| f(&mut p.side)).is_some()
     }
 
-    fn start(&mut self) -> bool {
-        let handed = self.cell.hand_over();
+    fn start(&mut self, latch: &mut dyn FnMut(&mut SlowSide)) -> bool {
+        let (readings, commissioning) = (self.readings, self.commissioning);
+        let latched = self.cell.with(|p| {
+            latch(&mut p.side);
+            (p.tick.readings, p.tick.commissioning) = (readings, commissioning);
+        });
+        let handed = latched.is_some() && self.cell.hand_over();
         if handed {
             (self.pend)(self.cell);
         }
@@ -439,9 +450,6 @@ pub struct ControlLoop<'s> {
     board: BoardConfig,
     fast: FastSide,
     slow: SlowHome<'s>,
-    /// The slow side's part of the drive's signals as last read (the capture's, for the
-    /// periods in which the slow side is at its job).
-    signals: SlowSignals,
     /// Phase-current channels a, b, c (their zeros from the calibration).
     current: [AdcScaling; 3],
     calibration_cfg: CalibrationConfig,
@@ -616,9 +624,14 @@ impl<'s> ControlLoop<'s> {
         Self {
             board: *board,
             fast,
-            slow: SlowHome { cell: &cells.slow, pend, snapshot_wanted: None },
+            slow: SlowHome {
+                cell: &cells.slow,
+                pend,
+                snapshot_wanted: None,
+                readings: BoardReadings::default(),
+                commissioning: false,
+            },
             scope: &cells.scope,
-            signals: SlowSignals::default(),
             current: [p.current; 3],
             calibration_cfg: p.calibration_cfg,
             calibration: Calibration::Running(OffsetCalibration::default()),
@@ -696,9 +709,8 @@ impl<'s> ControlLoop<'s> {
         Some(ControlLoop {
             board: self.board,
             fast: self.fast,
-            slow: SlowHome { cell: &cells.slow, pend: self.slow.pend, snapshot_wanted: None },
+            slow: SlowHome { cell: &cells.slow, snapshot_wanted: None, ..self.slow },
             scope: &cells.scope,
-            signals: self.signals,
             current: self.current,
             calibration_cfg: self.calibration_cfg,
             calibration: self.calibration,
@@ -764,9 +776,9 @@ impl<'s> ControlLoop<'s> {
     }
 
     /// The drive's signals after the last step ([`DriveRef::telemetry`]), the slow side's
-    /// part as last read while it is at its job.
+    /// part that of the plan in force ([`FastSide::plan_signals`]) while it is at its job.
     pub fn telemetry(&self) -> Telemetry {
-        let s = self.slow.cell.with(|p| p.side.signals()).unwrap_or(self.signals);
+        let s = self.slow.cell.with(|p| p.side.signals()).unwrap_or(self.fast.plan_signals());
         self.fast.telemetry_with(&s)
     }
 
@@ -940,8 +952,9 @@ impl<'s> ControlLoop<'s> {
             // The capture's sample of this period: the drive's last telemetry, the duties
             // applied (the low sides on).
             let applied = FastOutput { phases: PhaseCommand::Duty(Abc { a: 0.0, b: 0.0, c: 0.0 }), ..*o };
-            let (fast, slow, held) = (&self.fast, &self.slow, &mut self.signals);
-            self.scope.record(&m, &applied, || telemetry(fast, slow, held));
+            if self.scope.recording() {
+                self.record(&m, &applied);
+            }
         }
         if matches!(self.fast.mode(), Mode::Fault(_)) {
             self.precharge_left = 0;
@@ -982,8 +995,9 @@ impl<'s> ControlLoop<'s> {
         let m = self.measurements(s);
         let out = self.fast.step(&m, &mut self.slow);
         self.last = Some(out);
-        let (fast, slow, held) = (&self.fast, &self.slow, &mut self.signals);
-        self.scope.record(&m, &out, || telemetry(fast, slow, held));
+        if self.scope.recording() {
+            self.record(&m, &out);
+        }
         #[cfg(feature = "commissioning")]
         if let Some((c, last)) = self.commission.as_mut().filter(|(c, _)| !c.stage().is_over()) {
             if matches!(out.mode, Mode::Fault(_)) {
@@ -1022,16 +1036,14 @@ impl<'s> ControlLoop<'s> {
     }
 
     /// What the slow context needs beside the job of this period's tick ([`TickNote`]): the
-    /// period's raw samples and whether a sequence runs. Nothing if the slow side is not back
-    /// (the tick latches `Overrun`).
+    /// period's raw samples and whether a sequence runs, written with the job
+    /// ([`SlowContext::start`]; nothing if the slow side is not back: the tick latches
+    /// `Overrun`).
     #[inline(always)]
     fn note_tick(&mut self, s: &Samples) {
-        let commissioning = self.commissioning();
-        let readings = BoardReadings { i_abc_counts: s.i_abc, vdc_counts: s.vdc, encoder_counts: s.encoder };
-        self.slow.cell.with(|p| {
-            p.tick.readings = readings;
-            p.tick.commissioning = commissioning;
-        });
+        self.slow.commissioning = self.commissioning();
+        self.slow.readings =
+            BoardReadings { i_abc_counts: s.i_abc, vdc_counts: s.vdc, encoder_counts: s.encoder };
     }
 
     /// The fast part of the snapshot the link task asked for, noted for the next job's slow
@@ -1057,22 +1069,19 @@ impl<'s> ControlLoop<'s> {
         n.bridge_on = self.fast.mode().is_active() || commissioning;
     }
 
+    /// The capture's sample of this period ([`Scope::record`]), while it records: out of
+    /// line, so that a period without it keeps its values in registers (inlined, the
+    /// sample's source cost every period ≈ 10 instructions).
+    #[inline(never)]
+    fn record(&self, m: &Measurements, out: &FastOutput) {
+        self.scope.record(&FastPeriod { m, out, fast: &self.fast });
+    }
+
     fn read_encoder(&mut self, raw: u16) {
         let r = self.encoder_cfg.update(&mut self.encoder, raw);
         self.theta_m_rad = r.theta_m_rad;
         self.omega_m_rad_s = r.omega_m_rad_s;
     }
-}
-
-/// The drive's signals for the capture: the slow side's part read if it is back, else the
-/// one `held` from the last read (the slow step's job is running). Apart from
-/// [`ControlLoop::telemetry`], which keeps nothing: one helper for both, measured, cost the
-/// capture-armed period 120 instructions (`cost worst:capture_armed_top_speed`, 1 080 → 1 200).
-fn telemetry(fast: &FastSide, slow: &SlowHome<'_>, held: &mut SlowSignals) -> Telemetry {
-    if let Some(s) = slow.cell.with(|p| p.side.signals()) {
-        *held = s;
-    }
-    fast.telemetry_with(held)
 }
 
 #[cfg(test)]
@@ -1462,12 +1471,12 @@ pub(crate) mod tests {
     }
 
     /// The capture in a slow step's periods, its job run by a slow context of its own after
-    /// the period (the board's order): the drive's outputs as with the job run at its tick;
-    /// the signals' slow part — here the rotor-flux estimate, which the slow step's flux
-    /// model moves — in the tick's period is the last read before the job (the slow side is
-    /// at its job), then the job's.
+    /// the period (the board's order) or at once at its tick: the same record bit for bit —
+    /// the drive's outputs, and the signals' slow part (here the rotor-flux estimate, which
+    /// the slow step's flux model moves) that of the plan in force, which changes at the
+    /// plan's adoptions only, whenever the job ran.
     #[test]
-    fn the_capture_reads_the_slow_part_held_while_the_slow_step_runs() {
+    fn the_capture_reads_the_slow_part_of_the_plan_in_force() {
         use controller_core::capture::{CaptureSpec, CaptureState, Signal, Trigger};
         use core::sync::atomic::{AtomicBool, Ordering};
         static PENDING: AtomicBool = AtomicBool::new(false);
@@ -1515,10 +1524,11 @@ pub(crate) mod tests {
                 .unwrap()
                 .unwrap();
             assert_eq!(c.scope().serve(&BoardCommand::ArmCapture(capture)), Some(Reply::Ack));
-            let mut ticks = std::vec::Vec::new();
+            let mut adoptions = std::vec::Vec::new();
             for k in 0..CAPTURE_DEPTH {
-                ticks.push(c.fast().slow_step_due());
+                let busy = c.slow_busy();
                 assert!(!matches!(step(&mut c), Bridge::Off), "period {k}");
+                adoptions.push(busy && !c.slow_busy());
             }
             assert_eq!(c.scope().state(), CaptureState::Done);
             let chunks: std::vec::Vec<_> = (0..controller_core::capture::Capture::<CAPTURE_DEPTH>::CHUNKS)
@@ -1528,19 +1538,21 @@ pub(crate) mod tests {
                 let at = (k % 8) * 16 + 4 * s;
                 f32::from_le_bytes(chunks[k / 8][at..at + 4].try_into().unwrap())
             };
-            (ticks, signal)
+            (adoptions, signal)
         };
-        let (ticks, at_once) = run(run_slow);
+        let (adoptions, at_once) = run(run_slow);
         let (_, apart) = run(deferred);
-        let mut held = 0;
-        for (k, &tick) in ticks.iter().enumerate().skip(1) {
-            assert_eq!(at_once(k, 0).to_bits(), apart(k, 0).to_bits(), "duty, sample {k}");
-            assert_eq!(at_once(k, 2).to_bits(), apart(k, 2).to_bits(), "i_alpha, sample {k}");
-            let expected = if tick { at_once(k - 1, 1) } else { at_once(k, 1) };
-            assert_eq!(apart(k, 1).to_bits(), expected.to_bits(), "the flux estimate, sample {k}");
-            held += usize::from(tick && at_once(k, 1) != at_once(k - 1, 1));
+        let mut moved = 0;
+        for (k, &adoption) in adoptions.iter().enumerate() {
+            for (s, name) in [(0, "duty"), (1, "the flux estimate"), (2, "i_alpha"), (3, "mode")] {
+                assert_eq!(at_once(k, s).to_bits(), apart(k, s).to_bits(), "{name}, sample {k}");
+            }
+            if k > 0 && at_once(k, 1) != at_once(k - 1, 1) {
+                assert!(adoption, "the flux estimate moved at sample {k}, not an adoption");
+                moved += 1;
+            }
         }
-        assert!(held > 5, "the flux estimate moves across the ticks: {held}");
+        assert!(moved > 5, "the flux estimate moves at the adoptions: {moved}");
     }
 
     /// A fork (the benchmarks' copy of a loop) steps as its original, on a slow side of its

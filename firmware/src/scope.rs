@@ -13,8 +13,7 @@
 //! interrupt records, the link reads the capture's state from a mirror the interrupt keeps
 //! (`ReadCapture` then answers with the state and no samples, as before the record is done).
 
-use controller_core::capture::{Capture, CaptureState};
-use controller_core::drive::{FastOutput, Measurements, Telemetry};
+use controller_core::capture::{Capture, CaptureState, Source};
 use controller_core::link::{self, BoardCommand, Reply};
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
@@ -58,19 +57,24 @@ impl Scope {
         }
     }
 
-    /// The control interrupt, after each step: one period's measurements, output and
-    /// signals (made only for a recorded sample) into the capture if it holds it; the
-    /// capture back to the link once the record is done or the link asks for it. One load
-    /// when it does not hold it.
-    #[inline]
-    pub fn record(&self, m: &Measurements, out: &FastOutput, telemetry: impl FnOnce() -> Telemetry) {
-        if self.owner.load(Ordering::Acquire) != RECORDING {
+    /// The control interrupt holds the capture: it records ([`Scope::record`]). One load.
+    #[inline(always)]
+    pub fn recording(&self) -> bool {
+        self.owner.load(Ordering::Acquire) == RECORDING
+    }
+
+    /// The control interrupt, after each step: one period's signals, read from `src` only
+    /// for a recorded sample, into the capture if it holds it ([`Scope::recording`]: the
+    /// caller asks first, and makes `src` only then); the capture back to the link once the
+    /// record is done or the link asks for it.
+    pub fn record(&self, src: &impl Source) {
+        if !self.recording() {
             return;
         }
         // SAFETY: RECORDING: the interrupt holds the capture (the link task does not touch
         // it until the Release store below), and this is the only borrow.
         let c = unsafe { &mut *self.capture.get() };
-        c.record(m, out, telemetry);
+        c.record_from(src);
         let state = c.state();
         self.state.store(state.code(), Ordering::Relaxed);
         if state == CaptureState::Done || self.recall.load(Ordering::Relaxed) {
@@ -101,10 +105,11 @@ impl Scope {
                 }
                 reply
             }
-            BoardCommand::ReadCapture { chunk } => Some(
-                self.lend(|c| (link::read_capture(c, *chunk), false))
-                    .unwrap_or_else(|| link::capture_reply::<CAPTURE_DEPTH>(self.recording(), *chunk, None)),
-            ),
+            BoardCommand::ReadCapture { chunk } => {
+                Some(self.lend(|c| (link::read_capture(c, *chunk), false)).unwrap_or_else(|| {
+                    link::capture_reply::<CAPTURE_DEPTH>(self.recording_state(), *chunk, None)
+                }))
+            }
             _ => None,
         }
     }
@@ -117,11 +122,11 @@ impl Scope {
 
     /// The capture's state as the link's side sees it.
     pub fn state(&self) -> CaptureState {
-        self.with_capture(Capture::state).unwrap_or_else(|| self.recording())
+        self.with_capture(Capture::state).unwrap_or_else(|| self.recording_state())
     }
 
     /// The state the interrupt last left while it records.
-    fn recording(&self) -> CaptureState {
+    fn recording_state(&self) -> CaptureState {
         CaptureState::from_code(self.state.load(Ordering::Relaxed)).unwrap_or(CaptureState::Armed)
     }
 
@@ -152,8 +157,9 @@ impl core::fmt::Debug for Scope {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use controller_core::capture::Period;
     use controller_core::capture::{CHUNK_BYTES, CaptureSpec, Edge, Signal, Trigger};
-    use controller_core::drive::{Mode, PhaseCommand};
+    use controller_core::drive::{FastOutput, Measurements, Mode, PhaseCommand, Telemetry};
 
     fn spec(trigger: Trigger) -> CaptureSpec {
         CaptureSpec { signals: [Signal::IA; 4], trigger, pre_samples: 0, decimation: 1 }
@@ -166,7 +172,7 @@ mod tests {
             ..Default::default()
         };
         let out = FastOutput { phases: PhaseCommand::Off, mode: Mode::Idle, brake: false };
-        s.record(&m, &out, Telemetry::default);
+        s.record(&Period { m: &m, out: &out, t: &Telemetry::default() });
     }
 
     /// Armed by the link, the capture is the interrupt's: it records every period, the link

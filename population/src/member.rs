@@ -118,8 +118,9 @@ impl Board {
 /// run 3 µs IGBTs at 20 kHz (the drive file refuses more than 5 %).
 pub const DEAD_TIME_MAX_SHARE: f64 = 0.04;
 
-/// The boards' PWM timer clock, Hz (the STM32G474's TIM1 at 170 MHz).
-pub const TIM_CLOCK_HZ: f64 = 170e6;
+/// The boards' PWM timer clock, Hz: the core's, on which the firmware runs TIM1 (the drive file
+/// refuses another).
+pub const TIM_CLOCK_HZ: f64 = controller_core::drive::CORE_CLOCK_HZ;
 
 /// The centre-aligned PWM rate nearest `hz` that a whole number of timer ticks makes.
 pub fn timer_rate_hz(hz: f64) -> f64 {

@@ -101,6 +101,7 @@ impl FastSide {
             self.obey(s);
         }
         self.state.trip_from(s.state.mode);
+        self.plan_signals = s.plan_signals;
         DriveMut::new(self, s).sync();
     }
 }

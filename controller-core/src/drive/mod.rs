@@ -72,7 +72,9 @@ mod tests;
 pub(crate) use tests::test_spec;
 
 pub use crate::fault::{Fault, FaultSet, Mode};
-pub use crate::io::{CommandError, FastOutput, Measurements, PhaseCommand, Reference, Telemetry};
+pub use crate::io::{
+    CommandError, FastOutput, Measurements, PhaseCommand, Reference, Telemetry, TelemetryField,
+};
 pub use crate::supervisor::encoder::{ENCODER_RESIDUAL_FRACTION, PINNED_FIELD_TURN_RAD, PINNED_PHASE_COS};
 pub use crate::supervisor::motion::{
     FOLLOWING_PROGRESS_FRACTION, STALL_REFERENCE_FACTOR, STALL_SPEED_FRACTION,
@@ -161,6 +163,9 @@ pub struct FastSide {
     state: FastState,
     cfg: DriveConfig,
     vhz: VhzRun,
+    /// The slow side's signals of the plan in force, adopted with it
+    /// ([`SlowSide`]'s `plan_signals`): the slow part of [`FastSide::signal`].
+    plan_signals: SlowSignals,
 }
 
 /// The slow context's half of a [`Drive`]: the loops of the outer rates, the machine's
@@ -172,6 +177,9 @@ pub struct SlowSide {
     cfg: DriveConfig,
     job: Option<SlowJob>,
     order: Order,
+    /// Its signals as its last job left them ([`SlowSide::signals`]): the plan's, which the
+    /// fast side adopts with it.
+    plan_signals: SlowSignals,
 }
 
 /// What a command on the slow side asks of the fast side ([`DriveMut`]): taken at once when
@@ -214,9 +222,11 @@ pub trait SlowContext {
     /// `f` on the slow side if the fast context holds it now; false while it is lent to its
     /// job.
     fn with(&mut self, f: &mut dyn FnMut(&mut SlowSide)) -> bool;
-    /// Start the job just latched into the slow side ([`SlowSide::run`]): run it now, or
-    /// hand the slow side to its context. False if it could not be started.
-    fn start(&mut self) -> bool;
+    /// The tick: `latch` writes the job into the slow side, which is then started
+    /// ([`SlowSide::run`]): run now, or the slow side handed to its context — in one borrow
+    /// of it (the board's context notes there what its slow context serves beside the job).
+    /// False if the slow side is not back or could not be handed over.
+    fn start(&mut self, latch: &mut dyn FnMut(&mut SlowSide)) -> bool;
 }
 
 /// The simulator's: the slow side beside the fast one, its job run at its tick.
@@ -226,7 +236,8 @@ impl SlowContext for SlowSide {
         true
     }
 
-    fn start(&mut self) -> bool {
+    fn start(&mut self, latch: &mut dyn FnMut(&mut SlowSide)) -> bool {
+        latch(self);
         self.run();
         true
     }
@@ -339,6 +350,7 @@ impl SlowSide {
         if let Some(job) = &self.job {
             self.state.step(&self.cfg, &job.inputs, job.vhz.as_ref());
             self.job = None;
+            self.plan_signals = self.signals();
         }
     }
 }
@@ -874,6 +886,7 @@ impl Drive {
             },
             cfg,
             vhz: VhzRun::default(),
+            plan_signals: SlowSignals::default(),
         };
         let slow = SlowSide {
             state: SlowState {
@@ -889,6 +902,7 @@ impl Drive {
             cfg,
             job: None,
             order: Order::default(),
+            plan_signals: SlowSignals::default(),
         };
         Self { fast, slow }
     }
@@ -1513,7 +1527,7 @@ impl FastSide {
     /// side is not back. Out of line: once per slow period.
     #[inline(never)]
     fn tick(&mut self, m: &Measurements, slow: &mut dyn SlowContext) {
-        if !(slow.with(&mut |s| self.latch(m, s)) && slow.start()) {
+        if !slow.start(&mut |s| self.latch(m, s)) {
             self.state.trip(Fault::Overrun);
         }
     }
@@ -1538,6 +1552,7 @@ impl FastSide {
             self.obey(s);
         }
         self.state.adopt(&s.state);
+        self.plan_signals = s.plan_signals;
         if self.cfg.vhz_on() {
             self.vhz.adopt(&s.state.run.vhz_plan);
         }
@@ -1572,10 +1587,47 @@ impl FastSide {
     }
 
     /// The signals of the last fast step ([`DriveRef::telemetry`]) with the slow side's part
-    /// `s`. Out of line: its callers (the firmware's capture and link stream) take it rarely.
+    /// `s`. Out of line: its callers (the link's stream, the snapshot) take it rarely.
     #[inline(never)]
     pub fn telemetry_with(&self, s: &SlowSignals) -> Telemetry {
         self.signals().join(s)
+    }
+
+    /// The slow side's signals of the plan in force: as the job that made the plan left them,
+    /// adopted with it (the slow side's own, [`SlowSide::signals`], move at the job's end and
+    /// with a command).
+    pub fn plan_signals(&self) -> SlowSignals {
+        self.plan_signals
+    }
+
+    /// One field `k` of the last step's signals with the plan's slow part — of
+    /// [`FastSide::telemetry_with`] on [`FastSide::plan_signals`], bit for bit — made alone:
+    /// what the firmware's capture records (the whole telemetry made for a sample, and the
+    /// slow side's part read through its hand-off, cost the capture's period ≈ 110
+    /// instructions). The currents, the voltage and the slow part's own fields are read; the
+    /// field's angle, slip, flux and q reference, which depend on the law that ran the step,
+    /// are the whole join's (out of line).
+    #[inline]
+    pub fn signal(&self, k: TelemetryField) -> f32 {
+        use TelemetryField as F;
+        let s = &self.plan_signals;
+        if !self.state.mode.is_active() {
+            return Telemetry::default().get(k);
+        }
+        let last = &self.state.run.last;
+        match k {
+            F::IAlpha => last.i_ab.alpha,
+            F::IBeta => last.i_ab.beta,
+            F::IRefAlpha => last.i_ref_ab.alpha,
+            F::IRefBeta => last.i_ref_ab.beta,
+            F::VAlpha => last.v_ab.alpha,
+            F::VBeta => last.v_ab.beta,
+            F::PsiRef => s.psi_ref_wb,
+            F::OmegaRef => s.omega_ref_rad_s,
+            F::RrScale => s.rr_scale,
+            F::LScale => s.l_scale,
+            F::ThetaE | F::OmegaSl | F::PsiR | F::IqRef => self.telemetry_with(s).get(k),
+        }
     }
 
     /// Its part of the drive's signals after the last step: what the board's fast context

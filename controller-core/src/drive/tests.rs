@@ -326,8 +326,8 @@ impl SlowContext for Deferred {
         !self.lent
     }
 
-    fn start(&mut self) -> bool {
-        !std::mem::replace(&mut self.lent, true)
+    fn start(&mut self, latch: &mut dyn FnMut(&mut SlowSide)) -> bool {
+        self.with(latch) && !std::mem::replace(&mut self.lent, true)
     }
 }
 
@@ -2076,4 +2076,74 @@ fn a_raw_speed_search_without_the_observer_is_refused() {
         DriveConfig::new(&DriveSpec { speed_feedback: SpeedFeedback::Sensorless, ..test_spec() }).unwrap();
     assert!(sensorless.search_slow_steps > 0);
     assert_eq!(DriveConfig::from_raw(&sensorless.to_raw()), Ok(sensorless));
+}
+
+/// One signal made alone ([`FastSide::signal`], the firmware capture's) is its field of the
+/// whole telemetry on the plan's slow part bit for bit, in every period: magnetizing, Running on the field
+/// orientation under a torque step, the rotating-current test (its own angle, no slip),
+/// V/Hz (the law's frame, slip and flux), and Idle after a disable (all zero).
+#[test]
+fn one_signal_is_its_field_of_the_telemetry() {
+    let vhz = DriveSpec { control: Control::VHz { ramp_rad_s2: 100.0, k_u: 1.0, k_w: 4.0 }, ..test_spec() };
+    let test = Reference::RotatingCurrent { amplitude_a: 2.0, omega_rad_s: 50.0 };
+    let cases = [(test_spec(), Reference::Torque(1.5)), (test_spec(), test), (vhz, Reference::Speed(20.0))];
+    for (spec, reference) in cases {
+        let ts = (1.0 / spec.pwm_frequency_hz) as f32;
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        d.enable().unwrap();
+        let mut i = Abc::default();
+        let mut seen = [false; 3];
+        for k in 0..6_000 {
+            if d.mode() == Mode::Running && !seen[1] {
+                d.set_reference(reference).unwrap();
+                seen[1] = true;
+            }
+            if k == 5_000 {
+                d.disable();
+            }
+            let m = Measurements { i_abc_a: i, vdc_v: 310.0, omega_m_rad_s: 2.0, ..Default::default() };
+            if let PhaseCommand::Duty(duty) = d.step(&m).phases {
+                i = rl_step(i, duty, 310.0, 16.2, 0.1, ts);
+            }
+            seen[0] |= d.mode() == Mode::Magnetizing;
+            seen[2] |= d.mode() == Mode::Idle && k > 5_000;
+            let (fast, _) = d.into_parts();
+            let t = fast.telemetry_with(&fast.plan_signals());
+            for f in TelemetryField::ALL {
+                assert_eq!(fast.signal(f).to_bits(), t.get(f).to_bits(), "{f:?}, period {k}, {reference:?}");
+            }
+        }
+        assert_eq!(seen, [true; 3], "{reference:?}: magnetizing, the reference taken, idle");
+    }
+}
+
+/// The fast side's slow signals ([`FastSide::plan_signals`]) are those the job left that made
+/// the plan in force: taken at its adoption, a plan's delay after the tick, and held until
+/// the next — through magnetizing and a torque step, where they move.
+#[test]
+fn the_plans_signals_are_its_jobs_taken_at_the_adoption() {
+    let mut d = drive();
+    d.enable().unwrap();
+    let (mut made, mut in_force) = (SlowSignals::default(), SlowSignals::default());
+    let (mut adoptions, mut moved) = (0, 0);
+    let mut i = Abc::default();
+    for k in 0..6_000 {
+        if k == 3_000 {
+            d.set_reference(Reference::Torque(1.5)).unwrap();
+        }
+        let (due, busy) = (d.fast.slow_step_due(), d.fast.slow_busy());
+        let m = Measurements { i_abc_a: i, vdc_v: 310.0, ..Default::default() };
+        if let PhaseCommand::Duty(duty) = d.step(&m).phases {
+            i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+        }
+        if due {
+            made = d.slow.signals(); // the simulator runs the job at its tick
+        }
+        if busy && !d.fast.slow_busy() {
+            moved += usize::from(made != in_force);
+            (in_force, adoptions) = (made, adoptions + 1);
+        }
+        assert_eq!(d.fast.plan_signals(), in_force, "period {k}");
+    }
+    assert!(adoptions > 100 && moved > 50, "{adoptions} adoptions, the signals moved at {moved}");
 }

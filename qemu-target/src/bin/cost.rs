@@ -30,7 +30,7 @@
 
 #[cfg(target_os = "none")]
 mod target {
-    use controller_core::capture::{Capture, CaptureSpec, Edge, RECORD_SAMPLES, Signal, Trigger};
+    use controller_core::capture::{Capture, CaptureSpec, Edge, FastPeriod, RECORD_SAMPLES, Signal, Trigger};
     use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
     use controller_core::discretize::Discretization;
     use controller_core::drive::{
@@ -938,21 +938,31 @@ mod target {
             black_box(pwm.compare3(Abc { a: d, b: d * 0.5, c: 1.0 - d }));
         });
         // The capture (issue 19), as the firmware calls it after every step: a recorded
-        // sample of four signals with the drive's telemetry made for it (armed on a trigger
-        // that never fires, so it records on), and the call while nothing is armed.
+        // sample of four signals, the drive's each made alone (`FastPeriod`; armed on a
+        // trigger that never fires, so it records on), and the call while nothing is armed.
         let out = FastOutput {
             phases: PhaseCommand::Duty(Abc { a: 0.4, b: 0.5, c: 0.6 }),
             mode: Mode::Running,
             brake: false,
         };
         let mut capture = Capture::<RECORD_SAMPLES>::new();
+        let (fast_side, _) = drive.into_parts();
         let capture_idle = per_call(&ticks, |k| {
-            capture.record(black_box(&measure(input(k), k)), black_box(&out), || drive.telemetry());
+            capture.record_from(&FastPeriod {
+                m: black_box(&measure(input(k), k)),
+                out: black_box(&out),
+                fast: &fast_side,
+            });
         }) - adc;
         let capture_sample = match capture.arm(recording_on()) {
             Ok(()) => {
                 per_call(&ticks, |k| {
-                    capture.record(black_box(&measure(input(k), k)), black_box(&out), || drive.telemetry());
+                    let m = measure(input(k), k);
+                    capture.record_from(&FastPeriod {
+                        m: black_box(&m),
+                        out: black_box(&out),
+                        fast: &fast_side,
+                    });
                 }) - adc
             }
             Err(_) => f32::NAN,
