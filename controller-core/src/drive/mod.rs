@@ -175,7 +175,11 @@ pub struct FastSide {
 pub struct SlowSide {
     state: SlowState,
     cfg: DriveConfig,
-    job: Option<SlowJob>,
+    /// The job latched at the last tick, written in place by the fast side's latch (built
+    /// by value and moved into an `Option`, it was copied twice in the tick's period) …
+    job: SlowJob,
+    /// … and not run yet.
+    job_due: bool,
     order: Order,
     /// Its signals as its last job left them ([`SlowSide::signals`]): the plan's, which the
     /// fast side adopts with it.
@@ -347,9 +351,9 @@ impl SlowSide {
     /// plan ([`crate::ifoc::IfocConfig::plan`]); the phase checks (open phase, no motor current, the
     /// windowed current sum; a stuck switch while Running).
     pub fn run(&mut self) {
-        if let Some(job) = &self.job {
-            self.state.step(&self.cfg, &job.inputs, job.vhz.as_ref());
-            self.job = None;
+        if self.job_due {
+            self.state.step(&self.cfg, &self.job.inputs, self.job.vhz.as_ref());
+            self.job_due = false;
             self.plan_signals = self.signals();
         }
     }
@@ -535,6 +539,26 @@ struct SlowInputs {
     /// The signals of the fast step that adopted the last plan, for the once-per-slow-period
     /// checks (`None`: it was not Running on the field-oriented references).
     after_slow: Option<AfterSlow>,
+}
+
+impl SlowInputs {
+    /// Nothing latched: the job before the first tick (never run: `SlowSide::job_due`).
+    fn at_rest() -> Self {
+        Self {
+            m: Measurements::default(),
+            mode: Mode::Idle,
+            sums: (Dq::default(), 0),
+            v_req2_sum: 0.0,
+            v_req_steps: 0,
+            v_fit_sum: Dq::default(),
+            limited: false,
+            test_angle_rad: 0.0,
+            field_rad: None,
+            search_psi: AlphaBeta::default(),
+            i_refs_ab: [AlphaBeta::default(); 2],
+            after_slow: None,
+        }
+    }
 }
 
 /// The fast step right after the slow step, as the once-per-slow-period checks read it
@@ -743,33 +767,30 @@ impl SlowRun {
 }
 
 impl FastState {
-    /// The slow step's inputs at its tick: the measurements, the mode, and the sums since
-    /// the last tick, which start again.
+    /// The slow step's inputs at its tick, written into `into` field by field: the
+    /// measurements, the mode, and the sums since the last tick, which start again.
     #[inline(always)]
-    fn latch(&mut self, m: &Measurements, sensorless: bool) -> SlowInputs {
-        let field_rad = (sensorless && self.mode == Mode::Running).then(|| {
+    fn latch(&mut self, m: &Measurements, sensorless: bool, into: &mut SlowInputs) {
+        into.field_rad = (sensorless && self.mode == Mode::Running).then(|| {
             let e = &self.run.estimate;
             crate::frames::atan2(e.psi_r_beta_wb, e.psi_r_alpha_wb)
         });
-        let i_refs_ab = [self.run.field.i_intended_ab(), self.run.field.i_ref_ab()];
+        into.i_refs_ab = [self.run.field.i_intended_ab(), self.run.field.i_ref_ab()];
         let r = &mut self.run;
-        let inputs = SlowInputs {
-            field_rad,
-            search_psi: r.search_psi,
-            m: *m,
-            mode: self.mode,
-            sums: r.field.take_sums(),
-            v_req2_sum: r.v_req2_sum,
-            v_req_steps: r.v_req_steps,
-            v_fit_sum: r.v_fit_sum,
-            limited: r.trim_hold,
-            test_angle_rad: r.test_angle_rad,
-            i_refs_ab,
-            after_slow: r.after_slow.take(),
-        };
+        into.search_psi = r.search_psi;
+        into.m = *m;
+        into.mode = self.mode;
+        into.sums = r.field.take_sums();
+        into.v_req2_sum = r.v_req2_sum;
+        into.v_req_steps = r.v_req_steps;
+        into.v_fit_sum = r.v_fit_sum;
+        into.limited = r.trim_hold;
+        into.test_angle_rad = r.test_angle_rad;
+        // Copied, then cleared (`take` went through a copy of its own on the stack).
+        into.after_slow = r.after_slow;
+        r.after_slow = None;
         (r.v_req2_sum, r.v_req_steps, r.v_fit_sum, r.trim_hold) = (0.0, 0, Dq::default(), false);
         r.search_psi = AlphaBeta::default();
-        inputs
     }
 
     /// Take the slow step's plan (`s`, the slow side's state after its step): its mode
@@ -900,7 +921,8 @@ impl Drive {
                 run,
             },
             cfg,
-            job: None,
+            job: SlowJob { inputs: SlowInputs::at_rest(), vhz: None },
+            job_due: false,
             order: Order::default(),
             plan_signals: SlowSignals::default(),
         };
@@ -1339,7 +1361,7 @@ impl DriveMut<'_> {
         s.state.run = SlowRun::new(&cfg, rr, l, RotorFit::default());
         (s.state.reference, s.state.omega_ref_rad_s) = (Reference::Speed(0.0), 0.0);
         (s.state.pending_fault, s.state.stop_steps_left) = (None, None);
-        (s.cfg, s.job) = (cfg, None);
+        (s.cfg, s.job_due) = (cfg, false);
         (s.order.restart, s.order.reconfigured, s.order.speed_law) = (true, !speed_law, speed_law);
         self.done();
         Ok(())
@@ -1536,11 +1558,11 @@ impl FastSide {
     /// the sums since the last tick), with the V/Hz law's state.
     #[inline(always)]
     fn latch(&mut self, m: &Measurements, s: &mut SlowSide) {
-        let inputs = self.state.latch(m, self.state.on_observer(&self.cfg));
+        self.state.latch(m, self.state.on_observer(&self.cfg), &mut s.job.inputs);
         // One call of the step (two, one of them for V/Hz, and it went out of line: +80
         // instructions per slow step of a vector drive, `cost slow_step`).
-        let vhz = if self.cfg.vhz_on() { self.vhz.report() } else { None };
-        s.job = Some(SlowJob { inputs, vhz });
+        s.job.vhz = if self.cfg.vhz_on() { self.vhz.report() } else { None };
+        s.job_due = true;
     }
 
     /// The fast side takes the slow step's plan: its mode (unless a fault of the fast step

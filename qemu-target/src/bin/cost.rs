@@ -30,7 +30,7 @@
 
 #[cfg(target_os = "none")]
 mod target {
-    use controller_core::capture::{Capture, CaptureSpec, Edge, FastPeriod, RECORD_SAMPLES, Signal, Trigger};
+    use controller_core::capture::{CaptureSpec, Edge, FastPeriod, Signal, Trigger};
     use controller_core::current::{CurrentControllerConfig, CurrentLaw, CurrentState};
     use controller_core::discretize::Discretization;
     use controller_core::drive::{
@@ -47,6 +47,7 @@ mod target {
     use controller_core::svpwm;
     use core::hint::black_box;
     use cortex_m_rt::entry;
+    use firmware::scope::Scope;
     use firmware::server::Prepared;
     use qemu_target::clock::{INSTRUCTIONS_PER_TICK, Ticks};
     use qemu_target::{println, sh};
@@ -937,35 +938,28 @@ mod target {
             let d = black_box(k as f32 * (1.0 / 4096.0));
             black_box(pwm.compare3(Abc { a: d, b: d * 0.5, c: 1.0 - d }));
         });
-        // The capture (issue 19), as the firmware calls it after every step: a recorded
-        // sample of four signals, the drive's each made alone (`FastPeriod`; armed on a
-        // trigger that never fires, so it records on), and the call while nothing is armed.
+        // The capture (issue 19), as the firmware's control interrupt takes it after every
+        // step (`firmware::scope::Scope`, the drive's signals each made alone by
+        // `FastPeriod`): the call while nothing is armed, and a recorded sample of four
+        // signals (armed by the link's command on a trigger that never fires, so it records
+        // on).
         let out = FastOutput {
             phases: PhaseCommand::Duty(Abc { a: 0.4, b: 0.5, c: 0.6 }),
             mode: Mode::Running,
             brake: false,
         };
-        let mut capture = Capture::<RECORD_SAMPLES>::new();
+        static SCOPE: Scope = Scope::new();
         let (fast_side, _) = drive.into_parts();
-        let capture_idle = per_call(&ticks, |k| {
-            capture.record_from(&FastPeriod {
-                m: black_box(&measure(input(k), k)),
-                out: black_box(&out),
-                fast: &fast_side,
-            });
-        }) - adc;
-        let capture_sample = match capture.arm(recording_on()) {
-            Ok(()) => {
-                per_call(&ticks, |k| {
-                    let m = measure(input(k), k);
-                    capture.record_from(&FastPeriod {
-                        m: black_box(&m),
-                        out: black_box(&out),
-                        fast: &fast_side,
-                    });
-                }) - adc
+        let mut take = |k: u32| {
+            let m = measure(input(k), k);
+            if SCOPE.recording() {
+                SCOPE.record(&FastPeriod { m: black_box(&m), out: black_box(&out), fast: &fast_side });
             }
-            Err(_) => f32::NAN,
+        };
+        let capture_idle = per_call(&ticks, &mut take) - adc;
+        let capture_sample = match SCOPE.serve(&BoardCommand::ArmCapture(recording_on())) {
+            Some(Reply::Ack) => per_call(&ticks, &mut take) - adc,
+            _ => f32::NAN,
         };
 
         // Stack depth of the firmware's interrupt body, `Drive::step` (the fast step, and
