@@ -9,11 +9,14 @@
 //! SVG.
 //!
 //! The signals are what the control step had and decided: its [`Measurements`] and its
-//! [`FastOutput`] ([`Signal`]). The firmware records after every step in the control
-//! interrupt; the processor-in-the-loop server after every `Step`, so a PIL run's capture is
-//! the simulation's trace, bit for bit (`hil-sim/tests/pil.rs`). Recording costs a compare
-//! while nothing is armed or the record is finished, and ≈ 110–180 instructions per
-//! recorded sample while armed (`cargo xtask qemu`: `cost part:capture_sample`).
+//! [`FastOutput`] ([`Signal`]), and the drive's signals ([`Telemetry`]), read from a
+//! [`Source`] only for a recorded sample. The firmware records after every step in the
+//! control interrupt, the drive's signals one by one with the slow part of the plan in force
+//! ([`FastPeriod`]); the processor-in-the-loop server after every `Step`, the whole drive's
+//! telemetry ([`Period`]), so a PIL run's capture is the simulation's trace, bit for bit
+//! (`hil-sim/tests/pil.rs`). Recording costs a compare while nothing is armed or the record
+//! is finished (`cargo xtask qemu`: `cost part:capture_idle`, `part:capture_sample` for a
+//! recorded sample; docs/performance.md).
 //!
 //! A level trigger fires on the first recorded sample that reaches the level from the other
 //! side — a signal resting exactly on it fires when it leaves (a reference at 0 stepping
