@@ -2147,3 +2147,37 @@ fn the_plans_signals_are_its_jobs_taken_at_the_adoption() {
     }
     assert!(adoptions > 100 && moved > 50, "{adoptions} adoptions, the signals moved at {moved}");
 }
+
+/// An enable after a run starts the fast side's run afresh, field by field as `Default`
+/// makes it (`FastRun::restart`), and a V/Hz drive's law too; a vector drive's V/Hz run,
+/// which nothing of it touches, stays as it was.
+#[test]
+fn an_enable_after_a_run_starts_the_fast_run_afresh() {
+    let vhz = DriveSpec { control: Control::VHz { ramp_rad_s2: 100.0, k_u: 1.0, k_w: 4.0 }, ..test_spec() };
+    for (spec, reference) in [(test_spec(), Reference::Torque(1.0)), (vhz, Reference::Speed(20.0))] {
+        let mut d = Drive::new(DriveConfig::new(&spec).unwrap());
+        d.enable().unwrap();
+        let mut i = Abc::default();
+        for k in 0..8_000 {
+            if k == 4_000 {
+                d.set_reference(reference).unwrap();
+            }
+            let m = Measurements { i_abc_a: i, vdc_v: 310.0, omega_m_rad_s: 3.0, ..Default::default() };
+            if let PhaseCommand::Duty(duty) = d.step(&m).phases {
+                i = rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+            }
+        }
+        assert_eq!(d.mode(), Mode::Running, "{reference:?}");
+        let fresh = |x: &dyn core::fmt::Debug, y: &dyn core::fmt::Debug| format!("{x:?}") == format!("{y:?}");
+        assert!(!fresh(&d.fast.state.run, &FastRun::default()), "the run moved");
+        let vhz_before = d.fast.vhz;
+        d.disable();
+        d.enable().unwrap();
+        assert!(fresh(&d.fast.state.run, &FastRun::default()), "{reference:?}");
+        let vhz_expected = if d.fast.cfg.vhz_on() { VhzRun::default() } else { vhz_before };
+        assert!(fresh(&d.fast.vhz, &vhz_expected), "{reference:?}");
+        if d.fast.cfg.vhz_on() {
+            assert!(!fresh(&vhz_before, &VhzRun::default()), "the law ran");
+        }
+    }
+}
