@@ -568,6 +568,17 @@ impl<const DEPTH: usize> Capture<DEPTH> {
     }
 }
 
+impl Capture<RECORD_SAMPLES> {
+    /// [`Capture::record_from`] a period of the drive's fast side ([`FastPeriod`]) at the
+    /// firmware's depth, compiled here — at controller-core's opt-level, where the firmware
+    /// builds the control law — not in the caller's crate (generic, the firmware compiled it
+    /// at its own opt-level "z": `cost part:capture_sample`).
+    #[inline(never)]
+    pub fn record_fast(&mut self, p: &FastPeriod<'_>) {
+        self.record_from(p);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

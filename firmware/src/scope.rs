@@ -13,7 +13,7 @@
 //! interrupt records, the link reads the capture's state from a mirror the interrupt keeps
 //! (`ReadCapture` then answers with the state and no samples, as before the record is done).
 
-use controller_core::capture::{Capture, CaptureState, Source};
+use controller_core::capture::{Capture, CaptureState, FastPeriod};
 use controller_core::link::{self, BoardCommand, Reply};
 use core::cell::UnsafeCell;
 use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
@@ -67,14 +67,14 @@ impl Scope {
     /// for a recorded sample, into the capture if it holds it ([`Scope::recording`]: the
     /// caller asks first, and makes `src` only then); the capture back to the link once the
     /// record is done or the link asks for it.
-    pub fn record(&self, src: &impl Source) {
+    pub fn record(&self, src: &FastPeriod<'_>) {
         if !self.recording() {
             return;
         }
         // SAFETY: RECORDING: the interrupt holds the capture (the link task does not touch
         // it until the Release store below), and this is the only borrow.
         let c = unsafe { &mut *self.capture.get() };
-        c.record_from(src);
+        c.record_fast(src);
         let state = c.state();
         self.state.store(state.code(), Ordering::Relaxed);
         if state == CaptureState::Done || self.recall.load(Ordering::Relaxed) {
@@ -157,9 +157,8 @@ impl core::fmt::Debug for Scope {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use controller_core::capture::Period;
     use controller_core::capture::{CHUNK_BYTES, CaptureSpec, Edge, Signal, Trigger};
-    use controller_core::drive::{FastOutput, Measurements, Mode, PhaseCommand, Telemetry};
+    use controller_core::drive::{Drive, FastOutput, Measurements, Mode, PhaseCommand};
 
     fn spec(trigger: Trigger) -> CaptureSpec {
         CaptureSpec { signals: [Signal::IA; 4], trigger, pre_samples: 0, decimation: 1 }
@@ -172,7 +171,9 @@ mod tests {
             ..Default::default()
         };
         let out = FastOutput { phases: PhaseCommand::Off, mode: Mode::Idle, brake: false };
-        s.record(&Period { m: &m, out: &out, t: &Telemetry::default() });
+        let cfg = controller_core::drive::DriveConfig::from_raw(&crate::config::DRIVE_CONFIG).unwrap();
+        let (fast, _) = Drive::new(cfg).into_parts();
+        s.record(&FastPeriod { m: &m, out: &out, fast: &fast });
     }
 
     /// Armed by the link, the capture is the interrupt's: it records every period, the link
