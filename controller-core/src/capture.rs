@@ -597,6 +597,36 @@ mod tests {
         (m, out, Telemetry { omega_ref_rad_s: w, ..Telemetry::default() })
     }
 
+    /// The firmware's source (each signal alone from the fast side, the plan's slow part)
+    /// reads every signal as the whole telemetry on the plan's slow part does, bit for bit:
+    /// a drive magnetizing and Running under a torque reference, every period.
+    #[test]
+    fn a_fast_period_reads_every_signal_as_the_whole_telemetry() {
+        use crate::drive::{Drive, DriveConfig, Reference};
+        let mut d = Drive::new(DriveConfig::new(&crate::drive::test_spec()).unwrap());
+        d.enable().unwrap();
+        let (mut running, mut i) = (0, Abc::default());
+        for k in 0..6_000u32 {
+            if d.mode() == Mode::Running && running == 0 {
+                d.set_reference(Reference::Torque(1.0)).unwrap();
+            }
+            let m = Measurements { i_abc_a: i, vdc_v: 310.0, omega_m_rad_s: 2.0, theta_m_rad: 0.1 };
+            let out = d.step(&m);
+            if let PhaseCommand::Duty(duty) = out.phases {
+                i = crate::drive::rl_step(i, duty, 310.0, 16.2, 0.1, 5e-5);
+            }
+            running += u32::from(d.mode() == Mode::Running);
+            let (fast, _) = d.into_parts();
+            let t = fast.telemetry_with(&fast.plan_signals());
+            let (whole, alone) =
+                (Period { m: &m, out: &out, t: &t }, FastPeriod { m: &m, out: &out, fast: &fast });
+            for s in Signal::ALL {
+                assert_eq!(alone.value(s).to_bits(), whole.value(s).to_bits(), "{s:?}, period {k}");
+            }
+        }
+        assert!(running > 1_000, "Running for {running} periods");
+    }
+
     fn spec(trigger: Trigger, pre: u16, decimation: u16) -> CaptureSpec {
         CaptureSpec {
             signals: [Signal::IA, Signal::IB, Signal::OmegaRef, Signal::Mode],

@@ -69,7 +69,7 @@ mod spec;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
-pub(crate) use tests::test_spec;
+pub(crate) use tests::{rl_step, test_spec};
 
 pub use crate::fault::{Fault, FaultSet, Mode};
 pub use crate::io::{

@@ -175,7 +175,7 @@ fn brake_chopper_hysteresis() {
 /// high frequency: R_s and σL_s). Returns the current after applying `duty` for one
 /// period on `vdc` (exact ZOH of di/dt = (v − R i)/L per phase, star point floating:
 /// the common-mode voltage is removed).
-fn rl_step(i: Abc, duty: Abc, vdc: f32, r: f32, l: f32, ts: f32) -> Abc {
+pub(crate) fn rl_step(i: Abc, duty: Abc, vdc: f32, r: f32, l: f32, ts: f32) -> Abc {
     let v = Abc { a: (duty.a - 0.5) * vdc, b: (duty.b - 0.5) * vdc, c: (duty.c - 0.5) * vdc };
     let v0 = (v.a + v.b + v.c) / 3.0;
     let a = libm::expf(-r / l * ts);
