@@ -693,9 +693,8 @@ pub fn default_encoder_jump_rad(
     read_period_s: f64,
 ) -> f64 {
     let count_rad = core::f64::consts::TAU / (4.0 * f64::from(encoder_lines.max(1)));
-    let tau_peak_nm =
-        1.5 * f64::from(motor.pole_pairs()) * motor.lm_h() / motor.lr_h() * flux_ref_wb * i_ref_max_a;
-    let accel_rad_s2 = ENCODER_ACCEL_FACTOR * tau_peak_nm / motor.j_kgm2();
+    let accel_rad_s2 = ENCODER_ACCEL_FACTOR
+        * controller_core::drive::peak_acceleration_rad_s2(motor, flux_ref_wb, i_ref_max_a);
     ENCODER_JUMP_COUNTS * count_rad + accel_rad_s2 * read_period_s * read_period_s
 }
 
@@ -724,8 +723,8 @@ pub const REST_COUNTS: f64 = 4.0;
 pub const ENCODER_JUMP_COUNTS: f64 = 4.0;
 
 /// See [`default_encoder_jump_rad`]: the acceleration allowed, in multiples of the drive's
-/// own peak (a load ten times the drive's torque, as in the supervisor's 20 N·m test).
-pub const ENCODER_ACCEL_FACTOR: f64 = 10.0;
+/// own peak (the check splits the level into its two shares with it).
+pub use controller_core::drive::ENCODER_ACCEL_FACTOR;
 
 /// The encoder resolution the derived [`default_encoder_jump_rad`] assumes without a
 /// `[board]` table (the simulator's realistic encoder, and the shipped board's).

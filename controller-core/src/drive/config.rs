@@ -13,7 +13,7 @@ use crate::mras::{MrasConfig, MrasError};
 use crate::observer::{CORRECTION_PER_SAMPLE_MAX, ObserverConfig, ObserverError};
 use crate::raw;
 use crate::speed::{PositionConfig, SpeedControllerConfig};
-use crate::supervisor::encoder::EncoderLimits;
+use crate::supervisor::encoder::{ENCODER_ACCEL_FACTOR, EncoderLimits};
 use crate::supervisor::limits::{BrakeLevels, Limits, abs_bits};
 use crate::supervisor::motion::MotionLimits;
 use crate::supervisor::motion::{FOLLOWING_PROGRESS_FRACTION, STALL_SPEED_FRACTION};
@@ -328,6 +328,19 @@ pub fn observer_speed_bandwidth_rad_s(ts_s: f64, t_slow_s: f64) -> f64 {
     (2.0 / (SPEED_WINDOW_READS as f64 * t_slow_s)).min(CORRECTION_PER_SAMPLE_MAX / ts_s)
 }
 
+/// The drive's peak acceleration, rad/s²: the torque of the largest current reference all
+/// on the q axis at the flux reference, `τ_peak = 1.5·p·(L_m/L_r)·ψ_r*·i_ref_max`, on the
+/// motor's inertia — the encoder jump check's mechanics ([`ENCODER_ACCEL_FACTOR`] times it).
+pub fn peak_acceleration_rad_s2(
+    motor: &crate::motor::MotorParams,
+    flux_ref_wb: f64,
+    i_ref_max_a: f64,
+) -> f64 {
+    let tau_peak_nm =
+        1.5 * f64::from(motor.pole_pairs()) * motor.lm_h() / motor.lr_h() * flux_ref_wb * i_ref_max_a;
+    tau_peak_nm / motor.j_kgm2()
+}
+
 /// `x` finite and positive.
 fn finite_positive_f64(x: f64) -> bool {
     x.is_finite() && x > 0.0
@@ -479,6 +492,14 @@ impl DriveConfig {
             .map_err(DriveError::Position)?;
         let i_d_rated_a = ifoc.flux_command(spec.flux_ref_wb as f32).i_d_a();
         let open_phase_steps = libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32;
+        // The jump level's quantisation share: the level less the mechanics' allowance over
+        // a read squared (`default_encoder_jump_rad`'s two terms); at a spacing of n reads the
+        // allowance's share grows n², the quantisation's does not.
+        let accel_rad = ENCODER_ACCEL_FACTOR
+            * peak_acceleration_rad_s2(&spec.motor, spec.flux_ref_wb, spec.i_ref_max_a)
+            * t_slow
+            * t_slow;
+        let count_rad = (p.encoder_jump_rad - accel_rad).clamp(0.0, p.encoder_jump_rad);
         Ok(Self {
             current,
             current_frame: spec.current_frame,
@@ -534,7 +555,8 @@ impl DriveConfig {
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder: EncoderLimits {
                 // Finite in f32 too.
-                jump_rad: (p.encoder_jump_rad as f32).min(f32::MAX),
+                count_rad: count_rad as f32,
+                accel_rad: ((p.encoder_jump_rad - count_rad) as f32).min(f32::MAX),
                 check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                     .clamp(1.0, 4e9) as u32,
             },

@@ -75,7 +75,10 @@ pub use crate::fault::{Fault, FaultSet, Mode};
 pub use crate::io::{
     CommandError, FastOutput, Measurements, PhaseCommand, Reference, Telemetry, TelemetryField,
 };
-pub use crate::supervisor::encoder::{ENCODER_RESIDUAL_FRACTION, PINNED_FIELD_TURN_RAD, PINNED_PHASE_COS};
+pub use crate::supervisor::encoder::{
+    ENCODER_ACCEL_FACTOR, ENCODER_RESIDUAL_FRACTION, JUMP_SPACING_MAX, PINNED_FIELD_TURN_RAD,
+    PINNED_PHASE_COS,
+};
 pub use crate::supervisor::motion::{
     FOLLOWING_PROGRESS_FRACTION, STALL_REFERENCE_FACTOR, STALL_SPEED_FRACTION,
 };
@@ -89,7 +92,7 @@ pub use crate::supervisor::thermal::THERMAL_UPDATE_SLOW_STEPS;
 pub use crate::supervisor::{BrakeChopper, Protection, ThermalLimit};
 pub use config::{
     DriveConfig, FLOATS, INTEGERS, RawDriveConfig, SEARCH_RESOLVED_TURN_RAD, SEARCH_TURN_MAX_RAD,
-    SEARCH_WINDOWS_MIN, observer_speed_bandwidth_rad_s,
+    SEARCH_WINDOWS_MIN, observer_speed_bandwidth_rad_s, peak_acceleration_rad_s2,
 };
 pub use spec::*;
 

@@ -426,7 +426,7 @@ impl SlowState {
         // jump of the estimate is the machine's fault, which its own checks name — an open
         // phase read as `EncoderLoss` in the fault matrix otherwise).
         let judge = !matches!(self.mode, Mode::Fault(_)) && !self.on_observer(cfg);
-        let (step, jumped) = self.machine.encoder.read(theta_m_rad, cfg.encoder.jump_rad, judge);
+        let (step, jumped) = self.machine.encoder.read(theta_m_rad, &cfg.encoder, judge);
         if jumped {
             self.encoder_fault(cfg, Fault::EncoderLoss);
         }

@@ -753,7 +753,7 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
         let mut d = drive();
         let mut r = running_drive();
         // Already running: the jump from its readings at rest is not this test's.
-        r.fast.cfg.encoder.jump_rad = f32::MAX;
+        (r.fast.cfg.encoder.count_rad, r.fast.cfg.encoder.accel_rad) = (f32::MAX, f32::MAX);
         // Slow steps alone, no current: the open-phase check's window never closes.
         r.fast.cfg.phases.open_phase_slow_steps = u32::MAX;
         r.slow.cfg = r.fast.cfg;
@@ -784,22 +784,36 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
     assert!((f64::from(d.position_rad()) + 1999.0 * step).abs() < 1e-3, "{}", d.position_rad());
 }
 
+/// The jump level's acceleration share, mechanical rad: the mechanics' allowance over a read
+/// squared (`ENCODER_ACCEL_FACTOR` × the drive's peak acceleration × T²).
+fn jump_accel_rad(spec: &DriveSpec) -> f64 {
+    let t_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    ENCODER_ACCEL_FACTOR
+        * peak_acceleration_rad_s2(&spec.motor, spec.flux_ref_wb, spec.i_ref_max_a)
+        * t_s
+        * t_s
+}
+
 /// The jump check: a reading whose change departs from the last change by more than
 /// `encoder_jump_rad` latches `EncoderLoss` (a glitch; a counter that stops at speed); a
-/// steady speed and an acceleration within the level do not; the check runs in Idle too
-/// (a drive must not start on a broken encoder), but not before two changes are known.
+/// steady speed and an acceleration within the mechanics' allowance do not; the check runs
+/// in Idle too (a drive must not start on a broken encoder), but not before two changes are
+/// known.
 #[test]
 fn an_encoder_jump_is_encoder_loss() {
     let level = test_spec().protection.encoder_jump_rad;
+    let accel = jump_accel_rad(&test_spec());
     let mut d = drive();
     // The first reading may be anything; then a steady 0.0752 rad per read with an
-    // acceleration just inside the level.
+    // acceleration just inside the allowance (the level's acceleration share: the check
+    // judges it n² times over n reads, where a constant acceleration's second difference
+    // grows n² too).
     let mut theta = 2.0;
     let mut step = 0.0752;
     for _ in 0..50 {
         d.slow_period(&wrapped(theta));
         theta += step;
-        step += 0.9 * level;
+        step += 0.99 * accel;
     }
     assert_eq!(d.mode(), Mode::Idle);
     // A counter that stops: the change falls from ≈ 0.46 rad to 0.
@@ -814,6 +828,52 @@ fn an_encoder_jump_is_encoder_loss() {
     assert_eq!(d.mode(), Mode::Running);
     d.slow_period(&wrapped(1.2 * level));
     assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+}
+
+/// A change of the per-read increment made between two reads splits between two one-read
+/// changes, each within the level; the second difference over two reads sees it whole.
+/// Found on population member 012 (6.7 kW, 8 poles, 1 024 lines) at 20 kHz: its encoder,
+/// set to half its lines at 41 rad/s, changed two reads' increments by 0.0061 and 0.0046 rad
+/// against a level of 0.0063 rad, and the drive ran on with the speed read at half
+/// (`FollowingError` after 28 ms motoring, nothing generating). A steady acceleration at the
+/// mechanics' allowance, read by a quantised 1 024-line encoder, stays within the check at
+/// every spacing.
+#[test]
+fn a_change_split_between_two_reads_is_a_jump() {
+    let spec = test_spec();
+    let level = spec.protection.encoder_jump_rad;
+    let accel = jump_accel_rad(&spec);
+    let count = level - accel;
+    // A change of 1.2 × the level per read, 40 % of it in one read and 60 % in the next.
+    let c = 1.2 * level;
+    assert!(0.6 * c < level, "each one-read change within the level");
+    let mut d = drive();
+    let (mut theta, step) = (0.0, 0.09);
+    for _ in 0..12 {
+        d.slow_period(&wrapped(theta));
+        theta += step;
+    }
+    for s in [step - 0.4 * c, step - c, step - c] {
+        d.slow_period(&wrapped(theta));
+        theta += s;
+    }
+    d.slow_period(&wrapped(theta));
+    assert_eq!(d.mode(), Mode::Fault(Fault::EncoderLoss));
+    // Motion at the allowance (just inside it), floor-quantised to 4 096 counts a turn: a
+    // speed ramping up and down never trips.
+    let quantum = core::f64::consts::TAU / 4096.0;
+    assert!(
+        (count - 4.0 * quantum).abs() < 2e-5,
+        "the test spec's 1 024-line share (its level rounded): {count}"
+    );
+    let mut d = drive();
+    let (mut theta, mut step) = (0.0, 0.0);
+    for k in 0..400 {
+        d.slow_period(&wrapped((theta / quantum).floor() * quantum));
+        theta += step;
+        step += if (k / 50) % 2 == 0 { 0.99 } else { -0.99 } * accel;
+        assert_eq!(d.mode(), Mode::Idle, "read {k}, step {step}");
+    }
 }
 
 /// A cleared `EncoderLoss` does not trip again on the change that latched it (found by

@@ -7,6 +7,12 @@ use crate::frames::{AlphaBeta, wrap_angle};
 use crate::num::{finite_positive, sqrt_f32};
 use core::f32::consts::{PI, TAU};
 
+/// The acceleration the jump check allows, in multiples of the drive's peak
+/// (`drive::peak_acceleration_rad_s2`): a load ten times the drive's torque — the fault
+/// matrix's seizure (10 × τ_max) and the supervisor's 20 N·m test — is motion, not a jump
+/// (`drive_file::drive::default_encoder_jump_rad`).
+pub const ENCODER_ACCEL_FACTOR: f64 = 10.0;
+
 /// The encoder check's threshold, as a fraction of the linear voltage limit V_dc/√3.
 pub const ENCODER_RESIDUAL_FRACTION: f32 = 0.5;
 /// A *pinned phase* for the encoder check: the applied voltage's *departure* from the
@@ -51,16 +57,23 @@ crate::raw::raw_struct! {
     /// The encoder checks' levels (the drive configuration's).
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub(crate) struct EncoderLimits {
-        /// Largest plausible change of the encoder's per-read increment, mechanical rad
-        /// ([`EncoderTrack::read`]).
-        pub(crate) jump_rad: f32,
+        /// The jump level's quantisation share, mechanical rad: the second difference of
+        /// three readings of motion the mechanics allow errs by less ([`EncoderTrack::read`]).
+        pub(crate) count_rad: f32,
+        /// Its acceleration share at a spacing of one read, mechanical rad (`encoder_jump_rad`
+        /// less `count_rad`): `n²` times it at a spacing of `n` reads.
+        pub(crate) accel_rad: f32,
         /// Slow periods of implausible encoder before the trip ([`VoltageCheck::implausible`]).
         pub(crate) check_steps: u32,
     }
 }
 
+/// The longest spacing of the jump check, in reads: its second differences span twice it,
+/// the speed estimate's window ([`crate::encoder::SPEED_WINDOW_READS`]).
+pub const JUMP_SPACING_MAX: usize = crate::encoder::SPEED_WINDOW_READS / 2;
+
 /// The encoder's readings as the slow step takes them: the last angle, the whole turns
-/// counted and the last change. The shaft's, so they carry on through every mode, an enable
+/// counted and the last changes. The shaft's, so they carry on through every mode, an enable
 /// and a reconfiguration (a turn made while the bridge is off is still a turn).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct EncoderTrack {
@@ -68,57 +81,97 @@ pub(crate) struct EncoderTrack {
     theta_m_prev_rad: f32,
     /// Whole turns counted from the readings.
     turns: i32,
-    /// The change over the last read, mechanical rad.
-    step_rad: f32,
-    /// Readings taken so far, up to 2 (the jump check needs two changes).
-    reads: u8,
+    /// The last changes, one per read, mechanical rad: a ring, the newest at `head`.
+    steps_rad: [f32; 2 * JUMP_SPACING_MAX],
+    head: u8,
+    /// How many of them, from the newest back, are references for the jump check.
+    changes: u8,
+    /// A reading was taken (the next one makes a change).
+    read_once: bool,
     /// The read period changed: the next change is the last across it, not a reference.
     rebase: bool,
 }
 
 impl EncoderTrack {
     /// Nothing read yet.
-    pub(crate) const NONE: Self =
-        Self { theta_m_prev_rad: 0.0, turns: 0, step_rad: 0.0, reads: 0, rebase: false };
+    pub(crate) const NONE: Self = Self {
+        theta_m_prev_rad: 0.0,
+        turns: 0,
+        steps_rad: [0.0; 2 * JUMP_SPACING_MAX],
+        head: 0,
+        changes: 0,
+        read_once: false,
+        rebase: false,
+    };
+
+    /// The change `k` reads before the last one (0: the last), mechanical rad.
+    #[inline]
+    fn step_back(&self, k: usize) -> f32 {
+        let n = self.steps_rad.len();
+        self.steps_rad.get((usize::from(self.head) + n - k % n) % n).copied().unwrap_or(0.0)
+    }
 
     /// One reading `theta_m_rad`: the change since the last reading, mechanical rad (the
     /// wrapped difference of two angles within a revolution: exact in f32 however far the
     /// motor has turned; 0 for the first reading or a non-finite one), and whether it
     /// *jumped* (judged when `judge`).
     ///
-    /// **Jump check** ([`Fault::EncoderLoss`]): a change that departs from the previous one by
-    /// more than `jump_rad` (`encoder_jump_rad`). For motion the mechanics allow, the second
-    /// difference of the readings is `α·T²` plus at most two counts of quantisation; a
-    /// glitch, a counter that stops at speed or a line count that changes exceed it at the
-    /// first or second read. (Below the speed at which one read's change is smaller than the
-    /// level — ≈ 17 rad/s for the shipped drive — a stopped counter looks like a stop: the
-    /// stall check catches it.)
+    /// **Jump check** ([`Fault::EncoderLoss`]): the second difference of the readings at a
+    /// spacing of `n` reads, `D_n = (θ_k − θ_{k−n}) − (θ_{k−n} − θ_{k−2n})`, for n = 1 …
+    /// [`JUMP_SPACING_MAX`], beyond the level's quantisation share plus `n²` times its
+    /// acceleration share (`encoder_jump_rad` at n = 1). For motion the mechanics allow, `D_n`
+    /// is at most `α·(nT)²` plus the quantisation of its three readings, whatever `n`; a
+    /// change `c` of the per-read increment (a glitch, a counter that stops at speed, a
+    /// line count that changes) makes it `n·c` once `n` reads have passed: a change made
+    /// between two reads, split between two one-read differences that each pass, is whole in
+    /// the wider ones (found on a population member: an encoder losing half its lines at
+    /// 41 rad/s changed two reads by 0.0061 and 0.0046 rad against a level of 0.0063, and
+    /// ran on undetected). Below the speed at which a stopped counter's `D_n` exceeds the
+    /// levels at every spacing, a stopped counter reads as a rotor that a seizure stopped
+    /// (the mechanics' allowance, [`ENCODER_ACCEL_FACTOR`]): only the electrical quantities
+    /// tell them apart.
     #[inline]
-    pub(crate) fn read(&mut self, theta_m_rad: f32, jump_rad: f32, judge: bool) -> (f32, bool) {
+    pub(crate) fn read(&mut self, theta_m_rad: f32, limits: &EncoderLimits, judge: bool) -> (f32, bool) {
         if !theta_m_rad.is_finite() {
             return (0.0, false);
         }
-        let step = if self.reads == 0 { 0.0 } else { wrap_angle(theta_m_rad - self.theta_m_prev_rad) };
+        let step = if self.read_once { wrap_angle(theta_m_rad - self.theta_m_prev_rad) } else { 0.0 };
         // The angle wrapped past ±π: a turn.
         let raw = theta_m_rad - self.theta_m_prev_rad;
-        if self.reads > 0 && (raw - step).abs() > PI {
+        if self.read_once && (raw - step).abs() > PI {
             self.turns = self.turns.saturating_add(if raw < step { 1 } else { -1 });
         }
-        let jumped = self.reads >= 2 && judge && (step - self.step_rad).abs() > jump_rad;
-        self.step_rad = step;
         self.theta_m_prev_rad = theta_m_rad;
+        let n = self.steps_rad.len();
+        self.head = ((usize::from(self.head) + 1) % n) as u8;
+        if let Some(s) = self.steps_rad.get_mut(usize::from(self.head)) {
+            *s = step;
+        }
         // After a change of the read period, the change across it counts turns but is no
         // reference: the check judges from the second change at the new period.
-        self.reads = if self.rebase { 1 } else { self.reads.saturating_add(1).min(2) };
-        self.rebase = false;
-        (step, jumped)
+        self.changes = if !self.read_once || self.rebase { 0 } else { (self.changes + 1).min(n as u8) };
+        (self.read_once, self.rebase) = (true, false);
+        let (mut newer, mut older) = (0.0, 0.0);
+        for spacing in 1..=JUMP_SPACING_MAX {
+            if !judge || usize::from(self.changes) < 2 * spacing {
+                break;
+            }
+            // D_n from D_{n−1}'s sums: the newest n changes, and the n before them.
+            newer += self.step_back(spacing - 1);
+            older += self.step_back(2 * spacing - 2) + self.step_back(2 * spacing - 1)
+                - self.step_back(spacing - 1);
+            if (newer - older).abs() > limits.count_rad + (spacing * spacing) as f32 * limits.accel_rad {
+                return (step, true);
+            }
+        }
+        (step, false)
     }
 
     /// The last change is no reference (a cleared fault's: it may be the jump that latched
     /// it): the jump check judges again from the second change after this.
     #[inline]
     pub(crate) fn forget_last_change(&mut self) {
-        self.reads = self.reads.min(1);
+        self.changes = 0;
     }
 
     /// A track `turns` whole turns out (tests of what a long travel does to the checks).
@@ -131,7 +184,7 @@ impl EncoderTrack {
     /// the readings, judges again from the second change at the new period; the angle and
     /// the turns carry on.
     pub(crate) fn restart_jump_check(&mut self) {
-        self.reads = self.reads.min(1);
+        self.changes = 0;
         self.rebase = true;
     }
 

@@ -506,10 +506,51 @@ impl Matrix {
         ])
     }
 
+    /// The least spacing, in reads, at which the drive's jump check must see an encoder
+    /// fault at `at` (`controller_core::drive` `EncoderTrack::read`); `None` where it cannot,
+    /// or for a case that is not one of these. A counter that stops changes each read's
+    /// increment by `c = |ω|·T`, one that loses lines by `c·(1 − lines/set)`; the second
+    /// difference of the readings at a spacing of `n` reads then reaches at least
+    /// `(n − ½)·c` however the fault falls between two reads, against the level's
+    /// quantisation share plus `n²` times the mechanics' allowance
+    /// ([`controller_core::drive::ENCODER_ACCEL_FACTOR`] × the drive's peak acceleration,
+    /// over a read squared). Where no spacing up to
+    /// [`controller_core::drive::JUMP_SPACING_MAX`] clears it, the readings are those of a
+    /// rotor that a seizure slowed.
+    pub fn encoder_spacing(&self, case: &Case, at: &OperatingPoint) -> Option<usize> {
+        let spec = &self.spec;
+        let t_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+        let per_read = at.speed_rad_s.abs() * t_s;
+        let c = match case.injection {
+            Injection::EncoderStuck => per_read,
+            Injection::EncoderLines { lines } => {
+                per_read * (1.0 - f64::from(lines) / f64::from(self.encoder_lines.max(1))).abs()
+            }
+            _ => return None,
+        };
+        let jump = spec.protection.encoder_jump_rad;
+        let accel = controller_core::drive::ENCODER_ACCEL_FACTOR
+            * controller_core::drive::peak_acceleration_rad_s2(
+                &spec.motor,
+                spec.flux_ref_wb,
+                spec.i_ref_max_a,
+            )
+            * t_s
+            * t_s;
+        let counts = (jump - accel).clamp(0.0, jump);
+        (1..=controller_core::drive::JUMP_SPACING_MAX).find(|&n| {
+            let n_f = n as f64;
+            (n_f - 0.5) * c > counts + n_f * n_f * accel
+        })
+    }
+
     /// What the issue asks of `case` at `at`, or the stated gap.
     pub fn expect(&self, case: &Case, at: &OperatingPoint) -> Expect {
         let slow_s = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
-        let encoder_s = ENCODER_BOUND_SLOW_PERIODS * slow_s;
+        // A wider spacing sees a smaller change, the reads it spans later (one more for a
+        // fault that falls between two reads).
+        let spacing = self.encoder_spacing(case, at);
+        let encoder_s = ENCODER_BOUND_SLOW_PERIODS.max(spacing.map_or(0.0, |n| n as f64 + 1.0)) * slow_s;
         let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
         let rest = at.point == Point::Standstill;
         match case.injection {
@@ -584,6 +625,16 @@ impl Matrix {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,
                 why: "at rest a wrong line count changes no reading",
+            },
+            // Slower, the change is one the mechanics allow: a seizure slowing the rotor that
+            // hard reads the same — only the electrical quantities could tell them apart.
+            Injection::EncoderStuck | Injection::EncoderLines { .. } if spacing.is_none() => Expect::Gap {
+                fault: Fault::EncoderLoss,
+                bound_s: encoder_s,
+                why: "at this speed a counter that stops or loses lines changes the readings no more than a \
+                      seizure of ten times the drive's torque slowing the rotor would (the jump check's \
+                      allowance, Matrix::encoder_spacing): telling them apart needs a speed observer from \
+                      the electrical quantities",
             },
             // The observer beside the encoder carries the drive on (issue 53: ride-through) —
             // at speed: standstill is a position hold, which needs the shaft's angle, and the
