@@ -555,8 +555,10 @@ impl DriveConfig {
             saturation_steps: libm::ceil(p.saturation_time_s * f).clamp(1.0, 4e9) as u32,
             encoder: EncoderLimits {
                 // Finite in f32 too.
-                count_rad: count_rad as f32,
-                accel_rad: ((p.encoder_jump_rad - count_rad) as f32).min(f32::MAX),
+                jump_levels_rad: core::array::from_fn(|k| {
+                    let n = (k + 1) as f64;
+                    ((count_rad + n * n * (p.encoder_jump_rad - count_rad)) as f32).min(f32::MAX)
+                }),
                 check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                     .clamp(1.0, 4e9) as u32,
             },

@@ -753,7 +753,7 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
         let mut d = drive();
         let mut r = running_drive();
         // Already running: the jump from its readings at rest is not this test's.
-        (r.fast.cfg.encoder.count_rad, r.fast.cfg.encoder.accel_rad) = (f32::MAX, f32::MAX);
+        r.fast.cfg.encoder.jump_levels_rad = [f32::MAX; JUMP_SPACING_MAX];
         // Slow steps alone, no current: the open-phase check's window never closes.
         r.fast.cfg.phases.open_phase_slow_steps = u32::MAX;
         r.slow.cfg = r.fast.cfg;

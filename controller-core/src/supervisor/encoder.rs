@@ -57,12 +57,11 @@ crate::raw::raw_struct! {
     /// The encoder checks' levels (the drive configuration's).
     #[derive(Clone, Copy, Debug, PartialEq)]
     pub(crate) struct EncoderLimits {
-        /// The jump level's quantisation share, mechanical rad: the second difference of
-        /// three readings of motion the mechanics allow errs by less ([`EncoderTrack::read`]).
-        pub(crate) count_rad: f32,
-        /// Its acceleration share at a spacing of one read, mechanical rad (`encoder_jump_rad`
-        /// less `count_rad`): `n²` times it at a spacing of `n` reads.
-        pub(crate) accel_rad: f32,
+        /// The jump check's level at each spacing `n` = 1 … [`JUMP_SPACING_MAX`] reads,
+        /// mechanical rad: its quantisation share — the second difference of three readings
+        /// of motion the mechanics allow errs by less — plus `n²` times its acceleration share
+        /// (`encoder_jump_rad` at `n` = 1; [`EncoderTrack::read`]).
+        pub(crate) jump_levels_rad: [f32; JUMP_SPACING_MAX],
         /// Slow periods of implausible encoder before the trip ([`VoltageCheck::implausible`]).
         pub(crate) check_steps: u32,
     }
@@ -71,6 +70,8 @@ crate::raw::raw_struct! {
 /// The longest spacing of the jump check, in reads: its second differences span twice it,
 /// the speed estimate's window ([`crate::encoder::SPEED_WINDOW_READS`]).
 pub const JUMP_SPACING_MAX: usize = crate::encoder::SPEED_WINDOW_READS / 2;
+// `EncoderTrack::read` writes its four second differences out.
+const _: () = assert!(JUMP_SPACING_MAX == 4);
 
 /// The encoder's readings as the slow step takes them: the last angle, the whole turns
 /// counted and the last changes. The shaft's, so they carry on through every mode, an enable
@@ -81,10 +82,10 @@ pub(crate) struct EncoderTrack {
     theta_m_prev_rad: f32,
     /// Whole turns counted from the readings.
     turns: i32,
-    /// The last changes, one per read, mechanical rad: a ring, the newest at `head`.
+    /// The last changes, one per read, mechanical rad, the newest first.
     steps_rad: [f32; 2 * JUMP_SPACING_MAX],
-    head: u8,
-    /// How many of them, from the newest back, are references for the jump check.
+    /// How many of them, from the newest back, are references for the jump check (counted
+    /// on beyond).
     changes: u8,
     /// A reading was taken (the next one makes a change).
     read_once: bool,
@@ -98,18 +99,10 @@ impl EncoderTrack {
         theta_m_prev_rad: 0.0,
         turns: 0,
         steps_rad: [0.0; 2 * JUMP_SPACING_MAX],
-        head: 0,
         changes: 0,
         read_once: false,
         rebase: false,
     };
-
-    /// The change `k` reads before the last one (0: the last), mechanical rad.
-    #[inline]
-    fn step_back(&self, k: usize) -> f32 {
-        let n = self.steps_rad.len();
-        self.steps_rad.get((usize::from(self.head) + n - k % n) % n).copied().unwrap_or(0.0)
-    }
 
     /// One reading `theta_m_rad`: the change since the last reading, mechanical rad (the
     /// wrapped difference of two angles within a revolution: exact in f32 however far the
@@ -142,29 +135,29 @@ impl EncoderTrack {
             self.turns = self.turns.saturating_add(if raw < step { 1 } else { -1 });
         }
         self.theta_m_prev_rad = theta_m_rad;
-        let n = self.steps_rad.len();
-        self.head = ((usize::from(self.head) + 1) % n) as u8;
-        if let Some(s) = self.steps_rad.get_mut(usize::from(self.head)) {
-            *s = step;
-        }
+        // The newest first (element by element: `copy_within` is a `memmove` call).
+        let s = self.steps_rad;
+        self.steps_rad = [step, s[0], s[1], s[2], s[3], s[4], s[5], s[6]];
         // After a change of the read period, the change across it counts turns but is no
         // reference: the check judges from the second change at the new period.
-        self.changes = if !self.read_once || self.rebase { 0 } else { (self.changes + 1).min(n as u8) };
+        self.changes = if !self.read_once || self.rebase { 0 } else { self.changes.saturating_add(1) };
         (self.read_once, self.rebase) = (true, false);
-        let (mut newer, mut older) = (0.0, 0.0);
-        for spacing in 1..=JUMP_SPACING_MAX {
-            if !judge || usize::from(self.changes) < 2 * spacing {
-                break;
-            }
-            // D_n from D_{n−1}'s sums: the newest n changes, and the n before them.
-            newer += self.step_back(spacing - 1);
-            older += self.step_back(2 * spacing - 2) + self.step_back(2 * spacing - 1)
-                - self.step_back(spacing - 1);
-            if (newer - older).abs() > limits.count_rad + (spacing * spacing) as f32 * limits.accel_rad {
-                return (step, true);
-            }
-        }
-        (step, false)
+        // D_n = 2·P_n − P_2n, P_m the newest m changes' sum (in-bounds constant indices).
+        let s = &self.steps_rad;
+        let p2 = s[0] + s[1];
+        let (p3, p4) = (p2 + s[2], p2 + s[2] + s[3]);
+        let p6 = p4 + s[4] + s[5];
+        let p8 = p6 + s[6] + s[7];
+        let d = [2.0 * s[0] - p2, 2.0 * p2 - p4, 2.0 * p3 - p6, 2.0 * p4 - p8];
+        // Each spacing once its 2n changes are known.
+        let known = usize::from(self.changes) / 2;
+        let l = &limits.jump_levels_rad;
+        let jumped = judge
+            && ((known > 0 && d[0].abs() > l[0])
+                || (known > 1 && d[1].abs() > l[1])
+                || (known > 2 && d[2].abs() > l[2])
+                || (known > 3 && d[3].abs() > l[3]));
+        (step, jumped)
     }
 
     /// The last change is no reference (a cleared fault's: it may be the jump that latched
