@@ -1,0 +1,180 @@
+//! What each row of the matrix asks ([`Matrix::expect`]): the fault's name and bound from
+//! the issue's detection bounds, or the stated gap and why — the encoder's rows from what
+//! its readings can tell ([`Matrix::encoder_spacing`]).
+
+use super::*;
+
+impl Matrix {
+    /// The least spacing, in reads, at which the drive's jump check must see an encoder
+    /// fault at `at` (`controller_core::drive` `EncoderTrack::read`); `None` where it cannot,
+    /// or for a case that is not one of these. A counter that stops changes each read's
+    /// increment by `c = |ω|·T`, one that loses lines by `c·(1 − lines/set)`; the second
+    /// difference of the readings at a spacing of `n` reads then reaches at least
+    /// `(n − ½)·c` however the fault falls between two reads, against the level's
+    /// quantisation share plus `n²` times the mechanics' allowance
+    /// ([`controller_core::drive::ENCODER_ACCEL_FACTOR`] × the drive's peak acceleration,
+    /// over a read squared). Where no spacing up to
+    /// [`controller_core::drive::JUMP_SPACING_MAX`] clears it, the readings are those of a
+    /// rotor that a seizure slowed.
+    pub fn encoder_spacing(&self, case: &Case, at: &OperatingPoint) -> Option<usize> {
+        let spec = &self.spec;
+        let t_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+        let per_read = at.speed_rad_s.abs() * t_s;
+        let c = match case.injection {
+            Injection::EncoderStuck => per_read,
+            Injection::EncoderLines { lines } => {
+                per_read * (1.0 - f64::from(lines) / f64::from(self.encoder_lines.max(1))).abs()
+            }
+            _ => return None,
+        };
+        let jump = spec.protection.encoder_jump_rad;
+        let accel = controller_core::drive::ENCODER_ACCEL_FACTOR
+            * controller_core::drive::peak_acceleration_rad_s2(
+                &spec.motor,
+                spec.flux_ref_wb,
+                spec.i_ref_max_a,
+            )
+            * t_s
+            * t_s;
+        let counts = (jump - accel).clamp(0.0, jump);
+        (1..=controller_core::drive::JUMP_SPACING_MAX).find(|&n| {
+            let n_f = n as f64;
+            (n_f - 0.5) * c > counts + n_f * n_f * accel
+        })
+    }
+
+    /// What the issue asks of `case` at `at`, or the stated gap.
+    pub fn expect(&self, case: &Case, at: &OperatingPoint) -> Expect {
+        let slow_s = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
+        // A wider spacing sees a smaller change, the reads it spans later (one more for a
+        // fault that falls between two reads).
+        let spacing = self.encoder_spacing(case, at);
+        let encoder_s = ENCODER_BOUND_SLOW_PERIODS.max(spacing.map_or(0.0, |n| n as f64 + 1.0)) * slow_s;
+        let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
+        let rest = at.point == Point::Standstill;
+        match case.injection {
+            // At rest the current vector stands still, wherever the position hold left it:
+            // along the open phase's axis it asks the other two phases equal currents, which
+            // the open lead holds at zero between them — the motor carries no current at all,
+            // which `NoMotorCurrent` names (a 270 W 34 V member, the 3 300 V drive: the vector
+            // within a few degrees of phase a). Telling it from three open leads would take a
+            // probe current the plan does not ask for; the bridge goes off either way.
+            Injection::OpenPhase { .. } if rest => Expect::Either {
+                faults: &[Fault::OpenPhase, Fault::NoMotorCurrent],
+                bound_s: OPEN_PHASE_BOUND_S,
+            },
+            Injection::OpenPhase { .. } => {
+                Expect::Fault { fault: Fault::OpenPhase, bound_s: OPEN_PHASE_BOUND_S }
+            }
+            // The comparator breaks the bridge within its filter time, inside the period
+            // (the drive learns it at its next interrupt), or — a short whose current stays
+            // below the comparator's level within the period — the software's overcurrent
+            // check at the next sample: one period either way.
+            Injection::PhaseShort(_) | Injection::SwitchShort(_) if self.comparator.is_some() => {
+                Expect::Either { faults: &[Fault::HardwareBreak, Fault::Overcurrent], bound_s: pwm_s }
+            }
+            Injection::PhaseShort(_) => Expect::Fault { fault: Fault::Overcurrent, bound_s: pwm_s },
+            // Without the comparator the loop's current flows only while the partner
+            // conducts; the low-side shunt carries it at the sample (around the top of the
+            // count) only when the upper switch is the shorted one: the software's
+            // overcurrent at the next sample, one period — a shorted lower switch's current
+            // has died through the diodes by then and nothing but the comparator sees it.
+            Injection::SwitchShort(s) if s.upper => {
+                Expect::Fault { fault: Fault::Overcurrent, bound_s: pwm_s }
+            }
+            Injection::SwitchShort(_) => Expect::Gap {
+                fault: Fault::Overcurrent,
+                bound_s: pwm_s,
+                why: "without the board's comparator a shorted lower switch's shoot-through flows only while \
+                      the high side conducts, between the samples: only the comparator can see it",
+            },
+            // A switch stuck open does nothing until its direction of current is needed: the
+            // bound runs from the first peak of its dead direction after the injection
+            // ([`dead_peak_after_s`]: the run measures the field's angle and turn,
+            // `Matrix::run_one`), at most [`SWITCH_PEAK_LEAD_MAX_S`] after the first period
+            // it mattered ([`Outcome::acting_after_s`]).
+            // The phase then cannot follow one way: `SwitchOpen` once the other way has carried
+            // since (`drive::SWITCH_MISSING_SHARE`); before that (or when the reference hardly
+            // reverses) the phase carries none of its current, which is `OpenPhase`; a dead
+            // lower switch leaves its low-side shunt without current exactly then, which the
+            // current-sum check sees first.
+            Injection::SwitchOpen { .. } => Expect::Either {
+                faults: &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor],
+                bound_s: OPEN_PHASE_BOUND_S,
+            },
+            // A wiring error made at installation, not a failure in service: commissioning
+            // refuses it (`hil_sim::identify`); not among the matrix's cases.
+            Injection::CurrentChannelsSwapped { .. } => Expect::Gap {
+                fault: Fault::CurrentSensor,
+                bound_s: SENSOR_BOUND_S,
+                why: "swapped current channels are an installation error, refused by commissioning",
+            },
+            Injection::EncoderReversed => Expect::Gap {
+                fault: Fault::EncoderImplausible,
+                bound_s: encoder_s,
+                why: "a reversed encoder is an installation error, refused by commissioning",
+            },
+            Injection::EncoderStuck if rest => Expect::Gap {
+                fault: Fault::EncoderLoss,
+                bound_s: encoder_s,
+                why: "at rest a stuck counter reads what a healthy one reads; the load then turns the rotor \
+                      unseen (needs a speed observer from the electrical quantities)",
+            },
+            Injection::EncoderLines { .. } if rest => Expect::Gap {
+                fault: Fault::EncoderLoss,
+                bound_s: encoder_s,
+                why: "at rest a wrong line count changes no reading",
+            },
+            // Slower, the change is one the mechanics allow: a seizure slowing the rotor that
+            // hard reads the same — only the electrical quantities could tell them apart.
+            Injection::EncoderStuck | Injection::EncoderLines { .. } if spacing.is_none() => Expect::Gap {
+                fault: Fault::EncoderLoss,
+                bound_s: encoder_s,
+                why: "at this speed a counter that stops or loses lines changes the readings no more than a \
+                      seizure of ten times the drive's torque slowing the rotor would (the jump check's \
+                      allowance, Matrix::encoder_spacing): telling them apart needs a speed observer from \
+                      the electrical quantities",
+            },
+            // The observer beside the encoder carries the drive on (issue 53: ride-through) —
+            // at speed: standstill is a position hold, which needs the shaft's angle, and the
+            // fault trips there as without the observer.
+            Injection::EncoderStuck | Injection::EncoderGlitch { .. } | Injection::EncoderLines { .. }
+                if self.spec.speed_feedback == SpeedFeedback::EncoderRideThrough && !rest =>
+            {
+                Expect::Reported {
+                    faults: &[Fault::EncoderLoss, Fault::EncoderImplausible],
+                    bound_s: encoder_s,
+                }
+            }
+            Injection::EncoderStuck | Injection::EncoderGlitch { .. } | Injection::EncoderLines { .. } => {
+                Expect::Fault { fault: Fault::EncoderLoss, bound_s: encoder_s }
+            }
+            Injection::CurrentSensor { .. } => {
+                Expect::Fault { fault: Fault::CurrentSensor, bound_s: SENSOR_BOUND_S }
+            }
+            Injection::BusVoltage { vdc_v } => Expect::Fault {
+                fault: if vdc_v < self.spec.protection.vdc_min_v {
+                    Fault::DcBusUndervoltage
+                } else {
+                    Fault::DcBusOvervoltage
+                },
+                bound_s: pwm_s,
+            },
+            Injection::Plant { .. } => Expect::RideThrough,
+            // At rest under a position hold, a seized load changes nothing the drive commands.
+            // A load the drive cannot hold drags the rotor away from its reference: named by
+            // the following-error check, or by overspeed if the rotor crosses that first.
+            Injection::LoadStep { .. } => {
+                Expect::Either { faults: &[Fault::FollowingError, Fault::Overspeed], bound_s: STALL_BOUND_S }
+            }
+            Injection::LoadSeizure { .. } if rest => Expect::RideThrough,
+            // At speed, a seizure first decelerates the rotor against the drive's full torque:
+            // until it stops, that is a load beyond the drive dragging the speed against the
+            // torque — the following-error check's — and once stopped, a stall. The following
+            // window derived from the mechanics (issue 49) names the first on a light rotor.
+            Injection::LoadSeizure { .. } => {
+                Expect::Either { faults: &[Fault::Stall, Fault::FollowingError], bound_s: STALL_BOUND_S }
+            }
+        }
+    }
+}
