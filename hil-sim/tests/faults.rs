@@ -85,7 +85,7 @@ fn a_drive_that_misses_a_fault_fails_its_row() {
 fn a_gap_that_closes_fails_its_row() {
     let m = shipped();
     let (c, at) = (case(&m, "encoder glitch"), point(&m, Point::Mid, false));
-    let gap = Expect::Gap { fault: Fault::EncoderLoss, bound_s: 1e-3, why: "test" };
+    let gap = Expect::Gap { fault: Fault::EncoderLoss, bound_s: 1e-3, why: "test", may_close: false };
     let o = m.run_one(3, &c, &at, gap, &AtomicBool::new(false)).unwrap();
     assert_eq!(o.detected.map(|(f, _)| f), Some(Fault::EncoderLoss));
     assert!(o.failures.iter().any(|f| f.contains("gap closed")), "{:?}", o.failures);

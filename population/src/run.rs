@@ -661,16 +661,20 @@ mod tests {
     /// change whole: `EncoderLoss`, within the three slow periods the matrix allows a change
     /// seen at that spacing. Member 001 (1.3 kW, 8 poles, 500 lines): a counter that stops at
     /// its mid-speed, 36 rad/s, changes the readings less than a seizure of ten times its
-    /// torque would at any spacing (`Matrix::encoder_spacing`), so the rows at mid-speed are
+    /// torque would at any spacing (`Matrix::encoder_reach`), so the rows at mid-speed are
     /// stated gaps (they failed as `Stall` and `FollowingError`, and one ran on undetected).
+    /// Member 013 (162 W, 2 poles, 2 048 lines) at 10 kHz: its encoder at half its lines at
+    /// 150 rad/s is named within 0.6 ms where the fault falls on a read, as the matrix injects
+    /// it — a gap by the worst alignment, a "gap closed" failure until the matrix judged the
+    /// alignment it injects at.
     #[test]
     fn an_encoder_fault_is_named_where_the_readings_can_tell_it() {
         use hil_sim::faults::{Expect, Point};
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
         let cancel = AtomicBool::new(false);
-        for (index, named) in [(12, true), (1, false)] {
+        for (index, pwm_hz, named) in [(12, 20_000.0, true), (1, 20_000.0, false), (13, 10_000.0, true)] {
             let m = draw(1, index, None).unwrap();
-            let (tuned, path, vdc) = tune_member(&m, 20_000.0, &root);
+            let (tuned, path, vdc) = tune_member(&m, pwm_hz, &root);
             let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
             let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
             let rows = matrix.rows().unwrap();

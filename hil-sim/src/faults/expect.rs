@@ -1,24 +1,27 @@
 //! What each row of the matrix asks ([`Matrix::expect`]): the fault's name and bound from
 //! the issue's detection bounds, or the stated gap and why — the encoder's rows from what
-//! its readings can tell ([`Matrix::encoder_spacing`]).
+//! its readings can tell ([`Matrix::encoder_reach`]).
 
 use super::*;
 
 impl Matrix {
-    /// The least spacing, in reads, at which the drive's jump check must see an encoder
-    /// fault at `at` (`controller_core::drive` `EncoderTrack::read`); `None` where it cannot,
-    /// or for a case that is not one of these. A counter that stops changes each read's
-    /// increment by `c = |ω|·T`, one that loses lines by `c·(1 − lines/set)`; the second
-    /// difference of the readings at a spacing of `n` reads then reaches at least
-    /// `(n − ½)·c` however the fault falls between two reads, against the level's
-    /// quantisation share plus `n²` times the mechanics' allowance
-    /// ([`controller_core::drive::ENCODER_ACCEL_FACTOR`] × the drive's peak acceleration,
-    /// over a read squared). Where no spacing up to
-    /// [`controller_core::drive::JUMP_SPACING_MAX`] clears it, the readings are those of a
-    /// rotor that a seizure slowed.
-    pub fn encoder_spacing(&self, case: &Case, at: &OperatingPoint) -> Option<usize> {
+    /// What the drive's jump check can make of an encoder fault at `at`
+    /// (`controller_core::drive` `EncoderTrack::read`; `None` for a case that is not one).
+    /// A counter that stops changes each read's increment by `c = |ω|·T`, one that loses
+    /// lines by `c·(1 − lines/set)`. With the fault falling `g` of the way through a read
+    /// interval from its end (the matrix's injection against the simulator's reads, every
+    /// slow divider's period from the first), the second difference of the readings at a
+    /// spacing of `n` reads reaches `max(n − 1 + g, n − g)·c` — `n·c` when the fault falls on
+    /// a read — against the level's quantisation share plus `n²` times the mechanics'
+    /// allowance ([`controller_core::drive::ENCODER_ACCEL_FACTOR`] × the drive's peak
+    /// acceleration, over a read squared); the readings' own quantisation moves it by less
+    /// than two counts (half the quantisation share, `drive_file::drive::ENCODER_JUMP_COUNTS`)
+    /// either way.
+    pub fn encoder_reach(&self, case: &Case, at: &OperatingPoint) -> Option<EncoderReach> {
         let spec = &self.spec;
-        let t_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+        let pwm_s = 1.0 / spec.pwm_frequency_hz;
+        let divider = u64::from(spec.slow_divider.max(1));
+        let t_s = divider as f64 * pwm_s;
         let per_read = at.speed_rad_s.abs() * t_s;
         let c = match case.injection {
             Injection::EncoderStuck => per_read,
@@ -37,9 +40,21 @@ impl Matrix {
             * t_s
             * t_s;
         let counts = (jump - accel).clamp(0.0, jump);
-        (1..=controller_core::drive::JUMP_SPACING_MAX).find(|&n| {
-            let n_f = n as f64;
-            (n_f - 0.5) * c > counts + n_f * n_f * accel
+        let quantisation = 0.5 * counts;
+        // The periods of the read interval the injection leaves faulty: all of the next one
+        // when it falls on a read.
+        let r = crate::sim::first_period_at(self.inject_s(), pwm_s) % divider;
+        let g = if r == 0 { 1.0 } else { (divider - r) as f64 / divider as f64 };
+        let reach = |sign: f64| {
+            (1..=controller_core::drive::JUMP_SPACING_MAX).find(|&n| {
+                let n_f = n as f64;
+                (n_f - 1.0 + g).max(n_f - g) * c + sign * quantisation > counts + n_f * n_f * accel
+            })
+        };
+        Some(match (reach(-1.0), reach(1.0)) {
+            (Some(n), _) => EncoderReach::Seen(n),
+            (None, Some(n)) => EncoderReach::Unsure(n),
+            (None, None) => EncoderReach::Unseen,
         })
     }
 
@@ -48,8 +63,12 @@ impl Matrix {
         let slow_s = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
         // A wider spacing sees a smaller change, the reads it spans later (one more for a
         // fault that falls between two reads).
-        let spacing = self.encoder_spacing(case, at);
-        let encoder_s = ENCODER_BOUND_SLOW_PERIODS.max(spacing.map_or(0.0, |n| n as f64 + 1.0)) * slow_s;
+        let reach = self.encoder_reach(case, at);
+        let spacing = match reach {
+            Some(EncoderReach::Seen(n) | EncoderReach::Unsure(n)) => n as f64 + 1.0,
+            _ => 0.0,
+        };
+        let encoder_s = ENCODER_BOUND_SLOW_PERIODS.max(spacing) * slow_s;
         let pwm_s = 1.0 / self.spec.pwm_frequency_hz;
         let rest = at.point == Point::Standstill;
         match case.injection {
@@ -87,6 +106,7 @@ impl Matrix {
                 bound_s: pwm_s,
                 why: "without the board's comparator a shorted lower switch's shoot-through flows only while \
                       the high side conducts, between the samples: only the comparator can see it",
+                may_close: false,
             },
             // A switch stuck open does nothing until its direction of current is needed: the
             // bound runs from the first peak of its dead direction after the injection
@@ -108,33 +128,42 @@ impl Matrix {
                 fault: Fault::CurrentSensor,
                 bound_s: SENSOR_BOUND_S,
                 why: "swapped current channels are an installation error, refused by commissioning",
+                may_close: false,
             },
             Injection::EncoderReversed => Expect::Gap {
                 fault: Fault::EncoderImplausible,
                 bound_s: encoder_s,
                 why: "a reversed encoder is an installation error, refused by commissioning",
+                may_close: false,
             },
             Injection::EncoderStuck if rest => Expect::Gap {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,
                 why: "at rest a stuck counter reads what a healthy one reads; the load then turns the rotor \
                       unseen (needs a speed observer from the electrical quantities)",
+                may_close: false,
             },
             Injection::EncoderLines { .. } if rest => Expect::Gap {
                 fault: Fault::EncoderLoss,
                 bound_s: encoder_s,
                 why: "at rest a wrong line count changes no reading",
+                may_close: false,
             },
             // Slower, the change is one the mechanics allow: a seizure slowing the rotor that
             // hard reads the same — only the electrical quantities could tell them apart.
-            Injection::EncoderStuck | Injection::EncoderLines { .. } if spacing.is_none() => Expect::Gap {
-                fault: Fault::EncoderLoss,
-                bound_s: encoder_s,
-                why: "at this speed a counter that stops or loses lines changes the readings no more than a \
-                      seizure of ten times the drive's torque slowing the rotor would (the jump check's \
-                      allowance, Matrix::encoder_spacing): telling them apart needs a speed observer from \
-                      the electrical quantities",
-            },
+            Injection::EncoderStuck | Injection::EncoderLines { .. }
+                if matches!(reach, Some(EncoderReach::Unseen | EncoderReach::Unsure(_))) =>
+            {
+                Expect::Gap {
+                    fault: Fault::EncoderLoss,
+                    bound_s: encoder_s,
+                    why: "at this speed a counter that stops or loses lines changes the readings no more than \
+                          a seizure of ten times the drive's torque slowing the rotor would (the jump check's \
+                          allowance, Matrix::encoder_reach) — or only by the readings' quantisation: telling \
+                          them apart needs a speed observer from the electrical quantities",
+                    may_close: matches!(reach, Some(EncoderReach::Unsure(_))),
+                }
+            }
             // The observer beside the encoder carries the drive on (issue 53: ride-through) —
             // at speed: standstill is a position hold, which needs the shaft's angle, and the
             // fault trips there as without the observer.

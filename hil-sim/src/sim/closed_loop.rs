@@ -430,7 +430,7 @@ pub fn run_collect(
 /// The first period k whose start `k·ts_s` is at or after `t_s` (the same floating-point
 /// comparison the event loop makes); `u64::MAX` when there is none in range. Lets [`run`]
 /// compare period indices instead of converting every k to a time.
-fn first_period_at(t_s: f64, ts_s: f64) -> u64 {
+pub(crate) fn first_period_at(t_s: f64, ts_s: f64) -> u64 {
     let at = |k: u64| k as f64 * ts_s;
     let periods = t_s / ts_s;
     if periods.is_nan() || periods >= 1e15 {

@@ -28,6 +28,7 @@ mod dc_link;
 mod integrate;
 mod open_loop;
 
+pub(crate) use closed_loop::first_period_at;
 pub use closed_loop::{run, run_collect};
 pub use dc_link::{Chopper, DcLink, DcSource};
 pub use integrate::{BRIDGE_OFF_SUBSTEPS, RK4_RATE_STEP_MAX};
