@@ -336,9 +336,23 @@ pub fn peak_acceleration_rad_s2(
     flux_ref_wb: f64,
     i_ref_max_a: f64,
 ) -> f64 {
-    let tau_peak_nm =
-        1.5 * f64::from(motor.pole_pairs()) * motor.lm_h() / motor.lr_h() * flux_ref_wb * i_ref_max_a;
-    tau_peak_nm / motor.j_kgm2()
+    motor.torque_factor() * flux_ref_wb * i_ref_max_a / motor.j_kgm2()
+}
+
+/// The encoder jump level's two shares, mechanical rad: `[quantisation, acceleration]`, the
+/// acceleration's the mechanics' allowance over a read squared ([`ENCODER_ACCEL_FACTOR`] ×
+/// [`peak_acceleration_rad_s2`] × T_slow², at most the level), the quantisation's the rest
+/// (`drive_file::drive::default_encoder_jump_rad`'s two terms). At a spacing of `n` reads
+/// the jump check allows the first plus `n²` times the second.
+pub fn encoder_jump_shares(spec: &DriveSpec) -> [f64; 2] {
+    let t_slow_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
+    let jump = spec.protection.encoder_jump_rad;
+    let allowance = ENCODER_ACCEL_FACTOR
+        * peak_acceleration_rad_s2(&spec.motor, spec.flux_ref_wb, spec.i_ref_max_a)
+        * t_slow_s
+        * t_slow_s;
+    let count = (jump - allowance).clamp(0.0, jump);
+    [count, jump - count]
 }
 
 /// `x` finite and positive.
@@ -492,14 +506,7 @@ impl DriveConfig {
             .map_err(DriveError::Position)?;
         let i_d_rated_a = ifoc.flux_command(spec.flux_ref_wb as f32).i_d_a();
         let open_phase_steps = libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32;
-        // The jump level's quantisation share: the level less the mechanics' allowance over
-        // a read squared (`default_encoder_jump_rad`'s two terms); at a spacing of n reads the
-        // allowance's share grows n², the quantisation's does not.
-        let accel_rad = ENCODER_ACCEL_FACTOR
-            * peak_acceleration_rad_s2(&spec.motor, spec.flux_ref_wb, spec.i_ref_max_a)
-            * t_slow
-            * t_slow;
-        let count_rad = (p.encoder_jump_rad - accel_rad).clamp(0.0, p.encoder_jump_rad);
+        let [count_rad, accel_rad] = encoder_jump_shares(spec);
         Ok(Self {
             current,
             current_frame: spec.current_frame,
@@ -557,7 +564,7 @@ impl DriveConfig {
                 // Finite in f32 too.
                 jump_levels_rad: core::array::from_fn(|k| {
                     let n = (k + 1) as f64;
-                    ((count_rad + n * n * (p.encoder_jump_rad - count_rad)) as f32).min(f32::MAX)
+                    ((count_rad + n * n * accel_rad) as f32).min(f32::MAX)
                 }),
                 check_steps: libm::ceil(p.encoder_check_time_s * f / f64::from(spec.slow_divider))
                     .clamp(1.0, 4e9) as u32,

@@ -92,7 +92,7 @@ pub use crate::supervisor::thermal::THERMAL_UPDATE_SLOW_STEPS;
 pub use crate::supervisor::{BrakeChopper, Protection, ThermalLimit};
 pub use config::{
     DriveConfig, FLOATS, INTEGERS, RawDriveConfig, SEARCH_RESOLVED_TURN_RAD, SEARCH_TURN_MAX_RAD,
-    SEARCH_WINDOWS_MIN, observer_speed_bandwidth_rad_s, peak_acceleration_rad_s2,
+    SEARCH_WINDOWS_MIN, encoder_jump_shares, observer_speed_bandwidth_rad_s, peak_acceleration_rad_s2,
 };
 pub use spec::*;
 

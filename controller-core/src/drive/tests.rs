@@ -784,14 +784,9 @@ fn the_encoder_angle_stays_exact_far_from_zero() {
     assert!((f64::from(d.position_rad()) + 1999.0 * step).abs() < 1e-3, "{}", d.position_rad());
 }
 
-/// The jump level's acceleration share, mechanical rad: the mechanics' allowance over a read
-/// squared (`ENCODER_ACCEL_FACTOR` × the drive's peak acceleration × T²).
+/// The jump level's acceleration share, mechanical rad (`encoder_jump_shares`).
 fn jump_accel_rad(spec: &DriveSpec) -> f64 {
-    let t_s = f64::from(spec.slow_divider) / spec.pwm_frequency_hz;
-    ENCODER_ACCEL_FACTOR
-        * peak_acceleration_rad_s2(&spec.motor, spec.flux_ref_wb, spec.i_ref_max_a)
-        * t_s
-        * t_s
+    encoder_jump_shares(spec)[1]
 }
 
 /// The jump check: a reading whose change departs from the last change by more than

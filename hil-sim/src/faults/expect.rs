@@ -30,16 +30,7 @@ impl Matrix {
             }
             _ => return None,
         };
-        let jump = spec.protection.encoder_jump_rad;
-        let accel = controller_core::drive::ENCODER_ACCEL_FACTOR
-            * controller_core::drive::peak_acceleration_rad_s2(
-                &spec.motor,
-                spec.flux_ref_wb,
-                spec.i_ref_max_a,
-            )
-            * t_s
-            * t_s;
-        let counts = (jump - accel).clamp(0.0, jump);
+        let [counts, accel] = controller_core::drive::encoder_jump_shares(spec);
         let quantisation = 0.5 * counts;
         // The periods of the read interval the injection leaves faulty: all of the next one
         // when it falls on a read.
