@@ -52,6 +52,7 @@ fn modes_built(d: &drive_file::DriveFile, name: &str) -> Result<(), String> {
         (matches!(d.spec.control, Control::VHz { .. }), "vhz", "[controller] control = \"vhz\""),
         (d.spec.speed_feedback != SpeedFeedback::Encoder, "sensorless", "[controller] speed_feedback"),
         (d.spec.magnetizing.is_some(), "saturation", "[motor.saturation]"),
+        (d.spec.overmodulation, "overmodulation", "[controller] overmodulation"),
     ];
     match needs.iter().find(|(needed, f, _)| *needed && !feature(f)) {
         Some((_, f, key)) => Err(format!(

@@ -23,8 +23,20 @@
 //! as much as the highest centred duty exceeds `d_s`: every phase keeps its window, so all
 //! three currents are measured in every period — the supervisor's current-sum checks need
 //! the third — at the cost of `1 − d_s` of the voltage. (Rebuilding the highest phase from
-//! the other two keeps that voltage, but was measured to blind those checks at top speed:
-//! docs/firmware.md.)
+//! the other two in every period keeps that voltage, but was measured to blind those checks
+//! at top speed: docs/firmware.md; overmodulation, below, rebuilds it only where it must.)
+//!
+//! **Overmodulation** ([`overmodulate`], the drive file's `[controller] overmodulation`,
+//! issue 52). Beyond the sampled hexagon one phase at a time may give up its window: the
+//! lowest phase is held at duty 0, the highest may rise to `d_f` (1 less the dead-time
+//! compensation's room), and the middle one stays at most `d_s`, so that two phases — the
+//! lowest and the middle — are always measured and the third is their negative sum (the
+//! drive rebuilds it only in the periods that lost it, and its current-sum checks skip those
+//! samples). The region is the hexagon of `d_f` with its six vertices cut where the middle
+//! phase would lose its window too: `span ≤ d_f·V_dc` and `mid − min ≤ d_s·V_dc`. A request
+//! beyond it is scaled down onto it, the angle kept — the minimum-phase-error method of
+//! S. Bolognani and M. Zigliotto ("Novel digital continuous control of SVM inverters in the
+//! overmodulation range", IEEE Trans. Ind. Appl. 33(2), 1997), on this drive's cut hexagon.
 
 use crate::frames::{Abc, AlphaBeta};
 use crate::num::{finite_positive, max_f32, min_f32};
@@ -137,6 +149,46 @@ pub(crate) fn modulate_limited(v: AlphaBeta, vdc_v: f32, duty_max: f32) -> Modul
         v_applied: v.scale(duty_max * vdc_v / span),
         saturated: true,
     }
+}
+
+/// Duties for `v` beyond the sampled hexagon (module docs, "Overmodulation"): the lowest
+/// phase at 0, the request applied as asked while its span is at most `duty_full·V_dc` and
+/// its middle phase at most `duty_sampled·V_dc` above its lowest, scaled down onto that cut
+/// hexagon beyond it (the angle kept, `saturated` set). Every duty in `[0, duty_full]`, the
+/// middle one in `[0, duty_sampled]` up to rounding (the drive finds the phases without a
+/// window from the duties themselves: [`unsampled_phases`]); for a bus that is not positive
+/// and finite or a request that is not finite, ½ on every phase (zero voltage). For a request
+/// `duties_within` refused at `duty_sampled` (inside the sampled hexagon it would not
+/// centre the duties), with `½ < duty_sampled ≤ duty_full ≤ 1` (the configuration's).
+#[cold]
+#[inline(never)]
+pub fn overmodulate(v: AlphaBeta, vdc_v: f32, duty_sampled: f32, duty_full: f32) -> Modulation {
+    let abc = v.inverse_clarke();
+    let (max, min) = extremes(abc);
+    // The middle phase: the largest of the three pairwise minima.
+    let mid = max_f32(max_f32(min_f32(abc.a, abc.b), min_f32(abc.b, abc.c)), min_f32(abc.a, abc.c));
+    let span = max - min;
+    if !(finite_positive(vdc_v) && finite_positive(span)) {
+        return modulate_limited(v, vdc_v, duty_sampled);
+    }
+    // The request's share that fits: 1 inside the cut hexagon, else the binding side's
+    // (a zero middle span divides to +∞, which `min_f32` passes over).
+    let k = min_f32(min_f32(1.0, duty_full * vdc_v / span), duty_sampled * vdc_v / (mid - min));
+    let scale = k / vdc_v;
+    let duty = |x: f32| min_f32(max_f32((x - min) * scale, 0.0), duty_full);
+    Modulation {
+        duty: Abc { a: duty(abc.a), b: duty(abc.b), c: duty(abc.c) },
+        v_applied: if k < 1.0 { v.scale(k) } else { v },
+        saturated: k < 1.0,
+    }
+}
+
+/// The phases whose duty leaves no low-side sampling window, as bits (a = 1, b = 2, c = 4):
+/// above `window_duty`, the highest duty whose low side still conducts for the window (the
+/// duties after the dead-time compensation: `duty_sampled` plus the compensation's room).
+#[inline]
+pub fn unsampled_phases(duty: Abc, window_duty: f32) -> u8 {
+    u8::from(duty.a > window_duty) | u8::from(duty.b > window_duty) << 1 | u8::from(duty.c > window_duty) << 2
 }
 
 /// Dead-time compensation, per phase. During the dead time `t_d` after each commanded
@@ -327,6 +379,77 @@ mod tests {
         // No limit: exactly `modulate`.
         let v = AlphaBeta { alpha: 150.0, beta: 90.0 };
         assert_eq!(modulate_sampled(v, vdc, 1.0), modulate(v, vdc));
+    }
+
+    /// Overmodulation: inside the sampled hexagon nothing to do (the caller's common path);
+    /// beyond it the request applied exactly up to the cut hexagon, the angle kept beyond
+    /// it; the lowest phase at 0, the highest at most `d_f`, the middle at most `d_s` — so at
+    /// most one phase loses its window — and the duties' voltage the one reported applied.
+    #[test]
+    fn overmodulation_gives_up_one_window_at_a_time() {
+        let (vdc, d_s, d_f) = (310.0f32, 0.94f32, 0.98f32);
+        let r0 = linear_limit_v(vdc);
+        let mut fundamental = [0.0f32; 2];
+        for k in 0..3600 {
+            let th = k as f32 * TAU / 3600.0;
+            let sc = SinCos::new(th);
+            for (n, r) in [0.95f32, 0.98, 1.0, 1.05, 1.1, 1.2, 3.0, 100.0].into_iter().enumerate() {
+                let v = AlphaBeta { alpha: r * r0 * sc.cos, beta: r * r0 * sc.sin };
+                if duties_within(v, vdc, d_s).is_some() {
+                    continue;
+                }
+                let m = overmodulate(v, vdc, d_s, d_f);
+                let d = [m.duty.a, m.duty.b, m.duty.c];
+                let lo = d.iter().copied().fold(f32::MAX, f32::min);
+                assert!(lo == 0.0, "{th} {r}: {m:?}");
+                assert!(d.iter().all(|&x| (0.0..=d_f).contains(&x)), "{th} {r}: {m:?}");
+                assert!(unsampled_phases(m.duty, d_s + 1e-6).count_ones() <= 1, "{th} {r}: {m:?}");
+                let back = applied(&m, vdc);
+                assert!(
+                    (back.alpha - m.v_applied.alpha).abs() < 2e-3
+                        && (back.beta - m.v_applied.beta).abs() < 2e-3
+                );
+                let (a0, a1) =
+                    (libm::atan2f(v.beta, v.alpha), libm::atan2f(m.v_applied.beta, m.v_applied.alpha));
+                assert!((a0 - a1).abs() < 1e-4, "angle {a0} → {a1}");
+                if !m.saturated {
+                    assert_eq!(m.v_applied, v);
+                }
+                if n == 7 {
+                    // Far beyond: the boundary's fundamental over a turn (accumulated below).
+                    fundamental[0] += m.v_applied.alpha * sc.cos + m.v_applied.beta * sc.sin;
+                    fundamental[1] += 1.0;
+                }
+            }
+        }
+        // A request of 1.05 × the circle at a side's middle (30°) is applied whole: beyond
+        // the sampled hexagon, within the full one.
+        let v = AlphaBeta { alpha: 1.0 * r0 * libm::cosf(PI / 6.0), beta: 1.0 * r0 * libm::sinf(PI / 6.0) };
+        let m = overmodulate(v.scale(0.97), vdc, d_s, d_f);
+        assert!(!m.saturated && unsampled_phases(m.duty, d_s) == 1, "{m:?}");
+        // At a vertex of one phase high (0°) the span binds: that phase at d_f, the other two
+        // at 0 and measured; at one of two phases high (180°) the middle phase binds: both at
+        // d_s.
+        let m = overmodulate(AlphaBeta { alpha: vdc, beta: 0.0 }, vdc, d_s, d_f);
+        assert!(
+            m.saturated && (m.duty.a - d_f).abs() < 1e-6 && m.duty.b.abs() < 1e-6 && m.duty.c.abs() < 1e-6,
+            "{m:?}"
+        );
+        let m = overmodulate(AlphaBeta { alpha: -vdc, beta: 0.0 }, vdc, d_s, d_f);
+        assert!(
+            m.saturated && (m.duty.b - d_s).abs() < 1e-6 && (m.duty.c - d_s).abs() < 1e-6 && m.duty.a == 0.0,
+            "{m:?}"
+        );
+        // The cut hexagon's boundary, followed at an even angle, has a fundamental between
+        // the sampled hexagon's circle and six-step's 2/π·V_dc.
+        let f = fundamental[0] / fundamental[1];
+        assert!(f > d_s * r0 && f < 2.0 / PI * vdc, "fundamental {} of the circle", f / r0);
+        // Bad inputs: zero voltage.
+        for (v, vdc) in
+            [(AlphaBeta { alpha: f32::NAN, beta: 0.0 }, 300.0), (AlphaBeta { alpha: 10.0, beta: 0.0 }, 0.0)]
+        {
+            assert_eq!(overmodulate(v, vdc, d_s, d_f).duty, Abc { a: 0.5, b: 0.5, c: 0.5 });
+        }
     }
 
     proptest! {

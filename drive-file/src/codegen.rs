@@ -95,6 +95,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_trim_bandwidth_rad_s: {:?},\n\
          \x20       dead_time_compensation_s: {:?},\n\
          \x20       sample_window_s: {:?},\n\
+         \x20       overmodulation: {:?},\n\
          \x20       rotor_resistance_range: {:?},\n\
          \x20       inductance_range: {:?},\n\
          \x20       magnetizing: {magnetizing},\n\
@@ -123,6 +124,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         spec.current_trim_bandwidth_rad_s,
         spec.dead_time_compensation_s,
         spec.sample_window_s,
+        spec.overmodulation,
         spec.rotor_resistance_range,
         spec.inductance_range,
         match p.brake_chopper {

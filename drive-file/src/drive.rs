@@ -74,9 +74,9 @@ pub struct ControllerTable {
     #[serde(default = "default_magnetized")]
     pub magnetized_fraction: f64,
     /// Field weakening: the steady-state voltage target as a fraction of V_dc/√3 (default
-    /// [`DEFAULT_VOLTAGE_MARGIN`]).
-    #[serde(default = "default_voltage_margin")]
-    pub voltage_margin: f64,
+    /// [`DEFAULT_VOLTAGE_MARGIN`], or [`DEFAULT_VOLTAGE_MARGIN_OVERMODULATING`] with
+    /// `overmodulation`: [`ControllerTable::voltage_margin`]).
+    pub voltage_margin: Option<f64>,
     /// Bandwidth of the field-frame current trim, rad/s; 0 turns it off (default
     /// [`DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S`]).
     #[serde(default = "default_current_trim")]
@@ -87,6 +87,12 @@ pub struct ControllerTable {
     /// for a board, and for the switching inverter model).
     #[serde(default)]
     pub dead_time_compensation: bool,
+    /// Overmodulation (default false): beyond the hexagon the board's sampling window
+    /// leaves, one phase at a time gives up its current sample, up to the full hexagon, its
+    /// current rebuilt from the other two; the drive counts on the full hexagon's circle
+    /// (`controller_core::drive::DriveSpec::overmodulation`, docs/envelope.md).
+    #[serde(default)]
+    pub overmodulation: bool,
     /// The rotor resistance's range, × `[motor] rr_ohm` (default
     /// [`controller_core::mras::DEFAULT_RANGE`]; `[1.0, 1.0]` turns the adaptation off).
     #[serde(default = "default_rotor_resistance_range")]
@@ -129,8 +135,24 @@ fn default_magnetized() -> f64 {
 /// with the voltage squared — stays within 0.98² = 96 % of the machine's envelope.
 pub const DEFAULT_VOLTAGE_MARGIN: f64 = 0.98;
 
-fn default_voltage_margin() -> f64 {
-    DEFAULT_VOLTAGE_MARGIN
+/// Default field-weakening voltage target with overmodulation: the whole circle of the full
+/// hexagon. The current loops' transient headroom is then the hexagon beyond the circle (the
+/// modulator gives it, one phase rebuilt); the two periods around each slow tick keep every
+/// window (`controller_core::drive`'s tick sample), which costs about 1 % of the voltage — at
+/// 0.98 the shipped motor got 0.949–0.964 of its physical limit, at 1 it gets 0.970–0.982
+/// (`cargo test --release -p hil-sim --test envelope overmodulation -- --nocapture`,
+/// docs/envelope.md).
+pub const DEFAULT_VOLTAGE_MARGIN_OVERMODULATING: f64 = 1.0;
+
+impl ControllerTable {
+    /// The voltage target: the file's, or the default for its modulator.
+    pub fn voltage_margin(&self) -> f64 {
+        self.voltage_margin.unwrap_or(if self.overmodulation {
+            DEFAULT_VOLTAGE_MARGIN_OVERMODULATING
+        } else {
+            DEFAULT_VOLTAGE_MARGIN
+        })
+    }
 }
 
 /// `controller.current`.
@@ -1045,7 +1067,7 @@ pub fn drive_spec(
         ("controller.flux_ref_wb", c.flux_ref_wb),
         ("controller.i_ref_max_a", c.i_ref_max_a),
         ("controller.magnetized_fraction", c.magnetized_fraction),
-        ("controller.voltage_margin", c.voltage_margin),
+        ("controller.voltage_margin", c.voltage_margin()),
         ("controller.current_trim_bandwidth_rad_s", c.current_trim_bandwidth_rad_s),
         ("controller.position.k_per_s", c.position.k_per_s),
         ("controller.position.omega_max_rad_s", c.position.omega_max_rad_s),
@@ -1124,10 +1146,11 @@ pub fn drive_spec(
         flux_floor_wb: c.flux_floor_wb.unwrap_or(0.05 * c.flux_ref_wb),
         i_ref_max_a: c.i_ref_max_a,
         magnetized_fraction: c.magnetized_fraction,
-        voltage_margin: c.voltage_margin,
+        voltage_margin: c.voltage_margin(),
         current_trim_bandwidth_rad_s: c.current_trim_bandwidth_rad_s,
         dead_time_compensation_s,
         sample_window_s,
+        overmodulation: c.overmodulation,
         rotor_resistance_range: c.rotor_resistance_range,
         inductance_range: c.inductance_range,
         magnetizing,
@@ -1196,7 +1219,18 @@ pub fn drive_spec(
         ),
         DriveError::MagnetizedFraction => src.error("controller.magnetized_fraction", "must lie in (0, 1)"),
         DriveError::Magnetizing(_) | DriveError::CurveNotBuilt => src.error("motor.saturation", e.to_string()),
-        DriveError::VoltageMargin => src.error("controller.voltage_margin", "must lie in (0, 1]"),
+        DriveError::OvermodulationNotBuilt => src.error("controller.overmodulation", e.to_string()),
+        DriveError::VoltageMargin => src.error(
+            "controller.voltage_margin",
+            {
+                let six_step = controller_core::drive::SIX_STEP_FUNDAMENTAL;
+                if c.overmodulation {
+                    format!("must lie in (0, {six_step:.4}] (six-step's fundamental, with controller.overmodulation)")
+                } else {
+                    format!("must lie in (0, 1] (up to {six_step:.4} with controller.overmodulation = true)")
+                }
+            },
+        ),
         DriveError::RotorResistanceRange => {
             src.error("controller.rotor_resistance_range", range_need("rr_ohm"))
         }

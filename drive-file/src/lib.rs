@@ -34,9 +34,11 @@
 //! flux_floor_wb = 0.05                   # default 5 % of flux_ref_wb
 //! i_ref_max_a = 4.0
 //! magnetized_fraction = 0.95             # default
-//! voltage_margin = 0.98                  # default: steady voltage target, fraction of V_dc/√3
+//! voltage_margin = 0.98                  # default (1.0 overmodulating): steady voltage target, fraction of V_dc/√3
 //! current_trim_bandwidth_rad_s = 20.0    # default: field-frame current trim; 0 turns it off
 //! dead_time_compensation = false         # default; true compensates [board] dead_time_s
+//! overmodulation = false                 # default; true: beyond the sampling window's hexagon,
+//!                                        # one phase rebuilt (voltage_margin then 1.0 by default, up to 1.1027)
 //! rotor_resistance_range = [1.0, 1.5]   # default: R_r adapted within × rr_ohm; [1, 1] fixes it
 //! inductance_range = [1.0, 1.0]         # default: fixed; [0.6, 1.0] measures L within × the motor's
 //!
@@ -142,6 +144,36 @@ mod tests {
         let line = text[..off].matches('\n').count() + 1;
         let col = text[..off].rsplit('\n').next().unwrap().chars().count() + 1;
         (line, col)
+    }
+
+    /// `overmodulation`: the drive counts on the full hexagon's circle (the board's window
+    /// still the sampled limit), and its voltage target may reach beyond the circle up to
+    /// six-step's fundamental — beyond 1 without overmodulation, and beyond six-step with it,
+    /// an error that names `voltage_margin` and the bound.
+    #[test]
+    fn overmodulation_counts_on_the_full_hexagon_and_widens_the_voltage_target() {
+        let s = SHIPPED;
+        let with = |lines: &str| s.replacen("[controller]\n", &format!("[controller]\n{lines}\n"), 1);
+        let shipped = DriveFile::shipped().unwrap().spec;
+        assert!(!shipped.overmodulation);
+        let d = DriveFile::parse(Path::new("d.toml"), &with("overmodulation = true")).unwrap().spec;
+        assert!(d.overmodulation);
+        assert_eq!(d.voltage_margin, drive::DEFAULT_VOLTAGE_MARGIN_OVERMODULATING);
+        assert_eq!(shipped.voltage_margin, drive::DEFAULT_VOLTAGE_MARGIN);
+        assert_eq!(d.duty_sampled(), shipped.duty_max());
+        assert_eq!(d.duty_max(), 1.0 - d.dead_time_compensation_s * d.pwm_frequency_hz);
+        assert!(d.duty_max() > d.duty_sampled());
+        let d = DriveFile::parse(Path::new("d.toml"), &with("overmodulation = true\nvoltage_margin = 1.05"))
+            .unwrap();
+        assert_eq!(d.spec.voltage_margin, 1.05);
+        let e = err(&with("voltage_margin = 1.05"));
+        assert_eq!(e.key.as_deref(), Some("controller.voltage_margin"), "{e}");
+        assert!(e.to_string().contains("up to 1.1027 with controller.overmodulation"), "{e}");
+        let e = err(&with("overmodulation = true\nvoltage_margin = 1.2"));
+        assert_eq!(e.key.as_deref(), Some("controller.voltage_margin"), "{e}");
+        assert!(e.to_string().contains("(0, 1.1027] (six-step"), "{e}");
+        let e = err(&with("overmodulation = \"yes\""));
+        assert_eq!(e.key.as_deref(), Some("controller.overmodulation"), "{e}");
     }
 
     /// `speed_feedback`: the drive runs on the observer; a rate too slow for it up to the

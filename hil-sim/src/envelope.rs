@@ -38,6 +38,9 @@ pub fn run_s(spec: &DriveSpec) -> f64 {
 }
 /// The torque is averaged over the last this long of each run, s.
 pub const AVERAGE_S: f64 = 0.3;
+
+/// The runs' rows: every this many PWM periods.
+const TRACE_EVERY: u32 = 10;
 /// The torque asked for at a point, as a multiple of its analytic envelope: beyond it (the
 /// drive limits it). A fixed 1 kN·m was below the 500 hp Krause machine's 2.8 kN·m, which
 /// then measured 65 % short of its envelope.
@@ -73,6 +76,10 @@ pub struct Point {
     pub measured_nm: f64,
     /// Peak-to-peak torque over the averaging window, N·m.
     pub ripple_nm: f64,
+    /// The share of the averaging window's periods whose current sample lacked one phase
+    /// (`[0]`: rebuilt from the other two, overmodulating) and two or more (`[1]`)
+    /// ([`crate::sim::Row::unsampled_periods`]).
+    pub unsampled_share: [f64; 2],
     /// The analytic envelope at this speed, N·m.
     pub analytic_nm: f64,
     /// The motor's physical limit at this speed ([`physical_limit_nm`]), N·m.
@@ -228,7 +235,7 @@ fn point(
             duration_s: run_s,
             vdc_v,
             substeps: 1,
-            trace_every: 10,
+            trace_every: TRACE_EVERY,
             sensors: SensorModel::default(),
             load: LoadModel::Dynamometer { omega_m_rad_s: w },
             inverter: InverterModel::Average,
@@ -247,7 +254,11 @@ fn point(
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), r| (lo.min(r.torque_nm), hi.max(r.torque_nm)));
     let flux = window.iter().map(|r| r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb)).sum::<f64>() / n;
     let flux_ref = window.iter().map(|r| r.psi_ref_wb).sum::<f64>() / n;
+    let periods = n * f64::from(TRACE_EVERY);
+    let unsampled =
+        |k: usize| window.iter().map(|r| f64::from(r.unsampled_periods[k])).sum::<f64>() / periods;
     Ok(Point {
+        unsampled_share: [unsampled(0), unsampled(1)],
         asked_nm: asked,
         flux_ref_wb: flux_ref,
         omega_m_rad_s: w,

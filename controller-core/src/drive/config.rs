@@ -65,10 +65,13 @@ crate::raw::raw_struct! {
         pub(super) tracking_rate: f32,
         /// Dead time as a fraction of the PWM period (0: no compensation).
         pub(super) dead_time_duty: f32,
-        /// The highest duty the modulator gives a phase, `1 − 2·window/T` less the dead-time
-        /// compensation added after it (1: no sampling window): also the fraction of the
-        /// measured bus the loops, the envelope and the checks count on.
+        /// The highest duty the modulator gives a phase ([`DriveSpec::duty_max`]): also the
+        /// fraction of the measured bus the loops, the envelope and the checks count on.
         pub(super) duty_max: f32,
+        /// The highest duty that leaves a phase its current sample, `1 − 2·window/T` less the
+        /// dead-time compensation added after it (1: no sampling window): `duty_max` without
+        /// overmodulation, below it with ([`DriveSpec::overmodulation`]).
+        pub(super) duty_sampled: f32,
         /// Half-width of the dead-time compensation's ramp around zero current, A.
         pub(super) dead_time_band_a: f32,
         /// Bus voltage at which the regeneration limit starts ([`REGEN_LIMIT_START`]), V.
@@ -449,7 +452,9 @@ impl DriveConfig {
         if !(mf > 0.0 && mf < 1.0) {
             return Err(DriveError::MagnetizedFraction);
         }
-        if !(spec.voltage_margin > 0.0 && spec.voltage_margin <= 1.0) {
+        // Up to the circle; overmodulating, up to six-step's fundamental.
+        let margin_max = if spec.overmodulation { SIX_STEP_FUNDAMENTAL } else { 1.0 };
+        if !(spec.voltage_margin > 0.0 && spec.voltage_margin <= margin_max) {
             return Err(DriveError::VoltageMargin);
         }
         let t_slow = ts * f64::from(spec.slow_divider);
@@ -465,8 +470,11 @@ impl DriveConfig {
         if !(0.0..0.1).contains(&dead_duty) {
             return Err(DriveError::DeadTime);
         }
-        let duty_max = spec.duty_max();
-        if !(spec.sample_window_s >= 0.0 && duty_max >= DUTY_MAX_MIN) {
+        if spec.overmodulation && !cfg!(feature = "overmodulation") {
+            return Err(DriveError::OvermodulationNotBuilt);
+        }
+        let (duty_max, duty_sampled) = (spec.duty_max(), spec.duty_sampled());
+        if !(spec.sample_window_s >= 0.0 && duty_sampled >= DUTY_MAX_MIN) {
             return Err(DriveError::SampleWindow);
         }
         // The flux model reaches mf·ψ* in T_r·ln(1/(1 − mf)) on the reference current; twice
@@ -531,6 +539,7 @@ impl DriveConfig {
             tracking_rate: (-libm::expm1(-1.0 / f64::from(spec.slow_divider))) as f32,
             dead_time_duty: dead_duty as f32,
             duty_max: duty_max as f32,
+            duty_sampled: duty_sampled as f32,
             regen_start_v: (REGEN_LIMIT_START * p.vdc_max_v) as f32,
             inv_regen_span_v: (1.0 / ((REGEN_LIMIT_END - REGEN_LIMIT_START) * p.vdc_max_v)) as f32,
             dead_time_band_a: (DEAD_TIME_BAND_FRACTION * spec.i_ref_max_a) as f32,
@@ -691,6 +700,9 @@ impl DriveConfig {
         if r.ok() && !cfg.magnetizing.is_built() {
             return Err(DriveError::CurveNotBuilt);
         }
+        if r.ok() && cfg.duty_sampled < cfg.duty_max && !cfg!(feature = "overmodulation") {
+            return Err(DriveError::OvermodulationNotBuilt);
+        }
         if !r.ok()
             || !bus
             || !cfg.mras.is_valid()
@@ -703,6 +715,8 @@ impl DriveConfig {
             // the drive magnetizing until its timeout.
             || (cfg.search_slow_steps != 0 && !cfg.source.sensorless())
             || !cfg.magnetizing.is_valid()
+            // The modulator's two limits ordered (`svpwm::overmodulate`).
+            || !(DUTY_MAX_MIN as f32 <= cfg.duty_sampled && cfg.duty_sampled <= cfg.duty_max && cfg.duty_max <= 1.0)
         {
             return Err(DriveError::Raw);
         }
@@ -736,6 +750,13 @@ impl DriveConfig {
     /// The fast-loop period, s.
     pub fn ts_s(&self) -> f32 {
         self.ts_s
+    }
+
+    /// The modulator may overmodulate ([`DriveSpec::overmodulation`]): its highest duty
+    /// above the sampled one.
+    #[inline(always)]
+    pub(super) fn overmodulating(&self) -> bool {
+        cfg!(feature = "overmodulation") && self.duty_sampled < self.duty_max
     }
 
     /// The V/Hz law, when the drive runs one ([`Control::VHz`]).

@@ -117,6 +117,29 @@ impl FastState {
         Measurements { omega_m_rad_s: 0.0, theta_m_rad: self.theta_est_rad, ..*m }
     }
 
+    /// Overmodulating ([`DriveSpec::overmodulation`]): this period's sample with the phase
+    /// that had no low-side window — in the period before the sample or the one after it,
+    /// whose duties the last two steps gave — rebuilt as the negative sum of the other two
+    /// (the modulator leaves at most one phase of a period without its window:
+    /// [`svpwm::overmodulate`]). Where the highest phase changes between those two periods
+    /// (the field passing a hexagon vertex) two phases lost theirs and one is not enough: the
+    /// last period's current turned by the field's step stands in. The slow tick's sample is
+    /// never rebuilt (the two periods around it keep every window: [`FastState::modulation`]),
+    /// so the slow step's checks read three measured phases as without overmodulation. Out
+    /// of line: only an overmodulating drive calls it.
+    #[inline(never)]
+    pub(super) fn rebuild(&self, m: &Measurements) -> Measurements {
+        let i = m.i_abc_a;
+        let i_abc_a = match self.unsampled[0] | self.unsampled[1] {
+            0 => return *m,
+            1 => Abc { a: -(i.b + i.c), ..i },
+            2 => Abc { b: -(i.a + i.c), ..i },
+            4 => Abc { c: -(i.a + i.b), ..i },
+            _ => self.run.last.i_ab.rotate(self.run.field.rotation()).inverse_clarke(),
+        };
+        Measurements { i_abc_a, ..*m }
+    }
+
     /// The observer's step on this period's sample (the voltage asked two steps ago was
     /// applied over the period that ends at it), with the currents less the sensors' residual
     /// offsets ([`IdleZero`], read with the bridge off). Returns `m` with those currents and,
@@ -263,7 +286,7 @@ impl FastState {
         // Advanced over the delay to the period it acts in, then the one vector limit: the
         // modulator's hexagon, beyond which the rare path takes over.
         let v_applied = v_req.rotate(self.run.delay_rotation);
-        let Some(duty) = svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_max) else {
+        let Some(duty) = svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_sampled) else {
             return self.step_limited(cfg, m, field.field, i_ab, v_req, keep);
         };
         self.run.saturated_steps = 0;
@@ -311,16 +334,71 @@ impl FastState {
             self.trip(Fault::NonFiniteOutput);
             return Some(FastOutput { phases: PhaseCommand::Off, mode: self.mode, brake });
         }
-        let modulation = svpwm::modulate_sampled(v_applied, m.vdc_v, cfg.duty_max);
+        let (modulation, limit) = match svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_sampled) {
+            Some(duty) => (svpwm::Modulation { duty, v_applied, saturated: false }, None),
+            None => self.modulation(cfg, v_applied, m.vdc_v),
+        };
         self.run.saturated_steps =
-            if modulation.saturated { self.run.saturated_steps.saturating_add(1) } else { 0 };
+            if limit.is_some() { self.run.saturated_steps.saturating_add(1) } else { 0 };
         if self.run.saturated_steps >= cfg.saturation_steps {
             self.trip(Fault::LossOfControl);
             return Some(FastOutput { phases: PhaseCommand::Off, mode: self.mode, brake });
         }
         // The dead-time compensation out of line (the rare path's): inlined, this step took
         // 1.4 KB of the firmware's flash.
-        Some(self.finish::<true>(cfg, modulation.duty, modulation.v_applied, brake))
+        Some(self.finished_beyond(cfg, modulation.duty, modulation.v_applied, brake))
+    }
+
+    /// The modulator beyond the sampled hexagon: what the bridge gets, and the loops' limit
+    /// (`Some`: the voltage the modulator can give them, the request being beyond it; `None`:
+    /// the request is applied as asked). Overmodulating, [`svpwm::overmodulate`] — except in
+    /// the two periods around the slow tick's sample (the steps before the tick), which keep
+    /// every phase's window ([`svpwm::modulate_limited`] on the sampled hexagon), so that the
+    /// sample the slow step's checks read, and at least one in each slow period the fast
+    /// step's current-sum check reads, is three measured phases: a sensor that fails while
+    /// overmodulating is still seen (rebuilt from a phase stuck at 1 A the loops ran the
+    /// bridge at its limit, every phase rebuilt, until a stuck-switch verdict — found by the
+    /// fault matrix). That dip is the modulator's own and the loops do not track it: their
+    /// limit stays the overmodulated one. Otherwise the sampled hexagon, the loops' limit.
+    #[inline(always)]
+    fn modulation(
+        &self,
+        cfg: &DriveConfig,
+        v: AlphaBeta,
+        vdc_v: f32,
+    ) -> (svpwm::Modulation, Option<AlphaBeta>) {
+        if cfg.overmodulating() {
+            let over = svpwm::overmodulate(v, vdc_v, cfg.duty_sampled, cfg.duty_max);
+            let limit = over.saturated.then_some(over.v_applied);
+            if self.steps_to_slow > 1 {
+                (over, limit)
+            } else {
+                (svpwm::modulate_limited(v, vdc_v, cfg.duty_sampled), limit)
+            }
+        } else {
+            let m = svpwm::modulate_limited(v, vdc_v, cfg.duty_sampled);
+            (m, Some(m.v_applied))
+        }
+    }
+
+    /// [`FastState::finish`] on a path beyond the sampled hexagon: overmodulating, the phases
+    /// its duties leave without a window noted for the next two samples
+    /// ([`FastState::rebuild`]).
+    #[inline(always)]
+    fn finished_beyond(
+        &mut self,
+        cfg: &DriveConfig,
+        duty: Abc,
+        v_applied: AlphaBeta,
+        brake: bool,
+    ) -> FastOutput {
+        let out = self.finish::<true>(cfg, duty, v_applied, brake);
+        if cfg.overmodulating()
+            && let PhaseCommand::Duty(d) = out.phases
+        {
+            self.unsampled[0] = svpwm::unsampled_phases(d, cfg.duty_sampled + cfg.dead_time_duty);
+        }
+        out
     }
 
     /// The rare path of the fast step: the modulator limited the request (beyond the hexagon,
@@ -346,20 +424,31 @@ impl FastState {
         let off = |mode| FastOutput { phases: PhaseCommand::Off, mode, brake };
         let v_usable = m.vdc_v * cfg.duty_max;
         let v_clamp = v_usable * (2.0 / 3.0);
-        let modulation =
-            svpwm::modulate_limited(v_req.rotate(self.run.delay_rotation), m.vdc_v, cfg.duty_max);
+        let (modulation, limit) = self.modulation(cfg, v_req.rotate(self.run.delay_rotation), m.vdc_v);
         if !(v_req.alpha.is_finite() && v_req.beta.is_finite()) {
             self.trip(Fault::NonFiniteOutput);
             return off(self.mode);
         }
-        self.track_applied(cfg, modulation.v_applied, field, v_clamp);
+        let applied = modulation.v_applied;
+        let Some(limit) = limit else {
+            // Overmodulating, within the modulator's reach: the common path's bookkeeping
+            // (the request is the loops' voltage).
+            self.run.saturated_steps = 0;
+            if keep {
+                self.keep_after_slow(m, field, i_meas_dq, applied, Some(v_req), v_usable);
+            }
+            if !running {
+                self.run.v_fit_sum += v_req.park(field);
+            }
+            return self.finished_beyond(cfg, modulation.duty, applied, brake);
+        };
+        self.track_applied(cfg, limit, field, v_clamp);
         self.run.trim_hold = true;
         self.run.saturated_steps = self.run.saturated_steps.saturating_add(1);
         if self.run.saturated_steps >= cfg.saturation_steps {
             self.trip(Fault::LossOfControl);
             return off(self.mode);
         }
-        let applied = modulation.v_applied;
         if keep {
             self.keep_after_slow(m, field, i_meas_dq, applied, None, v_usable);
         }
@@ -371,7 +460,7 @@ impl FastState {
             let v = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
             self.run.v_fit_sum += v.park(field);
         }
-        self.finish::<true>(cfg, modulation.duty, applied, brake)
+        self.finished_beyond(cfg, modulation.duty, applied, brake)
     }
 
     /// The signals of the fast step after the slow step for the once-per-slow-period checks,

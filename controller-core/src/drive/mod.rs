@@ -427,6 +427,10 @@ struct FastState {
     /// taken off the measured currents with it on ([`IdleZero`]; the machine's: kept by
     /// enable).
     zero: IdleZero,
+    /// Overmodulating: the phases without a sampling window in the last two periods' duties
+    /// (this step's sample lies between them), as [`crate::svpwm::unsampled_phases`]' bits — the
+    /// last period's first.
+    unsampled: [u8; 2],
     run: FastRun,
 }
 
@@ -962,6 +966,7 @@ impl Drive {
                 brake: false,
                 theta_est_rad: 0.0,
                 zero: IdleZero::default(),
+                unsampled: [0; 2],
                 run: FastRun::default(),
             },
             cfg,
@@ -1574,7 +1579,14 @@ impl FastSide {
     /// context that cannot keep up) latches [`Fault::Overrun`], the bridge off in that
     /// period.
     pub fn step(&mut self, m: &Measurements, slow: &mut dyn SlowContext) -> FastOutput {
-        let observed;
+        let (rebuilt, observed);
+        let m = if self.cfg.overmodulating() {
+            rebuilt = self.state.rebuild(m);
+            self.state.unsampled = [0, self.state.unsampled[0]];
+            &rebuilt
+        } else {
+            m
+        };
         let m = match self.cfg.source.observer() {
             Some(o) => {
                 observed = self.state.observe(o, self.cfg.source.sensorless(), m);

@@ -81,6 +81,11 @@ pub const FLUX_FALL_SLOW_PERIODS: f64 = 2.0;
 /// (`hil-sim` test `dead_time_compensation_reduces_the_current_distortion`).
 pub const DEAD_TIME_BAND_FRACTION: f64 = 0.001;
 
+/// Six-step's fundamental phase voltage over the linear limit `V_dc/√3`, `2√3/π`: the most
+/// any modulator gives, the largest `voltage_margin` an overmodulating drive may ask
+/// ([`DriveSpec::overmodulation`]).
+pub const SIX_STEP_FUNDAMENTAL: f64 = 2.0 * 1.732_050_807_568_877_2 / core::f64::consts::PI;
+
 /// The lowest duty limit a sampling window may leave ([`DriveSpec::sample_window_s`], less
 /// the dead-time compensation): beyond 20 % of the voltage lost the board's window, not the
 /// modulator, is what needs fixing (a window of up to 5 µs at 20 kHz).
@@ -283,7 +288,9 @@ pub struct DriveSpec {
     pub magnetized_fraction: f64,
     /// Field weakening: the voltage the current references may ask for in steady state, as
     /// a fraction of the linear limit `V_dc/√3` (in (0, 1]); the rest is the current loops'
-    /// headroom for transients ([`crate::envelope`]).
+    /// headroom for transients ([`crate::envelope`]). Overmodulating, of the full hexagon's
+    /// circle and up to [`SIX_STEP_FUNDAMENTAL`]: beyond 1 the steady voltage itself reaches
+    /// into the hexagon's corners (docs/envelope.md, "Overmodulation").
     pub voltage_margin: f64,
     /// Bandwidth of the current trim, rad/s (0: off): a slow integral of the field-frame
     /// current error, added to the references the current loops track. The stationary-frame
@@ -301,6 +308,13 @@ pub struct DriveSpec {
     /// phases are measured in every period, and the drive treats that fraction of the bus as
     /// what it has ([`svpwm::modulate_sampled`]). The board's (`[board] sample_window_s`).
     pub sample_window_s: f64,
+    /// Overmodulation (issue 52): beyond the hexagon the sampling window leaves, one phase at
+    /// a time gives up its window up to the full hexagon (less the dead time's compensation),
+    /// its current rebuilt from the other two in the periods that lost it
+    /// ([`svpwm::overmodulate`]); the drive then counts on the full hexagon's circle
+    /// ([`DriveSpec::duty_max`]). Off: every phase keeps its window and the drive counts on
+    /// the sampled hexagon's. The drive file's `[controller] overmodulation`.
+    pub overmodulation: bool,
     /// The range of the rotor resistance, × the motor's `R_r` (`[1, 1]`: the motor's, fixed):
     /// the rotor-resistance adaptation ([`crate::mras`]) keeps its estimate within it and
     /// starts from its geometric middle.
@@ -325,12 +339,22 @@ pub struct DriveSpec {
 }
 
 impl DriveSpec {
-    /// The highest duty the modulator gives a phase: `1 − 2·sample_window_s·f_pwm` less the
-    /// dead-time compensation, 1 without a sampling window — also the fraction of the bus
-    /// voltage the drive counts on (its current loops, envelope and checks; the envelope a
-    /// host computes for this drive: `hil_sim::envelope`). Validated by [`DriveConfig::new`]
-    /// (at least [`DUTY_MAX_MIN`]).
+    /// The highest duty the modulator gives a phase — also the fraction of the bus voltage
+    /// the drive counts on (its current loops, envelope and checks; the envelope a host
+    /// computes for this drive: `hil_sim::envelope`): with [`DriveSpec::overmodulation`],
+    /// 1 less the dead-time compensation; without, [`DriveSpec::duty_sampled`].
     pub fn duty_max(&self) -> f64 {
+        if self.overmodulation {
+            1.0 - self.dead_time_compensation_s * self.pwm_frequency_hz
+        } else {
+            self.duty_sampled()
+        }
+    }
+
+    /// The highest duty that leaves a phase its current sample: `1 − 2·sample_window_s·f_pwm`
+    /// less the dead-time compensation, 1 without a sampling window. Validated by
+    /// [`DriveConfig::new`] (at least [`DUTY_MAX_MIN`]).
+    pub fn duty_sampled(&self) -> f64 {
         if self.sample_window_s > 0.0 {
             let f = self.pwm_frequency_hz;
             1.0 - 2.0 * self.sample_window_s * f - self.dead_time_compensation_s * f
@@ -404,6 +428,8 @@ pub enum DriveError {
     /// A motor with a magnetizing curve in a build without controller-core's `curve` feature
     /// (the firmware's `saturation`).
     CurveNotBuilt,
+    /// Overmodulation asked of a build without controller-core's `overmodulation` feature.
+    OvermodulationNotBuilt,
 }
 
 impl core::fmt::Display for DriveError {
@@ -436,7 +462,11 @@ impl core::fmt::Display for DriveError {
                  ψ*/L_m below i_ref_max_a",
             ),
             Self::MagnetizedFraction => f.write_str("magnetized_fraction: must lie in (0, 1)"),
-            Self::VoltageMargin => f.write_str("voltage_margin: must lie in (0, 1]"),
+            Self::VoltageMargin => write!(
+                f,
+                "voltage_margin: must lie in (0, 1], or with overmodulation in (0, {SIX_STEP_FUNDAMENTAL:.4}] \
+                 (six-step's fundamental)"
+            ),
             Self::DeadTime => f.write_str(
                 "dead_time_compensation_s: must be finite, ≥ 0 and below a tenth of the PWM period",
             ),
@@ -455,6 +485,10 @@ impl core::fmt::Display for DriveError {
             Self::Protection { field, need } => write!(f, "{field}: {need}"),
             Self::Observer(e) => write!(f, "speed_feedback (sensorless): {e}"),
             Self::Vhz(e) => write!(f, "control (V/Hz): {e}"),
+            Self::OvermodulationNotBuilt => f.write_str(
+                "overmodulation: needs controller-core's `overmodulation` feature (the firmware's: \
+                 `cargo xtask build-fw --features overmodulation`)",
+            ),
             Self::CurveNotBuilt => f.write_str(
                 "magnetizing: a saturating motor needs controller-core's `curve` feature (the firmware's \
                  `saturation`: `cargo xtask build-fw --features saturation`)",

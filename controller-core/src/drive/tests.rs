@@ -31,6 +31,7 @@ pub(crate) fn test_spec() -> DriveSpec {
         current_trim_bandwidth_rad_s: 20.0,
         dead_time_compensation_s: 0.0,
         sample_window_s: 0.0,
+        overmodulation: false,
         rotor_resistance_range: [1.0, 1.0],
         inductance_range: [1.0, 1.0],
         protection: Protection {

@@ -106,17 +106,21 @@ fn every_command_round_trips() {
     largest.magnetizing = Some(crate::magnetics::MagnetizingTable {
         flux_ratio: core::array::from_fn(|k| (k + 1) as f64 * crate::magnetics::TABLE_STEP),
     });
-    // The frame and the slip's current share one byte (bit 0, bit 1): each set alone and both.
+    // The frame, the slip's current and overmodulation share one byte (bits 0, 1, 2): each
+    // set alone and all three.
     largest.current_frame = crate::drive::CurrentFrame::Synchronous;
     largest.slip_current = crate::drive::SlipCurrent::Measured;
+    largest.overmodulation = true;
     let slip_alone = crate::drive::DriveSpec { slip_current: crate::drive::SlipCurrent::Measured, ..spec };
     let frame_alone =
         crate::drive::DriveSpec { current_frame: crate::drive::CurrentFrame::Synchronous, ..spec };
+    let overmodulation_alone = crate::drive::DriveSpec { overmodulation: true, ..spec };
     let cmds = [
         Command::Configure(spec),
         Command::Configure(largest),
         Command::Configure(slip_alone),
         Command::Configure(frame_alone),
+        Command::Configure(overmodulation_alone),
         Command::Enable,
         Command::Disable,
         Command::ClearFault,

@@ -78,10 +78,11 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
         return accuracy(a, f, &points, vdc, base, &out);
     }
     let mut csv = String::from(
-        "omega_m_rad_s,measured_nm,analytic_nm,relative_error,physical_nm,of_physical,ripple_nm,flux_wb,mode\n",
+        "omega_m_rad_s,measured_nm,analytic_nm,relative_error,physical_nm,of_physical,ripple_nm,flux_wb,mode,\
+         one_phase_unread,phases_unread\n",
     );
     report::outln!(
-        "{:>10} {:>12} {:>12} {:>8} {:>12} {:>8} {:>10} {:>8}  mode",
+        "{:>10} {:>12} {:>12} {:>8} {:>12} {:>8} {:>10} {:>8}  {:<22} unread (1 / 2+ phases)",
         "ω (rad/s)",
         "measured",
         "analytic",
@@ -89,14 +90,15 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
         "physical",
         "of it",
         "ripple",
-        "ψ_r"
+        "ψ_r",
+        "mode"
     );
     let mut failed = Vec::new();
     for p in &points {
         let e = p.relative_error();
         let of_physical = p.measured_nm / p.physical_nm;
         report::outln!(
-            "{:>10.1} {:>10.4} Nm {:>9.4} Nm {:>+7.2}% {:>9.4} Nm {:>8.3} {:>7.4} Nm {:>7.3}  {:?}",
+            "{:>10.1} {:>10.4} Nm {:>9.4} Nm {:>+7.2}% {:>9.4} Nm {:>8.3} {:>7.4} Nm {:>7.3}  {:<22} {:>5.1} % / {:.2} %",
             p.omega_m_rad_s,
             p.measured_nm,
             p.analytic_nm,
@@ -105,10 +107,12 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
             of_physical,
             p.ripple_nm,
             p.flux_wb,
-            p.mode
+            format!("{:?}", p.mode),
+            100.0 * p.unsampled_share[0],
+            100.0 * p.unsampled_share[1],
         );
         csv.push_str(&format!(
-            "{:.4},{:.6},{:.6},{:.6},{:.6},{:.5},{:.6},{:.5},{:?}\n",
+            "{:.4},{:.6},{:.6},{:.6},{:.6},{:.5},{:.6},{:.5},{:?},{:.5},{:.5}\n",
             p.omega_m_rad_s,
             p.measured_nm,
             p.analytic_nm,
@@ -117,7 +121,9 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
             of_physical,
             p.ripple_nm,
             p.flux_wb,
-            p.mode
+            p.mode,
+            p.unsampled_share[0],
+            p.unsampled_share[1],
         ));
         if e.abs() > ENVELOPE_TOLERANCE || p.mode != Mode::Running {
             failed.push(p.omega_m_rad_s);

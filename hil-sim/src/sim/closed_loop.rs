@@ -98,7 +98,9 @@ pub fn run(
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
     let mut next_event_k = first_period_of(events.peek());
     let mut rows = 0u64;
-    // The largest |i_s|² since the last row ([`Row::i_peak_a`]).
+    // The largest |i_s|² since the last row ([`Row::i_peak_a`]), and the periods with a phase
+    // (two or more) unread ([`Row::unsampled_periods`]).
+    let mut unsampled_since_row = [0u32; 2];
     let mut peak2_since_row = 0.0f64;
     // Countdowns instead of `k % m`: the loop body is a few tens of nanoseconds.
     let (mut to_slow, mut to_trace, mut to_progress) = (0, 0, 0);
@@ -200,6 +202,11 @@ pub fn run(
         } else {
             0
         };
+        match unsampled.count_ones() {
+            0 => {}
+            1 => unsampled_since_row[0] += 1,
+            _ => unsampled_since_row[1] += 1,
+        }
         let i_abc =
             sensors.currents_sampled(if legs_modelled { legs.currents(i_true) } else { i_true }, unsampled);
         if legs.broken {
@@ -332,6 +339,7 @@ pub fn run(
                 i_leg_peak_a: leg_period.peak_a,
                 hw_break: legs.broken,
                 i_peak_a: core::mem::take(&mut peak2_since_row).sqrt(),
+                unsampled_periods: core::mem::take(&mut unsampled_since_row),
                 switch_acting,
                 psi_est_wb: f64::from(telemetry.psi_r_wb),
                 psi_ref_wb: f64::from(telemetry.psi_ref_wb),

@@ -452,6 +452,11 @@ pub struct Row {
     /// to every n-th period keeps its peak (the summary's peak was the thinned rows': 0.955
     /// against 0.984 A at 1 ms sampling — found by trying).
     pub i_peak_a: f64,
+    /// Periods since the previous row, this row's included, whose current sample the
+    /// simulated low-side shunts could not read in one phase (`[0]`: the drive rebuilds it
+    /// from the other two when it overmodulates) and in two or more (`[1]`: no phase sum
+    /// gives them) — [`crate::sensors::SensorModel::low_side_window_s`].
+    pub unsampled_periods: [u32; 2],
     /// A switch stuck open mattered in this period: its direction of current was needed
     /// and the duty it would have switched (at least [`SWITCH_ACTING_DUTY`]) went through
     /// the opposite diode instead.
