@@ -750,3 +750,34 @@ fn the_frozen_encoder_rows_at_speed_carry_on_on_the_observer() {
     }
     assert_eq!(reported, 12);
 }
+
+/// Overmodulation (issue 52): a current sensor stuck at 1 A at top speed is named
+/// `CurrentSensor` within the row's 10 ms, motoring and generating, noise seeds 0–3, on the
+/// shipped drive with `overmodulation = true` at voltage targets 0.98 and 1 (its default).
+/// Found by the whole matrix: with every period free to give up a window, the stuck phase
+/// was rebuilt into the other two, the loops ran the bridge at its limit so that every
+/// sample stayed rebuilt, the current-sum checks never saw three measured phases, and the
+/// rows were named `SwitchOpen` after 10.1 and 7.6 ms. The two periods around each slow
+/// tick keep every window (`FastState::modulation`) — without them this test fails (0.98,
+/// motoring, seed 1).
+#[test]
+fn a_stuck_current_sensor_is_named_while_overmodulating() {
+    let mut m = shipped();
+    m.spec.overmodulation = true;
+    let c = m.cases().unwrap().into_iter().find(|c| c.title() == "sensor b stuck at 1 A").unwrap();
+    for margin in [0.98, drive_file::drive::DEFAULT_VOLTAGE_MARGIN_OVERMODULATING] {
+        m.spec.voltage_margin = margin;
+        for motoring in [true, false] {
+            let at = point(&m, Point::Top, motoring);
+            for seed in 0..4 {
+                let o = m.run_one(seed, &c, &at, m.expect(&c, &at), &AtomicBool::new(false)).unwrap();
+                eprintln!(
+                    "margin {margin} motoring {motoring} seed {seed}: {} {:?}",
+                    o.verdict(),
+                    o.failures
+                );
+                assert_eq!(o.verdict(), "pass", "{:?}", o.failures);
+            }
+        }
+    }
+}
