@@ -752,6 +752,15 @@ impl DriveConfig {
         self.ts_s
     }
 
+    /// The highest duty that leaves a phase its current sample: in a build without
+    /// overmodulation `duty_max` itself (the two are equal there: `new` and `from_raw` refuse
+    /// a configuration that overmodulates), so that the fast step loads one number for both
+    /// (two loads cost its common path ≈ 2 instructions per period, `cost fast_step`).
+    #[inline(always)]
+    pub(super) fn duty_sampled(&self) -> f32 {
+        if cfg!(feature = "overmodulation") { self.duty_sampled } else { self.duty_max }
+    }
+
     /// The modulator may overmodulate ([`DriveSpec::overmodulation`]): its highest duty
     /// above the sampled one.
     #[inline(always)]

@@ -286,7 +286,7 @@ impl FastState {
         // Advanced over the delay to the period it acts in, then the one vector limit: the
         // modulator's hexagon, beyond which the rare path takes over.
         let v_applied = v_req.rotate(self.run.delay_rotation);
-        let Some(duty) = svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_sampled) else {
+        let Some(duty) = svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_sampled()) else {
             return self.step_limited(cfg, m, field.field, i_ab, v_req, keep);
         };
         self.run.saturated_steps = 0;
@@ -334,7 +334,7 @@ impl FastState {
             self.trip(Fault::NonFiniteOutput);
             return Some(FastOutput { phases: PhaseCommand::Off, mode: self.mode, brake });
         }
-        let (modulation, limit) = match svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_sampled) {
+        let (modulation, limit) = match svpwm::duties_within(v_applied, m.vdc_v, cfg.duty_sampled()) {
             Some(duty) => (svpwm::Modulation { duty, v_applied, saturated: false }, None),
             None => self.modulation(cfg, v_applied, m.vdc_v),
         };
@@ -376,7 +376,7 @@ impl FastState {
                 (svpwm::modulate_limited(v, vdc_v, cfg.duty_sampled), limit)
             }
         } else {
-            let m = svpwm::modulate_limited(v, vdc_v, cfg.duty_sampled);
+            let m = svpwm::modulate_limited(v, vdc_v, cfg.duty_sampled());
             (m, Some(m.v_applied))
         }
     }
