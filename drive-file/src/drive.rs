@@ -139,9 +139,9 @@ pub const DEFAULT_VOLTAGE_MARGIN: f64 = 0.98;
 /// hexagon. The current loops' transient headroom is then the hexagon beyond the circle (the
 /// modulator gives it, one phase rebuilt); the two periods around each slow tick keep every
 /// window (`controller_core::drive`'s tick sample), which costs about 1 % of the voltage — at
-/// 0.98 the shipped motor got 0.949–0.964 of its physical limit, at 1 it gets 0.970–0.982
-/// (`cargo test --release -p hil-sim --test envelope overmodulation -- --nocapture`,
-/// docs/envelope.md).
+/// 0.98 the shipped motor got 0.943–0.964 of its physical limit motoring (`hil-sim envelope`
+/// on drive.toml with both lines), at 1 it gets 0.970–0.982 (`cargo test --release -p
+/// hil-sim --test envelope overmodulation -- --nocapture`; docs/envelope.md).
 pub const DEFAULT_VOLTAGE_MARGIN_OVERMODULATING: f64 = 1.0;
 
 impl ControllerTable {

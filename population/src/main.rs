@@ -89,6 +89,10 @@ struct RunArgs {
     /// and speed observer: docs/sensorless.md).
     #[arg(long)]
     sensorless: bool,
+    /// Tune and run the drives overmodulating (`overmodulation = true`: beyond the sampling
+    /// window one phase rebuilt from the other two, docs/envelope.md).
+    #[arg(long)]
+    overmodulation: bool,
     /// Output directory.
     #[arg(long, default_value = "out/population")]
     out: PathBuf,
@@ -247,6 +251,7 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         matrix: !a.no_matrix,
         speed: a.speed,
         sensorless: a.sensorless,
+        overmodulation: a.overmodulation,
     };
     report::write::check_dir(&a.out)?;
     eprintln!(

@@ -87,6 +87,8 @@ pub struct Plan {
     /// Run the tuned drive without its encoder (`speed_feedback = "sensorless"`: the flux
     /// and speed observer); a rate the observer cannot run at is a refusal naming it.
     pub sensorless: bool,
+    /// Tune and run the drive overmodulating (`overmodulation = true`: docs/envelope.md).
+    pub overmodulation: bool,
 }
 
 /// The template text and its path (for errors), the motor and the bus of `member` at
@@ -151,6 +153,17 @@ pub fn with_pwm(text: &str, hz: f64) -> Result<String, String> {
 /// `text` with its `[controller]` table's `speed_feedback` set to `"sensorless"` (a drive run
 /// without its encoder).
 pub fn with_sensorless(text: &str) -> Result<String, String> {
+    with_controller_key(text, "speed_feedback", "\"sensorless\"")
+}
+
+/// `text` with its `[controller]` table's `overmodulation` set to `true`.
+pub fn with_overmodulation(text: &str) -> Result<String, String> {
+    with_controller_key(text, "overmodulation", "true")
+}
+
+/// `text` with its `[controller]` table's `key` set to `value` (TOML), first in the table, in
+/// place of the table's own line for it.
+fn with_controller_key(text: &str, key: &str, value: &str) -> Result<String, String> {
     let mut out = String::new();
     let (mut in_controller, mut set) = (false, false);
     for line in text.lines() {
@@ -160,13 +173,13 @@ pub fn with_sensorless(text: &str) -> Result<String, String> {
             out.push_str(line);
             out.push('\n');
             if in_controller && !set {
-                out.push_str("speed_feedback = \"sensorless\"\n");
+                out.push_str(&format!("{key} = {value}\n"));
                 set = true;
             }
             continue;
         }
-        let key = trimmed.split('=').next().unwrap_or("").trim();
-        if !(in_controller && key == "speed_feedback") {
+        let this = trimmed.split('=').next().unwrap_or("").trim();
+        if !(in_controller && this == key) {
             out.push_str(line);
             out.push('\n');
         }
@@ -228,6 +241,7 @@ fn judge(
         report.pwm_hz = f.spec.pwm_frequency_hz;
     }
     let text = if plan.sensorless { with_sensorless(&text)? } else { text };
+    let text = if plan.overmodulation { with_overmodulation(&text)? } else { text };
     if plan.sensorless {
         // What the template parsed with an encoder and not without is the observer's.
         let observer = DriveFile::parse(path, &text).map_err(|e| e.to_string()).and_then(|f| {
@@ -521,6 +535,7 @@ mod tests {
             matrix: false,
             speed: SpeedDesign::SaturatedP,
             sensorless: false,
+            overmodulation: false,
         };
         let r =
             evaluate(&m, Some(4000.0), Path::new(env!("CARGO_MANIFEST_DIR")), &plan, &AtomicBool::new(false));
@@ -534,7 +549,14 @@ mod tests {
     /// `member` evaluated at `pwm_hz` as `run` does by default (seed 1, the speed law the
     /// requirements choose, no fault matrix) with `runs` campaign runs, on its encoder or not.
     fn evaluated(member: &Member, pwm_hz: f64, runs: u64, sensorless: bool) -> Report {
-        let plan = Plan { campaign_runs: runs, seed: 1, matrix: false, speed: SpeedDesign::Auto, sensorless };
+        let plan = Plan {
+            campaign_runs: runs,
+            seed: 1,
+            matrix: false,
+            speed: SpeedDesign::Auto,
+            sensorless,
+            overmodulation: false,
+        };
         evaluate(member, Some(pwm_hz), Path::new(env!("CARGO_MANIFEST_DIR")), &plan, &AtomicBool::new(false))
     }
 
@@ -952,6 +974,8 @@ mod tests {
                 .unwrap();
         assert_eq!(t, "[pwm]\nfrequency_hz = 1.0\n[controller]\nspeed_feedback = \"sensorless\"\nx = 1\n");
         assert!(with_sensorless("[pwm]\n").is_err());
+        let t = with_overmodulation("[controller]\novermodulation = false\nx = 1\n").unwrap();
+        assert_eq!(t, "[controller]\novermodulation = true\nx = 1\n");
     }
 
     /// A tuned drive run without its encoder at a PWM rate its observer cannot run at up to

@@ -430,15 +430,20 @@ impl FastState {
             return off(self.mode);
         }
         let applied = modulation.v_applied;
+        // The voltage applied, back in the request's frame (the flux linkage the magnetizing
+        // fit reads is the volt-seconds applied).
+        let r = self.run.delay_rotation;
+        let back = move |v: AlphaBeta| v.rotate(SinCos { sin: -r.sin, cos: r.cos }).park(field);
         let Some(limit) = limit else {
             // Overmodulating, within the modulator's reach: the common path's bookkeeping
-            // (the request is the loops' voltage).
+            // (the request is the loops' voltage; the bridge's, the request or — around the
+            // tick's sample — less).
             self.run.saturated_steps = 0;
             if keep {
                 self.keep_after_slow(m, field, i_meas_dq, applied, Some(v_req), v_usable);
             }
             if !running {
-                self.run.v_fit_sum += v_req.park(field);
+                self.run.v_fit_sum += back(applied);
             }
             return self.finished_beyond(cfg, modulation.duty, applied, brake);
         };
@@ -454,11 +459,8 @@ impl FastState {
         }
         if !running {
             // The magnetizing fit's voltage: the modulator's limit of the request at the
-            // current's step, back in the request's frame (the flux linkage the fit reads is
-            // the volt-seconds applied).
-            let r = self.run.delay_rotation;
-            let v = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
-            self.run.v_fit_sum += v.park(field);
+            // current's step.
+            self.run.v_fit_sum += back(applied);
         }
         self.finished_beyond(cfg, modulation.duty, applied, brake)
     }
