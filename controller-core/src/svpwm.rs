@@ -183,12 +183,24 @@ pub fn overmodulate(v: AlphaBeta, vdc_v: f32, duty_sampled: f32, duty_full: f32)
     }
 }
 
+/// A duty this little above a window's limit is rounding, not a lost window (10⁻⁶ of a period,
+/// 50 ps at 20 kHz; a timer count is ≈ 10⁻⁴): [`overmodulate`] puts the middle phase exactly
+/// on the sampled limit along its cut edges, and the dead-time compensation added after it
+/// reaches the window's limit exactly, each rounded. The simulator's shunts lose a window
+/// beyond the limit by more than this; [`unsampled_phases`] counts half of it, so that its
+/// own rounding of the limit never reads a phase the shunts lost. (Counted without it, the
+/// drive took every sample along a cut edge for two phases lost and ran on predicted
+/// currents: a torque reversal at top speed drove a healthy motor into `Overcurrent`.)
+pub const WINDOW_ROUNDING_DUTY: f32 = 1e-6;
+
 /// The phases whose duty leaves no low-side sampling window, as bits (a = 1, b = 2, c = 4):
 /// above `window_duty`, the highest duty whose low side still conducts for the window (the
-/// duties after the dead-time compensation: `duty_sampled` plus the compensation's room).
+/// duties after the dead-time compensation: `duty_sampled` plus the compensation's room), by
+/// more than half of [`WINDOW_ROUNDING_DUTY`].
 #[inline]
 pub fn unsampled_phases(duty: Abc, window_duty: f32) -> u8 {
-    u8::from(duty.a > window_duty) | u8::from(duty.b > window_duty) << 1 | u8::from(duty.c > window_duty) << 2
+    let limit = window_duty + 0.5 * WINDOW_ROUNDING_DUTY;
+    u8::from(duty.a > limit) | u8::from(duty.b > limit) << 1 | u8::from(duty.c > limit) << 2
 }
 
 /// Dead-time compensation, per phase. During the dead time `t_d` after each commanded
@@ -403,7 +415,7 @@ mod tests {
                 let lo = d.iter().copied().fold(f32::MAX, f32::min);
                 assert!(lo == 0.0, "{th} {r}: {m:?}");
                 assert!(d.iter().all(|&x| (0.0..=d_f).contains(&x)), "{th} {r}: {m:?}");
-                assert!(unsampled_phases(m.duty, d_s + 1e-6).count_ones() <= 1, "{th} {r}: {m:?}");
+                assert!(unsampled_phases(m.duty, d_s).count_ones() <= 1, "{th} {r}: {m:?}");
                 let back = applied(&m, vdc);
                 assert!(
                     (back.alpha - m.v_applied.alpha).abs() < 2e-3

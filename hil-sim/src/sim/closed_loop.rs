@@ -92,7 +92,7 @@ pub fn run(
     // none needed), and the duties of the period before the present one (bridge off: none).
     let sensed_duty_max = 1.0 - 2.0 * sc.sensors.low_side_window_s.unwrap_or(0.0) * pwm_hz;
     // The drive's limit is the same number in f32: its rounding is no lost window.
-    const DUTY_TOLERANCE: f64 = 1e-6;
+    const DUTY_TOLERANCE: f64 = controller_core::svpwm::WINDOW_ROUNDING_DUTY as f64;
     let mut duty_before: Option<[f64; 3]> = None;
     let mut events = sc.events.iter().peekable();
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
