@@ -150,6 +150,23 @@ pub fn with_pwm(text: &str, hz: f64) -> Result<String, String> {
     Ok(out)
 }
 
+/// The campaign of a tuned drive file on a `vdc_v` bus: `runs` runs of 1 s from `seed`, the
+/// file's `[certify]` box and `[requirements]` (the caller sets the duration it needs).
+pub fn campaign_of(file: &DriveFile, vdc_v: f64, runs: u64, seed: u64) -> Result<Campaign, String> {
+    Ok(Campaign {
+        spec: file.spec,
+        certify: file.certify.ok_or("the tuned file has no [certify]")?,
+        vdc_v,
+        duration_s: 1.0,
+        runs,
+        seed,
+        shard: (0, 1),
+        encoder_lines: file.encoder_lines(),
+        plant: None,
+        requirements: file.requirements,
+    })
+}
+
 /// `text` with its `[controller]` table's `speed_feedback` set to `"sensorless"` (a drive run
 /// without its encoder).
 pub fn with_sensorless(text: &str) -> Result<String, String> {
@@ -260,19 +277,8 @@ fn judge(
     };
     report.omega_c_rad_s = Some(tuned.omega_c_rad_s);
     let file = DriveFile::parse(path, &tuned.text).map_err(|e| format!("the tuned file: {e}"))?;
-    let certify = file.certify.ok_or("the tuned file has no [certify]")?;
-    let mut c = Campaign {
-        spec: file.spec,
-        certify,
-        vdc_v: vdc,
-        duration_s: 1.0,
-        runs: plan.campaign_runs,
-        seed: plan.seed,
-        shard: (0, 1),
-        encoder_lines: file.encoder_lines(),
-        plant: None,
-        requirements: file.requirements,
-    };
+    let mut c = campaign_of(&file, vdc, plan.campaign_runs, plan.seed)?;
+    let certify = c.certify;
     c.duration_s = c.duration_s.max(c.full_range_duration_s());
     c.check()?;
     let verdicts = c.run(|_| {}, cancel)?;
@@ -823,18 +829,7 @@ mod tests {
         let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
         let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
         let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
-        let mut c = Campaign {
-            spec: file.spec,
-            certify: file.certify.unwrap(),
-            vdc_v: vdc,
-            duration_s: 1.0,
-            runs: 64,
-            seed: 1,
-            shard: (0, 1),
-            encoder_lines: file.encoder_lines(),
-            plant: None,
-            requirements: file.requirements,
-        };
+        let mut c = campaign_of(&file, vdc, 64, 1).unwrap();
         c.duration_s = c.step_s() + 2.0 * hil_sim::campaign::MIN_AFTER_STEP_S;
         let faults = faulted(&c);
         assert!(faults.is_empty(), "{faults:#?}");
@@ -858,18 +853,7 @@ mod tests {
         let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
         let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
         assert!(file.spec.overmodulation);
-        let mut c = Campaign {
-            spec: file.spec,
-            certify: file.certify.unwrap(),
-            vdc_v: vdc,
-            duration_s: 1.0,
-            runs: 200,
-            seed: 1,
-            shard: (0, 1),
-            encoder_lines: file.encoder_lines(),
-            plant: None,
-            requirements: file.requirements,
-        };
+        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
         c.duration_s = c.duration_s.max(c.full_range_duration_s());
         let faults = faulted(&c);
         assert!(faults.is_empty(), "{faults:#?}");
@@ -949,24 +933,14 @@ mod tests {
         let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::SaturatedP };
         let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
         let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
-        let mut spec = file.spec;
-        let controller_core::speed::SpeedLaw::SaturatedP { tau_max_nm, .. } = spec.speed_law else {
-            panic!("{:?}", spec.speed_law)
+        let mut c = campaign_of(&file, vdc, 64, 1).unwrap();
+        let controller_core::speed::SpeedLaw::SaturatedP { tau_max_nm, .. } = c.spec.speed_law else {
+            panic!("{:?}", c.spec.speed_law)
         };
-        spec.speed_law =
+        c.spec.speed_law =
             controller_core::speed::SpeedLaw::PiTorque { kp, ki, limit: tau_max_nm, setpoint_weight };
-        Campaign {
-            spec,
-            certify: file.certify.unwrap(),
-            vdc_v: vdc,
-            duration_s,
-            runs: 64,
-            seed: 1,
-            shard: (0, 1),
-            encoder_lines: file.encoder_lines(),
-            plant: None,
-            requirements: file.requirements,
-        }
+        c.duration_s = duration_s;
+        c
     }
 
     /// `c` checked and run: the CSV lines of the runs that faulted.

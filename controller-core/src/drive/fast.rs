@@ -125,12 +125,15 @@ impl FastState {
     /// (the field passing a hexagon vertex) two phases lost theirs and one is not enough: the
     /// last period's current turned by the field's step stands in. The slow tick's sample is
     /// never rebuilt (the two periods around it keep every window: [`FastState::modulation`]),
-    /// so the slow step's checks read three measured phases as without overmodulation. Out
-    /// of line: only an overmodulating drive calls it.
+    /// so the slow step's checks read three measured phases as without overmodulation. The
+    /// masks move on a period (this step's own is noted by [`FastState::finished_beyond`]).
+    /// Out of line: only an overmodulating drive calls it.
     #[inline(never)]
-    pub(super) fn rebuild(&self, m: &Measurements) -> Measurements {
+    pub(super) fn rebuild(&mut self, m: &Measurements) -> Measurements {
+        let [last, before] = self.unsampled;
+        self.unsampled = [0, last];
         let i = m.i_abc_a;
-        let i_abc_a = match self.unsampled[0] | self.unsampled[1] {
+        let i_abc_a = match last | before {
             0 => return *m,
             1 => Abc { a: -(i.b + i.c), ..i },
             2 => Abc { b: -(i.a + i.c), ..i },

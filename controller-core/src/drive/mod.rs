@@ -1582,7 +1582,6 @@ impl FastSide {
         let (rebuilt, observed);
         let m = if self.cfg.overmodulating() {
             rebuilt = self.state.rebuild(m);
-            self.state.unsampled = [0, self.state.unsampled[0]];
             &rebuilt
         } else {
             m

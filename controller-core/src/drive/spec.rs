@@ -342,12 +342,14 @@ impl DriveSpec {
     /// The highest duty the modulator gives a phase — also the fraction of the bus voltage
     /// the drive counts on (its current loops, envelope and checks; the envelope a host
     /// computes for this drive: `hil_sim::envelope`): with [`DriveSpec::overmodulation`],
-    /// 1 less the dead-time compensation; without, [`DriveSpec::duty_sampled`].
+    /// 1 less the dead-time compensation, never below [`DriveSpec::duty_sampled`] (without a
+    /// sampling window that is 1: nothing to overmodulate); without, `duty_sampled`.
     pub fn duty_max(&self) -> f64 {
+        let sampled = self.duty_sampled();
         if self.overmodulation {
-            1.0 - self.dead_time_compensation_s * self.pwm_frequency_hz
+            f64::max(1.0 - self.dead_time_compensation_s * self.pwm_frequency_hz, sampled)
         } else {
-            self.duty_sampled()
+            sampled
         }
     }
 

@@ -606,6 +606,23 @@ fn raw_configuration_round_trips() {
     let mut bad = DriveConfig::new(&test_spec()).unwrap().to_raw();
     bad.u[INTEGERS - 1] = 1;
     assert_eq!(DriveConfig::from_raw(&bad), Err(DriveError::Raw));
+    // Overmodulating, with a sampling window or without one, with the dead time compensated
+    // or not: the two duty limits round-trip in order (found by review: without a window
+    // and with the compensation, the full hexagon's limit fell below the "sampled" one of 1
+    // and `from_raw` refused what `new` made).
+    for (sample_window_s, dead_time_compensation_s) in
+        [(1.5e-6, 0.0), (1.5e-6, 1e-6), (0.0, 0.0), (0.0, 1e-6)]
+    {
+        let spec =
+            DriveSpec { overmodulation: true, sample_window_s, dead_time_compensation_s, ..test_spec() };
+        let cfg = DriveConfig::new(&spec).unwrap();
+        assert_eq!(
+            DriveConfig::from_raw(&cfg.to_raw()),
+            Ok(cfg),
+            "{sample_window_s} {dead_time_compensation_s}"
+        );
+        assert_eq!(cfg.overmodulating(), sample_window_s > 0.0);
+    }
     // V/Hz: its numbers round-trip, and a V/Hz tag on a vector drive's zeros is refused.
     let vhz = DriveConfig::new(&DriveSpec {
         control: Control::VHz { ramp_rad_s2: 100.0, k_u: 1.0, k_w: 4.0 },
