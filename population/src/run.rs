@@ -859,6 +859,38 @@ mod tests {
         assert!(faults.is_empty(), "{faults:#?}");
     }
 
+    /// The 196 kW member (014) at 20 kHz as tune tunes it, run 109 of its 200-run campaign:
+    /// motoring at its top speed of 375 rad/s under 0.8 × the load it holds there (load
+    /// ratio ≈ 7, the voltage at its target), the speed loop's answers to the encoder's
+    /// counts push the loops' request beyond the hexagon in ≈ 10 % of the slow periods.
+    /// Heard on the unlimited samples only — those of the lowest voltage, so of the lowest
+    /// reactive power —, the rotor-resistance law walked to ×1.19 against the rotor's
+    /// ×1.297, the flux model ran 9 % under the machine's and the run missed its flux
+    /// accuracy (0.0706 against 0.05). On the voltage the bridge was given, limited or not,
+    /// the estimate ends within 5 % of the rotor's — the law's evidence error at that load
+    /// ratio, amplified by 1/s(a) ≈ 13 (docs/rotor-resistance.md) — and the run meets its
+    /// requirements.
+    #[test]
+    fn a_loaded_motor_at_the_voltage_limit_reads_its_rotor_resistance() {
+        let m = draw(1, 14, None).unwrap();
+        assert!(m.name.starts_with("014-196kW"), "{}", m.name);
+        let (tuned, path, vdc) = tune_member(&m, 20_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
+        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+        c.check().unwrap();
+        let mut rr_scale = f64::NAN;
+        let v = c
+            .run_one_into(109, &AtomicBool::new(false), &mut |r| {
+                rr_scale = r.rr_scale;
+                Ok(())
+            })
+            .unwrap();
+        let error = rr_scale / v.sample.rr - 1.0;
+        assert!(error.abs() < 0.05, "the estimate ×{rr_scale:.4} against the rotor's ×{:.4}", v.sample.rr);
+        assert!(v.passed(), "{}", v.csv());
+    }
+
     /// The 1.3 kW 8-pole member (001) at 20 kHz with the speed PI tune's search found for it
     /// (k_p 0.633, k_i 6.98, setpoint weight 0.8): on the 64 corner runs of 1 s — speed
     /// steps to ±145 rad/s at the torque limit, into field weakening — no healthy run trips.

@@ -294,7 +294,7 @@ impl FastState {
         };
         self.run.saturated_steps = 0;
         if keep {
-            self.keep_after_slow(m, field.field, field.i_meas_dq, v_applied, Some(v_req), v_usable);
+            self.keep_after_slow(m, field.field, field.i_meas_dq, v_applied, v_req, v_usable);
         }
         if !running {
             // The magnetizing fit's voltage, in the field frame of this step (at speed the
@@ -407,8 +407,8 @@ impl FastState {
     /// The rare path of the fast step: the modulator limited the request (beyond the hexagon,
     /// not finite, or a bad bus). The loops' integrators track what it applied; a request
     /// that is not finite trips [`Fault::NonFiniteOutput`], one held at the limit for
-    /// `saturation_time_s` [`Fault::LossOfControl`]; the rotor-resistance law does not listen
-    /// (its evidence is the loops' unlimited request).
+    /// `saturation_time_s` [`Fault::LossOfControl`]; the rotor-resistance law's evidence is
+    /// what it applied (`AfterSlow::v_given`).
     #[cold]
     #[inline(never)]
     fn step_limited(
@@ -434,19 +434,20 @@ impl FastState {
         }
         let applied = modulation.v_applied;
         // The voltage applied, back in the request's frame (the flux linkage the magnetizing
-        // fit reads is the volt-seconds applied).
+        // fit reads is the volt-seconds applied; the rotor-resistance law, the voltage the
+        // machine got).
         let r = self.run.delay_rotation;
-        let back = move |v: AlphaBeta| v.rotate(SinCos { sin: -r.sin, cos: r.cos }).park(field);
+        let given = applied.rotate(SinCos { sin: -r.sin, cos: r.cos });
         let Some(limit) = limit else {
             // Overmodulating, within the modulator's reach: the common path's bookkeeping
             // (the request is the loops' voltage; the bridge's, the request or — around the
             // tick's sample — less).
             self.run.saturated_steps = 0;
             if keep {
-                self.keep_after_slow(m, field, i_meas_dq, applied, Some(v_req), v_usable);
+                self.keep_after_slow(m, field, i_meas_dq, applied, given, v_usable);
             }
             if !running {
-                self.run.v_fit_sum += back(applied);
+                self.run.v_fit_sum += given.park(field);
             }
             return self.finished_beyond(cfg, modulation.duty, applied, brake);
         };
@@ -458,12 +459,12 @@ impl FastState {
             return off(self.mode);
         }
         if keep {
-            self.keep_after_slow(m, field, i_meas_dq, applied, None, v_usable);
+            self.keep_after_slow(m, field, i_meas_dq, applied, given, v_usable);
         }
         if !running {
             // The magnetizing fit's voltage: the modulator's limit of the request at the
             // current's step.
-            self.run.v_fit_sum += back(applied);
+            self.run.v_fit_sum += given.park(field);
         }
         self.finished_beyond(cfg, modulation.duty, applied, brake)
     }
@@ -478,14 +479,14 @@ impl FastState {
         field: SinCos,
         i_meas_dq: Dq,
         v_applied: AlphaBeta,
-        v_req: Option<AlphaBeta>,
+        v_given: AlphaBeta,
         v_usable_v: f32,
     ) {
         let field_oriented = !matches!(self.reference, Reference::RotatingCurrent { .. });
         if self.mode == Mode::Running && field_oriented {
             let omega_m_rad_s = m.omega_m_rad_s;
             self.run.after_slow =
-                Some(AfterSlow { omega_m_rad_s, field, i_meas_dq, v_applied, v_req, v_usable_v });
+                Some(AfterSlow { omega_m_rad_s, field, i_meas_dq, v_applied, v_given, v_usable_v });
         }
     }
 

@@ -632,8 +632,9 @@ struct AfterSlow {
     field: SinCos,
     i_meas_dq: Dq,
     v_applied: AlphaBeta,
-    /// The loops' request; `None` when the modulator limited it.
-    v_req: Option<AlphaBeta>,
+    /// The voltage the bridge was given, back in the loops' frame (undone the delay's
+    /// advance): their request, or the modulator's limit of it — what the machine got.
+    v_given: AlphaBeta,
     v_usable_v: f32,
 }
 

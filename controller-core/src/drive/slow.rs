@@ -850,8 +850,15 @@ impl SlowState {
 
     /// The once-per-slow-period checks on the fast step after the slow step (`a`: Running on
     /// the field-oriented references): the encoder against the machine model on the voltage
-    /// applied, then — unless it tripped — the rotor-resistance law on the loops' request,
-    /// when the modulator did not limit it (the law listens to the unlimited request only).
+    /// applied, then — unless it tripped — the rotor-resistance and inductance laws on the
+    /// voltage the bridge was given, limited by the modulator or not (`AfterSlow::v_given`).
+    /// Listening to the unlimited samples only, the law heard a biased sample wherever the
+    /// modulator limits now and then: at the voltage limit in field weakening under load,
+    /// the speed loop's kicks push the request beyond the hexagon in ≈ 10 % of the slow
+    /// periods, and leaving those out keeps the samples of the lowest voltage, so the lowest
+    /// reactive power — read as a rotor resistance below the rotor's. The 196 kW population
+    /// member 014 at 20 kHz settled 10 % low (×1.16–1.20 against its rotor's ×1.297) and its
+    /// flux swung ±15 % at the top speed under load (docs/rotor-resistance.md).
     pub(super) fn after_slow_checks(&mut self, cfg: &DriveConfig, a: &AfterSlow) {
         let w_e_rad_s = self.run.model.pole_pairs() * a.omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
         let v_limit_v = svpwm::linear_limit_v(a.v_usable_v);
@@ -866,11 +873,11 @@ impl SlowState {
             (false, _) => Some(w_e_rad_s),
             (true, rate) => rate,
         };
-        if let (Some(v_req), Some(w_e_rad_s)) = (a.v_req, w_e_rad_s) {
-            // The rotor resistance from the reactive power (the loops' own request).
+        if let Some(w_e_rad_s) = w_e_rad_s {
+            // The rotor resistance from the reactive power (the voltage the machine got).
             let evidence = Evidence {
                 i: a.i_meas_dq,
-                v: v_req.park(a.field),
+                v: a.v_given.park(a.field),
                 w_e_rad_s,
                 psi_r_wb: self.run.ifoc.psi_r_wb(),
                 v_limit_v,

@@ -56,8 +56,9 @@
 //! (docs/verification.md).
 //!
 //! **When it listens** ([`MrasConfig::update`] returns the scale unchanged otherwise):
-//! Running on the field-oriented references, the modulator not limiting the request (the
-//! voltage is then the loops' own), `|i_q| ≥` [`LOAD_RATIO_MIN`]`·i_d` (the slope at least
+//! Running on the field-oriented references — on the voltage the bridge was given, limited
+//! by the modulator or not (listening to the unlimited samples only, it read a rotor
+//! resistance 10 % low at the voltage limit: docs/rotor-resistance.md) —, `|i_q| ≥` [`LOAD_RATIO_MIN`]`·i_d` (the slope at least
 //! 64 % of its peak) and the rotor-flux EMF `|ω_e|·(L_m/L_r)·ψ̂_r` at least
 //! [`EMF_FRACTION_MIN`] of the linear voltage limit (so that the voltage's own errors —
 //! dead time, sensor gain — stay small against it). At rest and at no load the estimate is
@@ -208,7 +209,8 @@ crate::raw::raw_struct! {
 pub struct Evidence {
     /// The measured current in the field frame, A.
     pub i: Dq,
-    /// The voltage the current loops asked for, same frame and instant, V.
+    /// The voltage the bridge was given for the current loops — their request, or the
+    /// modulator's limit of it — same frame and instant, V.
     pub v: Dq,
     /// The field's speed, electrical rad/s.
     pub w_e_rad_s: f32,
