@@ -832,6 +832,7 @@ pub fn protection_with_defaults(
         stop_time_s: default_stop_time_s(motor, flux_ref_wb, vdc_max_v),
         open_phase_time_s: default_open_phase_time_s(basis.slow_period_s),
         rest_time_s: default_rest_time_s(motor, basis.encoder_lines, basis.slow_period_s),
+        current_sum_mean_max_a: default_current_sum_mean_a(i_trip_a, basis.current_lsb_a),
         brake_chopper: None,
         motor_thermal: basis.motor_thermal,
         inverter_thermal: basis.inverter_thermal,
@@ -894,6 +895,28 @@ pub const CURRENT_SUM_COUNTS: f64 = 20.0;
 /// known.
 pub fn default_current_sum_a(i_trip_a: f64, lsb_a: Option<f64>) -> f64 {
     (DEFAULT_CURRENT_SUM_FRACTION * i_trip_a).max(CURRENT_SUM_COUNTS * lsb_a.unwrap_or(0.0))
+}
+
+/// The default windowed current-sum level in the current ADC's counts: what three healthy
+/// channels leave in the mean |i_a + i_b + i_c| over one open-phase window besides their
+/// gain errors (`controller_core::drive::CURRENT_SENSOR_GAIN_TOLERANCE`, the level's share of
+/// the currents) — their quantisation (≈ ½ count of mean), the offsets the calibration
+/// leaves (±½ count each: 1.5 counts), the mean magnitude of their summed noise
+/// (√3·√(2/π) ≈ 1.4 × one channel's RMS: 1.7 counts on the simulator's realistic front end,
+/// ≈ 1.2 counts RMS) and four standard deviations of that mean over a window of 5 samples
+/// (≈ 0.9 count each): 7.3 counts, 8 with the margin. On the shipped board 8 counts are
+/// 64 mA (a quarter of 5 % of its 8 A trip level was 100 mA); on the population's 2.8 kW
+/// member 007 (24.8 A trip, 17 mA counts), 0.14 A instead of 0.31 A.
+pub const CURRENT_SUM_MEAN_COUNTS: f64 = 8.0;
+
+/// The default windowed current-sum level (`current_sum_mean_max_a`): [`CURRENT_SUM_MEAN_COUNTS`]
+/// of the board's current resolution `lsb_a` (A per count) when it is known, else
+/// `controller_core::drive::CURRENT_SUM_MEAN_FRACTION` of the default instantaneous level.
+pub fn default_current_sum_mean_a(i_trip_a: f64, lsb_a: Option<f64>) -> f64 {
+    match lsb_a {
+        Some(lsb) => CURRENT_SUM_MEAN_COUNTS * lsb,
+        None => controller_core::drive::CURRENT_SUM_MEAN_FRACTION * default_current_sum_a(i_trip_a, None),
+    }
 }
 
 /// The tables that make a drive, as written.

@@ -47,7 +47,8 @@
 //! vdc_min_v = 200.0
 //! vdc_max_v = 400.0
 //! # overspeed_rad_s, stall_time_s, following_time_s, current_sum_max_a, saturation_time_s,
-//! # encoder_check_time_s, encoder_jump_rad, stop_time_s, open_phase_time_s, rest_time_s: derived
+//! # encoder_check_time_s, encoder_jump_rad, stop_time_s, open_phase_time_s, rest_time_s,
+//! # current_sum_mean_max_a: derived
 //! # defaults (drive::protection_with_defaults; the encoder's from [board] encoder_lines)
 //! brake_chopper = { on_v = 360.0, off_v = 350.0 }   # optional: the board's brake chopper
 //!
@@ -480,6 +481,12 @@ mod tests {
         assert_ne!(coarse, SHIPPED);
         let p_coarse = DriveFile::parse(Path::new("d.toml"), &coarse).unwrap().spec.protection;
         assert_eq!(p_coarse.current_sum_max_a, 20.0 * 0.048828125);
+        // The windowed level: 8 of the board's counts (drive::CURRENT_SUM_MEAN_COUNTS), 64 mA
+        // on the shipped board, 0.39 A on the coarse one; without a board's resolution, a
+        // quarter of the default instantaneous level.
+        assert_eq!(p.current_sum_mean_max_a, 8.0 * 0.008056640625);
+        assert_eq!(p_coarse.current_sum_mean_max_a, 8.0 * 0.048828125);
+        assert_eq!(drive::default_current_sum_mean_a(8.0, None), 0.25 * 0.4);
         let j_max = d.spec.motor.j_kgm2() * d.certify.unwrap().j_factor[1];
         let band = controller_core::drive::STALL_SPEED_FRACTION * p.overspeed_rad_s;
         let leave_s = j_max * band / 2.0; // τ_max = 2 N·m

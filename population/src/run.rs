@@ -681,6 +681,32 @@ mod tests {
         }
     }
 
+    /// The 2.8 kW member (007) at 20 kHz as tune tunes it: sensor b's gain of 0.5 at
+    /// standstill, generating, struck with phase b's current held within ±0.8 A of zero
+    /// while the other two carry 5 A. Its reading's error, 0.5·|i_b|, is at the current-sum
+    /// check's windowed level only in single samples until the field turns phase b's current
+    /// up; the bound ran from the first such sample and the row failed (`CurrentSensor` after
+    /// 51.95 ms against 10 ms). Judged as the check judges — the error's mean over its window
+    /// against the level's, the healthy channels' gain errors' share included — the row
+    /// passes, named `CurrentSensor`.
+    #[test]
+    fn a_sensor_gain_fault_near_its_phases_zero_is_judged_on_the_checks_window() {
+        use hil_sim::faults::Point;
+        let m = draw(1, 7, None).unwrap();
+        assert!(m.name.starts_with("007-2.8kW"), "{}", m.name);
+        let (tuned, path, vdc) = tune_member(&m, 20_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
+        let rows = matrix.rows().unwrap();
+        let (k, c, at) = rows
+            .iter()
+            .find(|(_, c, at)| c.name == "sensor b gain 0.5" && at.point == Point::Standstill && !at.motoring)
+            .unwrap();
+        let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
+        assert_eq!(o.detected.map(|d| d.0), Some(controller_core::drive::Fault::CurrentSensor));
+        assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
+    }
+
     /// An encoder fault is named where the readings can tell it from motion, and stated a gap
     /// where they cannot. Member 012 (6.7 kW, 8 poles, 1 024 lines) at 20 kHz: its encoder
     /// at half its lines at mid-speed (41 rad/s) changed two reads' increments by 0.0061 and

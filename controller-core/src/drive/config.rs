@@ -431,6 +431,7 @@ impl DriveConfig {
             ("protection.stall_time_s", finite_positive_f64(p.stall_time_s), POSITIVE),
             ("protection.following_time_s", finite_positive_f64(p.following_time_s), POSITIVE),
             ("protection.current_sum_max_a", finite_positive_f64(p.current_sum_max_a), POSITIVE),
+            ("protection.current_sum_mean_max_a", finite_positive_f64(p.current_sum_mean_max_a), POSITIVE),
             ("protection.saturation_time_s", finite_positive_f64(p.saturation_time_s), POSITIVE),
             ("protection.encoder_check_time_s", finite_positive_f64(p.encoder_check_time_s), POSITIVE),
             ("protection.encoder_jump_rad", finite_positive_f64(p.encoder_jump_rad), POSITIVE),
@@ -600,7 +601,12 @@ impl DriveConfig {
             },
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
-            phases: PhaseLimits::new(open_phase_steps, spec.slow_divider, i_d_rated_a),
+            phases: PhaseLimits::new(
+                open_phase_steps,
+                spec.slow_divider,
+                i_d_rated_a,
+                p.current_sum_mean_max_a as f32,
+            ),
             brake: BrakeLevels { on_v: brake_on_v, off_v: brake_off_v },
             rest: RestLimits::new(p.rest_time_s, t_slow, spec.motor.pole_pairs(), spec.motor.tr_s()),
             source: {

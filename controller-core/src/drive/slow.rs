@@ -10,7 +10,6 @@ use crate::frames::{Abc, wrap_angle};
 use crate::ifoc::IfocConfig;
 use crate::mras::{Evidence, FitPeriod};
 use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
-use crate::supervisor::phases::CURRENT_SUM_MEAN_FRACTION;
 use crate::svpwm;
 use crate::vhz::{VhzConfig, VhzReport};
 
@@ -792,7 +791,7 @@ impl SlowState {
             // The motor file's magnetizing current, as the window's level: a saturated
             // machine's (×1/ℓ̂) is larger, so its phases would pass the level sooner.
             cfg.i_d_rated_a,
-            CURRENT_SUM_MEAN_FRACTION * f32::from_bits(cfg.limits.i_sum_bits),
+            cfg.phases.sum_mean_max_a,
         );
         // Not while the flux is forced down: its references step by amperes and the loops
         // follow them at the voltage limit for a few milliseconds — a lag in every phase, which

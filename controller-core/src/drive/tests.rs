@@ -51,6 +51,8 @@ pub(crate) fn test_spec() -> DriveSpec {
             stop_time_s: 5.0,
             open_phase_time_s: 0.0025,
             rest_time_s: 0.01,
+            // 8 counts of the realistic board's 8.06 mA (drive_file's default).
+            current_sum_mean_max_a: 0.064,
             brake_chopper: None,
         },
         speed_feedback: SpeedFeedback::Encoder,
@@ -1847,7 +1849,7 @@ fn an_enable_keeps_the_machines_state() {
 fn a_refused_specification_names_its_field() {
     use std::string::ToString;
     type Break = fn(&mut DriveSpec);
-    let cases: [(&str, Break); 17] = [
+    let cases: [(&str, Break); 18] = [
         ("i_ref_max_a", |s| s.i_ref_max_a = f64::INFINITY),
         ("protection.i_trip_a", |s| s.protection.i_trip_a = 1.0),
         ("protection.vdc_max_v", |s| s.protection.vdc_max_v = f64::INFINITY),
@@ -1856,6 +1858,7 @@ fn a_refused_specification_names_its_field() {
         ("protection.stall_time_s", |s| s.protection.stall_time_s = -1.0),
         ("protection.following_time_s", |s| s.protection.following_time_s = f64::NAN),
         ("protection.current_sum_max_a", |s| s.protection.current_sum_max_a = 0.0),
+        ("protection.current_sum_mean_max_a", |s| s.protection.current_sum_mean_max_a = f64::NAN),
         ("protection.saturation_time_s", |s| s.protection.saturation_time_s = 0.0),
         ("protection.encoder_check_time_s", |s| s.protection.encoder_check_time_s = 0.0),
         ("protection.encoder_jump_rad", |s| s.protection.encoder_jump_rad = 0.0),

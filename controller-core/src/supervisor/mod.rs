@@ -154,6 +154,13 @@ protection! {
     /// The rotor at rest ([`rest`]): the window, s, over which the shaft's displacement is
     /// judged (at least one slow period).
     rest_time_s,
+    /// Current-sensor plausibility over one open-phase window: the mean
+    /// |i_a + i_b + i_c| above this plus [`CURRENT_SENSOR_GAIN_TOLERANCE`] of the window's
+    /// mean |i_a| + |i_b| + |i_c| trips ([`Fault::CurrentSensor`]) — a sensor whose error
+    /// stays below `current_sum_max_a` (a gain fault at a light load). The healthy sensors'
+    /// own residual: their noise, quantisation and calibrated offsets (this level, from the
+    /// board's counts) and their gain errors (the share), A.
+    current_sum_mean_max_a,
 }
 
 /// An I²t thermal limit: a first-order thermal model, `dθ/dt = (I²/I_rated² − θ)/τ` with

@@ -652,8 +652,14 @@ impl Matrix {
         let mut acting_at: Option<f64> = None;
         // A current sensor's fault: its channel, the reading's error it makes at a current
         // (its gain and offset against the healthy channel's), and the level from which that
-        // error counts — the current-sum check's windowed level (a gain error on a phase
-        // carrying no current makes no error: the bound runs from the period it reaches it).
+        // error counts — the current-sum check's windowed level, with its share of the
+        // currents for the healthy channels' gain errors, both as the check takes them: means
+        // over an open-phase window (a gain error on a phase carrying no current makes no
+        // error: the bound runs from the period the error's mean over the last window reaches
+        // the level's. From the first period one reading's error reached it instead, a gain
+        // of 0.5 on a phase held near its zero crossing — the population's 2.8 kW member 007
+        // at standstill generating, i_b within ±0.8 A of zero against 5 A in the others —
+        // was bound from a single sample above the level and failed the row by 42 ms).
         let sensor_fault = match case.injection {
             Injection::CurrentSensor { phase, gain, offset_a } => {
                 let m = &b.scenario.sensors;
@@ -666,8 +672,12 @@ impl Matrix {
             }
             _ => None,
         };
-        let sensor_level_a = f64::from(controller_core::drive::CURRENT_SUM_MEAN_FRACTION)
-            * self.spec.protection.current_sum_max_a;
+        let sensor_level_a = self.spec.protection.current_sum_mean_max_a;
+        let sensor_share = f64::from(controller_core::drive::CURRENT_SENSOR_GAIN_TOLERANCE);
+        let sensor_window = ((self.spec.protection.open_phase_time_s / pwm_s).round() as usize).max(1);
+        // The last window's [error, level] per period, and their sums, A.
+        let mut sensor_rows: std::collections::VecDeque<[f64; 2]> = std::collections::VecDeque::new();
+        let mut sensor_sums = [0.0f64; 2];
         // The first period a phase's or a leg's current was above the trip level.
         let mut over_trip_at: Option<f64> = None;
         // The first row at or after the injection (the event loop's own comparison).
@@ -719,9 +729,23 @@ impl Matrix {
                 if let Some((phase, gain_error, offset_error_a)) = sensor_fault
                     && acting_at.is_none()
                     && let Some(i_phase) = [i.a, i.b, i.c].get(phase)
-                    && (gain_error * i_phase + offset_error_a).abs() >= sensor_level_a
                 {
-                    acting_at = Some(r.t_s - t0);
+                    let row = [
+                        (gain_error * i_phase + offset_error_a).abs(),
+                        sensor_level_a + sensor_share * (i.a.abs() + i.b.abs() + i.c.abs()),
+                    ];
+                    sensor_rows.push_back(row);
+                    sensor_sums = [sensor_sums[0] + row[0], sensor_sums[1] + row[1]];
+                    if sensor_rows.len() > sensor_window
+                        && let Some([e, l]) = sensor_rows.pop_front()
+                    {
+                        sensor_sums = [sensor_sums[0] - e, sensor_sums[1] - l];
+                    }
+                    // The periods before the injection in the window carry no error.
+                    let level = sensor_sums[1] / sensor_rows.len() as f64 * sensor_window as f64;
+                    if sensor_sums[0] >= level {
+                        acting_at = Some(r.t_s - t0);
+                    }
                 }
                 energy -= 1.5 * (r.v_ab_v[0] * r.x.i_alpha_a + r.v_ab_v[1] * r.x.i_beta_a) * pwm_s;
                 if detected.is_none()
