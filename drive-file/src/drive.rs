@@ -897,26 +897,18 @@ pub fn default_current_sum_a(i_trip_a: f64, lsb_a: Option<f64>) -> f64 {
     (DEFAULT_CURRENT_SUM_FRACTION * i_trip_a).max(CURRENT_SUM_COUNTS * lsb_a.unwrap_or(0.0))
 }
 
-/// The default windowed current-sum level in the current ADC's counts: what three healthy
-/// channels leave in the mean |i_a + i_b + i_c| over one open-phase window besides their
-/// gain errors (`controller_core::drive::CURRENT_SENSOR_GAIN_TOLERANCE`, the level's share of
-/// the currents) — their quantisation (≈ ½ count of mean), the offsets the calibration
-/// leaves (±½ count each: 1.5 counts), the mean magnitude of their summed noise
-/// (√3·√(2/π) ≈ 1.4 × one channel's RMS: 1.7 counts on the simulator's realistic front end,
-/// ≈ 1.2 counts RMS) and four standard deviations of that mean over a window of 5 samples
-/// (≈ 0.9 count each): 7.3 counts, 8 with the margin. On the shipped board 8 counts are
-/// 64 mA (a quarter of 5 % of its 8 A trip level was 100 mA); on the population's 2.8 kW
-/// member 007 (24.8 A trip, 17 mA counts), 0.14 A instead of 0.31 A.
-pub const CURRENT_SUM_MEAN_COUNTS: f64 = 8.0;
-
-/// The default windowed current-sum level (`current_sum_mean_max_a`): [`CURRENT_SUM_MEAN_COUNTS`]
-/// of the board's current resolution `lsb_a` (A per count) when it is known, else
-/// `controller_core::drive::CURRENT_SUM_MEAN_FRACTION` of the default instantaneous level.
+/// The default windowed current-sum level (`current_sum_mean_max_a`):
+/// `controller_core::drive::CURRENT_SUM_MEAN_FRACTION` of the default instantaneous level
+/// ([`default_current_sum_a`]). Not a number of the board's counts: what healthy channels
+/// leave in the window's mean besides their gain errors is mostly their noise, which the
+/// file does not state — 8 counts (quantisation, calibrated offsets, the summed noise's mean
+/// and 4σ of its window mean for 1.2 counts RMS per channel) tripped `CurrentSensor` on a
+/// healthy 153 kW population member at 10 kHz whose front end's noise, 0.125 % of its trip
+/// level as the simulator's realistic sensors scale it, is 2.4 of its counts (member 010,
+/// run 134 of its 200-run campaign, generating at 314 rad/s). A board that knows its noise
+/// sets the key.
 pub fn default_current_sum_mean_a(i_trip_a: f64, lsb_a: Option<f64>) -> f64 {
-    match lsb_a {
-        Some(lsb) => CURRENT_SUM_MEAN_COUNTS * lsb,
-        None => controller_core::drive::CURRENT_SUM_MEAN_FRACTION * default_current_sum_a(i_trip_a, None),
-    }
+    controller_core::drive::CURRENT_SUM_MEAN_FRACTION * default_current_sum_a(i_trip_a, lsb_a)
 }
 
 /// The tables that make a drive, as written.

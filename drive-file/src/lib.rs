@@ -481,12 +481,10 @@ mod tests {
         assert_ne!(coarse, SHIPPED);
         let p_coarse = DriveFile::parse(Path::new("d.toml"), &coarse).unwrap().spec.protection;
         assert_eq!(p_coarse.current_sum_max_a, 20.0 * 0.048828125);
-        // The windowed level: 8 of the board's counts (drive::CURRENT_SUM_MEAN_COUNTS), 64 mA
-        // on the shipped board, 0.39 A on the coarse one; without a board's resolution, a
-        // quarter of the default instantaneous level.
-        assert_eq!(p.current_sum_mean_max_a, 8.0 * 0.008056640625);
-        assert_eq!(p_coarse.current_sum_mean_max_a, 8.0 * 0.048828125);
-        assert_eq!(drive::default_current_sum_mean_a(8.0, None), 0.25 * 0.4);
+        // The windowed level: a quarter of the instantaneous one, 0.1 A on the shipped board,
+        // 0.24 A on the coarse one.
+        assert_eq!(p.current_sum_mean_max_a, 0.25 * 0.4);
+        assert_eq!(p_coarse.current_sum_mean_max_a, 0.25 * 20.0 * 0.048828125);
         let j_max = d.spec.motor.j_kgm2() * d.certify.unwrap().j_factor[1];
         let band = controller_core::drive::STALL_SPEED_FRACTION * p.overspeed_rad_s;
         let leave_s = j_max * band / 2.0; // τ_max = 2 N·m

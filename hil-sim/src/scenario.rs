@@ -366,10 +366,6 @@ pub fn fig16(law: CurrentLaw, name: &str, about: &str) -> Result<Builtin, Scenar
     // hil-sim/scenarios/fig16-icad.toml, has no thermal data; a 6.5 s run is far below any).
     b.spec.protection.motor_thermal = None;
     b.spec.protection.inverter_thermal = None;
-    // … and no board: the windowed current-sum level from the trip level, not the shipped
-    // board's counts.
-    b.spec.protection.current_sum_mean_max_a =
-        drive_file::drive::default_current_sum_mean_a(b.spec.protection.i_trip_a, None);
     b.spec.speed_law = SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 0.4 };
     // The following window and the stall time follow the torque limit (and the stall time
     // the overspeed level: drive_file's default rules).

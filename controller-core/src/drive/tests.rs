@@ -51,8 +51,8 @@ pub(crate) fn test_spec() -> DriveSpec {
             stop_time_s: 5.0,
             open_phase_time_s: 0.0025,
             rest_time_s: 0.01,
-            // 8 counts of the realistic board's 8.06 mA (drive_file's default).
-            current_sum_mean_max_a: 0.064,
+            // A quarter of the instantaneous level (drive_file's default).
+            current_sum_mean_max_a: 0.1,
             brake_chopper: None,
         },
         speed_feedback: SpeedFeedback::Encoder,
