@@ -566,6 +566,16 @@ mod tests {
         evaluate(member, Some(pwm_hz), Path::new(env!("CARGO_MANIFEST_DIR")), &plan, &AtomicBool::new(false))
     }
 
+    /// Member `index` of seed 1 (its name starting with `name`) tuned at `pwm_hz` as `run`
+    /// tunes it: the result, its file and the bus it runs on.
+    fn tuned_member(index: u64, name: &str, pwm_hz: f64) -> (design::tune::Tuned, DriveFile, f64) {
+        let m = draw(1, index, None).unwrap();
+        assert!(m.name.starts_with(name), "{}", m.name);
+        let (tuned, path, vdc) = tune_member(&m, pwm_hz, Path::new(env!("CARGO_MANIFEST_DIR")));
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        (tuned, file, vdc)
+    }
+
     /// `member` tuned at `pwm_hz` as `run` tunes it (the speed law the requirements choose):
     /// the result, the template's path and the bus it runs on.
     fn tune_member(member: &Member, pwm_hz: f64, root: &Path) -> (design::tune::Tuned, String, f64) {
@@ -692,10 +702,7 @@ mod tests {
     #[test]
     fn a_sensor_gain_fault_near_its_phases_zero_is_judged_on_the_checks_window() {
         use hil_sim::faults::Point;
-        let m = draw(1, 7, None).unwrap();
-        assert!(m.name.starts_with("007-2.8kW"), "{}", m.name);
-        let (tuned, path, vdc) = tune_member(&m, 20_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
-        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let (tuned, file, vdc) = tuned_member(7, "007-2.8kW", 20_000.0);
         let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
         let rows = matrix.rows().unwrap();
         let (k, c, at) = rows
@@ -898,10 +905,7 @@ mod tests {
     /// requirements.
     #[test]
     fn a_loaded_motor_at_the_voltage_limit_reads_its_rotor_resistance() {
-        let m = draw(1, 14, None).unwrap();
-        assert!(m.name.starts_with("014-196kW"), "{}", m.name);
-        let (tuned, path, vdc) = tune_member(&m, 20_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
-        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let (_, file, vdc) = tuned_member(14, "014-196kW", 20_000.0);
         let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
         c.duration_s = c.duration_s.max(c.full_range_duration_s());
         c.check().unwrap();
