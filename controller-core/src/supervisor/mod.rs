@@ -155,7 +155,7 @@ protection! {
     /// judged (at least one slow period).
     rest_time_s,
     /// Current-sensor plausibility over one open-phase window: the mean
-    /// |i_a + i_b + i_c| above this plus [`CURRENT_SENSOR_GAIN_TOLERANCE`] of the window's
+    /// |i_a + i_b + i_c| above this plus [`phases::CURRENT_SENSOR_GAIN_TOLERANCE`] of the window's
     /// mean |i_a| + |i_b| + |i_c| trips ([`Fault::CurrentSensor`]) — a sensor whose error
     /// stays below `current_sum_max_a` (a gain fault at a light load). The healthy sensors'
     /// own residual: their noise, quantisation and calibrated offsets (this level, from the
