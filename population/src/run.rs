@@ -567,11 +567,20 @@ mod tests {
     }
 
     /// Member `index` of seed 1 (its name starting with `name`) tuned at `pwm_hz` as `run`
-    /// tunes it: the result, its file and the bus it runs on.
-    fn tuned_member(index: u64, name: &str, pwm_hz: f64) -> (design::tune::Tuned, DriveFile, f64) {
+    /// tunes it, its template first through `edit`: the result, its file and the bus it
+    /// runs on.
+    fn tuned_member(
+        index: u64,
+        name: &str,
+        pwm_hz: f64,
+        edit: fn(&str) -> Result<String, String>,
+    ) -> (design::tune::Tuned, DriveFile, f64) {
         let m = draw(1, index, None).unwrap();
         assert!(m.name.starts_with(name), "{}", m.name);
-        let (tuned, path, vdc) = tune_member(&m, pwm_hz, Path::new(env!("CARGO_MANIFEST_DIR")));
+        let (path, text, vdc) = inputs(&m, Some(pwm_hz), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let text = edit(&text).unwrap();
+        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
+        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
         let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
         (tuned, file, vdc)
     }
@@ -702,7 +711,7 @@ mod tests {
     #[test]
     fn a_sensor_gain_fault_near_its_phases_zero_is_judged_on_the_checks_window() {
         use hil_sim::faults::Point;
-        let (tuned, file, vdc) = tuned_member(7, "007-2.8kW", 20_000.0);
+        let (tuned, file, vdc) = tuned_member(7, "007-2.8kW", 20_000.0, |t| Ok(t.into()));
         let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
         let rows = matrix.rows().unwrap();
         let (k, c, at) = rows
@@ -878,13 +887,7 @@ mod tests {
     /// (`svpwm::WINDOW_ROUNDING_DUTY`).
     #[test]
     fn an_overmodulating_drive_reverses_at_top_speed_on_its_measured_currents() {
-        let m = draw(1, 3, None).unwrap();
-        assert!(m.name.starts_with("003-1.3kW"), "{}", m.name);
-        let (path, text, vdc) = inputs(&m, Some(20_000.0), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
-        let text = with_overmodulation(&text).unwrap();
-        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
-        let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
-        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        let (_, file, vdc) = tuned_member(3, "003-1.3kW", 20_000.0, with_overmodulation);
         assert!(file.spec.overmodulation);
         let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
         c.duration_s = c.duration_s.max(c.full_range_duration_s());
@@ -905,7 +908,7 @@ mod tests {
     /// requirements.
     #[test]
     fn a_loaded_motor_at_the_voltage_limit_reads_its_rotor_resistance() {
-        let (_, file, vdc) = tuned_member(14, "014-196kW", 20_000.0);
+        let (_, file, vdc) = tuned_member(14, "014-196kW", 20_000.0, |t| Ok(t.into()));
         let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
         c.duration_s = c.duration_s.max(c.full_range_duration_s());
         c.check().unwrap();

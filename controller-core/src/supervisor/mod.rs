@@ -158,8 +158,9 @@ protection! {
     /// |i_a + i_b + i_c| above this plus [`phases::CURRENT_SENSOR_GAIN_TOLERANCE`] of the window's
     /// mean |i_a| + |i_b| + |i_c| trips ([`Fault::CurrentSensor`]) — a sensor whose error
     /// stays below `current_sum_max_a` (a gain fault at a light load). The healthy sensors'
-    /// own residual: their noise, quantisation and calibrated offsets (this level, from the
-    /// board's counts) and their gain errors (the share), A.
+    /// own residual: their noise, quantisation and calibrated offsets (this level; the drive
+    /// file's default, `drive_file::drive::default_current_sum_mean_a`) and their gain
+    /// errors (the share), A.
     current_sum_mean_max_a,
 }
 
