@@ -600,6 +600,10 @@ struct SlowInputs {
     /// The fast step's current references at the tick, intended and tracked (the trim
     /// added), stationary frame, A: the phase checks judge the tick's sample against them.
     i_refs_ab: [AlphaBeta; 2],
+    /// The voltage the fast step before the tick gave the bridge (stationary frame, the
+    /// delay's advance included), V: which rail each leg held the phase at for most of the
+    /// period around the tick's sample, for the stuck-switch check.
+    v_ab: AlphaBeta,
     /// The signals of the fast step that adopted the last plan, for the once-per-slow-period
     /// checks (`None`: it was not Running on the field-oriented references).
     after_slow: Option<AfterSlow>,
@@ -620,6 +624,7 @@ impl SlowInputs {
             field_rad: None,
             search_psi: AlphaBeta::default(),
             i_refs_ab: [AlphaBeta::default(); 2],
+            v_ab: AlphaBeta::default(),
             after_slow: None,
         }
     }
@@ -841,6 +846,7 @@ impl FastState {
             crate::frames::atan2(e.psi_r_beta_wb, e.psi_r_alpha_wb)
         });
         into.i_refs_ab = [self.run.field.i_intended_ab(), self.run.field.i_ref_ab()];
+        into.v_ab = self.run.last.v_ab;
         let r = &mut self.run;
         into.search_psi = r.search_psi;
         into.m = *m;

@@ -10,6 +10,7 @@ use crate::frames::{Abc, wrap_angle};
 use crate::ifoc::IfocConfig;
 use crate::mras::{Evidence, FitPeriod};
 use crate::num::{Scalar, finite_positive, max_f32, min_f32, sqrt_f32};
+use crate::supervisor::phases::leg_sides;
 use crate::svpwm;
 use crate::vhz::{VhzConfig, VhzReport};
 
@@ -803,7 +804,7 @@ impl SlowState {
             if running && !self.run.flux_forced && !unreferenced {
                 self.run.switches.add(
                     [i_ref_abc, i_track_abc],
-                    i_abc_a,
+                    [i_abc_a, leg_sides(inputs.v_ab)],
                     cfg.phases.switch_level_a,
                     cfg.phases.switch_gains,
                 )

@@ -1310,7 +1310,8 @@ fn a_phase_that_follows_one_way_only_is_a_stuck_switch() {
         let mut w = SwitchWatch::default();
         for n in 0..n_max {
             let r = refs(n, 1.0);
-            if let Some(f) = w.add([r; 2], measure(n, r), 0.1, gain) {
+            // The legs on the references' sides (a resistive load's voltage).
+            if let Some(f) = w.add([r; 2], [measure(n, r), r], 0.1, gain) {
                 return Some((f, n));
             }
             for (turning, list) in [false, true].into_iter().zip(found.iter_mut()) {
@@ -1366,25 +1367,73 @@ fn a_phase_that_follows_one_way_only_is_a_stuck_switch() {
     let (mut w, mut standing) = (SwitchWatch::default(), SwitchWatch::default());
     for n in 0..4 * per_period {
         let dc = refs(0, 1.0);
-        assert_eq!(standing.add([dc; 2], dc, 0.1, gain), None);
+        assert_eq!(standing.add([dc; 2], [dc; 2], 0.1, gain), None);
         let k = if n < 2 * per_period + 10 { 0.2 } else { 1.0 };
         let late = (2 * per_period + 10..2 * per_period + 12).contains(&n);
         let r = refs(n, k);
         let m = if late { refs(n, 0.2) } else { r };
-        assert_eq!(w.add([r; 2], m, 0.1, gain), None, "step {n}");
+        assert_eq!(w.add([r; 2], [m, r], 0.1, gain), None, "step {n}");
     }
+}
+
+/// A switch stuck open at speed, generating (synthetic slow samples, 40 per electrical
+/// period, unit amplitude, commanded level 0.1 A, the shipped 2.5 ms window at a 0.5 ms slow
+/// period): the phase voltage leads the current by 126°, so each half-wave of the current
+/// starts with its leg on the current's side — the dead switch needed, the current short of
+/// its reference — and ends with the leg held at the other rail, where the back-EMF drives
+/// the current through the opposite diode and it carries. Judged on every sample at the
+/// level (the legs taken on the references' sides) the dead direction misses 24° of its
+/// 120° — a fifth — and is never called dead; judged where its switch was needed for most of
+/// the period it misses every sample: `SwitchOpen` within four electrical periods. The same
+/// phases healthy, 20° behind their references both ways, are nothing.
+#[test]
+fn a_dead_switch_whose_current_carries_through_the_opposite_diode_is_named() {
+    let per_period = 40;
+    let gain = [0.18126924, 0.048770577];
+    let third = core::f32::consts::TAU / 3.0;
+    let wave = |n: usize, shift: f32| {
+        let th = core::f32::consts::TAU * n as f32 / per_period as f32 + shift;
+        Abc { a: libm::cosf(th), b: libm::cosf(th - third), c: libm::cosf(th + third) }
+    };
+    let lead = 126f32.to_radians();
+    // Both ways judged over the long window first (14 counted samples each, 2.7 a period).
+    let dead_from = 6 * per_period;
+    // Phase a's upper switch dead: its positive current missing where its leg is high.
+    let stuck = |n: usize| {
+        let (r, legs) = (wave(n, 0.0), wave(n, lead));
+        let dead = n >= dead_from && r.a > 0.0 && legs.a > 0.0;
+        if dead { Abc { a: 0.1 * r.a, ..r } } else { r }
+    };
+    let run = |measure: &dyn Fn(usize) -> Abc, read_legs: bool| {
+        let mut w = SwitchWatch::default();
+        (0..14 * per_period).find_map(|n| {
+            let r = wave(n, 0.0);
+            let legs = if read_legs { wave(n, lead) } else { r };
+            w.add([r; 2], [measure(n), legs], 0.1, gain).map(|f| (f, n))
+        })
+    };
+    let (f, n) = run(&stuck, true).unwrap();
+    assert_eq!(f, Fault::SwitchOpen);
+    // Seven counted misses pass the share (1 − 0.819⁷ > 0.75), 2.6 periods at 2.7 counted
+    // samples a period, then the other way's next counted sample answers.
+    assert!(n > dead_from && n < dead_from + 4 * per_period, "{n}");
+    assert_eq!(run(&stuck, false), None);
+    assert_eq!(run(&|n| wave(n, -20f32.to_radians()), true), None);
 }
 
 /// The stuck-switch check on recorded samples (columns: the intended, the tracked reference
 /// and the measured current of phases a, b, c, A) from a fresh watch, at the commanded level
 /// `commanded_a`, with the gains of one and four 2.5 ms windows at a 0.5 ms slow period (every
-/// recording's): no verdict on any sample.
+/// recording's): no verdict on any sample. The recordings hold no voltage: each leg is taken
+/// on its intended reference's side, so every sample at the level counts (the check before
+/// it read the legs, and more samples than it counts now).
 fn no_stuck_switch_on(samples: &[[f32; 9]], commanded_a: f32) {
     let gains = [0.18126924, 0.048770577];
     let abc = |s: &[f32]| Abc { a: s[0], b: s[1], c: s[2] };
     let mut watch = SwitchWatch::default();
     for (k, s) in samples.iter().enumerate() {
-        let verdict = watch.add([abc(&s[0..3]), abc(&s[3..6])], abc(&s[6..9]), commanded_a, gains);
+        let verdict =
+            watch.add([abc(&s[0..3]), abc(&s[3..6])], [abc(&s[6..9]), abc(&s[0..3])], commanded_a, gains);
         assert_eq!(verdict, None, "sample {k}");
     }
 }

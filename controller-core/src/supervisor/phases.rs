@@ -5,8 +5,8 @@
 #[cfg(doc)]
 use super::{Protection, encoder::PINNED_FIELD_TURN_RAD};
 use crate::fault::Fault;
-use crate::frames::Abc;
-use crate::num::{max_f32, sqrt_f32};
+use crate::frames::{Abc, AlphaBeta};
+use crate::num::{max_f32, min_f32, sqrt_f32};
 
 /// Open-phase check: a phase is *commanded* over a window when the mean magnitude of its
 /// reference current is at least this fraction of the rated magnetizing current …
@@ -350,7 +350,7 @@ impl PhaseDirections {
     fn add(
         &mut self,
         [r, tracked]: [f32; 2],
-        m: f32,
+        [m, leg]: [f32; 2],
         [level, floor]: [f32; 2],
         commanded: f32,
         gains: [f32; 2],
@@ -375,8 +375,15 @@ impl PhaseDirections {
         this.fresh |= carried;
         let x = if missed { 1.0 } else { 0.0 };
         let [g, g_long] = gains;
-        this.seen += g * (1.0 - this.seen);
-        this.missed += g * (x - this.missed);
+        // What calls the direction dead skips a current that carried while its switch was
+        // needed for less than half the period (its leg held at the other rail for most of
+        // it): it flows through the opposite diode, dead switch or not, and tells nothing of
+        // the switch. It still shows the phase connected, for the other direction's verdict
+        // (`fresh`, `following`); a miss counts wherever it falls.
+        if missed || d * leg >= 0.0 {
+            this.seen += g * (1.0 - this.seen);
+            this.missed += g * (x - this.missed);
+        }
         this.seen_long += g_long * (1.0 - this.seen_long);
         this.missed_long += g_long * (x - this.missed_long);
         // Missing on a sample that missed: a direction carrying again is not dead, whatever
@@ -459,7 +466,7 @@ impl SwitchWatch {
     pub(crate) fn add(
         &mut self,
         [reference, tracked]: [Abc; 2],
-        measured: Abc,
+        [measured, legs]: [Abc; 2],
         commanded: f32,
         gains: [f32; 2],
     ) -> Option<Fault> {
@@ -476,13 +483,25 @@ impl SwitchWatch {
         let level = SWITCH_LEVEL_SHARE * amplitude;
         let [a, b, c] = &mut self.0;
         let levels = [level, floor];
-        let stuck = a.add([reference.a, tracked.a], measured.a, levels, commanded, gains)
-            | b.add([reference.b, tracked.b], measured.b, levels, commanded, gains)
-            | c.add([reference.c, tracked.c], measured.c, levels, commanded, gains);
+        let (m, v) = (measured, legs);
+        let stuck = a.add([reference.a, tracked.a], [m.a, v.a], levels, commanded, gains)
+            | b.add([reference.b, tracked.b], [m.b, v.b], levels, commanded, gains)
+            | c.add([reference.c, tracked.c], [m.c, v.c], levels, commanded, gains);
         // No phase misses both ways: a lead open on one phase leaves the other two one
         // current between them, which one of them may follow one way only.
         (stuck && !(a.open || b.open || c.open)).then_some(Fault::SwitchOpen)
     }
+}
+
+/// Which rail each leg held its phase at for most of a period in which the bridge was
+/// given `v_ab` (stationary frame, V): each phase's voltage less the mid of the highest and
+/// the lowest — the min–max modulator's common mode, so positive where the leg's duty is
+/// above ½ (`svpwm::duties_within`), its upper switch on for most of the period, and
+/// negative where its lower one is. For the stuck-switch check ([`SwitchWatch::add`]).
+pub(crate) fn leg_sides(v_ab: AlphaBeta) -> Abc {
+    let v = v_ab.inverse_clarke();
+    let mid = 0.5 * (max_f32(max_f32(v.a, v.b), v.c) + min_f32(min_f32(v.a, v.b), v.c));
+    Abc { a: v.a - mid, b: v.b - mid, c: v.c - mid }
 }
 
 #[cfg(test)]
