@@ -631,6 +631,32 @@ fn a_stuck_switchs_bound_runs_from_its_directions_peak() {
     assert!(rest > 0.1 && rest <= SWITCH_PEAK_LEAD_MAX_S, "{rest} s");
 }
 
+/// An open lead's bound runs from the first moment after the injection that its phase is
+/// asked for half the reference vector's magnitude, either way (`phase_asked_after_s`, the
+/// level from which the phase checks count a sample): at once within 60° of a peak; from a
+/// zero crossing, 30° of the field's turn later, in either direction of turning.
+#[test]
+fn an_open_leads_bound_runs_from_when_its_phase_is_asked() {
+    use hil_sim::faults::phase_asked_after_s;
+    use std::f64::consts::{FRAC_PI_2, FRAC_PI_6, PI, TAU};
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+    // Phase a at its positive peak, at its negative one, 59° past: asked at once.
+    for theta in [0.0, PI, 59f64.to_radians(), -2.2] {
+        assert_eq!(phase_asked_after_s(0, theta, 100.0), 0.0, "{theta}");
+    }
+    // At its zero crossing (θ = π/2): 30° of turn to −½ (forward) or to +½ (backward).
+    assert!(close(phase_asked_after_s(0, FRAC_PI_2, 100.0), FRAC_PI_6 / 100.0));
+    assert!(close(phase_asked_after_s(0, FRAC_PI_2, -100.0), FRAC_PI_6 / 100.0));
+    // 70° past phase a's peak, turning forward: 50° to go; backward: 10°.
+    let seventy = 70f64.to_radians();
+    assert!(close(phase_asked_after_s(0, seventy, 10.0), 50f64.to_radians() / 10.0));
+    assert!(close(phase_asked_after_s(0, seventy, -10.0), 10f64.to_radians() / 10.0));
+    // Phase b's zero crossing is a third of a turn on.
+    assert!(close(phase_asked_after_s(1, FRAC_PI_2 + TAU / 3.0, 100.0), FRAC_PI_6 / 100.0));
+    assert!(phase_asked_after_s(0, FRAC_PI_2, 0.0).is_infinite());
+    assert!(phase_asked_after_s(0, f64::NAN, 100.0).is_infinite());
+}
+
 /// Found on the population: the shipped DeLorenzo motor tuned at 4 kHz, its phase a's upper
 /// switch stuck open at mid-speed generating, injected at the end of the positive half-wave.
 /// The bound ran from that first need plus a quarter turn — the peak the switch had carried

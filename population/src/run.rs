@@ -700,6 +700,33 @@ mod tests {
         }
     }
 
+    /// The 8-pole member 018 (7.2 kW) at 10 kHz as tune tunes it: phase a's lead opens at
+    /// rest, motoring, as its reference crosses zero — the field turns at the slip
+    /// frequency, ≈ 3 rad/s, and phase a is asked for less than a fifth of the others'
+    /// current for the first 50 ms; the open lead takes nothing the drive asks for until then.
+    /// Judged from the first moment its phase is asked for half the reference vector's
+    /// current (`hil_sim::faults::phase_asked_after_s`), the row passes, named `OpenPhase`
+    /// 52.1 ms after the injection; from the injection it failed against 50 ms.
+    #[test]
+    fn an_open_lead_at_its_phases_zero_crossing_is_judged_from_its_need() {
+        use hil_sim::faults::Point;
+        let (tuned, file, vdc) = tuned_member(18, "018-7.2kW", 10_000.0, |t| Ok(t.into()));
+        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
+        let rows = matrix.rows().unwrap();
+        let (k, c, at) = rows
+            .iter()
+            .find(|(_, c, at)| c.name == "open phase a" && at.point == Point::Standstill && at.motoring)
+            .unwrap();
+        let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
+        let (fault, after_s) = o.detected.unwrap();
+        assert_eq!(fault, controller_core::drive::Fault::OpenPhase);
+        assert!(
+            after_s > hil_sim::faults::OPEN_PHASE_BOUND_S,
+            "{after_s}: the injection is at the zero crossing"
+        );
+        assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
+    }
+
     /// The 2.8 kW member (007) at 20 kHz as tune tunes it: sensor b's gain of 0.5 at
     /// standstill, generating, struck with phase b's current held within ±0.8 A of zero
     /// while the other two carry 5 A. Its reading's error, 0.5·|i_b|, is at the current-sum

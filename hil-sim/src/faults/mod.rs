@@ -36,6 +36,7 @@ use crate::sensors::SensorModel;
 use crate::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
 use controller_core::drive::{DriveSpec, Fault, FaultSet, Mode, Reference, SpeedFeedback};
 use controller_core::frames::AlphaBeta;
+use controller_core::supervisor::phases::SWITCH_LEVEL_SHARE;
 use rayon::prelude::*;
 
 mod expect;
@@ -116,6 +117,26 @@ pub fn dead_peak_after_s(phase: usize, upper: bool, theta0_rad: f64, omega_e_rad
     use std::f64::consts::{PI, TAU};
     let peak = phase as f64 * TAU / 3.0 + if upper { 0.0 } else { PI };
     let ahead = ((peak - theta0_rad) * omega_e_rad_s.signum()).rem_euclid(TAU);
+    let t = ahead / omega_e_rad_s.abs();
+    if t.is_nan() { f64::INFINITY } else { t }
+}
+
+/// The time from the injection to the first moment phase `phase`'s reference reaches
+/// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (either direction: within 60°
+/// of a peak), where the phase checks count its samples — 0 if it is there at the
+/// injection; the vector at angle `theta0_rad` (αβ), turning at `omega_e_rad_s` (signed), as
+/// in [`dead_peak_after_s`]. Infinite for a field that does not turn (or not measured) and a
+/// phase short of the level.
+pub fn phase_asked_after_s(phase: usize, theta0_rad: f64, omega_e_rad_s: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let half_width = f64::from(SWITCH_LEVEL_SHARE).acos();
+    // The phase's angle from its nearest positive or negative peak, in [0, π).
+    let from_peak = (theta0_rad - phase as f64 * TAU / 3.0).rem_euclid(PI);
+    if from_peak <= half_width || from_peak >= PI - half_width {
+        return 0.0;
+    }
+    // Turning forward the phase nears the next peak (at π), backward the last one (at 0).
+    let ahead = if omega_e_rad_s >= 0.0 { PI - half_width - from_peak } else { from_peak - half_width };
     let t = ahead / omega_e_rad_s.abs();
     if t.is_nan() { f64::INFINITY } else { t }
 }
@@ -816,6 +837,23 @@ impl Matrix {
                 unneeded = peak > OBSERVE_S;
                 let lead = (peak - acting).clamp(0.0, SWITCH_PEAK_LEAD_MAX_S);
                 Expect::Either { faults, bound_s: bound_s + lead }
+            }
+            // An open lead takes both directions: its bound runs from the first period after
+            // the injection where the phase is asked for a current the checks count
+            // ([`phase_asked_after_s`]) — injected at the phase's zero crossing at rest,
+            // where the field turns at the slip frequency, it takes nothing the drive asks for
+            // until the reference grows (the 8-pole member 018 at 10 kHz: phase a's reference
+            // under a fifth of the others' for the first 50 ms, `OpenPhase` 52.1 ms after the
+            // injection), at most [`SWITCH_PEAK_LEAD_MAX_S`] later.
+            (Injection::OpenPhase { phase }, e @ (Expect::Either { .. } | Expect::Fault { .. }), Some(_)) => {
+                let omega_e = turn.map_or(f64::NAN, |[_, time, turned]| turned / time);
+                let asked = phase_asked_after_s(phase, theta_at_injection, omega_e);
+                let lead = if asked.is_finite() { asked.min(SWITCH_PEAK_LEAD_MAX_S) } else { 0.0 };
+                match e {
+                    Expect::Either { faults, bound_s } => Expect::Either { faults, bound_s: bound_s + lead },
+                    Expect::Fault { fault, bound_s } => Expect::Fault { fault, bound_s: bound_s + lead },
+                    other => other,
+                }
             }
             (_, e, _) => e,
         };
