@@ -585,6 +585,27 @@ mod tests {
         (tuned, file, vdc)
     }
 
+    /// The fault-matrix row `case` at `point` (`motoring` or generating) of member `index`
+    /// tuned at `pwm_hz` ([`tuned_member`], the template as written), run as the whole
+    /// matrix runs it (its index seeds the sensors).
+    fn member_row(
+        index: u64,
+        name: &str,
+        pwm_hz: f64,
+        case: &str,
+        point: hil_sim::faults::Point,
+        motoring: bool,
+    ) -> hil_sim::faults::Outcome {
+        let (tuned, file, vdc) = tuned_member(index, name, pwm_hz, |t| Ok(t.into()));
+        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
+        let rows = matrix.rows().unwrap();
+        let (k, c, at) = rows
+            .iter()
+            .find(|(_, c, at)| c.name == case && at.point == point && at.motoring == motoring)
+            .unwrap();
+        matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap()
+    }
+
     /// `member` tuned at `pwm_hz` as `run` tunes it (the speed law the requirements choose):
     /// the result, the template's path and the bus it runs on.
     fn tune_member(member: &Member, pwm_hz: f64, root: &Path) -> (design::tune::Tuned, String, f64) {
@@ -710,14 +731,7 @@ mod tests {
     #[test]
     fn an_open_lead_at_its_phases_zero_crossing_is_judged_from_its_need() {
         use hil_sim::faults::Point;
-        let (tuned, file, vdc) = tuned_member(18, "018-7.2kW", 10_000.0, |t| Ok(t.into()));
-        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
-        let rows = matrix.rows().unwrap();
-        let (k, c, at) = rows
-            .iter()
-            .find(|(_, c, at)| c.name == "open phase a" && at.point == Point::Standstill && at.motoring)
-            .unwrap();
-        let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
+        let o = member_row(18, "018-7.2kW", 10_000.0, "open phase a", Point::Standstill, true);
         let (fault, after_s) = o.detected.unwrap();
         assert_eq!(fault, controller_core::drive::Fault::OpenPhase);
         assert!(
@@ -738,14 +752,7 @@ mod tests {
     #[test]
     fn a_sensor_gain_fault_near_its_phases_zero_is_judged_on_the_checks_window() {
         use hil_sim::faults::Point;
-        let (tuned, file, vdc) = tuned_member(7, "007-2.8kW", 20_000.0, |t| Ok(t.into()));
-        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
-        let rows = matrix.rows().unwrap();
-        let (k, c, at) = rows
-            .iter()
-            .find(|(_, c, at)| c.name == "sensor b gain 0.5" && at.point == Point::Standstill && !at.motoring)
-            .unwrap();
-        let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
+        let o = member_row(7, "007-2.8kW", 20_000.0, "sensor b gain 0.5", Point::Standstill, false);
         assert_eq!(o.detected.map(|d| d.0), Some(controller_core::drive::Fault::CurrentSensor));
         assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
     }
