@@ -330,7 +330,8 @@ struct PhaseDirections {
 
 impl PhaseDirections {
     /// One sample of the phase's intended reference `r`, its tracked reference `tracked` and
-    /// measured current `m`, A: [`PhaseDirections::short`] counts against `tracked` at
+    /// measured current `m`, A, and its leg's side `leg` ([`leg_sides`]: positive, the upper
+    /// switch on for most of the period): [`PhaseDirections::short`] counts against `tracked` at
     /// `floor` or more; a reference `r` at `level` or more goes into its direction with
     /// `gains` (the other direction holds). The directions judge the intended reference —
     /// what the plan asks of the machine —, not the tracked one: the current trim makes up a
@@ -455,8 +456,10 @@ impl SwitchWatch {
     }
 
     /// One sample (a slow period) of the phase references `reference` (intended) and
-    /// `tracked` (with the current trim) and currents `measured`, A
-    /// ([`PhaseDirections::add`]): a phase's sample counts where its reference reaches
+    /// `tracked` (with the current trim) and currents `measured`, A, with the side each leg
+    /// held its phase at ([`leg_sides`]: a carried sample whose leg sat at the other rail
+    /// does not count towards its direction's verdict, [`PhaseDirections::add`]): a phase's
+    /// sample counts where its reference reaches
     /// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (away from its zero
     /// crossings), with that magnitude at least [`SWITCH_FLOOR_SHARE`] of the `commanded`
     /// level; `gains` weigh it (`DriveConfig`'s). [`Fault::SwitchOpen`] when a phase's
