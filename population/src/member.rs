@@ -423,6 +423,17 @@ pub fn shipped(root: &std::path::Path) -> Result<Vec<Member>, String> {
     SHIPPED
         .iter()
         .map(|&(template, motor_file)| {
+            // Read from the repository (the templates are files, not built in): run elsewhere,
+            // say where they are looked for and what to do, not just that a path is missing.
+            for file in [template, motor_file] {
+                if !root.join(file).is_file() {
+                    return Err(format!(
+                        "{}: no such file — the shipped drives and motors are read from the repository: run \
+                         from its root (where drive.toml is)",
+                        root.join(file).display()
+                    ));
+                }
+            }
             let path = root.join(motor_file);
             let motor = drive_file::motor::load(&path.display().to_string()).map_err(|e| e.to_string())?;
             let stem = |p: &str| {
@@ -445,6 +456,20 @@ pub fn shipped(root: &std::path::Path) -> Result<Vec<Member>, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shipped members are read from the repository's files: asked elsewhere, the error
+    /// says where they were looked for and to run from the repository's root (it said
+    /// "./motors/delorenzo-appendix.toml: neither a file nor a shipped motor").
+    #[test]
+    fn the_shipped_members_asked_outside_the_repository_say_where_to_run() {
+        let e = shipped(std::path::Path::new("/nonexistent")).unwrap_err();
+        assert!(
+            e.starts_with("/nonexistent/drive.toml: no such file") && e.contains("run from its root"),
+            "{e}"
+        );
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+        assert_eq!(shipped(&root).unwrap().len(), SHIPPED.len());
+    }
 
     /// A seed names the population: the same member on every call, another seed another one.
     #[test]
