@@ -659,16 +659,39 @@ mod tests {
         let r = evaluated(&m, 10_000.0, 200, false);
         assert_eq!(r.verdict, Verdict::Pass, "{:?}", r.campaign_failures);
         // Where no point's drive meets them, tune refuses and says what the corner runs missed
-        // (member 022, 35 kW, at 20 kHz: the last point searched that is predicted to meet
-        // them overshoots in 2 of its 64 corner runs of 1.21 s — docs/population.md).
-        let m = draw(1, 22, None).unwrap();
-        assert!(m.name.starts_with("022-35kW"), "{}", m.name);
+        // (member 013 at 20 kHz: seed 000's point and every searched one predicted to meet
+        // them miss the load dip in SIL — docs/population.md).
         let r = evaluated(&m, 20_000.0, 64, false);
         let Verdict::Refuse { reason } = r.verdict else { panic!("{:?}", r.verdict) };
         assert!(
-            reason.contains("missed them in software in the loop: speed_overshoot_fraction in")
+            reason.contains("but the drive misses them in software in the loop on the 64 corner runs")
                 && reason.contains("of 64 runs"),
             "{reason}"
+        );
+    }
+
+    /// Tune runs up to `SIL_CONFIRMATIONS` (8) points of the region in software in the loop
+    /// before it refuses, each at its setpoint weight stepped down while its drive misses only
+    /// what the weight shapes. Member 022 (35 kW) at 20 kHz: the first three points predicted
+    /// to meet the requirements each overshoot in a corner run or two in SIL (0.1044 against
+    /// 0.1 at weight 0.6), and tune refused it with two confirmations; a deeper search finds
+    /// a point whose drive meets them.
+    #[test]
+    fn tune_searches_on_where_the_first_points_drive_overshoots_in_sil() {
+        let m = draw(1, 22, None).unwrap();
+        assert!(m.name.starts_with("022-35kW"), "{}", m.name);
+        let (tuned, _, _) = tune_member(&m, 20_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
+        assert!(tuned.predicted_misses.is_empty(), "{:?}", tuned.predicted_misses);
+        let o = &tuned.speed_origin;
+        let tried: usize = o
+            .split(" tried")
+            .next()
+            .and_then(|head| head.rsplit(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{o}"));
+        assert!(
+            tried > 3 && o.contains("in SIL") && o.contains("was predicted to meet them and missed"),
+            "{o}"
         );
     }
 

@@ -534,7 +534,7 @@ fn tune_with(
     // requirements missed them in the campaign).
     let campaigns = TuneCampaigns::new(&spec, &cert, &file, vdc);
     let p_sil = match structure.speed {
-        SpeedDesign::Auto if p_misses.is_empty() => campaigns.sil_misses()?,
+        SpeedDesign::Auto if p_misses.is_empty() => campaigns.sil_misses()?.map(|m| m.words),
         _ => None,
     };
     let met_in_sil_words = format!(", met on {} in SIL", campaigns.words());

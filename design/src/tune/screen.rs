@@ -109,10 +109,11 @@ impl TuneCampaigns {
     /// criterion with its runs count, of the first campaign (shortest first) that misses any
     /// — the longer ones are not run then (a refused point costs one campaign, not all) — or
     /// `None` when every run of every campaign passes.
-    pub(super) fn sil_misses(&self) -> Result<Option<String>, String> {
+    pub(super) fn sil_misses(&self) -> Result<Option<SilMiss>, String> {
         for c in &self.each {
-            if let Some(why) = super::sil_misses(c)? {
-                return Ok(Some(format!("{why} (runs of {:.2} s)", c.duration_s)));
+            if let Some(miss) = super::sil_misses(c)? {
+                let words = format!("{} (runs of {:.2} s)", miss.words, c.duration_s);
+                return Ok(Some(SilMiss { words, ..miss }));
             }
         }
         Ok(None)
@@ -194,9 +195,47 @@ impl Screen<'_> {
     }
 }
 
+/// What a speed law's drive missed in software in the loop ([`TuneCampaigns::sil_misses`]).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct SilMiss {
+    /// Each missed requirement or failed criterion with its runs count: `speed_overshoot_fraction
+    /// in 1 of 64 runs (runs of 1.00 s)`.
+    pub(super) words: String,
+    /// Only requirements the setpoint weight shapes ([`shaped_by_setpoint_weight`]) were missed
+    /// — no fault, no other criterion.
+    pub(super) shaped_only: bool,
+}
+
 /// The setpoint weights `design tune` tries for a speed PI, the one-degree PI first: the
 /// largest that meets the requirements is taken (the least filtering of the reference).
 pub const SETPOINT_WEIGHTS: [f64; 11] = [1.0, 0.9, 0.8, 0.7, 0.6, 0.5, 0.4, 0.3, 0.2, 0.1, 0.0];
+
+/// A requirement the setpoint weight shapes: the weight filters the reference only
+/// (`controller_core::speed`), so it lowers the overshoot, and the settling time with it,
+/// and leaves the loop's margins and its answer to a load as they are.
+pub(super) fn shaped_by_setpoint_weight(r: drive_file::requirements::Requirement) -> bool {
+    use drive_file::requirements::Requirement;
+    matches!(r, Requirement::SpeedOvershoot | Requirement::SpeedSettlingTime)
+}
+
+/// PI law `law` with setpoint weight `b` (`None` for a P law: it has none).
+pub(super) fn with_setpoint_weight(law: &SpeedLaw, b: f64) -> Option<SpeedLaw> {
+    match *law {
+        SpeedLaw::PiTorque { kp, ki, limit, .. } => {
+            Some(SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight: b })
+        }
+        SpeedLaw::PiIq { kp, ki, limit, .. } => Some(SpeedLaw::PiIq { kp, ki, limit, setpoint_weight: b }),
+        SpeedLaw::SaturatedP { .. } => None,
+    }
+}
+
+/// The PI law `law` at the next of [`SETPOINT_WEIGHTS`] below its own (`None` at 0 and for
+/// a P law).
+pub(super) fn lower_setpoint_weight(law: &SpeedLaw) -> Option<SpeedLaw> {
+    let b = setpoint_weight(law);
+    let next = SETPOINT_WEIGHTS.into_iter().find(|w| *w < b - 1e-9)?;
+    with_setpoint_weight(law, next)
+}
 
 /// The PI law `law` with the largest of [`SETPOINT_WEIGHTS`] whose prediction (`predict`) meets the
 /// requirements, and its misses (none) — or, when none does, the last weight tried and its
@@ -207,20 +246,11 @@ pub fn weigh_setpoint(
     law: &SpeedLaw,
     mut predict: impl FnMut(&SpeedLaw) -> Result<Misses, String>,
 ) -> Result<(SpeedLaw, Misses), String> {
-    use drive_file::requirements::Requirement;
     let mut last = None;
     for b in SETPOINT_WEIGHTS {
-        let law = match *law {
-            SpeedLaw::PiTorque { kp, ki, limit, .. } => {
-                SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight: b }
-            }
-            SpeedLaw::PiIq { kp, ki, limit, .. } => SpeedLaw::PiIq { kp, ki, limit, setpoint_weight: b },
-            SpeedLaw::SaturatedP { .. } => return Err("internal: a setpoint weight for a P law".into()),
-        };
+        let law = with_setpoint_weight(law, b).ok_or("internal: a setpoint weight for a P law")?;
         let misses = predict(&law)?;
-        let shaped =
-            |r: Requirement| matches!(r, Requirement::SpeedOvershoot | Requirement::SpeedSettlingTime);
-        let done = misses.is_empty() || !misses.iter().all(|(_, m)| shaped(m.requirement));
+        let done = misses.is_empty() || !misses.iter().all(|(_, m)| shaped_by_setpoint_weight(m.requirement));
         last = Some((law, misses));
         if done {
             break;

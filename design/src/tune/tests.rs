@@ -780,3 +780,37 @@ fn a_stationary_pis_steady_error_is_its_sensitivity_at_the_field_speed() {
     let resistive = stationary_steady_error(p(kp), 12.3, 0.0, w);
     assert!((resistive - 12.3 / (12.3 + kp)).abs() < 1e-12, "{resistive}");
 }
+
+/// What the setpoint weight may take back: a drive that missed only the overshoot or the
+/// settling time in software in the loop is run again at the next lower weight
+/// (`speed::confirm`); a fault, or any requirement the weight does not shape, ends it.
+#[test]
+fn only_an_overshoot_or_a_settling_time_steps_the_setpoint_weight_down() {
+    let misses = |counts: &[(&str, usize)]| {
+        let counts: Vec<(String, usize)> = counts.iter().map(|(f, n)| ((*f).to_string(), *n)).collect();
+        SilMiss::of(&counts, 64)
+    };
+    assert_eq!(misses(&[]), None);
+    let overshoot = misses(&[("speed_overshoot_fraction", 1), ("speed_settling_time_s", 3)]).unwrap();
+    assert!(overshoot.shaped_only);
+    assert_eq!(
+        overshoot.words,
+        "speed_overshoot_fraction in 1 of 64 runs, speed_settling_time_s in 3 of 64 runs"
+    );
+    for other in
+        ["fault", "flux", "oscillation", "speed_rise_time_s", "load_dip_fraction", "torque_accuracy_fraction"]
+    {
+        assert!(!misses(&[("speed_overshoot_fraction", 1), (other, 1)]).unwrap().shaped_only, "{other}");
+    }
+    // The weights step down one at a time, to 0 and no further; a P law has none.
+    let pi = SpeedLaw::PiTorque { kp: 1.0, ki: 2.0, limit: 3.0, setpoint_weight: 0.7 };
+    let lower = lower_setpoint_weight(&pi).unwrap();
+    assert_eq!(lower, SpeedLaw::PiTorque { kp: 1.0, ki: 2.0, limit: 3.0, setpoint_weight: 0.6 });
+    let mut law = pi;
+    let mut steps = 0;
+    while let Some(l) = lower_setpoint_weight(&law) {
+        (law, steps) = (l, steps + 1);
+    }
+    assert_eq!((setpoint_weight(&law), steps), (0.0, 7));
+    assert_eq!(lower_setpoint_weight(&SpeedLaw::SaturatedP { kp: 1.0, tau_max_nm: 3.0 }), None);
+}
