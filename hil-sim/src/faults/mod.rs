@@ -260,6 +260,19 @@ pub enum Expect {
     },
 }
 
+impl Expect {
+    /// The same expectation with its detection bound `lead_s` later (a fault the drive
+    /// cannot see before the motor asks for what it took away: a stuck switch's dead
+    /// direction, an open lead's phase); no bound, no change.
+    fn later_by(self, lead_s: f64) -> Self {
+        match self {
+            Self::Fault { fault, bound_s } => Self::Fault { fault, bound_s: bound_s + lead_s },
+            Self::Either { faults, bound_s } => Self::Either { faults, bound_s: bound_s + lead_s },
+            other => other,
+        }
+    }
+}
+
 /// What the drive's jump check can make of an encoder fault at a row
 /// ([`Matrix::encoder_reach`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -830,13 +843,12 @@ impl Matrix {
         // within the run — no check can see a direction nobody asks for: undetected is no
         // failure, a detection is judged as any.
         let mut unneeded = false;
+        let omega_e = turn.map_or(f64::NAN, |[_, time, turned]| turned / time);
         let expect = match (case.injection, expect, acting_after_s) {
-            (Injection::SwitchOpen { phase, upper }, Expect::Either { faults, bound_s }, Some(acting)) => {
-                let omega_e = turn.map_or(f64::NAN, |[_, time, turned]| turned / time);
+            (Injection::SwitchOpen { phase, upper }, e @ Expect::Either { .. }, Some(acting)) => {
                 let peak = dead_peak_after_s(phase, upper, theta_at_injection, omega_e);
                 unneeded = peak > OBSERVE_S;
-                let lead = (peak - acting).clamp(0.0, SWITCH_PEAK_LEAD_MAX_S);
-                Expect::Either { faults, bound_s: bound_s + lead }
+                e.later_by((peak - acting).clamp(0.0, SWITCH_PEAK_LEAD_MAX_S))
             }
             // An open lead takes both directions: its bound runs from the first period after
             // the injection where the phase is asked for a current the checks count
@@ -845,15 +857,9 @@ impl Matrix {
             // until the reference grows (the 8-pole member 018 at 10 kHz: phase a's reference
             // under a fifth of the others' for the first 50 ms, `OpenPhase` 52.1 ms after the
             // injection), at most [`SWITCH_PEAK_LEAD_MAX_S`] later.
-            (Injection::OpenPhase { phase }, e @ (Expect::Either { .. } | Expect::Fault { .. }), Some(_)) => {
-                let omega_e = turn.map_or(f64::NAN, |[_, time, turned]| turned / time);
+            (Injection::OpenPhase { phase }, e, Some(_)) => {
                 let asked = phase_asked_after_s(phase, theta_at_injection, omega_e);
-                let lead = if asked.is_finite() { asked.min(SWITCH_PEAK_LEAD_MAX_S) } else { 0.0 };
-                match e {
-                    Expect::Either { faults, bound_s } => Expect::Either { faults, bound_s: bound_s + lead },
-                    Expect::Fault { fault, bound_s } => Expect::Fault { fault, bound_s: bound_s + lead },
-                    other => other,
-                }
+                e.later_by(if asked.is_finite() { asked.min(SWITCH_PEAK_LEAD_MAX_S) } else { 0.0 })
             }
             (_, e, _) => e,
         };
