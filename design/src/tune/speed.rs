@@ -179,18 +179,17 @@ pub(super) struct SpeedPiSearch<'a> {
 /// the loop on the corner runs of `campaigns` (`Ok`: the law whose drive met them). Where its
 /// drive misses only what the setpoint weight shapes (overshoot, settling time:
 /// [`shaped_by_setpoint_weight`]), the same gains are run at the next lower of
-/// [`SETPOINT_WEIGHTS`] whose prediction (`screen`, every corner run) still meets every
+/// [`SETPOINT_WEIGHTS`] whose prediction (`prediction`, every corner run) still meets every
 /// requirement and whose drive passes the certificate (`certified`), until one meets them
 /// or misses anything else: the weight filters the reference only, so it takes back an
 /// overshoot the prediction — no current loops, field orientation or sensors — puts a few
 /// per cent low, without touching the margins or the load's answer. On the population's
-/// 24-member sample at 10 kHz it changed no verdict with two points in SIL (member 022's
-/// point overshoots 0.1044 against 0.1 at weight 0.6, and the prediction at 0.5 misses the
-/// rise time): the deeper search, [`SIL_CONFIRMATIONS`], is what tunes those members.
+/// 24-member sample at 10 kHz it changed no verdict with two points in SIL: the deeper
+/// search, [`SIL_CONFIRMATIONS`], is what tunes the members refused before.
 /// `Err`: the last law run and what its drive missed.
 fn confirm(
     law: &SpeedLaw,
-    screen: &mut Screen,
+    prediction: &Prediction,
     campaigns: &TuneCampaigns,
     certified: &dyn Fn(&SpeedLaw) -> Result<bool, String>,
 ) -> Result<Result<SpeedLaw, (SpeedLaw, String)>, String> {
@@ -204,9 +203,7 @@ fn confirm(
             _ => None,
         };
         match lower {
-            Some(l)
-                if missed(screen.prediction.measures_where(&l, |_| true)?).is_empty() && certified(&l)? =>
-            {
+            Some(l) if missed(prediction.measures_where(&l, |_| true)?).is_empty() && certified(&l)? => {
                 law = l;
             }
             _ => return Ok(Err((law, miss.words))),
@@ -259,7 +256,7 @@ impl SpeedPiSearch<'_> {
         let mut sil_missed = None;
         if seed000 && misses.is_empty() && seed_certified {
             // Seed 000's own point, predicted to meet them: confirmed like any other.
-            match confirm(&law, &mut screen, campaigns, &certified)? {
+            match confirm(&law, &screen.prediction, campaigns, &certified)? {
                 Ok(law) => {
                     return Ok(SpeedPiChoice {
                         law,
@@ -286,7 +283,7 @@ impl SpeedPiSearch<'_> {
             let (l, m) = weigh_setpoint(&self.law(p.kp, p.ki), |l| screen.misses(l))?;
             if m.is_empty() && certified(&l)? {
                 confirmations += 1;
-                match confirm(&l, &mut screen, campaigns, &certified)? {
+                match confirm(&l, &screen.prediction, campaigns, &certified)? {
                     Ok(l) => {
                         return Ok(SpeedPiChoice {
                             law: l,
