@@ -16,6 +16,7 @@
 
 use crate::discretize::{ContinuousSection, DeltaCoefficients, DesignError, Discretization};
 use crate::num::Scalar;
+use num_complex::Complex32;
 
 /// Second-order section configuration in δ-form.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,6 +33,17 @@ pub struct Biquad<T> {
 pub struct BiquadState<T> {
     w1: T,
     w2: T,
+}
+
+impl Biquad<f32> {
+    /// `1/H(δ)` of the stored coefficients at `delta` = z − 1 (f32, for the drive's slow
+    /// step): `(δ² + α1δ + α0) / (β0(δ² + α1δ + α0) + c1δ + c2)`. The factor's poles are the
+    /// section's zeros: off the unit circle for any section whose zeros are ([`Biquad::design`]
+    /// of a stable lag).
+    pub fn inverse_response(&self, delta: Complex32) -> Complex32 {
+        let d = delta * delta + delta * self.a1 + self.a0;
+        d / (d * self.b0 + delta * self.c1 + self.c2)
+    }
 }
 
 impl<T: Scalar> Biquad<T> {

@@ -43,6 +43,7 @@
 use crate::frames::{AlphaBeta, Dq, SinCos, wrap_angle};
 use crate::motor::MotorParams;
 use crate::num::{Scalar, finite_positive, max_f32, sqrt_f32};
+use num_complex::Complex32;
 
 /// Torque-producing command from the speed loop.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -290,6 +291,23 @@ impl IfocState {
     /// The intended current references of the present plan (without the trim), A.
     pub fn i_ref_dq(&self) -> Dq {
         self.f.plan.i_ref_dq
+    }
+
+    /// The present plan's field turn per fast step, rad, and its sin/cos.
+    pub fn plan_step(&self) -> (f32, SinCos) {
+        (self.f.plan.step_rad, self.f.plan.rotation)
+    }
+
+    /// The tracked references of the present plan made `gain·i_ref + trim` (field frame, the
+    /// complex `gain` on d + jq): what the loops must be asked for their current to be the
+    /// intended `i_ref` where they do not follow a turning reference exactly
+    /// (`DriveConfig::reference_gain`). The trim (tracked − intended) is kept.
+    pub fn precompensate(&mut self, gain: Complex32) {
+        let p = &mut self.f.plan;
+        let (r, trim) =
+            (p.i_ref_dq, Dq { d: p.i_track_dq.d - p.i_ref_dq.d, q: p.i_track_dq.q - p.i_ref_dq.q });
+        p.i_track_dq =
+            Dq { d: gain.re * r.d - gain.im * r.q + trim.d, q: gain.re * r.q + gain.im * r.d + trim.q };
     }
 }
 

@@ -949,3 +949,34 @@ fn a_saturating_machines_rotor_resistance_is_read_at_rest_on_its_curve() {
         assert!(error.abs() < 0.025, "{file}, R_r ×{r}, ℓ {l}: ×{}", last.rr_scale);
     }
 }
+
+/// The q current the machine carries, A: the stator current's component across the rotor's
+/// true flux.
+fn q_current(r: &Row) -> f64 {
+    let (pa, pb) = (r.x.psi_alpha_wb, r.x.psi_beta_wb);
+    (pa * r.x.i_beta_a - pb * r.x.i_alpha_a) / pa.hypot(pb)
+}
+
+/// A stationary-frame PI has no integrator at the field's frequency: asked for `i*` it gives
+/// `T(jω_e)·i*`, behind by ≈ ω_e·σL_s/k_p — at twice the base speed some of the d current
+/// turned into the q axis. The slow step asks the loops for `i*/T` instead
+/// (`DriveConfig::reference_gain`), so without the current trim the machine carries the
+/// intended q current. The shipped drive at twice its base speed under a 0.2 N·m load (the
+/// field-weakening scenario) on seed 002's Sec. VI-D PI (360, 9000) with the trim off: over
+/// the load's last 0.5 s the q current across the rotor's true flux is within 1 % of the
+/// drive's i_q* (0.01 % here; asked for `i*` alone, 4.5 % short: 0.7495 A of 0.7851 A). The
+/// 1 % is the motor model's own error at the top (the drive's R_s against the plant's).
+#[test]
+fn a_stationary_pi_at_speed_carries_the_intended_q_current_without_the_trim() {
+    let mut b = scenario("field-weakening.toml");
+    b.spec.current_law = controller_core::current::CurrentLaw::PI_SEED002;
+    b.spec.current_trim_bandwidth_rad_s = 0.0;
+    b.scenario.trace_every = 20;
+    let (rows, mode) = b.run(|_| {}).unwrap();
+    assert_eq!(mode, Mode::Running);
+    let w = window(&rows, 6.0, 6.5);
+    let (i_q, i_q_ref) = (mean(&w, q_current), mean(&w, |r| r.i_q_ref_a));
+    let speed = mean(&w, |r| r.x.omega_m_rad_s);
+    eprintln!("at {speed:.1} rad/s: i_q {i_q:.4} A carried, {i_q_ref:.4} A intended");
+    assert!((i_q / i_q_ref - 1.0).abs() < 0.01, "i_q {i_q} A against {i_q_ref} A");
+}

@@ -648,7 +648,7 @@ mod tests {
     /// of 1 s (which reach its top speed: tune's one campaign, `design::tune::TuneCampaigns`);
     /// the drive passes the population's 200 runs.
     #[test]
-    fn a_law_whose_drive_misses_in_sil_is_not_written() {
+    fn the_law_tune_writes_is_met_in_sil_first() {
         let m = draw(1, 13, None).unwrap();
         let (tuned, _, _) = tune_member(&m, 10_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
         assert!(
@@ -658,16 +658,9 @@ mod tests {
         );
         let r = evaluated(&m, 10_000.0, 200, false);
         assert_eq!(r.verdict, Verdict::Pass, "{:?}", r.campaign_failures);
-        // Where no point's drive meets them, tune refuses and says what the corner runs missed
-        // (member 013 at 20 kHz: seed 000's point and every searched one predicted to meet
-        // them miss the load dip in SIL — docs/population.md).
-        let r = evaluated(&m, 20_000.0, 64, false);
-        let Verdict::Refuse { reason } = r.verdict else { panic!("{:?}", r.verdict) };
-        assert!(
-            reason.contains("but the drive misses them in software in the loop on the 64 corner runs")
-                && reason.contains("of 64 runs"),
-            "{reason}"
-        );
+        // Where no point's drive meets them, tune refuses and says what the corner runs
+        // missed: the 24 V template (design's `the_requirements_choose_the_speed_law_or_refuse_naming_them`).
+        // Member 013 at 20 kHz refused so until the references' precompensation; it passes since.
     }
 
     /// Tune runs up to `SIL_CONFIRMATIONS` (8) points of the region in software in the loop
@@ -962,9 +955,21 @@ mod tests {
     /// the estimate ends within 5 % of the rotor's — the law's evidence error at that load
     /// ratio, amplified by 1/s(a) ≈ 13 (docs/rotor-resistance.md) — and the run meets its
     /// requirements.
+    /// The speed law is the one tune wrote when this was found (k_p 83.23, k_i 214.96,
+    /// setpoint weight 0.6), fixed here: tune's search moves on as the drive does (since the
+    /// references' precompensation it takes k_i 179.14 at weight 0.7, whose run 109 differs).
     #[test]
     fn a_loaded_motor_at_the_voltage_limit_reads_its_rotor_resistance() {
-        let (_, file, vdc) = tuned_member(14, "014-196kW", 20_000.0, |t| Ok(t.into()));
+        let (_, mut file, vdc) = tuned_member(14, "014-196kW", 20_000.0, |t| Ok(t.into()));
+        let controller_core::speed::SpeedLaw::PiTorque { limit, .. } = file.spec.speed_law else {
+            panic!("{:?}", file.spec.speed_law)
+        };
+        file.spec.speed_law = controller_core::speed::SpeedLaw::PiTorque {
+            kp: 83.2342321116826,
+            ki: 214.96444243719685,
+            limit,
+            setpoint_weight: 0.6,
+        };
         let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
         c.duration_s = c.duration_s.max(c.full_range_duration_s());
         c.check().unwrap();

@@ -17,6 +17,9 @@
 //!   processor-in-the-loop tests (`hil-sim/tests/pil.rs`; the server built with every
 //!   control mode, `qemu-target`'s `all-modes`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
+//! * `bench` — the simulation speed against gym-electric-motor (`tools/gem_speed.py`, in the
+//!   venv `ci --setup` made): a figure, not a check, so not a step of `ci` (it took 86 s of
+//!   CI's 20 minutes).
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw [--features F]` (the
 //!   firmware's features, a drive file's control modes: docs/firmware.md), `qemu`, `fuzz` —
 //!   single steps; `modules` — no import cycle between the top-level modules of any crate and no
@@ -808,7 +811,6 @@ fn main() -> ExitCode {
     let steps: Vec<&Step> = match task.as_str() {
         "ci" => [
             &PY_GEM_DOL,
-            &PY_GEM_SPEED,
             &PY_CONTROL,
             &FMT,
             &CLIPPY,
@@ -827,6 +829,7 @@ fn main() -> ExitCode {
         .chain([&FUZZ])
         .collect(),
         "fuzz" => vec![&FUZZ],
+        "bench" => vec![&PY_GEM_SPEED],
         "qemu" => QEMU_STEPS.to_vec(),
         "lint" => vec![&FMT, &CLIPPY, &CLIPPY_FW, &CLIPPY_FW_COMMISSIONING, &DOC],
         "modules" => vec![],
@@ -837,7 +840,7 @@ fn main() -> ExitCode {
         "faults" => vec![&FAULTS],
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci [--setup] | lint | modules | test-host | certify | faults | build-core-m4 | build-fw [--features F] | qemu | fuzz>"
+                "usage: cargo xtask <ci [--setup] | lint | modules | test-host | certify | faults | build-core-m4 | build-fw [--features F] | qemu | fuzz | bench>"
             );
             return ExitCode::from(2);
         }

@@ -568,6 +568,11 @@ impl SlowState {
         let cmd = if running { self.run.torque_cmd } else { TorqueCommand::TorqueNm(0.0) };
         let before = self.run.ifoc.i_ref_dq();
         cfg.ifoc.plan(&mut self.run.ifoc, &self.run.flux, cmd, omega_m_rad_s, self.run.trim);
+        if matches!(cfg.current_frame, CurrentFrame::Stationary) {
+            // What the loops must be asked for their current to be the plan's.
+            let (step_rad, step) = self.run.ifoc.plan_step();
+            self.run.ifoc.precompensate(cfg.reference_gain(step_rad, step));
+        }
         let after = self.run.ifoc.i_ref_dq();
         let (dd, dq) = (after.d - before.d, after.q - before.q);
         self.run.i_ref_step_a = sqrt_f32(dd * dd + dq * dq);
