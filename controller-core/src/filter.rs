@@ -37,9 +37,10 @@ pub struct BiquadState<T> {
 
 impl Biquad<f32> {
     /// `1/H(δ)` of the stored coefficients at `delta` = z − 1 (f32, for the drive's slow
-    /// step): `(δ² + α1δ + α0) / (β0(δ² + α1δ + α0) + c1δ + c2)`. The factor's poles are the
-    /// section's zeros: off the unit circle for any section whose zeros are ([`Biquad::design`]
-    /// of a stable lag).
+    /// step): `(δ² + α1δ + α0) / (β0(δ² + α1δ + α0) + c1δ + c2)`. Its poles are the
+    /// section's zeros — ICAD's lag has a double zero at −400 rad/s, inside the unit circle —
+    /// so it is finite on the circle unless a zero lies on it (then not finite, which the
+    /// drive's caller, `DriveConfig::reference_gain`, replaces by 1).
     pub fn inverse_response(&self, delta: Complex32) -> Complex32 {
         let d = delta * delta + delta * self.a1 + self.a0;
         d / (d * self.b0 + delta * self.c1 + self.c2)
