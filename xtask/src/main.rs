@@ -18,8 +18,7 @@
 //!   control mode, `qemu-target`'s `all-modes`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `bench` — the simulation speed against gym-electric-motor (`tools/gem_speed.py`, in the
-//!   venv `ci --setup` made): a figure, not a check, so not a step of `ci` (it took 86 s of
-//!   CI's 20 minutes).
+//!   venv `ci --setup` made): a figure, not a check, so not a step of `ci`.
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw [--features F]` (the
 //!   firmware's features, a drive file's control modes: docs/firmware.md), `qemu`, `fuzz` —
 //!   single steps; `modules` — no import cycle between the top-level modules of any crate and no
