@@ -301,10 +301,11 @@ impl IfocState {
     /// The tracked references of the present plan made `gain·i_ref + trim` (field frame, the
     /// complex `gain` on d + jq): what the loops must be asked for their current to be the
     /// intended `i_ref` where they do not follow a turning reference exactly
-    /// (`DriveConfig::reference_gain`); `trim` is the one [`IfocConfig::plan`] added.
-    pub fn precompensate(&mut self, gain: Complex32, trim: Dq) {
+    /// (`DriveConfig::reference_gain`). The trim (tracked − intended) is kept.
+    pub fn precompensate(&mut self, gain: Complex32) {
         let p = &mut self.f.plan;
-        let r = p.i_ref_dq;
+        let (r, trim) =
+            (p.i_ref_dq, Dq { d: p.i_track_dq.d - p.i_ref_dq.d, q: p.i_track_dq.q - p.i_ref_dq.q });
         p.i_track_dq =
             Dq { d: gain.re * r.d - gain.im * r.q + trim.d, q: gain.re * r.q + gain.im * r.d + trim.q };
     }

@@ -571,7 +571,7 @@ impl SlowState {
         if matches!(cfg.current_frame, CurrentFrame::Stationary) {
             // What the loops must be asked for their current to be the plan's.
             let (step_rad, step) = self.run.ifoc.plan_step();
-            self.run.ifoc.precompensate(cfg.reference_gain(step_rad, step), self.run.trim);
+            self.run.ifoc.precompensate(cfg.reference_gain(step_rad, step));
         }
         let after = self.run.ifoc.i_ref_dq();
         let (dd, dq) = (after.d - before.d, after.q - before.q);
