@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def rust_side() -> dict:
-    subprocess.run(["cargo", "build", "-q", "--release", "-p", "design"], cwd=ROOT, check=True)
+    subprocess.run(["cargo", "xtask", "build-tools"], cwd=ROOT, check=True)
     out = subprocess.run([str(ROOT / "target/release/design"), "bench"], cwd=ROOT, check=True,
                          capture_output=True, text=True).stdout
     return json.loads(out)

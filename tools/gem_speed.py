@@ -29,7 +29,7 @@ TAU_S = 5e-5
 
 def hil_sim_factor() -> dict:
     """`hil-sim bench speed-step`'s summary (median and best real-time factor and ns per period)."""
-    subprocess.run(["cargo", "build", "-q", "--release", "-p", "hil-sim"], cwd=ROOT, check=True)
+    subprocess.run(["cargo", "xtask", "build-tools"], cwd=ROOT, check=True)
     out = subprocess.run(
         [str(ROOT / "target/release/hil-sim"), "bench", "speed-step", "--runs", "20"],
         cwd=ROOT, check=True, capture_output=True, text=True,

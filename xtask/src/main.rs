@@ -19,6 +19,9 @@
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `bench` — the simulation speed against gym-electric-motor (`tools/gem_speed.py`, in the
 //!   venv `ci --setup` made): a figure, not a check, so not a step of `ci`.
+//! * `build-tools` — the release build of `design` and `hil-sim` in one feature resolution
+//!   ([`RELEASE_TOOLS`]): `ci`'s first step, and what `certify`, `faults`, `bench` and the
+//!   Python cross-checks run.
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw [--features F]` (the
 //!   firmware's features, a drive file's control modes: docs/firmware.md), `qemu`, `fuzz` —
 //!   single steps; `modules` — no import cycle between the top-level modules of any crate and no
@@ -74,36 +77,31 @@ const DOC: Step = Step {
     args: &["doc", "--workspace", "--no-deps"],
     env: &[("RUSTDOCFLAGS", "-D warnings")],
 };
-const CERTIFY: Step = Step::cargo(
-    "certify",
-    &[
-        "run",
-        "--quiet",
-        "--release",
-        "--package",
-        "design",
-        "--",
-        "certify",
-        "drive.toml",
-        "--plot-dir",
-        "target/certificate",
-    ],
+/// The release build of the host tools, `design` and `hil-sim` in one cargo invocation: one
+/// feature resolution (design's — nalgebra and toml_edit turn on features of crates
+/// `hil-sim` shares, so a `cargo run -p hil-sim` of its own rebuilt controller-core, plant,
+/// drive-file and hil-sim, a minute of CI). The steps below and the Python cross-checks
+/// (`cargo xtask build-tools`) run the binaries it makes.
+const RELEASE_TOOLS: Step = Step::cargo(
+    "build-tools (release: design, hil-sim)",
+    &["build", "--quiet", "--release", "--package", "design", "--package", "hil-sim"],
 );
-const FAULTS: Step = Step::cargo(
-    "fault-injection matrix (hil-sim faults)",
-    &[
-        "run",
-        "--quiet",
-        "--release",
-        "--package",
-        "hil-sim",
-        "--",
-        "faults",
-        "drive.toml",
-        "--out",
-        "target/faults",
-    ],
-);
+const CERTIFY: Step = Step {
+    name: "certify",
+    program: "target/release/design",
+    pre_args: &[],
+    dir: "",
+    args: &["certify", "drive.toml", "--plot-dir", "target/certificate"],
+    env: &[],
+};
+const FAULTS: Step = Step {
+    name: "fault-injection matrix (hil-sim faults)",
+    program: "target/release/hil-sim",
+    pre_args: &[],
+    dir: "",
+    args: &["faults", "drive.toml", "--out", "target/faults"],
+    env: &[],
+};
 const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
 /// The Python cross-checks (docs/verification.md; their packages: [`PYTHON_PACKAGES`]).
 const PY_GEM_DOL: Step =
@@ -207,7 +205,9 @@ const Q_BUILD_PIL: Step = Step::in_qemu_target(
 );
 const PIL: Step = Step::cargo(
     "processor in the loop (hil-sim/tests/pil.rs)",
-    &["test", "--release", "--package", "hil-sim", "--test", "pil", "--", "--ignored", "--nocapture"],
+    // The workspace's test build (test-host's, reused): hil-sim's own `--release` test build
+    // resolved other features (criterion's) and rebuilt the drive's crates, a minute of CI.
+    &["test", "--workspace", "--test", "pil", "--", "--ignored", "--nocapture"],
 );
 const FUZZ: Step = Step {
     name: "fuzz the link decoder (60 s)",
@@ -809,6 +809,7 @@ fn main() -> ExitCode {
     }
     let steps: Vec<&Step> = match task.as_str() {
         "ci" => [
+            &RELEASE_TOOLS,
             &PY_GEM_DOL,
             &PY_CONTROL,
             &FMT,
@@ -828,18 +829,19 @@ fn main() -> ExitCode {
         .chain([&FUZZ])
         .collect(),
         "fuzz" => vec![&FUZZ],
-        "bench" => vec![&PY_GEM_SPEED],
+        "bench" => vec![&RELEASE_TOOLS, &PY_GEM_SPEED],
+        "build-tools" => vec![&RELEASE_TOOLS],
         "qemu" => QEMU_STEPS.to_vec(),
         "lint" => vec![&FMT, &CLIPPY, &CLIPPY_FW, &CLIPPY_FW_COMMISSIONING, &DOC],
         "modules" => vec![],
         "test-host" => vec![&TEST, &TEST_FW_COMMISSIONING],
         "build-core-m4" => vec![&CORE_M4],
         "build-fw" => vec![fw],
-        "certify" => vec![&CERTIFY],
-        "faults" => vec![&FAULTS],
+        "certify" => vec![&RELEASE_TOOLS, &CERTIFY],
+        "faults" => vec![&RELEASE_TOOLS, &FAULTS],
         _ => {
             eprintln!(
-                "usage: cargo xtask <ci [--setup] | lint | modules | test-host | certify | faults | build-core-m4 | build-fw [--features F] | qemu | fuzz | bench>"
+                "usage: cargo xtask <ci [--setup] | lint | modules | test-host | build-tools | certify | faults | build-core-m4 | build-fw [--features F] | qemu | fuzz | bench>"
             );
             return ExitCode::from(2);
         }
