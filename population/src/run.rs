@@ -709,14 +709,18 @@ mod tests {
             .find(|m| m.name.contains("perturbed"))
             .unwrap();
         let cancel = AtomicBool::new(false);
-        for (pwm_hz, point, motoring) in [
-            (10_000.0, Point::Standstill, true),
-            (10_000.0, Point::Standstill, false),
-            (20_000.0, Point::Mid, false),
-        ] {
+        // Tuned once per rate: the two rows at rest share their drive.
+        let tuned_at = |pwm_hz: f64| {
             let (tuned, path, vdc) = tune_member(&m, pwm_hz, &root);
             let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
-            let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
+            Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc)
+        };
+        let (at_10k, at_20k) = (tuned_at(10_000.0), tuned_at(20_000.0));
+        for (pwm_hz, matrix, point, motoring) in [
+            (10_000.0, &at_10k, Point::Standstill, true),
+            (10_000.0, &at_10k, Point::Standstill, false),
+            (20_000.0, &at_20k, Point::Mid, false),
+        ] {
             // The row as the whole matrix runs it (its index seeds the sensors).
             let rows = matrix.rows().unwrap();
             let (k, c, at) = rows
