@@ -18,7 +18,8 @@
 //!   control mode, `qemu-target`'s `all-modes`).
 //!   Last, `fuzz`: the link decoder under `cargo fuzz` for 60 s (needs `cargo-fuzz`).
 //! * `bench` — the simulation speed against gym-electric-motor (`tools/gem_speed.py`, in the
-//!   venv `ci --setup` made): a figure, not a check, so not a step of `ci`.
+//!   venv of `ci --setup`, made or completed first: [`setup_python`]): a figure, not a check,
+//!   so not a step of `ci`.
 //! * `build-tools` — the release build of `design` and `hil-sim` in one feature resolution
 //!   ([`RELEASE_TOOLS`]): `ci`'s first step, and what `certify`, `faults`, `bench` and the
 //!   Python cross-checks run.
@@ -769,8 +770,14 @@ fn setup() -> Result<(), String> {
             run_setup("cargo", &["install", krate, "--locked", "--quiet"])?;
         }
     }
-    // A venv of the workspace's own (`target/ci-venv`): a distribution's python3 is
-    // "externally managed" (PEP 668) and refuses pip installs into it.
+    setup_python()
+}
+
+/// The Python packages at the versions the docs quote, in a venv of the workspace's own
+/// (`target/ci-venv`): a distribution's python3 is "externally managed" (PEP 668) and
+/// refuses pip installs into it. Part of `ci --setup`, and what `bench` does first (its
+/// script needs gym-electric-motor: without the venv it stopped on a `ModuleNotFoundError`).
+fn setup_python() -> Result<(), String> {
     if !std::path::Path::new(VENV_PYTHON).exists() {
         run_setup("python3", &["-m", "venv", VENV_DIR]).map_err(|e| {
             format!("{e} (Debian/Ubuntu: `sudo apt-get install python3-venv`, then run this again)")
@@ -799,6 +806,12 @@ fn main() -> ExitCode {
             }
         }
         ("build-fw", [o, features]) if o == "--features" => fw = firmware_with(features),
+        ("bench", []) => {
+            if let Err(e) = setup_python() {
+                eprintln!("xtask: set-up of the Python packages failed: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
         (_, []) => {}
         _ => {
             eprintln!(
