@@ -6,9 +6,9 @@ writes for the same scenario file.
 
     python3 tools/gem_dol.py [hil-sim/scenarios/dol-delorenzo.toml]
 
-Runs `hil-sim run SCENARIO --out DIR` itself (the release build `cargo xtask build-tools` makes), prints the largest differences
-and exits non-zero when they exceed the stated tolerances. Needs: pip install
-gym-electric-motor scipy.
+Runs `hil-sim run SCENARIO --out DIR` itself (the release build `cargo xtask build-tools`
+makes), prints the largest differences and exits non-zero when they exceed the stated
+tolerances. Needs: pip install gym-electric-motor scipy.
 """
 import csv
 import math

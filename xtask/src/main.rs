@@ -21,8 +21,8 @@
 //!   venv of `ci --setup`, made or completed first: [`setup_python`]): a figure, not a check,
 //!   so not a step of `ci`.
 //! * `build-tools` — the release build of `design` and `hil-sim` in one feature resolution
-//!   ([`RELEASE_TOOLS`]): `ci`'s first step, and what `certify`, `faults`, `bench` and the
-//!   Python cross-checks run.
+//!   ([`RELEASE_TOOLS`]): `ci`'s first step and `certify`'s and `faults`', which run its
+//!   binaries; the Python scripts call it before theirs.
 //! * `lint`, `test-host`, `certify`, `build-core-m4`, `build-fw [--features F]` (the
 //!   firmware's features, a drive file's control modes: docs/firmware.md), `qemu`, `fuzz` —
 //!   single steps; `modules` — no import cycle between the top-level modules of any crate and no
@@ -56,6 +56,10 @@ impl Step {
     const fn in_qemu_target(name: &'static str, args: &'static [&'static str]) -> Self {
         Step { name, program: "cargo", pre_args: &[], dir: "qemu-target", args, env: &[] }
     }
+    /// A binary of [`RELEASE_TOOLS`], by its path from the workspace root.
+    const fn tool(name: &'static str, path: &'static str, args: &'static [&'static str]) -> Self {
+        Step { name, program: path, pre_args: &[], dir: "", args, env: &[] }
+    }
     /// A Python script (the set-up's venv's interpreter when there is one: `run_counting`).
     const fn python(name: &'static str, args: &'static [&'static str]) -> Self {
         Step { name, program: "python3", pre_args: &[], dir: "", args, env: &[] }
@@ -87,22 +91,16 @@ const RELEASE_TOOLS: Step = Step::cargo(
     "build-tools (release: design, hil-sim)",
     &["build", "--quiet", "--release", "--package", "design", "--package", "hil-sim"],
 );
-const CERTIFY: Step = Step {
-    name: "certify",
-    program: "target/release/design",
-    pre_args: &[],
-    dir: "",
-    args: &["certify", "drive.toml", "--plot-dir", "target/certificate"],
-    env: &[],
-};
-const FAULTS: Step = Step {
-    name: "fault-injection matrix (hil-sim faults)",
-    program: "target/release/hil-sim",
-    pre_args: &[],
-    dir: "",
-    args: &["faults", "drive.toml", "--out", "target/faults"],
-    env: &[],
-};
+const CERTIFY: Step = Step::tool(
+    "certify",
+    "target/release/design",
+    &["certify", "drive.toml", "--plot-dir", "target/certificate"],
+);
+const FAULTS: Step = Step::tool(
+    "fault-injection matrix (hil-sim faults)",
+    "target/release/hil-sim",
+    &["faults", "drive.toml", "--out", "target/faults"],
+);
 const TEST: Step = Step::cargo("test-host", &["test", "--workspace"]);
 /// The Python cross-checks (docs/verification.md; their packages: [`PYTHON_PACKAGES`]).
 const PY_GEM_DOL: Step =
@@ -842,7 +840,8 @@ fn main() -> ExitCode {
         .chain([&FUZZ])
         .collect(),
         "fuzz" => vec![&FUZZ],
-        "bench" => vec![&RELEASE_TOOLS, &PY_GEM_SPEED],
+        // The script builds the tools itself (`cargo xtask build-tools`).
+        "bench" => vec![&PY_GEM_SPEED],
         "build-tools" => vec![&RELEASE_TOOLS],
         "qemu" => QEMU_STEPS.to_vec(),
         "lint" => vec![&FMT, &CLIPPY, &CLIPPY_FW, &CLIPPY_FW_COMMISSIONING, &DOC],
