@@ -25,6 +25,124 @@ pub mod drive {
     include!(concat!(env!("OUT_DIR"), "/drive.rs"));
 }
 
+pub mod machine {
+    //! A machine behind `cost`'s samples: the induction machine of seed 002 eq. (1) in the
+    //! stationary frame (the simulator's `plant` is std and f64; this is its linear form in
+    //! f32), the shaft held at a set speed (a dynamometer), answering the voltage the drive
+    //! applied over each PWM period. Ideal currents (each period's the reference of the
+    //! period before) let the loops wind their integrators against currents that ignore the
+    //! voltage, and the drive's checks that compare the applied voltage with its machine
+    //! model found the voltage of no machine.
+    use controller_core::frames::AlphaBeta;
+    use controller_core::motor::MotorParams;
+
+    /// Heun (RK2) steps per PWM period: the stator's fastest pole, −(L_r²R_s + L_m²R_r)/(σL_sL_r²),
+    /// times a sub-step stays far below Heun's stability limit of 2 for any motor whose
+    /// current loops the drive can close at that rate.
+    const SUBSTEPS: u32 = 4;
+
+    /// The machine: its coefficients and state.
+    #[derive(Clone, Copy, Debug)]
+    pub struct Machine {
+        /// `a` of eq. (1), 1/s.
+        a: f32,
+        /// `b` of eq. (1), 1/H.
+        b: f32,
+        /// R_r/L_r, 1/s.
+        rr_per_lr: f32,
+        /// L_m·R_r/L_r, Ω.
+        lm_rr_per_lr: f32,
+        /// 1/(σL_s), 1/H.
+        per_sigma_ls: f32,
+        /// Pole pairs.
+        pole_pairs: f32,
+        /// A sub-step, s.
+        h_s: f32,
+        /// The shaft's speed, mechanical rad/s.
+        omega_m_rad_s: f32,
+        /// Stator current, A.
+        i_a: AlphaBeta,
+        /// Rotor flux, Wb.
+        psi_wb: AlphaBeta,
+    }
+
+    impl Machine {
+        /// A machine with `motor`'s circuit at rest and unmagnetized, stepped over PWM
+        /// periods of `ts_s`, its shaft held at `omega_m_rad_s`.
+        pub fn new(motor: &MotorParams, ts_s: f32, omega_m_rad_s: f32) -> Self {
+            let (rs, rr) = (motor.rs_ohm() as f32, motor.rr_ohm() as f32);
+            let (ls, lr, lm) = (motor.ls_h() as f32, motor.lr_h() as f32, motor.lm_h() as f32);
+            let sigma_ls = motor.sigma() as f32 * ls;
+            Self {
+                a: -(lr * lr * rs + lm * lm * rr) / (sigma_ls * lr * lr),
+                b: lm / (sigma_ls * lr),
+                rr_per_lr: rr / lr,
+                lm_rr_per_lr: lm * rr / lr,
+                per_sigma_ls: 1.0 / sigma_ls,
+                pole_pairs: f32::from(motor.pole_pairs()),
+                h_s: ts_s / SUBSTEPS as f32,
+                omega_m_rad_s,
+                i_a: AlphaBeta::default(),
+                psi_wb: AlphaBeta::default(),
+            }
+        }
+
+        /// Hold the shaft at `omega_m_rad_s` from now on.
+        pub fn set_speed(&mut self, omega_m_rad_s: f32) {
+            self.omega_m_rad_s = omega_m_rad_s;
+        }
+
+        /// The stator current now, A.
+        pub fn current(&self) -> AlphaBeta {
+            self.i_a
+        }
+
+        /// Eq. (1)'s derivatives of the current and the flux at `(i, psi)` under `v`.
+        fn derivative(&self, i: AlphaBeta, psi: AlphaBeta, v: AlphaBeta) -> (AlphaBeta, AlphaBeta) {
+            let w = self.pole_pairs * self.omega_m_rad_s;
+            let di = AlphaBeta {
+                alpha: self.a * i.alpha
+                    + self.b * (self.rr_per_lr * psi.alpha + w * psi.beta)
+                    + self.per_sigma_ls * v.alpha,
+                beta: self.a * i.beta
+                    + self.b * (self.rr_per_lr * psi.beta - w * psi.alpha)
+                    + self.per_sigma_ls * v.beta,
+            };
+            let dpsi = AlphaBeta {
+                alpha: self.lm_rr_per_lr * i.alpha - self.rr_per_lr * psi.alpha - w * psi.beta,
+                beta: self.lm_rr_per_lr * i.beta - self.rr_per_lr * psi.beta + w * psi.alpha,
+            };
+            (di, dpsi)
+        }
+
+        /// One PWM period: under the stator voltage `v_ab_v` (V, held over it) while the
+        /// bridge switches (`switching`), open-circuited otherwise (no current; the rotor's
+        /// flux decays and turns with the shaft). Returns the stator current at its end, A.
+        pub fn period(&mut self, switching: bool, v_ab_v: AlphaBeta) -> AlphaBeta {
+            let h = self.h_s;
+            let ahead = |x: AlphaBeta, dx: AlphaBeta, t: f32| AlphaBeta {
+                alpha: x.alpha + t * dx.alpha,
+                beta: x.beta + t * dx.beta,
+            };
+            // Open: the current held at zero (its derivative dropped), the flux on its own.
+            let machine = *self;
+            let derivative = |i: AlphaBeta, psi: AlphaBeta| {
+                let (di, dpsi) = machine.derivative(i, psi, v_ab_v);
+                (if switching { di } else { AlphaBeta::default() }, dpsi)
+            };
+            let (mut i, mut psi) = (if switching { self.i_a } else { AlphaBeta::default() }, self.psi_wb);
+            for _ in 0..SUBSTEPS {
+                let (di1, dpsi1) = derivative(i, psi);
+                let (di2, dpsi2) = derivative(ahead(i, di1, h), ahead(psi, dpsi1, h));
+                i = ahead(i, ahead(di1, di2, 1.0), 0.5 * h);
+                psi = ahead(psi, ahead(dpsi1, dpsi2, 1.0), 0.5 * h);
+            }
+            (self.i_a, self.psi_wb) = (i, psi);
+            i
+        }
+    }
+}
+
 #[cfg(target_os = "none")]
 pub mod sh {
     //! Semihosting: host files, console, exit.

@@ -931,15 +931,16 @@ impl SlowState {
         // frozen encoder at speed removes the back-EMF from the model's length.
         // Volts, far from overflow: √(x² + y²) with the FPU's square root (no libm::hypotf).
         let residual = (sqrt_f32(v.d * v.d + v.q * v.q) - sqrt_f32(vd * vd + vq * vq)).abs();
+        // The vector the applied voltage departs from the model's by: a leg held at a rail
+        // leaves it on that phase's axis — for the stuck-switch check's next samples too.
+        let departure = v_ab - Dq { d: vd, q: vq }.inverse_park(field);
+        self.run.switches.note_departure(departure, v_limit);
         // Consecutive implausible checks (a leaky count accumulated the detuned corner's
         // transients into a false trip).
         if residual > ENCODER_RESIDUAL_FRACTION * v_limit {
             let window_s = cfg.ts_s * f32::from(cfg.slow_divider) * cfg.encoder.check_steps as f32;
             let turning = w_e.abs() * window_s > PINNED_FIELD_TURN_RAD;
             let switches = &self.run.switches;
-            // The vector the applied voltage departs from the model's by: a leg held at a
-            // rail leaves it on that phase's axis.
-            let departure = v_ab - Dq { d: vd, q: vq }.inverse_park(field);
             let verdict = self
                 .run
                 .voltage_check

@@ -1427,6 +1427,50 @@ fn a_dead_switch_whose_current_carries_through_the_opposite_diode_is_named() {
     assert_eq!(run(&|n| wave(n, -20f32.to_radians()), true), None);
 }
 
+/// A switch stuck open whose dead direction still carries most of its reference: phase a's
+/// upper switch dead at mid-speed, generating, where the back-EMF drives 60 % of the
+/// reference through the lower diode through the whole positive half-wave (synthetic slow
+/// samples, 40 per electrical period, unit amplitude, the legs on the references' sides):
+/// no sample falls short by `SWITCH_SHORTFALL_MISSING`, and without the voltage the check
+/// never calls the direction dead. The voltage check's departure on phase a's axis, 0.9 of
+/// the linear limit in the dead half-wave (the population's 19 kW member at 10 kHz departs
+/// by 0.75–1.2 there, by ≤ 0.05 healthy), makes every such sample a miss: `SwitchOpen`
+/// within the dead half-wave and the other way's answer. A departure that large with a
+/// current that follows its reference is no miss; nor is a healthy model error of 0.05, or
+/// a loop's catching up at 0.5 of the limit (`SWITCH_DEPARTURE_SHARE`), against a current
+/// 40 % short.
+#[test]
+fn a_dead_switch_carrying_through_the_diode_is_named_by_the_voltage_it_did_not_apply() {
+    let per_period = 40;
+    let gain = [0.18126924, 0.048770577];
+    let third = core::f32::consts::TAU / 3.0;
+    let wave = |n: usize| {
+        let th = core::f32::consts::TAU * n as f32 / per_period as f32;
+        Abc { a: libm::cosf(th), b: libm::cosf(th - third), c: libm::cosf(th + third) }
+    };
+    let dead_from = 6 * per_period;
+    let v_limit = 300.0;
+    // `departure_share` on phase a's axis in the dead half-wave, `carried` of the reference.
+    let run = |departure_share: f32, carried: f32| {
+        let mut w = SwitchWatch::default();
+        (0..14 * per_period).find_map(|n| {
+            let r = wave(n);
+            let dead = n >= dead_from && r.a > 0.0;
+            let m = if dead { Abc { a: carried * r.a, ..r } } else { r };
+            let share = if dead { departure_share } else { 0.0 };
+            w.note_departure(AlphaBeta { alpha: share * v_limit, beta: 0.0 }, v_limit);
+            w.add([r; 2], [m, r], 0.1, gain).map(|f| (f, n))
+        })
+    };
+    let (f, n) = run(0.9, 0.6).unwrap();
+    assert_eq!(f, Fault::SwitchOpen);
+    assert!(n > dead_from && n < dead_from + 2 * per_period, "{n}");
+    assert_eq!(run(0.0, 0.6), None);
+    assert_eq!(run(0.05, 0.6), None);
+    assert_eq!(run(0.5, 0.6), None);
+    assert_eq!(run(0.9, 1.0), None);
+}
+
 /// The stuck-switch check on recorded samples (columns: the intended, the tracked reference
 /// and the measured current of phases a, b, c, A) from a fresh watch, at the commanded level
 /// `commanded_a`, with the gains of one and four 2.5 ms windows at a 0.5 ms slow period (every

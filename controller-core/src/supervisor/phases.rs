@@ -43,6 +43,23 @@ pub const SWITCH_FLOOR_SHARE: f32 = 0.5;
 /// more than this fraction of it *misses*; one that does not, with the current at the
 /// commanded level or more (clear of the sensors' noise and offsets), *carries* …
 pub const SWITCH_SHORTFALL_MISSING: f32 = 0.6;
+/// … or, short of its reference at all, while the voltage the bridge applied departs from
+/// the machine model's (the voltage check's departure, `SwitchWatch::note_departure`) on
+/// the phase's axis in the reference's direction by more than this share of the linear
+/// limit: the bridge did not apply what the phase asked. A leg held at the other rail for a
+/// fraction δ of the period removes δ·V_dc from its own phase only, (2/3)·δ·V_dc on the
+/// phase's axis once the common mode drops out — 2δ/√3 of the linear limit V_dc/√3: this is
+/// δ = ½, a leg dead for half the period. A dead switch's current, driven through the
+/// opposite diode by the back-EMF, may reach 55–80 % of its reference (no miss by the
+/// shortfall alone) while its phase departs by 0.75–1.2 of the limit (the population's
+/// 19 kW member at 10 kHz, `switch a upper stuck open at mid-speed generating`:
+/// `SwitchOpen` after 98.4 ms against a bound of 60.1 ms, 34.1 ms with the departure). A
+/// healthy drive departs by the model's error, ≤ 0.05 of the limit there — but the
+/// departure is sampled as the loops take a new plan, and a loop catching up a lagging
+/// current departs along its error by σL·di/dt: 0.3–0.7 of the limit on one phase for
+/// ≈ 10 slow periods in a row on the 1.3 kW 8-pole member at 10 kHz accelerating, which at
+/// half this level (1/(2√3)) tripped `SwitchOpen` healthy in 2 of its 200 campaign runs.
+pub const SWITCH_DEPARTURE_SHARE: f32 = 1.0 / 1.732_050_8;
 /// The voltage check's verdict names a phase the loops do not drive the bridge's
 /// ([`Fault::OpenPhase`]: no current in a phase that is commanded — an open lead or a switch
 /// stuck open in the direction needed, the same currents until the reference reverses)
@@ -326,6 +343,10 @@ struct PhaseDirections {
     /// [`UNDRIVEN_SAMPLES`] on, the loops do not drive the phase (the voltage check's
     /// verdict reads it: [`SwitchWatch::undriven`]).
     short: u8,
+    /// The applied voltage's departure from the machine model's on this phase's axis at the
+    /// last voltage check, in linear limits: positive where the bridge applied less than asked
+    /// in the positive direction ([`SwitchWatch::note_departure`]).
+    departure: f32,
 }
 
 impl PhaseDirections {
@@ -356,12 +377,12 @@ impl PhaseDirections {
         commanded: f32,
         gains: [f32; 2],
     ) -> bool {
-        let Self { positive, negative, open, short } = self;
+        let Self { positive, negative, open, short, departure } = self;
         let fell_short = tracked.abs() >= floor && misses(tracked, m);
         *short = if fell_short { short.saturating_add(1) } else { 0 };
         let (this, other, d) = if r >= 0.0 { (positive, negative, 1.0) } else { (negative, positive, -1.0) };
         let magnitude = d * r;
-        let missed = misses(r, m);
+        let missed = misses(r, m) || (d * *departure > SWITCH_DEPARTURE_SHARE && d * (r - m) > 0.0);
         if magnitude < level {
             return false;
         }
@@ -419,8 +440,13 @@ pub(crate) struct SwitchWatch([PhaseDirections; 3]);
 impl Default for SwitchWatch {
     fn default() -> Self {
         const NEW: SwitchWatch = SwitchWatch(
-            [PhaseDirections { positive: Direction::NONE, negative: Direction::NONE, open: false, short: 0 };
-                3],
+            [PhaseDirections {
+                positive: Direction::NONE,
+                negative: Direction::NONE,
+                open: false,
+                short: 0,
+                departure: 0.0,
+            }; 3],
         );
         NEW
     }
@@ -453,6 +479,16 @@ impl SwitchWatch {
         let short = |p: &PhaseDirections| p.short >= UNDRIVEN_SAMPLES;
         let dead = |p: &PhaseDirections| p.positive.dead | p.negative.dead;
         self.0.iter().fold(false, |u, p| u | dead(p) | (short(p) & !turning))
+    }
+
+    /// The voltage check's departure of the applied voltage from the machine model's,
+    /// `departure` (stationary frame, V), against the linear limit `v_limit_v`: each phase's
+    /// share, for the next samples' [`SWITCH_DEPARTURE_SHARE`].
+    pub(crate) fn note_departure(&mut self, departure: AlphaBeta, v_limit_v: f32) {
+        let per_v = 1.0 / max_f32(v_limit_v, 1e-3);
+        let p = departure.inverse_clarke();
+        let [a, b, c] = &mut self.0;
+        (a.departure, b.departure, c.departure) = (p.a * per_v, p.b * per_v, p.c * per_v);
     }
 
     /// One sample (a slow period) of the phase references `reference` (intended) and

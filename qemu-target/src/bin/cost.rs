@@ -41,6 +41,7 @@ mod target {
     use controller_core::ifoc::{IfocConfig, TorqueCommand};
     use controller_core::link::{BoardCommand, LinkStats, Reply};
     use controller_core::magnetics::{MagnetizingChord, MagnetizingCurve, MagnetizingTable};
+    use controller_core::motor::MotorParams;
     use controller_core::mras::{Evidence, FitPeriod, MrasConfig, RotorFit};
     use controller_core::observer::{FluxObserver, ObserverConfig};
     use controller_core::scaling::{AdcCode, AdcScaling, PwmScaling};
@@ -50,9 +51,14 @@ mod target {
     use firmware::scope::Scope;
     use firmware::server::Prepared;
     use qemu_target::clock::{INSTRUCTIONS_PER_TICK, Ticks};
+    use qemu_target::machine::Machine;
     use qemu_target::{println, sh};
 
     const N: u32 = 4096;
+
+    /// The shaft's speed in [`interrupt_period`] once Running (the encoder's counts), mechanical
+    /// rad/s.
+    const ENCODER_RAD_S: f32 = 10.0;
 
     /// Instructions per call of `f` (baseline loop subtracted).
     fn per_call(ticks: &Ticks, mut f: impl FnMut(u32)) -> f32 {
@@ -203,7 +209,8 @@ mod target {
     /// check, `ControlLoop::step`, the compare values and MOE, the link's requests, the
     /// snapshot for the link task) on `raw` (the board's scalings, `firmware::config::BOARD`),
     /// TIM1 as plain memory ([`Registers`]): calibrated at rest, enabled, pre-charged and
-    /// magnetized, then Running under a 150 rad/s speed reference, less the benchmark's own
+    /// magnetized, then Running under a 150 rad/s speed reference (the samples a [`Machine`]'s
+    /// with `motor`'s circuit, its shaft at the encoder's 10 rad/s), less the benchmark's own
     /// fetch of the samples from its table; NaN if it never runs. Also the calls before the
     /// measured ones (calibration, pre-charge, magnetizing and the rehearsal's:
     /// `tools/qemu_profile.py --skip`), and the body's deepest stack, a command served in
@@ -212,6 +219,7 @@ mod target {
         ticks: &Ticks,
         raw: &controller_core::drive::RawDriveConfig,
         ts_s: f32,
+        motor: &MotorParams,
         points: &[Point; POINTS],
     ) -> Interrupt {
         use firmware::config::BOARD;
@@ -234,7 +242,7 @@ mod target {
             x.clamp(0.0, f32::from(BOARD.adc_full_scale)) as u16
         };
         // The encoder at 10 rad/s once Running: counts per PWM period.
-        let counts = 4.0 * BOARD.encoder_lines as f32 / core::f32::consts::TAU * 10.0 * ts_s;
+        let counts = 4.0 * BOARD.encoder_lines as f32 / core::f32::consts::TAU * ENCODER_RAD_S * ts_s;
         // A period's conversions and counter, as the interrupt reads them: five half-words.
         let codes = |i: AlphaBeta, k: u32| {
             let i = i.inverse_clarke();
@@ -265,15 +273,22 @@ mod target {
         if c.drive_mut(|mut d| d.enable()) != Some(Ok(())) {
             return Interrupt::FAILED;
         }
+        // The machine behind the samples, its shaft at the encoder's speed once Running
+        // (held at rest until then, as the encoder is).
+        let mut machine = Machine::new(motor, ts_s, 0.0);
+        let answer = |machine: &mut Machine, c: &ControlLoop| {
+            machine.period(c.fast().mode().is_active(), c.telemetry().v_ab_v)
+        };
         let mut i_ab = AlphaBeta::default();
         let mut k = 0u32;
         // At rest until Running (the pre-charge and the magnetizing).
         while (c.fast().mode() != Mode::Running || c.slow_busy()) && k < 100_000 {
             step(&mut c, samples(codes(i_ab, 0)));
             slow_context(c.slow_cell());
-            i_ab = c.telemetry().i_ref_ab_a;
+            i_ab = answer(&mut machine, &c);
             k += 1;
         }
+        machine.set_speed(ENCODER_RAD_S);
         if c.drive_mut(|mut d| d.set_reference(Reference::Speed(150.0))) != Some(Ok(())) {
             return Interrupt::FAILED;
         }
@@ -284,7 +299,7 @@ mod target {
             *t = codes(i_ab, j);
             rehearsal.step(&samples(*t));
             slow_context(rehearsal.slow_cell());
-            i_ab = rehearsal.telemetry().i_ref_ab_a;
+            i_ab = answer(&mut machine, &rehearsal);
         }
         // The table's currents over and over, the encoder turning on past its end (a
         // counter that fell back to the table's first count tripped `EncoderLoss`, and the
@@ -355,7 +370,7 @@ mod target {
         let (mut worst_command, mut worst_name) = (0, "");
         let (mut worst_slow_command, mut worst_slow_name) = (0, "");
         let mut j = N;
-        let mut i_now = c.telemetry().i_ref_ab_a;
+        let mut i_now = i_ab;
         for (name, cmd) in commands {
             if matches!(cmd, BoardCommand::Stop) {
                 // The commands before it were served while Running.
@@ -401,7 +416,7 @@ mod target {
                 if reply.is_none() {
                     reply = shared.commands.take();
                 }
-                i_now = c.telemetry().i_ref_ab_a;
+                i_now = answer(&mut machine, &c);
             }
             served &= reply.is_some() && adopted;
         }
@@ -413,7 +428,7 @@ mod target {
         // per period in the figures above).
         let mut sweep = [None; POINTS];
         for (w, p) in sweep.iter_mut().zip(points) {
-            *w = worst_at(ticks, raw, ts_s, &mut step, p);
+            *w = worst_at(ticks, raw, ts_s, motor, &mut step, p);
         }
         Interrupt {
             period: if running { period - fetch_cost } else { f32::NAN },
@@ -460,15 +475,15 @@ mod target {
     /// up to the point's speed over half a second with the bridge off, enabled, pre-charged
     /// and magnetized, Running under the point's speed reference for [`SETTLE_PERIODS`]
     /// (the flux settles to the point's, weakened at speed), then [`TIMED_PERIODS`] periods
-    /// each timed alone. No machine stands behind the samples: each period's measured current
-    /// is the reference of the period before (ideal current loops, through the ADC's
-    /// quantisation), the speed the encoder's, whatever the torque — so the loops run in
-    /// their linear range and the modulator's limiting path is not taken. `None` if the drive
-    /// is not Running at the end (a fault).
+    /// each timed alone. The samples are a [`Machine`]'s with `motor`'s circuit, its shaft
+    /// held at the point's speed whatever the torque (through the ADC's quantisation): the
+    /// loops close on a machine, at the voltage limit where the point asks for it. `None` if
+    /// the drive is not Running at the end (a fault).
     fn worst_at(
         ticks: &Ticks,
         raw: &controller_core::drive::RawDriveConfig,
         ts_s: f32,
+        motor: &MotorParams,
         step: &mut impl FnMut(&mut firmware::control::ControlLoop, firmware::control::Samples),
         p: &Point,
     ) -> Option<Worst> {
@@ -513,12 +528,17 @@ mod target {
             slow_context(c.slow_cell());
         }
         c.drive_mut(|mut d| d.enable())?.ok()?;
+        // The machine behind the samples, its shaft held at the point's speed.
+        let mut machine = Machine::new(motor, ts_s, p.omega_m_rad_s);
+        let answer = |machine: &mut Machine, c: &ControlLoop| {
+            machine.period(c.fast().mode().is_active(), c.telemetry().v_ab_v)
+        };
         let mut i_ab = AlphaBeta::default();
         let mut guard = 0;
         while (c.fast().mode() != Mode::Running || c.slow_busy()) && guard < 100_000 {
             step(&mut c, samples(i_ab, advance(p.omega_m_rad_s)));
             slow_context(c.slow_cell());
-            i_ab = c.telemetry().i_ref_ab_a;
+            i_ab = answer(&mut machine, &c);
             guard += 1;
         }
         c.drive_mut(|mut d| d.set_reference(Reference::Speed(p.reference_rad_s)))?.ok()?;
@@ -529,7 +549,7 @@ mod target {
         for _ in 0..SETTLE_PERIODS {
             step(&mut c, samples(i_ab, advance(p.omega_m_rad_s)));
             slow_context(c.slow_cell());
-            i_ab = c.telemetry().i_ref_ab_a;
+            i_ab = answer(&mut machine, &c);
         }
         let empty = (0..8).map(|_| timed(ticks, || ())).min().unwrap_or(0);
         let mut worst = Worst { fast: 0, slow: 0 };
@@ -543,7 +563,7 @@ mod target {
             if ran {
                 worst.slow = worst.slow.max(t);
             }
-            i_ab = c.telemetry().i_ref_ab_a;
+            i_ab = answer(&mut machine, &c);
         }
         let mode = c.fast().mode();
         if mode != Mode::Running {
@@ -580,22 +600,22 @@ mod target {
         ) else {
             sh::exit(false)
         };
-        // The measured current follows the drive's reference (below), but no machine stands
-        // behind it: the encoder's plausibility against the machine model would find the
-        // voltage of no machine (it runs every slow period; it never fires), and the speed
-        // does not follow its reference (a constant 100 rad/s): the stall and following-error
-        // windows never close either.
+        // The firmware's loop below runs on a machine ([`Machine`]) whose shaft a dynamometer
+        // holds at a set speed: the speed does not follow its reference, so the stall and
+        // following-error windows never close.
         let mut spec = spec;
-        spec.protection.encoder_check_time_s = 1e6;
         spec.protection.following_time_s = 1e6;
         spec.protection.stall_time_s = 1e6;
-        // Nor does a machine take the voltage: braking at top speed, the field weakening's
-        // reference steps hold the request beyond the hexagon (the limited path, which the
-        // worst-case sweep below should time), which would trip `LossOfControl`.
+        // The same configuration for the firmware's loop below, as the firmware embeds it.
+        let Ok(raw) = DriveConfig::new(&spec).map(|c| c.to_raw()) else { sh::exit(false) };
+        // The drive's own periods below have no machine behind them (each period's current the
+        // reference of the period before): the encoder's plausibility against the machine
+        // model would find the voltage of no machine (it runs every slow period; it never
+        // fires), and the loops' request, against currents that ignore it, winds beyond the
+        // hexagon, which would trip `LossOfControl`.
+        spec.protection.encoder_check_time_s = 1e6;
         spec.protection.saturation_time_s = 1e6;
         let Ok(cfg) = DriveConfig::new(&spec) else { sh::exit(false) };
-        // The same configuration for the firmware's loop below, as the firmware embeds it.
-        let raw = cfg.to_raw();
         let ts = 1.0 / spec.pwm_frequency_hz;
         // Inputs: a 1.5 A current vector rotating at 0.01 rad per sample.
         let current = |k: u32| {
@@ -686,8 +706,9 @@ mod target {
         // compare values out, with what the firmware does around the drive — the break
         // check, the pre-charge and calibration checks, the encoder read at the slow step,
         // the capture's call, the link's requests. TIM1's registers are plain memory here
-        // ([`Registers`]). The same drive and protection as above, the same kind of currents
-        // (what ideal loops measure, rehearsed on a copy), the encoder turning at 10 rad/s.
+        // ([`Registers`]). The same drive as above, its protection whole but for the speed's
+        // windows; the currents a machine's (rehearsed on a copy), its shaft and the encoder
+        // turning at 10 rad/s.
         // The worst case (issue 54): the interrupt's longest period at each operating point,
         // from standstill to top speed (0.9 × the overspeed level) motoring and generating
         // in field weakening, braking with the chopper on, a capture armed; the commands
@@ -740,7 +761,7 @@ mod target {
             },
         ];
 
-        let isr = interrupt_period(&ticks, &raw, ts as f32, &points);
+        let isr = interrupt_period(&ticks, &raw, ts as f32, &spec.motor, &points);
         let sweep = isr.sweep;
 
         // Components alone.
