@@ -760,6 +760,25 @@ mod tests {
         assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
     }
 
+    /// The 162 W, 17 V member (013) at 4 kHz as tune tunes it: phase a's lower switch stuck
+    /// open at top speed, generating, with phase a's current negative and its leg at a duty
+    /// of 0.985 — the dead switch moves the duty by 1.5 % of the period, less than where a
+    /// stuck switch counts as mattering by its voltage (`hil_sim::sim::SWITCH_ACTING_DUTY`),
+    /// but its current now flows through the upper diode, not the low-side shunt: the
+    /// sensors read nothing in phase a, the current sum trips `CurrentSensor` in the next
+    /// sample, and the matrix failed the row ("although the switch never mattered"). A dead
+    /// lower switch that hides its phase from the shunts matters from that sample.
+    #[test]
+    fn a_dead_lower_switch_that_hides_its_phase_from_the_shunts_matters() {
+        use hil_sim::faults::Point;
+        let o = member_row(13, "013-162W", 4_000.0, "switch a lower stuck open", Point::Top, false);
+        let (fault, after_s) = o.detected.unwrap();
+        assert_eq!(fault, controller_core::drive::Fault::CurrentSensor);
+        assert_eq!(o.acting_after_s, Some(0.0), "{:?}", o.failures);
+        assert!(after_s <= 1e-3, "{after_s}");
+        assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
+    }
+
     /// The 2.8 kW member (007) at 20 kHz as tune tunes it: sensor b's gain of 0.5 at
     /// standstill, generating, struck with phase b's current held within ±0.8 A of zero
     /// while the other two carry 5 A. Its reading's error, 0.5·|i_b|, is at the current-sum

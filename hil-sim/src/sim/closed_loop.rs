@@ -93,6 +93,8 @@ pub fn run(
     let sensed_duty_max = 1.0 - 2.0 * sc.sensors.low_side_window_s.unwrap_or(0.0) * pwm_hz;
     // The drive's limit is the same number in f32: its rounding is no lost window.
     const DUTY_TOLERANCE: f64 = controller_core::svpwm::WINDOW_ROUNDING_DUTY as f64;
+    // A duty that leaves its phase's shunt no window: the sample reads no current there.
+    let unreadable = |d: f64| sensed_duty_max < 1.0 && d > sensed_duty_max + DUTY_TOLERANCE;
     let mut duty_before: Option<[f64; 3]> = None;
     let mut events = sc.events.iter().peekable();
     let first_period_of = |e: Option<&&(f64, Event)>| e.map_or(u64::MAX, |(te, _)| first_period_at(*te, ts));
@@ -192,11 +194,8 @@ pub fn run(
         let i_true = [i.a, i.b, i.c];
         // A phase without a window in the period before the sample or the one after it reads
         // no current.
-        let mask = |d: &[f64; 3]| {
-            d.iter()
-                .enumerate()
-                .fold(0u8, |m, (k, &x)| m | (u8::from(x > sensed_duty_max + DUTY_TOLERANCE) << k))
-        };
+        let mask =
+            |d: &[f64; 3]| d.iter().enumerate().fold(0u8, |m, (k, &x)| m | (u8::from(unreadable(x)) << k));
         let unsampled = if sensed_duty_max < 1.0 {
             duty_before.as_ref().map_or(0, mask) | if bridge_on { mask(&duty_applied) } else { 0 }
         } else {
@@ -244,7 +243,12 @@ pub fn run(
                 (false, false) => duty_applied[p] = 1.0,
                 _ => {}
             }
-            switch_acting = (duty_applied[p] - before).abs() >= SWITCH_ACTING_DUTY;
+            // It matters where it moves the leg's duty by a share of the period, or where a
+            // dead lower switch takes the current from the low-side shunt (it flows through
+            // the upper diode): the sensors then read nothing in a phase they could read at
+            // the duty the drive asked for (in the next sample's mask).
+            let hidden = unreadable(duty_applied[p]) && !unreadable(before);
+            switch_acting = (duty_applied[p] - before).abs() >= SWITCH_ACTING_DUTY || hidden;
         }
         let period = match sc.inverter {
             _ if !bridge_on => Period::Off,

@@ -459,7 +459,9 @@ pub struct Row {
     pub unsampled_periods: [u32; 2],
     /// A switch stuck open mattered in this period: its direction of current was needed
     /// and the duty it would have switched (at least [`SWITCH_ACTING_DUTY`]) went through
-    /// the opposite diode instead.
+    /// the opposite diode instead — or, a lower switch, any of it, and the low-side shunt of
+    /// a phase the sensors could read at the duty the drive asked for then reads nothing
+    /// (its current flows through the upper diode).
     pub switch_acting: bool,
 }
 
