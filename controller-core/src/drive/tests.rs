@@ -1364,6 +1364,26 @@ fn a_phase_that_follows_one_way_only_is_a_stuck_switch() {
     // phase c so).
     let open_b = |n: usize, r: Abc| if n < dead_from { r } else { Abc { a: 0.0, b: r.b, c: -r.b } };
     assert_eq!(run(&open_b, 4 * per_period, &mut [Vec::new(), Vec::new()]), None);
+    // … and b short of its positive reference (the loops at the voltage limit drive the
+    // one line current b–c as far as the line voltage less the back-EMF lets them), c
+    // carrying the rest: b's positive direction goes missing while its negative one follows.
+    let open_b_short = |n: usize, r: Abc| {
+        let b = if r.b > 0.0 { 0.3 * r.b } else { r.b };
+        if n < dead_from { r } else { Abc { a: 0.0, b, c: -b } }
+    };
+    assert_eq!(run(&open_b_short, 4 * per_period, &mut [Vec::new(), Vec::new()]), None);
+    // The same with the lead opening late in phase a's positive half-wave: two of its
+    // samples at half the amplitude or more are left there (th 54° and 58°), and its
+    // positive direction, after a whole half-wave carried, is far from missing when the
+    // negative one is — "missing both ways" by the weighted counts alone came too late:
+    // population member 022 (35 kW) at 20 kHz named its open lead at top speed, motoring,
+    // `SwitchOpen` on phase b 8.6 ms after it opened. Missing one way, not carried the other
+    // way since: no current either way, an open lead's.
+    let late = dead_from + 15;
+    for (k, lead) in [&open as &dyn Fn(usize, Abc) -> Abc, &open_b, &open_b_short].into_iter().enumerate() {
+        let opened_late = |n: usize, r: Abc| if n < late { r } else { lead(n, r) };
+        assert_eq!(run(&opened_late, 4 * per_period, &mut [Vec::new(), Vec::new()]), None, "lead {k}");
+    }
     // Healthy, 20° behind: short near each zero crossing, 6 samples in a row — an
     // undriven phase only if the field's turning were ignored; a standing field; a ×5
     // step two samples late.

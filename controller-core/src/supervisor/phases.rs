@@ -84,8 +84,9 @@ pub const SWITCH_SEEN: f32 = 0.5;
 /// followed: 7 misses in a row) …
 pub const SWITCH_MISSING_SHARE: f32 = 0.75;
 /// … a stuck switch when the other direction follows (less than this share missed) and has
-/// carried since the dead one began to miss, and no phase misses both ways (an open lead's:
-/// the other two phases then share one current, one of them following one way only).
+/// carried since the dead one began to miss, and no phase carries nothing either way (one
+/// direction missing, the other not carried since: an open lead's — the other two phases
+/// then share one current, one of them following one way only).
 pub const SWITCH_FOLLOWING_SHARE: f32 = 0.25;
 /// … "follows" judged over this many open-phase windows: a current lagging its reference
 /// misses the first part of every half-wave and carries the rest, which the shorter window
@@ -333,8 +334,13 @@ impl Direction {
 struct PhaseDirections {
     positive: Direction,
     negative: Direction,
-    /// Both directions miss: the phase carries nothing (an open lead, the open-phase
-    /// check's), as of its last counted sample.
+    /// One direction missing and the other not carried since it began to miss: the phase
+    /// carries nothing either way (an open lead, the open-phase check's), as of its last
+    /// counted sample. Not "both directions missing": a lead that opens late in a half-wave
+    /// leaves that direction a few misses after a half-wave carried, far from missing when
+    /// the other is, and the other two phases, sharing one current at the voltage limit,
+    /// may follow one way only (population member 022 at 20 kHz, top speed, motoring:
+    /// `SwitchOpen` on phase b 8.6 ms after phase a's lead opened).
     open: bool,
     /// Consecutive samples whose current fell short of a *tracked* reference (what the
     /// phase's loop pushes for: the intended one plus the current trim) of at least
@@ -417,7 +423,7 @@ impl PhaseDirections {
         this.dead |= missing;
         // The other way, dead, answered by this sample: carried here, the switch is stuck.
         let answered = core::mem::take(&mut other.dead) && carried && this.following();
-        *open = missing && other.missing();
+        *open = missing && !other.fresh;
         answered || (missing && other.following() && other.fresh)
     }
 }
@@ -499,7 +505,7 @@ impl SwitchWatch {
     /// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (away from its zero
     /// crossings), with that magnitude at least [`SWITCH_FLOOR_SHARE`] of the `commanded`
     /// level; `gains` weigh it (`DriveConfig`'s). [`Fault::SwitchOpen`] when a phase's
-    /// directions say so and no phase misses both ways. Out of line: once per slow period
+    /// directions say so and no phase carries nothing either way. Out of line: once per slow period
     /// (inlined, the interrupt took ≈ 850 B more flash).
     #[inline(never)]
     pub(crate) fn add(
@@ -526,8 +532,8 @@ impl SwitchWatch {
         let stuck = a.add([reference.a, tracked.a], [m.a, v.a], levels, commanded, gains)
             | b.add([reference.b, tracked.b], [m.b, v.b], levels, commanded, gains)
             | c.add([reference.c, tracked.c], [m.c, v.c], levels, commanded, gains);
-        // No phase misses both ways: a lead open on one phase leaves the other two one
-        // current between them, which one of them may follow one way only.
+        // No phase carries nothing either way: a lead open on one phase leaves the other two
+        // one current between them, which one of them may follow one way only.
         (stuck && !(a.open || b.open || c.open)).then_some(Fault::SwitchOpen)
     }
 }
