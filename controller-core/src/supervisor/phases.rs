@@ -334,13 +334,16 @@ impl Direction {
 struct PhaseDirections {
     positive: Direction,
     negative: Direction,
-    /// One direction missing and the other not carried since it began to miss: the phase
-    /// carries nothing either way (an open lead, the open-phase check's), as of its last
-    /// counted sample. Not "both directions missing": a lead that opens late in a half-wave
-    /// leaves that direction a few misses after a half-wave carried, far from missing when
-    /// the other is, and the other two phases, sharing one current at the voltage limit,
-    /// may follow one way only (population member 022 at 20 kHz, top speed, motoring:
-    /// `SwitchOpen` on phase b 8.6 ms after phase a's lead opened).
+    /// One direction missing and the other not carried since it began to miss, whichever
+    /// way the last counted sample went: the phase carries nothing either way (an open lead,
+    /// the open-phase check's). Not "both directions missing": a lead that opens late in a
+    /// half-wave leaves that direction a few misses after a half-wave carried, far from
+    /// missing when the other is, and the other two phases, sharing one current at the
+    /// voltage limit, may follow one way only (population member 022 at 20 kHz, top speed,
+    /// motoring: `SwitchOpen` on phase b 8.6 ms after phase a's lead opened). Nor only the
+    /// last sample's direction: the first samples the other way, not yet missing, cleared it
+    /// while the other two phases, their current lost to the back-EMF, gave a verdict (member
+    /// 010 at 20 kHz, the same row, sensor seeds 5 and 8: `SwitchOpen` after 9.0–10.5 ms).
     open: bool,
     /// Consecutive samples whose current fell short of a *tracked* reference (what the
     /// phase's loop pushes for: the intended one plus the current trim) of at least
@@ -423,7 +426,7 @@ impl PhaseDirections {
         this.dead |= missing;
         // The other way, dead, answered by this sample: carried here, the switch is stuck.
         let answered = core::mem::take(&mut other.dead) && carried && this.following();
-        *open = missing && !other.fresh;
+        *open = (this.missing() && !other.fresh) || (other.missing() && !this.fresh);
         answered || (missing && other.following() && other.fresh)
     }
 }
