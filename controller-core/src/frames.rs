@@ -12,7 +12,7 @@ use crate::num::Scalar;
 use core::f32::consts::{PI, TAU};
 
 /// 1/√3 (rounds to 0.577_350_26 in f32).
-const INV_SQRT3: f64 = 0.577_350_269_189_625_8;
+pub(crate) const INV_SQRT3: f64 = 0.577_350_269_189_625_8;
 /// √3/2 (rounds to 0.866_025_4 in f32).
 const SQRT3_2: f64 = 0.866_025_403_784_438_6;
 

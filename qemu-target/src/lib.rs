@@ -92,11 +92,6 @@ pub mod machine {
             self.omega_m_rad_s = omega_m_rad_s;
         }
 
-        /// The stator current now, A.
-        pub fn current(&self) -> AlphaBeta {
-            self.i_a
-        }
-
         /// Eq. (1)'s derivatives of the current and the flux at `(i, psi)` under `v`.
         fn derivative(&self, i: AlphaBeta, psi: AlphaBeta, v: AlphaBeta) -> (AlphaBeta, AlphaBeta) {
             let w = self.pole_pairs * self.omega_m_rad_s;

@@ -5,7 +5,7 @@
 #[cfg(doc)]
 use super::{Protection, encoder::PINNED_FIELD_TURN_RAD};
 use crate::fault::Fault;
-use crate::frames::{Abc, AlphaBeta};
+use crate::frames::{Abc, AlphaBeta, INV_SQRT3};
 use crate::num::{max_f32, min_f32, sqrt_f32};
 
 /// Open-phase check: a phase is *commanded* over a window when the mean magnitude of its
@@ -59,7 +59,7 @@ pub const SWITCH_SHORTFALL_MISSING: f32 = 0.6;
 /// current departs along its error by σL·di/dt: 0.3–0.7 of the limit on one phase for
 /// ≈ 10 slow periods in a row on the 1.3 kW 8-pole member at 10 kHz accelerating, which at
 /// half this level (1/(2√3)) tripped `SwitchOpen` healthy in 2 of its 200 campaign runs.
-pub const SWITCH_DEPARTURE_SHARE: f32 = 1.0 / 1.732_050_8;
+pub const SWITCH_DEPARTURE_SHARE: f32 = INV_SQRT3 as f32;
 /// The voltage check's verdict names a phase the loops do not drive the bridge's
 /// ([`Fault::OpenPhase`]: no current in a phase that is commanded — an open lead or a switch
 /// stuck open in the direction needed, the same currents until the reference reverses)

@@ -204,6 +204,12 @@ mod target {
         Ticks::elapsed(t0, ticks.now()) * INSTRUCTIONS_PER_TICK
     }
 
+    /// The current `machine` answers the period `c` just ran with: the voltage it applied,
+    /// while its bridge switches.
+    fn answer(machine: &mut Machine, c: &firmware::control::ControlLoop) -> AlphaBeta {
+        machine.period(c.fast().mode().is_active(), c.telemetry().v_ab_v)
+    }
+
     /// Instructions per period of the firmware's control-interrupt body once its samples
     /// are read (`firmware::interrupt::Shared::control_period`: the output stage's break
     /// check, `ControlLoop::step`, the compare values and MOE, the link's requests, the
@@ -276,9 +282,6 @@ mod target {
         // The machine behind the samples, its shaft at the encoder's speed once Running
         // (held at rest until then, as the encoder is).
         let mut machine = Machine::new(motor, ts_s, 0.0);
-        let answer = |machine: &mut Machine, c: &ControlLoop| {
-            machine.period(c.fast().mode().is_active(), c.telemetry().v_ab_v)
-        };
         let mut i_ab = AlphaBeta::default();
         let mut k = 0u32;
         // At rest until Running (the pre-charge and the magnetizing).
@@ -530,9 +533,6 @@ mod target {
         c.drive_mut(|mut d| d.enable())?.ok()?;
         // The machine behind the samples, its shaft held at the point's speed.
         let mut machine = Machine::new(motor, ts_s, p.omega_m_rad_s);
-        let answer = |machine: &mut Machine, c: &ControlLoop| {
-            machine.period(c.fast().mode().is_active(), c.telemetry().v_ab_v)
-        };
         let mut i_ab = AlphaBeta::default();
         let mut guard = 0;
         while (c.fast().mode() != Mode::Running || c.slow_busy()) && guard < 100_000 {
