@@ -188,8 +188,9 @@ struct EnvelopeArgs {
     /// A drive file.
     #[arg(default_value = "drive.toml")]
     drive: PathBuf,
-    /// DC-bus voltage, V [default: 310, or the middle of the drive's bus range
-    /// (`[protection]` vdc_min_v … vdc_max_v) when 310 V lies outside it].
+    /// DC-bus voltage, V [default: the file's rated bus, `[board] vdc_rated_v`; without one
+    /// 310, or the middle of the drive's bus range (`[protection]` vdc_min_v … vdc_max_v)
+    /// when 310 V lies outside it].
     #[arg(long, value_parser = positive_volts)]
     vdc: Option<f64>,
     /// Speeds measured, evenly from 0.2× to 2× the no-load base speed.
@@ -240,8 +241,9 @@ struct CampaignArgs {
     /// the whole campaign's.
     #[arg(long, default_value = "0/1", value_parser = shard)]
     shard: (u64, u64),
-    /// DC-bus voltage, V [default: 310, or the middle of the drive's bus range
-    /// (`[protection]` vdc_min_v … vdc_max_v) when 310 V lies outside it].
+    /// DC-bus voltage, V [default: the file's rated bus, `[board] vdc_rated_v`; without one
+    /// 310, or the middle of the drive's bus range (`[protection]` vdc_min_v … vdc_max_v)
+    /// when 310 V lies outside it].
     #[arg(long, value_parser = positive_volts)]
     vdc: Option<f64>,
     /// Output directory [default: out/campaign].
@@ -264,8 +266,9 @@ struct FaultsArgs {
     /// A drive file (its [certify] omega_r_max_rad_s sets the top speed, if it has one).
     #[arg(default_value = "drive.toml")]
     drive: PathBuf,
-    /// DC-bus voltage, V [default: 310, or the middle of the drive's bus range
-    /// (`[protection]` vdc_min_v … vdc_max_v) when 310 V lies outside it].
+    /// DC-bus voltage, V [default: the file's rated bus, `[board] vdc_rated_v`; without one
+    /// 310, or the middle of the drive's bus range (`[protection]` vdc_min_v … vdc_max_v)
+    /// when 310 V lies outside it].
     #[arg(long, value_parser = positive_volts)]
     vdc: Option<f64>,
     /// Output directory [default: out/faults].

@@ -81,8 +81,11 @@ crate::raw::raw_struct! {
         /// Reciprocal of the regeneration limit's span, 1/V.
         pub(super) inv_regen_span_v: f32,
         /// The voltage-margin regulator's integral gain per slow step, 1
-        /// ([`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]·T_slow).
+        /// ([`DriveSpec::voltage_regulator_bandwidth_rad_s`]·T_slow).
         pub(super) voltage_gain: f32,
+        /// … and the fastest regulator's ([`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]·T_slow): the
+        /// gain an acceleration at the envelope's torque needs, whatever the rotor.
+        pub(super) voltage_gain_max: f32,
         /// The field angle is advanced by ω_e times this for the delay between sampling and the
         /// voltage's application, s ([`VOLTAGE_DELAY_PERIODS`]·T).
         pub(super) delay_s: f32,
@@ -559,7 +562,8 @@ impl DriveConfig {
                     .saturating_add(libm::ceil(0.02 / t_slow) as u32),
             ),
             voltage_margin: spec.voltage_margin as f32,
-            voltage_gain: (VOLTAGE_REGULATOR_BANDWIDTH_RAD_S * t_slow) as f32,
+            voltage_gain: (spec.voltage_regulator_bandwidth_rad_s() * t_slow) as f32,
+            voltage_gain_max: (VOLTAGE_REGULATOR_BANDWIDTH_RAD_S * t_slow) as f32,
             trim_gain: (trim_bw * t_slow) as f32,
             tracking_rate: (-libm::expm1(-1.0 / f64::from(spec.slow_divider))) as f32,
             dead_time_duty: dead_duty as f32,

@@ -726,6 +726,10 @@ struct SlowRun {
     torque_max_nm: f32,
     /// The voltage regulator's cut of the budget, V (≤ 0).
     v_cut_v: f32,
+    /// The torque asked was at its limit at the last slow step (the speed loop's output
+    /// saturated, or a torque reference at the envelope's): the speed rises as fast as the
+    /// drive makes it (the voltage regulator's gain at the modulator's limit).
+    torque_at_limit: bool,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,
     /// The machine model on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]):
@@ -811,6 +815,7 @@ impl SlowRun {
             flux_forced: false,
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
+            torque_at_limit: false,
             rotor_fit,
             model: cfg.envelope.with_inductance_scale(l_scale),
             i_d_rated_a: cfg.i_d_rated_a / l_scale,

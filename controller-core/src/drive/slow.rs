@@ -228,6 +228,13 @@ impl SlowState {
                 }
             }
         };
+        // At its limit, the speed rises as fast as the drive makes it (`voltage_budget`).
+        self.run.torque_at_limit = running
+            && match self.reference {
+                Reference::Torque(t) => t.abs() >= 0.999 * limit,
+                Reference::Speed(_) | Reference::Position(_) => self.run.speed_saturated,
+                Reference::RotatingCurrent { .. } => false,
+            };
         let (w, i_max) = (m.omega_m_rad_s, cfg.ifoc.i_max_a());
         let sign = if torque_nm < 0.0 { -1.0 } else { 1.0 };
         // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
@@ -522,7 +529,19 @@ impl SlowState {
     /// The voltage budget of the current references: the target `voltage_margin·V_dc/√3`
     /// less the regulator's cut, which integrates the target's excess over the RMS of the
     /// voltage the loops asked for since the last slow step (only downwards from zero, and
-    /// at most [`VOLTAGE_REGULATOR_RANGE`] of the limit).
+    /// at most [`VOLTAGE_REGULATOR_RANGE`] of the limit). A steady model error is corrected
+    /// through the flux, at the drive's own bandwidth
+    /// ([`DriveSpec::voltage_regulator_bandwidth_rad_s`], at most 1/T_r) —
+    /// [`VOLTAGE_REGULATOR_LIMITED_GAIN`] times faster while the modulator limits. Limited
+    /// while the torque asked is at its limit (the speed loop's output saturated, a torque
+    /// reference at the envelope's), the speed rises as fast as the drive makes it and the
+    /// voltage the machine needs with it: an integrator follows a ramp of relative slope α/ω
+    /// only (α/ω)/K behind, and the loops have the 2 % the voltage margin leaves, so the
+    /// regulator then cuts at that many times [`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`] however
+    /// slow the rotor (≈ 2/s for the 500 hp machine at 90 rad/s; at ten times its rotor's
+    /// 1/T_r, seed 000 Fig. 12's detuned plant tripped `LossOfControl` at 93.6 rad/s). A
+    /// rotor faster than [`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`] has the same gains in both.
+    ///
     /// Returns the target and the budget.
     fn voltage_budget(
         &mut self,
@@ -535,8 +554,11 @@ impl SlowState {
         if inputs.v_req_steps > 0 {
             let v_req = sqrt_f32(inputs.v_req2_sum / f32::from(inputs.v_req_steps));
             let floor = -VOLTAGE_REGULATOR_RANGE * svpwm::linear_limit_v(vdc_v);
-            let gain =
-                if limited { VOLTAGE_REGULATOR_LIMITED_GAIN * cfg.voltage_gain } else { cfg.voltage_gain };
+            let gain = match (limited, self.run.torque_at_limit) {
+                (false, _) => cfg.voltage_gain,
+                (true, false) => VOLTAGE_REGULATOR_LIMITED_GAIN * cfg.voltage_gain,
+                (true, true) => VOLTAGE_REGULATOR_LIMITED_GAIN * cfg.voltage_gain_max,
+            };
             let error = max_f32(target - v_req, -VOLTAGE_REGULATOR_EXCESS_MAX * target);
             self.run.v_cut_v = (self.run.v_cut_v + gain * error).limit(floor, 0.0);
         }

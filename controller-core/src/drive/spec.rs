@@ -15,21 +15,22 @@ use crate::vhz::VhzError;
 #[cfg(doc)]
 use crate::{drive::DriveConfig, svpwm};
 
-/// Bandwidth of the field-weakening voltage regulator, rad/s: an integrator on the
-/// difference between the voltage target and the voltage the current loops ask for, which
-/// lowers the voltage budget of the current references ([`crate::envelope`]) when the
+/// The highest bandwidth of the field-weakening voltage regulator, rad/s: an integrator on
+/// the difference between the voltage target and the voltage the current loops ask for,
+/// which lowers the voltage budget of the current references ([`crate::envelope`]) when the
 /// machine needs more voltage than its model says. Slow against the current loops (≈ 1 000
-/// rad/s), so that it corrects the model's steady-state error, not the loops' transients; of
-/// the order of the flux's 1/T_r (≈ 15 rad/s on the DeLorenzo motor) and of the current trim,
-/// with which it settles without sustained oscillation in the field-weakening acceptance run
-/// (`hil-sim/tests/envelope.rs`). It measures the quadratic mean over a slow period of the
-/// magnitude of the loops' request (peak phase volts, before the hexagon), only ever lowers
-/// the budget, and by at most [`VOLTAGE_REGULATOR_RANGE`].
+/// rad/s), so that it corrects the model's steady-state error, not the loops' transients;
+/// with the current trim it settles without sustained oscillation in the field-weakening
+/// acceptance run (`hil-sim/tests/envelope.rs`). A slow rotor has it slower still: its own
+/// is [`DriveSpec::voltage_regulator_bandwidth_rad_s`]. It measures the quadratic mean over
+/// a slow period of the magnitude of the loops' request (peak phase volts, before the
+/// hexagon), only ever lowers the budget, and by at most [`VOLTAGE_REGULATOR_RANGE`].
 pub const VOLTAGE_REGULATOR_BANDWIDTH_RAD_S: f64 = 10.0;
 
 /// The longest the rotor flux takes to fall to a lower reference while Running, s: the
-/// field-weakening voltage regulator's time constant (1/[`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]),
-/// so that the flux follows the budget the regulator sets — and shorter while the speed
+/// fastest field-weakening voltage regulator's time constant
+/// (1/[`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`]), so that the flux follows the budget the
+/// regulator sets — and shorter while the speed
 /// rises through field weakening ([`FLUX_LAG_FRACTION`]). A rotor slower than that has its
 /// d-axis current lowered below the envelope's — to zero at most below base speed, reversed
 /// if need be above the no-load base speed (`EnvelopeConfig::no_load_base_speed_rad_s`) — while
@@ -103,9 +104,10 @@ pub const REGEN_LIMIT_END: f64 = 0.975;
 /// corrects the loops' steady tracking error of a few per cent, not a missing current.
 pub const CURRENT_TRIM_RANGE: f32 = 0.25;
 
-/// While the modulator limits the loops' request (the machine needs more voltage than the
-/// bus gives: a hot motor's R_s, saturation, an acceleration into the limit), the voltage
-/// regulator cuts this many times faster than its bandwidth: at 10 rad/s it took ≈ 100 ms to
+/// While the modulator limits the loops' request and the torque asked is at its limit (an
+/// acceleration into the voltage limit, on a hot motor's R_s, a saturated inductance), the
+/// voltage regulator cuts this many times faster than [`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`],
+/// however slow the rotor's own bandwidth: at 10 rad/s it took ≈ 100 ms to
 /// lower the budget by the excess, while the loops lost their current in the 20 ms of the
 /// loss-of-control check (issue 21's campaign: R_s × 1.5, R_r × 1.2 tripped at 111 rad/s).
 pub const VOLTAGE_REGULATOR_LIMITED_GAIN: f32 = 10.0;
@@ -339,6 +341,27 @@ pub struct DriveSpec {
 }
 
 impl DriveSpec {
+    /// The voltage regulator's bandwidth, rad/s: [`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`], or
+    /// `1/T_r` of the slowest rotor the drive may run on where that is lower — the box's
+    /// least rotor resistance, its largest inductances and, on a saturating curve, the
+    /// chord at no current (the field-weakened flux's). The regulator lowers the budget, the
+    /// envelope's flux with it, and the machine's voltage follows that flux with the rotor's
+    /// lag: an integrator `K/s` on a first-order lag `1/(1 + s·T_r)` (the leakage's immediate
+    /// share, σ·L_s/L_m ≈ 4 %, aside) has a phase margin of `90° − atan(ω_c·T_r)` at its
+    /// crossover ω_c, `ω_c·√(1 + (ω_c·T_r)²) = K` — 52° at `K = 1/T_r`, 15° at 10 rad/s on
+    /// the population's 153 kW member 010 (T_r 1.41 s). There, loaded at its top speed in
+    /// field weakening, the budget swung 0 ↔ −46 V in a 0.55–0.7 s cycle, the envelope's flux
+    /// 0.34 ↔ 0.47 Wb around the 0.39 Wb the machine held, and 6 of its 200 campaign runs
+    /// at 20 kHz missed the 5 % steady flux accuracy (population test
+    /// `a_slow_rotors_voltage_regulator_holds_its_flux_at_top_speed`). An acceleration into
+    /// the voltage limit is the other regime, as fast whatever the rotor (`voltage_budget`).
+    pub fn voltage_regulator_bandwidth_rad_s(&self) -> f64 {
+        let chord_max = self.magnetizing.as_ref().map_or(1.0, |t| f64::max(t.chord_ratio(0.0), 1.0));
+        let t_r_max_s =
+            self.motor.tr_s() * self.inductance_range[1] * chord_max / self.rotor_resistance_range[0];
+        f64::min(VOLTAGE_REGULATOR_BANDWIDTH_RAD_S, 1.0 / t_r_max_s)
+    }
+
     /// The highest duty the modulator gives a phase — also the fraction of the bus voltage
     /// the drive counts on (its current loops, envelope and checks; the envelope a host
     /// computes for this drive: `hil_sim::envelope`): with [`DriveSpec::overmodulation`],

@@ -705,6 +705,28 @@ fn raw_configuration_round_trips() {
     assert_eq!(cfg.with_saturated_p(f32::NAN, 1.0), None);
 }
 
+/// The voltage regulator's bandwidth: 10 rad/s on the DeLorenzo motor (T_r 65 ms), 1/T_r of
+/// the slowest rotor the ranges allow for a slower one (the least rotor resistance, the
+/// largest inductances), and of a saturating curve's chord at no current.
+#[test]
+fn a_slow_rotor_has_a_slower_voltage_regulator() {
+    let mut spec = test_spec();
+    let t_r_s = spec.motor.tr_s();
+    assert!(t_r_s < 0.1, "{t_r_s}");
+    assert_eq!(spec.voltage_regulator_bandwidth_rad_s(), VOLTAGE_REGULATOR_BANDWIDTH_RAD_S);
+    spec.rotor_resistance_range = [0.1, 1.0];
+    spec.inductance_range = [1.0, 1.2];
+    let slowest_s = t_r_s * 1.2 / 0.1;
+    assert!((spec.voltage_regulator_bandwidth_rad_s() * slowest_s - 1.0).abs() < 1e-12);
+    // A curve whose chord at no current is 1.25 × the rated one's.
+    let curve = crate::magnetics::MagnetizingCurve::law(1.25 * spec.motor.lm_h(), 0.9, 7.0).unwrap();
+    let (table, _) = crate::magnetics::MagnetizingTable::of_curve(&curve, spec.flux_ref_wb).unwrap();
+    spec.magnetizing = Some(table);
+    let chord = table.chord_ratio(0.0);
+    assert!(chord > 1.0, "{chord}");
+    assert!((spec.voltage_regulator_bandwidth_rad_s() * slowest_s * chord - 1.0).abs() < 1e-9);
+}
+
 #[test]
 fn rejects_inconsistent_specs() {
     let ok = test_spec();
