@@ -540,7 +540,8 @@ impl SlowState {
     /// regulator then cuts at that many times [`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`] however
     /// slow the rotor (≈ 2/s for the 500 hp machine at 90 rad/s; at ten times its rotor's
     /// 1/T_r, seed 000 Fig. 12's detuned plant tripped `LossOfControl` at 93.6 rad/s). A
-    /// rotor faster than [`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`] has the same gains in both.
+    /// drive whose slowest rotor is faster than 1/[`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`] has
+    /// the same gain in both.
     ///
     /// Returns the target and the budget.
     fn voltage_budget(
