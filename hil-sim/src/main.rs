@@ -188,10 +188,7 @@ struct EnvelopeArgs {
     /// A drive file.
     #[arg(default_value = "drive.toml")]
     drive: PathBuf,
-    /// DC-bus voltage, V [default: the file's rated bus, `[board] vdc_rated_v`; without one
-    /// 310, or the middle of the drive's bus range (`[protection]` vdc_min_v … vdc_max_v)
-    /// when 310 V lies outside it].
-    #[arg(long, value_parser = positive_volts)]
+    #[arg(long, value_parser = positive_volts, help = VDC_HELP)]
     vdc: Option<f64>,
     /// Speeds measured, evenly from 0.2× to 2× the no-load base speed.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(2..=200))]
@@ -241,10 +238,7 @@ struct CampaignArgs {
     /// the whole campaign's.
     #[arg(long, default_value = "0/1", value_parser = shard)]
     shard: (u64, u64),
-    /// DC-bus voltage, V [default: the file's rated bus, `[board] vdc_rated_v`; without one
-    /// 310, or the middle of the drive's bus range (`[protection]` vdc_min_v … vdc_max_v)
-    /// when 310 V lies outside it].
-    #[arg(long, value_parser = positive_volts)]
+    #[arg(long, value_parser = positive_volts, help = VDC_HELP)]
     vdc: Option<f64>,
     /// Output directory [default: out/campaign].
     #[arg(long, value_parser = non_empty_path)]
@@ -266,10 +260,7 @@ struct FaultsArgs {
     /// A drive file (its [certify] omega_r_max_rad_s sets the top speed, if it has one).
     #[arg(default_value = "drive.toml")]
     drive: PathBuf,
-    /// DC-bus voltage, V [default: the file's rated bus, `[board] vdc_rated_v`; without one
-    /// 310, or the middle of the drive's bus range (`[protection]` vdc_min_v … vdc_max_v)
-    /// when 310 V lies outside it].
-    #[arg(long, value_parser = positive_volts)]
+    #[arg(long, value_parser = positive_volts, help = VDC_HELP)]
     vdc: Option<f64>,
     /// Output directory [default: out/faults].
     #[arg(long, value_parser = non_empty_path)]
@@ -457,6 +448,10 @@ fn number(s: &str, ok: impl Fn(f64) -> bool, what: &str) -> Result<f64, String> 
 fn non_empty_path(s: &str) -> Result<PathBuf, String> {
     if s.trim().is_empty() { Err("must not be empty".into()) } else { Ok(PathBuf::from(s)) }
 }
+
+/// `--vdc` of the commands that run a drive file (`hil_sim::commands::bus_voltage`).
+const VDC_HELP: &str = "DC-bus voltage, V [default: the file's rated bus, `[board] vdc_rated_v`; without one \
+    310, or the middle of the drive's bus range (`[protection]` vdc_min_v … vdc_max_v) when 310 V lies outside it]";
 
 fn positive_volts(s: &str) -> Result<f64, String> {
     number(s, |x| x.is_finite() && x > 0.0 && x <= 10_000.0, "a voltage in (0, 10000] V")

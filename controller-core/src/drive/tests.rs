@@ -718,7 +718,7 @@ fn a_slow_rotor_has_a_slower_voltage_regulator() {
     spec.inductance_range = [1.0, 1.2];
     let slowest_s = t_r_s * 1.2 / 0.1;
     assert!((spec.voltage_regulator_bandwidth_rad_s() * slowest_s - 1.0).abs() < 1e-12);
-    // A curve whose chord at no current is 1.25 × the rated one's.
+    // A curve saturating below the rated flux: its chord at no current is the larger.
     let curve = crate::magnetics::MagnetizingCurve::law(1.25 * spec.motor.lm_h(), 0.9, 7.0).unwrap();
     let (table, _) = crate::magnetics::MagnetizingTable::of_curve(&curve, spec.flux_ref_wb).unwrap();
     spec.magnetizing = Some(table);
