@@ -730,6 +730,10 @@ struct SlowRun {
     /// saturated, or a torque reference at the envelope's): the speed rises as fast as the
     /// drive makes it (the voltage regulator's gain at the modulator's limit).
     torque_at_limit: bool,
+    /// How far below the d current on which the flux falls of itself the forcing holds its
+    /// reference, A (0 unforced): the stuck-switch check does not judge references the
+    /// loops follow by that step at the voltage limit ([`SwitchWatch::add`]).
+    forcing_a: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,
     /// The machine model on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]):
@@ -816,6 +820,7 @@ impl SlowRun {
             torque_max_nm: 0.0,
             v_cut_v: 0.0,
             torque_at_limit: false,
+            forcing_a: 0.0,
             rotor_fit,
             model: cfg.envelope.with_inductance_scale(l_scale),
             i_d_rated_a: cfg.i_d_rated_a / l_scale,

@@ -320,12 +320,17 @@ impl SlowState {
             self.run.flux_forced = above
                 && (self.run.flux_forced
                     || model.d_current_within_voltage(psi, falling, i_q_a, w, v_target, i_max) < falling);
-            if self.run.flux_forced {
+            let i_d_a = if self.run.flux_forced {
                 model.d_current_within_voltage(psi, falling, i_q_a, w, v_budget, i_max)
             } else {
                 falling
-            }
+            };
+            // How far the forcing moved the d reference from where the flux would fall of
+            // itself: the step the loops follow at the voltage limit (the stuck-switch check's).
+            self.run.forcing_a = max_f32(falling - i_d_a, 0.0);
+            i_d_a
         } else {
+            self.run.forcing_a = 0.0;
             op.i_d_a
         };
         self.run.flux = cfg.ifoc.d_current_command(i_d_a);
@@ -822,18 +827,15 @@ impl SlowState {
             cfg.i_d_rated_a,
             cfg.phases.sum_mean_max_a,
         );
-        // Not while the flux is forced down: its references step by amperes and the loops
-        // follow them at the voltage limit for a few milliseconds — a lag in every phase, which
-        // the direction counts would read as a dead switch (a reversal from braking at 2×
-        // base speed tripped `SwitchOpen`).
         // The stuck-switch check judges the half-waves of the current against references it
-        // follows; V/Hz has none.
+        // follows; V/Hz has none. Forcing the flux down steps the d reference, which the
+        // loops follow at the voltage limit: `forcing_a`, the step, for the check to weigh.
         let fault = window.or_else(|| {
-            if running && !self.run.flux_forced && !unreferenced {
+            if running && !unreferenced {
                 self.run.switches.add(
                     [i_ref_abc, i_track_abc],
                     [i_abc_a, leg_sides(inputs.v_ab)],
-                    cfg.phases.switch_level_a,
+                    [cfg.phases.switch_level_a, self.run.forcing_a],
                     cfg.phases.switch_gains,
                 )
             } else {

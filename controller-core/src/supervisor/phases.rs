@@ -510,25 +510,39 @@ impl SwitchWatch {
     /// level; `gains` weigh it (`DriveConfig`'s). [`Fault::SwitchOpen`] when a phase's
     /// directions say so and no phase carries nothing either way. Out of line: once per slow period
     /// (inlined, the interrupt took ≈ 850 B more flash).
+    ///
+    /// `forcing_a`: how far the drive's flux forcing holds the d reference below where the
+    /// flux would fall of itself (0 unforced). The loops follow that step at the voltage
+    /// limit, for milliseconds — a lag in every phase, which the direction counts would read
+    /// as a dead switch (a reversal from braking at 2× base speed tripped `SwitchOpen`) —, so
+    /// no sample counts while it could make a miss: a current that never followed the step
+    /// falls short by at most the step, and a counted sample (its reference at least the
+    /// level, [`SWITCH_LEVEL_SHARE`] of the magnitude) misses by more than
+    /// [`SWITCH_SHORTFALL_MISSING`] of that. A forcing smaller leaves the check judging: at
+    /// its top speed the 35 kW population member 022 sits at the voltage limit, and on a
+    /// scratch build (its present-flux limit on a lagged speed, docs/population.md) a stuck
+    /// switch there forced its flux by 0.07–0.14 A of a 21 A magnitude for 166 ms; kept out
+    /// of any forcing, the check named it after 175–181 ms against a bound of 53 ms (2 of 12
+    /// sensor seeds).
     #[inline(never)]
     pub(crate) fn add(
         &mut self,
         [reference, tracked]: [Abc; 2],
         [measured, legs]: [Abc; 2],
-        commanded: f32,
+        [commanded, forcing_a]: [f32; 2],
         gains: [f32; 2],
     ) -> Option<Fault> {
         // The reference vector's magnitude from its phases (their sum zero): √(⅔ Σ r²).
         let r = reference;
         let amplitude = sqrt_f32((2.0 / 3.0) * (r.a * r.a + r.b * r.b + r.c * r.c));
-        if amplitude < SWITCH_FLOOR_SHARE * commanded {
+        let level = SWITCH_LEVEL_SHARE * amplitude;
+        if amplitude < SWITCH_FLOOR_SHARE * commanded || forcing_a > SWITCH_SHORTFALL_MISSING * level {
             for p in &mut self.0 {
                 p.short = 0; // no sample: none stale
             }
             return None;
         }
         let floor = UNDRIVEN_REFERENCE_SHARE * amplitude;
-        let level = SWITCH_LEVEL_SHARE * amplitude;
         let [a, b, c] = &mut self.0;
         let levels = [level, floor];
         let (m, v) = (measured, legs);

@@ -35,6 +35,12 @@ pub struct Outcome {
     pub off_after_periods: Option<u64>,
     /// Peak true phase current after the injection, A.
     pub peak_current_a: f64,
+    /// Peak true phase current after the injection while the drive drove its bridge and in
+    /// the period its last duties set up, A: what the criterion judges against the trip
+    /// level ([`super::PEAK_CURRENT_FRACTION`]). With every switch open the inverter is a
+    /// diode bridge, and a back-EMF above the bus drives the machine's own current through
+    /// it, which no drive acts on.
+    pub peak_driven_a: f64,
     /// Peak |leg current| after the injection (the motor's plus a short's), A; 0 when the
     /// legs are not modelled (no comparator, no short).
     pub peak_leg_a: f64,
@@ -191,6 +197,7 @@ pub fn json(m: &Matrix, rows: &[Outcome]) -> serde_json::Value {
             "tripped_before_injection_at_s": o.tripped_before_s,
             "bridge_off_after_periods": o.off_after_periods,
             "peak_current_a": o.peak_current_a,
+            "peak_driven_current_a": o.peak_driven_a,
             "peak_leg_current_a": o.peak_leg_a,
             "trip_level_a": m.spec.protection.i_trip_a,
             "energy_into_bus_j": o.energy_into_bus_j,
