@@ -98,7 +98,12 @@ struct RunArgs {
     out: PathBuf,
 }
 
+/// The selection's members: the shipped ones (`--shipped`), then the drawn ones. None is an
+/// error: `run --members 0` ran no drive and passed.
 fn members(s: &Select) -> Result<Vec<Member>, String> {
+    if s.members == 0 && !s.shipped {
+        return Err("no members: --members 0 without --shipped selects nothing".into());
+    }
     let mut all = Vec::new();
     if s.shipped {
         all.extend(member::shipped(Path::new("."))?);
@@ -269,12 +274,13 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         .map(|(m, r)| {
             let rep = evaluate(m, *r, Path::new("."), &plan, cancel);
             let k = done.fetch_add(1, Ordering::Relaxed) + 1;
+            // Ctrl-C: the drives cut short are no verdict (they read `ERROR` before).
+            let word = if cancel.load(Ordering::Relaxed) { "interrupted" } else { rep.verdict.word() };
             eprintln!(
-                "population: [{k}/{}] {} at {:.1} kHz: {} ({:.1} s)",
+                "population: [{k}/{}] {} at {:.1} kHz: {word} ({:.1} s)",
                 jobs.len(),
                 rep.member,
                 rep.pwm_hz / 1e3,
-                rep.verdict.word(),
                 rep.elapsed_s
             );
             rep
@@ -460,6 +466,28 @@ mod tests {
             assert!(sat.is_some(), "{}", path.display());
         }
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// An empty selection is refused, naming it (`run --members 0` ran no drive, wrote an
+    /// empty report and exited 0).
+    #[test]
+    fn an_empty_selection_is_refused() {
+        let e = members(&select(0)).unwrap_err();
+        assert!(e.contains("--members 0") && e.contains("--shipped"), "{e}");
+        let cancel = AtomicBool::new(false);
+        let dir = std::env::temp_dir().join(format!("population-empty-{}", std::process::id()));
+        let args = RunArgs {
+            select: select(0),
+            pwm: vec![20_000.0],
+            campaign_runs: 200,
+            no_matrix: false,
+            speed: design::tune::SpeedDesign::Auto,
+            sensorless: false,
+            overmodulation: false,
+            out: dir.clone(),
+        };
+        assert_eq!(run(&args, &cancel).unwrap_err(), e);
+        assert!(!dir.exists());
     }
 
     /// A shipped member is written too, as `run` tunes it, with the command that tunes it on
