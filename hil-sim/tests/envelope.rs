@@ -200,9 +200,9 @@ fn a_reversal_from_braking_in_field_weakening_forces_the_flux_down() {
 /// references at the voltage limit for a few milliseconds, which the stuck-switch check read
 /// as a dead direction (`SwitchOpen` 14 ms after the reversal — before the forcing too, when
 /// the real flux rose uncontrolled while the model's fell) until it was kept out of the
-/// forcing — out of a forcing step large enough to make a miss, since (the stuck-switch
-/// check's `forcing_a`). Asserted: no fault, the motoring envelope within 5 % over the last 0.2 s, the
-/// current below 75 % of the trip level throughout.
+/// forcing (now out of a forcing step large enough to make a miss: the stuck-switch check's
+/// `forcing_a`). Asserted: no fault, the motoring envelope within 5 % over the last 0.2 s,
+/// the current below 75 % of the trip level throughout.
 #[test]
 fn a_full_reversal_from_braking_at_twice_base_speed_stays_in_control() {
     let mut b = scenario("torque-reversal.toml");
