@@ -19,6 +19,14 @@ use core::f32::consts::TAU;
 /// window, 2 ms of delay, 0.38 rad/s of resolution with a 1024-line encoder.
 pub const SPEED_WINDOW_READS: usize = 8;
 
+/// The speed reading's resolution, rad/s: one count of an encoder of `lines` over the speed
+/// window of [`SPEED_WINDOW_READS`] reads every `read_period_s`, `2π/(4·lines·N·T)` (the one
+/// place of this formula for a design in f64; [`EncoderConfig::speed_resolution_rad_s`] is the
+/// estimator's own, in f32). Zero lines count as one.
+pub fn speed_resolution_rad_s(lines: u32, read_period_s: f64) -> f64 {
+    core::f64::consts::TAU / (4.0 * f64::from(lines.max(1))) / (SPEED_WINDOW_READS as f64 * read_period_s)
+}
+
 /// Why an encoder configuration was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EncoderError {

@@ -63,6 +63,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
     };
     let slip = spec.slip_current;
     let feedback = spec.speed_feedback;
+    let speed_resolution = spec.speed_resolution_rad_s;
     // `Vector` or `VHz { ramp_rad_s2: … }`: the variant's Debug form is its Rust expression.
     let control = spec.control;
     // The magnetizing table: `None` or its points (Debug of an f64 array is its Rust form).
@@ -84,6 +85,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       current_frame: controller_core::drive::CurrentFrame::{frame},\n\
          \x20       slip_current: controller_core::drive::SlipCurrent::{slip:?},\n\
          \x20       speed_feedback: controller_core::drive::SpeedFeedback::{feedback:?},\n\
+         \x20       speed_resolution_rad_s: {speed_resolution:?},\n\
          \x20       control: controller_core::drive::Control::{control:?},\n\
          \x20       speed_law: {},\n\
          \x20       position: controller_core::drive::PositionLaw {{ k_per_s: {:?}, omega_max_rad_s: {:?} }},\n\

@@ -668,8 +668,7 @@ pub fn default_following_time_s(
     encoder_lines: u32,
     slow_period_s: f64,
 ) -> f64 {
-    let quantum_rad_s =
-        core::f64::consts::TAU / (4.0 * f64::from(encoder_lines.max(1))) / speed_window_s(slow_period_s);
+    let quantum_rad_s = controller_core::encoder::speed_resolution_rad_s(encoder_lines, slow_period_s);
     let owed_rad_s2 =
         controller_core::supervisor::motion::FOLLOWING_PROGRESS_FRACTION * speed_limit_nm / motor.j_kgm2();
     at_least_the_speed_window(FOLLOWING_SPEED_QUANTA * quantum_rad_s / owed_rad_s2, slow_period_s)
@@ -1146,6 +1145,10 @@ pub fn drive_spec(
             FeedbackTable::Sensorless => SpeedFeedback::Sensorless,
             FeedbackTable::EncoderRideThrough => SpeedFeedback::EncoderRideThrough,
         },
+        speed_resolution_rad_s: controller_core::encoder::speed_resolution_rad_s(
+            board.encoder_lines,
+            f64::from(pwm.slow_divider) / pwm.frequency_hz,
+        ),
         control: match c.control {
             ControlTable::Vector => Control::Vector,
             ControlTable::Vhz { ramp_rad_s2, k_u, k_w } => Control::VHz {
@@ -1277,6 +1280,8 @@ pub fn drive_spec(
             ),
         ),
         // Only `DriveConfig::from_raw` returns it.
+        // Derived from the board's encoder (lines ≥ 1, the slow period positive).
+        DriveError::SpeedResolution => src.error("board.encoder_lines", e.to_string()),
         DriveError::Raw => src.error("controller", "configuration rejected"),
         DriveError::Observer(e) => src.error(
             "controller.speed_feedback",

@@ -734,6 +734,18 @@ struct SlowRun {
     /// reference, A (0 unforced): the stuck-switch check does not judge references the
     /// loops follow by that step at the voltage limit ([`SwitchWatch::add`]).
     forcing_a: f32,
+    /// The speed the present flux's torque limit is judged at, mechanical rad/s: the
+    /// reading, held while the reading stays within one count of the encoder's speed window
+    /// of it (`DriveConfig::speed_resolution_rad_s`; the observer's reading itself). At the
+    /// voltage limit that limit is steep in the speed (the back-EMF takes nearly all of the
+    /// voltage), and a speed held between two counts reads one or the other: judged at the
+    /// reading, the population's member 022 (35 kW, 500 lines, 0.785 rad/s per count at
+    /// 20 kHz) had its limit jump 53 ↔ 14 A each slow step accelerating through 140 rad/s,
+    /// the references chattered by tens of A per 0.5 ms, the currents fell 50 % short and
+    /// the stuck-switch check tripped a healthy drive (`SwitchOpen` on 10 of the fault
+    /// matrix's top-speed rows over seeds 0–11). Held so, a dither of one count does not move
+    /// the limit, and a change of speed moves it at once, at most a count behind.
+    omega_limit_rad_s: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,
     /// The machine model on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]):
@@ -821,6 +833,7 @@ impl SlowRun {
             v_cut_v: 0.0,
             torque_at_limit: false,
             forcing_a: 0.0,
+            omega_limit_rad_s: 0.0,
             rotor_fit,
             model: cfg.envelope.with_inductance_scale(l_scale),
             i_d_rated_a: cfg.i_d_rated_a / l_scale,

@@ -345,7 +345,13 @@ impl SlowState {
         // (`FollowingError` in 30 of 512 generating runs; population test
         // `a_braking_drive_holds_its_load_at_top_speed`).
         let v_now = if torque_nm * w < 0.0 { v_target } else { v_budget };
-        let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w, v_now, needed, sign);
+        // Judged at a speed held within one count of the encoder's reading: steep in the
+        // speed at the voltage limit, it would follow a count's dither (`omega_limit_rad_s`).
+        let band = if self.on_observer(cfg) { 0.0 } else { cfg.speed_resolution_rad_s };
+        self.run.omega_limit_rad_s =
+            if running { self.run.omega_limit_rad_s.limit(w - band, w + band) } else { w };
+        let w_limit = self.run.omega_limit_rad_s;
+        let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w_limit, v_now, needed, sign);
         let torque_now_nm = room * min_f32(op.torque_max_nm, per_a * i_q_now);
         // The speed loop's limit is the steady envelope: limited by the present flux too, it
         // would ask for a torque the rated flux can give, and the flux would never fall.

@@ -330,6 +330,14 @@ pub struct DriveSpec {
     pub protection: Protection,
     /// The speed's and the field angle's source.
     pub speed_feedback: SpeedFeedback,
+    /// The encoder speed reading's resolution, mechanical rad/s: one count over the speed
+    /// window ([`crate::encoder::speed_resolution_rad_s`]; a drive file derives it from its
+    /// board's `encoder_lines` and the slow period), 0 for a reading without quantisation.
+    /// A speed held between two counts reads one or the other: the drive judges the present
+    /// flux's torque limit, which is steep in the speed at the voltage limit, at a speed that
+    /// moves only when the reading leaves this band ([`DriveConfig::new`]; unused on the
+    /// observer's speed).
+    pub speed_resolution_rad_s: f64,
     /// The control law.
     pub control: Control,
     /// The magnetizing curve the drive runs on (issue 50), `None` for a linear motor: the
@@ -427,6 +435,8 @@ pub enum DriveError {
     /// `sample_window_s` negative or not finite, or so long (with the dead time's
     /// compensation) that the highest duty is below [`DUTY_MAX_MIN`].
     SampleWindow,
+    /// `speed_resolution_rad_s` negative or not finite.
+    SpeedResolution,
     /// A raw configuration ([`DriveConfig::from_raw`]) with a non-finite number, an unknown
     /// variant or a zero count.
     Raw,
@@ -500,6 +510,7 @@ impl core::fmt::Display for DriveError {
                 "sample_window_s: must be finite and ≥ 0, and leave a highest duty of at least {DUTY_MAX_MIN} \
                  with the dead time's compensation"
             ),
+            Self::SpeedResolution => f.write_str("speed_resolution_rad_s: must be finite and ≥ 0"),
             Self::Raw => f.write_str(
                 "the raw configuration: a number not finite, an unknown variant, a zero count, a bus range \
                  not +0 ≤ min < max, or a controlled stop for a fault that is not stoppable",

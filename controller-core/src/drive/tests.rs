@@ -56,6 +56,8 @@ pub(crate) fn test_spec() -> DriveSpec {
             brake_chopper: None,
         },
         speed_feedback: SpeedFeedback::Encoder,
+        // A 1 024-line encoder's (as `encoder_jump_rad`'s count share) over the window.
+        speed_resolution_rad_s: crate::encoder::speed_resolution_rad_s(1024, 5e-4),
         control: Control::Vector,
         magnetizing: None,
     }

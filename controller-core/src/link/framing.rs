@@ -2,7 +2,7 @@
 //! receiver and the frame encoder. Knows nothing of what a payload means.
 
 /// Largest payload (type byte + fields), bytes.
-pub const MAX_PAYLOAD: usize = 562;
+pub const MAX_PAYLOAD: usize = 570;
 /// Largest frame on the wire, delimiter included: payload + CRC, one COBS overhead byte per
 /// 254 bytes (plus one), and the 0x00.
 pub const MAX_FRAME: usize = MAX_PAYLOAD + 2 + (MAX_PAYLOAD + 2) / 254 + 1 + 1;

@@ -224,6 +224,12 @@ pub struct Tuned {
     /// Those runs in words: `the 64 corner runs of the 1.00 s and the 6.38 s campaigns`
     /// (drive.toml's).
     pub sil_runs: String,
+    /// Those campaigns, with the written speed law, when it met them there
+    /// ([`Self::met_in_sil`]; empty otherwise): every one of their corner runs passed. A
+    /// campaign equal to one of them but for its number of runs has the same corner runs —
+    /// the simulation is deterministic — and a caller that runs it need not run them again
+    /// ([`Self::passed_corner_runs_of`]).
+    pub sil_campaigns: Vec<hil_sim::campaign::Campaign>,
     /// Every value the tuned file changed from the template's, `key: old → new`.
     pub changes: Vec<String>,
 }
@@ -622,8 +628,22 @@ fn tune_with(
         speed_origin,
         met_in_sil,
         sil_runs: campaigns.words(),
+        sil_campaigns: if met_in_sil { campaigns.with_law(&spec.speed_law).campaigns() } else { Vec::new() },
         changes,
     })
+}
+
+impl Tuned {
+    /// Whether `c`'s corner runs ([`hil_sim::campaign::CORNER_RUNS`], its first) are runs
+    /// this tune ran and passed: `c` is one of [`Self::sil_campaigns`] but for its number of
+    /// runs (every other field equal: the drive as written and read back, the box, bus,
+    /// run length, seed, sensors and requirements), unsharded, with at least those runs.
+    pub fn passed_corner_runs_of(&self, c: &hil_sim::campaign::Campaign) -> bool {
+        use hil_sim::campaign::{CORNER_RUNS, Campaign};
+        c.runs >= CORNER_RUNS
+            && c.shard == (0, 1)
+            && self.sil_campaigns.contains(&Campaign { runs: CORNER_RUNS, ..*c })
+    }
 }
 
 /// |S(jω)| = |1/(1 + C(jω)·G(jω))| of a stationary-frame PI `law` ([`CurrentLaw::response`])

@@ -95,6 +95,11 @@ impl TuneCampaigns {
         Self { each }
     }
 
+    /// The campaigns themselves.
+    pub(super) fn campaigns(&self) -> Vec<hil_sim::campaign::Campaign> {
+        self.each.clone()
+    }
+
     /// Their corner runs prepared for predictions under many speed laws.
     pub(super) fn prediction(&self) -> Result<Prediction<'_>, String> {
         let each = self

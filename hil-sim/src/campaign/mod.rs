@@ -925,9 +925,19 @@ impl Campaign {
     /// Every run of this shard, in parallel on all cores (rayon), in index order;
     /// `progress(done)` after each; the first error (an interrupt: `cancel`) stops them all.
     pub fn run(&self, progress: impl Fn(u64) + Sync, cancel: &AtomicBool) -> Result<Vec<Verdict>, String> {
+        self.run_where(|_| true, progress, cancel)
+    }
+
+    /// [`Self::run`] on this shard's runs `k` with `keep(k)` only, in their order.
+    pub fn run_where(
+        &self,
+        keep: impl Fn(u64) -> bool,
+        progress: impl Fn(u64) + Sync,
+        cancel: &AtomicBool,
+    ) -> Result<Vec<Verdict>, String> {
         self.check()?;
         let done = AtomicU64::new(0);
-        let indices: Vec<u64> = self.indices().collect();
+        let indices: Vec<u64> = self.indices().filter(|&k| keep(k)).collect();
         indices
             .par_iter()
             .map(|&k| {

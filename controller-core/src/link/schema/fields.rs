@@ -185,6 +185,7 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
         SpeedFeedback::Sensorless => 1,
         SpeedFeedback::EncoderRideThrough => 2,
     })?;
+    w.f64(s.speed_resolution_rad_s)?;
     // The control law: a tag, and V/Hz's ramp.
     match s.control {
         Control::Vector => w.u8(0)?,
@@ -269,6 +270,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         2 => SpeedFeedback::EncoderRideThrough,
         _ => return Err(DecodeError::Value),
     };
+    let speed_resolution_rad_s = r.f64()?;
     let control = match r.u8()? {
         0 => Control::Vector,
         1 => Control::VHz { ramp_rad_s2: r.f64()?, k_u: r.f64()?, k_w: r.f64()? },
@@ -308,6 +310,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         inductance_range,
         protection,
         speed_feedback,
+        speed_resolution_rad_s,
         control,
         magnetizing,
     })
