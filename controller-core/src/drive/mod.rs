@@ -735,16 +735,19 @@ struct SlowRun {
     /// loops follow by that step at the voltage limit ([`SwitchWatch::add`]).
     forcing_a: f32,
     /// The speed the present flux's torque limit is judged at, mechanical rad/s: the
-    /// reading, held while the reading stays within one count of the encoder's speed window
-    /// of it (`DriveConfig::speed_resolution_rad_s`; the observer's reading itself). At the
-    /// voltage limit that limit is steep in the speed (the back-EMF takes nearly all of the
-    /// voltage), and a speed held between two counts reads one or the other: judged at the
-    /// reading, the population's member 022 (35 kW, 500 lines, 0.785 rad/s per count at
-    /// 20 kHz) had its limit jump 53 ↔ 14 A each slow step accelerating through 140 rad/s,
+    /// reading, held while the reading stays within half a count of the encoder's speed
+    /// window of it (`DriveConfig::speed_resolution_rad_s`; the observer's reading itself).
+    /// At the voltage limit that limit is steep in the speed (the back-EMF takes nearly all
+    /// of the voltage), and a speed held between two counts reads one or the other: judged
+    /// at the reading, the population's member 022 (35 kW, 500 lines, 0.785 rad/s per count
+    /// at 20 kHz) had its limit jump 53 ↔ 14 A each slow step accelerating through 140 rad/s,
     /// the references chattered by tens of A per 0.5 ms, the currents fell 50 % short and
     /// the stuck-switch check tripped a healthy drive (`SwitchOpen` on 10 of the fault
-    /// matrix's top-speed rows over seeds 0–11). Held so, a dither of one count does not move
-    /// the limit, and a change of speed moves it at once, at most a count behind.
+    /// matrix's top-speed rows over seeds 0–11). Held so, a reading alternating between two
+    /// counts holds it between them, and a change of speed moves it at once, half a count
+    /// behind — a whole count's band lagged a load's dip by a count, and member 001 at 4 kHz
+    /// (8 poles, 500 lines) then dipped 0.16972 of its base speed against the 0.16967 its
+    /// requirements allowed on a corner run (load on at its top speed) and tune refused it.
     omega_limit_rad_s: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,

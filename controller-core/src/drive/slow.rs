@@ -345,9 +345,9 @@ impl SlowState {
         // (`FollowingError` in 30 of 512 generating runs; population test
         // `a_braking_drive_holds_its_load_at_top_speed`).
         let v_now = if torque_nm * w < 0.0 { v_target } else { v_budget };
-        // Judged at a speed held within one count of the encoder's reading: steep in the
+        // Judged at a speed held within half a count of the encoder's reading: steep in the
         // speed at the voltage limit, it would follow a count's dither (`omega_limit_rad_s`).
-        let band = if self.on_observer(cfg) { 0.0 } else { cfg.speed_resolution_rad_s };
+        let band = if self.on_observer(cfg) { 0.0 } else { 0.5 * cfg.speed_resolution_rad_s };
         self.run.omega_limit_rad_s =
             if running { self.run.omega_limit_rad_s.limit(w - band, w + band) } else { w };
         let w_limit = self.run.omega_limit_rad_s;

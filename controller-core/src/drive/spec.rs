@@ -334,9 +334,9 @@ pub struct DriveSpec {
     /// window ([`crate::encoder::speed_resolution_rad_s`]; a drive file derives it from its
     /// board's `encoder_lines` and the slow period), 0 for a reading without quantisation.
     /// A speed held between two counts reads one or the other: the drive judges the present
-    /// flux's torque limit, which is steep in the speed at the voltage limit, at a speed that
-    /// moves only when the reading leaves this band ([`DriveConfig::new`]; unused on the
-    /// observer's speed).
+    /// flux's torque limit, which is steep in the speed at the voltage limit, at a speed held
+    /// within half of it of the reading ([`DriveConfig::new`]; unused on the observer's
+    /// speed).
     pub speed_resolution_rad_s: f64,
     /// The control law.
     pub control: Control,
