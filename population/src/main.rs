@@ -71,10 +71,12 @@ struct Select {
 struct RunArgs {
     #[command(flatten)]
     select: Select,
-    /// PWM rates to run every member at, Hz, comma separated (each 1 000 … 40 000); none:
-    /// each board's own (drawn from 4–20 kHz).
-    #[arg(long, value_delimiter = ',', default_value = "4000,10000,20000")]
+    /// PWM rates to run every member at, Hz, comma separated (each 1 000 … 40 000).
+    #[arg(long, value_delimiter = ',', default_value = "4000,10000,20000", conflicts_with = "own_pwm")]
     pwm: Vec<f64>,
+    /// Run each member at its board's own PWM rate (drawn from 4–20 kHz) instead of `--pwm`'s.
+    #[arg(long)]
+    own_pwm: bool,
     /// Campaign runs per member (the box's 64 corner runs first).
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=100_000))]
     campaign_runs: u64,
@@ -247,7 +249,7 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
     a.pwm.iter().try_for_each(|&f| check_pwm(f))?;
     let all = members(&a.select)?;
     let rates: Vec<Option<f64>> =
-        if a.pwm.is_empty() { vec![None] } else { a.pwm.iter().map(|f| Some(*f)).collect() };
+        if a.own_pwm { vec![None] } else { a.pwm.iter().map(|f| Some(*f)).collect() };
     let jobs: Vec<(&Member, Option<f64>)> =
         all.iter().flat_map(|m| rates.iter().map(move |r| (m, *r))).collect();
     let plan = Plan {
@@ -310,7 +312,8 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         "seed": a.select.seed,
         "members": a.select.members,
         "shipped": a.select.shipped,
-        "pwm_hz": a.pwm,
+        // null: each board's own.
+        "pwm_hz": if a.own_pwm { None } else { Some(&a.pwm) },
         "campaign_runs": a.campaign_runs,
         "matrix": !a.no_matrix,
         "speed": format!("{:?}", a.speed),
@@ -479,6 +482,7 @@ mod tests {
         let args = RunArgs {
             select: select(0),
             pwm: vec![20_000.0],
+            own_pwm: false,
             campaign_runs: 200,
             no_matrix: false,
             speed: design::tune::SpeedDesign::Auto,
@@ -488,6 +492,25 @@ mod tests {
         };
         assert_eq!(run(&args, &cancel).unwrap_err(), e);
         assert!(!dir.exists());
+    }
+
+    /// `run --own-pwm` runs each member at its board's own rate, and cannot be asked with
+    /// `--pwm` (the help promised each board's own rate for no `--pwm`, which no command
+    /// line could give: an empty `--pwm` is no number, and without it the default's three
+    /// rates ran).
+    #[test]
+    fn each_boards_own_rate_is_asked_by_name() {
+        let args = |line: &[&str]| match Cli::try_parse_from(line).map(|c| c.cmd) {
+            Ok(Cmd::Run(a)) => Ok((a.own_pwm, a.pwm)),
+            Ok(c) => panic!("{c:?}"),
+            Err(e) => Err(e.kind()),
+        };
+        assert_eq!(args(&["population", "run", "--own-pwm"]), Ok((true, vec![4_000.0, 10_000.0, 20_000.0])));
+        assert_eq!(args(&["population", "run"]), Ok((false, vec![4_000.0, 10_000.0, 20_000.0])));
+        assert_eq!(
+            args(&["population", "run", "--own-pwm", "--pwm", "4000"]),
+            Err(clap::error::ErrorKind::ArgumentConflict)
+        );
     }
 
     /// A shipped member is written too, as `run` tunes it, with the command that tunes it on

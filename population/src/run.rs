@@ -587,11 +587,22 @@ mod tests {
         pwm_hz: f64,
         edit: fn(&str) -> Result<String, String>,
     ) -> (design::tune::Tuned, DriveFile, f64) {
+        tuned_member_with(index, name, pwm_hz, edit, SpeedDesign::Auto)
+    }
+
+    /// [`tuned_member`] with the speed law `speed` asked of tune.
+    fn tuned_member_with(
+        index: u64,
+        name: &str,
+        pwm_hz: f64,
+        edit: fn(&str) -> Result<String, String>,
+        speed: SpeedDesign,
+    ) -> (design::tune::Tuned, DriveFile, f64) {
         let m = draw(1, index, None).unwrap();
         assert!(m.name.starts_with(name), "{}", m.name);
         let (path, text, vdc) = inputs(&m, Some(pwm_hz), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
         let text = edit(&text).unwrap();
-        let structure = Structure { current: CurrentDesign::Pi, speed: SpeedDesign::Auto };
+        let structure = Structure { current: CurrentDesign::Pi, speed };
         let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
         let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
         (tuned, file, vdc)
@@ -1113,12 +1124,17 @@ mod tests {
     /// machine's own current through the diodes into the matrix's stiff, sagged bus, above
     /// 110 % of the trip level (201–211 A on sensor seeds 0–4 against 202 A). The criterion
     /// judges the current while the bridge is driven; the whole peak is reported beside it.
+    /// The drive is tune's with the saturated P (the bus sag's current is the machine's, not
+    /// the speed law's; tune's own choice at 4 kHz, a refusal since the present-flux limit's
+    /// speed is held within half a count of the reading, docs/population.md).
     #[test]
     fn a_bus_sag_at_top_speed_is_judged_on_the_current_the_bridge_drove() {
         use hil_sim::faults::Point;
-        let (tuned, file, vdc) = tuned_member(22, "022-35kW", 4_000.0, |t| Ok(t.into()));
+        let (tuned, file, vdc) =
+            tuned_member_with(22, "022-35kW", 4_000.0, |t| Ok(t.into()), SpeedDesign::SaturatedP);
         let mut matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
-        // Sensor seed 1: 210 A through the diodes (seed 0's 201 A lay just under the limit).
+        // Sensor seed 1: 210 A through the diodes with the PI tune wrote when this was found
+        // (seed 0's 201 A lay just under the limit).
         matrix.seed = 1;
         let rows = matrix.rows().unwrap();
         let (k, c, at) = rows
