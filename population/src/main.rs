@@ -500,13 +500,17 @@ mod tests {
     /// rates ran).
     #[test]
     fn each_boards_own_rate_is_asked_by_name() {
-        let args = |line: &[&str]| match Cli::try_parse_from(line).map(|c| c.cmd) {
-            Ok(Cmd::Run(a)) => Ok((a.own_pwm, a.pwm)),
-            Ok(c) => panic!("{c:?}"),
-            Err(e) => Err(e.kind()),
+        let args = |line: &[&str]| {
+            Cli::try_parse_from(line)
+                .map(|c| match c.cmd {
+                    Cmd::Run(a) => Some((a.own_pwm, a.pwm)),
+                    _ => None,
+                })
+                .map_err(|e| e.kind())
         };
-        assert_eq!(args(&["population", "run", "--own-pwm"]), Ok((true, vec![4_000.0, 10_000.0, 20_000.0])));
-        assert_eq!(args(&["population", "run"]), Ok((false, vec![4_000.0, 10_000.0, 20_000.0])));
+        let three = vec![4_000.0, 10_000.0, 20_000.0];
+        assert_eq!(args(&["population", "run", "--own-pwm"]), Ok(Some((true, three.clone()))));
+        assert_eq!(args(&["population", "run"]), Ok(Some((false, three))));
         assert_eq!(
             args(&["population", "run", "--own-pwm", "--pwm", "4000"]),
             Err(clap::error::ErrorKind::ArgumentConflict)
