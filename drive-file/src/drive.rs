@@ -1279,9 +1279,9 @@ pub fn drive_spec(
                 controller_core::drive::DUTY_MAX_MIN
             ),
         ),
-        // Only `DriveConfig::from_raw` returns it.
         // Derived from the board's encoder (lines ≥ 1, the slow period positive).
         DriveError::SpeedResolution => src.error("board.encoder_lines", e.to_string()),
+        // Only `DriveConfig::from_raw` returns it.
         DriveError::Raw => src.error("controller", "configuration rejected"),
         DriveError::Observer(e) => src.error(
             "controller.speed_feedback",

@@ -99,9 +99,10 @@ crate::raw::raw_struct! {
         pub(super) flux_lag_j_kgm2: f32,
         /// The shortest flux fall time, s: [`FLUX_FALL_SLOW_PERIODS`] slow periods.
         pub(super) flux_fall_time_min_s: f32,
-        /// The encoder speed reading's resolution, rad/s ([`DriveSpec::speed_resolution_rad_s`]):
-        /// the band within which the present-flux limit's speed holds (`RunState::omega_limit_rad_s`).
-        pub(super) speed_resolution_rad_s: f32,
+        /// Half the encoder speed reading's resolution, rad/s
+        /// ([`DriveSpec::speed_resolution_rad_s`]): the band within which the present-flux
+        /// limit's speed holds (`SlowRun::omega_limit_rad_s`).
+        pub(super) speed_hold_band_rad_s: f32,
         /// Slow steps of Magnetizing without reaching the running flux before
         /// [`Fault::NoMotorCurrent`].
         pub(super) magnetizing_steps_max: u32,
@@ -584,7 +585,7 @@ impl DriveConfig {
             ts_s: ts as f32,
             flux_lag_j_kgm2: (FLUX_LAG_FRACTION * spec.motor.j_kgm2()) as f32,
             flux_fall_time_min_s: (FLUX_FALL_SLOW_PERIODS * t_slow) as f32,
-            speed_resolution_rad_s: spec.speed_resolution_rad_s as f32,
+            speed_hold_band_rad_s: (0.5 * spec.speed_resolution_rad_s) as f32,
             slow_divider: spec.slow_divider,
             adopt_at,
             limits: Limits {

@@ -736,7 +736,7 @@ struct SlowRun {
     forcing_a: f32,
     /// The speed the present flux's torque limit is judged at, mechanical rad/s: the
     /// reading, held while the reading stays within half a count of the encoder's speed
-    /// window of it (`DriveConfig::speed_resolution_rad_s`; the observer's reading itself).
+    /// window of it (`DriveConfig::speed_hold_band_rad_s`; the observer's reading itself).
     /// At the voltage limit that limit is steep in the speed (the back-EMF takes nearly all
     /// of the voltage), and a speed held between two counts reads one or the other: judged
     /// at the reading, the population's member 022 (35 kW, 500 lines, 0.785 rad/s per count

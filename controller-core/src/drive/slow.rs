@@ -347,7 +347,7 @@ impl SlowState {
         let v_now = if torque_nm * w < 0.0 { v_target } else { v_budget };
         // Judged at a speed held within half a count of the encoder's reading: steep in the
         // speed at the voltage limit, it would follow a count's dither (`omega_limit_rad_s`).
-        let band = if self.on_observer(cfg) { 0.0 } else { 0.5 * cfg.speed_resolution_rad_s };
+        let band = if self.on_observer(cfg) { 0.0 } else { cfg.speed_hold_band_rad_s };
         self.run.omega_limit_rad_s =
             if running { self.run.omega_limit_rad_s.limit(w - band, w + band) } else { w };
         let w_limit = self.run.omega_limit_rad_s;
