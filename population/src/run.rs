@@ -828,6 +828,23 @@ mod tests {
         assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
     }
 
+    /// The 153 kW member (010) at 4 kHz: phase a's upper switch stuck open at top speed,
+    /// motoring. The back-EMF drives the phase's current the other way through the upper
+    /// diode in its positive half-waves, while the speed loop, asking back the lost torque,
+    /// grows the references beyond what the bus drives, so the live direction no longer
+    /// *follows*; the check waited for it and named the switch after 150–184 ms against the
+    /// row's bound of 52.6 ms (the sample's one failure at 4 kHz). Named on the dead
+    /// direction's reversed current (`SWITCH_FOLLOWING_SHARE`), within 30 ms.
+    #[test]
+    fn a_dead_switch_at_top_speed_is_named_by_the_current_driven_the_other_way() {
+        use hil_sim::faults::Point;
+        let o = member_row(10, "010-153kW", 4_000.0, "switch a upper stuck open", Point::Top, true);
+        let (fault, after_s) = o.detected.unwrap();
+        assert_eq!(fault, controller_core::drive::Fault::SwitchOpen);
+        assert!(after_s < 0.03, "{after_s}");
+        assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
+    }
+
     /// The 2.8 kW member (007) at 20 kHz as tune tunes it: sensor b's gain of 0.5 at
     /// standstill, generating, struck with phase b's current held within ±0.8 A of zero
     /// while the other two carry 5 A. Its reading's error, 0.5·|i_b|, is at the current-sum

@@ -1470,6 +1470,46 @@ fn a_dead_switch_whose_current_carries_through_the_opposite_diode_is_named() {
     assert_eq!(run(&|n| wave(n, -20f32.to_radians()), true), None);
 }
 
+/// A switch stuck open at speed with the loops at the voltage limit (synthetic slow samples,
+/// 40 per electrical period, unit amplitude, commanded level 0.1 A, the shipped 2.5 ms
+/// window at a 0.5 ms slow period): every phase carries its reference by turns at 0.2 and
+/// 0.6 of it (the speed loop, asking back the lost torque, grew the references beyond what
+/// the bus drives: every direction misses half its samples and follows none), and phase a's
+/// positive half-waves flow the other way, at −0.5 of the reference (the back-EMF through
+/// the upper diode). Named `SwitchOpen` on the reversed current within two electrical
+/// periods, where the check waiting for the live direction to follow named none in ten.
+/// Healthy at the same limit, or 100° behind its references (the other way in 58 % of the
+/// counted samples), nothing.
+#[test]
+fn a_dead_switch_driven_the_other_way_at_the_voltage_limit_is_named() {
+    let per_period = 40;
+    let gain = [0.18126924, 0.048770577];
+    let wave = |n: usize, shift: f32| balanced(core::f32::consts::TAU * n as f32 / per_period as f32 + shift);
+    let dead_from = 4 * per_period;
+    let limited = |n: usize| {
+        let r = wave(n, 0.0);
+        let k = if n.is_multiple_of(2) { 0.2 } else { 0.6 };
+        let m = Abc { a: k * r.a, b: k * r.b, c: k * r.c };
+        if n >= dead_from && r.a > 0.0 { Abc { a: -0.5 * r.a, ..m } } else { m }
+    };
+    let run = |measure: &dyn Fn(usize) -> Abc| {
+        let mut w = SwitchWatch::default();
+        (0..14 * per_period).find_map(|n| {
+            let r = wave(n, 0.0);
+            w.add([r; 2], [measure(n), r], [0.1, 0.0], gain).map(|f| (f, n))
+        })
+    };
+    let (f, n) = run(&limited).unwrap();
+    assert_eq!(f, Fault::SwitchOpen);
+    assert!(n > dead_from && n < dead_from + 2 * per_period, "{n}");
+    let healthy = |n: usize| {
+        let (r, k) = (wave(n, 0.0), if n.is_multiple_of(2) { 0.2 } else { 0.6 });
+        Abc { a: k * r.a, b: k * r.b, c: k * r.c }
+    };
+    assert_eq!(run(&healthy), None);
+    assert_eq!(run(&|n| wave(n, -100f32.to_radians())), None);
+}
+
 /// A forcing of the flux steps the d reference, and the loops follow the step at the voltage
 /// limit: a current that never followed it falls short by at most the step, so the
 /// stuck-switch check counts no sample while the step could make a miss — more than

@@ -87,7 +87,31 @@ pub const SWITCH_MISSING_SHARE: f32 = 0.75;
 /// carried since the dead one began to miss, and no phase carries nothing either way (one
 /// direction missing, the other not carried since: an open lead's — the other two phases
 /// then share one current, one of them following one way only).
+///
+/// Or when the dead direction's current flowed *the other way* in more than
+/// [`SWITCH_MISSING_SHARE`] of the samples of its last visit (its reference's counted
+/// stretch of a half-wave, `Direction::reversed`) and the other direction has carried
+/// since, following or not; such a phase is no open lead either. A lagging current does
+/// not do that: a visit's samples lie within 60° of its reference's peak
+/// ([`SWITCH_LEVEL_SHARE`]), and a current φ behind flows the other way in (φ − 30°)/120° of
+/// them — three quarters only beyond φ = 120°, a third of a turn behind (the 3 300 V
+/// drive's loops, the most behind of the project's drives at 90° at mid-speed: half).
+/// Judged per whole visit, not over a window: the reversed samples of a lagging current
+/// are the first of each visit, which a window ending there reads as all of them. A switch stuck open at speed does:
+/// its phase sits at the other rail whenever its current flows the dead way (through the
+/// opposite diode), and the back-EMF drives it the other way. At the voltage limit the
+/// speed loop, asking back the lost torque, grows the references beyond what the bus can
+/// drive, and the live direction, short of them both ways like every phase, no longer
+/// follows: the population's 153 kW member at 4 kHz, its upper switch stuck open at top
+/// speed motoring — references from 80 to 430 A, the live direction carrying 20–60 % of
+/// them, the dead one −0.5 to −1.3 of its own — was named after 150–184 ms against a
+/// bound of 52.6 ms (sensor seeds 0, 1, 5, 9), and after 15–17.5 ms by its reversed
+/// current.
 pub const SWITCH_FOLLOWING_SHARE: f32 = 0.25;
+/// A visit of fewer samples tells no reversal ([`SWITCH_FOLLOWING_SHARE`]): half the six a
+/// visit holds (a third of the period) at ≈ 18 slow samples per electrical period, what the
+/// slow rate leaves at 700 rad/s (`Drive::check_phases`).
+pub const SWITCH_VISIT_SAMPLES: u8 = 3;
 /// … "follows" judged over this many open-phase windows: a current lagging its reference
 /// misses the first part of every half-wave and carries the rest, which the shorter window
 /// reads as a dead direction followed by a live one (the 3 300 V drive's loops, 90° behind
@@ -292,6 +316,14 @@ struct Direction {
     /// lagging current holds misses).
     seen_long: f32,
     missed_long: f32,
+    /// Samples in this direction's present (or last) visit — its reference's counted
+    /// stretch of a half-wave, ended by the other direction's next sample — and how many of
+    /// them flowed the other way (any amount: the sensors' noise alone reverses half the
+    /// samples of a current at zero, never most).
+    visit: [u8; 2],
+    /// The last whole visit's current flowed the other way in more than
+    /// [`SWITCH_MISSING_SHARE`] of its samples, at least [`SWITCH_VISIT_SAMPLES`] of them.
+    reversed: bool,
     /// A sample of this direction carried since the other direction last missed in good
     /// standing.
     fresh: bool,
@@ -307,8 +339,16 @@ impl Default for Direction {
 
 impl Direction {
     /// No samples yet.
-    const NONE: Self =
-        Self { seen: 0.0, missed: 0.0, seen_long: 0.0, missed_long: 0.0, fresh: false, dead: false };
+    const NONE: Self = Self {
+        seen: 0.0,
+        missed: 0.0,
+        seen_long: 0.0,
+        missed_long: 0.0,
+        visit: [0; 2],
+        reversed: false,
+        fresh: false,
+        dead: false,
+    };
 
     /// Judged (at least [`SWITCH_SEEN`] of a window's samples) and missing in more than
     /// [`SWITCH_MISSING_SHARE`] of them.
@@ -371,7 +411,8 @@ impl PhaseDirections {
     /// `true`: a stuck switch — one direction missing while the other follows and has
     /// carried (the current at the `commanded` level or more: clear of the sensors' noise
     /// and offsets) since the first began to miss, or, the first gone missing, the other's
-    /// next sample carries. Its current then flows through the opposite diode and pins the
+    /// next sample carries; the other need not follow where the missing one's current
+    /// flowed the other way ([`SWITCH_FOLLOWING_SHARE`]). Its current then flows through the opposite diode and pins the
     /// phase to the other rail. An open lead misses both ways, loops that cannot follow miss
     /// both ways in every phase, and a lagging current misses the start of every half-wave
     /// both ways: none of them is a stuck switch.
@@ -395,6 +436,15 @@ impl PhaseDirections {
         if magnitude < level {
             return false;
         }
+        // This sample ends the other direction's visit; it opens or goes on with this one's.
+        if other.visit[0] > 0 {
+            let [n, reversed] = core::mem::take(&mut other.visit);
+            other.reversed =
+                n >= SWITCH_VISIT_SAMPLES && f32::from(reversed) > SWITCH_MISSING_SHARE * f32::from(n);
+        }
+        let [n, reversed] = &mut this.visit;
+        *n = n.saturating_add(1);
+        *reversed = reversed.saturating_add(u8::from(d * m < 0.0));
         if missed && !this.lapsed() {
             // A miss in good standing: the other way must carry anew (an open lead misses
             // both ways from the same moment). Further misses of a direction already out of
@@ -424,10 +474,13 @@ impl PhaseDirections {
         // stuck switch's dead direction misses every sample.
         let missing = missed && this.missing();
         this.dead |= missing;
-        // The other way, dead, answered by this sample: carried here, the switch is stuck.
-        let answered = core::mem::take(&mut other.dead) && carried && this.following();
-        *open = (this.missing() && !other.fresh) || (other.missing() && !this.fresh);
-        answered || (missing && other.following() && other.fresh)
+        // The other way, dead, answered by this sample: carried here, the switch is stuck —
+        // on this way's following, or on the dead way's current driven the other way.
+        let answered = core::mem::take(&mut other.dead) && carried && (this.following() || other.reversed);
+        // A phase whose current was driven either way against its reference is connected.
+        let reversed = this.reversed || other.reversed;
+        *open = ((this.missing() && !other.fresh) || (other.missing() && !this.fresh)) && !reversed;
+        answered || (missing && (other.following() || this.reversed) && other.fresh)
     }
 }
 
