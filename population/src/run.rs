@@ -712,6 +712,25 @@ mod tests {
         }
     }
 
+    /// Where tune lowers the speed loop's torque limit below the template's, the file's stall
+    /// and following times (derived from that limit) move with it; tune confirmed its drive
+    /// in software in the loop with the template's, 0.3–3 % off, so the population ran member
+    /// 007's and 010's corner runs twice (at every rate). Member 007 at 20 kHz: its campaigns in
+    /// SIL carry the written file's protection, and its corner runs are the campaign's own.
+    #[test]
+    fn tune_confirms_the_protection_its_file_derives() {
+        let m = draw(1, 7, None).unwrap();
+        let (tuned, path, vdc) = tune_member(&m, 20_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
+        let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
+        assert!(!tuned.sil_campaigns.is_empty());
+        for sil in &tuned.sil_campaigns {
+            assert_eq!(sil.spec.protection, file.spec.protection);
+        }
+        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
+        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+        assert!(tuned.passed_corner_runs_of(&c));
+    }
+
     /// Tune runs up to `SIL_CONFIRMATIONS` (8) points of the region in software in the loop
     /// before it refuses, each at its setpoint weight stepped down while its drive misses only
     /// what the weight shapes. Member 022 (35 kW) at 20 kHz: with two points run in SIL tune

@@ -525,6 +525,17 @@ fn tune_with(
         Ok(position_ok(&certify_speed(&spec, &cert)?))
     })?
     .ok_or("no position-loop gain passes the certificate")?;
+    // The protection as the written file derives it: its stall and following times follow
+    // the speed loop's torque limit (`drive_file::drive::protection_with_defaults`), which
+    // tune may have lowered from the template's — the drive run in software in the loop
+    // below is the one written (the population's members 007 and 010 were confirmed with
+    // times 0.3–3 % off their files', and `population run` ran their corner runs twice).
+    let table = saturating.as_ref().map(|(_, _, t)| t);
+    let (provisional, _) = write(template_text, template_path, &spec, table, &cert, omega_c, "")?;
+    spec.protection = drive_file::DriveFile::parse(Path::new("<tuned>"), &provisional)
+        .map_err(|e| format!("tuned file: {e}"))?
+        .spec
+        .protection;
     // The requirements over the box, predicted from the speed law alone (the campaign then
     // judges the whole drive): on the drive's rated bus, or 310 V within its range.
     let vdc = prediction_bus_v(&file);
@@ -605,7 +616,6 @@ fn tune_with(
     let met_in_sil =
         predicted.is_empty() && (structure.speed == SpeedDesign::Auto || speed_design == SpeedDesign::Pi);
     let structure = Structure { speed: speed_design, ..structure };
-    let table = saturating.as_ref().map(|(_, _, t)| t);
     let (text, changes) = write(template_text, template_path, &spec, table, &cert, omega_c, &speed_origin)?;
     // The file as written, read back and certified whole.
     let back =
