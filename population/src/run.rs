@@ -421,17 +421,41 @@ pub fn families_table(families: &[Family]) -> String {
 /// above in the last).
 const POWER_DECADES_W: [f64; 4] = [1e2, 1e3, 1e4, 1e5];
 
-/// The verdicts over rated power × PWM rate as a markdown table: one row per power decade
-/// (and one for the shipped motors without a nameplate), one column per PWM rate, each cell
-/// `pass / refuse / FAIL` (ERROR added when there is one), and the totals.
-pub fn grid(reports: &[Report]) -> String {
-    let mut rates: Vec<f64> = Vec::new();
-    for r in reports {
-        if !rates.contains(&r.pwm_hz) {
-            rates.push(r.pwm_hz);
-        }
-    }
+/// [`grid`]'s columns: one per PWM rate up to this many rates (`run --pwm`'s) …
+const RATE_COLUMNS_MAX: usize = 6;
+/// … else the rates in bands split here, Hz (`run --own-pwm`: each board's own, drawn from
+/// 4–20 kHz — a column per drive made a table 200 columns wide).
+const RATE_BAND_EDGES_HZ: [f64; 2] = [6e3, 12e3];
+
+/// [`grid`]'s columns: each a label and the rates `lo ≤ f < hi` it holds (`lo = hi`: `f`
+/// alone).
+fn rate_columns(reports: &[Report]) -> Vec<(String, f64, f64)> {
+    let mut rates: Vec<f64> = reports.iter().map(|r| r.pwm_hz).collect();
     rates.sort_by(f64::total_cmp);
+    rates.dedup();
+    if rates.len() <= RATE_COLUMNS_MAX {
+        return rates.iter().map(|&f| (format!("{:.0} kHz", f / 1e3), f, f)).collect();
+    }
+    let edges: Vec<f64> =
+        std::iter::once(f64::NEG_INFINITY).chain(RATE_BAND_EDGES_HZ).chain([f64::INFINITY]).collect();
+    edges
+        .windows(2)
+        .filter_map(|w| {
+            let (lo, hi) = (*w.first()?, *w.last()?);
+            let inside: Vec<f64> = rates.iter().copied().filter(|f| (lo..hi).contains(f)).collect();
+            let (first, last) = (inside.first()?, inside.last()?);
+            Some((format!("{:.1}–{:.1} kHz", first / 1e3, last / 1e3), lo, hi))
+        })
+        .collect()
+}
+
+/// The verdicts over rated power × PWM rate as a markdown table: one row per power decade
+/// (and one for the shipped motors without a nameplate), one column per PWM rate (or band of
+/// rates: [`rate_columns`]), each cell `pass / refuse / FAIL` (ERROR added when there is
+/// one), and the totals.
+pub fn grid(reports: &[Report]) -> String {
+    let columns = rate_columns(reports);
+    let holds = |(_, lo, hi): &(String, f64, f64), f: f64| f == *lo || (*lo..*hi).contains(&f);
     let band = |p: Option<f64>| -> Option<usize> {
         p.map(|p| POWER_DECADES_W.iter().rposition(|&lo| p >= lo).unwrap_or(0))
     };
@@ -462,9 +486,9 @@ pub fn grid(reports: &[Report]) -> String {
         }
         c
     };
-    let head: Vec<String> = rates.iter().map(|f| format!("{:.0} kHz", f / 1e3)).collect();
+    let head: Vec<&str> = columns.iter().map(|(label, _, _)| label.as_str()).collect();
     let mut s =
-        format!("| rated power | {} | all |\n|---|{}---|\n", head.join(" | "), "---|".repeat(rates.len()));
+        format!("| rated power | {} | all |\n|---|{}---|\n", head.join(" | "), "---|".repeat(columns.len()));
     let mut bands: Vec<Option<usize>> = reports.iter().map(|r| band(r.power_w)).collect();
     bands.sort();
     bands.dedup();
@@ -473,10 +497,10 @@ pub fn grid(reports: &[Report]) -> String {
     for (name, row) in rows {
         let keep = |r: &&Report| row.is_none_or(|b| band(r.power_w) == b);
         let mut line = format!("| {name} |");
-        for &f in &rates {
+        for c in &columns {
             line.push_str(&format!(
                 " {} |",
-                cell(&mut reports.iter().filter(keep).filter(|r| r.pwm_hz == f))
+                cell(&mut reports.iter().filter(keep).filter(|r| holds(c, r.pwm_hz)))
             ));
         }
         line.push_str(&format!(" {} |\n", cell(&mut reports.iter().filter(keep))));
@@ -533,6 +557,18 @@ mod tests {
             "| all | 2 / 0 / 1 | 1 / 1 / 0 (+1 ERROR) | 3 / 1 / 1 (+1 ERROR) |",
             "{g}"
         );
+        // Each board at its own rate: the rates in three bands, not a column each (200
+        // columns for `run --members 200 --own-pwm`).
+        let own: Vec<Report> =
+            (0..10).map(|k| report(Some(500.0), 4e3 + 1.6e3 * f64::from(k), Verdict::Pass)).collect();
+        let g = grid(&own);
+        let lines: Vec<&str> = g.lines().collect();
+        assert_eq!(
+            lines.first(),
+            Some(&"| rated power | 4.0–5.6 kHz | 7.2–10.4 kHz | 12.0–18.4 kHz | all |"),
+            "{g}"
+        );
+        assert_eq!(*lines.last().unwrap(), "| all | 2 / 0 / 0 | 3 / 0 / 0 | 5 / 0 / 0 | 10 / 0 / 0 |", "{g}");
         // A report read back from the JSON `run` writes is the same report.
         let json = serde_json::to_string(&reports[1]).unwrap();
         assert_eq!(serde_json::from_str::<Report>(&json).unwrap(), reports[1]);

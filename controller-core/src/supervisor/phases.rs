@@ -95,18 +95,18 @@ pub const SWITCH_MISSING_SHARE: f32 = 0.75;
 /// not do that: a visit's samples lie within 60° of its reference's peak
 /// ([`SWITCH_LEVEL_SHARE`]), and a current φ behind flows the other way in (φ − 30°)/120° of
 /// them — three quarters only beyond φ = 120°, a third of a turn behind (the 3 300 V
-/// drive's loops, the most behind of the project's drives at 90° at mid-speed: half).
-/// Judged per whole visit, not over a window: the reversed samples of a lagging current
-/// are the first of each visit, which a window ending there reads as all of them. A switch stuck open at speed does:
-/// its phase sits at the other rail whenever its current flows the dead way (through the
-/// opposite diode), and the back-EMF drives it the other way. At the voltage limit the
+/// drive's loops, 90° behind at mid-speed: half). Judged per whole visit, not over a
+/// window: the reversed samples of a lagging current are the first of each visit, which a
+/// window ending there reads as all of them (a 100° lag tripped so). A switch stuck open at
+/// speed does: its phase sits at the other rail whenever its current flows the dead way
+/// (through the opposite diode), and the back-EMF drives it the other way. At the voltage limit the
 /// speed loop, asking back the lost torque, grows the references beyond what the bus can
 /// drive, and the live direction, short of them both ways like every phase, no longer
 /// follows: the population's 153 kW member at 4 kHz, its upper switch stuck open at top
 /// speed motoring — references from 80 to 430 A, the live direction carrying 20–60 % of
 /// them, the dead one −0.5 to −1.3 of its own — was named after 150–184 ms against a
-/// bound of 52.6 ms (sensor seeds 0, 1, 5, 9), and after 15–17.5 ms by its reversed
-/// current.
+/// bound of 52.6 ms (sensor seeds 0, 1, 5, 9), and after 10.5–26.5 ms on seeds 0–11 by
+/// its reversed current.
 pub const SWITCH_FOLLOWING_SHARE: f32 = 0.25;
 /// A visit of fewer samples tells no reversal ([`SWITCH_FOLLOWING_SHARE`]): half the six a
 /// visit holds (a third of the period) at ≈ 18 slow samples per electrical period, what the
@@ -412,8 +412,8 @@ impl PhaseDirections {
     /// carried (the current at the `commanded` level or more: clear of the sensors' noise
     /// and offsets) since the first began to miss, or, the first gone missing, the other's
     /// next sample carries; the other need not follow where the missing one's current
-    /// flowed the other way ([`SWITCH_FOLLOWING_SHARE`]). Its current then flows through the opposite diode and pins the
-    /// phase to the other rail. An open lead misses both ways, loops that cannot follow miss
+    /// flowed the other way ([`SWITCH_FOLLOWING_SHARE`]). Its current then flows through the
+    /// opposite diode and pins the phase to the other rail. An open lead misses both ways, loops that cannot follow miss
     /// both ways in every phase, and a lagging current misses the start of every half-wave
     /// both ways: none of them is a stuck switch.
     ///
@@ -442,9 +442,13 @@ impl PhaseDirections {
             other.reversed =
                 n >= SWITCH_VISIT_SAMPLES && f32::from(reversed) > SWITCH_MISSING_SHARE * f32::from(n);
         }
+        // A visit longer than a count holds (a standing field's) is judged on its first
+        // samples: both counts stop together, the share stays the samples'.
         let [n, reversed] = &mut this.visit;
-        *n = n.saturating_add(1);
-        *reversed = reversed.saturating_add(u8::from(d * m < 0.0));
+        if *n < u8::MAX {
+            *n += 1;
+            *reversed += u8::from(d * m < 0.0);
+        }
         if missed && !this.lapsed() {
             // A miss in good standing: the other way must carry anew (an open lead misses
             // both ways from the same moment). Further misses of a direction already out of
@@ -639,6 +643,24 @@ mod tests {
         let measured = Abc { a: truth.a, b: gain_b * truth.b, c: gain_c * truth.c };
         let mut w = OpenPhaseWindow::default();
         (0..5).find_map(|_| w.add(truth, measured, 5, 1.0, sum_mean_max_a))
+    }
+
+    /// A visit longer than its counts hold (a field at rest, then turning) is judged on the
+    /// samples it counted, not on a count of reversed samples that went on past the count
+    /// of samples: 300 samples, the last 200 of them reversed — 0.78 of 255 read so, 0.61 of
+    /// the first 255 — is no reversed visit.
+    #[test]
+    fn a_long_visit_is_judged_on_the_samples_it_counted() {
+        let mut p = PhaseDirections::default();
+        let add = |p: &mut PhaseDirections, r: f32, m: f32| {
+            p.add([r, r], [m, r], [0.5, 0.25], 0.1, [0.18, 0.05]);
+        };
+        for k in 0..300 {
+            add(&mut p, 1.0, if k < 100 { 1.0 } else { -0.1 });
+        }
+        add(&mut p, -1.0, -1.0);
+        assert_eq!(p.positive.visit, [0, 0]);
+        assert!(!p.positive.reversed);
     }
 
     /// A healthy channel's gain error of 1.5 % (within `CURRENT_SENSOR_GAIN_TOLERANCE`) on
