@@ -451,7 +451,7 @@ fn rate_columns(reports: &[Report]) -> Vec<(String, f64, f64)> {
 
 /// The verdicts over rated power × PWM rate as a markdown table: one row per power decade
 /// (and one for the shipped motors without a nameplate), one column per PWM rate (or band of
-/// rates: [`rate_columns`]), each cell `pass / refuse / FAIL` (ERROR added when there is
+/// rates where a run has more than six), each cell `pass / refuse / FAIL` (ERROR added when there is
 /// one), and the totals.
 pub fn grid(reports: &[Report]) -> String {
     let columns = rate_columns(reports);
