@@ -239,8 +239,12 @@ impl SpeedPiSearch<'_> {
     ) -> Result<SpeedPiChoice, String> {
         // The campaigns' law has the same torque limit, which the prepared runs are sized by.
         let mut screen = Screen { prediction: campaigns.prediction()?, hard: Vec::new() };
+        // The certificate of a speed law: the current loops' checks (fixed here: the speed
+        // law is none of their inputs), worked out once, and the speed loops'.
+        let current_passes = certify_current(spec, cert)?.iter().all(|c| c.pass);
         let certified = |law: &SpeedLaw| -> Result<bool, String> {
-            Ok(certify(&DriveSpec { speed_law: *law, ..*spec }, cert)?.iter().all(|c| c.pass))
+            let speed = certify_speed(&DriveSpec { speed_law: *law, ..*spec }, cert)?;
+            Ok(current_passes && speed.iter().all(|c| c.pass))
         };
         let region = speed_pi_region(self.regions, 0.0, self.kp_max, SPEED_PI_SEARCH_STRIDE);
         // Seed 000's choice, or — where no point has the saturated P's bandwidth — the
