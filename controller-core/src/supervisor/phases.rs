@@ -99,9 +99,9 @@ pub const SWITCH_MISSING_SHARE: f32 = 0.75;
 /// window: the reversed samples of a lagging current are the first of each visit, which a
 /// window ending there reads as all of them (a 100° lag tripped so). A switch stuck open at
 /// speed does: its phase sits at the other rail whenever its current flows the dead way
-/// (through the opposite diode), and the back-EMF drives it the other way. At the voltage limit the
-/// speed loop, asking back the lost torque, grows the references beyond what the bus can
-/// drive, and the live direction, short of them both ways like every phase, no longer
+/// (through the opposite diode), and the back-EMF drives it the other way. At the voltage
+/// limit the speed loop, asking back the lost torque, grows the references beyond what the
+/// bus can drive, and the live direction, short of them both ways like every phase, no longer
 /// follows: the population's 153 kW member at 4 kHz, its upper switch stuck open at top
 /// speed motoring — references from 80 to 430 A, the live direction carrying 20–60 % of
 /// them, the dead one −0.5 to −1.3 of its own — was named after 150–184 ms against a
@@ -413,9 +413,9 @@ impl PhaseDirections {
     /// and offsets) since the first began to miss, or, the first gone missing, the other's
     /// next sample carries; the other need not follow where the missing one's current
     /// flowed the other way ([`SWITCH_FOLLOWING_SHARE`]). Its current then flows through the
-    /// opposite diode and pins the phase to the other rail. An open lead misses both ways, loops that cannot follow miss
-    /// both ways in every phase, and a lagging current misses the start of every half-wave
-    /// both ways: none of them is a stuck switch.
+    /// opposite diode and pins the phase to the other rail. An open lead misses both ways,
+    /// loops that cannot follow miss both ways in every phase, and a lagging current misses
+    /// the start of every half-wave both ways: none of them is a stuck switch.
     ///
     /// Out of line: one copy for the three phases, once per slow period.
     #[inline(never)]
