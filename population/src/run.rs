@@ -623,20 +623,21 @@ mod tests {
         pwm_hz: f64,
         edit: fn(&str) -> Result<String, String>,
     ) -> (design::tune::Tuned, DriveFile, f64) {
-        tuned_member_with(index, name, pwm_hz, edit, SpeedDesign::Auto)
+        tuned_member_with(index, name, Some(pwm_hz), edit, SpeedDesign::Auto)
     }
 
-    /// [`tuned_member`] with the speed law `speed` asked of tune.
+    /// [`tuned_member`] with the speed law `speed` asked of tune, at `pwm_hz` or (`None`) at
+    /// the member's own rate.
     fn tuned_member_with(
         index: u64,
         name: &str,
-        pwm_hz: f64,
+        pwm_hz: Option<f64>,
         edit: fn(&str) -> Result<String, String>,
         speed: SpeedDesign,
     ) -> (design::tune::Tuned, DriveFile, f64) {
         let m = draw(1, index, None).unwrap();
         assert!(m.name.starts_with(name), "{}", m.name);
-        let (path, text, vdc) = inputs(&m, Some(pwm_hz), Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
+        let (path, text, vdc) = inputs(&m, pwm_hz, Path::new(env!("CARGO_MANIFEST_DIR"))).unwrap();
         let text = edit(&text).unwrap();
         let structure = Structure { current: CurrentDesign::Pi, speed };
         let tuned = design::tune::tune(Path::new(&path), &text, &m.motor, None, structure).unwrap();
@@ -645,17 +646,17 @@ mod tests {
     }
 
     /// The fault-matrix row `case` at `point` (`motoring` or generating) of member `index`
-    /// tuned at `pwm_hz` ([`tuned_member`], the template as written), run as the whole
-    /// matrix runs it (its index seeds the sensors).
+    /// tuned at `pwm_hz` (`None`: its own rate; [`tuned_member`], the template as written),
+    /// run as the whole matrix runs it (its index seeds the sensors).
     fn member_row(
         index: u64,
         name: &str,
-        pwm_hz: f64,
+        pwm_hz: Option<f64>,
         case: &str,
         point: hil_sim::faults::Point,
         motoring: bool,
     ) -> hil_sim::faults::Outcome {
-        let (tuned, file, vdc) = tuned_member(index, name, pwm_hz, |t| Ok(t.into()));
+        let (tuned, file, vdc) = tuned_member_with(index, name, pwm_hz, |t| Ok(t.into()), SpeedDesign::Auto);
         let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
         let rows = matrix.rows().unwrap();
         let (k, c, at) = rows
@@ -854,7 +855,7 @@ mod tests {
     #[test]
     fn an_open_lead_at_its_phases_zero_crossing_is_judged_from_its_need() {
         use hil_sim::faults::Point;
-        let o = member_row(18, "018-7.2kW", 10_000.0, "open phase a", Point::Standstill, true);
+        let o = member_row(18, "018-7.2kW", Some(10_000.0), "open phase a", Point::Standstill, true);
         let (fault, after_s) = o.detected.unwrap();
         assert_eq!(fault, controller_core::drive::Fault::OpenPhase);
         assert!(
@@ -875,7 +876,7 @@ mod tests {
     #[test]
     fn a_dead_lower_switch_that_hides_its_phase_from_the_shunts_matters() {
         use hil_sim::faults::Point;
-        let o = member_row(13, "013-162W", 4_000.0, "switch a lower stuck open", Point::Top, false);
+        let o = member_row(13, "013-162W", Some(4_000.0), "switch a lower stuck open", Point::Top, false);
         let (fault, after_s) = o.detected.unwrap();
         assert_eq!(fault, controller_core::drive::Fault::CurrentSensor);
         assert_eq!(o.acting_after_s, Some(0.0), "{:?}", o.failures);
@@ -893,11 +894,33 @@ mod tests {
     #[test]
     fn a_dead_switch_at_top_speed_is_named_by_the_current_driven_the_other_way() {
         use hil_sim::faults::Point;
-        let o = member_row(10, "010-153kW", 4_000.0, "switch a upper stuck open", Point::Top, true);
+        let o = member_row(10, "010-153kW", Some(4_000.0), "switch a upper stuck open", Point::Top, true);
         let (fault, after_s) = o.detected.unwrap();
         assert_eq!(fault, controller_core::drive::Fault::SwitchOpen);
         assert!(after_s < 0.03, "{after_s}");
         assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
+    }
+
+    /// Healthy drives arriving at top speed to generate, at their own PWM rates: the speed
+    /// loop drops the torque from its limit to nearly nothing within a few milliseconds, and
+    /// at the voltage limit the loops undershoot the fall — member 068 (34 kW, 690 V, 6.5 kHz):
+    /// currents of 1.3–3 A against references of 6–8 A for 8 ms; member 020 (73 kW, 690 V,
+    /// 5.7 kHz): 4–8 A against 18–20 A. The stuck-switch check read a dead direction in
+    /// them and tripped `SwitchOpen` before the matrix's injection (068's encoder glitch,
+    /// bus sag and surge and short rows, 020's load seizure). Samples taken while the
+    /// references have just fallen do not count (`controller_core`'s `SwitchWatch::add`):
+    /// each row names its own fault.
+    #[test]
+    fn loops_undershooting_a_torque_fall_at_top_speed_trip_nothing() {
+        use controller_core::drive::Fault;
+        use hil_sim::faults::Point;
+        for (index, name, row) in
+            [(68, "068-34kW", "encoder glitch 100 counts"), (20, "020-73kW", "load seizure (10 × τ_max)")]
+        {
+            let o = member_row(index, name, None, row, Point::Top, false);
+            assert_ne!(o.detected.map(|d| d.0), Some(Fault::SwitchOpen), "{name}: {:?}", o.failures);
+            assert!(o.passed(), "{name} {row}: {:?} {:?}", o.detected, o.failures);
+        }
     }
 
     /// The 2.8 kW member (007) at 20 kHz as tune tunes it: sensor b's gain of 0.5 at
@@ -911,7 +934,7 @@ mod tests {
     #[test]
     fn a_sensor_gain_fault_near_its_phases_zero_is_judged_on_the_checks_window() {
         use hil_sim::faults::Point;
-        let o = member_row(7, "007-2.8kW", 20_000.0, "sensor b gain 0.5", Point::Standstill, false);
+        let o = member_row(7, "007-2.8kW", Some(20_000.0), "sensor b gain 0.5", Point::Standstill, false);
         assert_eq!(o.detected.map(|d| d.0), Some(controller_core::drive::Fault::CurrentSensor));
         assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
     }
@@ -1203,7 +1226,7 @@ mod tests {
     fn a_bus_sag_at_top_speed_is_judged_on_the_current_the_bridge_drove() {
         use hil_sim::faults::Point;
         let (tuned, file, vdc) =
-            tuned_member_with(22, "022-35kW", 4_000.0, |t| Ok(t.into()), SpeedDesign::SaturatedP);
+            tuned_member_with(22, "022-35kW", Some(4_000.0), |t| Ok(t.into()), SpeedDesign::SaturatedP);
         let mut matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
         // Sensor seed 1: 210 A through the diodes with the PI tune wrote when this was found
         // (seed 0's 201 A lay just under the limit).
@@ -1229,8 +1252,11 @@ mod tests {
     /// jumped 53 ↔ 14 A: the references chattered, the currents fell 50 % short and the
     /// stuck-switch check tripped at ≈ 162 rad/s, before the injection, on the two rows
     /// below (on 10 top-speed rows over seeds 0–11). Judged at a speed held within half a
-    /// count of the reading (`DriveSpec::speed_resolution_rad_s`), both pass — and with no
-    /// band (the reading itself) both trip again.
+    /// count of the reading (`DriveSpec::speed_resolution_rad_s`), both pass. With no band
+    /// (the reading itself) both tripped again until the stuck-switch check kept out the
+    /// samples taken just after the references fell (`SwitchWatch::add`): the chatter's falls
+    /// are such, and both rows pass either way — the band is what holds the flux there
+    /// (`a_loaded_motor_at_top_speed_holds_its_flux_through_the_speed_readings_dither`).
     #[test]
     fn a_speed_read_between_two_counts_leaves_the_present_flux_limit_still() {
         use hil_sim::faults::Point;
@@ -1239,7 +1265,7 @@ mod tests {
         // 500 lines, read every 0.5 ms (20 kHz, divider 10).
         assert!((band - controller_core::encoder::speed_resolution_rad_s(500, 5e-4)).abs() < 1e-9, "{band}");
         let unbanded = DriveFile { spec: DriveSpec { speed_resolution_rad_s: 0.0, ..file.spec }, ..file };
-        for (f, passes) in [(&file, true), (&unbanded, false)] {
+        for (f, banded) in [(&file, true), (&unbanded, false)] {
             let matrix = Matrix::of_file(f, tuned.certify.omega_r_max_rad_s, vdc);
             let rows = matrix.rows().unwrap();
             for case in ["L_m step × 0.8 (saturation)", "overload (1.5 × τ_max)"] {
@@ -1248,14 +1274,7 @@ mod tests {
                     .find(|(_, c, at)| c.name == case && at.point == Point::Top && !at.motoring)
                     .unwrap();
                 let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
-                let before = o.failures.iter().any(|w| w.contains("SwitchOpen) before the injection"));
-                assert_eq!(
-                    (o.passed(), before),
-                    (passes, !passes),
-                    "band {}: {case}: {:?}",
-                    passes,
-                    o.failures
-                );
+                assert!(o.passed(), "band {banded}: {case}: {:?}", o.failures);
             }
         }
     }

@@ -329,6 +329,9 @@ struct Direction {
     fresh: bool,
     /// This direction went missing: the other direction's next sample decides.
     dead: bool,
+    /// Samples of this direction in a row that carried (from [`SWITCH_VISIT_SAMPLES`] on, a
+    /// dead direction is no longer dead).
+    carrying: u8,
 }
 
 impl Default for Direction {
@@ -348,6 +351,7 @@ impl Direction {
         reversed: false,
         fresh: false,
         dead: false,
+        carrying: 0,
     };
 
     /// Judged (at least [`SWITCH_SEEN`] of a window's samples) and missing in more than
@@ -475,9 +479,17 @@ impl PhaseDirections {
         // its history (a direction's history is stale until its next sample: a current that
         // trailed a reference step through one half-wave carried in the next, and was judged
         // dead by it, `a_current_catching_up_with_a_reference_step_is_no_stuck_switch`). A
-        // stuck switch's dead direction misses every sample.
+        // stuck switch's dead direction misses every sample. Dead until the other way answers,
+        // or until it carries [`SWITCH_VISIT_SAMPLES`] samples in a row (the 34 kW population
+        // member at 6.5 kHz, arriving at top speed to generate: a direction of phase b went
+        // missing as the loops undershot a falling torque, then carried eight samples in a row;
+        // the other way's next sample answered the stale verdict, `SwitchOpen` on a healthy
+        // drive). Not on one: a dead switch's phase may carry the last sample of its
+        // half-wave (drive.toml at top speed, motoring: phase a's dead direction, 0.2 A against
+        // a reference of 0.09 A).
+        this.carrying = if carried { this.carrying.saturating_add(1) } else { 0 };
         let missing = missed && this.missing();
-        this.dead |= missing;
+        this.dead = missing || (this.dead && this.carrying < SWITCH_VISIT_SAMPLES);
         // The other way, dead, answered by this sample: carried here, the switch is stuck —
         // on this way's following, or on the dead way's current driven the other way.
         let answered = core::mem::take(&mut other.dead) && carried && (this.following() || other.reversed);
@@ -498,22 +510,28 @@ fn misses(r: f32, m: f32) -> bool {
 
 /// [`PhaseDirections`] of the three phases.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct SwitchWatch([PhaseDirections; 3]);
+pub(crate) struct SwitchWatch {
+    phases: [PhaseDirections; 3],
+    /// The reference vector's magnitude, its falls followed over [`SWITCH_WINDOWS`] (its
+    /// rises at once), A: how far the references fell of late ([`SwitchWatch::add`]).
+    recent_peak_a: f32,
+}
 
 /// No samples yet: a constant, which the drive's two resets (`Drive::new`,
 /// `Drive::enable`) write in one go (the derived `Default` built each phase's directions
 /// apart and copied them in: 264 B of flash).
 impl Default for SwitchWatch {
     fn default() -> Self {
-        const NEW: SwitchWatch = SwitchWatch(
-            [PhaseDirections {
+        const NEW: SwitchWatch = SwitchWatch {
+            phases: [PhaseDirections {
                 positive: Direction::NONE,
                 negative: Direction::NONE,
                 open: false,
                 short: 0,
                 departure: 0.0,
             }; 3],
-        );
+            recent_peak_a: 0.0,
+        };
         NEW
     }
 }
@@ -544,7 +562,7 @@ impl SwitchWatch {
     pub(crate) fn undriven(&self, turning: bool) -> bool {
         let short = |p: &PhaseDirections| p.short >= UNDRIVEN_SAMPLES;
         let dead = |p: &PhaseDirections| p.positive.dead | p.negative.dead;
-        self.0.iter().fold(false, |u, p| u | dead(p) | (short(p) & !turning))
+        self.phases.iter().fold(false, |u, p| u | dead(p) | (short(p) & !turning))
     }
 
     /// The voltage check's departure of the applied voltage from the machine model's,
@@ -553,7 +571,7 @@ impl SwitchWatch {
     pub(crate) fn note_departure(&mut self, departure: AlphaBeta, v_limit_v: f32) {
         let per_v = 1.0 / max_f32(v_limit_v, 1e-3);
         let p = departure.inverse_clarke();
-        let [a, b, c] = &mut self.0;
+        let [a, b, c] = &mut self.phases;
         (a.departure, b.departure, c.departure) = (p.a * per_v, p.b * per_v, p.c * per_v);
     }
 
@@ -581,6 +599,19 @@ impl SwitchWatch {
     /// switch there forced its flux by 0.07–0.14 A of a 21 A magnitude for 166 ms; kept out
     /// of any forcing, the check named it after 175–181 ms against a bound of 53 ms (2 of 12
     /// sensor seeds).
+    ///
+    /// Nor while the references fell of late by more than that share of the level (their
+    /// magnitude against its recent peak, which follows falls over [`SWITCH_WINDOWS`]
+    /// open-phase windows — the loops settle within one, as the open-phase check takes
+    /// them to): loops that follow a fall overshoot it by a share of the fall, which a
+    /// counted sample of the smaller reference reads as a miss. The speed loop drops the
+    /// torque from its limit to nearly nothing on arriving at its speed, and at the voltage
+    /// limit the loops undershot the fall for 8 ms, the currents 1.3–3 A of references of
+    /// 6–8 A: `SwitchOpen` on healthy drives, the population's 34 kW member at 6.5 kHz and
+    /// 73 kW member at 5.7 kHz arriving at top speed to generate. A stuck switch that
+    /// shrinks the references (the voltage regulator's answer at top speed) is judged once
+    /// they hold: drive.toml's upper switch at top speed, motoring, was named after 20.6 ms
+    /// instead of 10.1 ms on sensor seed 0 (bound 50.5 ms).
     #[inline(never)]
     pub(crate) fn add(
         &mut self,
@@ -593,14 +624,19 @@ impl SwitchWatch {
         let r = reference;
         let amplitude = sqrt_f32((2.0 / 3.0) * (r.a * r.a + r.b * r.b + r.c * r.c));
         let level = SWITCH_LEVEL_SHARE * amplitude;
-        if amplitude < SWITCH_FLOOR_SHARE * commanded || forcing_a > SWITCH_SHORTFALL_MISSING * level {
-            for p in &mut self.0 {
+        let ([g, _], peak) = (gains, &mut self.recent_peak_a);
+        *peak = max_f32(amplitude, *peak - g * (*peak - amplitude));
+        let fell_a = *peak - amplitude;
+        if amplitude < SWITCH_FLOOR_SHARE * commanded
+            || max_f32(forcing_a, fell_a) > SWITCH_SHORTFALL_MISSING * level
+        {
+            for p in &mut self.phases {
                 p.short = 0; // no sample: none stale
             }
             return None;
         }
         let floor = UNDRIVEN_REFERENCE_SHARE * amplitude;
-        let [a, b, c] = &mut self.0;
+        let [a, b, c] = &mut self.phases;
         let levels = [level, floor];
         let (m, v) = (measured, legs);
         let stuck = a.add([reference.a, tracked.a], [m.a, v.a], levels, commanded, gains)
@@ -661,6 +697,73 @@ mod tests {
         add(&mut p, -1.0, -1.0);
         assert_eq!(p.positive.visit, [0, 0]);
         assert!(!p.positive.reversed);
+    }
+
+    /// A direction that went missing and then carries [`SWITCH_VISIT_SAMPLES`] samples in a
+    /// row is no longer dead: the other way's next carried sample names no switch. One
+    /// carried sample (a dead switch's phase at the end of its half-wave) leaves it dead.
+    #[test]
+    fn a_direction_that_carries_again_is_no_longer_dead() {
+        let add =
+            |p: &mut PhaseDirections, r: f32, m: f32| p.add([r, r], [m, r], [0.5, 0.25], 0.1, [0.18, 0.05]);
+        for carried_again in [1, SWITCH_VISIT_SAMPLES] {
+            let mut p = PhaseDirections::default();
+            for _ in 0..40 {
+                for r in [1.0, -1.0] {
+                    for _ in 0..6 {
+                        add(&mut p, r, r);
+                    }
+                }
+            }
+            for _ in 0..12 {
+                add(&mut p, 1.0, 0.0);
+            }
+            assert!(p.positive.dead);
+            for _ in 0..carried_again {
+                add(&mut p, 1.0, 1.0);
+            }
+            assert_eq!(add(&mut p, -1.0, -1.0), carried_again == 1, "{carried_again} carried");
+        }
+    }
+
+    /// Loops that undershoot a fall of the references are no stuck switch: a balanced
+    /// reference turning 10° per sample at 1 A falls to 0.3 A, and the currents sit at a
+    /// fifth of it for the next 90° — every direction counted there misses — then follow
+    /// again: no `SwitchOpen` (it tripped before the references' recent fall kept those
+    /// samples out). Phase a's upper switch dead on the steady references (its current
+    /// clamped at zero, b and c sharing theirs) is named within two turns.
+    #[test]
+    fn loops_undershooting_a_fall_of_the_references_are_no_stuck_switch() {
+        let third = 2.0 * core::f32::consts::PI / 3.0;
+        let reference = |deg: i32, amplitude: f32| {
+            let t = (deg as f32).to_radians();
+            let i = |k: f32| amplitude * libm::cosf(t - k * third);
+            Abc { a: i(0.0), b: i(1.0), c: i(2.0) }
+        };
+        let run = |amplitude: &dyn Fn(i32) -> f32, current: &dyn Fn(i32, Abc) -> Abc| {
+            let mut w = SwitchWatch::default();
+            (0..360).find_map(|k| {
+                let deg = 10 * k;
+                let r = reference(deg, amplitude(deg));
+                w.add([r, r], [current(deg, r), r], [0.1, 0.0], [0.18, 0.05]).map(|f| (deg, f))
+            })
+        };
+        let falls = |deg: i32| if deg < 1800 { 1.0 } else { 0.3 };
+        let undershoot = |deg: i32, r: Abc| {
+            let f = if (1800..1890).contains(&deg) { 0.2 } else { 1.0 };
+            Abc { a: f * r.a, b: f * r.b, c: f * r.c }
+        };
+        assert_eq!(run(&falls, &undershoot), None);
+        let stuck = |deg: i32, r: Abc| {
+            if deg < 1800 || r.a <= 0.0 {
+                return r;
+            }
+            let shared = 0.5 * (r.b - r.c);
+            Abc { a: 0.0, b: shared, c: -shared }
+        };
+        let (deg, fault) = run(&|_| 1.0, &stuck).unwrap();
+        assert_eq!(fault, Fault::SwitchOpen);
+        assert!(deg < 1800 + 720, "named at {deg}°");
     }
 
     /// A healthy channel's gain error of 1.5 % (within `CURRENT_SENSOR_GAIN_TOLERANCE`) on
