@@ -923,20 +923,33 @@ mod tests {
         }
     }
 
-    /// The 2.8 kW member (007) at 20 kHz as tune tunes it: sensor b's gain of 0.5 at
-    /// standstill, generating, struck with phase b's current held within ±0.8 A of zero
-    /// while the other two carry 5 A. Its reading's error, 0.5·|i_b|, is at the current-sum
-    /// check's windowed level only in single samples until the field turns phase b's current
-    /// up; the bound ran from the first such sample and the row failed (`CurrentSensor` after
-    /// 51.95 ms against 10 ms). Judged as the check judges — the error's mean over its window
-    /// against the level's, the healthy channels' gain errors' share included — the row
-    /// passes, named `CurrentSensor`.
+    /// Sensor faults at standstill, where the field turns at the slip frequency and a phase's
+    /// current can sit near zero for tens of milliseconds, judged as the check judges: the
+    /// error all three channels sum to (the healthy ones' gain errors included), its mean over
+    /// the check's window clear of the windowed level by the noise's resolution
+    /// (`hil_sim::faults::SENSOR_VERDICT_SIGMAS`) for a whole window. Each row failed on a
+    /// looser reading of "acting", and passes named `CurrentSensor`:
+    /// - the 2.8 kW member 007 at 20 kHz, gain 0.5 generating, phase b held within ±0.8 A of
+    ///   zero while the others carry 5 A: bound from a single sample at the level, named
+    ///   51.95 ms late;
+    /// - the 35 kW member 153 at its 16.7 kHz, gain 0.5 generating: the error 3.3 A within
+    ///   0.4 A of its level for 13 ms (phase c's +0.5 % gain taking 0.15 A of it), named
+    ///   3.4 ms late from the sliding mean's first touch of the bare level;
+    /// - the 2.7 kW member 086 at its 7.8 kHz, sensor b dead motoring: the error touched the
+    ///   level for a millisecond, fell back and came again 8 ms later, named 1.1 ms late from
+    ///   the first touch.
     #[test]
-    fn a_sensor_gain_fault_near_its_phases_zero_is_judged_on_the_checks_window() {
+    fn a_sensor_fault_near_its_phases_zero_is_judged_on_the_checks_window() {
         use hil_sim::faults::Point;
-        let o = member_row(7, "007-2.8kW", Some(20_000.0), "sensor b gain 0.5", Point::Standstill, false);
-        assert_eq!(o.detected.map(|d| d.0), Some(controller_core::drive::Fault::CurrentSensor));
-        assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
+        for (index, name, pwm_hz, row, motoring) in [
+            (7, "007-2.8kW", Some(20_000.0), "sensor b gain 0.5", false),
+            (153, "153-35kW", None, "sensor b gain 0.5", false),
+            (86, "086-2.7kW", None, "sensor b dead", true),
+        ] {
+            let o = member_row(index, name, pwm_hz, row, Point::Standstill, motoring);
+            assert_eq!(o.detected.map(|d| d.0), Some(controller_core::drive::Fault::CurrentSensor), "{name}");
+            assert!(o.passed(), "{name}: {:?} {:?}", o.detected, o.failures);
+        }
     }
 
     /// An encoder fault is named where the readings can tell it from motion, and stated a gap

@@ -108,9 +108,11 @@ impl Outcome {
                 format!("{seen} (over the trip level from {})", ms(t))
             }
             (Injection::CurrentSensor { .. }, Some(t)) if t > 0.0 => {
-                format!("{seen} (its error at the check's level from {})", ms(t))
+                format!("{seen} (its error clear of the check's level from {})", ms(t))
             }
-            (Injection::CurrentSensor { .. }, None) => format!("{seen} (its error below the check's level)"),
+            (Injection::CurrentSensor { .. }, None) => {
+                format!("{seen} (its error never clear of the check's level)")
+            }
             _ => seen,
         }
     }
