@@ -834,3 +834,18 @@ fn the_sensor_rows_resolution_is_the_noise_of_the_checks_window() {
     assert!((hil_sim::faults::SENSOR_VERDICT_SIGMAS * sigma - 0.024).abs() < 0.5e-3);
     assert!((p.current_sum_mean_max_a - 0.1).abs() < 1e-12, "{}", p.current_sum_mean_max_a);
 }
+
+/// A sensor row's level is a fraction of the trip level, whose binary tail printed as
+/// "sensor b stuck at 16.516000000000002 A" on a population member's matrix: ten
+/// significant digits, and the shipped drive's levels as they were.
+#[test]
+fn a_sensor_rows_level_prints_without_its_binary_tail() {
+    let case = |gain, offset_a| Case {
+        name: "sensor b",
+        injection: Injection::CurrentSensor { phase: 1, gain, offset_a },
+    };
+    assert_eq!(case(0.0, 16.516000000000002).title(), "sensor b at 16.516 A");
+    assert_eq!(case(1.0, 8.258000000000001).title(), "sensor b +8.258 A");
+    assert_eq!(case(1.0, -0.5).title(), "sensor b -0.5 A");
+    assert_eq!(case(0.0, 1.0).title(), "sensor b at 1 A");
+}

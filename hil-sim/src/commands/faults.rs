@@ -142,7 +142,7 @@ pub fn faults(a: &FaultsOptions) -> Result<(), String> {
     let made = make_out_dir(&out)?;
     let total = selected.len();
     eprintln!(
-        "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s{}{})",
+        "hil-sim: fault matrix of {} on {:.1} V: {total} rows (top speed {:.1} rad/s{}{})",
         a.drive.display(),
         vdc,
         m.top_speed_rad_s,

@@ -159,7 +159,7 @@ pub fn bus_voltage(asked: Option<f64>, file: &drive_file::DriveFile, what: &str)
         Some((v, true)) => Ok(v),
         Some((v, false)) => {
             eprintln!(
-                "hil-sim: {what} runs on {v} V, the file's rated bus ([board] vdc_rated_v; --vdc to choose)"
+                "hil-sim: {what} runs on {v:.1} V, the file's rated bus ([board] vdc_rated_v; --vdc to choose)"
             );
             Ok(v)
         }
@@ -168,7 +168,7 @@ pub fn bus_voltage(asked: Option<f64>, file: &drive_file::DriveFile, what: &str)
             let v = 0.5 * (p.vdc_min_v + p.vdc_max_v);
             eprintln!(
                 "hil-sim: {DEFAULT_VDC_V} V lies outside the drive's bus range ({} … {} V) and the file states no \
-                 [board] vdc_rated_v: {what} runs on {v} V (--vdc to choose)",
+                 [board] vdc_rated_v: {what} runs on {v:.1} V (--vdc to choose)",
                 p.vdc_min_v, p.vdc_max_v
             );
             Ok(v)

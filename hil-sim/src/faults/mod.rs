@@ -223,16 +223,23 @@ impl Case {
         match self.injection {
             Injection::BusVoltage { vdc_v } => format!("{} to {vdc_v:.0} V", self.name),
             Injection::CurrentSensor { gain, offset_a, .. } if gain == 0.0 && offset_a != 0.0 => {
-                format!("{} at {offset_a} A", self.name)
+                format!("{} at {} A", self.name, ten_digits(offset_a))
             }
             Injection::CurrentSensor { gain: 1.0, offset_a, .. } => {
-                format!("{} {offset_a:+} A", self.name)
+                format!("{} {:+} A", self.name, ten_digits(offset_a))
             }
             // Half the board's lines ([`Matrix::encoder_lines`]).
             Injection::EncoderLines { lines } => format!("encoder {lines} lines ({} set)", 2 * lines),
             _ => self.name.into(),
         }
     }
+}
+
+/// `x` rounded to ten significant digits, which prints without the binary fraction's
+/// tail: a level worked out as a fraction of the trip level printed "stuck at
+/// 16.516000000000002 A" (found by trying a population member's matrix).
+fn ten_digits(x: f64) -> f64 {
+    format!("{x:.9e}").parse().unwrap_or(x)
 }
 
 /// What a row must show.
