@@ -47,8 +47,11 @@ use rayon::prelude::*;
 
 mod expect;
 mod report;
+mod sensor;
 use report::ms;
 pub use report::{Outcome, json, markdown, svg};
+use sensor::SensorActing;
+pub use sensor::{SENSOR_VERDICT_SIGMAS, sensor_window_sigma_a};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The operating point's reference (and load) come at this time at the earliest, s (the
@@ -93,20 +96,6 @@ pub const REACHED_TOLERANCE_RAD_S: f64 = 15.0;
 pub const SENSOR_BOUND_S: f64 = 0.010;
 /// … open phase, s.
 pub const OPEN_PHASE_BOUND_S: f64 = 0.050;
-/// A current sensor's fault counts as acting once the channels' sum error, averaged over an
-/// open-phase window, exceeds the windowed current-sum check's level by this many standard
-/// deviations of the window's mean of their noise ([`sensor_window_sigma_a`]): a verdict the
-/// noise turns once in 740 windows. At the level itself the check's verdict is the noise's.
-pub const SENSOR_VERDICT_SIGMAS: f64 = 3.0;
-
-/// The standard deviation of the current sum's mean over `samples` readings of the three
-/// channels of `sensors`: each channel's noise and its quantisation (uniform over one count:
-/// `lsb/√12`), independent, A.
-pub fn sensor_window_sigma_a(sensors: &crate::sensors::SensorModel, samples: u32) -> f64 {
-    let per_channel = sensors.current_noise_rms_a.powi(2) + sensors.current_lsb_a.powi(2) / 12.0;
-    (3.0 * per_channel / f64::from(samples.max(1))).sqrt()
-}
-
 /// … stall, s.
 pub const STALL_BOUND_S: f64 = 0.5;
 /// A switch stuck open ([`Injection::SwitchOpen`]) takes one direction of its phase's current
@@ -722,51 +711,15 @@ impl Matrix {
         let mut before_injection_fault: Option<(Mode, f64)> = None;
         let mut mode_at_reference: Option<Mode> = None;
         let mut acting_at: Option<f64> = None;
-        // A current sensor's fault: the gains of the three channels after it and its offset
-        // against the healthy channel's (calibrated away at power-up), and the level from which
-        // the error they make counts — the current-sum check's windowed level, with its share
-        // of the currents for the healthy channels' gain errors, both as the check takes them:
-        // means over an open-phase window. A gain error on a phase carrying no current makes no
-        // error, so the bound runs from when the error's mean over a window came clear of the
-        // level — and stayed so for a whole window, which puts the end of one of the check's
-        // own windows in it (a window's mean is the sliding mean at its end). From a single
-        // reading above the level instead, a gain of 0.5 on a phase held near its zero
-        // crossing (the population's 2.8 kW member 007 at standstill generating, i_b within
-        // ±0.8 A of zero against 5 A in the others) failed the row by 42 ms; from the sliding
-        // mean's first touch, a dead sensor on a phase crossing zero at standstill (member
-        // 086: the error rose to its level for a millisecond, fell back, came again 8 ms
-        // later) failed by 1 ms. The error is the sum all three channels read, the healthy
-        // ones' gain errors with the fault's (the check cannot tell them apart, and theirs
-        // may cancel part of it); the level is raised by the check's resolution,
-        // [`SENSOR_VERDICT_SIGMAS`] standard deviations of a window's mean of the channels'
-        // noise and quantisation ([`sensor_window_sigma_a`]): an error at the level itself
-        // is a coin toss for as long as it stays there — at standstill, where the field
-        // turns at the slip frequency, for tens of milliseconds (member 153, 35 kW,
-        // generating: a gain of 0.5 on i_b ≈ 6.6 A, error 3.3 A within 0.4 A of the level
-        // for 13 ms, failed the row by 3.4 ms).
-        let sensor_fault = match case.injection {
-            Injection::CurrentSensor { phase, gain, offset_a } => {
-                let m = &b.scenario.sensors;
-                let mut gains = m.current_gain;
-                if let Some(g) = gains.get_mut(phase) {
-                    *g = gain;
-                }
-                let healthy_offset = m.current_offset_a.get(phase).copied().unwrap_or(0.0);
-                Some((gains, offset_a - healthy_offset))
-            }
-            _ => None,
-        };
-        let sensor_level_a = self.spec.protection.current_sum_mean_max_a
-            + SENSOR_VERDICT_SIGMAS * sensor_window_sigma_a(&b.scenario.sensors, self.open_phase_samples());
-        let sensor_share = f64::from(controller_core::drive::CURRENT_SENSOR_GAIN_TOLERANCE);
-        // The check's window in PWM periods (its samples are slow steps).
-        let sensor_window = (self.open_phase_samples() as usize * usize::from(self.spec.slow_divider)).max(1);
-        // The last window's [error, level] per period, and their sums, A.
-        let mut sensor_rows: std::collections::VecDeque<[f64; 2]> = std::collections::VecDeque::new();
-        let mut sensor_sums = [0.0f64; 2];
-        // The time from which the window's mean error has been clear of the level, and for how
-        // many periods.
-        let mut sensor_clear: Option<(f64, usize)> = None;
+        // A current sensor's fault acts once the sensors' error comes clear of the windowed
+        // current-sum check's level for a window ([`SensorActing`]).
+        let mut sensor_fault = SensorActing::new(
+            &case.injection,
+            &b.scenario.sensors,
+            self.spec.protection.current_sum_mean_max_a,
+            self.open_phase_samples(),
+            self.spec.slow_divider,
+        );
         // The first period a phase's or a leg's current was above the trip level.
         let mut over_trip_at: Option<f64> = None;
         // The first row at or after the injection (the event loop's own comparison).
@@ -819,29 +772,10 @@ impl Matrix {
                 if acting_at.is_none() && r.switch_acting {
                     acting_at = Some(r.t_s - t0);
                 }
-                if let Some(([ga, gb, gc], offset_error_a)) = sensor_fault
+                if let Some(sensor) = &mut sensor_fault
                     && acting_at.is_none()
                 {
-                    let row = [
-                        ((ga - 1.0) * i.a + (gb - 1.0) * i.b + (gc - 1.0) * i.c + offset_error_a).abs(),
-                        sensor_level_a + sensor_share * (i.a.abs() + i.b.abs() + i.c.abs()),
-                    ];
-                    sensor_rows.push_back(row);
-                    sensor_sums = [sensor_sums[0] + row[0], sensor_sums[1] + row[1]];
-                    if sensor_rows.len() > sensor_window
-                        && let Some([e, l]) = sensor_rows.pop_front()
-                    {
-                        sensor_sums = [sensor_sums[0] - e, sensor_sums[1] - l];
-                    }
-                    // The periods before the injection in the window carry no error.
-                    let level = sensor_sums[1] / sensor_rows.len() as f64 * sensor_window as f64;
-                    sensor_clear = (sensor_sums[0] >= level)
-                        .then(|| sensor_clear.map_or((r.t_s - t0, 1), |(from, n)| (from, n + 1)));
-                    if let Some((from, n)) = sensor_clear
-                        && n >= sensor_window
-                    {
-                        acting_at = Some(from);
-                    }
+                    acting_at = sensor.add(r.t_s - t0, [i.a, i.b, i.c]);
                 }
                 energy -= 1.5 * (r.v_ab_v[0] * r.x.i_alpha_a + r.v_ab_v[1] * r.x.i_beta_a) * pwm_s;
                 if detected.is_none()
