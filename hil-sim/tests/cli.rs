@@ -1187,3 +1187,12 @@ fn a_torque_fraction_outside_its_range_is_refused() {
         assert!(!out.exists(), "{bad}");
     }
 }
+
+/// A rated bus worked out from a nameplate (a population member's 772.3735400613667 V) is
+/// said to 0.1 V, a whole one as it is.
+#[test]
+fn a_bus_voltage_is_said_to_a_tenth_of_a_volt() {
+    assert_eq!(hil_sim::commands::volts(772.3735400613667), "772.4");
+    assert_eq!(hil_sim::commands::volts(24.0), "24");
+    assert_eq!(hil_sim::commands::volts(310.04), "310");
+}

@@ -96,7 +96,7 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
     eprintln!(
         "hil-sim: campaign of {} on {} V: {total} run(s) of {:.2} s (shard {}/{} of {}), speed steps to ±{:.1} rad/s",
         a.drive.display(),
-        vdc,
+        super::volts(vdc),
         c.duration_s,
         a.shard.0,
         a.shard.1,

@@ -65,7 +65,7 @@ pub fn envelope(a: &EnvelopeOptions) -> Result<(), String> {
     eprintln!(
         "hil-sim: envelope of {} on {} V, {} speeds from {:.1} to {:.1} rad/s (no-load base speed {base:.1} rad/s)",
         a.drive.display(),
-        vdc,
+        super::volts(vdc),
         speeds.len(),
         speeds.first().copied().unwrap_or(0.0),
         speeds.last().copied().unwrap_or(0.0)

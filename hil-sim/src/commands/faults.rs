@@ -142,9 +142,9 @@ pub fn faults(a: &FaultsOptions) -> Result<(), String> {
     let made = make_out_dir(&out)?;
     let total = selected.len();
     eprintln!(
-        "hil-sim: fault matrix of {} on {:.1} V: {total} rows (top speed {:.1} rad/s{}{})",
+        "hil-sim: fault matrix of {} on {} V: {total} rows (top speed {:.1} rad/s{}{})",
         a.drive.display(),
-        vdc,
+        super::volts(vdc),
         m.top_speed_rad_s,
         if a.inject_delay_ms > 0.0 {
             format!(", injected {} ms late", a.inject_delay_ms)

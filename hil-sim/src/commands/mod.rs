@@ -143,6 +143,14 @@ pub fn default_bus_v(file: &drive_file::DriveFile) -> f64 {
     }
 }
 
+/// A bus voltage for a message: to 0.1 V, a whole one without its ".0" ("runs on 24 V",
+/// "runs on 772.4 V" — not the rated bus's 772.3735400613667, found by trying a population
+/// member's file).
+pub fn volts(v: f64) -> String {
+    let s = format!("{v:.1}");
+    s.strip_suffix(".0").map(str::to_owned).unwrap_or(s)
+}
+
 /// The bus a command runs `what` on: `asked` (`--vdc`), refused outside the drive's bus range
 /// (`[protection]`: every run would trip on it), else the file's rated bus (`[board]
 /// vdc_rated_v`, checked inside the range when the file was read), else [`DEFAULT_VDC_V`], or
@@ -159,7 +167,8 @@ pub fn bus_voltage(asked: Option<f64>, file: &drive_file::DriveFile, what: &str)
         Some((v, true)) => Ok(v),
         Some((v, false)) => {
             eprintln!(
-                "hil-sim: {what} runs on {v:.1} V, the file's rated bus ([board] vdc_rated_v; --vdc to choose)"
+                "hil-sim: {what} runs on {} V, the file's rated bus ([board] vdc_rated_v; --vdc to choose)",
+                volts(v)
             );
             Ok(v)
         }
@@ -168,8 +177,10 @@ pub fn bus_voltage(asked: Option<f64>, file: &drive_file::DriveFile, what: &str)
             let v = 0.5 * (p.vdc_min_v + p.vdc_max_v);
             eprintln!(
                 "hil-sim: {DEFAULT_VDC_V} V lies outside the drive's bus range ({} … {} V) and the file states no \
-                 [board] vdc_rated_v: {what} runs on {v:.1} V (--vdc to choose)",
-                p.vdc_min_v, p.vdc_max_v
+                 [board] vdc_rated_v: {what} runs on {} V (--vdc to choose)",
+                p.vdc_min_v,
+                p.vdc_max_v,
+                volts(v)
             );
             Ok(v)
         }
