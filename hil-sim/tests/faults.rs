@@ -827,9 +827,9 @@ fn a_stuck_current_sensor_is_named_while_overmodulating() {
 fn the_sensor_rows_resolution_is_the_noise_of_the_checks_window() {
     let m = shipped();
     let p = &m.spec.protection;
-    let samples = (p.open_phase_time_s * m.spec.pwm_frequency_hz / f64::from(m.spec.slow_divider)).round();
-    assert_eq!(samples, 5.0);
-    let sigma = hil_sim::faults::sensor_window_sigma_a(&hil_sim::sensors::SensorModel::realistic(0), 5);
+    let samples = m.spec.open_phase_slow_steps();
+    assert_eq!(samples, 5);
+    let sigma = hil_sim::faults::sensor_window_sigma_a(&hil_sim::sensors::SensorModel::realistic(0), samples);
     assert!((sigma - 7.95e-3).abs() < 0.01e-3, "{sigma}");
     assert!((hil_sim::faults::SENSOR_VERDICT_SIGMAS * sigma - 0.024).abs() < 0.5e-3);
     assert!((p.current_sum_mean_max_a - 0.1).abs() < 1e-12, "{}", p.current_sum_mean_max_a);

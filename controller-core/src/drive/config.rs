@@ -549,7 +549,6 @@ impl DriveConfig {
         let position = PositionConfig::new(spec.position.k_per_s, spec.position.omega_max_rad_s)
             .map_err(DriveError::Position)?;
         let i_d_rated_a = ifoc.flux_command(spec.flux_ref_wb as f32).i_d_a();
-        let open_phase_steps = libm::ceil(p.open_phase_time_s * f).clamp(1.0, 4e9) as u32;
         let [count_rad, accel_rad] = encoder_jump_shares(spec);
         Ok(Self {
             current,
@@ -640,7 +639,7 @@ impl DriveConfig {
             stop_slow_steps: libm::ceil(p.stop_time_s * f / f64::from(spec.slow_divider)).clamp(1.0, 4e9)
                 as u32,
             phases: PhaseLimits::new(
-                open_phase_steps,
+                [spec.open_phase_steps(), spec.open_phase_slow_steps()],
                 spec.slow_divider,
                 i_d_rated_a,
                 p.current_sum_mean_max_a as f32,

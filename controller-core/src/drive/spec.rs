@@ -349,6 +349,20 @@ pub struct DriveSpec {
 }
 
 impl DriveSpec {
+    /// The open-phase window ([`Protection::open_phase_time_s`]) in fast steps, rounded up
+    /// (at least one).
+    pub fn open_phase_steps(&self) -> u32 {
+        libm::ceil(self.protection.open_phase_time_s * self.pwm_frequency_hz).clamp(1.0, 4e9) as u32
+    }
+
+    /// … and in the slow steps that sample it — the open-phase, windowed current-sum and
+    /// stuck-switch checks take one sample per slow period: its fast steps, rounded up to
+    /// whole slow periods (five on the shipped drive). A host that judges those checks (the
+    /// fault matrix's sensor rows, `hil_sim::faults`) counts with the drive.
+    pub fn open_phase_slow_steps(&self) -> u32 {
+        self.open_phase_steps().div_ceil(u32::from(self.slow_divider.max(1)))
+    }
+
     /// The voltage regulator's bandwidth, rad/s: [`VOLTAGE_REGULATOR_BANDWIDTH_RAD_S`], or
     /// `1/T_r` of the slowest rotor the drive may run on where that is lower — the box's
     /// least rotor resistance, its largest inductances and, on a saturating curve, the

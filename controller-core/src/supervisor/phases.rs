@@ -155,11 +155,13 @@ crate::raw::raw_struct! {
 }
 
 impl PhaseLimits {
-    /// The levels for an open-phase window of `open_phase_steps` fast steps, a slow step every
-    /// `slow_divider` of them, the rated flux's d-axis current `i_d_rated_a` and the windowed
-    /// current-sum level `sum_mean_max_a`.
+    /// The levels for an open-phase window of `open_phase_steps` fast steps and
+    /// `open_phase_slow_steps` slow ones (`DriveSpec::open_phase_steps`,
+    /// `DriveSpec::open_phase_slow_steps`), a slow step every `slow_divider` fast ones, the
+    /// rated flux's d-axis current `i_d_rated_a` and the windowed current-sum level
+    /// `sum_mean_max_a`.
     pub(crate) fn new(
-        open_phase_steps: u32,
+        [open_phase_steps, open_phase_slow_steps]: [u32; 2],
         slow_divider: u16,
         i_d_rated_a: f32,
         sum_mean_max_a: f32,
@@ -169,7 +171,7 @@ impl PhaseLimits {
             switch_level_a: OPEN_PHASE_COMMANDED_FRACTION * i_d_rated_a,
             switch_gains: [SWITCH_WINDOWS, SWITCH_FOLLOWING_WINDOWS]
                 .map(|windows| (1.0 - libm::exp(-n / (windows * f64::from(open_phase_steps)))) as f32),
-            open_phase_slow_steps: open_phase_steps.div_ceil(u32::from(slow_divider)),
+            open_phase_slow_steps,
             sum_mean_max_a,
         }
     }

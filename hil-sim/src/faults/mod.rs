@@ -620,15 +620,6 @@ impl Matrix {
         self.times_s.1 + self.inject_delay_s
     }
 
-    /// The slow steps' samples in one open-phase window, as the drive counts them
-    /// (`controller_core::drive::DriveConfig::new`: the window's fast steps, rounded up, then
-    /// its slow steps, rounded up).
-    fn open_phase_samples(&self) -> u32 {
-        let fast =
-            (self.spec.protection.open_phase_time_s * self.spec.pwm_frequency_hz).ceil().clamp(1.0, 4e9);
-        (fast as u32).div_ceil(u32::from(self.spec.slow_divider).max(1))
-    }
-
     /// Row `k`'s run, `case` at `at`, as a scenario: what [`Matrix::run_one`] judges, and
     /// what `hil-sim faults --trace` writes out.
     pub fn scenario(&self, k: u64, case: &Case, at: &OperatingPoint) -> Builtin {
@@ -717,7 +708,7 @@ impl Matrix {
             &case.injection,
             &b.scenario.sensors,
             self.spec.protection.current_sum_mean_max_a,
-            self.open_phase_samples(),
+            self.spec.open_phase_slow_steps(),
             self.spec.slow_divider,
         );
         // The first period a phase's or a leg's current was above the trip level.
