@@ -62,6 +62,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
         CurrentFrame::Synchronous => "Synchronous",
     };
     let slip = spec.slip_current;
+    let decoupling = spec.current_decoupling;
     let feedback = spec.speed_feedback;
     let speed_resolution = spec.speed_resolution_rad_s;
     // `Vector` or `VHz { ramp_rad_s2: … }`: the variant's Debug form is its Rust expression.
@@ -84,6 +85,7 @@ pub fn spec_rs(spec: &DriveSpec, origin: &str) -> String {
          \x20       discretization: {disc},\n\
          \x20       current_frame: controller_core::drive::CurrentFrame::{frame},\n\
          \x20       slip_current: controller_core::drive::SlipCurrent::{slip:?},\n\
+         \x20       current_decoupling: {decoupling:?},\n\
          \x20       speed_feedback: controller_core::drive::SpeedFeedback::{feedback:?},\n\
          \x20       speed_resolution_rad_s: {speed_resolution:?},\n\
          \x20       control: controller_core::drive::Control::{control:?},\n\

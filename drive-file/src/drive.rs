@@ -46,6 +46,10 @@ pub struct ControllerTable {
     /// Frame of the current loops (default stationary).
     #[serde(default)]
     pub current_frame: FrameTable,
+    /// The field-frame loops' decoupling, `jω_e·σL_s·i*` fed forward (default on; the
+    /// synchronous frame only: `DriveSpec::current_decoupling`).
+    #[serde(default = "default_current_decoupling")]
+    pub current_decoupling: bool,
     /// The q current the field's slip is turned on (default `"reference"`: i_q*, as seed 000
     /// prints eq. (7); `"measured"`: the measured q current while Running).
     #[serde(default)]
@@ -259,6 +263,12 @@ pub enum FrameTable {
     Stationary,
     /// d/q loops.
     Synchronous,
+}
+
+/// `controller.current_decoupling`'s default: on — the partner of the law `design tune`
+/// writes, designed on the decoupled stator (`DriveSpec::current_decoupling`).
+fn default_current_decoupling() -> bool {
+    true
 }
 
 /// `controller.slip_current`.
@@ -1139,6 +1149,7 @@ pub fn drive_spec(
             SlipTable::Measured => controller_core::drive::SlipCurrent::Measured,
             SlipTable::Reference => controller_core::drive::SlipCurrent::Reference,
         },
+        current_decoupling: c.current_decoupling,
         speed_law,
         speed_feedback: match c.speed_feedback {
             FeedbackTable::Encoder => SpeedFeedback::Encoder,

@@ -430,6 +430,8 @@ pub fn seed000_fig11() -> Result<Builtin, ScenarioError> {
     b.plant = motor;
     b.spec.current_law = CurrentLaw::PI1_SEED000;
     b.spec.current_frame = CurrentFrame::Synchronous;
+    // The paper's PI1/PI3, designed on the coupled axes: no decoupling of ours.
+    b.spec.current_decoupling = false;
     b.spec.speed_law = SpeedLaw::pi2_seed000(250.0);
     b.spec.flux_ref_wb = 4.5;
     b.spec.flux_floor_wb = 0.2;

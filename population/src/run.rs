@@ -1194,12 +1194,17 @@ mod tests {
     /// the reference leaves the rotor's flux, which swings until the speed runs away
     /// (`FollowingError`); turned at the slip of the measured q current
     /// (`slip_current = "measured"`, which tune now writes) no run faults (docs/envelope.md,
-    /// docs/population.md).
+    /// docs/population.md). The swing was found on field-frame loops without their
+    /// decoupling, which the reference's slip needs to fault: decoupled, the loops follow the
+    /// reference's torque falls closely enough that it runs on (`current_decoupling`, on by
+    /// default, docs/envelope.md).
     #[test]
     fn a_braking_drive_turns_its_field_at_the_slip_its_rotor_sees() {
         let mut c = pi_campaign_at(2, "002-7.3kW", [6.6725, 118.17, 1.0], 1.0, 4_000.0);
         c.duration_s = c.full_range_duration_s();
+        assert_eq!(c.spec.current_frame, controller_core::drive::CurrentFrame::Synchronous);
         c.spec.slip_current = controller_core::drive::SlipCurrent::Reference;
+        c.spec.current_decoupling = false;
         let on_reference = faulted(&c);
         assert!(!on_reference.is_empty());
         // k, R_s, R_r, L, J, manoeuvre: braking on the box's R_r × 1.5, L × 1.05 corners.
@@ -1210,6 +1215,9 @@ mod tests {
         c.spec.slip_current = controller_core::drive::SlipCurrent::Measured;
         let on_measured = faulted(&c);
         assert!(on_measured.is_empty(), "{on_measured:#?}");
+        c.spec.current_decoupling = true;
+        let decoupled = faulted(&c);
+        assert!(decoupled.is_empty(), "{decoupled:#?}");
     }
 
     /// The 33 kW 8-pole member (016) at 20 kHz with the speed PI tune's search found for it

@@ -265,14 +265,16 @@ impl FastState {
         // The hexagon's vertex: the most one axis can get (the integrators' clamp).
         let v_usable = m.vdc_v * cfg.duty_max;
         let v_clamp = v_usable * (2.0 / 3.0);
-        // The loops' request, in the stationary frame, with the back-EMF feedforward
-        // (`FastState::back_emf`).
-        let emf = self.back_emf(field.field);
-        let v_pi = match cfg.current_frame {
+        // The loops' request, in the stationary frame, with the plan's feedforward
+        // (`FastState::feedforward`), added in the loops' own frame.
+        let ff = self.run.v_ff;
+        let v_req = match cfg.current_frame {
             CurrentFrame::Stationary => {
                 let e = field.i_ref_ab - i_ab;
                 let [alpha, beta] = cfg.current.request(&mut self.run.current, e.alpha, e.beta, v_clamp);
-                AlphaBeta { alpha, beta }
+                // The back-EMF, on the field's q axis (the plan's d part is 0 here).
+                let sc = field.field;
+                AlphaBeta { alpha: alpha - ff.q * sc.sin, beta: beta + ff.q * sc.cos }
             }
             CurrentFrame::Synchronous => {
                 // The trimmed references, as in the stationary frame (there the trim is in
@@ -280,10 +282,9 @@ impl FastState {
                 let r = Dq { d: field.i_ref_dq.d + self.run.trim.d, q: field.i_ref_dq.q + self.run.trim.q };
                 let i = field.i_meas_dq;
                 let [d, q] = cfg.current.request(&mut self.run.current, r.d - i.d, r.q - i.q, v_clamp);
-                Dq { d, q }.inverse_park(field.field)
+                Dq { d: d + ff.d, q: q + ff.q }.inverse_park(field.field)
             }
         };
-        let v_req = AlphaBeta { alpha: v_pi.alpha + emf.alpha, beta: v_pi.beta + emf.beta };
         self.run.v_req2_sum += v_req.alpha * v_req.alpha + v_req.beta * v_req.beta;
         self.run.v_req_steps = self.run.v_req_steps.saturating_add(1);
         // Advanced over the delay to the period it acts in, then the one vector limit: the
@@ -525,7 +526,7 @@ impl FastState {
     #[inline(never)]
     fn track_applied(&mut self, cfg: &DriveConfig, applied: AlphaBeta, field: SinCos, v_clamp: f32) {
         let r = self.run.delay_rotation;
-        let (back, emf) = (applied.rotate(SinCos { sin: -r.sin, cos: r.cos }), self.back_emf(field));
+        let (back, emf) = (applied.rotate(SinCos { sin: -r.sin, cos: r.cos }), self.feedforward(field));
         // The loops' share of it: the feedforward is not theirs to track.
         let back = AlphaBeta { alpha: back.alpha - emf.alpha, beta: back.beta - emf.beta };
         // The loops' frame's turn against the field since the last sample.
@@ -539,21 +540,23 @@ impl FastState {
         cfg.current.track(&mut self.run.current, v, cfg.tracking_rate, turn, v_clamp);
     }
 
-    /// The back-EMF feedforward at the field angle `field`: the plan's `ω_e·(L_m/L_r)·ψ̂_r`
-    /// on the field's q axis ([`IfocConfig::back_emf_v`]), in the stationary frame. Added to
-    /// the loops' request, it leaves them the stator's own impedance: a stationary-frame PI
-    /// otherwise makes the EMF out of its error (≈ E/k_p: 70 A of a 153 kW motor's 180 A at
-    /// twice its base speed, where the modulator's limit then left the trim no room and the
-    /// current fell to half its reference). None in the synchronous frame, whose integrators
-    /// hold the EMF as the constant it is there (fed forward on the model's flux and the
+    /// The plan's feedforward at the field angle `field`, in the stationary frame. Added to
+    /// the loops' request, it leaves them the stator's own impedance. Stationary frame: the
+    /// back-EMF `ω_e·(L_m/L_r)·ψ̂_r` on the field's q axis ([`IfocConfig::back_emf_v`]) — a
+    /// stationary-frame PI otherwise makes the EMF out of its error (≈ E/k_p: 70 A of a
+    /// 153 kW motor's 180 A at twice its base speed, where the modulator's limit then left
+    /// the trim no room and the current fell to half its reference). Synchronous frame: the
+    /// decoupling `jω_e·σL_s·i*` ([`DriveConfig::decoupling_v`]) and no EMF, which its
+    /// integrators hold as the constant it is there (fed forward on the model's flux and the
     /// plan's speed, the Krause template's envelope fell from −8.2 % to −12 % at 35.7 rad/s).
     /// A disturbance's feedforward, outside the loops: their characteristic polynomial, and
-    /// so the certificate's analysis, do not change.
-    /// The slow step plans it (zero in the synchronous frame), so the fast step only turns it.
+    /// so the certificate's analysis, do not change. The slow step plans it in the field
+    /// frame; the fast step adds it in the loops' frame (the common path inlines its two
+    /// cases: one rotation of a whole vector here cost the fast step 6.6 instructions per
+    /// period, `cost fast_step`), this on the rare path.
     #[inline(always)]
-    fn back_emf(&self, field: SinCos) -> AlphaBeta {
-        let e = self.run.emf_v;
-        AlphaBeta { alpha: -e * field.sin, beta: e * field.cos }
+    fn feedforward(&self, field: SinCos) -> AlphaBeta {
+        self.run.v_ff.inverse_park(field)
     }
 
     /// The slow side's mode `mode` taken, unless a fault of the fast step came first.

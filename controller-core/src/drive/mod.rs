@@ -447,8 +447,8 @@ struct FastRun {
     delay_rotation: SinCos,
     /// The current trim of the plan in force (field frame), A.
     trim: Dq,
-    /// The back-EMF feedforward of the plan in force (the field's q axis), V.
-    emf_v: f32,
+    /// The voltage fed forward by the plan in force (field frame), V.
+    v_ff: Dq,
     test_angle_rad: f32,
     /// Consecutive fast steps with the voltage request outside the hexagon.
     saturated_steps: u32,
@@ -500,7 +500,7 @@ impl FastRun {
             field,
             delay_rotation,
             trim,
-            emf_v,
+            v_ff,
             test_angle_rad,
             saturated_steps,
             v_req2_sum,
@@ -523,7 +523,7 @@ impl FastRun {
         *field = Default::default();
         *delay_rotation = Default::default();
         *trim = Default::default();
-        *emf_v = Default::default();
+        *v_ff = Default::default();
         *test_angle_rad = Default::default();
         *saturated_steps = Default::default();
         *v_req2_sum = Default::default();
@@ -777,9 +777,8 @@ struct SlowRun {
     /// The rotation that advances the output voltage over the delay
     /// ([`VOLTAGE_DELAY_PERIODS`]), from the field speed of the plan made last.
     delay_rotation: SinCos,
-    /// The back-EMF feedforward of the plan made last (the field's q axis), V
-    /// ([`IfocConfig::back_emf_v`]).
-    emf_v: f32,
+    /// The voltage fed forward by the plan made last (field frame), V.
+    v_ff: Dq,
     /// The speed loop's output was at its limit at the last slow step.
     speed_saturated: bool,
     /// The envelope in use ([`EnvelopeConfig::envelope`]).
@@ -847,7 +846,7 @@ impl SlowRun {
             field_last_rad: None,
             field_rate_rad_s: None,
             delay_rotation: SinCos::default(),
-            emf_v: 0.0,
+            v_ff: Dq { d: 0.0, q: 0.0 },
             speed_saturated: false,
             envelope: Envelope::ZERO,
             envelope_age: 0,
@@ -908,8 +907,8 @@ impl FastState {
                 s.machine.rs_scale,
             );
         }
-        (self.run.delay_rotation, self.run.trim, self.run.emf_v) =
-            (s.run.delay_rotation, s.run.trim, s.run.emf_v);
+        (self.run.delay_rotation, self.run.trim, self.run.v_ff) =
+            (s.run.delay_rotation, s.run.trim, s.run.v_ff);
         self.run.on_observer = s.ridden_through != FaultSet::EMPTY;
         if s.run.known_speed_rad_s != self.run.known_speed_rad_s {
             // The search found the rotor turning: the observer starts again on its speed.

@@ -610,21 +610,25 @@ impl SlowState {
         let after = self.run.ifoc.i_ref_dq();
         let (dd, dq) = (after.d - before.d, after.q - before.q);
         self.run.i_ref_step_a = sqrt_f32(dd * dd + dq * dq);
-        let (omega_e, emf_v) = match self.reference {
+        let (omega_e, v_ff) = match self.reference {
             // The test's current turns in a field of its own: no flux of the model's.
-            Reference::RotatingCurrent { omega_rad_s, .. } if running => (omega_rad_s, 0.0),
+            Reference::RotatingCurrent { omega_rad_s, .. } if running => (omega_rad_s, Dq { d: 0.0, q: 0.0 }),
             _ => {
                 let w_e = cfg.envelope.pole_pairs() * omega_m_rad_s + self.run.ifoc.omega_sl_rad_s();
-                // Fed forward to the stationary-frame loops only (`FastState::back_emf`).
-                let emf_v = match cfg.current_frame {
-                    CurrentFrame::Stationary => cfg.ifoc.back_emf_v(&self.run.ifoc, w_e),
-                    CurrentFrame::Synchronous => 0.0,
+                // The stationary-frame loops get the back-EMF, the field-frame loops the
+                // decoupling (`FastState::feedforward`).
+                let v_ff = match cfg.current_frame {
+                    CurrentFrame::Stationary => Dq { d: 0.0, q: cfg.ifoc.back_emf_v(&self.run.ifoc, w_e) },
+                    CurrentFrame::Synchronous => {
+                        let (i, trim) = (self.run.ifoc.i_ref_dq(), self.run.trim);
+                        cfg.decoupling_v(w_e, Dq { d: i.d + trim.d, q: i.q + trim.q })
+                    }
                 };
-                (w_e, emf_v)
+                (w_e, v_ff)
             }
         };
         self.run.delay_rotation = SinCos::default().rotated((omega_e * cfg.delay_s).limit(-0.5, 0.5));
-        self.run.emf_v = emf_v;
+        self.run.v_ff = v_ff;
     }
 
     /// Run on the inductances `l` × the motor's (the magnetizing fit's): the flux model, the

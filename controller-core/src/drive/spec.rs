@@ -274,6 +274,12 @@ pub struct DriveSpec {
     pub discretization: Discretization,
     /// Frame of the current loops.
     pub current_frame: CurrentFrame,
+    /// The field-frame loops' decoupling, `jω_e·σL_s·i*` fed forward
+    /// (`DriveConfig::decoupling_v`; synchronous frame only): the partner of a law designed on
+    /// the decoupled stator `R + s·σL_s`, as `design tune`'s (`k_p = ω_c·σL_s`, `k_i = ω_c·R`).
+    /// Off for a law designed on the coupled axes as they are — seed 000's PI1/PI3, whose
+    /// reproduction (`hil-sim run seed000-fig12`) runs the paper's controller.
+    pub current_decoupling: bool,
     /// The q current the slip is turned on.
     pub slip_current: SlipCurrent,
     /// Speed law.

@@ -21,6 +21,7 @@ pub(crate) fn test_spec() -> DriveSpec {
         discretization: Discretization::Tustin,
         current_frame: CurrentFrame::Stationary,
         slip_current: SlipCurrent::Reference,
+        current_decoupling: true,
         speed_law: SpeedLaw::SaturatedP { kp: 0.05, tau_max_nm: 2.0 },
         position: PositionLaw { k_per_s: 10.0, omega_max_rad_s: 150.0 },
         flux_ref_wb: 0.9,

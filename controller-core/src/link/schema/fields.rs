@@ -120,8 +120,8 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
             w.f64(omega_rad_s)?;
         }
     }
-    // The frame in bit 0, the slip's current in bit 1, overmodulation in bit 2 (one byte: the
-    // spec fills the frame).
+    // The frame in bit 0, the slip's current in bit 1, overmodulation in bit 2, the field-frame
+    // loops' decoupling in bit 3 (one byte: the spec fills the frame).
     let frame = match s.current_frame {
         CurrentFrame::Stationary => 0,
         CurrentFrame::Synchronous => 1,
@@ -130,7 +130,7 @@ pub(super) fn write_spec(w: &mut Writer<'_>, s: &DriveSpec) -> Result<(), Buffer
         SlipCurrent::Reference => 0,
         SlipCurrent::Measured => 2,
     };
-    w.u8(frame | slip | u8::from(s.overmodulation) << 2)?;
+    w.u8(frame | slip | u8::from(s.overmodulation) << 2 | u8::from(s.current_decoupling) << 3)?;
     let (t, a, b, c, d) = match s.speed_law {
         SpeedLaw::PiTorque { kp, ki, limit, setpoint_weight } => (0, kp, ki, limit, setpoint_weight),
         SpeedLaw::PiIq { kp, ki, limit, setpoint_weight } => (1, kp, ki, limit, setpoint_weight),
@@ -226,12 +226,13 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         _ => return Err(DecodeError::Value),
     };
     let byte = r.u8()?;
-    if byte > 7 {
+    if byte > 15 {
         return Err(DecodeError::Value);
     }
     let current_frame = if byte & 1 == 0 { CurrentFrame::Stationary } else { CurrentFrame::Synchronous };
     let slip_current = if byte & 2 == 0 { SlipCurrent::Reference } else { SlipCurrent::Measured };
     let overmodulation = byte & 4 != 0;
+    let current_decoupling = byte & 8 != 0;
     let t = r.u8()?;
     let (a, b2, c, d) = (r.f64()?, r.f64()?, r.f64()?, r.f64()?);
     let speed_law = match t {
@@ -295,6 +296,7 @@ pub(super) fn read_spec(r: &mut Reader<'_>) -> Result<DriveSpec, DecodeError> {
         discretization,
         current_frame,
         slip_current,
+        current_decoupling,
         speed_law,
         position,
         flux_ref_wb,
