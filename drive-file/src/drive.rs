@@ -46,9 +46,9 @@ pub struct ControllerTable {
     /// Frame of the current loops (default stationary).
     #[serde(default)]
     pub current_frame: FrameTable,
-    /// The field-frame loops' decoupling, `jω_e·σL_s·i*` fed forward (default on; the
+    /// The field-frame loops' decoupling, `jω_e·σL_s·i*` fed forward (default off; the
     /// synchronous frame only: `DriveSpec::current_decoupling`).
-    #[serde(default = "default_current_decoupling")]
+    #[serde(default)]
     pub current_decoupling: bool,
     /// The q current the field's slip is turned on (default `"reference"`: i_q*, as seed 000
     /// prints eq. (7); `"measured"`: the measured q current while Running).
@@ -263,12 +263,6 @@ pub enum FrameTable {
     Stationary,
     /// d/q loops.
     Synchronous,
-}
-
-/// `controller.current_decoupling`'s default: on — the partner of the law `design tune`
-/// writes, designed on the decoupled stator (`DriveSpec::current_decoupling`).
-fn default_current_decoupling() -> bool {
-    true
 }
 
 /// `controller.slip_current`.

@@ -986,9 +986,9 @@ fn a_stationary_pi_at_speed_carries_the_intended_q_current_without_the_trim() {
 /// a disturbance: a torque that falls by Δi_q puts `ω_e·σL_s·Δi_q` on the d axis, which the
 /// proportional path answers with an error `ω_e·σL_s·Δi_q/k_p` until the integrator, at the
 /// stator's corner, catches up with `σL_s/R`. Fed forward from the references
-/// (`DriveConfig::decoupling_v`), the coupling is left to the loops only through their own
-/// error. Motulator's 2.2 kW machine (its saturating plant, the synchronous-frame drive of
-/// drives/motulator-2kw-saturating.toml) held at 150 rad/s, its torque reference falling from
+/// (`DriveConfig::decoupling_v`, `current_decoupling = true`), the coupling is left to the
+/// loops only through their own error. Motulator's 2.2 kW machine (its saturating plant, the
+/// synchronous-frame drive of drives/motulator-2kw-saturating.toml) held at 150 rad/s, its torque reference falling from
 /// 12 N·m to nothing: from 5/ω_c after the fall (the q loop's own step gone) to σL_s/R, the
 /// current misses its reference by at most a fifth of that prediction (0.057 A of 0.433 A;
 /// without the decoupling 0.443 A, the prediction's within 2 %).
@@ -999,7 +999,7 @@ fn a_torque_fall_at_speed_leaves_the_field_frame_loops_on_their_references() {
     use hil_sim::sim::{LoadModel, Scenario};
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let file = drive_file::DriveFile::load(&root.join("drives/motulator-2kw-saturating.toml")).unwrap();
-    let spec = file.spec;
+    let spec = controller_core::drive::DriveSpec { current_decoupling: true, ..file.spec };
     assert_eq!(spec.current_frame, controller_core::drive::CurrentFrame::Synchronous);
     let (plant, plant_saturation) = file.saturating_motor.map_or((spec.motor, None), |(m, s)| (m, Some(s)));
     let m = spec.motor;

@@ -1210,8 +1210,8 @@ mod tests {
     /// (`slip_current = "measured"`, which tune now writes) no run faults (docs/envelope.md,
     /// docs/population.md). The swing was found on field-frame loops without their
     /// decoupling, which the reference's slip needs to fault: decoupled, the loops follow the
-    /// reference's torque falls closely enough that it runs on (`current_decoupling`, on by
-    /// default, docs/envelope.md).
+    /// reference's torque falls closely enough that it runs on (`current_decoupling`,
+    /// docs/envelope.md).
     #[test]
     fn a_braking_drive_turns_its_field_at_the_slip_its_rotor_sees() {
         let mut c = pi_campaign_at(2, "002-7.3kW", [6.6725, 118.17, 1.0], 1.0, 4_000.0);
