@@ -923,20 +923,6 @@ mod tests {
         }
     }
 
-    /// A large rotor's drive reaches its top speed behind the ideal actuator by its flux's lag:
-    /// in field weakening the machine's flux follows the falling reference with T_r, and the
-    /// flux left above it takes voltage the torque needs. The 65 kW 2-pole member 161 at its
-    /// own 4.6 kHz (T_r up to 0.73 s) was still accelerating at 127 N·m, 663.6 rad/s of 678.6,
-    /// when its top-speed rows injected, and failed them as "not reached"; the matrix now waits
-    /// the slowest rotor's time constant besides (`hil_sim::faults::SETTLE_EXTRA_S`), and the
-    /// row is reached and passes.
-    #[test]
-    fn a_slow_rotors_top_speed_rows_inject_once_its_flux_has_followed() {
-        use hil_sim::faults::Point;
-        let o = member_row(161, "161-65kW", None, "open phase a", Point::Top, true);
-        assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
-    }
-
     /// Sensor faults at standstill, where the field turns at the slip frequency and a phase's
     /// current can sit near zero for tens of milliseconds, judged as the check judges: the
     /// error all three channels sum to (the healthy ones' gain errors included), its mean over

@@ -385,15 +385,10 @@ impl DriveSpec {
     /// `a_slow_rotors_voltage_regulator_holds_its_flux_at_top_speed`). An acceleration into
     /// the voltage limit is the other regime, as fast whatever the rotor (`voltage_budget`).
     pub fn voltage_regulator_bandwidth_rad_s(&self) -> f64 {
-        f64::min(VOLTAGE_REGULATOR_BANDWIDTH_RAD_S, 1.0 / self.rotor_time_constant_max_s())
-    }
-
-    /// The slowest rotor the drive may run on, its `T_r = L_r/R_r` in s: the box's least
-    /// rotor resistance, its largest inductances and, on a saturating curve, the chord at no
-    /// current (the field-weakened flux's). The machine's flux follows the drive's with it.
-    pub fn rotor_time_constant_max_s(&self) -> f64 {
         let chord_max = self.magnetizing.as_ref().map_or(1.0, |t| f64::max(t.chord_ratio(0.0), 1.0));
-        self.motor.tr_s() * self.inductance_range[1] * chord_max / self.rotor_resistance_range[0]
+        let t_r_max_s =
+            self.motor.tr_s() * self.inductance_range[1] * chord_max / self.rotor_resistance_range[0];
+        f64::min(VOLTAGE_REGULATOR_BANDWIDTH_RAD_S, 1.0 / t_r_max_s)
     }
 
     /// The highest duty the modulator gives a phase — also the fraction of the bus voltage

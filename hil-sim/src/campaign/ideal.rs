@@ -37,9 +37,6 @@ pub struct IdealLoop {
     head: usize,
     /// The law reads the window's mean (the encoder's estimate), not the speed itself.
     measured: bool,
-    /// The actuator's torque error, N·m: added to every torque it makes
-    /// ([`IdealLoop::with_torque_error`]).
-    torque_error_nm: f64,
     /// The ideal loop's speed, mechanical rad/s.
     pub omega_m_rad_s: f64,
 }
@@ -69,16 +66,8 @@ impl IdealLoop {
             window: [0.0; SPEED_WINDOW_READS + 1],
             head: 0,
             measured: false,
-            torque_error_nm: 0.0,
             omega_m_rad_s: 0.0,
         })
-    }
-
-    /// This loop on an actuator that makes `torque_error_nm` more than the law asks of it
-    /// (the envelope's limit included): a drive whose torque errs by that much settles where
-    /// this does.
-    pub fn with_torque_error(self, torque_error_nm: f64) -> Self {
-        Self { torque_error_nm, ..self }
     }
 
     /// This loop with its law reading the speed as the drive's estimate gives it: the mean
@@ -143,7 +132,7 @@ impl IdealLoop {
             TorqueCommand::IqA(i) => self.kt * f64::from(i),
         };
         let tau = tau.clamp(-self.torque_max_nm.1, self.torque_max_nm.0);
-        self.omega_m_rad_s = self.a * self.omega_m_rad_s + self.g * (tau + self.torque_error_nm - load_nm);
+        self.omega_m_rad_s = self.a * self.omega_m_rad_s + self.g * (tau - load_nm);
     }
 }
 

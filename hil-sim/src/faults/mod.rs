@@ -65,13 +65,7 @@ pub const INJECT_S: f64 = 2.5;
 pub const MAGNETIZING_MARGIN: f64 = 1.25;
 /// The injection waits the slowest point's settling time on the ideal loop
 /// ([`Matrix::approach`]) after the reference, and this much more, s (the drive's own
-/// torque lags the ideal actuator's by its flux and current loops) — and the slowest
-/// rotor's time constant besides ([`DriveSpec::rotor_time_constant_max_s`]): in field
-/// weakening the machine's flux follows the falling reference with T_r, and the flux left
-/// above it takes voltage the torque needs, so the drive accelerates into its top speed
-/// behind the ideal actuator by about that lag. The 65 kW 2-pole member at 4.6 kHz (T_r up
-/// to 0.73 s) was still accelerating at 127 N·m, 663.6 rad/s of 678.6, when its top-speed
-/// rows injected.
+/// torque lags the ideal actuator's by its flux and current loops).
 pub const SETTLE_EXTRA_S: f64 = 0.5;
 /// The ideal loop has settled once it stays within this fraction of its final speed (plus
 /// [`SETTLED_RAD_S`]).
@@ -94,6 +88,10 @@ pub const SENSOR_STUCK_FRACTION: f64 = 0.125;
 pub const LOAD_FRACTION: f64 = 0.25;
 /// Peak phase current allowed, as a fraction of the trip level.
 pub const PEAK_CURRENT_FRACTION: f64 = 1.1;
+/// The operating point counts as reached when the speed at the injection is within this
+/// of the speed the drive's law settles at on an ideal torque actuator ([`Matrix::approach`]:
+/// a proportional law's droop under the load, the envelope's torque limit included), rad/s.
+pub const REACHED_TOLERANCE_RAD_S: f64 = 15.0;
 /// Detection bounds (issue 18's acceptance): sensor faults, s.
 pub const SENSOR_BOUND_S: f64 = 0.010;
 /// … open phase, s.
@@ -254,8 +252,8 @@ pub enum Expect {
     RideThrough,
     /// No trip: the drive carries on on its observer (`speed_feedback =
     /// "encoder_ride_through"`), reports one of these faults within `bound_s`, and holds the
-    /// operating point's speed to the end of the run (within [`Approach::reached`]'s
-    /// tolerance of its speed at the injection: the band's width and the settled band).
+    /// operating point's speed to the end of the run (within [`REACHED_TOLERANCE_RAD_S`] of
+    /// its speed at the injection).
     Reported {
         /// The codes.
         faults: &'static [Fault],
@@ -329,10 +327,6 @@ pub struct Matrix {
     /// The simulated machine when it is not the drive's own motor (`hil-sim faults
     /// --plant`): its T model, its magnetizing branch's saturation and its extras.
     pub plant: Option<crate::scenario::SimulatedMotor>,
-    /// The torque error the drive's requirements allow, × τ_max (`[requirements]
-    /// torque_accuracy_fraction`; the default from [`Matrix::new`]): what widens the speeds
-    /// an operating point counts as reached at ([`Approach::band_rad_s`]).
-    pub torque_accuracy_fraction: f64,
     /// The reference's time and the injection's (before its delay), s: made once by
     /// [`Matrix::new`] from the drive ([`Matrix::reference_s`], [`Matrix::inject_s`]).
     times_s: (f64, f64),
@@ -351,33 +345,6 @@ pub struct Approach {
     /// When it has settled, from the reference: the last time it was farther than
     /// [`SETTLED_FRACTION`] of the final speed plus [`SETTLED_RAD_S`] from it, s.
     pub settle_s: f64,
-    /// The speeds it settles at on actuators whose torque errs by the requirements' torque
-    /// accuracy either way (`Matrix::torque_accuracy_fraction` × τ_max), rad/s, lowest
-    /// first: a drive within its torque accuracy settles in this band. Its width is the
-    /// error over the slope of the torque the law meets the load with — a proportional law's
-    /// gain, or at the top speed the envelope's fall with speed — so it is narrow where a
-    /// speed error costs the drive much torque, wide where little.
-    pub band_rad_s: [f64; 2],
-}
-
-impl Approach {
-    /// The operating point counts as reached at `speed_rad_s`: within the band, widened by
-    /// what counts as settled ([`SETTLED_FRACTION`] of the speed plus [`SETTLED_RAD_S`]).
-    /// Was a fixed 15 rad/s: the 65 kW member at 4.6 kHz, its top speed's envelope falling
-    /// gently, settled 15.6 rad/s below the ideal actuator's 678.6 rad/s, inside the 20.1 its
-    /// 5 % torque accuracy allows there.
-    pub fn reached(&self, speed_rad_s: f64) -> bool {
-        let [lo, hi] = self.band_rad_s;
-        let settled = SETTLED_FRACTION * self.final_rad_s.abs() + SETTLED_RAD_S;
-        speed_rad_s >= lo - settled && speed_rad_s <= hi + settled
-    }
-
-    /// How far a run's speed may drift from the point and still hold it: the band's width
-    /// and the settled band.
-    pub fn held_rad_s(&self) -> f64 {
-        let [lo, hi] = self.band_rad_s;
-        hi - lo + SETTLED_FRACTION * self.final_rad_s.abs() + SETTLED_RAD_S
-    }
 }
 
 /// One row of the matrix: its index (which seeds its sensors), the fault and the point.
@@ -411,8 +378,7 @@ impl Matrix {
     /// The matrix of the drive file `file` on `vdc_v` up to `omega_r_max_rad_s`: its spec,
     /// its encoder's lines and its board's comparator.
     pub fn of_file(file: &drive_file::DriveFile, omega_r_max_rad_s: f64, vdc_v: f64) -> Self {
-        let mut m = Self::new(file.spec, omega_r_max_rad_s, vdc_v)
-            .with_torque_accuracy(file.requirements.torque_accuracy_fraction);
+        let mut m = Self::new(file.spec, omega_r_max_rad_s, vdc_v);
         m.encoder_lines = file.encoder_lines();
         m.comparator = file
             .board
@@ -425,17 +391,6 @@ impl Matrix {
             extras: plant::Extras::default(),
         });
         m
-    }
-
-    /// This matrix judging its points reached on the torque accuracy `fraction` × τ_max
-    /// ([`Matrix::torque_accuracy_fraction`]): the points' approaches made again (their
-    /// settling, and so the matrix's times, do not depend on it).
-    pub fn with_torque_accuracy(mut self, fraction: f64) -> Self {
-        if fraction != self.torque_accuracy_fraction {
-            self.torque_accuracy_fraction = fraction;
-            self.approaches = self.points().into_iter().map(|p| (p, self.ideal_approach(&p))).collect();
-        }
-        self
     }
 
     /// The matrix of `spec` on `vdc_v`, up to the electrical speed `omega_r_max_rad_s`
@@ -454,7 +409,6 @@ impl Matrix {
             inject_delay_s: 0.0,
             seed: 0,
             plant: None,
-            torque_accuracy_fraction: drive_file::requirements::DEFAULT_TORQUE_ACCURACY_FRACTION,
             times_s: (REFERENCE_S, INJECT_S),
             approaches: Vec::new(),
         };
@@ -464,8 +418,7 @@ impl Matrix {
         // A law that does not run on the ideal loop: the rows say so (`Matrix::run_one`).
         let settle_s =
             m.approaches.iter().filter_map(|(_, a)| a.as_ref().ok()).map(|a| a.settle_s).fold(0.0, f64::max);
-        let flux_lag_s = m.spec.rotor_time_constant_max_s();
-        m.times_s = (reference_s, INJECT_S.max(reference_s + settle_s + SETTLE_EXTRA_S + flux_lag_s));
+        m.times_s = (reference_s, INJECT_S.max(reference_s + settle_s + SETTLE_EXTRA_S));
         m
     }
 
@@ -490,42 +443,30 @@ impl Matrix {
     /// [`Matrix::approach`] worked out: the drive's speed law on the ideal loop from rest.
     fn ideal_approach(&self, at: &OperatingPoint) -> Result<Approach, String> {
         if at.point == Point::Standstill {
-            return Ok(Approach { final_rad_s: 0.0, settle_s: 0.0, band_rad_s: [0.0; 2] });
+            return Ok(Approach { final_rad_s: 0.0, settle_s: 0.0 });
         }
         let t_slow = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
-        let ideal = crate::campaign::IdealLoop::new(&self.spec, &self.spec.motor, self.vdc_v, t_slow)?;
+        let mut ideal = crate::campaign::IdealLoop::new(&self.spec, &self.spec.motor, self.vdc_v, t_slow)?;
         let per_s = (1.0 / t_slow).round().max(1.0) as usize;
-        // The speeds from rest, until the speed moves less than 1e-4 rad/s in a second (or
-        // APPROACH_MAX_S).
-        let settle = |mut ideal: crate::campaign::IdealLoop| {
-            let mut speeds = Vec::new();
-            while speeds.len() < per_s * APPROACH_MAX_S as usize {
-                for _ in 0..per_s {
-                    ideal.step(at.speed_rad_s, at.load_nm);
-                    speeds.push(ideal.omega_m_rad_s);
-                }
-                let second_ago = speeds.len().checked_sub(per_s + 1).and_then(|k| speeds.get(k));
-                if second_ago.is_some_and(|w| (ideal.omega_m_rad_s - w).abs() < 1e-4) {
-                    break;
-                }
+        let mut speeds = Vec::new();
+        // Until the speed moves less than 1e-4 rad/s in a second (or APPROACH_MAX_S).
+        while speeds.len() < per_s * APPROACH_MAX_S as usize {
+            for _ in 0..per_s {
+                ideal.step(at.speed_rad_s, at.load_nm);
+                speeds.push(ideal.omega_m_rad_s);
             }
-            speeds
-        };
-        let speeds = settle(ideal.clone());
-        let error_nm = self.torque_accuracy_fraction * crate::campaign::torque_limit_nm(&self.spec);
-        let [short, over] = [-error_nm, error_nm]
-            .map(|e| settle(ideal.clone().with_torque_error(e)).last().copied().unwrap_or(f64::NAN));
-        let final_rad_s = speeds.last().copied().unwrap_or(f64::NAN);
-        if !(final_rad_s.is_finite() && short.is_finite() && over.is_finite()) {
+            let second_ago = speeds.len().checked_sub(per_s + 1).and_then(|k| speeds.get(k));
+            if second_ago.is_some_and(|w| (ideal.omega_m_rad_s - w).abs() < 1e-4) {
+                break;
+            }
+        }
+        let final_rad_s = ideal.omega_m_rad_s;
+        if !final_rad_s.is_finite() {
             return Err(format!("the speed law's ideal loop does not settle at {}", at.name()));
         }
         let band = SETTLED_FRACTION * final_rad_s.abs() + SETTLED_RAD_S;
         let outside = speeds.iter().rposition(|w| (w - final_rad_s).abs() > band);
-        Ok(Approach {
-            final_rad_s,
-            settle_s: outside.map_or(0.0, |k| (k + 1) as f64 * t_slow),
-            band_rad_s: [final_rad_s.min(short).min(over), final_rad_s.max(short).max(over)],
-        })
+        Ok(Approach { final_rad_s, settle_s: outside.map_or(0.0, |k| (k + 1) as f64 * t_slow) })
     }
 
     /// The six operating points.
@@ -674,8 +615,7 @@ impl Matrix {
 
     /// The time of the injection, s: [`INJECT_S`], or — for a drive slower to reach its
     /// points — the slowest point's settling time after [`Matrix::reference_s`] plus
-    /// [`SETTLE_EXTRA_S`] and the slowest rotor's time constant; then the delay
-    /// ([`Matrix::inject_delay_s`]).
+    /// [`SETTLE_EXTRA_S`]; then the delay ([`Matrix::inject_delay_s`]).
     pub fn inject_s(&self) -> f64 {
         self.times_s.1 + self.inject_delay_s
     }
@@ -858,12 +798,12 @@ impl Matrix {
         }
         match self.approach(at) {
             Ok(a) => {
+                let off = (speed_at_injection - a.final_rad_s).abs();
                 // A NaN (no row at the injection) fails too.
-                if !a.reached(speed_at_injection) {
-                    let [lo, hi] = a.band_rad_s;
+                if off.is_nan() || off > REACHED_TOLERANCE_RAD_S {
                     failures.push(format!(
                         "the operating point was not reached ({speed_at_injection:.1} rad/s, the law settles at \
-                         {:.1} on an ideal actuator, {lo:.1}…{hi:.1} on one within the torque accuracy)",
+                         {:.1} on an ideal actuator)",
                         a.final_rad_s
                     ));
                 }
@@ -954,8 +894,7 @@ impl Matrix {
                     None => failures.push("not reported".into()),
                 }
                 let drift = (final_speed - speed_at_injection).abs();
-                let held = self.approach(at).map_or(f64::NAN, |a| a.held_rad_s());
-                if drift.is_nan() || held.is_nan() || drift > held {
+                if drift.is_nan() || drift > REACHED_TOLERANCE_RAD_S {
                     failures.push(format!(
                         "the speed was not held: {final_speed:.1} rad/s at the end, {speed_at_injection:.1} at the injection"
                     ));
