@@ -734,8 +734,9 @@ struct SlowRun {
     /// reference, A (0 unforced): the stuck-switch check does not judge references the
     /// loops follow by that step at the voltage limit ([`SwitchWatch::add`]).
     forcing_a: f32,
-    /// The speed the present flux's torque limit is judged at, mechanical rad/s: the
-    /// reading, held while the reading stays within half a count of the encoder's speed
+    /// The speed the plan's voltage is judged at — the envelope, its operating point, the
+    /// flux's forcing and the present flux's torque limit —, mechanical rad/s: the reading,
+    /// held while the reading stays within half a count of the encoder's speed
     /// window of it (`DriveConfig::speed_hold_band_rad_s`; the observer's reading itself).
     /// At the voltage limit that limit is steep in the speed (the back-EMF takes nearly all
     /// of the voltage), and a speed held between two counts reads one or the other: judged

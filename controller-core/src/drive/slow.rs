@@ -236,13 +236,25 @@ impl SlowState {
                 Reference::RotatingCurrent { .. } => false,
             };
         let (w, i_max) = (m.omega_m_rad_s, cfg.ifoc.i_max_a());
+        // The speed the voltage is judged at — the envelope, its operating point, the flux's
+        // forcing and the present flux's limit alike —, held within half a count of the
+        // encoder's reading: steep in the speed at the voltage limit, they would follow a
+        // count's dither (`omega_limit_rad_s`). One speed for all four: the point is made at
+        // the voltage limit, and a limit judged half a count above it found the point's own
+        // current too much (population member 022 at 4 kHz generating at 309 rad/s: the
+        // torque's limit fell from 92 to 77 A of i_q each time the held speed sat above the
+        // reading, a 16 % dip of its braking torque for a few slow periods).
+        let band = if self.on_observer(cfg) { 0.0 } else { cfg.speed_hold_band_rad_s };
+        self.run.omega_limit_rad_s =
+            if running { self.run.omega_limit_rad_s.limit(w - band, w + band) } else { w };
+        let w_v = self.run.omega_limit_rad_s;
         let sign = if torque_nm < 0.0 { -1.0 } else { 1.0 };
         // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
         // torque changes direction.
         if self.run.envelope_age == 0 || self.run.envelope.sign() != sign {
             // On the estimates as they are now (the rotor-resistance law moves them).
             self.remodel(cfg);
-            self.run.envelope = self.run.model.envelope(sign, w, self.run.i_d_rated_a, v_budget, i_max);
+            self.run.envelope = self.run.model.envelope(sign, w_v, self.run.i_d_rated_a, v_budget, i_max);
             self.run.envelope_age = ENVELOPE_REFRESH_SLOW_STEPS;
         }
         self.run.envelope_age -= 1;
@@ -256,7 +268,7 @@ impl SlowState {
         };
         let torque_nm = torque_nm * room;
         let op =
-            self.run.model.point(&self.run.envelope, torque_nm, w, self.run.i_d_rated_a, v_budget, i_max);
+            self.run.model.point(&self.run.envelope, torque_nm, w_v, self.run.i_d_rated_a, v_budget, i_max);
         // Running, a flux above the envelope's falls within FLUX_FALL_TIME_S — sooner while the
         // speed rises (FLUX_LAG_FRACTION) —, however slow the rotor (magnetizing, the rotor
         // fit reads the flux building at its own T_r); where
@@ -319,9 +331,9 @@ impl SlowState {
             let above = psi > self.run.ifoc.flux_of(op.i_d_a);
             self.run.flux_forced = above
                 && (self.run.flux_forced
-                    || model.d_current_within_voltage(psi, falling, i_q_a, w, v_target, i_max) < falling);
+                    || model.d_current_within_voltage(psi, falling, i_q_a, w_v, v_target, i_max) < falling);
             let i_d_a = if self.run.flux_forced {
-                model.d_current_within_voltage(psi, falling, i_q_a, w, v_budget, i_max)
+                model.d_current_within_voltage(psi, falling, i_q_a, w_v, v_budget, i_max)
             } else {
                 falling
             };
@@ -345,13 +357,7 @@ impl SlowState {
         // (`FollowingError` in 30 of 512 generating runs; population test
         // `a_braking_drive_holds_its_load_at_top_speed`).
         let v_now = if torque_nm * w < 0.0 { v_target } else { v_budget };
-        // Judged at a speed held within half a count of the encoder's reading: steep in the
-        // speed at the voltage limit, it would follow a count's dither (`omega_limit_rad_s`).
-        let band = if self.on_observer(cfg) { 0.0 } else { cfg.speed_hold_band_rad_s };
-        self.run.omega_limit_rad_s =
-            if running { self.run.omega_limit_rad_s.limit(w - band, w + band) } else { w };
-        let w_limit = self.run.omega_limit_rad_s;
-        let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w_limit, v_now, needed, sign);
+        let i_q_now = self.run.model.i_q_max_at_flux(psi, i_d_a, w_v, v_now, needed, sign);
         let torque_now_nm = room * min_f32(op.torque_max_nm, per_a * i_q_now);
         // The speed loop's limit is the steady envelope: limited by the present flux too, it
         // would ask for a torque the rated flux can give, and the flux would never fall.
