@@ -46,9 +46,9 @@ pub struct ControllerTable {
     /// Frame of the current loops (default stationary).
     #[serde(default)]
     pub current_frame: FrameTable,
-    /// The field-frame loops' decoupling, `jω_e·σL_s·i*` fed forward (default off; the
+    /// The field-frame loops' decoupling, `jω_e·σL_s·i*` fed forward (default on; the
     /// synchronous frame only: `DriveSpec::current_decoupling`).
-    #[serde(default)]
+    #[serde(default = "default_decoupling")]
     pub current_decoupling: bool,
     /// The q current the field's slip is turned on (default `"reference"`: i_q*, as seed 000
     /// prints eq. (7); `"measured"`: the measured q current while Running).
@@ -126,6 +126,12 @@ pub const DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S: f64 = 20.0;
 
 fn default_current_trim() -> f64 {
     DEFAULT_CURRENT_TRIM_BANDWIDTH_RAD_S
+}
+
+/// The field-frame loops' decoupling is on unless the file turns it off: `design tune`'s
+/// current PI is designed on the decoupled stator `R + s·σL_s`.
+fn default_decoupling() -> bool {
+    true
 }
 
 fn default_magnetized() -> f64 {

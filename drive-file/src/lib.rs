@@ -21,7 +21,7 @@
 //! current = { kind = "icad" }            # eq. (20); or { kind = "icad", kp, ki, lag_num, lag_den }
 //!                                        # or { kind = "pi", kp = 360.0, ki = 9000.0 }
 //! current_frame = "stationary"           # or "synchronous" (d/q loops)
-//! current_decoupling = false             # default; true: d/q loops get jω_e·σL_s·i* fed forward
+//! current_decoupling = true              # default: d/q loops get jω_e·σL_s·i* fed forward; false: not
 //! slip_current = "reference"             # default: the slip on i_q*, as seed 000's eq. (7);
 //!                                        # "measured": on the measured q current while Running
 //! speed_feedback = "encoder"             # default; "sensorless": the flux and speed observer;

@@ -278,8 +278,8 @@ pub struct DriveSpec {
     /// (`DriveConfig::decoupling_v`; synchronous frame only): the partner of a law designed on
     /// the decoupled stator `R + s·σL_s`, as `design tune`'s (`k_p = ω_c·σL_s`, `k_i = ω_c·R`).
     /// Off for a law designed on the coupled axes as they are — seed 000's PI1/PI3, whose
-    /// reproduction (`hil-sim run seed000-fig12`) runs the paper's controller. Off by default
-    /// in a drive file until the population's sample passes with it (docs/envelope.md).
+    /// reproduction (`hil-sim run seed000-fig12`) runs the paper's controller. On by default
+    /// in a drive file (`[controller] current_decoupling`; docs/envelope.md).
     pub current_decoupling: bool,
     /// The q current the slip is turned on.
     pub slip_current: SlipCurrent,
