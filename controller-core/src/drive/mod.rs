@@ -749,6 +749,12 @@ struct SlowRun {
     /// behind — a whole count's band lagged a load's dip by a count, and member 001 at 4 kHz
     /// (8 poles, 500 lines) then dipped 0.16972 of its base speed against the 0.16967 its
     /// requirements allowed on a corner run (load on at its top speed) and tune refused it.
+    /// One speed for all four: the point is made at the voltage limit, and a limit judged
+    /// half a count above the speed the point was made at found the point's own current too
+    /// much (member 022 at 4 kHz generating at 309 rad/s: i_q's limit fell from 92 to 77 A
+    /// whenever the held speed sat above the reading, its braking torque dipping 16 % for a
+    /// few slow periods; population test
+    /// `a_point_at_the_voltage_limit_is_judged_at_the_speed_it_was_made_for`).
     omega_limit_rad_s: f32,
     /// The magnetizing fit of the rotor resistance ([`crate::mras`]).
     rotor_fit: RotorFit,

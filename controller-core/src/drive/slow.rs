@@ -236,18 +236,12 @@ impl SlowState {
                 Reference::RotatingCurrent { .. } => false,
             };
         let (w, i_max) = (m.omega_m_rad_s, cfg.ifoc.i_max_a());
-        // The speed the voltage is judged at — the envelope, its operating point, the flux's
-        // forcing and the present flux's limit alike —, held within half a count of the
-        // encoder's reading: steep in the speed at the voltage limit, they would follow a
-        // count's dither (`omega_limit_rad_s`). One speed for all four: the point is made at
-        // the voltage limit, and a limit judged half a count above it found the point's own
-        // current too much (population member 022 at 4 kHz generating at 309 rad/s: the
-        // torque's limit fell from 92 to 77 A of i_q each time the held speed sat above the
-        // reading, a 16 % dip of its braking torque for a few slow periods).
+        // One speed for the voltage: the envelope, its point, the forcing and the present
+        // flux's limit (`SlowRun::omega_limit_rad_s`).
         let band = if self.on_observer(cfg) { 0.0 } else { cfg.speed_hold_band_rad_s };
-        self.run.omega_limit_rad_s =
-            if running { self.run.omega_limit_rad_s.limit(w - band, w + band) } else { w };
-        let w_v = self.run.omega_limit_rad_s;
+        let held = self.run.omega_limit_rad_s.limit(w - band, w + band);
+        let w_v = if running { held } else { w };
+        self.run.omega_limit_rad_s = w_v;
         let sign = if torque_nm < 0.0 { -1.0 } else { 1.0 };
         // The envelope is remade every ENVELOPE_REFRESH_SLOW_STEPS, and at once when the
         // torque changes direction.
