@@ -48,7 +48,7 @@ pub struct ControllerTable {
     pub current_frame: FrameTable,
     /// The field-frame loops' decoupling, `jω_e·σL_s·i*` fed forward (default on; the
     /// synchronous frame only: `DriveSpec::current_decoupling`).
-    #[serde(default = "default_decoupling")]
+    #[serde(default = "default_current_decoupling")]
     pub current_decoupling: bool,
     /// The q current the field's slip is turned on (default `"reference"`: i_q*, as seed 000
     /// prints eq. (7); `"measured"`: the measured q current while Running).
@@ -130,7 +130,7 @@ fn default_current_trim() -> f64 {
 
 /// The field-frame loops' decoupling is on unless the file turns it off: `design tune`'s
 /// current PI is designed on the decoupled stator `R + s·σL_s`.
-fn default_decoupling() -> bool {
+fn default_current_decoupling() -> bool {
     true
 }
 

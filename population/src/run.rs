@@ -1332,9 +1332,10 @@ mod tests {
     /// ripple is the speed loop's answer to the reading's counts: within k_p × two counts.
     #[test]
     fn a_point_at_the_voltage_limit_is_judged_at_the_speed_it_was_made_for() {
-        let mut c = pi_campaign_at(22, "022-35kW", [9.19201223276931, 18.619373344614548, 0.6], 1.0, 4_000.0);
+        let kp = 9.19201223276931;
+        let mut c = pi_campaign_at(22, "022-35kW", [kp, 18.619373344614548, 0.6], 1.0, 4_000.0);
         c.duration_s = c.full_range_duration_s();
-        let counts = 2.0 * 9.19201223276931 * c.spec.speed_resolution_rad_s;
+        let counts = 2.0 * kp * c.spec.speed_resolution_rad_s;
         for decoupling in [false, true] {
             c.spec.current_decoupling = decoupling;
             c.check().unwrap();
