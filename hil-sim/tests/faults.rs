@@ -601,10 +601,10 @@ fn an_open_lead_at_rest_may_be_named_no_motor_current() {
 /// injection (`dead_peak_after_s`): the reference vector's angle at the injection and the
 /// field's turn, measured on the references before it. At mid-speed (81 rad/s, one pole
 /// pair: ω_e ≈ 81 rad/s plus the slip) that adds at most one turn; at rest, where the field
-/// turns at the slip frequency only, at most `SWITCH_PEAK_LEAD_MAX_S`.
+/// turns at the slip frequency only, at most the observation (`OBSERVE_S`).
 #[test]
 fn a_stuck_switchs_bound_runs_from_its_directions_peak() {
-    use hil_sim::faults::{OPEN_PHASE_BOUND_S, SWITCH_PEAK_LEAD_MAX_S, dead_peak_after_s};
+    use hil_sim::faults::{OBSERVE_S, OPEN_PHASE_BOUND_S, dead_peak_after_s};
     use std::f64::consts::{FRAC_PI_2, PI, TAU};
     let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
     // Phase a's upper switch: its peak at θ = 0, a quarter turn ahead of −π/2.
@@ -631,7 +631,7 @@ fn a_stuck_switchs_bound_runs_from_its_directions_peak() {
     let mid = bound(Point::Mid);
     assert!((0.0..=TAU / 81.0).contains(&mid), "{mid} s");
     let rest = bound(Point::Standstill);
-    assert!(rest > 0.1 && rest <= SWITCH_PEAK_LEAD_MAX_S, "{rest} s");
+    assert!(rest > 0.1 && rest <= OBSERVE_S, "{rest} s");
 }
 
 /// An open lead's bound runs from the first moment after the injection that its phase is

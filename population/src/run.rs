@@ -901,6 +901,49 @@ mod tests {
         assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
     }
 
+    /// A switch stuck open at rest, where the field turns at the slip frequency, at the two
+    /// ends of the dead direction's need, each at the member's own rate:
+    /// - the 7.4 kW member 184 (7.9 kHz), phase a's reference at its positive peak: b and c
+    ///   are asked for ≈ 1 A between them against a's 20 A, the dead phase holds them at zero
+    ///   and the motor carries no current — `NoMotorCurrent` after 9.0 ms, the open lead's
+    ///   name at rest (it failed as "detected as NoMotorCurrent");
+    /// - the 478 W member 088 (7.4 kHz), injected at the waning end of phase a's positive
+    ///   half-wave: the field measured before the injection (4.5 rad/s) puts the dead
+    ///   direction's next need past the run's observation, but the field turns faster with
+    ///   a phase's direction gone and `OpenPhase` comes after 563 ms, as phase a's reference
+    ///   comes back its dead way — a name within the observation, judged as any; the bound
+    ///   was capped at a fixed half second after the first need (550 ms) and failed it.
+    #[test]
+    fn a_stuck_switch_at_rest_is_judged_from_when_its_direction_is_needed() {
+        use controller_core::drive::Fault;
+        use hil_sim::faults::Point;
+        for (index, name, fault, from_injection) in [
+            (184, "184-7.4kW", Fault::NoMotorCurrent, 0.0..hil_sim::faults::OPEN_PHASE_BOUND_S),
+            (88, "088-478W", Fault::OpenPhase, 0.5..hil_sim::faults::OBSERVE_S),
+        ] {
+            let o = member_row(index, name, None, "switch a upper stuck open", Point::Standstill, true);
+            let (detected, after_s) = o.detected.unwrap();
+            assert_eq!(detected, fault, "{name}");
+            assert!(from_injection.contains(&after_s), "{name}: {after_s} s");
+            assert!(o.passed(), "{name}: {:?} {:?}", o.detected, o.failures);
+        }
+    }
+
+    /// The 24 kW member 181 at its own 7.2 kHz, phase a's upper switch stuck open at top
+    /// speed, motoring: each time phase a's positive half-wave comes, the dead switch holds
+    /// the phase at the lower rail, the voltage regulator shrinks the references (≈ 22 →
+    /// 10 A) and phase a's current flows the other way (−18 A against +11 A asked). The
+    /// stuck-switch check kept every sample out while the references fell, which was every
+    /// dead visit: `SwitchOpen` after 86.8 ms against a bound of 52.9 ms. Judged with the
+    /// fall allowed (controller-core's `SwitchWatch::add`), it is named within the bound.
+    #[test]
+    fn a_stuck_switch_that_shrinks_the_references_at_top_speed_is_named_in_time() {
+        use hil_sim::faults::Point;
+        let o = member_row(181, "181-24kW", None, "switch a upper stuck open", Point::Top, true);
+        assert_eq!(o.detected.map(|d| d.0), Some(controller_core::drive::Fault::SwitchOpen));
+        assert!(o.passed(), "{:?} {:?}", o.detected, o.failures);
+    }
+
     /// Healthy drives arriving at top speed to generate, at their own PWM rates: the speed
     /// loop drops the torque from its limit to nearly nothing within a few milliseconds, and
     /// at the voltage limit the loops undershoot the fall — member 068 (34 kW, 690 V, 6.5 kHz):

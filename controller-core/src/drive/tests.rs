@@ -1512,12 +1512,13 @@ fn a_dead_switch_driven_the_other_way_at_the_voltage_limit_is_named() {
 }
 
 /// A forcing of the flux steps the d reference, and the loops follow the step at the voltage
-/// limit: a current that never followed it falls short by at most the step, so the
-/// stuck-switch check counts no sample while the step could make a miss — more than
-/// [`SWITCH_SHORTFALL_MISSING`] of the least counted reference, [`SWITCH_LEVEL_SHARE`] of
-/// the magnitude (0.3 A of 1 A here) — and judges on below it. Phase a's upper switch dead
-/// (its positive half-waves at a tenth of their reference): named as unforced under a
-/// forcing of 0.29 A (on a scratch build the 35 kW population member 022 at its top speed
+/// limit: a current that never followed it falls short by at most the step, so while the
+/// step could make a miss — more than [`SWITCH_SHORTFALL_MISSING`] of the least counted
+/// reference, [`SWITCH_LEVEL_SHARE`] of the magnitude (0.3 A of 1 A here) — the
+/// stuck-switch check allows it: only a shortfall beyond the step misses. Below it the check
+/// judges as unforced. Phase a's upper switch dead (its positive half-waves at a tenth of
+/// their reference, short by 0.9 of it: beyond a 0.31 A step only where the reference
+/// exceeds 1.03 A, never here): named as unforced under a forcing of 0.29 A (on a scratch build the 35 kW population member 022 at its top speed
 /// forced its flux by 0.07–0.14 A of a 21 A magnitude after such a fault, and the check,
 /// kept out of every forcing, named it 175–181 ms later on 2 of 12 sensor seeds, against a
 /// bound of 53 ms); never under one of 0.31 A.
@@ -1542,6 +1543,57 @@ fn a_forcing_step_too_small_to_make_a_miss_leaves_the_stuck_switch_check_judging
     assert!(unforced.1 > dead_from && unforced.1 < dead_from + 4 * per_period, "{unforced:?}");
     assert_eq!(run(0.97 * bound), Some(unforced));
     assert_eq!(run(1.03 * bound), None);
+}
+
+/// A switch stuck open at top speed shrinks the references each time its dead direction is
+/// needed (the voltage regulator's answer to a phase held at the other rail), so the
+/// references fall through every visit of the dead direction — the samples that show it
+/// (synthetic slow samples, 40 per electrical period, commanded level 0.1 A, the shipped
+/// weights): the magnitude falls by 8 % a sample from 10 samples before phase a's positive
+/// peak to 5 after it (1 → 0.19) and climbs back over the rest of the period, as the
+/// population's 24 kW member 181 at 7.2 kHz did (≈ 22 → 10 A at each positive half-wave of
+/// phase a), while phase a's current flows the other way at 1.5 of its reference (181:
+/// −18 A against +11 A). Kept out of the check while the references fell (by more than
+/// could make a miss), each dead visit was judged on its last samples only: `SwitchOpen`
+/// 154 samples (3.9 electrical periods) after the fault. Judged with the fall allowed (a
+/// shortfall beyond it misses, a current the other way beyond it reverses): within the
+/// first period (14 samples). Healthy phases a sample behind the same falling references,
+/// short by at most the fall, are nothing.
+#[test]
+fn a_dead_switch_whose_visits_shrink_the_references_is_named() {
+    let per_period = 40;
+    let gain = [0.18126924, 0.048770577];
+    let dead_from = 6 * per_period;
+    // The magnitude: after the fault, falling 8 % a sample from 10 samples before phase a's
+    // positive peak (p = 0) to 5 after it, then back up linearly to 1 by the next fall.
+    let magnitude = |n: usize| {
+        if n < dead_from {
+            return 1.0;
+        }
+        let p = (n + 10) % per_period; // 0 at 10 samples before phase a's positive peak
+        let low = libm::powf(0.92, 15.0);
+        if p < 15 { libm::powf(0.92, p as f32) } else { low + (1.0 - low) * (p - 15) as f32 / 25.0 }
+    };
+    let refs_at = |n: usize| {
+        let r = balanced(core::f32::consts::TAU * n as f32 / per_period as f32);
+        let k = magnitude(n);
+        Abc { a: k * r.a, b: k * r.b, c: k * r.c }
+    };
+    let run = |measure: &dyn Fn(usize) -> Abc| {
+        let mut w = SwitchWatch::default();
+        (0..14 * per_period).find_map(|n| {
+            let r = refs_at(n);
+            w.add([r; 2], [measure(n), r], [0.1, 0.0], gain).map(|f| (f, n))
+        })
+    };
+    let stuck = |n: usize| {
+        let r = refs_at(n);
+        if n >= dead_from && r.a > 0.0 { Abc { a: -1.5 * r.a, ..r } } else { r }
+    };
+    let (f, n) = run(&stuck).unwrap();
+    assert_eq!(f, Fault::SwitchOpen);
+    assert!(n > dead_from && n < dead_from + per_period, "{n}");
+    assert_eq!(run(&|n| refs_at(n.saturating_sub(1))), None);
 }
 
 /// A switch stuck open whose dead direction still carries most of its reference: phase a's

@@ -429,17 +429,26 @@ impl PhaseDirections {
         &mut self,
         [r, tracked]: [f32; 2],
         [m, leg]: [f32; 2],
-        [level, floor]: [f32; 2],
+        [level, floor, allowance]: [f32; 3],
         commanded: f32,
         gains: [f32; 2],
     ) -> bool {
         let Self { positive, negative, open, short, departure } = self;
-        let fell_short = tracked.abs() >= floor && misses(tracked, m);
+        let fell_short = allowance <= 0.0 && tracked.abs() >= floor && misses(tracked, m);
         *short = if fell_short { short.saturating_add(1) } else { 0 };
         let (this, other, d) = if r >= 0.0 { (positive, negative, 1.0) } else { (negative, positive, -1.0) };
         let magnitude = d * r;
-        let missed = misses(r, m) || (d * *departure > SWITCH_DEPARTURE_SHARE && d * (r - m) > 0.0);
-        if magnitude < level {
+        // Short of its reference beyond what a step the loops follow explains (`allowance`),
+        // or absent (a loop overshooting a fall leaves a current, not none: an open lead's
+        // reading is the sensors' noise), or — no such step — short by any amount where the
+        // bridge departed from the model.
+        let shortfall = d * (r - m);
+        let missed = shortfall - allowance > SWITCH_SHORTFALL_MISSING * magnitude
+            || (allowance > 0.0 && m.abs() < OPEN_PHASE_ABSENT_FRACTION * magnitude)
+            || (allowance <= 0.0 && d * *departure > SWITCH_DEPARTURE_SHARE && shortfall > 0.0);
+        // A sample the step may explain — a miss without the allowance, none with it — tells
+        // nothing either way.
+        if magnitude < level || (!missed && shortfall > SWITCH_SHORTFALL_MISSING * magnitude) {
             return false;
         }
         // This sample ends the other direction's visit; it opens or goes on with this one's.
@@ -453,7 +462,7 @@ impl PhaseDirections {
         let [n, reversed] = &mut this.visit;
         if *n < u8::MAX {
             *n += 1;
-            *reversed += u8::from(d * m < 0.0);
+            *reversed += u8::from(d * m < -allowance);
         }
         if missed && !this.lapsed() {
             // A miss in good standing: the other way must carry anew (an open lead misses
@@ -591,29 +600,38 @@ impl SwitchWatch {
     /// `forcing_a`: how far the drive's flux forcing holds the d reference below where the
     /// flux would fall of itself (0 unforced). The loops follow that step at the voltage
     /// limit, for milliseconds — a lag in every phase, which the direction counts would read
-    /// as a dead switch (a reversal from braking at 2× base speed tripped `SwitchOpen`) —, so
-    /// no sample counts while it could make a miss: a current that never followed the step
-    /// falls short by at most the step, and a counted sample (its reference at least the
-    /// level, [`SWITCH_LEVEL_SHARE`] of the magnitude) misses by more than
-    /// [`SWITCH_SHORTFALL_MISSING`] of that. A forcing smaller leaves the check judging: at
-    /// its top speed the 35 kW population member 022 sits at the voltage limit, and on a
-    /// scratch build (its present-flux limit on a lagged speed, docs/population.md) a stuck
-    /// switch there forced its flux by 0.07–0.14 A of a 21 A magnitude for 166 ms; kept out
-    /// of any forcing, the check named it after 175–181 ms against a bound of 53 ms (2 of 12
-    /// sensor seeds).
+    /// as a dead switch (a reversal from braking at 2× base speed tripped `SwitchOpen`).
+    /// Likewise a fall of the references (their magnitude against its recent peak, which
+    /// follows falls over [`SWITCH_WINDOWS`] open-phase windows — the loops settle within
+    /// one, as the open-phase check takes them to): loops that follow a fall overshoot it by
+    /// a share of the fall, which a sample of the smaller reference reads as a miss. The
+    /// speed loop drops the torque from its limit to nearly nothing on arriving at its speed,
+    /// and at the voltage limit the loops undershot the fall for 8 ms, the currents 1.3–3 A
+    /// of references of 6–8 A: `SwitchOpen` on healthy drives, the population's 34 kW member
+    /// at 6.5 kHz and 73 kW member at 5.7 kHz arriving at top speed to generate.
     ///
-    /// Nor while the references fell of late by more than that share of the level (their
-    /// magnitude against its recent peak, which follows falls over [`SWITCH_WINDOWS`]
-    /// open-phase windows — the loops settle within one, as the open-phase check takes
-    /// them to): loops that follow a fall overshoot it by a share of the fall, which a
-    /// counted sample of the smaller reference reads as a miss. The speed loop drops the
-    /// torque from its limit to nearly nothing on arriving at its speed, and at the voltage
-    /// limit the loops undershot the fall for 8 ms, the currents 1.3–3 A of references of
-    /// 6–8 A: `SwitchOpen` on healthy drives, the population's 34 kW member at 6.5 kHz and
-    /// 73 kW member at 5.7 kHz arriving at top speed to generate. A stuck switch that
-    /// shrinks the references (the voltage regulator's answer at top speed) is judged once
-    /// they hold: drive.toml's upper switch at top speed, motoring, was named after 20.6 ms
-    /// instead of 10.1 ms on sensor seed 0 (bound 50.5 ms).
+    /// A current that never followed such a step falls short by at most the step, and one
+    /// that overshot it still flows. So while the larger of the two could make a miss (more
+    /// than [`SWITCH_SHORTFALL_MISSING`] of the level, [`SWITCH_LEVEL_SHARE`] of the
+    /// magnitude, the least a counted sample's reference is), a sample misses by a shortfall
+    /// beyond the step, or with its current absent (below [`OPEN_PHASE_ABSENT_FRACTION`] of
+    /// its reference: an open lead's, which the check must see as such to leave it to the
+    /// open-phase check — population member 010's recorded samples,
+    /// `an_open_lead_whose_other_phases_lose_their_current_is_no_stuck_switch`); it reverses
+    /// only by a current the other way beyond the step; a sample the step may explain (a miss
+    /// without it, none with it) counts for nothing; and the voltage's departure and the
+    /// undriven count judge nothing. Not kept out altogether: a stuck switch at top speed shrinks the references
+    /// each time its dead direction is needed — the voltage regulator's answer to a phase held
+    /// at the other rail — so the fall comes with every visit of the dead direction, the very
+    /// samples that show it. The population's 24 kW member 181 at 7.2 kHz, its upper switch
+    /// stuck open at top speed, motoring: the magnitude fell from ≈ 22 to ≈ 10 A at each of
+    /// phase a's positive half-waves, its current −18 A against +11 A asked; with every such
+    /// sample kept out, `SwitchOpen` came after 86.8 ms against a bound of 52.9 ms (13.0 ms
+    /// judged so; drive.toml's own at top speed, motoring, 10.1 ms instead of 20.6). The
+    /// flux's forcing, the same: population member 022 (35 kW) at top speed on a scratch
+    /// build forced its flux by 0.07–0.14 A of a 21 A magnitude for 166 ms after a switch
+    /// stuck open, and kept out of any forcing the check named it after 175–181 ms against
+    /// a bound of 53 ms.
     #[inline(never)]
     pub(crate) fn add(
         &mut self,
@@ -628,18 +646,17 @@ impl SwitchWatch {
         let level = SWITCH_LEVEL_SHARE * amplitude;
         let ([g, _], peak) = (gains, &mut self.recent_peak_a);
         *peak = max_f32(amplitude, *peak - g * (*peak - amplitude));
-        let fell_a = *peak - amplitude;
-        if amplitude < SWITCH_FLOOR_SHARE * commanded
-            || max_f32(forcing_a, fell_a) > SWITCH_SHORTFALL_MISSING * level
-        {
+        let step_a = max_f32(forcing_a, *peak - amplitude);
+        if amplitude < SWITCH_FLOOR_SHARE * commanded {
             for p in &mut self.phases {
                 p.short = 0; // no sample: none stale
             }
             return None;
         }
+        let allowance = if step_a > SWITCH_SHORTFALL_MISSING * level { step_a } else { 0.0 };
         let floor = UNDRIVEN_REFERENCE_SHARE * amplitude;
         let [a, b, c] = &mut self.phases;
-        let levels = [level, floor];
+        let levels = [level, floor, allowance];
         let (m, v) = (measured, legs);
         let stuck = a.add([reference.a, tracked.a], [m.a, v.a], levels, commanded, gains)
             | b.add([reference.b, tracked.b], [m.b, v.b], levels, commanded, gains)
@@ -691,7 +708,7 @@ mod tests {
     fn a_long_visit_is_judged_on_the_samples_it_counted() {
         let mut p = PhaseDirections::default();
         let add = |p: &mut PhaseDirections, r: f32, m: f32| {
-            p.add([r, r], [m, r], [0.5, 0.25], 0.1, [0.18, 0.05]);
+            p.add([r, r], [m, r], [0.5, 0.25, 0.0], 0.1, [0.18, 0.05]);
         };
         for k in 0..300 {
             add(&mut p, 1.0, if k < 100 { 1.0 } else { -0.1 });
@@ -706,8 +723,9 @@ mod tests {
     /// carried sample (a dead switch's phase at the end of its half-wave) leaves it dead.
     #[test]
     fn a_direction_that_carries_again_is_no_longer_dead() {
-        let add =
-            |p: &mut PhaseDirections, r: f32, m: f32| p.add([r, r], [m, r], [0.5, 0.25], 0.1, [0.18, 0.05]);
+        let add = |p: &mut PhaseDirections, r: f32, m: f32| {
+            p.add([r, r], [m, r], [0.5, 0.25, 0.0], 0.1, [0.18, 0.05])
+        };
         for carried_again in [1, SWITCH_VISIT_SAMPLES] {
             let mut p = PhaseDirections::default();
             for _ in 0..40 {

@@ -102,13 +102,24 @@ impl Matrix {
             // A switch stuck open does nothing until its direction of current is needed: the
             // bound runs from the first peak of its dead direction after the injection
             // ([`dead_peak_after_s`]: the run measures the field's angle and turn,
-            // `Matrix::run_one`), at most [`SWITCH_PEAK_LEAD_MAX_S`] after the first period
-            // it mattered ([`Outcome::acting_after_s`]).
+            // `Matrix::run_one`), or from the first period it mattered
+            // ([`Outcome::acting_after_s`]) if later, at most the observation later.
             // The phase then cannot follow one way: `SwitchOpen` once the other way has carried
             // since (`drive::SWITCH_MISSING_SHARE`); before that (or when the reference hardly
             // reverses) the phase carries none of its current, which is `OpenPhase`; a dead
             // lower switch leaves its low-side shunt without current exactly then, which the
-            // current-sum check sees first.
+            // current-sum check sees first. At rest, as for an open lead: with the vector at
+            // the dead direction's peak the other two phases are asked for (r_b − r_c)/2
+            // between them, which the dead phase holds at zero — one direction lost at angle θ
+            // from its peak leaves them √3·|i|·|sin θ| against Σ|i_ref| ≈ 2|i|, under
+            // `OPEN_PHASE_ABSENT_FRACTION` of it within 6.6°, which a field turning at the slip
+            // frequency holds for the two windows `NoMotorCurrent` needs (the population's
+            // 7.4 kW member 184 at 7.9 kHz, phase a's reference at its positive peak:
+            // 20 A asked, ≈ 1 A carried by b and c, `NoMotorCurrent` after 9.0 ms).
+            Injection::SwitchOpen { .. } if rest => Expect::Either {
+                faults: &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor, Fault::NoMotorCurrent],
+                bound_s: OPEN_PHASE_BOUND_S,
+            },
             Injection::SwitchOpen { .. } => Expect::Either {
                 faults: &[Fault::SwitchOpen, Fault::OpenPhase, Fault::CurrentSensor],
                 bound_s: OPEN_PHASE_BOUND_S,

@@ -42,12 +42,13 @@ use crate::sensors::SensorModel;
 use crate::sim::{Event, Injection, LoadModel, Row, Scenario, scaled_plant};
 use controller_core::drive::{DriveSpec, Fault, FaultSet, Mode, Reference, SpeedFeedback};
 use controller_core::frames::AlphaBeta;
-use controller_core::supervisor::phases::SWITCH_LEVEL_SHARE;
 use rayon::prelude::*;
 
 mod expect;
+mod field;
 mod report;
 mod sensor;
+pub use field::{dead_peak_after_s, phase_asked_after_s};
 use report::ms;
 pub use report::{Outcome, json, markdown, svg};
 use sensor::SensorActing;
@@ -98,56 +99,10 @@ pub const SENSOR_BOUND_S: f64 = 0.010;
 pub const OPEN_PHASE_BOUND_S: f64 = 0.050;
 /// … stall, s.
 pub const STALL_BOUND_S: f64 = 0.5;
-/// A switch stuck open ([`Injection::SwitchOpen`]) takes one direction of its phase's current
-/// away. The phase's reference in that direction follows the field's turn as
-/// `A·cos(θ − k·2π/3)`; before its first peak after the injection the missing current is a
-/// fraction of the amplitude — at rest, where the field turns at the slip frequency (a
-/// fraction of a hertz), a few per cent of it for tens of milliseconds, below what the current
-/// checks resolve. The bound is [`OPEN_PHASE_BOUND_S`] from that peak
-/// ([`dead_peak_after_s`]), at most this much later than from the first need, s (a field that
-/// hardly turns: the dead direction is needed and missed as an open phase).
-pub const SWITCH_PEAK_LEAD_MAX_S: f64 = 0.5;
 /// The field's speed ω_e at the injection is measured on the reference current vector over
 /// this long before it, s.
 pub const FIELD_TURN_WINDOW_S: f64 = 0.02;
 
-/// The time from the injection to the first peak, after it, of phase `phase`'s reference in
-/// the direction a switch stuck open takes away (`upper`: the positive current), s: the
-/// reference vector at angle `theta0_rad` (αβ) at the injection, turning at
-/// `omega_e_rad_s` (signed); phase k's reference is `|i|·cos(θ − k·2π/3)`. Injected past that
-/// direction's peak, the switch still acts on the half-wave's waning rest, but its first
-/// whole half-wave — the first peak the dead switch misses — comes a turn later: from the
-/// first need plus a quarter turn, as the bound was first written, it ran from the peak the
-/// switch had carried while healthy (the shipped DeLorenzo motor at 4 kHz, injected at
-/// the end of the positive half-wave: detected 69 ms after, 15 ms after the next peak,
-/// against a bound of 64 ms). Infinite for a field that does not turn (or not measured).
-pub fn dead_peak_after_s(phase: usize, upper: bool, theta0_rad: f64, omega_e_rad_s: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let peak = phase as f64 * TAU / 3.0 + if upper { 0.0 } else { PI };
-    let ahead = ((peak - theta0_rad) * omega_e_rad_s.signum()).rem_euclid(TAU);
-    let t = ahead / omega_e_rad_s.abs();
-    if t.is_nan() { f64::INFINITY } else { t }
-}
-
-/// The time from the injection to the first moment phase `phase`'s reference reaches
-/// [`SWITCH_LEVEL_SHARE`] of the reference vector's magnitude (either direction: within 60°
-/// of a peak), where the phase checks count its samples — 0 if it is there at the
-/// injection; the vector at angle `theta0_rad` (αβ), turning at `omega_e_rad_s` (signed), as
-/// in [`dead_peak_after_s`]. Infinite for a field that does not turn (or not measured) and a
-/// phase short of the level.
-pub fn phase_asked_after_s(phase: usize, theta0_rad: f64, omega_e_rad_s: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    let half_width = f64::from(SWITCH_LEVEL_SHARE).acos();
-    // The phase's angle from its nearest positive or negative peak, in [0, π).
-    let from_peak = (theta0_rad - phase as f64 * TAU / 3.0).rem_euclid(PI);
-    if from_peak <= half_width || from_peak >= PI - half_width {
-        return 0.0;
-    }
-    // Turning forward the phase nears the next peak (at π), backward the last one (at 0).
-    let ahead = if omega_e_rad_s >= 0.0 { PI - half_width - from_peak } else { from_peak - half_width };
-    let t = ahead / omega_e_rad_s.abs();
-    if t.is_nan() { f64::INFINITY } else { t }
-}
 /// The overload case's load, a multiple of the torque limit (with the operating point's
 /// load direction).
 pub const OVERLOAD_FACTOR: f64 = 1.5;
@@ -821,11 +776,10 @@ impl Matrix {
         };
         let latent = acting_after_s.is_none();
         // A stuck switch's bound runs from the first peak of the reference in its dead
-        // direction after the injection ([`dead_peak_after_s`]), at most
-        // [`SWITCH_PEAK_LEAD_MAX_S`] after the direction was first needed (a field that
-        // hardly turns).
-        // Its dead direction's first peak after the end of the observation: the switch acted
-        // on the waning tail of a half-wave only (at rest, where the field turns at a slip of a
+        // direction after the injection ([`dead_peak_after_s`]), or the first period it
+        // mattered if later, at most the observation later.
+        // Its dead direction needed only after the end of the observation: the switch acted on
+        // the waning tail of a half-wave only (at rest, where the field turns at a slip of a
         // fraction of a hertz, the 8-pole population member 018's) and is not needed again
         // within the run — no check can see a direction nobody asks for: undetected is no
         // failure, a detection is judged as any.
@@ -835,7 +789,7 @@ impl Matrix {
             (Injection::SwitchOpen { phase, upper }, e @ Expect::Either { .. }, Some(acting)) => {
                 let peak = dead_peak_after_s(phase, upper, theta_at_injection, omega_e);
                 unneeded = peak > OBSERVE_S;
-                e.later_by((peak - acting).clamp(0.0, SWITCH_PEAK_LEAD_MAX_S))
+                e.later_by((peak - acting).clamp(0.0, OBSERVE_S))
             }
             // An open lead takes both directions: its bound runs from the first period after
             // the injection where the phase is asked for a current the checks count
@@ -843,10 +797,10 @@ impl Matrix {
             // where the field turns at the slip frequency, it takes nothing the drive asks for
             // until the reference grows (the 8-pole member 018 at 10 kHz: phase a's reference
             // under a fifth of the others' for the first 50 ms, `OpenPhase` 52.1 ms after the
-            // injection), at most [`SWITCH_PEAK_LEAD_MAX_S`] later.
+            // injection).
             (Injection::OpenPhase { phase }, e, Some(_)) => {
                 let asked = phase_asked_after_s(phase, theta_at_injection, omega_e);
-                e.later_by(if asked.is_finite() { asked.min(SWITCH_PEAK_LEAD_MAX_S) } else { 0.0 })
+                e.later_by(if asked.is_finite() { asked.min(OBSERVE_S) } else { 0.0 })
             }
             (_, e, _) => e,
         };
