@@ -455,6 +455,31 @@ fn a_generating_overload_is_a_runaway_beyond_the_motors_friction() {
     assert!(t <= 0.5, "{t}");
 }
 
+/// An overload's bound runs past issue 18's 0.5 s only for a speed law slower than that to
+/// reach its limit (`Matrix::overload_reach_s`, on the ideal loop): the shipped drive's law
+/// reaches its limit within 0.13 s at every point (15 ms at top speed motoring, 124.5 ms
+/// generating there), and its six overload rows keep 0.5 s; the law reaches its limit
+/// sooner under twice the overload.
+#[test]
+fn an_overloads_bound_is_the_issues_unless_the_law_is_slower_to_its_limit() {
+    let m = shipped();
+    let c = case(&m, "overload");
+    let tau_max = hil_sim::campaign::torque_limit_nm(&m.spec);
+    for p in [Point::Standstill, Point::Mid, Point::Top] {
+        for motoring in [true, false] {
+            let at = point(&m, p, motoring);
+            match m.expect(&c, &at) {
+                Expect::Either { bound_s, .. } => assert_eq!(bound_s, 0.5, "{p:?} {motoring}"),
+                e => panic!("{e:?}"),
+            }
+            let load = |k: f64| k * tau_max * at.load_nm.signum();
+            let (reach_s, _) = m.overload_reach_s(&at, load(1.5)).unwrap();
+            let (sooner_s, _) = m.overload_reach_s(&at, load(3.0)).unwrap();
+            assert!(reach_s < 0.25 && sooner_s <= reach_s, "{p:?} {motoring}: {reach_s} {sooner_s}");
+        }
+    }
+}
+
 /// The 24 V drive's upper switch of phase a stuck open at standstill: the loops pin phase a
 /// at its duty limit (and b at 0) while its reference still rises through 38 % of the
 /// magnitude, below the stuck-switch check's level, and the voltage check's verdict came

@@ -116,8 +116,10 @@ impl IdealLoop {
         envelope_torque_nm(&self.envelope, self.limits, sign, omega_m_rad_s)
     }
 
-    /// One slow period with reference `omega_ref` and load `load_nm`.
-    pub fn step(&mut self, omega_ref: f64, load_nm: f64) {
+    /// One slow period with reference `omega_ref` and load `load_nm`; `true` when the law's
+    /// torque is at its limit — its own, or the envelope's where that is smaller (as the
+    /// drive's `speed_saturated`: at 0.999 of it).
+    pub fn step(&mut self, omega_ref: f64, load_nm: f64) -> bool {
         if self.age == 0 {
             let w = self.omega_m_rad_s;
             self.torque_max_nm = (self.torque_limit_nm(1.0, w), self.torque_limit_nm(-1.0, w));
@@ -127,12 +129,16 @@ impl IdealLoop {
         self.head = (self.head + 1) % (SPEED_WINDOW_READS + 1);
         self.window[self.head] = self.omega_m_rad_s;
         let read = self.speed_read();
-        let tau = match self.law.update(&mut self.state, omega_ref as f32, read as f32) {
-            TorqueCommand::TorqueNm(t) => f64::from(t),
-            TorqueCommand::IqA(i) => self.kt * f64::from(i),
+        let law_limit = f64::from(self.law.output_limit());
+        let (tau, law_limit) = match self.law.update(&mut self.state, omega_ref as f32, read as f32) {
+            TorqueCommand::TorqueNm(t) => (f64::from(t), law_limit),
+            TorqueCommand::IqA(i) => (self.kt * f64::from(i), self.kt * law_limit),
         };
+        let envelope = if tau >= 0.0 { self.torque_max_nm.0 } else { self.torque_max_nm.1 };
+        let at_limit = tau.abs() >= 0.999 * law_limit.min(envelope);
         let tau = tau.clamp(-self.torque_max_nm.1, self.torque_max_nm.0);
         self.omega_m_rad_s = self.a * self.omega_m_rad_s + self.g * (tau - load_nm);
+        at_limit
     }
 }
 
