@@ -436,7 +436,7 @@ impl Matrix {
     }
 
     /// How long after an overload of `load_nm` the drive's speed law, settled at `at` on the
-    /// ideal loop ([`Matrix::settled_ideal`]), takes to reach its torque limit, s (`None`
+    /// ideal loop (as for [`Matrix::approach`]), takes to reach its torque limit, s (`None`
     /// past [`OBSERVE_S`], or no ideal loop). Below its limit the law answers the load by
     /// its own dynamics — a slow speed loop on a heavy rotor droops for hundreds of
     /// milliseconds first (the population's 52 kW 8-pole member 178: J = 10 kg·m², a PI of
