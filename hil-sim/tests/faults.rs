@@ -456,8 +456,8 @@ fn a_generating_overload_is_a_runaway_beyond_the_motors_friction() {
 }
 
 /// An overload's bound runs past issue 18's 0.5 s only for a speed law slower than that to
-/// reach its limit (`Matrix::overload_reach_s`, on the ideal loop): the shipped drive's law
-/// reaches its limit within 0.13 s at every point (15 ms at top speed motoring, 124.5 ms
+/// reach its limit (`Matrix::overload_reach_s`, on the ideal loop; `-- --nocapture` prints
+/// it): the shipped drive's law reaches its limit within 0.13 s at every point (15 ms at top speed motoring, 124.5 ms
 /// generating there), and its six overload rows keep 0.5 s; the law reaches its limit
 /// sooner under twice the overload.
 #[test]
@@ -475,6 +475,9 @@ fn an_overloads_bound_is_the_issues_unless_the_law_is_slower_to_its_limit() {
             let load = |k: f64| k * tau_max * at.load_nm.signum();
             let (reach_s, _) = m.overload_reach_s(&at, load(1.5)).unwrap();
             let (sooner_s, _) = m.overload_reach_s(&at, load(3.0)).unwrap();
+            eprintln!(
+                "overload at {p:?}, motoring {motoring}: the law at its limit after {reach_s:.4} s ({sooner_s:.4} s at 3 × τ_max)"
+            );
             assert!(reach_s < 0.25 && sooner_s <= reach_s, "{p:?} {motoring}: {reach_s} {sooner_s}");
         }
     }

@@ -49,6 +49,44 @@ impl Matrix {
         })
     }
 
+    /// An overload of `load_nm` at `at`: its detection bound, s.
+    ///
+    /// The following-error check counts once the speed law is at its limit: the issue's
+    /// bound, or — a law slower than that to reach its limit under the overload
+    /// ([`Matrix::overload_reach_s`]) — from there the time the check needs: with the
+    /// load k·τ_max against the limit τ_max the speed is dragged at a = (k − 1)·τ_max/J
+    /// while it owes f·τ_max/J (f = `FOLLOWING_PROGRESS_FRACTION`), and the drag beyond
+    /// what it owes so far plus a whole window's owing, f·τ_max·T_f/J, trips at once:
+    /// f·T_f/(k − 1 − f) after the limit (a quarter of the window at k = 1.5), or the
+    /// window T_f if sooner. A rotor the drag brings through rest on the way pauses the
+    /// check within the stall check's "not moving" band, ±s: 2s/a more (member 178's
+    /// at mid-speed, motoring, crossed zero as the check would have spoken). Plus the
+    /// speed estimate's window (the drag shows in it that much later) and a slow
+    /// period.
+    pub fn overload_bound_s(&self, at: &OperatingPoint, load_nm: f64) -> f64 {
+        let slow_s = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
+        let tau_nm = crate::campaign::torque_limit_nm(&self.spec);
+        let f = controller_core::supervisor::motion::FOLLOWING_PROGRESS_FRACTION;
+        let k = load_nm.abs() / tau_nm;
+        let window_s = self.spec.protection.following_time_s;
+        let check_s = if k - 1.0 - f > 0.0 { (f * window_s / (k - 1.0 - f)).min(window_s) } else { window_s };
+        let drag = (k - 1.0).max(0.0) * tau_nm / self.spec.motor.j_kgm2();
+        let band =
+            controller_core::supervisor::motion::STALL_SPEED_FRACTION * self.spec.protection.overspeed_rad_s;
+        let estimate_s = controller_core::encoder::SPEED_WINDOW_READS as f64 * slow_s;
+        match self.overload_reach_s(at, load_nm) {
+            Some((reach_s, omega)) => {
+                // The speed's distance from rest, counted along the drag (the load
+                // pulls it towards its own sign's opposite: positive, down).
+                let towards = omega * load_nm.signum();
+                let through_rest = omega.abs() <= band || (towards > 0.0 && towards - drag * check_s <= band);
+                let pause_s = if through_rest && drag > 0.0 { 2.0 * band / drag } else { 0.0 };
+                STALL_BOUND_S.max(reach_s + check_s + pause_s + estimate_s + slow_s)
+            }
+            None => STALL_BOUND_S,
+        }
+    }
+
     /// What the issue asks of `case` at `at`, or the stated gap.
     pub fn expect(&self, case: &Case, at: &OperatingPoint) -> Expect {
         let slow_s = f64::from(self.spec.slow_divider) / self.spec.pwm_frequency_hz;
@@ -195,44 +233,12 @@ impl Matrix {
             // At rest under a position hold, a seized load changes nothing the drive commands.
             // A load the drive cannot hold drags the rotor away from its reference: named by
             // the following-error check, or by overspeed if the rotor crosses that first.
-            // The following-error check counts once the speed law is at its limit: the issue's
-            // bound, or — a law slower than that to reach its limit under the overload
-            // ([`Matrix::overload_reach_s`]) — from there the time the check needs: with the
-            // load k·τ_max against the limit τ_max the speed is dragged at a = (k − 1)·τ_max/J
-            // while it owes f·τ_max/J (f = `FOLLOWING_PROGRESS_FRACTION`), and the drag beyond
-            // what it owes so far plus a whole window's owing, f·τ_max·T_f/J, trips at once:
-            // f·T_f/(k − 1 − f) after the limit (a quarter of the window at k = 1.5), or the
-            // window T_f if sooner. A rotor the drag brings through rest on the way pauses the
-            // check within the stall check's "not moving" band, ±s: 2s/a more (member 178's
-            // at mid-speed, motoring, crossed zero as the check would have spoken). Plus the
-            // speed estimate's window (the drag shows in it that much later) and a slow
-            // period.
-            Injection::LoadStep { torque_nm } => {
-                let load_nm = self.overload_nm(torque_nm, at);
-                let tau_nm = crate::campaign::torque_limit_nm(&self.spec);
-                let f = controller_core::supervisor::motion::FOLLOWING_PROGRESS_FRACTION;
-                let k = load_nm.abs() / tau_nm;
-                let window_s = self.spec.protection.following_time_s;
-                let check_s =
-                    if k - 1.0 - f > 0.0 { (f * window_s / (k - 1.0 - f)).min(window_s) } else { window_s };
-                let drag = (k - 1.0).max(0.0) * tau_nm / self.spec.motor.j_kgm2();
-                let band = controller_core::supervisor::motion::STALL_SPEED_FRACTION
-                    * self.spec.protection.overspeed_rad_s;
-                let estimate_s = controller_core::encoder::SPEED_WINDOW_READS as f64 * slow_s;
-                let bound_s = match self.overload_reach_s(at, load_nm) {
-                    Some((reach_s, omega)) => {
-                        // The speed's distance from rest, counted along the drag (the load
-                        // pulls it towards its own sign's opposite: positive, down).
-                        let towards = omega * load_nm.signum();
-                        let through_rest =
-                            omega.abs() <= band || (towards > 0.0 && towards - drag * check_s <= band);
-                        let pause_s = if through_rest && drag > 0.0 { 2.0 * band / drag } else { 0.0 };
-                        STALL_BOUND_S.max(reach_s + check_s + pause_s + estimate_s + slow_s)
-                    }
-                    None => STALL_BOUND_S,
-                };
-                Expect::Either { faults: &[Fault::FollowingError, Fault::Overspeed], bound_s }
-            }
+            // The following-error check counts once the speed law is at its limit
+            // ([`Matrix::overload_bound_s`]).
+            Injection::LoadStep { torque_nm } => Expect::Either {
+                faults: &[Fault::FollowingError, Fault::Overspeed],
+                bound_s: self.overload_bound_s(at, self.overload_nm(torque_nm, at)),
+            },
             Injection::LoadSeizure { .. } if rest => Expect::RideThrough,
             // At speed, a seizure first decelerates the rotor against the drive's full torque:
             // until it stops, that is a load beyond the drive dragging the speed against the
