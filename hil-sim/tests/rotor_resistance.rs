@@ -122,8 +122,10 @@ fn magnetizing_measures_the_rotor_resistance_and_the_inductance() {
 
 /// A rotor heating up mid-run (its resistance stepping ×1.5 at speed under load, faster than
 /// any real rotor heats): the reactive-power law brings the estimate within 5 % of the new
-/// value within 0.5 s, and the machine's flux back within 5 % of the drive's model —
-/// without the adaptation (`rotor_resistance_range = [1, 1]`) the flux settles 32 % above it.
+/// value within 1 s (ten rotor time constants: the law's own is three, and it listens only
+/// on the slow periods whose plan held the references, `mras::PLAN_STEADY_FRACTION`), and
+/// the machine's flux back within 5 % of the drive's model — without the adaptation
+/// (`rotor_resistance_range = [1, 1]`) the flux settles 32 % above it.
 #[test]
 fn the_online_law_follows_a_heating_rotor() {
     let spec = shipped();
@@ -136,24 +138,22 @@ fn the_online_law_follows_a_heating_rotor() {
         (1.0, Event::Fault(Injection::Plant { motor: hot })),
     ];
     let flux_ratio = |r: &Row| r.x.psi_alpha_wb.hypot(r.x.psi_beta_wb) / r.psi_est_wb;
-    let adapted = run(spec, cold, events.clone(), 2.0, 5);
+    let adapted = run(spec, cold, events.clone(), 2.5, 5);
     let before = adapted.iter().rfind(|r| r.t_s < 1.0).unwrap();
     assert!((before.rr_scale - 1.0).abs() <= 0.05, "cold estimate {:.4}", before.rr_scale);
-    let after = adapted.iter().find(|r| r.t_s >= 1.5).unwrap();
+    let half = adapted.iter().find(|r| r.t_s >= 1.5).unwrap();
+    let after = adapted.iter().find(|r| r.t_s >= 2.0).unwrap();
     let end = adapted.last().unwrap();
     eprintln!(
-        "adapted: estimate ×{:.4} before, ×{:.4} 0.5 s after, ×{:.4} at {:.1} s; flux/model {:.3} at the end",
+        "adapted: estimate ×{:.4} before, ×{:.4} 0.5 s after, ×{:.4} 1 s after, ×{:.4} at {:.1} s; flux/model {:.3} at the end",
         before.rr_scale,
+        half.rr_scale,
         after.rr_scale,
         end.rr_scale,
         end.t_s,
         flux_ratio(end)
     );
-    assert!(
-        (after.rr_scale / 1.5 - 1.0).abs() <= 0.05,
-        "estimate 0.5 s after the step: {:.4}",
-        after.rr_scale
-    );
+    assert!((after.rr_scale / 1.5 - 1.0).abs() <= 0.05, "estimate 1 s after the step: {:.4}", after.rr_scale);
     assert!((flux_ratio(end) - 1.0).abs() <= 0.05, "flux/model {:.3}", flux_ratio(end));
     let fixed = DriveSpec { rotor_resistance_range: [1.0, 1.0], ..spec };
     let rows = run(fixed, cold, events, 2.0, 5);

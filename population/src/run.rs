@@ -1233,6 +1233,72 @@ mod tests {
         assert!(v.passed(), "{}", v.csv());
     }
 
+    /// The 65 kW 2-pole member (161) at its own 4.6 kHz as tune tunes it: its top speed in
+    /// field weakening is 679 rad/s on the ideal actuator, which settles 2.26 s after the
+    /// reference, and the drive is within half the tolerance of it 53 ms after the ideal
+    /// wait (its flux follows the falling reference with T_r = 0.69 s, and the flux left above
+    /// it takes the voltage the torque needs): at the ideal wait it was at 663 rad/s, 15.5
+    /// short, and all 19 top-speed motoring rows failed "not reached". The matrix now injects once the drive, run healthy, has
+    /// arrived, and the row judges the fault at the point it names.
+    #[test]
+    fn a_drive_slower_than_its_ideal_approach_takes_its_faults_once_it_has_arrived() {
+        use hil_sim::faults::{Point, REACHED_TOLERANCE_RAD_S, SETTLE_EXTRA_S};
+        let (tuned, file, vdc) =
+            tuned_member_with(161, "161-65kW", None, |t| Ok(t.into()), SpeedDesign::Auto);
+        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
+        let points = matrix.points();
+        let settle_s =
+            points.iter().filter_map(|p| matrix.approach(p).ok()).map(|a| a.settle_s).fold(0.0, f64::max);
+        let ideal_s = matrix.reference_s() + settle_s + SETTLE_EXTRA_S;
+        assert!(matrix.inject_s() > ideal_s + 0.02, "{} against the ideal wait {ideal_s}", matrix.inject_s());
+        let rows = matrix.rows().unwrap();
+        let (k, c, at) = rows
+            .iter()
+            .find(|(_, c, at)| c.name == "encoder stuck" && at.point == Point::Top && at.motoring)
+            .unwrap();
+        let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
+        let target = matrix.approach(at).unwrap().final_rad_s;
+        assert!(
+            (o.speed_at_injection_rad_s - target).abs() <= REACHED_TOLERANCE_RAD_S,
+            "{} rad/s at the injection against {target}",
+            o.speed_at_injection_rad_s
+        );
+        assert!(o.passed(), "{:?}", o.failures);
+    }
+
+    /// The 182 kW member (052) at its own 4.0 kHz as tune tunes it, run 68 of its 200-run
+    /// campaign: a rotor ×1.236 hot, motoring to its top speed (314 rad/s, field weakening),
+    /// 16 s at no load there, then 0.8 × the load it holds. At no load the speed loop's
+    /// answers to the encoder's counts swing the load ratio |i_q|/i_d about the
+    /// rotor-resistance law's gate (0.39–0.90, median 0.49): the law heard the samples whose
+    /// i_q had just been pushed up — the loops' proportional reaction to that push in their
+    /// voltage — and walked from the magnetizing fit's ×1.22 to ×1.04; loaded, the machine's
+    /// flux ran 1.38 × the model's (the campaign's bound 1.3) and the field-weakening
+    /// regulator hunted (torque 450–485 N·m). Heard only on a plan that held the references
+    /// (as the inductance law is), the estimate stays with the rotor.
+    #[test]
+    fn a_hot_rotor_at_no_load_keeps_the_resistance_its_fit_read() {
+        let (_, file, vdc) = tuned_member_with(52, "052-182kW", None, |t| Ok(t.into()), SpeedDesign::Auto);
+        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
+        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+        c.check().unwrap();
+        // The estimate on the last period before the load step.
+        let mut rr_unloaded = f64::NAN;
+        let v = c
+            .run_one_into(68, &AtomicBool::new(false), &mut |r| {
+                if r.load_nm == 0.0 {
+                    rr_unloaded = r.rr_scale;
+                }
+                Ok(())
+            })
+            .unwrap();
+        // The magnetizing fit reads T_r within a few per cent (docs/rotor-resistance.md).
+        let off = rr_unloaded / v.sample.rr - 1.0;
+        assert!(off.abs() < 0.05, "×{rr_unloaded:.4} against the rotor's ×{:.4}", v.sample.rr);
+        assert!(v.flux_ratio[1] <= hil_sim::campaign::FLUX_BOUNDS[1], "{}", v.csv());
+        assert!(v.passed(), "{}", v.csv());
+    }
+
     /// The 1.3 kW 8-pole member (001) at 20 kHz with the speed PI tune's search found for it
     /// (k_p 0.633, k_i 6.98, setpoint weight 0.8): on the 64 corner runs of 1 s — speed
     /// steps to ±145 rad/s at the torque limit, into field weakening — no healthy run trips.
@@ -1337,10 +1403,13 @@ mod tests {
     /// stuck-switch check tripped at ≈ 162 rad/s, before the injection, on the two rows
     /// below (on 10 top-speed rows over seeds 0–11). Judged at a speed held within half a
     /// count of the reading (`DriveSpec::speed_resolution_rad_s`), both pass. With no band
-    /// (the reading itself) both tripped again until the stuck-switch check kept out the
-    /// samples taken just after the references fell (`SwitchWatch::add`): the chatter's falls
-    /// are such, and both rows pass either way — the band is what holds the flux there
-    /// (`a_loaded_motor_at_top_speed_holds_its_flux_through_the_speed_readings_dither`).
+    /// (the reading itself) the chatter is back and the stuck-switch check trips on it before
+    /// the injection (the first row's: `SwitchOpen` at 1.59 s, 162 rad/s; the second's sensor
+    /// draw rides through): the currents do fall half short of
+    /// the references there. (For a while both rows passed either way, the check keeping out
+    /// the samples just after the references fell; since the rotor-resistance law listens only
+    /// on plans that held the references, the estimate on the way differs, and the unbanded
+    /// drive's chatter reaches the check again.)
     #[test]
     fn a_speed_read_between_two_counts_leaves_the_present_flux_limit_still() {
         use hil_sim::faults::Point;
@@ -1352,33 +1421,43 @@ mod tests {
         for (f, banded) in [(&file, true), (&unbanded, false)] {
             let matrix = Matrix::of_file(f, tuned.certify.omega_r_max_rad_s, vdc);
             let rows = matrix.rows().unwrap();
+            let mut tripped_on_the_way = Vec::new();
             for case in ["L_m step × 0.8 (saturation)", "overload (1.5 × τ_max)"] {
                 let (k, c, at) = rows
                     .iter()
                     .find(|(_, c, at)| c.name == case && at.point == Point::Top && !at.motoring)
                     .unwrap();
                 let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
-                assert!(o.passed(), "band {banded}: {case}: {:?}", o.failures);
+                if banded {
+                    assert!(o.passed(), "band {banded}: {case}: {:?}", o.failures);
+                }
+                tripped_on_the_way.extend(o.tripped_before_s);
             }
+            // Unbanded, the rows' sensor draws decide which of the two the chatter trips.
+            assert_eq!(tripped_on_the_way.is_empty(), banded, "band {banded}: {tripped_on_the_way:?}");
         }
     }
 
     /// Member 020 (73 kW, 4 096 lines) at 20 kHz, run 112 of its 200-run campaign: motoring
     /// loaded at its top speed of 628 rad/s, the voltage at its limit. With the present
     /// flux's torque limit judged at the speed reading, its one-count dither moved the limit
-    /// each slow step and the run missed the 5 % steady flux accuracy (0.0502); judged at a
-    /// speed held within half a count of the reading, 0.0015.
+    /// each slow step and the run missed the 5 % steady flux accuracy (0.0502): each step of
+    /// the plan was also evidence the rotor-resistance law heard with the loops' reaction in
+    /// it. Judged at a speed held within half a count of the reading, the run met it (0.0015);
+    /// since the law listens only on plans that held the references, it meets it either way
+    /// (`-- --nocapture` prints both).
     #[test]
     fn a_loaded_motor_at_top_speed_holds_its_flux_through_the_speed_readings_dither() {
         use drive_file::requirements::Requirement::FluxAccuracy;
         let (_, file, vdc) = tuned_member(20, "020-73kW", 20_000.0, |t| Ok(t.into()));
         let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
         c.duration_s = c.duration_s.max(c.full_range_duration_s());
-        for (band, met) in [(file.spec.speed_resolution_rad_s, true), (0.0, false)] {
+        for band in [file.spec.speed_resolution_rad_s, 0.0] {
             let c = Campaign { spec: DriveSpec { speed_resolution_rad_s: band, ..c.spec }, ..c };
             let v = c.run_one(112, &AtomicBool::new(false)).unwrap();
             let flux = v.measures.iter().find(|m| m.requirement == FluxAccuracy).unwrap();
-            assert_eq!(flux.met(), met, "band {band} rad/s: {flux:?}");
+            eprintln!("band {band:.4} rad/s: flux accuracy {:.4}", flux.value);
+            assert!(flux.met(), "band {band} rad/s: {flux:?}");
         }
     }
 

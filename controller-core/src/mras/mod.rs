@@ -61,8 +61,15 @@
 //! resistance 10 % low at the voltage limit: docs/rotor-resistance.md) —, `|i_q| ≥` [`LOAD_RATIO_MIN`]`·i_d` (the slope at least
 //! 64 % of its peak) and the rotor-flux EMF `|ω_e|·(L_m/L_r)·ψ̂_r` at least
 //! [`EMF_FRACTION_MIN`] of the linear voltage limit (so that the voltage's own errors —
-//! dead time, sensor gain — stay small against it). At rest and at no load the estimate is
-//! held: it is the rotor's temperature, which changes over minutes.
+//! dead time, sensor gain — stay small against it), on a plan that moved the current
+//! references by at most [`PLAN_STEADY_FRACTION`] of i_d (the inductance law's gate, for the
+//! same reason: the evidence is the first fast step on the plan, whose voltage carries the
+//! loops' proportional reaction `k_p·Δi*`; where the speed loop's answers to the encoder's
+//! counts swing the load ratio about [`LOAD_RATIO_MIN`], the gate picks the samples whose
+//! `i_q` was just pushed up — the population's 182 kW member 052 at no load in field
+//! weakening read its ×1.236 rotor as ×1.04 that way, docs/rotor-resistance.md). At rest and
+//! at no load the estimate is held: it is the rotor's temperature, which changes over
+//! minutes.
 //!
 //! **Where it starts: measured while magnetizing** ([`fit`]): the rotor time constant, the
 //! inductances and the stator resistance from the flux build at the enable, on a rotor at
@@ -117,7 +124,7 @@ pub const LOAD_RATIO_MIN: f32 = 0.5;
 /// at 0.1 its law never listened there.
 pub const INDUCTANCE_LOAD_RATIO_MAX: f32 = 0.3;
 
-/// The inductance law listens only at a slow step whose plan moved the current references by
+/// Both laws listen only at a slow step whose plan moved the current references by
 /// at most this fraction of i_d. Its evidence is the first fast step on the new plan, whose
 /// voltage carries the loops' proportional reaction to the step, `k_p·Δi*` — against the
 /// no-load reactive voltage `ω_e·L_s·i_d` a large share where the loops are fast against
@@ -343,9 +350,12 @@ impl MrasConfig {
     /// machine model, on the inductance in use ([`EnvelopeConfig::with_inductance_scale`]).
     #[inline(never)]
     pub fn update(&self, r: f32, model: &EnvelopeConfig, evidence: &Evidence) -> f32 {
-        let Evidence { i, w_e_rad_s: w_e, .. } = *evidence;
-        let listening =
-            self.active() && i.d > 0.0 && i.q.abs() >= LOAD_RATIO_MIN * i.d && evidence.emf_heard(model);
+        let Evidence { i, w_e_rad_s: w_e, i_ref_step_a, .. } = *evidence;
+        let listening = self.active()
+            && i.d > 0.0
+            && i.q.abs() >= LOAD_RATIO_MIN * i.d
+            && i_ref_step_a <= PLAN_STEADY_FRACTION * i.d
+            && evidence.emf_heard(model);
         if !listening {
             return r;
         }

@@ -157,7 +157,7 @@ fn the_online_law_settles_at_the_true_resistance() {
 }
 
 /// Where the evidence says nothing the estimate holds: no load, too slow a field, a
-/// single-valued range, a non-finite voltage.
+/// single-valued range, a non-finite voltage, a plan that moved the references.
 #[test]
 fn the_online_law_holds_without_evidence() {
     let model = EnvelopeConfig::new(&motor());
@@ -172,6 +172,12 @@ fn the_online_law_holds_without_evidence() {
     let mut e = evidence(r, 1.0, 1.0, 0.634, 2.0, 150.0);
     e.v.q = f32::NAN;
     assert_eq!(c.update(r, &model, &e), r, "not finite");
+    // The references just stepped by more than PLAN_STEADY_FRACTION of i_d (0.634 A).
+    let mut stepped = evidence(r, 1.0, 1.0, 0.634, 2.0, 150.0);
+    stepped.i_ref_step_a = 1e-3;
+    assert_eq!(c.update(r, &model, &stepped), r, "the references just stepped");
+    stepped.i_ref_step_a = 6e-4;
+    assert!(c.update(r, &model, &stepped) < r, "a plan that held them");
     let fixed = cfg([1.3, 1.3]);
     assert_eq!(fixed.update(1.3, &model, &evidence(1.3, 1.0, 1.0, 0.634, 2.0, 150.0)), 1.3);
     assert_eq!(fixed.initial_scale(), 1.3);

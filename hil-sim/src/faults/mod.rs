@@ -44,10 +44,12 @@ use controller_core::drive::{DriveSpec, Fault, FaultSet, Mode, Reference, SpeedF
 use controller_core::frames::AlphaBeta;
 use rayon::prelude::*;
 
+mod arrival;
 mod expect;
 mod field;
 mod report;
 mod sensor;
+pub use arrival::{ARRIVAL_BAND_FRACTION, ARRIVAL_HORIZON};
 pub use field::{dead_peak_after_s, phase_asked_after_s};
 use report::ms;
 pub use report::{Outcome, json, markdown, svg};
@@ -288,6 +290,10 @@ pub struct Matrix {
     /// The six points' [`Approach`]es, made once by [`Matrix::new`] (the times and every
     /// row's "reached" read them).
     approaches: Vec<(OperatingPoint, Result<Approach, String>)>,
+    /// When the drive itself, run healthy, has arrived at every point it reaches, s
+    /// (`Matrix::arrival_s`): measured once, at the first use of [`Matrix::inject_s`], on
+    /// the matrix as configured then (its plant, comparator and encoder).
+    arrival_s: std::sync::OnceLock<f64>,
 }
 
 /// What the drive's speed law does on an ideal torque actuator from rest under an operating
@@ -366,6 +372,7 @@ impl Matrix {
             plant: None,
             times_s: (REFERENCE_S, INJECT_S),
             approaches: Vec::new(),
+            arrival_s: std::sync::OnceLock::new(),
         };
         let magnetizing_s = MAGNETIZING_MARGIN * crate::sim::magnetizing_time_s(&m.spec);
         let reference_s = REFERENCE_S.max(magnetizing_s);
@@ -590,6 +597,8 @@ impl Matrix {
         progress: impl Fn(usize) + Sync,
         cancel: &AtomicBool,
     ) -> Result<Vec<Outcome>, String> {
+        // The drive's arrival measured before the rows (each reads it) start in parallel.
+        self.inject_s();
         let done = std::sync::atomic::AtomicUsize::new(0);
         rows.par_iter()
             .map(|(k, case, at)| {
@@ -608,19 +617,16 @@ impl Matrix {
 
     /// The time of the injection, s: [`INJECT_S`], or — for a drive slower to reach its
     /// points — the slowest point's settling time after [`Matrix::reference_s`] plus
-    /// [`SETTLE_EXTRA_S`]; then the delay ([`Matrix::inject_delay_s`]).
+    /// [`SETTLE_EXTRA_S`], or when the drive itself, run healthy, has arrived at every point
+    /// it reaches (see [`ARRIVAL_BAND_FRACTION`]) if that is later still; then the delay
+    /// ([`Matrix::inject_delay_s`]).
     pub fn inject_s(&self) -> f64 {
-        self.times_s.1 + self.inject_delay_s
+        self.times_s.1.max(self.arrival_s()) + self.inject_delay_s
     }
 
     /// Row `k`'s run, `case` at `at`, as a scenario: what [`Matrix::run_one`] judges, and
     /// what `hil-sim faults --trace` writes out.
     pub fn scenario(&self, k: u64, case: &Case, at: &OperatingPoint) -> Builtin {
-        let reference = if at.point == Point::Standstill {
-            Reference::Position(0.0)
-        } else {
-            Reference::Speed(at.speed_rad_s as f32)
-        };
         // An overload acts the way the operating point's load does (against the motion when
         // motoring, with it when generating). Generating at speed, it also carries the
         // motor's friction at the overspeed level: a load the drive's brake and the friction
@@ -633,21 +639,42 @@ impl Matrix {
             }
             other => other,
         };
+        let inject_s = self.inject_s();
+        self.point_run(k, row_name(case, at), at, Some((inject_s, injection)), inject_s + OBSERVE_S)
+    }
+
+    /// Row `k`'s run at `at` (its sensors seeded by `k`), named `about`: the reference and
+    /// the load at [`Matrix::reference_s`], then `fault` (its time and injection) if any,
+    /// for `duration_s`.
+    fn point_run(
+        &self,
+        k: u64,
+        about: String,
+        at: &OperatingPoint,
+        fault: Option<(f64, Injection)>,
+        duration_s: f64,
+    ) -> Builtin {
+        let reference = if at.point == Point::Standstill {
+            Reference::Position(0.0)
+        } else {
+            Reference::Speed(at.speed_rad_s as f32)
+        };
+        let mut events = vec![
+            (0.0, Event::Enable),
+            (self.reference_s(), Event::Reference(reference)),
+            (self.reference_s(), Event::LoadNm(at.load_nm)),
+        ];
+        events.extend(fault.map(|(t_s, injection)| (t_s, Event::Fault(injection))));
         Builtin {
             name: format!("faults-{k}"),
-            about: row_name(case, at),
+            about,
             spec: self.spec,
             plant: self.plant.map_or(self.spec.motor, |p| p.motor),
             plant_saturation: self.plant.and_then(|p| p.saturation),
             expect_fault: None,
             scenario: Scenario {
-                events: vec![
-                    (0.0, Event::Enable),
-                    (self.reference_s(), Event::Reference(reference)),
-                    (self.reference_s(), Event::LoadNm(at.load_nm)),
-                    (self.inject_s(), Event::Fault(injection)),
-                ],
-                duration_s: self.inject_s() + OBSERVE_S,
+                events,
+                duration_s,
                 vdc_v: self.vdc_v,
                 substeps: 1,
                 trace_every: 1,
