@@ -1266,7 +1266,7 @@ mod tests {
         assert!(o.passed(), "{:?}", o.failures);
     }
 
-    /// The 182 kW member (052) at its own 4.0 kHz as tune tunes it, run 68 of its 200-run
+    /// The 182 kW member (052) at its own 7.2 kHz as tune tunes it, run 68 of its 200-run
     /// campaign: a rotor ×1.236 hot, motoring to its top speed (314 rad/s, field weakening),
     /// 16 s at no load there, then 0.8 × the load it holds. At no load the speed loop's
     /// answers to the encoder's counts swing the load ratio |i_q|/i_d about the
