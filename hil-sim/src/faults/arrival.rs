@@ -36,29 +36,45 @@ impl Matrix {
             self.approaches
                 .par_iter()
                 .filter(|(at, _)| at.point != Point::Standstill)
-                .filter_map(|(at, a)| self.healthy_arrival_s(at, a.as_ref().ok()?.final_rad_s, horizon_s))
+                .filter_map(|(at, a)| {
+                    self.healthy_arrival_s(at, a.as_ref().ok()?.final_rad_s, ideal_s, horizon_s)
+                })
                 .reduce(|| 0.0, f64::max)
         })
     }
 
-    /// The last time the drive, run healthy at `at` for `horizon_s`, was farther than the
-    /// arrival band from `final_rad_s` or not running, s; `None` if that was within
-    /// [`OBSERVE_S`] of the run's end (it has not arrived), or the run failed.
-    fn healthy_arrival_s(&self, at: &OperatingPoint, final_rad_s: f64, horizon_s: f64) -> Option<f64> {
+    /// The last time the drive, run healthy at `at`, was farther than the arrival band from
+    /// `final_rad_s` or not running, s — the run stopped once it has stayed within the band
+    /// for [`OBSERVE_S`] and the ideal wait `ideal_s` has passed (nothing later moves the
+    /// injection), at `horizon_s` at the latest; `None` if it had not stayed so by then (it
+    /// has not arrived), or the run failed.
+    fn healthy_arrival_s(
+        &self,
+        at: &OperatingPoint,
+        final_rad_s: f64,
+        ideal_s: f64,
+        horizon_s: f64,
+    ) -> Option<f64> {
+        const ARRIVED: &str = "arrived";
         let run = self.point_run(0, format!("healthy at {}", at.name()), at, None, horizon_s);
         let band = ARRIVAL_BAND_FRACTION * REACHED_TOLERANCE_RAD_S;
         let mut away_s = 0.0;
-        run.run_into(
+        let end = run.run_into(
             |_| {},
             |r: &Row| {
                 let running = r.mode.is_none_or(|m| m == Mode::Running);
                 if !running || (r.x.omega_m_rad_s - final_rad_s).abs() > band {
                     away_s = r.t_s;
+                } else if r.t_s >= ideal_s && r.t_s - away_s >= OBSERVE_S {
+                    return Err(ARRIVED.into());
                 }
                 Ok(())
             },
-        )
-        .ok()?;
-        (away_s + OBSERVE_S <= horizon_s).then_some(away_s)
+        );
+        match end {
+            Err(e) if e == ARRIVED => Some(away_s),
+            Ok(_) => (away_s + OBSERVE_S <= horizon_s).then_some(away_s),
+            Err(_) => None,
+        }
     }
 }
