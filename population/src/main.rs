@@ -302,6 +302,17 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         population::run::families_table(&families)
     );
     outln!("{md}");
+    // Where the time went: each stage's wall time summed over the drives (which run side by
+    // side, so the sums exceed the run's).
+    let stages_s: Vec<f64> = (0..population::run::STAGES)
+        .map(|k| reports.iter().filter_map(|r| r.stages_s.get(k)).sum())
+        .collect();
+    let stages: Vec<String> = population::run::STAGE_NAMES
+        .iter()
+        .zip(&stages_s)
+        .map(|(name, t)| format!("{name} {t:.1} s"))
+        .collect();
+    outln!("stages, summed over the drives: {}", stages.join(", "));
     outln!(
         "{} drive(s) in {elapsed:.1} s on {} thread(s): {pass} pass, {refuse} refuse, {fail} FAIL, {error} ERROR",
         reports.len(),
@@ -318,6 +329,7 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         "matrix": !a.no_matrix,
         "speed": format!("{:?}", a.speed),
         "elapsed_s": elapsed,
+        "stages_s": stages_s,
         "counts": { "pass": pass, "refuse": refuse, "fail": fail, "error": error },
         "families": families,
         "reports": reports,

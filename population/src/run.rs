@@ -76,7 +76,18 @@ pub struct Report {
     pub verdict: Verdict,
     /// Wall time of the member, s.
     pub elapsed_s: f64,
+    /// Wall time of its stages — tune, the campaign, the fault matrix — s (0 for a stage
+    /// not run; 0 in a report written before they were timed). The drives run side by
+    /// side, so a stage's time shares the machine with another drive's.
+    #[serde(default)]
+    pub stages_s: [f64; STAGES],
 }
+
+/// The stages [`Report::stages_s`] times, in order.
+pub const STAGES: usize = 3;
+
+/// Their names.
+pub const STAGE_NAMES: [&str; STAGES] = ["tune", "campaign", "fault matrix"];
 
 /// What a run of the population does per member.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -234,6 +245,7 @@ pub fn evaluate(
         matrix_failures: Vec::new(),
         verdict: Verdict::Pass,
         elapsed_s: 0.0,
+        stages_s: [0.0; STAGES],
     };
     report.verdict = match judge(member, pwm_hz, root, plan, cancel, &mut report) {
         Ok(v) => v,
@@ -277,10 +289,14 @@ fn judge(
     // By default the speed law the requirements choose (issue 51): the saturated P where it
     // meets them, else the PI with its setpoint weight, else a refusal naming the requirement.
     let structure = Structure { current: CurrentDesign::Pi, speed: plan.speed };
-    let tuned = match design::tune::tune(path, &text, &member.motor, None, structure) {
+    let clock = std::time::Instant::now();
+    let tuned = design::tune::tune(path, &text, &member.motor, None, structure);
+    report.stages_s[0] = clock.elapsed().as_secs_f64();
+    let tuned = match tuned {
         Ok(t) => t,
         Err(reason) => return Ok(Verdict::Refuse { reason }),
     };
+    let clock = std::time::Instant::now();
     report.omega_c_rad_s = Some(tuned.omega_c_rad_s);
     let file = DriveFile::parse(path, &tuned.text).map_err(|e| format!("the tuned file: {e}"))?;
     let mut c = campaign_of(&file, vdc, plan.campaign_runs, plan.seed)?;
@@ -303,8 +319,11 @@ fn judge(
         }
     }
     report.campaign_failures = kinds;
+    report.stages_s[1] = clock.elapsed().as_secs_f64();
     if plan.matrix {
+        let clock = std::time::Instant::now();
         let outcomes = Matrix::of_file(&file, certify.omega_r_max_rad_s, vdc).run(|_| {}, cancel)?;
+        report.stages_s[2] = clock.elapsed().as_secs_f64();
         let ok = outcomes.iter().filter(|o| o.passed()).count() as u64;
         report.matrix = Some([ok, outcomes.len() as u64]);
         report.matrix_failures = outcomes
@@ -532,6 +551,7 @@ mod tests {
             matrix_failures: Vec::new(),
             verdict,
             elapsed_s: 0.0,
+            stages_s: [0.0; STAGES],
         };
         let refuse = || Verdict::Refuse { reason: String::new() };
         let reports = [
@@ -596,6 +616,10 @@ mod tests {
         let omega_c = r.omega_c_rad_s.unwrap_or_else(|| panic!("{:?}", r.verdict));
         assert!(omega_c > 1000.0, "crossover {omega_c} rad/s");
         assert_eq!(r.campaign.map(|c| c[1]), Some(64), "{:?}", r.verdict);
+        // Tune and the campaign timed, within the member's time; no matrix asked for.
+        let [tune_s, campaign_s, matrix_s] = r.stages_s;
+        assert!(tune_s > 0.0 && campaign_s > 0.0 && matrix_s == 0.0, "{:?}", r.stages_s);
+        assert!(tune_s + campaign_s <= r.elapsed_s, "{:?} of {}", r.stages_s, r.elapsed_s);
         let tripped: Vec<_> = r.campaign_failures.iter().filter(|(k, _)| k.contains("fault")).collect();
         assert!(tripped.is_empty(), "healthy runs tripped: {tripped:?}");
     }
@@ -1116,6 +1140,7 @@ mod tests {
             matrix_failures: matrix.iter().map(|s| (*s).into()).collect(),
             verdict: Verdict::Pass,
             elapsed_s: 0.0,
+            stages_s: [0.0; STAGES],
         };
         let reports = [
             report(
