@@ -683,6 +683,9 @@ mod target {
                 black_box(pwm.compare3(d));
             }
         });
+        // The drive as the measured periods left it: the stack's depth is measured on it
+        // (below), not on the drive the slow steps alone then ran.
+        let after_periods = drive;
         // The slow steps alone, the encoder going on where the periods left it, at the same
         // increment per read (a jump back would be `EncoderLoss`).
         // Its currents are the plan's references, rehearsed on a copy as above (the
@@ -699,6 +702,9 @@ mod target {
         let slow =
             per_call(&ticks, |k| drive.slow_step(&measure(black_box(slow_input(k)), k0 + N + divider * k)));
         let running = drive.mode() == Mode::Running;
+        if !running {
+            println!("cost: the drive left Running in its slow steps: {:?}", drive.mode());
+        }
         let fast = period - slow / divider as f32;
 
         // The firmware's own control-interrupt body, `firmware::interrupt::Shared::
@@ -985,14 +991,33 @@ mod target {
 
         // Stack depth of the firmware's interrupt body, `Drive::step` (the fast step, and
         // every slow_divider-th period the slow step): 20 periods from a painted stack.
+        // On the drive the measured periods left, going on from there (its encoder too), its
+        // currents rehearsed from there as above. (On the drive the slow steps alone had run
+        // — slow steps whose references no fast step turned, so the stuck-switch check's
+        // samples compared the currents with stale ones — the first after-slow check of these
+        // periods named `SwitchOpen` once the rotor-resistance law took another path.)
+        const STACK_PERIODS: u32 = 20;
+        let at = |k: u32| k0 + N + k;
+        let mut stacked = after_periods;
+        let mut stack_codes = [[AdcCode::default(); 4]; STACK_PERIODS as usize];
+        let mut rehearsal = stacked;
+        let mut i_ab = rehearsal.telemetry().i_ref_ab_a;
+        for (k, c) in (0u32..).zip(stack_codes.iter_mut()) {
+            let i = i_ab.inverse_clarke();
+            *c = [code(i.a), code(i.b), code(i.c), AdcCode(3100)];
+            rehearsal.step(&measure(*c, at(k)));
+            i_ab = rehearsal.telemetry().i_ref_ab_a;
+        }
         let sp = qemu_target::stack::pointer();
         let top = qemu_target::stack::paint();
-        // (The encoder goes on where the slow steps left it.)
-        for k in 0..20 {
-            black_box(drive.step(&measure(black_box(input(k)), k0 + N + divider * N + k)));
+        for (k, c) in (0u32..).zip(stack_codes) {
+            black_box(stacked.step(&measure(black_box(c), at(k))));
         }
         let stack = qemu_target::stack::depth_below(sp, top);
-        let running = running && drive.mode() == Mode::Running;
+        let running = running && stacked.mode() == Mode::Running;
+        if !running {
+            println!("cost: the drive left Running: {:?}", stacked.mode());
+        }
 
         println!("cost magnetizing_periods {k0}");
         println!("cost period {:.1}", period);
