@@ -1223,13 +1223,13 @@ mod tests {
     /// accuracy (0.0706 against 0.05). On the voltage the bridge was given, limited or not,
     /// the run meets its requirements: the flux within 0.0227 of the rated.
     /// The estimate itself is not the test's quantity: at that load ratio the law's evidence
-    /// error is amplified by 1/s(a) ≈ 13 (docs/rotor-resistance.md), and loaded it wanders
-    /// between ×1.192 and ×1.246 (`hil-sim campaign FILE --trace 109`); it ends at ×1.2132
-    /// since the present flux's limit is judged within half a count of the speed reading
-    /// (within 5 % of the rotor's before: another sample of the same wander).
+    /// error is amplified by 1/s(a) ≈ 13 (docs/rotor-resistance.md); loaded it wandered
+    /// between ×1.192 and ×1.246 while the law also heard the plans the speed loop had just
+    /// moved, and holds ×1.293–1.309 on steady plans only (flux 0.0037;
+    /// `hil-sim campaign FILE --trace 109`).
     /// The speed law is the one tune wrote when this was found (k_p 83.23, k_i 214.96,
-    /// setpoint weight 0.6), fixed here: tune's search moves on as the drive does (since the
-    /// references' precompensation it takes k_i 179.14 at weight 0.7, whose run 109 differs).
+    /// setpoint weight 0.6), fixed here: tune's search moves on as the drive does (it wrote
+    /// k_i 179.14 at weight 0.7 for a while, and these gains again since).
     #[test]
     fn a_loaded_motor_at_the_voltage_limit_holds_its_flux_on_the_rotor_resistance_it_reads() {
         use drive_file::requirements::Requirement::FluxAccuracy;
