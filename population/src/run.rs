@@ -183,6 +183,20 @@ pub fn campaign_of(file: &DriveFile, vdc_v: f64, runs: u64, seed: u64) -> Result
     })
 }
 
+/// The campaign `run` gives a tuned `file` ([`campaign_of`]), its runs long enough to reach
+/// the top speed ([`Campaign::full_range_duration_s`]), checked.
+pub fn full_range_campaign_of(
+    file: &DriveFile,
+    vdc_v: f64,
+    runs: u64,
+    seed: u64,
+) -> Result<Campaign, String> {
+    let mut c = campaign_of(file, vdc_v, runs, seed)?;
+    c.duration_s = c.duration_s.max(c.full_range_duration_s());
+    c.check()?;
+    Ok(c)
+}
+
 /// `text` with its `[controller]` table's `speed_feedback` set to `"sensorless"` (a drive run
 /// without its encoder).
 pub fn with_sensorless(text: &str) -> Result<String, String> {
@@ -299,10 +313,8 @@ fn judge(
     let clock = std::time::Instant::now();
     report.omega_c_rad_s = Some(tuned.omega_c_rad_s);
     let file = DriveFile::parse(path, &tuned.text).map_err(|e| format!("the tuned file: {e}"))?;
-    let mut c = campaign_of(&file, vdc, plan.campaign_runs, plan.seed)?;
+    let c = full_range_campaign_of(&file, vdc, plan.campaign_runs, plan.seed)?;
     let certify = c.certify;
-    c.duration_s = c.duration_s.max(c.full_range_duration_s());
-    c.check()?;
     // The corner runs tune ran and passed on this very campaign are not run twice.
     let from_tune = if tuned.passed_corner_runs_of(&c) { hil_sim::campaign::CORNER_RUNS } else { 0 };
     let verdicts = c.run_where(|k| k >= from_tune, |_| {}, cancel)?;
@@ -681,7 +693,17 @@ mod tests {
         motoring: bool,
     ) -> hil_sim::faults::Outcome {
         let (tuned, file, vdc) = tuned_member_with(index, name, pwm_hz, |t| Ok(t.into()), SpeedDesign::Auto);
-        let matrix = Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc);
+        matrix_row(&Matrix::of_file(&file, tuned.certify.omega_r_max_rad_s, vdc), case, point, motoring)
+    }
+
+    /// `matrix`'s row `case` at `point` (`motoring` or generating), run as the whole matrix
+    /// runs it.
+    fn matrix_row(
+        matrix: &Matrix,
+        case: &str,
+        point: hil_sim::faults::Point,
+        motoring: bool,
+    ) -> hil_sim::faults::Outcome {
         let rows = matrix.rows().unwrap();
         let (k, c, at) = rows
             .iter()
@@ -758,8 +780,7 @@ mod tests {
         let m = draw(1, 13, None).unwrap();
         let (tuned, path, vdc) = tune_member(&m, 10_000.0, Path::new(env!("CARGO_MANIFEST_DIR")));
         let file = DriveFile::parse(Path::new(&path), &tuned.text).unwrap();
-        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
-        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+        let c = full_range_campaign_of(&file, vdc, 200, 1).unwrap();
         assert!(tuned.passed_corner_runs_of(&c));
         let corners = c.run_where(|k| k < CORNER_RUNS, |_| {}, &AtomicBool::new(false)).unwrap();
         assert_eq!(corners.len() as u64, CORNER_RUNS);
@@ -787,8 +808,7 @@ mod tests {
         for sil in &tuned.sil_campaigns {
             assert_eq!(sil.spec.protection, file.spec.protection);
         }
-        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
-        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+        let c = full_range_campaign_of(&file, vdc, 200, 1).unwrap();
         assert!(tuned.passed_corner_runs_of(&c));
     }
 
@@ -1207,8 +1227,7 @@ mod tests {
     fn an_overmodulating_drive_reverses_at_top_speed_on_its_measured_currents() {
         let (_, file, vdc) = tuned_member(3, "003-1.3kW", 20_000.0, with_overmodulation);
         assert!(file.spec.overmodulation);
-        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
-        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+        let c = full_range_campaign_of(&file, vdc, 200, 1).unwrap();
         let faults = faulted(&c);
         assert!(faults.is_empty(), "{faults:#?}");
     }
@@ -1243,9 +1262,7 @@ mod tests {
             limit,
             setpoint_weight: 0.6,
         };
-        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
-        c.duration_s = c.duration_s.max(c.full_range_duration_s());
-        c.check().unwrap();
+        let c = full_range_campaign_of(&file, vdc, 200, 1).unwrap();
         let mut rr_scale = f64::NAN;
         let v = c
             .run_one_into(109, &AtomicBool::new(false), &mut |r| {
@@ -1263,8 +1280,9 @@ mod tests {
     /// reference, and the drive is within half the tolerance of it 53 ms after the ideal
     /// wait (its flux follows the falling reference with T_r = 0.69 s, and the flux left above
     /// it takes the voltage the torque needs): at the ideal wait it was at 663 rad/s, 15.5
-    /// short, and all 19 top-speed motoring rows failed "not reached". The matrix now injects once the drive, run healthy, has
-    /// arrived, and the row judges the fault at the point it names.
+    /// short, and all 19 top-speed motoring rows failed "not reached". The matrix now
+    /// injects once the drive, run healthy, has arrived, and the row judges the fault at the
+    /// point it names.
     #[test]
     fn a_drive_slower_than_its_ideal_approach_takes_its_faults_once_it_has_arrived() {
         use hil_sim::faults::{Point, REACHED_TOLERANCE_RAD_S, SETTLE_EXTRA_S};
@@ -1276,13 +1294,8 @@ mod tests {
             points.iter().filter_map(|p| matrix.approach(p).ok()).map(|a| a.settle_s).fold(0.0, f64::max);
         let ideal_s = matrix.reference_s() + settle_s + SETTLE_EXTRA_S;
         assert!(matrix.inject_s() > ideal_s + 0.02, "{} against the ideal wait {ideal_s}", matrix.inject_s());
-        let rows = matrix.rows().unwrap();
-        let (k, c, at) = rows
-            .iter()
-            .find(|(_, c, at)| c.name == "encoder stuck" && at.point == Point::Top && at.motoring)
-            .unwrap();
-        let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
-        let target = matrix.approach(at).unwrap().final_rad_s;
+        let o = matrix_row(&matrix, "encoder stuck", Point::Top, true);
+        let target = matrix.approach(&o.at).unwrap().final_rad_s;
         assert!(
             (o.speed_at_injection_rad_s - target).abs() <= REACHED_TOLERANCE_RAD_S,
             "{} rad/s at the injection against {target}",
@@ -1304,9 +1317,7 @@ mod tests {
     #[test]
     fn a_hot_rotor_at_no_load_keeps_the_resistance_its_fit_read() {
         let (_, file, vdc) = tuned_member_with(52, "052-182kW", None, |t| Ok(t.into()), SpeedDesign::Auto);
-        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
-        c.duration_s = c.duration_s.max(c.full_range_duration_s());
-        c.check().unwrap();
+        let c = full_range_campaign_of(&file, vdc, 200, 1).unwrap();
         // The estimate on the last period before the load step.
         let mut rr_unloaded = f64::NAN;
         let v = c
@@ -1406,12 +1417,7 @@ mod tests {
         // Sensor seed 1: 210 A through the diodes with the PI tune wrote when this was found
         // (seed 0's 201 A lay just under the limit).
         matrix.seed = 1;
-        let rows = matrix.rows().unwrap();
-        let (k, c, at) = rows
-            .iter()
-            .find(|(_, c, at)| c.name == "bus sag" && at.point == Point::Top && !at.motoring)
-            .unwrap();
-        let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
+        let o = matrix_row(&matrix, "bus sag", Point::Top, false);
         let limit = hil_sim::faults::PEAK_CURRENT_FRACTION * matrix.spec.protection.i_trip_a;
         assert_eq!(o.detected.map(|(f, _)| f), Some(controller_core::drive::Fault::DcBusUndervoltage));
         assert_eq!(o.off_after_periods, Some(0));
@@ -1445,14 +1451,9 @@ mod tests {
         let unbanded = DriveFile { spec: DriveSpec { speed_resolution_rad_s: 0.0, ..file.spec }, ..file };
         for (f, banded) in [(&file, true), (&unbanded, false)] {
             let matrix = Matrix::of_file(f, tuned.certify.omega_r_max_rad_s, vdc);
-            let rows = matrix.rows().unwrap();
             let mut tripped_on_the_way = Vec::new();
             for case in ["L_m step × 0.8 (saturation)", "overload (1.5 × τ_max)"] {
-                let (k, c, at) = rows
-                    .iter()
-                    .find(|(_, c, at)| c.name == case && at.point == Point::Top && !at.motoring)
-                    .unwrap();
-                let o = matrix.run_one(*k, c, at, matrix.expect(c, at), &AtomicBool::new(false)).unwrap();
+                let o = matrix_row(&matrix, case, Point::Top, false);
                 if banded {
                     assert!(o.passed(), "band {banded}: {case}: {:?}", o.failures);
                 }
@@ -1475,8 +1476,7 @@ mod tests {
     fn a_loaded_motor_at_top_speed_holds_its_flux_through_the_speed_readings_dither() {
         use drive_file::requirements::Requirement::FluxAccuracy;
         let (_, file, vdc) = tuned_member(20, "020-73kW", 20_000.0, |t| Ok(t.into()));
-        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
-        c.duration_s = c.duration_s.max(c.full_range_duration_s());
+        let c = full_range_campaign_of(&file, vdc, 200, 1).unwrap();
         for band in [file.spec.speed_resolution_rad_s, 0.0] {
             let c = Campaign { spec: DriveSpec { speed_resolution_rad_s: band, ..c.spec }, ..c };
             let v = c.run_one(112, &AtomicBool::new(false)).unwrap();
@@ -1522,9 +1522,7 @@ mod tests {
     fn a_slow_rotors_voltage_regulator_holds_its_flux_at_top_speed() {
         use drive_file::requirements::Requirement::FluxAccuracy;
         let (_, file, vdc) = tuned_member(10, "010-153kW", 20_000.0, |t| Ok(t.into()));
-        let mut c = campaign_of(&file, vdc, 200, 1).unwrap();
-        c.duration_s = c.duration_s.max(c.full_range_duration_s());
-        c.check().unwrap();
+        let c = full_range_campaign_of(&file, vdc, 200, 1).unwrap();
         for k in [77, 88, 97, 172, 177, 196] {
             let v = c.run_one(k, &AtomicBool::new(false)).unwrap();
             let flux = v.measures.iter().find(|m| m.requirement == FluxAccuracy).unwrap();
