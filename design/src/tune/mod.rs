@@ -69,7 +69,7 @@
 //! template that does not state `inductance_range` gets the box's: a spread the drive does
 //! not estimate is a flux error of that size.
 
-use crate::certify::{CertifySpec, Check, certify_current, certify_speed};
+use crate::certify::{CertifySpec, Check, certify_current, certify_speed, current_passes};
 use crate::pi_region::SpeedRegions;
 use controller_core::current::CurrentLaw;
 use controller_core::discretize::ContinuousSection;
@@ -423,11 +423,8 @@ fn tune_with(
                         || stationary_steady_error(law(w), r, sigma_ls, cert.omega_r_max_rad_s)
                             <= f64::from(controller_core::drive::CURRENT_TRIM_RANGE)
                 };
-                let pass = |w: f64| {
-                    Ok::<_, String>(
-                        steady(w) && certify_current(&with_law(&spec, law(w)), &cert)?.iter().all(|c| c.pass),
-                    )
-                };
+                let pass =
+                    |w: f64| Ok::<_, String>(steady(w) && current_passes(&with_law(&spec, law(w)), &cert)?);
                 if let Some(w) = search_down(grid, pass)? {
                     found = Some((w, frame));
                 }

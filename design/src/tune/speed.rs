@@ -241,7 +241,7 @@ impl SpeedPiSearch<'_> {
         let mut screen = Screen { prediction: campaigns.prediction()?, hard: Vec::new() };
         // The certificate of a speed law: the current loops' checks (fixed here: the speed
         // law is none of their inputs), worked out once, and the speed loops'.
-        let current_passes = certify_current(spec, cert)?.iter().all(|c| c.pass);
+        let current_passes = crate::certify::current_passes(spec, cert)?;
         let certified = |law: &SpeedLaw| -> Result<bool, String> {
             let speed = certify_speed(&DriveSpec { speed_law: *law, ..*spec }, cert)?;
             Ok(current_passes && speed.iter().all(|c| c.pass))
