@@ -32,6 +32,40 @@ impl Rng {
     }
 }
 
+/// [`Rng::normal`]'s deviates, the same stream, made [`NORMALS_BATCH`] at a time: the
+/// sensors draw three every PWM period and feed them straight to the drive, which, drawn one
+/// by one, waited on each one's logarithm and cosine; in a batch the processor overlaps them.
+#[derive(Clone, Debug)]
+pub struct Normals {
+    rng: Rng,
+    batch: [f64; NORMALS_BATCH],
+    /// The next deviate's index in `batch` (`NORMALS_BATCH`: none left).
+    next: usize,
+}
+
+/// The deviates [`Normals`] makes at a time.
+pub const NORMALS_BATCH: usize = 64;
+
+impl Normals {
+    /// The deviates of the stream `rng`.
+    pub fn new(rng: Rng) -> Self {
+        Self { rng, batch: [0.0; NORMALS_BATCH], next: NORMALS_BATCH }
+    }
+
+    /// The next standard normal deviate: `rng.normal()`'s next.
+    pub fn normal(&mut self) -> f64 {
+        if self.next >= NORMALS_BATCH {
+            for z in &mut self.batch {
+                *z = self.rng.normal();
+            }
+            self.next = 0;
+        }
+        let z = self.batch.get(self.next).copied().unwrap_or(0.0);
+        self.next += 1;
+        z
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -43,5 +77,15 @@ mod tests {
         let mut r = Rng(1234567);
         let got: Vec<u64> = (0..3).map(|_| r.next_u64()).collect();
         assert_eq!(got, [6457827717110365317, 3203168211198807973, 9817491932198370423]);
+    }
+
+    /// The batches are `Rng::normal`'s stream, bit for bit, across batch boundaries.
+    #[test]
+    fn the_batches_are_the_streams_deviates() {
+        let mut rng = Rng(3);
+        let one_by_one: Vec<u64> = (0..3 * NORMALS_BATCH + 1).map(|_| rng.normal().to_bits()).collect();
+        let mut g = Normals::new(Rng(3));
+        let batched: Vec<u64> = (0..one_by_one.len()).map(|_| g.normal().to_bits()).collect();
+        assert_eq!(batched, one_by_one);
     }
 }

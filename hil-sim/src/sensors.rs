@@ -2,7 +2,7 @@
 //! quantisation), DC-bus measurement (quantisation) and an incremental encoder whose counts
 //! go through the same estimator the firmware uses ([`controller_core::encoder`]).
 
-use crate::rng::Rng;
+use crate::rng::{Normals, Rng};
 use controller_core::encoder::{EncoderConfig, EncoderError, EncoderReading, EncoderState};
 use controller_core::frames::Abc;
 use std::f64::consts::TAU;
@@ -126,7 +126,8 @@ fn counts_at(theta_m_rad: f64, lines: u32) -> i64 {
 #[derive(Clone, Debug)]
 pub struct Sensors {
     model: SensorModel,
-    rng: Rng,
+    /// The current sensors' noise, seeded by the model's seed.
+    noise: Normals,
     encoder: Option<(EncoderConfig<ENCODER_WINDOW>, EncoderState<ENCODER_WINDOW>, u32)>,
     last: EncoderReading,
     /// The current ADC is exact (no gain/offset error, noise or quantisation).
@@ -162,7 +163,7 @@ impl Sensors {
             && model.current_noise_rms_a == 0.0;
         Ok(Self {
             model,
-            rng: Rng(model.seed),
+            noise: Normals::new(Rng(model.seed)),
             encoder,
             last: EncoderReading::default(),
             exact_currents,
@@ -210,7 +211,7 @@ impl Sensors {
                 m.current_offset_a.get(k).copied().unwrap_or(0.0),
             );
             let noise =
-                if m.current_noise_rms_a > 0.0 { m.current_noise_rms_a * self.rng.normal() } else { 0.0 };
+                if m.current_noise_rms_a > 0.0 { m.current_noise_rms_a * self.noise.normal() } else { 0.0 };
             let i = true_abc.get(k).copied().unwrap_or(0.0);
             *o = quantize(g * i + off + noise, m.current_lsb_a) as f32;
         }
