@@ -77,6 +77,10 @@ struct RunArgs {
     /// Run each member at its board's own PWM rate (drawn from 4–20 kHz) instead of `--pwm`'s.
     #[arg(long)]
     own_pwm: bool,
+    /// Run member i at the (i mod n)-th of `--pwm`'s n rates instead of at every one: one drive
+    /// per member, the rates taken in turn (the CI's sample: `cargo xtask population`).
+    #[arg(long, conflicts_with = "own_pwm")]
+    pwm_in_turn: bool,
     /// Campaign runs per member (the box's 64 corner runs first).
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(1..=100_000))]
     campaign_runs: u64,
@@ -242,6 +246,15 @@ fn shipped_hint(m: &Member, file: &Path) -> Option<String> {
     }
 }
 
+/// The drives of a run: every member at every rate, or (`in_turn`) member i at rate i mod n.
+fn drives<'a>(all: &'a [Member], rates: &[Option<f64>], in_turn: bool) -> Vec<(&'a Member, Option<f64>)> {
+    if in_turn {
+        all.iter().zip(rates.iter().cycle()).map(|(m, r)| (m, *r)).collect()
+    } else {
+        all.iter().flat_map(|m| rates.iter().map(move |r| (m, *r))).collect()
+    }
+}
+
 /// Largest share of refusals a sample may have (issue 49's acceptance).
 const REFUSE_MAX_SHARE: f64 = 0.10;
 
@@ -250,8 +263,7 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
     let all = members(&a.select)?;
     let rates: Vec<Option<f64>> =
         if a.own_pwm { vec![None] } else { a.pwm.iter().map(|f| Some(*f)).collect() };
-    let jobs: Vec<(&Member, Option<f64>)> =
-        all.iter().flat_map(|m| rates.iter().map(move |r| (m, *r))).collect();
+    let jobs = drives(&all, &rates, a.pwm_in_turn);
     let plan = Plan {
         campaign_runs: a.campaign_runs,
         seed: a.select.seed,
@@ -262,9 +274,11 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
     };
     report::write::check_dir(&a.out)?;
     eprintln!(
-        "population: {} member(s) × {} rate(s) = {} drive(s): tune, campaign of {} runs{}",
+        "population: {} member(s) {} {} rate(s){} = {} drive(s): tune, campaign of {} runs{}",
         all.len(),
+        if a.pwm_in_turn { "each at one of" } else { "×" },
         rates.len(),
+        if a.pwm_in_turn { " in turn" } else { "" },
         jobs.len(),
         plan.campaign_runs,
         if plan.matrix { ", fault matrix" } else { "" }
@@ -325,6 +339,7 @@ fn run(a: &RunArgs, cancel: &AtomicBool) -> Result<bool, String> {
         "shipped": a.select.shipped,
         // null: each board's own.
         "pwm_hz": if a.own_pwm { None } else { Some(&a.pwm) },
+        "pwm_in_turn": a.pwm_in_turn,
         "campaign_runs": a.campaign_runs,
         "matrix": !a.no_matrix,
         "speed": format!("{:?}", a.speed),
@@ -495,6 +510,7 @@ mod tests {
             select: select(0),
             pwm: vec![20_000.0],
             own_pwm: false,
+            pwm_in_turn: false,
             campaign_runs: 200,
             no_matrix: false,
             speed: design::tune::SpeedDesign::Auto,
@@ -527,6 +543,21 @@ mod tests {
             args(&["population", "run", "--own-pwm", "--pwm", "4000"]),
             Err(clap::error::ErrorKind::ArgumentConflict)
         );
+    }
+
+    /// `--pwm-in-turn` runs each member once, the rates in turn; without it every member at
+    /// every rate.
+    #[test]
+    fn the_rates_in_turn_give_one_drive_per_member() {
+        let all: Vec<Member> = (0..5).map(|i| member::draw(1, i, None).unwrap()).collect();
+        let (r4, r10, r20) = (Some(4_000.0), Some(10_000.0), Some(20_000.0));
+        let rates = [r4, r10, r20];
+        let turn: Vec<(String, Option<f64>)> =
+            drives(&all, &rates, true).into_iter().map(|(m, r)| (m.name.clone(), r)).collect();
+        let want: Vec<(String, Option<f64>)> =
+            all.iter().zip([r4, r10, r20, r4, r10]).map(|(m, r)| (m.name.clone(), r)).collect();
+        assert_eq!(turn, want);
+        assert_eq!(drives(&all, &rates, false).len(), 15);
     }
 
     /// A shipped member is written too, as `run` tunes it, with the command that tunes it on
