@@ -186,6 +186,7 @@ fn campaign_result(
         "omega_s_rad_s",
         "box",
         "criteria",
+        "diagnostics",
         "per_manoeuvre",
         "requirements",
         "requirements_missed",

@@ -60,7 +60,9 @@ fn the_shipped_box_passes_the_campaign_with_the_inductance_measured() {
 /// both resistances over the shipped box's whole temperature range (R_s ×[1, 1.5], R_r
 /// ×[1, 2], the rotor's measured and adapted by the drive), inertia ×[1, 2] — every run
 /// passes, the corners and seeded samples. Before the adaptation the same box held only with
-/// R_r within +20 % (`rotor_resistance_range = [1, 1]` below: the hot corners fail on flux).
+/// R_r within +20 % (`rotor_resistance_range = [1, 1]` below: at the hot corners the flux
+/// leaves the drive's model — the diagnostic — and, loaded, misses its reference — the
+/// verdict).
 #[test]
 fn a_commissioned_box_passes_every_run() {
     let mut c = shipped(96);
@@ -73,8 +75,18 @@ fn a_commissioned_box_passes_every_run() {
     eprintln!("commissioned box: 96 of 96 pass; flux at most {worst:.3} of the model's");
     c.spec.rotor_resistance_range = [1.0, 1.0];
     let fixed = run(&c);
-    let hot_flux = fixed.iter().filter(|v| v.sample.rr == 2.0).all(|v| v.failures.contains(&"flux"));
-    assert!(hot_flux, "without the adaptation every R_r ×2 corner runs the flux above its bound");
+    for v in fixed.iter().filter(|v| v.sample.rr == 2.0) {
+        let band = hil_sim::campaign::FLUX_MODEL_BAND;
+        assert!(v.flux_ratio[1] > band[1], "without the adaptation the flux leaves the model: {}", v.csv());
+        // Loaded, the slip the drive computes with the cold rotor's time constant turns the
+        // field away: the steady flux misses its reference. The reversal ends at no load,
+        // where the slip is nil and the flux is right again (its excess was transient).
+        let loaded = v.manoeuvre != Manoeuvre::Reversal;
+        if !loaded {
+            eprintln!("R_r ×2 without the estimate, the reversal: {}", v.csv());
+        }
+        assert_eq!(v.requirements_missed().contains(&Requirement::FluxAccuracy), loaded, "{}", v.csv());
+    }
 }
 
 /// Shards make the same runs as the whole campaign, bit for bit (each run's parameters,

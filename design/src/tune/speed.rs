@@ -391,7 +391,7 @@ pub(super) fn sil_misses(c: &hil_sim::campaign::Campaign) -> Result<Option<SilMi
 
 impl SilMiss {
     /// The misses of `runs` corner runs, `counts` each failed criterion (a requirement's key,
-    /// or `fault`, `flux`, `oscillation`: `hil_sim::campaign::Verdict::failures`) with the
+    /// or `fault`, `oscillation`: `hil_sim::campaign::Verdict::failures`) with the
     /// runs that failed it — `None` when there are none.
     pub(super) fn of(counts: &[(String, usize)], runs: usize) -> Option<Self> {
         let shaped = |f: &str| {

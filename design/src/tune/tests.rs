@@ -825,9 +825,14 @@ fn only_an_overshoot_or_a_settling_time_steps_the_setpoint_weight_down() {
         overshoot.words,
         "speed_overshoot_fraction in 1 of 64 runs, speed_settling_time_s in 3 of 64 runs"
     );
-    for other in
-        ["fault", "flux", "oscillation", "speed_rise_time_s", "load_dip_fraction", "torque_accuracy_fraction"]
-    {
+    for other in [
+        "fault",
+        "oscillation",
+        "speed_rise_time_s",
+        "load_dip_fraction",
+        "torque_accuracy_fraction",
+        "flux_accuracy_fraction",
+    ] {
         assert!(!misses(&[("speed_overshoot_fraction", 1), (other, 1)]).unwrap().shaped_only, "{other}");
     }
     // The weights step down one at a time, to 0 and no further; a P law has none.

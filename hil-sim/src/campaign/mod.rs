@@ -26,18 +26,21 @@
 //! runs shorter than [`Campaign::full_range_duration_s`] stay below the top speed — a large
 //! motor's far below its base speed.
 //!
-//! **Criteria** (each run; [`Verdict`]):
-//! - no fault latched;
-//! - tracking: the speed stays within [`TRACKING_FRACTION`]·ω_s + [`TRACKING_FLOOR_RAD_S`]
-//!   of the same speed law driving an *ideal* torque actuator on the same mechanics with the
-//!   same load ([`IdealLoop`]) — the drive's current loops, field orientation and operating
-//!   point are what is judged, not the speed law's chosen slowness;
-//! - flux: the machine's rotor flux between [`FLUX_BOUNDS`] of the drive's flux model once
-//!   magnetized (detuned corners run at a different flux than the model thinks; a collapse or
-//!   a saturation-level excess fails; the model, not the reference, so that the flux's own
-//!   T_r lag in field weakening is not counted);
-//! - no oscillation: torque peak to peak about its trend line over the last
-//!   [`RIPPLE_WINDOW_S`] below [`RIPPLE_FRACTION`]·τ_max.
+//! **Verdict** (each run; [`Verdict`]): no fault latched; every requirement of the file's
+//! `[requirements]` met ([`crate::requirements`]: the machine's own speed, torque and rotor
+//! flux against what the user asked — the flux's steady error against the drive's flux
+//! reference among them); and no oscillation: torque peak to peak about its trend line over
+//! the last [`RIPPLE_WINDOW_S`] below [`RIPPLE_FRACTION`]·τ_max.
+//!
+//! **Diagnostics** (recorded in `campaign.csv` and `summary.json`, never a verdict: the drive
+//! against its own shadow, issue 51):
+//! - tracking: the largest distance from the same speed law driving an *ideal* torque
+//!   actuator on the same mechanics with the same load ([`IdealLoop`]), beside
+//!   [`TRACKING_FRACTION`]·ω_s + [`TRACKING_FLOOR_RAD_S`] (`campaign.svg`);
+//! - flux: the machine's rotor flux over the drive's flux model once magnetized; the runs
+//!   that leave [`FLUX_MODEL_BAND`] are listed (a model that does not know the machine — a
+//!   corner the estimates do not reach — shows there first; whether the flux the drive then
+//!   makes is the one asked is the requirement's verdict).
 
 use crate::inverter::InverterModel;
 mod ideal;
@@ -87,8 +90,9 @@ const FRICTION_BOUND_STEPS: u32 = 30;
 pub const TRACKING_FRACTION: f64 = 0.05;
 /// … plus this, rad/s.
 pub const TRACKING_FLOOR_RAD_S: f64 = 2.0;
-/// Rotor flux over the drive's flux model ψ̂_r, once magnetized: inside these bounds.
-pub const FLUX_BOUNDS: [f64; 2] = [0.5, 1.3];
+/// Rotor flux over the drive's flux model ψ̂_r, once magnetized: a run outside this band is
+/// listed among the diagnostics (`flux_outside_model` in `summary.json`), not failed.
+pub const FLUX_MODEL_BAND: [f64; 2] = [0.5, 1.3];
 /// Torque ripple is measured over the last this long of the run, s: the requirements'
 /// steady-state window.
 pub const RIPPLE_WINDOW_S: f64 = judge::STEADY_WINDOW_S;
@@ -315,7 +319,8 @@ pub struct Verdict {
     /// Largest |ω − ω_ideal| after the speed step, rad/s: a diagnostic (the drive against
     /// its own speed law on an ideal actuator), not a criterion.
     pub tracking_error_rad_s: f64,
-    /// Smallest and largest |ψ_r|/ψ̂_r (the drive's flux model) once magnetized.
+    /// Smallest and largest |ψ_r|/ψ̂_r (the drive's flux model) once magnetized: a
+    /// diagnostic ([`FLUX_MODEL_BAND`]), not a criterion.
     pub flux_ratio: [f64; 2],
     /// Torque peak to peak about its trend over the last [`RIPPLE_WINDOW_S`], N·m.
     pub ripple_nm: f64,
@@ -326,7 +331,8 @@ pub struct Verdict {
     /// The first speed step's response: (s since the step, the fraction of the step
     /// covered), at most [`STEP_RESPONSE_POINTS`] points (for [`requirements_plot`]).
     pub step_response: Vec<(f64, f64)>,
-    /// Why it failed (empty: passed): a criterion's name, or a requirement's key.
+    /// Why it failed (empty: passed): a criterion's name (`fault`, `oscillation`), or a
+    /// requirement's key.
     pub failures: Vec<&'static str>,
 }
 
@@ -336,8 +342,8 @@ impl Verdict {
         self.failures.is_empty()
     }
 
-    /// The campaign's own criteria that failed — a fault, a flux collapse, an oscillation:
-    /// what no requirement excuses.
+    /// The campaign's own criteria that failed — a fault, an oscillation: what no
+    /// requirement excuses.
     pub fn criteria_failed(&self) -> Vec<&'static str> {
         self.failures
             .iter()
@@ -798,9 +804,6 @@ impl Campaign {
         let mut failures = Vec::new();
         if faulted || mode != Mode::Running {
             failures.push("fault");
-        }
-        if !(flux[0] >= FLUX_BOUNDS[0] && flux[1] <= FLUX_BOUNDS[1]) {
-            failures.push("flux");
         }
         if ripple.is_nan() || ripple > RIPPLE_FRACTION * torque_limit_nm(&self.spec) {
             failures.push("oscillation");

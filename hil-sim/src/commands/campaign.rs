@@ -176,6 +176,17 @@ pub fn campaign(a: &CampaignOptions) -> Result<(), String> {
             ),
         }
     }
+    let outside = crate::campaign::flux_outside_model(&verdicts);
+    if !outside.is_empty() {
+        let [lo, hi] = crate::campaign::FLUX_MODEL_BAND;
+        let shown: Vec<String> = outside.iter().take(12).map(u64::to_string).collect();
+        let more = if outside.len() > shown.len() { ", …" } else { "" };
+        report::outln!(
+            "flux outside {lo}…{hi} of the drive's model (a diagnostic, not a verdict) in {} run(s): {}{more}",
+            outside.len(),
+            shown.join(", ")
+        );
+    }
     report::outln!(
         "{:<36} {:>6} {:>6} {:>12} {:>12} {:>9}",
         "requirement",
