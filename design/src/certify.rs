@@ -124,10 +124,9 @@ pub fn certify_current(spec: &DriveSpec, c: &CertifySpec) -> Result<Vec<Check>, 
 /// Whether every current check of the certificate passes ([`certify_current`]'s verdict,
 /// the same checks): corner by corner, and within a corner the margins at ω_r,max (one
 /// frequency sweep each) before the stability sweeps over 0…ω_r,max (an eigenvalue problem
-/// every 5 rad/s), stopping at the first that fails. `design tune`'s crossover search tries
-/// most of its candidates above the one it takes: each used to cost the whole certificate
-/// (≈ 3 s a drive of the population, a fifth of its tune), and a failing one now costs
-/// what it takes to fail.
+/// every 5 rad/s), stopping at the first that fails: `design tune`'s crossover search tries
+/// most of its candidates above the one it takes, and a failing one costs what it takes to
+/// fail, not the whole certificate.
 pub fn current_passes(spec: &DriveSpec, c: &CertifySpec) -> Result<bool, String> {
     for corner in current_corners(c) {
         if current_corner_checks(spec, c, corner, Stop::AtFirstFailure)?.iter().any(|k| !k.pass) {

@@ -543,6 +543,10 @@ mod tests {
             args(&["population", "run", "--own-pwm", "--pwm", "4000"]),
             Err(clap::error::ErrorKind::ArgumentConflict)
         );
+        assert_eq!(
+            args(&["population", "run", "--own-pwm", "--pwm-in-turn"]),
+            Err(clap::error::ErrorKind::ArgumentConflict)
+        );
     }
 
     /// `--pwm-in-turn` runs each member once, the rates in turn; without it every member at
