@@ -211,7 +211,10 @@ impl OpenPhaseWindow {
     /// - the motor *carries no current* when the reference does (the sum of the mean
     ///   |i_ref| at least twice the commanded level) and the measured sum is below
     ///   [`OPEN_PHASE_ABSENT_FRACTION`] of it (no lead connected, or every sensor dead: the
-    ///   current-sum check cannot see three sensors reading zero).
+    ///   current-sum check cannot see three sensors reading zero), and no phase looks open:
+    ///   an open lead met with the reference along its own phase leaves the other two only
+    ///   the reference's small component across them, under that fraction of the sum but
+    ///   clear of the sensors' noise, which no current at all is not.
     ///
     /// Either must hold for [`OPEN_PHASE_WINDOWS`] windows in a row — a healthy phase passes
     /// its zero crossing, and slow current loops (seed 000's) catch up, within one — to give
@@ -258,13 +261,11 @@ impl OpenPhaseWindow {
         let looks_open = |r: f32, last: f32, i: f32| looks_open(commanded, [r_sum, i_sum], [r, last], i);
         let count = |n: u8, now: bool| if now { n.saturating_add(1) } else { 0 };
         let ([sa, sb, sc], last) = (self.suspect, self.last_reference);
-        let suspect = [
-            count(sa, looks_open(r.a, last.a, i.a)),
-            count(sb, looks_open(r.b, last.b, i.b)),
-            count(sc, looks_open(r.c, last.c, i.c)),
-        ];
-        let no_current =
-            count(self.no_current, r_sum >= 2.0 * commanded && i_sum < OPEN_PHASE_ABSENT_FRACTION * r_sum);
+        let open = [looks_open(r.a, last.a, i.a), looks_open(r.b, last.b, i.b), looks_open(r.c, last.c, i.c)];
+        let suspect = [count(sa, open[0]), count(sb, open[1]), count(sc, open[2])];
+        // Two phases carrying current (a phase looks open only then) is no motor without it.
+        let absent = r_sum >= 2.0 * commanded && i_sum < OPEN_PHASE_ABSENT_FRACTION * r_sum;
+        let no_current = count(self.no_current, absent && open == [false; 3]);
         *self = Self { suspect, no_current, last_reference: r, ..Self::default() };
         if no_current >= OPEN_PHASE_WINDOWS {
             Some(Fault::NoMotorCurrent)
@@ -784,6 +785,26 @@ mod tests {
         let (deg, fault) = run(&|_| 1.0, &stuck).unwrap();
         assert_eq!(fault, Fault::SwitchOpen);
         assert!(deg < 1800 + 720, "named at {deg}°");
+    }
+
+    /// An open lead met with the reference along its own phase (the tuned DeLorenzo
+    /// appendix drive's phase a at mid-speed generating: 0.72 A asked of a, 0.36 A of b and
+    /// c) leaves b and c only the reference's component across them, which starts at nil:
+    /// they carry 0.06 A each, a twelfth of the references' sum — under
+    /// [`OPEN_PHASE_ABSENT_FRACTION`] of it, as with no motor connected — yet well above the
+    /// sensors' noise, which a motor carrying no current would not. That is
+    /// [`Fault::OpenPhase`] (it was `NoMotorCurrent` after two windows); three phases at
+    /// nothing are still [`Fault::NoMotorCurrent`].
+    #[test]
+    fn two_phases_carrying_current_are_no_missing_motor_current() {
+        let reference = Abc { a: 0.72, b: -0.36, c: -0.36 };
+        let verdict = |measured: Abc| {
+            let mut w = OpenPhaseWindow::default();
+            (0..3 * 5).find_map(|_| w.add(reference, measured, 5, 0.7, 0.1))
+        };
+        assert_eq!(verdict(Abc { a: 0.0, b: 0.06, c: -0.06 }), Some(Fault::OpenPhase));
+        assert_eq!(verdict(Abc { a: 0.0, b: 0.0, c: 0.0 }), Some(Fault::NoMotorCurrent));
+        assert_eq!(verdict(Abc { a: 0.004, b: -0.003, c: 0.005 }), Some(Fault::NoMotorCurrent));
     }
 
     /// A healthy channel's gain error of 1.5 % (within `CURRENT_SENSOR_GAIN_TOLERANCE`) on
