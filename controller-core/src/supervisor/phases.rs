@@ -793,8 +793,8 @@ mod tests {
     /// they carry 0.06 A each, a twelfth of the references' sum — under
     /// [`OPEN_PHASE_ABSENT_FRACTION`] of it, as with no motor connected — yet well above the
     /// sensors' noise, which a motor carrying no current would not. That is
-    /// [`Fault::OpenPhase`] (it was `NoMotorCurrent` after two windows); three phases at
-    /// nothing are still [`Fault::NoMotorCurrent`].
+    /// [`Fault::OpenPhase`]; three phases at nothing (or at the sensors' noise) are
+    /// [`Fault::NoMotorCurrent`].
     #[test]
     fn two_phases_carrying_current_are_no_missing_motor_current() {
         let reference = Abc { a: 0.72, b: -0.36, c: -0.36 };

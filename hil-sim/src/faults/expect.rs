@@ -104,9 +104,10 @@ impl Matrix {
             // At rest the current vector stands still, wherever the position hold left it:
             // along the open phase's axis it asks the other two phases equal currents, which
             // the open lead holds at zero between them — the motor carries no current at all,
-            // which `NoMotorCurrent` names (a 270 W 34 V member, the 3 300 V drive: the vector
-            // within a few degrees of phase a). Telling it from three open leads would take a
-            // probe current the plan does not ask for; the bridge goes off either way.
+            // which `NoMotorCurrent` names (a 270 W 34 V member: the vector within a few degrees
+            // of phase a; further off, b and c carry a current clear of the noise: `OpenPhase`).
+            // Telling it from three open leads would take a probe current the plan does not
+            // ask for; the bridge goes off either way.
             Injection::OpenPhase { .. } if rest => Expect::Either {
                 faults: &[Fault::OpenPhase, Fault::NoMotorCurrent],
                 bound_s: OPEN_PHASE_BOUND_S,
